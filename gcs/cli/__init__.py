@@ -1,0 +1,1 @@
+"""The `fleetplan` command: one module per subcommand, dispatched from `gcs.cli.main`."""

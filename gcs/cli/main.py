@@ -1,0 +1,49 @@
+"""Entry point of the `fleetplan` command.
+
+Each subcommand lives in its own module exposing `configure(parser)` (arguments only, cheap
+imports) and `run(args) -> int` (the work, heavy imports inside), so `fleetplan --help` stays
+fast and the subcommands stay independent of each other.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+__all__ = ["build_parser", "main"]
+
+#: (subcommand, module, one-line help)
+COMMANDS: tuple[tuple[str, str, str], ...] = (
+    ("plan", "gcs.cli.plan_cmd", "plan collision-free trajectories for a scenario"),
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser, one sub-parser per subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="fleetplan",
+        description="Plan, check and fly collision-free quadcopter fleet missions.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, module_name, help_text in COMMANDS:
+        module = importlib.import_module(module_name)
+        sub_parser = sub.add_parser(name, help=help_text, description=help_text)
+        module.configure(sub_parser)
+        sub_parser.set_defaults(_module=module)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse the command line and run the chosen subcommand; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._module.run(args))
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
