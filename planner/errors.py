@@ -1,0 +1,43 @@
+"""The planner's exceptions, one tree rooted in `PlannerError`.
+
+- `PlannerError`: base class of everything the planner raises on purpose.
+  - `FieldError`: bad input; `field` names the offending field (a dotted path such as
+    ``vehicles[2].goal``) and `reason` says why.
+    - `ScenarioError`: the scenario is invalid.
+    - `PlanFormatError`: a plan JSON document (e.g. read back from a file) is malformed.
+  - `SolverError`: a QP solver failed in a way that is not a verdict on the problem
+    (numerical trouble, missing backend). Infeasibility is a plan status, not an exception.
+"""
+
+from __future__ import annotations
+
+__all__ = ["FieldError", "PlanFormatError", "PlannerError", "ScenarioError", "SolverError"]
+
+
+class PlannerError(Exception):
+    """Base class of the planner's errors."""
+
+
+class FieldError(PlannerError, ValueError):
+    """Bad input: `field` is the dotted path of the offending field, `reason` says why."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}")
+        self.field = field
+        self.reason = reason
+
+    def to_dict(self) -> dict[str, str]:
+        """JSON-friendly form used by the CLI and the REST API."""
+        return {"field": self.field, "reason": self.reason}
+
+
+class ScenarioError(FieldError):
+    """An invalid scenario."""
+
+
+class PlanFormatError(FieldError):
+    """A malformed plan document."""
+
+
+class SolverError(PlannerError, RuntimeError):
+    """A QP backend failed for a reason other than infeasibility."""

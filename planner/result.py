@@ -1,0 +1,250 @@
+"""The plan (the output JSON contract): trajectories, cost history, timings, verification.
+
+`Plan.to_dict()` produces the Plan JSON of DESIGN.md; `Plan.from_dict()` reads it back (for the
+GCS, the API and tests) and checks shapes, raising `PlanFormatError` naming the field.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.dynamics import MotionSample, interpolate
+from planner.errors import PlanFormatError, ScenarioError
+from planner.scenario import Scenario
+
+__all__ = [
+    "STATUSES",
+    "IterationRecord",
+    "Plan",
+    "VehicleTrajectory",
+    "Verification",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: Every status a plan can carry.
+STATUSES = ("converged", "max_iterations", "infeasible")
+
+
+@dataclass(frozen=True)
+class VehicleTrajectory:
+    """One vehicle's planned motion on the step grid (world frame ENU, SI units)."""
+
+    id: str
+    t: FloatArray
+    """(K+1,) step times from 0 to K*dt (s)."""
+    position: FloatArray
+    """(K+1, 3) positions at the steps (m)."""
+    velocity: FloatArray
+    """(K+1, 3) velocities at the steps (m/s)."""
+    acceleration: FloatArray
+    """(K, 3) accelerations, constant over each step (m/s^2)."""
+    jerk: FloatArray
+    """(K, 3) jerk (a[k] - a[k-1]) / dt with a[-1] = 0: the vehicle starts hovering (m/s^3)."""
+    thrust: FloatArray
+    """(K,) mass-normalised thrust ||a + g|| (m/s^2), paper eq. 14."""
+    body_rates: FloatArray
+    """(K, 3) body rates (w1, w2, w3) from the jerk, w3 = 0 (rad/s), paper eq. 20."""
+
+    def sample(self, dt: float, times: Any) -> MotionSample:
+        """The exact motion at arbitrary times (see `planner.dynamics.interpolate`)."""
+        return interpolate(self.position, self.velocity, self.acceleration, dt, times)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "t": self.t.tolist(),
+            "position": self.position.tolist(),
+            "velocity": self.velocity.tolist(),
+            "acceleration": self.acceleration.tolist(),
+            "jerk": self.jerk.tolist(),
+            "thrust": self.thrust.tolist(),
+            "body_rates": self.body_rates.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class IterationRecord:
+    """One SCP iteration (iteration 0 is the separation-free first QP)."""
+
+    iteration: int
+    cost: float
+    """Total thrust cost sum ||a + g||^2 after this iteration."""
+    cost_change: float | None
+    """|cost - previous cost|, None for iteration 0."""
+    separation_rows: int
+    """Separation rows in this iteration's QPs (after any lazily added rows)."""
+    qp_solves: int
+    """QP solves in this iteration (sub-problems and re-solves for added rows)."""
+    groups: int
+    """Independent sub-problems (groups of vehicles linked by candidate pairs)."""
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Checks of the final trajectories, computed independently of the solver."""
+
+    min_separation: float
+    """Smallest pair distance at the steps, in the separation metric (m)."""
+    min_separation_continuous: float
+    """Smallest pair distance over continuous time, exact motion between steps (m)."""
+    closest_pair: list[str]
+    """The two vehicle ids of the continuous-time minimum (empty with one vehicle)."""
+    closest_time: float
+    """When the continuous-time minimum happens (s)."""
+    max_violation: dict[str, float]
+    """Largest excess over each bound group (position, velocity, acceleration, jerk, ...)."""
+    boundary_error: dict[str, float]
+    """Largest error of each boundary condition (start/goal position, velocities, accel)."""
+    thrust_range: list[float]
+    """[min, max] thrust over all vehicles and steps (m/s^2)."""
+    body_rate_peak: float
+    """Largest |w1| or |w2| over all vehicles and steps (rad/s)."""
+    flyable: bool
+    """Thrust within [thrust_min, thrust_max] and body rates under body_rate_max."""
+    separated: bool
+    """Continuous-time separation >= R - separation_tolerance."""
+    within_bounds: bool
+    """Every box and boundary condition holds within bound_tolerance."""
+    separation_tolerance: float
+    bound_tolerance: float
+
+    @property
+    def verified(self) -> bool:
+        """Separated, within bounds (flyability is reported, not required)."""
+        return self.separated and self.within_bounds
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The planner's result. `status` is one of `STATUSES`."""
+
+    status: str
+    message: str
+    scenario: Scenario
+    vehicles: tuple[VehicleTrajectory, ...]
+    iterations: tuple[IterationRecord, ...]
+    timing: dict[str, float]
+    verification: Verification | None
+    solver: str
+    infeasible_groups: tuple[str, ...] = field(default=())
+    """For `infeasible`: which constraint group(s) could not be met, as far as known."""
+
+    @property
+    def ok(self) -> bool:
+        """A converged plan whose verification passed."""
+        return (
+            self.status == "converged"
+            and self.verification is not None
+            and self.verification.verified
+        )
+
+    @property
+    def cost(self) -> float:
+        return self.iterations[-1].cost if self.iterations else float("nan")
+
+    def positions(self) -> FloatArray:
+        """(N, K+1, 3) positions of all vehicles."""
+        return np.stack([v.position for v in self.vehicles])
+
+    def velocities(self) -> FloatArray:
+        return np.stack([v.velocity for v in self.vehicles])
+
+    def accelerations(self) -> FloatArray:
+        return np.stack([v.acceleration for v in self.vehicles])
+
+    def sample(self, times: Any) -> MotionSample:
+        """Every vehicle's exact motion at `times`: arrays (N, M, 3)."""
+        return interpolate(
+            self.positions(), self.velocities(), self.accelerations(), self.scenario.dt, times
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "status": self.status,
+            "message": self.message,
+            "solver": self.solver,
+            "infeasible_groups": list(self.infeasible_groups),
+            "scenario": self.scenario.to_dict(),
+            "iterations": [asdict(r) for r in self.iterations],
+            "timing": dict(self.timing),
+            "vehicles": [v.to_dict() for v in self.vehicles],
+            "verification": None if self.verification is None else asdict(self.verification),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Plan:
+        """Read a Plan JSON document back; raises `PlanFormatError` naming the field."""
+        return _plan_from_dict(data)
+
+
+def _array(data: Mapping[str, Any], key: str, where: str, shape: tuple[int, ...]) -> FloatArray:
+    if key not in data:
+        raise PlanFormatError(f"{where}.{key}", "is required")
+    try:
+        arr = np.asarray(data[key], dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise PlanFormatError(f"{where}.{key}", f"must be numeric: {exc}") from None
+    if arr.shape != shape:
+        raise PlanFormatError(f"{where}.{key}", f"must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise PlanFormatError(f"{where}.{key}", "must contain finite numbers only")
+    return arr
+
+
+def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
+    if not isinstance(data, Mapping):
+        raise PlanFormatError("plan", "must be a JSON object")
+    for key in ("status", "scenario", "vehicles"):
+        if key not in data:
+            raise PlanFormatError(key, "is required")
+    status = data["status"]
+    if status not in STATUSES:
+        raise PlanFormatError("status", f"must be one of {', '.join(STATUSES)}, got {status!r}")
+    try:
+        scenario = Scenario.from_dict(data["scenario"])
+    except ScenarioError as exc:
+        raise PlanFormatError(f"scenario.{exc.field}", exc.reason) from None
+    k = scenario.steps
+    raw_vehicles = data["vehicles"]
+    if not isinstance(raw_vehicles, list) or len(raw_vehicles) != len(scenario.vehicles):
+        raise PlanFormatError("vehicles", f"must list {len(scenario.vehicles)} vehicles")
+    vehicles = []
+    for index, (raw, spec) in enumerate(zip(raw_vehicles, scenario.vehicles, strict=True)):
+        where = f"vehicles[{index}]"
+        if not isinstance(raw, Mapping):
+            raise PlanFormatError(where, "must be a JSON object")
+        if raw.get("id") != spec.id:
+            raise PlanFormatError(f"{where}.id", f"must be {spec.id!r} (scenario order)")
+        vehicles.append(
+            VehicleTrajectory(
+                id=spec.id,
+                t=_array(raw, "t", where, (k + 1,)),
+                position=_array(raw, "position", where, (k + 1, 3)),
+                velocity=_array(raw, "velocity", where, (k + 1, 3)),
+                acceleration=_array(raw, "acceleration", where, (k, 3)),
+                jerk=_array(raw, "jerk", where, (k, 3)),
+                thrust=_array(raw, "thrust", where, (k,)),
+                body_rates=_array(raw, "body_rates", where, (k, 3)),
+            )
+        )
+    iterations = tuple(IterationRecord(**r) for r in data.get("iterations", []))
+    raw_verification = data.get("verification")
+    verification = None if raw_verification is None else Verification(**raw_verification)
+    return Plan(
+        status=status,
+        message=str(data.get("message", "")),
+        scenario=scenario,
+        vehicles=tuple(vehicles),
+        iterations=iterations,
+        timing={k: float(v) for k, v in data.get("timing", {}).items()},
+        verification=verification,
+        solver=str(data.get("solver", "")),
+        infeasible_groups=tuple(data.get("infeasible_groups", ())),
+    )

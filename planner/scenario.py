@@ -1,0 +1,358 @@
+"""The scenario model (the input JSON contract) and its validation.
+
+A scenario is parsed once into frozen dataclasses holding numpy arrays; every problem found is
+a `ScenarioError` naming the field (dotted path) and the reason. `Scenario.to_dict` echoes the
+scenario with every default filled in, which is what a plan carries.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.errors import ScenarioError
+
+__all__ = ["DEFAULTS", "Limits", "Scenario", "Vehicle", "minimum_transfer_time"]
+
+FloatArray = NDArray[np.float64]
+
+#: Defaults filled in when a scenario omits a key (documented in the README).
+DEFAULTS: dict[str, Any] = {
+    "name": "scenario",
+    "cost_threshold": 0.05,
+    "max_iterations": 30,
+    "separation_scale": [1.0, 1.0, 1.0],
+    "thrust_min": 2.0,
+    "thrust_max": 18.0,
+    "body_rate_max": 6.0,
+}
+
+#: Hard caps that keep one scenario from exhausting memory (not physical limits).
+MAX_VEHICLES = 1000
+MAX_STEPS = 5000
+
+_TOP_KEYS = {
+    "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
+    "max_iterations", "limits", "vehicles",
+}
+_LIMIT_KEYS = {
+    "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
+    "thrust_min", "thrust_max", "body_rate_max",
+}
+_VEHICLE_KEYS = {"id", "start", "goal"}
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Workspace box and per-axis motion bounds (symmetric), plus flyability limits."""
+
+    position_min: FloatArray
+    """Lower corner of the workspace box (m)."""
+    position_max: FloatArray
+    """Upper corner of the workspace box (m)."""
+    velocity_max: FloatArray | None
+    """Per-axis |v| bound (m/s), or None for unbounded."""
+    acceleration_max: FloatArray | None
+    """Per-axis |a| bound (m/s^2), or None for unbounded."""
+    jerk_max: FloatArray | None
+    """Per-axis |j| bound (m/s^3), or None for unbounded."""
+    thrust_min: float
+    """Lowest allowed mass-normalised thrust ||a + g|| (m/s^2), for the flyability check."""
+    thrust_max: float
+    """Highest allowed mass-normalised thrust (m/s^2), for the flyability check."""
+    body_rate_max: float
+    """Highest allowed roll/pitch body rate (rad/s), for the flyability check."""
+
+    def to_dict(self) -> dict[str, Any]:
+        def opt(a: FloatArray | None) -> list[float] | None:
+            return None if a is None else a.tolist()
+
+        out: dict[str, Any] = {
+            "position_min": self.position_min.tolist(),
+            "position_max": self.position_max.tolist(),
+            "velocity_max": opt(self.velocity_max),
+            "acceleration_max": opt(self.acceleration_max),
+            "jerk_max": opt(self.jerk_max),
+            "thrust_min": self.thrust_min,
+            "thrust_max": self.thrust_max,
+            "body_rate_max": self.body_rate_max,
+        }
+        return {k: v for k, v in out.items() if v is not None}
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """One vehicle's task: fly from `start` (at rest) to `goal` (at rest), world frame ENU."""
+
+    id: str
+    start: FloatArray
+    goal: FloatArray
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated planning problem. Build it with `Scenario.from_dict`."""
+
+    name: str
+    dt: float
+    """Step length (s)."""
+    steps: int
+    """Number of steps K; the horizon is K * dt."""
+    min_separation: float
+    """R (m): ||diag(1/scale) (p_i - p_j)|| >= R for every pair at every instant."""
+    separation_scale: FloatArray
+    """Per-axis scale of the separation metric; [1, 1, 2] is the downwash ellipsoid."""
+    cost_threshold: float
+    """SCP stops when the cost changes by less than this between iterations."""
+    max_iterations: int
+    """Cap on SCP iterations (the separation-free first QP counts as iteration 0)."""
+    limits: Limits
+    vehicles: tuple[Vehicle, ...]
+    starts: FloatArray = field(repr=False)
+    """(N, 3) start positions, in vehicle order."""
+    goals: FloatArray = field(repr=False)
+    """(N, 3) goal positions, in vehicle order."""
+
+    @property
+    def horizon(self) -> float:
+        return self.steps * self.dt
+
+    @property
+    def ids(self) -> list[str]:
+        return [v.id for v in self.vehicles]
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
+        """Parse and validate a scenario; raises `ScenarioError` naming the field."""
+        return _parse(data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scenario JSON with every default filled in."""
+        return {
+            "name": self.name,
+            "dt": self.dt,
+            "steps": self.steps,
+            "min_separation": self.min_separation,
+            "separation_scale": self.separation_scale.tolist(),
+            "cost_threshold": self.cost_threshold,
+            "max_iterations": self.max_iterations,
+            "limits": self.limits.to_dict(),
+            "vehicles": [
+                {"id": v.id, "start": v.start.tolist(), "goal": v.goal.tolist()}
+                for v in self.vehicles
+            ],
+        }
+
+
+# --------------------------------------------------------------------------- parsing helpers
+
+
+def _number(value: Any, name: str, *, positive: bool = False, nonneg: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ScenarioError(name, f"must be a number, got {type(value).__name__}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ScenarioError(name, "must be a finite number")
+    if positive and x <= 0:
+        raise ScenarioError(name, f"must be positive, got {x:g}")
+    if nonneg and x < 0:
+        raise ScenarioError(name, f"must not be negative, got {x:g}")
+    return x
+
+
+def _integer(value: Any, name: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ScenarioError(name, f"must be an integer, got {type(value).__name__}")
+    if isinstance(value, float) and not value.is_integer():
+        raise ScenarioError(name, f"must be an integer, got {value}")
+    n = int(value)
+    if not lo <= n <= hi:
+        raise ScenarioError(name, f"must be between {lo} and {hi}, got {n}")
+    return n
+
+
+def _vector(value: Any, name: str, *, positive: bool = False) -> FloatArray:
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 3:
+        raise ScenarioError(name, "must be a list of 3 numbers [x, y, z]")
+    return np.array(
+        [_number(c, f"{name}[{i}]", positive=positive) for i, c in enumerate(value)], dtype=float
+    )
+
+
+def _check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str]) -> None:
+    if not isinstance(data, Mapping):
+        raise ScenarioError(name or "scenario", "must be a JSON object")
+    prefix = f"{name}." if name else ""
+    for key in data:
+        if key not in allowed:
+            raise ScenarioError(f"{prefix}{key}", "unknown key")
+    for key in required:
+        if key not in data:
+            raise ScenarioError(f"{prefix}{key}", "is required")
+
+
+def _parse_limits(data: Any) -> Limits:
+    _check_keys(data, _LIMIT_KEYS, "limits", ("position_min", "position_max"))
+    pmin = _vector(data["position_min"], "limits.position_min")
+    pmax = _vector(data["position_max"], "limits.position_max")
+    for axis in range(3):
+        if pmax[axis] <= pmin[axis]:
+            raise ScenarioError(
+                f"limits.position_max[{axis}]",
+                f"must be greater than position_min[{axis}] ({pmin[axis]:g})",
+            )
+
+    def optional(key: str) -> FloatArray | None:
+        value = data.get(key)
+        return None if value is None else _vector(value, f"limits.{key}", positive=True)
+
+    thrust_min = _number(
+        data.get("thrust_min", DEFAULTS["thrust_min"]), "limits.thrust_min", nonneg=True
+    )
+    thrust_max = _number(
+        data.get("thrust_max", DEFAULTS["thrust_max"]), "limits.thrust_max", positive=True
+    )
+    if thrust_max <= thrust_min:
+        raise ScenarioError(
+            "limits.thrust_max", f"must be greater than thrust_min ({thrust_min:g})"
+        )
+    body_rate_max = _number(
+        data.get("body_rate_max", DEFAULTS["body_rate_max"]), "limits.body_rate_max", positive=True
+    )
+    return Limits(
+        position_min=pmin,
+        position_max=pmax,
+        velocity_max=optional("velocity_max"),
+        acceleration_max=optional("acceleration_max"),
+        jerk_max=optional("jerk_max"),
+        thrust_min=thrust_min,
+        thrust_max=thrust_max,
+        body_rate_max=body_rate_max,
+    )
+
+
+def minimum_transfer_time(distance: FloatArray, v_max: FloatArray | None, a_max: FloatArray | None,
+                          ) -> FloatArray:
+    """Shortest rest-to-rest time to cover `distance` per axis under |v|, |a| bounds.
+
+    A necessary condition only (jerk bounds and the discrete grid make the true time longer);
+    used to reject horizons that cannot possibly work before any QP is solved.
+    """
+    d = np.abs(distance)
+    if a_max is None:
+        return np.zeros_like(d) if v_max is None else d / v_max
+    bang_bang = 2.0 * np.sqrt(d / a_max)
+    if v_max is None:
+        return bang_bang
+    cruise = d / v_max + v_max / a_max
+    return np.where(d <= v_max * v_max / a_max, bang_bang, cruise)
+
+
+def _scaled_distances(points: FloatArray, scale: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Upper-triangle pair indices' distances in the separation metric: (dist, (i, j))."""
+    i, j = np.triu_indices(len(points), k=1)
+    d = np.linalg.norm((points[i] - points[j]) / scale, axis=1)
+    return d, np.stack([i, j])
+
+
+def _parse(data: Mapping[str, Any]) -> Scenario:
+    _check_keys(data, _TOP_KEYS, "", ("dt", "steps", "min_separation", "limits", "vehicles"))
+    name = data.get("name", DEFAULTS["name"])
+    if not isinstance(name, str) or not name.strip():
+        raise ScenarioError("name", "must be a non-empty string")
+    dt = _number(data["dt"], "dt", positive=True)
+    steps = _integer(data["steps"], "steps", 3, MAX_STEPS)
+    separation = _number(data["min_separation"], "min_separation", positive=True)
+    scale = _vector(
+        data.get("separation_scale", DEFAULTS["separation_scale"]),
+        "separation_scale",
+        positive=True,
+    )
+    threshold = _number(
+        data.get("cost_threshold", DEFAULTS["cost_threshold"]), "cost_threshold", positive=True
+    )
+    max_iterations = _integer(
+        data.get("max_iterations", DEFAULTS["max_iterations"]), "max_iterations", 1, 1000
+    )
+    limits = _parse_limits(data["limits"])
+
+    raw_vehicles = data["vehicles"]
+    if not isinstance(raw_vehicles, Sequence) or isinstance(raw_vehicles, str):
+        raise ScenarioError("vehicles", "must be a list of vehicles")
+    if not raw_vehicles:
+        raise ScenarioError("vehicles", "must contain at least one vehicle")
+    if len(raw_vehicles) > MAX_VEHICLES:
+        raise ScenarioError("vehicles", f"at most {MAX_VEHICLES} vehicles, got {len(raw_vehicles)}")
+
+    vehicles: list[Vehicle] = []
+    seen: dict[str, int] = {}
+    for index, raw in enumerate(raw_vehicles):
+        where = f"vehicles[{index}]"
+        _check_keys(raw, _VEHICLE_KEYS, where, ("id", "start", "goal"))
+        vid = raw["id"]
+        if not isinstance(vid, str) or not vid.strip():
+            raise ScenarioError(f"{where}.id", "must be a non-empty string")
+        if vid in seen:
+            raise ScenarioError(f"{where}.id", f"duplicate id {vid!r} (also vehicles[{seen[vid]}])")
+        seen[vid] = index
+        start = _vector(raw["start"], f"{where}.start")
+        goal = _vector(raw["goal"], f"{where}.goal")
+        for label, point in (("start", start), ("goal", goal)):
+            outside = (point < limits.position_min) | (point > limits.position_max)
+            if outside.any():
+                axis = int(np.argmax(outside))
+                raise ScenarioError(
+                    f"{where}.{label}",
+                    f"{point.tolist()} lies outside the workspace on axis {'xyz'[axis]} "
+                    f"[{limits.position_min[axis]:g}, {limits.position_max[axis]:g}]",
+                )
+        vehicles.append(Vehicle(vid, start, goal))
+
+    starts = np.array([v.start for v in vehicles])
+    goals = np.array([v.goal for v in vehicles])
+    for label, points in (("start", starts), ("goal", goals)):
+        if len(points) < 2:
+            continue
+        dist, pairs = _scaled_distances(points, scale)
+        worst = int(np.argmin(dist))
+        if dist[worst] < separation:
+            i, j = pairs[:, worst]
+            raise ScenarioError(
+                f"vehicles[{j}].{label}",
+                f"is {dist[worst]:.3f} m from vehicles[{i}].{label} in the separation metric, "
+                f"closer than min_separation {separation:g} m",
+            )
+
+    horizon = steps * dt
+    # The last acceleration is pinned to zero, so the motion has (K-1) steps to happen in.
+    usable = (steps - 1) * dt
+    need = minimum_transfer_time(goals - starts, limits.velocity_max, limits.acceleration_max)
+    worst_vehicle, worst_axis = np.unravel_index(int(np.argmax(need)), need.shape)
+    if need[worst_vehicle, worst_axis] > usable + 1e-9:
+        raise ScenarioError(
+            f"vehicles[{worst_vehicle}].goal",
+            f"cannot be reached within the horizon: moving "
+            f"{abs(goals[worst_vehicle, worst_axis] - starts[worst_vehicle, worst_axis]):.3f} m "
+            f"along {'xyz'[worst_axis]} needs at least {need[worst_vehicle, worst_axis]:.2f} s "
+            f"under the velocity/acceleration limits; the horizon is {horizon:.2f} s "
+            f"(steps * dt)",
+        )
+
+    return Scenario(
+        name=name,
+        dt=dt,
+        steps=steps,
+        min_separation=separation,
+        separation_scale=scale,
+        cost_threshold=threshold,
+        max_iterations=max_iterations,
+        limits=limits,
+        vehicles=tuple(vehicles),
+        starts=starts,
+        goals=goals,
+    )
