@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from planner.flatness import GRAVITY
 from planner.scenario import Scenario
 
-__all__ = ["QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
+__all__ = ["JerkRows", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -98,6 +98,15 @@ class SeparationRows:
         return SeparationRows(z, z, z, z, np.zeros((0, 3)))
 
 
+@dataclass(frozen=True)
+class JerkRows:
+    """A subset of jerk rows |a_k - a_{k-1}| <= jmax dt: (group-local vehicle, step, axis)."""
+
+    vehicle: IntArray
+    k: IntArray
+    axis: IntArray
+
+
 @dataclass
 class QuadraticProgram:
     """min 1/2 x'Px + q'x s.t. Ax = b, h_l <= Gx <= h_u, x_l <= x <= x_u (CSC matrices)."""
@@ -133,8 +142,13 @@ def build_group_qp(
     scenario: Scenario,
     members: IntArray,
     separation: SeparationRows,
+    jerk_rows: JerkRows | None = None,
 ) -> QuadraticProgram:
-    """The QP of the vehicles `members` (scenario indices) with the given separation rows."""
+    """The QP of the vehicles `members` (scenario indices) with the given separation rows.
+
+    jerk_rows: which jerk rows to include (group-local vehicle, step, axis); None: all of
+    them. The SCP loop passes only the rows that can be active and checks the rest.
+    """
     dt, steps = scenario.dt, scenario.steps
     m = len(members)
     lay = StageLayout(steps, m)
@@ -190,8 +204,11 @@ def build_group_qp(
     h_u_parts: list[FloatArray] = []
     n_jerk = 0
     if limits.jerk_max is not None:
-        jk, jv = np.meshgrid(np.arange(steps), np.arange(3 * m), indexing="ij")
-        jk, jv = jk.ravel(), jv.ravel()
+        if jerk_rows is None:
+            jk, jv = np.meshgrid(np.arange(steps), np.arange(3 * m), indexing="ij")
+            jk, jv = jk.ravel(), jv.ravel()
+        else:
+            jk, jv = jerk_rows.k, jerk_rows.vehicle * 3 + jerk_rows.axis
         n_jerk = jk.size
         jrow = np.arange(n_jerk)
         g_rows += [jrow]

@@ -32,7 +32,7 @@ from scipy.sparse.csgraph import connected_components
 
 from planner.first_qp import solve_first_qp
 from planner.flatness import GRAVITY
-from planner.qp import SeparationRows, StageLayout, build_group_qp
+from planner.qp import JerkRows, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
 from planner.scenario import Scenario
 from planner.separation import (
@@ -43,6 +43,7 @@ from planner.separation import (
     linearised_coefficients,
     step_distances,
     violated_linearised,
+    worst_per_run,
 )
 from planner.solvers import SOLVED, QPSolver
 
@@ -53,6 +54,12 @@ IntArray = NDArray[np.intp]
 Keys = NDArray[np.int64]
 
 KINDS = 3  # 0: step row, 1: Bernstein middle point, 2: Bernstein end point
+#: A separation row whose multiplier exceeds this is active and is carried to the next
+#: iteration (re-linearised there): active sets change little between SCP iterations.
+ACTIVE_DUAL = 1e-7
+#: Jerk rows start in an iteration's QP where the previous iterate used at least this
+#: fraction of the bound; the others are checked after each solve and added if broken.
+JERK_SEED_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -112,29 +119,43 @@ class _GroupSolver:
         self.scenario = scenario
         self.solver = solver
         self.codec = codec
-        self.cache: dict[bytes, tuple[IntArray, FloatArray, FloatArray, FloatArray]] = {}
+        self.cache: dict[bytes, tuple[tuple[FloatArray, FloatArray, FloatArray], Keys]] = {}
         self.solves = 0
 
-    def solve(self, members: IntArray, keys: Keys, lin_positions: FloatArray
-              ) -> tuple[str, tuple[FloatArray, FloatArray, FloatArray] | None]:
-        signature = members.tobytes() + b"|" + keys.tobytes()
+    def solve(self, members: IntArray, keys: Keys, jerk_on: NDArray[np.bool_] | None,
+              lin_positions: FloatArray
+              ) -> tuple[str, tuple[FloatArray, FloatArray, FloatArray] | None, Keys]:
+        """Solve one group; returns (status, (p, v, a) or None, keys of its active rows).
+
+        jerk_on: (N, K, 3) mask of the jerk rows to include (None: no jerk bounds).
+        """
+        group_jerk = None if jerk_on is None else jerk_on[members]
+        signature = b"|".join([
+            members.tobytes(), keys.tobytes(),
+            b"" if group_jerk is None else np.packbits(group_jerk).tobytes(),
+        ])
         cached = self.cache.get(signature)
         if cached is not None:
-            return SOLVED, cached[1:]
+            return SOLVED, cached[0], cached[1]
         scenario = self.scenario
         pairs, kind = self.codec.decode(keys)
         coef = linearised_coefficients(lin_positions, scenario.separation_scale, pairs)
         local = np.full(scenario.starts.shape[0], -1, dtype=np.intp)
         local[members] = np.arange(len(members))
         rows = SeparationRows(local[pairs.i], local[pairs.j], pairs.k, kind, coef)
-        qp = build_group_qp(scenario, members, rows)
+        jerk_rows = None
+        if group_jerk is not None:
+            jerk_rows = JerkRows(*(idx.astype(np.intp) for idx in np.nonzero(group_jerk)))
+        qp = build_group_qp(scenario, members, rows, jerk_rows)
         self.solves += 1
         result = self.solver.solve(qp)
         if result.status != SOLVED or result.x is None:
-            return result.status, None
-        p, v, a = StageLayout(scenario.steps, len(members)).unpack(result.x)
-        self.cache[signature] = (members, p, v, a)
-        return SOLVED, (p, v, a)
+            return result.status, None, keys[:0]
+        solution = StageLayout(scenario.steps, len(members)).unpack(result.x)
+        duals = result.separation_duals
+        active = keys if duals is None else keys[duals > ACTIVE_DUAL]
+        self.cache[signature] = (solution, active)
+        return SOLVED, solution, active
 
 
 def _groups(keys: Keys, codec: _RowKeys) -> list[tuple[IntArray, Keys]]:
@@ -157,18 +178,30 @@ def _groups(keys: Keys, codec: _RowKeys) -> list[tuple[IntArray, Keys]]:
     return out
 
 
-def _close_rows(positions: FloatArray, scenario: Scenario, margin: float, codec: _RowKeys,
-                culling: bool) -> Keys:
-    """Step rows to start an iteration with: close pair-steps, or all with culling off."""
+def _seed_rows(positions: FloatArray, scenario: Scenario, options: ScpOptions,
+               codec: _RowKeys) -> Keys:
+    """Step rows an iteration starts with (besides the rows carried over as active).
+
+    With culling: the deepest step of every run of steps where a pair is closer than
+    R * (1 + margin) at the linearisation point. Without: every pair at every step.
+    """
     n, stages = positions.shape[0], positions.shape[1]
-    if not culling:
+    if not options.culling:
         i, j = all_pairs(n)
         pairs = PairSteps(np.repeat(i, stages), np.repeat(j, stages), np.tile(
             np.arange(stages, dtype=np.intp), len(i)))
         return codec.encode(pairs, 0)
-    below = scenario.min_separation * (1.0 + margin)
-    pairs, _ = step_distances(positions, scenario.separation_scale, below)
-    return codec.encode(pairs, 0)
+    below = scenario.min_separation * (1.0 + options.candidate_margin)
+    pairs, distances = step_distances(positions, scenario.separation_scale, below)
+    return _step_rows(worst_per_run(pairs, distances), codec, options.continuous)
+
+
+def _jerk_excess(accelerations: FloatArray, scenario: Scenario) -> FloatArray:
+    """(N, K, 3) |a_k - a_{k-1}| / (jmax dt): 1 is the bound."""
+    jmax = scenario.limits.jerk_max
+    assert jmax is not None
+    change = np.diff(accelerations, axis=1, prepend=0.0)
+    return np.abs(change) / (jmax * scenario.dt)
 
 
 def _continuous_dips(p: FloatArray, v: FloatArray, a: FloatArray, scenario: Scenario,
@@ -183,40 +216,94 @@ def _continuous_dips(p: FloatArray, v: FloatArray, a: FloatArray, scenario: Scen
     return maybe.select(minima < below)
 
 
+@dataclass
+class _IterationResult:
+    status: str
+    solution: tuple[FloatArray, FloatArray, FloatArray]
+    keys: Keys
+    """Every row used in the last round."""
+    active: Keys
+    """Rows with a positive multiplier in the last round."""
+    groups: int
+    failed: list[int]
+
+
+def _step_rows(pairs: PairSteps, codec: _RowKeys, continuous: bool) -> Keys:
+    """Rows for close pair-steps: the step row and, for continuous time, the Bernstein rows
+    of the two intervals around the step (a pair closest near step k is closest inside
+    [k-1, k] or [k, k+1]; adding them now saves a round of re-solves later)."""
+    keys = [codec.encode(pairs, 0)]
+    if continuous and len(pairs):
+        last = codec.stages - 2  # intervals are 0..K-1
+        for shift in (0, -1):
+            k = pairs.k + shift
+            ok = (k >= 0) & (k <= last)
+            interval = PairSteps(pairs.i[ok], pairs.j[ok], k[ok])
+            keys += [codec.encode(interval, kind) for kind in range(KINDS)]
+    return np.unique(np.concatenate(keys))
+
+
+def _with_interval_companions(keys: Keys, codec: _RowKeys) -> Keys:
+    """`keys` plus, for every Bernstein row, the other rows of its interval (all 3 kinds):
+    the control-point rows only guarantee the interval together."""
+    pairs, kind = codec.decode(keys)
+    bernstein = kind != 0
+    if not bernstein.any():
+        return keys
+    intervals = pairs.select(bernstein)
+    extra = [codec.encode(intervals, k) for k in range(KINDS)]
+    return np.union1d(keys, np.concatenate(extra))
+
+
 def _solve_with_lazy_rows(
     scenario: Scenario,
     options: ScpOptions,
     codec: _RowKeys,
     groups_solver: _GroupSolver,
-    lin: tuple[FloatArray, FloatArray, FloatArray],
+    lin_positions: FloatArray,
     base: tuple[FloatArray, FloatArray, FloatArray],
     keys: Keys,
-) -> tuple[str, tuple[FloatArray, FloatArray, FloatArray], Keys, int, list[int]]:
-    """One SCP iteration: solve, check all pairs and continuous time, add rows, repeat.
+    jerk_on: NDArray[np.bool_] | None,
+) -> _IterationResult:
+    """One SCP iteration: solve, check all pairs, continuous time and jerk, add rows, repeat.
 
-    Returns (status, (p, v, a), final keys, number of groups, members of a failed group).
+    jerk_on: the jerk rows to start with (N, K, 3), None without jerk bounds; jerk rows
+    are lazy too: most are far from active and each one costs solve time.
     """
-    lin_p = lin[0]
+    tolerance = options.violation_tolerance
     while True:
         p, v, a = (x.copy() for x in base)
         groups = _groups(keys, codec)
+        active = []
         for members, group_keys in groups:
-            status, solution = groups_solver.solve(members, group_keys, lin_p)
+            status, solution, group_active = groups_solver.solve(
+                members, group_keys, jerk_on, lin_positions
+            )
             if solution is None:
-                return status, (p, v, a), keys, len(groups), members.tolist()
+                return _IterationResult(status, (p, v, a), keys, keys[:0], len(groups),
+                                        members.tolist())
             p[members], v[members], a[members] = solution
-        violated = violated_linearised(
-            lin_p, p, scenario.separation_scale, scenario.min_separation,
-            options.violation_tolerance,
+            active.append(group_active)
+        violated, values = violated_linearised(
+            lin_positions, p, scenario.separation_scale, scenario.min_separation, tolerance
         )
-        new = [codec.encode(violated, 0)]
+        if options.culling:
+            violated = worst_per_run(violated, values)
+        new = [_step_rows(violated, codec, options.continuous)]
         if options.continuous:
-            dips = _continuous_dips(p, v, a, scenario, options.violation_tolerance)
+            dips = _continuous_dips(p, v, a, scenario, tolerance)
             if len(dips):
                 new += [codec.encode(dips, kind) for kind in range(KINDS)]
         added = np.setdiff1d(np.concatenate(new), keys)
-        if added.size == 0:
-            return SOLVED, (p, v, a), keys, len(groups), []
+        jerk_added = False
+        if jerk_on is not None:
+            jerk_broken = (_jerk_excess(a, scenario) > 1.0 + tolerance) & ~jerk_on
+            if jerk_broken.any():
+                jerk_on = jerk_on | jerk_broken
+                jerk_added = True
+        if added.size == 0 and not jerk_added:
+            all_active = np.concatenate(active) if active else keys[:0]
+            return _IterationResult(SOLVED, (p, v, a), keys, all_active, len(groups), [])
         keys = np.union1d(keys, added)
 
 
@@ -254,15 +341,21 @@ def run_scp(
     groups_solver = _GroupSolver(scenario, solver, codec)
     current = base
     carried = np.zeros(0, dtype=np.int64)
+    used = carried
     status, message = "max_iterations", ""
     for iteration in range(1, scenario.max_iterations + 1):
         t0 = time.perf_counter()
         solves_before = groups_solver.solves
-        keys = np.union1d(_close_rows(current[0], scenario, options.candidate_margin, codec,
-                                      options.culling), carried)
+        keys = np.union1d(_seed_rows(current[0], scenario, options, codec), carried)
         groups_solver.cache.clear()
-        result, solution, keys, n_groups, failed = _solve_with_lazy_rows(
-            scenario, options, codec, groups_solver, current, base, keys
+        jerk_on = None
+        if scenario.limits.jerk_max is not None:
+            jerk_on = _jerk_excess(current[2], scenario) >= JERK_SEED_FRACTION
+        outcome = _solve_with_lazy_rows(
+            scenario, options, codec, groups_solver, current[0], base, keys, jerk_on
+        )
+        result, solution, keys, failed = (
+            outcome.status, outcome.solution, outcome.keys, outcome.failed
         )
         if result != SOLVED:
             ids = [scenario.vehicles[i].id for i in failed]
@@ -280,16 +373,19 @@ def run_scp(
         change = abs(new_cost - cost)
         record(IterationRecord(
             iteration, new_cost, change, int(keys.size), groups_solver.solves - solves_before,
-            n_groups, time.perf_counter() - t0,
+            outcome.groups, time.perf_counter() - t0,
         ))
-        current, cost, carried = solution, new_cost, keys
+        current, cost = solution, new_cost
+        # Carry the active rows; a Bernstein row carries its interval's other two rows.
+        carried = _with_interval_companions(outcome.active, codec)
+        used = keys
         if change < scenario.cost_threshold:
             status = "converged"
             message = f"cost changed by {change:.3g} < {scenario.cost_threshold:g}"
             break
     else:
         message = f"stopped after {scenario.max_iterations} iterations without converging"
-    _, kinds = codec.decode(carried)
+    _, kinds = codec.decode(used)
     return ScpOutcome(
         status=status, message=message,
         positions=current[0], velocities=current[1], accelerations=current[2],

@@ -27,6 +27,7 @@ __all__ = [
     "min_step_distance",
     "step_distances",
     "violated_linearised",
+    "worst_per_run",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -129,26 +130,53 @@ def linearised_coefficients(positions: FloatArray, scale: FloatArray, rows: Pair
 
 
 def violated_linearised(lin_positions: FloatArray, positions: FloatArray, scale: FloatArray,
-                        separation: float, tolerance: float) -> PairSteps:
-    """Every pair-step whose linearised row (about `lin_positions`) `positions` violate.
+                        separation: float, tolerance: float) -> tuple[PairSteps, FloatArray]:
+    """Every pair-step whose linearised row (about `lin_positions`) `positions` violate,
+    with the row's value u'S(p_i - p_j) (< separation - tolerance).
 
     This is the all-pairs check that makes lazily generated rows equal the all-pairs QP.
     """
     n, stages = positions.shape[0], positions.shape[1]
     lin = lin_positions / scale
     cur = positions / scale
-    out_i, out_j, out_k = [], [], []
+    out_i, out_j, out_k, out_v = [], [], [], []
     for i, j in _pair_chunks(n, stages):
         d_lin = lin[i] - lin[j]
         norm = np.linalg.norm(d_lin, axis=-1)
-        norm = np.where(norm < 1e-12, 1.0, norm)
+        coincident = norm < 1e-12
+        if coincident.any():  # same fallback direction as `linearised_coefficients`
+            d_lin[coincident] = np.array([0.0, 0.0, 1.0])
+            norm[coincident] = 1.0
         value = np.einsum("psc,psc->ps", d_lin, cur[i] - cur[j]) / norm
         pi, kk = np.nonzero(value < separation - tolerance)
         out_i.append(i[pi])
         out_j.append(j[pi])
         out_k.append(kk)
+        out_v.append(value[pi, kk])
     cat = np.concatenate
-    return PairSteps(cat(out_i), cat(out_j), cat(out_k).astype(np.intp))
+    return PairSteps(cat(out_i), cat(out_j), cat(out_k).astype(np.intp)), cat(out_v)
+
+
+def worst_per_run(pairs: PairSteps, values: FloatArray) -> PairSteps:
+    """The pair-step of smallest value in each run of consecutive steps of the same pair.
+
+    A pair that violates its constraint does so over a run of neighbouring steps; the row
+    at the deepest point of the run is the one most likely to be active, and the rows next
+    to it are usually satisfied once it is imposed.
+    """
+    if len(pairs) == 0:
+        return pairs
+    order = np.lexsort((pairs.k, pairs.j, pairs.i))
+    i, j, k, v = pairs.i[order], pairs.j[order], pairs.k[order], values[order]
+    new_run = np.ones(len(i), dtype=bool)
+    new_run[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
+    run_id = np.cumsum(new_run) - 1
+    # Sort by (run, value) and keep the first of each run.
+    by_value = np.lexsort((v, run_id))
+    first = np.ones(len(by_value), dtype=bool)
+    first[1:] = run_id[by_value][1:] != run_id[by_value][:-1]
+    pick = by_value[first]
+    return PairSteps(i[pick], j[pick], k[pick])
 
 
 def interval_lower_bounds(positions: FloatArray, accelerations: FloatArray, dt: float,
