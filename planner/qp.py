@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from planner.flatness import GRAVITY
 from planner.scenario import Scenario
 
-__all__ = ["JerkRows", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
+__all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -99,12 +99,24 @@ class SeparationRows:
 
 
 @dataclass(frozen=True)
-class JerkRows:
-    """A subset of jerk rows |a_k - a_{k-1}| <= jmax dt: (group-local vehicle, step, axis)."""
+class BoxMask:
+    """Which box constraints a QP includes (the SCP loop adds the others only if broken).
 
-    vehicle: IntArray
-    k: IntArray
-    axis: IntArray
+    bounds: (m, K+1, 3, 3) over (vehicle, stage, var p/v/a, axis): variable bounds on.
+    jerk: (m, K, 3) over (vehicle, step, axis): jerk rows on.
+    """
+
+    bounds: NDArray[np.bool_]
+    jerk: NDArray[np.bool_]
+
+    @staticmethod
+    def full(vehicles: int, steps: int) -> BoxMask:
+        bounds = np.ones((vehicles, steps + 1, 3, 3), dtype=bool)
+        bounds[:, steps, A, :] = False  # the phantom a_K has no bound
+        return BoxMask(bounds, np.ones((vehicles, steps, 3), dtype=bool))
+
+    def take(self, members: IntArray) -> BoxMask:
+        return BoxMask(self.bounds[members], self.jerk[members])
 
 
 @dataclass
@@ -142,12 +154,12 @@ def build_group_qp(
     scenario: Scenario,
     members: IntArray,
     separation: SeparationRows,
-    jerk_rows: JerkRows | None = None,
+    boxes: BoxMask | None = None,
 ) -> QuadraticProgram:
     """The QP of the vehicles `members` (scenario indices) with the given separation rows.
 
-    jerk_rows: which jerk rows to include (group-local vehicle, step, axis); None: all of
-    them. The SCP loop passes only the rows that can be active and checks the rest.
+    boxes: which variable bounds and jerk rows to include, for the group's vehicles; None:
+    all of them. The SCP loop passes only those that can bind and checks the rest.
     """
     dt, steps = scenario.dt, scenario.steps
     m = len(members)
@@ -204,11 +216,12 @@ def build_group_qp(
     h_u_parts: list[FloatArray] = []
     n_jerk = 0
     if limits.jerk_max is not None:
-        if jerk_rows is None:
+        if boxes is None:
             jk, jv = np.meshgrid(np.arange(steps), np.arange(3 * m), indexing="ij")
             jk, jv = jk.ravel(), jv.ravel()
         else:
-            jk, jv = jerk_rows.k, jerk_rows.vehicle * 3 + jerk_rows.axis
+            j_vehicle, jk, j_axis = np.nonzero(boxes.jerk)
+            jv = j_vehicle * 3 + j_axis
         n_jerk = jk.size
         jrow = np.arange(n_jerk)
         g_rows += [jrow]
@@ -261,6 +274,10 @@ def build_group_qp(
     stage_lo[:, A, :], stage_hi[:, A, :] = -amax, amax
     x_l = np.tile(stage_lo.reshape(-1), steps + 1)
     x_u = np.tile(stage_hi.reshape(-1), steps + 1)
+    if boxes is not None:
+        off = ~boxes.bounds.transpose(1, 0, 2, 3).reshape(-1)
+        x_l[off] = -np.inf
+        x_u[off] = np.inf
 
     # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
     a_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)

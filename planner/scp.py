@@ -30,16 +30,15 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
+from planner.boxes import broken_boxes, near_boxes
 from planner.first_qp import solve_first_qp
 from planner.flatness import GRAVITY
-from planner.qp import JerkRows, SeparationRows, StageLayout, build_group_qp
+from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
 from planner.scenario import Scenario
 from planner.separation import (
     PairSteps,
     all_pairs,
-    interval_lower_bounds,
-    interval_minima,
     linearised_coefficients,
     step_distances,
     violated_linearised,
@@ -57,9 +56,7 @@ KINDS = 3  # 0: step row, 1: Bernstein middle point, 2: Bernstein end point
 #: A separation row whose multiplier exceeds this is active and is carried to the next
 #: iteration (re-linearised there): active sets change little between SCP iterations.
 ACTIVE_DUAL = 1e-7
-#: Jerk rows start in an iteration's QP where the previous iterate used at least this
-#: fraction of the bound; the others are checked after each solve and added if broken.
-JERK_SEED_FRACTION = 0.5
+
 
 
 @dataclass(frozen=True)
@@ -122,17 +119,16 @@ class _GroupSolver:
         self.cache: dict[bytes, tuple[tuple[FloatArray, FloatArray, FloatArray], Keys]] = {}
         self.solves = 0
 
-    def solve(self, members: IntArray, keys: Keys, jerk_on: NDArray[np.bool_] | None,
-              lin_positions: FloatArray
+    def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin_positions: FloatArray
               ) -> tuple[str, tuple[FloatArray, FloatArray, FloatArray] | None, Keys]:
         """Solve one group; returns (status, (p, v, a) or None, keys of its active rows).
 
-        jerk_on: (N, K, 3) mask of the jerk rows to include (None: no jerk bounds).
+        boxes: (all vehicles) which bounds and jerk rows to include.
         """
-        group_jerk = None if jerk_on is None else jerk_on[members]
+        group_boxes = boxes.take(members)
         signature = b"|".join([
             members.tobytes(), keys.tobytes(),
-            b"" if group_jerk is None else np.packbits(group_jerk).tobytes(),
+            np.packbits(group_boxes.bounds).tobytes(), np.packbits(group_boxes.jerk).tobytes(),
         ])
         cached = self.cache.get(signature)
         if cached is not None:
@@ -143,10 +139,7 @@ class _GroupSolver:
         local = np.full(scenario.starts.shape[0], -1, dtype=np.intp)
         local[members] = np.arange(len(members))
         rows = SeparationRows(local[pairs.i], local[pairs.j], pairs.k, kind, coef)
-        jerk_rows = None
-        if group_jerk is not None:
-            jerk_rows = JerkRows(*(idx.astype(np.intp) for idx in np.nonzero(group_jerk)))
-        qp = build_group_qp(scenario, members, rows, jerk_rows)
+        qp = build_group_qp(scenario, members, rows, group_boxes)
         self.solves += 1
         result = self.solver.solve(qp)
         if result.status != SOLVED or result.x is None:
@@ -190,30 +183,10 @@ def _seed_rows(positions: FloatArray, scenario: Scenario, options: ScpOptions,
         i, j = all_pairs(n)
         pairs = PairSteps(np.repeat(i, stages), np.repeat(j, stages), np.tile(
             np.arange(stages, dtype=np.intp), len(i)))
-        return codec.encode(pairs, 0)
+        return _step_rows(pairs, codec, options.continuous)
     below = scenario.min_separation * (1.0 + options.candidate_margin)
     pairs, distances = step_distances(positions, scenario.separation_scale, below)
     return _step_rows(worst_per_run(pairs, distances), codec, options.continuous)
-
-
-def _jerk_excess(accelerations: FloatArray, scenario: Scenario) -> FloatArray:
-    """(N, K, 3) |a_k - a_{k-1}| / (jmax dt): 1 is the bound."""
-    jmax = scenario.limits.jerk_max
-    assert jmax is not None
-    change = np.diff(accelerations, axis=1, prepend=0.0)
-    return np.abs(change) / (jmax * scenario.dt)
-
-
-def _continuous_dips(p: FloatArray, v: FloatArray, a: FloatArray, scenario: Scenario,
-                     tolerance: float) -> PairSteps:
-    """Pair-intervals whose exact continuous-time distance falls below R - tolerance."""
-    below = scenario.min_separation - tolerance
-    scale = scenario.separation_scale
-    maybe = interval_lower_bounds(p, a, scenario.dt, scale, below)
-    if len(maybe) == 0:
-        return maybe
-    minima, _ = interval_minima(p, v, a, scenario.dt, scale, maybe)
-    return maybe.select(minima < below)
 
 
 @dataclass
@@ -263,12 +236,13 @@ def _solve_with_lazy_rows(
     lin_positions: FloatArray,
     base: tuple[FloatArray, FloatArray, FloatArray],
     keys: Keys,
-    jerk_on: NDArray[np.bool_] | None,
+    boxes: BoxMask,
 ) -> _IterationResult:
-    """One SCP iteration: solve, check all pairs, continuous time and jerk, add rows, repeat.
+    """One SCP iteration: solve, check every separation row and box, add what is broken,
+    solve again, until nothing is broken.
 
-    jerk_on: the jerk rows to start with (N, K, 3), None without jerk bounds; jerk rows
-    are lazy too: most are far from active and each one costs solve time.
+    boxes: the bounds and jerk rows to start with; the others are checked after each solve
+    (most are far from binding, and each one the QP carries costs interior-point work).
     """
     tolerance = options.violation_tolerance
     while True:
@@ -277,31 +251,36 @@ def _solve_with_lazy_rows(
         active = []
         for members, group_keys in groups:
             status, solution, group_active = groups_solver.solve(
-                members, group_keys, jerk_on, lin_positions
+                members, group_keys, boxes, lin_positions
             )
             if solution is None:
                 return _IterationResult(status, (p, v, a), keys, keys[:0], len(groups),
                                         members.tolist())
             p[members], v[members], a[members] = solution
             active.append(group_active)
-        violated, values = violated_linearised(
-            lin_positions, p, scenario.separation_scale, scenario.min_separation, tolerance
-        )
-        if options.culling:
-            violated = worst_per_run(violated, values)
-        new = [_step_rows(violated, codec, options.continuous)]
-        if options.continuous:
-            dips = _continuous_dips(p, v, a, scenario, tolerance)
-            if len(dips):
-                new += [codec.encode(dips, kind) for kind in range(KINDS)]
+        new = []
+        for kind, (violated, values) in enumerate(violated_linearised(
+            lin_positions, p, v, scenario.dt, scenario.separation_scale,
+            scenario.min_separation, tolerance, options.continuous,
+        )):
+            if len(violated) == 0:
+                continue
+            if options.culling:
+                violated = worst_per_run(violated, values)
+            if kind == 0:
+                new.append(_step_rows(violated, codec, options.continuous))
+            else:  # an interval row comes with the other rows of its interval
+                new += [codec.encode(violated, k) for k in range(KINDS)]
+        if not new:
+            new = [keys[:0]]
         added = np.setdiff1d(np.concatenate(new), keys)
-        jerk_added = False
-        if jerk_on is not None:
-            jerk_broken = (_jerk_excess(a, scenario) > 1.0 + tolerance) & ~jerk_on
-            if jerk_broken.any():
-                jerk_on = jerk_on | jerk_broken
-                jerk_added = True
-        if added.size == 0 and not jerk_added:
+        broken = broken_boxes(scenario, p, v, a, tolerance)
+        new_bounds = broken.bounds & ~boxes.bounds
+        new_jerk = broken.jerk & ~boxes.jerk
+        boxes_added = bool(new_bounds.any() or new_jerk.any())
+        if boxes_added:
+            boxes = BoxMask(boxes.bounds | new_bounds, boxes.jerk | new_jerk)
+        if added.size == 0 and not boxes_added:
             all_active = np.concatenate(active) if active else keys[:0]
             return _IterationResult(SOLVED, (p, v, a), keys, all_active, len(groups), [])
         keys = np.union1d(keys, added)
@@ -348,11 +327,9 @@ def run_scp(
         solves_before = groups_solver.solves
         keys = np.union1d(_seed_rows(current[0], scenario, options, codec), carried)
         groups_solver.cache.clear()
-        jerk_on = None
-        if scenario.limits.jerk_max is not None:
-            jerk_on = _jerk_excess(current[2], scenario) >= JERK_SEED_FRACTION
+        boxes = near_boxes(scenario, *current)
         outcome = _solve_with_lazy_rows(
-            scenario, options, codec, groups_solver, current[0], base, keys, jerk_on
+            scenario, options, codec, groups_solver, current[0], base, keys, boxes
         )
         result, solution, keys, failed = (
             outcome.status, outcome.solution, outcome.keys, outcome.failed
