@@ -71,7 +71,7 @@ def _solve_unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, 
         starts=np.zeros((1, 3)), goals=np.ones((1, 3)),
     )
     qp = build_group_qp(unit, np.arange(1), SeparationRows.empty())
-    n, m = qp.size, qp.A.shape[0]
+    n = qp.size
     kkt = sp.bmat([[qp.P, qp.A.T], [qp.A, None]], format="csc")
     rhs = np.concatenate([-qp.q, qp.b])
     # Remove the gravity term: it is constant on the feasible set, and keeping it would
@@ -79,7 +79,6 @@ def _solve_unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, 
     rhs[:n] = 0.0
     sol = spla.spsolve(kkt, rhs)
     p, v, a = StageLayout(steps, 1).unpack(sol[:n])
-    del m
     return p[0, :, 0].copy(), v[0, :, 0].copy(), a[0, :, 0].copy()
 
 
@@ -88,7 +87,10 @@ def _profile_fits(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArra
     """Per vehicle: does the closed-form trajectory respect every box?"""
     lim = scenario.limits
     tol = BOX_TOLERANCE
+    middle = p[:, :-1] + 0.5 * scenario.dt * v[:, :-1]  # Bernstein middle points
     ok = np.all((p >= lim.position_min - tol) & (p <= lim.position_max + tol), axis=(1, 2))
+    ok &= np.all((middle >= lim.position_min - tol) & (middle <= lim.position_max + tol),
+                 axis=(1, 2))
     if lim.velocity_max is not None:
         ok &= np.all(np.abs(v) <= lim.velocity_max + tol, axis=(1, 2))
     if lim.acceleration_max is not None:
