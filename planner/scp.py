@@ -280,12 +280,20 @@ def run_scp(
     first_seconds = time.perf_counter() - began
     base = (first.positions, first.velocities, first.accelerations)
     if first.status != SOLVED:
+        message = f"the separation-free QP has no solution (solver: {first.status})"
+        group, vehicles = "boxes", first.qp_vehicles
+        if first.diagnosis is not None:
+            group, index = first.diagnosis.group, first.diagnosis.vehicle
+            vehicles = (index,)
+            why = (f"under the {group} bounds (feasible without them)" if group != "boxes"
+                   else "under the combined box constraints")
+            message = (f"vehicles[{index}] ({scenario.vehicles[index].id!r}) cannot reach its "
+                       f"goal in the horizon {why}")
         return ScpOutcome(
-            status="infeasible",
-            message=f"the separation-free QP has no solution (solver: {first.status})",
+            status="infeasible", message=message,
             positions=base[0], velocities=base[1], accelerations=base[2],
             iterations=[], first_qp_seconds=first_seconds,
-            infeasible_groups=("boxes",), infeasible_vehicles=first.qp_vehicles,
+            infeasible_groups=(group,), infeasible_vehicles=vehicles,
         )
 
     history: list[IterationRecord] = []
