@@ -216,6 +216,7 @@ class _IterationResult:
     """Rows with a positive multiplier in the last round."""
     boxes: BoxMask
     groups: int
+    largest_group: int
     failed: list[int]
 
 
@@ -242,7 +243,7 @@ def _solve_iteration(
             )
             if solution is None:
                 return _IterationResult(status, (p, v, a), keys, keys[:0], boxes, len(groups),
-                                        members.tolist())
+                                        len(members), members.tolist())
             p[members], v[members], a[members] = solution
             active.append(group_active)
         # Every violated row goes in at once: fewer rounds than adding the worst of each
@@ -255,8 +256,9 @@ def _solve_iteration(
         new_boxes = broken_boxes(scenario, p, v, a, tolerance) - boxes
         if added.size == 0 and not new_boxes.any():
             all_active = np.concatenate(active) if active else keys[:0]
+            largest = max((len(m) for m, _ in groups), default=0)
             return _IterationResult(SOLVED, (p, v, a), keys, all_active, boxes, len(groups),
-                                    [])
+                                    largest, [])
         keys = np.union1d(keys, added)
         if new_boxes.any():
             boxes = boxes | new_boxes
@@ -339,6 +341,7 @@ def run_scp(
         record(IterationRecord(
             iteration, new_cost, change, int(last.keys.size) * rows_per_key,
             groups_solver.solves - solves_before, last.groups, time.perf_counter() - t0,
+            last.largest_group,
         ))
         current, cost, carried = last.solution, new_cost, last.active
         if change < scenario.cost_threshold:
