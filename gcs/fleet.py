@@ -70,8 +70,10 @@ from gcs.record import FlightRecorder, measured_min_separation
 from gcs.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
 from gcs.stream import Streamer, jitter_stats
 
-__all__ = ["Mission", "VehicleStatus"]
+__all__ = ["HEARTBEAT_RATE_HZ", "Mission", "VehicleStatus"]
 
+#: HEARTBEAT rate requested from every vehicle (MAV_CMD_SET_MESSAGE_INTERVAL).
+HEARTBEAT_RATE_HZ = 5.0
 _MONITOR_PERIOD = 0.05
 _CONFIRM_TIMEOUT = 3.0
 _MODE_RETRY_FOR = 5.0
@@ -297,6 +299,17 @@ class Mission:
         if tel.armed:
             raise GcsError(f"{v.id}: already armed; refusing to take control of a vehicle that "
                            f"someone else armed")
+        # HEARTBEAT at 5 Hz: PX4's default 1 Hz cannot tell one lost packet from a lost link
+        # within the 1.5 s heartbeat timeout
+        try:
+            result = await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                        (float(mavlink.MAVLINK_MSG_ID_HEARTBEAT),
+                                         1e6 / HEARTBEAT_RATE_HZ))
+        except CommandError:
+            result = None
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            self._emit(v.id, "warning", f"HEARTBEAT rate not raised ({result_name(result)}): "
+                                        f"a lost packet may trip the heartbeat timeout")
         if v.home is None:
             await self._resolve_home(v)
         v.phase = "connected"
@@ -547,7 +560,11 @@ class Mission:
             for v in pending:
                 assert v.link is not None
                 tel = v.link.telemetry
-                if not tel.armed and v.link.heartbeat_age() < self.options.heartbeat_timeout:
+                if v.link.heartbeat_age() > self.options.heartbeat_timeout:
+                    self._emit(v.id, "disarm_unconfirmed",
+                               "no HEARTBEAT: cannot confirm that it landed and disarmed")
+                    continue
+                if not tel.armed:
                     if v.phase == "landing":
                         v.phase = "landed"
                         self._emit(v.id, "landed", "landed and disarmed")

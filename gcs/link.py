@@ -406,7 +406,7 @@ class VehicleLink:
         self.setpoints_sent += 1
 
     async def command(self, command: int, params: tuple[float, ...] = (), *,
-                      timeout: float = 1.0, retries: int = 3) -> int:
+                      timeout: float = 1.0, retries: int = 8) -> int:
         """Send COMMAND_LONG and return the final MAV_RESULT of its COMMAND_ACK.
 
         Resends (with `confirmation` counting up) when no ACK arrives within `timeout`;

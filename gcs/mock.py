@@ -193,8 +193,11 @@ class MockVehicle:
         self._parser.robust_parsing = True
         self._transport: asyncio.DatagramTransport | None = None
         self._rng = random.Random(fleet.seed * 1000 + index)
-        self._next = {"status": 0.0, "position": 0.0, "attitude": 0.0, "global": 0.0,
-                      "home": 0.0}
+        self._next = {"heartbeat": 0.0, "status": 0.0, "position": 0.0, "attitude": 0.0,
+                      "global": 0.0, "home": 0.0}
+        self.intervals = {"heartbeat": 1.0 / fleet.config.status_rate,
+                          "position": 1.0 / fleet.config.position_rate}
+        """Stream periods a GCS may change with MAV_CMD_SET_MESSAGE_INTERVAL (s)."""
 
     # ------------------------------------------------------------------ state
 
@@ -299,17 +302,19 @@ class MockVehicle:
         """Whatever stream is due at `now`."""
         cfg = self.config
         due = self._next
-        if now >= due["status"]:
-            due["status"] = now + 1.0 / cfg.status_rate
+        if now >= due["heartbeat"]:
+            due["heartbeat"] = now + self.intervals["heartbeat"]
             if self.faults.heartbeats:
                 self._send(self._heartbeat())
+        if now >= due["status"]:
+            due["status"] = now + 1.0 / cfg.status_rate
             self._send(self._sys_status(now))
             landed = (mavlink.MAV_LANDED_STATE_ON_GROUND if not self.in_air else
                       mavlink.MAV_LANDED_STATE_LANDING if self.mode == px4.LAND else
                       mavlink.MAV_LANDED_STATE_IN_AIR)
             self._send(self._mav.extended_sys_state_encode(0, landed))
         if now >= due["position"]:
-            due["position"] = now + 1.0 / cfg.position_rate
+            due["position"] = now + self.intervals["position"]
             p, v = self.model.position[self.index], self.model.velocity[self.index]
             self._send(self._mav.local_position_ned_encode(
                 self._boot_ms(now), p[0], p[1], p[2], v[0], v[1], v[2]))
@@ -519,12 +524,30 @@ class MockVehicle:
         elif cmd == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
             self._send(self._autopilot_version())
-        elif cmd in (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAV_CMD_GET_HOME_POSITION):
+        elif cmd == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
+            self._ack(msg, cmd, self._set_interval(round(p1), p2))
+        elif cmd == mavlink.MAV_CMD_GET_HOME_POSITION:
             self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
-            if cmd == mavlink.MAV_CMD_GET_HOME_POSITION:
-                self._send(self._home_position(now))
+            self._send(self._home_position(now))
         else:
             self._ack(msg, cmd, mavlink.MAV_RESULT_UNSUPPORTED)
+
+    def _set_interval(self, message_id: int, interval_us: float) -> int:
+        """MAV_CMD_SET_MESSAGE_INTERVAL for the streams a GCS of ours changes (PX4 takes any
+        stream); other ids are accepted and ignored. 0 = default, -1 = off (not supported
+        here: the mock never stops those two)."""
+        key = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: "heartbeat",
+               mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "position"}.get(message_id)
+        if key is None:
+            return mavlink.MAV_RESULT_ACCEPTED
+        default = 1.0 / (self.config.status_rate if key == "heartbeat"
+                         else self.config.position_rate)
+        if interval_us < 0:
+            return mavlink.MAV_RESULT_DENIED
+        period = default if interval_us == 0 else max(interval_us * 1e-6, 0.005)
+        self.intervals[key] = period
+        self._next[key] = min(self._next[key], self._now() + period)
+        return mavlink.MAV_RESULT_ACCEPTED
 
     def _on_arm(self, msg: Any, now: float) -> None:
         cmd = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
