@@ -70,8 +70,12 @@ from gcs.record import FlightRecorder, measured_min_separation
 from gcs.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
 from gcs.stream import Streamer, jitter_stats
 
-__all__ = ["HEARTBEAT_RATE_HZ", "Mission", "VehicleStatus"]
+__all__ = ["HEARTBEAT_RATE_HZ", "TRACKING_TOLERANCE_M", "Mission", "VehicleStatus"]
 
+#: Documented bound on how much closer two vehicles may come in flight than the plan's R:
+#: tracking error of each (centimetres on the mock) plus the skew between their position
+#: reports. The end-to-end test checks the measured separation against R minus this.
+TRACKING_TOLERANCE_M = 0.1
 #: HEARTBEAT rate requested from every vehicle (MAV_CMD_SET_MESSAGE_INTERVAL).
 HEARTBEAT_RATE_HZ = 5.0
 _MONITOR_PERIOD = 0.05
@@ -95,6 +99,8 @@ class VehicleStatus:
     fault: str | None = None
     fault_time: float | None = None
     armed_by_us: bool = False
+    arm_sent: bool = False
+    """An arming command went out (it may have armed the vehicle even if we never saw it)."""
     expect_offboard: bool = False
     tracking_error: float = math.nan
     goal_error: float = math.nan
@@ -388,6 +394,7 @@ class Mission:
         attempts = 0
         while True:
             attempts += 1
+            v.arm_sent = True
             result = await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,))
             if result == mavlink.MAV_RESULT_ACCEPTED:
                 v.armed_by_us = True
@@ -504,7 +511,7 @@ class Mission:
             return
         tel = v.link.telemetry
         streamer = self._streamer()
-        if not tel.armed and not v.armed_by_us:
+        if not tel.armed and not v.arm_sent:
             streamer.unassign(v.id)
             v.expect_offboard = False
             if v.phase not in ("landed",):
@@ -512,16 +519,19 @@ class Mission:
             return
         on_ground = v.phase in ("arming",) or (
             tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND)
-        if on_ground and tel.armed:
+        if on_ground:  # armed, or an arming command may have armed it: disarm
             v.expect_offboard = False
             try:
                 result = await v.link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,))
                 self._emit(v.id, "disarm", f"on the ground: {result_name(result)}")
             except GcsError as exc:
+                result = None
                 self._emit(v.id, "disarm_failed", str(exc))
-            streamer.unassign(v.id)
-            v.phase = "stopped"
-            return
+            if result == mavlink.MAV_RESULT_ACCEPTED:
+                streamer.unassign(v.id)
+                v.phase = "stopped"
+                return
+            # refused (it has taken off after all) or unanswered: land it
         if action == "hold":
             await self._hold(v)
             v.phase = "hovering"
@@ -547,7 +557,7 @@ class Mission:
         action = self._abort[0] if self._abort is not None else "land"
         await self._secure_all(action)
         if action == "land":
-            await self._wait_disarmed([v for v in self.vehicles if v.armed_by_us])
+            await self._wait_disarmed([v for v in self.vehicles if v.arm_sent])
         for v in self.vehicles:
             if v.link is not None and v.link.telemetry.armed and v.phase != "hovering":
                 self._emit(v.id, "still_armed", "still armed: operator attention required")
