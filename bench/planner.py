@@ -12,6 +12,7 @@ traced), so it does not slow the timed runs. Progress goes to stderr.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -26,8 +27,12 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+import numpy as np  # noqa: E402
+
 import planner  # noqa: E402
 from planner.generators import dmpc2019_scenario  # noqa: E402
+from planner.scp import ScpOptions  # noqa: E402
+from planner.verify import verify  # noqa: E402
 
 EXAMPLES = ROOT / "planner" / "examples"
 PAPER = [f"paper-{kind}{n}" for kind in ("circle", "random") for n in (2, 4, 6, 8)]
@@ -106,6 +111,57 @@ def profile(name: str, top: int = 20) -> list[dict[str, Any]]:
     return rows[:top]
 
 
+def inflated_separation(scenario: planner.Scenario) -> float | None:
+    """R' such that step rows at R' keep a pair >= R in between, for any motion within the
+    velocity and acceleration bounds: the chord of a step is at most dt * w (w: the largest
+    relative speed) and the quadratic bulges by at most dt^2/8 alpha."""
+    lim = scenario.limits
+    if lim.velocity_max is None or lim.acceleration_max is None:
+        return None
+    scale = scenario.separation_scale
+    w = float(np.linalg.norm(2 * lim.velocity_max / scale))
+    alpha = float(np.linalg.norm(2 * lim.acceleration_max / scale))
+    r = scenario.min_separation + scenario.dt**2 * alpha / 8
+    return float(np.hypot(r, scenario.dt * w / 2))
+
+
+def row_modes(name: str, data: dict[str, Any], repeats: int) -> list[dict[str, Any]]:
+    """Continuous-time safety three ways: the paper's step rows, step rows at an inflated
+    R', and interval rows; every result checked against the true R over continuous time."""
+    scenario = planner.Scenario.from_dict(data)
+    out = []
+    inflated = inflated_separation(scenario)
+    variants: list[tuple[str, planner.Scenario, ScpOptions]] = [
+        ("step rows (paper)", scenario, ScpOptions(continuous=False)),
+        ("interval rows", scenario, ScpOptions(continuous=True)),
+    ]
+    if inflated is not None:
+        bigger = dataclasses.replace(scenario, min_separation=inflated)
+        variants.insert(1, (f"step rows, R' = {inflated:.3f}", bigger,
+                            ScpOptions(continuous=False)))
+    for label, variant, options in variants:
+        times = []
+        for _ in range(repeats):
+            try:
+                plan = planner.plan(variant, options=options)
+            except planner.ScenarioError as exc:  # R' too large for the starts/goals
+                out.append({"scenario": name, "mode": label, "error": str(exc)})
+                break
+            times.append(plan.timing["total_s"])
+        else:
+            check = verify(scenario, plan.positions(), plan.velocities(), plan.accelerations())
+            out.append({
+                "scenario": name, "mode": label, "status": plan.status,
+                "total_s": statistics.median(times), "cost": plan.cost,
+                "min_separation_steps": check.min_separation,
+                "min_separation_continuous": check.min_separation_continuous,
+                "R": scenario.min_separation, "separated": check.separated,
+            })
+            log(f"{name:>24} {label:>28} {out[-1]['total_s']:.3f} s continuous min "
+                f"{check.min_separation_continuous:.4f} (R {scenario.min_separation})")
+    return out
+
+
 def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
             memory: bool = True) -> dict[str, Any]:
     """Plan `repeats` times; figures of the last run, medians of the timings."""
@@ -180,6 +236,8 @@ def main() -> None:
     parser.add_argument("--dmpc-sizes", type=int, nargs="*", default=[12, 20])
     parser.add_argument("--dmpc-trials", type=int, default=10)
     parser.add_argument("--no-solver-comparison", action="store_true")
+    parser.add_argument("--row-modes", nargs="*", default=["paper-circle8", "random128"],
+                        help="scenarios on which to compare continuous-time safety methods")
     parser.add_argument("--profile", nargs="*", default=[],
                         help="example scenarios to profile (cProfile, top functions)")
     args = parser.parse_args()
@@ -208,6 +266,12 @@ def main() -> None:
                 comparison.append({k: row[k] for k in ("scenario", "solver", "status",
                                                        "verified", "total_s", "cost")})
         report["solvers"] = comparison
+    if args.row_modes:
+        report["continuous_time"] = [
+            row for name in args.row_modes
+            for row in row_modes(name, json.loads((EXAMPLES / f"{name}.json").read_text()),
+                                 args.repeats)
+        ]
     if args.profile:
         report["profiles"] = {name: profile(name) for name in args.profile}
     report["wall_time_s"] = time.perf_counter() - began
