@@ -16,7 +16,8 @@
 4. after the horizon, hold at the goals for `hold_at_goal`, measure the goal errors, then land
    (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch to Hold (`at_end`).
 
-Monitors (20 Hz): heartbeat age over `heartbeat_timeout` (1.5 s), leaving OFFBOARD, tracking
+Monitors (20 Hz): no message at all for `link_timeout` (1.5 s: a lost link), HEARTBEAT older
+than `heartbeat_timeout` (5 s: mode and armed state unknown), leaving OFFBOARD, tracking
 error over `tracking_error_max`, and the live minimum separation. A flagged vehicle triggers the
 policy: ``hold_all`` / ``land_all`` stop the mission (`MissionAborted`), ``land_faulty`` lands
 that vehicle and carries on (the mission then does not count as completed).
@@ -70,14 +71,12 @@ from gcs.record import FlightRecorder, measured_min_separation
 from gcs.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
 from gcs.stream import Streamer, jitter_stats
 
-__all__ = ["HEARTBEAT_RATE_HZ", "TRACKING_TOLERANCE_M", "Mission", "VehicleStatus"]
+__all__ = ["TRACKING_TOLERANCE_M", "Mission", "VehicleStatus"]
 
 #: Documented bound on how much closer two vehicles may come in flight than the plan's R:
 #: tracking error of each (centimetres on the mock) plus the skew between their position
 #: reports. The end-to-end test checks the measured separation against R minus this.
 TRACKING_TOLERANCE_M = 0.1
-#: HEARTBEAT rate requested from every vehicle (MAV_CMD_SET_MESSAGE_INTERVAL).
-HEARTBEAT_RATE_HZ = 5.0
 _MONITOR_PERIOD = 0.05
 _CONFIRM_TIMEOUT = 3.0
 _MODE_RETRY_FOR = 5.0
@@ -187,12 +186,14 @@ class Mission:
                 position = frames.ned_to_world(tel.position_ned, v.home).tolist()
                 velocity = frames.ned_vector_to_world(tel.velocity_ned).tolist()
             age = v.link.heartbeat_age(now) if v.link is not None else math.inf
+            silent = v.link.link_age(now) if v.link is not None else math.inf
             vehicles.append({
                 "id": v.id, "system_id": v.spec.system_id, "phase": v.phase,
                 "fault": v.fault,
                 "mode": tel.mode.name if tel is not None and tel.mode is not None else None,
                 "armed": bool(tel.armed) if tel is not None else False,
                 "heartbeat_age": None if math.isinf(age) else round(age, 3),
+                "link_age": None if math.isinf(silent) else round(silent, 3),
                 "position": position, "velocity": velocity,
                 "tracking_error": _finite_or_none(v.tracking_error),
             })
@@ -305,17 +306,6 @@ class Mission:
         if tel.armed:
             raise GcsError(f"{v.id}: already armed; refusing to take control of a vehicle that "
                            f"someone else armed")
-        # HEARTBEAT at 5 Hz: PX4's default 1 Hz cannot tell one lost packet from a lost link
-        # within the 1.5 s heartbeat timeout
-        try:
-            result = await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-                                        (float(mavlink.MAVLINK_MSG_ID_HEARTBEAT),
-                                         1e6 / HEARTBEAT_RATE_HZ))
-        except CommandError:
-            result = None
-        if result != mavlink.MAV_RESULT_ACCEPTED:
-            self._emit(v.id, "warning", f"HEARTBEAT rate not raised ({result_name(result)}): "
-                                        f"a lost packet may trip the heartbeat timeout")
         if v.home is None:
             await self._resolve_home(v)
         v.phase = "connected"
@@ -570,11 +560,18 @@ class Mission:
             for v in pending:
                 assert v.link is not None
                 tel = v.link.telemetry
-                if v.link.heartbeat_age() > self.options.heartbeat_timeout:
+                if v.link.link_age() > self.options.link_timeout:
                     self._emit(v.id, "disarm_unconfirmed",
-                               "no HEARTBEAT: cannot confirm that it landed and disarmed")
+                               "link lost: cannot confirm that it landed and disarmed")
                     continue
-                if not tel.armed:
+                stale = v.link.heartbeat_age() > self.options.heartbeat_timeout
+                if stale and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+                    v.phase = "landed"
+                    self._emit(v.id, "disarm_unconfirmed",
+                               "on the ground (EXTENDED_SYS_STATE), but no HEARTBEAT to "
+                               "confirm that it disarmed")
+                    continue
+                if not tel.armed and not stale:
                     if v.phase == "landing":
                         v.phase = "landed"
                         self._emit(v.id, "landed", "landed and disarmed")
@@ -609,8 +606,11 @@ class Mission:
                     positions[v.id] = frames.ned_to_world(p, v.home)
                 if not v.expect_offboard or v.fault is not None:
                     continue
+                silent = link.link_age(now)
                 age = link.heartbeat_age(now)
-                if age > opts.heartbeat_timeout:
+                if silent > opts.link_timeout:
+                    self._flag(v, "link_lost", f"no message for {silent:.2f} s")
+                elif age > opts.heartbeat_timeout:
                     self._flag(v, "heartbeat_lost", f"no HEARTBEAT for {age:.2f} s")
                 elif tel.mode != px4.OFFBOARD:
                     name = tel.mode.name if tel.mode is not None else "?"

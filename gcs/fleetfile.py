@@ -66,8 +66,14 @@ class MissionOptions:
     """What to do when a vehicle is flagged: hold_all, land_all or land_faulty."""
     at_end: str = "land"
     """After the plan and the hold at the goals: land, or hold (PX4 Hold mode)."""
-    heartbeat_timeout: float = 1.5
-    """A vehicle whose HEARTBEAT is older than this is flagged (s)."""
+    link_timeout: float = 1.5
+    """A vehicle from which no message at all arrived for this long has lost its link and
+    is flagged (s). Any message counts: PX4 sends HEARTBEAT at 1 Hz and refuses a faster
+    rate, so one lost HEARTBEAT would otherwise look like a lost link."""
+    heartbeat_timeout: float = 5.0
+    """A vehicle whose HEARTBEAT is older than this is flagged: its mode and armed state are
+    no longer known (s). Five missed at PX4's 1 Hz: at 20% packet loss that happens by chance
+    with probability 0.2^5 = 3e-4 per heartbeat, while a lost link is caught in 1.5 s."""
     tracking_error_max: float = 1.0
     """A vehicle farther than this from its planned position is flagged (m)."""
     start_tolerance: float = 0.3
@@ -121,8 +127,8 @@ class MissionOptions:
         if not 0.0 < out.rate_hz <= MAX_RATE_HZ:
             raise FleetFileError(f"{where}.rate_hz",
                                  f"must be in (0, {MAX_RATE_HZ:g}] Hz, got {out.rate_hz:g}")
-        for key in ("heartbeat_timeout", "tracking_error_max", "start_tolerance",
-                    "goal_tolerance", "climb_speed"):
+        for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
+                    "start_tolerance", "goal_tolerance", "climb_speed"):
             if getattr(out, key) <= 0:
                 raise FleetFileError(f"{where}.{key}", "must be positive")
         return out

@@ -292,6 +292,8 @@ class Telemetry:
     """The latest state one vehicle reported (times are `time.monotonic()` at reception)."""
 
     heartbeat_time: float | None = None
+    message_time: float | None = None
+    """Reception of the vehicle's latest message of any kind: the link's proof of life."""
     autopilot: int | None = None
     vehicle_type: int | None = None
     mode: px4.Px4Mode | None = None
@@ -332,6 +334,7 @@ class VehicleLink:
     def _handle(self, msg: Any, now: float) -> None:
         kind = msg.get_type()
         tel = self.telemetry
+        tel.message_time = now
         if kind == "HEARTBEAT":
             if msg.get_srcComponent() == self.component_id:
                 tel.heartbeat_time = now
@@ -397,6 +400,12 @@ class VehicleLink:
         finally:
             if not future.done():
                 future.cancel()
+
+    def link_age(self, now: float | None = None) -> float:
+        """Seconds since any message of this vehicle arrived (inf before the first)."""
+        if self.telemetry.message_time is None:
+            return math.inf
+        return (time.monotonic() if now is None else now) - self.telemetry.message_time
 
     def heartbeat_age(self, now: float | None = None) -> float:
         """Seconds since the last HEARTBEAT (inf before the first)."""

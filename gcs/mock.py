@@ -132,6 +132,8 @@ class MockFaults:
     """Fraction of packets dropped, each direction independently (0..1)."""
     heartbeats: bool = True
     """False: stop sending HEARTBEAT (everything else continues)."""
+    silent: bool = False
+    """True: send nothing at all (a dead radio or a crashed companion link)."""
     delay: float = 0.0
     """Seconds added to every packet, both directions."""
     refuse_arming: bool = False
@@ -195,8 +197,7 @@ class MockVehicle:
         self._rng = random.Random(fleet.seed * 1000 + index)
         self._next = {"heartbeat": 0.0, "status": 0.0, "position": 0.0, "attitude": 0.0,
                       "global": 0.0, "home": 0.0}
-        self.intervals = {"heartbeat": 1.0 / fleet.config.status_rate,
-                          "position": 1.0 / fleet.config.position_rate}
+        self.intervals = {"position": 1.0 / fleet.config.position_rate}
         """Stream periods a GCS may change with MAV_CMD_SET_MESSAGE_INTERVAL (s)."""
 
     # ------------------------------------------------------------------ state
@@ -303,7 +304,7 @@ class MockVehicle:
         cfg = self.config
         due = self._next
         if now >= due["heartbeat"]:
-            due["heartbeat"] = now + self.intervals["heartbeat"]
+            due["heartbeat"] = now + 1.0 / cfg.status_rate
             if self.faults.heartbeats:
                 self._send(self._heartbeat())
         if now >= due["status"]:
@@ -401,7 +402,7 @@ class MockVehicle:
         if self._transport is None:
             return
         faults = self.faults
-        if faults.loss > 0.0 and self._rng.random() < faults.loss:
+        if faults.silent or (faults.loss > 0.0 and self._rng.random() < faults.loss):
             return
         buf = msg.pack(self._mav)
         if faults.delay > 0.0:
@@ -533,20 +534,19 @@ class MockVehicle:
             self._ack(msg, cmd, mavlink.MAV_RESULT_UNSUPPORTED)
 
     def _set_interval(self, message_id: int, interval_us: float) -> int:
-        """MAV_CMD_SET_MESSAGE_INTERVAL for the streams a GCS of ours changes (PX4 takes any
-        stream); other ids are accepted and ignored. 0 = default, -1 = off (not supported
-        here: the mock never stops those two)."""
-        key = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: "heartbeat",
-               mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "position"}.get(message_id)
-        if key is None:
+        """MAV_CMD_SET_MESSAGE_INTERVAL. Like PX4 (mavlink_receiver.cpp), HEARTBEAT's rate
+        cannot be changed (FAILED); LOCAL_POSITION_NED's can; other ids are accepted and
+        ignored. 0 = default rate, -1 = off (DENIED here: the mock never stops it)."""
+        if message_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return mavlink.MAV_RESULT_FAILED
+        if message_id != mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
             return mavlink.MAV_RESULT_ACCEPTED
-        default = 1.0 / (self.config.status_rate if key == "heartbeat"
-                         else self.config.position_rate)
         if interval_us < 0:
             return mavlink.MAV_RESULT_DENIED
+        default = 1.0 / self.config.position_rate
         period = default if interval_us == 0 else max(interval_us * 1e-6, 0.005)
-        self.intervals[key] = period
-        self._next[key] = min(self._next[key], self._now() + period)
+        self.intervals["position"] = period
+        self._next["position"] = min(self._next["position"], self._now() + period)
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _on_arm(self, msg: Any, now: float) -> None:

@@ -126,13 +126,12 @@ def test_offboard_and_arming_rules() -> None:
 
 def test_setpoints_stop_trigger_the_failsafe_then_land_and_disarm() -> None:
     async def main() -> None:
-        async with MockFleet(1, settle_time=0.2, failsafe_land_delay=0.5, **mock_ports(1)) \
-                as mock, LinkHub() as hub:
+        # HEARTBEAT at 20 Hz (configured, as PX4 refuses to change it over MAVLink) so that
+        # the short Position phase shows in it
+        async with MockFleet(1, settle_time=0.2, failsafe_land_delay=0.5, status_rate=20.0,
+                             **mock_ports(1)) as mock, LinkHub() as hub:
             link = await _connect(mock, hub)
             vehicle = mock.vehicles[0]
-            # HEARTBEAT at 20 Hz so that the short Position phase shows in it
-            assert await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-                                      (0.0, 50_000.0)) == mavlink.MAV_RESULT_ACCEPTED
             stream = asyncio.create_task(_stream(link, hold_track([0, 0, -1.5], 0.0, 20).at(0)))
             await asyncio.sleep(0.3)
             assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
@@ -157,11 +156,14 @@ def test_setpoints_stop_trigger_the_failsafe_then_land_and_disarm() -> None:
 
 def test_auto_disarm_when_armed_without_taking_off() -> None:
     async def main() -> None:
-        async with MockFleet(1, settle_time=0.0, disarm_preflight=1.5, **mock_ports(1)) \
-                as mock, LinkHub() as hub:
+        async with MockFleet(1, settle_time=0.0, disarm_preflight=1.5, status_rate=20.0,
+                             **mock_ports(1)) as mock, LinkHub() as hub:
             link = await _connect(mock, hub)
+            # like PX4: HEARTBEAT's rate cannot be changed, LOCAL_POSITION_NED's can
             assert await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-                                      (0.0, 50_000.0)) == mavlink.MAV_RESULT_ACCEPTED
+                                      (0.0, 50_000.0)) == mavlink.MAV_RESULT_FAILED
+            assert await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                      (32.0, 20_000.0)) == mavlink.MAV_RESULT_ACCEPTED
             assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == 0
             assert await link.wait_for(lambda t: t.armed, 2.0)
             assert await link.wait_for(lambda t: not t.armed, 3.0)
