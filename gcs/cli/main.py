@@ -17,6 +17,7 @@ __all__ = ["build_parser", "main"]
 #: (subcommand, module, one-line help)
 COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("plan", "gcs.cli.plan_cmd", "plan collision-free trajectories for a scenario"),
+    ("serve", "gcs.cli.serve_cmd", "serve the REST API and browser page (mock or real fleet)"),
 )
 
 

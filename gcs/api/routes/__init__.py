@@ -1,0 +1,13 @@
+"""The API's routers, one module per resource, all under the `/api` prefix."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from gcs.api.routes import missions, status
+
+__all__ = ["api_router"]
+
+api_router = APIRouter(prefix="/api")
+api_router.include_router(missions.router)
+api_router.include_router(status.router)
