@@ -74,6 +74,9 @@ class Settings(BaseSettings):
     max_trajectory_rate: float = Field(
         100.0, gt=0, le=1000, description="Highest sampling rate of /trajectory (Hz)."
     )
+    max_trajectory_samples: int = Field(
+        500_000, ge=1000, description="Most vehicle-time samples one /trajectory answer holds."
+    )
     plan_workers: int = Field(
         max(1, (os.cpu_count() or 2) - 1),
         ge=1,

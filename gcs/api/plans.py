@@ -79,7 +79,8 @@ def _check_size(plan: Plan, rate: float, max_rows: int) -> np.ndarray:
         raise Unprocessable(
             "rate",
             f"{rate:g} Hz gives {rows} samples ({len(plan.vehicles)} vehicles x {len(times)} "
-            f"times), more than the limit {max_rows}; use rate <= {highest:.3g}",
+            f"times), more than the limit {max_rows} (setting max_trajectory_samples); "
+            f"use rate <= {highest:.3g}",
         )
     if not plan.vehicles:
         raise Conflict("mission_id", f"the plan (status {plan.status}) has no trajectories")

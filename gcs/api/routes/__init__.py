@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from gcs.api.routes import missions, status
+from gcs.api.routes import examples, missions, status
 
 __all__ = ["api_router"]
 
 api_router = APIRouter(prefix="/api")
 api_router.include_router(missions.router)
+api_router.include_router(examples.router)
 api_router.include_router(status.router)

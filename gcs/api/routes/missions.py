@@ -30,10 +30,6 @@ __all__ = ["mission_document", "router"]
 
 router = APIRouter(prefix="/missions", tags=["missions"])
 
-#: Most samples (vehicles x times) one trajectory export may hold.
-MAX_TRAJECTORY_ROWS = 500_000
-
-
 def _links(mission_id: str) -> dict[str, str]:
     base = f"/api/missions/{mission_id}"
     return {
@@ -259,11 +255,11 @@ def get_trajectory(
     plan = plans.get(mission.id)
     if format == "csv":
         return Response(
-            trajectory_csv(plan, rate, MAX_TRAJECTORY_ROWS),
+            trajectory_csv(plan, rate, settings.max_trajectory_samples),
             media_type="text/csv",
             headers={
                 "Content-Disposition": f'attachment; filename="trajectory-{mission.id}.csv"'
             },
         )
-    document = trajectory_json(mission.id, plan, rate, MAX_TRAJECTORY_ROWS)
+    document = trajectory_json(mission.id, plan, rate, settings.max_trajectory_samples)
     return _json(json.dumps(document, separators=(",", ":")))
