@@ -24,6 +24,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from planner.errors import FieldError
 
@@ -127,8 +128,12 @@ class Unavailable(ApiError):
     status = 503
 
 
-def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
-    """OpenAPI `responses=` entries documenting `ErrorBody` for these status codes."""
+def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI `responses=` entries documenting `ErrorBody` for these status codes.
+
+    `json_content`: say application/json explicitly, for routes whose own media type is
+    something else (an event stream): FastAPI would document the error under that type.
+    """
     meaning = {
         400: "Malformed request",
         404: "Not found",
@@ -137,7 +142,20 @@ def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
         422: "Invalid input: the body names the field and the reason",
         503: "Service unavailable",
     }
+    if json_content:
+        content = {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorBody"}}}
+        return {code: {"description": meaning[code], "content": content} for code in codes}
     return {code: {"model": ErrorBody, "description": meaning[code]} for code in codes}
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    """Every method some route accepts for this path (Starlette only names the first
+    route's, which is wrong when GET and DELETE of one path are separate routes)."""
+    methods: set[str] = set()
+    for route in request.app.router.routes:
+        if route.matches(request.scope)[0] != Match.NONE:
+            methods.update(getattr(route, "methods", None) or ())
+    return sorted(methods)
 
 
 def _dotted(loc: Sequence[Any]) -> str | None:
@@ -194,13 +212,15 @@ def install_error_handlers(app: FastAPI) -> None:
         assert isinstance(exc, FieldError)
         return _respond(Unprocessable.from_field_error(exc))
 
-    async def http_error(_request: Request, exc: Exception) -> JSONResponse:
+    async def http_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, StarletteHTTPException)
         error = ApiError("path" if exc.status_code == 404 else None, str(exc.detail))
         error.status = exc.status_code
         response = _respond(error)
         if exc.headers:
             response.headers.update(exc.headers)
+        if exc.status_code == 405:
+            response.headers["Allow"] = ", ".join(_allowed_methods(request))
         return response
 
     async def unexpected(_request: Request, exc: Exception) -> JSONResponse:

@@ -8,12 +8,11 @@ definition of the motion between steps; nothing here interpolates by itself.
 from __future__ import annotations
 
 import io
-import json
 import threading
 from collections import OrderedDict
-from typing import Any
 
 import numpy as np
+import orjson
 
 from gcs.api.errors import Conflict, NotFound, Unprocessable
 from gcs.store import Store
@@ -48,7 +47,7 @@ class PlanCache:
             reason = (row.error or {}).get("reason", "no plan")
             raise Conflict("mission_id", f"mission {mission_id!r} has no plan: {reason}")
         try:
-            plan = Plan.from_dict(json.loads(row.plan_json))
+            plan = Plan.from_dict(orjson.loads(row.plan_json))
         except PlanFormatError as exc:  # a stored plan from an incompatible version
             raise Conflict(f"plan.{exc.field}", f"stored plan unreadable: {exc.reason}") from None
         with self._lock:
@@ -87,25 +86,28 @@ def _check_size(plan: Plan, rate: float, max_rows: int) -> np.ndarray:
     return times
 
 
-def trajectory_json(mission_id: str, plan: Plan, rate: float, max_rows: int) -> dict[str, Any]:
-    """The `TrajectoryOut` document: every vehicle's setpoints at `rate` Hz (world ENU)."""
+def trajectory_json(mission_id: str, plan: Plan, rate: float, max_rows: int) -> bytes:
+    """The `TrajectoryOut` document as JSON: every vehicle's setpoints at `rate` Hz (world
+    ENU). orjson writes the numpy arrays directly, ~30x faster than lists + json.dumps, so
+    an export holds the interpreter for a few milliseconds, not tens."""
     times = _check_size(plan, rate, max_rows)
     motion = plan.sample(times)
-    return {
+    document = {
         "mission_id": mission_id,
         "rate": rate,
         "frame": "world_enu",
-        "t": times.tolist(),
+        "t": times,
         "vehicles": [
             {
                 "id": vehicle.id,
-                "position": motion.position[i].tolist(),
-                "velocity": motion.velocity[i].tolist(),
-                "acceleration": motion.acceleration[i].tolist(),
+                "position": np.ascontiguousarray(motion.position[i]),
+                "velocity": np.ascontiguousarray(motion.velocity[i]),
+                "acceleration": np.ascontiguousarray(motion.acceleration[i]),
             }
             for i, vehicle in enumerate(plan.vehicles)
         ],
     }
+    return orjson.dumps(document, option=orjson.OPT_SERIALIZE_NUMPY)
 
 
 CSV_HEADER = "vehicle,t,x,y,z,vx,vy,vz,ax,ay,az\n"

@@ -187,7 +187,7 @@ def delete_mission(
     "/{mission_id}/events",
     response_class=EventSourceResponse,
     summary="Planning progress (server-sent events)",
-    responses=error_responses(404),
+    responses=error_responses(404, json_content=True),
 )
 async def mission_events(
     mission: MissionDep, planning: PlanningDep
@@ -261,5 +261,7 @@ def get_trajectory(
                 "Content-Disposition": f'attachment; filename="trajectory-{mission.id}.csv"'
             },
         )
-    document = trajectory_json(mission.id, plan, rate, settings.max_trajectory_samples)
-    return _json(json.dumps(document, separators=(",", ":")))
+    return Response(
+        trajectory_json(mission.id, plan, rate, settings.max_trajectory_samples),
+        media_type="application/json",
+    )

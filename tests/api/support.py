@@ -1,0 +1,86 @@
+"""Test helpers: the bundled example scenarios, and `fleetplan serve` in a child process on a
+free port for tests that need a real server (latency under load, fuzzing over HTTP, browser)."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+__all__ = ["EXAMPLES", "ServiceProcess", "example", "free_port"]
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
+
+
+def example(name: str) -> dict[str, Any]:
+    """A scenario bundled with the planner, as JSON."""
+    return json.loads((EXAMPLES / f"{name}.json").read_text())
+
+
+def free_port() -> int:
+    """A TCP port nobody listens on right now (chosen by the OS)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+class ServiceProcess:
+    """`python -m gcs.cli.main serve ...` with its own database under `workdir`."""
+
+    def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None) -> None:
+        self.workdir = workdir
+        self.port = free_port()
+        self.base_url = f"http://127.0.0.1:{self.port}"
+        self.log_path = workdir / f"serve-{self.port}.log"
+        self.command = [
+            sys.executable, "-m", "gcs.cli.main", "serve",
+            "--host", "127.0.0.1", "--port", str(self.port),
+            "--db", f"sqlite:///{workdir / 'fleetplan.db'}",
+            *args,
+        ]
+        self.env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+        self.process: subprocess.Popen[bytes] | None = None
+
+    def start(self, timeout: float = 60.0) -> ServiceProcess:
+        log = self.log_path.open("wb")
+        self.process = subprocess.Popen(
+            self.command, cwd=self.workdir, env=self.env, stdout=log, stderr=subprocess.STDOUT
+        )
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.process.poll() is not None:
+                raise RuntimeError(f"fleetplan serve exited:\n{self.log()}")
+            try:
+                if httpx.get(f"{self.base_url}/api/status", timeout=1.0).status_code == 200:
+                    return self
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.1)
+        self.stop()
+        raise RuntimeError(f"fleetplan serve did not answer within {timeout} s:\n{self.log()}")
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
+
+    def stop(self) -> None:
+        if self.process is None or self.process.poll() is not None:
+            return
+        self.process.terminate()
+        try:
+            self.process.wait(15)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(5)
+
+    def __enter__(self) -> ServiceProcess:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
