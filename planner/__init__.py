@@ -6,6 +6,7 @@ Numerics only: no I/O, no MAVLink, no web. The public surface is re-exported her
 
 from planner.dynamics import MotionSample, integrate, interpolate
 from planner.errors import FieldError, PlanFormatError, PlannerError, ScenarioError, SolverError
+from planner.planning import plan
 from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Limits, Scenario, Vehicle
 
@@ -25,4 +26,5 @@ __all__ = [
     "Verification",
     "integrate",
     "interpolate",
+    "plan",
 ]

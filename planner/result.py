@@ -27,8 +27,9 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-#: Every status a plan can carry.
-STATUSES = ("converged", "max_iterations", "infeasible")
+#: Every status a plan can carry. `unverified`: the loop stopped but the independent
+#: verification failed (never expected; reported rather than hidden).
+STATUSES = ("converged", "max_iterations", "infeasible", "unverified")
 
 
 @dataclass(frozen=True)
@@ -90,9 +91,9 @@ class IterationRecord:
 class Verification:
     """Checks of the final trajectories, computed independently of the solver."""
 
-    min_separation: float
-    """Smallest pair distance at the steps, in the separation metric (m)."""
-    min_separation_continuous: float
+    min_separation: float | None
+    """Smallest pair distance at the steps, in the separation metric (m); None: one vehicle."""
+    min_separation_continuous: float | None
     """Smallest pair distance over continuous time, exact motion between steps (m)."""
     closest_pair: list[str]
     """The two vehicle ids of the continuous-time minimum (empty with one vehicle)."""

@@ -1,0 +1,131 @@
+"""The separation-free first QP (SCP iteration 0), solved by structure rather than brute force.
+
+Without separation the QP splits per vehicle and axis into identical 1-D problems that differ
+only in their start and goal. Their equality-only optimum is linear in the displacement:
+p = start + (goal - start) phi(t) for one unit profile phi computed once per (K, dt) (the
+gravity term of the cost is constant on the feasible set, since sum_k a_z[k] dt = v_z[K] -
+v_z[0] = 0). Where that profile satisfies every box it is the exact optimum; only vehicles
+whose profile breaks a box (long moves, tight limits) go to one batched, block-diagonal QP.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from planner.qp import SeparationRows, StageLayout, build_group_qp
+from planner.scenario import Scenario
+from planner.solvers import SOLVED, QPSolver
+
+__all__ = ["FirstSolution", "solve_first_qp", "unit_profile"]
+
+FloatArray = NDArray[np.float64]
+
+#: Slack allowed when deciding that the closed-form profile respects a box.
+BOX_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class FirstSolution:
+    status: str
+    """'solved', or the solver status of the batched QP (e.g. 'infeasible')."""
+    positions: FloatArray
+    velocities: FloatArray
+    accelerations: FloatArray
+    closed_form: int
+    """Vehicles whose closed-form profile was already optimal."""
+    qp_vehicles: tuple[int, ...]
+    """Vehicles that needed the batched QP (a box was active)."""
+    qp_solves: int
+
+
+@lru_cache(maxsize=32)
+def _unit_profile_cached(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    return _solve_unit_profile(steps, dt)
+
+
+def unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(p, v, a) of the minimum-thrust rest-to-rest move from 0 to 1 with a[K-1] = 0."""
+    return _unit_profile_cached(int(steps), float(dt))
+
+
+def _solve_unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    # One fake vehicle moving from 0 to 1 on every axis; only the equalities matter here.
+    from planner.scenario import Limits, Vehicle
+
+    limits = Limits(
+        position_min=np.full(3, -np.inf), position_max=np.full(3, np.inf),
+        velocity_max=None, acceleration_max=None, jerk_max=None,
+        thrust_min=0.0, thrust_max=np.inf, body_rate_max=np.inf,
+    )
+    unit = Scenario(
+        name="unit", dt=dt, steps=steps, min_separation=1.0,
+        separation_scale=np.ones(3), cost_threshold=1.0, max_iterations=1, limits=limits,
+        vehicles=(Vehicle("u", np.zeros(3), np.ones(3)),),
+        starts=np.zeros((1, 3)), goals=np.ones((1, 3)),
+    )
+    qp = build_group_qp(unit, np.arange(1), SeparationRows.empty())
+    n, m = qp.size, qp.A.shape[0]
+    kkt = sp.bmat([[qp.P, qp.A.T], [qp.A, None]], format="csc")
+    rhs = np.concatenate([-qp.q, qp.b])
+    # Remove the gravity term: it is constant on the feasible set, and keeping it would
+    # tilt the z-profile by a multiple of the null space only through round-off.
+    rhs[:n] = 0.0
+    sol = spla.spsolve(kkt, rhs)
+    p, v, a = StageLayout(steps, 1).unpack(sol[:n])
+    del m
+    return p[0, :, 0].copy(), v[0, :, 0].copy(), a[0, :, 0].copy()
+
+
+def _profile_fits(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray
+                  ) -> NDArray[np.bool_]:
+    """Per vehicle: does the closed-form trajectory respect every box?"""
+    lim = scenario.limits
+    tol = BOX_TOLERANCE
+    ok = np.all((p >= lim.position_min - tol) & (p <= lim.position_max + tol), axis=(1, 2))
+    if lim.velocity_max is not None:
+        ok &= np.all(np.abs(v) <= lim.velocity_max + tol, axis=(1, 2))
+    if lim.acceleration_max is not None:
+        ok &= np.all(np.abs(a) <= lim.acceleration_max + tol, axis=(1, 2))
+    if lim.jerk_max is not None:
+        da = np.diff(a, axis=1, prepend=0.0)
+        ok &= np.all(np.abs(da) <= lim.jerk_max * scenario.dt + tol, axis=(1, 2))
+    return ok
+
+
+def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:
+    """Iteration 0: every vehicle's separation-free optimum."""
+    phi_p, phi_v, phi_a = unit_profile(scenario.steps, scenario.dt)
+    start = scenario.starts[:, None, :]
+    move = (scenario.goals - scenario.starts)[:, None, :]
+    p = start + move * phi_p[None, :, None]
+    v = move * phi_v[None, :, None]
+    a = move * phi_a[None, :, None]
+    fits = _profile_fits(scenario, p, v, a)
+    needs_qp = np.flatnonzero(~fits)
+    if needs_qp.size == 0:
+        return FirstSolution("solved", p, v, a, len(fits), (), 0)
+    qp = build_group_qp(scenario, needs_qp, SeparationRows.empty())
+    result = solver.solve(qp)
+    if result.status != SOLVED or result.x is None:
+        return FirstSolution(result.status, p, v, a, int(fits.sum()), tuple(needs_qp.tolist()), 1)
+    qp_p, qp_v, qp_a = StageLayout(scenario.steps, len(needs_qp)).unpack(result.x)
+    p, v, a = p.copy(), v.copy(), a.copy()
+    p[needs_qp], v[needs_qp], a[needs_qp] = qp_p, qp_v, qp_a
+    return FirstSolution("solved", p, v, a, int(fits.sum()), tuple(needs_qp.tolist()), 1)
+
+
+def with_vehicles(scenario: Scenario, members: NDArray[np.intp]) -> Scenario:
+    """The scenario restricted to `members` (used for diagnosis of infeasible vehicles)."""
+    return dataclasses.replace(
+        scenario,
+        vehicles=tuple(scenario.vehicles[i] for i in members),
+        starts=scenario.starts[members],
+        goals=scenario.goals[members],
+    )

@@ -1,0 +1,115 @@
+"""Verification of trajectories, independent of the solver and of the QP's rows.
+
+Everything is measured on the trajectories themselves with their exact motion between
+steps: pair distances at the steps and over continuous time, every box (position checked
+over continuous time too, since it is quadratic inside a step), boundary conditions, and
+the flyability of thrust and body rates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.flatness import body_rates, jerk_from_accelerations, thrust
+from planner.result import Verification
+from planner.scenario import Scenario
+from planner.separation import interval_lower_bounds, interval_minima, min_step_distance
+
+__all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "verify"]
+
+FloatArray = NDArray[np.float64]
+
+#: A plan is separated when its continuous-time minimum is at least R minus this (m).
+SEPARATION_TOLERANCE = 1e-4
+#: Boxes and boundary conditions must hold within this.
+BOUND_TOLERANCE = 1e-5
+
+
+def _excess(values: FloatArray, bound: FloatArray | None) -> float:
+    if bound is None or values.size == 0:
+        return 0.0
+    return float(max(0.0, np.max(np.abs(values) - bound)))
+
+
+def _position_extremes(p: FloatArray, v: FloatArray, a: FloatArray, dt: float
+                       ) -> tuple[FloatArray, FloatArray]:
+    """Per vehicle and axis, min and max position over continuous time."""
+    p0, v0, a0 = p[:, :-1], v[:, :-1], a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(np.abs(a0) > 1e-12, -v0 / a0, 0.0)
+    s = np.clip(s, 0.0, dt)
+    inner = p0 + s * v0 + 0.5 * s * s * a0
+    lo = np.minimum(p.min(axis=1), inner.min(axis=1))
+    hi = np.maximum(p.max(axis=1), inner.max(axis=1))
+    return lo, hi
+
+
+def continuous_minimum(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray
+                       ) -> tuple[float, float, int, int, float]:
+    """(step minimum, continuous minimum, i, j, time) of the scaled pair distance."""
+    scale = scenario.separation_scale
+    step_min, i, j, k = min_step_distance(p, scale)
+    if i < 0:
+        return float("inf"), float("inf"), -1, -1, 0.0
+    best = (step_min, i, j, k * scenario.dt)
+    # The step minimum bounds the continuous one from above: only intervals whose cheap
+    # lower bound goes under it can hold something smaller.
+    maybe = interval_lower_bounds(p, a, scenario.dt, scale, step_min)
+    if len(maybe):
+        minima, when = interval_minima(p, v, a, scenario.dt, scale, maybe)
+        idx = int(np.argmin(minima))
+        if minima[idx] < best[0]:
+            best = (float(minima[idx]), int(maybe.i[idx]), int(maybe.j[idx]),
+                    float(maybe.k[idx] * scenario.dt + when[idx]))
+    return step_min, best[0], best[1], best[2], best[3]
+
+
+def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> Verification:
+    """Check trajectories (N, K+1, 3) / (N, K, 3) against every requirement of the scenario."""
+    lim = scenario.limits
+    dt = scenario.dt
+    step_min, cont_min, i, j, when = continuous_minimum(scenario, p, v, a)
+    lo, hi = _position_extremes(p, v, a, dt)
+    jerk = jerk_from_accelerations(a, dt)
+    f = thrust(a)
+    rates = body_rates(a, jerk)
+    violation = {
+        "position": float(max(0.0, np.max(lim.position_min - lo), np.max(hi - lim.position_max))),
+        "velocity": _excess(v, lim.velocity_max),
+        "acceleration": _excess(a, lim.acceleration_max),
+        "jerk": _excess(jerk, lim.jerk_max),
+    }
+    boundary = {
+        "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
+        "start_velocity": float(np.max(np.abs(v[:, 0]))),
+        "goal_position": float(np.max(np.abs(p[:, -1] - scenario.goals))),
+        "goal_velocity": float(np.max(np.abs(v[:, -1]))),
+        "goal_acceleration": float(np.max(np.abs(a[:, -1]))),
+    }
+    thrust_range = [float(f.min()), float(f.max())]
+    rate_peak = float(np.max(np.abs(rates[..., :2])))
+    flyable = (
+        thrust_range[0] >= lim.thrust_min
+        and thrust_range[1] <= lim.thrust_max
+        and rate_peak <= lim.body_rate_max
+    )
+    ids = scenario.ids
+    return Verification(
+        min_separation=step_min if np.isfinite(step_min) else None,
+        min_separation_continuous=cont_min if np.isfinite(cont_min) else None,
+        closest_pair=[ids[i], ids[j]] if i >= 0 else [],
+        closest_time=float(when),
+        max_violation=violation,
+        boundary_error=boundary,
+        thrust_range=thrust_range,
+        body_rate_peak=rate_peak,
+        flyable=bool(flyable),
+        separated=bool(cont_min >= scenario.min_separation - SEPARATION_TOLERANCE),
+        within_bounds=bool(
+            max(violation.values()) <= BOUND_TOLERANCE
+            and max(boundary.values()) <= BOUND_TOLERANCE
+        ),
+        separation_tolerance=SEPARATION_TOLERANCE,
+        bound_tolerance=BOUND_TOLERANCE,
+    )
