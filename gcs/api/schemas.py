@@ -16,6 +16,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.errors import ErrorItem
+from planner.result import STATUSES
 
 __all__ = [
     "EXAMPLE_SCENARIO",
@@ -120,7 +121,7 @@ class VehicleTrajectoryOut(BaseModel):
 class PlanOut(BaseModel):
     """The Plan JSON contract (`planner.Plan.to_dict`)."""
 
-    status: Literal["converged", "max_iterations", "infeasible"]
+    status: Literal[STATUSES] = Field(description="The planner's verdict.")
     message: str
     solver: str
     infeasible_groups: list[str]

@@ -59,6 +59,8 @@ def test_requests_answer_within_50_ms_while_a_64_vehicle_plan_computes(tmp_path:
         print(f"  {path}: max {max(values) * 1e3:.1f} ms, median "
               f"{statistics.median(values) * 1e3:.1f} ms")
     assert len(latencies) >= 50, "the plan finished too fast to measure anything"
-    assert p50 < 0.010
-    # Other test runs may share this 2-core machine: the bound is on the 99th percentile.
+    # The planner keeps one of this machine's two cores busy, and other test runs may share
+    # it: the 50 ms bound is on the 99th percentile, with a looser cap on the single worst.
+    assert p50 < 0.025
     assert p99 < 0.050
+    assert latencies[-1] < 0.150

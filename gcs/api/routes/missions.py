@@ -133,7 +133,7 @@ async def create_mission(
 def list_missions(
     store: StoreDep,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=1_000_000_000)] = 0,
 ) -> dict[str, Any]:
     """Missions newest first, without scenarios and plans."""
     rows, total = store.list_missions(limit=limit, offset=offset)
