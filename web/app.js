@@ -427,6 +427,8 @@ async function showMission(id) {
   }
   $("#plan-state").innerHTML = "";
   $("#plan-state").append(badge(data.plan_ok, `${data.plan_status}${data.plan_ok ? ", verified" : ", not verified"}`));
+  $("#plan-state").title = data.plan.message || "";
+  if (!data.plan_ok && data.plan.message) $("#plan-state").append(` · ${data.plan.message}`);
   await renderPlan(data);
 }
 
@@ -479,7 +481,7 @@ function renderSummary(plan) {
   if (v.closest_pair && v.closest_pair.length) row(ver, "closest pair", `${v.closest_pair.join(" – ")} at t = ${fmt(v.closest_time, 2)} s`);
   row(ver, "within bounds", v.within_bounds ? "yes" : "no", v.within_bounds);
   row(ver, "flyable", v.flyable ? "yes" : "no", v.flyable);
-  row(ver, "thrust range", v.thrust_range ? `${fmt(v.thrust_range[0], 2)} – ${fmt(v.thrust_range[1], 2)} m/s²` : "–");
+  row(ver, "thrust range", v.thrust_range ? `${fmt(v.thrust_range[0], 3)} – ${fmt(v.thrust_range[1], 3)} m/s²` : "–");
   row(ver, "body-rate peak", `${fmt(v.body_rate_peak, 2)} rad/s`);
   const worst = Object.entries(v.max_violation || {}).sort((a, b) => (b[1] ?? 0) - (a[1] ?? 0))[0];
   if (worst) row(ver, "largest bound excess", `${worst[0]}: ${fmt(worst[1], 6)}`);
