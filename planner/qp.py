@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from planner.flatness import GRAVITY
 from planner.scenario import Scenario
 
-__all__ = ["QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
+__all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -98,6 +98,27 @@ class SeparationRows:
         return SeparationRows(z, z, z, z, np.zeros((0, 3)))
 
 
+@dataclass(frozen=True)
+class BoxMask:
+    """Which box constraints a QP includes (the SCP loop adds the others only if broken).
+
+    bounds: (m, K+1, 3, 3) over (vehicle, stage, var p/v/a, axis): variable bounds on.
+    jerk: (m, K, 3) over (vehicle, step, axis): jerk rows on.
+    """
+
+    bounds: NDArray[np.bool_]
+    jerk: NDArray[np.bool_]
+
+    @staticmethod
+    def full(vehicles: int, steps: int) -> BoxMask:
+        bounds = np.ones((vehicles, steps + 1, 3, 3), dtype=bool)
+        bounds[:, steps, A, :] = False  # the phantom a_K has no bound
+        return BoxMask(bounds, np.ones((vehicles, steps, 3), dtype=bool))
+
+    def take(self, members: IntArray) -> BoxMask:
+        return BoxMask(self.bounds[members], self.jerk[members])
+
+
 @dataclass
 class QuadraticProgram:
     """min 1/2 x'Px + q'x s.t. Ax = b, h_l <= Gx <= h_u, x_l <= x <= x_u (CSC matrices)."""
@@ -133,8 +154,13 @@ def build_group_qp(
     scenario: Scenario,
     members: IntArray,
     separation: SeparationRows,
+    boxes: BoxMask | None = None,
 ) -> QuadraticProgram:
-    """The QP of the vehicles `members` (scenario indices) with the given separation rows."""
+    """The QP of the vehicles `members` (scenario indices) with the given separation rows.
+
+    boxes: which variable bounds and jerk rows to include, for the group's vehicles; None:
+    all of them. The SCP loop passes only those that can bind and checks the rest.
+    """
     dt, steps = scenario.dt, scenario.steps
     m = len(members)
     lay = StageLayout(steps, m)
@@ -190,8 +216,12 @@ def build_group_qp(
     h_u_parts: list[FloatArray] = []
     n_jerk = 0
     if limits.jerk_max is not None:
-        jk, jv = np.meshgrid(np.arange(steps), np.arange(3 * m), indexing="ij")
-        jk, jv = jk.ravel(), jv.ravel()
+        if boxes is None:
+            jk, jv = np.meshgrid(np.arange(steps), np.arange(3 * m), indexing="ij")
+            jk, jv = jk.ravel(), jv.ravel()
+        else:
+            j_vehicle, jk, j_axis = np.nonzero(boxes.jerk)
+            jv = j_vehicle * 3 + j_axis
         n_jerk = jk.size
         jrow = np.arange(n_jerk)
         g_rows += [jrow]
@@ -244,6 +274,10 @@ def build_group_qp(
     stage_lo[:, A, :], stage_hi[:, A, :] = -amax, amax
     x_l = np.tile(stage_lo.reshape(-1), steps + 1)
     x_u = np.tile(stage_hi.reshape(-1), steps + 1)
+    if boxes is not None:
+        off = ~boxes.bounds.transpose(1, 0, 2, 3).reshape(-1)
+        x_l[off] = -np.inf
+        x_u[off] = np.inf
 
     # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
     a_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)

@@ -30,19 +30,19 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
+from planner.boxes import broken_boxes, near_boxes
 from planner.first_qp import solve_first_qp
 from planner.flatness import GRAVITY
-from planner.qp import SeparationRows, StageLayout, build_group_qp
+from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
 from planner.scenario import Scenario
 from planner.separation import (
     PairSteps,
     all_pairs,
-    interval_lower_bounds,
-    interval_minima,
     linearised_coefficients,
     step_distances,
     violated_linearised,
+    worst_per_run,
 )
 from planner.solvers import SOLVED, QPSolver
 
@@ -53,6 +53,10 @@ IntArray = NDArray[np.intp]
 Keys = NDArray[np.int64]
 
 KINDS = 3  # 0: step row, 1: Bernstein middle point, 2: Bernstein end point
+#: A separation row whose multiplier exceeds this is active and is carried to the next
+#: iteration (re-linearised there): active sets change little between SCP iterations.
+ACTIVE_DUAL = 1e-7
+
 
 
 @dataclass(frozen=True)
@@ -112,29 +116,39 @@ class _GroupSolver:
         self.scenario = scenario
         self.solver = solver
         self.codec = codec
-        self.cache: dict[bytes, tuple[IntArray, FloatArray, FloatArray, FloatArray]] = {}
+        self.cache: dict[bytes, tuple[tuple[FloatArray, FloatArray, FloatArray], Keys]] = {}
         self.solves = 0
 
-    def solve(self, members: IntArray, keys: Keys, lin_positions: FloatArray
-              ) -> tuple[str, tuple[FloatArray, FloatArray, FloatArray] | None]:
-        signature = members.tobytes() + b"|" + keys.tobytes()
+    def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin_positions: FloatArray
+              ) -> tuple[str, tuple[FloatArray, FloatArray, FloatArray] | None, Keys]:
+        """Solve one group; returns (status, (p, v, a) or None, keys of its active rows).
+
+        boxes: (all vehicles) which bounds and jerk rows to include.
+        """
+        group_boxes = boxes.take(members)
+        signature = b"|".join([
+            members.tobytes(), keys.tobytes(),
+            np.packbits(group_boxes.bounds).tobytes(), np.packbits(group_boxes.jerk).tobytes(),
+        ])
         cached = self.cache.get(signature)
         if cached is not None:
-            return SOLVED, cached[1:]
+            return SOLVED, cached[0], cached[1]
         scenario = self.scenario
         pairs, kind = self.codec.decode(keys)
         coef = linearised_coefficients(lin_positions, scenario.separation_scale, pairs)
         local = np.full(scenario.starts.shape[0], -1, dtype=np.intp)
         local[members] = np.arange(len(members))
         rows = SeparationRows(local[pairs.i], local[pairs.j], pairs.k, kind, coef)
-        qp = build_group_qp(scenario, members, rows)
+        qp = build_group_qp(scenario, members, rows, group_boxes)
         self.solves += 1
         result = self.solver.solve(qp)
         if result.status != SOLVED or result.x is None:
-            return result.status, None
-        p, v, a = StageLayout(scenario.steps, len(members)).unpack(result.x)
-        self.cache[signature] = (members, p, v, a)
-        return SOLVED, (p, v, a)
+            return result.status, None, keys[:0]
+        solution = StageLayout(scenario.steps, len(members)).unpack(result.x)
+        duals = result.separation_duals
+        active = keys if duals is None else keys[duals > ACTIVE_DUAL]
+        self.cache[signature] = (solution, active)
+        return SOLVED, solution, active
 
 
 def _groups(keys: Keys, codec: _RowKeys) -> list[tuple[IntArray, Keys]]:
@@ -157,30 +171,61 @@ def _groups(keys: Keys, codec: _RowKeys) -> list[tuple[IntArray, Keys]]:
     return out
 
 
-def _close_rows(positions: FloatArray, scenario: Scenario, margin: float, codec: _RowKeys,
-                culling: bool) -> Keys:
-    """Step rows to start an iteration with: close pair-steps, or all with culling off."""
+def _seed_rows(positions: FloatArray, scenario: Scenario, options: ScpOptions,
+               codec: _RowKeys) -> Keys:
+    """Step rows an iteration starts with (besides the rows carried over as active).
+
+    With culling: the deepest step of every run of steps where a pair is closer than
+    R * (1 + margin) at the linearisation point. Without: every pair at every step.
+    """
     n, stages = positions.shape[0], positions.shape[1]
-    if not culling:
+    if not options.culling:
         i, j = all_pairs(n)
         pairs = PairSteps(np.repeat(i, stages), np.repeat(j, stages), np.tile(
             np.arange(stages, dtype=np.intp), len(i)))
-        return codec.encode(pairs, 0)
-    below = scenario.min_separation * (1.0 + margin)
-    pairs, _ = step_distances(positions, scenario.separation_scale, below)
-    return codec.encode(pairs, 0)
+        return _step_rows(pairs, codec, options.continuous)
+    below = scenario.min_separation * (1.0 + options.candidate_margin)
+    pairs, distances = step_distances(positions, scenario.separation_scale, below)
+    return _step_rows(worst_per_run(pairs, distances), codec, options.continuous)
 
 
-def _continuous_dips(p: FloatArray, v: FloatArray, a: FloatArray, scenario: Scenario,
-                     tolerance: float) -> PairSteps:
-    """Pair-intervals whose exact continuous-time distance falls below R - tolerance."""
-    below = scenario.min_separation - tolerance
-    scale = scenario.separation_scale
-    maybe = interval_lower_bounds(p, a, scenario.dt, scale, below)
-    if len(maybe) == 0:
-        return maybe
-    minima, _ = interval_minima(p, v, a, scenario.dt, scale, maybe)
-    return maybe.select(minima < below)
+@dataclass
+class _IterationResult:
+    status: str
+    solution: tuple[FloatArray, FloatArray, FloatArray]
+    keys: Keys
+    """Every row used in the last round."""
+    active: Keys
+    """Rows with a positive multiplier in the last round."""
+    groups: int
+    failed: list[int]
+
+
+def _step_rows(pairs: PairSteps, codec: _RowKeys, continuous: bool) -> Keys:
+    """Rows for close pair-steps: the step row and, for continuous time, the Bernstein rows
+    of the two intervals around the step (a pair closest near step k is closest inside
+    [k-1, k] or [k, k+1]; adding them now saves a round of re-solves later)."""
+    keys = [codec.encode(pairs, 0)]
+    if continuous and len(pairs):
+        last = codec.stages - 2  # intervals are 0..K-1
+        for shift in (0, -1):
+            k = pairs.k + shift
+            ok = (k >= 0) & (k <= last)
+            interval = PairSteps(pairs.i[ok], pairs.j[ok], k[ok])
+            keys += [codec.encode(interval, kind) for kind in range(KINDS)]
+    return np.unique(np.concatenate(keys))
+
+
+def _with_interval_companions(keys: Keys, codec: _RowKeys) -> Keys:
+    """`keys` plus, for every Bernstein row, the other rows of its interval (all 3 kinds):
+    the control-point rows only guarantee the interval together."""
+    pairs, kind = codec.decode(keys)
+    bernstein = kind != 0
+    if not bernstein.any():
+        return keys
+    intervals = pairs.select(bernstein)
+    extra = [codec.encode(intervals, k) for k in range(KINDS)]
+    return np.union1d(keys, np.concatenate(extra))
 
 
 def _solve_with_lazy_rows(
@@ -188,35 +233,56 @@ def _solve_with_lazy_rows(
     options: ScpOptions,
     codec: _RowKeys,
     groups_solver: _GroupSolver,
-    lin: tuple[FloatArray, FloatArray, FloatArray],
+    lin_positions: FloatArray,
     base: tuple[FloatArray, FloatArray, FloatArray],
     keys: Keys,
-) -> tuple[str, tuple[FloatArray, FloatArray, FloatArray], Keys, int, list[int]]:
-    """One SCP iteration: solve, check all pairs and continuous time, add rows, repeat.
+    boxes: BoxMask,
+) -> _IterationResult:
+    """One SCP iteration: solve, check every separation row and box, add what is broken,
+    solve again, until nothing is broken.
 
-    Returns (status, (p, v, a), final keys, number of groups, members of a failed group).
+    boxes: the bounds and jerk rows to start with; the others are checked after each solve
+    (most are far from binding, and each one the QP carries costs interior-point work).
     """
-    lin_p = lin[0]
+    tolerance = options.violation_tolerance
     while True:
         p, v, a = (x.copy() for x in base)
         groups = _groups(keys, codec)
+        active = []
         for members, group_keys in groups:
-            status, solution = groups_solver.solve(members, group_keys, lin_p)
+            status, solution, group_active = groups_solver.solve(
+                members, group_keys, boxes, lin_positions
+            )
             if solution is None:
-                return status, (p, v, a), keys, len(groups), members.tolist()
+                return _IterationResult(status, (p, v, a), keys, keys[:0], len(groups),
+                                        members.tolist())
             p[members], v[members], a[members] = solution
-        violated = violated_linearised(
-            lin_p, p, scenario.separation_scale, scenario.min_separation,
-            options.violation_tolerance,
-        )
-        new = [codec.encode(violated, 0)]
-        if options.continuous:
-            dips = _continuous_dips(p, v, a, scenario, options.violation_tolerance)
-            if len(dips):
-                new += [codec.encode(dips, kind) for kind in range(KINDS)]
+            active.append(group_active)
+        new = []
+        for kind, (violated, values) in enumerate(violated_linearised(
+            lin_positions, p, v, scenario.dt, scenario.separation_scale,
+            scenario.min_separation, tolerance, options.continuous,
+        )):
+            if len(violated) == 0:
+                continue
+            if options.culling:
+                violated = worst_per_run(violated, values)
+            if kind == 0:
+                new.append(_step_rows(violated, codec, options.continuous))
+            else:  # an interval row comes with the other rows of its interval
+                new += [codec.encode(violated, k) for k in range(KINDS)]
+        if not new:
+            new = [keys[:0]]
         added = np.setdiff1d(np.concatenate(new), keys)
-        if added.size == 0:
-            return SOLVED, (p, v, a), keys, len(groups), []
+        broken = broken_boxes(scenario, p, v, a, tolerance)
+        new_bounds = broken.bounds & ~boxes.bounds
+        new_jerk = broken.jerk & ~boxes.jerk
+        boxes_added = bool(new_bounds.any() or new_jerk.any())
+        if boxes_added:
+            boxes = BoxMask(boxes.bounds | new_bounds, boxes.jerk | new_jerk)
+        if added.size == 0 and not boxes_added:
+            all_active = np.concatenate(active) if active else keys[:0]
+            return _IterationResult(SOLVED, (p, v, a), keys, all_active, len(groups), [])
         keys = np.union1d(keys, added)
 
 
@@ -254,15 +320,19 @@ def run_scp(
     groups_solver = _GroupSolver(scenario, solver, codec)
     current = base
     carried = np.zeros(0, dtype=np.int64)
+    used = carried
     status, message = "max_iterations", ""
     for iteration in range(1, scenario.max_iterations + 1):
         t0 = time.perf_counter()
         solves_before = groups_solver.solves
-        keys = np.union1d(_close_rows(current[0], scenario, options.candidate_margin, codec,
-                                      options.culling), carried)
+        keys = np.union1d(_seed_rows(current[0], scenario, options, codec), carried)
         groups_solver.cache.clear()
-        result, solution, keys, n_groups, failed = _solve_with_lazy_rows(
-            scenario, options, codec, groups_solver, current, base, keys
+        boxes = near_boxes(scenario, *current)
+        outcome = _solve_with_lazy_rows(
+            scenario, options, codec, groups_solver, current[0], base, keys, boxes
+        )
+        result, solution, keys, failed = (
+            outcome.status, outcome.solution, outcome.keys, outcome.failed
         )
         if result != SOLVED:
             ids = [scenario.vehicles[i].id for i in failed]
@@ -280,16 +350,19 @@ def run_scp(
         change = abs(new_cost - cost)
         record(IterationRecord(
             iteration, new_cost, change, int(keys.size), groups_solver.solves - solves_before,
-            n_groups, time.perf_counter() - t0,
+            outcome.groups, time.perf_counter() - t0,
         ))
-        current, cost, carried = solution, new_cost, keys
+        current, cost = solution, new_cost
+        # Carry the active rows; a Bernstein row carries its interval's other two rows.
+        carried = _with_interval_companions(outcome.active, codec)
+        used = keys
         if change < scenario.cost_threshold:
             status = "converged"
             message = f"cost changed by {change:.3g} < {scenario.cost_threshold:g}"
             break
     else:
         message = f"stopped after {scenario.max_iterations} iterations without converging"
-    _, kinds = codec.decode(carried)
+    _, kinds = codec.decode(used)
     return ScpOutcome(
         status=status, message=message,
         positions=current[0], velocities=current[1], accelerations=current[2],

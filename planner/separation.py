@@ -27,6 +27,7 @@ __all__ = [
     "min_step_distance",
     "step_distances",
     "violated_linearised",
+    "worst_per_run",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -128,27 +129,72 @@ def linearised_coefficients(positions: FloatArray, scale: FloatArray, rows: Pair
     return d / norm / scale
 
 
-def violated_linearised(lin_positions: FloatArray, positions: FloatArray, scale: FloatArray,
-                        separation: float, tolerance: float) -> PairSteps:
-    """Every pair-step whose linearised row (about `lin_positions`) `positions` violate.
+def violated_linearised(lin_positions: FloatArray, positions: FloatArray,
+                        velocities: FloatArray, dt: float, scale: FloatArray,
+                        separation: float, tolerance: float, continuous: bool
+                        ) -> list[tuple[PairSteps, FloatArray]]:
+    """Every linearised row (about `lin_positions`) that the iterate violates, by kind.
 
-    This is the all-pairs check that makes lazily generated rows equal the all-pairs QP.
+    Kind 0: u_k'S(p_i - p_j)[k] at step k. With `continuous`, also the interval rows of
+    [k, k+1] along the same direction u_k: kind 1 at the Bernstein middle point
+    (p + dt/2 v)[k], kind 2 at step k+1. Returns, per kind, the violated (i, j, k) with
+    their values (< separation - tolerance). This is the all-pairs check that makes lazily
+    generated rows give the optimum of the QP with every row.
     """
     n, stages = positions.shape[0], positions.shape[1]
     lin = lin_positions / scale
     cur = positions / scale
-    out_i, out_j, out_k = [], [], []
+    mid = (positions + 0.5 * dt * velocities) / scale
+    kinds = 3 if continuous else 1
+    out: list[tuple[list[IntArray], list[IntArray], list[IntArray], list[FloatArray]]] = [
+        ([], [], [], []) for _ in range(kinds)
+    ]
     for i, j in _pair_chunks(n, stages):
         d_lin = lin[i] - lin[j]
         norm = np.linalg.norm(d_lin, axis=-1)
-        norm = np.where(norm < 1e-12, 1.0, norm)
-        value = np.einsum("psc,psc->ps", d_lin, cur[i] - cur[j]) / norm
-        pi, kk = np.nonzero(value < separation - tolerance)
-        out_i.append(i[pi])
-        out_j.append(j[pi])
-        out_k.append(kk)
+        coincident = norm < 1e-12
+        if coincident.any():  # same fallback direction as `linearised_coefficients`
+            d_lin[coincident] = np.array([0.0, 0.0, 1.0])
+            norm[coincident] = 1.0
+        u = d_lin / norm[..., None]
+        values = [np.einsum("psc,psc->ps", u, cur[i] - cur[j])]
+        if continuous:
+            values.append(np.einsum("psc,psc->ps", u[:, :-1], (mid[i] - mid[j])[:, :-1]))
+            values.append(np.einsum("psc,psc->ps", u[:, :-1], (cur[i] - cur[j])[:, 1:]))
+        for kind, value in enumerate(values):
+            pi, kk = np.nonzero(value < separation - tolerance)
+            bucket = out[kind]
+            bucket[0].append(i[pi])
+            bucket[1].append(j[pi])
+            bucket[2].append(kk)
+            bucket[3].append(value[pi, kk])
     cat = np.concatenate
-    return PairSteps(cat(out_i), cat(out_j), cat(out_k).astype(np.intp))
+    return [
+        (PairSteps(cat(bi), cat(bj), cat(bk).astype(np.intp)), cat(bv))
+        for bi, bj, bk, bv in out
+    ]
+
+
+def worst_per_run(pairs: PairSteps, values: FloatArray) -> PairSteps:
+    """The pair-step of smallest value in each run of consecutive steps of the same pair.
+
+    A pair that violates its constraint does so over a run of neighbouring steps; the row
+    at the deepest point of the run is the one most likely to be active, and the rows next
+    to it are usually satisfied once it is imposed.
+    """
+    if len(pairs) == 0:
+        return pairs
+    order = np.lexsort((pairs.k, pairs.j, pairs.i))
+    i, j, k, v = pairs.i[order], pairs.j[order], pairs.k[order], values[order]
+    new_run = np.ones(len(i), dtype=bool)
+    new_run[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
+    run_id = np.cumsum(new_run) - 1
+    # Sort by (run, value) and keep the first of each run.
+    by_value = np.lexsort((v, run_id))
+    first = np.ones(len(by_value), dtype=bool)
+    first[1:] = run_id[by_value][1:] != run_id[by_value][:-1]
+    pick = by_value[first]
+    return PairSteps(i[pick], j[pick], k[pick])
 
 
 def interval_lower_bounds(positions: FloatArray, accelerations: FloatArray, dt: float,

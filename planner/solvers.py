@@ -36,6 +36,8 @@ class QPSolution:
     """1/2 x'Px + q'x + constant (the total-thrust cost), nan when not solved."""
     iterations: int
     seconds: float
+    separation_duals: FloatArray | None = None
+    """Multipliers (>= 0) of the separation rows (the last rows of G): > 0 means active."""
 
 
 class QPSolver(Protocol):
@@ -81,7 +83,8 @@ class PiqpSolver:
         iterations = int(solver.result.info.iter)
         if status == piqp.PIQP_SOLVED:
             x = np.array(solver.result.x)
-            return QPSolution(SOLVED, x, _objective(qp, x), iterations, seconds)
+            duals = np.array(solver.result.z_l)[qp.G.shape[0] - qp.separation_rows:]
+            return QPSolution(SOLVED, x, _objective(qp, x), iterations, seconds, duals)
         if status in (piqp.PIQP_PRIMAL_INFEASIBLE, piqp.PIQP_DUAL_INFEASIBLE):
             return QPSolution(INFEASIBLE, None, float("nan"), iterations, seconds)
         if status == piqp.PIQP_MAX_ITER_REACHED:
@@ -109,6 +112,7 @@ class ClarabelSolver:
         rhs = [qp.b]
         ineq: list[sp.csc_matrix] = []
         ineq_rhs: list[FloatArray] = []
+        lower_rows_of_g = np.zeros(0, dtype=np.intp)  # where G's lower-bound rows land
         for mat, lo, hi in ((qp.G, qp.h_l, qp.h_u), (eye, qp.x_l, qp.x_u)):
             up = np.isfinite(hi)
             dn = np.isfinite(lo)
@@ -116,6 +120,9 @@ class ClarabelSolver:
                 ineq.append(mat[up])
                 ineq_rhs.append(hi[up])
             if dn.any():
+                if mat is qp.G:
+                    offset = qp.A.shape[0] + sum(m.shape[0] for m in ineq)
+                    lower_rows_of_g = offset + np.cumsum(dn) - 1
                 ineq.append(-mat[dn])
                 ineq_rhs.append(-lo[dn])
         n_ineq = sum(m.shape[0] for m in ineq)
@@ -135,7 +142,11 @@ class ClarabelSolver:
         status = str(sol.status)
         if status in ("Solved", "AlmostSolved"):
             x = np.array(sol.x)
-            return QPSolution(SOLVED, x, _objective(qp, x), int(sol.iterations), seconds)
+            duals = None
+            if qp.separation_rows:
+                z = np.array(sol.z)
+                duals = z[lower_rows_of_g[qp.G.shape[0] - qp.separation_rows:]]
+            return QPSolution(SOLVED, x, _objective(qp, x), int(sol.iterations), seconds, duals)
         if "Infeasible" in status:
             return QPSolution(INFEASIBLE, None, float("nan"), int(sol.iterations), seconds)
         if status == "MaxIterations":
@@ -193,7 +204,9 @@ class OsqpSolver:
         iterations = int(result.info.iter)
         if status.startswith("solved") and result.x is not None:
             x = np.array(result.x)
-            return QPSolution(SOLVED, x, _objective(qp, x), iterations, seconds)
+            end = qp.A.shape[0] + qp.G.shape[0]
+            duals = np.maximum(0.0, -np.array(result.y)[end - qp.separation_rows:end])
+            return QPSolution(SOLVED, x, _objective(qp, x), iterations, seconds, duals)
         if "infeasible" in status:
             return QPSolution(INFEASIBLE, None, float("nan"), iterations, seconds)
         if "maximum iterations" in status:

@@ -1,0 +1,137 @@
+"""`fleetplan plan SCENARIO.json -o PLAN.json`: plan, print progress and a summary, save.
+
+Exit status: 0 for a converged, verified plan; 1 when the plan was computed but did not
+converge or failed verification (the plan is still written, for inspection); 2 for bad
+input (unreadable file, invalid JSON, an invalid scenario: the message names the field).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["configure", "run"]
+
+EXIT_OK, EXIT_NOT_VERIFIED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", type=Path, help="scenario JSON file")
+    parser.add_argument(
+        "-o", "--output", type=Path, default=None,
+        help="where to write the plan JSON (default: <scenario name>.plan.json)",
+    )
+    parser.add_argument(
+        "--solver", choices=("piqp", "clarabel", "osqp"), default=None,
+        help="QP solver (default: piqp, the fastest accurate one measured)",
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
+
+
+def _fail(message: str) -> int:
+    print(f"error: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def load_json(path: Path) -> Any:
+    """Read a JSON file, raising ValueError with a message fit for the user."""
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path} is not valid JSON: {exc.msg} at line {exc.lineno}, "
+                         f"column {exc.colno}") from None
+
+
+def _summary_rows(plan: Any) -> list[tuple[str, str]]:
+    v = plan.verification
+    rows = [
+        ("status", plan.status),
+        ("vehicles", str(len(plan.vehicles))),
+        ("SCP iterations", str(len(plan.iterations) - 1)),
+        ("cost (sum ||a+g||^2)", f"{plan.cost:.4f}"),
+        ("time total / first QP", f"{plan.timing['total_s']:.3f} s / "
+                                  f"{plan.timing['first_qp_s']:.3f} s"),
+        ("solver", plan.solver),
+    ]
+    if v is not None:
+        sep = plan.scenario.min_separation
+        if v.min_separation is not None:
+            rows += [
+                ("min separation (steps)", f"{v.min_separation:.4f} m (R = {sep:g} m)"),
+                ("min separation (continuous)",
+                 f"{v.min_separation_continuous:.4f} m, {' & '.join(v.closest_pair)} "
+                 f"at t = {v.closest_time:.2f} s"),
+            ]
+        worst = max(v.max_violation.items(), key=lambda kv: kv[1])
+        rows += [
+            ("max box violation", f"{worst[1]:.2e} ({worst[0]})"),
+            ("max boundary error", f"{max(v.boundary_error.values()):.2e} m"),
+            ("thrust range", f"{v.thrust_range[0]:.2f} .. {v.thrust_range[1]:.2f} m/s^2"),
+            ("peak body rate", f"{v.body_rate_peak:.3f} rad/s"),
+            ("flyable", "yes" if v.flyable else "no"),
+            ("verified", "yes" if v.verified else "NO"),
+        ]
+    return rows
+
+
+def _print_summary(plan: Any) -> None:
+    try:
+        from rich.console import Console
+        from rich.table import Table
+    except ImportError:  # pragma: no cover - rich is a dependency; plain text fallback
+        for key, value in _summary_rows(plan):
+            print(f"{key:>28}  {value}")
+        return
+    table = Table(title=f"plan: {plan.scenario.name}", show_header=False)
+    table.add_column(justify="right", style="bold")
+    table.add_column()
+    for key, value in _summary_rows(plan):
+        table.add_row(key, value)
+    Console().print(table)
+
+
+def run(args: argparse.Namespace) -> int:
+    import planner
+    from planner.errors import FieldError, SolverError
+
+    try:
+        data = load_json(args.scenario)
+        scenario = planner.Scenario.from_dict(data)
+    except ValueError as exc:
+        return _fail(str(exc))
+    except FieldError as exc:  # pragma: no cover - FieldError is a ValueError
+        return _fail(str(exc))
+
+    def progress(record: planner.IterationRecord) -> None:
+        if args.quiet:
+            return
+        change = "" if record.cost_change is None else f"  change {record.cost_change:.4g}"
+        print(
+            f"iteration {record.iteration:>2}: cost {record.cost:.4f}{change}  "
+            f"rows {record.separation_rows}  groups {record.groups}  "
+            f"QPs {record.qp_solves}  {record.seconds:.3f} s",
+            flush=True,
+        )
+
+    try:
+        plan = planner.plan(scenario, solver=args.solver, progress=progress)
+    except SolverError as exc:
+        return _fail(str(exc))
+    output = args.output or Path(f"{scenario.name}.plan.json")
+    try:
+        output.write_text(json.dumps(plan.to_dict()))
+    except OSError as exc:
+        return _fail(f"cannot write {output}: {exc.strerror or exc}")
+    _print_summary(plan)
+    print(f"plan written to {output}")
+    if plan.ok:
+        return EXIT_OK
+    print(f"error: plan not verified: {plan.status}: {plan.message}", file=sys.stderr)
+    return EXIT_NOT_VERIFIED

@@ -1,0 +1,55 @@
+"""Which box constraints bind, or nearly bind, for given trajectories.
+
+Most of the position, velocity, acceleration and jerk bounds are far from active, and each
+one the QP carries costs interior-point work. The SCP loop therefore starts a QP with the
+boxes that were close to binding at the previous iterate (`near_boxes`) and adds any that
+the new solution breaks (`broken_boxes`), like it does with separation rows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.qp import A, BoxMask, P, V
+from planner.scenario import Scenario
+
+__all__ = ["broken_boxes", "near_boxes"]
+
+FloatArray = NDArray[np.float64]
+
+#: A bound is "near" when the iterate uses at least this fraction of it (velocity,
+#: acceleration, jerk), or is closer to a wall than this fraction of the box's size.
+NEAR_FRACTION = 0.5
+WALL_FRACTION = 0.1
+
+
+def _masks(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
+           fraction: float, wall: FloatArray | float, extra: float) -> BoxMask:
+    """A `BoxMask` over the vehicles of `p` flagging positions closer than `wall` to a wall
+    (negative: beyond it) and |v|, |a|, |jerk| above fraction * limit + extra."""
+    lim = scenario.limits
+    n, stages = p.shape[0], p.shape[1]
+    bounds = np.zeros((n, stages, 3, 3), dtype=bool)
+    bounds[:, :, P, :] = (p < lim.position_min + wall) | (p > lim.position_max - wall)
+    if lim.velocity_max is not None:
+        bounds[:, :, V, :] = np.abs(v) > lim.velocity_max * fraction + extra
+    if lim.acceleration_max is not None:
+        bounds[:, :-1, A, :] = np.abs(a) > lim.acceleration_max * fraction + extra
+    jerk = np.zeros(a.shape, dtype=bool)
+    if lim.jerk_max is not None:
+        change = np.abs(np.diff(a, axis=1, prepend=0.0))
+        jerk = change > lim.jerk_max * scenario.dt * fraction + extra
+    return BoxMask(bounds, jerk)
+
+
+def near_boxes(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> BoxMask:
+    """Boxes worth including from the start: nearly binding at (p, v, a)."""
+    size = scenario.limits.position_max - scenario.limits.position_min
+    return _masks(scenario, p, v, a, NEAR_FRACTION, WALL_FRACTION * size, 0.0)
+
+
+def broken_boxes(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
+                 tolerance: float) -> BoxMask:
+    """Boxes that (p, v, a) violate by more than `tolerance`."""
+    return _masks(scenario, p, v, a, 1.0, -tolerance, tolerance)
