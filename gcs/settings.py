@@ -10,7 +10,9 @@ explicit values and win over both.
 from __future__ import annotations
 
 import os
+from contextvars import ContextVar
 from pathlib import Path
+from typing import Any
 
 from pydantic import Field, model_validator
 from pydantic_settings import (
@@ -32,7 +34,16 @@ class SettingsFileError(FileNotFoundError):
     """The config file named by ``$FLEETPLAN_CONFIG`` does not exist."""
 
 
+#: The config file named explicitly (`Settings.load`), which beats $FLEETPLAN_CONFIG.
+_explicit_config: ContextVar[Path | None] = ContextVar("fleetplan_config", default=None)
+
+
 def _config_file() -> Path | None:
+    explicit = _explicit_config.get()
+    if explicit is not None:
+        if not explicit.is_file():
+            raise SettingsFileError(f"{explicit}: no such config file")
+        return explicit
     named = os.environ.get(CONFIG_ENV)
     if named:
         path = Path(named)
@@ -95,6 +106,16 @@ class Settings(BaseSettings):
     web_dir: Path | None = Field(
         None, description="Serve the browser page from here instead of the bundled copy."
     )
+
+    @classmethod
+    def load(cls, config_file: Path | None = None, **values: Any) -> Settings:
+        """Settings from `config_file` (instead of $FLEETPLAN_CONFIG / ./fleetplan.toml), the
+        environment and `values` (the command line), in increasing priority."""
+        token = _explicit_config.set(config_file)
+        try:
+            return cls(**values)
+        finally:
+            _explicit_config.reset(token)
 
     @model_validator(mode="after")
     def _fleet_file_exists(self) -> Settings:

@@ -8,7 +8,6 @@ real vehicles or SITL instead. Nothing arms or moves until an execution is reque
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -38,10 +37,8 @@ def run(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from gcs.api import create_app
-    from gcs.settings import CONFIG_ENV, Settings, SettingsFileError
+    from gcs.settings import Settings, SettingsFileError
 
-    if args.config is not None:
-        os.environ[CONFIG_ENV] = str(args.config)
     overrides = {
         key: value
         for key, value in (
@@ -55,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         if value is not None
     }
     try:
-        settings = Settings(**overrides)
+        settings = Settings.load(args.config, **overrides)
     except (ValidationError, SettingsFileError) as exc:
         print(f"fleetplan serve: invalid settings: {exc}", file=sys.stderr)
         return 2

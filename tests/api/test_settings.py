@@ -71,3 +71,13 @@ def test_serve_refuses_bad_settings_with_a_message(
     assert "nope.toml" in capsys.readouterr().err
     with pytest.raises(SystemExit):  # --mock and --fleet exclude each other
         main(["serve", "--mock", "2", "--fleet", "fleet.json"])
+
+
+def test_an_explicit_config_file_beats_the_environment_variable(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "a.toml").write_text("port = 8101\n")
+    (tmp_path / "b.toml").write_text("port = 8102\n")
+    monkeypatch.setenv("FLEETPLAN_CONFIG", str(tmp_path / "a.toml"))
+    assert Settings.load(tmp_path / "b.toml").port == 8102
+    assert Settings().port == 8101  # nothing left behind
