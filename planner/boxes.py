@@ -40,7 +40,9 @@ def _masks(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
     if lim.jerk_max is not None:
         change = np.abs(np.diff(a, axis=1, prepend=0.0))
         jerk = change > lim.jerk_max * scenario.dt * fraction + extra
-    return BoxMask(bounds, jerk)
+    middle = p[:, :-1] + 0.5 * scenario.dt * v[:, :-1]
+    wall_rows = (middle < lim.position_min + wall) | (middle > lim.position_max - wall)
+    return BoxMask(bounds, jerk, wall_rows)
 
 
 def near_boxes(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> BoxMask:

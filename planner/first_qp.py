@@ -31,6 +31,27 @@ FloatArray = NDArray[np.float64]
 BOX_TOLERANCE = 1e-9
 
 
+#: Constraint groups tried, in order, when explaining an infeasible vehicle: relaxing one
+#: at a time, the first whose removal makes the vehicle feasible is the one that binds.
+RELAXATIONS = (
+    ("jerk", {"jerk_max": None}),
+    ("acceleration", {"acceleration_max": None}),
+    ("velocity", {"velocity_max": None}),
+    ("position", {"position_min": np.full(3, -1e9), "position_max": np.full(3, 1e9)}),
+)
+#: At most this many vehicles are examined one by one when the batched QP is infeasible.
+DIAGNOSE_MAX_VEHICLES = 16
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    vehicle: int
+    """Scenario index of an infeasible vehicle."""
+    group: str
+    """The constraint group that binds ('jerk', 'acceleration', ...), or 'boxes' if no
+    single group explains it."""
+
+
 @dataclass(frozen=True)
 class FirstSolution:
     status: str
@@ -43,6 +64,7 @@ class FirstSolution:
     qp_vehicles: tuple[int, ...]
     """Vehicles that needed the batched QP (a box was active)."""
     qp_solves: int
+    diagnosis: Diagnosis | None = None
 
 
 @lru_cache(maxsize=32)
@@ -71,7 +93,7 @@ def _solve_unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, 
         starts=np.zeros((1, 3)), goals=np.ones((1, 3)),
     )
     qp = build_group_qp(unit, np.arange(1), SeparationRows.empty())
-    n, m = qp.size, qp.A.shape[0]
+    n = qp.size
     kkt = sp.bmat([[qp.P, qp.A.T], [qp.A, None]], format="csc")
     rhs = np.concatenate([-qp.q, qp.b])
     # Remove the gravity term: it is constant on the feasible set, and keeping it would
@@ -79,7 +101,6 @@ def _solve_unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, 
     rhs[:n] = 0.0
     sol = spla.spsolve(kkt, rhs)
     p, v, a = StageLayout(steps, 1).unpack(sol[:n])
-    del m
     return p[0, :, 0].copy(), v[0, :, 0].copy(), a[0, :, 0].copy()
 
 
@@ -88,7 +109,10 @@ def _profile_fits(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArra
     """Per vehicle: does the closed-form trajectory respect every box?"""
     lim = scenario.limits
     tol = BOX_TOLERANCE
+    middle = p[:, :-1] + 0.5 * scenario.dt * v[:, :-1]  # Bernstein middle points
     ok = np.all((p >= lim.position_min - tol) & (p <= lim.position_max + tol), axis=(1, 2))
+    ok &= np.all((middle >= lim.position_min - tol) & (middle <= lim.position_max + tol),
+                 axis=(1, 2))
     if lim.velocity_max is not None:
         ok &= np.all(np.abs(v) <= lim.velocity_max + tol, axis=(1, 2))
     if lim.acceleration_max is not None:
@@ -114,18 +138,29 @@ def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:
     qp = build_group_qp(scenario, needs_qp, SeparationRows.empty())
     result = solver.solve(qp)
     if result.status != SOLVED or result.x is None:
-        return FirstSolution(result.status, p, v, a, int(fits.sum()), tuple(needs_qp.tolist()), 1)
+        return FirstSolution(result.status, p, v, a, int(fits.sum()), tuple(needs_qp.tolist()),
+                             1, diagnose(scenario, needs_qp, solver))
     qp_p, qp_v, qp_a = StageLayout(scenario.steps, len(needs_qp)).unpack(result.x)
     p, v, a = p.copy(), v.copy(), a.copy()
     p[needs_qp], v[needs_qp], a[needs_qp] = qp_p, qp_v, qp_a
     return FirstSolution("solved", p, v, a, int(fits.sum()), tuple(needs_qp.tolist()), 1)
 
 
-def with_vehicles(scenario: Scenario, members: NDArray[np.intp]) -> Scenario:
-    """The scenario restricted to `members` (used for diagnosis of infeasible vehicles)."""
-    return dataclasses.replace(
-        scenario,
-        vehicles=tuple(scenario.vehicles[i] for i in members),
-        starts=scenario.starts[members],
-        goals=scenario.goals[members],
-    )
+def _feasible(scenario: Scenario, vehicle: int, solver: QPSolver, **relax: object) -> bool:
+    limits = dataclasses.replace(scenario.limits, **relax)
+    relaxed = dataclasses.replace(scenario, limits=limits)
+    qp = build_group_qp(relaxed, np.array([vehicle]), SeparationRows.empty())
+    return solver.solve(qp).status == SOLVED
+
+
+def diagnose(scenario: Scenario, candidates: NDArray[np.intp], solver: QPSolver
+             ) -> Diagnosis | None:
+    """Find a vehicle whose own separation-free QP is infeasible, and which box binds."""
+    for vehicle in candidates[:DIAGNOSE_MAX_VEHICLES].tolist():
+        if _feasible(scenario, vehicle, solver):
+            continue
+        for group, relax in RELAXATIONS:
+            if _feasible(scenario, vehicle, solver, **relax):
+                return Diagnosis(vehicle, group)
+        return Diagnosis(vehicle, "boxes")
+    return None

@@ -104,19 +104,36 @@ class BoxMask:
 
     bounds: (m, K+1, 3, 3) over (vehicle, stage, var p/v/a, axis): variable bounds on.
     jerk: (m, K, 3) over (vehicle, step, axis): jerk rows on.
+    wall: (m, K, 3) over (vehicle, step, axis): rows keeping the Bernstein middle point
+      p_k + dt/2 v_k of step k inside the workspace, so that (with p_k and p_k+1 inside)
+      the position stays inside over the whole step, not only at the steps.
     """
 
     bounds: NDArray[np.bool_]
     jerk: NDArray[np.bool_]
+    wall: NDArray[np.bool_]
 
     @staticmethod
     def full(vehicles: int, steps: int) -> BoxMask:
+        """Every box: all bounds, jerk rows and wall rows."""
         bounds = np.ones((vehicles, steps + 1, 3, 3), dtype=bool)
         bounds[:, steps, A, :] = False  # the phantom a_K has no bound
-        return BoxMask(bounds, np.ones((vehicles, steps, 3), dtype=bool))
+        rows = np.ones((vehicles, steps, 3), dtype=bool)
+        return BoxMask(bounds, rows, rows.copy())
 
     def take(self, members: IntArray) -> BoxMask:
-        return BoxMask(self.bounds[members], self.jerk[members])
+        return BoxMask(self.bounds[members], self.jerk[members], self.wall[members])
+
+    def __or__(self, other: BoxMask) -> BoxMask:
+        return BoxMask(self.bounds | other.bounds, self.jerk | other.jerk,
+                       self.wall | other.wall)
+
+    def __sub__(self, other: BoxMask) -> BoxMask:
+        return BoxMask(self.bounds & ~other.bounds, self.jerk & ~other.jerk,
+                       self.wall & ~other.wall)
+
+    def any(self) -> bool:
+        return bool(self.bounds.any() or self.jerk.any() or self.wall.any())
 
 
 @dataclass
@@ -135,7 +152,7 @@ class QuadraticProgram:
     constant: float
     """Cost constant so that 1/2 x'Px + q'x + constant is the total-thrust cost."""
     separation_rows: int
-    """How many rows at the end of G are separation rows (the rest are jerk rows)."""
+    """How many rows at the end of G are separation rows (before them: jerk, wall rows)."""
 
     @property
     def size(self) -> int:
@@ -166,6 +183,8 @@ def build_group_qp(
     lay = StageLayout(steps, m)
     n = lay.size
     limits = scenario.limits
+    if boxes is None:
+        boxes = BoxMask.full(m, steps)
 
     # Grids over (vehicle, axis) and (stage, vehicle, axis): flat index arrays.
     veh = np.repeat(np.arange(m), 3)
@@ -216,12 +235,8 @@ def build_group_qp(
     h_u_parts: list[FloatArray] = []
     n_jerk = 0
     if limits.jerk_max is not None:
-        if boxes is None:
-            jk, jv = np.meshgrid(np.arange(steps), np.arange(3 * m), indexing="ij")
-            jk, jv = jk.ravel(), jv.ravel()
-        else:
-            j_vehicle, jk, j_axis = np.nonzero(boxes.jerk)
-            jv = j_vehicle * 3 + j_axis
+        j_vehicle, jk, j_axis = np.nonzero(boxes.jerk)
+        jv = j_vehicle * 3 + j_axis
         n_jerk = jk.size
         jrow = np.arange(n_jerk)
         g_rows += [jrow]
@@ -235,9 +250,20 @@ def build_group_qp(
         h_l_parts.append(-bound)
         h_u_parts.append(bound)
 
+    n_wall = 0
+    if boxes.wall.any():
+        w_vehicle, wk, w_axis = np.nonzero(boxes.wall)
+        n_wall = wk.size
+        wrow = n_jerk + np.arange(n_wall)
+        g_rows += [wrow, wrow]
+        g_cols += [lay.index(wk, w_vehicle, P, w_axis), lay.index(wk, w_vehicle, V, w_axis)]
+        g_vals += [np.ones(n_wall), np.full(n_wall, 0.5 * dt)]
+        h_l_parts.append(limits.position_min[w_axis])
+        h_u_parts.append(limits.position_max[w_axis])
+
     n_sep = len(separation)
     if n_sep:
-        srow = n_jerk + np.arange(n_sep)
+        srow = n_jerk + n_wall + np.arange(n_sep)
         s_k = separation.k
         kind = separation.kind
         stage = np.where(kind == 2, s_k + 1, s_k)
@@ -259,7 +285,7 @@ def build_group_qp(
                 g_vals += [coef, -coef]
         h_l_parts.append(np.full(n_sep, scenario.min_separation))
         h_u_parts.append(np.full(n_sep, np.inf))
-    G = _coo(g_rows, g_cols, g_vals, (n_jerk + n_sep, n))
+    G = _coo(g_rows, g_cols, g_vals, (n_jerk + n_wall + n_sep, n))
     h_l = np.concatenate(h_l_parts) if h_l_parts else np.zeros(0)
     h_u = np.concatenate(h_u_parts) if h_u_parts else np.zeros(0)
 
@@ -274,10 +300,9 @@ def build_group_qp(
     stage_lo[:, A, :], stage_hi[:, A, :] = -amax, amax
     x_l = np.tile(stage_lo.reshape(-1), steps + 1)
     x_u = np.tile(stage_hi.reshape(-1), steps + 1)
-    if boxes is not None:
-        off = ~boxes.bounds.transpose(1, 0, 2, 3).reshape(-1)
-        x_l[off] = -np.inf
-        x_u[off] = np.inf
+    off = ~boxes.bounds.transpose(1, 0, 2, 3).reshape(-1)
+    x_l[off] = -np.inf
+    x_u[off] = np.inf
 
     # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
     a_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)

@@ -1,13 +1,20 @@
 """Pair geometry for the separation constraint ||S (p_i - p_j)|| >= R, S = diag(1/scale).
 
-- `step_distances`: every pair's distance at every step (chunked over pairs to bound memory).
-- `linearised_rows`: the half-space u'S(p_i - p_j) >= R with u the unit direction at the
-  linearisation point (paper eqs. 29-31) for chosen pair-instants.
-- `row_values`: u'S(p_i - p_j) of the current iterate for rows, to find violated ones.
-- `interval_minima`: the exact minimum distance of a pair over [t_k, t_k+1], where both move
-  on their exact quadratics; the continuous-time check of a plan.
+Two ways to linearise it about a previous iterate (the linearisation point, `lin`):
 
-Every function is vectorised over pairs and steps; chunks bound memory for large fleets.
+- Step rows (the paper, eqs. 29-31): for pair (i, j) at step k, u_k'S(p_i - p_j)[k] >= R
+  with u_k the unit direction of S(p_i - p_j)[k] at `lin`. Separates the pair at the steps.
+- Interval rows (continuous time): for pair (i, j) on [t_k, t_k+1], one direction u and three
+  rows, one per Bernstein control point of the relative motion r(s) = r_k + s w_k +
+  s^2/2 alpha_k: u'S r_k >= R, u'S(r_k + dt/2 w_k) >= R, u'S r_k+1 >= R. A quadratic lies in
+  the convex hull of its control points, so u'S r(s) >= R over the whole interval and the
+  true distance ||S r(s)|| >= u'S r(s) is at least R at every instant. u is the direction of
+  the point of the chord [S r_k, S r_k+1] closest to the origin at `lin` (which `lin`
+  satisfies exactly when it is separated and the interval is straight); the first and last
+  intervals use the direction of their fixed endpoint (start or goal), so the rows never
+  contradict the boundary conditions.
+
+Every function is vectorised over pairs and steps, in chunks that bound memory.
 """
 
 from __future__ import annotations
@@ -21,12 +28,13 @@ from numpy.typing import NDArray
 __all__ = [
     "PairSteps",
     "all_pairs",
+    "close_rows",
+    "directions",
     "interval_lower_bounds",
     "interval_minima",
-    "linearised_coefficients",
     "min_step_distance",
-    "step_distances",
-    "violated_linearised",
+    "row_values",
+    "violated_rows",
     "worst_per_run",
 ]
 
@@ -34,7 +42,9 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
 #: Pair-steps handled at once (bounds temporary memory to a few tens of MB).
-CHUNK = 1 << 20
+CHUNK = 1 << 19
+#: Direction used where a pair's points coincide at the linearisation point.
+_FALLBACK = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass(frozen=True)
@@ -62,6 +72,13 @@ class PairSteps:
         return PairSteps((ij // vehicles).astype(np.intp), (ij % vehicles).astype(np.intp),
                          k.astype(np.intp))
 
+    @staticmethod
+    def concat(parts: list[PairSteps]) -> PairSteps:
+        if not parts:
+            z = np.zeros(0, dtype=np.intp)
+            return PairSteps(z, z, z)
+        return PairSteps(*(np.concatenate([getattr(p, f) for p in parts]) for f in "ijk"))
+
 
 def all_pairs(vehicles: int) -> tuple[IntArray, IntArray]:
     """Indices (i, j), i < j, of every pair."""
@@ -76,24 +93,126 @@ def _pair_chunks(vehicles: int, stages: int) -> Iterator[tuple[IntArray, IntArra
         yield i[lo:lo + per_chunk], j[lo:lo + per_chunk]
 
 
-def step_distances(positions: FloatArray, scale: FloatArray, below: float) -> tuple[PairSteps,
-                                                                                  FloatArray]:
-    """Every pair-step whose scaled distance is below `below`, with that distance.
+def _unit(d: FloatArray) -> FloatArray:
+    norm = np.linalg.norm(d, axis=-1, keepdims=True)
+    tiny = norm[..., 0] < 1e-12
+    out = d / np.where(norm < 1e-12, 1.0, norm)
+    if tiny.any():
+        out[tiny] = _FALLBACK
+    return out
 
-    positions: (N, K+1, 3). Returns (pair-steps, distances) for the close ones only.
+
+def _chord_closest(u: FloatArray, w: FloatArray) -> FloatArray:
+    """The point of each segment [u, w] closest to the origin (last axis: coordinates)."""
+    chord = w - u
+    length2 = np.einsum("...c,...c->...", chord, chord)
+    tau = np.clip(-np.einsum("...c,...c->...", u, chord) / np.maximum(length2, 1e-300), 0, 1)
+    return u + tau[..., None] * chord
+
+
+def _interval_directions_all(d: FloatArray) -> FloatArray:
+    """Unit directions (pairs, K, 3) of every interval from scaled differences (pairs, K+1, 3)."""
+    u = _unit(_chord_closest(d[:, :-1], d[:, 1:]))
+    u[:, 0] = _unit(d[:, 0])
+    u[:, -1] = _unit(d[:, -1])
+    return u
+
+
+def directions(lin_positions: FloatArray, scale: FloatArray, rows: PairSteps,
+               continuous: bool) -> FloatArray:
+    """(rows, 3) unit directions u (scaled space) of the rows' linearisations at `lin`.
+
+    The QP row coefficients on p_i - p_j are u / scale.
+    """
+    here = (lin_positions[rows.i, rows.k] - lin_positions[rows.j, rows.k]) / scale
+    if not continuous:
+        return _unit(here)
+    after = (lin_positions[rows.i, rows.k + 1] - lin_positions[rows.j, rows.k + 1]) / scale
+    u = _unit(_chord_closest(here, after))
+    first, final = rows.k == 0, rows.k == lin_positions.shape[1] - 2
+    u[first] = _unit(here[first])
+    u[final] = _unit(after[final])
+    return u
+
+
+def row_values(positions: FloatArray, velocities: FloatArray, dt: float, scale: FloatArray,
+               i: IntArray, j: IntArray, u: FloatArray, continuous: bool) -> FloatArray:
+    """Smallest u'S(...) over each row set of pairs (i, j), vectorised over leading axes.
+
+    i, j: pair index arrays (P,); u: (P, K+1, 3) step directions or (P, K, 3) interval
+    directions. Returns (P, K+1) or (P, K) values; the rows hold where value >= R.
+    """
+    r = (positions[i] - positions[j]) / scale
+    if not continuous:
+        return np.einsum("psc,psc->ps", u, r)
+    mid = r[:, :-1] + 0.5 * dt * (velocities[i] - velocities[j])[:, :-1] / scale
+    return np.minimum(
+        np.minimum(np.einsum("psc,psc->ps", u, r[:, :-1]), np.einsum("psc,psc->ps", u, mid)),
+        np.einsum("psc,psc->ps", u, r[:, 1:]),
+    )
+
+
+def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: FloatArray,
+                  dt: float, scale: FloatArray, separation: float, tolerance: float,
+                  continuous: bool) -> tuple[PairSteps, FloatArray]:
+    """Every pair-step (or pair-interval) whose linearised rows about `lin` the iterate
+    violates by more than `tolerance`, with the smallest row value.
+
+    This is the all-pairs check that makes lazily generated rows give the optimum of the QP
+    with every row.
     """
     n, stages = positions.shape[0], positions.shape[1]
-    scaled = positions / scale
-    found_i, found_j, found_k, found_d = [], [], [], []
+    lin = lin_positions / scale
+    found: list[PairSteps] = []
+    found_v: list[FloatArray] = []
     for i, j in _pair_chunks(n, stages):
-        d = np.linalg.norm(scaled[i] - scaled[j], axis=-1)  # (pairs, stages)
-        pi, kk = np.nonzero(d < below)
-        found_i.append(i[pi])
-        found_j.append(j[pi])
-        found_k.append(kk)
-        found_d.append(d[pi, kk])
-    cat = np.concatenate
-    return PairSteps(cat(found_i), cat(found_j), cat(found_k).astype(np.intp)), cat(found_d)
+        d = lin[i] - lin[j]
+        u = _interval_directions_all(d) if continuous else _unit(d)
+        value = row_values(positions, velocities, dt, scale, i, j, u, continuous)
+        pi, kk = np.nonzero(value < separation - tolerance)
+        found.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))
+        found_v.append(value[pi, kk])
+    return PairSteps.concat(found), np.concatenate(found_v)
+
+
+def worst_per_run(pairs: PairSteps, values: FloatArray) -> PairSteps:
+    """The pair-step of smallest value in each run of consecutive steps of the same pair.
+
+    A pair that violates its constraint does so over a run of neighbouring steps; the row
+    at the deepest point of the run is the one most likely to be active, and the rows next
+    to it are usually satisfied once it is imposed.
+    """
+    if len(pairs) == 0:
+        return pairs
+    order = np.lexsort((pairs.k, pairs.j, pairs.i))
+    i, j, k, v = pairs.i[order], pairs.j[order], pairs.k[order], values[order]
+    new_run = np.ones(len(i), dtype=bool)
+    new_run[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
+    run_id = np.cumsum(new_run) - 1
+    by_value = np.lexsort((v, run_id))
+    first = np.ones(len(by_value), dtype=bool)
+    first[1:] = run_id[by_value][1:] != run_id[by_value][:-1]
+    pick = by_value[first]
+    return PairSteps(i[pick], j[pick], k[pick])
+
+
+def close_rows(positions: FloatArray, scale: FloatArray, below: float, continuous: bool
+               ) -> tuple[PairSteps, FloatArray]:
+    """Pair-steps (or pair-intervals, by chord distance) closer than `below`, with distance."""
+    n, stages = positions.shape[0], positions.shape[1]
+    scaled = positions / scale
+    found: list[PairSteps] = []
+    found_d: list[FloatArray] = []
+    for i, j in _pair_chunks(n, stages):
+        d = scaled[i] - scaled[j]
+        if continuous:
+            dist = np.linalg.norm(_chord_closest(d[:, :-1], d[:, 1:]), axis=-1)
+        else:
+            dist = np.linalg.norm(d, axis=-1)
+        pi, kk = np.nonzero(dist < below)
+        found.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))
+        found_d.append(dist[pi, kk])
+    return PairSteps.concat(found), np.concatenate(found_d)
 
 
 def min_step_distance(positions: FloatArray, scale: FloatArray) -> tuple[float, int, int, int]:
@@ -112,91 +231,6 @@ def min_step_distance(positions: FloatArray, scale: FloatArray) -> tuple[float, 
     return best
 
 
-def linearised_coefficients(positions: FloatArray, scale: FloatArray, rows: PairSteps
-                            ) -> FloatArray:
-    """(rows, 3) coefficients c = S u of u'S(p_i - p_j) >= R at the linearisation point.
-
-    u is the unit direction of S(p_i - p_j) at step k of `positions` (the previous iterate).
-    Coincident points (zero distance) get an arbitrary but fixed direction (up), so the row
-    still pushes the pair apart.
-    """
-    d = (positions[rows.i, rows.k] - positions[rows.j, rows.k]) / scale
-    norm = np.linalg.norm(d, axis=-1, keepdims=True)
-    tiny = norm[:, 0] < 1e-12
-    if tiny.any():
-        d[tiny] = np.array([0.0, 0.0, 1.0])
-        norm[tiny] = 1.0
-    return d / norm / scale
-
-
-def violated_linearised(lin_positions: FloatArray, positions: FloatArray,
-                        velocities: FloatArray, dt: float, scale: FloatArray,
-                        separation: float, tolerance: float, continuous: bool
-                        ) -> list[tuple[PairSteps, FloatArray]]:
-    """Every linearised row (about `lin_positions`) that the iterate violates, by kind.
-
-    Kind 0: u_k'S(p_i - p_j)[k] at step k. With `continuous`, also the interval rows of
-    [k, k+1] along the same direction u_k: kind 1 at the Bernstein middle point
-    (p + dt/2 v)[k], kind 2 at step k+1. Returns, per kind, the violated (i, j, k) with
-    their values (< separation - tolerance). This is the all-pairs check that makes lazily
-    generated rows give the optimum of the QP with every row.
-    """
-    n, stages = positions.shape[0], positions.shape[1]
-    lin = lin_positions / scale
-    cur = positions / scale
-    mid = (positions + 0.5 * dt * velocities) / scale
-    kinds = 3 if continuous else 1
-    out: list[tuple[list[IntArray], list[IntArray], list[IntArray], list[FloatArray]]] = [
-        ([], [], [], []) for _ in range(kinds)
-    ]
-    for i, j in _pair_chunks(n, stages):
-        d_lin = lin[i] - lin[j]
-        norm = np.linalg.norm(d_lin, axis=-1)
-        coincident = norm < 1e-12
-        if coincident.any():  # same fallback direction as `linearised_coefficients`
-            d_lin[coincident] = np.array([0.0, 0.0, 1.0])
-            norm[coincident] = 1.0
-        u = d_lin / norm[..., None]
-        values = [np.einsum("psc,psc->ps", u, cur[i] - cur[j])]
-        if continuous:
-            values.append(np.einsum("psc,psc->ps", u[:, :-1], (mid[i] - mid[j])[:, :-1]))
-            values.append(np.einsum("psc,psc->ps", u[:, :-1], (cur[i] - cur[j])[:, 1:]))
-        for kind, value in enumerate(values):
-            pi, kk = np.nonzero(value < separation - tolerance)
-            bucket = out[kind]
-            bucket[0].append(i[pi])
-            bucket[1].append(j[pi])
-            bucket[2].append(kk)
-            bucket[3].append(value[pi, kk])
-    cat = np.concatenate
-    return [
-        (PairSteps(cat(bi), cat(bj), cat(bk).astype(np.intp)), cat(bv))
-        for bi, bj, bk, bv in out
-    ]
-
-
-def worst_per_run(pairs: PairSteps, values: FloatArray) -> PairSteps:
-    """The pair-step of smallest value in each run of consecutive steps of the same pair.
-
-    A pair that violates its constraint does so over a run of neighbouring steps; the row
-    at the deepest point of the run is the one most likely to be active, and the rows next
-    to it are usually satisfied once it is imposed.
-    """
-    if len(pairs) == 0:
-        return pairs
-    order = np.lexsort((pairs.k, pairs.j, pairs.i))
-    i, j, k, v = pairs.i[order], pairs.j[order], pairs.k[order], values[order]
-    new_run = np.ones(len(i), dtype=bool)
-    new_run[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1] + 1)
-    run_id = np.cumsum(new_run) - 1
-    # Sort by (run, value) and keep the first of each run.
-    by_value = np.lexsort((v, run_id))
-    first = np.ones(len(by_value), dtype=bool)
-    first[1:] = run_id[by_value][1:] != run_id[by_value][:-1]
-    pick = by_value[first]
-    return PairSteps(i[pick], j[pick], k[pick])
-
-
 def interval_lower_bounds(positions: FloatArray, accelerations: FloatArray, dt: float,
                           scale: FloatArray, below: float) -> PairSteps:
     """Pair-intervals [k, k+1] whose continuous-time distance may fall below `below`.
@@ -206,23 +240,16 @@ def interval_lower_bounds(positions: FloatArray, accelerations: FloatArray, dt: 
     the intervals it cannot clear need the exact `interval_minima`.
     """
     n, stages = positions.shape[0], accelerations.shape[1]
-    sp_ = positions / scale
-    sa = accelerations / scale
-    out_i, out_j, out_k = [], [], []
+    scaled_p = positions / scale
+    scaled_a = accelerations / scale
+    found: list[PairSteps] = []
     for i, j in _pair_chunks(n, stages + 1):
-        d = sp_[i] - sp_[j]  # (pairs, K+1, 3)
-        u, w = d[:, :-1], d[:, 1:]
-        chord = w - u
-        length2 = np.einsum("psc,psc->ps", chord, chord)
-        tau = np.clip(-np.einsum("psc,psc->ps", u, chord) / np.maximum(length2, 1e-300), 0, 1)
-        closest = np.linalg.norm(u + tau[..., None] * chord, axis=-1)
-        bulge = dt * dt / 8.0 * np.linalg.norm(sa[i] - sa[j], axis=-1)
+        d = scaled_p[i] - scaled_p[j]
+        closest = np.linalg.norm(_chord_closest(d[:, :-1], d[:, 1:]), axis=-1)
+        bulge = dt * dt / 8.0 * np.linalg.norm(scaled_a[i] - scaled_a[j], axis=-1)
         pi, kk = np.nonzero(closest - bulge < below)
-        out_i.append(i[pi])
-        out_j.append(j[pi])
-        out_k.append(kk)
-    cat = np.concatenate
-    return PairSteps(cat(out_i), cat(out_j), cat(out_k).astype(np.intp))
+        found.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))
+    return PairSteps.concat(found)
 
 
 def interval_minima(positions: FloatArray, velocities: FloatArray, accelerations: FloatArray,
@@ -270,7 +297,7 @@ def interval_minima(positions: FloatArray, velocities: FloatArray, accelerations
         )
     s_best = np.where(fa < fb, a, b)
     d_best = np.minimum(fa, fb)
-    # Compare with the sampled minimum and the endpoints (golden search is interior).
+    # The golden search is interior: keep the sampled minimum (endpoints included) if lower.
     sampled = values[np.arange(len(i)), best]
     use_sample = sampled < d_best
     s_best = np.where(use_sample, grid[best], s_best)

@@ -1,0 +1,72 @@
+"""`fleetplan plan`: exit status, progress lines, summary and clear errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from gcs.cli.main import main
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
+
+
+def test_plans_an_example_and_writes_the_plan(tmp_path, capsys):
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(EXAMPLES / "paper-circle4.json"), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "iteration  0: cost" in printed and "iteration  1: cost" in printed
+    assert "converged" in printed and "plan written to" in printed
+    doc = json.loads(out.read_text())
+    assert doc["status"] == "converged"
+    assert len(doc["vehicles"]) == 4
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("{not json", "is not valid JSON"),
+        ('{"dt": 0.2}', "steps: is required"),
+        ('{"dt": 0.2, "steps": 10, "min_separation": 1, "limits": {}, "vehicles": []}',
+         "limits.position_min: is required"),
+    ],
+)
+def test_bad_input_exits_2_with_a_message(tmp_path, capsys, content, message):
+    path = tmp_path / "bad.json"
+    path.write_text(content)
+    assert main(["plan", str(path), "-o", str(tmp_path / "p.json")]) == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "p.json").exists()
+
+
+def test_missing_file(tmp_path, capsys):
+    assert main(["plan", str(tmp_path / "nope.json")]) == 2
+    assert "cannot read" in capsys.readouterr().err
+
+
+def test_infeasible_plan_exits_1_and_still_writes(tmp_path, capsys):
+    data = json.loads((EXAMPLES / "paper-circle4.json").read_text())
+    data["steps"] = 40
+    data["limits"]["jerk_max"] = [0.05, 0.05, 0.05]
+    path = tmp_path / "tight.json"
+    path.write_text(json.dumps(data))
+    out = tmp_path / "p.json"
+    assert main(["plan", str(path), "-o", str(out), "-q"]) == 1
+    assert "infeasible" in capsys.readouterr().err
+    assert json.loads(out.read_text())["status"] == "infeasible"
+
+
+def test_console_script_is_installed(tmp_path):
+    out = tmp_path / "plan.json"
+    done = subprocess.run(
+        [str(Path(sys.executable).parent / "fleetplan"), "plan",
+         str(EXAMPLES / "paper-random2.json"), "-o", str(out), "-q"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert out.exists()
