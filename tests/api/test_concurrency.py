@@ -10,7 +10,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from api.support import ServiceProcess, example
+from tests.api.support import ServiceProcess, example
 
 
 @pytest.mark.slow

@@ -11,9 +11,9 @@ import schemathesis
 from hypothesis import HealthCheck, settings
 from schemathesis import checks
 
-from api.support import ServiceProcess
 from gcs.api import create_app
 from gcs.settings import Settings
+from tests.api.support import ServiceProcess
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from api.support import ServiceProcess
 from playwright.sync_api import Browser, Page, sync_playwright
+
+from tests.api.support import ServiceProcess
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
 

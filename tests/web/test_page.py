@@ -4,8 +4,9 @@ figure, see validation errors next to the fields, place points on the top view."
 from __future__ import annotations
 
 import httpx
-from api.support import ServiceProcess, example
 from playwright.sync_api import Page, expect
+
+from tests.api.support import ServiceProcess, example
 
 # A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
 VEHICLES = [

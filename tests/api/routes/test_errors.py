@@ -10,9 +10,9 @@ import pytest
 from fastapi.testclient import TestClient
 from httpx import Response
 
-from api.support import example
 from gcs.api import create_app
 from gcs.settings import Settings
+from tests.api.support import example
 
 
 def assert_error(response: Response, status: int, field: str | None, reason: str) -> None:

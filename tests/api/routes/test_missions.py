@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from api.support import example
 from gcs.api import create_app
 from gcs.settings import Settings
 from gcs.store import Store
 from planner import Plan, Scenario
+from tests.api.support import example
 
 
 def plan_mission(client: TestClient, scenario: dict[str, Any]) -> dict[str, Any]:
