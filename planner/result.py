@@ -85,6 +85,8 @@ class IterationRecord:
     groups: int
     """Independent sub-problems (groups of vehicles linked by candidate pairs)."""
     seconds: float
+    largest_group: int = 0
+    """Vehicles in the largest group."""
 
 
 @dataclass(frozen=True)

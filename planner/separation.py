@@ -30,9 +30,11 @@ __all__ = [
     "all_pairs",
     "close_rows",
     "directions",
+    "displacements",
     "interval_lower_bounds",
     "interval_minima",
     "min_step_distance",
+    "pair_margins",
     "row_values",
     "violated_rows",
     "worst_per_run",
@@ -152,26 +154,62 @@ def row_values(positions: FloatArray, velocities: FloatArray, dt: float, scale: 
     )
 
 
+def _chunks_of(i: IntArray, j: IntArray, stages: int) -> Iterator[tuple[IntArray, IntArray]]:
+    per_chunk = max(1, CHUNK // max(stages, 1))
+    for lo in range(0, len(i), per_chunk):
+        yield i[lo:lo + per_chunk], j[lo:lo + per_chunk]
+
+
+def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
+                 scale: FloatArray, continuous: bool) -> FloatArray:
+    """Per pair (in `all_pairs` order), the smallest value of its linearised rows at `lin`
+    itself: the starting point of the pruning bound of `violated_rows`."""
+    n, stages = lin_positions.shape[0], lin_positions.shape[1]
+    lin = lin_positions / scale
+    out = []
+    for i, j in _pair_chunks(n, stages):
+        d = lin[i] - lin[j]
+        u = _interval_directions_all(d) if continuous else _unit(d)
+        values = row_values(lin_positions, lin_velocities, dt, scale, i, j, u, continuous)
+        out.append(values.min(axis=1))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def displacements(lin: tuple[FloatArray, FloatArray], current: tuple[FloatArray, FloatArray],
+                  dt: float, scale: FloatArray) -> FloatArray:
+    """Per vehicle, the largest scaled move of any row point (p_k and p_k + dt/2 v_k) from
+    `lin` to `current`: a row's value moves by at most the sum of its two vehicles'."""
+    dp = (current[0] - lin[0]) / scale
+    dm = dp + 0.5 * dt * (current[1] - lin[1]) / scale
+    return np.maximum(np.linalg.norm(dp, axis=-1).max(axis=1),
+                      np.linalg.norm(dm, axis=-1).max(axis=1))
+
+
 def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: FloatArray,
                   dt: float, scale: FloatArray, separation: float, tolerance: float,
-                  continuous: bool) -> tuple[PairSteps, FloatArray]:
+                  continuous: bool, pairs: tuple[IntArray, IntArray] | None = None,
+                  ) -> tuple[PairSteps, FloatArray]:
     """Every pair-step (or pair-interval) whose linearised rows about `lin` the iterate
     violates by more than `tolerance`, with the smallest row value.
 
     This is the all-pairs check that makes lazily generated rows give the optimum of the QP
-    with every row.
+    with every row. `pairs` restricts it to the pairs that can be violated at all (see
+    `pair_margins`, `displacements`); by default every pair is checked.
     """
     n, stages = positions.shape[0], positions.shape[1]
     lin = lin_positions / scale
     found: list[PairSteps] = []
     found_v: list[FloatArray] = []
-    for i, j in _pair_chunks(n, stages):
+    chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
+    for i, j in chunks:
         d = lin[i] - lin[j]
         u = _interval_directions_all(d) if continuous else _unit(d)
         value = row_values(positions, velocities, dt, scale, i, j, u, continuous)
         pi, kk = np.nonzero(value < separation - tolerance)
         found.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))
         found_v.append(value[pi, kk])
+    if not found:
+        return PairSteps.concat([]), np.zeros(0)
     return PairSteps.concat(found), np.concatenate(found_v)
 
 

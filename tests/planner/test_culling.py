@@ -47,3 +47,30 @@ def test_groups_split_when_vehicles_never_meet():
     plan = planner.plan(data)
     assert plan.ok
     assert max(r.groups for r in plan.iterations[1:]) >= 2
+
+
+@pytest.mark.parametrize("continuous", [False, True])
+def test_pruned_row_check_finds_every_violated_row(continuous):
+    from planner.separation import all_pairs, displacements, pair_margins, violated_rows
+
+    data = random_transitions(14, size=(8.0, 8.0, 3.0), seed=11, steps=60)
+    scenario = planner.Scenario.from_dict(data)
+    lin = planner.plan(scenario)
+    rng = np.random.default_rng(0)
+    p0, v0 = lin.positions(), lin.velocities()
+    for scale_of_move in (0.05, 0.3, 1.0):
+        p = p0 + rng.normal(scale=scale_of_move, size=p0.shape)
+        v = v0 + rng.normal(scale=scale_of_move, size=v0.shape)
+        args = (p0, p, v, scenario.dt, scenario.separation_scale, scenario.min_separation,
+                1e-6, continuous)
+        everything, _ = violated_rows(*args)
+        i, j = all_pairs(14)
+        margin = pair_margins(p0, v0, scenario.dt, scenario.separation_scale, continuous)
+        moved = displacements((p0, v0), (p, v), scenario.dt, scenario.separation_scale)
+        suspect = margin - scenario.min_separation - moved[i] - moved[j] < 1e-6
+        pruned, _ = violated_rows(*args, (i[suspect], j[suspect]))
+        assert len(everything) > 0
+        assert set(zip(everything.i, everything.j, everything.k, strict=True)) == set(
+            zip(pruned.i, pruned.j, pruned.k, strict=True))
+        if scale_of_move == 0.05:
+            assert suspect.sum() < len(i)  # the bound does prune

@@ -1,0 +1,193 @@
+"""`fleetplan fly PLAN.json --fleet FLEET.json | --mock`: fly a plan and record the flight.
+
+Live progress per vehicle once a second and every event as it happens; a summary at the end;
+exit status 0 only when the mission completed. Ctrl-C aborts safely: every vehicle lands and
+the command waits for them to disarm (a second Ctrl-C exits at once).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["configure", "run"]
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("plan", help="Plan JSON (from `fleetplan plan`)")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--fleet", help="fleet file (JSON): connections, system ids, homes")
+    source.add_argument("--mock", action="store_true",
+                        help="start mock vehicles in this run, homes under the plan's starts")
+    parser.add_argument("--record", help="write the flight record (JSON) here")
+    parser.add_argument("--rate", type=float, help="setpoint rate (Hz, default 20, max 100)")
+    parser.add_argument("--policy", choices=("hold_all", "land_all", "land_faulty"),
+                        help="what to do when a vehicle is flagged (default land_all)")
+    parser.add_argument("--at-end", choices=("land", "hold"),
+                        help="after the plan: land (default) or hold in PX4 Hold mode")
+    parser.add_argument("--hold-at-goal", type=float, help="seconds at the goals (default 2)")
+    parser.add_argument("--tracking-error-max", type=float,
+                        help="flag a vehicle this far from the plan (m, default 1)")
+    parser.add_argument("--start-tolerance", type=float,
+                        help="start the clock when all are this close to their starts (m)")
+    parser.add_argument("--arm-timeout", type=float,
+                        help="retry TEMPORARILY_REJECTED arming this long (s, default 30)")
+    parser.add_argument("--base-port", type=int, default=14540,
+                        help="--mock: vehicle i sends to this port + i (default 14540)")
+    parser.add_argument("--listen-base-port", type=int, default=14580,
+                        help="--mock: vehicle i listens on this port + i (default 14580)")
+    parser.add_argument("--mock-settle", type=float, default=5.0,
+                        help="--mock: arming rejected this long after start (s, default 5)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no live progress")
+
+
+_OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
+                 "hold_at_goal": "hold_at_goal", "tracking_error_max": "tracking_error_max",
+                 "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout"}
+
+
+def run(args: argparse.Namespace) -> int:
+    import asyncio
+    import contextlib
+    import json
+    import signal
+    import sys
+    from pathlib import Path
+
+    from gcs.errors import FleetFileError, GcsError
+    from gcs.fleet import Mission
+    from gcs.fleetfile import FleetSpec, load_fleet
+    from gcs.mock import MockFleet
+    from planner.errors import PlannerError
+    from planner.result import Plan
+
+    try:
+        plan = Plan.from_dict(json.loads(Path(args.plan).read_text()))
+    except (OSError, json.JSONDecodeError, PlannerError) as exc:
+        print(f"error: cannot use plan {args.plan}: {exc}", file=sys.stderr)
+        return 2
+
+    def write_record(record: dict | None) -> None:
+        if args.record and record is not None:
+            Path(args.record).write_text(json.dumps(record))
+            print(f"flight record written to {args.record}")
+
+    async def main() -> int:
+        mock = None
+        try:
+            if args.mock:
+                homes = [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
+                mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
+                                 listen_base_port=args.listen_base_port,
+                                 settle_time=args.mock_settle)
+                await mock.start()
+                fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+            else:
+                fleet = load_fleet(args.fleet)
+            changes = {field: getattr(args, flag) for flag, field in _OPTION_FLAGS.items()
+                       if getattr(args, flag) is not None}
+            options = fleet.options.replace(where="option", **changes)
+            mission = Mission(plan, fleet, options)
+        except (GcsError, OSError) as exc:
+            if mock is not None:
+                await mock.stop()
+            where = f"{exc.field}: " if isinstance(exc, FleetFileError) else ""
+            print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}",
+                  file=sys.stderr)
+            return 2
+
+        loop = asyncio.get_running_loop()
+        interrupts = 0
+        aborts: list[asyncio.Future] = []
+
+        def on_interrupt() -> None:
+            nonlocal interrupts
+            interrupts += 1
+            if interrupts == 1:
+                print("\nCtrl-C: aborting, every vehicle lands (Ctrl-C again to quit now)",
+                      file=sys.stderr, flush=True)
+                aborts.append(asyncio.ensure_future(mission.abort("land", "interrupted (Ctrl-C)")))
+            else:
+                task.cancel()
+
+        task = mission.start()
+        loop.add_signal_handler(signal.SIGINT, on_interrupt)
+        printer = None if args.quiet else asyncio.create_task(_progress(mission))
+        record = None
+        status = 1
+        try:
+            record = await task
+            status = 0 if record["summary"]["completed"] else 1
+        except asyncio.CancelledError:
+            print("interrupted again: quitting without waiting", file=sys.stderr)
+            record = mission.record
+            status = 130
+        except GcsError as exc:
+            print(f"mission failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+            record = mission.record
+        finally:
+            loop.remove_signal_handler(signal.SIGINT)
+            if printer is not None:
+                printer.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await printer
+            if mock is not None:
+                await mock.stop()
+        if record is not None:
+            _print_summary(record)
+        write_record(record)
+        return status
+
+    return asyncio.run(main())
+
+
+async def _progress(mission) -> None:
+    import asyncio
+
+    async def events() -> None:
+        async for event in mission.events():
+            if event["kind"] in ("statustext", "mode_change") and event["vehicle"]:
+                continue
+            who = event["vehicle"] or "fleet"
+            print(f"  [{event['t']:7.2f}] {who}: {event['kind']} {event['detail']}", flush=True)
+
+    watcher = asyncio.create_task(events())
+    try:
+        while True:
+            await asyncio.sleep(1.0)
+            snap = mission.snapshot()
+            t = snap["mission_time"]
+            clock = f"t={t:6.1f}/{snap['horizon']:.0f} s" if t is not None else "t=  --"
+            parts = []
+            for v in snap["vehicles"]:
+                pos = v["position"]
+                where = "({:.1f} {:.1f} {:.1f})".format(*pos) if pos else "(?)"
+                err = v["tracking_error"]
+                parts.append(f"{v['id']} {v['phase']} {v['mode'] or '?'}"
+                             f"{' A' if v['armed'] else ''} {where}"
+                             f"{f' e={err:.2f}' if err is not None else ''}")
+            sep = snap["min_separation_live"]
+            print(f"{snap['phase']:10s} {clock} sep_min={sep if sep is None else round(sep, 2)}"
+                  f" | " + " | ".join(parts), flush=True)
+    finally:
+        watcher.cancel()
+
+
+def _print_summary(record: dict) -> None:
+    s = record["summary"]
+
+    def fmt(value, unit: str = "") -> str:
+        return "n/a" if value is None else f"{value:.3f}{unit}"
+
+    print("summary:")
+    print(f"  completed               {s['completed']}")
+    print(f"  goal_error_max          {fmt(s['goal_error_max'], ' m')}")
+    print(f"  tracking_error_max      {fmt(s['tracking_error_max'], ' m')}")
+    print(f"  min_separation_measured {fmt(s['min_separation_measured'], ' m')}"
+          f" (planned {fmt(s['min_separation_planned'], ' m')})")
+    print(f"  setpoint_rate_hz        {fmt(s['setpoint_rate_hz'])}")
+    print(f"  jitter_p99_ms           {fmt(s['jitter_p99_ms'])}")
+    if s["faults"]:
+        print(f"  faults                  {s['faults']}")
+    if record.get("error"):
+        print(f"  error                   {record['error']['type']}: "
+              f"{record['error']['message']}")

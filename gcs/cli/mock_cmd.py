@@ -1,0 +1,102 @@
+"""`fleetplan mock`: run N PX4-like mock vehicles (gcs.mock) until interrupted.
+
+Vehicle i listens on UDP --listen-base-port + i and sends to --base-port + i on 127.0.0.1
+(PX4 SITL's 14580 + i / 14540 + i by default), system id i + 1. Homes: under the starts of
+--plan, or a row --spacing metres apart along x. --fleet-out writes the matching fleet file.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["configure", "run"]
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--vehicles", "-n", type=int, default=None,
+                        help="number of vehicles (default: the plan's, else 4)")
+    parser.add_argument("--plan", help="put the homes under this plan's starts (Plan JSON)")
+    parser.add_argument("--spacing", type=float, default=2.0,
+                        help="without --plan: homes this far apart along x (m, default 2)")
+    parser.add_argument("--base-port", type=int, default=14540,
+                        help="vehicle i sends to this port + i (default 14540)")
+    parser.add_argument("--listen-base-port", type=int, default=14580,
+                        help="vehicle i listens on this port + i (default 14580)")
+    parser.add_argument("--max-port-offset", type=int, default=None,
+                        help="vehicles from this index on share one GCS port, like PX4 SITL "
+                             "from instance 10 on (9); 0 puts the whole fleet on one port")
+    parser.add_argument("--settle", type=float, default=5.0,
+                        help="arming is TEMPORARILY_REJECTED this long after start (s, default "
+                             "5 like PX4 SITL)")
+    parser.add_argument("--position-rate", type=float, default=30.0,
+                        help="LOCAL_POSITION_NED rate (Hz, default 30)")
+    parser.add_argument("--loss", type=float, default=0.0,
+                        help="fault: fraction of packets dropped each way (0..1)")
+    parser.add_argument("--delay", type=float, default=0.0,
+                        help="fault: seconds added to every packet")
+    parser.add_argument("--fleet-out", help="write the fleet file for these vehicles here")
+    parser.add_argument("--duration", type=float, default=None,
+                        help="stop after this many seconds (default: run until Ctrl-C)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import asyncio
+    import json
+    import signal
+    import sys
+    from pathlib import Path
+
+    from gcs.mock import MockFleet
+
+    ids = None
+    homes = None
+    if args.plan:
+        from planner.result import Plan
+
+        plan = Plan.from_dict(json.loads(Path(args.plan).read_text()))
+        homes = [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
+        ids = plan.scenario.ids
+        if args.vehicles is not None and args.vehicles != len(homes):
+            print(f"error: --vehicles {args.vehicles} but the plan has {len(homes)}",
+                  file=sys.stderr)
+            return 2
+    count = len(homes) if homes is not None else (args.vehicles or 4)
+    if count < 1:
+        print("error: --vehicles must be at least 1", file=sys.stderr)
+        return 2
+    if homes is None:
+        homes = [[args.spacing * i, 0.0, 0.0] for i in range(count)]
+
+    async def main() -> None:
+        mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
+                         listen_base_port=args.listen_base_port,
+                         max_port_offset=args.max_port_offset, settle_time=args.settle,
+                         position_rate=args.position_rate)
+        for vehicle in mock.vehicles:
+            vehicle.faults.loss = args.loss
+            vehicle.faults.delay = args.delay
+        await mock.start()
+        if args.fleet_out:
+            Path(args.fleet_out).write_text(json.dumps(mock.fleet_dict(ids), indent=1))
+        print(f"mock: {count} PX4-like vehicles, listening on "
+              f"{args.listen_base_port}..{args.listen_base_port + count - 1}, sending to "
+              f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}", flush=True)
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, stop.set)
+        try:
+            if args.duration is not None:
+                await asyncio.wait_for(stop.wait(), args.duration)
+            else:
+                await stop.wait()
+        except TimeoutError:
+            pass
+        finally:
+            await mock.stop()
+        accepted = sum(v.setpoints_accepted for v in mock.vehicles)
+        print(f"mock: stopped after {mock.now():.1f} s; {accepted} setpoints accepted, "
+              f"{mock.physics_steps} physics steps", flush=True)
+
+    asyncio.run(main())
+    return 0

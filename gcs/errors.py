@@ -1,0 +1,92 @@
+"""The GCS's exceptions, one tree rooted in `GcsError`.
+
+- `GcsError`: base class of everything `gcs` raises on purpose.
+  - `FleetFileError`: a fleet file (or mission options) is invalid; `field` names the dotted path
+    of the offending field and `reason` says why. Also a `ValueError`.
+  - `LinkError`: a MAVLink connection could not be opened or used (bad URL, port in use).
+  - `VehicleTimeout`: a vehicle did not do something in time (first HEARTBEAT, reaching its
+    start, confirming a mode in its HEARTBEAT). Carries `vehicle`.
+  - `CommandError`: a command was refused or never acknowledged. Carries `vehicle`, `command`
+    (MAV_CMD number) and `result` (MAV_RESULT, or None when no ACK came).
+    - `ArmingRefused`: MAV_CMD_COMPONENT_ARM_DISARM was refused for good (DENIED, FAILED, or
+      still TEMPORARILY_REJECTED when the arming timeout ran out).
+    - `ModeRefused`: MAV_CMD_DO_SET_MODE was refused.
+  - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
+  - `MissionAborted`: the mission stopped before completing (abort(), a fault policy, Ctrl-C);
+    `reason` says why. The vehicles were sent to hold or land before this is raised.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ArmingRefused",
+    "CommandError",
+    "FleetFileError",
+    "GcsError",
+    "LinkError",
+    "MissionAborted",
+    "ModeRefused",
+    "PlanRejected",
+    "VehicleTimeout",
+]
+
+
+class GcsError(Exception):
+    """Base class of the GCS's errors."""
+
+
+class FleetFileError(GcsError, ValueError):
+    """Bad fleet file or options: `field` is the dotted path, `reason` says why."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}")
+        self.field = field
+        self.reason = reason
+
+    def to_dict(self) -> dict[str, str]:
+        """JSON-friendly form used by the CLI and the REST API."""
+        return {"field": self.field, "reason": self.reason}
+
+
+class LinkError(GcsError):
+    """A MAVLink connection could not be opened or used."""
+
+
+class VehicleTimeout(GcsError):
+    """A vehicle did not reach an expected state in time."""
+
+    def __init__(self, vehicle: str, what: str) -> None:
+        super().__init__(f"{vehicle}: {what}")
+        self.vehicle = vehicle
+        self.what = what
+
+
+class CommandError(GcsError):
+    """A MAVLink command was refused (`result` is the MAV_RESULT) or never acknowledged."""
+
+    def __init__(self, vehicle: str, command: int, result: int | None, detail: str) -> None:
+        super().__init__(f"{vehicle}: {detail}")
+        self.vehicle = vehicle
+        self.command = command
+        self.result = result
+        self.detail = detail
+
+
+class ArmingRefused(CommandError):
+    """Arming was refused for good."""
+
+
+class ModeRefused(CommandError):
+    """A mode change was refused."""
+
+
+class PlanRejected(GcsError):
+    """The plan may not be flown."""
+
+
+class MissionAborted(GcsError):
+    """The mission stopped before completing; the vehicles were sent to hold or land."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason

@@ -1,0 +1,276 @@
+"""The fleet file (JSON) and mission options: parsing and validation.
+
+A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home) lies::
+
+    {
+      "world_origin": {"lat": 47.397742, "lon": 8.545594, "alt": 488.0},   (optional)
+      "vehicles": [
+        {"id": "uav1", "connection": "udpin:127.0.0.1:14540", "system_id": 1,
+         "home": [4.5, 2.5, 0.0]},
+        ...
+      ],
+      "mission": {"policy": "land_all", "rate_hz": 20}                       (optional)
+    }
+
+- `id` matches a plan vehicle; `connection` is a pymavlink URL (vehicles may share one);
+  `system_id` 1..254; `component_id` defaults to 1 (the autopilot).
+- `home` [x, y, z]: the vehicle's home in the world frame (ENU, m). Without it, the fleet-wide
+  geodetic `world_origin` {lat, lon, alt (m AMSL)} is required and the home is computed from
+  what the vehicle reports (GPS_GLOBAL_ORIGIN, else HOME_POSITION).
+- `mission`: `MissionOptions` fields (command-line flags override them).
+
+Every problem is a `FleetFileError` naming the field (e.g. ``vehicles[2].system_id``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gcs.errors import FleetFileError
+from gcs.frames import Geodetic
+from gcs.setpoints import MAX_RATE_HZ
+
+__all__ = [
+    "AT_END",
+    "POLICIES",
+    "FleetSpec",
+    "MissionOptions",
+    "VehicleSpec",
+    "load_fleet",
+]
+
+#: Fleet policies applied when a vehicle is flagged (heartbeat lost, left OFFBOARD, tracking).
+POLICIES = ("hold_all", "land_all", "land_faulty")
+#: What the fleet does once the plan has ended and it has held at the goals.
+AT_END = ("land", "hold")
+
+_TOP_KEYS = {"world_origin", "vehicles", "mission"}
+_VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home"}
+
+
+@dataclass(frozen=True)
+class MissionOptions:
+    """How a mission is flown; defaults are for real vehicles."""
+
+    rate_hz: float = 20.0
+    """Setpoint stream rate (Hz), up to 100."""
+    policy: str = "land_all"
+    """What to do when a vehicle is flagged: hold_all, land_all or land_faulty."""
+    at_end: str = "land"
+    """After the plan and the hold at the goals: land, or hold (PX4 Hold mode)."""
+    heartbeat_timeout: float = 1.5
+    """A vehicle whose HEARTBEAT is older than this is flagged (s)."""
+    tracking_error_max: float = 1.0
+    """A vehicle farther than this from its planned position is flagged (m)."""
+    start_tolerance: float = 0.3
+    """The mission clock starts when every vehicle is this close to its start (m)."""
+    goal_tolerance: float = 0.2
+    """A completed mission ends with every vehicle this close to its goal (m)."""
+    hold_at_goal: float = 2.0
+    """Seconds to hold at the goals after the plan's horizon, before `at_end`."""
+    climb_speed: float = 1.0
+    """Peak speed of the climb from home to the start (m/s)."""
+    prestream: float = 0.5
+    """Seconds of hold setpoints streamed before asking for OFFBOARD."""
+    connect_timeout: float = 30.0
+    """Waiting for every vehicle's first HEARTBEAT and position (s)."""
+    arm_timeout: float = 30.0
+    """Retrying TEMPORARILY_REJECTED arming for at most this long (s)."""
+    gather_timeout: float = 60.0
+    """Waiting for the whole fleet to reach its starts (s)."""
+    land_timeout: float = 60.0
+    """Waiting for landed vehicles to disarm (s)."""
+    yaw: float = 0.0
+    """Fixed heading in the world frame (rad, ENU: 0 = +x, counter-clockwise)."""
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], where: str = "mission") -> MissionOptions:
+        if not isinstance(data, Mapping):
+            raise FleetFileError(where, "must be a JSON object")
+        known = {f.name: f for f in fields(cls)}
+        values: dict[str, Any] = {}
+        for key, value in data.items():
+            if key not in known:
+                raise FleetFileError(f"{where}.{key}", "unknown key")
+            values[key] = value
+        return cls().replace(where=where, **values)
+
+    def replace(self, where: str = "options", **changes: Any) -> MissionOptions:
+        """A copy with `changes`, validated (errors name ``where.field``)."""
+        for key, value in changes.items():
+            if key in ("policy", "at_end"):
+                allowed = POLICIES if key == "policy" else AT_END
+                if value not in allowed:
+                    raise FleetFileError(f"{where}.{key}",
+                                         f"must be one of {', '.join(allowed)}, got {value!r}")
+            else:
+                if isinstance(value, bool) or not isinstance(value, int | float) \
+                        or not math.isfinite(value):
+                    raise FleetFileError(f"{where}.{key}", "must be a finite number")
+                if key != "yaw" and value < 0:
+                    raise FleetFileError(f"{where}.{key}", f"must not be negative, got {value}")
+        out = replace(self, **changes)
+        if not 0.0 < out.rate_hz <= MAX_RATE_HZ:
+            raise FleetFileError(f"{where}.rate_hz",
+                                 f"must be in (0, {MAX_RATE_HZ:g}] Hz, got {out.rate_hz:g}")
+        for key in ("heartbeat_timeout", "tracking_error_max", "start_tolerance",
+                    "goal_tolerance", "climb_speed"):
+            if getattr(out, key) <= 0:
+                raise FleetFileError(f"{where}.{key}", "must be positive")
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    """One vehicle of the fleet file."""
+
+    id: str
+    connection: str
+    """pymavlink URL, e.g. ``udpin:127.0.0.1:14540``."""
+    system_id: int
+    component_id: int
+    home: NDArray[np.float64] | None
+    """Home (LOCAL_NED origin) in the world frame, or None to compute it from world_origin."""
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"id": self.id, "connection": self.connection,
+                               "system_id": self.system_id, "component_id": self.component_id}
+        if self.home is not None:
+            out["home"] = self.home.tolist()
+        return out
+
+
+@dataclass(frozen=True)
+class FleetSpec:
+    """A validated fleet file."""
+
+    vehicles: tuple[VehicleSpec, ...]
+    world_origin: Geodetic | None
+    options: MissionOptions
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> FleetSpec:
+        return _parse(data)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"vehicles": [v.to_dict() for v in self.vehicles]}
+        if self.world_origin is not None:
+            o = self.world_origin
+            out["world_origin"] = {"lat": o.lat, "lon": o.lon, "alt": o.alt}
+        out["mission"] = self.options.to_dict()
+        return out
+
+    def for_plan(self, plan_ids: Sequence[str]) -> list[VehicleSpec]:
+        """The fleet's vehicles in plan order; every plan vehicle must be in the fleet."""
+        by_id = {v.id: v for v in self.vehicles}
+        missing = [vid for vid in plan_ids if vid not in by_id]
+        if missing:
+            raise FleetFileError(
+                "vehicles", f"no entry for plan vehicle(s) {', '.join(map(repr, missing))} "
+                f"(the fleet has {', '.join(map(repr, by_id)) or 'none'})")
+        return [by_id[vid] for vid in plan_ids]
+
+
+def load_fleet(path: str | Path) -> FleetSpec:
+    """Read and validate a fleet file."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise FleetFileError("fleet", f"cannot read {path}: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise FleetFileError("fleet", f"{path} is not valid JSON: {exc}") from None
+    return FleetSpec.from_dict(data)
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise FleetFileError(where, f"must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _parse(data: Any) -> FleetSpec:
+    if not isinstance(data, Mapping):
+        raise FleetFileError("fleet", "must be a JSON object")
+    for key in data:
+        if key not in _TOP_KEYS:
+            raise FleetFileError(key, "unknown key")
+    origin = None
+    if "world_origin" in data:
+        raw = data["world_origin"]
+        if not isinstance(raw, Mapping) or set(raw) != {"lat", "lon", "alt"}:
+            raise FleetFileError("world_origin", "must be an object {lat, lon, alt}")
+        lat = _number(raw["lat"], "world_origin.lat")
+        lon = _number(raw["lon"], "world_origin.lon")
+        if not -90.0 <= lat <= 90.0:
+            raise FleetFileError("world_origin.lat", f"must be within [-90, 90], got {lat}")
+        if not -180.0 <= lon <= 180.0:
+            raise FleetFileError("world_origin.lon", f"must be within [-180, 180], got {lon}")
+        origin = Geodetic(lat, lon, _number(raw["alt"], "world_origin.alt"))
+    raw_vehicles = data.get("vehicles")
+    if not isinstance(raw_vehicles, list) or not raw_vehicles:
+        raise FleetFileError("vehicles", "must be a non-empty list")
+    vehicles: list[VehicleSpec] = []
+    seen_ids: dict[str, int] = {}
+    seen_systems: dict[tuple[str, int], int] = {}
+    for index, raw in enumerate(raw_vehicles):
+        where = f"vehicles[{index}]"
+        if not isinstance(raw, Mapping):
+            raise FleetFileError(where, "must be a JSON object")
+        for key in raw:
+            if key not in _VEHICLE_KEYS:
+                raise FleetFileError(f"{where}.{key}", "unknown key")
+        for key in ("id", "connection", "system_id"):
+            if key not in raw:
+                raise FleetFileError(f"{where}.{key}", "is required")
+        vid = raw["id"]
+        if not isinstance(vid, str) or not vid.strip():
+            raise FleetFileError(f"{where}.id", "must be a non-empty string")
+        if vid in seen_ids:
+            raise FleetFileError(f"{where}.id",
+                                 f"duplicate id {vid!r} (also vehicles[{seen_ids[vid]}])")
+        seen_ids[vid] = index
+        url = raw["connection"]
+        if not isinstance(url, str) or not url.strip():
+            raise FleetFileError(f"{where}.connection", "must be a pymavlink URL string")
+        scheme = url.partition(":")[0]
+        if scheme in ("udpin", "udp", "udpout"):
+            host, _, port = url.partition(":")[2].rpartition(":")
+            if not host or not port.isdigit() or not 0 < int(port) < 65536:
+                raise FleetFileError(f"{where}.connection",
+                                     f"must look like {scheme}:HOST:PORT, got {url!r}")
+        ids = {}
+        for key, lo, hi, default in (("system_id", 1, 254, None), ("component_id", 1, 255, 1)):
+            value = raw.get(key, default)
+            if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+                raise FleetFileError(f"{where}.{key}",
+                                     f"must be an integer in [{lo}, {hi}], got {value!r}")
+            ids[key] = value
+        key = (url, ids["system_id"])
+        if key in seen_systems:
+            raise FleetFileError(
+                f"{where}.system_id", f"system id {ids['system_id']} is already used on "
+                f"{url} by vehicles[{seen_systems[key]}]")
+        seen_systems[key] = index
+        home = None
+        if "home" in raw:
+            value = raw["home"]
+            if not isinstance(value, list) or len(value) != 3:
+                raise FleetFileError(f"{where}.home", "must be a list of 3 numbers [x, y, z]")
+            home = np.array([_number(c, f"{where}.home[{k}]") for k, c in enumerate(value)])
+        elif origin is None:
+            raise FleetFileError(f"{where}.home",
+                                 "is required unless the fleet has a world_origin")
+        vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home))
+    options = MissionOptions.from_dict(data.get("mission", {}))
+    return FleetSpec(tuple(vehicles), origin, options)

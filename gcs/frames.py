@@ -1,0 +1,148 @@
+"""Frame conversions: the planner's world frame and each vehicle's MAVLink LOCAL_NED frame.
+
+The planner's world frame is ENU (x east, y north, z up), one origin for the whole fleet. A PX4
+vehicle's LOCAL_NED frame (x north, y east, z down) has its origin at that vehicle's own EKF
+origin, which is where it started (its home), so it differs from vehicle to vehicle:
+
+    p_ned = R_ENU_TO_NED @ (p_world - home_world)        (positions)
+    v_ned = R_ENU_TO_NED @ v_world                       (velocities, accelerations)
+
+R_ENU_TO_NED swaps x and y and negates z; it is symmetric and its own inverse. This module is
+the only place in `gcs` where frames are converted, including headings (ENU yaw is measured
+from +x east counter-clockwise, NED yaw from north clockwise) and geodetic coordinates (WGS84),
+which place a vehicle's home in the world frame from the origin it reports.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "R_ENU_TO_NED",
+    "Geodetic",
+    "enu_to_geodetic",
+    "geodetic_to_enu",
+    "ned_to_world",
+    "ned_vector_to_world",
+    "ned_yaw_to_world",
+    "world_to_ned",
+    "world_vector_to_ned",
+    "world_yaw_to_ned",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: ENU -> NED rotation (also NED -> ENU: the matrix is symmetric and orthogonal).
+R_ENU_TO_NED: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+R_ENU_TO_NED.setflags(write=False)
+
+
+def world_vector_to_ned(v_world: ArrayLike) -> FloatArray:
+    """A free vector (velocity, acceleration) from ENU to NED; shape (..., 3)."""
+    return np.asarray(v_world, dtype=float) @ R_ENU_TO_NED.T
+
+
+def ned_vector_to_world(v_ned: ArrayLike) -> FloatArray:
+    """A free vector from NED to ENU; shape (..., 3)."""
+    return np.asarray(v_ned, dtype=float) @ R_ENU_TO_NED.T
+
+
+def world_to_ned(p_world: ArrayLike, home_world: ArrayLike) -> FloatArray:
+    """World (ENU) positions to a vehicle's LOCAL_NED, whose origin is `home_world`."""
+    return world_vector_to_ned(np.asarray(p_world, dtype=float) - np.asarray(home_world, float))
+
+
+def ned_to_world(p_ned: ArrayLike, home_world: ArrayLike) -> FloatArray:
+    """A vehicle's LOCAL_NED positions back to the world frame (ENU)."""
+    return ned_vector_to_world(p_ned) + np.asarray(home_world, dtype=float)
+
+
+def world_yaw_to_ned(yaw_world: float) -> float:
+    """Heading from ENU (from +x east, counter-clockwise) to NED (from north, clockwise), in
+    (-pi, pi]."""
+    return _wrap(math.pi / 2.0 - yaw_world)
+
+
+def ned_yaw_to_world(yaw_ned: float) -> float:
+    """Heading from NED to ENU, in (-pi, pi]."""
+    return _wrap(math.pi / 2.0 - yaw_ned)
+
+
+def _wrap(angle: float) -> float:
+    wrapped = math.remainder(angle, 2.0 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
+
+
+# ------------------------------------------------------------------------------ geodetic
+
+_WGS84_A = 6378137.0
+_WGS84_F = 1.0 / 298.257223563
+_WGS84_E2 = _WGS84_F * (2.0 - _WGS84_F)
+
+
+class Geodetic(tuple):
+    """(lat, lon, alt): WGS84 latitude and longitude in degrees, altitude in metres (AMSL as
+    PX4 reports it; only differences of altitude matter here)."""
+
+    __slots__ = ()
+
+    def __new__(cls, lat: float, lon: float, alt: float):
+        return super().__new__(cls, (float(lat), float(lon), float(alt)))
+
+    @property
+    def lat(self) -> float:
+        return self[0]
+
+    @property
+    def lon(self) -> float:
+        return self[1]
+
+    @property
+    def alt(self) -> float:
+        return self[2]
+
+
+def _to_ecef(point: Geodetic) -> FloatArray:
+    lat, lon = math.radians(point.lat), math.radians(point.lon)
+    n = _WGS84_A / math.sqrt(1.0 - _WGS84_E2 * math.sin(lat) ** 2)
+    return np.array(
+        [
+            (n + point.alt) * math.cos(lat) * math.cos(lon),
+            (n + point.alt) * math.cos(lat) * math.sin(lon),
+            (n * (1.0 - _WGS84_E2) + point.alt) * math.sin(lat),
+        ]
+    )
+
+
+def _from_ecef(xyz: FloatArray) -> Geodetic:
+    x, y, z = (float(c) for c in xyz)
+    lon = math.atan2(y, x)
+    r = math.hypot(x, y)
+    lat = math.atan2(z, r * (1.0 - _WGS84_E2))
+    alt = 0.0
+    for _ in range(10):  # fixed-point iteration; converges to < 1e-9 m well within this
+        n = _WGS84_A / math.sqrt(1.0 - _WGS84_E2 * math.sin(lat) ** 2)
+        alt = r / math.cos(lat) - n
+        lat = math.atan2(z, r * (1.0 - _WGS84_E2 * n / (n + alt)))
+    return Geodetic(math.degrees(lat), math.degrees(lon), alt)
+
+
+def _ecef_to_enu_matrix(origin: Geodetic) -> FloatArray:
+    lat, lon = math.radians(origin.lat), math.radians(origin.lon)
+    sl, cl = math.sin(lat), math.cos(lat)
+    so, co = math.sin(lon), math.cos(lon)
+    return np.array([[-so, co, 0.0], [-sl * co, -sl * so, cl], [cl * co, cl * so, sl]])
+
+
+def geodetic_to_enu(point: Geodetic, origin: Geodetic) -> FloatArray:
+    """`point` in the local ENU tangent frame at `origin` (exact WGS84, metres)."""
+    return _ecef_to_enu_matrix(origin) @ (_to_ecef(point) - _to_ecef(origin))
+
+
+def enu_to_geodetic(p_enu: ArrayLike, origin: Geodetic) -> Geodetic:
+    """Inverse of `geodetic_to_enu`."""
+    ecef = _to_ecef(origin) + _ecef_to_enu_matrix(origin).T @ np.asarray(p_enu, dtype=float)
+    return _from_ecef(ecef)

@@ -1,0 +1,491 @@
+"""MAVLink links to vehicles: sockets, routing by system id, heartbeats, commands, telemetry.
+
+pymavlink is the wire format (its MAVLink 2 `common` dialect encodes and decodes); the sockets
+are asyncio's, so every link runs on the caller's event loop.
+
+- `Endpoint`: one connection (one UDP socket), shared by every vehicle whose fleet entry names
+  the same URL. PX4 SITL from instance 10 on, and telemetry radio networks, put several system
+  ids behind one port, so an `udpin` endpoint remembers the address each *system id* last sent
+  from and sends that vehicle's traffic there (pymavlink's own udpin connection would reply to
+  whoever spoke last). Traffic from system id 0 (PX4's undecodable development messages) and
+  from ids no vehicle is registered for is dropped and counted.
+- `VehicleLink`: one vehicle on an endpoint: its telemetry (HEARTBEAT mode/armed/age,
+  LOCAL_POSITION_NED, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT),
+  `command()` with COMMAND_ACK, retries and duplicate-ACK tolerance, and `send_setpoint()`.
+- `LinkHub`: opens the endpoints for a fleet, sends the GCS HEARTBEAT at 1 Hz on each, closes
+  everything on exit (``async with LinkHub() as hub``).
+
+URLs: ``udpin:HOST:PORT`` (also ``udp:``; bind and learn peers: what PX4's offboard link
+needs), ``udpout:HOST:PORT`` (send to a fixed address). Other pymavlink URLs (serial ports,
+``tcp:``) are opened with pymavlink's `mavutil` on a reader thread (`ThreadedEndpoint`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import os
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+os.environ.setdefault("MAVLINK20", "1")
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from gcs import px4
+from gcs.errors import CommandError, LinkError
+from gcs.setpoints import Setpoint
+
+__all__ = [
+    "GCS_COMPONENT_ID",
+    "GCS_SYSTEM_ID",
+    "Endpoint",
+    "LinkHub",
+    "ThreadedEndpoint",
+    "UdpEndpoint",
+    "VehicleLink",
+    "mavlink",
+    "parse_url",
+]
+
+#: The GCS's own MAVLink identity: system 255, MAV_COMP_ID_MISSIONPLANNER.
+GCS_SYSTEM_ID = 255
+GCS_COMPONENT_ID = 190
+
+MessageCallback = Callable[["VehicleLink", Any, float], None]
+
+_RESULT_NAMES = {
+    mavlink.MAV_RESULT_ACCEPTED: "ACCEPTED",
+    mavlink.MAV_RESULT_TEMPORARILY_REJECTED: "TEMPORARILY_REJECTED",
+    mavlink.MAV_RESULT_DENIED: "DENIED",
+    mavlink.MAV_RESULT_UNSUPPORTED: "UNSUPPORTED",
+    mavlink.MAV_RESULT_FAILED: "FAILED",
+    mavlink.MAV_RESULT_IN_PROGRESS: "IN_PROGRESS",
+}
+
+
+def result_name(result: int | None) -> str:
+    """MAV_RESULT as a name (``no ACK`` for None)."""
+    return "no ACK" if result is None else _RESULT_NAMES.get(result, f"MAV_RESULT {result}")
+
+
+def parse_url(url: str) -> tuple[str, str, int]:
+    """(kind, host, port) of a UDP URL: kind is ``in`` or ``out``; LinkError if malformed."""
+    scheme, _, rest = url.partition(":")
+    host, _, port_text = rest.rpartition(":")
+    if scheme not in ("udpin", "udp", "udpout") or not host or not port_text.isdigit():
+        raise LinkError(f"not a UDP MAVLink URL (udpin:HOST:PORT or udpout:HOST:PORT): {url!r}")
+    port = int(port_text)
+    if not 0 < port < 65536:
+        raise LinkError(f"port out of range in {url!r}")
+    return ("out" if scheme == "udpout" else "in"), host, port
+
+
+class Endpoint:
+    """One MAVLink connection shared by the vehicles registered on it (base class)."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.mav = mavlink.MAVLink(None, srcSystem=GCS_SYSTEM_ID, srcComponent=GCS_COMPONENT_ID)
+        self.mav.robust_parsing = True
+        self.vehicles: dict[int, VehicleLink] = {}
+        self.dropped_unknown = 0
+        """Messages dropped because their system id is 0 or not registered."""
+        self.bytes_sent = 0
+        self.messages_received = 0
+
+    def register(self, link: VehicleLink) -> None:
+        if link.system_id in self.vehicles:
+            raise LinkError(f"system id {link.system_id} registered twice on {self.url}")
+        self.vehicles[link.system_id] = link
+
+    def _dispatch(self, msg: Any, address: Any, now: float) -> None:
+        if msg.get_type() == "BAD_DATA":
+            return
+        self.messages_received += 1
+        link = self.vehicles.get(msg.get_srcSystem())
+        if link is None:
+            self.dropped_unknown += 1
+            return
+        self._learn(link.system_id, address)
+        link._handle(msg, now)
+
+    def _learn(self, system_id: int, address: Any) -> None:
+        """Remember where `system_id` speaks from (UDP only)."""
+
+    def send(self, system_id: int | None, msg: Any) -> None:
+        """Pack and send `msg` to `system_id` (None: to every known peer)."""
+        raise NotImplementedError
+
+    def send_heartbeat(self) -> None:
+        """The GCS HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID) to every peer."""
+        self.send(None, self.mav.heartbeat_encode(
+            mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
+
+    async def open(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+
+class _Datagrams(asyncio.DatagramProtocol):
+    def __init__(self, endpoint: UdpEndpoint) -> None:
+        self.endpoint = endpoint
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        self.endpoint._received(data, addr)
+
+    def error_received(self, exc: Exception) -> None:  # ICMP port unreachable etc.
+        self.endpoint.send_errors += 1
+
+
+class UdpEndpoint(Endpoint):
+    """A UDP endpoint on the running asyncio loop (``udpin``/``udp`` or ``udpout``)."""
+
+    def __init__(self, url: str) -> None:
+        super().__init__(url)
+        self.kind, self.host, self.port = parse_url(url)
+        self.peers: dict[int, Any] = {}
+        """system id -> the address it last sent from."""
+        self.send_errors = 0
+        self._transport: asyncio.DatagramTransport | None = None
+        self._parser = mavlink.MAVLink(None)
+        self._parser.robust_parsing = True
+        self._sock: socket.socket | None = None
+
+    async def open(self) -> None:
+        loop = asyncio.get_running_loop()
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            if self.kind == "in":
+                sock.bind((self.host, self.port))
+            else:
+                sock.bind(("0.0.0.0", 0))
+        except OSError as exc:
+            sock.close()
+            raise LinkError(f"cannot open {self.url}: {exc}") from exc
+        sock.setblocking(False)
+        self._sock = sock
+        self._transport, _ = await loop.create_datagram_endpoint(
+            lambda: _Datagrams(self), sock=sock)
+
+    def close(self) -> None:
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None
+
+    def _received(self, data: bytes, addr: Any) -> None:
+        now = time.monotonic()
+        try:
+            messages = self._parser.parse_buffer(data) or []
+        except mavlink.MAVError:
+            return
+        for msg in messages:
+            self._dispatch(msg, addr, now)
+
+    def _learn(self, system_id: int, address: Any) -> None:
+        self.peers[system_id] = address
+
+    def _address(self, system_id: int | None) -> list[Any]:
+        if self.kind == "out":
+            return [(self.host, self.port)]
+        if system_id is None:
+            return list(dict.fromkeys(self.peers.values()))
+        address = self.peers.get(system_id)
+        return [] if address is None else [address]
+
+    def send(self, system_id: int | None, msg: Any) -> None:
+        if self._sock is None:
+            return
+        buf = msg.pack(self.mav)
+        for address in self._address(system_id):
+            try:
+                self._sock.sendto(buf, address)
+                self.bytes_sent += len(buf)
+            except (BlockingIOError, OSError):
+                self.send_errors += 1
+
+
+class ThreadedEndpoint(Endpoint):
+    """Any other pymavlink URL (serial port, tcp): `mavutil` on a reader thread.
+
+    Writes go to the one underlying port (a radio network broadcasts), so routing by system id
+    only happens on receive.
+    """
+
+    def __init__(self, url: str) -> None:
+        super().__init__(url)
+        self._conn: Any = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+
+    async def open(self) -> None:
+        from pymavlink import mavutil
+
+        loop = asyncio.get_running_loop()
+        try:
+            self._conn = await loop.run_in_executor(None, lambda: mavutil.mavlink_connection(
+                self.url, source_system=GCS_SYSTEM_ID, source_component=GCS_COMPONENT_ID,
+                dialect="common", autoreconnect=True))
+        except Exception as exc:  # pymavlink raises many kinds
+            raise LinkError(f"cannot open {self.url}: {exc}") from exc
+        self.mav = self._conn.mav
+
+        def reader() -> None:
+            while not self._stop.is_set():
+                try:
+                    msg = self._conn.recv_match(blocking=True, timeout=0.2)
+                except Exception:
+                    continue
+                if msg is not None:
+                    now = time.monotonic()
+                    loop.call_soon_threadsafe(self._dispatch, msg, None, now)
+
+        self._thread = threading.Thread(target=reader, name=f"mavlink {self.url}", daemon=True)
+        self._thread.start()
+
+    def send(self, system_id: int | None, msg: Any) -> None:
+        if self._conn is None:
+            return
+        with self._lock:
+            buf = msg.pack(self.mav)
+            self._conn.write(buf)
+            self.bytes_sent += len(buf)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+        if self._conn is not None:
+            with contextlib.suppress(Exception):
+                self._conn.close()
+            self._conn = None
+
+
+@dataclass
+class _PendingCommand:
+    command: int
+    future: asyncio.Future[int]
+    sent_at: float
+
+
+@dataclass
+class Telemetry:
+    """The latest state one vehicle reported (times are `time.monotonic()` at reception)."""
+
+    heartbeat_time: float | None = None
+    autopilot: int | None = None
+    vehicle_type: int | None = None
+    mode: px4.Px4Mode | None = None
+    armed: bool = False
+    system_status: int | None = None
+    landed_state: int | None = None
+    """MAV_LANDED_STATE from EXTENDED_SYS_STATE (1 on ground, 2 in air, 4 landing)."""
+    position_ned: tuple[float, float, float] | None = None
+    velocity_ned: tuple[float, float, float] | None = None
+    position_time: float | None = None
+    gps_origin: tuple[float, float, float] | None = None
+    """GPS_GLOBAL_ORIGIN (lat deg, lon deg, alt m)."""
+    home: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    """HOME_POSITION ((lat, lon, alt), (x, y, z) local NED)."""
+    statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
+
+
+class VehicleLink:
+    """One vehicle (system id, autopilot component) on an `Endpoint`."""
+
+    def __init__(self, vehicle_id: str, endpoint: Endpoint, system_id: int,
+                 component_id: int = 1) -> None:
+        self.vehicle_id = vehicle_id
+        self.endpoint = endpoint
+        self.system_id = system_id
+        self.component_id = component_id
+        self.telemetry = Telemetry()
+        self.listeners: list[MessageCallback] = []
+        """Called with (link, message, receive time) for every message of this vehicle."""
+        self._pending: dict[int, _PendingCommand] = {}
+        self._waiters: list[tuple[Callable[[Telemetry], bool], asyncio.Future[None]]] = []
+        self.duplicate_acks = 0
+        self.setpoints_sent = 0
+        endpoint.register(self)
+
+    # ---------------------------------------------------------------- receiving
+
+    def _handle(self, msg: Any, now: float) -> None:
+        kind = msg.get_type()
+        tel = self.telemetry
+        if kind == "HEARTBEAT":
+            if msg.get_srcComponent() == self.component_id:
+                tel.heartbeat_time = now
+                tel.autopilot = msg.autopilot
+                tel.vehicle_type = msg.type
+                tel.mode = px4.decode_custom_mode(msg.custom_mode)
+                tel.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+                tel.system_status = msg.system_status
+        elif kind == "LOCAL_POSITION_NED":
+            tel.position_ned = (msg.x, msg.y, msg.z)
+            tel.velocity_ned = (msg.vx, msg.vy, msg.vz)
+            tel.position_time = now
+        elif kind == "EXTENDED_SYS_STATE":
+            tel.landed_state = msg.landed_state
+        elif kind == "COMMAND_ACK":
+            self._handle_ack(msg)
+        elif kind == "GPS_GLOBAL_ORIGIN":
+            tel.gps_origin = (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3)
+        elif kind == "HOME_POSITION":
+            tel.home = ((msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3),
+                        (msg.x, msg.y, msg.z))
+        elif kind == "STATUSTEXT":
+            tel.statustexts.append(str(msg.text).rstrip("\x00"))
+        for callback in self.listeners:
+            callback(self, msg, now)
+        if self._waiters:
+            self._check_waiters()
+
+    def _handle_ack(self, msg: Any) -> None:
+        if msg.target_system not in (0, GCS_SYSTEM_ID):
+            return
+        pending = self._pending.get(msg.command)
+        if pending is None or pending.future.done():
+            self.duplicate_acks += 1  # PX4 ACKs DO_SET_MODE and REQUEST_MESSAGE twice
+            return
+        if msg.result == mavlink.MAV_RESULT_IN_PROGRESS:
+            pending.sent_at = time.monotonic()  # keep waiting for the final result
+            return
+        pending.future.set_result(int(msg.result))
+
+    def _check_waiters(self) -> None:
+        keep = []
+        for predicate, future in self._waiters:
+            if future.done():
+                continue
+            if predicate(self.telemetry):
+                future.set_result(None)
+            else:
+                keep.append((predicate, future))
+        self._waiters = keep
+
+    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float) -> bool:
+        """Wait until `predicate(telemetry)` holds after some message; False on timeout."""
+        if predicate(self.telemetry):
+            return True
+        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._waiters.append((predicate, future))
+        try:
+            await asyncio.wait_for(future, timeout)
+            return True
+        except TimeoutError:
+            return False
+        finally:
+            if not future.done():
+                future.cancel()
+
+    def heartbeat_age(self, now: float | None = None) -> float:
+        """Seconds since the last HEARTBEAT (inf before the first)."""
+        if self.telemetry.heartbeat_time is None:
+            return math.inf
+        return (time.monotonic() if now is None else now) - self.telemetry.heartbeat_time
+
+    # ---------------------------------------------------------------- sending
+
+    def send(self, msg: Any) -> None:
+        self.endpoint.send(self.system_id, msg)
+
+    def send_setpoint(self, setpoint: Setpoint, boot_ms: int) -> None:
+        """One SET_POSITION_TARGET_LOCAL_NED to this vehicle."""
+        fields = setpoint.fields(self.system_id, self.component_id, boot_ms)
+        self.send(self.endpoint.mav.set_position_target_local_ned_encode(**fields))
+        self.setpoints_sent += 1
+
+    async def command(self, command: int, params: tuple[float, ...] = (), *,
+                      timeout: float = 1.0, retries: int = 8) -> int:
+        """Send COMMAND_LONG and return the final MAV_RESULT of its COMMAND_ACK.
+
+        Resends (with `confirmation` counting up) when no ACK arrives within `timeout`;
+        IN_PROGRESS extends the wait; a second ACK for the same command (PX4 sends two for
+        DO_SET_MODE) is ignored. Raises `CommandError` when no ACK came after all retries.
+        """
+        p = (list(params) + [0.0] * 7)[:7]
+        if command in self._pending and not self._pending[command].future.done():
+            raise CommandError(self.vehicle_id, command, None,
+                               f"command {command} already in flight")
+        loop = asyncio.get_running_loop()
+        for attempt in range(retries + 1):
+            future: asyncio.Future[int] = loop.create_future()
+            pending = _PendingCommand(command, future, time.monotonic())
+            self._pending[command] = pending
+            self.send(self.endpoint.mav.command_long_encode(
+                self.system_id, self.component_id, command, attempt, *p))
+            while True:
+                remaining = pending.sent_at + timeout - time.monotonic()
+                if remaining <= 0:
+                    break
+                try:
+                    return await asyncio.wait_for(asyncio.shield(future), remaining)
+                except TimeoutError:
+                    continue
+            future.cancel()
+        raise CommandError(self.vehicle_id, command, None,
+                           f"no COMMAND_ACK for command {command} after {retries + 1} tries")
+
+    async def request_message(self, message_id: int, timeout: float = 1.0) -> int:
+        """MAV_CMD_REQUEST_MESSAGE for `message_id`; returns the MAV_RESULT."""
+        return await self.command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(message_id),),
+                                  timeout=timeout)
+
+
+class LinkHub:
+    """The endpoints of a fleet, their GCS heartbeats (1 Hz) and their vehicles.
+
+    Use as ``async with LinkHub() as hub: link = hub.add(vehicle_id, url, system_id)``;
+    vehicles sharing a URL share one endpoint.
+    """
+
+    def __init__(self, heartbeat_period: float = 1.0) -> None:
+        self.endpoints: dict[str, Endpoint] = {}
+        self.links: dict[str, VehicleLink] = {}
+        self.heartbeat_period = heartbeat_period
+        self._heartbeat_task: asyncio.Task[None] | None = None
+
+    async def __aenter__(self) -> LinkHub:
+        self._heartbeat_task = asyncio.create_task(self._heartbeats(), name="gcs-heartbeat")
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    async def add(self, vehicle_id: str, url: str, system_id: int,
+                  component_id: int = 1) -> VehicleLink:
+        endpoint = self.endpoints.get(url)
+        if endpoint is None:
+            scheme = url.partition(":")[0]
+            endpoint = UdpEndpoint(url) if scheme in ("udpin", "udp", "udpout") \
+                else ThreadedEndpoint(url)
+            await endpoint.open()
+            self.endpoints[url] = endpoint
+        link = VehicleLink(vehicle_id, endpoint, system_id, component_id)
+        self.links[vehicle_id] = link
+        return link
+
+    async def _heartbeats(self) -> None:
+        while True:
+            for endpoint in list(self.endpoints.values()):
+                endpoint.send_heartbeat()
+            await asyncio.sleep(self.heartbeat_period)
+
+    async def close(self) -> None:
+        if self._heartbeat_task is not None:
+            self._heartbeat_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._heartbeat_task
+            self._heartbeat_task = None
+        for endpoint in self.endpoints.values():
+            endpoint.close()

@@ -1,0 +1,726 @@
+"""A PX4-like autopilot endpoint for tests and demos: `MockFleet` of `MockVehicle`s.
+
+Each mock vehicle follows PX4 SITL's port convention: instance i listens on UDP
+``listen_base_port + i`` (14580 + i) and sends to ``gcs_base_port + i`` (14540 + i) on
+127.0.0.1, then to whoever last sent it a message (as PX4 does); system id i + 1, component 1.
+So ``fleetplan fly`` runs unchanged against the mock or PX4 SITL.
+
+It speaks what a PX4 quadrotor speaks for our purposes: HEARTBEAT (MAV_TYPE_QUADROTOR,
+MAV_AUTOPILOT_PX4, custom mode main << 16 | sub << 24, armed flag), SYS_STATUS (sensors present,
+enabled, healthy; the pre-arm bit healthy once settled), HOME_POSITION, GPS_GLOBAL_ORIGIN,
+EXTENDED_SYS_STATE, LOCAL_POSITION_NED, ATTITUDE, GLOBAL_POSITION_INT, AUTOPILOT_VERSION,
+STATUSTEXT and COMMAND_ACK (COMMAND_LONG and COMMAND_INT), and answers
+MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
+
+- SET_POSITION_TARGET_LOCAL_NED is taken only for target system = own id or 0 (component own
+  or 0), frame MAV_FRAME_LOCAL_NED (BODY_NED: velocity/acceleration only); IGNORE bits become
+  NaN; a message with nothing left, or with the FORCE bit and an acceleration, is ignored.
+  Every accepted message is proof of life for offboard, in any mode.
+- OFFBOARD is refused (TEMPORARILY_REJECTED) unless such a setpoint arrived within
+  COM_OF_LOSS_T; arming is TEMPORARILY_REJECTED during `settle_time` after start.
+- DO_SET_MODE and REQUEST_MESSAGE are ACKed twice, like PX4 does.
+- Offboard loss (no setpoint for COM_OF_LOSS_T) triggers the failsafe: Position mode (hold),
+  then, there being no RC, AUTO.LAND after `failsafe_land_delay`; auto-disarm 2 s after
+  landing, and 10 s after arming without taking off.
+
+The motion is `gcs.mock_model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the
+whole fleet at once. Faults can be injected per vehicle at any time through
+`MockVehicle.faults` (`MockFaults`): packet loss, stopped heartbeats, delay, refused arming.
+
+Python API::
+
+    async with MockFleet(4, homes=[[0, 0, 0], [2, 0, 0], ...], gcs_base_port=24540,
+                         listen_base_port=24580, settle_time=1.0) as mock:
+        fleet_file = mock.fleet_dict()        # what `gcs.fleet` needs to fly them
+        mock.vehicles[2].faults.heartbeats = False
+        print(mock.vehicles[0].position_world)
+
+or run it as a process: ``fleetplan mock --vehicles 4`` (see `gcs.cli.mock_cmd`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import random
+import socket
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from gcs import frames, px4
+from gcs.link import mavlink
+from gcs.mock_model import GRAVITY, FleetModel, ModelLimits
+
+__all__ = [
+    "DEFAULT_WORLD_ORIGIN",
+    "MockConfig",
+    "MockFaults",
+    "MockFleet",
+    "MockVehicle",
+    "ReceivedSetpoint",
+]
+
+#: PX4 SITL's default home (Zurich), used as the mock's geodetic world origin.
+DEFAULT_WORLD_ORIGIN = frames.Geodetic(47.397742, 8.545594, 488.0)
+
+_SENSORS = (
+    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+    | mavlink.MAV_SYS_STATUS_SENSOR_YAW_POSITION
+    | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | mavlink.MAV_SYS_STATUS_AHRS
+    | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+)
+_PREARM = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+
+# POSITION_TARGET_TYPEMASK bits
+_IGNORE_X = 0x001  # then y = 0x002, z = 0x004
+_IGNORE_VX = 0x008  # then 0x010, 0x020
+_IGNORE_AX = 0x040  # then 0x080, 0x100
+_FORCE = 0x200
+_IGNORE_YAW = 0x400
+
+_MAV_FRAME_LOCAL_NED = 1
+_MAV_FRAME_BODY_NED = 8
+#: PX4 v1.16.0 release: major << 24 | minor << 16 | patch << 8 | FIRMWARE_VERSION_TYPE_OFFICIAL
+_PX4_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | 255
+
+
+@dataclass
+class MockConfig:
+    """Behaviour shared by every vehicle of a `MockFleet` (PX4 defaults unless said)."""
+
+    settle_time: float = 5.0
+    """Arming is TEMPORARILY_REJECTED this long after start (PX4 SITL: about 4-5 s)."""
+    offboard_loss_timeout: float = px4.COM_OF_LOSS_T_S
+    """COM_OF_LOSS_T (s)."""
+    failsafe_land_delay: float = 1.0
+    """After the offboard-loss failsafe has held position this long, land (no RC)."""
+    disarm_after_land: float = px4.COM_DISARM_LAND_S
+    """COM_DISARM_LAND (s)."""
+    disarm_preflight: float = px4.COM_DISARM_PRFLT_S
+    """COM_DISARM_PRFLT (s)."""
+    land_speed: float = 0.7
+    """MPC_LAND_SPEED (m/s)."""
+    physics_rate: float = 200.0
+    """Integration rate of the vehicle model (Hz, >= 100)."""
+    position_rate: float = 30.0
+    """LOCAL_POSITION_NED rate (Hz), as PX4's onboard link streams it."""
+    attitude_rate: float = 20.0
+    global_position_rate: float = 5.0
+    status_rate: float = 1.0
+    """HEARTBEAT, SYS_STATUS, EXTENDED_SYS_STATE rate (Hz)."""
+    record_setpoints: bool = False
+    """Keep every accepted setpoint in `MockVehicle.received` (for tests)."""
+    limits: ModelLimits = field(default_factory=ModelLimits)
+
+
+@dataclass
+class MockFaults:
+    """Faults injected into one mock vehicle; change them at any time."""
+
+    loss: float = 0.0
+    """Fraction of packets dropped, each direction independently (0..1)."""
+    heartbeats: bool = True
+    """False: stop sending HEARTBEAT (everything else continues)."""
+    delay: float = 0.0
+    """Seconds added to every packet, both directions."""
+    refuse_arming: bool = False
+    """Arming answered DENIED."""
+
+
+@dataclass(frozen=True)
+class ReceivedSetpoint:
+    """A SET_POSITION_TARGET_LOCAL_NED the mock accepted (values after IGNORE -> NaN)."""
+
+    time: float
+    """Mock clock (s since start)."""
+    time_boot_ms: int
+    target_system: int
+    target_component: int
+    frame: int
+    type_mask: int
+    position: tuple[float, float, float]
+    velocity: tuple[float, float, float]
+    acceleration: tuple[float, float, float]
+    yaw: float
+
+
+class MockVehicle:
+    """One PX4-like vehicle: protocol, flight-mode rules, failsafes. Owned by a `MockFleet`."""
+
+    def __init__(self, fleet: MockFleet, index: int, home_world: ArrayLike,
+                 gcs_address: tuple[str, int], listen_address: tuple[str, int]) -> None:
+        self.fleet = fleet
+        self.index = index
+        self.system_id = index + 1
+        self.component_id = 1
+        self.home_world = np.asarray(home_world, dtype=float)
+        self.origin = frames.enu_to_geodetic(self.home_world, fleet.world_origin)
+        """Geodetic EKF origin (= home) reported in GPS_GLOBAL_ORIGIN and HOME_POSITION."""
+        self.gcs_address = gcs_address
+        """Where telemetry goes: the configured GCS port until someone speaks to us."""
+        self.gcs_port = gcs_address[1]
+        self.listen_address = listen_address
+        self.faults = MockFaults()
+        self.mode = px4.HOLD
+        self.armed = False
+        self.in_air = False
+        self.failsafe = False
+        self.yaw = 0.0
+        self.received: list[ReceivedSetpoint] = []
+        self.setpoints_accepted = 0
+        self.setpoints_ignored = 0
+        self.statustexts: list[str] = []
+        self.events: list[tuple[float, str]] = []
+        """(mock time, what happened): mode changes, arming, failsafes."""
+        self._last_setpoint_time = -math.inf
+        self._armed_time = 0.0
+        self._landed_since: float | None = None
+        self._failsafe_since: float | None = None
+        self._mav = mavlink.MAVLink(None, srcSystem=self.system_id,
+                                    srcComponent=self.component_id)
+        self._parser = mavlink.MAVLink(None)
+        self._parser.robust_parsing = True
+        self._transport: asyncio.DatagramTransport | None = None
+        self._rng = random.Random(fleet.seed * 1000 + index)
+        self._next = {"heartbeat": 0.0, "status": 0.0, "position": 0.0, "attitude": 0.0,
+                      "global": 0.0, "home": 0.0}
+        self.intervals = {"heartbeat": 1.0 / fleet.config.status_rate,
+                          "position": 1.0 / fleet.config.position_rate}
+        """Stream periods a GCS may change with MAV_CMD_SET_MESSAGE_INTERVAL (s)."""
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def model(self) -> FleetModel:
+        return self.fleet.model
+
+    @property
+    def position_ned(self) -> np.ndarray:
+        return self.model.position[self.index].copy()
+
+    @property
+    def velocity_ned(self) -> np.ndarray:
+        return self.model.velocity[self.index].copy()
+
+    @property
+    def position_world(self) -> np.ndarray:
+        return frames.ned_to_world(self.model.position[self.index], self.home_world)
+
+    @property
+    def config(self) -> MockConfig:
+        return self.fleet.config
+
+    def _now(self) -> float:
+        return self.fleet.now()
+
+    def _event(self, what: str) -> None:
+        self.events.append((self._now(), what))
+
+    def _set_mode(self, mode: px4.Px4Mode) -> None:
+        if mode == self.mode:
+            return
+        self._event(f"mode {self.mode.name} -> {mode.name}")
+        self.mode = mode
+        i = self.index
+        if mode == px4.LAND:
+            self.model.descend(i, self.config.land_speed)
+        elif mode in (px4.HOLD, px4.POSITION):
+            self.model.hold(i, self.model.position[i].copy())
+        if mode != px4.POSITION:
+            self._failsafe_since = None
+            self.failsafe = False
+
+    def _arm(self) -> None:
+        self.armed = True
+        self._armed_time = self._now()
+        self.model.powered[self.index] = True
+        if self.mode in (px4.HOLD, px4.POSITION):
+            self.model.hold(self.index, self.model.position[self.index].copy())
+        self._event("armed")
+
+    def _disarm(self, why: str) -> None:
+        if not self.armed:
+            return
+        self.armed = False
+        self.model.powered[self.index] = False
+        self._landed_since = None
+        self._event(f"disarmed ({why})")
+        self.statustext(mavlink.MAV_SEVERITY_INFO, f"Disarmed by {why}")
+
+    # ---------------------------------------------------------------- periodic
+
+    def tick(self, now: float) -> None:
+        """Rules that run with the clock: failsafes, landing detection, auto-disarm."""
+        cfg = self.config
+        i = self.index
+        z = self.model.position[i, 2]
+        vz = self.model.velocity[i, 2]
+        if self.armed and z < -0.3:
+            self.in_air = True
+        if self.mode == px4.OFFBOARD and now - self._last_setpoint_time > cfg.offboard_loss_timeout:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
+                            "Failsafe activated: offboard signal lost")
+            self._set_mode(px4.POSITION)
+            self.failsafe = True
+            self._failsafe_since = now
+            self._event("failsafe: offboard loss")
+        if (self.failsafe and self._failsafe_since is not None
+                and now - self._failsafe_since >= cfg.failsafe_land_delay):
+            self._failsafe_since = None
+            if self.in_air:
+                self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe: no RC, landing")
+                self._set_mode(px4.LAND)
+                self.failsafe = True
+        if not self.armed:
+            return
+        on_ground = z >= -0.05 and abs(vz) < 0.2
+        if self.in_air:
+            if on_ground and self.mode == px4.LAND:
+                if self._landed_since is None:
+                    self._landed_since = now
+                    self.statustext(mavlink.MAV_SEVERITY_INFO, "Landing detected")
+                elif now - self._landed_since >= cfg.disarm_after_land:
+                    self.in_air = False
+                    self._disarm("auto disarm on land")
+            else:
+                self._landed_since = None
+        elif now - self._armed_time >= cfg.disarm_preflight:
+            self._disarm("auto preflight disarming")
+
+    def send_telemetry(self, now: float) -> None:
+        """Whatever stream is due at `now`."""
+        cfg = self.config
+        due = self._next
+        if now >= due["heartbeat"]:
+            due["heartbeat"] = now + self.intervals["heartbeat"]
+            if self.faults.heartbeats:
+                self._send(self._heartbeat())
+        if now >= due["status"]:
+            due["status"] = now + 1.0 / cfg.status_rate
+            self._send(self._sys_status(now))
+            landed = (mavlink.MAV_LANDED_STATE_ON_GROUND if not self.in_air else
+                      mavlink.MAV_LANDED_STATE_LANDING if self.mode == px4.LAND else
+                      mavlink.MAV_LANDED_STATE_IN_AIR)
+            self._send(self._mav.extended_sys_state_encode(0, landed))
+        if now >= due["position"]:
+            due["position"] = now + self.intervals["position"]
+            p, v = self.model.position[self.index], self.model.velocity[self.index]
+            self._send(self._mav.local_position_ned_encode(
+                self._boot_ms(now), p[0], p[1], p[2], v[0], v[1], v[2]))
+        if now >= due["attitude"]:
+            due["attitude"] = now + 1.0 / cfg.attitude_rate
+            a = self.model.acceleration[self.index]
+            c, s = math.cos(self.yaw), math.sin(self.yaw)
+            forward, right = c * a[0] + s * a[1], -s * a[0] + c * a[1]
+            thrust = max(GRAVITY - a[2], 0.1)
+            self._send(self._mav.attitude_encode(
+                self._boot_ms(now), math.atan2(right, thrust), -math.atan2(forward, thrust),
+                self.yaw, 0.0, 0.0, 0.0))
+        if now >= due["global"]:
+            due["global"] = now + 1.0 / cfg.global_position_rate
+            self._send(self._global_position(now))
+        if now >= due["home"]:
+            due["home"] = now + 5.0
+            self._send(self._home_position(now))
+
+    # ---------------------------------------------------------------- messages out
+
+    def _boot_ms(self, now: float) -> int:
+        return int(now * 1000.0) & 0xFFFFFFFF
+
+    def _heartbeat(self) -> Any:
+        base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+        if self.mode.main in (px4.MainMode.AUTO, px4.MainMode.OFFBOARD):
+            base |= mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+        elif self.mode.main == px4.MainMode.POSCTL:
+            base |= (mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+                     | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED)
+        if self.armed:
+            base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        state = (mavlink.MAV_STATE_CRITICAL if self.failsafe else
+                 mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY)
+        return self._mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                          base, self.mode.custom_mode, state)
+
+    def _sys_status(self, now: float) -> Any:
+        settled = now >= self.config.settle_time
+        present = _SENSORS | _PREARM
+        health = _SENSORS | (_PREARM if settled or self.armed else 0)
+        return self._mav.sys_status_encode(present, present, health, 250, 16200, 1200, 95,
+                                           0, 0, 0, 0, 0, 0)
+
+    def _geodetic_now(self) -> frames.Geodetic:
+        offset = frames.ned_vector_to_world(self.model.position[self.index])
+        return frames.enu_to_geodetic(self.home_world + offset, self.fleet.world_origin)
+
+    def _global_position(self, now: float) -> Any:
+        g = self._geodetic_now()
+        v = self.model.velocity[self.index]
+        heading = int(math.degrees(self.yaw) % 360.0 * 100)
+        return self._mav.global_position_int_encode(
+            self._boot_ms(now), round(g.lat * 1e7), round(g.lon * 1e7), round(g.alt * 1000),
+            round(-self.model.position[self.index, 2] * 1000), round(v[0] * 100),
+            round(v[1] * 100), round(v[2] * 100), heading)
+
+    def _home_position(self, now: float) -> Any:
+        o = self.origin
+        return self._mav.home_position_encode(
+            round(o.lat * 1e7), round(o.lon * 1e7), round(o.alt * 1000), 0.0, 0.0, 0.0,
+            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(now * 1e6))
+
+    def _gps_origin(self, now: float) -> Any:
+        o = self.origin
+        return self._mav.gps_global_origin_encode(
+            round(o.lat * 1e7), round(o.lon * 1e7), round(o.alt * 1000), int(now * 1e6))
+
+    def _autopilot_version(self) -> Any:
+        caps = (mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+                | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+                | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
+        return self._mav.autopilot_version_encode(
+            caps, _PX4_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.system_id)
+
+    def statustext(self, severity: int, text: str) -> None:
+        self.statustexts.append(text)
+        self._send(self._mav.statustext_encode(severity, text.encode()[:50]))
+
+    def _send(self, msg: Any) -> None:
+        if self._transport is None:
+            return
+        faults = self.faults
+        if faults.loss > 0.0 and self._rng.random() < faults.loss:
+            return
+        buf = msg.pack(self._mav)
+        if faults.delay > 0.0:
+            asyncio.get_running_loop().call_later(faults.delay, self._sendto, buf)
+        else:
+            self._sendto(buf)
+
+    def _sendto(self, buf: bytes) -> None:
+        if self._transport is not None:
+            self._transport.sendto(buf, self.gcs_address)
+
+    def _ack(self, msg: Any, command: int, result: int, times: int = 1) -> None:
+        for _ in range(times):
+            self._send(self._mav.command_ack_encode(
+                command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+
+    # ---------------------------------------------------------------- messages in
+
+    def received_datagram(self, data: bytes, address: tuple[str, int]) -> None:
+        faults = self.faults
+        if faults.loss > 0.0 and self._rng.random() < faults.loss:
+            return
+        if faults.delay > 0.0:
+            asyncio.get_running_loop().call_later(faults.delay, self._process, data, address)
+        else:
+            self._process(data, address)
+
+    def _process(self, data: bytes, address: tuple[str, int]) -> None:
+        try:
+            messages = self._parser.parse_buffer(data) or []
+        except mavlink.MAVError:
+            return
+        for msg in messages:
+            kind = msg.get_type()
+            if kind == "BAD_DATA":
+                continue
+            self.gcs_address = address  # PX4 answers whoever last spoke to it
+            if kind == "SET_POSITION_TARGET_LOCAL_NED":
+                self._on_setpoint(msg)
+            elif kind in ("COMMAND_LONG", "COMMAND_INT"):
+                self._on_command(msg, kind == "COMMAND_INT")
+
+    def _on_setpoint(self, msg: Any) -> None:
+        if (msg.target_system not in (0, self.system_id)
+                or msg.target_component not in (0, self.component_id)):
+            return
+        mask = msg.type_mask
+        now = self._now()
+
+        def field3(first_bit: int, values: tuple[float, float, float]) -> tuple[float, ...]:
+            return tuple(math.nan if mask & (first_bit << k) else float(values[k])
+                         for k in range(3))
+
+        pos = field3(_IGNORE_X, (msg.x, msg.y, msg.z))
+        vel = field3(_IGNORE_VX, (msg.vx, msg.vy, msg.vz))
+        acc = field3(_IGNORE_AX, (msg.afx, msg.afy, msg.afz))
+        if msg.coordinate_frame == _MAV_FRAME_BODY_NED:
+            c, s = math.cos(self.yaw), math.sin(self.yaw)
+
+            def rotate(v: tuple[float, ...]) -> tuple[float, ...]:
+                if all(math.isnan(x) for x in v):
+                    return v
+                x, y, z = (0.0 if math.isnan(e) else e for e in v)
+                return (c * x - s * y, s * x + c * y, z)
+
+            pos, vel, acc = (math.nan,) * 3, rotate(vel), rotate(acc)
+        elif msg.coordinate_frame != _MAV_FRAME_LOCAL_NED:
+            self.setpoints_ignored += 1
+            return
+        has_acc = not all(math.isnan(x) for x in acc)
+        usable = has_acc or not all(math.isnan(x) for x in pos + vel)
+        if not usable or (has_acc and mask & _FORCE):
+            self.setpoints_ignored += 1
+            return
+        self._last_setpoint_time = now
+        self.setpoints_accepted += 1
+        yaw = math.nan if mask & _IGNORE_YAW else msg.yaw
+        if self.config.record_setpoints:
+            self.received.append(ReceivedSetpoint(
+                now, msg.time_boot_ms, msg.target_system, msg.target_component,
+                msg.coordinate_frame, mask, pos, vel, acc, yaw))  # type: ignore[arg-type]
+        if self.mode == px4.OFFBOARD:
+            i = self.index
+            self.model.position_sp[i] = pos
+            self.model.velocity_sp[i] = vel
+            self.model.acceleration_sp[i] = acc
+            if not math.isnan(yaw):
+                self.yaw = yaw
+
+    def _on_command(self, msg: Any, is_int: bool) -> None:
+        if msg.target_system != self.system_id or msg.target_component not in (
+                0, self.component_id):
+            return
+        cmd = msg.command
+        p1, p2, p3 = msg.param1, msg.param2, msg.param3
+        now = self._now()
+        if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+            if p1 >= 0.5:
+                self._on_arm(msg, now)
+            elif not self.armed or not self.in_air or p2 == px4.DISARM_FORCE_MAGIC:
+                self._disarm("external command")
+                self.in_air = False
+                self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+            else:
+                self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Disarming denied: not landed")
+                self._ack(msg, cmd, mavlink.MAV_RESULT_DENIED)
+        elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
+            result = self._on_set_mode(int(p1), round(p2), round(p3), now)
+            self._ack(msg, cmd, result, times=2)
+        elif cmd == mavlink.MAV_CMD_NAV_LAND:
+            self._set_mode(px4.LAND)
+            self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+        elif cmd == mavlink.MAV_CMD_REQUEST_MESSAGE:
+            reply = self._requested(round(p1), now)
+            result = mavlink.MAV_RESULT_ACCEPTED if reply is not None \
+                else mavlink.MAV_RESULT_UNSUPPORTED
+            self._ack(msg, cmd, result, times=2 if reply is not None else 1)
+            if reply is not None:
+                self._send(reply)
+        elif cmd == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+            self._send(self._autopilot_version())
+        elif cmd == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
+            self._ack(msg, cmd, self._set_interval(round(p1), p2))
+        elif cmd == mavlink.MAV_CMD_GET_HOME_POSITION:
+            self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+            self._send(self._home_position(now))
+        else:
+            self._ack(msg, cmd, mavlink.MAV_RESULT_UNSUPPORTED)
+
+    def _set_interval(self, message_id: int, interval_us: float) -> int:
+        """MAV_CMD_SET_MESSAGE_INTERVAL for the streams a GCS of ours changes (PX4 takes any
+        stream); other ids are accepted and ignored. 0 = default, -1 = off (not supported
+        here: the mock never stops those two)."""
+        key = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: "heartbeat",
+               mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "position"}.get(message_id)
+        if key is None:
+            return mavlink.MAV_RESULT_ACCEPTED
+        default = 1.0 / (self.config.status_rate if key == "heartbeat"
+                         else self.config.position_rate)
+        if interval_us < 0:
+            return mavlink.MAV_RESULT_DENIED
+        period = default if interval_us == 0 else max(interval_us * 1e-6, 0.005)
+        self.intervals[key] = period
+        self._next[key] = min(self._next[key], self._now() + period)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _on_arm(self, msg: Any, now: float) -> None:
+        cmd = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+        if self.armed:
+            self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+        elif self.faults.refuse_arming:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Arming denied: injected fault")
+            self._ack(msg, cmd, mavlink.MAV_RESULT_DENIED)
+        elif now < self.config.settle_time:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
+                            "Preflight Fail: resolve system health failures first")
+            self._ack(msg, cmd, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
+        else:
+            self._arm()
+            self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+
+    def _on_set_mode(self, base_mode: int, main: int, sub: int, now: float) -> int:
+        if not base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return mavlink.MAV_RESULT_UNSUPPORTED
+        wanted = px4.Px4Mode(main, sub if main == px4.MainMode.AUTO else 0)
+        if wanted == px4.OFFBOARD:
+            if now - self._last_setpoint_time > self.config.offboard_loss_timeout:
+                self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
+                                "Switching to Offboard is currently not available")
+                return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+            self._set_mode(px4.OFFBOARD)
+            # hold where it is until the next setpoint arrives (PX4 only uses setpoints
+            # received while in OFFBOARD)
+            self.model.hold(self.index, self.model.position[self.index].copy())
+            return mavlink.MAV_RESULT_ACCEPTED
+        if wanted in (px4.HOLD, px4.LAND, px4.POSITION):
+            self._set_mode(wanted)
+            return mavlink.MAV_RESULT_ACCEPTED
+        self.statustext(mavlink.MAV_SEVERITY_CRITICAL, f"Mode {wanted.name} not supported")
+        return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+
+    def _requested(self, message_id: int, now: float) -> Any:
+        if message_id == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
+            return self._autopilot_version()
+        if message_id == mavlink.MAVLINK_MSG_ID_HOME_POSITION:
+            return self._home_position(now)
+        if message_id == mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN:
+            return self._gps_origin(now)
+        if message_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return self._heartbeat()
+        if message_id == mavlink.MAVLINK_MSG_ID_SYS_STATUS:
+            return self._sys_status(now)
+        return None
+
+
+class _VehicleProtocol(asyncio.DatagramProtocol):
+    def __init__(self, vehicle: MockVehicle) -> None:
+        self.vehicle = vehicle
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        self.vehicle.received_datagram(data, addr)
+
+    def error_received(self, exc: Exception) -> None:
+        pass  # nobody listening yet on the GCS port: PX4 keeps sending too
+
+
+class MockFleet:
+    """N mock PX4 vehicles on one asyncio loop, integrated together.
+
+    `homes` are the vehicles' homes (LOCAL_NED origins) in the world frame ENU; by default a
+    row 2 m apart along x. Ports: vehicle i sends to ``host:gcs_base_port + min(i,
+    max_port_offset)`` (`max_port_offset=9` reproduces PX4 SITL from instance 10 on, 0 puts the
+    whole fleet behind one port) and listens on ``host:listen_base_port + i``.
+    """
+
+    def __init__(self, count: int | None = None, *, homes: Sequence[ArrayLike] | None = None,
+                 world_origin: frames.Geodetic = DEFAULT_WORLD_ORIGIN, host: str = "127.0.0.1",
+                 gcs_base_port: int = 14540, listen_base_port: int = 14580,
+                 max_port_offset: int | None = None, config: MockConfig | None = None,
+                 seed: int = 0, **config_overrides: Any) -> None:
+        if homes is None:
+            if count is None:
+                raise ValueError("give the vehicle count or their homes")
+            homes = [[2.0 * i, 0.0, 0.0] for i in range(count)]
+        elif count is not None and count != len(homes):
+            raise ValueError(f"{count} vehicles but {len(homes)} homes")
+        self.config = config or MockConfig()
+        for key, value in config_overrides.items():
+            if not hasattr(self.config, key):
+                raise TypeError(f"unknown mock setting {key!r}")
+            setattr(self.config, key, value)
+        if self.config.physics_rate < 100.0:
+            raise ValueError("physics_rate must be at least 100 Hz")
+        self.world_origin = world_origin
+        self.host = host
+        self.gcs_base_port = gcs_base_port
+        self.listen_base_port = listen_base_port
+        self.seed = seed
+        self.model = FleetModel(len(homes), self.config.limits)
+        self.vehicles: list[MockVehicle] = []
+        for i, home in enumerate(homes):
+            offset = i if max_port_offset is None else min(i, max_port_offset)
+            self.vehicles.append(MockVehicle(
+                self, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
+        self._start = time.monotonic()
+        self._task: asyncio.Task[None] | None = None
+        self.physics_steps = 0
+
+    def now(self) -> float:
+        """Seconds since the mock started (its boot clock)."""
+        return time.monotonic() - self._start
+
+    def gcs_url(self, index: int) -> str:
+        """The pymavlink URL the GCS opens for vehicle `index`."""
+        return f"udpin:{self.host}:{self.vehicles[index].gcs_port}"
+
+    def fleet_dict(self, ids: Sequence[str] | None = None) -> dict[str, Any]:
+        """A fleet file (`gcs.fleet` format) for these vehicles, with world-frame homes."""
+        ids = list(ids) if ids is not None else [f"uav{i + 1}" for i in range(len(self.vehicles))]
+        return {"vehicles": [
+            {"id": vid, "connection": self.gcs_url(i), "system_id": v.system_id,
+             "home": v.home_world.tolist()}
+            for i, (vid, v) in enumerate(zip(ids, self.vehicles, strict=True))]}
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        for vehicle in self.vehicles:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            try:
+                sock.bind(vehicle.listen_address)
+            except OSError as exc:
+                sock.close()
+                await self.stop()
+                raise OSError(f"mock vehicle {vehicle.index}: cannot bind "
+                              f"{vehicle.listen_address}: {exc}") from exc
+            sock.setblocking(False)
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda v=vehicle: _VehicleProtocol(v), sock=sock)
+            vehicle._transport = transport
+        self._start = time.monotonic()
+        self._task = asyncio.create_task(self._run(), name="mock-fleet")
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+        for vehicle in self.vehicles:
+            if vehicle._transport is not None:
+                vehicle._transport.close()
+                vehicle._transport = None
+
+    async def __aenter__(self) -> MockFleet:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    async def run_forever(self) -> None:
+        """Start (if needed) and run until cancelled."""
+        if self._task is None:
+            await self.start()
+        assert self._task is not None
+        await self._task
+
+    async def _run(self) -> None:
+        step = 1.0 / self.config.physics_rate
+        simulated = self.now()
+        while True:
+            now = self.now()
+            # integrate in steps no longer than 1/physics_rate, however late we woke up
+            while simulated + step <= now:
+                self.model.step(step)
+                simulated += step
+                self.physics_steps += 1
+            for vehicle in self.vehicles:
+                vehicle.tick(now)
+                vehicle.send_telemetry(now)
+            await asyncio.sleep(max(0.0, simulated + step - self.now()))

@@ -1,0 +1,110 @@
+"""What is specific to PX4: its custom flight modes and how its offboard mode is entered.
+
+PX4 packs its mode into HEARTBEAT.custom_mode as ``main << 16 | sub << 24`` (the union
+`px4_custom_mode` in PX4's commander) and takes the same two numbers as param2/param3 of
+MAV_CMD_DO_SET_MODE with param1 = MAV_MODE_FLAG_CUSTOM_MODE_ENABLED. A refused mode change is
+answered TEMPORARILY_REJECTED (Commander::handle_command); OFFBOARD is only available while a
+setpoint arrived within COM_OF_LOSS_T (offboardCheck.cpp), so the stream must be live first.
+Arming is answered TEMPORARILY_REJECTED while the estimator settles after boot: retry.
+
+Everything PX4-specific the GCS relies on lives here, so the streaming loop never asks "is
+this PX4?". The mock autopilot (`gcs.mock`) uses the same tables to speak like PX4.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+__all__ = [
+    "ARM_TEMPORARILY_REJECTED_RETRY_S",
+    "COM_DISARM_LAND_S",
+    "COM_DISARM_PRFLT_S",
+    "COM_OF_LOSS_T_S",
+    "DISARM_FORCE_MAGIC",
+    "HOLD",
+    "LAND",
+    "OFFBOARD",
+    "POSITION",
+    "MainMode",
+    "Px4Mode",
+    "decode_custom_mode",
+    "mode_name",
+]
+
+#: Offboard loss timeout (PX4 parameter COM_OF_LOSS_T, default 1 s).
+COM_OF_LOSS_T_S = 1.0
+#: Auto-disarm when armed on the ground without taking off (COM_DISARM_PRFLT, default 10 s).
+COM_DISARM_PRFLT_S = 10.0
+#: Auto-disarm after landing (COM_DISARM_LAND, default 2 s).
+COM_DISARM_LAND_S = 2.0
+#: param2 of MAV_CMD_COMPONENT_ARM_DISARM that forces arming/disarming (not used by the GCS).
+DISARM_FORCE_MAGIC = 21196.0
+#: How long to wait between arming attempts answered TEMPORARILY_REJECTED.
+ARM_TEMPORARILY_REJECTED_RETRY_S = 1.0
+
+
+class MainMode(IntEnum):
+    """PX4_CUSTOM_MAIN_MODE."""
+
+    MANUAL = 1
+    ALTCTL = 2
+    POSCTL = 3
+    AUTO = 4
+    ACRO = 5
+    OFFBOARD = 6
+    STABILIZED = 7
+
+
+#: PX4_CUSTOM_SUB_MODE_AUTO names.
+_AUTO_SUB = {1: "READY", 2: "TAKEOFF", 3: "LOITER", 4: "MISSION", 5: "RTL", 6: "LAND",
+             8: "FOLLOW_TARGET", 9: "PRECLAND"}
+
+
+@dataclass(frozen=True)
+class Px4Mode:
+    """A PX4 flight mode as (main, sub)."""
+
+    main: int
+    """PX4_CUSTOM_MAIN_MODE."""
+    sub: int = 0
+    """PX4_CUSTOM_SUB_MODE_* (only meaningful for AUTO)."""
+
+    @property
+    def custom_mode(self) -> int:
+        """HEARTBEAT.custom_mode encoding."""
+        return (self.main << 16) | (self.sub << 24)
+
+    @property
+    def command_params(self) -> tuple[float, float, float]:
+        """(param1, param2, param3) of MAV_CMD_DO_SET_MODE selecting this mode."""
+        return (1.0, float(self.main), float(self.sub))  # 1 = MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+
+    @property
+    def name(self) -> str:
+        return mode_name(self.main, self.sub)
+
+
+#: Modes the GCS uses.
+OFFBOARD = Px4Mode(MainMode.OFFBOARD)
+HOLD = Px4Mode(MainMode.AUTO, 3)  # AUTO.LOITER, "Hold" in QGroundControl
+LAND = Px4Mode(MainMode.AUTO, 6)  # AUTO.LAND
+POSITION = Px4Mode(MainMode.POSCTL)
+
+
+def decode_custom_mode(custom_mode: int) -> Px4Mode:
+    """HEARTBEAT.custom_mode -> (main, sub)."""
+    main = (custom_mode >> 16) & 0xFF
+    sub = (custom_mode >> 24) & 0xFF
+    return Px4Mode(main, sub if main == MainMode.AUTO else 0)
+
+
+def mode_name(main: int, sub: int = 0) -> str:
+    """A readable mode name such as ``OFFBOARD`` or ``AUTO.LOITER``."""
+    try:
+        name = MainMode(main).name
+    except ValueError:
+        return f"MODE({main},{sub})"
+    if main == MainMode.AUTO:
+        return f"AUTO.{_AUTO_SUB.get(sub, str(sub))}"
+    return name

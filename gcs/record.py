@@ -1,0 +1,127 @@
+"""The flight record: what was sent, what the vehicles reported, what happened, and a summary.
+
+Times are seconds on the GCS clock (0 when the mission object started running);
+``mission_start`` is the GCS-clock time of mission time 0 (null if the plan never started), so
+mission time = t - mission_start. Positions are in the world frame (ENU, m) unless the key says
+``_ned``. JSON layout::
+
+    {"format": "fleetplan-flight-record/1", "plan": {...scenario echo...},
+     "fleet": {...}, "options": {...}, "mission_start": 12.3, "horizon": 30.0,
+     "error": null | {"type": "ArmingRefused", "message": "..."},
+     "vehicles": [{"id", "system_id", "home",
+                   "setpoints": {"t": [...], "tick": [...], "position_ned": [[x,y,z]...],
+                                 "velocity_ned": [...], "acceleration_ned": [...]},
+                   "telemetry": {"t": [...], "position": [...], "velocity": [...]},
+                   "modes": [{"t", "mode", "armed"}...]}...],
+     "events": [{"t", "vehicle", "kind", "detail"}...],
+     "summary": {"completed", "goal_error_max", "tracking_error_max",
+                 "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms", ...}}
+
+`summarise` computes the summary from the recorded data: tracking errors of every position
+report during the mission against the plan at its receive time; the measured minimum
+separation (the plan's metric, diag(1/separation_scale)) from every vehicle's reports
+interpolated onto common instants at the stream rate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gcs.setpoints import Setpoint
+
+__all__ = ["FlightRecorder", "VehicleRecord", "measured_min_separation"]
+
+
+@dataclass
+class VehicleRecord:
+    """One vehicle's recorded streams (columns as lists while flying)."""
+
+    id: str
+    system_id: int
+    home: list[float] | None = None
+    sp_t: list[float] = field(default_factory=list)
+    sp_tick: list[int] = field(default_factory=list)
+    sp_pos: list[tuple[float, float, float]] = field(default_factory=list)
+    sp_vel: list[tuple[float, float, float]] = field(default_factory=list)
+    sp_acc: list[tuple[float, float, float]] = field(default_factory=list)
+    tel_t: list[float] = field(default_factory=list)
+    tel_pos: list[list[float]] = field(default_factory=list)
+    tel_vel: list[list[float]] = field(default_factory=list)
+    modes: list[dict[str, Any]] = field(default_factory=list)
+
+    def add_setpoint(self, t: float, tick: int, sp: Setpoint) -> None:
+        self.sp_t.append(t)
+        self.sp_tick.append(tick)
+        self.sp_pos.append(sp.position)
+        self.sp_vel.append(sp.velocity)
+        self.sp_acc.append(sp.acceleration)
+
+    def telemetry_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        t = np.asarray(self.tel_t, dtype=float)
+        p = np.asarray(self.tel_pos, dtype=float).reshape(-1, 3)
+        return t, p
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "system_id": self.system_id,
+            "home": self.home,
+            "setpoints": {
+                "t": self.sp_t, "tick": self.sp_tick,
+                "position_ned": [list(p) for p in self.sp_pos],
+                "velocity_ned": [list(v) for v in self.sp_vel],
+                "acceleration_ned": [list(a) for a in self.sp_acc],
+            },
+            "telemetry": {"t": self.tel_t, "position": self.tel_pos, "velocity": self.tel_vel},
+            "modes": self.modes,
+        }
+
+
+class FlightRecorder:
+    """Collects a mission's record; `to_dict` gives the JSON document."""
+
+    def __init__(self, ids: list[str], system_ids: list[int]) -> None:
+        self.vehicles = {vid: VehicleRecord(vid, sid) for vid, sid in
+                         zip(ids, system_ids, strict=True)}
+        self.events: list[dict[str, Any]] = []
+        self.summary: dict[str, Any] = {}
+        self.meta: dict[str, Any] = {}
+
+    def event(self, t: float, vehicle: str | None, kind: str, detail: str = "") -> dict[str, Any]:
+        entry = {"t": round(t, 4), "vehicle": vehicle, "kind": kind, "detail": detail}
+        self.events.append(entry)
+        return entry
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": "fleetplan-flight-record/1",
+            **self.meta,
+            "vehicles": [v.to_dict() for v in self.vehicles.values()],
+            "events": self.events,
+            "summary": self.summary,
+        }
+
+
+def measured_min_separation(times: list[np.ndarray], positions: list[np.ndarray],
+                            t0: float, t1: float, rate: float,
+                            scale: np.ndarray) -> tuple[float, float]:
+    """Smallest pair distance in the metric ||diag(1/scale) d|| over [t0, t1]: each vehicle's
+    reports are linearly interpolated onto common instants `rate` Hz apart. Returns
+    (distance, instant); (inf, nan) with fewer than two vehicles or no overlap."""
+    if len(times) < 2 or t1 <= t0:
+        return math.inf, math.nan
+    grid = np.arange(t0, t1, 1.0 / rate)
+    tracks = []
+    for t, p in zip(times, positions, strict=True):
+        if t.size < 2:
+            return math.inf, math.nan
+        tracks.append(np.stack([np.interp(grid, t, p[:, k]) for k in range(3)], axis=1))
+    stacked = np.stack(tracks) / scale  # (N, G, 3)
+    i, j = np.triu_indices(len(tracks), k=1)
+    d = np.linalg.norm(stacked[i] - stacked[j], axis=2)  # (pairs, G)
+    pair, instant = np.unravel_index(int(np.argmin(d)), d.shape)
+    return float(d[pair, instant]), float(grid[instant])

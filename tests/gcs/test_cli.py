@@ -1,0 +1,69 @@
+"""The `fleetplan fly` and `fleetplan mock` commands, as a user runs them."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from gcs_helpers import free_port_block, line_scenario, smooth_plan
+
+pytestmark = pytest.mark.timeout(90)
+
+
+def _fly(tmp_path: Path, *extra: str) -> subprocess.Popen:
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(line_scenario(2)).to_dict()))
+    base = free_port_block(4)
+    return subprocess.Popen(
+        [sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path), "--mock",
+         "--mock-settle", "0.5", "--hold-at-goal", "0.5", "--base-port", str(base),
+         "--listen-base-port", str(base + 2), "--record", str(tmp_path / "record.json"),
+         *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
+    proc = _fly(tmp_path)
+    out, _ = proc.communicate(timeout=80)
+    assert proc.returncode == 0, out
+    assert "completed               True" in out
+    record = json.loads((tmp_path / "record.json").read_text())
+    summary = record["summary"]
+    assert summary["completed"] is True and summary["goal_error_max"] < 0.2
+    assert set(summary) >= {"completed", "goal_error_max", "tracking_error_max",
+                            "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms"}
+
+
+def test_ctrl_c_lands_everyone(tmp_path: Path) -> None:
+    proc = _fly(tmp_path)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 60
+    for line in proc.stdout:  # wait until the plan is being flown
+        if "mission_start" in line or time.monotonic() > deadline:
+            break
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 1, out
+    assert "MissionAborted" in out
+    record = json.loads((tmp_path / "record.json").read_text())
+    landed = {e["vehicle"] for e in record["events"] if e["kind"] == "landed"}
+    assert landed == {"uav1", "uav2"}
+    for v in record["vehicles"]:
+        assert v["modes"][-1]["armed"] is False
+
+
+def test_fly_rejects_bad_fleet_file(tmp_path: Path) -> None:
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(line_scenario(2)).to_dict()))
+    fleet = tmp_path / "fleet.json"
+    fleet.write_text(json.dumps({"vehicles": [{"id": "uav1", "connection": "udpin:x",
+                                               "system_id": 1, "home": [0, 0, 0]}]}))
+    proc = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path),
+                           "--fleet", str(fleet)], capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2
+    assert "vehicles[0].connection" in proc.stderr

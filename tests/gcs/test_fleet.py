@@ -1,0 +1,197 @@
+"""gcs.fleet: whole missions on mock vehicles over real UDP loopback, and the fault cases."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gcs_helpers import line_scenario, mock_ports, smooth_plan
+
+import planner
+from gcs import px4
+from gcs.errors import ArmingRefused, MissionAborted
+from gcs.fleet import TRACKING_TOLERANCE_M, Mission
+from gcs.fleetfile import FleetSpec, MissionOptions
+from gcs.mock import MockFleet
+
+pytestmark = pytest.mark.timeout(120)
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
+FAST = MissionOptions(hold_at_goal=1.0, prestream=0.3)
+
+
+def _homes_below_starts(plan) -> list[list[float]]:
+    return [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
+
+
+async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, **mock_kw):
+    """Fly `plan` on mock vehicles below its starts; returns (mission, record or exception,
+    mock)."""
+    homes = _homes_below_starts(plan)
+    async with MockFleet(homes=homes, settle_time=settle, **mock_ports(len(homes)),
+                         **mock_kw) as mock:
+        if configure is not None:
+            configure(mock)
+        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+        mission = Mission(plan, fleet, options)
+        task = mission.start()
+        if during is not None:
+            await during(mission, mock)
+        try:
+            outcome = await task
+        except Exception as exc:
+            outcome = exc
+        return mission, outcome, mock
+
+
+@pytest.mark.slow
+def test_paper_circle4_end_to_end() -> None:
+    """Plan the paper's 4-vehicle case with the SCP planner and fly it on 4 mock vehicles."""
+    scenario = planner.Scenario.from_dict(
+        json.loads((EXAMPLES / "paper-circle4.json").read_text()))
+    plan = planner.plan(scenario)
+    assert plan.ok
+    _mission, record, mock = asyncio.run(_fly(plan))
+    assert isinstance(record, dict), record
+    summary = record["summary"]
+    assert summary["completed"] is True
+    # every vehicle ended within 0.2 m of its goal: the GCS's measurement at the end of the
+    # hold, and where the mock vehicle actually stood before landing straight down
+    assert summary["goal_error_max"] < 0.2
+    for vehicle, goal in zip(mock.vehicles, scenario.goals, strict=True):
+        assert np.linalg.norm(vehicle.position_world[:2] - goal[:2]) < 0.2
+        assert not vehicle.armed and vehicle.position_ned[2] == pytest.approx(0.0)
+    r = scenario.min_separation
+    assert summary["min_separation_measured"] >= r - TRACKING_TOLERANCE_M
+    # the paper case is tight: the vehicles really do come close to R
+    assert summary["min_separation_measured"] < r + 0.3
+    assert summary["tracking_error_max"] < TRACKING_TOLERANCE_M
+    assert summary["setpoint_rate_hz"] == pytest.approx(20.0, rel=0.05)  # shared 2-core box
+    assert summary["jitter_p99_ms"] < 20.0
+    # the record carries what was sent and what was flown
+    for v in record["vehicles"]:
+        assert len(v["setpoints"]["t"]) >= 20 * 30
+        assert len(v["telemetry"]["t"]) >= 25 * 30
+        assert [m["mode"] for m in v["modes"]][-2:] == ["AUTO.LAND", "AUTO.LAND"]
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("mission_start") < kinds.index("horizon") < kinds.index("landed")
+
+
+def test_heartbeats_stop_mid_flight_land_faulty() -> None:
+    plan = smooth_plan(line_scenario(3))
+    fault: dict[str, float] = {}
+
+    async def during(mission: Mission, mock: MockFleet) -> None:
+        while (mission.mission_time() or -1.0) < 1.0:
+            await asyncio.sleep(0.02)
+        mock.vehicles[1].faults.heartbeats = False
+        fault["at"] = mission.now()
+
+    options = FAST.replace(policy="land_faulty")
+    _mission, record, mock = asyncio.run(_fly(plan, options, during=during))
+    assert isinstance(record, dict), record
+    flagged = [e for e in record["events"] if e["kind"] == "fault"]
+    assert [e["vehicle"] for e in flagged] == ["uav2"]
+    assert "heartbeat_lost" in flagged[0]["detail"]
+    # detected within the 1.5 s heartbeat timeout (+ one 50 ms monitor period)
+    assert flagged[0]["t"] - fault["at"] <= 1.5 + 0.06
+    summary = record["summary"]
+    assert summary["faults"] == {"uav2": "heartbeat_lost"}
+    assert summary["completed"] is False
+    # policy: the faulty one was landed, the others flew on to their goals and landed
+    assert [e for e in record["events"] if e["kind"] == "land" and e["vehicle"] == "uav2"]
+    assert any("mode AUTO.LAND" in e or "OFFBOARD -> AUTO.LAND" in e
+               for _, e in mock.vehicles[1].events)
+    for i in (0, 2):
+        np.testing.assert_allclose(mock.vehicles[i].position_world[:2],
+                                   plan.scenario.goals[i][:2], atol=0.05)
+        assert not mock.vehicles[i].armed
+    assert mock.vehicles[1].position_world[1] < plan.scenario.goals[1][1] - 0.3
+
+
+@pytest.mark.parametrize(("policy", "mode"), [("land_all", px4.LAND), ("hold_all", px4.HOLD)])
+def test_heartbeats_stop_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
+    plan = smooth_plan(line_scenario(2))
+
+    async def during(mission: Mission, mock: MockFleet) -> None:
+        while (mission.mission_time() or -1.0) < 1.0:
+            await asyncio.sleep(0.02)
+        mock.vehicles[0].faults.heartbeats = False
+
+    mission, outcome, mock = asyncio.run(_fly(plan, FAST.replace(policy=policy),
+                                              during=during))
+    assert isinstance(outcome, MissionAborted)
+    assert "uav1 heartbeat_lost" in str(outcome)
+    assert mission.record is not None and mission.record["error"]["type"] == "MissionAborted"
+    for vehicle in mock.vehicles:
+        assert vehicle.mode == mode
+        if policy == "land_all":  # landed and auto-disarmed before run() returned
+            assert not vehicle.armed and vehicle.position_ned[2] == pytest.approx(0.0)
+        else:  # hovering in PX4 Hold where it was stopped, not on the plan any more
+            assert vehicle.armed and vehicle.in_air
+
+
+def test_twenty_percent_packet_loss_still_completes() -> None:
+    plan = smooth_plan(line_scenario(3))
+
+    def lossy(mock: MockFleet) -> None:
+        for vehicle in mock.vehicles:
+            vehicle.faults.loss = 0.2
+
+    _mission, record, mock = asyncio.run(_fly(plan, configure=lossy))
+    assert isinstance(record, dict), record
+    assert record["summary"]["completed"] is True, record["summary"]
+    assert record["summary"]["goal_error_max"] < 0.2
+    # the loss was real: some setpoints never arrived
+    accepted = sum(v.setpoints_accepted for v in mock.vehicles)
+    sent = sum(len(v["setpoints"]["t"]) for v in record["vehicles"])
+    assert 0.7 * sent < accepted < 0.9 * sent
+
+
+def test_arming_refused_clear_error_and_nobody_left_armed() -> None:
+    plan = smooth_plan(line_scenario(3))
+
+    def refuse(mock: MockFleet) -> None:
+        mock.vehicles[2].faults.refuse_arming = True
+
+    mission, outcome, mock = asyncio.run(_fly(plan, configure=refuse, settle=0.5))
+    assert isinstance(outcome, ArmingRefused)
+    assert outcome.vehicle == "uav3"
+    assert "DENIED" in str(outcome) and "injected fault" in str(outcome)
+    for vehicle in mock.vehicles:
+        assert not vehicle.armed
+        assert vehicle.position_ned[2] == pytest.approx(0.0)
+    assert mission.record is not None
+    assert mission.record["summary"]["completed"] is False
+    assert mission.record["error"]["type"] == "ArmingRefused"
+
+
+def test_abort_from_the_api_holds_everyone_at_once() -> None:
+    plan = smooth_plan(line_scenario(2))
+    seen: list[str] = []
+
+    async def during(mission: Mission, mock: MockFleet) -> None:
+        async def watch() -> None:
+            async for event in mission.events():
+                seen.append(event["kind"])
+
+        watcher = asyncio.create_task(watch())
+        while (mission.mission_time() or -1.0) < 0.5:
+            await asyncio.sleep(0.02)
+        snap = mission.snapshot()
+        assert snap["phase"] == "flying"
+        assert all(v["mode"] == "OFFBOARD" and v["armed"] for v in snap["vehicles"])
+        assert all(v["heartbeat_age"] < 0.5 for v in snap["vehicles"])
+        started = time.monotonic()
+        await mission.abort("hold", "test abort")
+        assert time.monotonic() - started < 1.0
+        assert all(v.mode == px4.HOLD for v in mock.vehicles)
+        await watcher
+
+    _mission, outcome, _mock = asyncio.run(_fly(plan, during=during))
+    assert isinstance(outcome, MissionAborted)
+    assert "abort" in seen and "hold" in seen

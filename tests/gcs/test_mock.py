@@ -1,0 +1,212 @@
+"""gcs.mock behaves like PX4 for what we use: protocol, mode rules, failsafes, and a real
+MAVLink client (MAVSDK) can fly it."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import numpy as np
+import pytest
+from gcs_helpers import mock_ports
+
+from gcs import px4
+from gcs.link import LinkHub, VehicleLink, mavlink
+from gcs.mock import MockFleet
+from gcs.setpoints import Setpoint, hold_track
+
+pytestmark = pytest.mark.timeout(90)
+
+
+async def _connect(mock: MockFleet, hub: LinkHub, index: int = 0) -> VehicleLink:
+    link = await hub.add(f"v{index}", mock.gcs_url(index), index + 1)
+    assert await link.wait_for(lambda t: t.heartbeat_time is not None
+                               and t.position_ned is not None, 5.0)
+    return link
+
+
+async def _stream(link: VehicleLink, setpoint: Setpoint, period: float = 0.05) -> None:
+    while True:
+        link.send_setpoint(setpoint, 0)
+        await asyncio.sleep(period)
+
+
+def test_px4_identity_and_requests() -> None:
+    async def main() -> None:
+        async with MockFleet(2, settle_time=0.5, **mock_ports(2)) as mock, \
+                LinkHub() as hub:
+            link = await _connect(mock, hub, 1)
+            tel = link.telemetry
+            assert tel.autopilot == mavlink.MAV_AUTOPILOT_PX4
+            assert tel.vehicle_type == mavlink.MAV_TYPE_QUADROTOR
+            assert tel.mode == px4.HOLD and not tel.armed
+            got: list[str] = []
+            link.listeners.append(lambda _l, msg, _t: got.append(msg.get_type()))
+            for msg_id in (mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                           mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN,
+                           mavlink.MAVLINK_MSG_ID_HOME_POSITION):
+                assert await link.request_message(msg_id) == mavlink.MAV_RESULT_ACCEPTED
+            assert await link.request_message(mavlink.MAVLINK_MSG_ID_WIND_COV) == \
+                mavlink.MAV_RESULT_UNSUPPORTED
+            await asyncio.sleep(1.2)  # the 1 Hz streams come round once
+            assert {"AUTOPILOT_VERSION", "GPS_GLOBAL_ORIGIN", "HOME_POSITION", "HEARTBEAT",
+                    "SYS_STATUS", "EXTENDED_SYS_STATE", "ATTITUDE",
+                    "GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"} <= set(got)
+            # vehicle 1's origin is 2 m east of vehicle 0's: GPS_GLOBAL_ORIGIN says so
+            assert tel.gps_origin is not None
+            assert tel.gps_origin[1] > mock.vehicles[0].origin.lon
+            # REQUEST_MESSAGE is ACKed twice, like PX4: the duplicate is tolerated
+            assert link.duplicate_acks >= 3
+
+    asyncio.run(main())
+
+
+def test_offboard_and_arming_rules() -> None:
+    async def main() -> None:
+        async with MockFleet(1, settle_time=1.5, **mock_ports(1)) as mock, LinkHub() as hub:
+            link = await _connect(mock, hub)
+            offboard = px4.OFFBOARD.command_params
+            # no setpoint yet: OFFBOARD refused
+            assert await link.command(mavlink.MAV_CMD_DO_SET_MODE, offboard) == \
+                mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+            # estimator still settling: arming refused for now
+            assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == \
+                mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+            assert "health" in link.telemetry.statustexts[-1] or \
+                "Preflight" in link.telemetry.statustexts[-1]
+            # setpoints PX4 would ignore do not count as a live stream
+            vehicle = mock.vehicles[0]
+            bad = [
+                dict(coordinate_frame=6),                      # MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+                dict(type_mask=0x0FFF),                         # everything ignored
+                dict(type_mask=0x0A00),                         # FORCE with acceleration
+                dict(target_system=7),                          # someone else's
+            ]
+            base = Setpoint((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
+            for change in bad:
+                fields = base.fields(1, 1, 0) | change
+                link.send(link.endpoint.mav.set_position_target_local_ned_encode(**fields))
+            await asyncio.sleep(0.2)
+            assert vehicle.setpoints_accepted == 0
+            assert vehicle.setpoints_ignored == 3  # the misaddressed one is not even looked at
+            assert await link.command(mavlink.MAV_CMD_DO_SET_MODE, offboard) == \
+                mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+            # one recent valid setpoint is enough (PX4 offboardCheck: within COM_OF_LOSS_T)
+            link.send_setpoint(base, 0)
+            await asyncio.sleep(0.1)
+            assert await link.command(mavlink.MAV_CMD_DO_SET_MODE, offboard) == \
+                mavlink.MAV_RESULT_ACCEPTED
+            assert await link.wait_for(lambda t: t.mode == px4.OFFBOARD, 2.0)
+            await asyncio.sleep(0.2)
+            assert link.duplicate_acks >= 1  # DO_SET_MODE answered twice
+            stream = asyncio.create_task(_stream(link, base))
+            try:
+                while mock.now() < 1.5:
+                    await asyncio.sleep(0.1)
+                assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == \
+                    mavlink.MAV_RESULT_ACCEPTED
+                assert await link.wait_for(lambda t: t.armed, 2.0)
+                await asyncio.sleep(2.5)
+                assert vehicle.position_ned[2] == pytest.approx(-1.0, abs=0.05)
+                # disarming in the air is refused unless forced
+                assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,)) == \
+                    mavlink.MAV_RESULT_DENIED
+            finally:
+                stream.cancel()
+
+    asyncio.run(main())
+
+
+def test_setpoints_stop_trigger_the_failsafe_then_land_and_disarm() -> None:
+    async def main() -> None:
+        async with MockFleet(1, settle_time=0.2, failsafe_land_delay=0.5, **mock_ports(1)) \
+                as mock, LinkHub() as hub:
+            link = await _connect(mock, hub)
+            vehicle = mock.vehicles[0]
+            # HEARTBEAT at 20 Hz so that the short Position phase shows in it
+            assert await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                      (0.0, 50_000.0)) == mavlink.MAV_RESULT_ACCEPTED
+            stream = asyncio.create_task(_stream(link, hold_track([0, 0, -1.5], 0.0, 20).at(0)))
+            await asyncio.sleep(0.3)
+            assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
+                                      px4.OFFBOARD.command_params) == 0
+            assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == 0
+            await asyncio.sleep(3.0)
+            assert vehicle.in_air and vehicle.mode == px4.OFFBOARD
+            stream.cancel()
+            stopped = time.monotonic()
+            assert await link.wait_for(lambda t: t.mode == px4.POSITION, 3.0)
+            took = time.monotonic() - stopped
+            # COM_OF_LOSS_T = 1 s after the last setpoint (sent up to 50 ms before the stop)
+            assert 0.9 <= took <= 1.0 + 0.05 + 0.1
+            assert any("offboard" in text for text in link.telemetry.statustexts)
+            assert await link.wait_for(lambda t: t.mode == px4.LAND, 3.0)
+            assert await link.wait_for(lambda t: not t.armed, 10.0)
+            assert vehicle.position_ned[2] == pytest.approx(0.0, abs=1e-6)
+            assert [e for _, e in vehicle.events if "failsafe" in e]
+
+    asyncio.run(main())
+
+
+def test_auto_disarm_when_armed_without_taking_off() -> None:
+    async def main() -> None:
+        async with MockFleet(1, settle_time=0.0, disarm_preflight=1.5, **mock_ports(1)) \
+                as mock, LinkHub() as hub:
+            link = await _connect(mock, hub)
+            assert await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                      (0.0, 50_000.0)) == mavlink.MAV_RESULT_ACCEPTED
+            assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == 0
+            assert await link.wait_for(lambda t: t.armed, 2.0)
+            assert await link.wait_for(lambda t: not t.armed, 3.0)
+            assert not mock.vehicles[0].in_air
+            assert any("preflight" in e for _, e in mock.vehicles[0].events)
+
+    asyncio.run(main())
+
+
+def test_mavsdk_flies_the_mock() -> None:
+    """MAVSDK's native 4.x API connects, sees a PX4 autopilot, arms (after the settling time),
+    starts offboard with position setpoints, and the mock's reported position gets there."""
+    from mavsdk.asyncio import Autopilot, ComponentType, Configuration, Mavsdk
+    from mavsdk.asyncio.plugins.action import ActionAsync
+    from mavsdk.asyncio.plugins.offboard import OffboardAsync, PositionNedYaw
+    from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+    async def main() -> None:
+        ports = mock_ports(1)
+        async with MockFleet(1, settle_time=1.0, **ports) as mock:
+            config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+            async with Mavsdk(config) as sdk:
+                await sdk.add_any_connection(f"udpin://127.0.0.1:{ports['gcs_base_port']}")
+                system = await sdk.first_autopilot(timeout_s=10.0)
+                assert system is not None
+                assert await system.autopilot_type() == Autopilot.PX4
+                assert await system.get_system_id() == 1
+                action, offboard = ActionAsync(system), OffboardAsync(system)
+                telemetry = TelemetryAsync(system)
+                deadline = time.monotonic() + 10.0
+                while True:  # TEMPORARILY_REJECTED while settling: MAVSDK reports an error
+                    try:
+                        await action.arm()
+                        break
+                    except Exception:
+                        assert time.monotonic() < deadline
+                        await asyncio.sleep(0.5)
+                assert mock.vehicles[0].armed
+                await offboard.set_position_ned(PositionNedYaw(1.0, -2.0, -3.0, 90.0))
+                await offboard.start()
+                target = np.array([1.0, -2.0, -3.0])
+                reported = None
+                deadline = time.monotonic() + 15.0
+                while time.monotonic() < deadline:  # MAVSDK's latest LOCAL_POSITION_NED
+                    p = (await telemetry.position_velocity_ned()).position
+                    reported = np.array([p.north_m, p.east_m, p.down_m])
+                    if np.linalg.norm(reported - target) < 0.05:
+                        break
+                    await asyncio.sleep(0.2)
+                assert reported is not None
+                np.testing.assert_allclose(reported, target, atol=0.05)
+                assert mock.vehicles[0].mode == px4.OFFBOARD
+                assert mock.vehicles[0].setpoints_accepted > 20
+
+    asyncio.run(main())
