@@ -32,6 +32,7 @@ def main(url: str, out: str, fly: bool) -> None:
             expect(page.locator("#execution-status")).to_contain_text("running", timeout=120_000)
             page.wait_for_timeout(12_000)
         page.wait_for_timeout(1000)
+        page.evaluate("window.scrollTo(0, 0)")
         page.screenshot(path=out)
         browser.close()
 

@@ -77,6 +77,10 @@ class Settings(BaseSettings):
         le=65000,
         description="Mock vehicle i sends to UDP base+i and listens on base+40+i (PX4 SITL's).",
     )
+    mock_settle_s: float = Field(
+        5.0, ge=0, le=60, description="Mock vehicles refuse arming this long after they start "
+        "(PX4 SITL's estimator settles in about 4-5 s)."
+    )
     max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")
     max_body_bytes: int = Field(

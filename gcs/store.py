@@ -33,7 +33,14 @@ from sqlalchemy import (
     update,
 )
 from sqlalchemy.engine import Engine
-from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+from sqlalchemy.orm import (
+    DeclarativeBase,
+    Mapped,
+    Session,
+    defer,
+    mapped_column,
+    sessionmaker,
+)
 
 __all__ = [
     "EXECUTION_ACTIVE",
@@ -146,6 +153,7 @@ class ExecutionRow:
     summary: dict[str, Any] | None
     events: list[dict[str, Any]]
     error: str | None
+    has_record: bool
     record_json: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
@@ -159,7 +167,7 @@ class ExecutionRow:
             "summary": self.summary,
             "events": self.events,
             "error": self.error,
-            "has_record": self.record_json is not None,
+            "has_record": self.has_record,
         }
 
 
@@ -186,7 +194,9 @@ def _mission_row(m: _Mission, *, with_plan: bool) -> MissionRow:
     )
 
 
-def _execution_row(e: _Execution, *, with_record: bool = False) -> ExecutionRow:
+def _execution_row(
+    e: _Execution, *, with_record: bool = False, has_record: bool | None = None
+) -> ExecutionRow:
     return ExecutionRow(
         id=e.id,
         mission_id=e.mission_id,
@@ -197,6 +207,7 @@ def _execution_row(e: _Execution, *, with_record: bool = False) -> ExecutionRow:
         summary=None if e.summary_json is None else json.loads(e.summary_json),
         events=json.loads(e.events_json or "[]"),
         error=e.error,
+        has_record=e.record_json is not None if has_record is None else has_record,
         record_json=e.record_json if with_record else None,
     )
 
@@ -347,12 +358,19 @@ class Store:
             return None if execution is None else _execution_row(execution, with_record=with_record)
 
     def list_executions(self, mission_id: str | None = None) -> list[ExecutionRow]:
-        """Newest first, optionally of one mission."""
-        query = select(_Execution).order_by(_Execution.created_at.desc(), _Execution.id)
+        """Newest first, optionally of one mission (records are not loaded)."""
+        query = (
+            select(_Execution, _Execution.record_json.is_not(None))
+            .options(defer(_Execution.record_json))
+            .order_by(_Execution.created_at.desc(), _Execution.id)
+        )
         if mission_id is not None:
             query = query.where(_Execution.mission_id == mission_id)
         with self._session() as session:
-            return [_execution_row(e) for e in session.scalars(query)]
+            return [
+                _execution_row(e, has_record=bool(has))
+                for e, has in session.execute(query)
+            ]
 
     def update_execution(
         self,

@@ -39,6 +39,12 @@ async function api(method, url, body) {
   return { status: response.status, ok: response.ok, data };
 }
 
+// Append to a log list and keep the list (not the page) scrolled to its end.
+function appendScrolled(list, item) {
+  list.appendChild(item);
+  list.scrollTop = list.scrollHeight;
+}
+
 const fmt = (x, digits = 3) => (x === null || x === undefined || Number.isNaN(x)) ? "–"
   : (typeof x === "number" ? Number(x.toFixed(digits)).toString() : String(x));
 
@@ -400,8 +406,7 @@ function followPlanning(mission) {
     li.textContent = `iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
       (r.cost_change === null ? "" : ` (Δ ${fmt(r.cost_change, 3)})`) +
       `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s`;
-    $("#progress-log").appendChild(li);
-    li.scrollIntoView({ block: "nearest" });
+    appendScrolled($("#progress-log"), li);
     $("#plan-state").textContent = `planning… iteration ${r.iteration}`;
   });
   source.addEventListener("done", () => { source.close(); showMission(mission.id); });
@@ -638,6 +643,8 @@ async function refreshMissionList() {
 
 // ------------------------------------------------------------------ flying
 
+const ACTIVE = ["starting", "running", "aborting"];
+
 async function fly() {
   if (!state.mission) return;
   $("#fly-button").disabled = true;
@@ -646,6 +653,7 @@ async function fly() {
   const { status, data } = await api("POST", `/api/missions/${state.mission.id}/executions`);
   if (status !== 201) {
     $("#execution-status").textContent = `refused (${status}): ${data.reason}`;
+    $("#execution-status").className = "bad";
     $("#fly-button").disabled = false;
     return;
   }
@@ -661,45 +669,64 @@ function followExecution(execution) {
   source.addEventListener("telemetry", (ev) => showTelemetry(JSON.parse(ev.data)));
   source.addEventListener("event", (ev) => logEvent(JSON.parse(ev.data)));
   source.addEventListener("status", (ev) => setExecutionStatus(JSON.parse(ev.data).status));
-  source.addEventListener("done", async (ev) => {
+  source.addEventListener("done", (ev) => {
     source.close();
+    state.flightStream = null;
     const done = JSON.parse(ev.data);
     setExecutionStatus(done.status);
     showFlightSummary(done);
     $("#fly-button").disabled = false;
   });
-  source.onerror = () => { source.close(); setTimeout(() => pollExecution(execution.id), 1000); };
+  source.onerror = () => {  // stream lost: poll the execution instead
+    source.close();
+    state.flightStream = null;
+    setTimeout(() => pollExecution(execution.id), 1000);
+  };
 }
 
 async function pollExecution(id) {
   const { ok, data } = await api("GET", `/api/executions/${id}`);
   if (!ok) return;
   setExecutionStatus(data.status);
-  if (["starting", "running", "aborting"].includes(data.status)) followExecution(data);
+  if (ACTIVE.includes(data.status)) followExecution(data);
   else { showFlightSummary(data); $("#fly-button").disabled = false; }
 }
 
 function setExecutionStatus(status) {
   const el = $("#execution-status");
   el.textContent = `flight ${state.execution}: ${status}`;
-  el.className = status === "completed" ? "ok" : (["aborted", "failed", "interrupted"].includes(status) ? "bad" : "");
-  $("#flight-banner").textContent = ["starting", "running", "aborting"].includes(status) ? `✈ flying (${status})` : "";
+  el.dataset.status = status;
+  el.className = status === "completed" ? "ok" : (ACTIVE.includes(status) ? "" : "bad");
+  $("#flight-banner").textContent = ACTIVE.includes(status) ? `✈ flight ${state.execution}: ${status}` : "";
 }
 
-function showTelemetry(t) {
+function showVehicleTable(vehicles) {
   const tbody = $("#vehicle-state tbody");
   tbody.innerHTML = "";
-  const xs = [], ys = [], zs = [], ids = [];
-  for (const v of t.vehicles) {
+  for (const v of vehicles) {
     const tr = document.createElement("tr");
+    tr.dataset.id = v.id;
+    const age = v.heartbeat_age === null || v.heartbeat_age === undefined ? "–" : `${v.heartbeat_age.toFixed(1)} s`;
     const pos = v.position ? v.position.map((x) => x.toFixed(2)).join(", ") : "–";
-    for (const text of [v.id, v.mode ?? "–", v.armed ? "armed" : "disarmed",
-                        v.heartbeat_age === null || v.heartbeat_age === undefined ? "–" : `${v.heartbeat_age.toFixed(1)} s`, pos]) {
+    const err = v.tracking_error === null || v.tracking_error === undefined ? "" : ` (±${v.tracking_error.toFixed(2)} m)`;
+    const armed = v.armed === null || v.armed === undefined ? "–" : (v.armed ? "armed" : "disarmed");
+    for (const text of [v.id, v.phase ?? "idle", v.mode ?? "–", armed, age, pos + err]) {
       const td = document.createElement("td");
       td.textContent = text;
       tr.appendChild(td);
     }
+    if (v.fault) tr.className = "bad";
     tbody.appendChild(tr);
+  }
+}
+
+function showTelemetry(t) {
+  showVehicleTable(t.vehicles);
+  const clock = t.mission_time === null ? "" : ` · t = ${t.mission_time.toFixed(1)} / ${t.horizon.toFixed(0)} s`;
+  const sep = t.min_separation_live === null ? "" : ` · closest pair now ${t.min_separation_live.toFixed(2)} m`;
+  $("#flight-phase").textContent = `${t.phase}${clock}${sep}`;
+  const xs = [], ys = [], zs = [], ids = [];
+  for (const v of t.vehicles) {
     if (v.position) { xs.push(v.position[0]); ys.push(v.position[1]); zs.push(v.position[2]); ids.push(v.id); }
   }
   if (state.traj && $("#plot3d").data) {
@@ -709,28 +736,41 @@ function showTelemetry(t) {
 
 function logEvent(e) {
   const li = document.createElement("li");
-  li.textContent = `${e.time !== undefined ? fmt(e.time, 2) + " s " : ""}${e.vehicle ? e.vehicle + ": " : ""}${e.kind ? e.kind + " " : ""}${e.message ?? ""}`;
-  $("#event-log").appendChild(li);
-  li.scrollIntoView({ block: "nearest" });
+  li.textContent = `${fmt(e.t, 2)} s ${e.vehicle ? e.vehicle + ": " : ""}${e.kind} ${e.detail ?? ""}`;
+  appendScrolled($("#event-log"), li);
 }
 
 function showFlightSummary(done) {
   const s = done.summary;
   const box = $("#flight-summary");
-  if (!s) { box.textContent = done.error ? `error: ${done.error}` : ""; return; }
-  box.textContent = `completed: ${s.completed} · goal error max ${fmt(s.goal_error_max)} m · tracking error max ${fmt(s.tracking_error_max)} m · ` +
-    `measured min separation ${fmt(s.min_separation_measured)} m · setpoint rate ${fmt(s.setpoint_rate_hz, 1)} Hz · jitter p99 ${fmt(s.jitter_p99_ms, 2)} ms`;
+  box.textContent = "";
+  if (done.error) box.append(badge(false, `${done.error} `));
+  if (!s) return;
+  box.append(badge(Boolean(s.completed), `completed: ${s.completed ? "yes" : "no"}`),
+    ` · goal error max ${fmt(s.goal_error_max)} m · tracking error max ${fmt(s.tracking_error_max)} m · ` +
+    `measured min separation ${fmt(s.min_separation_measured)} m · setpoints ${fmt(s.setpoint_rate_hz, 1)} Hz, ` +
+    `jitter p99 ${fmt(s.jitter_p99_ms, 2)} ms`);
 }
 
 async function abortAll() {
-  // Abort the flight shown, and any other active one: the button must always work.
+  // Abort the flight shown and any other one under way: this button must always work.
   const { ok, data } = await api("GET", "/api/executions?active=true");
   const ids = new Set(ok ? data.map((e) => e.id) : []);
-  if (state.execution) ids.add(state.execution);
+  if (state.execution && ACTIVE.includes($("#execution-status").dataset.status)) ids.add(state.execution);
   if (!ids.size) { $("#flight-banner").textContent = "nothing is flying"; return; }
   for (const id of ids) {
-    const r = await api("POST", `/api/executions/${id}/abort`);
+    const r = await api("POST", `/api/executions/${id}/abort`, { action: "land" });
     if (r.ok && id === state.execution) setExecutionStatus(r.data.status);
+  }
+}
+
+async function refreshVehicles() {
+  if (state.flightStream) return;  // the flight's telemetry fills the table meanwhile
+  const { ok, data } = await api("GET", "/api/vehicles");
+  if (!ok) return;
+  showVehicleTable(data.vehicles);
+  if (data.fleet.flying && data.fleet.flying !== state.execution) {
+    pollExecution(data.fleet.flying);  // a flight started elsewhere: show it (and its Abort)
   }
 }
 
@@ -743,6 +783,7 @@ async function refreshStatus() {
   el.className = "muted";
   const fleet = data.fleet;
   el.textContent = `fleet: ${fleet.kind === "none" ? "none" : `${fleet.vehicles} ${fleet.kind} vehicles`} · planning jobs: ${data.planning_jobs}`;
+  state.fleetKind = fleet.kind;
   $("#fleet-label").textContent = fleet.kind === "none" ? "no fleet configured" : `on ${fleet.vehicles} ${fleet.kind} vehicles`;
 }
 
@@ -768,7 +809,9 @@ function start() {
   loadExampleList().then(loadPreset);
   refreshMissionList();
   refreshStatus();
+  refreshVehicles();
   setInterval(refreshStatus, 5000);
+  setInterval(refreshVehicles, 2000);
 }
 
 document.addEventListener("DOMContentLoaded", start);

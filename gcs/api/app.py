@@ -21,6 +21,7 @@ from starlette.concurrency import run_in_threadpool
 
 import gcs
 from gcs.api.errors import install_error_handlers
+from gcs.api.flights import FleetService
 from gcs.api.limits import BodyLimitMiddleware
 from gcs.api.planning import PlanningService
 from gcs.api.plans import PlanCache
@@ -75,17 +76,27 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         )
         if stale:
             log.warning("%d mission(s) left planning by a previous run marked failed", stale)
+        interrupted = await run_in_threadpool(
+            store.fail_unfinished_executions, "the service stopped during this flight"
+        )
+        if interrupted:
+            log.warning("%d flight(s) left running by a previous run marked interrupted",
+                        interrupted)
         planning = PlanningService(
             store, workers=settings.plan_workers, solver=settings.planner_solver
         )
         await planning.start()
+        fleet = FleetService(settings, store)
         app.state.settings = settings
         app.state.store = store
         app.state.planning = planning
         app.state.plans = PlanCache(store)
+        app.state.fleet = fleet
         try:
+            await fleet.start()
             yield
         finally:
+            await fleet.close()
             await planning.close()
             store.close()
 

@@ -13,12 +13,21 @@ from fastapi import Depends, Path, Request
 from starlette.concurrency import run_in_threadpool
 
 from gcs.api.errors import NotFound
+from gcs.api.flights import FleetService
 from gcs.api.planning import PlanningService
 from gcs.api.plans import PlanCache
 from gcs.settings import Settings
 from gcs.store import MissionRow, Store
 
-__all__ = ["MissionDep", "MissionIdPath", "PlanCacheDep", "PlanningDep", "SettingsDep", "StoreDep"]
+__all__ = [
+    "FleetDep",
+    "MissionDep",
+    "MissionIdPath",
+    "PlanCacheDep",
+    "PlanningDep",
+    "SettingsDep",
+    "StoreDep",
+]
 
 
 def _settings(request: Request) -> Settings:
@@ -37,10 +46,15 @@ def _plans(request: Request) -> PlanCache:
     return request.app.state.plans
 
 
+def _fleet(request: Request) -> FleetService:
+    return request.app.state.fleet
+
+
 SettingsDep = Annotated[Settings, Depends(_settings)]
 StoreDep = Annotated[Store, Depends(_store)]
 PlanningDep = Annotated[PlanningService, Depends(_planning)]
 PlanCacheDep = Annotated[PlanCache, Depends(_plans)]
+FleetDep = Annotated[FleetService, Depends(_fleet)]
 
 MissionIdPath = Annotated[
     str, Path(description="Mission id, as returned by POST /api/missions.", max_length=64)

@@ -12,6 +12,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.settings import Settings
+from tests.api.support import free_udp_base
 
 
 @pytest.fixture(autouse=True)
@@ -35,6 +36,19 @@ def make_settings(tmp_path: Path) -> Callable[..., Settings]:
         }
         values.update(overrides)
         return Settings(**values)
+
+    return make
+
+
+@pytest.fixture
+def mock_settings(make_settings: Callable[..., Settings]) -> Callable[..., Settings]:
+    """Settings with 4 in-process mock vehicles on free UDP ports, quick to arm."""
+
+    def make(**overrides: Any) -> Settings:
+        values: dict[str, Any] = {"mock_vehicles": 4, "mock_base_port": free_udp_base(4),
+                                  "mock_settle_s": 0.5}
+        values.update(overrides)
+        return make_settings(**values)
 
     return make
 

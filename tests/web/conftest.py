@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Browser, Page, sync_playwright
 
-from tests.api.support import ServiceProcess
+from tests.api.support import ServiceProcess, free_udp_base
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
 
@@ -46,7 +46,8 @@ def browser() -> Iterator[Browser]:
 def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
     """`fleetplan serve` with 4 mock vehicles on free ports."""
     workdir = tmp_path_factory.mktemp("web")
-    with ServiceProcess(workdir, "--mock", "0", "--workers", "1") as running:
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
+    with ServiceProcess(workdir, "--mock", "4", "--workers", "1", env=env) as running:
         yield running
 
 
