@@ -151,6 +151,8 @@ class FleetService:
                 await asyncio.wait_for(flight.done.wait(), 60.0)
         for task in list(self._tasks):
             task.cancel()
+        if self._tasks:  # let cancelled flights store what they have
+            await asyncio.wait(list(self._tasks), timeout=10.0)
         await self._close_monitor()
         if self._mock is not None:
             await self._mock.stop()
@@ -238,6 +240,7 @@ class FleetService:
         return out
 
     def flight(self, execution_id: str) -> Flight | None:
+        """The flight while it is under way (afterwards the store has it)."""
         return self._flights.get(execution_id)
 
     @property
@@ -286,12 +289,15 @@ class FleetService:
             self._spawn(self._run(flight, plan, mission_options))
             return row
 
-    async def abort(self, execution_id: str, action: str, reason: str = "operator abort") -> Flight:
+    async def abort(
+        self, execution_id: str, action: str, reason: str = "operator abort",
+        stored_status: str = "finished",
+    ) -> Flight:
         """Every vehicle of the flight to `action` (land or hold) now; Conflict if it is not
         flying. Returns at once; the flight ends (status aborted) when the vehicles are safe."""
         flight = self._flights.get(execution_id)
         if flight is None or not flight.active:
-            status = "finished" if flight is None else flight.status
+            status = stored_status if flight is None else flight.status
             raise Conflict("execution_id", f"execution {execution_id!r} is not flying "
                            f"(status {status})")
         if flight.abort_requested is None:
@@ -351,6 +357,8 @@ class FleetService:
                 self._active = None
             flight.done.set()
             flight.publish("done", flight.outcome())
+            # Stored now: drop it (and its Mission, which holds the whole record) from memory.
+            self._flights.pop(flight.id, None)
             await self._open_monitor()
 
     async def _rehome_mock(self, plan: Plan) -> None:

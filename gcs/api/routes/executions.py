@@ -170,13 +170,15 @@ def get_execution(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> 
     responses=error_responses(404, json_content=True),
 )
 async def execution_events(
-    execution: ExecutionDep, fleet: FleetDep
+    execution: ExecutionDep, store: StoreDep, fleet: FleetDep
 ) -> AsyncIterable[ServerSentEvent]:
     """`status` {status}, `event` {t, vehicle, kind, detail}, `telemetry` (5 per second:
     phase, mission_time, vehicles with world-frame position, mode, armed, heartbeat_age),
     then `done` {status, summary, error}; then the stream ends."""
     flight = fleet.flight(execution.id)
     if flight is None:
+        # Finished: the store has it (read again: it may have ended a moment ago).
+        execution = await run_in_threadpool(store.get_execution, execution.id) or execution
         yield ServerSentEvent(event="status", data={"status": execution.status})
         for event in execution.events:
             yield ServerSentEvent(event="event", data=event)
@@ -206,7 +208,7 @@ async def abort_execution(
     """Accepted at once (202, status `aborting`); the flight ends `aborted` once the
     vehicles are safe. 409 if it is not flying."""
     action = "land" if request is None else request.action
-    flight = await fleet.abort(execution.id, action)
+    flight = await fleet.abort(execution.id, action, stored_status=execution.status)
     return execution_document(execution, flight)
 
 
