@@ -7,11 +7,13 @@ time, so tests build as many apps (and databases) as they like.
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import plotly
 from fastapi import FastAPI
@@ -116,4 +118,24 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return FileResponse(PLOTLY_JS, media_type="text/javascript")
 
     app.mount("/", StaticFiles(directory=web_directory(settings), html=True), name="web")
+    _document_errors_as_error_body(app)
     return app
+
+
+def _document_errors_as_error_body(app: FastAPI) -> None:
+    """FastAPI documents request validation failures (422) with its own HTTPValidationError
+    shape; this API answers them with `ErrorBody`, so the schema says that instead."""
+    generate = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            text = json.dumps(generate()).replace(
+                "#/components/schemas/HTTPValidationError", "#/components/schemas/ErrorBody"
+            )
+            schema = json.loads(text)
+            for name in ("HTTPValidationError", "ValidationError"):
+                schema["components"]["schemas"].pop(name, None)
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]

@@ -48,6 +48,9 @@ log = logging.getLogger(__name__)
 class ErrorItem(BaseModel):
     """One problem: which field (dotted path, e.g. ``vehicles[2].goal``) and why."""
 
+    model_config = {"json_schema_extra": {"examples": [
+        {"field": "vehicles[2].goal", "reason": "cannot be reached within the horizon"}]}}
+
     field: str | None = Field(description="Dotted path of the offending field, or null.")
     reason: str = Field(description="What is wrong, in words.")
 

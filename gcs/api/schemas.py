@@ -44,12 +44,43 @@ def _example_scenario() -> dict[str, Any]:
 EXAMPLE_SCENARIO: dict[str, Any] = _example_scenario()
 
 
+_ITERATION: dict[str, Any] = {
+    "iteration": 1, "cost": 14433.1, "cost_change": 0.115, "separation_rows": 96,
+    "qp_solves": 1, "groups": 2, "seconds": 0.02,
+}
+_TRAJECTORY_EXAMPLE: dict[str, Any] = {
+    "id": "uav1", "t": [0.0, 0.2], "position": [[4.5, 2.5, 1.1], [4.4976, 2.5, 1.1]],
+    "velocity": [[0.0, 0.0, 0.0], [-0.024, 0.0, 0.0]], "acceleration": [[-0.12, 0.0, 0.0]],
+    "jerk": [[-0.6, 0.0, 0.0]], "thrust": [9.8107], "body_rates": [[0.0, -0.061, 0.0]],
+}
+_PLAN_EXAMPLE: dict[str, Any] = {
+    "status": "converged", "message": "cost changed by 0.0396 < 0.05", "solver": "piqp",
+    "infeasible_groups": [], "scenario": EXAMPLE_SCENARIO, "iterations": [_ITERATION],
+    "timing": {"total_s": 0.21, "first_qp_s": 0.004}, "vehicles": [_TRAJECTORY_EXAMPLE],
+    "verification": {"min_separation": 1.0004, "min_separation_continuous": 1.0001,
+                     "closest_pair": ["uav1", "uav3"], "closest_time": 14.9,
+                     "flyable": True, "separated": True, "within_bounds": True},
+}
+_SUMMARY_EXAMPLE: dict[str, Any] = {
+    "id": "3f2a9c81d0b4", "name": "paper-circle4", "status": "planned",
+    "created_at": "2026-11-23T08:30:00+00:00", "updated_at": "2026-11-23T08:30:01+00:00",
+    "vehicle_count": 4, "steps": 150, "dt": 0.2, "horizon_s": 30.0,
+    "plan_status": "converged", "plan_ok": True, "error": None,
+}
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class LimitsIn(_Strict):
     """Workspace box and per-axis symmetric bounds (m, m/s, m/s^2, m/s^3; rad/s)."""
+
+    model_config = ConfigDict(
+        extra="forbid", strict=True,
+        json_schema_extra={"examples": [EXAMPLE_SCENARIO["limits"]]},
+    )
+
 
     position_min: Vector3 = Field(description="Lower corner of the workspace box (m).")
     position_max: Vector3 = Field(description="Upper corner of the workspace box (m).")
@@ -63,6 +94,12 @@ class LimitsIn(_Strict):
 
 class VehicleIn(_Strict):
     """One vehicle's task: from `start` to `goal`, both at rest, world frame ENU (z up)."""
+
+    model_config = ConfigDict(
+        extra="forbid", strict=True,
+        json_schema_extra={"examples": [EXAMPLE_SCENARIO["vehicles"][0]]},
+    )
+
 
     id: str = Field(description="Unique vehicle id; matches the fleet file's ids.")
     start: Vector3
@@ -96,6 +133,9 @@ class ScenarioIn(_Strict):
 class IterationOut(BaseModel):
     """One SCP iteration (iteration 0 is the separation-free first QP)."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [_ITERATION]})
+
+
     iteration: int
     cost: float
     cost_change: float | None
@@ -107,6 +147,9 @@ class IterationOut(BaseModel):
 
 class VehicleTrajectoryOut(BaseModel):
     """One vehicle's planned motion on the step grid (world frame ENU, SI units)."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [_TRAJECTORY_EXAMPLE]})
+
 
     id: str
     t: list[float] = Field(description="K+1 step times (s).")
@@ -120,6 +163,9 @@ class VehicleTrajectoryOut(BaseModel):
 
 class PlanOut(BaseModel):
     """The Plan JSON contract (`planner.Plan.to_dict`)."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [_PLAN_EXAMPLE]})
+
 
     status: Literal[STATUSES] = Field(description="The planner's verdict.")
     message: str
@@ -137,6 +183,9 @@ class PlanOut(BaseModel):
 
 class MissionSummary(BaseModel):
     """A mission without its scenario and plan, as listed."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [_SUMMARY_EXAMPLE]})
+
 
     id: str
     name: str
@@ -202,6 +251,10 @@ class MissionOut(MissionSummary):
 class MissionList(BaseModel):
     """A page of missions, newest first."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"total": 1, "limit": 50, "offset": 0, "missions": [_SUMMARY_EXAMPLE]}]})
+
+
     total: int
     limit: int
     offset: int
@@ -209,6 +262,12 @@ class MissionList(BaseModel):
 
 
 class TrajectoryVehicleOut(BaseModel):
+    """One vehicle's sampled setpoints."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "id": "uav1", "position": [[4.5, 2.5, 1.1]], "velocity": [[0.0, 0.0, 0.0]],
+        "acceleration": [[-0.12, 0.0, 0.0]]}]})
+
     id: str
     position: list[list[float]] = Field(description="(M, 3) positions (m), world frame ENU.")
     velocity: list[list[float]] = Field(description="(M, 3) velocities (m/s).")
@@ -217,6 +276,13 @@ class TrajectoryVehicleOut(BaseModel):
 
 class TrajectoryOut(BaseModel):
     """The plan sampled at `rate` Hz with the exact motion between steps (the setpoints)."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "mission_id": "3f2a9c81d0b4", "rate": 20.0, "frame": "world_enu", "t": [0.0, 0.05],
+        "vehicles": [{"id": "uav1", "position": [[4.5, 2.5, 1.1], [4.4999, 2.5, 1.1]],
+                      "velocity": [[0.0, 0.0, 0.0], [-0.003, 0.0, 0.0]],
+                      "acceleration": [[-0.12, 0.0, 0.0], [-0.12, 0.0, 0.0]]}]}]})
+
 
     mission_id: str
     rate: float

@@ -19,6 +19,11 @@ router = APIRouter(prefix="/examples", tags=["examples"])
 
 
 class ExampleOut(BaseModel):
+    """A bundled scenario: its name, size and where to get it."""
+
+    model_config = {"json_schema_extra": {"examples": [
+        {"name": "paper-circle4", "vehicles": 4, "url": "/api/examples/paper-circle4"}]}}
+
     name: str
     vehicles: int
     url: str

@@ -47,7 +47,10 @@ class FlyRequest(BaseModel):
 
 
 class AbortRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+    """What every vehicle of the flight does now."""
+
+    model_config = ConfigDict(extra="forbid", strict=True,
+                              json_schema_extra={"examples": [{"action": "land"}]})
 
     action: Literal["land", "hold"] = Field(
         "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."

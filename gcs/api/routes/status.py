@@ -17,11 +17,20 @@ router = APIRouter(prefix="/status", tags=["status"])
 class StatusOut(BaseModel):
     """Service health and the limits a client should respect."""
 
+    model_config = {"json_schema_extra": {"examples": [{
+        "status": "ok", "version": "0.1.0", "planning_jobs": 0, "plan_workers": 1,
+        "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
+                  "flying": None},
+        "limits": {"max_vehicles": 128, "max_steps": 1000, "max_body_bytes": 2000000,
+                   "max_trajectory_rate": 100.0}}]}}
+
     status: str = Field(examples=["ok"])
     version: str
     planning_jobs: int = Field(description="Plans computing now.")
     plan_workers: int
-    fleet: dict[str, Any] = Field(description="kind (mock, file or none) and vehicle count.")
+    fleet: dict[str, Any] = Field(
+        description="kind (mock, file or none), vehicles, ids, flying (execution id or null)."
+    )
     limits: dict[str, int | float] = Field(
         description="max_vehicles, max_steps, max_body_bytes, max_trajectory_rate."
     )
