@@ -26,15 +26,17 @@ test: $(STAMP) test-tools
 	$(PY) -m ruff check planner gcs tests bench
 	$(PY) -m pytest
 
-# The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml.
-# Installed here when missing and possible (root with apt-get), never interactively.
+# The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml;
+# a throwaway PostgreSQL server checks the service on it. Installed here when missing and
+# possible (root with apt-get), never interactively.
 test-tools:
 	@missing=""; \
 	command -v chromium >/dev/null 2>&1 || missing="$$missing chromium"; \
 	command -v docker-compose >/dev/null 2>&1 || missing="$$missing docker-compose"; \
+	ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || missing="$$missing postgresql"; \
 	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
-	    echo "installing$$missing (Debian packages) for the browser and deployment tests"; \
+	    echo "installing$$missing (Debian packages) for the browser, deployment, database tests"; \
 	    DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null && \
 	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq$$missing >/dev/null || \
 	    echo "could not install$$missing: those tests will skip"; \
