@@ -121,6 +121,14 @@ class Endpoint:
 
     def send(self, system_id: int | None, msg: Any) -> None:
         """Pack and send `msg` to `system_id` (None: to every known peer)."""
+        self.send_bytes(system_id, self.pack(msg))
+
+    def pack(self, msg: Any) -> bytes:
+        """`msg` as bytes on this connection (assigns its sequence number)."""
+        return msg.pack(self.mav)
+
+    def send_bytes(self, system_id: int | None, buf: bytes) -> None:
+        """Send an already packed message to `system_id` (None: to every known peer)."""
         raise NotImplementedError
 
     def send_heartbeat(self) -> None:
@@ -201,10 +209,9 @@ class UdpEndpoint(Endpoint):
         address = self.peers.get(system_id)
         return [] if address is None else [address]
 
-    def send(self, system_id: int | None, msg: Any) -> None:
+    def send_bytes(self, system_id: int | None, buf: bytes) -> None:
         if self._sock is None:
             return
-        buf = msg.pack(self.mav)
         for address in self._address(system_id):
             try:
                 self._sock.sendto(buf, address)
@@ -252,11 +259,14 @@ class ThreadedEndpoint(Endpoint):
         self._thread = threading.Thread(target=reader, name=f"mavlink {self.url}", daemon=True)
         self._thread.start()
 
-    def send(self, system_id: int | None, msg: Any) -> None:
+    def pack(self, msg: Any) -> bytes:
+        with self._lock:  # the reader thread's connection shares this encoder
+            return msg.pack(self.mav)
+
+    def send_bytes(self, system_id: int | None, buf: bytes) -> None:
         if self._conn is None:
             return
         with self._lock:
-            buf = msg.pack(self.mav)
             self._conn.write(buf)
             self.bytes_sent += len(buf)
 
@@ -401,8 +411,16 @@ class VehicleLink:
 
     def send_setpoint(self, setpoint: Setpoint, boot_ms: int) -> None:
         """One SET_POSITION_TARGET_LOCAL_NED to this vehicle."""
+        self.send_packed(self.pack_setpoint(setpoint, boot_ms))
+
+    def pack_setpoint(self, setpoint: Setpoint, boot_ms: int) -> bytes:
+        """SET_POSITION_TARGET_LOCAL_NED for this vehicle, encoded ahead of its send."""
         fields = setpoint.fields(self.system_id, self.component_id, boot_ms)
-        self.send(self.endpoint.mav.set_position_target_local_ned_encode(**fields))
+        return self.endpoint.pack(self.endpoint.mav.set_position_target_local_ned_encode(**fields))
+
+    def send_packed(self, buf: bytes) -> None:
+        """Send a setpoint from `pack_setpoint`."""
+        self.endpoint.send_bytes(self.system_id, buf)
         self.setpoints_sent += 1
 
     async def command(self, command: int, params: tuple[float, ...] = (), *,

@@ -10,6 +10,14 @@ If the loop wakes up more than a whole tick late it sends the current tick (neve
 old ones) and counts the ticks it skipped. Each send's lateness against its tick's scheduled
 instant is recorded (`lateness`), which gives the send-instant jitter of the flight record and
 of `bench/stream.py`.
+
+Timing: asyncio's timers wake up to ~1 ms late (epoll counts in milliseconds) and encoding
+a MAVLink message takes tens of microseconds, so the loop wakes early by the time the last
+tick took to encode plus `WAKE_MARGIN`, encodes every vehicle's message for the tick, waits
+out the remaining fraction of a millisecond on the clock itself, and then only sends the
+ready datagrams. Measured with 50 vehicles at 50 Hz (bench/stream.py): p50/p99 lateness
+1.3/4.2 ms when sleeping on the timer, 0.35/2.6 ms like this, for about 2.5 ms of waiting on
+the clock per tick (12% of a core at 50 Hz, 5% at the default 20 Hz).
 """
 
 from __future__ import annotations
@@ -30,6 +38,11 @@ __all__ = ["Assignment", "SendCallback", "Streamer", "jitter_stats"]
 
 #: Called after each send with (vehicle id, tick, setpoint, send instant).
 SendCallback = Callable[[str, int, Setpoint, float], None]
+
+#: How much earlier than (encoding time of the last tick) the loop wakes up before a tick:
+#: covers asyncio's millisecond timer resolution and telemetry handled just before the tick;
+#: the rest is a short wait on the clock (1.5 ms gave p99 4.3 ms, 3 ms 2.6 ms, 5 ms 1.6 ms).
+WAKE_MARGIN = 0.003
 
 
 @dataclass
@@ -95,14 +108,26 @@ class Streamer:
                 await self._task
             self._task = None
 
-    def _send_tick(self, tick: int) -> None:
-        scheduled = self.tick_time(tick)
-        boot_ms = time_boot_ms(scheduled - self.boot_epoch)
-        measuring = self.measuring
+    def _prepare_tick(self, tick: int) -> list[tuple[str, Assignment, Setpoint, bytes]]:
+        """Every vehicle's setpoint for `tick`, encoded, ready to send."""
+        boot_ms = time_boot_ms(self.tick_time(tick) - self.boot_epoch)
+        ready = []
         for vehicle_id, assignment in list(self.assignments.items()):
             setpoint = assignment.track.at(tick - assignment.start_tick)
-            assignment.link.send_setpoint(setpoint, boot_ms)
-            sent = time.monotonic()
+            ready.append((vehicle_id, assignment, setpoint,
+                          assignment.link.pack_setpoint(setpoint, boot_ms)))
+        return ready
+
+    def _send_tick(self, tick: int, ready: list[tuple[str, Assignment, Setpoint, bytes]]
+                   ) -> None:
+        scheduled = self.tick_time(tick)
+        measuring = self.measuring
+        sent_at = []
+        for _, assignment, _, buf in ready:
+            assignment.link.send_packed(buf)
+            sent_at.append(time.monotonic())
+        # Bookkeeping and listeners only after every datagram of the tick has left.
+        for (vehicle_id, assignment, setpoint, _), sent in zip(ready, sent_at, strict=True):
             assignment.last = setpoint
             if measuring:
                 self.lateness.append(sent - scheduled)
@@ -111,14 +136,24 @@ class Streamer:
         self.tick = tick
 
     async def _run(self) -> None:
+        encode_time = 0.0
         while True:
             now = time.monotonic()
             due = math.floor((now - self.epoch) * self.rate + 1e-9)
-            if due > self.tick:
+            if due > self.tick:  # late: send the current tick now, never a burst
                 if due > self.tick + 1 and self.tick >= 0:
                     self.missed_ticks += due - self.tick - 1
-                self._send_tick(due)
-            await asyncio.sleep(max(0.0, self.tick_time(self.tick + 1) - time.monotonic()))
+                self._send_tick(due, self._prepare_tick(due))
+            else:
+                tick = self.tick + 1
+                began = time.monotonic()
+                ready = self._prepare_tick(tick)
+                encode_time = time.monotonic() - began
+                while time.monotonic() < self.tick_time(tick):
+                    pass  # a fraction of a millisecond: the clock, not the timer
+                self._send_tick(tick, ready)
+            wake = self.tick_time(self.tick + 1) - encode_time - WAKE_MARGIN
+            await asyncio.sleep(max(0.0, wake - time.monotonic()))
 
 
 def jitter_stats(lateness: list[float] | np.ndarray) -> dict[str, float]:
