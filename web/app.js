@@ -783,7 +783,6 @@ async function refreshStatus() {
   el.className = "muted";
   const fleet = data.fleet;
   el.textContent = `fleet: ${fleet.kind === "none" ? "none" : `${fleet.vehicles} ${fleet.kind} vehicles`} · planning jobs: ${data.planning_jobs}`;
-  state.fleetKind = fleet.kind;
   $("#fleet-label").textContent = fleet.kind === "none" ? "no fleet configured" : `on ${fleet.vehicles} ${fleet.kind} vehicles`;
 }
 

@@ -39,10 +39,12 @@ from gcs.settings import Settings
 from gcs.store import ExecutionRow, Store
 from planner import Plan
 
-__all__ = ["FINISHED", "FleetService", "Flight"]
+__all__ = ["FINISHED", "LIVE", "FleetService", "Flight", "execution_document"]
 
 log = logging.getLogger(__name__)
 
+#: Execution statuses while the flight is under way.
+LIVE = ("starting", "running", "aborting")
 #: Final execution statuses. `incomplete`: the mission ran to its end but did not complete
 #: (a vehicle was landed by the land_faulty policy, or missed its goal).
 FINISHED = ("completed", "incomplete", "aborted", "failed", "interrupted")

@@ -16,6 +16,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.errors import ErrorItem
+from gcs.store import MISSION_STATUSES
 from planner.result import STATUSES
 
 __all__ = [
@@ -167,7 +168,9 @@ class PlanOut(BaseModel):
     model_config = ConfigDict(json_schema_extra={"examples": [_PLAN_EXAMPLE]})
 
 
-    status: Literal[STATUSES] = Field(description="The planner's verdict.")
+    status: Literal[STATUSES] = Field(  # type: ignore[valid-type]
+        description="The planner's verdict."
+    )
     message: str
     solver: str
     infeasible_groups: list[str]
@@ -189,7 +192,7 @@ class MissionSummary(BaseModel):
 
     id: str
     name: str
-    status: Literal["planning", "planned", "failed"] = Field(
+    status: Literal[MISSION_STATUSES] = Field(  # type: ignore[valid-type]
         description="planning until the worker answers; planned whatever the plan's status; "
         "failed if the planner raised (see `error`)."
     )

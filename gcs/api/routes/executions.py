@@ -15,7 +15,7 @@ from starlette.concurrency import run_in_threadpool
 
 from gcs.api.deps import FleetDep, MissionDep, PlanCacheDep, StoreDep
 from gcs.api.errors import Conflict, NotFound, error_responses
-from gcs.api.flights import execution_document
+from gcs.api.flights import FINISHED, LIVE, execution_document
 from gcs.store import ExecutionRow
 
 __all__ = ["mission_router", "router"]
@@ -74,8 +74,10 @@ class ExecutionOut(BaseModel):
 
     id: str
     mission_id: str
-    status: str = Field(description="starting, running, aborting while flying; then "
-                        "completed, incomplete, aborted, failed or interrupted.")
+    status: Literal[(*LIVE, *FINISHED)] = Field(  # type: ignore[valid-type]
+        description="starting, running, aborting while flying; then completed, incomplete "
+        "(ran to its end without completing), aborted, failed or interrupted."
+    )
     created_at: str
     finished_at: str | None
     fleet: str
