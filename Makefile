@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench install clean
+.PHONY: run test lint bench install clean test-tools
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -17,12 +17,33 @@ $(STAMP): pyproject.toml | $(PY)
 
 install: $(STAMP)
 
+# The service with 4 mock vehicles: open the printed URL (Ctrl-C stops it).
 run: $(STAMP)
-	$(VENV)/bin/fleetplan plan planner/examples/paper-circle8.json -o plan-paper-circle8.json
+	@echo "fleetplan: starting; open http://127.0.0.1:8000/ (API docs: /docs, Ctrl-C stops)"
+	$(VENV)/bin/fleetplan serve --host 127.0.0.1 --port 8000 --mock 4
 
-test: $(STAMP)
+test: $(STAMP) test-tools
 	$(PY) -m ruff check planner gcs tests bench
 	$(PY) -m pytest
+
+# The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml;
+# a throwaway PostgreSQL server checks the service on it. Installed here when missing and
+# possible (root with apt-get), never interactively.
+test-tools:
+	@missing=""; \
+	command -v chromium >/dev/null 2>&1 || missing="$$missing chromium"; \
+	command -v docker-compose >/dev/null 2>&1 || missing="$$missing docker-compose"; \
+	ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || missing="$$missing postgresql"; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing$$missing (Debian packages) for the browser, deployment, database tests"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null && \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq$$missing >/dev/null || \
+	    echo "could not install$$missing: those tests will skip"; \
+	  else \
+	    echo "not installed:$$missing (sudo apt-get install$$missing); those tests will skip"; \
+	  fi; \
+	fi
 
 lint: $(STAMP)
 	$(PY) -m ruff check planner gcs tests bench

@@ -19,6 +19,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("plan", "gcs.cli.plan_cmd", "plan collision-free trajectories for a scenario"),
     ("fly", "gcs.cli.fly_cmd", "fly a plan on PX4 vehicles (or mock ones) and record it"),
     ("mock", "gcs.cli.mock_cmd", "run PX4-like mock vehicles (PX4 SITL's ports)"),
+    ("serve", "gcs.cli.serve_cmd", "serve the REST API and browser page (mock or real fleet)"),
 )
 
 

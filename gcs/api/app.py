@@ -1,0 +1,141 @@
+"""The FastAPI application factory: services, routers, error handlers, the browser page.
+
+`create_app(settings)` builds an app whose lifespan opens the store, starts the planning
+worker pool (and the fleet, when configured) and closes them again; nothing starts at import
+time, so tests build as many apps (and databases) as they like.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import plotly
+from fastapi import FastAPI
+from fastapi.responses import FileResponse
+from fastapi.staticfiles import StaticFiles
+from starlette.concurrency import run_in_threadpool
+
+import gcs
+from gcs.api.errors import install_error_handlers
+from gcs.api.flights import FleetService
+from gcs.api.limits import BodyLimitMiddleware
+from gcs.api.planning import PlanningService
+from gcs.api.plans import PlanCache
+from gcs.api.routes import api_router
+from gcs.settings import Settings
+from gcs.store import Store
+
+__all__ = ["PLOTLY_JS", "create_app", "web_directory"]
+
+log = logging.getLogger(__name__)
+
+#: plotly.js as bundled in the Python `plotly` package: served locally, never from a CDN.
+PLOTLY_JS = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
+
+DESCRIPTION = """\
+Plan collision-free trajectories for a quadcopter fleet and fly them on PX4 vehicles
+(real, SITL or the built-in mock).
+
+Errors always have the body `{"status", "field", "reason", "errors": [...]}`: `field` is the
+dotted path of the offending input (e.g. `vehicles[2].goal`), `reason` says what is wrong.
+"""
+
+
+def web_directory(settings: Settings) -> Path:
+    """Where the browser page is: the setting, else inside the installed package (wheel),
+    else the source checkout's ``web/`` (editable install)."""
+    if settings.web_dir is not None:
+        return settings.web_dir
+    package = Path(gcs.__file__).resolve().parent
+    for candidate in (package / "web", package.parent / "web"):
+        if (candidate / "index.html").is_file():
+            return candidate
+    raise FileNotFoundError(f"browser page not found next to {package}")
+
+
+def _version() -> str:
+    try:
+        return metadata.version("fleetplan")
+    except metadata.PackageNotFoundError:  # running from a bare checkout
+        return "0+unknown"
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """A fresh application configured by `settings` (default: environment and config file)."""
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        store = Store(settings.database_url)
+        stale = await run_in_threadpool(
+            store.fail_unfinished_planning, "the service stopped before this plan finished"
+        )
+        if stale:
+            log.warning("%d mission(s) left planning by a previous run marked failed", stale)
+        interrupted = await run_in_threadpool(
+            store.fail_unfinished_executions, "the service stopped during this flight"
+        )
+        if interrupted:
+            log.warning("%d flight(s) left running by a previous run marked interrupted",
+                        interrupted)
+        planning = PlanningService(
+            store, workers=settings.plan_workers, solver=settings.planner_solver
+        )
+        await planning.start()
+        fleet = FleetService(settings, store)
+        app.state.settings = settings
+        app.state.store = store
+        app.state.planning = planning
+        app.state.plans = PlanCache(store)
+        app.state.fleet = fleet
+        try:
+            await fleet.start()
+            yield
+        finally:
+            await fleet.close()
+            await planning.close()
+            store.close()
+
+    app = FastAPI(
+        title="fleetplan",
+        version=_version(),
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    install_error_handlers(app)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.include_router(api_router)
+
+    @app.get("/vendor/plotly.min.js", include_in_schema=False)
+    def plotly_js() -> FileResponse:
+        return FileResponse(PLOTLY_JS, media_type="text/javascript")
+
+    app.mount("/", StaticFiles(directory=web_directory(settings), html=True), name="web")
+    _document_errors_as_error_body(app)
+    return app
+
+
+def _document_errors_as_error_body(app: FastAPI) -> None:
+    """FastAPI documents request validation failures (422) with its own HTTPValidationError
+    shape; this API answers them with `ErrorBody`, so the schema says that instead."""
+    generate = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            text = json.dumps(generate()).replace(
+                "#/components/schemas/HTTPValidationError", "#/components/schemas/ErrorBody"
+            )
+            schema = json.loads(text)
+            for name in ("HTTPValidationError", "ValidationError"):
+                schema["components"]["schemas"].pop(name, None)
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]

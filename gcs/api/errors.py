@@ -1,0 +1,239 @@
+"""The API's error responses: one hierarchy, one JSON body shape.
+
+Every error the API answers with has the body ``{"status": <code>, "field": <dotted path or
+null>, "reason": <text>, "errors": [{"field", "reason"}, ...]}``: `field` and `reason` name the
+first (usually only) problem; `errors` lists all of them (request validation may find several).
+
+- `ApiError`: base class; carries the HTTP status, the field and the reason.
+  - `BadRequest` (400): the request is malformed (e.g. the body is not JSON).
+  - `NotFound` (404): no such mission, execution or route.
+  - `Conflict` (409): the resource is not in a state that allows it (still planning, flying).
+  - `PayloadTooLarge` (413): the body exceeds the configured size limit.
+  - `Unprocessable` (422): well-formed but invalid (scenario errors, limits exceeded).
+  - `Unavailable` (503): the service cannot do it now (no fleet configured, pool broken).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, Field
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
+
+from planner.errors import FieldError
+
+__all__ = [
+    "ApiError",
+    "BadRequest",
+    "Conflict",
+    "ErrorBody",
+    "ErrorItem",
+    "NotFound",
+    "PayloadTooLarge",
+    "Unavailable",
+    "Unprocessable",
+    "error_responses",
+    "install_error_handlers",
+]
+
+log = logging.getLogger(__name__)
+
+
+class ErrorItem(BaseModel):
+    """One problem: which field (dotted path, e.g. ``vehicles[2].goal``) and why."""
+
+    model_config = {"json_schema_extra": {"examples": [
+        {"field": "vehicles[2].goal", "reason": "cannot be reached within the horizon"}]}}
+
+    field: str | None = Field(description="Dotted path of the offending field, or null.")
+    reason: str = Field(description="What is wrong, in words.")
+
+
+class ErrorBody(BaseModel):
+    """The body of every error response."""
+
+    status: int = Field(description="The HTTP status code, repeated for convenience.")
+    field: str | None = Field(description="The first offending field, or null.")
+    reason: str = Field(description="Why the request failed.")
+    errors: list[ErrorItem] = Field(description="Every problem found (at least one).")
+
+    model_config = {
+        "json_schema_extra": {
+            "examples": [
+                {
+                    "status": 422,
+                    "field": "vehicles[1].goal",
+                    "reason": "[9.0, 1.0, 1.0] lies outside the workspace on axis x [0, 5]",
+                    "errors": [
+                        {
+                            "field": "vehicles[1].goal",
+                            "reason": "[9.0, 1.0, 1.0] lies outside the workspace on axis x "
+                            "[0, 5]",
+                        }
+                    ],
+                }
+            ]
+        }
+    }
+
+
+class ApiError(Exception):
+    """An error answered with `status` and an `ErrorBody`."""
+
+    status = 400
+
+    def __init__(
+        self, field: str | None, reason: str, *, errors: Sequence[ErrorItem] | None = None
+    ) -> None:
+        super().__init__(f"{field}: {reason}" if field else reason)
+        self.field = field
+        self.reason = reason
+        self.errors = list(errors) if errors else [ErrorItem(field=field, reason=reason)]
+
+    def body(self) -> dict[str, Any]:
+        return ErrorBody(
+            status=self.status, field=self.field, reason=self.reason, errors=self.errors
+        ).model_dump()
+
+    @classmethod
+    def from_field_error(cls, exc: FieldError, prefix: str = "") -> ApiError:
+        """A planner `FieldError` (scenario or plan format) as this API error."""
+        return cls(f"{prefix}{exc.field}", exc.reason)
+
+
+class BadRequest(ApiError):
+    status = 400
+
+
+class NotFound(ApiError):
+    status = 404
+
+
+class Conflict(ApiError):
+    status = 409
+
+
+class PayloadTooLarge(ApiError):
+    status = 413
+
+
+class Unprocessable(ApiError):
+    status = 422
+
+
+class Unavailable(ApiError):
+    status = 503
+
+
+def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI `responses=` entries documenting `ErrorBody` for these status codes.
+
+    `json_content`: say application/json explicitly, for routes whose own media type is
+    something else (an event stream): FastAPI would document the error under that type.
+    """
+    meaning = {
+        400: "Malformed request",
+        404: "Not found",
+        409: "Conflict with the resource's state",
+        413: "Request body too large",
+        422: "Invalid input: the body names the field and the reason",
+        503: "Service unavailable",
+    }
+    if json_content:
+        content = {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorBody"}}}
+        return {code: {"description": meaning[code], "content": content} for code in codes}
+    return {code: {"model": ErrorBody, "description": meaning[code]} for code in codes}
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    """Every method some route accepts for this path (Starlette only names the first
+    route's, which is wrong when GET and DELETE of one path are separate routes)."""
+    methods: set[str] = set()
+    for route in request.app.router.routes:
+        if route.matches(request.scope)[0] != Match.NONE:
+            methods.update(getattr(route, "methods", None) or ())
+    return sorted(methods)
+
+
+def _dotted(loc: Sequence[Any]) -> str | None:
+    """pydantic's error location as the planner's dotted path: body.vehicles.2.goal ->
+    vehicles[2].goal; query/path parameters keep their own name."""
+    parts = list(loc)
+    if parts and parts[0] in ("body", "query", "path", "header", "cookie"):
+        parts = parts[1:]
+    out = ""
+    for part in parts:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out or None
+
+
+#: pydantic's wording replaced by the planner's, so one field reads the same either way.
+_REASONS = {"extra_forbidden": "unknown key", "missing": "is required"}
+
+
+def _validation_items(exc: RequestValidationError) -> list[ErrorItem]:
+    items = []
+    for error in exc.errors():
+        loc = error.get("loc", ())
+        message = _REASONS.get(str(error.get("type")), str(error.get("msg", "invalid")))
+        if error.get("type") == "json_invalid":
+            ctx = error.get("ctx") or {}
+            message = f"request body is not valid JSON: {ctx.get('error', message)}"
+            loc = ("body",)
+        items.append(ErrorItem(field=_dotted(loc) or "body", reason=message))
+    return items or [ErrorItem(field=None, reason="invalid request")]
+
+
+def _respond(error: ApiError) -> JSONResponse:
+    return JSONResponse(status_code=error.status, content=error.body())
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Map every error (ours, FastAPI's, Starlette's, the planner's) to an `ErrorBody`."""
+
+    async def api_error(_request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, ApiError)
+        return _respond(exc)
+
+    async def validation_error(_request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, RequestValidationError)
+        items = _validation_items(exc)
+        is_json = any(i.reason.startswith("request body is not valid JSON") for i in items)
+        cls = BadRequest if is_json else Unprocessable
+        return _respond(cls(items[0].field, items[0].reason, errors=items))
+
+    async def field_error(_request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, FieldError)
+        return _respond(Unprocessable.from_field_error(exc))
+
+    async def http_error(request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, StarletteHTTPException)
+        error = ApiError("path" if exc.status_code == 404 else None, str(exc.detail))
+        error.status = exc.status_code
+        response = _respond(error)
+        if exc.headers:
+            response.headers.update(exc.headers)
+        if exc.status_code == 405:
+            response.headers["Allow"] = ", ".join(_allowed_methods(request))
+        return response
+
+    async def unexpected(_request: Request, exc: Exception) -> JSONResponse:
+        log.exception("unhandled error", exc_info=exc)
+        error = ApiError(None, f"internal error: {type(exc).__name__}")
+        error.status = 500
+        return _respond(error)
+
+    app.add_exception_handler(ApiError, api_error)
+    app.add_exception_handler(RequestValidationError, validation_error)
+    app.add_exception_handler(FieldError, field_error)
+    app.add_exception_handler(StarletteHTTPException, http_error)
+    app.add_exception_handler(Exception, unexpected)

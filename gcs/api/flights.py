@@ -1,0 +1,423 @@
+"""The configured fleet as the service sees it, and its flights (executions).
+
+`FleetService` owns one fleet: the vehicles of a fleet file (real PX4 or SITL), or mock PX4
+vehicles running in-process (`gcs.mock.MockFleet`), or none. Between flights it keeps a
+listen-only MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live
+link state; for a flight it closes the monitor and hands the connections to a
+`gcs.fleet.Mission`, which does everything that talks to vehicles. One flight at a time: the
+fleet is one set of aircraft.
+
+Mock vehicles are set down under the plan's starts before each flight (as
+``fleetplan fly --mock`` does), so any verified plan with at most `mock_vehicles` vehicles can
+be flown on them; vehicles the plan does not use are parked beside its workspace.
+
+Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions); `abort`
+sends every vehicle of the active flight to land (or hold) at once.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import AsyncIterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import orjson
+
+from gcs import frames
+from gcs.api.errors import Conflict, Unprocessable
+from gcs.errors import FleetFileError, GcsError, MissionAborted
+from gcs.fleet import Mission
+from gcs.fleetfile import FleetSpec, load_fleet
+from gcs.link import LinkHub, VehicleLink
+from gcs.mock import MockFleet
+from gcs.settings import Settings
+from gcs.store import ExecutionRow, Store
+from planner import Plan
+
+__all__ = ["FINISHED", "LIVE", "FleetService", "Flight", "execution_document"]
+
+log = logging.getLogger(__name__)
+
+#: Execution statuses while the flight is under way.
+LIVE = ("starting", "running", "aborting")
+#: Final execution statuses. `incomplete`: the mission ran to its end but did not complete
+#: (a vehicle was landed by the land_faulty policy, or missed its goal).
+FINISHED = ("completed", "incomplete", "aborted", "failed", "interrupted")
+#: Live telemetry snapshots per second on an execution's event stream.
+TELEMETRY_HZ = 5.0
+
+
+@dataclass
+class Flight:
+    """One execution being flown (in memory while it runs)."""
+
+    id: str
+    mission_id: str
+    status: str = "starting"
+    mission: Mission | None = None
+    events: list[dict[str, Any]] = field(default_factory=list)
+    summary: dict[str, Any] | None = None
+    error: str | None = None
+    abort_requested: str | None = None
+    done: asyncio.Event = field(default_factory=asyncio.Event)
+    subscribers: set[asyncio.Queue[tuple[str, dict[str, Any]]]] = field(default_factory=set)
+
+    @property
+    def active(self) -> bool:
+        return not self.done.is_set()
+
+    def publish(self, kind: str, data: dict[str, Any]) -> None:
+        for queue in self.subscribers:
+            queue.put_nowait((kind, data))
+
+    def set_status(self, status: str) -> None:
+        self.status = status
+        self.publish("status", {"status": status})
+
+    def snapshot(self) -> dict[str, Any] | None:
+        return None if self.mission is None else self.mission.snapshot()
+
+    def outcome(self) -> dict[str, Any]:
+        return {"status": self.status, "summary": self.summary, "error": self.error}
+
+    async def stream(self) -> AsyncIterator[tuple[str, dict[str, Any]]]:
+        """("status"|"event"|"telemetry", data)... then ("done", outcome); events so far
+        first, then live."""
+        queue: asyncio.Queue[tuple[str, dict[str, Any]]] = asyncio.Queue()
+        history = list(self.events)
+        self.subscribers.add(queue)
+        try:
+            yield "status", {"status": self.status}
+            for event in history:
+                yield "event", event
+            snapshot = self.snapshot()
+            if snapshot is not None:
+                yield "telemetry", snapshot
+            if not self.active:
+                yield "done", self.outcome()
+                return
+            while True:
+                kind, data = await queue.get()
+                yield kind, data
+                if kind == "done":
+                    return
+        finally:
+            self.subscribers.discard(queue)
+
+
+class FleetService:
+    """The configured fleet, its live link state and its one active flight."""
+
+    def __init__(self, settings: Settings, store: Store) -> None:
+        self._settings = settings
+        self._store = store
+        if settings.fleet_file is not None:
+            self.kind = "file"
+        elif settings.mock_vehicles > 0:
+            self.kind = "mock"
+        else:
+            self.kind = "none"
+        self._spec: FleetSpec | None = None
+        self._mock: MockFleet | None = None
+        self._monitor: LinkHub | None = None
+        self._links: dict[str, VehicleLink] = {}
+        self._flights: dict[str, Flight] = {}
+        self._active: Flight | None = None
+        self._tasks: set[asyncio.Task[Any]] = set()
+        self._lock = asyncio.Lock()
+
+    # ------------------------------------------------------------------ lifecycle
+
+    async def start(self) -> None:
+        if self.kind == "file":
+            assert self._settings.fleet_file is not None
+            self._spec = load_fleet(self._settings.fleet_file)
+        elif self.kind == "mock":
+            count = self._settings.mock_vehicles
+            await self._start_mock([[2.0 * i, -2.0, 0.0] for i in range(count)],
+                                   [f"uav{i + 1}" for i in range(count)])
+        await self._open_monitor()
+
+    async def close(self) -> None:
+        """Land an active flight (waiting for it up to a minute), then release everything."""
+        flight = self._active
+        if flight is not None and flight.active:
+            log.warning("service stopping during execution %s: landing every vehicle", flight.id)
+            await self.abort(flight.id, "land", "the service is stopping")
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(flight.done.wait(), 60.0)
+        for task in list(self._tasks):
+            task.cancel()
+        if self._tasks:  # let cancelled flights store what they have
+            await asyncio.wait(list(self._tasks), timeout=10.0)
+        await self._close_monitor()
+        if self._mock is not None:
+            await self._mock.stop()
+            self._mock = None
+
+    async def _start_mock(self, homes: list[list[float]], ids: list[str]) -> None:
+        base = self._settings.mock_base_port
+        mock = MockFleet(homes=homes, gcs_base_port=base, listen_base_port=base + 40,
+                         settle_time=self._settings.mock_settle_s)
+        # A just-stopped fleet's sockets close on a later loop iteration: retry briefly.
+        for attempt in range(20):
+            try:
+                await mock.start()
+                break
+            except OSError:
+                if attempt == 19:
+                    raise
+                await asyncio.sleep(0.05)
+        self._mock = mock
+        self._spec = FleetSpec.from_dict(mock.fleet_dict(ids))
+
+    async def _open_monitor(self) -> None:
+        if self._spec is None:
+            return
+        hub = LinkHub()
+        await hub.__aenter__()
+        try:
+            for v in self._spec.vehicles:
+                self._links[v.id] = await hub.add(v.id, v.connection, v.system_id,
+                                                  v.component_id)
+        except (OSError, GcsError) as exc:
+            log.error("cannot open the fleet's connections to watch them: %s", exc)
+            await hub.close()
+            self._links = {}
+            return
+        self._monitor = hub
+
+    async def _close_monitor(self) -> None:
+        if self._monitor is not None:
+            await self._monitor.close()
+            self._monitor = None
+        self._links = {}
+
+    # ------------------------------------------------------------------ state
+
+    def describe(self) -> dict[str, Any]:
+        """kind (mock, file or none), vehicle count and ids, and the flight under way."""
+        ids = [] if self._spec is None else [v.id for v in self._spec.vehicles]
+        return {
+            "kind": self.kind,
+            "vehicles": len(ids),
+            "ids": ids,
+            "flying": None if self._active is None else self._active.id,
+        }
+
+    def vehicles(self) -> list[dict[str, Any]]:
+        """Every vehicle's live link state: from the flight under way, else from the
+        monitor (heartbeat age, mode, armed, world-frame position when the home is known)."""
+        flight = self._active
+        snapshot = flight.snapshot() if flight is not None else None
+        if snapshot is not None:
+            return [{**v, "link": "flight"} for v in snapshot["vehicles"]]
+        if self._spec is None:
+            return []
+        now = time.monotonic()
+        out = []
+        for spec in self._spec.vehicles:
+            link = self._links.get(spec.id)
+            tel = None if link is None else link.telemetry
+            age = None if link is None else link.heartbeat_age(now)
+            position = None
+            if tel is not None and tel.position_ned is not None and spec.home is not None:
+                position = frames.ned_to_world(tel.position_ned, spec.home).tolist()
+            out.append({
+                "id": spec.id,
+                "system_id": spec.system_id,
+                "connection": spec.connection,
+                "link": "monitor" if link is not None else "closed",
+                "heartbeat_age": None if age is None or not np.isfinite(age) else round(age, 3),
+                "mode": None if tel is None or tel.mode is None else tel.mode.name,
+                "armed": None if tel is None or tel.heartbeat_time is None else bool(tel.armed),
+                "position": position,
+                "home": None if spec.home is None else spec.home.tolist(),
+            })
+        return out
+
+    def flight(self, execution_id: str) -> Flight | None:
+        """The flight while it is under way (afterwards the store has it)."""
+        return self._flights.get(execution_id)
+
+    @property
+    def active(self) -> Flight | None:
+        return self._active if self._active is not None and self._active.active else None
+
+    # ------------------------------------------------------------------ flying
+
+    async def fly(self, mission_id: str, plan: Plan, options: dict[str, Any]) -> ExecutionRow:
+        """Start flying `plan` on the fleet; returns the new execution (status starting).
+
+        Conflict when nothing can fly it (no fleet, a flight under way, a plan that is not
+        verified, vehicles missing from the fleet); Unprocessable for bad options.
+        """
+        async with self._lock:
+            if self.active is not None:
+                raise Conflict("fleet", f"execution {self.active.id} is flying; abort it or "
+                               "wait for it to end")
+            if self.kind == "none" or self._spec is None:
+                raise Conflict("fleet", "no fleet configured: start the service with --mock N "
+                               "or --fleet FLEET.json")
+            if not plan.ok:
+                raise Conflict("mission_id", f"the plan is not flyable: status {plan.status!r}"
+                               f"{'' if plan.verification is None else ', verification failed'}"
+                               "; only converged, verified plans are flown")
+            ids = plan.scenario.ids
+            if self.kind == "mock" and len(ids) > self._settings.mock_vehicles:
+                raise Conflict("fleet", f"the plan has {len(ids)} vehicles, the mock fleet "
+                               f"{self._settings.mock_vehicles} (setting mock_vehicles)")
+            if self.kind == "file":
+                try:
+                    self._spec.for_plan(ids)
+                except FleetFileError as exc:
+                    raise Conflict("fleet", exc.reason) from None
+            try:
+                mission_options = self._spec.options.replace(where="options", **options)
+            except FleetFileError as exc:
+                raise Unprocessable(exc.field, exc.reason) from None
+            except TypeError as exc:
+                raise Unprocessable("options", str(exc)) from None
+            label = f"{self.kind}: {', '.join(ids)}"
+            row = await asyncio.to_thread(self._store.create_execution, mission_id, label)
+            flight = Flight(row.id, mission_id)
+            self._flights[row.id] = flight
+            self._active = flight
+            self._spawn(self._run(flight, plan, mission_options))
+            return row
+
+    async def abort(
+        self, execution_id: str, action: str, reason: str = "operator abort",
+        stored_status: str = "finished",
+    ) -> Flight:
+        """Every vehicle of the flight to `action` (land or hold) now; Conflict if it is not
+        flying. Returns at once; the flight ends (status aborted) when the vehicles are safe."""
+        flight = self._flights.get(execution_id)
+        if flight is None or not flight.active:
+            status = stored_status if flight is None else flight.status
+            raise Conflict("execution_id", f"execution {execution_id!r} is not flying "
+                           f"(status {status})")
+        if flight.abort_requested is None:
+            flight.abort_requested = action
+            flight.set_status("aborting")
+            if flight.mission is not None:
+                self._spawn(flight.mission.abort(action, reason))
+        return flight
+
+    def _spawn(self, coro: Any) -> None:
+        task = asyncio.ensure_future(coro)
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+
+    async def _run(self, flight: Flight, plan: Plan, options: Any) -> None:
+        record: dict[str, Any] | None = None
+        ticker: asyncio.Task[None] | None = None
+        relay: asyncio.Task[None] | None = None
+        try:
+            await self._close_monitor()
+            if self.kind == "mock":
+                await self._rehome_mock(plan)
+            assert self._spec is not None
+            mission = Mission(plan, self._spec, options)
+            flight.mission = mission
+            relay = asyncio.create_task(self._relay_events(flight, mission))
+            ticker = asyncio.create_task(self._telemetry(flight, mission))
+            task = mission.start()
+            if flight.abort_requested is not None:  # aborted while starting
+                await mission.abort(flight.abort_requested, "operator abort")
+            else:
+                flight.set_status("running")
+            record = await task
+            flight.summary = record.get("summary")
+            completed = bool(flight.summary and flight.summary.get("completed"))
+            flight.status = "completed" if completed else "incomplete"
+        except MissionAborted as exc:
+            flight.status, flight.error = "aborted", str(exc)
+        except GcsError as exc:
+            flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
+        except asyncio.CancelledError:
+            flight.status, flight.error = "interrupted", "the service stopped during the flight"
+            raise
+        except Exception as exc:  # a bug: report it, keep the service up
+            log.exception("execution %s failed", flight.id)
+            flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
+        finally:
+            for helper in (ticker, relay):
+                if helper is not None:
+                    helper.cancel()
+            if record is None and flight.mission is not None:
+                record = flight.mission.record
+            if record is not None and flight.summary is None:
+                flight.summary = record.get("summary")
+            await self._persist(flight, record)
+            if self._active is flight:
+                self._active = None
+            flight.done.set()
+            flight.publish("done", flight.outcome())
+            # Stored now: drop it (and its Mission, which holds the whole record) from memory.
+            self._flights.pop(flight.id, None)
+            await self._open_monitor()
+
+    async def _rehome_mock(self, plan: Plan) -> None:
+        """Set the mock vehicles down under the plan's starts; park the rest beside it."""
+        if self._mock is not None:
+            await self._mock.stop()
+        ids = list(plan.scenario.ids)
+        homes = [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
+        lo, hi = plan.scenario.limits.position_min, plan.scenario.limits.position_max
+        for spare in range(self._settings.mock_vehicles - len(ids)):
+            homes.append([float(hi[0]) + 2.0 + 2.0 * spare, float(lo[1]), 0.0])
+            name = f"spare{spare + 1}"
+            while name in ids:
+                name += "_"
+            ids.append(name)
+        await self._start_mock(homes, ids)
+
+    async def _relay_events(self, flight: Flight, mission: Mission) -> None:
+        async for event in mission.events():
+            flight.events.append(event)
+            flight.publish("event", event)
+
+    async def _telemetry(self, flight: Flight, mission: Mission) -> None:
+        while True:
+            flight.publish("telemetry", mission.snapshot())
+            await asyncio.sleep(1.0 / TELEMETRY_HZ)
+
+    async def _persist(self, flight: Flight, record: dict[str, Any] | None) -> None:
+        def write() -> None:
+            text = None
+            if record is not None:
+                # orjson: a flight record is megabytes; json.dumps would hold the GIL longer.
+                text = orjson.dumps(record, option=orjson.OPT_SERIALIZE_NUMPY).decode()
+            self._store.update_execution(
+                flight.id, status=flight.status, events=flight.events, summary=flight.summary,
+                record_json=text, error=flight.error, finished=True,
+            )
+
+        try:
+            await asyncio.to_thread(write)
+        except Exception:
+            log.exception("could not store execution %s", flight.id)
+
+
+def execution_document(row: ExecutionRow, flight: Flight | None) -> dict[str, Any]:
+    """`ExecutionOut`: the stored execution, with live state while it flies."""
+    doc = row.to_dict()
+    if flight is not None and flight.active:
+        doc.update(status=flight.status, events=list(flight.events), live=flight.snapshot())
+    else:
+        doc["live"] = None
+    doc["links"] = {
+        "self": f"/api/executions/{row.id}",
+        "events": f"/api/executions/{row.id}/events",
+        "abort": f"/api/executions/{row.id}/abort",
+        "record": f"/api/executions/{row.id}/record",
+        "mission": f"/api/missions/{row.mission_id}",
+    }
+    return doc
+

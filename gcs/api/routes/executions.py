@@ -1,0 +1,235 @@
+"""Flights: POST /api/missions/{id}/executions flies a mission on the configured fleet;
+/api/executions/{id} is its status and summary, /events its live telemetry and events
+(server-sent events), /abort lands (or holds) every vehicle at once, /record the flight record.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterable
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Body, Depends, Path, Query, Response
+from fastapi.sse import EventSourceResponse, ServerSentEvent
+from pydantic import BaseModel, ConfigDict, Field
+from starlette.concurrency import run_in_threadpool
+
+from gcs.api.deps import FleetDep, MissionDep, PlanCacheDep, StoreDep
+from gcs.api.errors import Conflict, NotFound, error_responses
+from gcs.api.flights import FINISHED, LIVE, execution_document
+from gcs.store import ExecutionRow
+
+__all__ = ["mission_router", "router"]
+
+router = APIRouter(prefix="/executions", tags=["executions"])
+mission_router = APIRouter(prefix="/missions", tags=["executions"])
+
+
+class FlyRequest(BaseModel):
+    """How to fly (every field optional; the fleet file's `mission` options otherwise)."""
+
+    model_config = ConfigDict(
+        extra="forbid", strict=True,
+        json_schema_extra={"examples": [{"policy": "land_all", "at_end": "land"}]},
+    )
+
+    policy: Literal["hold_all", "land_all", "land_faulty"] | None = Field(
+        None, description="What to do when a vehicle is flagged (lost heartbeat, left "
+        "OFFBOARD, tracking error): hold or land everyone, or land the faulty one."
+    )
+    at_end: Literal["land", "hold"] | None = Field(
+        None, description="After the plan and the hold at the goals: land, or PX4 Hold."
+    )
+    rate_hz: float | None = Field(None, gt=0, le=100, description="Setpoint rate (Hz).")
+    hold_at_goal: float | None = Field(None, ge=0, le=600, description="Seconds at the goals.")
+    tracking_error_max: float | None = Field(
+        None, gt=0, le=100, description="Flag a vehicle this far from its plan (m)."
+    )
+
+
+class AbortRequest(BaseModel):
+    """What every vehicle of the flight does now."""
+
+    model_config = ConfigDict(extra="forbid", strict=True,
+                              json_schema_extra={"examples": [{"action": "land"}]})
+
+    action: Literal["land", "hold"] = Field(
+        "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."
+    )
+
+
+class ExecutionOut(BaseModel):
+    """One flight: stored status, events and summary; live state while it flies."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "status": "completed",
+        "created_at": "2026-11-23T08:40:00+00:00", "finished_at": "2026-11-23T08:41:02+00:00",
+        "fleet": "mock: uav1, uav2, uav3, uav4",
+        "summary": {"completed": True, "goal_error_max": 0.04, "tracking_error_max": 0.12,
+                    "min_separation_measured": 0.97, "setpoint_rate_hz": 20.0,
+                    "jitter_p99_ms": 1.3},
+        "events": [{"t": 0.8, "vehicle": "uav1", "kind": "connected", "detail": "mode HOLD"}],
+        "error": None, "has_record": True, "live": None,
+        "links": {"self": "/api/executions/a41c03e9b2f1"},
+    }]})
+
+    id: str
+    mission_id: str
+    status: Literal[(*LIVE, *FINISHED)] = Field(  # type: ignore[valid-type]
+        description="starting, running, aborting while flying; then completed, incomplete "
+        "(ran to its end without completing), aborted, failed or interrupted."
+    )
+    created_at: str
+    finished_at: str | None
+    fleet: str
+    summary: dict[str, Any] | None = Field(
+        description="completed, goal_error_max, tracking_error_max, min_separation_measured, "
+        "setpoint_rate_hz, jitter_p99_ms (the flight record's summary)."
+    )
+    events: list[dict[str, Any]] = Field(description="{t, vehicle, kind, detail} each.")
+    error: str | None
+    has_record: bool
+    live: dict[str, Any] | None = Field(
+        description="While flying: phase, mission_time, per vehicle position (world frame), "
+        "mode, armed, heartbeat age, tracking error; live minimum separation."
+    )
+    links: dict[str, str]
+
+
+ExecutionIdPath = Annotated[str, Path(description="Execution id.", max_length=64)]
+
+
+async def _execution(execution_id: ExecutionIdPath, store: StoreDep) -> ExecutionRow:
+    row = await run_in_threadpool(store.get_execution, execution_id)
+    if row is None:
+        raise NotFound("execution_id", f"no execution with id {execution_id!r}")
+    return row
+
+
+ExecutionDep = Annotated[ExecutionRow, Depends(_execution)]
+
+
+@mission_router.post(
+    "/{mission_id}/executions",
+    status_code=201,
+    response_model=ExecutionOut,
+    summary="Fly a mission on the configured fleet",
+    responses=error_responses(400, 404, 409, 413, 422),
+)
+async def fly_mission(
+    mission: MissionDep,
+    store: StoreDep,
+    plans: PlanCacheDep,
+    fleet: FleetDep,
+    request: Annotated[FlyRequest | None, Body()] = None,
+) -> dict[str, Any]:
+    """Arm and fly the mission's plan on the fleet (mock vehicles, SITL or real): this is the
+    only request that moves a vehicle. 201 with the execution (status `starting`); follow it
+    at `links.events`. 409 if the plan is not verified, the fleet lacks a plan vehicle, or
+    another flight is under way."""
+    plan = await run_in_threadpool(plans.get, mission.id)
+    options = {} if request is None else request.model_dump(exclude_none=True)
+    row = await fleet.fly(mission.id, plan, options)
+    return execution_document(row, fleet.flight(row.id))
+
+
+@mission_router.get(
+    "/{mission_id}/executions",
+    response_model=list[ExecutionOut],
+    summary="A mission's flights",
+    responses=error_responses(404),
+)
+def mission_executions(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict]:
+    return [execution_document(r, fleet.flight(r.id)) for r in store.list_executions(mission.id)]
+
+
+@router.get("", response_model=list[ExecutionOut], summary="List flights")
+def list_executions(
+    store: StoreDep,
+    fleet: FleetDep,
+    active: Annotated[bool, Query(description="Only flights under way.")] = False,
+) -> list[dict[str, Any]]:
+    """Newest first."""
+    rows = store.list_executions()
+    docs = [execution_document(r, fleet.flight(r.id)) for r in rows]
+    if active:
+        live = {f.id for f in (fleet.active,) if f is not None}
+        docs = [d for d in docs if d["id"] in live]
+    return docs
+
+
+@router.get(
+    "/{execution_id}",
+    response_model=ExecutionOut,
+    summary="A flight's status and summary",
+    responses=error_responses(404),
+)
+def get_execution(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> dict[str, Any]:
+    row = store.get_execution(execution.id) or execution
+    return execution_document(row, fleet.flight(execution.id))
+
+
+@router.get(
+    "/{execution_id}/events",
+    response_class=EventSourceResponse,
+    summary="Live telemetry and events (server-sent events)",
+    responses=error_responses(404, json_content=True),
+)
+async def execution_events(
+    execution: ExecutionDep, store: StoreDep, fleet: FleetDep
+) -> AsyncIterable[ServerSentEvent]:
+    """`status` {status}, `event` {t, vehicle, kind, detail}, `telemetry` (5 per second:
+    phase, mission_time, vehicles with world-frame position, mode, armed, heartbeat_age),
+    then `done` {status, summary, error}; then the stream ends."""
+    flight = fleet.flight(execution.id)
+    if flight is None:
+        # Finished: the store has it (read again: it may have ended a moment ago).
+        execution = await run_in_threadpool(store.get_execution, execution.id) or execution
+        yield ServerSentEvent(event="status", data={"status": execution.status})
+        for event in execution.events:
+            yield ServerSentEvent(event="event", data=event)
+        yield ServerSentEvent(
+            event="done",
+            data={"status": execution.status, "summary": execution.summary,
+                  "error": execution.error},
+        )
+        return
+    async for kind, data in flight.stream():
+        yield ServerSentEvent(event=kind, data=data)
+
+
+@router.post(
+    "/{execution_id}/abort",
+    status_code=202,
+    response_model=ExecutionOut,
+    summary="Abort a flight: every vehicle lands (or holds) now",
+    responses=error_responses(400, 404, 409, 413, 422),
+)
+async def abort_execution(
+    execution: ExecutionDep,
+    store: StoreDep,
+    fleet: FleetDep,
+    request: Annotated[AbortRequest | None, Body()] = None,
+) -> dict[str, Any]:
+    """Accepted at once (202, status `aborting`); the flight ends `aborted` once the
+    vehicles are safe. 409 if it is not flying."""
+    action = "land" if request is None else request.action
+    flight = await fleet.abort(execution.id, action, stored_status=execution.status)
+    return execution_document(execution, flight)
+
+
+@router.get(
+    "/{execution_id}/record",
+    response_model=None,
+    summary="Download the flight record",
+    responses={200: {"content": {"application/json": {}}}, **error_responses(404, 409)},
+)
+def get_record(execution: ExecutionDep, store: StoreDep) -> Response:
+    """Setpoints sent, telemetry received, events and the summary (gcs flight record)."""
+    row = store.get_execution(execution.id, with_record=True)
+    if row is None or row.record_json is None:
+        raise Conflict("execution_id", f"execution {execution.id!r} has no flight record "
+                       f"(status {execution.status})")
+    return Response(
+        row.record_json, media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="flight-{execution.id}.json"'},
+    )

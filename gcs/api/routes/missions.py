@@ -1,0 +1,267 @@
+"""/api/missions: create (plan), list, read, delete missions; progress; trajectory export.
+
+A mission is a validated scenario plus, once its worker answers, the plan. POST waits up to
+``wait`` seconds (default: the `plan_wait_s` setting) for the plan and answers 201 with it;
+a plan still computing by then is answered 202 with the mission (status ``planning``) to poll
+at its ``Location``, and its SCP iterations stream from ``/events`` (server-sent events).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+from collections.abc import AsyncIterable
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Query, Response
+from fastapi.sse import EventSourceResponse, ServerSentEvent
+from starlette.concurrency import run_in_threadpool
+
+from gcs.api.deps import MissionDep, PlanCacheDep, PlanningDep, SettingsDep, StoreDep
+from gcs.api.errors import Conflict, Unprocessable, error_responses
+from gcs.api.planning import PlanJob, PlanningService
+from gcs.api.plans import trajectory_csv, trajectory_json
+from gcs.api.schemas import MissionList, MissionOut, MissionSummary, ScenarioIn, TrajectoryOut
+from gcs.store import EXECUTION_ACTIVE, MissionRow, Store
+from planner import Scenario
+
+__all__ = ["mission_document", "router"]
+
+router = APIRouter(prefix="/missions", tags=["missions"])
+
+def _links(mission_id: str) -> dict[str, str]:
+    base = f"/api/missions/{mission_id}"
+    return {
+        "self": base,
+        "events": f"{base}/events",
+        "plan": f"{base}/plan",
+        "trajectory": f"{base}/trajectory?rate=20",
+        "trajectory_csv": f"{base}/trajectory?rate=20&format=csv",
+        "executions": f"{base}/executions",
+    }
+
+
+def mission_document(row: MissionRow, job: PlanJob | None) -> str:
+    """The `MissionOut` JSON text. The plan text is spliced in as stored: parsing and
+    re-serialising a multi-megabyte plan per request would hold the interpreter for tens of
+    milliseconds."""
+    planning = job is not None and row.status == "planning"
+    head = {
+        **row.summary(),
+        "progress": list(job.progress) if planning and job is not None else [],
+        "scenario": row.scenario,
+        "links": _links(row.id),
+    }
+    text = json.dumps(head, separators=(",", ":"))
+    return f'{text[:-1]},"plan":{row.plan_json or "null"}}}'
+
+
+def _json(text: str, status_code: int = 200, headers: dict[str, str] | None = None) -> Response:
+    return Response(text, status_code=status_code, media_type="application/json",
+                    headers=headers)
+
+
+async def _document(store: Store, planning: PlanningService, mission_id: str) -> str | None:
+    row = await run_in_threadpool(store.get_mission, mission_id, with_plan=True)
+    return None if row is None else mission_document(row, planning.job(mission_id))
+
+
+@router.post(
+    "",
+    status_code=201,
+    response_model=None,
+    summary="Plan a mission",
+    responses={
+        201: {"model": MissionOut, "description": "Planned (or failed) within the wait"},
+        202: {"model": MissionOut, "description": "Still planning: poll the Location"},
+        **error_responses(400, 413, 422),
+    },
+)
+async def create_mission(
+    scenario: ScenarioIn,
+    store: StoreDep,
+    planning: PlanningDep,
+    settings: SettingsDep,
+    wait: Annotated[
+        float | None,
+        Query(ge=0, le=600, description="Seconds to wait for the plan before answering 202 "
+              "(default: the plan_wait_s setting)."),
+    ] = None,
+) -> Response:
+    """Validate a scenario, store it as a mission and plan it in a worker process.
+
+    Answers 201 with the mission and its plan when planning ends within `wait` seconds, else
+    202 with the mission still `planning` (poll `GET /api/missions/{id}` or follow
+    `/events`). Invalid scenarios are 422 with the offending field and the reason; nothing is
+    stored for them.
+    """
+    if len(scenario.vehicles) > settings.max_vehicles:
+        raise Unprocessable(
+            "vehicles",
+            f"{len(scenario.vehicles)} vehicles exceed this server's limit of "
+            f"{settings.max_vehicles} (setting max_vehicles)",
+        )
+    if scenario.steps > settings.max_steps:
+        raise Unprocessable(
+            "steps",
+            f"{scenario.steps} steps exceed this server's limit of {settings.max_steps} "
+            f"(setting max_steps)",
+        )
+    parsed = await run_in_threadpool(Scenario.from_dict, scenario.to_contract())
+    row = await run_in_threadpool(store.create_mission, parsed.to_dict())
+    job = planning.submit(row.id, parsed.to_dict())
+    timeout = settings.plan_wait_s if wait is None else wait
+    with contextlib.suppress(TimeoutError):
+        await asyncio.wait_for(job.done.wait(), timeout)
+    outcome = job.outcome
+    if outcome is not None and outcome["status"] == "failed" and (outcome["error"] or {}).get(
+        "field"
+    ):
+        # The planner found a problem with the input itself: answer like any invalid input.
+        await run_in_threadpool(store.delete_mission, row.id)
+        planning.forget(row.id)
+        error = outcome["error"]
+        raise Unprocessable(error["field"], error["reason"])
+    text = await _document(store, planning, row.id)
+    assert text is not None
+    status = 202 if outcome is None else 201
+    return _json(text, status, {"Location": f"/api/missions/{row.id}"})
+
+
+@router.get("", response_model=MissionList, summary="List missions")
+def list_missions(
+    store: StoreDep,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    offset: Annotated[int, Query(ge=0, le=1_000_000_000)] = 0,
+) -> dict[str, Any]:
+    """Missions newest first, without scenarios and plans."""
+    rows, total = store.list_missions(limit=limit, offset=offset)
+    return {
+        "total": total,
+        "limit": limit,
+        "offset": offset,
+        "missions": [MissionSummary.model_validate(r.summary()) for r in rows],
+    }
+
+
+@router.get(
+    "/{mission_id}",
+    response_model=None,
+    summary="Get a mission (and its plan)",
+    responses={200: {"model": MissionOut}, **error_responses(404)},
+)
+async def get_mission(mission: MissionDep, store: StoreDep, planning: PlanningDep) -> Response:
+    """The mission with its scenario, progress while planning, and its plan once planned."""
+    text = await _document(store, planning, mission.id)
+    if text is None:  # deleted between the two reads
+        raise Conflict("mission_id", f"mission {mission.id!r} was just deleted")
+    return _json(text)
+
+
+@router.delete(
+    "/{mission_id}",
+    status_code=204,
+    summary="Delete a mission",
+    responses=error_responses(404, 409),
+)
+def delete_mission(
+    mission: MissionDep, store: StoreDep, planning: PlanningDep, plans: PlanCacheDep
+) -> Response:
+    """Delete a mission, its plan and its flight records. Refused (409) while it is still
+    planning or flying."""
+    if mission.status == "planning":
+        raise Conflict("mission_id", f"mission {mission.id!r} is still planning; delete it "
+                       "once planning has finished")
+    flying = [e.id for e in store.list_executions(mission.id) if e.status in EXECUTION_ACTIVE]
+    if flying:
+        raise Conflict("mission_id", f"mission {mission.id!r} is flying (execution "
+                       f"{flying[0]}); abort or wait for the flight to end first")
+    store.delete_mission(mission.id)
+    planning.forget(mission.id)
+    plans.forget(mission.id)
+    return Response(status_code=204)
+
+
+@router.get(
+    "/{mission_id}/events",
+    response_class=EventSourceResponse,
+    summary="Planning progress (server-sent events)",
+    responses=error_responses(404, json_content=True),
+)
+async def mission_events(
+    mission: MissionDep, planning: PlanningDep
+) -> AsyncIterable[ServerSentEvent]:
+    """`iteration` events (one per SCP iteration: iteration, cost, cost_change,
+    separation_rows, qp_solves, groups, seconds) while planning, then one `done` event
+    {status, plan_status, plan_ok, error}; then the stream ends."""
+    job = planning.job(mission.id)
+    if job is None or mission.status != "planning":
+        yield ServerSentEvent(
+            event="done",
+            data={"status": mission.status, "plan_status": mission.plan_status,
+                  "plan_ok": mission.plan_ok, "error": mission.error},
+        )
+        return
+    async for kind, data in job.events():
+        yield ServerSentEvent(event=kind, data=data)
+
+
+@router.get(
+    "/{mission_id}/plan",
+    response_model=None,
+    summary="Download the Plan JSON",
+    responses={200: {"content": {"application/json": {}}}, **error_responses(404, 409)},
+)
+def get_plan(mission: MissionDep, store: StoreDep) -> Response:
+    """The plan alone (the Plan JSON contract), e.g. for `fleetplan fly PLAN.json`."""
+    row = store.get_mission(mission.id, with_plan=True)
+    if row is None or row.plan_json is None:
+        state = "still planning" if mission.status == "planning" else "without a plan"
+        raise Conflict("mission_id", f"mission {mission.id!r} is {state}")
+    return _json(
+        row.plan_json,
+        headers={"Content-Disposition": f'attachment; filename="plan-{mission.id}.json"'},
+    )
+
+
+@router.get(
+    "/{mission_id}/trajectory",
+    response_model=None,
+    summary="Sampled setpoints per vehicle (JSON or CSV)",
+    responses={
+        200: {
+            "model": TrajectoryOut,
+            "content": {"text/csv": {"example": "vehicle,t,x,y,z,vx,vy,vz,ax,ay,az\n"
+                                     "uav1,0.000000,4.500000,2.500000,1.100000,..."}},
+        },
+        **error_responses(404, 409, 422),
+    },
+)
+def get_trajectory(
+    mission: MissionDep,
+    plans: PlanCacheDep,
+    settings: SettingsDep,
+    rate: Annotated[float, Query(gt=0, description="Samples per second (Hz).")] = 20.0,
+    format: Annotated[Literal["json", "csv"], Query(description="json or csv")] = "json",
+) -> Response:
+    """Every vehicle's position, velocity and acceleration at `rate` Hz from 0 to the horizon
+    (world frame ENU, exact motion between steps): what the GCS streams as setpoints. CSV has
+    one row per vehicle and time."""
+    if rate > settings.max_trajectory_rate:
+        raise Unprocessable(
+            "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}"
+        )
+    plan = plans.get(mission.id)
+    if format == "csv":
+        return Response(
+            trajectory_csv(plan, rate, settings.max_trajectory_samples),
+            media_type="text/csv",
+            headers={
+                "Content-Disposition": f'attachment; filename="trajectory-{mission.id}.csv"'
+            },
+        )
+    return Response(
+        trajectory_json(mission.id, plan, rate, settings.max_trajectory_samples),
+        media_type="application/json",
+    )

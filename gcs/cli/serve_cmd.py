@@ -1,0 +1,69 @@
+"""`fleetplan serve`: the REST API and browser page (uvicorn), with mock or configured vehicles.
+
+Options override the settings (environment ``FLEETPLAN_*`` and the TOML config file; see
+`gcs.settings`). `--mock N` starts N in-process mock PX4 vehicles; `--fleet FLEET.json` flies
+real vehicles or SITL instead. Nothing arms or moves until an execution is requested.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["configure", "run"]
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--host", help="bind address (default 127.0.0.1: this machine only)")
+    parser.add_argument("--port", type=int, help="TCP port (default 8000)")
+    parser.add_argument("--db", metavar="URL",
+                        help="database URL (default sqlite:///fleetplan.db; or postgresql+psycopg://...)")
+    vehicles = parser.add_mutually_exclusive_group()
+    vehicles.add_argument("--mock", type=int, metavar="N",
+                          help="start N mock PX4 vehicles in-process (default 4)")
+    vehicles.add_argument("--fleet", type=Path, metavar="FLEET.json",
+                          help="fleet file of real vehicles or SITL instances")
+    parser.add_argument("--workers", type=int, metavar="N",
+                        help="planner worker processes (default: CPU count - 1)")
+    parser.add_argument("--config", type=Path, metavar="FILE.toml",
+                        help="settings file (default $FLEETPLAN_CONFIG or ./fleetplan.toml)")
+    parser.add_argument("--log-level", default="info",
+                        choices=("critical", "error", "warning", "info", "debug"))
+
+
+def run(args: argparse.Namespace) -> int:
+    import uvicorn
+    from pydantic import ValidationError
+
+    from gcs.api import create_app
+    from gcs.settings import Settings, SettingsFileError
+
+    overrides = {
+        key: value
+        for key, value in (
+            ("host", args.host),
+            ("port", args.port),
+            ("database_url", args.db),
+            ("mock_vehicles", args.mock),
+            ("fleet_file", args.fleet),
+            ("plan_workers", args.workers),
+        )
+        if value is not None
+    }
+    try:
+        settings = Settings.load(args.config, **overrides)
+    except (ValidationError, SettingsFileError) as exc:
+        print(f"fleetplan serve: invalid settings: {exc}", file=sys.stderr)
+        return 2
+    app = create_app(settings)
+    fleet = (
+        f"fleet file {settings.fleet_file}"
+        if settings.fleet_file
+        else f"{settings.mock_vehicles} mock vehicles"
+    )
+    host = f"[{settings.host}]" if ":" in settings.host else settings.host
+    print(f"fleetplan: serving on http://{host}:{settings.port}/ ({fleet}, "
+          f"database {settings.database_url})", flush=True)
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level)
+    return 0

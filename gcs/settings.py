@@ -1,0 +1,144 @@
+"""The service's settings, in one place: defaults < config file < environment < explicit values.
+
+`Settings` is a pydantic-settings class. Every field can be set by an environment variable
+named ``FLEETPLAN_<FIELD>`` (e.g. ``FLEETPLAN_DATABASE_URL``) or in a TOML config file whose
+path is ``$FLEETPLAN_CONFIG`` (default ``fleetplan.toml`` in the working directory; a missing
+default file is ignored, a missing named file is an error). The `fleetplan serve` options are
+explicit values and win over both.
+"""
+
+from __future__ import annotations
+
+import os
+from contextvars import ContextVar
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field, model_validator
+from pydantic_settings import (
+    BaseSettings,
+    PydanticBaseSettingsSource,
+    SettingsConfigDict,
+    TomlConfigSettingsSource,
+)
+
+__all__ = ["CONFIG_ENV", "DEFAULT_CONFIG_FILE", "Settings", "SettingsFileError"]
+
+#: Environment variable naming the TOML config file.
+CONFIG_ENV = "FLEETPLAN_CONFIG"
+#: Config file read when `CONFIG_ENV` is unset (only if it exists).
+DEFAULT_CONFIG_FILE = "fleetplan.toml"
+
+
+class SettingsFileError(FileNotFoundError):
+    """The config file named by ``$FLEETPLAN_CONFIG`` does not exist."""
+
+
+#: The config file named explicitly (`Settings.load`), which beats $FLEETPLAN_CONFIG.
+_explicit_config: ContextVar[Path | None] = ContextVar("fleetplan_config", default=None)
+
+
+def _config_file() -> Path | None:
+    explicit = _explicit_config.get()
+    if explicit is not None:
+        if not explicit.is_file():
+            raise SettingsFileError(f"{explicit}: no such config file")
+        return explicit
+    named = os.environ.get(CONFIG_ENV)
+    if named:
+        path = Path(named)
+        if not path.is_file():
+            raise SettingsFileError(f"{CONFIG_ENV}={named}: no such config file")
+        return path
+    default = Path(DEFAULT_CONFIG_FILE)
+    return default if default.is_file() else None
+
+
+class Settings(BaseSettings):
+    """Everything the service can be configured with (see the README's Settings table)."""
+
+    model_config = SettingsConfigDict(env_prefix="FLEETPLAN_", extra="forbid")
+
+    host: str = Field("127.0.0.1", description="Bind address; 127.0.0.1 keeps it local.")
+    port: int = Field(8000, ge=1, le=65535, description="TCP port of the HTTP service.")
+    database_url: str = Field(
+        "sqlite:///fleetplan.db",
+        description="SQLAlchemy URL: SQLite file by default, postgresql+psycopg://... to share.",
+    )
+    fleet_file: Path | None = Field(
+        None, description="Fleet JSON (real vehicles or SITL); when set, no mock vehicles start."
+    )
+    mock_vehicles: int = Field(
+        4, ge=0, le=64, description="Mock PX4 vehicles started in-process when no fleet file."
+    )
+    mock_base_port: int = Field(
+        14540,
+        ge=1024,
+        le=65000,
+        description="Mock vehicle i sends to UDP base+i and listens on base+40+i (PX4 SITL's).",
+    )
+    mock_settle_s: float = Field(
+        5.0, ge=0, le=60, description="Mock vehicles refuse arming this long after they start "
+        "(PX4 SITL's estimator settles in about 4-5 s)."
+    )
+    max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
+    max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")
+    max_body_bytes: int = Field(
+        2_000_000, ge=1024, description="Largest request body accepted (bytes)."
+    )
+    max_trajectory_rate: float = Field(
+        100.0, gt=0, le=1000, description="Highest sampling rate of /trajectory (Hz)."
+    )
+    max_trajectory_samples: int = Field(
+        500_000, ge=1000, description="Most vehicle-time samples one /trajectory answer holds."
+    )
+    plan_workers: int = Field(
+        max(1, (os.cpu_count() or 2) - 1),
+        ge=1,
+        le=64,
+        description="Worker processes that run the planner (never the event loop).",
+    )
+    plan_wait_s: float = Field(
+        5.0,
+        ge=0,
+        le=600,
+        description="How long POST /api/missions waits for a plan before answering 202.",
+    )
+    planner_solver: str | None = Field(
+        None, description="QP backend passed to the planner (None: the planner's default)."
+    )
+    web_dir: Path | None = Field(
+        None, description="Serve the browser page from here instead of the bundled copy."
+    )
+
+    @classmethod
+    def load(cls, config_file: Path | None = None, **values: Any) -> Settings:
+        """Settings from `config_file` (instead of $FLEETPLAN_CONFIG / ./fleetplan.toml), the
+        environment and `values` (the command line), in increasing priority."""
+        token = _explicit_config.set(config_file)
+        try:
+            return cls(**values)
+        finally:
+            _explicit_config.reset(token)
+
+    @model_validator(mode="after")
+    def _fleet_file_exists(self) -> Settings:
+        if self.fleet_file is not None and not self.fleet_file.is_file():
+            raise ValueError(f"fleet_file {self.fleet_file} does not exist")
+        return self
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        """Explicit values, then environment, then the TOML config file."""
+        sources: list[PydanticBaseSettingsSource] = [init_settings, env_settings]
+        path = _config_file()
+        if path is not None:
+            sources.append(TomlConfigSettingsSource(settings_cls, toml_file=path))
+        return tuple(sources)

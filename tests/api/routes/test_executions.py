@@ -1,0 +1,205 @@
+"""Flights through the API on in-process mock PX4 vehicles (real MAVLink over UDP loopback):
+fly to completion, abort, live state, every refusal, and what survives a restart."""
+
+from __future__ import annotations
+
+import copy
+import json
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from gcs.api import create_app
+from gcs.settings import Settings
+from gcs.store import Store
+from tests.api.routes.test_missions import plan_mission, sse_events
+from tests.api.support import SHORT_CROSSING, example
+
+#: Quick flights: half a second at the goals.
+QUICK = {"hold_at_goal": 0.5}
+
+
+def wait_for(predicate: Callable[[], Any], timeout: float, what: str) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_fly_to_completion_with_live_state_and_a_record(
+    mock_settings: Callable[..., Settings],
+) -> None:
+    with TestClient(create_app(mock_settings())) as client:
+        idle = client.get("/api/vehicles").json()
+        assert idle["fleet"] == {"kind": "mock", "vehicles": 4, "flying": None,
+                                 "ids": ["uav1", "uav2", "uav3", "uav4"]}
+        wait_for(lambda: all(v["heartbeat_age"] is not None and v["heartbeat_age"] < 2
+                             for v in client.get("/api/vehicles").json()["vehicles"]),
+                 10, "the mock vehicles' heartbeats")
+        for v in client.get("/api/vehicles").json()["vehicles"]:
+            assert v["link"] == "monitor" and v["armed"] is False and v["mode"]
+            np.testing.assert_allclose(v["position"], v["home"], atol=0.05)
+
+        mission = plan_mission(client, SHORT_CROSSING)
+        response = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
+        assert response.status_code == 201, response.text
+        execution = response.json()
+        assert execution["status"] == "starting" and execution["mission_id"] == mission["id"]
+
+        events = sse_events(client, execution["links"]["events"])
+        kinds = [kind for kind, _ in events]
+        assert kinds[0] == "status" and kinds[-1] == "done"
+        statuses = [data["status"] for kind, data in events if kind == "status"]
+        assert "running" in statuses
+        telemetry = [data for kind, data in events if kind == "telemetry"]
+        flying = [t for t in telemetry if t["phase"] == "flying"]
+        assert flying, "no telemetry while the mission clock ran"
+        assert {v["id"] for v in flying[-1]["vehicles"]} == {"a", "b", "c", "d"}
+        assert all(v["mode"] == "OFFBOARD" and v["armed"] for v in flying[-1]["vehicles"])
+        logged = [data["kind"] for kind, data in events if kind == "event"]
+        assert "mission_start" in logged and "landed" in logged
+
+        done = events[-1][1]
+        assert done["status"] == "completed", done
+        summary = done["summary"]
+        assert summary["completed"] is True
+        assert summary["goal_error_max"] < 0.2
+        assert summary["min_separation_measured"] > 1.0 - 0.1
+        assert summary["setpoint_rate_hz"] == pytest.approx(20.0, rel=0.05)
+
+        stored = client.get(execution["links"]["self"]).json()
+        assert stored["status"] == "completed" and stored["has_record"]
+        assert stored["summary"] == summary and stored["live"] is None
+        assert [e["kind"] for e in stored["events"]] == logged
+        record = client.get(execution["links"]["record"])
+        assert record.status_code == 200
+        assert json.loads(record.text)["summary"] == summary
+        listed = client.get(f"/api/missions/{mission['id']}/executions").json()
+        assert [e["id"] for e in listed] == [execution["id"]]
+        assert client.get("/api/executions?active=true").json() == []
+
+        # Back to the monitor: the vehicles are landed, disarmed, at their goals.
+        after = client.get("/api/vehicles").json()
+        assert after["fleet"]["flying"] is None
+        by_id = {v["id"]: v for v in after["vehicles"]}
+        wait_for(lambda: all(v["heartbeat_age"] is not None and v["heartbeat_age"] < 2
+                             for v in client.get("/api/vehicles").json()["vehicles"]),
+                 10, "the monitor to hear the vehicles again")
+        by_id = {v["id"]: v for v in client.get("/api/vehicles").json()["vehicles"]}
+        for planned in SHORT_CROSSING["vehicles"]:
+            v = by_id[planned["id"]]
+            assert v["armed"] is False
+            np.testing.assert_allclose(v["position"][:2], planned["goal"][:2], atol=0.2)
+            assert v["position"][2] < 0.1
+
+
+def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) -> None:
+    with TestClient(create_app(mock_settings())) as client:
+        mission = plan_mission(client, SHORT_CROSSING)
+        execution = client.post(f"/api/missions/{mission['id']}/executions").json()
+        url = execution["links"]["self"]
+        wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
+                 30, "the mission clock")
+        while_flying = client.get("/api/vehicles").json()
+        assert while_flying["fleet"]["flying"] == execution["id"]
+        assert all(v["link"] == "flight" and v["armed"] for v in while_flying["vehicles"])
+        # One flight at a time, and no deleting a mission in the air.
+        again = client.post(f"/api/missions/{mission['id']}/executions")
+        assert again.status_code == 409 and again.json()["field"] == "fleet"
+        assert "is flying" in again.json()["reason"]
+        assert client.delete(f"/api/missions/{mission['id']}").status_code == 409
+
+        response = client.post(execution["links"]["abort"], json={"action": "land"})
+        assert response.status_code == 202
+        assert response.json()["status"] == "aborting"
+        done = sse_events(client, execution["links"]["events"])[-1]
+        assert done[0] == "done" and done[1]["status"] == "aborted"
+        assert "abort" in done[1]["error"]
+        assert done[1]["summary"]["completed"] is False
+        stored = client.get(url).json()
+        assert stored["status"] == "aborted"
+        assert any(e["kind"] == "abort" for e in stored["events"])
+        # Aborting a finished flight is a conflict, and everyone is down and disarmed.
+        late = client.post(execution["links"]["abort"])
+        assert late.status_code == 409
+        assert late.json()["reason"].endswith("is not flying (status aborted)")
+        wait_for(lambda: all(v["armed"] is False and v["position"][2] < 0.1
+                             for v in client.get("/api/vehicles").json()["vehicles"]),
+                 15, "every vehicle landed and disarmed")
+        assert client.delete(f"/api/missions/{mission['id']}").status_code == 204
+        assert client.get(url).status_code == 404  # its flights went with it
+
+
+def test_refusals(mock_settings: Callable[..., Settings]) -> None:
+    with TestClient(create_app(mock_settings())) as client:
+        six = plan_mission(client, example("paper-circle6"))
+        response = client.post(f"/api/missions/{six['id']}/executions")
+        assert response.status_code == 409 and response.json()["field"] == "fleet"
+        assert "6 vehicles, the mock fleet 4" in response.json()["reason"]
+
+        crossing = plan_mission(client, SHORT_CROSSING)
+        url = f"/api/missions/{crossing['id']}/executions"
+        for body, field in [({"policy": "explode"}, "policy"), ({"rate_hz": 500}, "rate_hz"),
+                            ({"colour": 1}, "colour")]:
+            response = client.post(url, json=body)
+            assert response.status_code == 422, response.text
+            assert response.json()["field"] == field
+        assert client.post("/api/missions/nope/executions").status_code == 404
+        for path in ("/api/executions/nope", "/api/executions/nope/events",
+                     "/api/executions/nope/record"):
+            assert client.get(path).json()["field"] == "execution_id"
+        assert client.post("/api/executions/nope/abort").status_code == 404
+
+        # A plan the planner could not make safe is never flown.
+        swap = copy.deepcopy(SHORT_CROSSING)
+        swap["vehicles"] = [
+            {"id": "a", "start": [1, 3, 1.5], "goal": [5, 3, 1.5]},
+            {"id": "b", "start": [5, 3, 1.5], "goal": [1, 3, 1.5]},
+            {"id": "c", "start": [3, 1, 1.5], "goal": [3, 5, 1.5]},
+            {"id": "d", "start": [3, 5, 1.5], "goal": [3, 1, 1.5]},
+        ]
+        bad = plan_mission(client, swap)
+        assert bad["plan_ok"] is False
+        response = client.post(f"/api/missions/{bad['id']}/executions")
+        assert response.status_code == 409 and response.json()["field"] == "mission_id"
+        assert "only converged, verified plans are flown" in response.json()["reason"]
+        assert client.get("/api/executions").json() == []  # nothing was started
+
+
+def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> None:
+    with TestClient(create_app(make_settings(mock_vehicles=0))) as client:
+        assert client.get("/api/vehicles").json() == {
+            "fleet": {"kind": "none", "vehicles": 0, "ids": [], "flying": None}, "vehicles": []}
+        mission = plan_mission(client, SHORT_CROSSING)
+        response = client.post(f"/api/missions/{mission['id']}/executions")
+        assert response.status_code == 409
+        assert "no fleet configured" in response.json()["reason"]
+
+
+def test_flights_survive_a_restart(mock_settings: Callable[..., Settings]) -> None:
+    settings = mock_settings()
+    with TestClient(create_app(settings)) as client:
+        mission = plan_mission(client, SHORT_CROSSING)
+        execution = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK).json()
+        done = sse_events(client, execution["links"]["events"])[-1][1]
+        assert done["status"] == "completed"
+    # What a killed server leaves behind: a flight still 'starting'.
+    store = Store(settings.database_url)
+    orphan = store.create_execution(mission["id"], "mock: a, b, c, d")
+    store.close()
+    with TestClient(create_app(settings)) as client:
+        again = client.get(execution["links"]["self"]).json()
+        assert again["status"] == "completed" and again["summary"] == done["summary"]
+        assert client.get(execution["links"]["record"]).status_code == 200
+        lost = client.get(f"/api/executions/{orphan.id}").json()
+        assert lost["status"] == "interrupted"
+        assert lost["error"] == "the service stopped during this flight"
+        assert [kind for kind, _ in sse_events(client, f"/api/executions/{orphan.id}/events")] \
+            == ["status", "done"]

@@ -1,0 +1,122 @@
+"""Test helpers: the bundled example scenarios, and `fleetplan serve` in a child process on a
+free port for tests that need a real server (latency under load, fuzzing over HTTP, browser)."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+__all__ = ["EXAMPLES", "SHORT_CROSSING", "ServiceProcess", "example", "free_port",
+           "free_udp_base"]
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
+
+
+def example(name: str) -> dict[str, Any]:
+    """A scenario bundled with the planner, as JSON."""
+    return json.loads((EXAMPLES / f"{name}.json").read_text())
+
+
+#: Four vehicles crossing near the centre in 10 s: a quick flight for the mock fleet.
+SHORT_CROSSING: dict[str, Any] = {
+    "name": "short-crossing", "dt": 0.2, "steps": 50, "min_separation": 1.0,
+    "limits": {"position_min": [0, 0, 0], "position_max": [6, 6, 3], "velocity_max": [2, 2, 2],
+               "acceleration_max": [3, 3, 3], "jerk_max": [5, 5, 5]},
+    "vehicles": [
+        {"id": "a", "start": [1.0, 2.8, 1.2], "goal": [4.5, 3.3, 1.4]},
+        {"id": "b", "start": [4.5, 3.0, 1.6], "goal": [1.0, 3.2, 1.5]},
+        {"id": "c", "start": [2.9, 1.0, 1.3], "goal": [3.1, 4.6, 1.7]},
+        {"id": "d", "start": [3.1, 4.8, 1.8], "goal": [2.8, 1.2, 1.2]},
+    ],
+}
+
+
+def free_udp_base(count: int) -> int:
+    """A mock base port B with UDP ports B..B+count-1 and B+40..B+40+count-1 all free now
+    (mock vehicle i sends to B+i and listens on B+40+i): never PX4's fixed 14540."""
+    for _ in range(200):
+        base = random.randrange(20_000, 60_000)
+        sockets: list[socket.socket] = []
+        try:
+            for port in (*range(base, base + count), *range(base + 40, base + 40 + count)):
+                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                sockets.append(sock)
+                sock.bind(("127.0.0.1", port))
+            return base
+        except OSError:
+            continue
+        finally:
+            for sock in sockets:
+                sock.close()
+    raise RuntimeError("no free UDP port range found")
+
+
+def free_port() -> int:
+    """A TCP port nobody listens on right now (chosen by the OS)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+class ServiceProcess:
+    """`python -m gcs.cli.main serve ...` with its own database under `workdir`."""
+
+    def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None) -> None:
+        self.workdir = workdir
+        self.port = free_port()
+        self.base_url = f"http://127.0.0.1:{self.port}"
+        self.log_path = workdir / f"serve-{self.port}.log"
+        self.command = [
+            sys.executable, "-m", "gcs.cli.main", "serve",
+            "--host", "127.0.0.1", "--port", str(self.port),
+            "--db", f"sqlite:///{workdir / 'fleetplan.db'}",
+            *args,
+        ]
+        self.env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+        self.process: subprocess.Popen[bytes] | None = None
+
+    def start(self, timeout: float = 60.0) -> ServiceProcess:
+        log = self.log_path.open("wb")
+        self.process = subprocess.Popen(
+            self.command, cwd=self.workdir, env=self.env, stdout=log, stderr=subprocess.STDOUT
+        )
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.process.poll() is not None:
+                raise RuntimeError(f"fleetplan serve exited:\n{self.log()}")
+            try:
+                if httpx.get(f"{self.base_url}/api/status", timeout=1.0).status_code == 200:
+                    return self
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.1)
+        self.stop()
+        raise RuntimeError(f"fleetplan serve did not answer within {timeout} s:\n{self.log()}")
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
+
+    def stop(self) -> None:
+        if self.process is None or self.process.poll() is not None:
+            return
+        self.process.terminate()
+        try:
+            self.process.wait(15)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(5)
+
+    def __enter__(self) -> ServiceProcess:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -1,0 +1,91 @@
+"""Planning runs in worker processes: while a 64-vehicle plan computes, the API keeps answering
+quickly and a flight's setpoint stream keeps its clock. Measured against a real
+`fleetplan serve` process (4 mock vehicles) over HTTP."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.api.support import SHORT_CROSSING, ServiceProcess, example, free_udp_base
+
+
+@pytest.mark.slow
+def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
+    tmp_path: Path,
+) -> None:
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
+    with ServiceProcess(tmp_path, "--mock", "4", "--workers", "1", env=env) as service, \
+            httpx.Client(base_url=service.base_url, timeout=30) as client:
+        small = client.post("/api/missions?wait=60", json=SHORT_CROSSING)
+        assert small.status_code == 201
+        small_id = small.json()["id"]
+        # A flight on the mock fleet, streaming setpoints at 20 Hz from the service's loop.
+        flight = client.post(f"/api/missions/{small_id}/executions").json()
+        deadline = time.monotonic() + 30
+        while (client.get(f"/api/executions/{flight['id']}").json()["live"] or {}).get(
+                "phase") != "flying":
+            assert time.monotonic() < deadline, "the flight did not start"
+            time.sleep(0.1)
+
+        started = time.monotonic()
+        big = client.post("/api/missions?wait=0", json=example("random64"))
+        assert big.status_code == 202
+        big_id = big.json()["id"]
+
+        paths = ["/api/status", "/api/vehicles", "/api/missions?limit=20",
+                 f"/api/missions/{small_id}", f"/api/missions/{big_id}",
+                 f"/api/missions/{small_id}/trajectory?rate=20"]
+        latencies: list[float] = []
+        by_path: dict[str, list[float]] = {p: [] for p in paths}
+        progress_seen = 0
+        while True:
+            for path in paths:
+                t0 = time.perf_counter()
+                response = client.get(path)
+                latencies.append(time.perf_counter() - t0)
+                by_path[path].append(latencies[-1])
+                assert response.status_code == 200, response.text
+            big_mission = client.get(f"/api/missions/{big_id}").json()
+            progress_seen = max(progress_seen, len(big_mission["progress"]))
+            if big_mission["status"] != "planning":
+                break
+            assert time.monotonic() - started < 600, "the 64-vehicle plan did not finish"
+            time.sleep(0.02)
+        planning_s = time.monotonic() - started
+
+        deadline = time.monotonic() + 60
+        while (execution := client.get(f"/api/executions/{flight['id']}").json())[
+                "status"] in ("starting", "running"):
+            assert time.monotonic() < deadline, "the flight did not end"
+            time.sleep(0.2)
+
+    assert big_mission["status"] == "planned", big_mission["error"]
+    assert len(big_mission["plan"]["vehicles"]) == 64
+    assert progress_seen >= 1  # iterations were visible while it planned
+    latencies.sort()
+    p50 = statistics.median(latencies)
+    p99 = latencies[int(0.99 * (len(latencies) - 1))]
+    summary = execution["summary"]
+    print(f"\n64-vehicle plan: {planning_s:.1f} s; {len(latencies)} requests meanwhile: "
+          f"p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms, max {latencies[-1] * 1e3:.1f} ms")
+    for path, values in by_path.items():
+        print(f"  {path}: median {statistics.median(values) * 1e3:.1f} ms, "
+              f"max {max(values) * 1e3:.1f} ms")
+    print(f"  flight meanwhile: {execution['status']}, setpoints "
+          f"{summary['setpoint_rate_hz']:.2f} Hz, send jitter p50 {summary['jitter_p50_ms']:.2f}"
+          f" ms, p99 {summary['jitter_p99_ms']:.2f} ms, missed ticks {summary['missed_ticks']}")
+    assert len(latencies) >= 50, "the plan finished too fast to measure anything"
+    # The planner keeps one of this machine's two cores busy, and other test runs may share
+    # it: the 50 ms bound is on the 99th percentile, with a looser cap on the single worst.
+    assert p50 < 0.025
+    assert p99 < 0.050
+    assert latencies[-1] < 0.150
+    # The flight flew through it on time.
+    assert execution["status"] == "completed", execution["error"]
+    assert summary["setpoint_rate_hz"] == pytest.approx(20.0, rel=0.02)
+    assert summary["jitter_p99_ms"] < 50.0

@@ -1,0 +1,84 @@
+"""The same service on PostgreSQL: a throwaway server (Debian's postgresql binaries) in a
+temporary directory, on a free port; missions, a flight and a restart through the real app."""
+
+from __future__ import annotations
+
+import glob
+import os
+import pwd
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+
+from gcs.api import create_app
+from gcs.settings import Settings
+from tests.api.routes.test_missions import plan_mission, sse_events
+from tests.api.support import SHORT_CROSSING, free_port
+
+
+def _as_server_user() -> tuple[list[str], int | None]:
+    """PostgreSQL refuses to run as root: run its tools as the `postgres` user then."""
+    if os.geteuid() != 0:
+        return [], None
+    try:
+        uid = pwd.getpwnam("postgres").pw_uid
+    except KeyError:
+        pytest.skip("running as root and there is no 'postgres' user to run PostgreSQL as")
+    return ["runuser", "-u", "postgres", "--"], uid
+
+
+@pytest.fixture(scope="module")
+def postgres_url() -> Iterator[str]:
+    found = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
+    if not found:
+        pytest.skip("PostgreSQL server not installed (sudo apt-get install postgresql); "
+                    "`make test` installs it when run as root")
+    bindir = Path(found[-1]).parent
+    prefix, uid = _as_server_user()
+    # Not under pytest's tmp_path: its parents are private to root, which PostgreSQL is not.
+    top = Path(tempfile.mkdtemp(prefix="fleetplan-pg-"))
+    data = top / "data"
+    data.mkdir()
+    if uid is not None:
+        shutil.chown(top, user=uid)
+        shutil.chown(data, user=uid)
+    port = free_port()
+    subprocess.run([*prefix, bindir / "initdb", "-D", data, "-A", "trust", "-U", "fleet"],
+                   check=True, capture_output=True, timeout=120)
+    subprocess.run([*prefix, bindir / "pg_ctl", "-D", data, "-w", "-l", data / "log",
+                    "-o", f"-p {port} -k {data} -c listen_addresses=127.0.0.1", "start"],
+                   check=True, capture_output=True, timeout=120)
+    try:
+        subprocess.run([*prefix, bindir / "createdb", "-h", "127.0.0.1", "-p", str(port),
+                        "-U", "fleet", "fleetplan"], check=True, capture_output=True, timeout=60)
+        yield f"postgresql+psycopg://fleet@127.0.0.1:{port}/fleetplan"
+    finally:
+        subprocess.run([*prefix, bindir / "pg_ctl", "-D", data, "-m", "immediate", "stop"],
+                       capture_output=True, timeout=60)
+        shutil.rmtree(top, ignore_errors=True)
+
+
+@pytest.mark.slow
+def test_missions_and_flights_on_postgresql(
+    postgres_url: str, mock_settings: Callable[..., Settings]
+) -> None:
+    settings = mock_settings(database_url=postgres_url)
+    with TestClient(create_app(settings)) as client:
+        mission = plan_mission(client, SHORT_CROSSING)
+        assert mission["plan"]["status"] == "converged"
+        execution = client.post(f"/api/missions/{mission['id']}/executions",
+                                json={"hold_at_goal": 0.5}).json()
+        done = sse_events(client, execution["links"]["events"])[-1][1]
+        assert done["status"] == "completed"
+    with TestClient(create_app(settings)) as client:  # a restart keeps everything
+        assert client.get(f"/api/missions/{mission['id']}").json() == mission
+        stored = client.get(execution["links"]["self"]).json()
+        assert stored["status"] == "completed" and stored["summary"] == done["summary"]
+        assert client.get(execution["links"]["record"]).status_code == 200
+        assert client.delete(f"/api/missions/{mission['id']}").status_code == 204
+        assert client.get(execution["links"]["self"]).status_code == 404

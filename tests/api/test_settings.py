@@ -1,0 +1,83 @@
+"""Settings: defaults < TOML config file < environment < explicit values; bad ones refused."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from pydantic import ValidationError
+
+from gcs.cli.main import main
+from gcs.settings import Settings, SettingsFileError
+
+
+def test_defaults_are_local_and_safe() -> None:
+    settings = Settings()
+    assert settings.host == "127.0.0.1" and settings.port == 8000
+    assert settings.database_url == "sqlite:///fleetplan.db"
+    assert settings.fleet_file is None and settings.mock_vehicles == 4
+    assert settings.max_vehicles == 128 and settings.max_body_bytes == 2_000_000
+
+
+def test_config_file_then_environment_then_explicit(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    config = tmp_path / "site.toml"
+    config.write_text('port = 8100\nmax_steps = 300\ndatabase_url = "sqlite:///x.db"\n')
+    monkeypatch.setenv("FLEETPLAN_CONFIG", str(config))
+    settings = Settings()
+    assert (settings.port, settings.max_steps, settings.database_url) == (8100, 300, "sqlite:///x.db")
+    monkeypatch.setenv("FLEETPLAN_PORT", "8200")
+    assert Settings().port == 8200  # environment beats the file
+    assert Settings().max_steps == 300
+    assert Settings(port=8300).port == 8300  # explicit (the CLI) beats both
+
+
+def test_default_config_file_in_the_working_directory(tmp_path: Path) -> None:
+    (tmp_path / "fleetplan.toml").write_text("max_vehicles = 12\n")  # cwd is tmp_path
+    assert Settings().max_vehicles == 12
+
+
+def test_a_named_config_file_must_exist(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("FLEETPLAN_CONFIG", str(tmp_path / "missing.toml"))
+    with pytest.raises(SettingsFileError, match=r"missing\.toml"):
+        Settings()
+
+
+@pytest.mark.parametrize(
+    ("values", "field"),
+    [({"port": 0}, "port"), ({"max_vehicles": 0}, "max_vehicles"),
+     ({"mock_vehicles": -1}, "mock_vehicles"), ({"colour": "red"}, "colour"),
+     ({"fleet_file": "/nonexistent/fleet.json"}, "fleet_file")],
+)
+def test_invalid_values_are_refused(values: dict, field: str) -> None:
+    with pytest.raises(ValidationError) as caught:
+        Settings(**values)
+    assert field in str(caught.value)
+
+
+def test_unknown_key_in_the_config_file(tmp_path: Path) -> None:
+    (tmp_path / "fleetplan.toml").write_text("prot = 8000\n")
+    with pytest.raises(ValidationError, match="prot"):
+        Settings()
+
+
+def test_serve_refuses_bad_settings_with_a_message(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    assert main(["serve", "--port", "70000"]) == 2
+    assert "port" in capsys.readouterr().err
+    assert main(["serve", "--config", str(tmp_path / "nope.toml")]) == 2
+    assert "nope.toml" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # --mock and --fleet exclude each other
+        main(["serve", "--mock", "2", "--fleet", "fleet.json"])
+
+
+def test_an_explicit_config_file_beats_the_environment_variable(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "a.toml").write_text("port = 8101\n")
+    (tmp_path / "b.toml").write_text("port = 8102\n")
+    monkeypatch.setenv("FLEETPLAN_CONFIG", str(tmp_path / "a.toml"))
+    assert Settings.load(tmp_path / "b.toml").port == 8102
+    assert Settings().port == 8101  # nothing left behind

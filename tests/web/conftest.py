@@ -1,0 +1,63 @@
+"""Fixtures for the browser tests: Debian's Chromium driven by Playwright, and the service.
+
+No browser download happens here: Playwright launches /usr/bin/chromium (Debian package
+`chromium`). Without it the tests skip with how to install it, except where
+FLEETPLAN_REQUIRE_BROWSER=1 (CI), where a missing browser is a failure.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import Browser, Page, sync_playwright
+
+from tests.api.support import ServiceProcess, free_udp_base
+
+CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
+
+
+def _chromium() -> str:
+    path = CHROMIUM if Path(CHROMIUM).exists() else shutil.which("chromium")
+    if path:
+        return path
+    message = ("Chromium not found: install Debian's package (sudo apt-get install chromium) "
+               "or set FLEETPLAN_CHROMIUM; `make test` installs it when run as root")
+    if os.environ.get("FLEETPLAN_REQUIRE_BROWSER") == "1":
+        pytest.fail(message)
+    pytest.skip(message)
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    executable = _chromium()
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=executable, headless=True)
+        try:
+            yield launched
+        finally:
+            launched.close()
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
+    """`fleetplan serve` with 4 mock vehicles on free ports."""
+    workdir = tmp_path_factory.mktemp("web")
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
+    with ServiceProcess(workdir, "--mock", "4", "--workers", "1", env=env) as running:
+        yield running
+
+
+@pytest.fixture
+def page(browser: Browser, service: ServiceProcess) -> Iterator[Page]:
+    context = browser.new_context(viewport={"width": 1400, "height": 1000})
+    opened = context.new_page()
+    errors: list[str] = []
+    opened.on("pageerror", lambda exc: errors.append(str(exc)))
+    opened.goto(service.base_url + "/")
+    yield opened
+    context.close()
+    assert not errors, f"JavaScript errors on the page: {errors}"

@@ -1,0 +1,175 @@
+"""The browser page in a real browser: fill the form, plan, read the plots and the separation
+figure, see validation errors next to the fields, place points on the top view."""
+
+from __future__ import annotations
+
+import httpx
+from playwright.sync_api import Page, expect
+
+from tests.api.support import SHORT_CROSSING, ServiceProcess, example
+
+# A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
+VEHICLES = [
+    ("a", (1.0, 2.8, 1.2), (5.0, 3.4, 1.4)),
+    ("b", (5.0, 3.0, 1.6), (1.0, 3.2, 1.5)),
+    ("c", (2.9, 1.0, 1.3), (3.2, 5.0, 1.7)),
+    ("d", (3.1, 5.0, 1.8), (2.8, 1.0, 1.2)),
+]
+
+
+def fill_scenario(
+    page: Page, name: str = "browser-swap", steps: int = 100,
+    vehicles: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = VEHICLES,
+) -> None:
+    """Type a whole scenario into the form, as an operator would."""
+    page.fill("#f-name", name)
+    page.fill("#f-dt", "0.2")
+    page.fill("#f-steps", str(steps))
+    page.fill("#f-min_separation", "1.0")
+    limits = {"position_min": (0, 0, 0), "position_max": (6, 6, 3), "velocity_max": (2, 2, 2),
+              "acceleration_max": (3, 3, 3), "jerk_max": (5, 5, 5)}
+    for key, values in limits.items():
+        for axis, value in enumerate(values):
+            page.fill(f'input[data-field="limits.{key}[{axis}]"]', str(value))
+    # Start from an empty table: remove every row, then add ours.
+    while page.locator("#vehicle-table tr.vehicle").count():
+        page.locator("#vehicle-table tr.vehicle .remove-vehicle").first.click()
+    for index, (vid, start, goal) in enumerate(vehicles):
+        page.click("#add-vehicle")
+        page.fill(f'input[data-field="vehicles[{index}].id"]', vid)
+        for axis in range(3):
+            page.fill(f'input[data-field="vehicles[{index}].start[{axis}]"]', str(start[axis]))
+            page.fill(f'input[data-field="vehicles[{index}].goal[{axis}]"]', str(goal[axis]))
+
+
+def test_plan_from_the_form_shows_plots_and_separation(
+    page: Page, service: ServiceProcess
+) -> None:
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)  # preset loaded
+    fill_scenario(page)
+    expect(page.locator("#top-view circle")).to_have_count(4)
+    page.click("#plan-button")
+    expect(page.locator("#min-separation-value")).to_be_visible(timeout=60_000)
+    expect(page.locator("#plan-state")).to_contain_text("converged")
+
+    mission_id = page.locator("#mission-title").inner_text().split("·")[1].strip()
+    mission = httpx.get(f"{service.base_url}/api/missions/{mission_id}").json()
+    assert mission["scenario"]["name"] == "browser-swap"
+    assert [v["id"] for v in mission["scenario"]["vehicles"]] == ["a", "b", "c", "d"]
+    verification = mission["plan"]["verification"]
+
+    # The progress log listed the SCP iterations as they came.
+    iterations = len(mission["plan"]["iterations"])
+    expect(page.locator("#progress-log li")).to_have_count(iterations)
+    # 3-D view: one line per vehicle, plus the "now" and "flown" marker traces.
+    traces = page.evaluate("document.getElementById('plot3d').data.map(t => t.name)")
+    assert traces[:4] == ["a", "b", "c", "d"] and len(traces) == 6
+    assert page.locator("#plot3d canvas").count() > 0  # WebGL scene drawn
+    # The separation figure: minimum pairwise distance over time against R.
+    shown = float(page.locator("#min-separation-value").get_attribute("data-value"))
+    assert shown == verification["min_separation_continuous"]
+    sampled_min = float(page.locator("#separation-plot").get_attribute("data-minimum"))
+    assert verification["min_separation_continuous"] - 1e-6 <= sampled_min
+    assert sampled_min >= 1.0 - 1e-3  # never closer than R at the samples
+    sep = page.evaluate("document.getElementById('separation-plot').data"
+                        ".map(t => ({name: t.name, n: t.y.length, y0: t.y[0]}))")
+    assert sep[1]["name"] == "R = 1 m" and sep[1]["y0"] == 1.0
+    assert sep[0]["n"] == 401  # 20 s at 20 Hz, both ends
+    assert "minimum pairwise separation" in page.locator("#separation-plot .gtitle").text_content()
+    for plot in ("#speed-plot", "#thrust-plot"):
+        assert page.evaluate(f"document.querySelector('{plot}').data.length") >= 4
+    expect(page.locator("#verification")).to_contain_text("within bounds")
+    expect(page.locator("#solver-figures")).to_contain_text("SCP iterations")
+    # The time slider moves the vehicles along their paths.
+    slider = page.locator("#time-slider")
+    slider.fill("100")
+    expect(page.locator("#time-label")).to_have_text("t = 10.0 s")
+    expect(page.locator("#mission-list li").first).to_contain_text("browser-swap")
+
+
+def test_validation_errors_appear_next_to_the_field(page: Page) -> None:
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
+    page.fill('input[data-field="vehicles[2].goal[0]"]', "9")  # outside the 5 m box
+    page.click("#plan-button")
+    error_row = page.locator("#vehicle-table tr.vehicle:nth-of-type(3) + tr.error-row")
+    expect(error_row).to_contain_text("vehicles[2].goal")
+    expect(error_row).to_contain_text("outside the workspace")
+    goal_x = page.locator('input[data-field="vehicles[2].goal[0]"]')
+    expect(goal_x).to_have_class("invalid")
+    expect(page.locator('input[data-field="vehicles[1].goal[0]"]')).not_to_have_class("invalid")
+    # A top-level field's error goes to that field.
+    page.fill('input[data-field="vehicles[2].goal[0]"]', "4")
+    page.fill("#f-dt", "-1")
+    page.click("#plan-button")
+    expect(page.locator('[data-error-for~="dt"]')).to_contain_text("dt: must be positive")
+    expect(page.locator("#f-dt")).to_have_class("invalid")
+    expect(page.locator("tr.error-row")).to_have_count(0)
+
+
+def test_top_view_click_places_the_selected_vehicle(page: Page) -> None:
+    scenario = example("paper-circle4")
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
+    page.locator("#vehicle-table tr.vehicle").nth(1).click()  # select uav2
+    view = page.locator("#top-view")
+    box = view.bounding_box()
+    assert box is not None
+    # The 5 m x 5 m workspace spans SVG 20..380 (of 400) in both axes, y up.
+    def click_world(x: float, y: float) -> None:
+        sx = (20 + x / 5 * 360) / 400 * box["width"]
+        sy = (380 - y / 5 * 360) / 400 * box["height"]
+        view.click(position={"x": sx, "y": sy})
+
+    click_world(1.0, 4.0)  # start ...
+    click_world(4.0, 1.0)  # ... then the goal, automatically
+    start = [float(page.input_value(f'input[data-field="vehicles[1].start[{a}]"]'))
+             for a in range(3)]
+    goal = [float(page.input_value(f'input[data-field="vehicles[1].goal[{a}]"]'))
+            for a in range(3)]
+    assert abs(start[0] - 1.0) < 0.03 and abs(start[1] - 4.0) < 0.03
+    assert abs(goal[0] - 4.0) < 0.03 and abs(goal[1] - 1.0) < 0.03
+    assert start[2] == scenario["vehicles"][1]["start"][2]  # height kept
+    # Other vehicles untouched.
+    assert float(page.input_value('input[data-field="vehicles[0].start[0]"]')) == 4.5
+
+
+def test_fly_on_mock_vehicles_to_completion_then_abort_a_flight(
+    page: Page, service: ServiceProcess
+) -> None:
+    expect(page.locator("#service-status")).to_contain_text("4 mock vehicles")
+    expect(page.locator("#vehicle-state tbody tr")).to_have_count(4)  # idle fleet, live
+    crossing = [(v["id"], tuple(v["start"]), tuple(v["goal"]))
+                for v in SHORT_CROSSING["vehicles"]]
+    fill_scenario(page, "browser-flight", 50, crossing)
+    page.click("#plan-button")
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    status = page.locator("#execution-status")
+
+    page.click("#fly-button")
+    expect(status).to_have_attribute("data-status", "running", timeout=30_000)
+    expect(page.locator("#flight-phase")).to_contain_text("flying", timeout=30_000)
+    rows = page.locator("#vehicle-state tbody tr")
+    expect(rows).to_have_count(4)
+    expect(rows.first).to_contain_text("OFFBOARD")
+    expect(rows.first).to_contain_text("armed")
+    # Live positions drawn over the plan: the "flown" trace has all four vehicles.
+    flown = page.evaluate("document.getElementById('plot3d').data.at(-1).x.length")
+    assert flown == 4
+    expect(page.locator("#event-log li").first).to_be_visible()
+    expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
+    expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
+    expect(page.locator("#event-log")).to_contain_text("mission_start")
+    execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
+    record = httpx.get(f"{service.base_url}/api/executions/{execution_id}").json()
+    assert record["status"] == "completed" and record["summary"]["completed"] is True
+
+    # Fly again and abort from the always-visible button while the fleet is in the air.
+    page.click("#fly-button")
+    expect(page.locator("#flight-phase")).to_contain_text("flying", timeout=30_000)
+    page.mouse.wheel(0, 5000)  # scrolled away: the header (and Abort) stays on screen
+    expect(page.locator("#abort-button")).to_be_in_viewport()
+    page.click("#abort-button")
+    expect(status).to_have_attribute("data-status", "aborted", timeout=60_000)
+    expect(page.locator("#event-log")).to_contain_text("abort")
+    expect(page.locator("#flight-banner")).to_have_text("")
+    vehicles = httpx.get(f"{service.base_url}/api/vehicles").json()
+    assert vehicles["fleet"]["flying"] is None
