@@ -76,7 +76,9 @@ def interpolate(
     steps = a.shape[-2]
     horizon = steps * dt
     clipped = np.clip(t, 0.0, horizon)
-    k = np.minimum((clipped // dt).astype(np.intp), steps - 1)
+    # A time on a step boundary belongs to the step it starts (t = 0.6 with dt = 0.2 is step
+    # 3, though 0.6 / 0.2 = 2.9999999999999996 in floating point).
+    k = np.minimum(np.floor(clipped / dt + 1e-9).astype(np.intp), steps - 1)
     s = (clipped - k * dt)[:, None]
     a_k = a[..., k, :]
     pos = p[..., k, :] + s * v[..., k, :] + 0.5 * s * s * a_k

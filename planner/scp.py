@@ -59,6 +59,9 @@ Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 #: A separation row whose multiplier exceeds this is active and is carried to the next
 #: iteration (re-linearised there): active sets change little between SCP iterations.
 ACTIVE_DUAL = 1e-7
+#: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
+#: came out infeasible.
+BEND_AMPLITUDE = 0.2
 
 
 @dataclass(frozen=True)
@@ -141,7 +144,8 @@ class _GroupSolver:
             return SOLVED, cached[0], cached[1]
         scenario = self.scenario
         pairs = self.codec.decode(keys)
-        u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous)
+        u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
+                       scenario.min_separation)
         coef = u / scenario.separation_scale
         local = np.full(self.codec.n, -1, dtype=np.intp)
         local[members] = np.arange(len(members))
@@ -168,6 +172,17 @@ class _GroupSolver:
             active = keys[per_key > ACTIVE_DUAL]
         self.cache[signature] = (solution, active)
         return SOLVED, solution, active
+
+
+def _keep_right_bend(positions: FloatArray, scenario: Scenario, amplitude: float) -> FloatArray:
+    """Every path bent sideways to the right of its vehicle's travel by up to `amplitude`
+    (a sine bump, zero at start and goal), as the first linearisation point."""
+    travel = scenario.goals - scenario.starts
+    right = np.stack([travel[:, 1], -travel[:, 0], np.zeros(len(travel))], axis=1)
+    norm = np.linalg.norm(right, axis=1, keepdims=True)
+    right = np.where(norm > 1e-9, right / np.where(norm > 1e-9, norm, 1.0), 0.0)
+    bump = np.sin(np.pi * np.linspace(0.0, 1.0, positions.shape[1]))
+    return positions + amplitude * bump[None, :, None] * right[:, None, :]
 
 
 def _groups(keys: Keys, codec: _Codec, forced: IntArray) -> list[tuple[IntArray, Keys]]:
@@ -246,7 +261,8 @@ def _solve_iteration(
     # Rows are only checked for pairs that can violate one: a pair whose rows all hold by
     # `margin` at `lin` stays clear while its two vehicles move less than that in total.
     pair_i, pair_j = all_pairs(codec.n)
-    margin = pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous)
+    margin = pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous,
+                          scenario.min_separation)
     margin -= scenario.min_separation
     while True:
         p, v, a = (x.copy() for x in base)
@@ -329,6 +345,7 @@ def run_scp(
     groups_solver = _GroupSolver(scenario, solver, codec, options.continuous)
     current = base
     carried = np.zeros(0, dtype=np.int64)
+    retried = 0
     last: _IterationResult | None = None
     status, message = "max_iterations", ""
     for iteration in range(1, scenario.max_iterations + 1):
@@ -340,6 +357,21 @@ def run_scp(
             scenario, options, codec, groups_solver, current, base, keys,
             near_boxes(scenario, *current),
         )
+        if last.status != SOLVED:
+            # Degenerate crossings (vehicles of a symmetric swap all meeting at one point)
+            # can leave the linearised QP empty. Linearise once more about paths bent to
+            # the right of each vehicle's travel, which turns such a meeting into a
+            # roundabout; any linearisation point gives valid (inner) rows.
+            bent = (_keep_right_bend(current[0], scenario,
+                                     BEND_AMPLITUDE * scenario.min_separation),
+                    current[1], current[2])
+            groups_solver.cache.clear()
+            keys = np.union1d(_seed_keys(bent[0], scenario, options, codec), carried)
+            last = _solve_iteration(
+                scenario, options, codec, groups_solver, bent, base, keys,
+                near_boxes(scenario, *current),
+            )
+            retried += 1
         if last.status != SOLVED:
             ids = [scenario.vehicles[i].id for i in last.failed]
             return ScpOutcome(
@@ -367,6 +399,9 @@ def run_scp(
             break
     else:
         message = f"stopped after {scenario.max_iterations} iterations without converging"
+    if retried:
+        message += (f"; {retried} iteration(s) linearised again about keep-right paths after "
+                    f"an infeasible QP")
     boxes_final = {}
     if last is not None:
         boxes_final = {

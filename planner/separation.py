@@ -45,7 +45,7 @@ IntArray = NDArray[np.intp]
 
 #: Pair-steps handled at once (bounds temporary memory to a few tens of MB).
 CHUNK = 1 << 19
-#: Direction used where a pair's points coincide at the linearisation point.
+#: Last-resort direction where a pair coincides and does not move relative to itself.
 _FALLBACK = np.array([0.0, 0.0, 1.0])
 
 
@@ -95,13 +95,59 @@ def _pair_chunks(vehicles: int, stages: int) -> Iterator[tuple[IntArray, IntArra
         yield i[lo:lo + per_chunk], j[lo:lo + per_chunk]
 
 
-def _unit(d: FloatArray) -> FloatArray:
+def _keep_right(motion: FloatArray) -> FloatArray:
+    """Unit horizontal directions to the right of `motion` (motion x up).
+
+    Where a pair coincides at the linearisation point (e.g. a symmetric head-on swap in the
+    separation-free first QP) its direction is undefined; a fixed fallback such as "up" for
+    every pair would stack every vehicle meeting there vertically. Passing on the right of
+    the relative motion is consistent for both vehicles of a pair and differs between pairs.
+    """
+    right = np.stack([motion[..., 1], -motion[..., 0], np.zeros(motion.shape[:-1])], axis=-1)
+    norm = np.linalg.norm(right, axis=-1, keepdims=True)
+    out = right / np.where(norm < 1e-12, 1.0, norm)
+    vertical = norm[..., 0] < 1e-12
+    if vertical.any():
+        out[vertical] = np.array([1.0, 0.0, 0.0])
+    return out
+
+
+#: How strongly a close pair's direction is turned toward its side of passing, in units of R.
+PASSING_BIAS = 0.5
+
+
+def _unit(d: FloatArray, motion: FloatArray, separation: float = 0.0) -> FloatArray:
+    """d normalised; where d vanishes, `_keep_right(motion)` (or up if nothing moves).
+
+    With `separation` R > 0, a pair closer than R at the linearisation point has d moved
+    sideways, away from its line of relative motion on the side it already passes (the
+    right for an exactly head-on pair), by PASSING_BIAS R (1 - |d| / R). Any unit direction
+    gives a valid (inner) half-space; this one turns smoothly through a crossing, where the
+    plain direction of a head-on pair flips from -x to +x in one step and asks the pair to
+    jump 2R (found on symmetric swaps, which came back infeasible).
+    """
+    if separation > 0.0:
+        norm = np.linalg.norm(d, axis=-1, keepdims=True)
+        right = _keep_right(motion)
+        side = np.where(np.einsum("...c,...c->...", d, right)[..., None] < 0.0, -1.0, 1.0)
+        moving = np.linalg.norm(motion, axis=-1, keepdims=True) >= 1e-12
+        weight = PASSING_BIAS * np.maximum(0.0, separation - norm)
+        d = d + np.where(moving, weight * side, 0.0) * right
     norm = np.linalg.norm(d, axis=-1, keepdims=True)
     tiny = norm[..., 0] < 1e-12
     out = d / np.where(norm < 1e-12, 1.0, norm)
     if tiny.any():
-        out[tiny] = _FALLBACK
+        moving = np.linalg.norm(motion[tiny], axis=-1) >= 1e-12
+        fallback = np.broadcast_to(_FALLBACK, (int(tiny.sum()), 3)).copy()
+        fallback[moving] = _keep_right(motion[tiny][moving])
+        out[tiny] = fallback
     return out
+
+
+def _step_motion(d: FloatArray) -> FloatArray:
+    """Relative motion around each step of scaled differences (pairs, K+1, 3)."""
+    padded = np.concatenate([d[:, :1], d, d[:, -1:]], axis=1)
+    return padded[:, 2:] - padded[:, :-2]
 
 
 def _chord_closest(u: FloatArray, w: FloatArray) -> FloatArray:
@@ -112,28 +158,41 @@ def _chord_closest(u: FloatArray, w: FloatArray) -> FloatArray:
     return u + tau[..., None] * chord
 
 
-def _interval_directions_all(d: FloatArray) -> FloatArray:
+def _interval_directions_all(d: FloatArray, separation: float) -> FloatArray:
     """Unit directions (pairs, K, 3) of every interval from scaled differences (pairs, K+1, 3)."""
-    u = _unit(_chord_closest(d[:, :-1], d[:, 1:]))
-    u[:, 0] = _unit(d[:, 0])
-    u[:, -1] = _unit(d[:, -1])
+    chord = d[:, 1:] - d[:, :-1]
+    u = _unit(_chord_closest(d[:, :-1], d[:, 1:]), chord, separation)
+    u[:, 0] = _unit(d[:, 0], chord[:, 0], separation)
+    u[:, -1] = _unit(d[:, -1], chord[:, -1], separation)
     return u
 
 
+def _step_directions_all(d: FloatArray, separation: float) -> FloatArray:
+    """Unit directions (pairs, K+1, 3) of every step from scaled differences (pairs, K+1, 3)."""
+    return _unit(d, _step_motion(d), separation)
+
+
 def directions(lin_positions: FloatArray, scale: FloatArray, rows: PairSteps,
-               continuous: bool) -> FloatArray:
+               continuous: bool, separation: float) -> FloatArray:
     """(rows, 3) unit directions u (scaled space) of the rows' linearisations at `lin`.
 
     The QP row coefficients on p_i - p_j are u / scale.
     """
-    here = (lin_positions[rows.i, rows.k] - lin_positions[rows.j, rows.k]) / scale
-    if not continuous:
-        return _unit(here)
-    after = (lin_positions[rows.i, rows.k + 1] - lin_positions[rows.j, rows.k + 1]) / scale
-    u = _unit(_chord_closest(here, after))
-    first, final = rows.k == 0, rows.k == lin_positions.shape[1] - 2
-    u[first] = _unit(here[first])
-    u[final] = _unit(after[final])
+    last = lin_positions.shape[1] - 1
+
+    def diff(k: IntArray) -> FloatArray:
+        return (lin_positions[rows.i, k] - lin_positions[rows.j, k]) / scale
+
+    here = diff(rows.k)
+    if not continuous:  # the same motion as `_step_motion`: the neighbouring steps
+        motion = diff(np.minimum(rows.k + 1, last)) - diff(np.maximum(rows.k - 1, 0))
+        return _unit(here, motion, separation)
+    after = diff(rows.k + 1)
+    chord = after - here
+    u = _unit(_chord_closest(here, after), chord, separation)
+    first, final = rows.k == 0, rows.k == last - 1
+    u[first] = _unit(here[first], chord[first], separation)
+    u[final] = _unit(after[final], chord[final], separation)
     return u
 
 
@@ -161,7 +220,7 @@ def _chunks_of(i: IntArray, j: IntArray, stages: int) -> Iterator[tuple[IntArray
 
 
 def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
-                 scale: FloatArray, continuous: bool) -> FloatArray:
+                 scale: FloatArray, continuous: bool, separation: float) -> FloatArray:
     """Per pair (in `all_pairs` order), the smallest value of its linearised rows at `lin`
     itself: the starting point of the pruning bound of `violated_rows`."""
     n, stages = lin_positions.shape[0], lin_positions.shape[1]
@@ -169,7 +228,8 @@ def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: floa
     out = []
     for i, j in _pair_chunks(n, stages):
         d = lin[i] - lin[j]
-        u = _interval_directions_all(d) if continuous else _unit(d)
+        u = (_interval_directions_all(d, separation) if continuous
+             else _step_directions_all(d, separation))
         values = row_values(lin_positions, lin_velocities, dt, scale, i, j, u, continuous)
         out.append(values.min(axis=1))
     return np.concatenate(out) if out else np.zeros(0)
@@ -203,7 +263,8 @@ def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: 
     chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
     for i, j in chunks:
         d = lin[i] - lin[j]
-        u = _interval_directions_all(d) if continuous else _unit(d)
+        u = (_interval_directions_all(d, separation) if continuous
+             else _step_directions_all(d, separation))
         value = row_values(positions, velocities, dt, scale, i, j, u, continuous)
         pi, kk = np.nonzero(value < separation - tolerance)
         found.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))

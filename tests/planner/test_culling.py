@@ -65,7 +65,8 @@ def test_pruned_row_check_finds_every_violated_row(continuous):
                 1e-6, continuous)
         everything, _ = violated_rows(*args)
         i, j = all_pairs(14)
-        margin = pair_margins(p0, v0, scenario.dt, scenario.separation_scale, continuous)
+        margin = pair_margins(p0, v0, scenario.dt, scenario.separation_scale, continuous,
+                              scenario.min_separation)
         moved = displacements((p0, v0), (p, v), scenario.dt, scenario.separation_scale)
         suspect = margin - scenario.min_separation - moved[i] - moved[j] < 1e-6
         pruned, _ = violated_rows(*args, (i[suspect], j[suspect]))

@@ -69,3 +69,12 @@ def test_interpolation_holds_start_and_goal_outside_the_horizon():
     np.testing.assert_allclose(sample.position[1], p[-1])
     np.testing.assert_allclose(sample.velocity[1], v[-1])
     np.testing.assert_allclose(sample.acceleration, 0.0)
+
+
+def test_a_step_boundary_belongs_to_the_step_it_starts():
+    # 0.6 / 0.2 is 2.9999999999999996 in floating point; t = 0.6 starts step 3.
+    dt = 0.2
+    a = np.arange(10.0)[:, None] * np.ones(3)
+    p, v = integrate(np.zeros(3), np.zeros(3), a, dt)
+    times = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8])  # as typed
+    np.testing.assert_array_equal(interpolate(p, v, a, dt, times).acceleration, a)

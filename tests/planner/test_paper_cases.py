@@ -79,3 +79,26 @@ def test_trajectories_follow_the_dynamics(case):
                              plan.accelerations(), scenario.dt)
     np.testing.assert_allclose(plan.positions(), p, atol=1e-6)
     np.testing.assert_allclose(plan.velocities(), v, atol=1e-6)
+
+
+@pytest.mark.parametrize("vehicles", [4, 8])
+def test_exactly_symmetric_swaps_are_solved(vehicles):
+    """Every vehicle crosses the centre at the same instant (no rotation, one height): all
+    pairs coincide in the separation-free QP, the degenerate case of the linearisation."""
+    from planner.generators import circle_swap
+
+    plan = planner.plan(circle_swap(vehicles, rotation=0.0, height_step=0.0))
+    assert plan.status == "converged", plan.message
+    assert plan.ok
+
+
+def test_four_way_head_on_cross_is_solved():
+    data = load_example("paper-circle4")
+    data["vehicles"] = [
+        {"id": "a", "start": [1.0, 3.0, 1.5], "goal": [4.5, 3.0, 1.5]},
+        {"id": "b", "start": [4.5, 3.0, 1.5], "goal": [1.0, 3.0, 1.5]},
+        {"id": "c", "start": [3.0, 1.0, 1.5], "goal": [3.0, 4.5, 1.5]},
+        {"id": "d", "start": [3.0, 4.5, 1.5], "goal": [3.0, 1.0, 1.5]},
+    ]
+    plan = planner.plan(data)
+    assert plan.ok, plan.message

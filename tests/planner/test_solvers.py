@@ -24,7 +24,7 @@ def _qp_with_separation():
     pairs = PairSteps(np.repeat(i, len(k)), np.repeat(j, len(k)), np.tile(k, len(i)))
     near = np.linalg.norm(p[pairs.i, pairs.k] - p[pairs.j, pairs.k], axis=-1) < 1.5
     pairs = pairs.select(near)
-    u = directions(p, scenario.separation_scale, pairs, continuous=False)
+    u = directions(p, scenario.separation_scale, pairs, continuous=False, separation=1.0)
     rows = SeparationRows(pairs.i, pairs.j, pairs.k, np.zeros(len(pairs), np.intp), u)
     return build_group_qp(scenario, members, rows)
 
