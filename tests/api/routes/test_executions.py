@@ -157,15 +157,10 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
             assert client.get(path).json()["field"] == "execution_id"
         assert client.post("/api/executions/nope/abort").status_code == 404
 
-        # A plan the planner could not make safe is never flown.
-        swap = copy.deepcopy(SHORT_CROSSING)
-        swap["vehicles"] = [
-            {"id": "a", "start": [1, 3, 1.5], "goal": [5, 3, 1.5]},
-            {"id": "b", "start": [5, 3, 1.5], "goal": [1, 3, 1.5]},
-            {"id": "c", "start": [3, 1, 1.5], "goal": [3, 5, 1.5]},
-            {"id": "d", "start": [3, 5, 1.5], "goal": [3, 1, 1.5]},
-        ]
-        bad = plan_mission(client, swap)
+        # A plan that did not converge is never flown (here: stopped after one iteration).
+        unfinished = copy.deepcopy(SHORT_CROSSING)
+        unfinished.update(max_iterations=1, cost_threshold=1e-9)
+        bad = plan_mission(client, unfinished)
         assert bad["plan_ok"] is False
         response = client.post(f"/api/missions/{bad['id']}/executions")
         assert response.status_code == 409 and response.json()["field"] == "mission_id"
