@@ -2,7 +2,7 @@
 
 - `GcsError`: base class of everything `gcs` raises on purpose.
   - `FleetFileError`: a fleet file (or mission options) is invalid; `field` names the dotted path
-    of the offending field and `reason` says why. Also a `ValueError`.
+    of the offending field and `reason` says why. Also a `planner.errors.FieldError`.
   - `LinkError`: a MAVLink connection could not be opened or used (bad URL, port in use).
   - `VehicleTimeout`: a vehicle did not do something in time (first HEARTBEAT, reaching its
     start, confirming a mode in its HEARTBEAT). Carries `vehicle`.
@@ -17,6 +17,8 @@
 """
 
 from __future__ import annotations
+
+from planner.errors import FieldError
 
 __all__ = [
     "ArmingRefused",
@@ -35,17 +37,8 @@ class GcsError(Exception):
     """Base class of the GCS's errors."""
 
 
-class FleetFileError(GcsError, ValueError):
+class FleetFileError(GcsError, FieldError):
     """Bad fleet file or options: `field` is the dotted path, `reason` says why."""
-
-    def __init__(self, field: str, reason: str) -> None:
-        super().__init__(f"{field}: {reason}")
-        self.field = field
-        self.reason = reason
-
-    def to_dict(self) -> dict[str, str]:
-        """JSON-friendly form used by the CLI and the REST API."""
-        return {"field": self.field, "reason": self.reason}
 
 
 class LinkError(GcsError):

@@ -1,12 +1,14 @@
 """The planner's exceptions, one tree rooted in `PlannerError`.
 
 - `PlannerError`: base class of everything the planner raises on purpose.
-  - `FieldError`: bad input; `field` names the offending field (a dotted path such as
-    ``vehicles[2].goal``) and `reason` says why.
-    - `ScenarioError`: the scenario is invalid.
-    - `PlanFormatError`: a plan JSON document (e.g. read back from a file) is malformed.
+  - `ScenarioError` (also a `FieldError`): the scenario is invalid.
+  - `PlanFormatError` (also a `FieldError`): a plan JSON document is malformed.
   - `SolverError`: a QP solver failed in a way that is not a verdict on the problem
     (numerical trouble, missing backend). Infeasibility is a plan status, not an exception.
+
+`FieldError` (a `ValueError`) is any bad input that names its field (a dotted path such as
+``vehicles[2].goal``) and the reason; the GCS's fleet-file errors are `FieldError`s too, so
+the CLI and the API report all of them the same way.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ class PlannerError(Exception):
     """Base class of the planner's errors."""
 
 
-class FieldError(PlannerError, ValueError):
+class FieldError(ValueError):
     """Bad input: `field` is the dotted path of the offending field, `reason` says why."""
 
     def __init__(self, field: str, reason: str) -> None:
@@ -31,11 +33,11 @@ class FieldError(PlannerError, ValueError):
         return {"field": self.field, "reason": self.reason}
 
 
-class ScenarioError(FieldError):
+class ScenarioError(PlannerError, FieldError):
     """An invalid scenario."""
 
 
-class PlanFormatError(FieldError):
+class PlanFormatError(PlannerError, FieldError):
     """A malformed plan document."""
 
 

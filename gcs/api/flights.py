@@ -29,6 +29,7 @@ import numpy as np
 import orjson
 
 from gcs import frames
+from gcs.api.broadcast import Broadcast, Event
 from gcs.api.errors import Conflict, Unprocessable
 from gcs.errors import FleetFileError, GcsError, MissionAborted
 from gcs.fleet import Mission
@@ -65,15 +66,14 @@ class Flight:
     error: str | None = None
     abort_requested: str | None = None
     done: asyncio.Event = field(default_factory=asyncio.Event)
-    subscribers: set[asyncio.Queue[tuple[str, dict[str, Any]]]] = field(default_factory=set)
+    listeners: Broadcast = field(default_factory=Broadcast)
 
     @property
     def active(self) -> bool:
         return not self.done.is_set()
 
     def publish(self, kind: str, data: dict[str, Any]) -> None:
-        for queue in self.subscribers:
-            queue.put_nowait((kind, data))
+        self.listeners.publish(kind, data)
 
     def set_status(self, status: str) -> None:
         self.status = status
@@ -85,29 +85,17 @@ class Flight:
     def outcome(self) -> dict[str, Any]:
         return {"status": self.status, "summary": self.summary, "error": self.error}
 
-    async def stream(self) -> AsyncIterator[tuple[str, dict[str, Any]]]:
+    async def stream(self) -> AsyncIterator[Event]:
         """("status"|"event"|"telemetry", data)... then ("done", outcome); events so far
         first, then live."""
-        queue: asyncio.Queue[tuple[str, dict[str, Any]]] = asyncio.Queue()
-        history = list(self.events)
-        self.subscribers.add(queue)
-        try:
-            yield "status", {"status": self.status}
-            for event in history:
-                yield "event", event
-            snapshot = self.snapshot()
-            if snapshot is not None:
-                yield "telemetry", snapshot
-            if not self.active:
-                yield "done", self.outcome()
-                return
-            while True:
-                kind, data = await queue.get()
-                yield kind, data
-                if kind == "done":
-                    return
-        finally:
-            self.subscribers.discard(queue)
+        history: list[Event] = [("status", {"status": self.status})]
+        history += [("event", event) for event in self.events]
+        snapshot = self.snapshot()
+        if snapshot is not None:
+            history.append(("telemetry", snapshot))
+        done = None if self.active else ("done", self.outcome())
+        async for event in self.listeners.follow(history, done):
+            yield event
 
 
 class FleetService:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gcs import plan_worker
+from gcs.api.broadcast import Broadcast, Event
 from gcs.store import Store
 
 __all__ = ["PlanJob", "PlanningService"]
@@ -44,41 +45,23 @@ class PlanJob:
     done: asyncio.Event = field(default_factory=asyncio.Event)
     progress_complete: asyncio.Event = field(default_factory=asyncio.Event)
     """Set when the worker's end-of-progress marker arrived (all iterations delivered)."""
-    subscribers: set[asyncio.Queue[tuple[str, dict[str, Any]]]] = field(default_factory=set)
-
-    def _publish(self, kind: str, data: dict[str, Any]) -> None:
-        for queue in self.subscribers:
-            queue.put_nowait((kind, data))
+    listeners: Broadcast = field(default_factory=Broadcast)
 
     def add_progress(self, record: dict[str, Any]) -> None:
         self.progress.append(record)
-        self._publish("iteration", record)
+        self.listeners.publish("iteration", record)
 
     def finish(self, outcome: dict[str, Any]) -> None:
         self.outcome = outcome
         self.done.set()
-        self._publish("done", outcome)
+        self.listeners.publish("done", outcome)
 
-    async def events(self) -> AsyncIterator[tuple[str, dict[str, Any]]]:
+    async def events(self) -> AsyncIterator[Event]:
         """("iteration", record)... then ("done", outcome): history first, then live."""
-        queue: asyncio.Queue[tuple[str, dict[str, Any]]] = asyncio.Queue()
-        # Snapshot and subscribe in the same loop step: no event can fall between them.
-        history = list(self.progress)
-        outcome = self.outcome
-        self.subscribers.add(queue)
-        try:
-            for record in history:
-                yield "iteration", record
-            if outcome is not None:
-                yield "done", outcome
-                return
-            while True:
-                kind, data = await queue.get()
-                yield kind, data
-                if kind == "done":
-                    return
-        finally:
-            self.subscribers.discard(queue)
+        history = [("iteration", record) for record in self.progress]
+        done = None if self.outcome is None else ("done", self.outcome)
+        async for event in self.listeners.follow(history, done):
+            yield event
 
 
 class PlanningService:
