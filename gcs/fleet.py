@@ -231,6 +231,8 @@ class Mission:
                 self._hub = hub
                 try:
                     await self._open_links(hub)
+                    if self._abort is not None:  # aborted while the links were opening
+                        raise MissionAborted(self._abort[1])
                     self.streamer.start()
                     monitor = asyncio.create_task(self._monitor(), name="mission-monitor")
                     self._flow = asyncio.create_task(self._fly(), name="mission-flow")
@@ -530,7 +532,9 @@ class Mission:
 
     async def _secure_all(self, action: str) -> None:
         if self._secure_task is None:
-            streamer = self._streamer()
+            # An abort can come before run() made the streamer (nothing streams, nothing
+            # is linked yet: `_secure` skips vehicles without a link).
+            streamer = self.streamer if self.streamer is not None else Streamer(1.0)
             # freeze every stream where it is, so nothing moves on along the plan meanwhile
             for vid, assignment in list(streamer.assignments.items()):
                 last = assignment.last

@@ -451,15 +451,21 @@ class VehicleLink:
             self._pending[command] = pending
             self.send(self.endpoint.mav.command_long_encode(
                 self.system_id, self.component_id, command, attempt, *p))
-            while True:
-                remaining = pending.sent_at + timeout - time.monotonic()
-                if remaining <= 0:
-                    break
-                try:
-                    return await asyncio.wait_for(asyncio.shield(future), remaining)
-                except TimeoutError:
-                    continue
-            future.cancel()
+            try:
+                while True:
+                    remaining = pending.sent_at + timeout - time.monotonic()
+                    if remaining <= 0:
+                        break
+                    try:
+                        return await asyncio.wait_for(asyncio.shield(future), remaining)
+                    except TimeoutError:
+                        continue
+            finally:
+                # Cancelled (an abort stopping the flow) or done: this command no longer
+                # waits, so the next one with the same id (the abort's disarm) may go out.
+                future.cancel()
+                if self._pending.get(command) is pending:
+                    del self._pending[command]
         raise CommandError(self.vehicle_id, command, None,
                            f"no COMMAND_ACK for command {command} after {retries + 1} tries")
 

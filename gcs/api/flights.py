@@ -306,6 +306,7 @@ class FleetService:
         record: dict[str, Any] | None = None
         ticker: asyncio.Task[None] | None = None
         relay: asyncio.Task[None] | None = None
+        task: asyncio.Task[dict[str, Any]] | None = None
         try:
             await self._close_monitor()
             if self.kind == "mock":
@@ -334,6 +335,12 @@ class FleetService:
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("execution %s failed", flight.id)
             flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
+            if task is not None and not task.done() and flight.mission is not None:
+                # never leave a mission flying on its own: land everyone, then wait for it
+                with contextlib.suppress(Exception):
+                    await flight.mission.abort("land", f"service error: {type(exc).__name__}")
+                with contextlib.suppress(BaseException):
+                    await task
         finally:
             for helper in (ticker, relay):
                 if helper is not None:

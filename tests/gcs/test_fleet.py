@@ -210,3 +210,31 @@ def test_abort_from_the_api_holds_everyone_at_once() -> None:
     _mission, outcome, _mock = asyncio.run(_fly(plan, during=during))
     assert isinstance(outcome, MissionAborted)
     assert "abort" in seen and "hold" in seen
+
+
+@pytest.mark.parametrize(("yields", "wait"), [(0, 0.0), (1, 0.0), (5, 0.0), (200, 0.0),
+                                              (0, 0.5), (0, 1.5)])
+def test_abort_right_after_start_stops_everything(yields: int, wait: float) -> None:
+    """An abort in the first moments (links still opening, vehicles connecting or arming)
+    must stop the mission: no vehicle is left flying or armed, and abort() itself works."""
+    plan = smooth_plan(line_scenario(2))
+    result: dict[str, object] = {}
+
+    async def during(mission: Mission, mock: MockFleet) -> None:
+        for _ in range(yields):
+            await asyncio.sleep(0)
+        await asyncio.sleep(wait)  # connecting, or streaming and switching to OFFBOARD
+        try:
+            await mission.abort("land", "operator abort at once")
+            result["abort"] = "ok"
+        except Exception as exc:  # pragma: no cover - the failure being tested
+            result["abort"] = exc
+
+    _mission, outcome, mock = asyncio.run(_fly(plan, FAST, settle=0.0, during=during))
+    assert result["abort"] == "ok"
+    assert isinstance(outcome, MissionAborted)
+    for vehicle in mock.vehicles:
+        assert not vehicle.armed
+        assert vehicle.position_ned[2] == pytest.approx(0.0, abs=0.05)
+        assert vehicle.mode != px4.OFFBOARD or not any(
+            e == "armed" for _, e in vehicle.events)

@@ -219,3 +219,25 @@ def test_mavsdk_flies_the_mock() -> None:
                 assert mock.vehicles[0].setpoints_accepted > 20
 
     asyncio.run(main())
+
+
+def test_a_cancelled_command_does_not_block_the_next() -> None:
+    """An abort cancels the flow while it waits for an ACK; the disarm that follows with the
+    same command id must still go out."""
+    async def main() -> None:
+        async with MockFleet(1, settle_time=30.0, **mock_ports(1)) as mock, \
+                LinkHub() as hub:
+            link = await _connect(mock, hub)
+            mock.vehicles[0].faults.loss = 1.0  # the ACK of the first try never comes
+            waiting = asyncio.create_task(
+                link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,), timeout=5.0))
+            await asyncio.sleep(0.2)
+            waiting.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await waiting
+            mock.vehicles[0].faults.loss = 0.0
+            # arming is TEMPORARILY_REJECTED (settling); what matters is that it is answered
+            result = await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,))
+            assert result == mavlink.MAV_RESULT_ACCEPTED
+
+    asyncio.run(main())
