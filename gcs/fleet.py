@@ -70,6 +70,7 @@ from gcs.link import LinkHub, VehicleLink, mavlink, result_name
 from gcs.record import FlightRecorder, measured_min_separation
 from gcs.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
 from gcs.stream import Streamer, jitter_stats
+from planner.verify import verify
 
 __all__ = ["TRACKING_TOLERANCE_M", "Mission", "VehicleStatus"]
 
@@ -77,6 +78,8 @@ __all__ = ["TRACKING_TOLERANCE_M", "Mission", "VehicleStatus"]
 #: tracking error of each (centimetres on the mock) plus the skew between their position
 #: reports. The end-to-end test checks the measured separation against R minus this.
 TRACKING_TOLERANCE_M = 0.1
+#: Phases in which a vehicle is (or may be) in the air.
+_AIRBORNE = ("climbing", "at_start", "flying", "holding", "landing", "faulty", "hovering")
 _MONITOR_PERIOD = 0.05
 _CONFIRM_TIMEOUT = 3.0
 _MODE_RETRY_FOR = 5.0
@@ -115,10 +118,16 @@ class Mission:
     """One flight of a plan on a fleet; see the module docstring."""
 
     def __init__(self, plan: Any, fleet: FleetSpec, options: MissionOptions | None = None) -> None:
-        if not plan.ok:
-            raise PlanRejected(f"refusing to fly a plan that is not verified "
-                               f"(status {plan.status!r}, verification "
-                               f"{'missing' if plan.verification is None else 'failed'})")
+        # Checked again here on the trajectories themselves: a plan file's own verification
+        # block is only a claim (it may have been edited, or written by another tool).
+        if plan.status != "converged":
+            raise PlanRejected(f"refusing to fly a plan with status {plan.status!r}: "
+                               f"{plan.message}")
+        check = verify(plan.scenario, plan.positions(), plan.velocities(),
+                       plan.accelerations())
+        if not check.verified:
+            raise PlanRejected("refusing to fly a plan that fails verification: "
+                               + "; ".join(check.failures()))
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
@@ -628,15 +637,21 @@ class Mission:
                         self._flag(v, "tracking_error",
                                    f"{v.tracking_error:.2f} m from the plan "
                                    f"(bound {opts.tracking_error_max:g} m)")
+            # Every vehicle in the air counts, a faulty one going down among the others too.
             airborne = [positions[v.id] for v in self.vehicles
-                        if v.id in positions and v.phase in ("climbing", "at_start", "flying",
-                                                             "holding")]
+                        if v.id in positions and v.phase in _AIRBORNE]
             if len(airborne) >= 2:
                 pts = np.stack(airborne) / self._separation_scale
                 i, j = np.triu_indices(len(pts), k=1)
-                self.min_separation_live = min(
-                    self.min_separation_live,
-                    float(np.min(np.linalg.norm(pts[i] - pts[j], axis=1))))
+                closest = float(np.min(np.linalg.norm(pts[i] - pts[j], axis=1)))
+                self.min_separation_live = min(self.min_separation_live, closest)
+                alarm = plan.scenario.min_separation - opts.separation_alarm
+                if closest < alarm and self._abort is None:
+                    # Two vehicles about to meet is nobody's single fault: stop everyone
+                    # where they are (PX4 Hold) rather than send anyone down through others.
+                    self._emit(None, "separation_alarm",
+                               f"vehicles {closest:.2f} m apart (alarm below {alarm:.2f} m)")
+                    self._spawn(self.abort("hold", f"separation {closest:.2f} m"))
 
     def _flag(self, v: VehicleStatus, kind: str, detail: str) -> None:
         v.fault = kind
@@ -741,8 +756,10 @@ class Mission:
             positions.append(p)
         if tracking:
             out["tracking_error_max"] = max(tracking)
-        separation, _ = measured_min_separation(times, positions, t0, t1, opts.rate_hz,
-                                                self._separation_scale)
+        # Separation over the whole flight, not only up to the first fault: a vehicle sent
+        # down by land_faulty still passes the others.
+        separation, _ = measured_min_separation(times, positions, t0, min(end, self.now()),
+                                                opts.rate_hz, self._separation_scale)
         out["min_separation_measured"] = _finite_or_none(separation)
         goal_errors = [v.goal_error for v in self.vehicles if not math.isnan(v.goal_error)]
         if goal_errors:

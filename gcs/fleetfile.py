@@ -38,6 +38,11 @@ from gcs.errors import FleetFileError
 from gcs.frames import Geodetic
 from gcs.setpoints import MAX_RATE_HZ
 
+#: PX4 leaves offboard mode when setpoints arrive at 2 Hz or slower (PX4 docs: "> 2Hz").
+MIN_RATE_HZ = 2.0
+#: A link may be silent this long at most before it must count as lost (s).
+MAX_LINK_TIMEOUT_S = 5.0
+
 __all__ = [
     "AT_END",
     "POLICIES",
@@ -74,6 +79,9 @@ class MissionOptions:
     """A vehicle whose HEARTBEAT is older than this is flagged: its mode and armed state are
     no longer known (s). Five missed at PX4's 1 Hz: at 20% packet loss that happens by chance
     with probability 0.2^5 = 3e-4 per heartbeat, while a lost link is caught in 1.5 s."""
+    separation_alarm: float = 0.3
+    """The whole fleet is stopped (PX4 Hold) when two vehicles come closer than R minus this,
+    in the plan's separation metric (m): three times the tracking tolerance."""
     tracking_error_max: float = 1.0
     """A vehicle farther than this from its planned position is flagged (m)."""
     start_tolerance: float = 0.3
@@ -124,10 +132,15 @@ class MissionOptions:
                 if key != "yaw" and value < 0:
                     raise FleetFileError(f"{where}.{key}", f"must not be negative, got {value}")
         out = replace(self, **changes)
-        if not 0.0 < out.rate_hz <= MAX_RATE_HZ:
+        if not MIN_RATE_HZ < out.rate_hz <= MAX_RATE_HZ:
             raise FleetFileError(f"{where}.rate_hz",
-                                 f"must be in (0, {MAX_RATE_HZ:g}] Hz, got {out.rate_hz:g}")
-        for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
+                                 f"must be in ({MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz (PX4 needs "
+                                 f"offboard setpoints faster than 2 Hz), got {out.rate_hz:g}")
+        if out.link_timeout > MAX_LINK_TIMEOUT_S:
+            raise FleetFileError(f"{where}.link_timeout",
+                                 f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
+                                 f"link, got {out.link_timeout:g}")
+        for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max", "separation_alarm",
                     "start_tolerance", "goal_tolerance", "climb_speed"):
             if getattr(out, key) <= 0:
                 raise FleetFileError(f"{where}.{key}", "must be positive")

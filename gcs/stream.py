@@ -15,9 +15,9 @@ Timing: asyncio's timers wake up to ~1 ms late (epoll counts in milliseconds) an
 a MAVLink message takes tens of microseconds, so the loop wakes early by the time the last
 tick took to encode plus `WAKE_MARGIN`, encodes every vehicle's message for the tick, waits
 out the remaining fraction of a millisecond on the clock itself, and then only sends the
-ready datagrams. Measured with 50 vehicles at 50 Hz (bench/stream.py): p50/p99 lateness
-1.3/4.2 ms when sleeping on the timer, 0.35/2.6 ms like this, for about 2.5 ms of waiting on
-the clock per tick (12% of a core at 50 Hz, 5% at the default 20 Hz).
+ready datagrams. Measured with 50 vehicles at 50 Hz (bench/stream.py, README): p50/p99
+lateness 1.5/4.2 ms when sleeping on the timer, 0.5/3.8 ms (medians of 3 runs) like this,
+for about 2.5 ms of waiting on the clock per tick (12% of a core at 50 Hz, 5% at 20 Hz).
 """
 
 from __future__ import annotations

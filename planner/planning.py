@@ -3,7 +3,9 @@
 Parses the scenario if given as a mapping, runs the SCP loop, derives jerk, thrust and body
 rates, verifies the result independently and packs it into a `Plan`. A plan is never
 reported `converged` unless its verification passed; if the checks fail (which the loop is
-built to prevent) the status becomes `unverified`, with the reason in `message`.
+built to prevent) the status becomes `unverified`, with the reason in `message`; so it does
+when thrust or body rates exceed the scenario's flyability limits (the QP does not
+constrain them).
 """
 
 from __future__ import annotations
@@ -56,17 +58,9 @@ def plan(
     verification = verify(spec, p, v, a) if outcome.status != "infeasible" else None
     status, message = outcome.status, outcome.message
     if verification is not None and not verification.verified:
-        failed = []
-        if not verification.separated:
-            failed.append(
-                f"continuous-time separation {verification.min_separation_continuous:.4f} m "
-                f"< {spec.min_separation:g} m"
-            )
-        if not verification.within_bounds:
-            failed.append("a box or boundary condition is violated")
         if status == "converged":
             status = "unverified"
-        message = f"{message}; verification failed: {'; '.join(failed)}"
+        message = f"{message}; verification failed: {'; '.join(verification.failures())}"
     timing = {
         "total_s": time.perf_counter() - began,
         "first_qp_s": outcome.first_qp_seconds,

@@ -7,7 +7,7 @@ GCS, the API and tests) and checks shapes, raising `PlanFormatError` naming the 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -120,8 +120,24 @@ class Verification:
 
     @property
     def verified(self) -> bool:
-        """Separated, within bounds (flyability is reported, not required)."""
-        return self.separated and self.within_bounds
+        """Separated, within bounds, and flyable (thrust and body rates within limits)."""
+        return self.separated and self.within_bounds and self.flyable
+
+    def failures(self) -> list[str]:
+        """What failed, in words (empty when verified)."""
+        out = []
+        if not self.separated:
+            out.append(f"continuous-time separation {self.min_separation_continuous:.4f} m "
+                       f"is below R")
+        if not self.within_bounds:
+            worst = max({**self.max_violation, **self.boundary_error}.items(),
+                        key=lambda kv: kv[1])
+            out.append(f"{worst[0]} off by {worst[1]:.3g}")
+        if not self.flyable:
+            out.append(f"not flyable: thrust {self.thrust_range[0]:.2f}..."
+                       f"{self.thrust_range[1]:.2f} m/s^2, body rate peak "
+                       f"{self.body_rate_peak:.2f} rad/s against the limits")
+        return out
 
 
 @dataclass(frozen=True)
@@ -201,6 +217,26 @@ def _array(data: Mapping[str, Any], key: str, where: str, shape: tuple[int, ...]
     return arr
 
 
+def _list(value: Any, where: str) -> list[Any]:
+    if not isinstance(value, list):
+        raise PlanFormatError(where, "must be a list")
+    return value
+
+
+def _record(cls: Any, value: Any, where: str) -> Any:
+    """A dataclass from a JSON object, with unknown or missing keys named."""
+    if not isinstance(value, Mapping):
+        raise PlanFormatError(where, "must be a JSON object")
+    names = {f.name for f in fields(cls)}
+    for key in value:
+        if key not in names:
+            raise PlanFormatError(f"{where}.{key}", "unknown key")
+    try:
+        return cls(**value)
+    except TypeError as exc:
+        raise PlanFormatError(where, str(exc).split("__init__() ")[-1]) from None
+
+
 def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
     if not isinstance(data, Mapping):
         raise PlanFormatError("plan", "must be a JSON object")
@@ -237,16 +273,26 @@ def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
                 body_rates=_array(raw, "body_rates", where, (k, 3)),
             )
         )
-    iterations = tuple(IterationRecord(**r) for r in data.get("iterations", []))
+    iterations = tuple(_record(IterationRecord, r, f"iterations[{n}]")
+                       for n, r in enumerate(_list(data.get("iterations", []), "iterations")))
     raw_verification = data.get("verification")
-    verification = None if raw_verification is None else Verification(**raw_verification)
+    verification = (None if raw_verification is None
+                    else _record(Verification, raw_verification, "verification"))
+    raw_timing = data.get("timing", {})
+    if not isinstance(raw_timing, Mapping):
+        raise PlanFormatError("timing", "must be a JSON object")
+    timing = {}
+    for key, value in raw_timing.items():
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise PlanFormatError(f"timing.{key}", "must be a number")
+        timing[str(key)] = float(value)
     return Plan(
         status=status,
         message=str(data.get("message", "")),
         scenario=scenario,
         vehicles=tuple(vehicles),
         iterations=iterations,
-        timing={k: float(v) for k, v in data.get("timing", {}).items()},
+        timing=timing,
         verification=verification,
         solver=str(data.get("solver", "")),
         infeasible_groups=tuple(data.get("infeasible_groups", ())),

@@ -60,9 +60,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: --vehicles {args.vehicles} but the plan has {len(homes)}",
                   file=sys.stderr)
             return 2
-    count = len(homes) if homes is not None else (args.vehicles or 4)
-    if count < 1:
-        print("error: --vehicles must be at least 1", file=sys.stderr)
+    count = len(homes) if homes is not None else (4 if args.vehicles is None else args.vehicles)
+    if not 1 <= count <= 254:  # MAVLink system ids 1..254 (255 is the GCS's)
+        print(f"error: --vehicles must be between 1 and 254, got {count}", file=sys.stderr)
         return 2
     if homes is None:
         homes = [[args.spacing * i, 0.0, 0.0] for i in range(count)]

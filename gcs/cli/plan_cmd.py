@@ -54,7 +54,7 @@ def _summary_rows(plan: Any) -> list[tuple[str, str]]:
     rows = [
         ("status", plan.status),
         ("vehicles", str(len(plan.vehicles))),
-        ("SCP iterations", str(len(plan.iterations) - 1)),
+        ("SCP iterations", str(max(len(plan.iterations) - 1, 0))),
         ("cost (sum ||a+g||^2)", f"{plan.cost:.4f}"),
         ("time total / first QP", f"{plan.timing['total_s']:.3f} s / "
                                   f"{plan.timing['first_qp_s']:.3f} s"),

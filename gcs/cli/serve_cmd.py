@@ -10,6 +10,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from gcs.settings import Settings
 
 __all__ = ["configure", "run"]
 
@@ -30,6 +34,43 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="settings file (default $FLEETPLAN_CONFIG or ./fleetplan.toml)")
     parser.add_argument("--log-level", default="info",
                         choices=("critical", "error", "warning", "info", "debug"))
+
+
+def _port_free(kind: int, port: int, host: str = "127.0.0.1") -> bool:
+    import socket
+
+    with socket.socket(socket.AF_INET, kind) as sock:
+        try:
+            sock.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def _startup_problem(settings: Settings) -> str | None:
+    """What would stop the service from starting, in one line (None: nothing), checked
+    before uvicorn so a bad fleet file or a busy port is a message, not a traceback."""
+    import socket
+
+    from gcs.errors import FleetFileError
+    from gcs.fleetfile import load_fleet
+
+    fleet_file = settings.fleet_file
+    if fleet_file is not None:
+        try:
+            load_fleet(fleet_file)
+        except FleetFileError as exc:
+            return f"fleet file {fleet_file}: {exc.field}: {exc.reason}"
+    elif settings.mock_vehicles:
+        base, count = settings.mock_base_port, settings.mock_vehicles
+        for port in (*range(base, base + count), *range(base + 40, base + 40 + count)):
+            if not _port_free(socket.SOCK_DGRAM, port):
+                return (f"UDP port {port} (mock vehicles, mock_base_port {base}) is in use: "
+                        f"another fleetplan or PX4 SITL running? Set FLEETPLAN_MOCK_BASE_PORT")
+    host, port = settings.host, settings.port
+    if ":" not in host and not _port_free(socket.SOCK_STREAM, port, host):
+        return f"TCP port {port} on {host} is in use: choose another with --port"
+    return None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
         settings = Settings.load(args.config, **overrides)
     except (ValidationError, SettingsFileError) as exc:
         print(f"fleetplan serve: invalid settings: {exc}", file=sys.stderr)
+        return 2
+    problem = _startup_problem(settings)
+    if problem is not None:
+        print(f"fleetplan serve: {problem}", file=sys.stderr)
         return 2
     app = create_app(settings)
     fleet = (

@@ -81,3 +81,32 @@ def test_an_explicit_config_file_beats_the_environment_variable(
     monkeypatch.setenv("FLEETPLAN_CONFIG", str(tmp_path / "a.toml"))
     assert Settings.load(tmp_path / "b.toml").port == 8102
     assert Settings().port == 8101  # nothing left behind
+
+
+def test_serve_refuses_a_bad_fleet_file_or_busy_ports_before_starting(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import socket
+
+    from tests.api.support import free_port, free_udp_base
+
+    fleet = tmp_path / "fleet.json"
+    fleet.write_text('{"vehicles": [], "colour": "red"}')
+    assert main(["serve", "--fleet", str(fleet), "--port", str(free_port())]) == 2
+    err = capsys.readouterr().err
+    assert "colour: unknown key" in err and "Traceback" not in err
+
+    base = free_udp_base(2)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as busy:
+        busy.bind(("127.0.0.1", base + 1))
+        monkeypatch.setenv("FLEETPLAN_MOCK_BASE_PORT", str(base))
+        code = main(["serve", "--mock", "2", "--port", str(free_port())])
+    assert code == 2
+    assert f"UDP port {base + 1}" in capsys.readouterr().err
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        taken = busy.getsockname()[1]
+        assert main(["serve", "--mock", "0", "--port", str(taken)]) == 2
+    assert f"TCP port {taken}" in capsys.readouterr().err

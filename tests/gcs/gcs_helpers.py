@@ -8,10 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from planner.dynamics import integrate
+from planner.first_qp import unit_profile
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.result import Plan, VehicleTrajectory, Verification
+from planner.result import Plan, VehicleTrajectory
 from planner.scenario import Scenario
+from planner.verify import verify
 
 
 def free_port_block(count: int, attempts: int = 200) -> int:
@@ -45,41 +46,30 @@ def mock_ports(count: int) -> dict[str, int]:
 
 
 def smooth_plan(scenario_dict: dict[str, Any]) -> Plan:
-    """A verified-looking Plan whose vehicles fly rest-to-rest along straight lines.
+    """A plan whose vehicles fly rest-to-rest along straight lines (no SCP), verified.
 
-    Accelerations a_k = c * sin(2 pi (k + 1/2) / K) (k = 0..K-1) sum to zero, so every vehicle
-    ends at rest; c is chosen so it ends exactly at its goal. Not collision-checked: tests use
-    scenarios whose straight lines are far apart (the real planner is used where that matters).
+    Each vehicle follows the planner's own minimum-thrust unit profile scaled by its move,
+    which meets every boundary condition; the verification is computed for real. Tests use
+    scenarios whose straight lines are far apart (the real planner is used where that
+    matters), so these plans are separated.
     """
     scenario = Scenario.from_dict(scenario_dict)
     k, dt = scenario.steps, scenario.dt
-    shape = np.sin(2 * np.pi * (np.arange(k) + 0.5) / k)
-    p_unit, _ = integrate(np.zeros(3), np.zeros(3), np.outer(shape, np.ones(3)), dt)
-    per_unit = p_unit[-1, 0]
+    phi_p, phi_v, phi_a = unit_profile(k, dt)
     vehicles = []
     for v in scenario.vehicles:
-        c = (v.goal - v.start) / per_unit
-        acc = np.outer(shape, c)
-        pos, vel = integrate(v.start, np.zeros(3), acc, dt)
+        move = v.goal - v.start
+        acc = np.outer(phi_a, move)
         jerk = jerk_from_accelerations(acc, dt)
         vehicles.append(VehicleTrajectory(
-            id=v.id, t=np.arange(k + 1) * dt, position=pos, velocity=vel, acceleration=acc,
-            jerk=jerk, thrust=thrust(acc), body_rates=body_rates(acc, jerk)))
-    plan = Plan(status="converged", message="test plan", scenario=scenario,
-                vehicles=tuple(vehicles), iterations=(), timing={}, verification=None,
-                solver="test")
-    positions = plan.sample(np.linspace(0, scenario.horizon, 2001)).position
-    n = len(vehicles)
-    sep = np.inf
-    for i in range(n):
-        for j in range(i + 1, n):
-            d = np.linalg.norm((positions[i] - positions[j]) / scenario.separation_scale, axis=1)
-            sep = min(sep, float(d.min()))
-    verification = Verification(
-        min_separation=sep, min_separation_continuous=sep, closest_pair=[],
-        closest_time=0.0, max_violation={}, boundary_error={}, thrust_range=[0.0, 0.0],
-        body_rate_peak=0.0, flyable=True, separated=sep >= scenario.min_separation,
-        within_bounds=True, separation_tolerance=1e-3, bound_tolerance=1e-3)
+            id=v.id, t=np.arange(k + 1) * dt, position=v.start + np.outer(phi_p, move),
+            velocity=np.outer(phi_v, move), acceleration=acc, jerk=jerk, thrust=thrust(acc),
+            body_rates=body_rates(acc, jerk)))
+    positions = np.stack([v.position for v in vehicles])
+    velocities = np.stack([v.velocity for v in vehicles])
+    accelerations = np.stack([v.acceleration for v in vehicles])
+    verification = verify(scenario, positions, velocities, accelerations)
+    assert verification.verified, verification.failures()
     return Plan(status="converged", message="test plan", scenario=scenario,
                 vehicles=tuple(vehicles), iterations=(), timing={},
                 verification=verification, solver="test")

@@ -107,9 +107,10 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
     flagged = [e for e in record["events"] if e["kind"] == "fault"]
     assert [e["vehicle"] for e in flagged] == ["uav2"]
     assert kind in flagged[0]["detail"]
-    # detected within the timeout (+ one 50 ms monitor period): the last message arrived
-    # before the fault started, so detection can come a little earlier than `bound`
-    assert bound - 1.05 <= flagged[0]["t"] - started["at"] <= bound + 0.06
+    # detected within the timeout plus one 50 ms monitor period (and some slack for a
+    # loaded machine); the last message arrived before the fault started, so detection can
+    # come a little earlier than `bound`
+    assert bound - 1.05 <= flagged[0]["t"] - started["at"] <= bound + 0.25
     summary = record["summary"]
     assert summary["faults"] == {"uav2": kind}
     assert summary["completed"] is False
@@ -238,3 +239,50 @@ def test_abort_right_after_start_stops_everything(yields: int, wait: float) -> N
         assert vehicle.position_ned[2] == pytest.approx(0.0, abs=0.05)
         assert vehicle.mode != px4.OFFBOARD or not any(
             e == "armed" for _, e in vehicle.events)
+
+
+def test_a_plan_file_is_verified_again_before_flying() -> None:
+    """The GCS checks the trajectories it is given, not the plan's own verification block:
+    a plan edited so that two vehicles collide (its stored verification still says fine)
+    is refused, and so is one that is not flyable."""
+    from gcs.errors import PlanRejected
+    from planner import Plan
+
+    plan = smooth_plan(line_scenario(2))
+    doc = plan.to_dict()
+    doc["vehicles"][1].update({k: doc["vehicles"][0][k] for k in
+                               ("position", "velocity", "acceleration")})
+    tampered = Plan.from_dict(doc)
+    assert tampered.ok  # what the file claims
+    fleet = FleetSpec.from_dict({"vehicles": [
+        {"id": f"uav{i + 1}", "connection": f"udpin:127.0.0.1:{30000 + i}",
+         "system_id": i + 1, "home": [0, 0, 0]} for i in range(2)]})
+    with pytest.raises(PlanRejected, match="separation"):
+        Mission(tampered, fleet)
+    doc = plan.to_dict()
+    doc["scenario"]["limits"]["body_rate_max"] = 1e-6
+    with pytest.raises(PlanRejected, match="not flyable"):
+        Mission(Plan.from_dict(doc), fleet)
+
+
+def test_a_separation_breach_stops_the_whole_fleet() -> None:
+    from gcs import frames
+
+    plan = smooth_plan(line_scenario(2))
+
+    async def during(mission: Mission, mock: MockFleet) -> None:
+        while (mission.mission_time() or -1.0) < 1.0:
+            await asyncio.sleep(0.02)
+        # push vehicle 2 to 0.4 m from vehicle 1 (R = 1 m): the model then flies it back
+        target = mock.vehicles[0].position_world + np.array([0.4, 0.0, 0.0])
+        mock.model.position[1] = frames.world_to_ned(target, mock.vehicles[1].home_world)
+
+    # a wide tracking bound, so that the separation alarm is what reacts
+    options = FAST.replace(tracking_error_max=5.0)
+    mission, outcome, mock = asyncio.run(_fly(plan, options, during=during))
+    assert isinstance(outcome, MissionAborted)
+    assert "separation" in str(outcome)
+    kinds = [e["kind"] for e in mission.record["events"]]
+    assert "separation_alarm" in kinds
+    assert all(v.mode == px4.HOLD for v in mock.vehicles)
+    assert mission.record["summary"]["min_separation_measured"] < 0.7

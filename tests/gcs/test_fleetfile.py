@@ -36,6 +36,9 @@ def test_valid_fleet_with_shared_connection() -> None:
     ({"vehicles": _fleet()["vehicles"] * 2}, "vehicles[1].id"),
     (_fleet() | {"mission": {"policy": "panic"}}, "mission.policy"),
     (_fleet() | {"mission": {"rate_hz": 500}}, "mission.rate_hz"),
+    (_fleet() | {"mission": {"rate_hz": 2}}, "mission.rate_hz"),  # PX4 needs > 2 Hz
+    (_fleet() | {"mission": {"link_timeout": 60}}, "mission.link_timeout"),
+    (_fleet() | {"mission": {"separation_alarm": -1}}, "mission.separation_alarm"),
     (_fleet() | {"world_origin": {"lat": 95, "lon": 0, "alt": 0}}, "world_origin.lat"),
 ])
 def test_errors_name_the_field(data, field: str) -> None:

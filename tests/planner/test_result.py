@@ -55,3 +55,29 @@ def test_malformed_plans_name_the_field(plan, edit, field):
     with pytest.raises(PlanFormatError) as info:
         Plan.from_dict(doc)
     assert info.value.field == field
+
+
+@pytest.mark.parametrize(
+    ("edit", "field"),
+    [
+        (lambda d: d["verification"].update(extra=1), "verification.extra"),
+        (lambda d: d.update(iterations={"a": 1}), "iterations"),
+        (lambda d: d["iterations"][0].pop("cost"), "iterations[0]"),
+        (lambda d: d["timing"].update(total_s="fast"), "timing.total_s"),
+    ],
+)
+def test_malformed_optional_blocks_name_the_field(plan, edit, field):
+    doc = json.loads(json.dumps(plan.to_dict()))
+    edit(doc)
+    with pytest.raises(PlanFormatError) as info:
+        Plan.from_dict(doc)
+    assert info.value.field == field
+
+
+def test_a_plan_beyond_the_flyability_limits_is_not_verified():
+    data = load_example("paper-circle4")
+    data["limits"]["body_rate_max"] = 0.001
+    plan = planner.plan(data)
+    assert plan.status == "unverified"
+    assert not plan.ok and not plan.verification.flyable
+    assert "not flyable" in plan.message
