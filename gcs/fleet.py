@@ -81,7 +81,6 @@ TRACKING_TOLERANCE_M = 0.1
 #: Phases in which a vehicle is (or may be) in the air.
 _AIRBORNE = ("climbing", "at_start", "flying", "holding", "landing", "faulty", "hovering")
 _MONITOR_PERIOD = 0.05
-_CONFIRM_TIMEOUT = 3.0
 _MODE_RETRY_FOR = 5.0
 
 
@@ -375,12 +374,13 @@ class Mission:
         while True:
             result = await link.command(mavlink.MAV_CMD_DO_SET_MODE, mode.command_params)
             if result == mavlink.MAV_RESULT_ACCEPTED:
-                if await link.wait_for(lambda t: t.mode == mode, _CONFIRM_TIMEOUT):
+                if await link.wait_for(lambda t: t.mode == mode,
+                                       self.options.heartbeat_timeout):
                     self._emit(v.id, "mode", f"{mode.name} confirmed")
                     return
                 raise ModeRefused(v.id, mavlink.MAV_CMD_DO_SET_MODE, result,
                                   f"{mode.name} accepted but not shown in HEARTBEAT within "
-                                  f"{_CONFIRM_TIMEOUT:g} s")
+                                  f"{self.options.heartbeat_timeout:g} s")
             if (result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
                     and time.monotonic() < deadline):
                 await asyncio.sleep(0.5)
@@ -399,12 +399,12 @@ class Mission:
             result = await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,))
             if result == mavlink.MAV_RESULT_ACCEPTED:
                 v.armed_by_us = True
-                if await link.wait_for(lambda t: t.armed, _CONFIRM_TIMEOUT):
+                if await link.wait_for(lambda t: t.armed, self.options.heartbeat_timeout):
                     self._emit(v.id, "armed", f"after {attempts} attempt(s)")
                     return
                 raise ArmingRefused(v.id, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, result,
                                     f"arming accepted but HEARTBEAT not armed within "
-                                    f"{_CONFIRM_TIMEOUT:g} s")
+                                    f"{self.options.heartbeat_timeout:g} s")
             if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
                 if time.monotonic() + px4.ARM_TEMPORARILY_REJECTED_RETRY_S < deadline:
                     await asyncio.sleep(px4.ARM_TEMPORARILY_REJECTED_RETRY_S)
