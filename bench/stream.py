@@ -19,37 +19,22 @@ import json
 import os
 import platform
 import resource
-import socket
 import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
+
+# Run as `python bench/stream.py`, this folder comes first on sys.path, where planner.py
+# (the planner benchmark) would shadow the planner package: the project root goes first.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
 from gcs.link import LinkHub
+from gcs.ports import free_udp_base
 from gcs.setpoints import SetpointTrack
 from gcs.stream import Streamer, jitter_stats
-
-
-def free_base(count: int) -> int:
-    import random
-
-    for _ in range(200):
-        base = random.randrange(20000, 60000 - count)
-        socks = []
-        try:
-            for port in range(base, base + count):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(s)
-                s.bind(("127.0.0.1", port))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError("no free ports")
 
 
 def proc_cpu_seconds(pid: int) -> float:
@@ -59,7 +44,7 @@ def proc_cpu_seconds(pid: int) -> float:
 
 
 async def one_run(vehicles: int, rate: float, duration: float) -> dict:
-    base = free_base(2 * vehicles)
+    base = free_udp_base(range(2 * vehicles))
     mock = subprocess.Popen(
         [sys.executable, "-m", "gcs.cli.main", "mock", "--vehicles", str(vehicles),
          "--base-port", str(base), "--listen-base-port", str(base + vehicles),

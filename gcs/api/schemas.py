@@ -144,6 +144,7 @@ class IterationOut(BaseModel):
     qp_solves: int
     groups: int
     seconds: float
+    largest_group: int = 0
 
 
 class VehicleTrajectoryOut(BaseModel):

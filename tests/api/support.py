@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import socket
 import subprocess
 import sys
@@ -14,6 +13,8 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+
+from gcs import ports
 
 __all__ = ["EXAMPLES", "SHORT_CROSSING", "ServiceProcess", "example", "free_port",
            "free_udp_base"]
@@ -43,21 +44,7 @@ SHORT_CROSSING: dict[str, Any] = {
 def free_udp_base(count: int) -> int:
     """A mock base port B with UDP ports B..B+count-1 and B+40..B+40+count-1 all free now
     (mock vehicle i sends to B+i and listens on B+40+i): never PX4's fixed 14540."""
-    for _ in range(200):
-        base = random.randrange(20_000, 60_000)
-        sockets: list[socket.socket] = []
-        try:
-            for port in (*range(base, base + count), *range(base + 40, base + 40 + count)):
-                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                sockets.append(sock)
-                sock.bind(("127.0.0.1", port))
-            return base
-        except OSError:
-            continue
-        finally:
-            for sock in sockets:
-                sock.close()
-    raise RuntimeError("no free UDP port range found")
+    return ports.free_udp_base([*range(count), *range(40, 40 + count)])
 
 
 def free_port() -> int:

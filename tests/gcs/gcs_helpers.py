@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import random
-import socket
 from typing import Any
 
 import numpy as np
 
+from gcs.ports import free_udp_base
 from planner.first_qp import unit_profile
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Plan, VehicleTrajectory
@@ -15,28 +14,9 @@ from planner.scenario import Scenario
 from planner.verify import verify
 
 
-def free_port_block(count: int, attempts: int = 200) -> int:
-    """A base port such that UDP ports base..base+count-1 are free on 127.0.0.1 right now.
-
-    Random bases in a range far from PX4's 14540/14550/14580 so that concurrent test suites
-    on this machine do not collide.
-    """
-    rng = random.Random()
-    for _ in range(attempts):
-        base = rng.randrange(20000, 60000 - count)
-        sockets = []
-        try:
-            for port in range(base, base + count):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                sockets.append(s)
-                s.bind(("127.0.0.1", port))
-        except OSError:
-            continue
-        finally:
-            for s in sockets:
-                s.close()
-        return base
-    raise RuntimeError("no free UDP port block found")
+def free_port_block(count: int) -> int:
+    """A base port such that UDP ports base..base+count-1 are free on 127.0.0.1 right now."""
+    return free_udp_base(range(count))
 
 
 def mock_ports(count: int) -> dict[str, int]:

@@ -1,0 +1,39 @@
+"""The benchmark scripts run as documented (`python bench/NAME.py`, from any directory) and
+print the JSON the README's figures come from. Their timings are not asserted here."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+BENCH = Path(__file__).resolve().parents[2] / "bench"
+
+
+def _run(script: str, *args: str) -> dict:
+    done = subprocess.run([sys.executable, str(BENCH / script), *args], capture_output=True,
+                          text=True, timeout=300, cwd="/")
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def test_planner_benchmark_reports_figures_and_machine():
+    report = _run("planner.py", "--only", "paper-circle2", "--repeats", "1",
+                  "--dmpc-sizes", "4", "--dmpc-trials", "1", "--no-solver-comparison",
+                  "--row-modes")
+    row = report["scenarios"][0]
+    assert row["scenario"] == "paper-circle2" and row["status"] == "converged"
+    assert row["min_separation_continuous"] >= row["R"] - 1e-4
+    assert row["total_s"] > 0
+    assert row["peak_rss_mb"] is None or row["peak_rss_mb"] > 0  # None off Linux
+    assert report["dmpc2019"]["4"]["verified"] == 1
+    assert report["machine"]["cpus"] >= 1
+
+
+def test_stream_benchmark_reports_rate_and_jitter():
+    report = _run("stream.py", "--vehicles", "3", "--rate", "20", "--duration", "2")
+    median = report["median"]
+    assert abs(median["achieved_rate_hz"] - 20.0) < 2.0
+    assert median["jitter_p50_ms"] <= median["jitter_p99_ms"]
+    assert report["floor"]["jitter_p99_ms"] == 5.0
