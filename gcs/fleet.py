@@ -541,15 +541,15 @@ class Mission:
 
     async def _secure_all(self, action: str) -> None:
         if self._secure_task is None:
-            # An abort can come before run() made the streamer (nothing streams, nothing
-            # is linked yet: `_secure` skips vehicles without a link).
-            streamer = self.streamer if self.streamer is not None else Streamer(1.0)
-            # freeze every stream where it is, so nothing moves on along the plan meanwhile
-            for vid, assignment in list(streamer.assignments.items()):
-                last = assignment.last
-                if last is not None:
-                    streamer.assign(vid, assignment.link,
-                                    hold_track(last.position, last.yaw, streamer.rate))
+            # Freeze every stream where it is, so nothing moves on along the plan meanwhile.
+            # (An abort can come before run() made the streamer: then nothing streams, and
+            # `_secure` skips the vehicles, none of which has a link yet.)
+            streamer = self.streamer
+            if streamer is not None:
+                for vid, assignment in list(streamer.assignments.items()):
+                    if assignment.last is not None:
+                        streamer.assign(vid, assignment.link, hold_track(
+                            assignment.last.position, assignment.last.yaw, streamer.rate))
             self._secure_task = asyncio.ensure_future(asyncio.gather(
                 *(self._secure(v, action) for v in self.vehicles),
                 return_exceptions=True))

@@ -59,11 +59,8 @@ class FirstSolution:
     positions: FloatArray
     velocities: FloatArray
     accelerations: FloatArray
-    closed_form: int
-    """Vehicles whose closed-form profile was already optimal."""
-    qp_vehicles: tuple[int, ...]
-    """Vehicles that needed the batched QP (a box was active)."""
     qp_solves: int
+    """0 when every closed-form profile was already optimal, else 1 (the batched QP)."""
     diagnosis: Diagnosis | None = None
 
 
@@ -134,16 +131,15 @@ def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:
     fits = _profile_fits(scenario, p, v, a)
     needs_qp = np.flatnonzero(~fits)
     if needs_qp.size == 0:
-        return FirstSolution("solved", p, v, a, len(fits), (), 0)
+        return FirstSolution("solved", p, v, a, 0)
     qp = build_group_qp(scenario, needs_qp, SeparationRows.empty())
     result = solver.solve(qp)
     if result.status != SOLVED or result.x is None:
-        return FirstSolution(result.status, p, v, a, int(fits.sum()), tuple(needs_qp.tolist()),
-                             1, diagnose(scenario, needs_qp, solver))
+        return FirstSolution(result.status, p, v, a, 1, diagnose(scenario, needs_qp, solver))
     qp_p, qp_v, qp_a = StageLayout(scenario.steps, len(needs_qp)).unpack(result.x)
     p, v, a = p.copy(), v.copy(), a.copy()
     p[needs_qp], v[needs_qp], a[needs_qp] = qp_p, qp_v, qp_a
-    return FirstSolution("solved", p, v, a, int(fits.sum()), tuple(needs_qp.tolist()), 1)
+    return FirstSolution("solved", p, v, a, 1)
 
 
 def _feasible(scenario: Scenario, vehicle: int, solver: QPSolver, **relax: object) -> bool:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -88,9 +88,6 @@ class ScpOutcome:
     iterations: list[IterationRecord]
     first_qp_seconds: float
     infeasible_groups: tuple[str, ...] = ()
-    infeasible_vehicles: tuple[int, ...] = ()
-    rows_final: int = 0
-    boxes_final: dict[str, int] = field(default_factory=dict)
 
 
 def thrust_cost(accelerations: FloatArray) -> float:
@@ -316,10 +313,9 @@ def run_scp(
     base = (first.positions, first.velocities, first.accelerations)
     if first.status != SOLVED:
         message = f"the separation-free QP has no solution (solver: {first.status})"
-        group, vehicles = "boxes", first.qp_vehicles
+        group = "boxes"
         if first.diagnosis is not None:
             group, index = first.diagnosis.group, first.diagnosis.vehicle
-            vehicles = (index,)
             why = (f"under the {group} bounds (feasible without them)" if group != "boxes"
                    else "under the combined box constraints")
             message = (f"vehicles[{index}] ({scenario.vehicles[index].id!r}) cannot reach its "
@@ -328,7 +324,7 @@ def run_scp(
             status="infeasible", message=message,
             positions=base[0], velocities=base[1], accelerations=base[2],
             iterations=[], first_qp_seconds=first_seconds,
-            infeasible_groups=(group,), infeasible_vehicles=vehicles,
+            infeasible_groups=(group,),
         )
 
     history: list[IterationRecord] = []
@@ -382,7 +378,7 @@ def run_scp(
                 ),
                 positions=current[0], velocities=current[1], accelerations=current[2],
                 iterations=history, first_qp_seconds=first_seconds,
-                infeasible_groups=("separation",), infeasible_vehicles=tuple(last.failed),
+                infeasible_groups=("separation",),
             )
         new_cost = thrust_cost(last.solution[2])
         change = abs(new_cost - cost)
@@ -402,16 +398,8 @@ def run_scp(
     if retried:
         message += (f"; {retried} iteration(s) linearised again about keep-right paths after "
                     f"an infeasible QP")
-    boxes_final = {}
-    if last is not None:
-        boxes_final = {
-            "bounds": int(last.boxes.bounds.sum()), "jerk": int(last.boxes.jerk.sum()),
-            "wall": int(last.boxes.wall.sum()),
-        }
     return ScpOutcome(
         status=status, message=message,
         positions=current[0], velocities=current[1], accelerations=current[2],
         iterations=history, first_qp_seconds=first_seconds,
-        rows_final=0 if last is None else int(last.keys.size),
-        boxes_final=boxes_final,
     )
