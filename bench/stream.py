@@ -1,8 +1,8 @@
 """Setpoint streaming benchmark: N mock vehicles in another process, one GCS process streaming.
 
 Starts `fleetplan mock` (python -m gcs.cli.main mock) with N vehicles on free ports, connects
-one `gcs.link.LinkHub`, and streams every vehicle a moving setpoint track through the shared
-clock (`gcs.stream.Streamer`) at RATE Hz for DURATION s. Prints one JSON document: scenario,
+one `gcs.flight.link.LinkHub`, and streams every vehicle a moving setpoint track through the shared
+clock (`gcs.flight.stream.Streamer`) at RATE Hz for DURATION s. Prints one JSON document: scenario,
 achieved rate, send-instant jitter p50/p99/max (lateness of each send against its tick's
 scheduled instant), CPU of the GCS process and of the mock process, machine info. With
 --repeat R it runs R times and also reports the medians. Floor: p99 jitter < 5 ms.
@@ -31,10 +31,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
-from gcs.link import LinkHub
-from gcs.ports import free_udp_base
-from gcs.setpoints import SetpointTrack
-from gcs.stream import Streamer, jitter_stats
+from gcs.flight.link import LinkHub
+from gcs.flight.setpoints import SetpointTrack
+from gcs.flight.stream import Streamer, jitter_stats
+from gcs.sim.ports import free_udp_base
 
 
 def proc_cpu_seconds(pid: int) -> float:

@@ -12,8 +12,14 @@
       still TEMPORARILY_REJECTED when the arming timeout ran out).
     - `ModeRefused`: MAV_CMD_DO_SET_MODE was refused.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
-  - `MissionAborted`: the mission stopped before completing (abort(), a fault policy, Ctrl-C);
+  - `MissionAborted`: the flight stopped before completing (abort(), a fault policy, Ctrl-C);
     `reason` says why. The vehicles were sent to hold or land before this is raised.
+  - `RequestError` (also a `FieldError`): the service cannot carry out a request; `field` names
+    what is wrong. `gcs.api.errors` maps each subclass to one HTTP status, in one place.
+    - `NotFound`: no such mission, execution, example or vehicle.
+    - `StateConflict`: the resource is in the wrong state (still planning, already flying).
+    - `InvalidRequest`: the request is well-formed but invalid, or exceeds a server limit.
+    - `ServiceBusy`: the service cannot take the work now (a full queue); retry later.
 """
 
 from __future__ import annotations
@@ -25,10 +31,15 @@ __all__ = [
     "CommandError",
     "FleetFileError",
     "GcsError",
+    "InvalidRequest",
     "LinkError",
     "MissionAborted",
     "ModeRefused",
+    "NotFound",
     "PlanRejected",
+    "RequestError",
+    "ServiceBusy",
+    "StateConflict",
     "VehicleTimeout",
 ]
 
@@ -83,3 +94,23 @@ class MissionAborted(GcsError):
     def __init__(self, reason: str) -> None:
         super().__init__(reason)
         self.reason = reason
+
+
+class RequestError(GcsError, FieldError):
+    """A request the service cannot carry out: `field` names what is wrong, `reason` why."""
+
+
+class NotFound(RequestError):
+    """No such resource (mission, execution, example, vehicle)."""
+
+
+class StateConflict(RequestError):
+    """The resource is in the wrong state for the request (still planning, already flying)."""
+
+
+class InvalidRequest(RequestError):
+    """Well-formed but invalid, or beyond a server limit."""
+
+
+class ServiceBusy(RequestError):
+    """The service cannot take this work now (a full queue): retry later."""

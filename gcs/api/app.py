@@ -25,13 +25,13 @@ from swagger_ui_bundle import swagger_ui_path
 
 import gcs
 from gcs.api.errors import install_error_handlers
-from gcs.api.flights import FleetService
 from gcs.api.limits import BodyLimitMiddleware
-from gcs.api.planning import PlanningService
-from gcs.api.plans import PlanCache
 from gcs.api.routes import api_router
-from gcs.settings import Settings
-from gcs.store import Store
+from gcs.service.flights import FleetService
+from gcs.service.planning import PlanningService
+from gcs.service.plans import PlanCache
+from gcs.service.settings import Settings
+from gcs.service.store import Store
 
 __all__ = ["PLOTLY_JS", "create_app", "web_directory"]
 

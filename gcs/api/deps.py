@@ -12,12 +12,12 @@ from typing import Annotated
 from fastapi import Depends, Path, Request
 from starlette.concurrency import run_in_threadpool
 
-from gcs.api.errors import NotFound
-from gcs.api.flights import FleetService
-from gcs.api.planning import PlanningService
-from gcs.api.plans import PlanCache
-from gcs.settings import Settings
-from gcs.store import MissionRow, Store
+from gcs.errors import NotFound
+from gcs.service.flights import FleetService
+from gcs.service.planning import PlanningService
+from gcs.service.plans import PlanCache
+from gcs.service.settings import Settings
+from gcs.service.store import MissionRow, Store
 
 __all__ = [
     "FleetDep",

@@ -4,13 +4,14 @@ Every error the API answers with has the body ``{"status": <code>, "field": <dot
 null>, "reason": <text>, "errors": [{"field", "reason"}, ...]}``: `field` and `reason` name the
 first (usually only) problem; `errors` lists all of them (request validation may find several).
 
-- `ApiError`: base class; carries the HTTP status, the field and the reason.
+The service raises domain errors (`gcs.errors.RequestError` subclasses) and the planner
+`FieldError`s; `REQUEST_ERROR_STATUS` below is the one place they become HTTP statuses (404
+not found, 409 wrong state, 422 invalid, 503 busy; any other `FieldError` 422). Transport-level
+problems that only exist in HTTP are `ApiError`s raised by the middleware:
+
+- `ApiError`: carries the HTTP status, the field and the reason.
   - `BadRequest` (400): the request is malformed (e.g. the body is not JSON).
-  - `NotFound` (404): no such mission, execution or route.
-  - `Conflict` (409): the resource is not in a state that allows it (still planning, flying).
   - `PayloadTooLarge` (413): the body exceeds the configured size limit.
-  - `Unprocessable` (422): well-formed but invalid (scenario errors, limits exceeded).
-  - `Unavailable` (503): the service cannot do it now (no fleet configured, pool broken).
 """
 
 from __future__ import annotations
@@ -26,18 +27,16 @@ from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
+from gcs.errors import InvalidRequest, NotFound, RequestError, ServiceBusy, StateConflict
 from planner.errors import FieldError
 
 __all__ = [
+    "REQUEST_ERROR_STATUS",
     "ApiError",
     "BadRequest",
-    "Conflict",
     "ErrorBody",
     "ErrorItem",
-    "NotFound",
     "PayloadTooLarge",
-    "Unavailable",
-    "Unprocessable",
     "error_responses",
     "install_error_handlers",
 ]
@@ -101,34 +100,29 @@ class ApiError(Exception):
             status=self.status, field=self.field, reason=self.reason, errors=self.errors
         ).model_dump()
 
-    @classmethod
-    def from_field_error(cls, exc: FieldError, prefix: str = "") -> ApiError:
-        """A planner `FieldError` (scenario or plan format) as this API error."""
-        return cls(f"{prefix}{exc.field}", exc.reason)
-
 
 class BadRequest(ApiError):
     status = 400
-
-
-class NotFound(ApiError):
-    status = 404
-
-
-class Conflict(ApiError):
-    status = 409
 
 
 class PayloadTooLarge(ApiError):
     status = 413
 
 
-class Unprocessable(ApiError):
-    status = 422
+#: The one mapping from the service's domain errors to HTTP statuses.
+REQUEST_ERROR_STATUS: dict[type[RequestError], int] = {
+    NotFound: 404,
+    StateConflict: 409,
+    InvalidRequest: 422,
+    ServiceBusy: 503,
+}
 
 
-class Unavailable(ApiError):
-    status = 503
+def _status_of(exc: RequestError) -> int:
+    for cls in type(exc).__mro__:
+        if cls in REQUEST_ERROR_STATUS:
+            return REQUEST_ERROR_STATUS[cls]  # type: ignore[index]
+    return 422
 
 
 def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, dict[str, Any]]:
@@ -208,12 +202,21 @@ def install_error_handlers(app: FastAPI) -> None:
         assert isinstance(exc, RequestValidationError)
         items = _validation_items(exc)
         is_json = any(i.reason.startswith("request body is not valid JSON") for i in items)
-        cls = BadRequest if is_json else Unprocessable
-        return _respond(cls(items[0].field, items[0].reason, errors=items))
+        error = ApiError(items[0].field, items[0].reason, errors=items)
+        error.status = 400 if is_json else 422
+        return _respond(error)
+
+    async def request_error(_request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, RequestError)
+        error = ApiError(exc.field, exc.reason)
+        error.status = _status_of(exc)
+        return _respond(error)
 
     async def field_error(_request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, FieldError)
-        return _respond(Unprocessable.from_field_error(exc))
+        error = ApiError(exc.field, exc.reason)
+        error.status = 422
+        return _respond(error)
 
     async def http_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, StarletteHTTPException)
@@ -234,6 +237,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     app.add_exception_handler(ApiError, api_error)
     app.add_exception_handler(RequestValidationError, validation_error)
+    app.add_exception_handler(RequestError, request_error)
     app.add_exception_handler(FieldError, field_error)
     app.add_exception_handler(StarletteHTTPException, http_error)
     app.add_exception_handler(Exception, unexpected)

@@ -16,7 +16,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.errors import ErrorItem
-from gcs.store import MISSION_STATUSES
+from gcs.service.store import MISSION_STATUSES
 from planner.result import STATUSES
 
 __all__ = [

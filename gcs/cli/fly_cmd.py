@@ -1,7 +1,7 @@
 """`fleetplan fly PLAN.json --fleet FLEET.json | --mock`: fly a plan and record the flight.
 
 Live progress per vehicle once a second and every event as it happens; a summary at the end;
-exit status 0 only when the mission completed. Ctrl-C aborts safely: every vehicle lands and
+exit status 0 only when the flight completed. Ctrl-C aborts safely: every vehicle lands and
 the command waits for them to disarm (a second Ctrl-C exits at once).
 """
 
@@ -54,9 +54,9 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gcs.errors import FleetFileError, GcsError
-    from gcs.fleet import Mission
-    from gcs.fleetfile import FleetSpec, load_fleet
-    from gcs.mock import MockFleet
+    from gcs.flight.executor import FlightExecutor
+    from gcs.flight.fleetfile import FleetSpec, load_fleet
+    from gcs.sim.mock import MockFleet, homes_under
     from planner.errors import PlannerError
     from planner.result import Plan
 
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         mock = None
         try:
             if args.mock:
-                homes = [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
+                homes = homes_under(plan.scenario.starts)
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
                                  settle_time=args.mock_settle)
@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
             changes = {field: getattr(args, flag) for flag, field in _OPTION_FLAGS.items()
                        if getattr(args, flag) is not None}
             options = fleet.options.replace(where="option", **changes)
-            mission = Mission(plan, fleet, options)
+            executor = FlightExecutor(plan, fleet, options)
         except (GcsError, OSError) as exc:
             if mock is not None:
                 await mock.stop()
@@ -105,13 +105,13 @@ def run(args: argparse.Namespace) -> int:
             if interrupts == 1:
                 print("\nCtrl-C: aborting, every vehicle lands (Ctrl-C again to quit now)",
                       file=sys.stderr, flush=True)
-                aborts.append(asyncio.ensure_future(mission.abort("land", "interrupted (Ctrl-C)")))
+                aborts.append(asyncio.ensure_future(executor.abort("land", "interrupted (Ctrl-C)")))
             else:
                 task.cancel()
 
-        task = mission.start()
+        task = executor.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
-        printer = None if args.quiet else asyncio.create_task(_progress(mission))
+        printer = None if args.quiet else asyncio.create_task(_progress(executor))
         record = None
         status = 1
         try:
@@ -119,11 +119,11 @@ def run(args: argparse.Namespace) -> int:
             status = 0 if record["summary"]["completed"] else 1
         except asyncio.CancelledError:
             print("interrupted again: quitting without waiting", file=sys.stderr)
-            record = mission.record
+            record = executor.record
             status = 130
         except GcsError as exc:
-            print(f"mission failed: {type(exc).__name__}: {exc}", file=sys.stderr)
-            record = mission.record
+            print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+            record = executor.record
         finally:
             loop.remove_signal_handler(signal.SIGINT)
             if printer is not None:
@@ -140,11 +140,11 @@ def run(args: argparse.Namespace) -> int:
     return asyncio.run(main())
 
 
-async def _progress(mission) -> None:
+async def _progress(executor) -> None:
     import asyncio
 
     async def events() -> None:
-        async for event in mission.events():
+        async for event in executor.events():
             if event["kind"] in ("statustext", "mode_change") and event["vehicle"]:
                 continue
             who = event["vehicle"] or "fleet"
@@ -154,7 +154,7 @@ async def _progress(mission) -> None:
     try:
         while True:
             await asyncio.sleep(1.0)
-            snap = mission.snapshot()
+            snap = executor.snapshot()
             t = snap["mission_time"]
             clock = f"t={t:6.1f}/{snap['horizon']:.0f} s" if t is not None else "t=  --"
             parts = []

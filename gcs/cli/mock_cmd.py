@@ -1,4 +1,4 @@
-"""`fleetplan mock`: run N PX4-like mock vehicles (gcs.mock) until interrupted.
+"""`fleetplan mock`: run N PX4-like mock vehicles (gcs.sim.mock) until interrupted.
 
 Vehicle i listens on UDP --listen-base-port + i and sends to --base-port + i on 127.0.0.1
 (PX4 SITL's 14580 + i / 14540 + i by default), system id i + 1. Homes: under the starts of
@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from gcs.mock import MockFleet
+    from gcs.sim.mock import MockFleet, homes_under
 
     ids = None
     homes = None
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         from planner.result import Plan
 
         plan = Plan.from_dict(json.loads(Path(args.plan).read_text()))
-        homes = [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
+        homes = homes_under(plan.scenario.starts)
         ids = plan.scenario.ids
         if args.vehicles is not None and args.vehicles != len(homes):
             print(f"error: --vehicles {args.vehicles} but the plan has {len(homes)}",

@@ -1,8 +1,9 @@
 """`fleetplan serve`: the REST API and browser page (uvicorn), with mock or configured vehicles.
 
 Options override the settings (environment ``FLEETPLAN_*`` and the TOML config file; see
-`gcs.settings`). `--mock N` starts N in-process mock PX4 vehicles; `--fleet FLEET.json` flies
-real vehicles or SITL instead. Nothing arms or moves until an execution is requested.
+`gcs.service.settings`). `--mock N` starts N in-process mock PX4 vehicles; `--fleet
+FLEET.json` flies real vehicles or SITL instead. Nothing arms or moves until an execution
+is requested.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from gcs.settings import Settings
+    from gcs.service.settings import Settings
 
 __all__ = ["configure", "run"]
 
@@ -53,7 +54,8 @@ def _startup_problem(settings: Settings) -> str | None:
     import socket
 
     from gcs.errors import FleetFileError
-    from gcs.fleetfile import load_fleet
+    from gcs.flight.fleetfile import load_fleet
+    from gcs.sim.ports import mock_port_offsets
 
     fleet_file = settings.fleet_file
     if fleet_file is not None:
@@ -63,7 +65,7 @@ def _startup_problem(settings: Settings) -> str | None:
             return f"fleet file {fleet_file}: {exc.field}: {exc.reason}"
     elif settings.mock_vehicles:
         base, count = settings.mock_base_port, settings.mock_vehicles
-        for port in (*range(base, base + count), *range(base + 40, base + 40 + count)):
+        for port in (base + offset for offset in mock_port_offsets(count)):
             if not _port_free(socket.SOCK_DGRAM, port):
                 return (f"UDP port {port} (mock vehicles, mock_base_port {base}) is in use: "
                         f"another fleetplan or PX4 SITL running? Set FLEETPLAN_MOCK_BASE_PORT")
@@ -78,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from gcs.api import create_app
-    from gcs.settings import Settings, SettingsFileError
+    from gcs.service.settings import Settings, SettingsFileError
 
     overrides = {
         key: value

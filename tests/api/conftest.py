@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
-from gcs.settings import Settings
+from gcs.service.settings import Settings
 from tests.api.support import free_udp_base
 
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import httpx
 
-from gcs import ports
+from gcs.sim import ports
 
 __all__ = ["EXAMPLES", "SHORT_CROSSING", "ServiceProcess", "example", "free_port",
            "free_udp_base"]
@@ -42,9 +42,8 @@ SHORT_CROSSING: dict[str, Any] = {
 
 
 def free_udp_base(count: int) -> int:
-    """A mock base port B with UDP ports B..B+count-1 and B+40..B+40+count-1 all free now
-    (mock vehicle i sends to B+i and listens on B+40+i): never PX4's fixed 14540."""
-    return ports.free_udp_base([*range(count), *range(40, 40 + count)])
+    """A mock base port whose every port (`gcs.sim.ports` rule) is free now: never PX4's."""
+    return ports.free_udp_base(ports.mock_port_offsets(count))
 
 
 def free_port() -> int:

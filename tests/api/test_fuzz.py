@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, settings
 from schemathesis import checks
 
 from gcs.api import create_app
-from gcs.settings import Settings
+from gcs.service.settings import Settings
 from tests.api.support import ServiceProcess
 
 

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
-from gcs.settings import Settings
+from gcs.service.settings import Settings
 
 
 def test_page_and_api_docs_load_only_local_assets(

@@ -72,7 +72,7 @@ def test_wheel_carries_the_page_and_finds_it(tmp_path: Path) -> None:
     assert install.returncode == 0, install.stderr
     probe = subprocess.run(
         [sys.executable, "-c",
-         "from gcs.api.app import web_directory; from gcs.settings import Settings; "
+         "from gcs.api.app import web_directory; from gcs.service.settings import Settings; "
          "print(web_directory(Settings()))"],
         capture_output=True, text=True, timeout=60, cwd=tmp_path,
         env={**os.environ, "PYTHONPATH": str(target)},

@@ -11,7 +11,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Path
 from pydantic import BaseModel
 
-from gcs.api.errors import NotFound, error_responses
+from gcs.api.errors import error_responses
+from gcs.errors import NotFound
 
 __all__ = ["router"]
 

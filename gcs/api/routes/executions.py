@@ -14,9 +14,10 @@ from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 
 from gcs.api.deps import FleetDep, MissionDep, PlanCacheDep, StoreDep
-from gcs.api.errors import Conflict, NotFound, error_responses
-from gcs.api.flights import FINISHED, LIVE, execution_document
-from gcs.store import ExecutionRow
+from gcs.api.errors import error_responses
+from gcs.errors import NotFound, StateConflict
+from gcs.service.flights import FINISHED, LIVE, execution_document
+from gcs.service.store import ExecutionRow
 
 __all__ = ["mission_router", "router"]
 
@@ -227,7 +228,7 @@ def get_record(execution: ExecutionDep, store: StoreDep) -> Response:
     """Setpoints sent, telemetry received, events and the summary (gcs flight record)."""
     row = store.get_execution(execution.id, with_record=True)
     if row is None or row.record_json is None:
-        raise Conflict("execution_id", f"execution {execution.id!r} has no flight record "
+        raise StateConflict("execution_id", f"execution {execution.id!r} has no flight record "
                        f"(status {execution.status})")
     return Response(
         row.record_json, media_type="application/json",

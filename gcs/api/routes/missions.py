@@ -19,11 +19,12 @@ from fastapi.sse import EventSourceResponse, ServerSentEvent
 from starlette.concurrency import run_in_threadpool
 
 from gcs.api.deps import MissionDep, PlanCacheDep, PlanningDep, SettingsDep, StoreDep
-from gcs.api.errors import Conflict, Unprocessable, error_responses
-from gcs.api.planning import PlanJob, PlanningService
-from gcs.api.plans import trajectory_csv, trajectory_json
+from gcs.api.errors import error_responses
 from gcs.api.schemas import MissionList, MissionOut, MissionSummary, ScenarioIn, TrajectoryOut
-from gcs.store import EXECUTION_ACTIVE, MissionRow, Store
+from gcs.errors import InvalidRequest, StateConflict
+from gcs.service.planning import PlanJob, PlanningService
+from gcs.service.plans import trajectory_csv, trajectory_json
+from gcs.service.store import EXECUTION_ACTIVE, MissionRow, Store
 from planner import Scenario
 
 __all__ = ["mission_document", "router"]
@@ -97,13 +98,13 @@ async def create_mission(
     stored for them.
     """
     if len(scenario.vehicles) > settings.max_vehicles:
-        raise Unprocessable(
+        raise InvalidRequest(
             "vehicles",
             f"{len(scenario.vehicles)} vehicles exceed this server's limit of "
             f"{settings.max_vehicles} (setting max_vehicles)",
         )
     if scenario.steps > settings.max_steps:
-        raise Unprocessable(
+        raise InvalidRequest(
             "steps",
             f"{scenario.steps} steps exceed this server's limit of {settings.max_steps} "
             f"(setting max_steps)",
@@ -122,7 +123,7 @@ async def create_mission(
         await run_in_threadpool(store.delete_mission, row.id)
         planning.forget(row.id)
         error = outcome["error"]
-        raise Unprocessable(error["field"], error["reason"])
+        raise InvalidRequest(error["field"], error["reason"])
     text = await _document(store, planning, row.id)
     assert text is not None
     status = 202 if outcome is None else 201
@@ -155,7 +156,7 @@ async def get_mission(mission: MissionDep, store: StoreDep, planning: PlanningDe
     """The mission with its scenario, progress while planning, and its plan once planned."""
     text = await _document(store, planning, mission.id)
     if text is None:  # deleted between the two reads
-        raise Conflict("mission_id", f"mission {mission.id!r} was just deleted")
+        raise StateConflict("mission_id", f"mission {mission.id!r} was just deleted")
     return _json(text)
 
 
@@ -171,11 +172,11 @@ def delete_mission(
     """Delete a mission, its plan and its flight records. Refused (409) while it is still
     planning or flying."""
     if mission.status == "planning":
-        raise Conflict("mission_id", f"mission {mission.id!r} is still planning; delete it "
+        raise StateConflict("mission_id", f"mission {mission.id!r} is still planning; delete it "
                        "once planning has finished")
     flying = [e.id for e in store.list_executions(mission.id) if e.status in EXECUTION_ACTIVE]
     if flying:
-        raise Conflict("mission_id", f"mission {mission.id!r} is flying (execution "
+        raise StateConflict("mission_id", f"mission {mission.id!r} is flying (execution "
                        f"{flying[0]}); abort or wait for the flight to end first")
     store.delete_mission(mission.id)
     planning.forget(mission.id)
@@ -218,7 +219,7 @@ def get_plan(mission: MissionDep, store: StoreDep) -> Response:
     row = store.get_mission(mission.id, with_plan=True)
     if row is None or row.plan_json is None:
         state = "still planning" if mission.status == "planning" else "without a plan"
-        raise Conflict("mission_id", f"mission {mission.id!r} is {state}")
+        raise StateConflict("mission_id", f"mission {mission.id!r} is {state}")
     return _json(
         row.plan_json,
         headers={"Content-Disposition": f'attachment; filename="plan-{mission.id}.json"'},
@@ -249,7 +250,7 @@ def get_trajectory(
     (world frame ENU, exact motion between steps): what the GCS streams as setpoints. CSV has
     one row per vehicle and time."""
     if rate > settings.max_trajectory_rate:
-        raise Unprocessable(
+        raise InvalidRequest(
             "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}"
         )
     plan = plans.get(mission.id)

@@ -11,7 +11,7 @@ from fastapi.testclient import TestClient
 from httpx import Response
 
 from gcs.api import create_app
-from gcs.settings import Settings
+from gcs.service.settings import Settings
 from tests.api.support import example
 
 

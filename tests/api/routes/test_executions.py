@@ -14,8 +14,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
-from gcs.settings import Settings
-from gcs.store import Store
+from gcs.service.settings import Settings
+from gcs.service.store import Store
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import SHORT_CROSSING, example
 

@@ -24,9 +24,9 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
 
-from gcs import plan_worker
-from gcs.api.broadcast import Broadcast, Event
-from gcs.store import Store
+from gcs.service import plan_worker
+from gcs.service.events import Broadcast, Event
+from gcs.service.store import Store
 
 __all__ = ["PlanJob", "PlanningService"]
 

@@ -8,7 +8,7 @@ import pytest
 from pydantic import ValidationError
 
 from gcs.cli.main import main
-from gcs.settings import Settings, SettingsFileError
+from gcs.service.settings import Settings, SettingsFileError
 
 
 def test_defaults_are_local_and_safe() -> None:

@@ -1,4 +1,4 @@
-"""gcs.setpoints: plan sampling, message fields, and what a mock vehicle actually receives."""
+"""gcs.flight.setpoints: plan sampling, message fields, what a mock vehicle actually receives."""
 
 from __future__ import annotations
 
@@ -6,19 +6,19 @@ import asyncio
 
 import numpy as np
 import pytest
-from gcs_helpers import mock_ports
 
 from gcs import frames
-from gcs.link import LinkHub
-from gcs.mock import MockFleet
-from gcs.setpoints import (
+from gcs.flight.link import LinkHub
+from gcs.flight.setpoints import (
     MAV_FRAME_LOCAL_NED,
     TYPE_MASK_POS_VEL_ACC_YAW,
     plan_tracks,
     time_boot_ms,
     transfer_track,
 )
-from gcs.stream import Streamer
+from gcs.flight.stream import Streamer
+from gcs.sim.mock import MockFleet
+from tests.flight.support import mock_ports
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -10,7 +10,8 @@ import time
 from pathlib import Path
 
 import pytest
-from gcs_helpers import free_port_block, line_scenario, smooth_plan
+
+from tests.flight.support import free_port_block, line_scenario, smooth_plan
 
 pytestmark = pytest.mark.timeout(90)
 

@@ -14,8 +14,8 @@ from collections import OrderedDict
 import numpy as np
 import orjson
 
-from gcs.api.errors import Conflict, NotFound, Unprocessable
-from gcs.store import Store
+from gcs.errors import InvalidRequest, NotFound, StateConflict
+from gcs.service.store import Store
 from planner import Plan, PlanFormatError
 
 __all__ = ["PlanCache", "sample_times", "trajectory_csv", "trajectory_json"]
@@ -31,7 +31,7 @@ class PlanCache:
         self._lock = threading.Lock()
 
     def get(self, mission_id: str) -> Plan:
-        """The plan of a planned mission; NotFound / Conflict (still planning, failed)."""
+        """The plan of a planned mission; NotFound / StateConflict (still planning, failed)."""
         with self._lock:
             plan = self._plans.get(mission_id)
             if plan is not None:
@@ -41,15 +41,16 @@ class PlanCache:
         if row is None:
             raise NotFound("mission_id", f"no mission with id {mission_id!r}")
         if row.status == "planning":
-            raise Conflict("mission_id", f"mission {mission_id!r} is still planning; "
+            raise StateConflict("mission_id", f"mission {mission_id!r} is still planning; "
                            f"poll GET /api/missions/{mission_id} until status is 'planned'")
         if row.status == "failed" or row.plan_json is None:
             reason = (row.error or {}).get("reason", "no plan")
-            raise Conflict("mission_id", f"mission {mission_id!r} has no plan: {reason}")
+            raise StateConflict("mission_id", f"mission {mission_id!r} has no plan: {reason}")
         try:
             plan = Plan.from_dict(orjson.loads(row.plan_json))
         except PlanFormatError as exc:  # a stored plan from an incompatible version
-            raise Conflict(f"plan.{exc.field}", f"stored plan unreadable: {exc.reason}") from None
+            raise StateConflict(f"plan.{exc.field}",
+                                f"stored plan unreadable: {exc.reason}") from None
         with self._lock:
             self._plans[mission_id] = plan
             while len(self._plans) > self._size:
@@ -75,14 +76,14 @@ def _check_size(plan: Plan, rate: float, max_rows: int) -> np.ndarray:
     rows = len(times) * len(plan.vehicles)
     if rows > max_rows:
         highest = max_rows / len(plan.vehicles) / max(plan.scenario.horizon, 1e-9)
-        raise Unprocessable(
+        raise InvalidRequest(
             "rate",
             f"{rate:g} Hz gives {rows} samples ({len(plan.vehicles)} vehicles x {len(times)} "
             f"times), more than the limit {max_rows} (setting max_trajectory_samples); "
             f"use rate <= {highest:.3g}",
         )
     if not plan.vehicles:
-        raise Conflict("mission_id", f"the plan (status {plan.status}) has no trajectories")
+        raise StateConflict("mission_id", f"the plan (status {plan.status}) has no trajectories")
     return times
 
 

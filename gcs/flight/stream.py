@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs.link import VehicleLink
-from gcs.setpoints import Setpoint, SetpointTrack, time_boot_ms
+from gcs.flight.link import VehicleLink
+from gcs.flight.setpoints import Setpoint, SetpointTrack, time_boot_ms
 
 __all__ = ["Assignment", "SendCallback", "Streamer", "jitter_stats"]
 

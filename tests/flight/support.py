@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs.ports import free_udp_base
+from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
 from planner.first_qp import unit_profile
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Plan, VehicleTrajectory
@@ -20,9 +20,8 @@ def free_port_block(count: int) -> int:
 
 
 def mock_ports(count: int) -> dict[str, int]:
-    """gcs_base_port / listen_base_port keyword arguments for a MockFleet of `count`."""
-    base = free_port_block(2 * count)
-    return {"gcs_base_port": base, "listen_base_port": base + count}
+    """gcs_base_port / listen_base_port keyword arguments for a MockFleet of `count`, free now."""
+    return mock_fleet_ports(free_udp_base(mock_port_offsets(count)))
 
 
 def smooth_plan(scenario_dict: dict[str, Any]) -> Plan:

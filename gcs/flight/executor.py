@@ -1,6 +1,6 @@
 """The fleet executor: fly a plan on a fleet of PX4 vehicles with one shared mission clock.
 
-`Mission(plan, fleet)` runs the whole flight on the caller's asyncio loop:
+`FlightExecutor(plan, fleet)` runs the whole flight on the caller's asyncio loop:
 
 1. connect: open the fleet's links, send the GCS HEARTBEAT at 1 Hz, wait for every vehicle's
    HEARTBEAT and LOCAL_POSITION_NED (refuse a vehicle that is already armed or not PX4);
@@ -12,7 +12,7 @@
    then climb vertically from home to the plan's start (then horizontally, if the home is not
    below the start);
 3. when every vehicle is within `start_tolerance` of its start, start the shared mission
-   clock: every vehicle's setpoint for tick k leaves in tick k (`gcs.stream.Streamer`);
+   clock: every vehicle's setpoint for tick k leaves in tick k (`gcs.flight.stream.Streamer`);
 4. after the horizon, hold at the goals for `hold_at_goal`, measure the goal errors, then land
    (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch to Hold (`at_end`).
 
@@ -29,7 +29,7 @@ answer still gets no more setpoints, so PX4's own offboard-loss failsafe lands i
 
 Python API (for the CLI and the REST API)::
 
-    mission = Mission(plan, fleet_spec, options)
+    mission = FlightExecutor(plan, fleet_spec, options)
     task = mission.start()                 # or: record = await mission.run()
     mission.snapshot()                     # JSON-ready live state (positions in world frame)
     async for event in mission.events():   # every event until the mission ends
@@ -65,14 +65,14 @@ from gcs.errors import (
     PlanRejected,
     VehicleTimeout,
 )
-from gcs.fleetfile import FleetSpec, MissionOptions, VehicleSpec
-from gcs.link import LinkHub, VehicleLink, mavlink, result_name
-from gcs.record import FlightRecorder, measured_min_separation
-from gcs.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
-from gcs.stream import Streamer, jitter_stats
+from gcs.flight.fleetfile import FleetSpec, FlightOptions, VehicleSpec
+from gcs.flight.link import LinkHub, VehicleLink, mavlink, result_name
+from gcs.flight.record import FlightRecorder, measured_min_separation
+from gcs.flight.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
+from gcs.flight.stream import Streamer, jitter_stats
 from planner.verify import verify
 
-__all__ = ["TRACKING_TOLERANCE_M", "Mission", "VehicleStatus"]
+__all__ = ["TRACKING_TOLERANCE_M", "FlightExecutor", "VehicleStatus"]
 
 #: Documented bound on how much closer two vehicles may come in flight than the plan's R:
 #: tracking error of each (centimetres on the mock) plus the skew between their position
@@ -86,7 +86,7 @@ _MODE_RETRY_FOR = 5.0
 
 @dataclass
 class VehicleStatus:
-    """The executor's view of one vehicle (see `Mission.snapshot`)."""
+    """The executor's view of one vehicle (see `FlightExecutor.snapshot`)."""
 
     spec: VehicleSpec
     index: int
@@ -113,10 +113,10 @@ class VehicleStatus:
         return self.spec.id
 
 
-class Mission:
+class FlightExecutor:
     """One flight of a plan on a fleet; see the module docstring."""
 
-    def __init__(self, plan: Any, fleet: FleetSpec, options: MissionOptions | None = None) -> None:
+    def __init__(self, plan: Any, fleet: FleetSpec, options: FlightOptions | None = None) -> None:
         # Checked again here on the trajectories themselves: a plan file's own verification
         # block is only a claim (it may have been edited, or written by another tool).
         if plan.status != "converged":

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from gcs_helpers import line_scenario, smooth_plan
+
+from tests.flight.support import line_scenario, smooth_plan
 
 
 @pytest.fixture(scope="session")

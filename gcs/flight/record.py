@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs.setpoints import Setpoint
+from gcs.flight.setpoints import Setpoint
 
 __all__ = ["FlightRecorder", "VehicleRecord", "measured_min_separation"]
 

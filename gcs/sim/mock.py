@@ -23,7 +23,7 @@ MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
   then, there being no RC, AUTO.LAND after `failsafe_land_delay`; auto-disarm 2 s after
   landing, and 10 s after arming without taking off.
 
-The motion is `gcs.mock_model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the
+The motion is `gcs.sim.model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the
 whole fleet at once. Faults can be injected per vehicle at any time through
 `MockVehicle.faults` (`MockFaults`): packet loss, stopped heartbeats, delay, refused arming.
 
@@ -31,7 +31,7 @@ Python API::
 
     async with MockFleet(4, homes=[[0, 0, 0], [2, 0, 0], ...], gcs_base_port=24540,
                          listen_base_port=24580, settle_time=1.0) as mock:
-        fleet_file = mock.fleet_dict()        # what `gcs.fleet` needs to fly them
+        fleet_file = mock.fleet_dict()        # what `gcs.flight.executor` needs to fly them
         mock.vehicles[2].faults.heartbeats = False
         print(mock.vehicles[0].position_world)
 
@@ -54,8 +54,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import frames, px4
-from gcs.link import mavlink
-from gcs.mock_model import GRAVITY, FleetModel, ModelLimits
+from gcs.sim.model import GRAVITY, FleetModel, ModelLimits
+from gcs.wire import mavlink
 
 __all__ = [
     "DEFAULT_WORLD_ORIGIN",
@@ -64,6 +64,7 @@ __all__ = [
     "MockFleet",
     "MockVehicle",
     "ReceivedSetpoint",
+    "homes_under",
 ]
 
 #: PX4 SITL's default home (Zurich), used as the mock's geodetic world origin.
@@ -609,6 +610,12 @@ class _VehicleProtocol(asyncio.DatagramProtocol):
         pass  # nobody listening yet on the GCS port: PX4 keeps sending too
 
 
+def homes_under(starts: Sequence[ArrayLike]) -> list[list[float]]:
+    """Homes on the ground (z = 0) right under each start: the climb to the start is vertical,
+    so it needs no deconfliction (how `fleetplan fly --mock` and the service place mocks)."""
+    return [[float(s[0]), float(s[1]), 0.0] for s in np.asarray(starts, dtype=float)]
+
+
 class MockFleet:
     """N mock PX4 vehicles on one asyncio loop, integrated together.
 
@@ -660,7 +667,7 @@ class MockFleet:
         return f"udpin:{self.host}:{self.vehicles[index].gcs_port}"
 
     def fleet_dict(self, ids: Sequence[str] | None = None) -> dict[str, Any]:
-        """A fleet file (`gcs.fleet` format) for these vehicles, with world-frame homes."""
+        """A fleet file (`gcs.flight.fleetfile` format) for these vehicles, world-frame homes."""
         ids = list(ids) if ids is not None else [f"uav{i + 1}" for i in range(len(self.vehicles))]
         return {"vehicles": [
             {"id": vid, "connection": self.gcs_url(i), "system_id": v.system_id,

@@ -16,7 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
-from gcs.settings import Settings
+from gcs.service.settings import Settings
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import SHORT_CROSSING, free_port
 

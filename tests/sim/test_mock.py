@@ -1,4 +1,4 @@
-"""gcs.mock behaves like PX4 for what we use: protocol, mode rules, failsafes, and a real
+"""gcs.sim.mock behaves like PX4 for what we use: protocol, mode rules, failsafes, and a real
 MAVLink client (MAVSDK) can fly it."""
 
 from __future__ import annotations
@@ -8,12 +8,12 @@ import time
 
 import numpy as np
 import pytest
-from gcs_helpers import mock_ports
 
 from gcs import px4
-from gcs.link import LinkHub, VehicleLink, mavlink
-from gcs.mock import MockFleet
-from gcs.setpoints import Setpoint, hold_track
+from gcs.flight.link import LinkHub, VehicleLink, mavlink
+from gcs.flight.setpoints import Setpoint, hold_track
+from gcs.sim.mock import MockFleet
+from tests.flight.support import mock_ports
 
 pytestmark = pytest.mark.timeout(90)
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-import os
 import socket
 import threading
 import time
@@ -34,13 +33,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-os.environ.setdefault("MAVLINK20", "1")
-
-from pymavlink.dialects.v20 import common as mavlink
-
 from gcs import px4
 from gcs.errors import CommandError, LinkError
-from gcs.setpoints import Setpoint
+from gcs.flight.setpoints import Setpoint
+from gcs.wire import mavlink
 
 __all__ = [
     "GCS_COMPONENT_ID",

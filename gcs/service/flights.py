@@ -1,11 +1,11 @@
 """The configured fleet as the service sees it, and its flights (executions).
 
 `FleetService` owns one fleet: the vehicles of a fleet file (real PX4 or SITL), or mock PX4
-vehicles running in-process (`gcs.mock.MockFleet`), or none. Between flights it keeps a
+vehicles running in-process (`gcs.sim.mock.MockFleet`), or none. Between flights it keeps a
 listen-only MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live
 link state; for a flight it closes the monitor and hands the connections to a
-`gcs.fleet.Mission`, which does everything that talks to vehicles. One flight at a time: the
-fleet is one set of aircraft.
+`gcs.flight.executor.FlightExecutor`, which does everything that talks to vehicles. One
+flight at a time: the fleet is one set of aircraft.
 
 Mock vehicles are set down under the plan's starts before each flight (as
 ``fleetplan fly --mock`` does), so any verified plan with at most `mock_vehicles` vehicles can
@@ -29,18 +29,18 @@ import numpy as np
 import orjson
 
 from gcs import frames
-from gcs.api.broadcast import Broadcast, Event
-from gcs.api.errors import Conflict, Unprocessable
-from gcs.errors import FleetFileError, GcsError, MissionAborted
-from gcs.fleet import Mission
-from gcs.fleetfile import FleetSpec, load_fleet
-from gcs.link import LinkHub, VehicleLink
-from gcs.mock import MockFleet
-from gcs.settings import Settings
-from gcs.store import ExecutionRow, Store
+from gcs.errors import FleetFileError, GcsError, InvalidRequest, MissionAborted, StateConflict
+from gcs.flight.executor import FlightExecutor
+from gcs.flight.fleetfile import FleetSpec, load_fleet
+from gcs.flight.link import LinkHub, VehicleLink
+from gcs.service.events import Broadcast, Event
+from gcs.service.settings import Settings
+from gcs.service.store import ExecutionRow, Store
+from gcs.sim.mock import MockFleet, homes_under
+from gcs.sim.ports import mock_fleet_ports
 from planner import Plan
 
-__all__ = ["FINISHED", "LIVE", "FleetService", "Flight", "execution_document"]
+__all__ = ["FINISHED", "LIVE", "FleetService", "LiveExecution", "execution_document"]
 
 log = logging.getLogger(__name__)
 
@@ -54,13 +54,13 @@ TELEMETRY_HZ = 5.0
 
 
 @dataclass
-class Flight:
+class LiveExecution:
     """One execution being flown (in memory while it runs)."""
 
     id: str
     mission_id: str
     status: str = "starting"
-    mission: Mission | None = None
+    executor: FlightExecutor | None = None
     events: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
     error: str | None = None
@@ -80,7 +80,7 @@ class Flight:
         self.publish("status", {"status": status})
 
     def snapshot(self) -> dict[str, Any] | None:
-        return None if self.mission is None else self.mission.snapshot()
+        return None if self.executor is None else self.executor.snapshot()
 
     def outcome(self) -> dict[str, Any]:
         return {"status": self.status, "summary": self.summary, "error": self.error}
@@ -114,8 +114,8 @@ class FleetService:
         self._mock: MockFleet | None = None
         self._monitor: LinkHub | None = None
         self._links: dict[str, VehicleLink] = {}
-        self._flights: dict[str, Flight] = {}
-        self._active: Flight | None = None
+        self._flights: dict[str, LiveExecution] = {}
+        self._active: LiveExecution | None = None
         self._tasks: set[asyncio.Task[Any]] = set()
         self._lock = asyncio.Lock()
 
@@ -150,7 +150,7 @@ class FleetService:
 
     async def _start_mock(self, homes: list[list[float]], ids: list[str]) -> None:
         base = self._settings.mock_base_port
-        mock = MockFleet(homes=homes, gcs_base_port=base, listen_base_port=base + 40,
+        mock = MockFleet(homes=homes, **mock_fleet_ports(base),
                          settle_time=self._settings.mock_settle_s)
         # A just-stopped fleet's sockets close on a later loop iteration: retry briefly.
         for attempt in range(20):
@@ -229,12 +229,12 @@ class FleetService:
             })
         return out
 
-    def flight(self, execution_id: str) -> Flight | None:
+    def flight(self, execution_id: str) -> LiveExecution | None:
         """The flight while it is under way (afterwards the store has it)."""
         return self._flights.get(execution_id)
 
     @property
-    def active(self) -> Flight | None:
+    def active(self) -> LiveExecution | None:
         return self._active if self._active is not None and self._active.active else None
 
     # ------------------------------------------------------------------ flying
@@ -242,38 +242,38 @@ class FleetService:
     async def fly(self, mission_id: str, plan: Plan, options: dict[str, Any]) -> ExecutionRow:
         """Start flying `plan` on the fleet; returns the new execution (status starting).
 
-        Conflict when nothing can fly it (no fleet, a flight under way, a plan that is not
-        verified, vehicles missing from the fleet); Unprocessable for bad options.
+        StateConflict when nothing can fly it (no fleet, a flight under way, a plan that is not
+        verified, vehicles missing from the fleet); InvalidRequest for bad options.
         """
         async with self._lock:
             if self.active is not None:
-                raise Conflict("fleet", f"execution {self.active.id} is flying; abort it or "
+                raise StateConflict("fleet", f"execution {self.active.id} is flying; abort it or "
                                "wait for it to end")
             if self.kind == "none" or self._spec is None:
-                raise Conflict("fleet", "no fleet configured: start the service with --mock N "
+                raise StateConflict("fleet", "no fleet configured: start the service with --mock N "
                                "or --fleet FLEET.json")
             if not plan.ok:
-                raise Conflict("mission_id", f"the plan is not flyable: status {plan.status!r}"
+                raise StateConflict("mission_id", f"the plan is not flyable: status {plan.status!r}"
                                f"{'' if plan.verification is None else ', verification failed'}"
                                "; only converged, verified plans are flown")
             ids = plan.scenario.ids
             if self.kind == "mock" and len(ids) > self._settings.mock_vehicles:
-                raise Conflict("fleet", f"the plan has {len(ids)} vehicles, the mock fleet "
+                raise StateConflict("fleet", f"the plan has {len(ids)} vehicles, the mock fleet "
                                f"{self._settings.mock_vehicles} (setting mock_vehicles)")
             if self.kind == "file":
                 try:
                     self._spec.for_plan(ids)
                 except FleetFileError as exc:
-                    raise Conflict("fleet", exc.reason) from None
+                    raise StateConflict("fleet", exc.reason) from None
             try:
                 mission_options = self._spec.options.replace(where="options", **options)
             except FleetFileError as exc:
-                raise Unprocessable(exc.field, exc.reason) from None
+                raise InvalidRequest(exc.field, exc.reason) from None
             except TypeError as exc:
-                raise Unprocessable("options", str(exc)) from None
+                raise InvalidRequest("options", str(exc)) from None
             label = f"{self.kind}: {', '.join(ids)}"
             row = await asyncio.to_thread(self._store.create_execution, mission_id, label)
-            flight = Flight(row.id, mission_id)
+            flight = LiveExecution(row.id, mission_id)
             self._flights[row.id] = flight
             self._active = flight
             self._spawn(self._run(flight, plan, mission_options))
@@ -282,19 +282,19 @@ class FleetService:
     async def abort(
         self, execution_id: str, action: str, reason: str = "operator abort",
         stored_status: str = "finished",
-    ) -> Flight:
-        """Every vehicle of the flight to `action` (land or hold) now; Conflict if it is not
+    ) -> LiveExecution:
+        """Every vehicle of the flight to `action` (land or hold) now; StateConflict if it is not
         flying. Returns at once; the flight ends (status aborted) when the vehicles are safe."""
         flight = self._flights.get(execution_id)
         if flight is None or not flight.active:
             status = stored_status if flight is None else flight.status
-            raise Conflict("execution_id", f"execution {execution_id!r} is not flying "
+            raise StateConflict("execution_id", f"execution {execution_id!r} is not flying "
                            f"(status {status})")
         if flight.abort_requested is None:
             flight.abort_requested = action
             flight.set_status("aborting")
-            if flight.mission is not None:
-                self._spawn(flight.mission.abort(action, reason))
+            if flight.executor is not None:
+                self._spawn(flight.executor.abort(action, reason))
         return flight
 
     def _spawn(self, coro: Any) -> None:
@@ -302,7 +302,7 @@ class FleetService:
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
 
-    async def _run(self, flight: Flight, plan: Plan, options: Any) -> None:
+    async def _run(self, flight: LiveExecution, plan: Plan, options: Any) -> None:
         record: dict[str, Any] | None = None
         ticker: asyncio.Task[None] | None = None
         relay: asyncio.Task[None] | None = None
@@ -312,13 +312,13 @@ class FleetService:
             if self.kind == "mock":
                 await self._rehome_mock(plan)
             assert self._spec is not None
-            mission = Mission(plan, self._spec, options)
-            flight.mission = mission
-            relay = asyncio.create_task(self._relay_events(flight, mission))
-            ticker = asyncio.create_task(self._telemetry(flight, mission))
-            task = mission.start()
+            executor = FlightExecutor(plan, self._spec, options)
+            flight.executor = executor
+            relay = asyncio.create_task(self._relay_events(flight, executor))
+            ticker = asyncio.create_task(self._telemetry(flight, executor))
+            task = executor.start()
             if flight.abort_requested is not None:  # aborted while starting
-                await mission.abort(flight.abort_requested, "operator abort")
+                await executor.abort(flight.abort_requested, "operator abort")
             else:
                 flight.set_status("running")
             record = await task
@@ -335,18 +335,18 @@ class FleetService:
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("execution %s failed", flight.id)
             flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
-            if task is not None and not task.done() and flight.mission is not None:
+            if task is not None and not task.done() and flight.executor is not None:
                 # never leave a mission flying on its own: land everyone, then wait for it
                 with contextlib.suppress(Exception):
-                    await flight.mission.abort("land", f"service error: {type(exc).__name__}")
+                    await flight.executor.abort("land", f"service error: {type(exc).__name__}")
                 with contextlib.suppress(BaseException):
                     await task
         finally:
             for helper in (ticker, relay):
                 if helper is not None:
                     helper.cancel()
-            if record is None and flight.mission is not None:
-                record = flight.mission.record
+            if record is None and flight.executor is not None:
+                record = flight.executor.record
             if record is not None and flight.summary is None:
                 flight.summary = record.get("summary")
             await self._persist(flight, record)
@@ -354,7 +354,7 @@ class FleetService:
                 self._active = None
             flight.done.set()
             flight.publish("done", flight.outcome())
-            # Stored now: drop it (and its Mission, which holds the whole record) from memory.
+            # Stored now: drop it (and its executor, which holds the whole record) from memory.
             self._flights.pop(flight.id, None)
             await self._open_monitor()
 
@@ -363,7 +363,7 @@ class FleetService:
         if self._mock is not None:
             await self._mock.stop()
         ids = list(plan.scenario.ids)
-        homes = [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
+        homes = homes_under(plan.scenario.starts)
         lo, hi = plan.scenario.limits.position_min, plan.scenario.limits.position_max
         for spare in range(self._settings.mock_vehicles - len(ids)):
             homes.append([float(hi[0]) + 2.0 + 2.0 * spare, float(lo[1]), 0.0])
@@ -373,17 +373,17 @@ class FleetService:
             ids.append(name)
         await self._start_mock(homes, ids)
 
-    async def _relay_events(self, flight: Flight, mission: Mission) -> None:
-        async for event in mission.events():
+    async def _relay_events(self, flight: LiveExecution, executor: FlightExecutor) -> None:
+        async for event in executor.events():
             flight.events.append(event)
             flight.publish("event", event)
 
-    async def _telemetry(self, flight: Flight, mission: Mission) -> None:
+    async def _telemetry(self, flight: LiveExecution, executor: FlightExecutor) -> None:
         while True:
-            flight.publish("telemetry", mission.snapshot())
+            flight.publish("telemetry", executor.snapshot())
             await asyncio.sleep(1.0 / TELEMETRY_HZ)
 
-    async def _persist(self, flight: Flight, record: dict[str, Any] | None) -> None:
+    async def _persist(self, flight: LiveExecution, record: dict[str, Any] | None) -> None:
         def write() -> None:
             text = None
             if record is not None:
@@ -400,7 +400,7 @@ class FleetService:
             log.exception("could not store execution %s", flight.id)
 
 
-def execution_document(row: ExecutionRow, flight: Flight | None) -> dict[str, Any]:
+def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[str, Any]:
     """`ExecutionOut`: the stored execution, with live state while it flies."""
     doc = row.to_dict()
     if flight is not None and flight.active:

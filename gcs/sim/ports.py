@@ -1,4 +1,7 @@
-"""Finding free local UDP ports for mock fleets, away from PX4's fixed 14540-14600 range.
+"""The mock fleet's port rule, and free local UDP ports for mock fleets.
+
+A mock fleet on base port B is laid out like PX4 SITL on 14540: vehicle i sends its offboard
+link to B + i and listens on B + `LISTEN_OFFSET` + i (14540 + i / 14580 + i).
 
 Tests, benchmarks and demos run mock vehicles while other fleets (PX4 SITL, another test
 suite) may be running on the same machine; a random base far from PX4's ports that binds
@@ -11,7 +14,20 @@ import random
 import socket
 from collections.abc import Iterable
 
-__all__ = ["free_udp_base"]
+__all__ = ["LISTEN_OFFSET", "free_udp_base", "mock_fleet_ports", "mock_port_offsets"]
+
+#: Vehicle i of a mock fleet on base B listens on B + LISTEN_OFFSET + i (PX4 SITL: 14580 + i).
+LISTEN_OFFSET = 40
+
+
+def mock_port_offsets(count: int) -> list[int]:
+    """Offsets from the base of every UDP port a mock fleet of `count` vehicles uses."""
+    return [*range(count), *range(LISTEN_OFFSET, LISTEN_OFFSET + count)]
+
+
+def mock_fleet_ports(base: int) -> dict[str, int]:
+    """`MockFleet` keyword arguments for a fleet on base port `base` (the rule above)."""
+    return {"gcs_base_port": base, "listen_base_port": base + LISTEN_OFFSET}
 
 
 def free_udp_base(offsets: Iterable[int], *, host: str = "127.0.0.1", low: int = 20_000,

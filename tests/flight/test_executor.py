@@ -1,4 +1,4 @@
-"""gcs.fleet: whole missions on mock vehicles over real UDP loopback, and the fault cases."""
+"""gcs.flight.executor: whole flights on mock vehicles over UDP loopback, and the fault cases."""
 
 from __future__ import annotations
 
@@ -9,35 +9,33 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from gcs_helpers import line_scenario, mock_ports, smooth_plan
 
 import planner
 from gcs import px4
 from gcs.errors import ArmingRefused, MissionAborted
-from gcs.fleet import TRACKING_TOLERANCE_M, Mission
-from gcs.fleetfile import FleetSpec, MissionOptions
-from gcs.mock import MockFleet
+from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
+from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.sim.mock import MockFleet, homes_under
+from tests.flight.support import line_scenario, mock_ports, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
-FAST = MissionOptions(hold_at_goal=1.0, prestream=0.3)
+FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 
 
-def _homes_below_starts(plan) -> list[list[float]]:
-    return [[float(s[0]), float(s[1]), 0.0] for s in plan.scenario.starts]
 
 
 async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, **mock_kw):
     """Fly `plan` on mock vehicles below its starts; returns (mission, record or exception,
     mock)."""
-    homes = _homes_below_starts(plan)
+    homes = homes_under(plan.scenario.starts)
     async with MockFleet(homes=homes, settle_time=settle, **mock_ports(len(homes)),
                          **mock_kw) as mock:
         if configure is not None:
             configure(mock)
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
-        mission = Mission(plan, fleet, options)
+        mission = FlightExecutor(plan, fleet, options)
         task = mission.start()
         if during is not None:
             await during(mission, mock)
@@ -82,8 +80,8 @@ def test_paper_circle4_end_to_end() -> None:
 
 
 @pytest.mark.parametrize(("fault", "kind", "bound"), [
-    ("silent", "link_lost", MissionOptions().link_timeout),
-    ("heartbeats", "heartbeat_lost", MissionOptions().heartbeat_timeout),
+    ("silent", "link_lost", FlightOptions().link_timeout),
+    ("heartbeats", "heartbeat_lost", FlightOptions().heartbeat_timeout),
 ])
 def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
                                                       bound: float) -> None:
@@ -92,7 +90,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
     plan = smooth_plan(line_scenario(3, steps=60))
     started: dict[str, float] = {}
 
-    async def during(mission: Mission, mock: MockFleet) -> None:
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
         while (mission.mission_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         if fault == "silent":
@@ -132,7 +130,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
 def test_lost_link_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
     plan = smooth_plan(line_scenario(2))
 
-    async def during(mission: Mission, mock: MockFleet) -> None:
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
         while (mission.mission_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         mock.vehicles[0].faults.silent = True
@@ -189,7 +187,7 @@ def test_abort_from_the_api_holds_everyone_at_once() -> None:
     plan = smooth_plan(line_scenario(2))
     seen: list[str] = []
 
-    async def during(mission: Mission, mock: MockFleet) -> None:
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
         async def watch() -> None:
             async for event in mission.events():
                 seen.append(event["kind"])
@@ -221,7 +219,7 @@ def test_abort_right_after_start_stops_everything(yields: int, wait: float) -> N
     plan = smooth_plan(line_scenario(2))
     result: dict[str, object] = {}
 
-    async def during(mission: Mission, mock: MockFleet) -> None:
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
         for _ in range(yields):
             await asyncio.sleep(0)
         await asyncio.sleep(wait)  # connecting, or streaming and switching to OFFBOARD
@@ -258,11 +256,11 @@ def test_a_plan_file_is_verified_again_before_flying() -> None:
         {"id": f"uav{i + 1}", "connection": f"udpin:127.0.0.1:{30000 + i}",
          "system_id": i + 1, "home": [0, 0, 0]} for i in range(2)]})
     with pytest.raises(PlanRejected, match="separation"):
-        Mission(tampered, fleet)
+        FlightExecutor(tampered, fleet)
     doc = plan.to_dict()
     doc["scenario"]["limits"]["body_rate_max"] = 1e-6
     with pytest.raises(PlanRejected, match="not flyable"):
-        Mission(Plan.from_dict(doc), fleet)
+        FlightExecutor(Plan.from_dict(doc), fleet)
 
 
 def test_a_separation_breach_stops_the_whole_fleet() -> None:
@@ -270,7 +268,7 @@ def test_a_separation_breach_stops_the_whole_fleet() -> None:
 
     plan = smooth_plan(line_scenario(2))
 
-    async def during(mission: Mission, mock: MockFleet) -> None:
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
         while (mission.mission_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         # push vehicle 2 to 0.4 m from vehicle 1 (R = 1 m): the model then flies it back

@@ -17,7 +17,7 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
 - `home` [x, y, z]: the vehicle's home in the world frame (ENU, m). Without it, the fleet-wide
   geodetic `world_origin` {lat, lon, alt (m AMSL)} is required and the home is computed from
   what the vehicle reports (GPS_GLOBAL_ORIGIN, else HOME_POSITION).
-- `mission`: `MissionOptions` fields (command-line flags override them).
+- `mission`: `FlightOptions` fields (command-line flags override them).
 
 Every problem is a `FleetFileError` naming the field (e.g. ``vehicles[2].system_id``).
 """
@@ -35,8 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gcs.errors import FleetFileError
+from gcs.flight.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
-from gcs.setpoints import MAX_RATE_HZ
 
 #: PX4 leaves offboard mode when setpoints arrive at 2 Hz or slower (PX4 docs: "> 2Hz").
 MIN_RATE_HZ = 2.0
@@ -47,7 +47,7 @@ __all__ = [
     "AT_END",
     "POLICIES",
     "FleetSpec",
-    "MissionOptions",
+    "FlightOptions",
     "VehicleSpec",
     "load_fleet",
 ]
@@ -62,7 +62,7 @@ _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home"}
 
 
 @dataclass(frozen=True)
-class MissionOptions:
+class FlightOptions:
     """How a mission is flown; defaults are for real vehicles."""
 
     rate_hz: float = 20.0
@@ -106,7 +106,7 @@ class MissionOptions:
     """Fixed heading in the world frame (rad, ENU: 0 = +x, counter-clockwise)."""
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], where: str = "mission") -> MissionOptions:
+    def from_dict(cls, data: Mapping[str, Any], where: str = "mission") -> FlightOptions:
         if not isinstance(data, Mapping):
             raise FleetFileError(where, "must be a JSON object")
         known = {f.name: f for f in fields(cls)}
@@ -117,7 +117,7 @@ class MissionOptions:
             values[key] = value
         return cls().replace(where=where, **values)
 
-    def replace(self, where: str = "options", **changes: Any) -> MissionOptions:
+    def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
             if key in ("policy", "at_end"):
@@ -176,7 +176,7 @@ class FleetSpec:
 
     vehicles: tuple[VehicleSpec, ...]
     world_origin: Geodetic | None
-    options: MissionOptions
+    options: FlightOptions
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> FleetSpec:
@@ -291,5 +291,5 @@ def _parse(data: Any) -> FleetSpec:
             raise FleetFileError(f"{where}.home",
                                  "is required unless the fleet has a world_origin")
         vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home))
-    options = MissionOptions.from_dict(data.get("mission", {}))
+    options = FlightOptions.from_dict(data.get("mission", {}))
     return FleetSpec(tuple(vehicles), origin, options)

@@ -1,11 +1,11 @@
-"""gcs.fleetfile: fleet file validation names the offending field."""
+"""gcs.flight.fleetfile: fleet file validation names the offending field."""
 
 from __future__ import annotations
 
 import pytest
 
 from gcs.errors import FleetFileError
-from gcs.fleetfile import FleetSpec, MissionOptions
+from gcs.flight.fleetfile import FleetSpec, FlightOptions
 
 
 def _fleet(**vehicle_changes):
@@ -62,4 +62,4 @@ def test_plan_vehicle_missing_from_fleet() -> None:
 
 def test_options_replace_validates() -> None:
     with pytest.raises(FleetFileError, match=r"option\.heartbeat_timeout"):
-        MissionOptions().replace(where="option", heartbeat_timeout=-1)
+        FlightOptions().replace(where="option", heartbeat_timeout=-1)
