@@ -17,10 +17,11 @@ $(STAMP): pyproject.toml | $(PY)
 
 install: $(STAMP)
 
-# The service with 4 mock vehicles: open the printed URL (Ctrl-C stops it).
+# The service with 4 mock vehicles: open the printed URL (Ctrl-C stops it). Host, port and the
+# rest come from the settings (defaults 127.0.0.1:8000, 4 mocks; FLEETPLAN_HOST, FLEETPLAN_PORT,
+# ./fleetplan.toml), so nothing is forced here.
 run: $(STAMP)
-	@echo "fleetplan: starting; open http://127.0.0.1:8000/ (API docs: /docs, Ctrl-C stops)"
-	$(VENV)/bin/fleetplan serve --host 127.0.0.1 --port 8000 --mock 4
+	$(VENV)/bin/fleetplan serve
 
 test: $(STAMP) test-tools
 	$(PY) -m ruff check planner gcs tests bench

@@ -23,12 +23,23 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
 )
 
 
+def _version() -> str:
+    """The installed package's version (the source tree's pyproject when not installed)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("fleetplan")
+    except metadata.PackageNotFoundError:  # a bare checkout on sys.path
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser, one sub-parser per subcommand."""
     parser = argparse.ArgumentParser(
         prog="fleetplan",
         description="Plan, check and fly collision-free quadcopter fleet missions.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, module_name, help_text in COMMANDS:
         module = importlib.import_module(module_name)

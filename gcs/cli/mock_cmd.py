@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     if homes is None:
         homes = [[args.spacing * i, 0.0, 0.0] for i in range(count)]
 
-    async def main() -> None:
+    async def main() -> int:
         mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                          listen_base_port=args.listen_base_port,
                          max_port_offset=args.max_port_offset, settle_time=args.settle,
@@ -75,7 +75,11 @@ def run(args: argparse.Namespace) -> int:
         for vehicle in mock.vehicles:
             vehicle.faults.loss = args.loss
             vehicle.faults.delay = args.delay
-        await mock.start()
+        try:
+            await mock.start()
+        except OSError as exc:  # a busy port: one line, not a traceback
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         if args.fleet_out:
             Path(args.fleet_out).write_text(json.dumps(mock.fleet_dict(ids), indent=1))
         print(f"mock: {count} PX4-like vehicles, listening on "
@@ -97,6 +101,6 @@ def run(args: argparse.Namespace) -> int:
         accepted = sum(v.setpoints_accepted for v in mock.vehicles)
         print(f"mock: stopped after {mock.now():.1f} s; {accepted} setpoints accepted, "
               f"{mock.physics_steps} physics steps", flush=True)
+        return 0
 
-    asyncio.run(main())
-    return 0
+    return asyncio.run(main())

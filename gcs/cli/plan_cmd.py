@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -49,13 +50,18 @@ def load_json(path: Path) -> Any:
                          f"column {exc.colno}") from None
 
 
+def _number(value: float | None, fmt: str) -> str:
+    """A figure for a table: "-" when there is none (never "nan" or "None")."""
+    return "-" if value is None or not math.isfinite(value) else fmt.format(value)
+
+
 def _summary_rows(plan: Any) -> list[tuple[str, str]]:
     v = plan.verification
     rows = [
         ("status", plan.status),
         ("vehicles", str(len(plan.vehicles))),
         ("SCP iterations", str(max(len(plan.iterations) - 1, 0))),
-        ("cost (sum ||a+g||^2)", f"{plan.cost:.4f}"),
+        ("cost (sum ||a+g||^2)", _number(plan.cost, "{:.4f}")),
         ("time total / first QP", f"{plan.timing['total_s']:.3f} s / "
                                   f"{plan.timing['first_qp_s']:.3f} s"),
         ("solver", plan.solver),
@@ -112,9 +118,10 @@ def run(args: argparse.Namespace) -> int:
     def progress(record: planner.IterationRecord) -> None:
         if args.quiet:
             return
-        change = "" if record.cost_change is None else f"  change {record.cost_change:.4g}"
+        change = "" if record.cost_change is None else (
+            f"  change {_number(record.cost_change, '{:.4g}')}")
         print(
-            f"iteration {record.iteration:>2}: cost {record.cost:.4f}{change}  "
+            f"iteration {record.iteration:>2}: cost {_number(record.cost, '{:.4f}')}{change}  "
             f"rows {record.separation_rows}  groups {record.groups}  "
             f"QPs {record.qp_solves}  {record.seconds:.3f} s",
             flush=True,

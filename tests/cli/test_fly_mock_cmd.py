@@ -68,3 +68,22 @@ def test_fly_rejects_bad_fleet_file(tmp_path: Path) -> None:
                            "--fleet", str(fleet)], capture_output=True, text=True, timeout=30)
     assert proc.returncode == 2
     assert "vehicles[0].connection" in proc.stderr
+
+
+def test_mock_on_a_busy_port_is_one_line(tmp_path: Path) -> None:
+    import socket
+
+    base = free_port_block(2)
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("127.0.0.1", base + 1))  # vehicle 0's listen port
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "gcs.cli.main", "mock", "--vehicles", "1",
+             "--base-port", str(base), "--listen-base-port", str(base + 1), "--duration", "1"],
+            capture_output=True, text=True, timeout=30)
+    finally:
+        busy.close()
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and str(base + 1) in lines[0]

@@ -57,8 +57,11 @@ def test_infeasible_plan_exits_1_and_still_writes(tmp_path, capsys):
     path.write_text(json.dumps(data))
     out = tmp_path / "p.json"
     assert main(["plan", str(path), "-o", str(out), "-q"]) == 1
-    assert "infeasible" in capsys.readouterr().err
+    captured = capsys.readouterr()
+    assert "infeasible" in captured.err
     assert json.loads(out.read_text())["status"] == "infeasible"
+    # an infeasible plan has no cost: the table says so with "-", never "nan" or "None"
+    assert "nan" not in captured.out.lower() and "None" not in captured.out
 
 
 def test_console_script_is_installed(tmp_path):
@@ -70,3 +73,12 @@ def test_console_script_is_installed(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert out.exists()
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    printed = capsys.readouterr().out.split()
+    assert printed[0] == "fleetplan"
+    assert printed[1][0].isdigit()  # the installed package's version, e.g. 0.1.0

@@ -79,3 +79,24 @@ def test_wheel_carries_the_page_and_finds_it(tmp_path: Path) -> None:
     )
     assert probe.returncode == 0, probe.stderr
     assert Path(probe.stdout.strip()) == target / "gcs" / "web"
+
+
+def test_make_run_leaves_host_and_port_to_the_settings() -> None:
+    """`make run` must honour FLEETPLAN_HOST/FLEETPLAN_PORT: it passes no --host or --port."""
+    if shutil.which("make") is None:
+        pytest.skip("make is not installed")
+    env = {**os.environ, "FLEETPLAN_PORT": "8123", "FLEETPLAN_HOST": "127.0.0.2"}
+    done = subprocess.run(["make", "-n", "-W", "pyproject.toml", "run"], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    serve = [line for line in done.stdout.splitlines() if "fleetplan serve" in line]
+    assert serve, done.stdout
+    assert all("--port" not in line and "--host" not in line for line in serve)
+
+
+@pytest.mark.parametrize("name", ["fleetplan.db", "fleetplan.db-wal", "fleetplan.db-shm"])
+def test_database_files_are_ignored_by_git(name: str) -> None:
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    done = subprocess.run(["git", "check-ignore", "-q", name], cwd=ROOT, timeout=30)
+    assert done.returncode == 0, f"{name} is not ignored"
