@@ -141,33 +141,37 @@ def run(args: argparse.Namespace) -> int:
 
 
 async def _progress(executor) -> None:
+    """Events as they happen, and the status table (`gcs.cli.fly_status`): redrawn in place on
+    a terminal, printed every 5 s otherwise (logs stay readable)."""
     import asyncio
+
+    from rich.console import Console
+    from rich.live import Live
+
+    from gcs.cli.fly_status import status_table
+
+    console = Console(highlight=False)
 
     async def events() -> None:
         async for event in executor.events():
             if event["kind"] in ("statustext", "mode_change") and event["vehicle"]:
                 continue
             who = event["vehicle"] or "fleet"
-            print(f"  [{event['t']:7.2f}] {who}: {event['kind']} {event['detail']}", flush=True)
+            console.print(f"  [{event['t']:7.2f}] {who}: {event['kind']} {event['detail']}",
+                          markup=False)
 
     watcher = asyncio.create_task(events())
     try:
-        while True:
-            await asyncio.sleep(1.0)
-            snap = executor.snapshot()
-            t = snap["mission_time"]
-            clock = f"t={t:6.1f}/{snap['horizon']:.0f} s" if t is not None else "t=  --"
-            parts = []
-            for v in snap["vehicles"]:
-                pos = v["position"]
-                where = "({:.1f} {:.1f} {:.1f})".format(*pos) if pos else "(?)"
-                err = v["tracking_error"]
-                parts.append(f"{v['id']} {v['phase']} {v['mode'] or '?'}"
-                             f"{' A' if v['armed'] else ''} {where}"
-                             f"{f' e={err:.2f}' if err is not None else ''}")
-            sep = snap["min_separation_live"]
-            print(f"{snap['phase']:10s} {clock} sep_min={sep if sep is None else round(sep, 2)}"
-                  f" | " + " | ".join(parts), flush=True)
+        if console.is_terminal:
+            with Live(status_table(executor.snapshot()), console=console,
+                      refresh_per_second=4, transient=False) as live:
+                while True:
+                    await asyncio.sleep(0.25)
+                    live.update(status_table(executor.snapshot()))
+        else:
+            while True:
+                await asyncio.sleep(5.0)
+                console.print(status_table(executor.snapshot()))
     finally:
         watcher.cancel()
 

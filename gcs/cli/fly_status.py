@@ -1,0 +1,64 @@
+"""The live status of `fleetplan fly`: a compact table, one row per vehicle (rich).
+
+Built from `FlightExecutor.snapshot()` alone, so it shows exactly what the executor knows.
+Missing or non-finite figures print as "-", never "None" or "nan".
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from rich.table import Table
+from rich.text import Text
+
+__all__ = ["figure", "header", "status_table"]
+
+#: Phases shown in colour: trouble in red, done in green, the rest plain.
+_PHASE_STYLE = {"faulty": "bold red", "stopped": "red", "landed": "green", "hovering": "yellow"}
+
+
+def figure(value: float | None, spec: str = ".2f", unit: str = "") -> str:
+    """A number for a table: "-" when missing or not finite."""
+    if value is None or not math.isfinite(value):
+        return "-"
+    return f"{value:{spec}}{unit}"
+
+
+def header(snap: dict[str, Any]) -> str:
+    """One line: flight phase, plan time against the horizon (then the time past it), live
+    minimum separation."""
+    t = snap.get("mission_time")
+    horizon = snap.get("horizon")
+    if t is None:
+        clock = "t -"
+    elif horizon is not None and t > horizon:  # holding, landing: the plan itself is done
+        clock = f"t {figure(horizon, '.1f')} / {figure(horizon, '.0f')} s +{t - horizon:.1f} s"
+    else:
+        clock = f"t {figure(t, '.1f')} / {figure(horizon, '.0f')} s"
+    return (f"{snap['phase']} · {clock} · min separation "
+            f"{figure(snap.get('min_separation_live'), '.2f', ' m')}")
+
+
+def status_table(snap: dict[str, Any]) -> Table:
+    """One row per vehicle: phase, PX4 mode, armed, world position, tracking error, link age."""
+    table = Table(title=header(snap), title_justify="left", box=None, pad_edge=False,
+                  header_style="bold", expand=False)
+    for name, justify in (("vehicle", "left"), ("phase", "left"), ("mode", "left"),
+                          ("armed", "left"), ("x", "right"), ("y", "right"), ("z", "right"),
+                          ("err m", "right"), ("link s", "right"), ("fault", "left")):
+        table.add_column(name, justify=justify, no_wrap=True)  # type: ignore[arg-type]
+    for v in snap["vehicles"]:
+        position = v.get("position") or [None, None, None]
+        phase = v.get("phase") or "-"
+        table.add_row(
+            str(v["id"]),
+            Text(phase, style=_PHASE_STYLE.get(phase, "")),
+            v.get("mode") or "-",
+            "armed" if v.get("armed") else "-",
+            *(figure(c, ".1f") for c in position),
+            figure(v.get("tracking_error"), ".2f"),
+            figure(v.get("link_age"), ".1f"),
+            Text(v.get("fault") or "", style="bold red"),
+        )
+    return table
