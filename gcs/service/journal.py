@@ -107,7 +107,12 @@ class ExecutionJournal:
         record = None if not with_record or recorder is None else record_snapshot(recorder)
 
         def write() -> None:
-            text = None if record is None else orjson.dumps(record).decode()
+            text = None
+            if record is not None:
+                try:
+                    text = orjson.dumps(record, option=orjson.OPT_SERIALIZE_NUMPY).decode()
+                except TypeError as exc:  # never let the record keep the events unstored
+                    log.warning("flight record of %s not serialisable: %s", self._id, exc)
             self._store.update_execution(self._id, status=status, events=events,
                                          record_json=text)
 
