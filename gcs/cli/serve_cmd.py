@@ -105,7 +105,21 @@ def _startup_problem(settings: Settings) -> str | None:
     host, port = settings.host, settings.port
     if ":" not in host and not _port_free(socket.SOCK_STREAM, port, host):
         return f"TCP port {port} on {host} is in use: choose another with --port"
-    return _database_problem(settings.database_url)
+    return _database_problem(settings.database_url) or _scheduler_problem(settings.scheduler)
+
+
+def _scheduler_problem(address: str | None, timeout: float = 30.0) -> str | None:
+    """Why the Dask scheduler named by the `scheduler` setting cannot be used (None: it
+    answers, or none is named). Waits up to `timeout` for one that is still starting."""
+    if not address:
+        return None
+    from distributed import Client
+
+    try:
+        with Client(address, timeout=timeout):
+            return None
+    except (OSError, TimeoutError, ValueError) as exc:
+        return f"cannot reach the Dask scheduler at {address} (setting scheduler): {exc}"
 
 
 async def _on_stop_signal(app: Any) -> None:
