@@ -90,8 +90,8 @@ def run_plan(
     worker = _dask_worker() if topic is not None else None
 
     def send(kind: str, **data: Any) -> None:
-        if worker is not None:
-            worker.log_event(topic, {"job": job_id, "kind": kind, **data})
+        if worker is not None:  # "sent": wall clock, to measure delivery (bench/dask_engine)
+            worker.log_event(topic, {"job": job_id, "kind": kind, "sent": time.time(), **data})
 
     send("started", worker=None if worker is None else worker.address)
     cancelled = _cancel_flag(cancel_event if worker is not None else None)

@@ -33,7 +33,7 @@ import contextlib
 import logging
 import math
 import uuid
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -144,6 +144,8 @@ class PlanningService:
         self._tasks: set[asyncio.Task[Any]] = set()
         self._large_slots: asyncio.Semaphore | None = None
         self._closing = False
+        self.on_message: Callable[[dict[str, Any]], None] | None = None
+        """Called with every worker message as it arrives (measurement hook)."""
 
     @classmethod
     def from_settings(cls, store: Store, settings: Settings) -> PlanningService:
@@ -444,6 +446,8 @@ class PlanningService:
         if job is None or job.done.is_set():
             return
         kind = message.get("kind")
+        if self.on_message is not None:
+            self.on_message(message)
         if kind == "iteration":
             job.add_progress(message["record"])
         elif kind == "started":
