@@ -30,9 +30,9 @@ from pathlib import Path
 # (the planner benchmark) would shadow the planner package: the project root goes first.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import planner  # noqa: E402
-from gcs.service.planning import PlanningService  # noqa: E402
-from gcs.service.store import Store  # noqa: E402
+import planner
+from gcs.service.planning import PlanningService
+from gcs.service.store import Store
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "planner" / "examples"
 
