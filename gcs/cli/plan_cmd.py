@@ -111,7 +111,7 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
     import threading
     import uuid
 
-    from distributed import Client
+    from distributed import Client, Event
 
     import planner
     from gcs.service import plan_worker
@@ -135,10 +135,11 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
     with client:
         client.subscribe_topic(topic, on_event)
         future = client.submit(plan_worker.run_plan, topic, scenario, solver, topic=topic,
-                               pure=False)
+                               cancel_event=f"{topic}-cancel", pure=False)
         try:
             result = future.result()
-        except KeyboardInterrupt:
+        except KeyboardInterrupt:  # stop the task too (after its current SCP iteration)
+            Event(f"{topic}-cancel", client=client).set()
             future.cancel()
             raise
         ended.wait(5.0)  # the last iterations travel apart from the result

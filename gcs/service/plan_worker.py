@@ -17,11 +17,14 @@ event-loop time on a multi-megabyte document.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict
 from typing import Any
+
+import numpy as np
 
 __all__ = ["PlanStopped", "finite_json", "run_plan", "warm"]
 
@@ -40,6 +43,8 @@ def warm() -> bool:
 def finite_json(value: Any) -> Any:
     """`value` with every non-finite float replaced by None, so the text is strict JSON
     (browsers' JSON.parse rejects Infinity and NaN)."""
+    if isinstance(value, np.generic):  # numpy scalars: plain Python (msgpack, json)
+        value = value.item()
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
@@ -91,7 +96,11 @@ def run_plan(
 
     def send(kind: str, **data: Any) -> None:
         if worker is not None:  # "sent": wall clock, to measure delivery (bench/dask_engine)
-            worker.log_event(topic, {"job": job_id, "kind": kind, "sent": time.time(), **data})
+            try:
+                worker.log_event(topic, {"job": job_id, "kind": kind, "sent": time.time(),
+                                         **data})
+            except TypeError:  # not msgpack-able: a lost progress line, never a lost plan
+                logging.getLogger(__name__).exception("progress message dropped")
 
     send("started", worker=None if worker is None else worker.address)
     cancelled = _cancel_flag(cancel_event if worker is not None else None)
