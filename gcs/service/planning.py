@@ -196,15 +196,15 @@ class PlanningService:
     async def close(self) -> None:
         """Fail unfinished jobs, stop their tasks, close the client and embedded cluster."""
         self._closing = True
-        for job in list(self._jobs.values()):
-            if not job.done.is_set():
-                job.stop_reason = "the service stopped before this plan finished"
-                await self._record_failure(job, job.stop_reason, retry=False)
-                job.finish(_failed("the service stopped"))
+        unfinished = [job for job in self._jobs.values() if not job.done.is_set()]
+        for job in unfinished:
+            job.stop_reason = "the service stopped before this plan finished"
+            await self._record_failure(job, job.stop_reason, retry=False)
+            job.finish(_failed("the service stopped"))
         client = self._client
-        if client is not None:
-            for job in list(self._jobs.values()):
-                if job.started.is_set() and job.key:
+        if client is not None:  # tasks of an external cluster stop after their iteration
+            for job in unfinished:
+                if job.started.is_set():
                     with contextlib.suppress(Exception):
                         await self._cancel_flag(job).set()
         for task in list(self._tasks):
