@@ -129,3 +129,14 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
     assert "the service is stopping" in stored["error"]
     kinds = [event["kind"] for event in stored["events"]]
     assert "abort" in kinds
+
+
+def test_an_unreachable_scheduler_is_a_one_line_problem() -> None:
+    from gcs.cli.serve_cmd import _scheduler_problem
+
+    address = f"tcp://127.0.0.1:{free_port()}"
+    problem = _scheduler_problem(address, timeout=2)
+    assert problem is not None
+    assert problem.startswith(f"cannot reach the Dask scheduler at {address} (setting scheduler)")
+    assert "\n" not in problem
+    assert _scheduler_problem(None) is None
