@@ -86,9 +86,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if interrupted:
             log.warning("%d flight(s) left running by a previous run marked interrupted",
                         interrupted)
-        planning = PlanningService(
-            store, workers=settings.plan_workers, solver=settings.planner_solver
-        )
+        planning = PlanningService.from_settings(store, settings)
         await planning.start()
         fleet = FleetService(settings, store)
         app.state.settings = settings

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,8 @@ from typing import Any
 __all__ = ["configure", "run"]
 
 EXIT_OK, EXIT_NOT_VERIFIED, EXIT_BAD_INPUT = 0, 1, 2
+#: Environment variable naming the Dask scheduler (the service's `scheduler` setting).
+SCHEDULER_ENV = "FLEETPLAN_SCHEDULER"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -30,6 +33,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="QP solver (default: piqp, the fastest accurate one measured)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
+    parser.add_argument(
+        "--scheduler", metavar="tcp://HOST:8786", default=os.environ.get(SCHEDULER_ENV) or None,
+        help=f"plan as a task on this Dask cluster (default ${SCHEDULER_ENV}; unset: here)",
+    )
 
 
 def _fail(message: str) -> int:
@@ -103,6 +110,52 @@ def _print_summary(plan: Any) -> None:
     Console().print(table)
 
 
+def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
+                     progress: Any) -> Any:
+    """Plan as one Dask task on the cluster at `address`, iterations printed as they come;
+    returns the Plan. ValueError with a message for the user when it cannot."""
+    import threading
+    import uuid
+
+    from distributed import Client, Event
+
+    import planner
+    from gcs.service import plan_worker
+
+    try:
+        client = Client(address, timeout=10)
+    except (OSError, TimeoutError) as exc:
+        raise ValueError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    ended = threading.Event()
+    topic = f"fleetplan-cli-{uuid.uuid4().hex[:12]}"
+
+    def on_event(event: Any) -> None:
+        message = event[1]
+        if message["kind"] == "iteration":
+            progress(planner.IterationRecord(**message["record"]))
+        elif message["kind"] == "started":
+            print(f"planning on Dask worker {message['worker']}", flush=True)
+        elif message["kind"] == "end":
+            ended.set()
+
+    with client:
+        client.subscribe_topic(topic, on_event)
+        future = client.submit(plan_worker.run_plan, topic, scenario, solver, topic=topic,
+                               cancel_event=f"{topic}-cancel", pure=False)
+        try:
+            result = future.result()
+        except KeyboardInterrupt:  # stop the task too (after its current SCP iteration)
+            Event(f"{topic}-cancel", client=client).set()
+            future.cancel()
+            raise
+        ended.wait(5.0)  # the last iterations travel apart from the result
+    if "error" in result:
+        error = result["error"]
+        where = f"{error['field']}: " if error.get("field") else ""
+        raise ValueError(f"{where}{error['reason']}")
+    return planner.Plan.from_dict(json.loads(result["plan_json"]))
+
+
 def run(args: argparse.Namespace) -> int:
     import planner
     from planner.errors import FieldError, SolverError
@@ -128,8 +181,11 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        plan = planner.plan(scenario, solver=args.solver, progress=progress)
-    except SolverError as exc:
+        if args.scheduler:
+            plan = _plan_on_cluster(args.scheduler, scenario.to_dict(), args.solver, progress)
+        else:
+            plan = planner.plan(scenario, solver=args.solver, progress=progress)
+    except (SolverError, ValueError) as exc:
         return _fail(str(exc))
     output = args.output or Path(f"{scenario.name}.plan.json")
     try:

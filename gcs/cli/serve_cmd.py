@@ -9,9 +9,10 @@ is requested.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, ClassVar
 
 if TYPE_CHECKING:
     from gcs.service.settings import Settings
@@ -30,22 +31,54 @@ def configure(parser: argparse.ArgumentParser) -> None:
     vehicles.add_argument("--fleet", type=Path, metavar="FLEET.json",
                           help="fleet file of real vehicles or SITL instances")
     parser.add_argument("--workers", type=int, metavar="N",
-                        help="planner worker processes (default: CPU count - 1)")
+                        help="planner worker processes of the embedded Dask cluster "
+                        "(default: CPU count - 1, at least 2)")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:8786",
+                        help="plan on this existing Dask cluster instead of an embedded one "
+                        "(setting FLEETPLAN_SCHEDULER)")
     parser.add_argument("--config", type=Path, metavar="FILE.toml",
                         help="settings file (default $FLEETPLAN_CONFIG or ./fleetplan.toml)")
     parser.add_argument("--log-level", default="info",
                         choices=("critical", "error", "warning", "info", "debug"))
 
 
+#: Seconds open responses (event streams) get to end once the service is told to stop.
+GRACEFUL_SHUTDOWN_S = 5
+
+
 def _port_free(kind: int, port: int, host: str = "127.0.0.1") -> bool:
+    """Can `port` be bound now? TCP is tried the way uvicorn binds (SO_REUSEADDR), so a
+    TIME_WAIT left by closed client connections does not read as "in use"."""
     import socket
 
     with socket.socket(socket.AF_INET, kind) as sock:
+        if kind == socket.SOCK_STREAM:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             sock.bind((host, port))
         except OSError:
             return False
     return True
+
+
+def _database_problem(url: str) -> str | None:
+    """Why the database cannot be used (missing directory, read-only, unreachable), in one
+    line; None when a write could be made."""
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from gcs.service.store import Store
+
+    store = None
+    try:
+        store = Store(url)
+        store.check_writable()
+    except (SQLAlchemyError, OSError) as exc:
+        reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()
+        return f"database {url} cannot be used: {reason[0] if reason else type(exc).__name__}"
+    finally:
+        if store is not None:
+            store.close()
+    return None
 
 
 def _startup_problem(settings: Settings) -> str | None:
@@ -72,11 +105,67 @@ def _startup_problem(settings: Settings) -> str | None:
     host, port = settings.host, settings.port
     if ":" not in host and not _port_free(socket.SOCK_STREAM, port, host):
         return f"TCP port {port} on {host} is in use: choose another with --port"
-    return None
+    return _database_problem(settings.database_url) or _scheduler_problem(settings.scheduler)
+
+
+def _scheduler_problem(address: str | None, timeout: float = 30.0) -> str | None:
+    """Why the Dask scheduler named by the `scheduler` setting cannot be used (None: it
+    answers, or none is named). Waits up to `timeout` for one that is still starting."""
+    if not address:
+        return None
+    from distributed import Client
+
+    try:
+        with Client(address, timeout=timeout):
+            return None
+    except (OSError, TimeoutError, ValueError) as exc:
+        return f"cannot reach the Dask scheduler at {address} (setting scheduler): {exc}"
+
+
+async def _on_stop_signal(app: Any) -> None:
+    """SIGTERM/SIGINT: land the flight under way now and end the event streams, so the
+    server's graceful shutdown (which waits for open responses) is not held up by them."""
+    from gcs.service.events import end_streams
+
+    end_streams()
+    fleet = getattr(app.state, "fleet", None)
+    flight = None if fleet is None else fleet.active
+    if flight is not None:
+        with contextlib.suppress(Exception):
+            await fleet.abort(flight.id, "land", "the service is stopping")
+
+
+def _server(app: Any, settings: Settings, log_level: str) -> Any:
+    """A uvicorn server whose stop signals also call `_on_stop_signal`."""
+    import asyncio
+
+    import uvicorn
+
+    class Server(uvicorn.Server):
+        loop: asyncio.AbstractEventLoop | None = None
+        stopping: ClassVar[set[asyncio.Task[None]]] = set()
+
+        async def startup(self, sockets: Any = None) -> None:
+            self.loop = asyncio.get_running_loop()
+            await super().startup(sockets)
+
+        def handle_exit(self, sig: int, frame: Any) -> None:
+            super().handle_exit(sig, frame)
+            loop = self.loop
+            if loop is not None and not loop.is_closed():
+                loop.call_soon_threadsafe(self._stop_now)
+
+        def _stop_now(self) -> None:
+            task = asyncio.ensure_future(_on_stop_signal(app))
+            self.stopping.add(task)
+            task.add_done_callback(self.stopping.discard)
+
+    config = uvicorn.Config(app, host=settings.host, port=settings.port, log_level=log_level,
+                            timeout_graceful_shutdown=GRACEFUL_SHUTDOWN_S)
+    return Server(config)
 
 
 def run(args: argparse.Namespace) -> int:
-    import uvicorn
     from pydantic import ValidationError
 
     from gcs.api import create_app
@@ -91,6 +180,7 @@ def run(args: argparse.Namespace) -> int:
             ("mock_vehicles", args.mock),
             ("fleet_file", args.fleet),
             ("plan_workers", args.workers),
+            ("scheduler", args.scheduler),
         )
         if value is not None
     }
@@ -112,5 +202,5 @@ def run(args: argparse.Namespace) -> int:
     host = f"[{settings.host}]" if ":" in settings.host else settings.host
     print(f"fleetplan: serving on http://{host}:{settings.port}/ ({fleet}, "
           f"database {settings.database_url})", flush=True)
-    uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level)
+    _server(app, settings, args.log_level).run()
     return 0

@@ -34,6 +34,7 @@ from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, load_fleet
 from gcs.flight.link import LinkHub, VehicleLink
 from gcs.service.events import Broadcast, Event
+from gcs.service.journal import ExecutionJournal, store_failure
 from gcs.service.settings import Settings
 from gcs.service.store import ExecutionRow, Store
 from gcs.sim.mock import MockFleet, homes_under
@@ -307,6 +308,12 @@ class FleetService:
         ticker: asyncio.Task[None] | None = None
         relay: asyncio.Task[None] | None = None
         task: asyncio.Task[dict[str, Any]] | None = None
+        # Persistence hook (gcs.service.journal): state, events and the record so far are
+        # stored about every second while flying, so a crash keeps them.
+        journal = ExecutionJournal(self._store, flight.id, lambda: (
+            flight.status, flight.events,
+            None if flight.executor is None else flight.executor.recorder))
+        journal.start()
         try:
             await self._close_monitor()
             if self.kind == "mock":
@@ -349,6 +356,7 @@ class FleetService:
                 record = flight.executor.record
             if record is not None and flight.summary is None:
                 flight.summary = record.get("summary")
+            await journal.close()
             await self._persist(flight, record)
             if self._active is flight:
                 self._active = None
@@ -396,8 +404,11 @@ class FleetService:
 
         try:
             await asyncio.to_thread(write)
-        except Exception:
+        except Exception as exc:
             log.exception("could not store execution %s", flight.id)
+            # Never leave it stored as flying: failed, with the reason (persistence hook).
+            await store_failure(self._store, flight.id, f"the flight ({flight.status}) could "
+                                f"not be stored: {type(exc).__name__}: {exc}"[:500], flight.events)
 
 
 def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[str, Any]:

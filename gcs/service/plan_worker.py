@@ -1,34 +1,50 @@
-"""What runs inside a planning worker process: `planner.plan` with its progress sent home.
+"""What runs as a Dask task on a planning worker: `planner.plan` with its progress sent home.
 
-Kept apart from `gcs.api` so a worker imports the planner and nothing of the web stack. The
-parent creates one `multiprocessing` queue and hands it to every worker through the pool's
-initializer (queues can only be shared by inheritance); each SCP iteration is put on it as
-``(job_id, record_dict)``. The plan comes back as JSON text, serialised here so the parent
-never spends event-loop time on a multi-megabyte document.
+Kept apart from `gcs.api` so a worker imports the planner and nothing of the web stack (a
+worker of an external cluster needs only `planner` and this module). Progress travels as Dask
+structured events: the task logs ``{"job", "kind", ...}`` messages on the topic its caller
+named (`Worker.log_event`), the scheduler forwards them to the subscribed client
+(`Client.subscribe_topic`). Kinds: ``started`` (with the worker's address, so the service
+can restart that worker to stop a task that does not stop by itself), ``iteration`` (one SCP
+`IterationRecord`) and ``end`` (no more iterations follow).
+
+The task stops cooperatively: after every SCP iteration it checks its time limit and its
+cancel flag (a `distributed.Event`) and raises `PlanStopped` out of the planner's `progress`
+callback. The plan comes back as JSON text, serialised here so the service never spends
+event-loop time on a multi-megabyte document.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import math
+import time
+from collections.abc import Callable
 from dataclasses import asdict
 from typing import Any
 
-__all__ = ["finite_json", "init_worker", "run_plan"]
+import numpy as np
 
-_progress_queue: Any = None
+__all__ = ["PlanStopped", "finite_json", "run_plan", "warm"]
 
 
-def init_worker(progress_queue: Any) -> None:
-    """Pool initializer: keep the progress queue and import the planner once, up front."""
-    global _progress_queue
-    _progress_queue = progress_queue
-    import planner  # noqa: F401  (warm import: the first plan should not pay for it)
+class PlanStopped(Exception):
+    """Raised from the progress callback: the plan was cancelled or ran out of time."""
+
+
+def warm() -> bool:
+    """Import the planner now (run on every worker at start: the first plan should not pay)."""
+    import planner  # noqa: F401
+
+    return True
 
 
 def finite_json(value: Any) -> Any:
     """`value` with every non-finite float replaced by None, so the text is strict JSON
     (browsers' JSON.parse rejects Infinity and NaN)."""
+    if isinstance(value, np.generic):  # numpy scalars: plain Python (msgpack, json)
+        value = value.item()
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
@@ -38,27 +54,75 @@ def finite_json(value: Any) -> Any:
     return value
 
 
-def run_plan(job_id: str, scenario: dict[str, Any], solver: str | None) -> dict[str, Any]:
+def _dask_worker() -> Any:
+    """The Dask worker running this task, or None when called outside Dask."""
+    try:
+        from distributed import get_worker
+
+        return get_worker()
+    except (ImportError, ValueError):
+        return None
+
+
+def _cancel_flag(name: str | None) -> Callable[[], bool]:
+    """A cheap `is cancelled?` check: the named `distributed.Event` (one scheduler call)."""
+    if name is None:
+        return lambda: False
+    from distributed import Event
+
+    event = Event(name)
+    return event.is_set
+
+
+def run_plan(
+    job_id: str,
+    scenario: dict[str, Any],
+    solver: str | None,
+    *,
+    topic: str | None = None,
+    time_limit_s: float | None = None,
+    cancel_event: str | None = None,
+) -> dict[str, Any]:
     """Plan `scenario`; returns {"plan_json", "status", "ok"} or {"error": {field, reason}}.
 
-    Progress goes to the queue as (job_id, record) per iteration, then (job_id, None).
+    With `topic`, progress goes out as Dask events (see the module docstring). With
+    `time_limit_s`, the plan stops after the first SCP iteration that ends past the limit; with
+    `cancel_event`, after the first iteration that ends with that Dask Event set.
     """
     from planner import FieldError, IterationRecord, PlannerError, plan
 
+    began = time.monotonic()
+    worker = _dask_worker() if topic is not None else None
+
+    def send(kind: str, **data: Any) -> None:
+        if worker is not None:  # "sent": wall clock, to measure delivery (bench/dask_engine)
+            try:
+                worker.log_event(topic, {"job": job_id, "kind": kind, "sent": time.time(),
+                                         **data})
+            except TypeError:  # not msgpack-able: a lost progress line, never a lost plan
+                logging.getLogger(__name__).exception("progress message dropped")
+
+    send("started", worker=None if worker is None else worker.address)
+    cancelled = _cancel_flag(cancel_event if worker is not None else None)
+
     def progress(record: IterationRecord) -> None:
-        if _progress_queue is not None:
-            _progress_queue.put((job_id, finite_json(asdict(record))))
+        send("iteration", record=finite_json(asdict(record)))
+        if time_limit_s is not None and time.monotonic() - began > time_limit_s:
+            raise PlanStopped(f"planning exceeded its time limit of {time_limit_s:g} s")
+        if cancelled():
+            raise PlanStopped("planning was cancelled")
 
     try:
         result = plan(scenario, solver=solver, progress=progress)
+    except PlanStopped as exc:
+        return {"error": {"field": None, "reason": str(exc)}, "stopped": True}
     except FieldError as exc:
         return {"error": exc.to_dict()}
     except PlannerError as exc:
         return {"error": {"field": None, "reason": f"{type(exc).__name__}: {exc}"}}
     finally:
-        # End-of-progress marker: the queue is FIFO per process, so once the parent reads
-        # it, every iteration of this job has been delivered.
-        if _progress_queue is not None:
-            _progress_queue.put((job_id, None))
+        # End-of-progress marker: events of one worker arrive in order, so once the service
+        # sees it, every iteration of this job has been delivered.
+        send("end")
     text = json.dumps(finite_json(result.to_dict()), allow_nan=False, separators=(",", ":"))
     return {"plan_json": text, "status": result.status, "ok": bool(result.ok)}

@@ -93,16 +93,29 @@ class Settings(BaseSettings):
         500_000, ge=1000, description="Most vehicle-time samples one /trajectory answer holds."
     )
     plan_workers: int = Field(
-        max(1, (os.cpu_count() or 2) - 1),
+        max(2, (os.cpu_count() or 2) - 1),
         ge=1,
         le=64,
-        description="Worker processes that run the planner (never the event loop).",
+        description="Worker processes of the embedded Dask cluster that run the planner "
+        "(never the event loop); with 2 or more, a small plan never waits behind large ones.",
     )
     plan_wait_s: float = Field(
         5.0,
         ge=0,
         le=600,
         description="How long POST /api/missions waits for a plan before answering 202.",
+    )
+    scheduler: str | None = Field(
+        None, description="Dask scheduler address (tcp://HOST:8786) to plan on; None: an "
+        "embedded local cluster of plan_workers processes."
+    )
+    plan_time_limit_s: float = Field(
+        600.0, gt=0, le=86_400, description="Longest a plan may compute (s); a request may "
+        "ask for less with ?time_limit=."
+    )
+    plan_queue_max: int = Field(
+        16, ge=1, le=10_000, description="Plans queued or running at once; more are refused "
+        "with 503."
     )
     planner_solver: str | None = Field(
         None, description="QP backend passed to the planner (None: the planner's default)."

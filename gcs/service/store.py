@@ -53,8 +53,9 @@ __all__ = [
 #: A mission is `planning` until its worker answers, then `planned` (whatever the plan's own
 #: status: converged, max_iterations or infeasible) or `failed` (the planner raised).
 MISSION_STATUSES = ("planning", "planned", "failed")
-#: Execution statuses during which the vehicles are (or may be) flying.
-EXECUTION_ACTIVE = ("starting", "running")
+#: Execution statuses during which the vehicles are (or may be) flying; a stored execution
+#: left in one of them by a stopped server is `interrupted` at the next start.
+EXECUTION_ACTIVE = ("starting", "running", "aborting")
 
 
 def _now() -> datetime:
@@ -237,6 +238,17 @@ class Store:
 
     def close(self) -> None:
         self.engine.dispose()
+
+    def check_writable(self) -> None:
+        """Raise (SQLAlchemyError) unless a row can be written: a mission is inserted and
+        rolled back, so a read-only file or a full disk shows at start, not on first use."""
+        with self._sessions() as session:
+            now = _now()
+            session.add(_Mission(id="_probe", name="", status="failed", created_at=now,
+                                 updated_at=now, vehicle_count=0, steps=0, dt="0",
+                                 scenario_json="{}"))
+            session.flush()
+            session.rollback()
 
     @contextmanager
     def _session(self) -> Iterator[Session]:

@@ -76,7 +76,7 @@ async def _document(store: Store, planning: PlanningService, mission_id: str) ->
     responses={
         201: {"model": MissionOut, "description": "Planned (or failed) within the wait"},
         202: {"model": MissionOut, "description": "Still planning: poll the Location"},
-        **error_responses(400, 413, 422),
+        **error_responses(400, 413, 422, 503),
     },
 )
 async def create_mission(
@@ -88,6 +88,11 @@ async def create_mission(
         float | None,
         Query(ge=0, le=600, description="Seconds to wait for the plan before answering 202 "
               "(default: the plan_wait_s setting)."),
+    ] = None,
+    time_limit: Annotated[
+        float | None,
+        Query(gt=0, description="Seconds the plan may compute (default and maximum: the "
+              "plan_time_limit_s setting); past it the mission fails."),
     ] = None,
 ) -> Response:
     """Validate a scenario, store it as a mission and plan it in a worker process.
@@ -109,9 +114,11 @@ async def create_mission(
             f"{scenario.steps} steps exceed this server's limit of {settings.max_steps} "
             f"(setting max_steps)",
         )
+    limit = planning.job_time_limit(time_limit)
+    planning.check_capacity()  # 503 before anything is stored
     parsed = await run_in_threadpool(Scenario.from_dict, scenario.to_contract())
     row = await run_in_threadpool(store.create_mission, parsed.to_dict())
-    job = planning.submit(row.id, parsed.to_dict())
+    job = planning.submit(row.id, parsed.to_dict(), time_limit_s=limit)
     timeout = settings.plan_wait_s if wait is None else wait
     with contextlib.suppress(TimeoutError):
         await asyncio.wait_for(job.done.wait(), timeout)
@@ -166,22 +173,49 @@ async def get_mission(mission: MissionDep, store: StoreDep, planning: PlanningDe
     summary="Delete a mission",
     responses=error_responses(404, 409),
 )
-def delete_mission(
+async def delete_mission(
     mission: MissionDep, store: StoreDep, planning: PlanningDep, plans: PlanCacheDep
 ) -> Response:
-    """Delete a mission, its plan and its flight records. Refused (409) while it is still
-    planning or flying."""
+    """Delete a mission, its plan and its flight records; a plan still computing is cancelled
+    first (its worker is freed). Refused (409) while the mission is flying."""
     if mission.status == "planning":
-        raise StateConflict("mission_id", f"mission {mission.id!r} is still planning; delete it "
-                       "once planning has finished")
-    flying = [e.id for e in store.list_executions(mission.id) if e.status in EXECUTION_ACTIVE]
+        await _stop_planning(planning, mission.id, "the mission was deleted")
+    executions = await run_in_threadpool(store.list_executions, mission.id)
+    flying = [e.id for e in executions if e.status in EXECUTION_ACTIVE]
     if flying:
         raise StateConflict("mission_id", f"mission {mission.id!r} is flying (execution "
                        f"{flying[0]}); abort or wait for the flight to end first")
-    store.delete_mission(mission.id)
+    await run_in_threadpool(store.delete_mission, mission.id)
     planning.forget(mission.id)
     plans.forget(mission.id)
     return Response(status_code=204)
+
+
+async def _stop_planning(planning: PlanningService, mission_id: str, reason: str) -> None:
+    """Cancel a mission's plan and wait until its job has ended (and the mission is stored
+    as failed); 409 if it is not planning in this service."""
+    job = planning.cancel(mission_id, reason)
+    await job.done.wait()
+
+
+@router.post(
+    "/{mission_id}/cancel",
+    response_model=None,
+    summary="Cancel planning",
+    responses={200: {"model": MissionOut}, **error_responses(404, 409)},
+)
+async def cancel_mission(mission: MissionDep, store: StoreDep, planning: PlanningDep
+                         ) -> Response:
+    """Stop planning this mission now: the computation ends and its worker is freed. The
+    mission is kept, with status `failed` and the reason. 409 if it is not planning."""
+    if mission.status != "planning":
+        raise StateConflict("mission_id", f"mission {mission.id!r} is not planning (status "
+                            f"{mission.status})")
+    await _stop_planning(planning, mission.id, "cancelled by the operator")
+    text = await _document(store, planning, mission.id)
+    if text is None:
+        raise StateConflict("mission_id", f"mission {mission.id!r} was just deleted")
+    return _json(text)
 
 
 @router.get(

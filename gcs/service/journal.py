@@ -1,0 +1,159 @@
+"""An execution's state, events and flight record written to the store while it flies.
+
+A flight used to be stored only at its end, so a crash (kill -9, power loss) left an
+`interrupted` execution with no events and no record. `ExecutionJournal` writes the status and
+the events so far about once a second (batched: nothing is written when nothing changed), and
+a snapshot of the flight record so far every few seconds (it grows with the flight, so less
+often). The final write at the end of the flight (`FleetService._persist`) replaces all of it.
+
+Snapshots are taken on the event loop as shallow list copies (fast, and consistent with the
+loop that appends to them); the JSON is made and written in a thread. A failing write is
+logged and retried on the next beat: the flight itself never waits for the store.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import orjson
+
+from gcs.service.store import Store
+
+if TYPE_CHECKING:
+    from gcs.flight.record import FlightRecorder
+
+__all__ = ["ExecutionJournal", "record_snapshot", "store_failure"]
+
+log = logging.getLogger(__name__)
+
+#: Seconds between writes of the status and events.
+STATE_PERIOD_S = 1.0
+#: Seconds between writes of the flight record so far.
+RECORD_PERIOD_S = 5.0
+
+
+def record_snapshot(recorder: FlightRecorder) -> dict[str, Any]:
+    """The flight record so far, as shallow copies (JSON-ready with orjson), marked
+    ``"partial": true``."""
+    vehicles = []
+    for v in list(recorder.vehicles.values()):
+        vehicles.append({
+            "id": v.id, "system_id": v.system_id, "home": v.home,
+            "setpoints": {"t": list(v.sp_t), "tick": list(v.sp_tick),
+                          "position_ned": list(v.sp_pos), "velocity_ned": list(v.sp_vel),
+                          "acceleration_ned": list(v.sp_acc)},
+            "telemetry": {"t": list(v.tel_t), "position": list(v.tel_pos),
+                          "velocity": list(v.tel_vel)},
+            "modes": list(v.modes),
+        })
+    return {"format": "fleetplan-flight-record/1", "partial": True, **recorder.meta,
+            "vehicles": vehicles, "events": list(recorder.events), "summary": None}
+
+
+#: What the journal reads each beat: (status, events so far, flight recorder or None).
+Source = Callable[[], tuple[str, list[dict[str, Any]], "FlightRecorder | None"]]
+
+
+class ExecutionJournal:
+    """Writes one live execution to the store periodically until `close`."""
+
+    def __init__(self, store: Store, execution_id: str, source: Source, *,
+                 state_period_s: float = STATE_PERIOD_S,
+                 record_period_s: float = RECORD_PERIOD_S) -> None:
+        self._store = store
+        self._id = execution_id
+        self._source = source
+        self._state_period = state_period_s
+        self._record_every = max(1, round(record_period_s / state_period_s))
+        self._written: tuple[str | None, int] = (None, 0)
+        self._stop = asyncio.Event()
+        self._task: asyncio.Task[None] | None = None
+
+    def start(self) -> None:
+        self._task = asyncio.ensure_future(self._loop())
+
+    async def close(self) -> None:
+        """Stop writing, after a write under way has finished (the caller then writes the
+        final state itself, which no late journal write may overwrite)."""
+        self._stop.set()
+        if self._task is not None:
+            with contextlib.suppress(Exception):
+                await self._task
+            self._task = None
+
+    async def _loop(self) -> None:
+        beat = 0
+        while not self._stop.is_set():
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._stop.wait(), self._state_period)
+            if self._stop.is_set():
+                return
+            beat += 1
+            await self.flush(with_record=beat % self._record_every == 0)
+
+    async def flush(self, *, with_record: bool = False) -> bool:
+        """Write the state now if it changed (and the record so far if asked); False if the
+        store refused it."""
+        status, live_events, recorder = self._source()
+        state = (status, len(live_events))
+        with_record = with_record and recorder is not None
+        if state == self._written and not with_record:
+            return True
+        events = list(live_events)
+        record = None if not with_record or recorder is None else record_snapshot(recorder)
+
+        def write() -> None:
+            text = None
+            if record is not None:
+                try:
+                    text = orjson.dumps(record, option=orjson.OPT_SERIALIZE_NUMPY).decode()
+                except TypeError as exc:  # never let the record keep the events unstored
+                    log.warning("flight record of %s not serialisable: %s", self._id, exc)
+            self._store.update_execution(self._id, status=status, events=events,
+                                         record_json=text)
+
+        try:
+            await asyncio.to_thread(write)
+        except Exception as exc:
+            log.warning("could not store execution %s so far (will retry): %s", self._id, exc)
+            return False
+        self._written = state
+        return True
+
+
+#: Background retries of failure writes (kept referenced until they end).
+_retries: set[asyncio.Task[bool]] = set()
+
+
+async def store_failure(store: Store, execution_id: str, reason: str,
+                        events: list[dict[str, Any]], *, retry_s: float = 2.0,
+                        attempts: int = 60) -> bool:
+    """After the final write of a flight failed: mark it `failed` with `reason` (a small
+    write, likelier to pass on a full disk). Tried once now; if that fails too, retried in the
+    background (`attempts` times, every `retry_s`). True if stored now."""
+
+    def write() -> None:
+        store.update_execution(execution_id, status="failed", events=events, error=reason,
+                               finished=True)
+
+    async def retry() -> bool:
+        for _ in range(attempts):
+            await asyncio.sleep(retry_s)
+            with contextlib.suppress(Exception):
+                await asyncio.to_thread(write)
+                return True
+        return False
+
+    try:
+        await asyncio.to_thread(write)
+        return True
+    except Exception as exc:
+        log.error("could not mark execution %s failed (retrying): %s", execution_id, exc)
+    task = asyncio.ensure_future(retry())
+    _retries.add(task)
+    task.add_done_callback(_retries.discard)
+    return False

@@ -1,0 +1,28 @@
+"""bench/dask_engine.py runs as documented and prints the JSON the README's engine figures
+come from (timings are not asserted)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+BENCH = Path(__file__).resolve().parents[2] / "bench"
+
+
+def test_dask_engine_benchmark_reports_overhead_and_latency() -> None:
+    done = subprocess.run(
+        [sys.executable, str(BENCH / "dask_engine.py"), "--only", "paper-circle4",
+         "--repeats", "1", "--cancel", ""],
+        capture_output=True, text=True, timeout=300, cwd="/",
+    )
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    row = report["scenarios"][0]
+    assert row["scenario"] == "paper-circle4" and row["vehicles"] == 4
+    assert row["engine_median_s"] > 0 and row["direct_median_s"] > 0
+    latency = report["progress_latency_ms"]
+    assert latency["messages"] >= 3  # started, iterations, end
+    assert 0 <= latency["median"] <= latency["max"]
+    assert report["cancel"] is None and report["workers"] == 2

@@ -1,0 +1,100 @@
+"""The fault test: plans computing and a flight under way, kill -9 of the service, restart on
+the same database. No mission stays `planning`, every mission and the flight are still there,
+the flight keeps its events up to the crash, and no planner worker outlives the service."""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import psutil
+import pytest
+
+from tests.api.support import SHORT_CROSSING, ServiceProcess, example, free_udp_base
+
+pytestmark = pytest.mark.timeout(400)
+
+
+def _wait(predicate: Any, timeout: float, what: str) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.2)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5",
+           "FLEETPLAN_PLAN_WORKERS": "2"}
+    service = ServiceProcess(tmp_path, "--mock", "4", env=env).start()
+    try:
+        url = service.base_url
+        planned = httpx.post(f"{url}/api/missions?wait=120", json=SHORT_CROSSING,
+                             timeout=130).json()
+        assert planned["status"] == "planned", planned
+        execution = httpx.post(f"{url}/api/missions/{planned['id']}/executions",
+                               json={"hold_at_goal": 60}, timeout=30).json()
+        exec_url = f"{url}/api/executions/{execution['id']}"
+        # Plans computing concurrently with the flight (large ones that outlast the test).
+        created: list[str] = []
+
+        def post(name: str) -> None:
+            response = httpx.post(f"{url}/api/missions?wait=0", json=example(name), timeout=60)
+            assert response.status_code in (201, 202), response.text
+            created.append(response.json()["id"])
+
+        posters = [threading.Thread(target=post, args=(name,))
+                   for name in ("random128", "random128", "random64", "paper-circle4")]
+        for thread in posters:
+            thread.start()
+        for thread in posters:
+            thread.join(60)
+        assert len(created) == 4
+        _wait(lambda: (httpx.get(exec_url, timeout=5).json().get("live") or {})
+              .get("phase") == "flying", 60, "the flight to be flying")
+        # What the service has shown so far; the journal writes it within about a second.
+        seen = httpx.get(exec_url, timeout=5).json()["events"]
+        assert seen, "no flight events yet"
+        time.sleep(6.0)  # past one record snapshot (every ~5 s) too
+        statuses = {m: httpx.get(f"{url}/api/missions/{m}", timeout=5).json()["status"]
+                    for m in created}
+        assert "planning" in statuses.values(), statuses
+        assert service.process is not None
+        tree = psutil.Process(service.process.pid).children(recursive=True)
+        workers = [p for p in tree if "resource_tracker" not in " ".join(p.cmdline())]
+        assert len(workers) >= 2, [p.cmdline() for p in tree]
+        service.process.send_signal(signal.SIGKILL)
+        service.process.wait(10)
+    finally:
+        service.stop()
+    # Workers exit by themselves once the service is gone (well before the plans would end).
+    _, alive = psutil.wait_procs(workers, timeout=30)
+    assert [p.cmdline() for p in alive] == []
+
+    with ServiceProcess(tmp_path, "--mock", "0") as again:
+        url = again.base_url
+        missions = httpx.get(f"{url}/api/missions", timeout=10).json()
+        ids = {m["id"] for m in missions["missions"]}
+        assert ids == {planned["id"], *created}
+        for mission in missions["missions"]:
+            assert mission["status"] != "planning", mission
+            if statuses.get(mission["id"]) == "planning":
+                assert mission["status"] == "failed"
+                assert mission["error"]["reason"] == \
+                    "the service stopped before this plan finished"
+        stored = httpx.get(f"{url}/api/executions/{execution['id']}", timeout=10).json()
+        assert stored["status"] == "interrupted"
+        assert stored["error"] == "the service stopped during this flight"
+        # Every event shown before the crash was stored (as the same records, in order).
+        assert stored["events"][: len(seen)] == seen
+        assert stored["has_record"] is True
+        record = httpx.get(f"{url}/api/executions/{execution['id']}/record", timeout=30).json()
+        assert record["partial"] is True
+        setpoints = [len(v["setpoints"]["t"]) for v in record["vehicles"]]
+        assert len(setpoints) == 4 and min(setpoints) > 0

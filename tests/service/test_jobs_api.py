@@ -1,0 +1,59 @@
+"""Planning jobs through the REST API (embedded Dask cluster of 2 workers): cancel, DELETE while
+planning, a per-request time limit, and 503 when the queue is full."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+
+import pytest
+from fastapi.testclient import TestClient
+
+from gcs.api import create_app
+from gcs.service.settings import Settings
+from tests.api.support import example
+
+pytestmark = pytest.mark.timeout(300)
+
+
+@pytest.fixture
+def jobs_client(make_settings: Callable[..., Settings]) -> Iterator[TestClient]:
+    settings = make_settings(plan_workers=2, plan_queue_max=2, plan_time_limit_s=120)
+    with TestClient(create_app(settings)) as client:
+        yield client
+
+
+def test_cancel_fails_the_mission_and_frees_the_queue(jobs_client: TestClient) -> None:
+    client = jobs_client
+    first = client.post("/api/missions?wait=0", json=example("random128"))
+    second = client.post("/api/missions?wait=0", json=example("random128"))
+    assert first.status_code == second.status_code == 202
+    full = client.post("/api/missions?wait=0", json=example("paper-circle2"))
+    assert full.status_code == 503
+    assert full.json()["field"] == "planning" and "plan_queue_max" in full.json()["reason"]
+    assert client.get("/api/missions").json()["total"] == 2  # nothing stored for it
+
+    cancelled = client.post(f"/api/missions/{first.json()['id']}/cancel")
+    assert cancelled.status_code == 200, cancelled.text
+    body = cancelled.json()
+    assert body["status"] == "failed"
+    assert body["error"] == {"field": None, "reason": "cancelled by the operator"}
+    assert client.post(f"/api/missions/{first.json()['id']}/cancel").status_code == 409
+
+    # DELETE while planning cancels, then deletes.
+    assert client.delete(f"/api/missions/{second.json()['id']}").status_code == 204
+    assert client.get(f"/api/missions/{second.json()['id']}").status_code == 404
+    assert client.get("/api/status").json()["planning_jobs"] == 0
+    again = client.post("/api/missions?wait=60", json=example("paper-circle2"))
+    assert again.status_code == 201 and again.json()["status"] == "planned"
+
+
+def test_time_limit_per_request(jobs_client: TestClient) -> None:
+    client = jobs_client
+    response = client.post("/api/missions?wait=120&time_limit=0.5", json=example("random128"))
+    assert response.status_code == 201, response.text
+    assert response.json()["status"] == "failed"
+    assert response.json()["error"]["reason"] == "planning exceeded its time limit of 0.5 s"
+    too_long = client.post("/api/missions?time_limit=121", json=example("paper-circle2"))
+    assert too_long.status_code == 422
+    assert too_long.json()["field"] == "time_limit"
+    assert "at most 120 s" in too_long.json()["reason"]

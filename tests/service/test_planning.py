@@ -1,0 +1,340 @@
+"""Planning jobs on a Dask cluster of 2 worker processes: progress, cancel, time limit, the
+bounded queue, small jobs beside large ones, store faults, and no worker left behind."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import psutil
+import pytest
+from distributed import Client, LocalCluster
+from sqlalchemy import event
+
+from gcs.errors import ServiceBusy
+from gcs.service import planning as planning_module
+from gcs.service.planning import PlanJob, PlanningService
+from gcs.service.store import Store
+from planner import Scenario
+from tests.api.support import example
+
+pytestmark = pytest.mark.timeout(300)
+
+
+@pytest.fixture(scope="module")
+def cluster() -> Iterator[LocalCluster]:
+    """Two worker processes with nannies (so a worker can be restarted), shared by the
+    module."""
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      scheduler_port=0, dashboard_address=None,
+                      silence_logs=logging.ERROR) as local:
+        yield local
+
+
+@pytest.fixture
+def store(tmp_path: Path) -> Iterator[Store]:
+    store = Store(f"sqlite:///{tmp_path / 'plans.db'}")
+    yield store
+    store.close()
+
+
+def scenario(name: str) -> dict[str, Any]:
+    return Scenario.from_dict(example(name)).to_dict()
+
+
+async def started_service(store: Store, cluster: LocalCluster, **options: Any
+                          ) -> PlanningService:
+    service = PlanningService(store, workers=2, solver=None,
+                              scheduler=cluster.scheduler_address, **options)
+    await service.start()
+    return service
+
+
+def submit(service: PlanningService, store: Store, name: str, **options: Any) -> PlanJob:
+    data = scenario(name)
+    row = store.create_mission(data)
+    return service.submit(row.id, data, **options)
+
+
+async def done(job: PlanJob, timeout: float = 240.0) -> dict[str, Any]:
+    await asyncio.wait_for(job.done.wait(), timeout)
+    assert job.outcome is not None
+    return job.outcome
+
+
+def executing(cluster: LocalCluster) -> dict[str, int]:
+    """Tasks each worker process is executing right now (its own view, not the scheduler's)."""
+    with Client(cluster.scheduler_address, timeout=10) as client:
+        return client.run(lambda dask_worker: dask_worker.state.executing_count)
+
+
+def workers(cluster: LocalCluster) -> set[str]:
+    """Addresses of the workers the scheduler knows now."""
+    with Client(cluster.scheduler_address, timeout=10) as client:
+        return set(client.scheduler_info()["workers"])
+
+
+def wait_idle(cluster: LocalCluster, timeout: float = 60.0) -> dict[str, int]:
+    deadline = time.monotonic() + timeout
+    while True:
+        counts = executing(cluster)
+        if (len(counts) == 2 and not any(counts.values())) or time.monotonic() > deadline:
+            return counts
+        time.sleep(0.2)
+
+
+def test_progress_arrives_in_order_and_matches_the_stored_plan(store, cluster) -> None:
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            job = submit(service, store, "circle16")
+            outcome = await done(job)
+        finally:
+            await service.close()
+        assert outcome["status"] == "planned", outcome
+        row = store.get_mission(job.mission_id, with_plan=True)
+        assert row is not None and row.status == "planned" and row.plan_json is not None
+        iterations = json.loads(row.plan_json)["iterations"]
+        assert [r["iteration"] for r in job.progress] == [r["iteration"] for r in iterations]
+        assert [r["cost"] for r in job.progress] == pytest.approx([r["cost"] for r in iterations])
+        assert job.worker in workers(cluster)
+
+    asyncio.run(scenario_run())
+
+
+def test_cancel_stops_the_computation_and_frees_the_worker(store, cluster) -> None:
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            job = submit(service, store, "random128")
+            await asyncio.wait_for(job.started.wait(), 60)
+            service.cancel(job.mission_id)
+            outcome = await done(job)
+            assert outcome["status"] == "failed"
+            assert outcome["error"]["reason"] == "cancelled by the operator"
+            row = store.get_mission(job.mission_id)
+            assert row is not None and row.status == "failed"
+            assert row.error == {"field": None, "reason": "cancelled by the operator"}
+            # The worker really stopped: both report nothing executing.
+            assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+            small = submit(service, store, "paper-circle4")
+            assert (await done(small))["status"] == "planned"
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
+
+
+def stubborn_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
+                  topic: str, **_: Any) -> dict[str, Any]:
+    """A task in one very long SCP iteration: it never reaches a point where it checks its
+    cancel flag (runs on the worker; imported there by reference). Scenarios of up to 4
+    vehicles are planned for real."""
+    from distributed import get_worker
+
+    from gcs.service.plan_worker import run_plan
+
+    if len(scenario["vehicles"]) <= 4:
+        return run_plan(job_id, scenario, solver, topic=topic, **_)
+
+    worker = get_worker()
+    worker.log_event(topic, {"job": job_id, "kind": "started", "worker": worker.address})
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+    return {"error": {"field": None, "reason": "ran for two minutes"}}
+
+
+def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
+    store, cluster, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(planning_module.plan_worker, "run_plan", stubborn_plan)
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster, cancel_grace_s=0.5)
+        try:
+            job = submit(service, store, "random128")
+            await asyncio.wait_for(job.started.wait(), 60)
+            old = job.worker
+            service.cancel(job.mission_id, "stop now")
+            outcome = await done(job)
+            assert outcome["error"]["reason"] == "stop now"
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                now = await asyncio.to_thread(workers, cluster)
+                if len(now) == 2 and old not in now:
+                    break
+                await asyncio.sleep(0.2)
+            assert old not in now and len(now) == 2  # a new worker process took its place
+        finally:
+            await service.close()
+        assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+
+    asyncio.run(scenario_run())
+
+
+def test_time_limit_fails_the_mission_with_the_reason(store, cluster) -> None:
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster, time_limit_s=30)
+        try:
+            job = submit(service, store, "random128", time_limit_s=0.5)
+            outcome = await done(job)
+        finally:
+            await service.close()
+        reason = "planning exceeded its time limit of 0.5 s"
+        assert outcome["error"]["reason"] == reason
+        row = store.get_mission(job.mission_id)
+        assert row is not None and row.status == "failed" and row.error["reason"] == reason
+
+    asyncio.run(scenario_run())
+    assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+
+
+def test_requested_time_limit_is_bounded_by_the_setting(store, cluster) -> None:
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster, time_limit_s=30)
+        try:
+            with pytest.raises(Exception, match="at most 30 s") as info:
+                service.job_time_limit(31)
+            assert info.value.field == "time_limit"
+            assert service.job_time_limit(None) == 30
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
+
+
+def test_a_full_queue_is_refused_and_small_jobs_pass_large_ones(
+    store, cluster, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Large jobs that never end by themselves: the outcome cannot depend on timing.
+    monkeypatch.setattr(planning_module.plan_worker, "run_plan", stubborn_plan)
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster, queue_max=3, cancel_grace_s=0.05)
+        try:
+            large = [submit(service, store, "random128") for _ in range(2)]
+            small = submit(service, store, "paper-circle4")
+            with pytest.raises(ServiceBusy, match="plan_queue_max"):
+                service.check_capacity()
+            with pytest.raises(ServiceBusy):
+                submit(service, store, "paper-circle2")
+            # Two workers, two large jobs ahead of it: the small one still runs first.
+            assert (await done(small))["status"] == "planned"
+            assert not any(job.done.is_set() for job in large)
+            for job in large:
+                service.cancel(job.mission_id)
+            for job in large:
+                outcome = await done(job)
+                assert outcome["error"]["reason"] == "cancelled by the operator"
+            service.check_capacity()  # room again
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
+    assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+
+
+def _full_disk(store: Store) -> None:
+    """Make the SQLite file unable to grow (SQLITE_FULL), as a full disk would."""
+
+    def cap(connection: Any, _record: Any) -> None:
+        cursor = connection.cursor()
+        pages = cursor.execute("PRAGMA page_count").fetchone()[0]
+        cursor.execute(f"PRAGMA max_page_count={pages}")
+        cursor.close()
+
+    event.listen(store.engine, "connect", cap)
+    store.engine.dispose()
+
+
+def test_a_plan_the_disk_cannot_hold_fails_the_mission_with_the_reason(store, cluster) -> None:
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            data = scenario("circle16")
+            row = store.create_mission(data)
+            _full_disk(store)
+            job = service.submit(row.id, data)
+            outcome = await done(job)
+        finally:
+            await service.close()
+        assert outcome["status"] == "failed"
+        assert "could not be stored" in outcome["error"]["reason"]
+        assert "full" in outcome["error"]["reason"]
+        stored = store.get_mission(row.id)
+        assert stored is not None and stored.status == "failed"
+        assert stored.error == outcome["error"]
+
+    asyncio.run(scenario_run())
+
+
+def test_a_refused_failure_write_is_retried_until_stored(
+    store, cluster, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(planning_module, "STORE_RETRY_S", 0.05)
+    real_fail = store.fail_planning
+    refusals = {"finish": 0, "fail": 0}
+
+    def finish(*args: Any, **kwargs: Any) -> bool:
+        refusals["finish"] += 1
+        raise OSError("disk full")
+
+    def fail(*args: Any, **kwargs: Any) -> bool:
+        if refusals["fail"] < 3:
+            refusals["fail"] += 1
+            raise OSError("disk full")
+        return real_fail(*args, **kwargs)
+
+    monkeypatch.setattr(store, "finish_planning", finish)
+    monkeypatch.setattr(store, "fail_planning", fail)
+
+    async def scenario_run() -> str:
+        service = await started_service(store, cluster)
+        try:
+            job = submit(service, store, "paper-circle4")
+            assert (await done(job))["status"] == "failed"
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                row = store.get_mission(job.mission_id)
+                if row is not None and row.status != "planning":
+                    break
+                await asyncio.sleep(0.05)
+        finally:
+            await service.close()
+        return job.mission_id
+
+    mission_id = asyncio.run(scenario_run())
+    row = store.get_mission(mission_id)
+    assert row is not None and row.status == "failed"
+    assert row.error is not None and "OSError: disk full" in row.error["reason"]
+    assert refusals == {"finish": 1, "fail": 3}
+
+
+def test_the_embedded_cluster_leaves_no_process_behind(store) -> None:
+    me = psutil.Process()
+    before = {p.pid for p in me.children(recursive=True)}
+
+    async def scenario_run() -> list[psutil.Process]:
+        service = PlanningService(store, workers=2, solver=None)
+        await service.start()
+        try:
+            # multiprocessing's resource tracker is one per parent process, shared by
+            # everything it spawns, and exits with it: not a worker.
+            spawned = [p for p in me.children(recursive=True) if p.pid not in before
+                       and "resource_tracker" not in " ".join(p.cmdline())]
+            job = submit(service, store, "paper-circle4")
+            assert (await done(job))["status"] == "planned"
+        finally:
+            await service.close()
+        return spawned
+
+    spawned = asyncio.run(scenario_run())
+    assert len(spawned) >= 2  # the 2 worker processes (their nannies run in this process)
+    _, alive = psutil.wait_procs(spawned, timeout=20)
+    assert [p.cmdline() for p in alive] == []
