@@ -304,8 +304,14 @@ def run_scp(
     solver: QPSolver,
     options: ScpOptions | None = None,
     progress: Callable[[IterationRecord], None] | None = None,
+    guess: Trajectories | None = None,
 ) -> ScpOutcome:
-    """Run the SCP loop on a validated scenario."""
+    """Run the SCP loop on a validated scenario (goals as the vehicles fly to them).
+
+    guess: (p, v, a) to linearise the first SCP iteration about instead of the
+    separation-free optimum (e.g. CAPT's synchronised straight moves); any point gives
+    valid rows, a separated one gives rows that the guess itself satisfies.
+    """
     options = options or ScpOptions()
     began = time.perf_counter()
     first = solve_first_qp(scenario, solver)
@@ -339,7 +345,7 @@ def run_scp(
 
     codec = _Codec(len(scenario.vehicles), scenario.steps)
     groups_solver = _GroupSolver(scenario, solver, codec, options.continuous)
-    current = base
+    current = base if guess is None else guess
     carried = np.zeros(0, dtype=np.int64)
     retried = 0
     last: _IterationResult | None = None
