@@ -20,6 +20,7 @@ __all__ = [
     "grid_to_sphere",
     "random_dense",
     "random_transitions",
+    "show_sequence",
     "sphere_shell",
     "vertical_grid",
 ]
@@ -273,4 +274,26 @@ def random_dense(vehicles: int, *, seed: int = 0, max_move: float = 40.0, height
         "min_separation": separation,
         "limits": _limits(np.zeros(3), np.array([side, side, height]), 2.0, 3.0, 5.0),
         "vehicles": _vehicles(starts, goals),
+    }
+
+
+def show_sequence(vehicles: int, *, seed: int = 0, hold: float = 2.0,
+                  duration: float = SHOW_DT * SHOW_STEPS) -> dict[str, Any]:
+    """A formation sequence (the `planner.sequence` JSON): vertical grid -> sphere shell ->
+    the grid again, free assignment, `hold` s on every formation, `duration` s per leg."""
+    scenario = grid_to_sphere(vehicles, seed=seed)
+    grid = [v["start"] for v in scenario["vehicles"]]
+    sphere = [v["goal"] for v in scenario["vehicles"]]
+    return {
+        "name": f"grid-sphere-grid{vehicles}-seed{seed}",
+        "dt": scenario["dt"],
+        "min_separation": scenario["min_separation"],
+        "limits": scenario["limits"],
+        "assignment": "free",
+        "vehicles": [v["id"] for v in scenario["vehicles"]],
+        "formations": [
+            {"name": "grid", "positions": grid, "hold": hold},
+            {"name": "sphere", "positions": sphere, "duration": duration, "hold": hold},
+            {"name": "grid", "positions": grid, "duration": duration, "hold": hold},
+        ],
     }
