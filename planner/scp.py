@@ -38,11 +38,15 @@ from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
 from planner.scenario import Scenario
 from planner.separation import (
+    NEAR_MIN_VEHICLES,
     PairSteps,
     all_pairs,
     close_rows,
     directions,
     displacements,
+    far_margin_bound,
+    near_pairs,
+    pair_index,
     pair_margins,
     violated_rows,
     worst_per_run,
@@ -62,6 +66,9 @@ ACTIVE_DUAL = 1e-7
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
 BEND_AMPLITUDE = 0.2
+#: The broad phase's reach beyond R and the vehicles' own step terms, in units of R (see
+#: `_margins`).
+FAR_SLACK = 1.0
 
 
 @dataclass(frozen=True)
@@ -211,10 +218,11 @@ def _expand(pairs: PairSteps, last: int) -> PairSteps:
     return PairSteps.concat(parts)
 
 
-def _seed_keys(lin_positions: FloatArray, scenario: Scenario, options: ScpOptions,
+def _seed_keys(lin: Trajectories, scenario: Scenario, options: ScpOptions,
                codec: _Codec) -> Keys:
     """Rows an iteration starts with (besides those carried over as active): the deepest
     point of every close approach and its neighbours; every row with culling off."""
+    lin_positions = lin[0]
     n, stages = lin_positions.shape[0], lin_positions.shape[1]
     count = stages - 1 if options.continuous else stages
     if not options.culling:
@@ -222,9 +230,34 @@ def _seed_keys(lin_positions: FloatArray, scenario: Scenario, options: ScpOption
         k = np.tile(np.arange(count, dtype=np.intp), len(i))
         return codec.encode(PairSteps(np.repeat(i, count), np.repeat(j, count), k))
     below = scenario.min_separation * (1.0 + options.candidate_margin)
+    near = None
+    if n >= NEAR_MIN_VEHICLES:
+        near = near_pairs(*lin, scenario.dt, scenario.separation_scale, below)
     pairs, distance = close_rows(lin_positions, scenario.separation_scale, below,
-                                 options.continuous)
+                                 options.continuous, near)
     return np.unique(codec.encode(_expand(worst_per_run(pairs, distance), count - 1)))
+
+
+def _margins(scenario: Scenario, options: ScpOptions, lin: Trajectories, pair_i: IntArray,
+             pair_j: IntArray) -> FloatArray:
+    """Per pair (all_pairs order), a lower bound on (smallest row value at `lin`) - R: exact
+    for pairs the broad phase finds near, `far_margin_bound` for the others (large fleets)."""
+    n, scale, separation = len(lin[0]), scenario.separation_scale, scenario.min_separation
+    if n < NEAR_MIN_VEHICLES:
+        return pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous,
+                            separation) - separation
+    half_speed, step = far_margin_bound(lin[0], lin[1], scenario.dt, scale)
+    own = half_speed + step
+    # Far pairs get a margin of at least FAR_SLACK * R: they are checked only once their
+    # vehicles have moved that far from `lin` in total.
+    reach = separation * (1.0 + FAR_SLACK) + 2.0 * float(own.max())
+    near_i, near_j = near_pairs(*lin, scenario.dt, scale, reach)
+    margin = reach - separation - own[pair_i] - own[pair_j]
+    if len(near_i):
+        margin[pair_index(near_i, near_j, n)] = pair_margins(
+            lin[0], lin[1], scenario.dt, scale, options.continuous, separation,
+            (near_i, near_j)) - separation
+    return margin
 
 
 @dataclass
@@ -258,9 +291,7 @@ def _solve_iteration(
     # Rows are only checked for pairs that can violate one: a pair whose rows all hold by
     # `margin` at `lin` stays clear while its two vehicles move less than that in total.
     pair_i, pair_j = all_pairs(codec.n)
-    margin = pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous,
-                          scenario.min_separation)
-    margin -= scenario.min_separation
+    margin = _margins(scenario, options, lin, pair_i, pair_j)
     while True:
         p, v, a = (x.copy() for x in base)
         groups = _groups(keys, codec, forced)
@@ -353,7 +384,7 @@ def run_scp(
     for iteration in range(1, scenario.max_iterations + 1):
         t0 = time.perf_counter()
         solves_before = groups_solver.solves
-        keys = np.union1d(_seed_keys(current[0], scenario, options, codec), carried)
+        keys = np.union1d(_seed_keys(current, scenario, options, codec), carried)
         groups_solver.cache.clear()
         last = _solve_iteration(
             scenario, options, codec, groups_solver, current, base, keys,
@@ -368,7 +399,7 @@ def run_scp(
                                      BEND_AMPLITUDE * scenario.min_separation),
                     current[1], current[2])
             groups_solver.cache.clear()
-            keys = np.union1d(_seed_keys(bent[0], scenario, options, codec), carried)
+            keys = np.union1d(_seed_keys(bent, scenario, options, codec), carried)
             last = _solve_iteration(
                 scenario, options, codec, groups_solver, bent, base, keys,
                 near_boxes(scenario, *current),
