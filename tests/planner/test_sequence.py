@@ -158,3 +158,16 @@ def test_csv_has_one_file_per_vehicle_with_millisecond_times(planned):
     with pytest.raises(ValueError):
         trajectory_csv(planned.positions, planned.velocities, planned.accelerations, seq.dt,
                        seq.ids, rate_hz=float("nan"))
+
+
+def test_the_readme_example_sequence_plans():
+    import json
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    block = re.search(r"### Formation sequences.*?```json\n(.*?)```", readme, re.S)
+    assert block is not None
+    show = plan_sequence(json.loads(block.group(1)))
+    assert show.status == "converged", show.message
+    assert show.duration == pytest.approx(67.0)
