@@ -1,13 +1,15 @@
 """QP backends on the planner's real QPs: prints one JSON document to stdout.
 
-    python bench/qp_solvers.py --grid-sphere 100 --random-dense 256 --limit 40
+    python bench/qp_solvers.py --grid-sphere 64 --random-dense --limit 6
 
 Plans each case once with PIQP, keeping every group QP the SCP loop solved, then solves the
 same QPs with each backend that is installed (PIQP, proxsuite's sparse ProxQP, QPALM, and
 HPIPM through CasADi's conic interface) and reports per-backend total time, failures and the
 largest objective difference to PIQP. Backends that are not installed are reported as such;
-they are measured here, not dependencies of the planner. DAQP (dense active set) is left out:
-the group QPs have 10^4-10^5 variables.
+they are measured here, not dependencies of the planner (pip install proxsuite qpalm casadi
+to measure them). DAQP (dense active set) is left out: the group QPs have 10^4-10^5 variables.
+A backend is cut short after --budget seconds per case, but only between QPs: PIQP's
+multistage KKT and ProxQP can take minutes on one large group QP.
 """
 
 from __future__ import annotations
@@ -168,9 +170,9 @@ def compare(name: str, qps: list[QuadraticProgram], budget: float) -> dict[str, 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--grid-sphere", type=int, nargs="*", default=[100])
-    parser.add_argument("--random-dense", type=int, nargs="*", default=[256])
-    parser.add_argument("--limit", type=int, default=40, help="QPs per case (largest first)")
+    parser.add_argument("--grid-sphere", type=int, nargs="*", default=[64])
+    parser.add_argument("--random-dense", type=int, nargs="*", default=[])
+    parser.add_argument("--limit", type=int, default=6, help="QPs per case (largest first)")
     parser.add_argument("--budget", type=float, default=120.0,
                         help="seconds per backend and case before it is cut short")
     args = parser.parse_args()
