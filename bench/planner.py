@@ -3,6 +3,12 @@
     python bench/planner.py                  # paper cases, scale cases, dmpc2019, solvers
     python bench/planner.py --only paper-circle8 random64 --repeats 5
     python bench/planner.py --dmpc-trials 20 --no-solver-comparison
+    python bench/planner.py --only --dmpc-sizes --no-solver-comparison --row-modes \
+        --grid-sphere 25 64 100 256 --assignment fixed free --random-dense 256 --seeds 0 1
+
+The drone-show families (issue 11) run only when asked: --grid-sphere N... (vertical grid ->
+sphere shell, fixed and/or free assignment), --random-dense N... (random128's density, moves
+<= 40 m), --sequence N (a grid -> sphere -> grid formation sequence), each over --seeds.
 
 Timings are medians over --repeats runs of the same scenario (the machines are shared and
 noisy); peak memory comes from one extra run under tracemalloc (numpy's allocations are
@@ -30,8 +36,14 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
-from planner.generators import dmpc2019_scenario  # noqa: E402
+from planner.generators import (  # noqa: E402
+    dmpc2019_scenario,
+    grid_to_sphere,
+    random_dense,
+    show_sequence,
+)
 from planner.scp import ScpOptions  # noqa: E402
+from planner.sequence import plan_sequence  # noqa: E402
 from planner.verify import verify  # noqa: E402
 
 EXAMPLES = ROOT / "planner" / "examples"
@@ -164,13 +176,16 @@ def row_modes(name: str, data: dict[str, Any], repeats: int) -> list[dict[str, A
 
 def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
             memory: bool = True) -> dict[str, Any]:
-    """Plan `repeats` times; figures of the last run, medians of the timings."""
+    """Plan `repeats` times; figures of the last run, medians of the timings. total_s is
+    the wall time of `planner.plan(dict)`: validation (and goal assignment), planning and
+    verification."""
     scenario = planner.Scenario.from_dict(data)
     totals, firsts = [], []
     plan = None
     for _ in range(repeats):
-        plan = planner.plan(scenario, solver=solver)
-        totals.append(plan.timing["total_s"])
+        t0 = time.perf_counter()
+        plan = planner.plan(data, solver=solver)
+        totals.append(time.perf_counter() - t0)
         firsts.append(plan.timing["first_qp_s"])
     assert plan is not None
     peak_traced = peak_rss = None
@@ -204,6 +219,52 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
         f"(first QP {result['first_qp_s']:.3f} s) iterations {result['scp_iterations']} "
         f"min sep {result['min_separation_continuous']}")
     return result
+
+
+def sequence_case(n: int, repeats: int) -> dict[str, Any]:
+    """A grid -> sphere -> grid sequence (free assignment): legs planned one after the other
+    here (the service maps them over workers), stitched and verified as a whole."""
+    data = show_sequence(n)
+    times, result = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        result = plan_sequence(data)
+        times.append(time.perf_counter() - t0)
+    assert result is not None
+    row = {
+        "sequence": data["name"], "vehicles": n, "legs": len(result.legs),
+        "status": result.status, "duration_s": result.duration,
+        "total_s": statistics.median(times), "total_s_runs": [round(t, 3) for t in times],
+        "leg_s": [round(leg.timing["total_s"], 3) for leg in result.legs],
+        "min_separation_continuous": result.verification.min_separation_continuous,
+        "dynamics_error": result.dynamics_error,
+    }
+    log(f"{data['name']:>24} {result.status:>14} {row['total_s']:.3f} s legs {row['leg_s']}")
+    return row
+
+
+def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per (family, assignment, vehicles): medians over seeds, and how many verified."""
+    groups: dict[tuple[str, str, int], list[dict[str, Any]]] = {}
+    for row in rows:
+        groups.setdefault((row["family"], row["assignment"], row["vehicles"]), []).append(row)
+    out = []
+    for (family, assignment, n), group in sorted(groups.items()):
+        rss = [r["peak_rss_mb"] for r in group if r["peak_rss_mb"] is not None]
+        out.append({
+            "family": family, "assignment": assignment, "vehicles": n, "seeds": len(group),
+            "verified": sum(r["verified"] for r in group),
+            "total_s_median": statistics.median(r["total_s"] for r in group),
+            "total_s_max": max(r["total_s"] for r in group),
+            "scp_iterations_median": statistics.median(r["scp_iterations"] for r in group),
+            "separation_rows_max": max(r["separation_rows_max"] for r in group),
+            "largest_group_max": max(max(r["largest_group_per_iteration"], default=0)
+                                     for r in group),
+            "peak_rss_mb_max": max(rss) if rss else None,
+            "min_separation_continuous_min": min(r["min_separation_continuous"] or np.inf
+                                                 for r in group),
+        })
+    return out
 
 
 def dmpc(sizes: list[int], trials: int, repeats: int) -> dict[str, Any]:
@@ -240,6 +301,17 @@ def main() -> None:
                         help="scenarios on which to compare continuous-time safety methods")
     parser.add_argument("--profile", nargs="*", default=[],
                         help="example scenarios to profile (cProfile, top functions)")
+    parser.add_argument("--grid-sphere", type=int, nargs="*", default=[],
+                        help="grid -> sphere show transitions of these sizes")
+    parser.add_argument("--assignment", nargs="*", default=["fixed", "free"],
+                        choices=["fixed", "free"], help="assignments for --grid-sphere")
+    parser.add_argument("--random-dense", type=int, nargs="*", default=[],
+                        help="random transitions at random128's density of these sizes")
+    parser.add_argument("--sequence", type=int, nargs="*", default=[],
+                        help="grid -> sphere -> grid formation sequences of these sizes")
+    parser.add_argument("--seeds", type=int, nargs="*", default=[0])
+    parser.add_argument("--no-memory", action="store_true",
+                        help="skip the extra run that measures peak memory")
     args = parser.parse_args()
 
     began = time.perf_counter()
@@ -274,6 +346,26 @@ def main() -> None:
         ]
     if args.profile:
         report["profiles"] = {name: profile(name) for name in args.profile}
+    families = []
+    for n in args.grid_sphere:
+        for assignment in args.assignment:
+            for seed in args.seeds:
+                data = {**grid_to_sphere(n, seed=seed), "assignment": assignment}
+                row = measure(f"{data['name']}-{assignment}", data, args.repeats, None,
+                              memory=not args.no_memory)
+                families.append({"family": "grid-sphere", "assignment": assignment,
+                                 "seed": seed, **row})
+    for n in args.random_dense:
+        for seed in args.seeds:
+            row = measure(f"dense{n}-seed{seed}", random_dense(n, seed=seed), args.repeats,
+                          None, memory=not args.no_memory)
+            families.append({"family": "random-dense", "assignment": "fixed", "seed": seed,
+                             **row})
+    if families:
+        report["families"] = families
+        report["families_summary"] = summarise(families)
+    if args.sequence:
+        report["sequences"] = [sequence_case(n, args.repeats) for n in args.sequence]
     report["wall_time_s"] = time.perf_counter() - began
     print(json.dumps(report, indent=1))
 

@@ -23,7 +23,7 @@ from planner.qp import SeparationRows, StageLayout, build_group_qp
 from planner.scenario import Scenario
 from planner.solvers import SOLVED, QPSolver
 
-__all__ = ["FirstSolution", "solve_first_qp", "unit_profile"]
+__all__ = ["FirstSolution", "solve_first_qp", "straight_moves", "unit_profile"]
 
 FloatArray = NDArray[np.float64]
 
@@ -120,14 +120,19 @@ def _profile_fits(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArra
     return ok
 
 
-def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:
-    """Iteration 0: every vehicle's separation-free optimum."""
+def straight_moves(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Every vehicle on the unit profile scaled by its move: synchronised straight
+    rest-to-rest moves (CAPT's trajectories, see `planner.assignment`), boxes ignored."""
     phi_p, phi_v, phi_a = unit_profile(scenario.steps, scenario.dt)
     start = scenario.starts[:, None, :]
     move = (scenario.goals - scenario.starts)[:, None, :]
-    p = start + move * phi_p[None, :, None]
-    v = move * phi_v[None, :, None]
-    a = move * phi_a[None, :, None]
+    return (start + move * phi_p[None, :, None], move * phi_v[None, :, None],
+            move * phi_a[None, :, None])
+
+
+def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:
+    """Iteration 0: every vehicle's separation-free optimum."""
+    p, v, a = straight_moves(scenario)
     fits = _profile_fits(scenario, p, v, a)
     needs_qp = np.flatnonzero(~fits)
     if needs_qp.size == 0:

@@ -1,5 +1,6 @@
-"""Scenario generators: the paper-style circle swap, seeded random transitions, and the
-dmpc2019 benchmark's trial distribution (Luis & Schoellig, RA-L 2019).
+"""Scenario generators: the paper-style circle swap, seeded random transitions, the
+dmpc2019 benchmark's trial distribution (Luis & Schoellig, RA-L 2019), and the drone-show
+families of issue 11 (grid -> sphere show transitions, dense random transitions).
 
 All return scenario dicts (the JSON contract), ready for `Scenario.from_dict` or `plan`.
 """
@@ -16,7 +17,12 @@ __all__ = [
     "circle_swap",
     "dmpc2019_points",
     "dmpc2019_scenario",
+    "grid_to_sphere",
+    "random_dense",
     "random_transitions",
+    "show_sequence",
+    "sphere_shell",
+    "vertical_grid",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -150,4 +156,144 @@ def dmpc2019_scenario(vehicles: int, *, seed: int = 0, trial: int = 0,
         "separation_scale": DMPC2019_SCALE.tolist(),
         "limits": _limits(low, high, None, 1.0, None),
         "vehicles": _vehicles(starts, goals),
+    }
+
+
+# --------------------------------------------------------------------------- drone-show families
+
+#: Horizon, limits and separation of the show families (issue 11): 30 s, v and a <= 3,
+#: jerk <= 5, R = 1 m.
+SHOW_DT, SHOW_STEPS, SHOW_SEPARATION = 0.2, 150, 1.0
+#: Volume per vehicle of random128 (128 vehicles in 40 x 40 x 8 m).
+RANDOM128_VOLUME = 40.0 * 40.0 * 8.0 / 128
+
+
+def vertical_grid(count: int, spacing: float = 2.0, base: float = 2.0) -> FloatArray:
+    """`count` points of a near-square vertical grid in the x-z plane (y = 0), centred on
+    x = 0, lowest row at z = `base`, row by row from the bottom."""
+    columns = int(np.ceil(np.sqrt(count)))
+    n = np.arange(count)
+    x = (n % columns - (columns - 1) / 2.0) * spacing
+    z = base + (n // columns) * spacing
+    return np.stack([x, np.zeros(count), z], axis=1)
+
+
+def sphere_shell(count: int, spacing: float = 2.1) -> FloatArray:
+    """`count` points on a sphere centred at the origin (Fibonacci lattice), the radius chosen
+    so that the closest two points are exactly `spacing` apart."""
+    n = np.arange(count) + 0.5
+    polar = np.arccos(1.0 - 2.0 * n / count)
+    azimuth = np.pi * (1.0 + 5.0**0.5) * n
+    unit = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar),
+                     np.cos(polar)], axis=1)
+    if count < 2:
+        return unit * spacing
+    closest = np.inf
+    for lo in range(0, count, 256):  # chunked: (256, count) distances at a time
+        d = np.linalg.norm(unit[lo:lo + 256, None, :] - unit[None, :, :], axis=2)
+        d[np.arange(d.shape[0]), lo + np.arange(d.shape[0])] = np.inf
+        closest = min(closest, float(d.min()))
+    return unit * (spacing / closest)
+
+
+def grid_to_sphere(vehicles: int, *, seed: int | None = 0, grid_spacing: float = 2.0,
+                   sphere_spacing: float = 2.1, separation: float = SHOW_SEPARATION,
+                   dt: float = SHOW_DT, steps: int = SHOW_STEPS) -> dict[str, Any]:
+    """A show transition: a vertical grid (`grid_spacing` apart) converging onto a sphere shell
+    (closest goals `sphere_spacing` apart) centred on the grid's centre, 30 s, v and a <= 3,
+    jerk <= 5, R = 1 m.
+
+    seed: the goals are a seeded random permutation of the shell's points (a crowded fixed
+    assignment, every path crossing the middle); None keeps the lattice order, both sorted
+    bottom to top. With `"assignment": "free"` the order does not matter.
+    """
+    grid = vertical_grid(vehicles, grid_spacing)
+    shell = sphere_shell(vehicles, sphere_spacing)
+    centre = np.array([0.0, 0.0, 0.5 * (grid[:, 2].min() + grid[:, 2].max())])
+    radius = float(np.linalg.norm(shell[0])) if vehicles else 0.0
+    centre[2] = max(centre[2], radius + 1.0)  # keep the shell above the ground
+    goals = shell + centre
+    if seed is not None:
+        goals = goals[np.random.default_rng(seed).permutation(vehicles)]
+    points = np.concatenate([grid, goals])
+    low = points.min(axis=0) - 2.0
+    high = points.max(axis=0) + 2.0
+    low[2] = 0.0
+    name = f"grid-sphere{vehicles}" + ("" if seed is None else f"-seed{seed}")
+    return {
+        "name": name,
+        "dt": dt,
+        "steps": steps,
+        "min_separation": separation,
+        "limits": _limits(low, high, 3.0, 3.0, 5.0),
+        "vehicles": _vehicles(grid, goals),
+    }
+
+
+def _spread_vectorised(rng: np.random.Generator, count: int, low: FloatArray, high: FloatArray,
+                       spacing: float, near: FloatArray | None = None,
+                       reach: float = np.inf) -> FloatArray:
+    """Points `spacing` apart, drawn uniformly in the box (or, with `near`, within `reach` of
+    near[n] for point n), by rejection; raises ValueError when the box is too full."""
+    points = np.empty((count, 3))
+    for n in range(count):
+        for _ in range(10_000):
+            if near is None:
+                candidate = low + (high - low) * rng.random(3)
+            else:
+                direction = rng.normal(size=3)
+                direction /= max(np.linalg.norm(direction), 1e-12)
+                candidate = near[n] + direction * reach * rng.random() ** (1.0 / 3.0)
+                if np.any(candidate < low) or np.any(candidate > high):
+                    continue
+            if n == 0 or np.min(np.linalg.norm(points[:n] - candidate, axis=1)) > spacing:
+                points[n] = candidate
+                break
+        else:
+            raise ValueError(f"cannot place {count} points {spacing} m apart in the box")
+    return points
+
+
+def random_dense(vehicles: int, *, seed: int = 0, max_move: float = 40.0, height: float = 8.0,
+                 volume_per_vehicle: float = RANDOM128_VOLUME, separation: float = 1.0,
+                 spacing: float = 1.2, dt: float = SHOW_DT, steps: int = SHOW_STEPS
+                 ) -> dict[str, Any]:
+    """Random transitions at random128's density (100 m^3 per vehicle, 8 m high, square
+    footprint), each goal within `max_move` of its start, 30 s, random128's limits
+    (v <= 2, a <= 3, jerk <= 5); starts and goals each `spacing` * R apart."""
+    side = float(np.sqrt(vehicles * volume_per_vehicle / height))
+    low, high = np.full(3, 0.3), np.array([side, side, height]) - 0.3
+    rng = np.random.default_rng(seed)
+    starts = _spread_vectorised(rng, vehicles, low, high, spacing * separation)
+    goals = _spread_vectorised(rng, vehicles, low, high, spacing * separation, starts,
+                               max_move)
+    return {
+        "name": f"dense{vehicles}-seed{seed}",
+        "dt": dt,
+        "steps": steps,
+        "min_separation": separation,
+        "limits": _limits(np.zeros(3), np.array([side, side, height]), 2.0, 3.0, 5.0),
+        "vehicles": _vehicles(starts, goals),
+    }
+
+
+def show_sequence(vehicles: int, *, seed: int = 0, hold: float = 2.0,
+                  duration: float = SHOW_DT * SHOW_STEPS) -> dict[str, Any]:
+    """A formation sequence (the `planner.sequence` JSON): vertical grid -> sphere shell ->
+    the grid again, free assignment, `hold` s on every formation, `duration` s per leg."""
+    scenario = grid_to_sphere(vehicles, seed=seed)
+    grid = [v["start"] for v in scenario["vehicles"]]
+    sphere = [v["goal"] for v in scenario["vehicles"]]
+    return {
+        "name": f"grid-sphere-grid{vehicles}-seed{seed}",
+        "dt": scenario["dt"],
+        "min_separation": scenario["min_separation"],
+        "limits": scenario["limits"],
+        "assignment": "free",
+        "vehicles": [v["id"] for v in scenario["vehicles"]],
+        "formations": [
+            {"name": "grid", "positions": grid, "hold": hold},
+            {"name": "sphere", "positions": sphere, "duration": duration, "hold": hold},
+            {"name": "grid", "positions": grid, "duration": duration, "hold": hold},
+        ],
     }

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.first_qp import straight_moves
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import IterationRecord, Plan, VehicleTrajectory
 from planner.scenario import Scenario
@@ -38,11 +39,17 @@ def plan(
     solver: 'piqp' (default), 'clarabel' or 'osqp'. progress: called after every SCP
     iteration with its `IterationRecord`. Raises `ScenarioError` for invalid input and
     `SolverError` for an unknown solver; infeasibility is a plan status.
+
+    With `"assignment": "free"` the vehicles fly to the goals of the scenario's assignment
+    (`Scenario.goal_order`), and the first SCP iteration is linearised about CAPT's
+    synchronised straight moves to them; the plan echoes the scenario as given.
     """
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
     backend = make_solver(solver)
-    outcome = run_scp(spec, backend, options, progress)
+    work = spec.assigned()
+    guess = straight_moves(work) if spec.assignment == "free" else None
+    outcome = run_scp(work, backend, options, progress, guess)
     p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
     jerk = jerk_from_accelerations(a, spec.dt)
     f = thrust(a)
@@ -55,7 +62,7 @@ def plan(
         )
         for n, vehicle in enumerate(spec.vehicles)
     )
-    verification = verify(spec, p, v, a) if outcome.status != "infeasible" else None
+    verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
     status, message = outcome.status, outcome.message
     if verification is not None and not verification.verified:
         if status == "converged":

@@ -81,6 +81,9 @@ class SeparationRows:
     Each row is given by the two group-local vehicle indices, the stage k, the kind
     (0: position at step k, 1: Bernstein middle point p_k + dt/2 v_k, 2: position at step
     k + 1 with the direction of step k), and `coef` = S n, the scaled unit direction.
+
+    A one-sided row (j = -1, the other vehicle held fixed outside the QP) reads
+    coef' x_i >= R + offset, offset = coef' x_other at the row's point.
     """
 
     i: IntArray
@@ -88,6 +91,8 @@ class SeparationRows:
     k: IntArray
     kind: IntArray
     coef: FloatArray  # (rows, 3)
+    offset: FloatArray | None = None
+    """(rows,) right-hand side shifts of one-sided rows (0 for two-sided); None: all 0."""
 
     def __len__(self) -> int:
         return len(self.i)
@@ -267,23 +272,29 @@ def build_group_qp(
         s_k = separation.k
         kind = separation.kind
         stage = np.where(kind == 2, s_k + 1, s_k)
+        two = separation.j >= 0
         for c in range(3):
             coef = separation.coef[:, c]
-            g_rows += [srow, srow]
-            g_cols += [lay.index(stage, separation.i, P, c), lay.index(stage, separation.j, P, c)]
-            g_vals += [coef, -coef]
+            g_rows += [srow, srow[two]]
+            g_cols += [lay.index(stage, separation.i, P, c),
+                       lay.index(stage[two], separation.j[two], P, c)]
+            g_vals += [coef, -coef[two]]
         mid = kind == 1
         if mid.any():
             mrow = srow[mid]
+            mid_two = two[mid]
             for c in range(3):
                 coef = 0.5 * dt * separation.coef[mid, c]
-                g_rows += [mrow, mrow]
+                g_rows += [mrow, mrow[mid_two]]
                 g_cols += [
                     lay.index(s_k[mid], separation.i[mid], V, c),
-                    lay.index(s_k[mid], separation.j[mid], V, c),
+                    lay.index(s_k[mid][mid_two], separation.j[mid][mid_two], V, c),
                 ]
-                g_vals += [coef, -coef]
-        h_l_parts.append(np.full(n_sep, scenario.min_separation))
+                g_vals += [coef, -coef[mid_two]]
+        rhs = np.full(n_sep, scenario.min_separation)
+        if separation.offset is not None:
+            rhs = rhs + separation.offset
+        h_l_parts.append(rhs)
         h_u_parts.append(np.full(n_sep, np.inf))
     G = _coo(g_rows, g_cols, g_vals, (n_jerk + n_wall + n_sep, n))
     h_l = np.concatenate(h_l_parts) if h_l_parts else np.zeros(0)

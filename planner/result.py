@@ -7,6 +7,7 @@ naming the field.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
@@ -196,6 +197,8 @@ class Plan:
             "timing": dict(self.timing),
             "vehicles": [v.to_dict() for v in self.vehicles],
             "verification": None if self.verification is None else asdict(self.verification),
+            "assignment": {v.id: int(g) for v, g in zip(self.scenario.vehicles,
+                                                        self.scenario.order, strict=True)},
         }
 
     @classmethod
@@ -238,6 +241,28 @@ def _record(cls: Any, value: Any, where: str) -> Any:
         raise PlanFormatError(where, str(exc).split("__init__() ")[-1]) from None
 
 
+def _assignment(value: Any, scenario: Scenario) -> NDArray[np.intp] | None:
+    """The plan's `assignment` {vehicle id: goal index}, checked to be a permutation (the
+    identity for a fixed scenario)."""
+    if not isinstance(value, Mapping):
+        raise PlanFormatError("assignment", "must be a JSON object {vehicle id: goal index}")
+    n = len(scenario.vehicles)
+    order = np.empty(n, dtype=np.intp)
+    for index, vehicle in enumerate(scenario.vehicles):
+        goal = value.get(vehicle.id)
+        if isinstance(goal, bool) or not isinstance(goal, int) or not 0 <= goal < n:
+            raise PlanFormatError(f"assignment.{vehicle.id}",
+                                  f"must be a goal index 0..{n - 1}, got {goal!r}")
+        order[index] = goal
+    if len(value) != n or len(np.unique(order)) != n:
+        raise PlanFormatError("assignment", "must give each vehicle a different goal")
+    if scenario.assignment == "fixed":
+        if np.any(order != np.arange(n)):
+            raise PlanFormatError("assignment", "must be the identity for a fixed assignment")
+        return None
+    return order
+
+
 def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
     if not isinstance(data, Mapping):
         raise PlanFormatError("plan", "must be a JSON object")
@@ -251,6 +276,9 @@ def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
         scenario = Scenario.from_dict(data["scenario"])
     except ScenarioError as exc:
         raise PlanFormatError(f"scenario.{exc.field}", exc.reason) from None
+    if "assignment" in data:
+        scenario = dataclasses.replace(
+            scenario, goal_order=_assignment(data["assignment"], scenario))
     k = scenario.steps
     raw_vehicles = data["vehicles"]
     if not isinstance(raw_vehicles, list) or len(raw_vehicles) != len(scenario.vehicles):

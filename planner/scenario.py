@@ -7,6 +7,7 @@ scenario with every default filled in, which is what a plan carries.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -15,11 +16,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.assignment import assign_goals
 from planner.errors import ScenarioError
 
 __all__ = ["DEFAULTS", "Limits", "Scenario", "Vehicle", "minimum_transfer_time"]
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
 
 #: Defaults filled in when a scenario omits a key (documented in the README).
 DEFAULTS: dict[str, Any] = {
@@ -30,7 +33,12 @@ DEFAULTS: dict[str, Any] = {
     "thrust_min": 2.0,
     "thrust_max": 18.0,
     "body_rate_max": 6.0,
+    "assignment": "fixed",
 }
+
+#: `assignment` values: "fixed" (vehicle n flies to its own goal) or "free" (any vehicle may
+#: take any goal; see `planner.assignment`).
+ASSIGNMENTS = ("fixed", "free")
 
 #: Hard caps that keep one scenario from exhausting memory (not physical limits).
 MAX_VEHICLES = 1000
@@ -38,7 +46,7 @@ MAX_STEPS = 5000
 
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
-    "max_iterations", "limits", "vehicles",
+    "max_iterations", "limits", "vehicles", "assignment",
 }
 _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
@@ -116,7 +124,35 @@ class Scenario:
     starts: FloatArray = field(repr=False)
     """(N, 3) start positions, in vehicle order."""
     goals: FloatArray = field(repr=False)
-    """(N, 3) goal positions, in vehicle order."""
+    """(N, 3) goal positions as given, in vehicle order."""
+    assignment: str = "fixed"
+    """'fixed': vehicle n flies to goals[n]; 'free': to goals[goal_order[n]]."""
+    goal_order: IntArray | None = field(default=None, repr=False)
+    """(N,) for 'free': the goal index each vehicle flies to (minimum total squared
+    distance); None for 'fixed' (the identity)."""
+
+    @property
+    def order(self) -> IntArray:
+        """(N,) the goal index each vehicle flies to (the identity for 'fixed')."""
+        if self.goal_order is None:
+            return np.arange(len(self.vehicles), dtype=np.intp)
+        return self.goal_order
+
+    @property
+    def assigned_goals(self) -> FloatArray:
+        """(N, 3) the goal each vehicle flies to, in vehicle order."""
+        return self.goals[self.order]
+
+    def assigned(self) -> Scenario:
+        """The same problem with each vehicle's goal replaced by its assigned one and
+        `assignment` fixed: what the SCP loop and the verifier work on."""
+        if self.goal_order is None:
+            return self
+        goals = self.assigned_goals
+        vehicles = tuple(Vehicle(v.id, v.start, g)
+                         for v, g in zip(self.vehicles, goals, strict=True))
+        return dataclasses.replace(self, vehicles=vehicles, goals=goals, assignment="fixed",
+                                   goal_order=None)
 
     @property
     def horizon(self) -> float:
@@ -142,6 +178,7 @@ class Scenario:
             "cost_threshold": self.cost_threshold,
             "max_iterations": self.max_iterations,
             "limits": self.limits.to_dict(),
+            "assignment": self.assignment,
             "vehicles": [
                 {"id": v.id, "start": v.start.tolist(), "goal": v.goal.tolist()}
                 for v in self.vehicles
@@ -280,6 +317,9 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         data.get("max_iterations", DEFAULTS["max_iterations"]), "max_iterations", 1, 1000
     )
     limits = _parse_limits(data["limits"])
+    assignment = data.get("assignment", DEFAULTS["assignment"])
+    if assignment not in ASSIGNMENTS:
+        raise ScenarioError("assignment", f"must be 'fixed' or 'free', got {assignment!r}")
 
     raw_vehicles = data["vehicles"]
     if not isinstance(raw_vehicles, Sequence) or isinstance(raw_vehicles, str):
@@ -328,16 +368,23 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
                 f"closer than min_separation {separation:g} m",
             )
 
+    goal_order = None
+    if assignment == "free":
+        goal_order = assign_goals(starts, goals, scale)
     horizon = steps * dt
     # The last acceleration is pinned to zero, so the motion has (K-1) steps to happen in.
     usable = (steps - 1) * dt
-    need = minimum_transfer_time(goals - starts, limits.velocity_max, limits.acceleration_max)
+    targets = goals if goal_order is None else goals[goal_order]
+    need = minimum_transfer_time(targets - starts, limits.velocity_max,
+                                 limits.acceleration_max)
     worst_vehicle, worst_axis = np.unravel_index(int(np.argmax(need)), need.shape)
     if need[worst_vehicle, worst_axis] > usable + 1e-9:
+        culprit = worst_vehicle if goal_order is None else int(goal_order[worst_vehicle])
+        assigned = "" if goal_order is None else f" (assigned to vehicles[{worst_vehicle}])"
         raise ScenarioError(
-            f"vehicles[{worst_vehicle}].goal",
-            f"cannot be reached within the horizon: moving "
-            f"{abs(goals[worst_vehicle, worst_axis] - starts[worst_vehicle, worst_axis]):.3f} m "
+            f"vehicles[{culprit}].goal",
+            f"cannot be reached within the horizon{assigned}: moving "
+            f"{abs(targets[worst_vehicle, worst_axis] - starts[worst_vehicle, worst_axis]):.3f} m "
             f"along {'xyz'[worst_axis]} needs at least {need[worst_vehicle, worst_axis]:.2f} s "
             f"under the velocity/acceleration limits; the horizon is {horizon:.2f} s "
             f"(steps * dt)",
@@ -355,4 +402,6 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         vehicles=tuple(vehicles),
         starts=starts,
         goals=goals,
+        assignment=assignment,
+        goal_order=goal_order,
     )

@@ -38,11 +38,15 @@ from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
 from planner.scenario import Scenario
 from planner.separation import (
+    NEAR_MIN_VEHICLES,
     PairSteps,
     all_pairs,
     close_rows,
     directions,
     displacements,
+    far_margin_bound,
+    near_pairs,
+    pair_index,
     pair_margins,
     violated_rows,
     worst_per_run,
@@ -62,6 +66,9 @@ ACTIVE_DUAL = 1e-7
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
 BEND_AMPLITUDE = 0.2
+#: The broad phase's reach beyond R and the vehicles' own step terms, in units of R (see
+#: `_margins`).
+FAR_SLACK = 1.0
 
 
 @dataclass(frozen=True)
@@ -76,6 +83,12 @@ class ScpOptions:
     """Pairs closer than R * (1 + margin) at the linearisation point seed a row."""
     violation_tolerance: float = 1e-6
     """A row or box broken by more than this is added to the QP (m, m/s, ...)."""
+    split_above: int = 0
+    """Groups of more vehicles are solved by block Gauss-Seidel sweeps (feasible, not
+    necessarily optimal for the group's QP); 0 (the default): every group whole. Measured
+    in the README (Performance): no clear gain at 1,000 vehicles, so off by default."""
+    block_size: int = 32
+    """Vehicles per block of a split group."""
 
 
 @dataclass
@@ -114,14 +127,16 @@ class _GroupSolver:
     """Builds and solves one group's QP; caches solutions by (members, constraints) so a
     re-solve only touches the groups whose constraints changed."""
 
-    def __init__(self, scenario: Scenario, solver: QPSolver, codec: _Codec, continuous: bool
-                 ) -> None:
+    def __init__(self, scenario: Scenario, solver: QPSolver, codec: _Codec, continuous: bool,
+                 split_above: int = 0, block_size: int = 32) -> None:
         self.scenario = scenario
         self.solver = solver
         self.codec = codec
         self.continuous = continuous
         self.cache: dict[bytes, tuple[Trajectories, Keys]] = {}
         self.solves = 0
+        self.split_above = split_above
+        self.block_size = block_size
 
     def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories
               ) -> tuple[str, Trajectories | None, Keys]:
@@ -139,6 +154,11 @@ class _GroupSolver:
         cached = self.cache.get(signature)
         if cached is not None:
             return SOLVED, cached[0], cached[1]
+        if self.split_above and len(members) > self.split_above:
+            split = self._solve_blocks(members, keys, boxes, lin)
+            if split is not None:
+                self.cache[signature] = split
+                return SOLVED, split[0], split[1]
         scenario = self.scenario
         pairs = self.codec.decode(keys)
         u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
@@ -169,6 +189,87 @@ class _GroupSolver:
             active = keys[per_key > ACTIVE_DUAL]
         self.cache[signature] = (solution, active)
         return SOLVED, solution, active
+
+    def _solve_blocks(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories
+                      ) -> tuple[Trajectories, Keys] | None:
+        """One Gauss-Seidel sweep over spatial blocks of a large group: each block's QP holds
+        the vehicles outside it at their latest values (its rows to them one-sided). Every
+        row ends up enforced against the final values of both vehicles (a row across two
+        blocks is enforced when the later block is solved), so the result satisfies all of
+        the group's rows and boxes; it is a feasible point of the group's QP, not
+        necessarily its optimum. None when some block's QP fails (the caller then solves
+        the group whole)."""
+        scenario = self.scenario
+        dt = scenario.dt
+        m = len(members)
+        pairs = self.codec.decode(keys)
+        u = directions(lin[0], scenario.separation_scale, pairs, self.continuous,
+                       scenario.min_separation)
+        coef = u / scenario.separation_scale
+        local = np.full(self.codec.n, -1, dtype=np.intp)
+        local[members] = np.arange(m)
+        li, lj = local[pairs.i], local[pairs.j]
+        kinds = (0, 1, 2) if self.continuous else (0,)
+        count = len(pairs)
+        kind = np.repeat(np.array(kinds, dtype=np.intp), count)
+        ri, rj = np.tile(li, len(kinds)), np.tile(lj, len(kinds))
+        rk = np.tile(pairs.k, len(kinds))
+        rcoef = np.tile(coef, (len(kinds), 1))
+        p, v, a = (x[members].copy() for x in lin)
+        active = np.zeros(count, dtype=bool)
+
+        for block in _spatial_blocks(lin[0][members].mean(axis=1), self.block_size):
+            inside = np.zeros(m, dtype=bool)
+            inside[block] = True
+            sub = np.full(m, -1, dtype=np.intp)
+            sub[block] = np.arange(len(block))
+            in_i, in_j = inside[ri], inside[rj]
+            take = in_i | in_j
+            kind_sel, k_sel = kind[take], rk[take]
+            i_sel, j_sel, c_sel = ri[take], rj[take], rcoef[take]
+            first_in = in_i[take]
+            # The inside vehicle becomes i; a row whose i is outside flips its sign.
+            own = np.where(first_in, i_sel, j_sel)
+            other = np.where(first_in, j_sel, i_sel)
+            both = first_in & in_j[take]
+            c_own = np.where(first_in[:, None], c_sel, -c_sel)
+            at = np.where(kind_sel == 2, k_sel + 1, k_sel)
+            point = p[other, at] + np.where((kind_sel == 1)[:, None],
+                                            0.5 * dt * v[other, k_sel], 0.0)
+            offset = np.where(both, 0.0, np.einsum("rc,rc->r", c_own, point))
+            rows = SeparationRows(
+                i=sub[own], j=np.where(both, sub[other], -1), k=k_sel, kind=kind_sel,
+                coef=c_own, offset=offset,
+            )
+            vehicles = members[block]
+            qp = build_group_qp(scenario, vehicles, rows, boxes.take(vehicles))
+            self.solves += 1
+            result = self.solver.solve(qp)
+            if result.status != SOLVED or result.x is None:
+                return None
+            p[block], v[block], a[block] = StageLayout(scenario.steps, len(block)).unpack(
+                result.x)
+            if result.separation_duals is not None and len(rows):
+                hit = np.flatnonzero(take)[result.separation_duals > ACTIVE_DUAL] % count
+                active[hit] = True
+        return (p, v, a), keys[active]
+
+
+def _spatial_blocks(points: FloatArray, size: int) -> list[IntArray]:
+    """Indices of `points` in blocks of at most `size`, by recursive bisection along the
+    widest axis (nearby vehicles, which share most rows, land in the same block)."""
+    out: list[IntArray] = []
+    stack = [np.arange(len(points))]
+    while stack:
+        part = stack.pop()
+        if len(part) <= size:
+            out.append(part)
+            continue
+        axis = int(np.argmax(np.ptp(points[part], axis=0)))
+        order = part[np.argsort(points[part, axis], kind="stable")]
+        half = len(order) // 2
+        stack += [order[half:], order[:half]]
+    return out
 
 
 def _keep_right_bend(positions: FloatArray, scenario: Scenario, amplitude: float) -> FloatArray:
@@ -211,10 +312,11 @@ def _expand(pairs: PairSteps, last: int) -> PairSteps:
     return PairSteps.concat(parts)
 
 
-def _seed_keys(lin_positions: FloatArray, scenario: Scenario, options: ScpOptions,
+def _seed_keys(lin: Trajectories, scenario: Scenario, options: ScpOptions,
                codec: _Codec) -> Keys:
     """Rows an iteration starts with (besides those carried over as active): the deepest
     point of every close approach and its neighbours; every row with culling off."""
+    lin_positions = lin[0]
     n, stages = lin_positions.shape[0], lin_positions.shape[1]
     count = stages - 1 if options.continuous else stages
     if not options.culling:
@@ -222,9 +324,34 @@ def _seed_keys(lin_positions: FloatArray, scenario: Scenario, options: ScpOption
         k = np.tile(np.arange(count, dtype=np.intp), len(i))
         return codec.encode(PairSteps(np.repeat(i, count), np.repeat(j, count), k))
     below = scenario.min_separation * (1.0 + options.candidate_margin)
+    near = None
+    if n >= NEAR_MIN_VEHICLES:
+        near = near_pairs(*lin, scenario.dt, scenario.separation_scale, below)
     pairs, distance = close_rows(lin_positions, scenario.separation_scale, below,
-                                 options.continuous)
+                                 options.continuous, near)
     return np.unique(codec.encode(_expand(worst_per_run(pairs, distance), count - 1)))
+
+
+def _margins(scenario: Scenario, options: ScpOptions, lin: Trajectories, pair_i: IntArray,
+             pair_j: IntArray) -> FloatArray:
+    """Per pair (all_pairs order), a lower bound on (smallest row value at `lin`) - R: exact
+    for pairs the broad phase finds near, `far_margin_bound` for the others (large fleets)."""
+    n, scale, separation = len(lin[0]), scenario.separation_scale, scenario.min_separation
+    if n < NEAR_MIN_VEHICLES:
+        return pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous,
+                            separation) - separation
+    half_speed, step = far_margin_bound(lin[0], lin[1], scenario.dt, scale)
+    own = half_speed + step
+    # Far pairs get a margin of at least FAR_SLACK * R: they are checked only once their
+    # vehicles have moved that far from `lin` in total.
+    reach = separation * (1.0 + FAR_SLACK) + 2.0 * float(own.max())
+    near_i, near_j = near_pairs(*lin, scenario.dt, scale, reach)
+    margin = reach - separation - own[pair_i] - own[pair_j]
+    if len(near_i):
+        margin[pair_index(near_i, near_j, n)] = pair_margins(
+            lin[0], lin[1], scenario.dt, scale, options.continuous, separation,
+            (near_i, near_j)) - separation
+    return margin
 
 
 @dataclass
@@ -258,9 +385,7 @@ def _solve_iteration(
     # Rows are only checked for pairs that can violate one: a pair whose rows all hold by
     # `margin` at `lin` stays clear while its two vehicles move less than that in total.
     pair_i, pair_j = all_pairs(codec.n)
-    margin = pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous,
-                          scenario.min_separation)
-    margin -= scenario.min_separation
+    margin = _margins(scenario, options, lin, pair_i, pair_j)
     while True:
         p, v, a = (x.copy() for x in base)
         groups = _groups(keys, codec, forced)
@@ -304,8 +429,14 @@ def run_scp(
     solver: QPSolver,
     options: ScpOptions | None = None,
     progress: Callable[[IterationRecord], None] | None = None,
+    guess: Trajectories | None = None,
 ) -> ScpOutcome:
-    """Run the SCP loop on a validated scenario."""
+    """Run the SCP loop on a validated scenario (goals as the vehicles fly to them).
+
+    guess: (p, v, a) to linearise the first SCP iteration about instead of the
+    separation-free optimum (e.g. CAPT's synchronised straight moves); any point gives
+    valid rows, a separated one gives rows that the guess itself satisfies.
+    """
     options = options or ScpOptions()
     began = time.perf_counter()
     first = solve_first_qp(scenario, solver)
@@ -338,8 +469,9 @@ def run_scp(
     record(IterationRecord(0, cost, None, 0, first.qp_solves, 0, first_seconds))
 
     codec = _Codec(len(scenario.vehicles), scenario.steps)
-    groups_solver = _GroupSolver(scenario, solver, codec, options.continuous)
-    current = base
+    groups_solver = _GroupSolver(scenario, solver, codec, options.continuous,
+                                 options.split_above, options.block_size)
+    current = base if guess is None else guess
     carried = np.zeros(0, dtype=np.int64)
     retried = 0
     last: _IterationResult | None = None
@@ -347,7 +479,7 @@ def run_scp(
     for iteration in range(1, scenario.max_iterations + 1):
         t0 = time.perf_counter()
         solves_before = groups_solver.solves
-        keys = np.union1d(_seed_keys(current[0], scenario, options, codec), carried)
+        keys = np.union1d(_seed_keys(current, scenario, options, codec), carried)
         groups_solver.cache.clear()
         last = _solve_iteration(
             scenario, options, codec, groups_solver, current, base, keys,
@@ -362,7 +494,7 @@ def run_scp(
                                      BEND_AMPLITUDE * scenario.min_separation),
                     current[1], current[2])
             groups_solver.cache.clear()
-            keys = np.union1d(_seed_keys(bent[0], scenario, options, codec), carried)
+            keys = np.union1d(_seed_keys(bent, scenario, options, codec), carried)
             last = _solve_iteration(
                 scenario, options, codec, groups_solver, bent, base, keys,
                 near_boxes(scenario, *current),

@@ -31,9 +31,12 @@ __all__ = [
     "close_rows",
     "directions",
     "displacements",
+    "far_margin_bound",
     "interval_lower_bounds",
     "interval_minima",
     "min_step_distance",
+    "near_pairs",
+    "pair_index",
     "pair_margins",
     "row_values",
     "violated_rows",
@@ -86,6 +89,75 @@ def all_pairs(vehicles: int) -> tuple[IntArray, IntArray]:
     """Indices (i, j), i < j, of every pair."""
     i, j = np.triu_indices(vehicles, k=1)
     return i.astype(np.intp), j.astype(np.intp)
+
+
+#: Steps per time window of the broad phase (`near_pairs`).
+NEAR_WINDOW = 8
+#: Below this many vehicles every pair is examined directly (the broad phase costs more).
+NEAR_MIN_VEHICLES = 64
+
+
+def near_pairs(positions: FloatArray, velocities: FloatArray, accelerations: FloatArray,
+               dt: float, scale: FloatArray, reach: float, window: int = NEAR_WINDOW
+               ) -> tuple[IntArray, IntArray]:
+    """Broad phase: every pair (i < j) that may come within `reach` (separation metric) at
+    some instant, a superset found with a k-d tree per time window.
+
+    Over a window each vehicle's motion, and every row point (p_k, p_k + dt/2 v_k and the
+    end of step k p_k + dt v_k + dt^2/2 a_k, the Bernstein control points of the step),
+    lies in the box around its control points; a pair whose two boxes' bounding spheres are
+    farther apart than `reach` in every window is farther than `reach` at every instant and
+    at every row point. Exact as a filter: pairs left out are provably far.
+    """
+    n, stages = positions.shape[0], positions.shape[1]
+    if n < 2:
+        z = np.zeros(0, dtype=np.intp)
+        return z, z
+    from scipy.spatial import cKDTree
+
+    p = positions / scale
+    mid = (positions[:, :-1] + 0.5 * dt * velocities[:, :-1]) / scale
+    end = (positions[:, :-1] + dt * velocities[:, :-1] + 0.5 * dt * dt * accelerations) / scale
+    found = []
+    for k0 in range(0, stages - 1, window):
+        k1 = min(k0 + window, stages - 1)
+        lo = np.minimum(np.minimum(p[:, k0:k1 + 1].min(axis=1), mid[:, k0:k1].min(axis=1)),
+                        end[:, k0:k1].min(axis=1))
+        hi = np.maximum(np.maximum(p[:, k0:k1 + 1].max(axis=1), mid[:, k0:k1].max(axis=1)),
+                        end[:, k0:k1].max(axis=1))
+        centre = 0.5 * (lo + hi)
+        radius = 0.5 * np.linalg.norm(hi - lo, axis=1)
+        pairs = cKDTree(centre).query_pairs(reach + 2.0 * float(radius.max()),
+                                            output_type="ndarray")
+        if len(pairs) == 0:
+            continue
+        i, j = pairs[:, 0], pairs[:, 1]
+        keep = (np.linalg.norm(centre[i] - centre[j], axis=1)
+                <= reach + radius[i] + radius[j])
+        found.append(np.minimum(i[keep], j[keep]).astype(np.int64) * n
+                     + np.maximum(i[keep], j[keep]))
+    keys = np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
+    return (keys // n).astype(np.intp), (keys % n).astype(np.intp)
+
+
+def pair_index(i: IntArray, j: IntArray, vehicles: int) -> IntArray:
+    """Position of pairs (i < j) in `all_pairs` order."""
+    i = np.asarray(i, dtype=np.int64)
+    return (i * (2 * vehicles - i - 1) // 2 + (np.asarray(j) - i - 1)).astype(np.intp)
+
+
+def far_margin_bound(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
+                     scale: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Per-vehicle terms of a lower bound on the smallest row value at `lin` of a pair
+    farther than `reach` at every instant and row point (see `near_pairs`): value >= reach
+    - (dt/2 (V_i + V_j) + D_i + D_j), V the largest scaled speed, D the largest scaled step
+    displacement. (A row is u'x at a control point x, u the unit direction of the chord's
+    closest point, u'x >= |c| > reach on the chord, minus dt/2 |w| at the middle point; the
+    first and last intervals use the end point's direction, off by at most one step.)
+    Returns (dt/2 V, D) per vehicle."""
+    speed = np.linalg.norm(lin_velocities / scale, axis=-1).max(axis=1)
+    step = np.linalg.norm(np.diff(lin_positions, axis=1) / scale, axis=-1).max(axis=1)
+    return 0.5 * dt * speed, step
 
 
 def _pair_chunks(vehicles: int, stages: int) -> Iterator[tuple[IntArray, IntArray]]:
@@ -220,13 +292,15 @@ def _chunks_of(i: IntArray, j: IntArray, stages: int) -> Iterator[tuple[IntArray
 
 
 def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
-                 scale: FloatArray, continuous: bool, separation: float) -> FloatArray:
-    """Per pair (in `all_pairs` order), the smallest value of its linearised rows at `lin`
-    itself: the starting point of the pruning bound of `violated_rows`."""
+                 scale: FloatArray, continuous: bool, separation: float,
+                 pairs: tuple[IntArray, IntArray] | None = None) -> FloatArray:
+    """Per pair (in `all_pairs` order, or of `pairs`), the smallest value of its linearised
+    rows at `lin` itself: the starting point of the pruning bound of `violated_rows`."""
     n, stages = lin_positions.shape[0], lin_positions.shape[1]
     lin = lin_positions / scale
     out = []
-    for i, j in _pair_chunks(n, stages):
+    chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
+    for i, j in chunks:
         d = lin[i] - lin[j]
         u = (_interval_directions_all(d, separation) if continuous
              else _step_directions_all(d, separation))
@@ -295,14 +369,16 @@ def worst_per_run(pairs: PairSteps, values: FloatArray) -> PairSteps:
     return PairSteps(i[pick], j[pick], k[pick])
 
 
-def close_rows(positions: FloatArray, scale: FloatArray, below: float, continuous: bool
-               ) -> tuple[PairSteps, FloatArray]:
-    """Pair-steps (or pair-intervals, by chord distance) closer than `below`, with distance."""
+def close_rows(positions: FloatArray, scale: FloatArray, below: float, continuous: bool,
+               pairs: tuple[IntArray, IntArray] | None = None) -> tuple[PairSteps, FloatArray]:
+    """Pair-steps (or pair-intervals, by chord distance) closer than `below`, with distance;
+    only among `pairs` if given."""
     n, stages = positions.shape[0], positions.shape[1]
     scaled = positions / scale
     found: list[PairSteps] = []
     found_d: list[FloatArray] = []
-    for i, j in _pair_chunks(n, stages):
+    chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
+    for i, j in chunks:
         d = scaled[i] - scaled[j]
         if continuous:
             dist = np.linalg.norm(_chord_closest(d[:, :-1], d[:, 1:]), axis=-1)
@@ -311,17 +387,25 @@ def close_rows(positions: FloatArray, scale: FloatArray, below: float, continuou
         pi, kk = np.nonzero(dist < below)
         found.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))
         found_d.append(dist[pi, kk])
+    if not found:
+        return PairSteps.concat([]), np.zeros(0)
     return PairSteps.concat(found), np.concatenate(found_d)
 
 
-def min_step_distance(positions: FloatArray, scale: FloatArray) -> tuple[float, int, int, int]:
-    """The smallest scaled pair distance at the steps: (distance, i, j, k)."""
+def min_step_distance(positions: FloatArray, scale: FloatArray,
+                      pairs: tuple[IntArray, IntArray] | None = None
+                      ) -> tuple[float, int, int, int]:
+    """The smallest scaled pair distance at the steps: (distance, i, j, k), among `pairs`
+    if given."""
     n, stages = positions.shape[0], positions.shape[1]
     if n < 2:
         return float("inf"), -1, -1, -1
     scaled = positions / scale
     best = (float("inf"), -1, -1, -1)
-    for i, j in _pair_chunks(n, stages):
+    chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
+    for i, j in chunks:
+        if len(i) == 0:
+            continue
         d = np.linalg.norm(scaled[i] - scaled[j], axis=-1)
         flat = int(np.argmin(d))
         p, k = divmod(flat, stages)
@@ -331,7 +415,8 @@ def min_step_distance(positions: FloatArray, scale: FloatArray) -> tuple[float, 
 
 
 def interval_lower_bounds(positions: FloatArray, accelerations: FloatArray, dt: float,
-                          scale: FloatArray, below: float) -> PairSteps:
+                          scale: FloatArray, below: float,
+                          pairs: tuple[IntArray, IntArray] | None = None) -> PairSteps:
     """Pair-intervals [k, k+1] whose continuous-time distance may fall below `below`.
 
     A cheap certificate: the distance from the origin to the chord between the two
@@ -342,7 +427,8 @@ def interval_lower_bounds(positions: FloatArray, accelerations: FloatArray, dt: 
     scaled_p = positions / scale
     scaled_a = accelerations / scale
     found: list[PairSteps] = []
-    for i, j in _pair_chunks(n, stages + 1):
+    chunks = _pair_chunks(n, stages + 1) if pairs is None else _chunks_of(*pairs, stages + 1)
+    for i, j in chunks:
         d = scaled_p[i] - scaled_p[j]
         closest = np.linalg.norm(_chord_closest(d[:, :-1], d[:, 1:]), axis=-1)
         bulge = dt * dt / 8.0 * np.linalg.norm(scaled_a[i] - scaled_a[j], axis=-1)

@@ -14,7 +14,13 @@ from numpy.typing import NDArray
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Verification
 from planner.scenario import Scenario
-from planner.separation import interval_lower_bounds, interval_minima, min_step_distance
+from planner.separation import (
+    NEAR_MIN_VEHICLES,
+    interval_lower_bounds,
+    interval_minima,
+    min_step_distance,
+    near_pairs,
+)
 
 __all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "verify"]
 
@@ -49,13 +55,21 @@ def continuous_minimum(scenario: Scenario, p: FloatArray, v: FloatArray, a: Floa
                        ) -> tuple[float, float, int, int, float]:
     """(step minimum, continuous minimum, i, j, time) of the scaled pair distance."""
     scale = scenario.separation_scale
-    step_min, i, j, k = min_step_distance(p, scale)
+    pairs = None
+    if len(p) >= NEAR_MIN_VEHICLES:
+        # Broad phase: pairs left out stay farther than `reach` at every instant; if some
+        # pair comes closer, the minimum is among the near ones.
+        reach = 2.0 * scenario.min_separation
+        pairs = near_pairs(p, v, a, scenario.dt, scale, reach)
+        if min_step_distance(p, scale, pairs)[0] >= reach:
+            pairs = None
+    step_min, i, j, k = min_step_distance(p, scale, pairs)
     if i < 0:
         return float("inf"), float("inf"), -1, -1, 0.0
     best = (step_min, i, j, k * scenario.dt)
     # The step minimum bounds the continuous one from above: only intervals whose cheap
     # lower bound goes under it can hold something smaller.
-    maybe = interval_lower_bounds(p, a, scenario.dt, scale, step_min)
+    maybe = interval_lower_bounds(p, a, scenario.dt, scale, step_min, pairs)
     if len(maybe):
         minima, when = interval_minima(p, v, a, scenario.dt, scale, maybe)
         idx = int(np.argmin(minima))

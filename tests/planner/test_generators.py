@@ -6,12 +6,15 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import planner
 from planner.generators import (
     circle_swap,
     dmpc2019_points,
     dmpc2019_scenario,
+    grid_to_sphere,
+    random_dense,
     random_transitions,
 )
 
@@ -43,3 +46,50 @@ def test_other_generators_give_valid_scenarios():
     for data in (circle_swap(10), random_transitions(20, seed=2)):
         scenario = planner.Scenario.from_dict(data)
         assert len(scenario.vehicles) == len(data["vehicles"])
+
+
+def _min_distance(points: np.ndarray) -> float:
+    d = np.linalg.norm(points[:, None] - points[None], axis=2)
+    d[np.diag_indices(len(points))] = np.inf
+    return float(d.min())
+
+
+@pytest.mark.parametrize("n", [25, 100])
+def test_grid_to_sphere_geometry_and_limits(n):
+    data = grid_to_sphere(n, seed=4)
+    scenario = planner.Scenario.from_dict(data)
+    starts, goals = scenario.starts, scenario.goals
+    assert np.all(starts[:, 1] == 0.0)  # a vertical grid in the x-z plane
+    assert _min_distance(starts) == pytest.approx(2.0)
+    assert _min_distance(goals) == pytest.approx(2.1, abs=1e-5)
+    centre = goals.mean(axis=0)
+    radius = np.linalg.norm(goals - centre, axis=1)
+    assert np.ptp(radius) < 0.05 * radius.mean()  # a shell
+    assert scenario.horizon == pytest.approx(30.0) and scenario.min_separation == 1.0
+    np.testing.assert_array_equal(scenario.limits.velocity_max, [3, 3, 3])
+    np.testing.assert_array_equal(scenario.limits.acceleration_max, [3, 3, 3])
+    np.testing.assert_array_equal(scenario.limits.jerk_max, [5, 5, 5])
+    # Seeds shuffle which point each vehicle gets, not the shell.
+    other = planner.Scenario.from_dict(grid_to_sphere(n, seed=5)).goals
+    assert not np.array_equal(other, goals)
+    np.testing.assert_allclose(np.sort(other, axis=0), np.sort(goals, axis=0))
+
+
+def test_random_dense_density_and_moves():
+    data = random_dense(64, seed=3)
+    scenario = planner.Scenario.from_dict(data)
+    volume = np.prod(scenario.limits.position_max - scenario.limits.position_min)
+    assert volume / 64 == pytest.approx(100.0)  # random128's 40 x 40 x 8 m / 128
+    assert np.linalg.norm(scenario.goals - scenario.starts, axis=1).max() <= 40.0
+    assert _min_distance(scenario.starts) > 1.2 and _min_distance(scenario.goals) > 1.2
+    assert scenario.horizon == pytest.approx(30.0)
+    assert random_dense(64, seed=4) != data
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_small_grid_to_sphere_transitions_plan_verified(seed):
+    plan = planner.plan(grid_to_sphere(16, seed=seed))
+    assert plan.ok, plan.message
+    assert plan.verification.min_separation_continuous >= 1.0 - 1e-4
+    # Shuffled goals make paths cross: the separation rows were needed.
+    assert max(r.separation_rows for r in plan.iterations) > 0

@@ -1,0 +1,95 @@
+"""The broad phase for large fleets: it only ever leaves out pairs that are provably far, so
+plans, row checks and verification come out the same as with every pair examined."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import planner
+import planner.scp
+import planner.verify
+from planner.generators import grid_to_sphere, random_dense
+from planner.separation import (
+    PairSteps,
+    all_pairs,
+    far_margin_bound,
+    interval_minima,
+    near_pairs,
+    pair_index,
+    pair_margins,
+)
+from planner.verify import continuous_minimum
+
+
+def _wiggly(n: int, steps: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Random but dynamically consistent trajectories (piecewise-constant accelerations)."""
+    rng = np.random.default_rng(seed)
+    dt = 0.2
+    a = rng.normal(scale=2.0, size=(n, steps, 3))
+    p = np.empty((n, steps + 1, 3))
+    v = np.zeros((n, steps + 1, 3))
+    p[:, 0] = rng.random((n, 3)) * [12.0, 12.0, 4.0]
+    for k in range(steps):
+        p[:, k + 1] = p[:, k] + dt * v[:, k] + 0.5 * dt * dt * a[:, k]
+        v[:, k + 1] = v[:, k] + dt * a[:, k]
+    return p, v, a, dt
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_near_pairs_keeps_every_pair_that_comes_close(seed):
+    p, v, a, dt = _wiggly(40, 30, seed)
+    scale = np.array([1.0, 1.0, 2.0])
+    reach = 1.5
+    i, j = all_pairs(40)
+    k = np.arange(30)
+    every = PairSteps(np.repeat(i, 30), np.repeat(j, 30), np.tile(k, len(i)))
+    minima, _ = interval_minima(p, v, a, dt, scale, every)
+    close = np.unique(pair_index(every.i, every.j, 40)[minima < reach])
+    near_i, near_j = near_pairs(p, v, a, dt, scale, reach)
+    assert np.all(near_i < near_j)
+    found = pair_index(near_i, near_j, 40)
+    assert len(close) > 0
+    assert np.isin(close, found).all()
+    assert len(found) < len(i)  # it did prune
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_far_pairs_margin_bound_is_below_the_exact_margin(seed):
+    p, v, a, dt = _wiggly(40, 30, seed)
+    scale = np.ones(3)
+    half_speed, step = far_margin_bound(p, v, dt, scale)
+    own = half_speed + step
+    reach = 2.0 + 2.0 * own.max()
+    near_i, near_j = near_pairs(p, v, a, dt, scale, reach)
+    i, j = all_pairs(40)
+    far = np.ones(len(i), dtype=bool)
+    far[pair_index(near_i, near_j, 40)] = False
+    exact = pair_margins(p, v, dt, scale, True, 1.0)
+    bound = reach - own[i] - own[j]
+    assert far.any()
+    assert np.all(bound[far] <= exact[far] + 1e-12)
+
+
+def test_verifier_minimum_is_the_same_with_and_without_the_broad_phase(monkeypatch):
+    plan = planner.plan({**grid_to_sphere(64, seed=1), "assignment": "free"})
+    scenario = plan.scenario.assigned()
+    args = (scenario, plan.positions(), plan.velocities(), plan.accelerations())
+    pruned = continuous_minimum(*args)
+    monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 10**9)
+    assert continuous_minimum(*args) == pruned
+
+
+def test_plans_are_the_same_with_and_without_the_broad_phase(monkeypatch):
+    data = random_dense(24, seed=5)
+    monkeypatch.setattr(planner.scp, "NEAR_MIN_VEHICLES", 2)
+    monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 2)
+    pruned = planner.plan(data)
+    monkeypatch.setattr(planner.scp, "NEAR_MIN_VEHICLES", 10**9)
+    monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 10**9)
+    full = planner.plan(data)
+    assert pruned.ok and full.ok
+    assert max(r.separation_rows for r in full.iterations) > 0
+    np.testing.assert_allclose(pruned.positions(), full.positions(), atol=1e-7)
+    assert (pruned.verification.min_separation_continuous
+            == pytest.approx(full.verification.min_separation_continuous, abs=1e-9))
