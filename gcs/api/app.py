@@ -19,6 +19,7 @@ import plotly
 from fastapi import FastAPI
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse
+from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 from swagger_ui_bundle import swagger_ui_path
@@ -27,6 +28,7 @@ import gcs
 from gcs.api.errors import install_error_handlers
 from gcs.api.limits import BodyLimitMiddleware
 from gcs.api.routes import api_router
+from gcs.api.schemas import planner_schemas
 from gcs.service.flights import FleetService
 from gcs.service.planning import PlanningService
 from gcs.service.plans import PlanCache
@@ -111,6 +113,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,  # served below from local files: FastAPI's default loads a CDN
         redoc_url=None,
+        generate_unique_id_function=_operation_id,
     )
     app.state.settings = settings
     install_error_handlers(app)
@@ -135,13 +138,21 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         )
 
     app.mount("/", StaticFiles(directory=web_directory(settings), html=True), name="web")
-    _document_errors_as_error_body(app)
+    _complete_openapi(app)
     return app
 
 
-def _document_errors_as_error_body(app: FastAPI) -> None:
-    """FastAPI documents request validation failures (422) with its own HTTPValidationError
-    shape; this API answers them with `ErrorBody`, so the schema says that instead."""
+def _operation_id(route: APIRoute) -> str:
+    """operationIds that read well: the route function's name in camelCase (createMission)."""
+    first, *rest = route.name.split("_")
+    return first + "".join(word.capitalize() for word in rest)
+
+
+def _complete_openapi(app: FastAPI) -> None:
+    """The published schema, finished once: the planner-derived components (Scenario, Plan,
+    ...) that routes refer to, and request validation failures (422) documented with
+    `ErrorBody`, the shape this API answers them with, instead of FastAPI's
+    HTTPValidationError."""
     generate = app.openapi
 
     def openapi() -> dict[str, Any]:
@@ -150,8 +161,10 @@ def _document_errors_as_error_body(app: FastAPI) -> None:
                 "#/components/schemas/HTTPValidationError", "#/components/schemas/ErrorBody"
             )
             schema = json.loads(text)
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
             for name in ("HTTPValidationError", "ValidationError"):
-                schema["components"]["schemas"].pop(name, None)
+                components.pop(name, None)
+            components.update(planner_schemas())
             app.openapi_schema = schema
         return app.openapi_schema
 

@@ -10,8 +10,15 @@ not found, 409 wrong state, 422 invalid, 503 busy; any other `FieldError` 422). 
 problems that only exist in HTTP are `ApiError`s raised by the middleware:
 
 - `ApiError`: carries the HTTP status, the field and the reason.
-  - `BadRequest` (400): the request is malformed (e.g. the body is not JSON).
+  - `BadRequest` (400): the request is malformed (e.g. the body is not JSON, a foreign Host).
+  - `Unauthorized` (401): no or a wrong API token where one is required.
+  - `Forbidden` (403): a cross-site request (foreign Origin), or a role that may not do this.
   - `PayloadTooLarge` (413): the body exceeds the configured size limit.
+  - `UnsupportedMediaType` (415): a body that is not declared as JSON.
+  - `Unprocessable` (422): invalid input, with every problem found listed in `errors`.
+
+Request validation (query and path parameters, pydantic bodies) is reported with every error
+at once, in pydantic's own words, under the offending parameter's name.
 """
 
 from __future__ import annotations
@@ -36,7 +43,11 @@ __all__ = [
     "BadRequest",
     "ErrorBody",
     "ErrorItem",
+    "Forbidden",
     "PayloadTooLarge",
+    "Unauthorized",
+    "Unprocessable",
+    "UnsupportedMediaType",
     "error_responses",
     "install_error_handlers",
 ]
@@ -105,8 +116,29 @@ class BadRequest(ApiError):
     status = 400
 
 
+class Unauthorized(ApiError):
+    status = 401
+
+
+class Forbidden(ApiError):
+    status = 403
+
+
 class PayloadTooLarge(ApiError):
     status = 413
+
+
+class UnsupportedMediaType(ApiError):
+    status = 415
+
+
+class Unprocessable(ApiError):
+    status = 422
+
+    @classmethod
+    def of(cls, errors: Sequence[ErrorItem]) -> Unprocessable:
+        """Every problem at once; the first one is also the body's `field`/`reason`."""
+        return cls(errors[0].field, errors[0].reason, errors=errors)
 
 
 #: The one mapping from the service's domain errors to HTTP statuses.
@@ -133,9 +165,12 @@ def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, 
     """
     meaning = {
         400: "Malformed request",
+        401: "API token missing or wrong",
+        403: "Cross-site request, or the token's role may not do this",
         404: "Not found",
         409: "Conflict with the resource's state",
         413: "Request body too large",
+        415: "The body is not declared as JSON (Content-Type: application/json)",
         422: "Invalid input: the body names the field and the reason",
         503: "Service unavailable",
     }
@@ -170,15 +205,11 @@ def _dotted(loc: Sequence[Any]) -> str | None:
     return out or None
 
 
-#: pydantic's wording replaced by the planner's, so one field reads the same either way.
-_REASONS = {"extra_forbidden": "unknown key", "missing": "is required"}
-
-
 def _validation_items(exc: RequestValidationError) -> list[ErrorItem]:
     items = []
     for error in exc.errors():
         loc = error.get("loc", ())
-        message = _REASONS.get(str(error.get("type")), str(error.get("msg", "invalid")))
+        message = str(error.get("msg", "invalid"))
         if error.get("type") == "json_invalid":
             ctx = error.get("ctx") or {}
             message = f"request body is not valid JSON: {ctx.get('error', message)}"

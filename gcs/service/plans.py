@@ -15,6 +15,7 @@ import numpy as np
 import orjson
 
 from gcs.errors import InvalidRequest, NotFound, StateConflict
+from gcs.service.statuses import MissionStatus
 from gcs.service.store import Store
 from planner import Plan, PlanFormatError
 
@@ -40,10 +41,10 @@ class PlanCache:
         row = self._store.get_mission(mission_id, with_plan=True)
         if row is None:
             raise NotFound("mission_id", f"no mission with id {mission_id!r}")
-        if row.status == "planning":
+        if row.status == MissionStatus.PLANNING:
             raise StateConflict("mission_id", f"mission {mission_id!r} is still planning; "
                            f"poll GET /api/missions/{mission_id} until status is 'planned'")
-        if row.status == "failed" or row.plan_json is None:
+        if row.status == MissionStatus.FAILED or row.plan_json is None:
             reason = (row.error or {}).get("reason", "no plan")
             raise StateConflict("mission_id", f"mission {mission_id!r} has no plan: {reason}")
         try:

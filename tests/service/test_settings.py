@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -9,6 +10,15 @@ from pydantic import ValidationError
 
 from gcs.cli.main import main
 from gcs.service.settings import Settings, SettingsFileError
+
+
+@pytest.fixture(autouse=True)
+def _isolated(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """No FLEETPLAN_* variable or ./fleetplan.toml of the developer leaks into a test; the
+    working directory is the test's own."""
+    for name in [n for n in os.environ if n.startswith("FLEETPLAN_")]:
+        monkeypatch.delenv(name)
+    monkeypatch.chdir(tmp_path)
 
 
 def test_defaults_are_local_and_safe() -> None:

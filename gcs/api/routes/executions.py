@@ -8,16 +8,16 @@ from __future__ import annotations
 from collections.abc import AsyncIterable
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Depends, Path, Query, Response
+from fastapi import APIRouter, Body, Query, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 
-from gcs.api.deps import FleetDep, MissionDep, PlanCacheDep, StoreDep
+from gcs.api.deps import ExecutionDep, FleetDep, MissionDep, PlanCacheDep, StoreDep
 from gcs.api.errors import error_responses
-from gcs.errors import NotFound, StateConflict
-from gcs.service.flights import FINISHED, LIVE, execution_document
-from gcs.service.store import ExecutionRow
+from gcs.errors import StateConflict
+from gcs.service.flights import execution_document
+from gcs.service.statuses import ExecutionStatus
 
 __all__ = ["mission_router", "router"]
 
@@ -75,7 +75,7 @@ class ExecutionOut(BaseModel):
 
     id: str
     mission_id: str
-    status: Literal[(*LIVE, *FINISHED)] = Field(  # type: ignore[valid-type]
+    status: ExecutionStatus = Field(
         description="starting, running, aborting while flying; then completed, incomplete "
         "(ran to its end without completing), aborted, failed or interrupted."
     )
@@ -96,17 +96,6 @@ class ExecutionOut(BaseModel):
     links: dict[str, str]
 
 
-ExecutionIdPath = Annotated[str, Path(description="Execution id.", max_length=64)]
-
-
-async def _execution(execution_id: ExecutionIdPath, store: StoreDep) -> ExecutionRow:
-    row = await run_in_threadpool(store.get_execution, execution_id)
-    if row is None:
-        raise NotFound("execution_id", f"no execution with id {execution_id!r}")
-    return row
-
-
-ExecutionDep = Annotated[ExecutionRow, Depends(_execution)]
 
 
 @mission_router.post(
