@@ -83,6 +83,17 @@ class Settings(BaseSettings):
     )
     max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")
+    dt_min: float = Field(0.01, gt=0, description="Shortest step `dt` a mission may use (s).")
+    dt_max: float = Field(5.0, gt=0, le=60, description="Longest step `dt` a mission may use (s).")
+    max_horizon_s: float = Field(
+        900.0, gt=0, le=86_400,
+        description="Longest horizon steps * dt a mission may plan, and so fly (s).",
+    )
+    max_coordinate_m: float = Field(
+        10_000.0, gt=0, le=1_000_000,
+        description="Largest distance of any workspace corner, start or goal from the origin "
+        "along each axis (m).",
+    )
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest request body accepted (bytes)."
     )
@@ -120,6 +131,12 @@ class Settings(BaseSettings):
             return cls(**values)
         finally:
             _explicit_config.reset(token)
+
+    @model_validator(mode="after")
+    def _dt_range(self) -> Settings:
+        if self.dt_min >= self.dt_max:
+            raise ValueError(f"dt_min ({self.dt_min:g}) must be less than dt_max ({self.dt_max:g})")
+        return self
 
     @model_validator(mode="after")
     def _fleet_file_exists(self) -> Settings:

@@ -26,7 +26,7 @@ from gcs.api.deps import (
     SettingsDep,
     StoreDep,
 )
-from gcs.api.errors import Unprocessable, error_responses
+from gcs.api.errors import ErrorItem, Unprocessable, error_responses
 from gcs.api.schemas import (
     MissionList,
     MissionOut,
@@ -36,6 +36,7 @@ from gcs.api.schemas import (
     shape_errors,
 )
 from gcs.errors import InvalidRequest, StateConflict
+from gcs.service.limits import WorkBounds, scenario_bound_errors
 from gcs.service.plan_worker import finite_json
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.plans import trajectory_csv, trajectory_json
@@ -86,23 +87,14 @@ async def _document(store: Store, planning: PlanningService, mission_id: str) ->
 
 
 def _validated(body: Any, settings: Settings) -> Scenario:
-    """The scenario of a request body: every shape problem at once, then the server's
-    limits, then the planner's own validation (the first problem of meaning)."""
+    """The scenario of a request body: every shape problem at once, then every work bound
+    exceeded, then the planner's own validation (the first problem of meaning)."""
     shape = shape_errors(body)
     if shape:
         raise Unprocessable.of(shape)
-    if isinstance(body["vehicles"], list) and len(body["vehicles"]) > settings.max_vehicles:
-        raise InvalidRequest(
-            "vehicles",
-            f"{len(body['vehicles'])} vehicles exceed this server's limit of "
-            f"{settings.max_vehicles} (setting max_vehicles)",
-        )
-    if body["steps"] > settings.max_steps:
-        raise InvalidRequest(
-            "steps",
-            f"{body['steps']} steps exceed this server's limit of {settings.max_steps} "
-            f"(setting max_steps)",
-        )
+    bounds = scenario_bound_errors(body, WorkBounds.from_settings(settings))
+    if bounds:
+        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds])
     return Scenario.from_dict(body)
 
 
