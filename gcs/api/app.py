@@ -29,6 +29,7 @@ from gcs.api.errors import install_error_handlers
 from gcs.api.limits import BodyLimitMiddleware
 from gcs.api.routes import api_router
 from gcs.api.schemas import planner_schemas
+from gcs.api.security import AccessPolicy, SecurityMiddleware
 from gcs.service.flights import FleetService
 from gcs.service.planning import PlanningService
 from gcs.service.plans import PlanCache
@@ -117,7 +118,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     install_error_handlers(app)
+    # Added last, runs first: a forged or unauthorised request is refused before its body
+    # is even counted.
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.add_middleware(SecurityMiddleware, policy=AccessPolicy.from_settings(settings))
     app.include_router(api_router)
 
     @app.get("/vendor/plotly.min.js", include_in_schema=False)

@@ -23,6 +23,7 @@ at once, in pydantic's own words, under the offending parameter's name.
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Sequence
 from typing import Any
@@ -33,6 +34,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
+from starlette.types import Send
 
 from gcs.errors import InvalidRequest, NotFound, RequestError, ServiceBusy, StateConflict
 from planner.errors import FieldError
@@ -50,6 +52,7 @@ __all__ = [
     "UnsupportedMediaType",
     "error_responses",
     "install_error_handlers",
+    "send_error",
 ]
 
 log = logging.getLogger(__name__)
@@ -105,6 +108,7 @@ class ApiError(Exception):
         self.field = field
         self.reason = reason
         self.errors = list(errors) if errors else [ErrorItem(field=field, reason=reason)]
+        self.headers: dict[str, str] = {}
 
     def body(self) -> dict[str, Any]:
         return ErrorBody(
@@ -219,7 +223,18 @@ def _validation_items(exc: RequestValidationError) -> list[ErrorItem]:
 
 
 def _respond(error: ApiError) -> JSONResponse:
-    return JSONResponse(status_code=error.status, content=error.body())
+    return JSONResponse(status_code=error.status, content=error.body(), headers=error.headers)
+
+
+async def send_error(send: Send, error: ApiError) -> None:
+    """Answer with `error` from a pure ASGI middleware (before any route ran); the
+    connection is closed since the request body may not have been read."""
+    body = json.dumps(error.body()).encode()
+    headers = [(b"content-type", b"application/json"),
+               (b"content-length", str(len(body)).encode()), (b"connection", b"close")]
+    headers += [(k.lower().encode(), v.encode()) for k, v in error.headers.items()]
+    await send({"type": "http.response.start", "status": error.status, "headers": headers})
+    await send({"type": "http.response.body", "body": body})
 
 
 def install_error_handlers(app: FastAPI) -> None:

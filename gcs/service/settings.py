@@ -9,25 +9,49 @@ explicit values and win over both.
 
 from __future__ import annotations
 
+import ipaddress
 import os
 from contextvars import ContextVar
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import (
     BaseSettings,
+    NoDecode,
     PydanticBaseSettingsSource,
     SettingsConfigDict,
     TomlConfigSettingsSource,
 )
 
-__all__ = ["CONFIG_ENV", "DEFAULT_CONFIG_FILE", "Settings", "SettingsFileError"]
+__all__ = [
+    "CONFIG_ENV",
+    "DEFAULT_CONFIG_FILE",
+    "MIN_TOKEN_LENGTH",
+    "Settings",
+    "SettingsFileError",
+    "is_loopback",
+]
 
 #: Environment variable naming the TOML config file.
 CONFIG_ENV = "FLEETPLAN_CONFIG"
 #: Config file read when `CONFIG_ENV` is unset (only if it exists).
 DEFAULT_CONFIG_FILE = "fleetplan.toml"
+
+
+#: Shortest API token accepted (a token is a password for the fleet).
+MIN_TOKEN_LENGTH = 16
+
+
+def is_loopback(host: str) -> bool:
+    """Whether a bind address (or Host name) reaches this machine only."""
+    name = host.strip("[]").lower()
+    if name == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
 
 
 class SettingsFileError(FileNotFoundError):
@@ -121,6 +145,30 @@ class Settings(BaseSettings):
     web_dir: Path | None = Field(
         None, description="Serve the browser page from here instead of the bundled copy."
     )
+    allowed_hosts: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="Host header names the service answers (comma-separated in the "
+        "environment); empty: the names it is bound to. Anything else is refused (DNS "
+        "rebinding). '*' answers any name.",
+    )
+    allowed_origins: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="Other origins (scheme://host:port) allowed to send state-changing "
+        "requests; the service's own origin always is.",
+    )
+    api_token: SecretStr | None = Field(
+        None, description="Operator token (plan, fly, abort, command). Required when the "
+        "service binds beyond loopback; when set, every API request needs a token."
+    )
+    api_token_file: Path | None = Field(
+        None, description="File holding the operator token (instead of api_token)."
+    )
+    read_token: SecretStr | None = Field(
+        None, description="Read-only token: GET requests only. Needs an operator token too."
+    )
+    read_token_file: Path | None = Field(
+        None, description="File holding the read-only token (instead of read_token)."
+    )
 
     @classmethod
     def load(cls, config_file: Path | None = None, **values: Any) -> Settings:
@@ -131,6 +179,44 @@ class Settings(BaseSettings):
             return cls(**values)
         finally:
             _explicit_config.reset(token)
+
+    @field_validator("allowed_hosts", "allowed_origins", mode="before")
+    @classmethod
+    def _comma_separated(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            return [part.strip() for part in value.split(",") if part.strip()]
+        return value
+
+    @model_validator(mode="after")
+    def _tokens(self) -> Settings:
+        """Tokens from their files; an operator token whenever the bind address is reachable
+        from other machines; tokens long enough not to be guessed."""
+        for name in ("api_token", "read_token"):
+            path: Path | None = getattr(self, f"{name}_file")
+            if path is None:
+                continue
+            if getattr(self, name) is not None:
+                raise ValueError(f"set {name} or {name}_file, not both")
+            try:
+                text = path.read_text().strip()
+            except OSError as exc:
+                raise ValueError(f"{name}_file {path}: {exc.strerror or exc}") from None
+            object.__setattr__(self, name, SecretStr(text))
+        for name in ("api_token", "read_token"):
+            token: SecretStr | None = getattr(self, name)
+            if token is not None and len(token.get_secret_value()) < MIN_TOKEN_LENGTH:
+                raise ValueError(f"{name} must be at least {MIN_TOKEN_LENGTH} characters")
+        if self.api_token is None and not is_loopback(self.host):
+            raise ValueError(
+                f"host {self.host} is reachable from other machines: set an operator token "
+                "(api_token, api_token_file or FLEETPLAN_API_TOKEN)"
+            )
+        if self.read_token is not None and self.api_token is None:
+            raise ValueError("read_token needs an operator token (api_token) as well")
+        if (self.read_token is not None and self.api_token is not None
+                and self.read_token.get_secret_value() == self.api_token.get_secret_value()):
+            raise ValueError("read_token must differ from api_token")
+        return self
 
     @model_validator(mode="after")
     def _dt_range(self) -> Settings:
