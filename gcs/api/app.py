@@ -15,6 +15,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+import fastapi_offline
 import plotly
 from fastapi import FastAPI
 from fastapi.openapi.docs import get_swagger_ui_html
@@ -22,7 +23,6 @@ from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
-from swagger_ui_bundle import swagger_ui_path
 
 import gcs
 from gcs.api.errors import install_error_handlers
@@ -36,12 +36,15 @@ from gcs.service.plans import PlanCache
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 
-__all__ = ["PLOTLY_JS", "create_app", "web_directory"]
+__all__ = ["PLOTLY_JS", "SWAGGER_UI", "create_app", "web_directory"]
 
 log = logging.getLogger(__name__)
 
 #: plotly.js as bundled in the Python `plotly` package: served locally, never from a CDN.
 PLOTLY_JS = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
+#: Swagger UI 5.x as shipped by the `fastapi-offline` package (swagger-ui-bundle 1.1 ships
+#: 4.15, which cannot render OpenAPI 3.1): served locally, never from a CDN.
+SWAGGER_UI = Path(fastapi_offline.__file__).parent / "static"
 
 DESCRIPTION = """\
 Plan collision-free trajectories for a quadcopter fleet and fly them on PX4 vehicles
@@ -128,9 +131,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     def plotly_js() -> FileResponse:
         return FileResponse(PLOTLY_JS, media_type="text/javascript")
 
-    # Swagger UI from the swagger-ui-bundle package: the API docs work offline too.
-    app.mount("/vendor/swagger-ui", StaticFiles(directory=swagger_ui_path),
-              name="swagger-ui")
+    # Swagger UI 5 (it reads OpenAPI 3.1) from the fastapi-offline package: the API docs
+    # work offline too.
+    app.mount("/vendor/swagger-ui", StaticFiles(directory=SWAGGER_UI), name="swagger-ui")
 
     @app.get("/docs", include_in_schema=False)
     def docs() -> HTMLResponse:
@@ -138,7 +141,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             openapi_url=app.openapi_url or "/openapi.json", title="fleetplan API",
             swagger_js_url="/vendor/swagger-ui/swagger-ui-bundle.js",
             swagger_css_url="/vendor/swagger-ui/swagger-ui.css",
-            swagger_favicon_url="/vendor/swagger-ui/favicon-32x32.png",
+            swagger_favicon_url="/vendor/swagger-ui/favicon.png",
         )
 
     app.mount("/", StaticFiles(directory=web_directory(settings), html=True), name="web")
