@@ -766,7 +766,7 @@ function showFlightSummary(done) {
 async function abortAll() {
   // Abort the flight shown and any other one under way: this button must always work.
   const { ok, data } = await api("GET", "/api/executions?active=true");
-  const ids = new Set(ok ? data.map((e) => e.id) : []);
+  const ids = new Set(ok ? data.executions.map((e) => e.id) : []);
   if (state.execution && ACTIVE.includes($("#execution-status").dataset.status)) ids.add(state.execution);
   if (!ids.size) { $("#flight-banner").textContent = "nothing is flying"; return; }
   for (const id of ids) {

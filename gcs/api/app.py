@@ -17,19 +17,21 @@ from typing import Any
 
 import fastapi_offline
 import plotly
-from fastapi import FastAPI
+from fastapi import FastAPI, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 import gcs
-from gcs.api.errors import install_error_handlers
+from gcs.api.errors import FALLBACK, allowed_methods, install_error_handlers
 from gcs.api.limits import BodyLimitMiddleware
 from gcs.api.routes import api_router
 from gcs.api.schemas import planner_schemas
 from gcs.api.security import AccessPolicy, SecurityMiddleware
+from gcs.errors import NotFound
 from gcs.service.flights import FleetService
 from gcs.service.planning import PlanningService
 from gcs.service.plans import PlanCache
@@ -39,6 +41,8 @@ from gcs.service.store import Store
 __all__ = ["PLOTLY_JS", "SWAGGER_UI", "create_app", "web_directory"]
 
 log = logging.getLogger(__name__)
+
+ALL_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 
 #: plotly.js as bundled in the Python `plotly` package: served locally, never from a CDN.
 PLOTLY_JS = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
@@ -126,6 +130,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.add_middleware(SecurityMiddleware, policy=AccessPolicy.from_settings(settings))
     app.include_router(api_router)
+
+    @app.api_route("/api/{rest:path}", methods=list(ALL_METHODS), include_in_schema=False,
+                   name=FALLBACK)
+    def api_fallback(request: Request) -> None:
+        """Unknown /api paths and methods: 404 or 405 with `Allow`, never the static page
+        (whose mount at "/" would otherwise answer GET for any path)."""
+        allowed = allowed_methods(request)
+        if not allowed or request.method in allowed:
+            raise NotFound("path", f"no such API path: {request.url.path}")
+        raise StarletteHTTPException(405, headers={"Allow": ", ".join(allowed)})
 
     @app.get("/vendor/plotly.min.js", include_in_schema=False)
     def plotly_js() -> FileResponse:

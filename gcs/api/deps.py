@@ -12,7 +12,7 @@ from collections.abc import Callable
 from typing import Annotated, Any, TypeVar
 
 import orjson
-from fastapi import Depends, Path, Request
+from fastapi import Depends, Header, Path, Request
 from starlette.concurrency import run_in_threadpool
 
 from gcs.api.errors import BadRequest, Unprocessable
@@ -28,6 +28,7 @@ __all__ = [
     "ExecutionIdPath",
     "FleetDep",
     "JsonBody",
+    "LastEventId",
     "MissionDep",
     "MissionIdPath",
     "PlanCacheDep",
@@ -109,3 +110,19 @@ async def _json_body(request: Request) -> Any:
 
 #: A route's JSON body, for routes that validate it themselves (the scenario).
 JsonBody = Annotated[Any, Depends(_json_body)]
+
+
+def _last_event_id(
+    last_event_id: Annotated[str | None, Header(
+        alias="Last-Event-ID", description="Resume an event stream after this event id (an "
+        "EventSource sends it by itself when it reconnects).")] = None,
+) -> int | None:
+    """The sequence number a reconnecting event-stream client last received; anything that
+    is not one (absent, garbage) means from the start."""
+    if last_event_id is None or not last_event_id.strip().isdigit():
+        return None
+    return int(last_event_id.strip())
+
+
+#: The `Last-Event-ID` of a reconnecting event-stream client, as a number (None: all).
+LastEventId = Annotated[int | None, Depends(_last_event_id)]

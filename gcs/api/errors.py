@@ -33,13 +33,14 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.routing import Match
+from starlette.routing import Match, Mount
 from starlette.types import Send
 
 from gcs.errors import InvalidRequest, NotFound, RequestError, ServiceBusy, StateConflict
 from planner.errors import FieldError
 
 __all__ = [
+    "FALLBACK",
     "REQUEST_ERROR_STATUS",
     "ApiError",
     "BadRequest",
@@ -50,6 +51,7 @@ __all__ = [
     "Unauthorized",
     "Unprocessable",
     "UnsupportedMediaType",
+    "allowed_methods",
     "error_responses",
     "install_error_handlers",
     "send_error",
@@ -184,13 +186,22 @@ def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, 
     return {code: {"model": ErrorBody, "description": meaning[code]} for code in codes}
 
 
-def _allowed_methods(request: Request) -> list[str]:
-    """Every method some route accepts for this path (Starlette only names the first
-    route's, which is wrong when GET and DELETE of one path are separate routes)."""
+#: Name of the app's catch-all route under /api (never an allowed method of its own).
+FALLBACK = "api_fallback"
+#: Methods probed for the `Allow` header of a 405.
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
+
+
+def allowed_methods(request: Request) -> list[str]:
+    """Every method some route accepts for this path, found by asking the routes (included
+    routers too) whether they would take the request with each method; empty when no route
+    knows the path. The static page's mount at "/" takes any path and is left out."""
     methods: set[str] = set()
-    for route in request.app.router.routes:
-        if route.matches(request.scope)[0] != Match.NONE:
-            methods.update(getattr(route, "methods", None) or ())
+    for method in _METHODS:
+        scope = {**request.scope, "method": method}
+        if any(route.matches(scope)[0] == Match.FULL for route in request.app.router.routes
+               if not isinstance(route, Mount) and getattr(route, "name", "") != FALLBACK):
+            methods.add(method)
     return sorted(methods)
 
 
@@ -272,7 +283,9 @@ def install_error_handlers(app: FastAPI) -> None:
         if exc.headers:
             response.headers.update(exc.headers)
         if exc.status_code == 405:
-            response.headers["Allow"] = ", ".join(_allowed_methods(request))
+            # A path no route knows is the static page's, which only reads.
+            allowed = allowed_methods(request) or ["GET", "HEAD"]
+            response.headers["Allow"] = ", ".join(allowed)
         return response
 
     async def unexpected(_request: Request, exc: Exception) -> JSONResponse:

@@ -369,6 +369,20 @@ class Store:
                 for e, has in session.execute(query)
             ]
 
+    def page_executions(self, *, limit: int, offset: int) -> tuple[list[ExecutionRow], int]:
+        """One page of executions, newest first (records not loaded), and the total count."""
+        query = (
+            select(_Execution, _Execution.record_json.is_not(None))
+            .options(defer(_Execution.record_json))
+            .order_by(_Execution.created_at.desc(), _Execution.id)
+            .limit(limit)
+            .offset(offset)
+        )
+        with self._session() as session:
+            total = session.scalar(select(func.count()).select_from(_Execution)) or 0
+            rows = [_execution_row(e, has_record=bool(has)) for e, has in session.execute(query)]
+        return rows, int(total)
+
     def update_execution(
         self,
         execution_id: str,

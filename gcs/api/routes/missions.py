@@ -20,6 +20,7 @@ from starlette.concurrency import run_in_threadpool
 
 from gcs.api.deps import (
     JsonBody,
+    LastEventId,
     MissionDep,
     PlanCacheDep,
     PlanningDep,
@@ -212,11 +213,13 @@ def delete_mission(
     responses=error_responses(404, json_content=True),
 )
 async def mission_events(
-    mission: MissionDep, planning: PlanningDep
+    mission: MissionDep, planning: PlanningDep, after: LastEventId
 ) -> AsyncIterable[ServerSentEvent]:
     """`iteration` events (one per SCP iteration: iteration, cost, cost_change,
     separation_rows, qp_solves, groups, seconds) while planning, then one `done` event
-    {status, plan_status, plan_ok, error}; then the stream ends."""
+    {status, plan_status, plan_ok, error}; then the stream ends. Each `iteration` has an
+    `id:` (0, 1, ...); a client reconnecting with `Last-Event-ID: n` gets the iterations
+    after n, then `done`."""
     job = planning.job(mission.id)
     if job is None or mission.status != MissionStatus.PLANNING:
         yield ServerSentEvent(
@@ -225,8 +228,14 @@ async def mission_events(
                   "plan_ok": mission.plan_ok, "error": mission.error},
         )
         return
+    sequence = 0
     async for kind, data in job.events():
-        yield ServerSentEvent(event=kind, data=data)
+        if kind == "iteration":
+            number, sequence = sequence, sequence + 1
+            if after is None or number > after:
+                yield ServerSentEvent(event=kind, data=data, id=str(number))
+        else:
+            yield ServerSentEvent(event=kind, data=data)
 
 
 @router.get(

@@ -142,6 +142,7 @@ def test_wrong_method_is_405_with_the_error_body(shared_client: TestClient) -> N
     response = shared_client.put("/api/missions")
     assert response.status_code == 405
     assert response.json()["reason"] == "Method Not Allowed"
+    assert response.headers["allow"] == "GET, POST"
 
 
 @pytest.mark.parametrize(
