@@ -197,11 +197,15 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
             required.append(f.name)
         properties[f.name] = schema
     description = " ".join((inspect.getdoc(cls) or "").split())
-    return {
+    component = {
         "title": name, "type": "object", "description": description,
-        "properties": properties, "required": required, "additionalProperties": False,
-        "examples": [_EXAMPLES[name]],
+        "properties": properties, "required": required, "examples": [_EXAMPLES[name]],
     }
+    # The planner refuses unknown keys in what it reads; what it writes may gain keys that
+    # are not dataclass fields (a client should ignore what it does not know).
+    if input_rules:
+        component["additionalProperties"] = False
+    return component
 
 
 @cache

@@ -4,16 +4,19 @@ dataclasses, and the status sets the service uses are the ones it publishes."""
 from __future__ import annotations
 
 import dataclasses
+import json
+from typing import Any
 
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
-from gcs.api.schemas import planner_schemas
+from gcs.api.schemas import planner_schemas, shape_errors
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus
 from planner import Plan, Scenario
 from planner.result import STATUSES as PLAN_STATUSES
 from planner.scenario import DEFAULTS, Limits, Vehicle
+from tests.api.support import EXAMPLES, example
 
 
 def _json_fields(cls: type) -> set[str]:
@@ -67,3 +70,31 @@ def test_status_publishes_every_status_set(client: TestClient) -> None:
     assert set(statuses["execution"]["active"]) == set(EXECUTION_ACTIVE)
     assert set(statuses["execution"]["finished"]) == set(ExecutionStatus) - set(EXECUTION_ACTIVE)
     assert statuses["plan"]["all"] == list(PLAN_STATUSES)
+
+
+def _validator(schema: dict, component: str) -> Any:
+    """A JSON Schema validator for one OpenAPI component (refs rewritten to $defs)."""
+    import jsonschema_rs  # schemathesis's own validator, a test dependency
+
+    text = json.dumps(schema["components"]["schemas"]).replace("#/components/schemas/",
+                                                               "#/$defs/")
+    return jsonschema_rs.validator_for({"$defs": json.loads(text),
+                                        "$ref": f"#/$defs/{component}"})
+
+
+def test_real_documents_match_the_published_schema(client: TestClient) -> None:
+    schema = client.get("/openapi.json").json()
+    mission = client.post("/api/missions?wait=60", json=example("paper-circle4")).json()
+    assert mission["plan"] is not None
+    for component, document in [("MissionOut", mission), ("Plan", mission["plan"]),
+                                ("Scenario", mission["scenario"])]:
+        errors = [e.message for e in _validator(schema, component).iter_errors(document)]
+        assert errors == [], (component, errors[:3])
+    # Every bundled example is a valid Scenario by the schema and by the shape check.
+    scenario_schema = _validator(schema, "Scenario")
+    for path in sorted(EXAMPLES.glob("*.json")):
+        scenario = json.loads(path.read_text())
+        assert scenario_schema.is_valid(scenario), path.name
+        assert shape_errors(scenario) == [], path.name
+    # And a broken one is not.
+    assert not scenario_schema.is_valid({**example("paper-circle2"), "dt": "fast"})
