@@ -141,6 +141,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             raise NotFound("path", f"no such API path: {request.url.path}")
         raise StarletteHTTPException(405, headers={"Allow": ", ".join(allowed)})
 
+    @app.get("/healthz", include_in_schema=False)
+    def healthz() -> dict[str, str]:
+        """Liveness for container health checks: no token needed, tells nothing."""
+        return {"status": "ok"}
+
     @app.get("/vendor/plotly.min.js", include_in_schema=False)
     def plotly_js() -> FileResponse:
         return FileResponse(PLOTLY_JS, media_type="text/javascript")

@@ -196,3 +196,18 @@ def test_binding_beyond_loopback_requires_a_token(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="must differ"):
         Settings(api_token=OPERATOR, read_token=OPERATOR)
     assert Settings(host="::1").api_token is None  # loopback: no token needed
+
+
+def test_healthz_needs_no_token_and_tells_nothing(token_client: TestClient) -> None:
+    response = token_client.get("/healthz")
+    assert response.status_code == 200 and response.json() == {"status": "ok"}
+    refused(token_client.get("/healthz", headers={"Host": "evil.example"}), 400, "Host", "")
+
+
+def test_an_empty_token_from_the_environment_is_refused(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # docker-compose passes ${FLEETPLAN_API_TOKEN:-}: unset, it is an empty string.
+    monkeypatch.setenv("FLEETPLAN_API_TOKEN", "")
+    with pytest.raises(ValueError, match="api_token must be at least 16 characters"):
+        Settings(host="0.0.0.0")
