@@ -24,8 +24,10 @@ EXPOSE 8000 14540/udp
 ENV FLEETPLAN_HOST=0.0.0.0 \
     FLEETPLAN_PORT=8000 \
     FLEETPLAN_DATABASE_URL=sqlite:////data/fleetplan.db
+# Bound to 0.0.0.0 inside the container, the service needs an operator token: pass
+# FLEETPLAN_API_TOKEN or FLEETPLAN_API_TOKEN_FILE (see the README's Access control).
 HEALTHCHECK --interval=10s --timeout=3s --start-period=20s \
-    CMD python -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/api/status', timeout=2)"
+    CMD python -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=2)"
 ENTRYPOINT ["fleetplan", "serve"]
 # Without a fleet file the service starts mock vehicles (FLEETPLAN_MOCK_VEHICLES, default 4).
 CMD []

@@ -98,8 +98,11 @@ class Vehicle:
     """One vehicle's task: fly from `start` (at rest) to `goal` (at rest), world frame ENU."""
 
     id: str
+    """Unique vehicle id; a fleet file maps it to a vehicle."""
     start: FloatArray
+    """Where the vehicle starts, hovering (m)."""
     goal: FloatArray
+    """Where it must arrive and stop (m)."""
 
 
 @dataclass(frozen=True)
@@ -107,6 +110,7 @@ class Scenario:
     """A validated planning problem. Build it with `Scenario.from_dict`."""
 
     name: str
+    """Free-form name, shown in listings."""
     dt: float
     """Step length (s)."""
     steps: int
@@ -120,7 +124,9 @@ class Scenario:
     max_iterations: int
     """Cap on SCP iterations (the separation-free first QP counts as iteration 0)."""
     limits: Limits
+    """Workspace box, motion bounds and flyability limits."""
     vehicles: tuple[Vehicle, ...]
+    """The fleet's tasks, at least one; ids are unique."""
     starts: FloatArray = field(repr=False)
     """(N, 3) start positions, in vehicle order."""
     goals: FloatArray = field(repr=False)

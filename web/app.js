@@ -26,13 +26,24 @@ const state = {
 
 // ------------------------------------------------------------------ HTTP
 
+let tokenAsked = null;  // one token prompt shared by concurrent requests
+
 async function api(method, url, body) {
   const init = { method, headers: {} };
   if (body !== undefined) {
     init.body = JSON.stringify(body);
     init.headers["Content-Type"] = "application/json";
   }
-  const response = await fetch(url, init);
+  let response = await fetch(url, init);
+  if (response.status === 401) {  // the service wants an API token: ask once and keep it in
+    tokenAsked ??= Promise.resolve(window.prompt("API token (operator or read-only):"))
+      .then((token) => {           // a SameSite cookie, which EventSource sends too
+        if (token) document.cookie = `fleetplan_token=${encodeURIComponent(token)}; path=/; SameSite=Strict`;
+        return token;
+      });
+    if (await tokenAsked) response = await fetch(url, init);
+    if (response.status === 401) tokenAsked = null;  // wrong token: ask again next time
+  }
   const text = await response.text();
   let data = null;
   try { data = text ? JSON.parse(text) : null; } catch { data = { reason: text }; }
@@ -755,7 +766,7 @@ function showFlightSummary(done) {
 async function abortAll() {
   // Abort the flight shown and any other one under way: this button must always work.
   const { ok, data } = await api("GET", "/api/executions?active=true");
-  const ids = new Set(ok ? data.map((e) => e.id) : []);
+  const ids = new Set(ok ? data.executions.map((e) => e.id) : []);
   if (state.execution && ACTIVE.includes($("#execution-status").dataset.status)) ids.add(state.execution);
   if (!ids.size) { $("#flight-banner").textContent = "nothing is flying"; return; }
   for (const id of ids) {

@@ -15,30 +15,40 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+import fastapi_offline
 import plotly
-from fastapi import FastAPI
+from fastapi import FastAPI, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse
+from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
-from swagger_ui_bundle import swagger_ui_path
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 import gcs
-from gcs.api.errors import install_error_handlers
+from gcs.api.errors import FALLBACK, allowed_methods, install_error_handlers
 from gcs.api.limits import BodyLimitMiddleware
 from gcs.api.routes import api_router
+from gcs.api.schemas import planner_schemas
+from gcs.api.security import AccessPolicy, SecurityMiddleware
+from gcs.errors import NotFound
 from gcs.service.flights import FleetService
 from gcs.service.planning import PlanningService
 from gcs.service.plans import PlanCache
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 
-__all__ = ["PLOTLY_JS", "create_app", "web_directory"]
+__all__ = ["PLOTLY_JS", "SWAGGER_UI", "create_app", "web_directory"]
 
 log = logging.getLogger(__name__)
 
+ALL_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
 #: plotly.js as bundled in the Python `plotly` package: served locally, never from a CDN.
 PLOTLY_JS = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
+#: Swagger UI 5.x as shipped by the `fastapi-offline` package (swagger-ui-bundle 1.1 ships
+#: 4.15, which cannot render OpenAPI 3.1): served locally, never from a CDN.
+SWAGGER_UI = Path(fastapi_offline.__file__).parent / "static"
 
 DESCRIPTION = """\
 Plan collision-free trajectories for a quadcopter fleet and fly them on PX4 vehicles
@@ -109,19 +119,38 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,  # served below from local files: FastAPI's default loads a CDN
         redoc_url=None,
+        generate_unique_id_function=_operation_id,
     )
     app.state.settings = settings
     install_error_handlers(app)
+    # Added last, runs first: a forged or unauthorised request is refused before its body
+    # is even counted.
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.add_middleware(SecurityMiddleware, policy=AccessPolicy.from_settings(settings))
     app.include_router(api_router)
+
+    @app.api_route("/api/{rest:path}", methods=list(ALL_METHODS), include_in_schema=False,
+                   name=FALLBACK)
+    def api_fallback(request: Request) -> None:
+        """Unknown /api paths and methods: 404 or 405 with `Allow`, never the static page
+        (whose mount at "/" would otherwise answer GET for any path)."""
+        allowed = allowed_methods(request)
+        if not allowed or request.method in allowed:
+            raise NotFound("path", f"no such API path: {request.url.path}")
+        raise StarletteHTTPException(405, headers={"Allow": ", ".join(allowed)})
+
+    @app.get("/healthz", include_in_schema=False)
+    def healthz() -> dict[str, str]:
+        """Liveness for container health checks: no token needed, tells nothing."""
+        return {"status": "ok"}
 
     @app.get("/vendor/plotly.min.js", include_in_schema=False)
     def plotly_js() -> FileResponse:
         return FileResponse(PLOTLY_JS, media_type="text/javascript")
 
-    # Swagger UI from the swagger-ui-bundle package: the API docs work offline too.
-    app.mount("/vendor/swagger-ui", StaticFiles(directory=swagger_ui_path),
-              name="swagger-ui")
+    # Swagger UI 5 (it reads OpenAPI 3.1) from the fastapi-offline package: the API docs
+    # work offline too.
+    app.mount("/vendor/swagger-ui", StaticFiles(directory=SWAGGER_UI), name="swagger-ui")
 
     @app.get("/docs", include_in_schema=False)
     def docs() -> HTMLResponse:
@@ -129,17 +158,25 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             openapi_url=app.openapi_url or "/openapi.json", title="fleetplan API",
             swagger_js_url="/vendor/swagger-ui/swagger-ui-bundle.js",
             swagger_css_url="/vendor/swagger-ui/swagger-ui.css",
-            swagger_favicon_url="/vendor/swagger-ui/favicon-32x32.png",
+            swagger_favicon_url="/vendor/swagger-ui/favicon.png",
         )
 
     app.mount("/", StaticFiles(directory=web_directory(settings), html=True), name="web")
-    _document_errors_as_error_body(app)
+    _complete_openapi(app)
     return app
 
 
-def _document_errors_as_error_body(app: FastAPI) -> None:
-    """FastAPI documents request validation failures (422) with its own HTTPValidationError
-    shape; this API answers them with `ErrorBody`, so the schema says that instead."""
+def _operation_id(route: APIRoute) -> str:
+    """operationIds that read well: the route function's name in camelCase (createMission)."""
+    first, *rest = route.name.split("_")
+    return first + "".join(word.capitalize() for word in rest)
+
+
+def _complete_openapi(app: FastAPI) -> None:
+    """The published schema, finished once: the planner-derived components (Scenario, Plan,
+    ...) that routes refer to, and request validation failures (422) documented with
+    `ErrorBody`, the shape this API answers them with, instead of FastAPI's
+    HTTPValidationError."""
     generate = app.openapi
 
     def openapi() -> dict[str, Any]:
@@ -148,8 +185,10 @@ def _document_errors_as_error_body(app: FastAPI) -> None:
                 "#/components/schemas/HTTPValidationError", "#/components/schemas/ErrorBody"
             )
             schema = json.loads(text)
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
             for name in ("HTTPValidationError", "ValidationError"):
-                schema["components"]["schemas"].pop(name, None)
+                components.pop(name, None)
+            components.update(planner_schemas())
             app.openapi_schema = schema
         return app.openapi_schema
 

@@ -1,26 +1,34 @@
 """Shared dependencies of the routes, as `Annotated` aliases (one place to change them).
 
 The services live on `app.state` (created by the app's lifespan in `gcs.api.app`); these
-aliases hand them to the routes, and `MissionDep` turns a `{mission_id}` path parameter into a
-stored mission or a 404 before a route (or a stream) starts.
+aliases hand them to the routes. `MissionDep` and `ExecutionDep` turn a `{mission_id}` /
+`{execution_id}` path parameter into the stored row or a 404 (one row-or-404 rule, `_found`)
+before a route (or a stream) starts.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+from collections.abc import Callable
+from typing import Annotated, Any, TypeVar
 
-from fastapi import Depends, Path, Request
+import orjson
+from fastapi import Depends, Header, Path, Request
 from starlette.concurrency import run_in_threadpool
 
+from gcs.api.errors import BadRequest, Unprocessable
 from gcs.errors import NotFound
 from gcs.service.flights import FleetService
 from gcs.service.planning import PlanningService
 from gcs.service.plans import PlanCache
 from gcs.service.settings import Settings
-from gcs.service.store import MissionRow, Store
+from gcs.service.store import ExecutionRow, MissionRow, Store
 
 __all__ = [
+    "ExecutionDep",
+    "ExecutionIdPath",
     "FleetDep",
+    "JsonBody",
+    "LastEventId",
     "MissionDep",
     "MissionIdPath",
     "PlanCacheDep",
@@ -61,11 +69,60 @@ MissionIdPath = Annotated[
 ]
 
 
-async def _mission(mission_id: MissionIdPath, store: StoreDep) -> MissionRow:
-    row = await run_in_threadpool(store.get_mission, mission_id)
+Row = TypeVar("Row")
+
+
+async def _found(load: Callable[[str], Row | None], key: str, field: str, noun: str) -> Row:
+    """The stored row `load(key)` (read in a thread), or NotFound naming the path parameter."""
+    row = await run_in_threadpool(load, key)
     if row is None:
-        raise NotFound("mission_id", f"no mission with id {mission_id!r}")
+        raise NotFound(field, f"no {noun} with id {key!r}")
     return row
 
 
+async def _mission(mission_id: MissionIdPath, store: StoreDep) -> MissionRow:
+    return await _found(store.get_mission, mission_id, "mission_id", "mission")
+
+
+ExecutionIdPath = Annotated[str, Path(description="Execution id.", max_length=64)]
+
+
+async def _execution(execution_id: ExecutionIdPath, store: StoreDep) -> ExecutionRow:
+    return await _found(store.get_execution, execution_id, "execution_id", "execution")
+
+
 MissionDep = Annotated[MissionRow, Depends(_mission)]
+ExecutionDep = Annotated[ExecutionRow, Depends(_execution)]
+
+
+async def _json_body(request: Request) -> Any:
+    """The request body parsed as strict JSON (NaN and Infinity are not JSON). The security
+    middleware has already refused bodies not declared as JSON (415) and bodies over the
+    size limit (413)."""
+    raw = await request.body()
+    if not raw.strip():
+        raise Unprocessable("body", "is required")
+    try:
+        return orjson.loads(raw)
+    except orjson.JSONDecodeError as exc:
+        raise BadRequest("body", f"request body is not valid JSON: {exc}") from None
+
+
+#: A route's JSON body, for routes that validate it themselves (the scenario).
+JsonBody = Annotated[Any, Depends(_json_body)]
+
+
+def _last_event_id(
+    last_event_id: Annotated[str | None, Header(
+        alias="Last-Event-ID", description="Resume an event stream after this event id (an "
+        "EventSource sends it by itself when it reconnects).")] = None,
+) -> int | None:
+    """The sequence number a reconnecting event-stream client last received; anything that
+    is not one (absent, garbage) means from the start."""
+    if last_event_id is None or not last_event_id.strip().isdigit():
+        return None
+    return int(last_event_id.strip())
+
+
+#: The `Last-Event-ID` of a reconnecting event-stream client, as a number (None: all).
+LastEventId = Annotated[int | None, Depends(_last_event_id)]

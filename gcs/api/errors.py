@@ -10,12 +10,20 @@ not found, 409 wrong state, 422 invalid, 503 busy; any other `FieldError` 422). 
 problems that only exist in HTTP are `ApiError`s raised by the middleware:
 
 - `ApiError`: carries the HTTP status, the field and the reason.
-  - `BadRequest` (400): the request is malformed (e.g. the body is not JSON).
+  - `BadRequest` (400): the request is malformed (e.g. the body is not JSON, a foreign Host).
+  - `Unauthorized` (401): no or a wrong API token where one is required.
+  - `Forbidden` (403): a cross-site request (foreign Origin), or a role that may not do this.
   - `PayloadTooLarge` (413): the body exceeds the configured size limit.
+  - `UnsupportedMediaType` (415): a body that is not declared as JSON.
+  - `Unprocessable` (422): invalid input, with every problem found listed in `errors`.
+
+Request validation (query and path parameters, pydantic bodies) is reported with every error
+at once, in pydantic's own words, under the offending parameter's name.
 """
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Sequence
 from typing import Any
@@ -25,20 +33,28 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.routing import Match
+from starlette.routing import Match, Mount
+from starlette.types import Send
 
 from gcs.errors import InvalidRequest, NotFound, RequestError, ServiceBusy, StateConflict
 from planner.errors import FieldError
 
 __all__ = [
+    "FALLBACK",
     "REQUEST_ERROR_STATUS",
     "ApiError",
     "BadRequest",
     "ErrorBody",
     "ErrorItem",
+    "Forbidden",
     "PayloadTooLarge",
+    "Unauthorized",
+    "Unprocessable",
+    "UnsupportedMediaType",
+    "allowed_methods",
     "error_responses",
     "install_error_handlers",
+    "send_error",
 ]
 
 log = logging.getLogger(__name__)
@@ -94,6 +110,7 @@ class ApiError(Exception):
         self.field = field
         self.reason = reason
         self.errors = list(errors) if errors else [ErrorItem(field=field, reason=reason)]
+        self.headers: dict[str, str] = {}
 
     def body(self) -> dict[str, Any]:
         return ErrorBody(
@@ -105,8 +122,29 @@ class BadRequest(ApiError):
     status = 400
 
 
+class Unauthorized(ApiError):
+    status = 401
+
+
+class Forbidden(ApiError):
+    status = 403
+
+
 class PayloadTooLarge(ApiError):
     status = 413
+
+
+class UnsupportedMediaType(ApiError):
+    status = 415
+
+
+class Unprocessable(ApiError):
+    status = 422
+
+    @classmethod
+    def of(cls, errors: Sequence[ErrorItem]) -> Unprocessable:
+        """Every problem at once; the first one is also the body's `field`/`reason`."""
+        return cls(errors[0].field, errors[0].reason, errors=errors)
 
 
 #: The one mapping from the service's domain errors to HTTP statuses.
@@ -133,9 +171,12 @@ def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, 
     """
     meaning = {
         400: "Malformed request",
+        401: "API token missing or wrong",
+        403: "Cross-site request, or the token's role may not do this",
         404: "Not found",
         409: "Conflict with the resource's state",
         413: "Request body too large",
+        415: "The body is not declared as JSON (Content-Type: application/json)",
         422: "Invalid input: the body names the field and the reason",
         503: "Service unavailable",
     }
@@ -145,13 +186,22 @@ def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, 
     return {code: {"model": ErrorBody, "description": meaning[code]} for code in codes}
 
 
-def _allowed_methods(request: Request) -> list[str]:
-    """Every method some route accepts for this path (Starlette only names the first
-    route's, which is wrong when GET and DELETE of one path are separate routes)."""
+#: Name of the app's catch-all route under /api (never an allowed method of its own).
+FALLBACK = "api_fallback"
+#: Methods probed for the `Allow` header of a 405.
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
+
+
+def allowed_methods(request: Request) -> list[str]:
+    """Every method some route accepts for this path, found by asking the routes (included
+    routers too) whether they would take the request with each method; empty when no route
+    knows the path. The static page's mount at "/" takes any path and is left out."""
     methods: set[str] = set()
-    for route in request.app.router.routes:
-        if route.matches(request.scope)[0] != Match.NONE:
-            methods.update(getattr(route, "methods", None) or ())
+    for method in _METHODS:
+        scope = {**request.scope, "method": method}
+        if any(route.matches(scope)[0] == Match.FULL for route in request.app.router.routes
+               if not isinstance(route, Mount) and getattr(route, "name", "") != FALLBACK):
+            methods.add(method)
     return sorted(methods)
 
 
@@ -170,15 +220,11 @@ def _dotted(loc: Sequence[Any]) -> str | None:
     return out or None
 
 
-#: pydantic's wording replaced by the planner's, so one field reads the same either way.
-_REASONS = {"extra_forbidden": "unknown key", "missing": "is required"}
-
-
 def _validation_items(exc: RequestValidationError) -> list[ErrorItem]:
     items = []
     for error in exc.errors():
         loc = error.get("loc", ())
-        message = _REASONS.get(str(error.get("type")), str(error.get("msg", "invalid")))
+        message = str(error.get("msg", "invalid"))
         if error.get("type") == "json_invalid":
             ctx = error.get("ctx") or {}
             message = f"request body is not valid JSON: {ctx.get('error', message)}"
@@ -188,7 +234,18 @@ def _validation_items(exc: RequestValidationError) -> list[ErrorItem]:
 
 
 def _respond(error: ApiError) -> JSONResponse:
-    return JSONResponse(status_code=error.status, content=error.body())
+    return JSONResponse(status_code=error.status, content=error.body(), headers=error.headers)
+
+
+async def send_error(send: Send, error: ApiError) -> None:
+    """Answer with `error` from a pure ASGI middleware (before any route ran); the
+    connection is closed since the request body may not have been read."""
+    body = json.dumps(error.body()).encode()
+    headers = [(b"content-type", b"application/json"),
+               (b"content-length", str(len(body)).encode()), (b"connection", b"close")]
+    headers += [(k.lower().encode(), v.encode()) for k, v in error.headers.items()]
+    await send({"type": "http.response.start", "status": error.status, "headers": headers})
+    await send({"type": "http.response.body", "body": body})
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -226,7 +283,9 @@ def install_error_handlers(app: FastAPI) -> None:
         if exc.headers:
             response.headers.update(exc.headers)
         if exc.status_code == 405:
-            response.headers["Allow"] = ", ".join(_allowed_methods(request))
+            # A path no route knows is the static page's, which only reads.
+            allowed = allowed_methods(request) or ["GET", "HEAD"]
+            response.headers["Allow"] = ", ".join(allowed)
         return response
 
     async def unexpected(_request: Request, exc: Exception) -> JSONResponse:

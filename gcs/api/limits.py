@@ -7,11 +7,9 @@ answer is 413 with the API's error body, naming the limit.
 
 from __future__ import annotations
 
-import json
-
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from gcs.api.errors import ApiError, BadRequest, PayloadTooLarge
+from gcs.api.errors import BadRequest, PayloadTooLarge, send_error
 
 __all__ = ["BodyLimitMiddleware"]
 
@@ -33,10 +31,10 @@ class BodyLimitMiddleware:
             try:
                 announced = int(length)
             except ValueError:
-                await self._refuse(send, BadRequest("body", "Content-Length is not a number"))
+                await send_error(send, BadRequest("body", "Content-Length is not a number"))
                 return
             if announced > self.max_bytes:
-                await self._refuse(send, self._too_large(announced))
+                await send_error(send, self._too_large(announced))
                 return
             await self.app(scope, receive, send)
             return
@@ -53,7 +51,7 @@ class BodyLimitMiddleware:
             chunk = message.get("body", b"")
             size += len(chunk)
             if size > self.max_bytes:
-                await self._refuse(send, self._too_large(None))
+                await send_error(send, self._too_large(None))
                 return
             chunks.append(chunk)
             if not message.get("more_body", False):
@@ -75,19 +73,3 @@ class BodyLimitMiddleware:
         return PayloadTooLarge(
             "body", f"request body exceeds {self.max_bytes} bytes{got} (setting max_body_bytes)"
         )
-
-    @staticmethod
-    async def _refuse(send: Send, error: ApiError) -> None:
-        body = json.dumps(error.body()).encode()
-        await send(
-            {
-                "type": "http.response.start",
-                "status": error.status,
-                "headers": [
-                    (b"content-type", b"application/json"),
-                    (b"content-length", str(len(body)).encode()),
-                    (b"connection", b"close"),
-                ],
-            }
-        )
-        await send({"type": "http.response.body", "body": body})

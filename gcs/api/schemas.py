@@ -1,39 +1,49 @@
-"""Request and response models of the REST API (pydantic), with examples for the OpenAPI page.
+"""The API's documents, derived from the planner's types so each field is declared once.
 
-The scenario model checks the JSON's shape (types, 3-vectors, no unknown keys); everything
-that needs the numbers themselves (workspace, separation, reachable goals) is checked by
-`planner.Scenario.from_dict`, the single definition of a valid scenario. Response models
-document the Plan JSON contract of `planner.Plan.to_dict`; the API sends the stored plan text
-as it is rather than re-validating it on every request.
+The scenario and the plan are the planner's contracts (`planner.scenario`, `planner.result`).
+`planner_schemas` turns those dataclasses into OpenAPI/JSON Schema components by reading their
+fields, type hints, attribute docstrings and `planner.scenario.DEFAULTS`; nothing here repeats
+a field. A scenario body is checked against that schema (`shape_errors`: every type, key and
+length problem at once, named by dotted path) and then by `planner.Scenario.from_dict`, the one
+definition of a valid scenario, which names the field of the first problem of meaning
+(workspace, separation, reachability).
+
+The mission documents (`MissionSummary`, `MissionOut`, ...) belong to the API and are pydantic
+models; their `scenario`, `plan` and `progress` fields point at the planner-derived components.
 """
 
 from __future__ import annotations
 
+import ast
+import dataclasses
+import inspect
+import itertools
 import json
+import re
+import types
+import typing
+from functools import cache
 from importlib import resources
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema
 
 from gcs.api.errors import ErrorItem
-from gcs.service.store import MISSION_STATUSES
-from planner.result import STATUSES
+from gcs.service.statuses import MissionStatus
+from planner import result as planner_result
+from planner import scenario as planner_scenario
 
 __all__ = [
     "EXAMPLE_SCENARIO",
-    "IterationOut",
-    "LimitsIn",
     "MissionList",
     "MissionOut",
     "MissionSummary",
-    "PlanOut",
-    "ScenarioIn",
     "TrajectoryOut",
-    "VehicleIn",
-    "VehicleTrajectoryOut",
+    "planner_schemas",
+    "ref",
+    "shape_errors",
 ]
-
-Vector3 = Annotated[list[float], Field(min_length=3, max_length=3, examples=[[0.5, 2.5, 1.1]])]
 
 
 def _example_scenario() -> dict[str, Any]:
@@ -44,10 +54,9 @@ def _example_scenario() -> dict[str, Any]:
 #: The paper's 4-vehicle circle case, shown as the request example.
 EXAMPLE_SCENARIO: dict[str, Any] = _example_scenario()
 
-
 _ITERATION: dict[str, Any] = {
     "iteration": 1, "cost": 14433.1, "cost_change": 0.115, "separation_rows": 96,
-    "qp_solves": 1, "groups": 2, "seconds": 0.02,
+    "qp_solves": 1, "groups": 2, "seconds": 0.02, "largest_group": 2,
 }
 _TRAJECTORY_EXAMPLE: dict[str, Any] = {
     "id": "uav1", "t": [0.0, 0.2], "position": [[4.5, 2.5, 1.1], [4.4976, 2.5, 1.1]],
@@ -60,7 +69,10 @@ _PLAN_EXAMPLE: dict[str, Any] = {
     "timing": {"total_s": 0.21, "first_qp_s": 0.004}, "vehicles": [_TRAJECTORY_EXAMPLE],
     "verification": {"min_separation": 1.0004, "min_separation_continuous": 1.0001,
                      "closest_pair": ["uav1", "uav3"], "closest_time": 14.9,
-                     "flyable": True, "separated": True, "within_bounds": True},
+                     "max_violation": {"position": 0.0}, "boundary_error": {"goal": 1e-9},
+                     "thrust_range": [9.2, 10.4], "body_rate_peak": 0.3,
+                     "flyable": True, "separated": True, "within_bounds": True,
+                     "separation_tolerance": 0.001, "bound_tolerance": 1e-4},
 }
 _SUMMARY_EXAMPLE: dict[str, Any] = {
     "id": "3f2a9c81d0b4", "name": "paper-circle4", "status": "planned",
@@ -69,120 +81,226 @@ _SUMMARY_EXAMPLE: dict[str, Any] = {
     "plan_status": "converged", "plan_ok": True, "error": None,
 }
 
+# --------------------------------------------------------------------------- derived schemas
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+#: The planner's contract types, by component name, and an example of each.
+_SCENARIO_TYPES: dict[str, type] = {
+    "Scenario": planner_scenario.Scenario,
+    "Limits": planner_scenario.Limits,
+    "Vehicle": planner_scenario.Vehicle,
+}
+_PLAN_TYPES: dict[str, type] = {
+    "Plan": planner_result.Plan,
+    "VehicleTrajectory": planner_result.VehicleTrajectory,
+    "IterationRecord": planner_result.IterationRecord,
+    "Verification": planner_result.Verification,
+}
+_EXAMPLES: dict[str, Any] = {
+    "Scenario": EXAMPLE_SCENARIO,
+    "Limits": EXAMPLE_SCENARIO["limits"],
+    "Vehicle": EXAMPLE_SCENARIO["vehicles"][0],
+    "Plan": _PLAN_EXAMPLE,
+    "VehicleTrajectory": _TRAJECTORY_EXAMPLE,
+    "IterationRecord": _ITERATION,
+    "Verification": _PLAN_EXAMPLE["verification"],
+}
+_COMPONENT_OF = {cls: name for name, cls in {**_SCENARIO_TYPES, **_PLAN_TYPES}.items()}
+
+_VECTOR3: dict[str, Any] = {
+    "type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3,
+    "description": "[x, y, z], world frame ENU (z up).",
+}
 
 
-class LimitsIn(_Strict):
-    """Workspace box and per-axis symmetric bounds (m, m/s, m/s^2, m/s^3; rad/s)."""
+def ref(name: str) -> dict[str, str]:
+    """An OpenAPI reference to a component schema."""
+    return {"$ref": f"#/components/schemas/{name}"}
 
-    model_config = ConfigDict(
-        extra="forbid", strict=True,
-        json_schema_extra={"examples": [EXAMPLE_SCENARIO["limits"]]},
+
+def _attribute_docs(cls: type) -> dict[str, str]:
+    """The docstrings written under a dataclass's fields (the planner documents them there)."""
+    tree = ast.parse(inspect.getsource(cls).lstrip())
+    body = tree.body[0].body  # type: ignore[attr-defined]
+    docs: dict[str, str] = {}
+    for field_node, doc_node in itertools.pairwise(body):
+        if (isinstance(field_node, ast.AnnAssign) and isinstance(field_node.target, ast.Name)
+                and isinstance(doc_node, ast.Expr) and isinstance(doc_node.value, ast.Constant)
+                and isinstance(doc_node.value.value, str)):
+            docs[field_node.target.id] = " ".join(doc_node.value.value.split())
+    return docs
+
+
+def _is_array(hint: Any) -> bool:
+    return typing.get_origin(hint) is np.ndarray
+
+
+def _array_schema(doc: str) -> dict[str, Any]:
+    """A numpy field as JSON: its docstring starts with its shape when it is not a 3-vector,
+    e.g. "(K+1, 3) positions" or "(K,) thrust"."""
+    shape = re.match(r"\(([^)]*)\)", doc)
+    if shape is None:
+        return dict(_VECTOR3)
+    dims = [d.strip() for d in shape.group(1).split(",") if d.strip()]
+    schema: dict[str, Any] = {"type": "number"}
+    for dim in reversed(dims):
+        schema = {"type": "array", "items": schema}
+        if dim.isdigit():
+            schema.update(minItems=int(dim), maxItems=int(dim))
+    return schema
+
+
+def _type_schema(hint: Any, doc: str) -> dict[str, Any]:
+    if hint is Any:
+        return {}
+    if _is_array(hint):
+        return _array_schema(doc)
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        options = [a for a in args if a is not type(None)]
+        inner = _type_schema(options[0], doc) if len(options) == 1 else {
+            "anyOf": [_type_schema(a, doc) for a in options]}
+        return {"anyOf": [inner, {"type": "null"}]} if type(None) in args else inner
+    if origin in (tuple, list):
+        return {"type": "array", "items": _type_schema(args[0], "") if args else {}}
+    if origin is dict:
+        return {"type": "object", "additionalProperties": _type_schema(args[1], "")}
+    if hint in _COMPONENT_OF:
+        return ref(_COMPONENT_OF[hint])
+    simple = {str: "string", int: "integer", float: "number", bool: "boolean"}
+    if hint in simple:
+        return {"type": simple[hint]}
+    raise TypeError(f"no JSON schema for {hint!r}")
+
+
+def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
+    """One dataclass as an object schema. Fields the planner keeps out of `repr` are derived
+    arrays (starts, goals), not JSON fields. With `input_rules`, a field is required unless it
+    has a default (`planner.scenario.DEFAULTS` or the dataclass's) or may be null."""
+    hints = typing.get_type_hints(cls)
+    docs = _attribute_docs(cls)
+    properties: dict[str, Any] = {}
+    required: list[str] = []
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        if not f.repr:
+            continue
+        doc = docs.get(f.name, "")
+        schema = _type_schema(hints[f.name], doc)
+        if "$ref" in schema:
+            schema = {"allOf": [schema]}  # a $ref with siblings is ignored by some tools
+        if doc:
+            schema["description"] = doc
+        optional = type(None) in typing.get_args(hints[f.name])
+        default = planner_scenario.DEFAULTS.get(f.name, f.default)
+        if input_rules and default is not dataclasses.MISSING:
+            schema["default"] = default
+        elif not (input_rules and optional):
+            required.append(f.name)
+        properties[f.name] = schema
+    description = " ".join((inspect.getdoc(cls) or "").split())
+    component = {
+        "title": name, "type": "object", "description": description,
+        "properties": properties, "required": required, "examples": [_EXAMPLES[name]],
+    }
+    # The planner refuses unknown keys in what it reads; what it writes may gain keys that
+    # are not dataclass fields (a client should ignore what it does not know).
+    if input_rules:
+        component["additionalProperties"] = False
+    return component
+
+
+@cache
+def planner_schemas() -> dict[str, dict[str, Any]]:
+    """OpenAPI components for the scenario (input rules) and the plan (every field present)."""
+    out = {name: _component(name, cls, input_rules=True) for name, cls in _SCENARIO_TYPES.items()}
+    out.update(
+        {name: _component(name, cls, input_rules=False) for name, cls in _PLAN_TYPES.items()}
     )
+    out["Plan"]["properties"]["status"]["enum"] = list(planner_result.STATUSES)
+    # Plan.to_dict writes these with every default filled in, so they are always present.
+    return out
 
 
-    position_min: Vector3 = Field(description="Lower corner of the workspace box (m).")
-    position_max: Vector3 = Field(description="Upper corner of the workspace box (m).")
-    velocity_max: Vector3 | None = Field(None, description="Per-axis |v| bound; null: none.")
-    acceleration_max: Vector3 | None = Field(None, description="Per-axis |a| bound; null: none.")
-    jerk_max: Vector3 | None = Field(None, description="Per-axis |jerk| bound; null: none.")
-    thrust_min: float | None = Field(None, description="Lowest mass-normalised thrust (m/s^2).")
-    thrust_max: float | None = Field(None, description="Highest mass-normalised thrust (m/s^2).")
-    body_rate_max: float | None = Field(None, description="Highest roll/pitch rate (rad/s).")
+# --------------------------------------------------------------------------- shape check
 
 
-class VehicleIn(_Strict):
-    """One vehicle's task: from `start` to `goal`, both at rest, world frame ENU (z up)."""
-
-    model_config = ConfigDict(
-        extra="forbid", strict=True,
-        json_schema_extra={"examples": [EXAMPLE_SCENARIO["vehicles"][0]]},
-    )
+def _where(path: str, key: str | int) -> str:
+    if isinstance(key, int):
+        return f"{path}[{key}]"
+    return f"{path}.{key}" if path else key
 
 
-    id: str = Field(description="Unique vehicle id; matches the fleet file's ids.")
-    start: Vector3
-    goal: Vector3
+def _json_type(value: Any) -> str:
+    return {dict: "object", list: "array", str: "string", bool: "boolean",
+            type(None): "null"}.get(type(value), "number")
 
 
-class ScenarioIn(_Strict):
-    """A planning problem (the scenario JSON contract). Unknown keys are errors."""
-
-    model_config = ConfigDict(
-        extra="forbid", strict=True, json_schema_extra={"examples": [EXAMPLE_SCENARIO]}
-    )
-
-    name: str | None = Field(None, description="Free-form name (default 'scenario').")
-    dt: float = Field(description="Step length (s).")
-    steps: int = Field(description="Number of steps K; the horizon is K * dt.")
-    min_separation: float = Field(description="R (m): minimum distance between any two vehicles.")
-    separation_scale: Vector3 | None = Field(
-        None, description="Per-axis scale of the separation metric ([1, 1, 2]: downwash)."
-    )
-    cost_threshold: float | None = Field(None, description="SCP convergence threshold.")
-    max_iterations: int | None = Field(None, description="Cap on SCP iterations.")
-    limits: LimitsIn
-    vehicles: list[VehicleIn] = Field(description="The fleet's tasks, at least one.")
-
-    def to_contract(self) -> dict[str, Any]:
-        """The scenario JSON for `planner.Scenario.from_dict` (omitted values left out)."""
-        return self.model_dump(exclude_none=True)
+def _resolve(schema: dict[str, Any]) -> dict[str, Any]:
+    while "$ref" in schema or "allOf" in schema:
+        schema = schema["allOf"][0] if "allOf" in schema else planner_schemas()[
+            schema["$ref"].rsplit("/", 1)[1]]
+    return schema
 
 
-class IterationOut(BaseModel):
-    """One SCP iteration (iteration 0 is the separation-free first QP)."""
+def _check(value: Any, schema: dict[str, Any], path: str, out: list[ErrorItem]) -> None:
+    schema = _resolve(schema)
+    if "anyOf" in schema:
+        options = schema["anyOf"]
+        if value is None and {"type": "null"} in options:
+            return
+        schema = _resolve(next(o for o in options if o != {"type": "null"}))
+    kind = schema.get("type")
+    if kind == "object":
+        if not isinstance(value, dict):
+            out.append(ErrorItem(field=path or "body", reason="must be a JSON object, got "
+                                 f"{_json_type(value)}"))
+            return
+        properties = schema.get("properties", {})
+        for key in value:
+            if key not in properties:
+                out.append(ErrorItem(field=_where(path, key), reason="unknown key"))
+        for key in schema.get("required", ()):
+            if key not in value:
+                out.append(ErrorItem(field=_where(path, key), reason="is required"))
+        for key, sub in properties.items():
+            if key in value:
+                _check(value[key], sub, _where(path, key), out)
+    elif kind == "array":
+        size = schema.get("maxItems")
+        if not isinstance(value, list) or (size is not None and len(value) != size):
+            reason = (f"must be a list of {size} numbers [x, y, z]" if size == 3
+                      else f"must be a list, got {_json_type(value)}")
+            out.append(ErrorItem(field=path, reason=reason))
+            return
+        for index, item in enumerate(value):
+            _check(item, schema.get("items", {}), _where(path, index), out)
+    elif kind in ("number", "integer"):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            out.append(ErrorItem(field=path, reason=f"must be a number, got {_json_type(value)}"
+                                 if kind == "number" else
+                                 f"must be an integer, got {_json_type(value)}"))
+        elif kind == "integer" and isinstance(value, float) and not value.is_integer():
+            out.append(ErrorItem(field=path, reason=f"must be an integer, got {value}"))
+    elif kind == "string" and not isinstance(value, str):
+        out.append(ErrorItem(field=path, reason=f"must be a string, got {_json_type(value)}"))
 
-    model_config = ConfigDict(json_schema_extra={"examples": [_ITERATION]})
+
+def shape_errors(body: Any, component: Literal["Scenario"] = "Scenario") -> list[ErrorItem]:
+    """Every problem of type, key or vector length in a JSON body, by dotted path."""
+    out: list[ErrorItem] = []
+    _check(body, ref(component), "", out)
+    return out
 
 
-    iteration: int
-    cost: float
-    cost_change: float | None
-    separation_rows: int
-    qp_solves: int
-    groups: int
-    seconds: float
-    largest_group: int = 0
+# --------------------------------------------------------------------------- API documents
 
-
-class VehicleTrajectoryOut(BaseModel):
-    """One vehicle's planned motion on the step grid (world frame ENU, SI units)."""
-
-    model_config = ConfigDict(json_schema_extra={"examples": [_TRAJECTORY_EXAMPLE]})
-
-
-    id: str
-    t: list[float] = Field(description="K+1 step times (s).")
-    position: list[list[float]] = Field(description="K+1 positions (m).")
-    velocity: list[list[float]] = Field(description="K+1 velocities (m/s).")
-    acceleration: list[list[float]] = Field(description="K accelerations (m/s^2).")
-    jerk: list[list[float]] = Field(description="K jerks (m/s^3).")
-    thrust: list[float] = Field(description="K mass-normalised thrusts (m/s^2).")
-    body_rates: list[list[float]] = Field(description="K body rates (rad/s).")
-
-
-class PlanOut(BaseModel):
-    """The Plan JSON contract (`planner.Plan.to_dict`)."""
-
-    model_config = ConfigDict(json_schema_extra={"examples": [_PLAN_EXAMPLE]})
-
-
-    status: Literal[STATUSES] = Field(  # type: ignore[valid-type]
-        description="The planner's verdict."
-    )
-    message: str
-    solver: str
-    infeasible_groups: list[str]
-    scenario: dict[str, Any] = Field(description="The scenario, with defaults filled in.")
-    iterations: list[IterationOut]
-    timing: dict[str, float | None] = Field(description="total_s, first_qp_s, ...")
-    vehicles: list[VehicleTrajectoryOut]
-    verification: dict[str, Any] | None = Field(
-        description="min_separation, min_separation_continuous, closest_pair, max_violation, "
-        "boundary_error, thrust_range, body_rate_peak, flyable, separated, within_bounds, ..."
-    )
+#: A field holding a planner document, documented by its derived component.
+PlanDoc = Annotated[dict[str, Any] | None, WithJsonSchema(
+    {"anyOf": [ref("Plan"), {"type": "null"}], "description": "The Plan JSON once planned."})]
+ScenarioDoc = Annotated[dict[str, Any], WithJsonSchema(
+    {"allOf": [ref("Scenario")], "description": "The scenario, with defaults filled in."})]
+ProgressDoc = Annotated[list[dict[str, Any]], WithJsonSchema(
+    {"type": "array", "items": ref("IterationRecord"),
+     "description": "SCP iterations reported so far while planning (empty otherwise)."})]
 
 
 class MissionSummary(BaseModel):
@@ -190,12 +308,11 @@ class MissionSummary(BaseModel):
 
     model_config = ConfigDict(json_schema_extra={"examples": [_SUMMARY_EXAMPLE]})
 
-
     id: str
     name: str
-    status: Literal[MISSION_STATUSES] = Field(  # type: ignore[valid-type]
+    status: MissionStatus = Field(
         description="planning until the worker answers; planned whatever the plan's status; "
-        "failed if the planner raised (see `error`)."
+        "failed if there is no plan (see `error`)."
     )
     created_at: str
     updated_at: str
@@ -211,44 +328,19 @@ class MissionSummary(BaseModel):
 class MissionOut(MissionSummary):
     """A mission: its scenario, planning progress and, once planned, its plan."""
 
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "id": "3f2a9c81d0b4",
-                    "name": "paper-circle4",
-                    "status": "planning",
-                    "created_at": "2026-11-23T08:30:00+00:00",
-                    "updated_at": "2026-11-23T08:30:00+00:00",
-                    "vehicle_count": 4,
-                    "steps": 150,
-                    "dt": 0.2,
-                    "horizon_s": 30.0,
-                    "plan_status": None,
-                    "plan_ok": None,
-                    "error": None,
-                    "progress": [
-                        {"iteration": 0, "cost": 14433.1, "cost_change": None,
-                         "separation_rows": 0, "qp_solves": 1, "groups": 4, "seconds": 0.02}
-                    ],
-                    "scenario": EXAMPLE_SCENARIO,
-                    "plan": None,
-                    "links": {
-                        "self": "/api/missions/3f2a9c81d0b4",
-                        "events": "/api/missions/3f2a9c81d0b4/events",
-                        "trajectory": "/api/missions/3f2a9c81d0b4/trajectory?rate=20",
-                        "executions": "/api/missions/3f2a9c81d0b4/executions",
-                    },
-                }
-            ]
-        }
-    )
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        **_SUMMARY_EXAMPLE, "status": "planning", "plan_status": None, "plan_ok": None,
+        "progress": [{**_ITERATION, "iteration": 0, "cost_change": None}],
+        "scenario": EXAMPLE_SCENARIO, "plan": None,
+        "links": {"self": "/api/missions/3f2a9c81d0b4",
+                  "events": "/api/missions/3f2a9c81d0b4/events",
+                  "trajectory": "/api/missions/3f2a9c81d0b4/trajectory?rate=20",
+                  "executions": "/api/missions/3f2a9c81d0b4/executions"},
+    }]})
 
-    progress: list[IterationOut] = Field(
-        description="SCP iterations reported so far while planning (empty otherwise)."
-    )
-    scenario: dict[str, Any] = Field(description="The scenario, with defaults filled in.")
-    plan: PlanOut | None = Field(description="The Plan JSON once planned, else null.")
+    progress: ProgressDoc
+    scenario: ScenarioDoc
+    plan: PlanDoc
     links: dict[str, str]
 
 
@@ -257,7 +349,6 @@ class MissionList(BaseModel):
 
     model_config = ConfigDict(json_schema_extra={"examples": [
         {"total": 1, "limit": 50, "offset": 0, "missions": [_SUMMARY_EXAMPLE]}]})
-
 
     total: int
     limit: int
@@ -286,7 +377,6 @@ class TrajectoryOut(BaseModel):
         "vehicles": [{"id": "uav1", "position": [[4.5, 2.5, 1.1], [4.4999, 2.5, 1.1]],
                       "velocity": [[0.0, 0.0, 0.0], [-0.003, 0.0, 0.0]],
                       "acceleration": [[-0.12, 0.0, 0.0], [-0.12, 0.0, 0.0]]}]}]})
-
 
     mission_id: str
     rate: float

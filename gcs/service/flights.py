@@ -36,6 +36,7 @@ from gcs.flight.link import LinkHub, VehicleLink
 from gcs.service.events import Broadcast, Event
 from gcs.service.journal import ExecutionJournal, store_failure
 from gcs.service.settings import Settings
+from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED
 from gcs.service.store import ExecutionRow, Store
 from gcs.sim.mock import MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
@@ -45,11 +46,9 @@ __all__ = ["FINISHED", "LIVE", "FleetService", "LiveExecution", "execution_docum
 
 log = logging.getLogger(__name__)
 
-#: Execution statuses while the flight is under way.
-LIVE = ("starting", "running", "aborting")
-#: Final execution statuses. `incomplete`: the mission ran to its end but did not complete
-#: (a vehicle was landed by the land_faulty policy, or missed its goal).
-FINISHED = ("completed", "incomplete", "aborted", "failed", "interrupted")
+#: Execution statuses while the flight is under way, and final ones (`gcs.service.statuses`).
+LIVE = EXECUTION_ACTIVE
+FINISHED = EXECUTION_FINISHED
 #: Live telemetry snapshots per second on an execution's event stream.
 TELEMETRY_HZ = 5.0
 

@@ -15,6 +15,8 @@ import numpy as np
 import orjson
 
 from gcs.errors import InvalidRequest, NotFound, StateConflict
+from gcs.service.limits import trajectory_sample_count
+from gcs.service.statuses import MissionStatus
 from gcs.service.store import Store
 from planner import Plan, PlanFormatError
 
@@ -40,10 +42,10 @@ class PlanCache:
         row = self._store.get_mission(mission_id, with_plan=True)
         if row is None:
             raise NotFound("mission_id", f"no mission with id {mission_id!r}")
-        if row.status == "planning":
+        if row.status == MissionStatus.PLANNING:
             raise StateConflict("mission_id", f"mission {mission_id!r} is still planning; "
                            f"poll GET /api/missions/{mission_id} until status is 'planned'")
-        if row.status == "failed" or row.plan_json is None:
+        if row.status == MissionStatus.FAILED or row.plan_json is None:
             reason = (row.error or {}).get("reason", "no plan")
             raise StateConflict("mission_id", f"mission {mission_id!r} has no plan: {reason}")
         try:
@@ -72,19 +74,19 @@ def sample_times(horizon: float, rate: float) -> np.ndarray:
 
 
 def _check_size(plan: Plan, rate: float, max_rows: int) -> np.ndarray:
-    times = sample_times(plan.scenario.horizon, rate)
-    rows = len(times) * len(plan.vehicles)
+    if not plan.vehicles:
+        raise StateConflict("mission_id", f"the plan (status {plan.status}) has no trajectories")
+    # Counted before anything is allocated: a long horizon at a high rate is gigabytes.
+    rows = trajectory_sample_count(plan.scenario.horizon, rate, len(plan.vehicles))
     if rows > max_rows:
         highest = max_rows / len(plan.vehicles) / max(plan.scenario.horizon, 1e-9)
         raise InvalidRequest(
             "rate",
-            f"{rate:g} Hz gives {rows} samples ({len(plan.vehicles)} vehicles x {len(times)} "
-            f"times), more than the limit {max_rows} (setting max_trajectory_samples); "
-            f"use rate <= {highest:.3g}",
+            f"{rate:g} Hz gives {rows} samples ({len(plan.vehicles)} vehicles x "
+            f"{rows // len(plan.vehicles)} times), more than the limit {max_rows} (setting "
+            f"max_trajectory_samples); use rate <= {highest:.3g}",
         )
-    if not plan.vehicles:
-        raise StateConflict("mission_id", f"the plan (status {plan.status}) has no trajectories")
-    return times
+    return sample_times(plan.scenario.horizon, rate)
 
 
 def trajectory_json(mission_id: str, plan: Plan, rate: float, max_rows: int) -> bytes:
@@ -130,6 +132,8 @@ def trajectory_csv(plan: Plan, rate: float, max_rows: int) -> str:
         table = np.column_stack(
             [times, motion.position[i], motion.velocity[i], motion.acceleration[i]]
         )
+        # Rounded to the printed precision, then + 0.0: no "-0.000000" for tiny negatives.
+        table = np.round(table, 6) + 0.0
         prefix = _csv_field(vehicle.id).replace("%", "%%")
         np.savetxt(out, table, fmt=prefix + ",%.6f" + ",%.6f" * 9)
     return out.getvalue()

@@ -9,25 +9,49 @@ explicit values and win over both.
 
 from __future__ import annotations
 
+import ipaddress
 import os
 from contextvars import ContextVar
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import (
     BaseSettings,
+    NoDecode,
     PydanticBaseSettingsSource,
     SettingsConfigDict,
     TomlConfigSettingsSource,
 )
 
-__all__ = ["CONFIG_ENV", "DEFAULT_CONFIG_FILE", "Settings", "SettingsFileError"]
+__all__ = [
+    "CONFIG_ENV",
+    "DEFAULT_CONFIG_FILE",
+    "MIN_TOKEN_LENGTH",
+    "Settings",
+    "SettingsFileError",
+    "is_loopback",
+]
 
 #: Environment variable naming the TOML config file.
 CONFIG_ENV = "FLEETPLAN_CONFIG"
 #: Config file read when `CONFIG_ENV` is unset (only if it exists).
 DEFAULT_CONFIG_FILE = "fleetplan.toml"
+
+
+#: Shortest API token accepted (a token is a password for the fleet).
+MIN_TOKEN_LENGTH = 16
+
+
+def is_loopback(host: str) -> bool:
+    """Whether a bind address (or Host name) reaches this machine only."""
+    name = host.strip("[]").lower()
+    if name == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
 
 
 class SettingsFileError(FileNotFoundError):
@@ -83,6 +107,17 @@ class Settings(BaseSettings):
     )
     max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")
+    dt_min: float = Field(0.01, gt=0, description="Shortest step `dt` a mission may use (s).")
+    dt_max: float = Field(5.0, gt=0, le=60, description="Longest step `dt` a mission may use (s).")
+    max_horizon_s: float = Field(
+        900.0, gt=0, le=86_400,
+        description="Longest horizon steps * dt a mission may plan, and so fly (s).",
+    )
+    max_coordinate_m: float = Field(
+        10_000.0, gt=0, le=1_000_000,
+        description="Largest distance of any workspace corner, start or goal from the origin "
+        "along each axis (m).",
+    )
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest request body accepted (bytes)."
     )
@@ -123,6 +158,30 @@ class Settings(BaseSettings):
     web_dir: Path | None = Field(
         None, description="Serve the browser page from here instead of the bundled copy."
     )
+    allowed_hosts: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="Host header names the service answers (comma-separated in the "
+        "environment); empty: the names it is bound to. Anything else is refused (DNS "
+        "rebinding). '*' answers any name.",
+    )
+    allowed_origins: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="Other origins (scheme://host:port) allowed to send state-changing "
+        "requests; the service's own origin always is.",
+    )
+    api_token: SecretStr | None = Field(
+        None, description="Operator token (plan, fly, abort, command). Required when the "
+        "service binds beyond loopback; when set, every API request needs a token."
+    )
+    api_token_file: Path | None = Field(
+        None, description="File holding the operator token (instead of api_token)."
+    )
+    read_token: SecretStr | None = Field(
+        None, description="Read-only token: GET requests only. Needs an operator token too."
+    )
+    read_token_file: Path | None = Field(
+        None, description="File holding the read-only token (instead of read_token)."
+    )
 
     @classmethod
     def load(cls, config_file: Path | None = None, **values: Any) -> Settings:
@@ -133,6 +192,50 @@ class Settings(BaseSettings):
             return cls(**values)
         finally:
             _explicit_config.reset(token)
+
+    @field_validator("allowed_hosts", "allowed_origins", mode="before")
+    @classmethod
+    def _comma_separated(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            return [part.strip() for part in value.split(",") if part.strip()]
+        return value
+
+    @model_validator(mode="after")
+    def _tokens(self) -> Settings:
+        """Tokens from their files; an operator token whenever the bind address is reachable
+        from other machines; tokens long enough not to be guessed."""
+        for name in ("api_token", "read_token"):
+            path: Path | None = getattr(self, f"{name}_file")
+            if path is None:
+                continue
+            if getattr(self, name) is not None:
+                raise ValueError(f"set {name} or {name}_file, not both")
+            try:
+                text = path.read_text().strip()
+            except OSError as exc:
+                raise ValueError(f"{name}_file {path}: {exc.strerror or exc}") from None
+            object.__setattr__(self, name, SecretStr(text))
+        for name in ("api_token", "read_token"):
+            token: SecretStr | None = getattr(self, name)
+            if token is not None and len(token.get_secret_value()) < MIN_TOKEN_LENGTH:
+                raise ValueError(f"{name} must be at least {MIN_TOKEN_LENGTH} characters")
+        if self.api_token is None and not is_loopback(self.host):
+            raise ValueError(
+                f"host {self.host} is reachable from other machines: set an operator token "
+                "(api_token, api_token_file or FLEETPLAN_API_TOKEN)"
+            )
+        if self.read_token is not None and self.api_token is None:
+            raise ValueError("read_token needs an operator token (api_token) as well")
+        if (self.read_token is not None and self.api_token is not None
+                and self.read_token.get_secret_value() == self.api_token.get_secret_value()):
+            raise ValueError("read_token must differ from api_token")
+        return self
+
+    @model_validator(mode="after")
+    def _dt_range(self) -> Settings:
+        if self.dt_min >= self.dt_max:
+            raise ValueError(f"dt_min ({self.dt_min:g}) must be less than dt_max ({self.dt_max:g})")
+        return self
 
     @model_validator(mode="after")
     def _fleet_file_exists(self) -> Settings:

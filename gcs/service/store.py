@@ -42,20 +42,14 @@ from sqlalchemy.orm import (
     sessionmaker,
 )
 
+from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus
+
 __all__ = [
     "EXECUTION_ACTIVE",
-    "MISSION_STATUSES",
     "ExecutionRow",
     "MissionRow",
     "Store",
 ]
-
-#: A mission is `planning` until its worker answers, then `planned` (whatever the plan's own
-#: status: converged, max_iterations or infeasible) or `failed` (the planner raised).
-MISSION_STATUSES = ("planning", "planned", "failed")
-#: Execution statuses during which the vehicles are (or may be) flying; a stored execution
-#: left in one of them by a stopped server is `interrupted` at the next start.
-EXECUTION_ACTIVE = ("starting", "running", "aborting")
 
 
 def _now() -> datetime:
@@ -111,7 +105,7 @@ class MissionRow:
 
     id: str
     name: str
-    status: str
+    status: MissionStatus
     created_at: datetime
     updated_at: datetime
     vehicle_count: int
@@ -147,7 +141,7 @@ class ExecutionRow:
 
     id: str
     mission_id: str
-    status: str
+    status: ExecutionStatus
     created_at: datetime
     finished_at: datetime | None
     fleet: str
@@ -181,7 +175,7 @@ def _mission_row(m: _Mission, *, with_plan: bool) -> MissionRow:
     return MissionRow(
         id=m.id,
         name=m.name,
-        status=m.status,
+        status=MissionStatus(m.status),
         created_at=_aware(m.created_at),
         updated_at=_aware(m.updated_at),
         vehicle_count=m.vehicle_count,
@@ -201,7 +195,7 @@ def _execution_row(
     return ExecutionRow(
         id=e.id,
         mission_id=e.mission_id,
-        status=e.status,
+        status=ExecutionStatus(e.status),
         created_at=_aware(e.created_at),
         finished_at=None if e.finished_at is None else _aware(e.finished_at),
         fleet=e.fleet,
@@ -263,7 +257,7 @@ class Store:
         mission = _Mission(
             id=_new_id(),
             name=str(scenario["name"])[:200],
-            status="planning",
+            status=MissionStatus.PLANNING,
             created_at=now,
             updated_at=now,
             vehicle_count=len(scenario["vehicles"]),
@@ -301,7 +295,7 @@ class Store:
         """Record a plan; False if the mission was deleted meanwhile."""
         return self._update_mission(
             mission_id,
-            status="planned",
+            status=MissionStatus.PLANNED,
             plan_json=plan_json,
             plan_status=plan_status,
             plan_ok=int(plan_ok),
@@ -309,16 +303,18 @@ class Store:
 
     def fail_planning(self, mission_id: str, error: dict[str, Any]) -> bool:
         """Record why planning failed (`error` has `field`/`reason` or `reason`)."""
-        return self._update_mission(mission_id, status="failed", error_json=json.dumps(error))
+        return self._update_mission(
+            mission_id, status=MissionStatus.FAILED, error_json=json.dumps(error)
+        )
 
     def fail_unfinished_planning(self, reason: str) -> int:
         """Mark missions left `planning` (by a stopped server) as failed; returns how many."""
         with self._session() as session:
             result = session.execute(
                 update(_Mission)
-                .where(_Mission.status == "planning")
+                .where(_Mission.status == MissionStatus.PLANNING)
                 .values(
-                    status="failed",
+                    status=MissionStatus.FAILED,
                     error_json=json.dumps({"field": None, "reason": reason}),
                     updated_at=_now(),
                 )
@@ -354,7 +350,7 @@ class Store:
         execution = _Execution(
             id=_new_id(),
             mission_id=mission_id,
-            status="starting",
+            status=ExecutionStatus.STARTING,
             created_at=_now(),
             fleet=fleet[:200],
             events_json="[]",
@@ -383,6 +379,20 @@ class Store:
                 _execution_row(e, has_record=bool(has))
                 for e, has in session.execute(query)
             ]
+
+    def page_executions(self, *, limit: int, offset: int) -> tuple[list[ExecutionRow], int]:
+        """One page of executions, newest first (records not loaded), and the total count."""
+        query = (
+            select(_Execution, _Execution.record_json.is_not(None))
+            .options(defer(_Execution.record_json))
+            .order_by(_Execution.created_at.desc(), _Execution.id)
+            .limit(limit)
+            .offset(offset)
+        )
+        with self._session() as session:
+            total = session.scalar(select(func.count()).select_from(_Execution)) or 0
+            rows = [_execution_row(e, has_record=bool(has)) for e, has in session.execute(query)]
+        return rows, int(total)
 
     def update_execution(
         self,
@@ -422,6 +432,6 @@ class Store:
             result = session.execute(
                 update(_Execution)
                 .where(_Execution.status.in_(EXECUTION_ACTIVE))
-                .values(status="interrupted", error=reason, finished_at=_now())
+                .values(status=ExecutionStatus.INTERRUPTED, error=reason, finished_at=_now())
             )
             return int(result.rowcount or 0)

@@ -33,6 +33,8 @@ def make_settings(tmp_path: Path) -> Callable[..., Settings]:
             "database_url": f"sqlite:///{tmp_path / 'fleetplan.db'}",
             "mock_vehicles": 0,
             "plan_workers": 1,
+            # TestClient's requests carry "Host: testserver": the allow-list is configured.
+            "allowed_hosts": ["testserver"],
         }
         values.update(overrides)
         return Settings(**values)
@@ -66,7 +68,7 @@ def shared_client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClie
     path = tmp_path_factory.mktemp("shared") / "fleetplan.db"
     settings = Settings(
         database_url=f"sqlite:///{path}", mock_vehicles=0, plan_workers=1, max_vehicles=16,
-        max_steps=400, max_body_bytes=200_000,
+        max_steps=400, max_body_bytes=200_000, allowed_hosts=["testserver"],
     )
     with TestClient(create_app(settings)) as test_client:
         yield test_client

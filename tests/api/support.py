@@ -56,8 +56,11 @@ def free_port() -> int:
 class ServiceProcess:
     """`python -m gcs.cli.main serve ...` with its own database under `workdir`."""
 
-    def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None) -> None:
+    def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None,
+                 token: str | None = None) -> None:
         self.workdir = workdir
+        #: The API token the service is configured with (sent while waiting for it), if any.
+        self.headers = {} if token is None else {"Authorization": f"Bearer {token}"}
         self.port = free_port()
         self.base_url = f"http://127.0.0.1:{self.port}"
         self.log_path = workdir / f"serve-{self.port}.log"
@@ -80,7 +83,8 @@ class ServiceProcess:
             if self.process.poll() is not None:
                 raise RuntimeError(f"fleetplan serve exited:\n{self.log()}")
             try:
-                if httpx.get(f"{self.base_url}/api/status", timeout=1.0).status_code == 200:
+                if httpx.get(f"{self.base_url}/api/status", headers=self.headers,
+                             timeout=1.0).status_code == 200:
                     return self
             except httpx.HTTPError:
                 pass

@@ -37,3 +37,13 @@ def test_stream_benchmark_reports_rate_and_jitter():
     assert abs(median["achieved_rate_hz"] - 20.0) < 2.0
     assert median["jitter_p50_ms"] <= median["jitter_p99_ms"]
     assert report["floor"]["jitter_p99_ms"] == 5.0
+
+
+def test_service_benchmark_reports_latency_and_flight_timing():
+    report = _run("service.py", "--scenario", "paper-circle8")
+    run = report["runs"][0]
+    assert run["plan_status"] == "planned" and run["flight"]["status"] == "completed"
+    latency = run["latency"]
+    assert 0 < latency["p50_ms"] <= latency["p99_ms"] <= latency["max_ms"]
+    assert latency["requests"] == sum(p["requests"] for p in run["by_path"].values())
+    assert report["median"]["setpoint_rate_hz"] > 0 and report["missed_ticks_max"] >= 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -9,6 +10,15 @@ from pydantic import ValidationError
 
 from gcs.cli.main import main
 from gcs.service.settings import Settings, SettingsFileError
+
+
+@pytest.fixture(autouse=True)
+def _isolated(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """No FLEETPLAN_* variable or ./fleetplan.toml of the developer leaks into a test; the
+    working directory is the test's own."""
+    for name in [n for n in os.environ if n.startswith("FLEETPLAN_")]:
+        monkeypatch.delenv(name)
+    monkeypatch.chdir(tmp_path)
 
 
 def test_defaults_are_local_and_safe() -> None:
@@ -48,7 +58,9 @@ def test_a_named_config_file_must_exist(monkeypatch: pytest.MonkeyPatch, tmp_pat
     ("values", "field"),
     [({"port": 0}, "port"), ({"max_vehicles": 0}, "max_vehicles"),
      ({"mock_vehicles": -1}, "mock_vehicles"), ({"colour": "red"}, "colour"),
-     ({"fleet_file": "/nonexistent/fleet.json"}, "fleet_file")],
+     ({"fleet_file": "/nonexistent/fleet.json"}, "fleet_file"),
+     ({"dt_min": 1.0, "dt_max": 0.5}, "dt_min"), ({"max_coordinate_m": 0}, "max_coordinate_m"),
+     ({"max_horizon_s": -1}, "max_horizon_s")],
 )
 def test_invalid_values_are_refused(values: dict, field: str) -> None:
     with pytest.raises(ValidationError) as caught:

@@ -8,15 +8,23 @@ from __future__ import annotations
 from collections.abc import AsyncIterable
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Depends, Path, Query, Response
+from fastapi import APIRouter, Body, Query, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 
-from gcs.api.deps import FleetDep, MissionDep, PlanCacheDep, StoreDep
+from gcs.api.deps import (
+    ExecutionDep,
+    FleetDep,
+    LastEventId,
+    MissionDep,
+    PlanCacheDep,
+    StoreDep,
+)
 from gcs.api.errors import error_responses
-from gcs.errors import NotFound, StateConflict
-from gcs.service.flights import FINISHED, LIVE, execution_document
+from gcs.errors import StateConflict
+from gcs.service.flights import LiveExecution, execution_document
+from gcs.service.statuses import ExecutionStatus
 from gcs.service.store import ExecutionRow
 
 __all__ = ["mission_router", "router"]
@@ -58,24 +66,27 @@ class AbortRequest(BaseModel):
     )
 
 
-class ExecutionOut(BaseModel):
-    """One flight: stored status, events and summary; live state while it flies."""
+_EXECUTION_EXAMPLE: dict[str, Any] = {
+    "id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "status": "completed",
+    "created_at": "2026-11-23T08:40:00+00:00", "finished_at": "2026-11-23T08:41:02+00:00",
+    "fleet": "mock: uav1, uav2, uav3, uav4",
+    "summary": {"completed": True, "goal_error_max": 0.04, "tracking_error_max": 0.12,
+                "min_separation_measured": 0.97, "setpoint_rate_hz": 20.0,
+                "jitter_p99_ms": 1.3},
+    "error": None, "has_record": True, "event_count": 1,
+    "links": {"self": "/api/executions/a41c03e9b2f1"},
+}
 
-    model_config = ConfigDict(json_schema_extra={"examples": [{
-        "id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "status": "completed",
-        "created_at": "2026-11-23T08:40:00+00:00", "finished_at": "2026-11-23T08:41:02+00:00",
-        "fleet": "mock: uav1, uav2, uav3, uav4",
-        "summary": {"completed": True, "goal_error_max": 0.04, "tracking_error_max": 0.12,
-                    "min_separation_measured": 0.97, "setpoint_rate_hz": 20.0,
-                    "jitter_p99_ms": 1.3},
-        "events": [{"t": 0.8, "vehicle": "uav1", "kind": "connected", "detail": "mode HOLD"}],
-        "error": None, "has_record": True, "live": None,
-        "links": {"self": "/api/executions/a41c03e9b2f1"},
-    }]})
+
+class ExecutionSummary(BaseModel):
+    """One flight as listed: status and summary; its events are in the execution itself
+    (`links.self`) and its event stream (`links.events`)."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [_EXECUTION_EXAMPLE]})
 
     id: str
     mission_id: str
-    status: Literal[(*LIVE, *FINISHED)] = Field(  # type: ignore[valid-type]
+    status: ExecutionStatus = Field(
         description="starting, running, aborting while flying; then completed, incomplete "
         "(ran to its end without completing), aborted, failed or interrupted."
     )
@@ -86,27 +97,49 @@ class ExecutionOut(BaseModel):
         description="completed, goal_error_max, tracking_error_max, min_separation_measured, "
         "setpoint_rate_hz, jitter_p99_ms (the flight record's summary)."
     )
-    events: list[dict[str, Any]] = Field(description="{t, vehicle, kind, detail} each.")
     error: str | None
     has_record: bool
+    event_count: int = Field(description="How many events the flight has recorded so far.")
+    links: dict[str, str]
+
+
+class ExecutionOut(ExecutionSummary):
+    """One flight: stored status, events and summary; live state while it flies."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        **_EXECUTION_EXAMPLE, "live": None,
+        "events": [{"t": 0.8, "vehicle": "uav1", "kind": "connected", "detail": "mode HOLD"}],
+    }]})
+
+    events: list[dict[str, Any]] = Field(description="{t, vehicle, kind, detail} each.")
     live: dict[str, Any] | None = Field(
         description="While flying: phase, mission_time, per vehicle position (world frame), "
         "mode, armed, heartbeat age, tracking error; live minimum separation."
     )
-    links: dict[str, str]
 
 
-ExecutionIdPath = Annotated[str, Path(description="Execution id.", max_length=64)]
+class ExecutionList(BaseModel):
+    """A page of flights, newest first, without their events."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"total": 1, "limit": 50, "offset": 0, "executions": [_EXECUTION_EXAMPLE]}]})
+
+    total: int
+    limit: int
+    offset: int
+    executions: list[ExecutionSummary]
 
 
-async def _execution(execution_id: ExecutionIdPath, store: StoreDep) -> ExecutionRow:
-    row = await run_in_threadpool(store.get_execution, execution_id)
-    if row is None:
-        raise NotFound("execution_id", f"no execution with id {execution_id!r}")
-    return row
+def _document(row: ExecutionRow, flight: LiveExecution | None) -> dict[str, Any]:
+    """The `ExecutionOut` document (the service's, with its event count)."""
+    document = execution_document(row, flight)
+    document["event_count"] = len(document.get("events") or ())
+    return document
 
 
-ExecutionDep = Annotated[ExecutionRow, Depends(_execution)]
+def _summary(document: dict[str, Any]) -> dict[str, Any]:
+    """An `ExecutionOut` document as listed: without its events and live state."""
+    return {k: v for k, v in document.items() if k not in ("events", "live")}
 
 
 @mission_router.post(
@@ -130,7 +163,7 @@ async def fly_mission(
     plan = await run_in_threadpool(plans.get, mission.id)
     options = {} if request is None else request.model_dump(exclude_none=True)
     row = await fleet.fly(mission.id, plan, options)
-    return execution_document(row, fleet.flight(row.id))
+    return _document(row, fleet.flight(row.id))
 
 
 @mission_router.get(
@@ -140,22 +173,27 @@ async def fly_mission(
     responses=error_responses(404),
 )
 def mission_executions(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict]:
-    return [execution_document(r, fleet.flight(r.id)) for r in store.list_executions(mission.id)]
+    return [_document(r, fleet.flight(r.id)) for r in store.list_executions(mission.id)]
 
 
-@router.get("", response_model=list[ExecutionOut], summary="List flights")
+@router.get("", response_model=ExecutionList, summary="List flights")
 def list_executions(
     store: StoreDep,
     fleet: FleetDep,
-    active: Annotated[bool, Query(description="Only flights under way.")] = False,
-) -> list[dict[str, Any]]:
-    """Newest first."""
-    rows = store.list_executions()
-    docs = [execution_document(r, fleet.flight(r.id)) for r in rows]
+    active: Annotated[bool, Query(description="Only the flight under way, if any.")] = False,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    offset: Annotated[int, Query(ge=0, le=1_000_000_000)] = 0,
+) -> dict[str, Any]:
+    """Flights newest first, a page at a time (like missions), without their events."""
     if active:
-        live = {f.id for f in (fleet.active,) if f is not None}
-        docs = [d for d in docs if d["id"] in live]
-    return docs
+        flight = fleet.active
+        row = None if flight is None else store.get_execution(flight.id)
+        rows = [] if row is None else [row]
+        total, rows = len(rows), rows[offset:offset + limit]
+    else:
+        rows, total = store.page_executions(limit=limit, offset=offset)
+    executions = [_summary(_document(r, fleet.flight(r.id))) for r in rows]
+    return {"total": total, "limit": limit, "offset": offset, "executions": executions}
 
 
 @router.get(
@@ -166,7 +204,7 @@ def list_executions(
 )
 def get_execution(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> dict[str, Any]:
     row = store.get_execution(execution.id) or execution
-    return execution_document(row, fleet.flight(execution.id))
+    return _document(row, fleet.flight(execution.id))
 
 
 @router.get(
@@ -176,26 +214,37 @@ def get_execution(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> 
     responses=error_responses(404, json_content=True),
 )
 async def execution_events(
-    execution: ExecutionDep, store: StoreDep, fleet: FleetDep
+    execution: ExecutionDep, store: StoreDep, fleet: FleetDep, after: LastEventId
 ) -> AsyncIterable[ServerSentEvent]:
     """`status` {status}, `event` {t, vehicle, kind, detail}, `telemetry` (5 per second:
     phase, mission_time, vehicles with world-frame position, mode, armed, heartbeat_age),
-    then `done` {status, summary, error}; then the stream ends."""
+    then `done` {status, summary, error}; then the stream ends. Each `event` has an `id:`
+    (its index in the flight's events); a client reconnecting with `Last-Event-ID: n` gets
+    the current status and telemetry and only the events after n."""
     flight = fleet.flight(execution.id)
     if flight is None:
         # Finished: the store has it (read again: it may have ended a moment ago).
         execution = await run_in_threadpool(store.get_execution, execution.id) or execution
-        yield ServerSentEvent(event="status", data={"status": execution.status})
-        for event in execution.events:
-            yield ServerSentEvent(event="event", data=event)
-        yield ServerSentEvent(
-            event="done",
-            data={"status": execution.status, "summary": execution.summary,
-                  "error": execution.error},
-        )
-        return
-    async for kind, data in flight.stream():
-        yield ServerSentEvent(event=kind, data=data)
+        stream: AsyncIterable[tuple[str, dict[str, Any]]] = _stored_stream(execution)
+    else:
+        stream = flight.stream()
+    sequence = 0
+    async for kind, data in stream:
+        if kind == "event":
+            number, sequence = sequence, sequence + 1
+            if after is None or number > after:
+                yield ServerSentEvent(event=kind, data=data, id=str(number))
+        else:
+            yield ServerSentEvent(event=kind, data=data)
+
+
+async def _stored_stream(execution: ExecutionRow) -> AsyncIterable[tuple[str, dict[str, Any]]]:
+    """A finished flight's stream, from the store."""
+    yield "status", {"status": execution.status}
+    for event in execution.events:
+        yield "event", event
+    yield "done", {"status": execution.status, "summary": execution.summary,
+                   "error": execution.error}
 
 
 @router.post(
@@ -215,7 +264,7 @@ async def abort_execution(
     vehicles are safe. 409 if it is not flying."""
     action = "land" if request is None else request.action
     flight = await fleet.abort(execution.id, action, stored_status=execution.status)
-    return execution_document(execution, flight)
+    return _document(execution, flight)
 
 
 @router.get(

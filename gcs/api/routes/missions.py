@@ -18,13 +18,32 @@ from fastapi import APIRouter, Query, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 from starlette.concurrency import run_in_threadpool
 
-from gcs.api.deps import MissionDep, PlanCacheDep, PlanningDep, SettingsDep, StoreDep
-from gcs.api.errors import error_responses
-from gcs.api.schemas import MissionList, MissionOut, MissionSummary, ScenarioIn, TrajectoryOut
+from gcs.api.deps import (
+    JsonBody,
+    LastEventId,
+    MissionDep,
+    PlanCacheDep,
+    PlanningDep,
+    SettingsDep,
+    StoreDep,
+)
+from gcs.api.errors import ErrorItem, Unprocessable, error_responses
+from gcs.api.schemas import (
+    MissionList,
+    MissionOut,
+    MissionSummary,
+    TrajectoryOut,
+    ref,
+    shape_errors,
+)
 from gcs.errors import InvalidRequest, StateConflict
+from gcs.service.limits import WorkBounds, scenario_bound_errors
+from gcs.service.plan_worker import finite_json
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.plans import trajectory_csv, trajectory_json
-from gcs.service.store import EXECUTION_ACTIVE, MissionRow, Store
+from gcs.service.settings import Settings
+from gcs.service.statuses import EXECUTION_ACTIVE, MissionStatus
+from gcs.service.store import MissionRow, Store
 from planner import Scenario
 
 __all__ = ["mission_document", "router"]
@@ -47,14 +66,14 @@ def mission_document(row: MissionRow, job: PlanJob | None) -> str:
     """The `MissionOut` JSON text. The plan text is spliced in as stored: parsing and
     re-serialising a multi-megabyte plan per request would hold the interpreter for tens of
     milliseconds."""
-    planning = job is not None and row.status == "planning"
+    planning = job is not None and row.status == MissionStatus.PLANNING
     head = {
         **row.summary(),
         "progress": list(job.progress) if planning and job is not None else [],
         "scenario": row.scenario,
         "links": _links(row.id),
     }
-    text = json.dumps(head, separators=(",", ":"))
+    text = json.dumps(finite_json(head), separators=(",", ":"), allow_nan=False)
     return f'{text[:-1]},"plan":{row.plan_json or "null"}}}'
 
 
@@ -68,6 +87,18 @@ async def _document(store: Store, planning: PlanningService, mission_id: str) ->
     return None if row is None else mission_document(row, planning.job(mission_id))
 
 
+def _validated(body: Any, settings: Settings) -> Scenario:
+    """The scenario of a request body: every shape problem at once, then every work bound
+    exceeded, then the planner's own validation (the first problem of meaning)."""
+    shape = shape_errors(body)
+    if shape:
+        raise Unprocessable.of(shape)
+    bounds = scenario_bound_errors(body, WorkBounds.from_settings(settings))
+    if bounds:
+        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds])
+    return Scenario.from_dict(body)
+
+
 @router.post(
     "",
     status_code=201,
@@ -76,11 +107,16 @@ async def _document(store: Store, planning: PlanningService, mission_id: str) ->
     responses={
         201: {"model": MissionOut, "description": "Planned (or failed) within the wait"},
         202: {"model": MissionOut, "description": "Still planning: poll the Location"},
-        **error_responses(400, 413, 422, 503),
+        **error_responses(400, 401, 403, 413, 415, 422, 503),
     },
+    openapi_extra={"requestBody": {
+        "required": True,
+        "description": "A scenario (the planner's scenario JSON contract).",
+        "content": {"application/json": {"schema": ref("Scenario")}},
+    }},
 )
 async def create_mission(
-    scenario: ScenarioIn,
+    body: JsonBody,
     store: StoreDep,
     planning: PlanningDep,
     settings: SettingsDep,
@@ -99,37 +135,23 @@ async def create_mission(
 
     Answers 201 with the mission and its plan when planning ends within `wait` seconds, else
     202 with the mission still `planning` (poll `GET /api/missions/{id}` or follow
-    `/events`). Invalid scenarios are 422 with the offending field and the reason; nothing is
-    stored for them.
+    `/events`). Invalid scenarios are 422 naming each offending field and the reason (every
+    type, key and server-limit problem at once); nothing is stored for them.
     """
-    if len(scenario.vehicles) > settings.max_vehicles:
-        raise InvalidRequest(
-            "vehicles",
-            f"{len(scenario.vehicles)} vehicles exceed this server's limit of "
-            f"{settings.max_vehicles} (setting max_vehicles)",
-        )
-    if scenario.steps > settings.max_steps:
-        raise InvalidRequest(
-            "steps",
-            f"{scenario.steps} steps exceed this server's limit of {settings.max_steps} "
-            f"(setting max_steps)",
-        )
     limit = planning.job_time_limit(time_limit)
+    parsed = await run_in_threadpool(_validated, body, settings)
     planning.check_capacity()  # 503 before anything is stored
-    parsed = await run_in_threadpool(Scenario.from_dict, scenario.to_contract())
     row = await run_in_threadpool(store.create_mission, parsed.to_dict())
     job = planning.submit(row.id, parsed.to_dict(), time_limit_s=limit)
     timeout = settings.plan_wait_s if wait is None else wait
     with contextlib.suppress(TimeoutError):
         await asyncio.wait_for(job.done.wait(), timeout)
     outcome = job.outcome
-    if outcome is not None and outcome["status"] == "failed" and (outcome["error"] or {}).get(
-        "field"
-    ):
+    error = (outcome or {}).get("error") or {}
+    if outcome is not None and outcome["status"] == MissionStatus.FAILED and error.get("field"):
         # The planner found a problem with the input itself: answer like any invalid input.
         await run_in_threadpool(store.delete_mission, row.id)
         planning.forget(row.id)
-        error = outcome["error"]
         raise InvalidRequest(error["field"], error["reason"])
     text = await _document(store, planning, row.id)
     assert text is not None
@@ -178,7 +200,7 @@ async def delete_mission(
 ) -> Response:
     """Delete a mission, its plan and its flight records; a plan still computing is cancelled
     first (its worker is freed). Refused (409) while the mission is flying."""
-    if mission.status == "planning":
+    if mission.status == MissionStatus.PLANNING:
         await _stop_planning(planning, mission.id, "the mission was deleted")
     executions = await run_in_threadpool(store.list_executions, mission.id)
     flying = [e.id for e in executions if e.status in EXECUTION_ACTIVE]
@@ -225,21 +247,29 @@ async def cancel_mission(mission: MissionDep, store: StoreDep, planning: Plannin
     responses=error_responses(404, json_content=True),
 )
 async def mission_events(
-    mission: MissionDep, planning: PlanningDep
+    mission: MissionDep, planning: PlanningDep, after: LastEventId
 ) -> AsyncIterable[ServerSentEvent]:
     """`iteration` events (one per SCP iteration: iteration, cost, cost_change,
     separation_rows, qp_solves, groups, seconds) while planning, then one `done` event
-    {status, plan_status, plan_ok, error}; then the stream ends."""
+    {status, plan_status, plan_ok, error}; then the stream ends. Each `iteration` has an
+    `id:` (0, 1, ...); a client reconnecting with `Last-Event-ID: n` gets the iterations
+    after n, then `done`."""
     job = planning.job(mission.id)
-    if job is None or mission.status != "planning":
+    if job is None or mission.status != MissionStatus.PLANNING:
         yield ServerSentEvent(
             event="done",
             data={"status": mission.status, "plan_status": mission.plan_status,
                   "plan_ok": mission.plan_ok, "error": mission.error},
         )
         return
+    sequence = 0
     async for kind, data in job.events():
-        yield ServerSentEvent(event=kind, data=data)
+        if kind == "iteration":
+            number, sequence = sequence, sequence + 1
+            if after is None or number > after:
+                yield ServerSentEvent(event=kind, data=data, id=str(number))
+        else:
+            yield ServerSentEvent(event=kind, data=data)
 
 
 @router.get(
@@ -252,7 +282,7 @@ def get_plan(mission: MissionDep, store: StoreDep) -> Response:
     """The plan alone (the Plan JSON contract), e.g. for `fleetplan fly PLAN.json`."""
     row = store.get_mission(mission.id, with_plan=True)
     if row is None or row.plan_json is None:
-        state = "still planning" if mission.status == "planning" else "without a plan"
+        state = "still planning" if mission.status == MissionStatus.PLANNING else "without a plan"
         raise StateConflict("mission_id", f"mission {mission.id!r} is {state}")
     return _json(
         row.plan_json,

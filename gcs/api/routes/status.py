@@ -8,6 +8,7 @@ from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
 from gcs.api.deps import PlanningDep, SettingsDep
+from gcs.service.statuses import status_sets
 
 __all__ = ["StatusOut", "router"]
 
@@ -22,7 +23,15 @@ class StatusOut(BaseModel):
         "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
                   "flying": None},
         "limits": {"max_vehicles": 128, "max_steps": 1000, "max_body_bytes": 2000000,
-                   "max_trajectory_rate": 100.0}}]}}
+                   "max_trajectory_rate": 100.0},
+        "statuses": {
+            "mission": {"all": ["planning", "planned", "failed"]},
+            "execution": {"all": ["starting", "running", "aborting", "completed", "incomplete",
+                                  "aborted", "failed", "interrupted"],
+                          "active": ["starting", "running", "aborting"],
+                          "finished": ["completed", "incomplete", "aborted", "failed",
+                                       "interrupted"]},
+            "plan": {"all": ["converged", "max_iterations", "infeasible", "unverified"]}}}]}}
 
     status: str = Field(examples=["ok"])
     version: str
@@ -33,6 +42,11 @@ class StatusOut(BaseModel):
     )
     limits: dict[str, int | float] = Field(
         description="max_vehicles, max_steps, max_body_bytes, max_trajectory_rate."
+    )
+    statuses: dict[str, dict[str, list[str]]] = Field(
+        description="Every status set, defined once in the service: mission.all, "
+        "execution.all / .active (the vehicles may be flying) / .finished, plan.all (the "
+        "planner's). Clients read these rather than keeping a copy."
     )
 
 
@@ -52,4 +66,5 @@ def get_status(request: Request, settings: SettingsDep, planning: PlanningDep) -
             "max_body_bytes": settings.max_body_bytes,
             "max_trajectory_rate": settings.max_trajectory_rate,
         },
+        "statuses": status_sets(),
     }

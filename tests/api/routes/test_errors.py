@@ -48,16 +48,16 @@ def _delete(key: str) -> Callable[[dict[str, Any]], None]:
 
 
 BAD_SCENARIOS = [
-    # Shape (request model) ...
+    # Shape (the schema derived from the planner's types) ...
     (_set("colour", "red"), "colour", "unknown key"),
     (_set("limits.max_speed", 3), "limits.max_speed", "unknown key"),
     (_delete("dt"), "dt", "is required"),
-    (_set("dt", "fast"), "dt", "valid number"),
-    (_set("steps", 1.5), "steps", "valid integer"),
-    (_set("vehicles.0.start", [1, 2]), "vehicles[0].start", "at least 3"),
-    (_set("vehicles.2.goal", [1, 2, 3, 4]), "vehicles[2].goal", "at most 3"),
-    (_set("vehicles.1.id", 7), "vehicles[1].id", "valid string"),
-    (_set("vehicles", {"uav1": {}}), "vehicles", "valid list"),
+    (_set("dt", "fast"), "dt", "must be a number, got string"),
+    (_set("steps", 1.5), "steps", "must be an integer, got 1.5"),
+    (_set("vehicles.0.start", [1, 2]), "vehicles[0].start", "list of 3 numbers"),
+    (_set("vehicles.2.goal", [1, 2, 3, 4]), "vehicles[2].goal", "list of 3 numbers"),
+    (_set("vehicles.1.id", 7), "vehicles[1].id", "must be a string"),
+    (_set("vehicles", {"uav1": {}}), "vehicles", "must be a list"),
     # ... and meaning (the planner's validation).
     (_set("vehicles.1.goal", [9.0, 1.0, 1.0]), "vehicles[1].goal", "outside the workspace"),
     (_set("vehicles.1.id", "uav1"), "vehicles[1].id", "duplicate id"),
@@ -107,7 +107,8 @@ def test_body_size_limit(shared_client: TestClient) -> None:
 
 @pytest.mark.parametrize(
     ("body", "reason"),
-    [(b"{not json", "not valid JSON"), (b"", "is required"), (b"[1, 2]", "valid dictionary")],
+    [(b"{not json", "not valid JSON"), (b"", "is required"), (b"[1, 2]", "must be a JSON object"),
+     (b'{"dt": NaN}', "not valid JSON")],
 )
 def test_malformed_bodies(shared_client: TestClient, body: bytes, reason: str) -> None:
     response = shared_client.post(
@@ -141,6 +142,7 @@ def test_wrong_method_is_405_with_the_error_body(shared_client: TestClient) -> N
     response = shared_client.put("/api/missions")
     assert response.status_code == 405
     assert response.json()["reason"] == "Method Not Allowed"
+    assert response.headers["allow"] == "GET, POST"
 
 
 @pytest.mark.parametrize(

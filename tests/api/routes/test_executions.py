@@ -83,7 +83,7 @@ def test_fly_to_completion_with_live_state_and_a_record(
         assert json.loads(record.text)["summary"] == summary
         listed = client.get(f"/api/missions/{mission['id']}/executions").json()
         assert [e["id"] for e in listed] == [execution["id"]]
-        assert client.get("/api/executions?active=true").json() == []
+        assert client.get("/api/executions?active=true").json()["executions"] == []
 
         # Back to the monitor: the vehicles are landed, disarmed, at their goals.
         after = client.get("/api/vehicles").json()
@@ -165,7 +165,7 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
         response = client.post(f"/api/missions/{bad['id']}/executions")
         assert response.status_code == 409 and response.json()["field"] == "mission_id"
         assert "only converged, verified plans are flown" in response.json()["reason"]
-        assert client.get("/api/executions").json() == []  # nothing was started
+        assert client.get("/api/executions").json()["total"] == 0  # nothing was started
 
 
 def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> None:

@@ -1,0 +1,111 @@
+"""Work bounds: every scenario quantity that multiplies the service's work or memory.
+
+A plan's size, its flight's length and its exports grow with vehicles x steps, the horizon
+(dt x steps) and the magnitude of its coordinates; one absurd value (dt = 1e8, a workspace
+corner at 1e308) would exhaust memory, overflow the simulator or put Infinity into JSON. These
+checks run on the raw scenario JSON before the planner allocates anything, report every
+bound exceeded at once, and name the field and the setting that sets the bound. Problems of
+type or meaning (a string for dt, a negative dt) are left to the scenario's own validation.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from gcs.errors import InvalidRequest
+from gcs.service.settings import Settings
+
+__all__ = ["WorkBounds", "scenario_bound_errors", "trajectory_sample_count"]
+
+
+@dataclass(frozen=True)
+class WorkBounds:
+    """The bounds, from the settings of the same names."""
+
+    max_vehicles: int
+    max_steps: int
+    dt_min: float
+    dt_max: float
+    max_horizon_s: float
+    max_coordinate_m: float
+
+    @classmethod
+    def from_settings(cls, settings: Settings) -> WorkBounds:
+        return cls(
+            max_vehicles=settings.max_vehicles, max_steps=settings.max_steps,
+            dt_min=settings.dt_min, dt_max=settings.dt_max,
+            max_horizon_s=settings.max_horizon_s, max_coordinate_m=settings.max_coordinate_m,
+        )
+
+
+def _real(value: Any) -> float | None:
+    """A JSON number as a float, None for anything else (left to the scenario's checks)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value)
+
+
+def _points(data: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """Every coordinate vector of the scenario, by dotted path."""
+    out: list[tuple[str, Any]] = []
+    limits = data.get("limits")
+    if isinstance(limits, Mapping):
+        out += [(f"limits.{key}", limits.get(key)) for key in ("position_min", "position_max")]
+    vehicles = data.get("vehicles")
+    if isinstance(vehicles, list):
+        for index, vehicle in enumerate(vehicles):
+            if isinstance(vehicle, Mapping):
+                out += [(f"vehicles[{index}].{key}", vehicle.get(key))
+                        for key in ("start", "goal")]
+    return out
+
+
+def scenario_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[InvalidRequest]:
+    """Every bound the scenario JSON exceeds (empty when it fits)."""
+    errors: list[InvalidRequest] = []
+    vehicles = data.get("vehicles")
+    if isinstance(vehicles, list) and len(vehicles) > bounds.max_vehicles:
+        errors.append(InvalidRequest(
+            "vehicles", f"{len(vehicles)} vehicles exceed this server's limit of "
+            f"{bounds.max_vehicles} (setting max_vehicles)"))
+    steps = _real(data.get("steps"))
+    if steps is not None and steps > bounds.max_steps:
+        errors.append(InvalidRequest(
+            "steps", f"{steps:g} steps exceed this server's limit of {bounds.max_steps} "
+            f"(setting max_steps)"))
+    dt = _real(data.get("dt"))
+    if dt is not None and dt > 0 and not bounds.dt_min <= dt <= bounds.dt_max:
+        errors.append(InvalidRequest(
+            "dt", f"must be between {bounds.dt_min:g} and {bounds.dt_max:g} s on this server, "
+            f"got {dt:g} (settings dt_min, dt_max)"))
+    elif dt is not None and dt > 0 and steps is not None and steps > 0:
+        horizon = dt * steps
+        if horizon > bounds.max_horizon_s:
+            errors.append(InvalidRequest(
+                "steps", f"the horizon steps * dt = {horizon:g} s exceeds this server's limit "
+                f"of {bounds.max_horizon_s:g} s (setting max_horizon_s)"))
+    for where, point in _points(data):
+        if not isinstance(point, list):
+            continue
+        for axis, component in enumerate(point):
+            x = _real(component)
+            if x is not None and math.isfinite(x) and abs(x) > bounds.max_coordinate_m:
+                errors.append(InvalidRequest(
+                    f"{where}[{axis}]", f"{x:g} m is farther than {bounds.max_coordinate_m:g} m "
+                    f"from the origin (setting max_coordinate_m)"))
+    return errors
+
+
+def trajectory_sample_count(horizon: float, rate: float, vehicles: int) -> int:
+    """How many vehicle-time samples an export at `rate` Hz holds, computed without
+    allocating them (`gcs.service.plans.sample_times` makes the same count)."""
+    if not math.isfinite(horizon * rate):
+        return sys.maxsize
+    times = math.floor(horizon * rate + 1e-9) + 1
+    if horizon - (times - 1) / rate > 1e-9:
+        times += 1
+    return times * vehicles

@@ -1,0 +1,73 @@
+"""The service's status sets, each defined once as a StrEnum.
+
+The store writes these values, the service compares against them, the API schemas document
+them and `GET /api/status` serves them (field ``statuses``) so the browser page reads them
+instead of keeping a copy. A plan's own status (converged, ...) is the planner's:
+`planner.result.STATUSES`. StrEnum members are `str`s, so stored rows and JSON carry the
+plain value.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+from planner.result import STATUSES as PLAN_STATUSES
+
+__all__ = [
+    "EXECUTION_ACTIVE",
+    "EXECUTION_FINISHED",
+    "ExecutionStatus",
+    "MissionStatus",
+    "status_sets",
+]
+
+
+class MissionStatus(StrEnum):
+    """A mission is `planning` until its worker answers, then `planned` (whatever the plan's
+    own status: converged, max_iterations or infeasible) or `failed` (no plan: the planner
+    raised, timed out, was cancelled, or the service stopped)."""
+
+    PLANNING = "planning"
+    PLANNED = "planned"
+    FAILED = "failed"
+
+
+class ExecutionStatus(StrEnum):
+    """One flight: `starting`, `running`, `aborting` while the vehicles may be flying; then
+    one final status. `incomplete`: ran to its end without completing (a vehicle was landed
+    by the land_faulty policy, or missed its goal); `interrupted`: the service stopped during
+    the flight."""
+
+    STARTING = "starting"
+    RUNNING = "running"
+    ABORTING = "aborting"
+    COMPLETED = "completed"
+    INCOMPLETE = "incomplete"
+    ABORTED = "aborted"
+    FAILED = "failed"
+    INTERRUPTED = "interrupted"
+
+
+#: Execution statuses during which the vehicles are (or may be) flying.
+EXECUTION_ACTIVE: tuple[ExecutionStatus, ...] = (
+    ExecutionStatus.STARTING, ExecutionStatus.RUNNING, ExecutionStatus.ABORTING,
+)
+#: Final execution statuses.
+EXECUTION_FINISHED: tuple[ExecutionStatus, ...] = tuple(
+    s for s in ExecutionStatus if s not in EXECUTION_ACTIVE
+)
+
+
+def status_sets() -> dict[str, dict[str, list[str]]]:
+    """Every status set as served by `GET /api/status` (``statuses``): mission statuses,
+    execution statuses with the active and finished subsets, and the planner's plan
+    statuses."""
+    return {
+        "mission": {"all": [s.value for s in MissionStatus]},
+        "execution": {
+            "all": [s.value for s in ExecutionStatus],
+            "active": [s.value for s in EXECUTION_ACTIVE],
+            "finished": [s.value for s in EXECUTION_FINISHED],
+        },
+        "plan": {"all": list(PLAN_STATUSES)},
+    }

@@ -1,0 +1,102 @@
+"""Every scenario quantity that multiplies work is bounded before anything is allocated, the
+field and the setting named; answers are strict JSON (no NaN or Infinity)."""
+
+from __future__ import annotations
+
+import copy
+import json
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from gcs.service.limits import trajectory_sample_count
+from gcs.service.plans import sample_times
+from tests.api.support import example
+
+
+def _strict_json(text: str) -> Any:
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"{constant} in a JSON answer")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def _scenario(**changes: Any) -> dict[str, Any]:
+    scenario = copy.deepcopy(example("paper-circle2"))
+    for key, value in changes.items():
+        if key.startswith("limits."):
+            scenario["limits"][key.removeprefix("limits.")] = value
+        else:
+            scenario[key] = value
+    return scenario
+
+
+@pytest.mark.parametrize(
+    ("changes", "field", "reason"),
+    [
+        # The probes of issue 9: each used to converge, 500, or put Infinity in JSON.
+        ({"dt": 10_000, "steps": 1000}, "dt", "must be between 0.01 and 5 s"),
+        ({"dt": 1e8}, "dt", "(settings dt_min, dt_max)"),
+        ({"dt": 1e308}, "dt", "got 1e+308"),
+        ({"dt": 0.001}, "dt", "must be between 0.01 and 5 s"),
+        ({"dt": 5.0, "steps": 400}, "steps", "horizon steps * dt = 2000 s exceeds this "
+         "server's limit of 900 s (setting max_horizon_s)"),
+        ({"limits.position_max": [1e308, 5, 3]}, "limits.position_max[0]",
+         "1e+308 m is farther than 10000 m from the origin (setting max_coordinate_m)"),
+        ({"limits.position_min": [0, -20_000, 0]}, "limits.position_min[1]", "10000 m"),
+    ],
+)
+def test_work_bounds_name_the_field_and_setting(
+    shared_client: TestClient, changes: dict[str, Any], field: str, reason: str
+) -> None:
+    before = shared_client.get("/api/missions").json()["total"]
+    response = shared_client.post("/api/missions", json=_scenario(**changes))
+    assert response.status_code == 422, response.text
+    errors = {e["field"]: e["reason"] for e in _strict_json(response.text)["errors"]}
+    assert reason in errors[field], errors
+    assert shared_client.get("/api/missions").json()["total"] == before
+
+
+def test_every_exceeded_bound_is_reported_at_once(shared_client: TestClient) -> None:
+    scenario = _scenario(dt=1e8, **{"limits.position_max": [1e308, 5, 1e9]})
+    scenario["vehicles"][1]["goal"] = [3.0, -50_000.0, 1.0]
+    response = shared_client.post("/api/missions", json=scenario)
+    assert response.status_code == 422
+    fields = [e["field"] for e in response.json()["errors"]]
+    assert fields == ["dt", "limits.position_max[0]", "limits.position_max[2]",
+                      "vehicles[1].goal[1]"]
+
+
+def test_every_shape_error_is_reported_at_once(shared_client: TestClient) -> None:
+    scenario = _scenario(dt="fast", colour="red")
+    del scenario["steps"]
+    scenario["vehicles"][0]["start"] = [1, 2]
+    scenario["vehicles"][1]["id"] = 7
+    response = shared_client.post("/api/missions", json=scenario)
+    assert response.status_code == 422
+    errors = {e["field"]: e["reason"] for e in response.json()["errors"]}
+    assert errors == {
+        "colour": "unknown key", "steps": "is required", "dt": "must be a number, got string",
+        "vehicles[0].start": "must be a list of 3 numbers [x, y, z]",
+        "vehicles[1].id": "must be a string, got number",
+    }
+
+
+def test_a_valid_mission_document_is_strict_json(shared_client: TestClient) -> None:
+    response = shared_client.post("/api/missions?wait=60", json=example("paper-circle2"))
+    assert response.status_code == 201
+    mission = _strict_json(response.text)
+    assert mission["horizon_s"] == pytest.approx(30.0)
+    _strict_json(shared_client.get(f"/api/missions/{mission['id']}").text)
+
+
+@pytest.mark.parametrize(
+    ("horizon", "rate"), [(30.0, 20.0), (30.0, 7.0), (0.6, 3.0), (29.9, 100.0), (1e7, 20.0)]
+)
+def test_the_export_size_is_counted_without_allocating(horizon: float, rate: float) -> None:
+    count = trajectory_sample_count(horizon, rate, vehicles=3)
+    if horizon * rate < 1e6:
+        assert count == 3 * len(sample_times(horizon, rate))
+    else:  # 2e8 samples: counted, never built
+        assert count == 3 * (int(horizon * rate) + 1)

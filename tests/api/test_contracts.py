@@ -1,0 +1,100 @@
+"""One definition per contract: the API's scenario and plan schemas come from the planner's
+dataclasses, and the status sets the service uses are the ones it publishes."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from typing import Any
+
+from fastapi.testclient import TestClient
+
+from gcs.api import create_app
+from gcs.api.schemas import planner_schemas, shape_errors
+from gcs.service.settings import Settings
+from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus
+from planner import Plan, Scenario
+from planner.result import STATUSES as PLAN_STATUSES
+from planner.scenario import DEFAULTS, Limits, Vehicle
+from tests.api.support import EXAMPLES, example
+
+
+def _json_fields(cls: type) -> set[str]:
+    return {f.name for f in dataclasses.fields(cls) if f.repr}  # type: ignore[arg-type]
+
+
+def test_scenario_schema_has_exactly_the_planners_fields() -> None:
+    schemas = planner_schemas()
+    for name, cls in (("Scenario", Scenario), ("Limits", Limits), ("Vehicle", Vehicle)):
+        assert set(schemas[name]["properties"]) == _json_fields(cls), name
+        for key in schemas[name]["required"]:
+            assert key not in DEFAULTS  # a key with a default is never required
+    # What a scenario round-trips through the planner is what the schema names.
+    echoed = Scenario.from_dict(schemas["Scenario"]["examples"][0]).to_dict()
+    assert set(echoed) <= set(schemas["Scenario"]["properties"])
+    assert schemas["Scenario"]["properties"]["dt"]["description"] == "Step length (s)."
+    assert schemas["Scenario"]["properties"]["max_iterations"]["default"] == 30
+
+
+def test_plan_schema_matches_a_real_plan_document() -> None:
+    schemas = planner_schemas()
+    plan = schemas["Plan"]
+    assert plan["properties"]["status"]["enum"] == list(PLAN_STATUSES)
+    example = plan["examples"][0]
+    assert set(plan["required"]) == set(Plan.__dataclass_fields__)
+    assert set(example) == set(plan["properties"])
+    trajectory = schemas["VehicleTrajectory"]["properties"]
+    assert trajectory["t"]["items"] == {"type": "number"}  # (K+1,)
+    assert trajectory["position"]["items"]["maxItems"] == 3  # (K+1, 3)
+
+
+def test_openapi_publishes_the_derived_components_and_readable_operation_ids() -> None:
+    schema = create_app(Settings(database_url="sqlite://", mock_vehicles=0)).openapi()
+    components = schema["components"]["schemas"]
+    assert {"Scenario", "Limits", "Vehicle", "Plan", "IterationRecord"} <= set(components)
+    assert "ScenarioIn" not in components and "PlanOut" not in components
+    post = schema["paths"]["/api/missions"]["post"]
+    assert post["operationId"] == "createMission"
+    body = post["requestBody"]["content"]["application/json"]["schema"]
+    assert body == {"$ref": "#/components/schemas/Scenario"}
+    ids = [op["operationId"] for path in schema["paths"].values() for op in path.values()]
+    assert len(ids) == len(set(ids))
+    assert all("_" not in i for i in ids), ids
+
+
+def test_status_publishes_every_status_set(client: TestClient) -> None:
+    statuses = client.get("/api/status").json()["statuses"]
+    assert statuses["mission"]["all"] == [s.value for s in MissionStatus]
+    assert statuses["execution"]["all"] == [s.value for s in ExecutionStatus]
+    assert statuses["execution"]["active"] == ["starting", "running", "aborting"]
+    assert set(statuses["execution"]["active"]) == set(EXECUTION_ACTIVE)
+    assert set(statuses["execution"]["finished"]) == set(ExecutionStatus) - set(EXECUTION_ACTIVE)
+    assert statuses["plan"]["all"] == list(PLAN_STATUSES)
+
+
+def _validator(schema: dict, component: str) -> Any:
+    """A JSON Schema validator for one OpenAPI component (refs rewritten to $defs)."""
+    import jsonschema_rs  # schemathesis's own validator, a test dependency
+
+    text = json.dumps(schema["components"]["schemas"]).replace("#/components/schemas/",
+                                                               "#/$defs/")
+    return jsonschema_rs.validator_for({"$defs": json.loads(text),
+                                        "$ref": f"#/$defs/{component}"})
+
+
+def test_real_documents_match_the_published_schema(client: TestClient) -> None:
+    schema = client.get("/openapi.json").json()
+    mission = client.post("/api/missions?wait=60", json=example("paper-circle4")).json()
+    assert mission["plan"] is not None
+    for component, document in [("MissionOut", mission), ("Plan", mission["plan"]),
+                                ("Scenario", mission["scenario"])]:
+        errors = [e.message for e in _validator(schema, component).iter_errors(document)]
+        assert errors == [], (component, errors[:3])
+    # Every bundled example is a valid Scenario by the schema and by the shape check.
+    scenario_schema = _validator(schema, "Scenario")
+    for path in sorted(EXAMPLES.glob("*.json")):
+        scenario = json.loads(path.read_text())
+        assert scenario_schema.is_valid(scenario), path.name
+        assert shape_errors(scenario) == [], path.name
+    # And a broken one is not.
+    assert not scenario_schema.is_valid({**example("paper-circle2"), "dt": "fast"})
