@@ -14,6 +14,7 @@ import httpx
 import psutil
 import pytest
 
+from planner.generators import random_dense
 from tests.api.support import SHORT_CROSSING, ServiceProcess, example, free_udp_base
 
 pytestmark = pytest.mark.timeout(400)
@@ -31,7 +32,7 @@ def _wait(predicate: Any, timeout: float, what: str) -> Any:
 
 def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5",
-           "FLEETPLAN_PLAN_WORKERS": "2"}
+           "FLEETPLAN_PLAN_WORKERS": "2", "FLEETPLAN_MAX_VEHICLES": "256"}
     service = ServiceProcess(tmp_path, "--mock", "4", env=env).start()
     try:
         url = service.base_url
@@ -44,13 +45,17 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         # Plans computing concurrently with the flight (large ones that outlast the test).
         created: list[str] = []
 
-        def post(name: str) -> None:
-            response = httpx.post(f"{url}/api/missions?wait=0", json=example(name), timeout=60)
+        def post(scenario: dict[str, Any]) -> None:
+            response = httpx.post(f"{url}/api/missions?wait=0", json=scenario, timeout=60)
             assert response.status_code in (201, 202), response.text
             created.append(response.json()["id"])
 
-        posters = [threading.Thread(target=post, args=(name,))
-                   for name in ("random128", "random128", "random64", "paper-circle4")]
+        # Three dense 256-vehicle transitions on two workers: tens of seconds each, and the
+        # third waits in the queue, so plans are still `planning` at the kill however fast
+        # the machine is.
+        big = [random_dense(256, seed=seed) for seed in range(3)]
+        posters = [threading.Thread(target=post, args=(scenario,))
+                   for scenario in (*big, example("paper-circle4"))]
         for thread in posters:
             thread.start()
         for thread in posters:
