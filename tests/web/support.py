@@ -1,0 +1,60 @@
+"""Helpers for the browser tests: type a scenario as an operator would, plan it, read ids."""
+
+from __future__ import annotations
+
+from playwright.sync_api import Page, expect
+
+from tests.api.support import SHORT_CROSSING
+
+__all__ = ["CROSSING", "VEHICLES", "fill_scenario", "plan", "shown_mission_id"]
+
+# A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
+VEHICLES = [
+    ("a", (1.0, 2.8, 1.2), (5.0, 3.4, 1.4)),
+    ("b", (5.0, 3.0, 1.6), (1.0, 3.2, 1.5)),
+    ("c", (2.9, 1.0, 1.3), (3.2, 5.0, 1.7)),
+    ("d", (3.1, 5.0, 1.8), (2.8, 1.0, 1.2)),
+]
+
+
+def fill_scenario(
+    page: Page, name: str = "browser-swap", steps: int = 100,
+    vehicles: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = VEHICLES,
+) -> None:
+    """Type a whole scenario into the form, as an operator would."""
+    page.fill("#f-name", name)
+    page.fill("#f-dt", "0.2")
+    page.fill("#f-steps", str(steps))
+    page.fill("#f-min_separation", "1.0")
+    limits = {"position_min": (0, 0, 0), "position_max": (6, 6, 3), "velocity_max": (2, 2, 2),
+              "acceleration_max": (3, 3, 3), "jerk_max": (5, 5, 5)}
+    for key, values in limits.items():
+        for axis, value in enumerate(values):
+            page.fill(f'input[data-field="limits.{key}[{axis}]"]', str(value))
+    # Start from an empty table: remove every row, then add ours.
+    while page.locator("#vehicle-table tr.vehicle").count():
+        page.locator("#vehicle-table tr.vehicle .remove-vehicle").first.click()
+    for index, (vid, start, goal) in enumerate(vehicles):
+        page.click("#add-vehicle")
+        page.fill(f'input[data-field="vehicles[{index}].id"]', vid)
+        for axis in range(3):
+            page.fill(f'input[data-field="vehicles[{index}].start[{axis}]"]', str(start[axis]))
+            page.fill(f'input[data-field="vehicles[{index}].goal[{axis}]"]', str(goal[axis]))
+
+
+#: SHORT_CROSSING's vehicles (a 10 s flight for the mock fleet) as form rows.
+CROSSING = [(v["id"], tuple(v["start"]), tuple(v["goal"])) for v in SHORT_CROSSING["vehicles"]]
+
+
+def plan(page: Page, expect_text: str = "converged") -> str:
+    """Press Plan, wait for the plan to be shown; the id of the mission shown."""
+    page.click("#plan-button")
+    expect(page.locator("#plan-state")).to_contain_text(expect_text, timeout=60_000)
+    expect(page.locator("#min-separation-value")).to_be_visible(timeout=30_000)
+    expect(page.locator("#fly-view polyline.planned-path").first).to_be_attached()
+    expect(page.locator("#stale-banner")).to_be_hidden()
+    return shown_mission_id(page)
+
+
+def shown_mission_id(page: Page) -> str:
+    return page.locator("#mission-title").inner_text().split("·")[1].strip()
