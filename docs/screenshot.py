@@ -40,8 +40,8 @@ def main(url: str, out: Path, fly: bool) -> None:
         page.wait_for_timeout(500)
         page.screenshot(path=str(out / "screenshot.png"))
         if fly:
-            expect(page.locator("#flight-list li").first).not_to_have_attribute(
-                "data-status", "running", timeout=120_000)
+            expect(page.locator("#execution-status")).to_have_attribute(
+                "data-status", "completed", timeout=120_000)
         phone = browser.new_page(viewport={"width": 390, "height": 844})
         phone.goto(url)
         phone.locator("#mission-list li").first.click()
@@ -49,6 +49,7 @@ def main(url: str, out: Path, fly: bool) -> None:
         if fly:
             phone.locator("#flight-list li[data-id]").first.click()
             expect(phone.locator("#time-label")).to_contain_text("replay")
+        phone.evaluate("window.scrollTo(0, 0)")
         phone.wait_for_timeout(500)
         phone.screenshot(path=str(out / "screenshot-phone.png"))
         browser.close()

@@ -898,7 +898,9 @@ function showClock() {
         `+${(mt - end).toFixed(1)} s at the goals`;
       fraction = 1;
     }
-    if (Math.abs((mt ?? 0) - t) > 0.15) text += ` · viewing t = ${t.toFixed(1)} s`;
+    if (mt !== null && mt !== undefined && Math.abs(Math.min(mt, end) - t) > 0.15) {
+      text += ` · viewing t = ${t.toFixed(1)} s`;
+    }
   } else if (state.replay) {
     text = `replay of flight ${state.replay.id} · t = ${t.toFixed(1)} s of ${end.toFixed(1)} s`;
   } else {
@@ -941,9 +943,9 @@ function batteryCell(b) {
   if (b === null || b === undefined) return ["–", ""];
   let pct = typeof b === "number" ? (b <= 1 ? b * 100 : b) : null;
   if (typeof b === "object") pct = b.percent ?? (typeof b.remaining === "number" ? b.remaining * 100 : null);
-  const volts = typeof b === "object" && b.voltage !== undefined && b.voltage !== null ? ` ${fmt(b.voltage, 1)} V` : "";
-  if (pct === null) return [volts.trim() || "–", ""];
-  return [`${Math.round(pct)} %${volts}`, pct >= 35 ? "ok" : (pct >= 20 ? "warn" : "bad")];
+  const volts = typeof b === "object" && b.voltage !== undefined && b.voltage !== null ? `${fmt(b.voltage, 1)} V` : "";
+  if (pct === null) return [volts || "–", "", ""];
+  return [`${Math.round(pct)} %`, pct >= 35 ? "ok" : (pct >= 20 ? "warn" : "bad"), volts];
 }
 
 // MAVLink GPS_FIX_TYPE names; 3 (3D fix) and better are good enough to fly.
@@ -951,12 +953,14 @@ const GPS_FIX = ["no GPS", "no fix", "2D", "3D", "DGPS", "RTK float", "RTK fixed
 
 // GPS: {fix_type (GPS_FIX_TYPE), satellites} or a word.
 function gpsCell(g) {
-  if (g === null || g === undefined) return ["–", ""];
-  if (typeof g !== "object") return [String(g), /^(ok|3d|rtk)/i.test(String(g)) ? "ok" : "warn"];
+  if (g === null || g === undefined) return ["–", "", ""];
+  if (typeof g !== "object") return [String(g), /^(ok|3d|rtk)/i.test(String(g)) ? "ok" : "warn", ""];
   const fix = g.fix_type ?? g.fix;
   const sats = g.satellites ?? g.satellites_visible;
-  const text = `${typeof fix === "number" ? (GPS_FIX[fix] ?? `fix ${fix}`) : (fix ?? "")}${sats !== undefined && sats !== null ? ` ${sats} sat` : ""}`;
-  return [text.trim() || "–", typeof fix === "number" ? (fix >= 3 ? "ok" : "bad") : ""];
+  const name = typeof fix === "number" ? (GPS_FIX[fix] ?? `fix ${fix}`) : (fix ?? "");
+  const count = sats !== undefined && sats !== null ? ` ${sats}` : "";
+  return [`${name}${count}`.trim() || "–", typeof fix === "number" ? (fix >= 3 ? "ok" : "bad") : "",
+          `${name} fix${count ? `, ${sats} satellites` : ""}`];
 }
 
 // Health: true/false, a word, or {ok, failures: [...]}.
@@ -1008,13 +1012,17 @@ function showVehicleTable() {
     const age = v.heartbeat_age;
     const link = cell(age === null || age === undefined ? "no link" : `${age.toFixed(1)} s`, linkLevel(v), "link");
     link.title = `heartbeat age${v.link ? ` (${v.link})` : ""}`;
-    cell(v.mode ?? "–", v.mode ? "" : "warn", "mode");
-    cell(v.armed === null || v.armed === undefined ? "–" : (v.armed ? "armed" : "disarmed"),
-      v.armed ? "armed" : "", "armed");
+    // PX4's AUTO.* modes by their short names (LOITER, LAND, RTL): the full name in the title.
+    cell(v.mode ? v.mode.replace(/^AUTO\./, "") : "–", v.mode ? "" : "warn", "mode").title = v.mode ?? "";
+    cell(v.armed === null || v.armed === undefined ? "–" : (v.armed ? "armed" : "no"),
+      v.armed ? "armed" : "", "armed").title = v.armed ? "armed" : "disarmed";
     const alt = v.position ? `${v.position[2].toFixed(1)} m` : "–";
     cell(alt, "", "alt").title = v.position ? `world ${v.position.map((x) => x.toFixed(2)).join(", ")} m` +
       (v.tracking_error === null || v.tracking_error === undefined ? "" : ` · ±${v.tracking_error.toFixed(2)} m from plan`) : "";
-    for (const [key, , render] of optional) { const [text, level] = render(v[key]); cell(text, level, key); }
+    for (const [key, , render] of optional) {
+      const [text, level, title] = render(v[key]);
+      cell(text, level, key).title = title;
+    }
     if (health) { const [text, level] = healthCell(v.health, v.fault); cell(text, level, "health"); }
     cell(v.phase ?? "idle", v.fault ? "bad" : "", "phase").title = v.fault || "";
     if (actions) {
@@ -1134,7 +1142,11 @@ function followExecution(execution) {
   state.flightStream = source;
   source.addEventListener("telemetry", (ev) => showTelemetry(JSON.parse(ev.data)));
   source.addEventListener("event", (ev) => logEvent(JSON.parse(ev.data)));
-  source.addEventListener("status", (ev) => setExecutionStatus(JSON.parse(ev.data).status));
+  source.addEventListener("status", (ev) => {
+    setExecutionStatus(JSON.parse(ev.data).status);
+    if (state.mission) loadFlights(state.mission.id);  // its badges follow
+    refreshMissionList();
+  });
   source.addEventListener("done", (ev) => {
     source.close();
     state.flightStream = null;

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
-from playwright.sync_api import Page, expect
+import json
+import re
+from typing import Any
 
-from tests.api.support import SHORT_CROSSING
+import httpx
+from playwright.sync_api import Page, Route, expect
 
-__all__ = ["CROSSING", "VEHICLES", "fill_scenario", "plan", "shown_mission_id"]
+from tests.api.support import SHORT_CROSSING, ServiceProcess
+
+__all__ = ["CROSSING", "HEALTH", "ORIGIN", "VEHICLES", "fill_scenario", "plan", "planned_api",
+           "shown_mission_id"]
 
 # A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
 VEHICLES = [
@@ -58,3 +64,38 @@ def plan(page: Page, expect_text: str = "converged") -> str:
 
 def shown_mission_id(page: Page) -> str:
     return page.locator("#mission-title").inner_text().split("·")[1].strip()
+
+
+ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}
+HEALTH = {  # per vehicle: battery, gps, health as the planned GET /api/vehicles gives them
+    0: ({"remaining": 0.82, "voltage": 16.1}, {"fix_type": 3, "satellites": 14}, {"ok": True}),
+    1: ({"remaining": 0.15, "voltage": 14.2}, {"fix_type": 1, "satellites": 3},
+        {"ok": False, "failures": ["gyro"]}),
+}
+
+
+def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]) -> None:
+    """Routes giving the page the planned endpoints; requests to them land in `sent`."""
+    spec = httpx.get(f"{service.base_url}/openapi.json").json()
+    for path in ("/api/executions/{execution_id}/pause", "/api/executions/{execution_id}/resume",
+                 "/api/fleet/commands", "/api/vehicles/{vehicle_id}/commands"):
+        spec["paths"][path] = {"post": {"responses": {"202": {"description": "accepted"}}}}
+
+    def vehicles(route: Route) -> None:
+        answer = httpx.get(route.request.url).json()
+        answer["fleet"]["world_origin"] = ORIGIN
+        for i, v in enumerate(answer["vehicles"]):
+            if i in HEALTH:
+                v["battery"], v["gps"], v["health"] = HEALTH[i]
+        route.fulfill(status=200, content_type="application/json", body=json.dumps(answer))
+
+    def command(route: Route) -> None:
+        path = route.request.url.removeprefix(service.base_url)
+        sent.append((path, route.request.post_data_json))
+        route.fulfill(status=202, content_type="application/json", body='{"accepted": true}')
+
+    page.route("**/openapi.json", lambda route: route.fulfill(
+        status=200, content_type="application/json", body=json.dumps(spec)))
+    page.route(re.compile(r".*/api/vehicles$"), vehicles)
+    page.route(re.compile(r".*/api/(fleet|vehicles/[^/]+)/commands$"), command)
+    page.route(re.compile(r".*/api/executions/[^/]+/(pause|resume)$"), command)

@@ -5,49 +5,15 @@ real service's side is tested in tests/api when it lands."""
 
 from __future__ import annotations
 
-import json
 import re
 from typing import Any
 
 import httpx
-from playwright.sync_api import Page, Route, expect
+from playwright.sync_api import Page, expect
 
 from gcs.frames import Geodetic, enu_to_geodetic
 from tests.api.support import ServiceProcess
-from tests.web.support import CROSSING, fill_scenario, plan
-
-ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}
-HEALTH = {  # per vehicle: battery, gps, health as the planned GET /api/vehicles gives them
-    0: ({"remaining": 0.82, "voltage": 16.1}, {"fix_type": 3, "satellites": 14}, {"ok": True}),
-    1: ({"remaining": 0.15, "voltage": 14.2}, {"fix_type": 1, "satellites": 3},
-        {"ok": False, "failures": ["gyro"]}),
-}
-
-
-def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]) -> None:
-    """Routes giving the page the planned endpoints; requests to them land in `sent`."""
-    spec = httpx.get(f"{service.base_url}/openapi.json").json()
-    for path in ("/api/executions/{execution_id}/pause", "/api/executions/{execution_id}/resume",
-                 "/api/fleet/commands", "/api/vehicles/{vehicle_id}/commands"):
-        spec["paths"][path] = {"post": {"responses": {"202": {"description": "accepted"}}}}
-
-    def vehicles(route: Route) -> None:
-        answer = httpx.get(route.request.url).json()
-        answer["fleet"]["world_origin"] = ORIGIN
-        for i, v in enumerate(answer["vehicles"]):
-            if i in HEALTH:
-                v["battery"], v["gps"], v["health"] = HEALTH[i]
-        route.fulfill(status=200, content_type="application/json", body=json.dumps(answer))
-
-    def command(route: Route) -> None:
-        path = route.request.url.removeprefix(service.base_url)
-        sent.append((path, route.request.post_data_json))
-        route.fulfill(status=202, content_type="application/json", body='{"accepted": true}')
-
-    page.route("**/openapi.json", lambda route: route.fulfill(
-        status=200, content_type="application/json", body=json.dumps(spec)))
-    page.route(re.compile(r".*/api/vehicles$"), vehicles)
-    page.route(re.compile(r".*/api/(fleet|vehicles/[^/]+)/commands$"), command)
+from tests.web.support import CROSSING, ORIGIN, fill_scenario, plan, planned_api
 
 
 def test_commands_health_and_geodetic_reference(open_page, service: ServiceProcess) -> None:
@@ -80,10 +46,13 @@ def test_commands_health_and_geodetic_reference(open_page, service: ServiceProce
     heads = page.locator("#vehicle-state thead th").all_inner_texts()
     assert {"battery", "GPS", "health"} <= set(heads)
     rows = page.locator("#vehicle-state tbody tr")
-    expect(rows.nth(0).locator('td[data-key="battery"]')).to_have_text("82 % 16.1 V")
+    expect(rows.nth(0).locator('td[data-key="battery"]')).to_have_text("82 %")
+    expect(rows.nth(0).locator('td[data-key="battery"]')).to_have_attribute("title", "16.1 V")
     expect(rows.nth(0).locator('td[data-key="battery"]')).to_have_class("cell-ok")
     expect(rows.nth(1).locator('td[data-key="battery"]')).to_have_class("cell-bad")
-    expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_text("3D 14 sat")
+    expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_text("3D 14")
+    expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_attribute(
+        "title", "3D fix, 14 satellites")
     expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_class("cell-ok")
     expect(rows.nth(1).locator('td[data-key="gps"]')).to_have_class("cell-bad")
     expect(rows.nth(1).locator('td[data-key="health"]')).to_have_text("gyro")

@@ -1,31 +1,42 @@
 """The fly screen at 1440x900 while mock vehicles fly: the top-down view with labelled live
 icons, planned paths and trails, the fleet table with health colours beside it, the progress
 bar on the plan's time slider following the flight, a clamped clock once the plan is flown,
-and Abort from anywhere."""
+pause/resume and per-vehicle commands (their planned endpoints given through routes, see
+test_controls_and_health), and Abort from anywhere."""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
+from typing import Any
 
 import httpx
 from playwright.sync_api import Page, expect
 
 from tests.api.support import ServiceProcess
-from tests.web.support import CROSSING, fill_scenario, plan
+from tests.web.support import CROSSING, fill_scenario, plan, planned_api
 
 ICON_LABEL = re.compile(r"^([a-d]) (-?\d+\.\d) m$")
 
 
-def test_fly_screen_follows_the_flight_then_abort(page: Page, service: ServiceProcess) -> None:
+def test_fly_screen_follows_the_flight_then_abort(
+    open_page: Callable[..., Page], service: ServiceProcess
+) -> None:
+    sent: list[tuple[str, Any]] = []
+    page = open_page(before=lambda p: planned_api(p, service, sent))
     expect(page.locator("#service-status")).to_contain_text("4 mock vehicles")
     fill_scenario(page, "browser-flight", 50, CROSSING)
     mission_id = plan(page)
-    # No pause or fleet-command endpoints on this service yet: their buttons stay hidden.
-    expect(page.locator("#pause-button")).to_be_hidden()
-    expect(page.locator(".fleet-commands")).to_be_hidden()
+    expect(page.locator("#pause-button")).to_be_disabled()  # nothing flying yet
     expect(page.locator("#mapping-pairs")).to_have_text("a→mock 1, b→mock 2, c→mock 3, d→mock 4")
     expect(page.locator("#flight-list")).to_contain_text("not flown yet")
 
+    # Every clock text the page shows, kept by the page itself (no race with the test).
+    page.evaluate("""() => { window.clockTexts = [];
+        new MutationObserver(() => window.clockTexts.push(
+            document.getElementById('time-label').textContent)).observe(
+            document.getElementById('time-label'), {childList: true, characterData: true,
+                                                     subtree: true}); }""")
     page.click("#fly-button")
     status = page.locator("#execution-status")
     expect(status).to_have_attribute("data-status", "running", timeout=30_000)
@@ -69,19 +80,33 @@ def test_fly_screen_follows_the_flight_then_abort(page: Page, service: ServicePr
     # The 3-D view shows the live positions too, labelled.
     flown = page.evaluate("document.getElementById('plot3d').data.at(-1).text")
     assert sorted(flown) == ["a", "b", "c", "d"]
+    # Pause and resume go to this flight; per-vehicle commands from the vehicle's row.
+    execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
+    page.click("#pause-button")
+    expect(page.locator("#resume-button")).to_be_enabled()
+    expect(page.locator("#pause-button")).to_be_disabled()
+    page.click("#resume-button")
+    expect(page.locator("#pause-button")).to_be_enabled()
+    page.locator('#vehicle-state tr[data-id="c"] button[data-vehicle-command="land"]').click()
+    expect(page.locator("#command-result")).to_have_text("land sent to c")
+    assert sent == [(f"/api/executions/{execution_id}/pause", None),
+                    (f"/api/executions/{execution_id}/resume", None),
+                    ("/api/vehicles/c/commands", {"command": "land", "confirm": True})]
 
-    # Past the plan's end (holding, landing): the clock stops at the horizon.
-    expect(page.locator("#time-label")).to_contain_text("plan flown (10.0 s of 10.0 s)",
-                                                       timeout=60_000)
-    assert page.evaluate("document.getElementById('flight-progress').value") == 1000
     expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
+    # Past the plan's end (holding, landing) the clock stopped at the horizon: never "t = 13
+    # / 10 s"; the bar full.
+    clocks = page.evaluate("window.clockTexts")
+    assert any("plan flown (10.0 s of 10.0 s), +" in c for c in clocks), clocks[-5:]
+    for c in clocks:
+        assert all(float(t) <= 10.0 for t in re.findall(r"t = (\d+\.\d)", c)), c
+    assert page.evaluate("document.getElementById('flight-progress').value") == 1000
     expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
     expect(page.locator("#event-log")).to_contain_text("mission_start")
     clock = page.locator("#time-label").inner_text()
     assert all(float(t) <= 10.0 for t in re.findall(r"t = (\d+\.\d)", clock)), clock
     expect(page.locator("#flight-list .status-badge.good")).to_have_text("completed")
     expect(page.locator("#fly-button")).to_be_enabled()
-    execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
     record = httpx.get(f"{service.base_url}/api/executions/{execution_id}").json()
     assert record["status"] == "completed" and record["mission_id"] == mission_id
 
