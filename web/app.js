@@ -4,6 +4,9 @@
 "use strict";
 
 import { drawMoving, drawStatic, latLonText } from "./flyview.js";
+import { batteryCell, gpsCell, healthCell, linkLevel } from "./health.js";
+import { circleScenario, randomScenario, round2 } from "./presets.js";
+import { measuredSeparation, minSeparation, sampleAt } from "./tracks.js";
 
 const $ = (sel, root = document) => root.querySelector(sel);
 const $$ = (sel, root = document) => Array.from(root.querySelectorAll(sel));
@@ -13,8 +16,6 @@ const color = (i) => COLORS[i % COLORS.length];
 const LIMIT_KEYS = ["position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max"];
 const PLOT_CONFIG = { responsive: true, displaylogo: false };
 const TRAIL_POINTS = 1500;   // live trail kept per vehicle (5 Hz: 5 minutes)
-// Link colours from the heartbeat age (s): PX4 sends 1 Hz heartbeats.
-const LINK_OK_S = 1.5, LINK_WARN_S = 3.0;
 
 const state = {
   mission: null,       // the mission document shown (GET /api/missions/{id})
@@ -247,58 +248,6 @@ async function loadExampleList() {
 function presetChosen() {
   $("#preset-count-label").hidden = !$("#preset").value.startsWith("gen:");
 }
-
-function transferSteps(distance, dt) {
-  // Time for a rest-to-rest move at 2 m/s, 3 m/s², with slack for avoidance manoeuvres.
-  const t = distance / 2 + 2 / 3;
-  return Math.ceil((1.6 * t + 4) / dt);
-}
-
-function circleScenario(n) {
-  const R = 1.0;
-  const radius = Math.max(2.5, (1.6 * n * R) / (2 * Math.PI));
-  const c = radius + 1;
-  const vehicles = [];
-  for (let i = 0; i < n; i++) {
-    const a = (2 * Math.PI * i) / n;
-    const z = i % 2 ? 1.9 : 1.1;
-    const start = [c + radius * Math.cos(a), c + radius * Math.sin(a), z];
-    const goal = [c - radius * Math.cos(a), c - radius * Math.sin(a), z];
-    vehicles.push({ id: `uav${i + 1}`, start: start.map(round2), goal: goal.map(round2) });
-  }
-  return {
-    name: `circle${n}`, dt: 0.2, steps: transferSteps(2 * radius, 0.2), min_separation: R,
-    limits: standardLimits([2 * c, 2 * c, 3]), vehicles,
-  };
-}
-
-function randomScenario(n) {
-  const R = 1.0;
-  const side = Math.max(5, Math.ceil(Math.sqrt(n * 6)));
-  const size = [side, side, 4];
-  const pick = (taken) => {
-    for (let tries = 0; tries < 10000; tries++) {
-      const p = [0.5 + Math.random() * (side - 1), 0.5 + Math.random() * (side - 1),
-                 1 + Math.random() * 2.5].map(round2);
-      if (taken.every((q) => Math.hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]) >= 1.5 * R)) return p;
-    }
-    throw new Error("workspace too crowded");
-  };
-  const starts = [], goals = [];
-  for (let i = 0; i < n; i++) { starts.push(pick(starts)); goals.push(pick(goals)); }
-  const far = Math.max(...starts.map((s, i) => Math.hypot(...s.map((v, a) => v - goals[i][a]))));
-  return {
-    name: `random${n}`, dt: 0.2, steps: transferSteps(far, 0.2), min_separation: R,
-    limits: standardLimits(size),
-    vehicles: starts.map((s, i) => ({ id: `uav${i + 1}`, start: s, goal: goals[i] })),
-  };
-}
-
-const round2 = (x) => Math.round(x * 100) / 100;
-const standardLimits = (max) => ({
-  position_min: [0, 0, 0], position_max: max.map(round2),
-  velocity_max: [2, 2, 2], acceleration_max: [3, 3, 3], jerk_max: [5, 5, 5],
-});
 
 async function loadPreset() {
   const choice = $("#preset").value;
@@ -728,24 +677,6 @@ function renderSummary(plan, planOk) {
   row(sol, "vehicles × steps", `${plan.vehicles.length} × ${plan.scenario.steps} (dt ${plan.scenario.dt} s)`);
 }
 
-function minSeparation(plan, traj) {
-  const scale = plan.scenario.separation_scale || [1, 1, 1];
-  const n = traj.vehicles.length;
-  const d = traj.t.map((_, k) => {
-    let best = Infinity;
-    for (let i = 0; i < n; i++) {
-      const p = traj.vehicles[i].position[k];
-      for (let j = i + 1; j < n; j++) {
-        const q = traj.vehicles[j].position[k];
-        const dist = Math.hypot((p[0] - q[0]) / scale[0], (p[1] - q[1]) / scale[1], (p[2] - q[2]) / scale[2]);
-        if (dist < best) best = dist;
-      }
-    }
-    return best;
-  });
-  return { t: traj.t, d };
-}
-
 function renderSeparation(plan, traj) {
   const R = plan.scenario.min_separation;
   if (traj.vehicles.length < 2) { Plotly.purge("separation-plot"); return; }
@@ -856,17 +787,6 @@ function clearFlightView() {
 const sliderTime = () => (state.traj ? state.traj.t[Number($("#time-slider").value)] : 0);
 const horizon = () => (state.traj ? state.traj.t[state.traj.t.length - 1] : 0);
 
-// Linear interpolation of a recorded track at time t (held at its ends).
-function sampleAt(times, points, t) {
-  if (!times.length) return null;
-  if (t <= times[0]) return points[0];
-  if (t >= times[times.length - 1]) return points[points.length - 1];
-  let lo = 0, hi = times.length - 1;
-  while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (times[mid] <= t) lo = mid; else hi = mid; }
-  const w = (t - times[lo]) / (times[hi] - times[lo] || 1);
-  return points[lo].map((p, a) => p + w * (points[hi][a] - p));
-}
-
 function setTime(k) {
   const traj = state.traj;
   if (!traj) return;
@@ -895,7 +815,7 @@ function showClock() {
       fraction = mt / end;
     } else {
       text = `${state.live.phase} · plan flown (${end.toFixed(1)} s of ${end.toFixed(1)} s), ` +
-        `+${(mt - end).toFixed(1)} s at the goals`;
+        `+${(mt - end).toFixed(1)} s after its end`;
       fraction = 1;
     }
     if (mt !== null && mt !== undefined && Math.abs(Math.min(mt, end) - t) > 0.15) {
@@ -931,48 +851,6 @@ function stopPlay() {
 }
 
 // ------------------------------------------------------------------ fleet table
-
-function linkLevel(v) {
-  const age = v.heartbeat_age;
-  if (age === null || age === undefined) return "bad";
-  return age <= LINK_OK_S ? "ok" : (age <= LINK_WARN_S ? "warn" : "bad");
-}
-
-// Battery: a fraction (0..1), a percentage, or {remaining (0..1) | percent, voltage}.
-function batteryCell(b) {
-  if (b === null || b === undefined) return ["–", ""];
-  let pct = typeof b === "number" ? (b <= 1 ? b * 100 : b) : null;
-  if (typeof b === "object") pct = b.percent ?? (typeof b.remaining === "number" ? b.remaining * 100 : null);
-  const volts = typeof b === "object" && b.voltage !== undefined && b.voltage !== null ? `${fmt(b.voltage, 1)} V` : "";
-  if (pct === null) return [volts || "–", "", ""];
-  return [`${Math.round(pct)} %`, pct >= 35 ? "ok" : (pct >= 20 ? "warn" : "bad"), volts];
-}
-
-// MAVLink GPS_FIX_TYPE names; 3 (3D fix) and better are good enough to fly.
-const GPS_FIX = ["no GPS", "no fix", "2D", "3D", "DGPS", "RTK float", "RTK fixed", "static", "PPP"];
-
-// GPS: {fix_type (GPS_FIX_TYPE), satellites} or a word.
-function gpsCell(g) {
-  if (g === null || g === undefined) return ["–", "", ""];
-  if (typeof g !== "object") return [String(g), /^(ok|3d|rtk)/i.test(String(g)) ? "ok" : "warn", ""];
-  const fix = g.fix_type ?? g.fix;
-  const sats = g.satellites ?? g.satellites_visible;
-  const name = typeof fix === "number" ? (GPS_FIX[fix] ?? `fix ${fix}`) : (fix ?? "");
-  const count = sats !== undefined && sats !== null ? ` ${sats}` : "";
-  return [`${name}${count}`.trim() || "–", typeof fix === "number" ? (fix >= 3 ? "ok" : "bad") : "",
-          `${name} fix${count ? `, ${sats} satellites` : ""}`];
-}
-
-// Health: true/false, a word, or {ok, failures: [...]}.
-function healthCell(h, fault) {
-  if (fault) return [String(fault), "bad"];
-  if (h === null || h === undefined) return ["–", ""];
-  if (typeof h === "boolean") return [h ? "ok" : "fault", h ? "ok" : "bad"];
-  if (typeof h !== "object") return [String(h), /^ok$/i.test(String(h)) ? "ok" : "warn"];
-  const failures = h.failures || h.failing || [];
-  const good = h.ok ?? failures.length === 0;
-  return [good ? "ok" : (failures.join(", ") || "fault"), good ? "ok" : "bad"];
-}
 
 const OPTIONAL_COLUMNS = [["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
 
@@ -1322,7 +1200,9 @@ function startReplay(id, record) {
       id: v.id, t: v.telemetry.t.map((t) => t - t0), position: v.telemetry.position,
     })).filter((v) => v.t.length),
   };
-  state.measured = measuredSeparation(state.replay, `measured (flight ${id})`);
+  const scale = state.mission.plan.scenario.separation_scale || [1, 1, 1];
+  state.measured = measuredSeparation(state.replay.vehicles, scale, horizon());
+  if (state.measured) state.measured.label = `measured (flight ${id})`;
   if (state.sepTraj) renderSeparation(state.mission.plan, state.sepTraj);
   $("#follow").checked = false;
   const slider = $("#time-slider");
@@ -1335,25 +1215,6 @@ function closeReplay() {
   state.replay = null;
   state.measured = null;
   if (state.sepTraj && state.mission) renderSeparation(state.mission.plan, state.sepTraj);
-}
-
-// Minimum pairwise distance of the recorded positions, 5 per second over the plan.
-function measuredSeparation(replay, label) {
-  if (!state.mission || replay.vehicles.length < 2) return null;
-  const scale = state.mission.plan.scenario.separation_scale || [1, 1, 1];
-  const t = [], d = [];
-  for (let s = 0; s <= horizon() + 1e-9; s += 0.2) {
-    const p = replay.vehicles.map((v) => sampleAt(v.t, v.position, s));
-    let best = Infinity;
-    for (let i = 0; i < p.length; i++) {
-      for (let j = i + 1; j < p.length; j++) {
-        best = Math.min(best, Math.hypot((p[i][0] - p[j][0]) / scale[0], (p[i][1] - p[j][1]) / scale[1], (p[i][2] - p[j][2]) / scale[2]));
-      }
-    }
-    t.push(Number(s.toFixed(3)));
-    d.push(best);
-  }
-  return { t, d, label };
 }
 
 // ------------------------------------------------------------------ missions list

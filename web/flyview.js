@@ -129,7 +129,9 @@ export function drawMoving(svg, tf, moving) {
       svgEl("circle", { r: 5.5, fill: v.color, stroke: "#fff", "stroke-width": 1.2 }, g);
     }
     const alt = Number.isFinite(v.position[2]) ? `${v.position[2].toFixed(1)} m` : "";
-    svgEl("text", { x: 9, y: -8, "font-size": 11, class: "icon-label", fill: "#1d232b" }, g)
-      .textContent = `${v.id} ${alt}`;
+    // Labels near the right edge go to the icon's left, so none is cut off.
+    const left = sx > VIEW - 95;
+    svgEl("text", { x: left ? -9 : 9, y: -8, "font-size": 11, class: "icon-label", fill: "#1d232b",
+                    "text-anchor": left ? "end" : "start" }, g).textContent = `${v.id} ${alt}`;
   }
 }
