@@ -419,6 +419,10 @@ function formEdited(ev) {
     state.presetName = null;
   }
   if (target === $("#f-name")) state.presetName = null;
+  // "rejected (422)" described the form as it was: once edited, say what to do next.
+  if (state.rejected && !state.planning && target) {
+    $("#plan-state").textContent = $(".error-item") ? "fix the fields marked, then Plan" : "edited: press Plan";
+  }
   drawTopView();
   refreshStale();
 }
@@ -1014,7 +1018,7 @@ function followExecution(execution) {
   setExecutionStatus(execution.status);
   updateFlyButton();
   if (!state.mission || state.mission.id !== execution.mission_id) {
-    showMission(execution.mission_id, null);  // flown from elsewhere: show its plan (stale to the form)
+    showFlownMission(execution.mission_id);  // flown from elsewhere: show its plan
   }
   const source = new EventSource(`/api/executions/${execution.id}/events`);
   state.flightStream = source;
@@ -1048,6 +1052,17 @@ function flightEnded(status, done) {
   updateFlyButton();
   refreshMissionList();
   if (state.mission) loadFlights(state.mission.id);
+}
+
+// Show the plan of a flight started elsewhere. A page with nothing planned yet takes that
+// mission into its form too; otherwise the operator's form is kept (and reads as stale).
+async function showFlownMission(id) {
+  if (state.mission || state.planning) { showMission(id, null); return; }
+  const got = await api("GET", `/api/missions/${id}`);
+  if (!got.ok) return;
+  fillForm(got.data.scenario);
+  state.presetName = null;
+  showMission(id, formKey());
 }
 
 // A flight is under way while it has no finish time.

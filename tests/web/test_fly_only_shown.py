@@ -64,6 +64,7 @@ def test_a_changed_form_cannot_fly_the_plan_shown(page: Page, service: ServicePr
     page.fill("#f-dt", "0.2")  # fixed: its error goes at once
     expect(page.locator('[data-error-for~="dt"]')).to_have_text("")
     expect(page.locator("#f-dt")).not_to_have_class("invalid")
+    expect(page.locator("#plan-state")).to_have_text("edited: press Plan")  # not "rejected"
     expect(fly).to_be_disabled()
 
     # Planned again: Fly flies exactly the mission now on screen.

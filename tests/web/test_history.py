@@ -14,25 +14,41 @@ from tests.api.support import SHORT_CROSSING, ServiceProcess
 
 
 def fly_through_the_api(base: str) -> tuple[str, str]:
-    """Plan SHORT_CROSSING and fly it to its end on the mock fleet: (mission id, flight id)."""
+    """Plan SHORT_CROSSING and start flying it on the mock fleet: (mission id, flight id)."""
     scenario = {**SHORT_CROSSING, "name": "history-flight"}
     mission = httpx.post(f"{base}/api/missions?wait=60", json=scenario, timeout=90).json()
     assert mission["plan_ok"], mission
     flight = httpx.post(f"{base}/api/missions/{mission['id']}/executions", timeout=30).json()
+    return mission["id"], flight["id"]
+
+
+def wait_finished(base: str, flight_id: str) -> None:
     deadline = time.monotonic() + 150
     while time.monotonic() < deadline:
-        got = httpx.get(f"{base}/api/executions/{flight['id']}", timeout=10).json()
+        got = httpx.get(f"{base}/api/executions/{flight_id}", timeout=10).json()
         if got["finished_at"]:
             assert got["status"] == "completed", got
-            return mission["id"], flight["id"]
+            return
         time.sleep(0.5)
-    raise AssertionError(f"flight {flight['id']} did not finish")
+    raise AssertionError(f"flight {flight_id} did not finish")
 
 
 def test_a_flight_reopens_and_replays_against_the_plan(
     page: Page, service: ServiceProcess
 ) -> None:
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)  # nothing planned yet
     mission_id, flight_id = fly_through_the_api(service.base_url)
+    # A flight started elsewhere (here: the API) shows up on the open page, with its mission
+    # taken into the empty form, so the plan shown is not stale.
+    expect(page.locator("#execution-status")).to_have_attribute("data-status", "running",
+                                                                timeout=30_000)
+    expect(page.locator("#flight-banner")).to_contain_text("running")
+    expect(page.locator("#f-name")).to_have_value("history-flight")
+    expect(page.locator("#mission-title")).to_contain_text(mission_id)
+    expect(page.locator("#stale-banner")).to_be_hidden()
+    expect(page.locator("#fly-view g.vehicle-icon")).to_have_count(4, timeout=30_000)
+    expect(page.locator("#fly-button")).to_be_disabled()  # one flight at a time
+    wait_finished(service.base_url, flight_id)
     record = httpx.get(f"{service.base_url}/api/executions/{flight_id}/record").json()
     page.reload()
 
