@@ -25,6 +25,7 @@ const state = {
   rejected: false,     // the last plan request was refused or failed
   stale: false,        // the results shown are not the form's mission
   presetName: null,    // name of the preset loaded, until the operator edits the form
+  touched: false,      // the operator has typed in the form: nothing loads over it by itself
   traj: null,          // /trajectory?rate=10 for the views and the slider
   sep: null,           // {t, d} minimum pairwise separation over time (plan)
   measured: null,      // {t, d, label} measured separation of the flight replayed
@@ -249,7 +250,8 @@ function presetChosen() {
   $("#preset-count-label").hidden = !$("#preset").value.startsWith("gen:");
 }
 
-async function loadPreset() {
+// `auto`: the page's first preset, which must not land on a form the operator has touched.
+async function loadPreset(auto = false) {
   const choice = $("#preset").value;
   const n = clamp(Math.round(Number($("#preset-count").value) || 8), 2, 128);
   let scenario = null;
@@ -259,6 +261,7 @@ async function loadPreset() {
     const { ok, data } = await api("GET", `/api/examples/${choice.slice(8)}`);
     if (!ok) return;
     scenario = data;
+    if (auto && state.touched) return;
   }
   fillForm(scenario);
   state.presetName = $("#f-name").value;
@@ -412,6 +415,7 @@ const formKey = () => JSON.stringify(readScenario());
 // Any change to the form (typed, clicked on the map, preset loaded, row added or removed).
 function formEdited(ev) {
   const target = ev && ev.target;
+  state.touched = true;  // typed, clicked on the map, a row added or removed
   if (target && target.dataset) clearErrorsFor(target);
   // A preset edited is a new mission: say so in its name, unless the operator named it.
   if (target !== $("#f-name") && state.presetName && $("#f-name").value === state.presetName) {
@@ -1057,7 +1061,7 @@ function flightEnded(status, done) {
 // Show the plan of a flight started elsewhere. A page with nothing planned yet takes that
 // mission into its form too; otherwise the operator's form is kept (and reads as stale).
 async function showFlownMission(id) {
-  if (state.mission || state.planning) { showMission(id, null); return; }
+  if (state.mission || state.planning || state.touched) { showMission(id, null); return; }
   const got = await api("GET", `/api/missions/${id}`);
   if (!got.ok) return;
   fillForm(got.data.scenario);
@@ -1315,7 +1319,7 @@ function start() {
   $("#scenario-form").addEventListener("submit", submitPlan);
   $("#scenario-form").addEventListener("input", formEdited);
   $("#preset").addEventListener("change", presetChosen);
-  $("#preset-load").addEventListener("click", loadPreset);
+  $("#preset-load").addEventListener("click", () => loadPreset());
   $("#add-vehicle").addEventListener("click", () => {
     const { lo, hi } = workspace();
     const mid = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 1];
@@ -1336,7 +1340,8 @@ function start() {
   $("#resume-button").addEventListener("click", () => pauseOrResume("resume"));
   for (const b of $$(".fleet-commands button")) b.addEventListener("click", () => fleetCommand(b.dataset.command));
   $("#abort-button").addEventListener("click", abortAll);
-  loadExampleList().then(loadPreset);
+  // The first preset fills the form, unless the operator started typing meanwhile.
+  loadExampleList().then(() => { if (!state.touched) loadPreset(true); });
   loadCapabilities();
   refreshMissionList();
   refreshStatus();

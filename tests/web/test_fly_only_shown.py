@@ -5,6 +5,7 @@ nothing to play or fly before a plan; missions have names; the plan-to-fleet map
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 
 import httpx
 from playwright.sync_api import Page, Route, expect
@@ -109,3 +110,20 @@ def test_an_edited_preset_is_named_apart_and_the_mapping_shows_mismatches(page: 
     expect(page.locator("#fly-button")).to_be_disabled()
     expect(page.locator("#fly-reason")).to_contain_text("not in the fleet: extra")
     assert shown_mission_id(page) == mission_id
+
+
+def test_the_first_preset_never_loads_over_typing(open_page: Callable[..., Page]) -> None:
+    held: list[Route] = []
+
+    def hold(p: Page) -> None:
+        p.route("**/api/examples/paper-circle4", lambda route: held.append(route))
+
+    page = open_page(before=hold)
+    page.wait_for_function("document.querySelectorAll('#preset-examples option').length > 0")
+    page.fill("#f-name", "typed-first")
+    page.fill("#f-steps", "77")
+    assert len(held) == 1  # the preset's scenario arrives only now
+    held[0].continue_()
+    page.wait_for_timeout(300)  # let the (ignored) answer arrive
+    expect(page.locator("#f-name")).to_have_value("typed-first")
+    expect(page.locator("#f-steps")).to_have_value("77")
