@@ -470,14 +470,19 @@ function showMapping() {
   box.append("plan → fleet: ");
   const list = document.createElement("span");
   list.id = "mapping-pairs";
-  list.textContent = m.pairs.map(([p, f]) => (p === f ? p : `${p}→${f}`)).join(", ") || "none";
+  list.textContent = idList(m.pairs.map(([p, f]) => (p === f ? p : `${p}→${f}`))) || "none";
   box.append(list);
   if (m.missing.length) {
-    const bad = badge(false, ` · not in the fleet: ${m.missing.join(", ")}`);
+    const bad = badge(false, ` · not in the fleet: ${idList(m.missing)}`);
     bad.id = "mapping-missing";
     box.append(bad);
   }
   if (m.spare.length) box.append(` · idle: ${m.spare.join(", ")}`);
+}
+
+// A list of ids, shortened past a dozen ("a, b, … and 30 more").
+function idList(ids, max = 12) {
+  return ids.length <= max ? ids.join(", ") : `${ids.slice(0, max).join(", ")}, … and ${ids.length - max} more`;
 }
 
 // Why Fly is disabled now, or null if the mission on screen can fly.
@@ -491,7 +496,7 @@ function flyBlocker() {
   if (!state.fleet || !state.fleet.vehicles) return "no fleet configured";
   if (state.fleet.flying) return `flight ${state.fleet.flying} is under way`;
   const missing = vehicleMapping().missing;
-  if (missing.length) return `plan vehicles not in the fleet: ${missing.join(", ")}`;
+  if (missing.length) return `${missing.length} plan vehicle${missing.length > 1 ? "s are" : " is"} not in the fleet`;
   return null;
 }
 
@@ -600,7 +605,10 @@ async function renderPlan(mission) {
   state.traj = traj.data;
   state.sepTraj = sepTraj.data;
   $("#empty-note").hidden = true;
-  $("#fly-screen").hidden = false;
+  $("#fly-map").hidden = false;
+  $("#flights").hidden = false;
+  $("#fly-screen").classList.remove("no-plan");
+  $("main").classList.add("has-plan");
   $("#plan-results").hidden = false;
   renderSummary(plan, mission.plan_ok);
   render3d(plan, traj.data);

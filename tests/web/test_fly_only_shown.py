@@ -18,7 +18,11 @@ def test_nothing_to_play_or_fly_before_a_plan(page: Page) -> None:
     expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)  # preset loaded
     expect(page.locator("#empty-note")).to_be_visible()
     expect(page.locator("#play")).to_be_hidden()
-    expect(page.locator("#fly-button")).to_be_hidden()
+    expect(page.locator("#fly-view")).to_be_hidden()
+    expect(page.locator("#fly-button")).to_be_disabled()
+    expect(page.locator("#fly-reason")).to_have_text("plan a mission first")
+    # The fleet is on screen before any plan: its link, mode and arming can be checked.
+    expect(page.locator("#vehicle-state tbody tr")).to_have_count(4)
     expect(page.locator("#plot3d")).to_be_hidden()  # no empty plots before a plan
     # The vehicle count is for the generated presets only; paper cases say their own size.
     expect(page.locator("#preset-count")).to_be_hidden()
@@ -108,7 +112,7 @@ def test_an_edited_preset_is_named_apart_and_the_mapping_shows_mismatches(page: 
     expect(listed).to_contain_text("survey-north")
     expect(page.locator("#mapping-missing")).to_contain_text("not in the fleet: extra")
     expect(page.locator("#fly-button")).to_be_disabled()
-    expect(page.locator("#fly-reason")).to_contain_text("not in the fleet: extra")
+    expect(page.locator("#fly-reason")).to_have_text("1 plan vehicle is not in the fleet")
     assert shown_mission_id(page) == mission_id
 
 
