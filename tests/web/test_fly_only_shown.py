@@ -131,3 +131,18 @@ def test_the_first_preset_never_loads_over_typing(open_page: Callable[..., Page]
     page.wait_for_timeout(300)  # let the (ignored) answer arrive
     expect(page.locator("#f-name")).to_have_value("typed-first")
     expect(page.locator("#f-steps")).to_have_value("77")
+
+
+def test_the_page_loads_nothing_from_elsewhere(
+    open_page: Callable[..., Page], service: ServiceProcess
+) -> None:
+    """Field laptops are often offline: every request the page makes goes to the service."""
+    urls: list[str] = []
+    page = open_page(before=lambda p: p.on("request", lambda r: urls.append(r.url)))
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
+    fill_scenario(page, "offline", 50, CROSSING)
+    plan(page)
+    assert any(u.endswith("/vendor/plotly.min.js") for u in urls)
+    assert any(u.endswith("/flyview.js") for u in urls)
+    foreign = [u for u in urls if not u.startswith(service.base_url) and not u.startswith("data:")]
+    assert foreign == []
