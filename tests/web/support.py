@@ -11,8 +11,8 @@ from playwright.sync_api import Page, Route, expect
 
 from tests.api.support import SHORT_CROSSING, ServiceProcess
 
-__all__ = ["CROSSING", "HEALTH", "ORIGIN", "VEHICLES", "fill_scenario", "plan", "planned_api",
-           "shown_mission_id"]
+__all__ = ["CROSSING", "HEALTH", "ORIGIN", "VEHICLES", "assert_fits", "fill_scenario", "plan",
+           "planned_api", "shown_mission_id"]
 
 # A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
 VEHICLES = [
@@ -99,3 +99,17 @@ def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]
     page.route(re.compile(r".*/api/vehicles$"), vehicles)
     page.route(re.compile(r".*/api/(fleet|vehicles/[^/]+)/commands$"), command)
     page.route(re.compile(r".*/api/executions/[^/]+/(pause|resume)$"), command)
+
+
+NO_SIDEWAYS_SCROLL = ("() => ({doc: document.documentElement.scrollWidth, "
+                      "body: document.body.scrollWidth, view: window.innerWidth})")
+WIDER_THAN_VIEW = ("() => Array.from(document.querySelectorAll('body *'))"
+                   ".filter(e => e.getBoundingClientRect().right > window.innerWidth + 0.5)"
+                   ".map(e => e.tagName + '#' + e.id + '.' + e.className)")
+
+
+def assert_fits(page: Page) -> None:
+    widths = page.evaluate(NO_SIDEWAYS_SCROLL)
+    assert widths["doc"] <= widths["view"] and widths["body"] <= widths["view"], widths
+    # Inner scroll areas (the fleet table's wrapper) may scroll; nothing pokes out of the page.
+    assert page.evaluate(WIDER_THAN_VIEW) == []

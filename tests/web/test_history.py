@@ -5,12 +5,15 @@ driven by the time slider."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import httpx
 import numpy as np
 from playwright.sync_api import Page, expect
 
 from tests.api.support import SHORT_CROSSING, ServiceProcess
+from tests.web.conftest import PHONE
+from tests.web.support import assert_fits
 
 
 def fly_through_the_api(base: str) -> tuple[str, str]:
@@ -34,7 +37,7 @@ def wait_finished(base: str, flight_id: str) -> None:
 
 
 def test_a_flight_reopens_and_replays_against_the_plan(
-    page: Page, service: ServiceProcess
+    page: Page, open_page: Callable[..., Page], service: ServiceProcess
 ) -> None:
     expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)  # nothing planned yet
     mission_id, flight_id = fly_through_the_api(service.base_url)
@@ -48,6 +51,13 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     expect(page.locator("#stale-banner")).to_be_hidden()
     expect(page.locator("#fly-view g.vehicle-icon")).to_have_count(4, timeout=30_000)
     expect(page.locator("#fly-button")).to_be_disabled()  # one flight at a time
+    # The same flight on a phone: still one header line, nothing sideways.
+    phone = open_page(PHONE)
+    expect(phone.locator("#flight-banner")).to_contain_text("running", timeout=30_000)
+    expect(phone.locator("#fly-view g.vehicle-icon")).to_have_count(4, timeout=30_000)
+    header = phone.locator("header").bounding_box()
+    assert header and header["height"] <= 48
+    assert_fits(phone)
     wait_finished(service.base_url, flight_id)
     record = httpx.get(f"{service.base_url}/api/executions/{flight_id}/record").json()
     page.reload()

@@ -8,20 +8,7 @@ from collections.abc import Callable
 from playwright.sync_api import Page, expect
 
 from tests.web.conftest import PHONE
-from tests.web.support import CROSSING, fill_scenario, plan
-
-NO_SIDEWAYS_SCROLL = ("() => ({doc: document.documentElement.scrollWidth, "
-                      "body: document.body.scrollWidth, view: window.innerWidth})")
-WIDER_THAN_VIEW = ("() => Array.from(document.querySelectorAll('body *'))"
-                   ".filter(e => e.getBoundingClientRect().right > window.innerWidth + 0.5)"
-                   ".map(e => e.tagName + '#' + e.id + '.' + e.className)")
-
-
-def assert_fits(page: Page) -> None:
-    widths = page.evaluate(NO_SIDEWAYS_SCROLL)
-    assert widths["doc"] <= widths["view"] and widths["body"] <= widths["view"], widths
-    # Inner scroll areas (the fleet table's wrapper) may scroll; nothing pokes out of the page.
-    assert page.evaluate(WIDER_THAN_VIEW) == []
+from tests.web.support import CROSSING, assert_fits, fill_scenario, plan
 
 
 def test_phone_width_fits_before_and_after_a_plan(open_page: Callable[..., Page]) -> None:
