@@ -1,28 +1,59 @@
-// fleetplan browser page: enter a fleet, plan it, inspect the plan, fly it, abort.
-// Plain JavaScript, no build step; talks only to this service's /api (see /docs).
+// fleetplan browser page: enter a mission, plan it, inspect the plan, fly exactly the plan on
+// screen, watch the fleet, reopen and replay past flights, abort.
+// Plain JavaScript modules, no build step; talks only to this service's /api (see /docs).
 "use strict";
+
+import { drawMoving, drawStatic, latLonText } from "./flyview.js";
+import { batteryCell, gpsCell, healthCell, linkLevel } from "./health.js";
+import { circleScenario, randomScenario, round2 } from "./presets.js";
+import { measuredSeparation, minSeparation, sampleAt } from "./tracks.js";
 
 const $ = (sel, root = document) => root.querySelector(sel);
 const $$ = (sel, root = document) => Array.from(root.querySelectorAll(sel));
 const COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b",
                 "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"];
 const color = (i) => COLORS[i % COLORS.length];
-const AXES = ["x", "y", "z"];
 const LIMIT_KEYS = ["position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max"];
 const PLOT_CONFIG = { responsive: true, displaylogo: false };
+const TRAIL_POINTS = 1500;   // live trail kept per vehicle (5 Hz: 5 minutes)
 
 const state = {
-  mission: null,       // the mission document (GET /api/missions/{id})
-  traj: null,          // /trajectory?rate=10 for the 3-D view and slider
-  sep: null,           // {t, d} minimum pairwise separation over time
-  selected: 0,         // vehicle row the top view places points for
+  mission: null,       // the mission document shown (GET /api/missions/{id})
+  shownKey: null,      // the form, serialised, as it was when that mission was shown
+  planning: false,     // a plan request is being computed
+  pendingKey: null,    // the form as sent with that request
+  rejected: false,     // the last plan request was refused or failed
+  stale: false,        // the results shown are not the form's mission
+  presetName: null,    // name of the preset loaded, until the operator edits the form
+  touched: false,      // the operator has typed in the form: nothing loads over it by itself
+  traj: null,          // /trajectory?rate=10 for the views and the slider
+  sep: null,           // {t, d} minimum pairwise separation over time (plan)
+  measured: null,      // {t, d, label} measured separation of the flight replayed
+  selected: 0,         // vehicle row the editor's top view places points for
   extra: {},           // scenario keys without inputs (separation_scale, ...), kept as loaded
   limitExtras: {},     // limits without inputs (thrust_min, thrust_max, body_rate_max)
   planStream: null,    // EventSource of the planning progress
-  execution: null,     // id of the flight shown
+  execution: null,     // id of the flight shown (live or replayed)
+  flightActive: false, // that flight is under way
+  paused: false,
   flightStream: null,  // EventSource of the flight telemetry
+  live: null,          // last telemetry snapshot of the flight under way
+  trails: {},          // id -> [[x, y]...] live positions so far
+  replay: null,        // {id, vehicles: [{id, t: [...], position: [...]}]} flight replayed
+  vehicles: [],        // last GET /api/vehicles rows (link, mode, battery, ...)
+  fleet: null,         // fleet description (kind, vehicles, ids, flying, world_origin?)
+  caps: { pause: false, resume: false, fleetCommands: false, vehicleCommands: false },
+  flyTf: null,         // transform of the fly view
   playTimer: null,
+  statuses: null,      // the service's status sets (GET /api/status `statuses`), never a copy
 };
+
+/** Whether a mission status has a role ("active": still planning, "failed") in the service's
+ *  own status sets; false until they are known. */
+function missionIs(status, role) {
+  const sets = state.statuses && state.statuses.mission;
+  return Boolean(sets && sets[role] && sets[role].includes(status));
+}
 
 // ------------------------------------------------------------------ HTTP
 
@@ -34,7 +65,10 @@ async function api(method, url, body) {
     init.body = JSON.stringify(body);
     init.headers["Content-Type"] = "application/json";
   }
-  let response = await fetch(url, init);
+  let response;
+  try { response = await fetch(url, init); } catch (exc) {
+    return { status: 0, ok: false, data: { reason: `service unreachable (${exc.message})` } };
+  }
   if (response.status === 401) {  // the service wants an API token: ask once and keep it in
     tokenAsked ??= Promise.resolve(window.prompt("API token (operator or read-only):"))
       .then((token) => {           // a SameSite cookie, which EventSource sends too
@@ -47,7 +81,15 @@ async function api(method, url, body) {
   const text = await response.text();
   let data = null;
   try { data = text ? JSON.parse(text) : null; } catch { data = { reason: text }; }
-  return { status: response.status, ok: response.ok, data };
+  return { status: response.status, ok: response.ok, data: data ?? {} };
+}
+
+/** The rows of a list answer: a bare array, or a page {items|executions|missions: [...]}. */
+function rowsOf(data, key) {
+  if (Array.isArray(data)) return data;
+  if (data && Array.isArray(data[key])) return data[key];
+  if (data && Array.isArray(data.items)) return data.items;
+  return [];
 }
 
 // Append to a log list and keep the list (not the page) scrolled to its end.
@@ -58,6 +100,14 @@ function appendScrolled(list, item) {
 
 const fmt = (x, digits = 3) => (x === null || x === undefined || Number.isNaN(x)) ? "–"
   : (typeof x === "number" ? Number(x.toFixed(digits)).toString() : String(x));
+const clamp = (x, lo, hi) => Math.min(hi, Math.max(lo, x));
+
+function badge(good, text) {
+  const span = document.createElement("span");
+  span.className = good ? "ok" : "bad";
+  span.textContent = text;
+  return span;
+}
 
 // ------------------------------------------------------------------ form <-> scenario
 
@@ -112,7 +162,6 @@ function addVehicleRow(vehicle) {
   rm.appendChild(button);
   tr.appendChild(rm);
   tr.addEventListener("click", () => selectVehicle(vehicleRows().indexOf(tr)));
-  tr.addEventListener("input", drawTopView);
   tbody.appendChild(tr);
 }
 
@@ -130,7 +179,7 @@ function removeVehicle(tr) {
   tr.remove();
   renumberVehicles();
   state.selected = Math.min(state.selected, vehicleRows().length - 1);
-  drawTopView();
+  formEdited();
 }
 
 function nextVehicleId() {
@@ -208,71 +257,34 @@ async function loadExampleList() {
   for (const example of data) {
     const option = document.createElement("option");
     option.value = `example:${example.name}`;
-    option.textContent = `${example.name} (${example.vehicles})`;
+    option.textContent = `${example.name} · ${example.vehicles} vehicles`;
     group.appendChild(option);
   }
   $("#preset").value = "example:paper-circle4";
+  presetChosen();
 }
 
-function transferSteps(distance, dt) {
-  // Time for a rest-to-rest move at 2 m/s, 3 m/s², with slack for avoidance manoeuvres.
-  const t = distance / 2 + 2 / 3;
-  return Math.ceil((1.6 * t + 4) / dt);
+// The vehicle count applies to the generated presets only: shown with them alone.
+function presetChosen() {
+  $("#preset-count-label").hidden = !$("#preset").value.startsWith("gen:");
 }
 
-function circleScenario(n) {
-  const R = 1.0;
-  const radius = Math.max(2.5, (1.6 * n * R) / (2 * Math.PI));
-  const c = radius + 1;
-  const vehicles = [];
-  for (let i = 0; i < n; i++) {
-    const a = (2 * Math.PI * i) / n;
-    const z = i % 2 ? 1.9 : 1.1;
-    const start = [c + radius * Math.cos(a), c + radius * Math.sin(a), z];
-    const goal = [c - radius * Math.cos(a), c - radius * Math.sin(a), z];
-    vehicles.push({ id: `uav${i + 1}`, start: start.map(round2), goal: goal.map(round2) });
-  }
-  return {
-    name: `circle${n}`, dt: 0.2, steps: transferSteps(2 * radius, 0.2), min_separation: R,
-    limits: standardLimits([2 * c, 2 * c, 3]), vehicles,
-  };
-}
-
-function randomScenario(n) {
-  const R = 1.0;
-  const side = Math.max(5, Math.ceil(Math.sqrt(n * 6)));
-  const size = [side, side, 4];
-  const pick = (taken) => {
-    for (let tries = 0; tries < 10000; tries++) {
-      const p = [0.5 + Math.random() * (side - 1), 0.5 + Math.random() * (side - 1),
-                 1 + Math.random() * 2.5].map(round2);
-      if (taken.every((q) => Math.hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]) >= 1.5 * R)) return p;
-    }
-    throw new Error("workspace too crowded");
-  };
-  const starts = [], goals = [];
-  for (let i = 0; i < n; i++) { starts.push(pick(starts)); goals.push(pick(goals)); }
-  const far = Math.max(...starts.map((s, i) => Math.hypot(...s.map((v, a) => v - goals[i][a]))));
-  return {
-    name: `random${n}`, dt: 0.2, steps: transferSteps(far, 0.2), min_separation: R,
-    limits: standardLimits(size),
-    vehicles: starts.map((s, i) => ({ id: `uav${i + 1}`, start: s, goal: goals[i] })),
-  };
-}
-
-const round2 = (x) => Math.round(x * 100) / 100;
-const standardLimits = (max) => ({
-  position_min: [0, 0, 0], position_max: max.map(round2),
-  velocity_max: [2, 2, 2], acceleration_max: [3, 3, 3], jerk_max: [5, 5, 5],
-});
-
-async function loadPreset() {
+// `auto`: the page's first preset, which must not land on a form the operator has touched.
+async function loadPreset(auto = false) {
   const choice = $("#preset").value;
-  const n = Math.max(2, Math.min(128, Number($("#preset-count").value) || 8));
-  if (choice === "gen:circle") return fillForm(circleScenario(n));
-  if (choice === "gen:random") return fillForm(randomScenario(n));
-  const { ok, data } = await api("GET", `/api/examples/${choice.slice(8)}`);
-  if (ok) fillForm(data);
+  const n = clamp(Math.round(Number($("#preset-count").value) || 8), 2, 128);
+  let scenario = null;
+  if (choice === "gen:circle") scenario = circleScenario(n);
+  else if (choice === "gen:random") scenario = randomScenario(n);
+  else {
+    const { ok, data } = await api("GET", `/api/examples/${choice.slice(8)}`);
+    if (!ok) return;
+    scenario = data;
+    if (auto && state.touched) return;
+  }
+  fillForm(scenario);
+  state.presetName = $("#f-name").value;
+  refreshStale();
 }
 
 // ------------------------------------------------------------------ top view
@@ -345,7 +357,7 @@ function onTopViewClick(ev) {
   if (inputs[offset + 2].value === "") inputs[offset + 2].value = 1;
   // Start placed: the next click places this vehicle's goal.
   $(`input[name="place"][value="${which === "start" ? "goal" : "start"}"]`).checked = true;
-  drawTopView();
+  formEdited();
 }
 
 // ------------------------------------------------------------------ errors next to fields
@@ -356,30 +368,163 @@ function clearErrors() {
   $$("tr.error-row").forEach((r) => r.remove());
 }
 
-function showError(field, reason) {
-  const path = field || "";
-  const matches = $$("#scenario-form input[data-field]").filter((input) => {
+// The fields an error path names: "vehicles[2].goal" marks that vehicle's three goal inputs.
+function inputsFor(path) {
+  return $$("#scenario-form input[data-field]").filter((input) => {
     const f = input.dataset.field;
     return path && (f === path || f.startsWith(`${path}[`) || f.startsWith(`${path}.`) ||
                     path.startsWith(`${f}[`));
   });
-  for (const input of matches) { input.classList.add("invalid"); input.title = reason; }
+}
+
+// The operator edited `input`: the errors about that field no longer hold.
+function clearErrorsFor(input) {
+  const field = input.dataset && input.dataset.field;
+  if (!field) return;
+  for (const item of $$(".error-item")) {
+    if (inputsFor(item.dataset.path).includes(input)) {
+      for (const marked of inputsFor(item.dataset.path)) { marked.classList.remove("invalid"); marked.title = ""; }
+      const row = item.closest("tr.error-row");
+      item.remove();
+      if (row && !$(".error-item", row)) row.remove();
+    }
+  }
+  input.classList.remove("invalid");
+  input.title = "";
+  $("#form-error").textContent = "";
+}
+
+function errorItem(path, reason) {
+  const div = document.createElement("div");
+  div.className = "error-item";
+  div.dataset.path = path;
+  div.textContent = path ? `${path}: ${reason}` : reason;
+  return div;
+}
+
+function showError(field, reason) {
+  const path = field || "";
+  for (const input of inputsFor(path)) { input.classList.add("invalid"); input.title = reason; }
   const vehicle = /^vehicles\[(\d+)\]/.exec(path);
   if (vehicle && vehicleRows()[Number(vehicle[1])]) {
     const tr = vehicleRows()[Number(vehicle[1])];
-    const row = document.createElement("tr");
-    row.className = "error-row";
-    const td = document.createElement("td");
-    td.colSpan = 8;
-    td.className = "vehicle-error";
-    td.textContent = `${path}: ${reason}`;
-    row.appendChild(td);
-    tr.after(row);
+    let row = tr.nextElementSibling;
+    if (!row || !row.classList.contains("error-row")) {
+      row = document.createElement("tr");
+      row.className = "error-row";
+      const td = document.createElement("td");
+      td.colSpan = 8;
+      td.className = "vehicle-error";
+      row.appendChild(td);
+      tr.after(row);
+    }
+    row.firstChild.appendChild(errorItem(path, reason));
     return;
   }
   const head = path.split(/[.[]/)[0];
   const box = $$(".field-error[data-error-for]").find((d) => d.dataset.errorFor.split(" ").includes(head));
-  (box || $("#form-error")).textContent = path ? `${path}: ${reason}` : reason;
+  (box || $("#form-error")).appendChild(errorItem(path, reason));
+}
+
+// ------------------------------------------------------------------ fly only what is shown
+
+// The form as one string: equal strings, same mission.
+const formKey = () => JSON.stringify(readScenario());
+
+// Any change to the form (typed, clicked on the map, preset loaded, row added or removed).
+function formEdited(ev) {
+  const target = ev && ev.target;
+  state.touched = true;  // typed, clicked on the map, a row added or removed
+  if (target && target.dataset) clearErrorsFor(target);
+  // A preset edited is a new mission: say so in its name, unless the operator named it.
+  if (target !== $("#f-name") && state.presetName && $("#f-name").value === state.presetName) {
+    $("#f-name").value = `${state.presetName}-edited`;
+    state.presetName = null;
+  }
+  if (target === $("#f-name")) state.presetName = null;
+  // "rejected (422)" described the form as it was: once edited, say what to do next.
+  if (state.rejected && !state.planning && target) {
+    $("#plan-state").textContent = $(".error-item") ? "fix the fields marked, then Plan" : "edited: press Plan";
+  }
+  drawTopView();
+  refreshStale();
+}
+
+// Mark the results stale (and Fly disabled) unless they are the form's mission.
+function refreshStale() {
+  const shown = Boolean(state.mission && state.mission.plan);
+  let why = "";
+  if (shown && state.planning) why = "Planning the form's mission: the results below are the previous plan's.";
+  else if (shown && state.rejected) why = "The last plan request was rejected: the results below are an older mission's and cannot be flown.";
+  else if (shown && formKey() !== state.shownKey) why = "The form has changed since this plan: the results below are stale. Press Plan to fly what the form says.";
+  state.stale = Boolean(why);
+  $("#stale-banner").textContent = why;
+  $("#stale-banner").hidden = !why;
+  $("#fly-panel").classList.toggle("stale", state.stale);
+  updateFlyButton();
+}
+
+// Which plan vehicle flies on which fleet vehicle; the ones missing.
+function vehicleMapping() {
+  const planIds = state.mission.plan.vehicles.map((v) => v.id);
+  const fleet = state.fleet;
+  if (!fleet || !fleet.vehicles) return { planIds, pairs: [], missing: planIds, spare: [] };
+  if (fleet.kind === "mock") {
+    // The mock fleet is set down under the plan's starts and takes the plan's ids.
+    const n = Math.min(planIds.length, fleet.vehicles);
+    return { planIds, pairs: planIds.slice(0, n).map((id, i) => [id, `mock ${i + 1}`]),
+             missing: planIds.slice(n), spare: [] };
+  }
+  const ids = fleet.ids || [];
+  return { planIds, pairs: planIds.filter((id) => ids.includes(id)).map((id) => [id, id]),
+           missing: planIds.filter((id) => !ids.includes(id)),
+           spare: ids.filter((id) => !planIds.includes(id)) };
+}
+
+function showMapping() {
+  const box = $("#mapping");
+  box.textContent = "";
+  if (!state.mission || !state.mission.plan || !state.fleet) return;
+  const m = vehicleMapping();
+  box.append("plan → fleet: ");
+  const list = document.createElement("span");
+  list.id = "mapping-pairs";
+  list.textContent = idList(m.pairs.map(([p, f]) => (p === f ? p : `${p}→${f}`))) || "none";
+  box.append(list);
+  if (m.missing.length) {
+    const bad = badge(false, ` · not in the fleet: ${idList(m.missing)}`);
+    bad.id = "mapping-missing";
+    box.append(bad);
+  }
+  if (m.spare.length) box.append(` · idle: ${m.spare.join(", ")}`);
+}
+
+// A list of ids, shortened past a dozen ("a, b, … and 30 more").
+function idList(ids, max = 12) {
+  return ids.length <= max ? ids.join(", ") : `${ids.slice(0, max).join(", ")}, … and ${ids.length - max} more`;
+}
+
+// Why Fly is disabled now, or null if the mission on screen can fly.
+function flyBlocker() {
+  if (!state.mission || !state.mission.plan) return "plan a mission first";
+  if (state.planning) return "planning…";
+  if (state.rejected) return "the last plan request was rejected: fix the form and plan again";
+  if (state.stale) return "the form has changed: press Plan to fly what it says";
+  if (!state.mission.plan_ok) return "the plan is not verified: it cannot be flown";
+  if (state.flightActive) return "a flight is under way";
+  if (!state.fleet || !state.fleet.vehicles) return "no fleet configured";
+  if (state.fleet.flying) return `flight ${state.fleet.flying} is under way`;
+  const missing = vehicleMapping().missing;
+  if (missing.length) return `${missing.length} plan vehicle${missing.length > 1 ? "s are" : " is"} not in the fleet`;
+  return null;
+}
+
+function updateFlyButton() {
+  const why = flyBlocker();
+  $("#fly-button").disabled = Boolean(why);
+  $("#fly-reason").textContent = why || "";
+  showMapping();
+  updateCommandButtons();
 }
 
 // ------------------------------------------------------------------ planning
@@ -387,28 +532,35 @@ function showError(field, reason) {
 async function submitPlan(ev) {
   ev.preventDefault();
   clearErrors();
-  if (state.planStream) state.planStream.close();
+  if (state.planStream) { state.planStream.close(); state.planStream = null; }
   const scenario = readScenario();
+  state.planning = true;
+  state.rejected = false;
+  state.pendingKey = JSON.stringify(scenario);
+  refreshStale();
   $("#plan-button").disabled = true;
   $("#plan-state").textContent = "submitting…";
   $("#progress-log").innerHTML = "";
+  $("#progress-log").hidden = false;
   const { status, data } = await api("POST", "/api/missions?wait=0", scenario);
   if (status !== 201 && status !== 202) {
+    state.planning = false;
+    state.rejected = true;
     $("#plan-button").disabled = false;
-    $("#plan-state").textContent = `rejected (${status})`;
-    for (const e of (data && data.errors) || [{ field: data && data.field, reason: (data && data.reason) || "error" }]) {
-      showError(e.field, e.reason);
-    }
+    $("#plan-state").textContent = "";
+    $("#plan-state").append(badge(false, `rejected (${status}): see the fields marked`));
+    const errors = (data && data.errors && data.errors.length) ? data.errors
+      : [{ field: data && data.field, reason: (data && data.reason) || "error" }];
+    for (const e of errors) showError(e.field, e.reason);
+    refreshStale();
     return;
   }
-  followPlanning(data);
+  followPlanning(data, state.pendingKey);
 }
 
-function followPlanning(mission) {
-  state.mission = mission;
-  $("#mission-title").textContent = `${mission.name} · ${mission.id}`;
-  if (mission.status !== "planning") { showMission(mission.id); return; }
+function followPlanning(mission, key) {
   $("#plan-state").textContent = "planning…";
+  if (!missionIs(mission.status, "active")) { showMission(mission.id, key); return; }
   const source = new EventSource(`/api/missions/${mission.id}/events`);
   state.planStream = source;
   source.addEventListener("iteration", (ev) => {
@@ -420,39 +572,43 @@ function followPlanning(mission) {
     appendScrolled($("#progress-log"), li);
     $("#plan-state").textContent = `planning… iteration ${r.iteration}`;
   });
-  source.addEventListener("done", () => { source.close(); showMission(mission.id); });
+  source.addEventListener("done", () => { source.close(); state.planStream = null; showMission(mission.id, key); });
   source.onerror = () => {  // stream lost: fall back to polling the mission
     source.close();
-    setTimeout(() => showMission(mission.id), 1000);
+    state.planStream = null;
+    setTimeout(() => showMission(mission.id, key), 1000);
   };
 }
 
-async function showMission(id) {
+// Show a mission's plan. `key` is the form it was planned from (or loaded into).
+async function showMission(id, key) {
   const { ok, data } = await api("GET", `/api/missions/${id}`);
   $("#plan-button").disabled = false;
-  if (!ok) { $("#plan-state").textContent = data.reason; return; }
-  state.mission = data;
-  $("#mission-title").textContent = `${data.name} · ${data.id}`;
+  if (!ok) { $("#plan-state").textContent = data.reason; state.planning = false; refreshStale(); return; }
+  if (missionIs(data.status, "active")) { followPlanning(data, key); return; }
+  state.planning = false;
   refreshMissionList();
-  if (data.status === "planning") { followPlanning(data); return; }
-  if (data.status === "failed") {
-    $("#plan-state").innerHTML = "";
-    $("#plan-state").append(badge(false, `planning failed: ${data.error ? data.error.reason : ""}`));
+  $("#plan-state").innerHTML = "";
+  if (missionIs(data.status, "failed") || !data.plan) {
+    state.rejected = true;
+    $("#plan-state").append(badge(false, `planning failed: ${data.error ? data.error.reason : data.status}`));
     if (data.error && data.error.field) showError(data.error.field, data.error.reason);
+    refreshStale();
     return;
   }
-  $("#plan-state").innerHTML = "";
+  const changed = !state.mission || state.mission.id !== data.id;
+  state.mission = data;
+  state.shownKey = key;
+  state.rejected = false;
+  $("#mission-title").textContent = `${data.name} · ${data.id}`;
   $("#plan-state").append(badge(data.plan_ok, `${data.plan_status}${data.plan_ok ? ", verified" : ", not verified"}`));
   $("#plan-state").title = data.plan.message || "";
   if (!data.plan_ok && data.plan.message) $("#plan-state").append(` · ${data.plan.message}`);
+  if (changed && !state.flightActive) { closeReplay(); clearFlightView(); }
+  $("#progress-log").hidden = true;  // the solver figures below sum it up
   await renderPlan(data);
-}
-
-function badge(good, text) {
-  const span = document.createElement("span");
-  span.className = good ? "ok" : "bad";
-  span.textContent = text;
-  return span;
+  refreshStale();
+  loadFlights(data.id);
 }
 
 // ------------------------------------------------------------------ plan views
@@ -466,12 +622,55 @@ async function renderPlan(mission) {
   ]);
   if (!traj.ok || !sepTraj.ok) return;
   state.traj = traj.data;
-  renderSummary(plan);
+  state.sepTraj = sepTraj.data;
+  $("#empty-note").hidden = true;
+  $("#fly-map").hidden = false;
+  $("#flights").hidden = false;
+  $("#fly-screen").classList.remove("no-plan");
+  $("main").classList.add("has-plan");
+  $("#plan-results").hidden = false;
+  renderSummary(plan, mission.plan_ok);
   render3d(plan, traj.data);
   renderSeparation(plan, sepTraj.data);
   renderSpeed(sepTraj.data);
   renderThrust(plan);
-  $("#fly-button").disabled = false;
+  drawFlyStatic();
+  const slider = $("#time-slider");
+  slider.max = traj.data.t.length - 1;
+  slider.value = 0;
+  setTime(0);
+}
+
+function render3d(plan, traj) {
+  const many = traj.vehicles.length > 16;
+  const lines = traj.vehicles.map((v, i) => ({
+    type: "scatter3d", mode: "lines", name: v.id,
+    x: v.position.map((p) => p[0]), y: v.position.map((p) => p[1]), z: v.position.map((p) => p[2]),
+    line: { color: color(i), width: 3 }, hoverinfo: "name",
+  }));
+  const now = {
+    type: "scatter3d", mode: "markers", name: "planned now", showlegend: false,
+    x: [], y: [], z: [], text: traj.vehicles.map((v) => v.id), hoverinfo: "text",
+    marker: { size: 4, color: traj.vehicles.map((_, i) => color(i)), opacity: 0.5 },
+  };
+  const flown = {
+    type: "scatter3d", mode: "markers+text", name: "flown",
+    x: [], y: [], z: [], text: [], hoverinfo: "text", textposition: "top center",
+    marker: { size: 6, symbol: "diamond", color: [] },
+  };
+  const s = plan.scenario.limits;
+  const layout = {
+    margin: { l: 0, r: 0, t: 24, b: 0 }, showlegend: !many,
+    title: { text: "trajectories (world frame, z up); rings: plan now, diamonds: flown", font: { size: 13 } },
+    scene: {
+      aspectmode: "data",
+      xaxis: { title: { text: "x (m)" }, range: [s.position_min[0], s.position_max[0]] },
+      yaxis: { title: { text: "y (m)" }, range: [s.position_min[1], s.position_max[1]] },
+      zaxis: { title: { text: "z (m)" }, range: [s.position_min[2], s.position_max[2]] },
+    },
+    uirevision: "keep",
+  };
+  Plotly.react("plot3d", [...lines, now, flown], layout, PLOT_CONFIG);
 }
 
 function row(table, label, value, good) {
@@ -484,13 +683,12 @@ function row(table, label, value, good) {
   return b;
 }
 
-function renderSummary(plan) {
-  $("#summary").hidden = false;
+function renderSummary(plan, planOk) {
   const v = plan.verification || {};
   const R = plan.scenario.min_separation;
   const ver = $("#verification");
   ver.innerHTML = "<caption>verification</caption>";
-  row(ver, "status", `${plan.status}${plan.message ? ": " + plan.message : ""}`, plan.status === "converged");
+  row(ver, "status", `${plan.status}${plan.message ? ": " + plan.message : ""}`, planOk);
   const cell = row(ver, "min separation (continuous)", `${fmt(v.min_separation_continuous)} m (R = ${R} m)`, v.separated);
   cell.id = "min-separation-value";
   cell.dataset.value = v.min_separation_continuous;
@@ -514,91 +712,20 @@ function renderSummary(plan) {
   row(sol, "vehicles × steps", `${plan.vehicles.length} × ${plan.scenario.steps} (dt ${plan.scenario.dt} s)`);
 }
 
-function render3d(plan, traj) {
-  const many = traj.vehicles.length > 16;
-  const lines = traj.vehicles.map((v, i) => ({
-    type: "scatter3d", mode: "lines", name: v.id,
-    x: v.position.map((p) => p[0]), y: v.position.map((p) => p[1]), z: v.position.map((p) => p[2]),
-    line: { color: color(i), width: 3 }, hoverinfo: "name",
-  }));
-  const now = {
-    type: "scatter3d", mode: "markers", name: "planned now", showlegend: false,
-    x: [], y: [], z: [], text: traj.vehicles.map((v) => v.id), hoverinfo: "text",
-    marker: { size: 5, color: traj.vehicles.map((_, i) => color(i)) },
-  };
-  const flown = {
-    type: "scatter3d", mode: "markers", name: "flown (live)",
-    x: [], y: [], z: [], text: [], hoverinfo: "text",
-    marker: { size: 6, symbol: "diamond", color: "#000" },
-  };
-  const s = plan.scenario.limits;
-  const layout = {
-    margin: { l: 0, r: 0, t: 24, b: 0 }, showlegend: !many,
-    title: { text: "trajectories (world frame, z up)", font: { size: 13 } },
-    scene: {
-      aspectmode: "data",
-      xaxis: { title: { text: "x (m)" }, range: [s.position_min[0], s.position_max[0]] },
-      yaxis: { title: { text: "y (m)" }, range: [s.position_min[1], s.position_max[1]] },
-      zaxis: { title: { text: "z (m)" }, range: [s.position_min[2], s.position_max[2]] },
-    },
-    uirevision: "keep",
-  };
-  Plotly.react("plot3d", [...lines, now, flown], layout, PLOT_CONFIG);
-  const slider = $("#time-slider");
-  slider.max = traj.t.length - 1;
-  slider.value = 0;
-  $("#time-controls").hidden = false;
-  setTime(0);
-}
-
-function setTime(k) {
-  const traj = state.traj;
-  if (!traj) return;
-  const index = traj.vehicles.length;  // the "planned now" trace follows the lines
-  const pos = traj.vehicles.map((v) => v.position[k]);
-  Plotly.restyle("plot3d", { x: [pos.map((p) => p[0])], y: [pos.map((p) => p[1])], z: [pos.map((p) => p[2])] }, [index]);
-  $("#time-label").textContent = `t = ${traj.t[k].toFixed(1)} s`;
-}
-
-function togglePlay() {
-  if (state.playTimer) { clearInterval(state.playTimer); state.playTimer = null; $("#play").textContent = "▶"; return; }
-  $("#play").textContent = "⏸";
-  const slider = $("#time-slider");
-  state.playTimer = setInterval(() => {
-    let k = Number(slider.value) + 1;
-    if (k > Number(slider.max)) k = 0;
-    slider.value = k;
-    setTime(k);
-  }, 1000 / state.traj.rate);
-}
-
-function minSeparation(plan, traj) {
-  const scale = plan.scenario.separation_scale || [1, 1, 1];
-  const n = traj.vehicles.length;
-  const d = traj.t.map((_, k) => {
-    let best = Infinity;
-    for (let i = 0; i < n; i++) {
-      const p = traj.vehicles[i].position[k];
-      for (let j = i + 1; j < n; j++) {
-        const q = traj.vehicles[j].position[k];
-        const dist = Math.hypot((p[0] - q[0]) / scale[0], (p[1] - q[1]) / scale[1], (p[2] - q[2]) / scale[2]);
-        if (dist < best) best = dist;
-      }
-    }
-    return best;
-  });
-  return { t: traj.t, d };
-}
-
 function renderSeparation(plan, traj) {
   const R = plan.scenario.min_separation;
   if (traj.vehicles.length < 2) { Plotly.purge("separation-plot"); return; }
   state.sep = minSeparation(plan, traj);
   const low = Math.min(...state.sep.d);
-  Plotly.react("separation-plot", [
+  const traces = [
     { x: state.sep.t, y: state.sep.d, mode: "lines", name: "min pairwise distance", line: { color: "#1f6feb" } },
     { x: [0, traj.t[traj.t.length - 1]], y: [R, R], mode: "lines", name: `R = ${R} m`, line: { color: "#c62828", dash: "dash" } },
-  ], {
+  ];
+  if (state.measured) {
+    traces.push({ x: state.measured.t, y: state.measured.d, mode: "lines", name: state.measured.label,
+                  line: { color: "#2e7d32" } });
+  }
+  Plotly.react("separation-plot", traces, {
     title: { text: `minimum pairwise separation: ${low.toFixed(3)} m (R = ${R} m)`, font: { size: 13 } },
     margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } },
     yaxis: { title: { text: "m" }, rangemode: "tozero" }, legend: { orientation: "h" },
@@ -631,62 +758,313 @@ function renderThrust(plan) {
   }, PLOT_CONFIG);
 }
 
-// ------------------------------------------------------------------ missions list
+// ------------------------------------------------------------------ the fly screen
 
-async function refreshMissionList() {
-  const { ok, data } = await api("GET", "/api/missions?limit=30");
-  if (!ok) return;
-  const list = $("#mission-list");
-  list.innerHTML = "";
-  for (const m of data.missions) {
-    const li = document.createElement("li");
-    li.dataset.id = m.id;
-    const when = new Date(m.created_at).toLocaleString();
-    li.textContent = `${m.name} · ${m.vehicle_count} vehicles · ${m.status}` +
-      (m.plan_status ? ` (${m.plan_status})` : "") + ` · ${when}`;
-    li.addEventListener("click", async () => {
-      const got = await api("GET", `/api/missions/${m.id}`);
-      if (got.ok) { fillForm(got.data.scenario); showMission(m.id); }
-    });
-    list.appendChild(li);
+const colorOf = (id) => {
+  const i = state.traj ? state.traj.vehicles.findIndex((v) => v.id === id) : -1;
+  return i >= 0 ? color(i) : "#1d232b";
+};
+const origin = () => (state.fleet && state.fleet.world_origin) || null;
+
+function drawFlyStatic() {
+  if (!state.traj || !state.mission) return;
+  const lim = state.mission.plan.scenario.limits;
+  state.flyTf = drawStatic($("#fly-view"), {
+    lo: lim.position_min, hi: lim.position_max, origin: origin(),
+    paths: state.traj.vehicles.map((v, i) => ({ id: v.id, color: color(i), points: v.position.map((p) => [p[0], p[1]]) })),
+  });
+  const o = origin();
+  $("#geo-label").textContent = o
+    ? `world origin ${latLonText(o)}, ${fmt(o.alt, 1)} m AMSL · x east, y north`
+    : "x east, y north (m); no geodetic origin in the fleet file";
+  drawFlyMoving();
+}
+
+// Where each vehicle is: the flight under way, or the replayed one at the slider's time.
+function actualVehicles() {
+  if (state.replay) {
+    const t = sliderTime();
+    return state.replay.vehicles.map((v) => ({
+      id: v.id, color: colorOf(v.id), position: sampleAt(v.t, v.position, t),
+      trail: v.position.filter((_, i) => v.t[i] <= t).map((p) => [p[0], p[1]]),
+    }));
   }
+  if (!state.live) return [];
+  return state.live.vehicles.map((v) => ({
+    id: v.id, color: colorOf(v.id), position: v.position, velocity: v.velocity,
+    trail: state.trails[v.id], alert: Boolean(v.fault) || linkLevel(v) === "bad",
+  }));
+}
+
+function drawFlyMoving() {
+  if (!state.flyTf || !state.traj) return;
+  const k = Number($("#time-slider").value);
+  const planned = state.traj.vehicles.map((v, i) => ({ id: v.id, color: color(i), position: v.position[k] }));
+  const vehicles = actualVehicles();
+  drawMoving($("#fly-view"), state.flyTf, { planned, vehicles });
+  const shown = vehicles.filter((v) => v.position);
+  if ($("#plot3d").data) {
+    Plotly.restyle("plot3d", {
+      x: [shown.map((v) => v.position[0])], y: [shown.map((v) => v.position[1])],
+      z: [shown.map((v) => v.position[2])], text: [shown.map((v) => v.id)],
+      "marker.color": [shown.map((v) => v.color)],
+    }, [state.traj.vehicles.length + 1]);
+  }
+}
+
+function clearFlightView() {
+  state.live = null;
+  state.trails = {};
+  $("#flight-phase").textContent = "";
+  $("#flight-progress").value = 0;
+}
+
+const sliderTime = () => (state.traj ? state.traj.t[Number($("#time-slider").value)] : 0);
+const horizon = () => (state.traj ? state.traj.t[state.traj.t.length - 1] : 0);
+
+function setTime(k) {
+  const traj = state.traj;
+  if (!traj) return;
+  const index = traj.vehicles.length;  // the "planned now" trace follows the lines
+  const pos = traj.vehicles.map((v) => v.position[k]);
+  if ($("#plot3d").data) {
+    Plotly.restyle("plot3d", { x: [pos.map((p) => p[0])], y: [pos.map((p) => p[1])], z: [pos.map((p) => p[2])] }, [index]);
+  }
+  drawFlyMoving();
+  showClock();
+}
+
+// The time label and the progress bar: the flight's progress while one flies, else the slider.
+function showClock() {
+  const t = sliderTime(), end = horizon();
+  const live = state.flightActive && state.live;
+  const mt = live ? state.live.mission_time : null;
+  let text;
+  let fraction = end > 0 ? t / end : 0;
+  if (live) {
+    if (mt === null || mt === undefined) {
+      text = `${state.live.phase} · plan not started`;
+      fraction = 0;
+    } else if (mt <= end) {
+      text = `${state.live.phase} · t = ${mt.toFixed(1)} s of ${end.toFixed(1)} s`;
+      fraction = mt / end;
+    } else {
+      text = `${state.live.phase} · plan flown (${end.toFixed(1)} s of ${end.toFixed(1)} s), ` +
+        `+${(mt - end).toFixed(1)} s after its end`;
+      fraction = 1;
+    }
+    if (mt !== null && mt !== undefined && Math.abs(Math.min(mt, end) - t) > 0.15) {
+      text += ` · viewing t = ${t.toFixed(1)} s`;
+    }
+  } else if (state.replay) {
+    text = `replay of flight ${state.replay.id} · t = ${t.toFixed(1)} s of ${end.toFixed(1)} s`;
+  } else {
+    text = `plan · t = ${t.toFixed(1)} s of ${end.toFixed(1)} s`;
+  }
+  $("#time-label").textContent = text;
+  $("#flight-progress").value = Math.round(clamp(fraction, 0, 1) * 1000);
+}
+
+function togglePlay() {
+  if (!state.traj) return;
+  if (state.playTimer) { stopPlay(); return; }
+  $("#play").textContent = "⏸";
+  $("#follow").checked = false;
+  const slider = $("#time-slider");
+  state.playTimer = setInterval(() => {
+    let k = Number(slider.value) + 1;
+    if (k > Number(slider.max)) k = 0;
+    slider.value = k;
+    setTime(k);
+  }, 1000 / state.traj.rate);
+}
+
+function stopPlay() {
+  clearInterval(state.playTimer);
+  state.playTimer = null;
+  $("#play").textContent = "▶";
+}
+
+// ------------------------------------------------------------------ fleet table
+
+const OPTIONAL_COLUMNS = [["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
+
+// Rows: the flight's telemetry (positions 5 per second) merged with GET /api/vehicles
+// (battery, GPS, health, link when the service reports them).
+function showVehicleTable() {
+  const byId = new Map(state.vehicles.map((v) => [v.id, v]));
+  const rows = state.live && state.flightActive
+    ? state.live.vehicles.map((v) => ({ ...(byId.get(v.id) || {}), ...v }))
+    : state.vehicles;
+  const optional = OPTIONAL_COLUMNS.filter(([key]) => rows.some((v) => v[key] !== undefined && v[key] !== null));
+  const health = rows.some((v) => v.health !== undefined && v.health !== null);
+  const actions = state.caps.vehicleCommands;
+  const heads = ["vehicle", "link", "mode", "armed", "alt", ...optional.map((c) => c[1]),
+                 ...(health ? ["health"] : []), "phase", ...(actions ? [""] : [])];
+  const thead = $("#vehicle-state thead");
+  const headHtml = `<tr>${heads.map((h) => `<th>${h}</th>`).join("")}</tr>`;
+  if (thead.innerHTML !== headHtml) thead.innerHTML = headHtml;
+  const tbody = $("#vehicle-state tbody");
+  tbody.innerHTML = "";
+  for (const v of rows) {
+    const tr = document.createElement("tr");
+    tr.dataset.id = v.id;
+    const cell = (text, level, key) => {
+      const td = document.createElement("td");
+      td.textContent = text;
+      if (level) td.className = `cell-${level}`;
+      if (key) td.dataset.key = key;
+      tr.appendChild(td);
+      return td;
+    };
+    const name = cell("", "", "id");
+    const dot = document.createElement("span");
+    dot.className = "swatch";
+    dot.style.background = colorOf(v.id);
+    name.append(dot, v.id);
+    const age = v.heartbeat_age;
+    const link = cell(age === null || age === undefined ? "no link" : `${age.toFixed(1)} s`, linkLevel(v), "link");
+    link.title = `heartbeat age${v.link ? ` (${v.link})` : ""}`;
+    // PX4's AUTO.* modes by their short names (LOITER, LAND, RTL): the full name in the title.
+    cell(v.mode ? v.mode.replace(/^AUTO\./, "") : "–", v.mode ? "" : "warn", "mode").title = v.mode ?? "";
+    cell(v.armed === null || v.armed === undefined ? "–" : (v.armed ? "armed" : "no"),
+      v.armed ? "armed" : "", "armed").title = v.armed ? "armed" : "disarmed";
+    const alt = v.position ? `${v.position[2].toFixed(1)} m` : "–";
+    cell(alt, "", "alt").title = v.position ? `world ${v.position.map((x) => x.toFixed(2)).join(", ")} m` +
+      (v.tracking_error === null || v.tracking_error === undefined ? "" : ` · ±${v.tracking_error.toFixed(2)} m from plan`) : "";
+    for (const [key, , render] of optional) {
+      const [text, level, title] = render(v[key]);
+      cell(text, level, key).title = title;
+    }
+    if (health) { const [text, level] = healthCell(v.health, v.fault); cell(text, level, "health"); }
+    cell(v.phase ?? "idle", v.fault ? "bad" : "", "phase").title = v.fault || "";
+    if (actions) {
+      const td = cell("", "", "actions");
+      for (const [command, label] of [["hold", "H"], ["land", "L"], ["rtl", "R"]]) {
+        const b = document.createElement("button");
+        b.type = "button";
+        b.className = "mini";
+        b.textContent = label;
+        b.title = `${command} ${v.id}`;
+        b.dataset.vehicleCommand = command;
+        b.addEventListener("click", () => vehicleCommand(v.id, command));
+        td.appendChild(b);
+      }
+    }
+    if (v.fault) tr.className = "bad";
+    tbody.appendChild(tr);
+  }
+}
+
+// ------------------------------------------------------------------ commands
+
+// Which of the planned control endpoints this service has, from its OpenAPI description:
+// buttons for the others stay hidden (nothing is sent to find out).
+async function loadCapabilities() {
+  const { ok, data } = await api("GET", "/openapi.json");
+  if (!ok || !data.paths) return;
+  const posts = new Set(Object.entries(data.paths).filter(([, ops]) => ops && ops.post)
+    .map(([path]) => path.replace(/\{[^}]+\}/g, "{}")));
+  state.caps = {
+    pause: posts.has("/api/executions/{}/pause"),
+    resume: posts.has("/api/executions/{}/resume"),
+    fleetCommands: posts.has("/api/fleet/commands"),
+    vehicleCommands: posts.has("/api/vehicles/{}/commands"),
+  };
+  for (const el of $$("[data-cap]")) el.hidden = !state.caps[el.dataset.cap];
+  updateCommandButtons();
+  showVehicleTable();
+}
+
+function updateCommandButtons() {
+  $("#pause-button").disabled = !(state.flightActive && !state.paused);
+  $("#resume-button").disabled = !(state.flightActive && state.paused);
+  const fleet = Boolean(state.fleet && state.fleet.vehicles);
+  for (const b of $$(".fleet-commands button")) b.disabled = !fleet;
+}
+
+// A route this service lacks (404/405 without a field): hide its button for good.
+function unavailable(response) {
+  return (response.status === 404 || response.status === 405) && !(response.data && response.data.field);
+}
+
+function commandResult(text, good) {
+  const el = $("#command-result");
+  el.textContent = text;
+  el.className = good ? "ok" : "bad";
+}
+
+async function pauseOrResume(which) {
+  if (!state.execution) return;
+  const r = await api("POST", `/api/executions/${state.execution}/${which}`);
+  if (unavailable(r)) { state.caps[which] = false; $(`#${which}-button`).hidden = true; commandResult(`${which}: not available on this service`, false); return; }
+  if (!r.ok) { commandResult(`${which} refused (${r.status}): ${r.data.reason ?? ""}`, false); return; }
+  state.paused = which === "pause";
+  commandResult(`${which}d`, true);
+  updateCommandButtons();
+}
+
+async function fleetCommand(command) {
+  const ids = (state.fleet && state.fleet.ids) || state.vehicles.map((v) => v.id);
+  const r = await api("POST", "/api/fleet/commands", { command, vehicles: ids, confirm: true });
+  if (unavailable(r)) { state.caps.fleetCommands = false; $(".fleet-commands").hidden = true; commandResult(`${command}: not available on this service`, false); return; }
+  commandResult(r.ok ? `${command} sent to ${ids.length} vehicles` : `${command} refused (${r.status}): ${r.data.reason ?? ""}`, r.ok);
+}
+
+async function vehicleCommand(id, command) {
+  const r = await api("POST", `/api/vehicles/${encodeURIComponent(id)}/commands`, { command, confirm: true });
+  if (unavailable(r)) { state.caps.vehicleCommands = false; showVehicleTable(); commandResult(`${command}: not available on this service`, false); return; }
+  commandResult(r.ok ? `${command} sent to ${id}` : `${command} ${id} refused (${r.status}): ${r.data.reason ?? ""}`, r.ok);
 }
 
 // ------------------------------------------------------------------ flying
 
-const ACTIVE = ["starting", "running", "aborting"];
-
 async function fly() {
-  if (!state.mission) return;
+  if (flyBlocker()) return;  // the button is disabled then; a stale click does nothing
+  const mission = state.mission;
   $("#fly-button").disabled = true;
   $("#event-log").innerHTML = "";
   $("#flight-summary").textContent = "";
-  const { status, data } = await api("POST", `/api/missions/${state.mission.id}/executions`);
+  const { status, data } = await api("POST", `/api/missions/${mission.id}/executions`);
   if (status !== 201) {
     $("#execution-status").textContent = `refused (${status}): ${data.reason}`;
     $("#execution-status").className = "bad";
-    $("#fly-button").disabled = false;
+    updateFlyButton();
     return;
   }
+  $("#follow").checked = true;
   followExecution(data);
+  loadFlights(mission.id);
+  refreshMissionList();
+  $("#fly-screen").scrollIntoView({ block: "nearest" });
 }
 
 function followExecution(execution) {
   if (state.flightStream) state.flightStream.close();
+  closeReplay();
+  if (state.execution !== execution.id) clearFlightView();
   state.execution = execution.id;
+  state.flightActive = true;
+  state.paused = Boolean(execution.paused);
   setExecutionStatus(execution.status);
+  updateFlyButton();
+  if (!state.mission || state.mission.id !== execution.mission_id) {
+    showFlownMission(execution.mission_id);  // flown from elsewhere: show its plan
+  }
   const source = new EventSource(`/api/executions/${execution.id}/events`);
   state.flightStream = source;
   source.addEventListener("telemetry", (ev) => showTelemetry(JSON.parse(ev.data)));
   source.addEventListener("event", (ev) => logEvent(JSON.parse(ev.data)));
-  source.addEventListener("status", (ev) => setExecutionStatus(JSON.parse(ev.data).status));
+  source.addEventListener("status", (ev) => {
+    setExecutionStatus(JSON.parse(ev.data).status);
+    if (state.mission) loadFlights(state.mission.id);  // its badges follow
+    refreshMissionList();
+  });
   source.addEventListener("done", (ev) => {
     source.close();
     state.flightStream = null;
     const done = JSON.parse(ev.data);
-    setExecutionStatus(done.status);
-    showFlightSummary(done);
-    $("#fly-button").disabled = false;
+    flightEnded(done.status, done);
   });
   source.onerror = () => {  // stream lost: poll the execution instead
     source.close();
@@ -695,53 +1073,76 @@ function followExecution(execution) {
   };
 }
 
+function flightEnded(status, done) {
+  state.flightActive = false;
+  state.paused = false;
+  setExecutionStatus(status, Boolean(done && done.summary && done.summary.completed));
+  showFlightSummary(done);
+  showClock();
+  showVehicleTable();
+  updateFlyButton();
+  refreshMissionList();
+  if (state.mission) loadFlights(state.mission.id);
+}
+
+// Show the plan of a flight started elsewhere. A page with nothing planned yet takes that
+// mission into its form too; otherwise the operator's form is kept (and reads as stale).
+async function showFlownMission(id) {
+  if (state.mission || state.planning || state.touched) { showMission(id, null); return; }
+  const got = await api("GET", `/api/missions/${id}`);
+  if (!got.ok) return;
+  fillForm(got.data.scenario);
+  state.presetName = null;
+  showMission(id, formKey());
+}
+
+// A flight is under way while it has no finish time.
+const isLive = (execution) => !execution.finished_at;
+
 async function pollExecution(id) {
   const { ok, data } = await api("GET", `/api/executions/${id}`);
   if (!ok) return;
-  setExecutionStatus(data.status);
-  if (ACTIVE.includes(data.status)) followExecution(data);
-  else { showFlightSummary(data); $("#fly-button").disabled = false; }
+  if (isLive(data)) followExecution(data);
+  else { state.execution = id; flightEnded(data.status, data); }
 }
 
-function setExecutionStatus(status) {
+// `good`: the finished flight completed (from its summary); undefined while it flies.
+function setExecutionStatus(status, good) {
   const el = $("#execution-status");
   el.textContent = `flight ${state.execution}: ${status}`;
   el.dataset.status = status;
-  el.className = status === "completed" ? "ok" : (ACTIVE.includes(status) ? "" : "bad");
-  $("#flight-banner").textContent = ACTIVE.includes(status) ? `✈ flight ${state.execution}: ${status}` : "";
-}
-
-function showVehicleTable(vehicles) {
-  const tbody = $("#vehicle-state tbody");
-  tbody.innerHTML = "";
-  for (const v of vehicles) {
-    const tr = document.createElement("tr");
-    tr.dataset.id = v.id;
-    const age = v.heartbeat_age === null || v.heartbeat_age === undefined ? "–" : `${v.heartbeat_age.toFixed(1)} s`;
-    const pos = v.position ? v.position.map((x) => x.toFixed(2)).join(", ") : "–";
-    const err = v.tracking_error === null || v.tracking_error === undefined ? "" : ` (±${v.tracking_error.toFixed(2)} m)`;
-    const armed = v.armed === null || v.armed === undefined ? "–" : (v.armed ? "armed" : "disarmed");
-    for (const text of [v.id, v.phase ?? "idle", v.mode ?? "–", armed, age, pos + err]) {
-      const td = document.createElement("td");
-      td.textContent = text;
-      tr.appendChild(td);
-    }
-    if (v.fault) tr.className = "bad";
-    tbody.appendChild(tr);
-  }
+  el.className = state.flightActive || good === undefined ? "" : (good ? "ok" : "bad");
+  $("#flight-banner").textContent = state.flightActive ? `✈ ${status}` : "";
+  $("#flight-banner").title = state.flightActive ? `flight ${state.execution}` : "";
 }
 
 function showTelemetry(t) {
-  showVehicleTable(t.vehicles);
-  const clock = t.mission_time === null ? "" : ` · t = ${t.mission_time.toFixed(1)} / ${t.horizon.toFixed(0)} s`;
-  const sep = t.min_separation_live === null ? "" : ` · closest pair now ${t.min_separation_live.toFixed(2)} m`;
-  $("#flight-phase").textContent = `${t.phase}${clock}${sep}`;
-  const xs = [], ys = [], zs = [], ids = [];
+  state.live = t;
   for (const v of t.vehicles) {
-    if (v.position) { xs.push(v.position[0]); ys.push(v.position[1]); zs.push(v.position[2]); ids.push(v.id); }
+    if (!v.position) continue;
+    const trail = state.trails[v.id] || (state.trails[v.id] = []);
+    trail.push([v.position[0], v.position[1]]);
+    if (trail.length > TRAIL_POINTS) trail.splice(0, trail.length - TRAIL_POINTS);
   }
-  if (state.traj && $("#plot3d").data) {
-    Plotly.restyle("plot3d", { x: [xs], y: [ys], z: [zs], text: [ids] }, [state.traj.vehicles.length + 1]);
+  // Draw once per frame at most: a slow machine skips frames instead of falling behind.
+  if (!state.drawPending) {
+    state.drawPending = true;
+    requestAnimationFrame(() => { state.drawPending = false; drawTelemetry(state.live); });
+  }
+}
+
+function drawTelemetry(t) {
+  if (!t) return;
+  showVehicleTable();
+  const sep = t.min_separation_live === null ? "" : `closest pair now ${t.min_separation_live.toFixed(2)} m`;
+  $("#flight-phase").textContent = sep;
+  if ($("#follow").checked && state.traj && t.mission_time !== null && t.mission_time !== undefined) {
+    const slider = $("#time-slider");
+    slider.value = clamp(Math.round(t.mission_time * state.traj.rate), 0, Number(slider.max));
+    setTime(Number(slider.value));
+  } else {
+    drawFlyMoving();
+    showClock();
   }
 }
 
@@ -766,8 +1167,9 @@ function showFlightSummary(done) {
 async function abortAll() {
   // Abort the flight shown and any other one under way: this button must always work.
   const { ok, data } = await api("GET", "/api/executions?active=true");
-  const ids = new Set(ok ? data.executions.map((e) => e.id) : []);
-  if (state.execution && ACTIVE.includes($("#execution-status").dataset.status)) ids.add(state.execution);
+  const ids = new Set(ok ? rowsOf(data, "executions").map((e) => e.id) : []);
+  if (state.execution && state.flightActive) ids.add(state.execution);
+  if (state.fleet && state.fleet.flying) ids.add(state.fleet.flying);
   if (!ids.size) { $("#flight-banner").textContent = "nothing is flying"; return; }
   for (const id of ids) {
     const r = await api("POST", `/api/executions/${id}/abort`, { action: "land" });
@@ -775,50 +1177,202 @@ async function abortAll() {
   }
 }
 
-async function refreshVehicles() {
-  if (state.flightStream) return;  // the flight's telemetry fills the table meanwhile
-  const { ok, data } = await api("GET", "/api/vehicles");
-  if (!ok) return;
-  showVehicleTable(data.vehicles);
-  if (data.fleet.flying && data.fleet.flying !== state.execution) {
-    pollExecution(data.fleet.flying);  // a flight started elsewhere: show it (and its Abort)
+// ------------------------------------------------------------------ flight history
+
+// A status badge for a flight: green completed, neutral while flying, red otherwise.
+function flightBadge(execution) {
+  const span = document.createElement("span");
+  span.className = `status-badge ${isLive(execution) ? "live" : (execution.summary && execution.summary.completed ? "good" : "poor")}`;
+  span.textContent = execution.status;
+  return span;
+}
+
+async function loadFlights(missionId) {
+  const { ok, data } = await api("GET", `/api/missions/${missionId}/executions`);
+  const list = $("#flight-list");
+  if (!ok || !state.mission || state.mission.id !== missionId) return;
+  list.innerHTML = "";
+  const flights = rowsOf(data, "executions");
+  if (!flights.length) {
+    const li = document.createElement("li");
+    li.className = "muted";
+    li.textContent = "not flown yet";
+    list.appendChild(li);
+    return;
+  }
+  for (const e of flights) {
+    const li = document.createElement("li");
+    li.dataset.id = e.id;
+    li.dataset.status = e.status;
+    li.classList.toggle("selected", e.id === state.execution);
+    const when = new Date(e.created_at).toLocaleTimeString();
+    li.append(flightBadge(e), ` ${e.id} · ${when}`);
+    if (e.summary && e.summary.goal_error_max !== undefined) li.append(` · goal error ${fmt(e.summary.goal_error_max, 2)} m`);
+    li.title = isLive(e) ? "flying: follow it" : "reopen: summary, events, replay";
+    li.addEventListener("click", () => openFlight(e.id));
+    list.appendChild(li);
   }
 }
 
-// ------------------------------------------------------------------ service status
+async function openFlight(id) {
+  const { ok, data } = await api("GET", `/api/executions/${id}`);
+  if (!ok) return;
+  if (isLive(data)) { followExecution(data); return; }
+  if (state.flightActive) return;  // the flight under way keeps the screen
+  stopPlay();
+  state.execution = id;
+  clearFlightView();
+  setExecutionStatus(data.status, Boolean(data.summary && data.summary.completed));
+  showFlightSummary(data);
+  $$("#flight-list li").forEach((li) => li.classList.toggle("selected", li.dataset.id === id));
+  let events = data.events;
+  let record = null;
+  if (data.has_record !== false) {
+    const r = await api("GET", `/api/executions/${id}/record`);
+    if (r.ok) record = r.data;
+  }
+  if (!events && record) events = record.events;
+  $("#event-log").innerHTML = "";
+  for (const e of events || []) logEvent(e);
+  if (record) startReplay(id, record);
+}
+
+// Replay: recorded positions against the plan, on mission time (record t - mission_start).
+function startReplay(id, record) {
+  const t0 = record.mission_start ?? 0;
+  state.replay = {
+    id,
+    vehicles: record.vehicles.map((v) => ({
+      id: v.id, t: v.telemetry.t.map((t) => t - t0), position: v.telemetry.position,
+    })).filter((v) => v.t.length),
+  };
+  const scale = state.mission.plan.scenario.separation_scale || [1, 1, 1];
+  state.measured = measuredSeparation(state.replay.vehicles, scale, horizon());
+  if (state.measured) state.measured.label = `measured (flight ${id})`;
+  if (state.sepTraj) renderSeparation(state.mission.plan, state.sepTraj);
+  $("#follow").checked = false;
+  const slider = $("#time-slider");
+  slider.value = slider.max;  // the end: where everyone went; ▶ or the slider replays it
+  setTime(Number(slider.value));
+}
+
+function closeReplay() {
+  if (!state.replay) return;
+  state.replay = null;
+  state.measured = null;
+  if (state.sepTraj && state.mission) renderSeparation(state.mission.plan, state.sepTraj);
+}
+
+// ------------------------------------------------------------------ missions list
+
+async function refreshMissionList() {
+  const [missions, flights] = await Promise.all([
+    api("GET", "/api/missions?limit=30"), api("GET", "/api/executions"),
+  ]);
+  if (!missions.ok) return;
+  // Flights per mission, newest first (the executions list is newest first).
+  const byMission = new Map();
+  for (const e of flights.ok ? rowsOf(flights.data, "executions") : []) {
+    if (!byMission.has(e.mission_id)) byMission.set(e.mission_id, []);
+    byMission.get(e.mission_id).push(e);
+  }
+  const list = $("#mission-list");
+  list.innerHTML = "";
+  for (const m of rowsOf(missions.data, "missions")) {
+    const li = document.createElement("li");
+    li.dataset.id = m.id;
+    li.classList.toggle("selected", Boolean(state.mission && state.mission.id === m.id));
+    const when = new Date(m.created_at).toLocaleString();
+    const name = document.createElement("b");
+    name.textContent = m.name;
+    const plan = m.plan_status ? (m.plan_ok ? "verified" : `${m.plan_status}, not verified`) : m.status;
+    li.append(name, ` · ${m.vehicle_count} vehicles · ${plan} · `);
+    const flown = byMission.get(m.id) || (m.flights ? null : []);
+    const count = flown ? flown.length : m.flights.count;
+    const flightsSpan = document.createElement("span");
+    flightsSpan.className = "flight-count";
+    flightsSpan.textContent = count ? `${count} flight${count > 1 ? "s" : ""} ` : "not flown ";
+    li.append(flightsSpan);
+    if (flown && flown.length) li.append(flightBadge(flown[0]));
+    const small = document.createElement("span");
+    small.className = "muted small";
+    small.textContent = ` ${when}`;
+    li.append(small);
+    li.addEventListener("click", async () => {
+      const got = await api("GET", `/api/missions/${m.id}`);
+      if (!got.ok) return;
+      if (state.planStream) { state.planStream.close(); state.planStream = null; }
+      fillForm(got.data.scenario);
+      state.presetName = null;
+      state.rejected = false;
+      showMission(m.id, formKey());
+    });
+    list.appendChild(li);
+  }
+}
+
+// ------------------------------------------------------------------ fleet and service status
+
+async function refreshVehicles() {
+  const { ok, data } = await api("GET", "/api/vehicles");
+  if (!ok) return;
+  state.vehicles = data.vehicles;
+  const hadOrigin = Boolean(origin());
+  state.fleet = { ...(state.fleet || {}), ...data.fleet };
+  if (Boolean(origin()) !== hadOrigin) drawFlyStatic();
+  showVehicleTable();
+  updateFlyButton();
+  if (data.fleet.flying && data.fleet.flying !== state.execution && !state.flightActive) {
+    pollExecution(data.fleet.flying);  // a flight started elsewhere: show it (and its Abort)
+  }
+}
 
 async function refreshStatus() {
   const { ok, data } = await api("GET", "/api/status");
   const el = $("#service-status");
   if (!ok) { el.textContent = "service unreachable"; el.className = "bad"; return; }
   el.className = "muted";
+  state.statuses = data.statuses || state.statuses;
   const fleet = data.fleet;
-  el.textContent = `fleet: ${fleet.kind === "none" ? "none" : `${fleet.vehicles} ${fleet.kind} vehicles`} · planning jobs: ${data.planning_jobs}`;
-  $("#fleet-label").textContent = fleet.kind === "none" ? "no fleet configured" : `on ${fleet.vehicles} ${fleet.kind} vehicles`;
+  el.textContent = `${fleet.kind === "none" ? "no fleet" : `${fleet.vehicles} ${fleet.kind} vehicles`} · planning ${data.planning_jobs}`;
+  el.title = `fleetplan ${data.version}: fleet ${fleet.kind}, ${data.planning_jobs} planning jobs`;
+  state.fleet = { ...(state.fleet || {}), ...fleet };
+  updateFlyButton();
 }
 
 // ------------------------------------------------------------------ start
 
-function start() {
+async function start() {
   buildLimitRows();
   $("#scenario-form").addEventListener("submit", submitPlan);
-  $("#preset-load").addEventListener("click", loadPreset);
+  $("#scenario-form").addEventListener("input", formEdited);
+  $("#preset").addEventListener("change", presetChosen);
+  $("#preset-load").addEventListener("click", () => loadPreset());
   $("#add-vehicle").addEventListener("click", () => {
     const { lo, hi } = workspace();
     const mid = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 1];
     addVehicleRow({ id: nextVehicleId(), start: mid.map(round2), goal: mid.map(round2) });
     selectVehicle(vehicleRows().length - 1);
     $('input[name="place"][value="start"]').checked = true;
+    formEdited();
   });
   $("#top-view").addEventListener("click", onTopViewClick);
-  $$('tr[data-limit] input').forEach((i) => i.addEventListener("input", drawTopView));
-  $("#time-slider").addEventListener("input", (ev) => setTime(Number(ev.target.value)));
+  $("#time-slider").addEventListener("input", (ev) => {
+    $("#follow").checked = false;  // the operator looks elsewhere in time; "follow" brings it back
+    setTime(Number(ev.target.value));
+  });
+  $("#follow").addEventListener("change", () => drawTelemetry(state.live));
   $("#play").addEventListener("click", togglePlay);
   $("#fly-button").addEventListener("click", fly);
+  $("#pause-button").addEventListener("click", () => pauseOrResume("pause"));
+  $("#resume-button").addEventListener("click", () => pauseOrResume("resume"));
+  for (const b of $$(".fleet-commands button")) b.addEventListener("click", () => fleetCommand(b.dataset.command));
   $("#abort-button").addEventListener("click", abortAll);
-  loadExampleList().then(loadPreset);
+  await refreshStatus();  // the status sets first: every mission shown is judged by them
+  // The first preset fills the form, unless the operator started typing meanwhile.
+  loadExampleList().then(() => { if (!state.touched) loadPreset(true); });
+  loadCapabilities();
   refreshMissionList();
-  refreshStatus();
   refreshVehicles();
   setInterval(refreshStatus, 5000);
   setInterval(refreshVehicles, 2000);

@@ -63,7 +63,11 @@ def status_sets() -> dict[str, dict[str, list[str]]]:
     execution statuses with the active and finished subsets, and the planner's plan
     statuses."""
     return {
-        "mission": {"all": [s.value for s in MissionStatus]},
+        "mission": {
+            "all": [s.value for s in MissionStatus],
+            "active": [MissionStatus.PLANNING.value],
+            "failed": [MissionStatus.FAILED.value],
+        },
         "execution": {
             "all": [s.value for s in ExecutionStatus],
             "active": [s.value for s in EXECUTION_ACTIVE],

@@ -65,6 +65,8 @@ def test_openapi_publishes_the_derived_components_and_readable_operation_ids() -
 def test_status_publishes_every_status_set(client: TestClient) -> None:
     statuses = client.get("/api/status").json()["statuses"]
     assert statuses["mission"]["all"] == [s.value for s in MissionStatus]
+    assert statuses["mission"]["active"] == ["planning"]
+    assert statuses["mission"]["failed"] == ["failed"]
     assert statuses["execution"]["all"] == [s.value for s in ExecutionStatus]
     assert statuses["execution"]["active"] == ["starting", "running", "aborting"]
     assert set(statuses["execution"]["active"]) == set(EXECUTION_ACTIVE)

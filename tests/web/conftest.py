@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, Page, sync_playwright
+from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
 
 from tests.api.support import ServiceProcess, free_udp_base
 
@@ -51,13 +51,36 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess
         yield running
 
 
+#: The operator's screens the page is made for: a laptop and a phone.
+DESKTOP = {"width": 1440, "height": 900}
+PHONE = {"width": 390, "height": 844}
+
+
 @pytest.fixture
-def page(browser: Browser, service: ServiceProcess) -> Iterator[Page]:
-    context = browser.new_context(viewport={"width": 1400, "height": 1000})
-    opened = context.new_page()
-    errors: list[str] = []
-    opened.on("pageerror", lambda exc: errors.append(str(exc)))
-    opened.goto(service.base_url + "/")
-    yield opened
-    context.close()
-    assert not errors, f"JavaScript errors on the page: {errors}"
+def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..., Page]]:
+    """open_page(viewport, before=None): a fresh page on the service; `before(page)` runs
+    before it loads (to install routes). Every page must end without JavaScript errors."""
+    contexts: list[tuple[BrowserContext, list[str]]] = []
+
+    def opener(viewport: dict[str, int] = DESKTOP,
+               before: Callable[[Page], None] | None = None) -> Page:
+        context = browser.new_context(viewport=viewport)
+        opened = context.new_page()
+        errors: list[str] = []
+        opened.on("pageerror", lambda exc: errors.append(str(exc)))
+        contexts.append((context, errors))
+        if before is not None:
+            before(opened)
+        opened.goto(service.base_url + "/")
+        return opened
+
+    yield opener
+    for context, errors in contexts:
+        context.close()
+        assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+@pytest.fixture
+def page(open_page: Callable[..., Page]) -> Page:
+    """The page at 1440x900."""
+    return open_page(DESKTOP)

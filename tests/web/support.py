@@ -1,0 +1,115 @@
+"""Helpers for the browser tests: type a scenario as an operator would, plan it, read ids."""
+
+from __future__ import annotations
+
+import json
+import re
+from typing import Any
+
+import httpx
+from playwright.sync_api import Page, Route, expect
+
+from tests.api.support import SHORT_CROSSING, ServiceProcess
+
+__all__ = ["CROSSING", "HEALTH", "ORIGIN", "VEHICLES", "assert_fits", "fill_scenario", "plan",
+           "planned_api", "shown_mission_id"]
+
+# A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
+VEHICLES = [
+    ("a", (1.0, 2.8, 1.2), (5.0, 3.4, 1.4)),
+    ("b", (5.0, 3.0, 1.6), (1.0, 3.2, 1.5)),
+    ("c", (2.9, 1.0, 1.3), (3.2, 5.0, 1.7)),
+    ("d", (3.1, 5.0, 1.8), (2.8, 1.0, 1.2)),
+]
+
+
+def fill_scenario(
+    page: Page, name: str = "browser-swap", steps: int = 100,
+    vehicles: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = VEHICLES,
+) -> None:
+    """Type a whole scenario into the form, as an operator would."""
+    page.fill("#f-name", name)
+    page.fill("#f-dt", "0.2")
+    page.fill("#f-steps", str(steps))
+    page.fill("#f-min_separation", "1.0")
+    limits = {"position_min": (0, 0, 0), "position_max": (6, 6, 3), "velocity_max": (2, 2, 2),
+              "acceleration_max": (3, 3, 3), "jerk_max": (5, 5, 5)}
+    for key, values in limits.items():
+        for axis, value in enumerate(values):
+            page.fill(f'input[data-field="limits.{key}[{axis}]"]', str(value))
+    # Start from an empty table: remove every row, then add ours.
+    while page.locator("#vehicle-table tr.vehicle").count():
+        page.locator("#vehicle-table tr.vehicle .remove-vehicle").first.click()
+    for index, (vid, start, goal) in enumerate(vehicles):
+        page.click("#add-vehicle")
+        page.fill(f'input[data-field="vehicles[{index}].id"]', vid)
+        for axis in range(3):
+            page.fill(f'input[data-field="vehicles[{index}].start[{axis}]"]', str(start[axis]))
+            page.fill(f'input[data-field="vehicles[{index}].goal[{axis}]"]', str(goal[axis]))
+
+
+#: SHORT_CROSSING's vehicles (a 10 s flight for the mock fleet) as form rows.
+CROSSING = [(v["id"], tuple(v["start"]), tuple(v["goal"])) for v in SHORT_CROSSING["vehicles"]]
+
+
+def plan(page: Page, expect_text: str = "converged") -> str:
+    """Press Plan, wait for the plan to be shown; the id of the mission shown."""
+    page.click("#plan-button")
+    expect(page.locator("#plan-state")).to_contain_text(expect_text, timeout=60_000)
+    expect(page.locator("#min-separation-value")).to_be_visible(timeout=30_000)
+    expect(page.locator("#fly-view polyline.planned-path").first).to_be_attached()
+    expect(page.locator("#stale-banner")).to_be_hidden()
+    return shown_mission_id(page)
+
+
+def shown_mission_id(page: Page) -> str:
+    return page.locator("#mission-title").inner_text().split("·")[1].strip()
+
+
+ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}
+HEALTH = {  # per vehicle: battery, gps, health as the planned GET /api/vehicles gives them
+    0: ({"remaining": 0.82, "voltage": 16.1}, {"fix_type": 3, "satellites": 14}, {"ok": True}),
+    1: ({"remaining": 0.15, "voltage": 14.2}, {"fix_type": 1, "satellites": 3},
+        {"ok": False, "failures": ["gyro"]}),
+}
+
+
+def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]) -> None:
+    """Routes giving the page the planned endpoints; requests to them land in `sent`."""
+    spec = httpx.get(f"{service.base_url}/openapi.json").json()
+    for path in ("/api/executions/{execution_id}/pause", "/api/executions/{execution_id}/resume",
+                 "/api/fleet/commands", "/api/vehicles/{vehicle_id}/commands"):
+        spec["paths"][path] = {"post": {"responses": {"202": {"description": "accepted"}}}}
+
+    def vehicles(route: Route) -> None:
+        answer = httpx.get(route.request.url).json()
+        answer["fleet"]["world_origin"] = ORIGIN
+        for i, v in enumerate(answer["vehicles"]):
+            if i in HEALTH:
+                v["battery"], v["gps"], v["health"] = HEALTH[i]
+        route.fulfill(status=200, content_type="application/json", body=json.dumps(answer))
+
+    def command(route: Route) -> None:
+        path = route.request.url.removeprefix(service.base_url)
+        sent.append((path, route.request.post_data_json))
+        route.fulfill(status=202, content_type="application/json", body='{"accepted": true}')
+
+    page.route("**/openapi.json", lambda route: route.fulfill(
+        status=200, content_type="application/json", body=json.dumps(spec)))
+    page.route(re.compile(r".*/api/vehicles$"), vehicles)
+    page.route(re.compile(r".*/api/(fleet|vehicles/[^/]+)/commands$"), command)
+    page.route(re.compile(r".*/api/executions/[^/]+/(pause|resume)$"), command)
+
+
+NO_SIDEWAYS_SCROLL = ("() => ({doc: document.documentElement.scrollWidth, "
+                      "body: document.body.scrollWidth, view: window.innerWidth})")
+WIDER_THAN_VIEW = ("() => Array.from(document.querySelectorAll('body *'))"
+                   ".filter(e => e.getBoundingClientRect().right > window.innerWidth + 0.5)"
+                   ".map(e => e.tagName + '#' + e.id + '.' + e.className)")
+
+
+def assert_fits(page: Page) -> None:
+    widths = page.evaluate(NO_SIDEWAYS_SCROLL)
+    assert widths["doc"] <= widths["view"] and widths["body"] <= widths["view"], widths
+    # Inner scroll areas (the fleet table's wrapper) may scroll; nothing pokes out of the page.
+    assert page.evaluate(WIDER_THAN_VIEW) == []

@@ -1,0 +1,90 @@
+"""The page's side of the planned fleet-control API (pause/resume, fleet and vehicle commands,
+battery/GPS/health, geodetic origin): this service does not have it yet, so the browser is
+given it through Playwright routes, and the test checks what the page sends and shows. The
+real service's side is tested in tests/api when it lands."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import httpx
+from playwright.sync_api import Page, expect
+
+from gcs.frames import Geodetic, enu_to_geodetic
+from tests.api.support import ServiceProcess
+from tests.web.support import CROSSING, ORIGIN, fill_scenario, plan, planned_api
+
+
+def test_commands_health_and_geodetic_reference(open_page, service: ServiceProcess) -> None:
+    sent: list[tuple[str, Any]] = []
+    page = open_page(before=lambda p: planned_api(p, service, sent))
+    fill_scenario(page, "controls", 50, CROSSING)
+    plan(page)
+
+    # Fleet commands: visible, and sent with every fleet vehicle and the confirmation.
+    expect(page.locator(".fleet-commands")).to_be_visible()
+    expect(page.locator("#pause-button")).to_be_visible()
+    expect(page.locator("#pause-button")).to_be_disabled()  # nothing is flying
+    ids = httpx.get(f"{service.base_url}/api/vehicles").json()["fleet"]["ids"]
+    page.click('.fleet-commands button[data-command="land"]')
+    expect(page.locator("#command-result")).to_have_text(f"land sent to {len(ids)} vehicles")
+    page.click('.fleet-commands button[data-command="rtl"]')
+    expect(page.locator("#command-result")).to_have_text(f"rtl sent to {len(ids)} vehicles")
+    # Per vehicle, from its row in the fleet table.
+    first = page.locator("#vehicle-state tbody tr").first
+    vid = first.get_attribute("data-id")
+    first.locator('button[data-vehicle-command="hold"]').click()
+    expect(page.locator("#command-result")).to_have_text(f"hold sent to {vid}")
+    assert sent == [
+        ("/api/fleet/commands", {"command": "land", "vehicles": ids, "confirm": True}),
+        ("/api/fleet/commands", {"command": "rtl", "vehicles": ids, "confirm": True}),
+        (f"/api/vehicles/{vid}/commands", {"command": "hold", "confirm": True}),
+    ]
+
+    # Health columns appear with the data, coloured by level.
+    heads = page.locator("#vehicle-state thead th").all_inner_texts()
+    assert {"battery", "GPS", "health"} <= set(heads)
+    rows = page.locator("#vehicle-state tbody tr")
+    expect(rows.nth(0).locator('td[data-key="battery"]')).to_have_text("82 %")
+    expect(rows.nth(0).locator('td[data-key="battery"]')).to_have_attribute("title", "16.1 V")
+    expect(rows.nth(0).locator('td[data-key="battery"]')).to_have_class("cell-ok")
+    expect(rows.nth(1).locator('td[data-key="battery"]')).to_have_class("cell-bad")
+    expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_text("3D 14")
+    expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_attribute(
+        "title", "3D fix, 14 satellites")
+    expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_class("cell-ok")
+    expect(rows.nth(1).locator('td[data-key="gps"]')).to_have_class("cell-bad")
+    expect(rows.nth(1).locator('td[data-key="health"]')).to_have_text("gyro")
+    expect(rows.nth(1).locator('td[data-key="health"]')).to_have_class("cell-bad")
+
+    # Geodetic reference: the workspace corners' coordinates (checked against gcs.frames'
+    # exact ECEF conversion), a north arrow and a scale bar.
+    expect(page.locator("#geo-label")).to_contain_text("47.397742° N 8.545594° E")
+    corners = page.locator("#fly-view text.corner").all_text_contents()
+    origin = Geodetic(ORIGIN["lat"], ORIGIN["lon"], ORIGIN["alt"])
+    for text, (x, y) in zip(corners, [(0, 6), (6, 0)], strict=True):
+        lat, lon = (float(v) for v in re.findall(r"(\d+\.\d+)°", text))
+        exact = enu_to_geodetic([x, y, 0.0], origin)
+        assert abs(lat - exact.lat) < 2e-6 and abs(lon - exact.lon) < 2e-6, (text, exact)
+    expect(page.locator("#fly-view g.scale-bar")).to_have_attribute("data-metres", "1")
+    expect(page.locator("#fly-view g.scale-bar text")).to_have_text("1 m")
+
+
+def test_unavailable_endpoint_hides_its_button(open_page, service: ServiceProcess) -> None:
+    """An endpoint listed but answering 404 (an older service behind a proxy, say): the
+    button goes, and the operator is told."""
+    sent: list[tuple[str, Any]] = []
+
+    def routes(p: Page) -> None:
+        planned_api(p, service, sent)
+        p.route("**/api/fleet/commands", lambda route: route.fulfill(
+            status=404, content_type="application/json", body='{"detail": "Not Found"}'))
+
+    page = open_page(before=routes)
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
+    plan(page)
+    page.click('.fleet-commands button[data-command="hold"]')
+    expect(page.locator("#command-result")).to_contain_text("not available on this service")
+    expect(page.locator(".fleet-commands")).to_be_hidden()
+    assert sent == []

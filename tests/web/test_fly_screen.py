@@ -1,0 +1,127 @@
+"""The fly screen at 1440x900 while mock vehicles fly: the top-down view with labelled live
+icons, planned paths and trails, the fleet table with health colours beside it, the progress
+bar on the plan's time slider following the flight, a clamped clock once the plan is flown,
+pause/resume and per-vehicle commands (their planned endpoints given through routes, see
+test_controls_and_health), and Abort from anywhere."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from typing import Any
+
+import httpx
+from playwright.sync_api import Page, expect
+
+from tests.api.support import ServiceProcess
+from tests.web.support import CROSSING, fill_scenario, plan, planned_api
+
+ICON_LABEL = re.compile(r"^([a-d]) (-?\d+\.\d) m$")
+
+
+def test_fly_screen_follows_the_flight_then_abort(
+    open_page: Callable[..., Page], service: ServiceProcess
+) -> None:
+    sent: list[tuple[str, Any]] = []
+    page = open_page(before=lambda p: planned_api(p, service, sent))
+    expect(page.locator("#service-status")).to_contain_text("4 mock vehicles")
+    fill_scenario(page, "browser-flight", 50, CROSSING)
+    mission_id = plan(page)
+    expect(page.locator("#pause-button")).to_be_disabled()  # nothing flying yet
+    expect(page.locator("#mapping-pairs")).to_have_text("a→mock 1, b→mock 2, c→mock 3, d→mock 4")
+    expect(page.locator("#flight-list")).to_contain_text("not flown yet")
+
+    # Every clock text the page shows, kept by the page itself (no race with the test).
+    page.evaluate("""() => { window.clockTexts = [];
+        new MutationObserver(() => window.clockTexts.push(
+            document.getElementById('time-label').textContent)).observe(
+            document.getElementById('time-label'), {childList: true, characterData: true,
+                                                     subtree: true}); }""")
+    page.click("#fly-button")
+    status = page.locator("#execution-status")
+    expect(status).to_have_attribute("data-status", "running", timeout=30_000)
+    expect(page.locator("#fly-button")).to_be_disabled()
+    expect(page.locator("#flight-list li[data-id]")).to_have_count(1)
+    expect(page.locator("#flight-list .status-badge.live")).to_have_count(1)
+    # One screen: the top-down view and the whole fleet table, together, without scrolling.
+    expect(page.locator("#fly-view")).to_be_in_viewport(ratio=1)
+    expect(page.locator("#vehicle-state")).to_be_in_viewport(ratio=1)
+    view = page.locator("#fly-view").bounding_box()
+    table = page.locator("#vehicle-state").bounding_box()
+    assert view and table and table["x"] >= view["x"] + view["width"]  # docked beside it
+
+    # Mid-plan: the slider follows mission time and the bar fills with it. One reading of
+    # the page, taken while the plan is between a quarter and nine tenths flown.
+    now = page.wait_for_function("""() => {
+        const progress = document.getElementById('flight-progress').value;
+        if (progress < 250 || progress > 900) return null;
+        return {slider: Number(document.getElementById('time-slider').value), progress,
+                label: document.getElementById('time-label').textContent,
+                icons: Array.from(document.querySelectorAll('#fly-view g.vehicle-icon text'),
+                                  (t) => t.textContent)};
+    }""", timeout=60_000).json_value()
+    mission_time = float(re.search(r"t = (\d+\.\d) s of 10\.0 s", now["label"]).group(1))
+    assert now["slider"] == round(mission_time * 10)  # trajectory sampled at 10 Hz
+    assert abs(now["progress"] - 1000 * mission_time / 10.0) <= 6
+    # Live icons: one per vehicle, labelled with id and altitude.
+    parsed = [ICON_LABEL.match(text) for text in now["icons"]]
+    assert all(parsed), now["icons"]
+    assert sorted(m.group(1) for m in parsed) == ["a", "b", "c", "d"]
+    assert all(0.1 < float(m.group(2)) <= 3.0 for m in parsed), now  # airborne, in the box
+    expect(page.locator("#fly-view polyline.planned-path")).to_have_count(4)
+    expect(page.locator("#fly-view polyline.trail")).to_have_count(4)
+    expect(page.locator("#fly-view circle.planned-icon")).to_have_count(4)
+    # The fleet table: live link, mode and arming, with health colours.
+    rows = page.locator("#vehicle-state tbody tr")
+    expect(rows).to_have_count(4)
+    expect(page.locator('#vehicle-state td[data-key="link"].cell-ok')).to_have_count(4)
+    expect(rows.first.locator('td[data-key="mode"]')).to_have_text("OFFBOARD")
+    expect(rows.first.locator('td[data-key="armed"]')).to_have_text("armed")
+    # The 3-D view shows the live positions too, labelled.
+    flown = page.evaluate("document.getElementById('plot3d').data.at(-1).text")
+    assert sorted(flown) == ["a", "b", "c", "d"]
+    # Pause and resume go to this flight; per-vehicle commands from the vehicle's row.
+    execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
+    page.click("#pause-button")
+    expect(page.locator("#resume-button")).to_be_enabled()
+    expect(page.locator("#pause-button")).to_be_disabled()
+    page.click("#resume-button")
+    expect(page.locator("#pause-button")).to_be_enabled()
+    page.locator('#vehicle-state tr[data-id="c"] button[data-vehicle-command="land"]').click()
+    expect(page.locator("#command-result")).to_have_text("land sent to c")
+    assert sent == [(f"/api/executions/{execution_id}/pause", None),
+                    (f"/api/executions/{execution_id}/resume", None),
+                    ("/api/vehicles/c/commands", {"command": "land", "confirm": True})]
+
+    expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
+    # Past the plan's end (holding, landing) the clock stopped at the horizon: never "t = 13
+    # / 10 s"; the bar full.
+    clocks = page.evaluate("window.clockTexts")
+    assert any("plan flown (10.0 s of 10.0 s), +" in c for c in clocks), clocks[-5:]
+    for c in clocks:
+        assert all(float(t) <= 10.0 for t in re.findall(r"t = (\d+\.\d)", c)), c
+    assert page.evaluate("document.getElementById('flight-progress').value") == 1000
+    expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
+    expect(page.locator("#event-log")).to_contain_text("mission_start")
+    clock = page.locator("#time-label").inner_text()
+    assert all(float(t) <= 10.0 for t in re.findall(r"t = (\d+\.\d)", clock)), clock
+    expect(page.locator("#flight-list .status-badge.good")).to_have_text("completed")
+    expect(page.locator("#fly-button")).to_be_enabled()
+    record = httpx.get(f"{service.base_url}/api/executions/{execution_id}").json()
+    assert record["status"] == "completed" and record["mission_id"] == mission_id
+
+    # Fly again and abort from the always-visible button while the fleet is in the air.
+    page.click("#fly-button")
+    expect(page.locator("#time-label")).to_contain_text("flying", timeout=30_000)
+    page.mouse.move(200, 600)
+    page.mouse.wheel(0, 5000)  # the editor scrolled away: the header (and Abort) stays
+    expect(page.locator("#abort-button")).to_be_in_viewport()
+    page.click("#abort-button")
+    expect(status).to_have_attribute("data-status", "aborted", timeout=60_000)
+    expect(page.locator("#event-log")).to_contain_text("abort")
+    expect(page.locator("#flight-banner")).to_have_text("")
+    expect(page.locator("#flight-list li[data-id]")).to_have_count(2)
+    aborted = page.locator('#flight-list li[data-status="aborted"] .status-badge.poor')
+    expect(aborted).to_be_visible()
+    vehicles = httpx.get(f"{service.base_url}/api/vehicles").json()
+    assert vehicles["fleet"]["flying"] is None

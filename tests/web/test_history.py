@@ -1,0 +1,108 @@
+"""Flight history: each mission lists its flights with status badges; a finished flight's
+summary, events and plots reopen; replay shows the recorded positions against the plan,
+driven by the time slider."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import httpx
+import numpy as np
+from playwright.sync_api import Page, expect
+
+from tests.api.support import SHORT_CROSSING, ServiceProcess
+from tests.web.conftest import PHONE
+from tests.web.support import assert_fits
+
+
+def fly_through_the_api(base: str) -> tuple[str, str]:
+    """Plan SHORT_CROSSING and start flying it on the mock fleet: (mission id, flight id)."""
+    scenario = {**SHORT_CROSSING, "name": "history-flight"}
+    mission = httpx.post(f"{base}/api/missions?wait=60", json=scenario, timeout=90).json()
+    assert mission["plan_ok"], mission
+    flight = httpx.post(f"{base}/api/missions/{mission['id']}/executions", timeout=30).json()
+    return mission["id"], flight["id"]
+
+
+def wait_finished(base: str, flight_id: str) -> None:
+    deadline = time.monotonic() + 150
+    while time.monotonic() < deadline:
+        got = httpx.get(f"{base}/api/executions/{flight_id}", timeout=10).json()
+        if got["finished_at"]:
+            assert got["status"] == "completed", got
+            return
+        time.sleep(0.5)
+    raise AssertionError(f"flight {flight_id} did not finish")
+
+
+def test_a_flight_reopens_and_replays_against_the_plan(
+    page: Page, open_page: Callable[..., Page], service: ServiceProcess
+) -> None:
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)  # nothing planned yet
+    mission_id, flight_id = fly_through_the_api(service.base_url)
+    # A flight started elsewhere (here: the API) shows up on the open page, with its mission
+    # taken into the empty form, so the plan shown is not stale.
+    expect(page.locator("#execution-status")).to_have_attribute("data-status", "running",
+                                                                timeout=30_000)
+    expect(page.locator("#flight-banner")).to_contain_text("running")
+    expect(page.locator("#f-name")).to_have_value("history-flight")
+    expect(page.locator("#mission-title")).to_contain_text(mission_id)
+    expect(page.locator("#stale-banner")).to_be_hidden()
+    expect(page.locator("#fly-view g.vehicle-icon")).to_have_count(4, timeout=30_000)
+    expect(page.locator("#fly-button")).to_be_disabled()  # one flight at a time
+    # The same flight on a phone: still one header line, nothing sideways.
+    phone = open_page(PHONE)
+    expect(phone.locator("#flight-banner")).to_contain_text("running", timeout=30_000)
+    expect(phone.locator("#fly-view g.vehicle-icon")).to_have_count(4, timeout=30_000)
+    header = phone.locator("header").bounding_box()
+    assert header and header["height"] <= 48
+    assert_fits(phone)
+    wait_finished(service.base_url, flight_id)
+    record = httpx.get(f"{service.base_url}/api/executions/{flight_id}/record").json()
+    page.reload()
+
+    entry = page.locator(f'#mission-list li[data-id="{mission_id}"]')
+    expect(entry).to_contain_text("history-flight")
+    expect(entry).to_contain_text("1 flight")
+    expect(entry.locator(".status-badge.good")).to_have_text("completed")
+    entry.click()
+    expect(page.locator("#min-separation-value")).to_be_visible(timeout=30_000)
+    expect(page.locator("#stale-banner")).to_be_hidden()  # the form is that mission's
+    flight = page.locator(f'#flight-list li[data-id="{flight_id}"]')
+    expect(flight.locator(".status-badge.good")).to_have_text("completed")
+
+    flight.click()
+    expect(page.locator("#time-label")).to_contain_text(f"replay of flight {flight_id}")
+    expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
+    expect(page.locator("#event-log")).to_contain_text("mission_start")
+    expect(page.locator("#execution-status")).to_have_attribute("data-status", "completed")
+    # The separation plot gains the measured separation of that flight, never below what
+    # the recorded summary reports by more than its 5 Hz sampling allows.
+    measured = page.evaluate("document.getElementById('separation-plot').data.at(-1)")
+    assert measured["name"] == f"measured (flight {flight_id})"
+    assert min(measured["y"]) >= record["summary"]["min_separation_measured"] - 0.05
+
+    # The slider drives the replay: the recorded positions at that mission time, drawn in
+    # the top-down view (labelled) and the 3-D view.
+    expect(page.locator("#fly-view g.vehicle-icon")).to_have_count(4)
+    expect(page.locator("#fly-view polyline.trail")).to_have_count(4)
+    start = record["mission_start"]
+    for k in (0, 40, 100):
+        page.locator("#time-slider").fill(str(k))
+        expect(page.locator("#time-label")).to_contain_text(f"t = {k / 10:.1f} s of 10.0 s")
+        flown = page.evaluate("""() => { const t = document.getElementById('plot3d').data.at(-1);
+                                  return {ids: t.text, x: t.x, y: t.y, z: t.z}; }""")
+        for i, vid in enumerate(flown["ids"]):
+            rec = next(v for v in record["vehicles"] if v["id"] == vid)
+            t = np.asarray(rec["telemetry"]["t"]) - start
+            p = np.asarray(rec["telemetry"]["position"])
+            expected = [np.interp(k / 10, t, p[:, a]) for a in range(3)]
+            shown = [flown["x"][i], flown["y"][i], flown["z"][i]]
+            assert np.allclose(shown, expected, atol=1e-6), (vid, k, shown, expected)
+    # Replayed at the end, the vehicles are at their goals (within the recorded goal error).
+    goals = {v["id"]: v["goal"] for v in SHORT_CROSSING["vehicles"]}
+    flown = page.evaluate("document.getElementById('plot3d').data.at(-1)")
+    for i, vid in enumerate(flown["text"]):
+        err = np.linalg.norm(np.subtract([flown["x"][i], flown["y"][i], flown["z"][i]], goals[vid]))
+        assert err < 0.3, (vid, err)

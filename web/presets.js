@@ -1,0 +1,55 @@
+// Generated presets: a circle swap and a random fleet of any size, with limits and a horizon
+// long enough for them. Pure functions: scenario JSON out.
+"use strict";
+
+function transferSteps(distance, dt) {
+  // Time for a rest-to-rest move at 2 m/s, 3 m/s², with slack for avoidance manoeuvres.
+  const t = distance / 2 + 2 / 3;
+  return Math.ceil((1.6 * t + 4) / dt);
+}
+
+export function circleScenario(n) {
+  const R = 1.0;
+  const radius = Math.max(2.5, (1.6 * n * R) / (2 * Math.PI));
+  const c = radius + 1;
+  const vehicles = [];
+  for (let i = 0; i < n; i++) {
+    const a = (2 * Math.PI * i) / n;
+    const z = i % 2 ? 1.9 : 1.1;
+    const start = [c + radius * Math.cos(a), c + radius * Math.sin(a), z];
+    const goal = [c - radius * Math.cos(a), c - radius * Math.sin(a), z];
+    vehicles.push({ id: `uav${i + 1}`, start: start.map(round2), goal: goal.map(round2) });
+  }
+  return {
+    name: `circle${n}`, dt: 0.2, steps: transferSteps(2 * radius, 0.2), min_separation: R,
+    limits: standardLimits([2 * c, 2 * c, 3]), vehicles,
+  };
+}
+
+export function randomScenario(n) {
+  const R = 1.0;
+  const side = Math.max(5, Math.ceil(Math.sqrt(n * 6)));
+  const size = [side, side, 4];
+  const pick = (taken) => {
+    for (let tries = 0; tries < 10000; tries++) {
+      const p = [0.5 + Math.random() * (side - 1), 0.5 + Math.random() * (side - 1),
+                 1 + Math.random() * 2.5].map(round2);
+      if (taken.every((q) => Math.hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]) >= 1.5 * R)) return p;
+    }
+    throw new Error("workspace too crowded");
+  };
+  const starts = [], goals = [];
+  for (let i = 0; i < n; i++) { starts.push(pick(starts)); goals.push(pick(goals)); }
+  const far = Math.max(...starts.map((s, i) => Math.hypot(...s.map((v, a) => v - goals[i][a]))));
+  return {
+    name: `random${n}`, dt: 0.2, steps: transferSteps(far, 0.2), min_separation: R,
+    limits: standardLimits(size),
+    vehicles: starts.map((s, i) => ({ id: `uav${i + 1}`, start: s, goal: goals[i] })),
+  };
+}
+
+export const round2 = (x) => Math.round(x * 100) / 100;
+const standardLimits = (max) => ({
+  position_min: [0, 0, 0], position_max: max.map(round2),
+  velocity_max: [2, 2, 2], acceleration_max: [3, 3, 3], jerk_max: [5, 5, 5],
+});

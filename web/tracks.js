@@ -1,0 +1,48 @@
+// Positions over time: interpolating a recorded track, and the minimum pairwise distance of
+// a fleet (planned or recorded) in the plan's separation metric ||diag(1/scale) d||.
+"use strict";
+
+/** Linear interpolation of a track (times, points) at time t, held at its ends. */
+export function sampleAt(times, points, t) {
+  if (!times.length) return null;
+  if (t <= times[0]) return points[0];
+  if (t >= times[times.length - 1]) return points[points.length - 1];
+  let lo = 0, hi = times.length - 1;
+  while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (times[mid] <= t) lo = mid; else hi = mid; }
+  const w = (t - times[lo]) / (times[hi] - times[lo] || 1);
+  return points[lo].map((p, a) => p + w * (points[hi][a] - p));
+}
+
+/** The smallest scaled distance between any two of `points` ([[x, y, z]...]). */
+export function closestPair(points, scale) {
+  let best = Infinity;
+  for (let i = 0; i < points.length; i++) {
+    const p = points[i];
+    for (let j = i + 1; j < points.length; j++) {
+      const q = points[j];
+      const d = Math.hypot((p[0] - q[0]) / scale[0], (p[1] - q[1]) / scale[1], (p[2] - q[2]) / scale[2]);
+      if (d < best) best = d;
+    }
+  }
+  return best;
+}
+
+/** Planned minimum separation at every sample of a /trajectory answer: {t, d}. */
+export function minSeparation(plan, traj) {
+  const scale = plan.scenario.separation_scale || [1, 1, 1];
+  const d = traj.t.map((_, k) => closestPair(traj.vehicles.map((v) => v.position[k]), scale));
+  return { t: traj.t, d };
+}
+
+/** Measured minimum separation of recorded tracks [{t, position}...], 5 per second over
+ * [0, end] (mission time): {t, d}, or null with fewer than two tracks. */
+export function measuredSeparation(tracks, scale, end) {
+  if (tracks.length < 2) return null;
+  const t = [], d = [];
+  for (let k = 0; k * 0.2 <= end + 1e-9; k++) {
+    const s = k * 0.2;
+    t.push(Number(s.toFixed(3)));
+    d.push(closestPair(tracks.map((v) => sampleAt(v.t, v.position, s)), scale));
+  }
+  return { t, d };
+}
