@@ -34,9 +34,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gcs.errors import FleetFileError
+from gcs.errors import FleetFileError, LinkError
 from gcs.flight.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
+from gcs.wire import is_udp_url, parse_udp_url
 
 #: PX4 leaves offboard mode when setpoints arrive at 2 Hz or slower (PX4 docs: "> 2Hz").
 MIN_RATE_HZ = 2.0
@@ -262,12 +263,13 @@ def _parse(data: Any) -> FleetSpec:
         url = raw["connection"]
         if not isinstance(url, str) or not url.strip():
             raise FleetFileError(f"{where}.connection", "must be a pymavlink URL string")
-        scheme = url.partition(":")[0]
-        if scheme in ("udpin", "udp", "udpout"):
-            host, _, port = url.partition(":")[2].rpartition(":")
-            if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        if is_udp_url(url):
+            try:
+                parse_udp_url(url)
+            except LinkError:
+                scheme = url.partition(":")[0]
                 raise FleetFileError(f"{where}.connection",
-                                     f"must look like {scheme}:HOST:PORT, got {url!r}")
+                                     f"must look like {scheme}:HOST:PORT, got {url!r}") from None
         ids = {}
         for key, lo, hi, default in (("system_id", 1, 254, None), ("component_id", 1, 255, 1)):
             value = raw.get(key, default)

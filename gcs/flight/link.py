@@ -36,7 +36,15 @@ from typing import Any
 from gcs import px4
 from gcs.errors import CommandError, LinkError
 from gcs.flight.setpoints import Setpoint
-from gcs.wire import mavlink
+from gcs.wire import (
+    GCS_COMPONENT_ID,
+    GCS_SYSTEM_ID,
+    Datagrams,
+    is_udp_url,
+    mavlink,
+    parse_udp_url,
+    result_name,
+)
 
 __all__ = [
     "GCS_COMPONENT_ID",
@@ -47,40 +55,10 @@ __all__ = [
     "UdpEndpoint",
     "VehicleLink",
     "mavlink",
-    "parse_url",
+    "result_name",
 ]
 
-#: The GCS's own MAVLink identity: system 255, MAV_COMP_ID_MISSIONPLANNER.
-GCS_SYSTEM_ID = 255
-GCS_COMPONENT_ID = 190
-
 MessageCallback = Callable[["VehicleLink", Any, float], None]
-
-_RESULT_NAMES = {
-    mavlink.MAV_RESULT_ACCEPTED: "ACCEPTED",
-    mavlink.MAV_RESULT_TEMPORARILY_REJECTED: "TEMPORARILY_REJECTED",
-    mavlink.MAV_RESULT_DENIED: "DENIED",
-    mavlink.MAV_RESULT_UNSUPPORTED: "UNSUPPORTED",
-    mavlink.MAV_RESULT_FAILED: "FAILED",
-    mavlink.MAV_RESULT_IN_PROGRESS: "IN_PROGRESS",
-}
-
-
-def result_name(result: int | None) -> str:
-    """MAV_RESULT as a name (``no ACK`` for None)."""
-    return "no ACK" if result is None else _RESULT_NAMES.get(result, f"MAV_RESULT {result}")
-
-
-def parse_url(url: str) -> tuple[str, str, int]:
-    """(kind, host, port) of a UDP URL: kind is ``in`` or ``out``; LinkError if malformed."""
-    scheme, _, rest = url.partition(":")
-    host, _, port_text = rest.rpartition(":")
-    if scheme not in ("udpin", "udp", "udpout") or not host or not port_text.isdigit():
-        raise LinkError(f"not a UDP MAVLink URL (udpin:HOST:PORT or udpout:HOST:PORT): {url!r}")
-    port = int(port_text)
-    if not 0 < port < 65536:
-        raise LinkError(f"port out of range in {url!r}")
-    return ("out" if scheme == "udpout" else "in"), host, port
 
 
 class Endpoint:
@@ -139,23 +117,12 @@ class Endpoint:
         raise NotImplementedError
 
 
-class _Datagrams(asyncio.DatagramProtocol):
-    def __init__(self, endpoint: UdpEndpoint) -> None:
-        self.endpoint = endpoint
-
-    def datagram_received(self, data: bytes, addr: Any) -> None:
-        self.endpoint._received(data, addr)
-
-    def error_received(self, exc: Exception) -> None:  # ICMP port unreachable etc.
-        self.endpoint.send_errors += 1
-
-
 class UdpEndpoint(Endpoint):
     """A UDP endpoint on the running asyncio loop (``udpin``/``udp`` or ``udpout``)."""
 
     def __init__(self, url: str) -> None:
         super().__init__(url)
-        self.kind, self.host, self.port = parse_url(url)
+        self.kind, self.host, self.port = parse_udp_url(url)
         self.peers: dict[int, Any] = {}
         """system id -> the address it last sent from."""
         self.send_errors = 0
@@ -178,12 +145,15 @@ class UdpEndpoint(Endpoint):
         sock.setblocking(False)
         self._sock = sock
         self._transport, _ = await loop.create_datagram_endpoint(
-            lambda: _Datagrams(self), sock=sock)
+            lambda: Datagrams(self._received, self._send_error), sock=sock)
 
     def close(self) -> None:
         if self._transport is not None:
             self._transport.close()
             self._transport = None
+
+    def _send_error(self, exc: Exception) -> None:
+        self.send_errors += 1
 
     def _received(self, data: bytes, addr: Any) -> None:
         now = time.monotonic()
@@ -495,9 +465,7 @@ class LinkHub:
                   component_id: int = 1) -> VehicleLink:
         endpoint = self.endpoints.get(url)
         if endpoint is None:
-            scheme = url.partition(":")[0]
-            endpoint = UdpEndpoint(url) if scheme in ("udpin", "udp", "udpout") \
-                else ThreadedEndpoint(url)
+            endpoint = UdpEndpoint(url) if is_udp_url(url) else ThreadedEndpoint(url)
             await endpoint.open()
             self.endpoints[url] = endpoint
         link = VehicleLink(vehicle_id, endpoint, system_id, component_id)

@@ -36,7 +36,7 @@ from gcs.flight.link import LinkHub, VehicleLink
 from gcs.service.events import Broadcast, Event
 from gcs.service.settings import Settings
 from gcs.service.store import ExecutionRow, Store
-from gcs.sim.mock import MockFleet, homes_under
+from gcs.sim import MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
 from planner import Plan
 

@@ -1,4 +1,4 @@
-"""gcs.sim.mock behaves like PX4 for what we use: protocol, mode rules, failsafes, and a real
+"""gcs.sim (the mock) behaves like PX4 for what we use: protocol, mode rules, failsafes, and a real
 MAVLink client (MAVSDK) can fly it."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 from gcs import px4
 from gcs.flight.link import LinkHub, VehicleLink, mavlink
 from gcs.flight.setpoints import Setpoint, hold_track
-from gcs.sim.mock import MockFleet
+from gcs.sim import MockFleet
 from tests.flight.support import mock_ports
 
 pytestmark = pytest.mark.timeout(90)
@@ -113,7 +113,7 @@ def test_offboard_and_arming_rules() -> None:
                     await asyncio.sleep(0.1)
                 assert vehicle.position_ned[2] == pytest.approx(-1.0, abs=0.05), (
                     f"mode {link.telemetry.mode}, armed {link.telemetry.armed}, "
-                    f"texts {link.telemetry.statustexts[-3:]}"
+                    f"texts {list(link.telemetry.statustexts)[-3:]}"
                 )
                 # disarming in the air is refused unless forced
                 assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,)) == \
