@@ -9,7 +9,11 @@
 - UDP URLs (``udpin:HOST:PORT`` / ``udpout:HOST:PORT``): `parse_udp_url`;
 - `parse_datagram`: one UDP datagram decoded by a fresh parser, so garbage in one datagram can
   never swallow the next one;
-- `Datagrams`: the one asyncio DatagramProtocol adapter (GCS endpoints and mock vehicles).
+- `Datagrams`: the one asyncio DatagramProtocol adapter (GCS endpoints and mock vehicles);
+- MAVLink 2 signing: key files (`load_key`, `new_key_file`), the signing clock
+  (`signing_timestamp`), `signature_of` (a packet's signature block, checked), PX4's
+  unsigned exceptions (`PX4_UNSIGNED_ACCEPTED`). The GCS's stateful part (replay window,
+  persisted timestamp) is `gcs.flight.signing`; the mock uses pymavlink's own signing code.
 
 Everything here is a constant, a pure function or a tiny adapter, so the mock can share it
 without sharing our link code (`gcs.flight.link`).
@@ -18,9 +22,13 @@ without sharing our link code (`gcs.flight.link`).
 from __future__ import annotations
 
 import asyncio
+import hashlib
 import os
+import secrets
+import stat
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -32,15 +40,25 @@ from gcs.errors import LinkError
 __all__ = [
     "GCS_COMPONENT_ID",
     "GCS_SYSTEM_ID",
+    "KEY_BYTES",
     "MAV_FRAME_LOCAL_NED",
+    "PX4_UNSIGNED_ACCEPTED",
+    "SIGNING_EPOCH_UNIX",
     "TYPE_MASK_POS_VEL_ACC_YAW",
     "Datagrams",
+    "KeyFileError",
     "ParsedDatagram",
+    "Signature",
+    "SigningKey",
     "is_udp_url",
+    "load_key",
     "mavlink",
+    "new_key_file",
     "parse_datagram",
     "parse_udp_url",
     "result_name",
+    "signature_of",
+    "signing_timestamp",
     "time_boot_ms",
 ]
 
@@ -146,3 +164,110 @@ class Datagrams(asyncio.DatagramProtocol):
     def error_received(self, exc: Exception) -> None:  # ICMP port unreachable etc.
         if self._on_error is not None:
             self._on_error(exc)
+# ---------------------------------------------------------------------------- signing
+
+#: A MAVLink 2 signing secret is 32 bytes.
+KEY_BYTES = 32
+#: The signing timestamp counts 10 us units since 2015-01-01T00:00:00Z.
+SIGNING_EPOCH_UNIX = 1_420_070_400
+#: Messages PX4 accepts unsigned while it has a key (PX4 docs "MAVLink Message Signing",
+#: mavlink_sign_control): HEARTBEAT, RADIO_STATUS, ADSB_VEHICLE, COLLISION.
+PX4_UNSIGNED_ACCEPTED = frozenset({
+    mavlink.MAVLINK_MSG_ID_HEARTBEAT, mavlink.MAVLINK_MSG_ID_RADIO_STATUS,
+    mavlink.MAVLINK_MSG_ID_ADSB_VEHICLE, mavlink.MAVLINK_MSG_ID_COLLISION,
+})
+
+
+class KeyFileError(ValueError):
+    """A signing key file that cannot be used (message names the file and the reason)."""
+
+
+@dataclass(frozen=True)
+class SigningKey:
+    """A 32-byte MAVLink 2 signing secret and the file it came from.
+
+    Its repr and `str` show only the path: the secret never reaches a log or a record.
+    """
+
+    path: Path
+    secret: bytes = field(repr=False)
+
+    def __str__(self) -> str:
+        return str(self.path)
+
+
+def signing_timestamp(unix_time: float) -> int:
+    """The signing timestamp (10 us units since 2015-01-01) of a Unix time."""
+    return max(0, int((unix_time - SIGNING_EPOCH_UNIX) * 100_000))
+
+
+def load_key(path: str | os.PathLike[str]) -> SigningKey:
+    """Read a key file (64 hex digits, as `new_key_file` writes it).
+
+    Refuses (`KeyFileError`) a file that group or others may read or write: a key anyone on
+    the machine can read authenticates nobody.
+    """
+    p = Path(path)
+    try:
+        info = p.stat()
+        text = p.read_text(encoding="ascii", errors="replace")
+    except OSError as exc:
+        raise KeyFileError(f"cannot read signing key file {p}: {exc.strerror}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise KeyFileError(f"signing key file {p} is not a regular file")
+    if info.st_mode & 0o077:
+        raise KeyFileError(f"signing key file {p} is accessible to group/others "
+                           f"(mode {stat.S_IMODE(info.st_mode):04o}): chmod 600 {p}")
+    digits = text.strip()
+    if len(digits) != 2 * KEY_BYTES or any(c not in "0123456789abcdefABCDEF" for c in digits):
+        raise KeyFileError(f"signing key file {p} must hold {KEY_BYTES} bytes as "
+                           f"{2 * KEY_BYTES} hex digits")
+    return SigningKey(p, bytes.fromhex(digits))
+
+
+def new_key_file(path: str | os.PathLike[str]) -> SigningKey:
+    """Create a new random key file readable by its owner only (0600); never overwrites."""
+    p = Path(path)
+    try:
+        fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        raise KeyFileError(f"{p} already exists: not overwriting a key") from None
+    except OSError as exc:
+        raise KeyFileError(f"cannot create {p}: {exc.strerror}") from None
+    secret = secrets.token_bytes(KEY_BYTES)
+    with os.fdopen(fd, "w") as f:
+        os.fchmod(f.fileno(), 0o600)  # whatever the umask
+        f.write(secret.hex() + "\n")
+    return SigningKey(p, secret)
+
+
+#: incompat_flags bit of a signed MAVLink 2 packet, and the signature block's length.
+_IFLAG_SIGNED = mavlink.MAVLINK_IFLAG_SIGNED
+_SIGNATURE_LEN = mavlink.MAVLINK_SIGNATURE_BLOCK_LEN
+
+
+@dataclass(frozen=True)
+class Signature:
+    """A received packet's signature block: its stream, its timestamp, whether it is valid."""
+
+    link_id: int
+    timestamp: int
+    valid: bool
+    """The 6-byte signature matches SHA-256(key + packet without the signature)."""
+
+
+def signature_of(packet: bytes, secret: bytes) -> Signature | None:
+    """The checked signature of one whole MAVLink 2 packet (None: the packet is unsigned).
+
+    Only the cryptographic check: whether the timestamp is new for its stream (replay) is the
+    receiver's state (`gcs.flight.signing`). Checked before anything is remembered, so a forged
+    packet cannot move a stream's timestamp forward.
+    """
+    if len(packet) < 10 + _SIGNATURE_LEN or packet[0] != mavlink.PROTOCOL_MARKER_V2 \
+            or not packet[2] & _IFLAG_SIGNED:
+        return None
+    block = packet[-_SIGNATURE_LEN:]
+    link_id = block[0]
+    timestamp = int.from_bytes(block[1:7], "little")
+    digest = hashlib.sha256(secret + packet[:-6]).digest()[:6]
+    return Signature(link_id, timestamp, secrets.compare_digest(digest, block[7:]))
