@@ -54,13 +54,16 @@ class MockFleet:
     row 2 m apart along x. Ports: vehicle i sends to ``host:gcs_base_port + min(i,
     max_port_offset)`` (`max_port_offset=9` reproduces PX4 SITL from instance 10 on, 0 puts the
     whole fleet behind one port) and listens on ``host:listen_base_port + i``.
+    `signing_key` (32 bytes): every vehicle starts with it, as if provisioned earlier; without
+    it they accept a key by SETUP_SIGNING (`gcs.sim.vehicle`).
     """
 
     def __init__(self, count: int | None = None, *, homes: Sequence[ArrayLike] | None = None,
                  world_origin: frames.Geodetic = DEFAULT_WORLD_ORIGIN, host: str = "127.0.0.1",
                  gcs_base_port: int = 14540, listen_base_port: int = 14580,
                  max_port_offset: int | None = None, config: MockConfig | None = None,
-                 seed: int = 0, **config_overrides: Any) -> None:
+                 seed: int = 0, signing_key: bytes | None = None,
+                 **config_overrides: Any) -> None:
         if homes is None:
             if count is None:
                 raise ValueError("give the vehicle count or their homes")
@@ -85,6 +88,8 @@ class MockFleet:
             offset = i if max_port_offset is None else min(i, max_port_offset)
             self.vehicles.append(MockVehicle(
                 self, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
+            if signing_key is not None:  # the key already on the vehicles' SD cards
+                self.vehicles[-1].set_signing_key(signing_key)
         self._start = time.monotonic()
         self._task: asyncio.Task[None] | None = None
         self.physics_steps = 0

@@ -24,8 +24,17 @@ constants and pure functions: the PX4 facts table (`gcs.px4`: modes, timeouts), 
 conversions (`gcs.frames`) and the MAVLink facts of `gcs.wire` (dialect, type-mask bits,
 `time_boot_ms`, the datagram adapter).
 
+Signing, as PX4's documentation describes it (PX4 >= 1.17, "MAVLink Message Signing"): a key
+arrives with SETUP_SIGNING (accepted unsigned only while the vehicle has no key; changing or
+clearing it needs a message signed with the current key; refused while armed; an all-zero key
+and timestamp clears it), or is there from the start (`MockFleet(signing_key=...)`: the key
+file on the SD card). While it has a key, every outgoing message is signed and incoming
+unsigned or wrongly signed ones are rejected, except PX4's documented few
+(`gcs.wire.PX4_UNSIGNED_ACCEPTED`). The signature checks are pymavlink's own, not ours.
+Each datagram is decoded by a fresh parser.
+
 Faults can be injected at any time through `MockVehicle.faults` (`MockFaults`): packet loss,
-stopped heartbeats, delay, refused arming.
+stopped heartbeats, delay, refused arming, non-finite position reports.
 """
 
 from __future__ import annotations
@@ -33,6 +42,7 @@ from __future__ import annotations
 import asyncio
 import math
 import random
+import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -41,7 +51,7 @@ from numpy.typing import ArrayLike
 
 from gcs import frames, px4
 from gcs.sim.model import GRAVITY, FleetModel, ModelLimits
-from gcs.wire import mavlink, time_boot_ms
+from gcs.wire import PX4_UNSIGNED_ACCEPTED, mavlink, signing_timestamp, time_boot_ms
 
 if TYPE_CHECKING:
     from gcs.sim.fleet import MockFleet
@@ -115,6 +125,8 @@ class MockFaults:
     """Seconds added to every packet, both directions."""
     refuse_arming: bool = False
     """Arming answered DENIED."""
+    nan_position: bool = False
+    """LOCAL_POSITION_NED reports NaN position and velocity (a broken estimator)."""
 
 
 @dataclass(frozen=True)
@@ -168,8 +180,9 @@ class MockVehicle:
         self._failsafe_since: float | None = None
         self._mav = mavlink.MAVLink(None, srcSystem=self.system_id,
                                     srcComponent=self.component_id)
-        self._parser = mavlink.MAVLink(None)
-        self._parser.robust_parsing = True
+        self.rejected = 0
+        """Incoming packets rejected: bad CRC, truncated, or (with a key) unsigned or badly
+        signed (pymavlink's signing counters say which)."""
         self._transport: asyncio.DatagramTransport | None = None
         self._rng = random.Random(fleet.seed * 1000 + index)
         self._next = {"heartbeat": 0.0, "status": 0.0, "position": 0.0, "attitude": 0.0,
@@ -294,6 +307,8 @@ class MockVehicle:
         if now >= due["position"]:
             due["position"] = now + self.intervals["position"]
             p, v = self.model.position[self.index], self.model.velocity[self.index]
+            if self.faults.nan_position:
+                p = v = (math.nan, math.nan, math.nan)
             self._send(self._mav.local_position_ned_encode(
                 time_boot_ms(now), p[0], p[1], p[2], v[0], v[1], v[2]))
         if now >= due["attitude"]:
@@ -404,20 +419,65 @@ class MockVehicle:
         else:
             self._process(data, address)
 
+    @property
+    def signing_key(self) -> bytes | None:
+        """The key it holds (None: signing off)."""
+        return self._mav.signing.secret_key
+
+    def set_signing_key(self, key: bytes | None, initial_timestamp: int = 0) -> None:
+        """Install (or with None clear) the signing key, as PX4 does on SETUP_SIGNING."""
+        signing = self._mav.signing
+        if key is None:
+            signing.secret_key = None
+            signing.sign_outgoing = False
+            signing.allow_unsigned_callback = None
+            return
+        signing.secret_key = bytes(key)
+        signing.sign_outgoing = True
+        signing.timestamp = max(signing.timestamp, initial_timestamp,
+                                signing_timestamp(time.time()))
+        signing.allow_unsigned_callback = lambda _mav, msg_id: msg_id in PX4_UNSIGNED_ACCEPTED
+        signing.stream_timestamps.clear()
+
     def _process(self, data: bytes, address: tuple[str, int]) -> None:
+        # A fresh parser per datagram (a packet never spans datagrams), with this vehicle's
+        # signing state: pymavlink checks signatures and timestamps in `decode`.
+        parser = mavlink.MAVLink(None)
+        parser.robust_parsing = True
+        parser.signing = self._mav.signing
         try:
-            messages = self._parser.parse_buffer(data) or []
+            messages = parser.parse_buffer(data) or []
         except mavlink.MAVError:
+            self.rejected += 1
             return
         for msg in messages:
             kind = msg.get_type()
             if kind == "BAD_DATA":
+                self.rejected += 1
                 continue
             self.gcs_address = address  # PX4 answers whoever last spoke to it
             if kind == "SET_POSITION_TARGET_LOCAL_NED":
                 self._on_setpoint(msg)
             elif kind in ("COMMAND_LONG", "COMMAND_INT"):
                 self._on_command(msg, kind == "COMMAND_INT")
+            elif kind == "SETUP_SIGNING":
+                self._on_setup_signing(msg)
+
+    def _on_setup_signing(self, msg: Any) -> None:
+        """Reaching here it passed pymavlink's checks: with a key set, it was signed with it."""
+        if msg.target_system != self.system_id or msg.target_component not in (
+                0, self.component_id):
+            return
+        if self.armed:
+            self.statustext(mavlink.MAV_SEVERITY_WARNING, "Signing change denied: armed")
+            return
+        key = bytes(msg.secret_key)
+        if not any(key) and msg.initial_timestamp == 0:
+            self.set_signing_key(None)
+            self._event("signing disabled")
+        else:
+            self.set_signing_key(key, msg.initial_timestamp)
+            self._event("signing key set")
 
     def _on_setpoint(self, msg: Any) -> None:
         if (msg.target_system not in (0, self.system_id)
