@@ -55,6 +55,7 @@ __all__ = [
     "mavlink",
     "new_key_file",
     "parse_datagram",
+    "parse_host_port",
     "parse_udp_url",
     "result_name",
     "signature_of",
@@ -96,13 +97,24 @@ def parse_udp_url(url: str) -> tuple[str, str, int]:
     Raises `LinkError` saying what is wrong when `url` is not ``SCHEME:HOST:PORT``.
     """
     scheme, _, rest = url.partition(":")
-    host, _, port_text = rest.rpartition(":")
-    if scheme not in UDP_SCHEMES or not host or not port_text.isdigit():
+    if scheme not in UDP_SCHEMES:
         raise LinkError(f"not a UDP MAVLink URL (udpin:HOST:PORT or udpout:HOST:PORT): {url!r}")
+    try:
+        host, port = parse_host_port(rest)
+    except ValueError as exc:
+        raise LinkError(f"{exc} in {url!r}") from None
+    return ("out" if scheme == "udpout" else "in"), host, port
+
+
+def parse_host_port(text: str) -> tuple[str, int]:
+    """(host, port) of ``HOST:PORT``; ValueError saying what is wrong."""
+    host, _, port_text = text.rpartition(":")
+    if not host or not port_text.isdigit():
+        raise ValueError("not HOST:PORT")
     port = int(port_text)
     if not 0 < port < 65536:
-        raise LinkError(f"port out of range in {url!r}")
-    return ("out" if scheme == "udpout" else "in"), host, port
+        raise ValueError("port out of range")
+    return host, port
 
 
 def is_udp_url(url: str) -> bool:

@@ -45,7 +45,14 @@ from numpy.typing import NDArray
 from gcs.errors import FleetFileError, LinkError
 from gcs.flight.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
-from gcs.wire import KeyFileError, SigningKey, is_udp_url, load_key, parse_udp_url
+from gcs.wire import (
+    KeyFileError,
+    SigningKey,
+    is_udp_url,
+    load_key,
+    parse_host_port,
+    parse_udp_url,
+)
 
 #: PX4 leaves offboard mode when setpoints arrive at 2 Hz or slower (PX4 docs: "> 2Hz").
 MIN_RATE_HZ = 2.0
@@ -250,10 +257,10 @@ def _key(value: Any, where: str, base_dir: Path | None) -> SigningKey:
 
 
 def _peer(value: Any, where: str) -> tuple[str, int]:
-    host, _, port = value.rpartition(":") if isinstance(value, str) else ("", "", "")
-    if not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise FleetFileError(where, f"must look like HOST:PORT, got {value!r}")
-    return host, int(port)
+    try:
+        return parse_host_port(value if isinstance(value, str) else "")
+    except ValueError:
+        raise FleetFileError(where, f"must look like HOST:PORT, got {value!r}") from None
 
 
 def _parse(data: Any, base_dir: Path | None = None) -> FleetSpec:
