@@ -22,9 +22,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from gcs import frames
+from gcs.frames import FloatArray
 from gcs.wire import MAV_FRAME_LOCAL_NED, TYPE_MASK_POS_VEL_ACC_YAW
 
 __all__ = [
@@ -37,7 +38,6 @@ __all__ = [
     "transfer_track",
 ]
 
-FloatArray = NDArray[np.float64]
 
 DEFAULT_RATE_HZ = 20.0
 MAX_RATE_HZ = 100.0
