@@ -5,10 +5,13 @@
 - The timestamp never goes backwards, including across restarts: it starts at
   max(clock, persisted value) and the value persisted next to the key file
   (``KEYFILE.timestamp``, mode 0600) is always *ahead* of every timestamp used, by reserving
-  `RESERVE` (60 s) at a time; a crash therefore loses at most a reservation, never reuses one.
+  `RESERVE` (10 s) at a time; a crash therefore skips at most a reservation, never reuses one.
 - Incoming (`verify`): unsigned -> ``unsigned``; wrong signature -> ``bad_signature``; a
   timestamp not newer than the last accepted one of its stream (link id, system, component),
-  or a new stream more than a minute behind our clock -> ``replayed``. The signature is
+  or a new stream more than a minute behind the wall clock -> ``replayed``. (The wall clock,
+  not our own counter: after a restart that counter may run ahead of time by a reservation,
+  and the MAVLink spec's "behind our timestamp" would then refuse honest vehicles.) The
+  signature is
   checked *before* any state changes (pymavlink's own check records the timestamp first, which
   lets one forged packet with a huge timestamp lock a stream out).
 """
@@ -26,8 +29,8 @@ from gcs.wire import SigningKey, signature_of, signing_timestamp
 
 __all__ = ["NEW_STREAM_WINDOW", "RESERVE", "LinkSigning", "timestamp_path"]
 
-#: Timestamps reserved (persisted ahead) at a time: 60 s.
-RESERVE = 60 * 100_000
+#: Timestamps reserved (persisted ahead) at a time: 10 s.
+RESERVE = 10 * 100_000
 #: A new stream's first timestamp may lag our clock by this much (MAVLink spec: one minute).
 NEW_STREAM_WINDOW = 60 * 100_000
 
@@ -103,7 +106,7 @@ class LinkSigning:
         if last is not None:
             if signature.timestamp <= last:
                 return "replayed"
-        elif signature.timestamp + NEW_STREAM_WINDOW < self.state.timestamp:
+        elif signature.timestamp + NEW_STREAM_WINDOW < signing_timestamp(time.time()):
             return "replayed"
         self._streams[stream] = signature.timestamp
         # Like the MAVLink spec: we never sign with a timestamp older than one accepted.

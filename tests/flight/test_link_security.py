@@ -372,3 +372,21 @@ def test_fleet_file_names_the_key_and_the_peer_and_never_writes_the_key(
     bad_peer["vehicles"] = [{**fleet["vehicles"][0], "peer": "nowhere"}]
     with pytest.raises(FleetFileError, match=r"vehicles\[0\]\.peer"):
         FleetSpec.from_dict(bad_peer)
+
+
+def test_quick_restarts_still_accept_an_honest_vehicle(tmp_path: Path) -> None:
+    """Each restart starts the GCS's own counter past the last reservation (ahead of the
+    clock); a vehicle signing with the current time must still be accepted as a new stream,
+    while one a minute and more behind is refused as a replay."""
+    key = new_key_file(tmp_path / "k.key")
+    for _ in range(10):
+        signing = LinkSigning(key)
+    assert signing.state.timestamp > signing_timestamp(time.time()) + RESERVE  # ahead
+    vehicle = Peer(key=key.secret)
+    vehicle.sock.close()
+    fresh = parse_datagram(vehicle.heartbeat()).messages[0]
+    assert signing.verify(fresh) is None
+    old = Peer(system_id=2, key=key.secret,
+               timestamp=signing_timestamp(time.time()) - 61 * 100_000)
+    old.sock.close()
+    assert signing.verify(parse_datagram(old.heartbeat()).messages[0]) == "replayed"
