@@ -12,6 +12,10 @@ Modes (--modes): ``unsigned``, and ``signed``: MAVLink 2 signing end to end (a f
 provisioned on the mock vehicles with SETUP_SIGNING over a first, unsigned connection, then the
 GCS reconnects signed; every setpoint is signed, every telemetry packet verified).
 
+It also reports the CPU cost per message in this process (`per_message_us`: encoding one
+setpoint, receiving one LOCAL_POSITION_NED datagram, unsigned and signed; the minimum of 5
+repeats, so it holds on a busy machine where the jitter figures do not).
+
     python bench/stream.py                      # 100 vehicles, 50 Hz, 30 s, both modes
     python bench/stream.py --duration 5 --repeat 3 --modes signed
 """
@@ -29,6 +33,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import timeit
 from pathlib import Path
 
 # Run as `python bench/stream.py`, this folder comes first on sys.path, where planner.py
@@ -37,11 +42,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
-from gcs.flight.link import LinkHub
-from gcs.flight.setpoints import SetpointTrack
+from gcs.flight.link import LinkHub, UdpEndpoint, VehicleLink
+from gcs.flight.setpoints import Setpoint, SetpointTrack
+from gcs.flight.signing import LinkSigning
 from gcs.flight.stream import Streamer, jitter_stats
 from gcs.sim.ports import free_udp_base
-from gcs.wire import SigningKey, new_key_file, signing_timestamp
+from gcs.wire import SigningKey, mavlink, new_key_file, signing_timestamp
 
 
 def proc_cpu_seconds(pid: int) -> float:
@@ -121,6 +127,36 @@ async def one_run(vehicles: int, rate: float, duration: float,
     }
 
 
+def per_message_costs(key: SigningKey, count: int = 2000) -> dict:
+    """Microseconds of CPU per setpoint encoded and per telemetry datagram received (parse,
+    pinning, signature check, telemetry update), unsigned and signed; min of 5 repeats."""
+    out: dict[str, dict[str, float]] = {"pack_setpoint": {}, "receive_position": {}}
+    setpoint = Setpoint((1.0, 2.0, -3.0), (0.1, 0.2, 0.3), (0.0, 0.0, 0.0), 0.0)
+    for mode in ("unsigned", "signed"):
+        signing = LinkSigning(key) if mode == "signed" else None
+        endpoint = UdpEndpoint("udpin:127.0.0.1:9")  # never opened: no socket needed
+        link = VehicleLink("v", endpoint, 1, 1, signing=signing)
+        pack = min(timeit.repeat(lambda link=link: link.pack_setpoint(setpoint, 0),
+                                 number=count, repeat=5)) / count
+        vehicle = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        if signing is not None:
+            vehicle.signing.secret_key = key.secret
+            vehicle.signing.sign_outgoing = True
+            vehicle.signing.timestamp = signing_timestamp(time.time())
+        times = []
+        for _ in range(5):
+            datagrams = iter([vehicle.local_position_ned_encode(0, 1, 2, -3, 0, 0, 0).pack(
+                vehicle) for _ in range(count)])
+            times.append(timeit.timeit(
+                lambda e=endpoint, d=datagrams: e._received(next(d), ("127.0.0.1", 1)),
+                number=count) / count)
+        if link.telemetry.security.total:
+            raise RuntimeError(f"{mode}: telemetry dropped {link.telemetry.security}")
+        out["pack_setpoint"][mode] = round(pack * 1e6, 1)
+        out["receive_position"][mode] = round(min(times) * 1e6, 1)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--vehicles", type=int, default=100)
@@ -138,6 +174,7 @@ def main() -> None:
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         key = new_key_file(Path(tmp) / "bench.key")
+        costs = per_message_costs(key)
         for mode in modes:
             runs = [asyncio.run(one_run(args.vehicles, args.rate, args.duration,
                                         key if mode == "signed" else None))
@@ -155,6 +192,7 @@ def main() -> None:
         "scenario": {"vehicles": args.vehicles, "rate_hz": args.rate,
                      "duration_s": args.duration, "repeat": args.repeat,
                      "mock": "separate process (fleetplan mock), UDP loopback"},
+        "per_message_us": costs,
         **results,
         "machine": {"python": platform.python_version(), "platform": platform.platform(),
                     "cpus": os.cpu_count(), "processor": platform.processor() or None,

@@ -33,6 +33,9 @@ def test_planner_benchmark_reports_figures_and_machine():
 
 def test_stream_benchmark_reports_rate_and_jitter():
     report = _run("stream.py", "--vehicles", "3", "--rate", "20", "--duration", "2")
+    for kind in ("pack_setpoint", "receive_position"):
+        assert report["per_message_us"][kind]["signed"] > 0
+        assert report["per_message_us"][kind]["unsigned"] > 0
     for mode in ("unsigned", "signed"):  # both by default
         median = report[mode]["median"]
         assert abs(median["achieved_rate_hz"] - 20.0) < 2.0
