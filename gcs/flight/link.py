@@ -24,9 +24,10 @@ are asyncio's, so every link runs on the caller's event loop.
   keeps the signing timestamps persisted, closes everything on exit
   (``async with LinkHub() as hub``).
 
-URLs: ``udpin:HOST:PORT`` (also ``udp:``; bind and learn peers: what PX4's offboard link
-needs), ``udpout:HOST:PORT`` (send to a fixed address). Other pymavlink URLs (serial ports,
-``tcp:``) are opened with pymavlink's `mavutil` on a reader thread (`ThreadedEndpoint`).
+URLs: ``udpin:HOST:PORT`` (also ``udp:``; bind, and pin each vehicle at first contact: what
+PX4's offboard link needs), ``udpout:HOST:PORT`` (send to a fixed address). Other pymavlink
+URLs (serial ports, ``tcp:``) are opened with pymavlink's `mavutil` on a reader thread
+(`ThreadedEndpoint`; pinned by component only, there being no address).
 """
 
 from __future__ import annotations
