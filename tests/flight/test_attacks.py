@@ -137,8 +137,9 @@ def test_spoofed_acks_do_not_hide_a_dead_vehicle() -> None:
     assert isinstance(record, dict), record
     flagged = [e for e in record["events"] if e["kind"] == "fault"]
     assert [e["vehicle"] for e in flagged] == ["uav2"] and "link_lost" in flagged[0]["detail"]
-    # detected within the 1.5 s link timeout (+ a monitor period and slack for a busy box)
-    assert flagged[0]["t"] - started["at"] <= options.link_timeout + 0.3
+    # detected within the 1.5 s link timeout (+ a monitor period and slack for a busy box),
+    # not after the 5 s heartbeat timeout as when spoofed traffic counted as proof of life
+    assert flagged[0]["t"] - started["at"] <= options.link_timeout + 0.5
     # the spoofed ACCEPTED for NAV_LAND was not believed: the landing is unconfirmed
     uav2 = [e for e in record["events"] if e["vehicle"] == "uav2"]
     assert any(e["kind"] == "land_failed" for e in uav2)
