@@ -8,7 +8,7 @@ setpoint arrived within COM_OF_LOSS_T (offboardCheck.cpp), so the stream must be
 Arming is answered TEMPORARILY_REJECTED while the estimator settles after boot: retry.
 
 Everything PX4-specific the GCS relies on lives here, so the streaming loop never asks "is
-this PX4?". The mock autopilot (`gcs.sim.mock`) uses the same tables to speak like PX4.
+this PX4?". The mock autopilot (`gcs.sim`) uses the same tables to speak like PX4.
 """
 
 from __future__ import annotations

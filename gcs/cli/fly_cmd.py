@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.executor import FlightExecutor
     from gcs.flight.fleetfile import FleetSpec, load_fleet
-    from gcs.sim.mock import MockFleet, homes_under
+    from gcs.sim import MockFleet, homes_under
     from planner.errors import PlannerError
     from planner.result import Plan
 

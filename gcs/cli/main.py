@@ -20,6 +20,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("fly", "gcs.cli.fly_cmd", "fly a plan on PX4 vehicles (or mock ones) and record it"),
     ("mock", "gcs.cli.mock_cmd", "run PX4-like mock vehicles (PX4 SITL's ports)"),
     ("serve", "gcs.cli.serve_cmd", "serve the REST API and browser page (mock or real fleet)"),
+    ("keys", "gcs.cli.keys_cmd", "make MAVLink 2 signing key files"),
 )
 
 

@@ -1,4 +1,4 @@
-"""`fleetplan mock`: run N PX4-like mock vehicles (gcs.sim.mock) until interrupted.
+"""`fleetplan mock`: run N PX4-like mock vehicles (gcs.sim) until interrupted.
 
 Vehicle i listens on UDP --listen-base-port + i and sends to --base-port + i on 127.0.0.1
 (PX4 SITL's 14580 + i / 14540 + i by default), system id i + 1. Homes: under the starts of
@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from gcs.sim.mock import MockFleet, homes_under
+    from gcs.sim import MockFleet, homes_under
 
     ids = None
     homes = None

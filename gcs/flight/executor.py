@@ -273,8 +273,10 @@ class FlightExecutor:
 
     async def _open_links(self, hub: LinkHub) -> None:
         for v in self.vehicles:
+            # issue 8 (link security): the fleet file's signing key and pinned peer.
             v.link = await hub.add(v.id, v.spec.connection, v.spec.system_id,
-                                   v.spec.component_id)
+                                   v.spec.component_id, signing_key=v.spec.signing_key,
+                                   peer=v.spec.peer)
             v.link.listeners.append(self._on_message)
             if v.spec.home is not None:
                 v.home = np.asarray(v.spec.home, dtype=float)
@@ -623,6 +625,12 @@ class FlightExecutor:
                 age = link.heartbeat_age(now)
                 if silent > opts.link_timeout:
                     self._flag(v, "link_lost", f"no message for {silent:.2f} s")
+                # issue 8: a NaN/infinite position or velocity from the real peer (the link
+                # never stores it) is a lost estimate: a fault, handled by the policy.
+                elif (tel.invalid_estimate_time is not None
+                      and now - tel.invalid_estimate_time <= opts.link_timeout):
+                    self._flag(v, "estimate_invalid",
+                               f"{tel.invalid_estimates} non-finite LOCAL_POSITION_NED")
                 elif age > opts.heartbeat_timeout:
                     self._flag(v, "heartbeat_lost", f"no HEARTBEAT for {age:.2f} s")
                 elif tel.mode != px4.OFFBOARD:
@@ -633,7 +641,7 @@ class FlightExecutor:
                     planned = plan.vehicles[v.index].sample(plan.scenario.dt, [t_mission])
                     v.tracking_error = float(np.linalg.norm(
                         positions[v.id] - planned.position[0]))
-                    if v.tracking_error > opts.tracking_error_max:
+                    if not v.tracking_error <= opts.tracking_error_max:  # NaN never passes
                         self._flag(v, "tracking_error",
                                    f"{v.tracking_error:.2f} m from the plan "
                                    f"(bound {opts.tracking_error_max:g} m)")
@@ -731,6 +739,11 @@ class FlightExecutor:
             "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,
             "missed_ticks": streamer.missed_ticks if streamer is not None else 0,
             "faults": {v.id: v.fault for v in self.vehicles if v.fault is not None},
+            # issue 8: packets dropped per vehicle (pinning, signing) and garbage per link.
+            "security": {v.id: {**v.link.telemetry.security.to_dict(),
+                                "invalid_estimates": v.link.telemetry.invalid_estimates,
+                                "link_garbage_datagrams": v.link.endpoint.garbage_datagrams}
+                         for v in self.vehicles if v.link is not None},
         }
         if self.plan.verification is not None:
             out["min_separation_planned"] = self.plan.verification.min_separation_continuous

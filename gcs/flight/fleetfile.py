@@ -9,7 +9,8 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
          "home": [4.5, 2.5, 0.0]},
         ...
       ],
-      "mission": {"policy": "land_all", "rate_hz": 20}                       (optional)
+      "mission": {"policy": "land_all", "rate_hz": 20},                      (optional)
+      "signing_key": "fleet.key"                                             (optional)
     }
 
 - `id` matches a plan vehicle; `connection` is a pymavlink URL (vehicles may share one);
@@ -18,6 +19,12 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
   geodetic `world_origin` {lat, lon, alt (m AMSL)} is required and the home is computed from
   what the vehicle reports (GPS_GLOBAL_ORIGIN, else HOME_POSITION).
 - `mission`: `FlightOptions` fields (command-line flags override them).
+- `signing_key` (fleet-wide, or per vehicle to override it): a MAVLink 2 signing key file
+  (``fleetplan keys new FILE``; relative paths are relative to the fleet file). Read when the
+  fleet file is loaded; a file group or others can access is refused. Only the path is ever
+  written out (`to_dict`), never the key.
+- `peer` (per vehicle, optional) ``"HOST:PORT"``: the vehicle's source address, pinned up front
+  instead of at first contact (`gcs.flight.link`).
 
 Every problem is a `FleetFileError` naming the field (e.g. ``vehicles[2].system_id``).
 """
@@ -26,6 +33,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -34,9 +42,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gcs.errors import FleetFileError
+from gcs.errors import FleetFileError, LinkError
 from gcs.flight.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
+from gcs.wire import (
+    KeyFileError,
+    SigningKey,
+    is_udp_url,
+    load_key,
+    parse_host_port,
+    parse_udp_url,
+)
 
 #: PX4 leaves offboard mode when setpoints arrive at 2 Hz or slower (PX4 docs: "> 2Hz").
 MIN_RATE_HZ = 2.0
@@ -57,8 +73,8 @@ POLICIES = ("hold_all", "land_all", "land_faulty")
 #: What the fleet does once the plan has ended and it has held at the goals.
 AT_END = ("land", "hold")
 
-_TOP_KEYS = {"world_origin", "vehicles", "mission"}
-_VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home"}
+_TOP_KEYS = {"world_origin", "vehicles", "mission", "signing_key"}
+_VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home", "signing_key", "peer"}
 
 
 @dataclass(frozen=True)
@@ -161,12 +177,20 @@ class VehicleSpec:
     component_id: int
     home: NDArray[np.float64] | None
     """Home (LOCAL_NED origin) in the world frame, or None to compute it from world_origin."""
+    signing_key: SigningKey | None = None
+    """MAVLink 2 signing key (None: unsigned link, pinning only)."""
+    peer: tuple[str, int] | None = None
+    """Source address pinned up front (None: pinned at first contact)."""
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"id": self.id, "connection": self.connection,
                                "system_id": self.system_id, "component_id": self.component_id}
         if self.home is not None:
             out["home"] = self.home.tolist()
+        if self.signing_key is not None:
+            out["signing_key"] = str(self.signing_key.path)  # the path only, never the key
+        if self.peer is not None:
+            out["peer"] = f"{self.peer[0]}:{self.peer[1]}"
         return out
 
 
@@ -179,8 +203,10 @@ class FleetSpec:
     options: FlightOptions
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> FleetSpec:
-        return _parse(data)
+    def from_dict(cls, data: Mapping[str, Any], base_dir: str | Path | None = None) -> FleetSpec:
+        """Validate a fleet document; relative key paths are relative to `base_dir`
+        (default: the working directory)."""
+        return _parse(data, Path(base_dir) if base_dir is not None else None)
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"vehicles": [v.to_dict() for v in self.vehicles]}
@@ -209,7 +235,7 @@ def load_fleet(path: str | Path) -> FleetSpec:
         raise FleetFileError("fleet", f"cannot read {path}: {exc.strerror}") from None
     except json.JSONDecodeError as exc:
         raise FleetFileError("fleet", f"{path} is not valid JSON: {exc}") from None
-    return FleetSpec.from_dict(data)
+    return FleetSpec.from_dict(data, Path(path).parent)
 
 
 def _number(value: Any, where: str) -> float:
@@ -218,7 +244,26 @@ def _number(value: Any, where: str) -> float:
     return float(value)
 
 
-def _parse(data: Any) -> FleetSpec:
+def _key(value: Any, where: str, base_dir: Path | None) -> SigningKey:
+    if not isinstance(value, str) or not value.strip():
+        raise FleetFileError(where, "must be the path of a signing key file")
+    path = Path(os.path.expanduser(value))
+    if base_dir is not None and not path.is_absolute():
+        path = base_dir / path
+    try:
+        return load_key(path)
+    except KeyFileError as exc:
+        raise FleetFileError(where, str(exc)) from None
+
+
+def _peer(value: Any, where: str) -> tuple[str, int]:
+    try:
+        return parse_host_port(value if isinstance(value, str) else "")
+    except ValueError:
+        raise FleetFileError(where, f"must look like HOST:PORT, got {value!r}") from None
+
+
+def _parse(data: Any, base_dir: Path | None = None) -> FleetSpec:
     if not isinstance(data, Mapping):
         raise FleetFileError("fleet", "must be a JSON object")
     for key in data:
@@ -236,6 +281,8 @@ def _parse(data: Any) -> FleetSpec:
         if not -180.0 <= lon <= 180.0:
             raise FleetFileError("world_origin.lon", f"must be within [-180, 180], got {lon}")
         origin = Geodetic(lat, lon, _number(raw["alt"], "world_origin.alt"))
+    fleet_key = _key(data["signing_key"], "signing_key", base_dir) \
+        if "signing_key" in data else None
     raw_vehicles = data.get("vehicles")
     if not isinstance(raw_vehicles, list) or not raw_vehicles:
         raise FleetFileError("vehicles", "must be a non-empty list")
@@ -262,12 +309,13 @@ def _parse(data: Any) -> FleetSpec:
         url = raw["connection"]
         if not isinstance(url, str) or not url.strip():
             raise FleetFileError(f"{where}.connection", "must be a pymavlink URL string")
-        scheme = url.partition(":")[0]
-        if scheme in ("udpin", "udp", "udpout"):
-            host, _, port = url.partition(":")[2].rpartition(":")
-            if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        if is_udp_url(url):
+            try:
+                parse_udp_url(url)
+            except LinkError:
+                scheme = url.partition(":")[0]
                 raise FleetFileError(f"{where}.connection",
-                                     f"must look like {scheme}:HOST:PORT, got {url!r}")
+                                     f"must look like {scheme}:HOST:PORT, got {url!r}") from None
         ids = {}
         for key, lo, hi, default in (("system_id", 1, 254, None), ("component_id", 1, 255, 1)):
             value = raw.get(key, default)
@@ -290,6 +338,10 @@ def _parse(data: Any) -> FleetSpec:
         elif origin is None:
             raise FleetFileError(f"{where}.home",
                                  "is required unless the fleet has a world_origin")
-        vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home))
+        signing_key = _key(raw["signing_key"], f"{where}.signing_key", base_dir) \
+            if "signing_key" in raw else fleet_key
+        peer = _peer(raw["peer"], f"{where}.peer") if "peer" in raw else None
+        vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home,
+                                    signing_key, peer))
     options = FlightOptions.from_dict(data.get("mission", {}))
     return FleetSpec(tuple(vehicles), origin, options)

@@ -5,19 +5,29 @@ are asyncio's, so every link runs on the caller's event loop.
 
 - `Endpoint`: one connection (one UDP socket), shared by every vehicle whose fleet entry names
   the same URL. PX4 SITL from instance 10 on, and telemetry radio networks, put several system
-  ids behind one port, so an `udpin` endpoint remembers the address each *system id* last sent
-  from and sends that vehicle's traffic there (pymavlink's own udpin connection would reply to
-  whoever spoke last). Traffic from system id 0 (PX4's undecodable development messages) and
-  from ids no vehicle is registered for is dropped and counted.
-- `VehicleLink`: one vehicle on an endpoint: its telemetry (HEARTBEAT mode/armed/age,
-  LOCAL_POSITION_NED, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT),
-  `command()` with COMMAND_ACK, retries and duplicate-ACK tolerance, and `send_setpoint()`.
-- `LinkHub`: opens the endpoints for a fleet, sends the GCS HEARTBEAT at 1 Hz on each, closes
-  everything on exit (``async with LinkHub() as hub``).
+  ids behind one port, so an endpoint routes by system id. Each UDP datagram is decoded on its
+  own by a fresh parser (`gcs.wire.parse_datagram`): garbage is counted and cannot swallow the
+  next real packet. Traffic from system id 0 (PX4's undecodable development messages) and from
+  ids no vehicle is registered for is dropped and counted.
+- `VehicleLink`: one vehicle on an endpoint. Its *pinned peer* (source address + autopilot
+  component) is fixed by its first accepted packet, or up front by the fleet file's ``peer``;
+  packets with its system id from any other address are dropped and counted as security
+  events, and nothing is ever sent anywhere but the pinned address. With a signing key
+  (`gcs.flight.signing`), everything it sends is signed and every unsigned, wrongly signed or
+  replayed packet is dropped and counted. Its telemetry (HEARTBEAT mode/armed/age,
+  LOCAL_POSITION_NED, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT, the
+  security counters); a non-finite position or velocity is never stored: it is counted and
+  timestamped (`Telemetry.invalid_estimate_time`) for the monitor to flag. `command()` with
+  COMMAND_ACK (from the pinned peer, for a pending command only), retries and duplicate-ACK
+  tolerance, and `send_setpoint()`.
+- `LinkHub`: opens the endpoints for a fleet, sends every vehicle the GCS HEARTBEAT at 1 Hz,
+  keeps the signing timestamps persisted, closes everything on exit
+  (``async with LinkHub() as hub``).
 
-URLs: ``udpin:HOST:PORT`` (also ``udp:``; bind and learn peers: what PX4's offboard link
-needs), ``udpout:HOST:PORT`` (send to a fixed address). Other pymavlink URLs (serial ports,
-``tcp:``) are opened with pymavlink's `mavutil` on a reader thread (`ThreadedEndpoint`).
+URLs: ``udpin:HOST:PORT`` (also ``udp:``; bind, and pin each vehicle at first contact: what
+PX4's offboard link needs), ``udpout:HOST:PORT`` (send to a fixed address). Other pymavlink
+URLs (serial ports, ``tcp:``) are opened with pymavlink's `mavutil` on a reader thread
+(`ThreadedEndpoint`; pinned by component only, there being no address).
 """
 
 from __future__ import annotations
@@ -36,51 +46,33 @@ from typing import Any
 from gcs import px4
 from gcs.errors import CommandError, LinkError
 from gcs.flight.setpoints import Setpoint
-from gcs.wire import mavlink
+from gcs.flight.signing import LinkSigning
+from gcs.wire import (
+    GCS_COMPONENT_ID,
+    GCS_SYSTEM_ID,
+    Datagrams,
+    SigningKey,
+    is_udp_url,
+    mavlink,
+    parse_datagram,
+    parse_udp_url,
+    result_name,
+)
 
 __all__ = [
     "GCS_COMPONENT_ID",
     "GCS_SYSTEM_ID",
     "Endpoint",
     "LinkHub",
+    "SecurityCounters",
     "ThreadedEndpoint",
     "UdpEndpoint",
     "VehicleLink",
     "mavlink",
-    "parse_url",
+    "result_name",
 ]
 
-#: The GCS's own MAVLink identity: system 255, MAV_COMP_ID_MISSIONPLANNER.
-GCS_SYSTEM_ID = 255
-GCS_COMPONENT_ID = 190
-
 MessageCallback = Callable[["VehicleLink", Any, float], None]
-
-_RESULT_NAMES = {
-    mavlink.MAV_RESULT_ACCEPTED: "ACCEPTED",
-    mavlink.MAV_RESULT_TEMPORARILY_REJECTED: "TEMPORARILY_REJECTED",
-    mavlink.MAV_RESULT_DENIED: "DENIED",
-    mavlink.MAV_RESULT_UNSUPPORTED: "UNSUPPORTED",
-    mavlink.MAV_RESULT_FAILED: "FAILED",
-    mavlink.MAV_RESULT_IN_PROGRESS: "IN_PROGRESS",
-}
-
-
-def result_name(result: int | None) -> str:
-    """MAV_RESULT as a name (``no ACK`` for None)."""
-    return "no ACK" if result is None else _RESULT_NAMES.get(result, f"MAV_RESULT {result}")
-
-
-def parse_url(url: str) -> tuple[str, str, int]:
-    """(kind, host, port) of a UDP URL: kind is ``in`` or ``out``; LinkError if malformed."""
-    scheme, _, rest = url.partition(":")
-    host, _, port_text = rest.rpartition(":")
-    if scheme not in ("udpin", "udp", "udpout") or not host or not port_text.isdigit():
-        raise LinkError(f"not a UDP MAVLink URL (udpin:HOST:PORT or udpout:HOST:PORT): {url!r}")
-    port = int(port_text)
-    if not 0 < port < 65536:
-        raise LinkError(f"port out of range in {url!r}")
-    return ("out" if scheme == "udpout" else "in"), host, port
 
 
 class Endpoint:
@@ -93,6 +85,9 @@ class Endpoint:
         self.vehicles: dict[int, VehicleLink] = {}
         self.dropped_unknown = 0
         """Messages dropped because their system id is 0 or not registered."""
+        self.garbage_datagrams = 0
+        """Datagrams holding bytes that were not a valid packet (junk, truncated, bad CRC)."""
+        self.garbage_bytes = 0
         self.bytes_sent = 0
         self.messages_received = 0
 
@@ -103,34 +98,24 @@ class Endpoint:
 
     def _dispatch(self, msg: Any, address: Any, now: float) -> None:
         if msg.get_type() == "BAD_DATA":
+            self.garbage_datagrams += 1
+            self.garbage_bytes += len(msg.data)
             return
         self.messages_received += 1
         link = self.vehicles.get(msg.get_srcSystem())
         if link is None:
             self.dropped_unknown += 1
             return
-        self._learn(link.system_id, address)
-        link._handle(msg, now)
-
-    def _learn(self, system_id: int, address: Any) -> None:
-        """Remember where `system_id` speaks from (UDP only)."""
-
-    def send(self, system_id: int | None, msg: Any) -> None:
-        """Pack and send `msg` to `system_id` (None: to every known peer)."""
-        self.send_bytes(system_id, self.pack(msg))
+        if link._accept(msg, address):
+            link._handle(msg, now)
 
     def pack(self, msg: Any) -> bytes:
-        """`msg` as bytes on this connection (assigns its sequence number)."""
+        """`msg` as bytes on this connection's unsigned packer (assigns its sequence number)."""
         return msg.pack(self.mav)
 
-    def send_bytes(self, system_id: int | None, buf: bytes) -> None:
-        """Send an already packed message to `system_id` (None: to every known peer)."""
+    def send_bytes(self, system_id: int, buf: bytes) -> None:
+        """Send an already packed message to `system_id`'s pinned peer."""
         raise NotImplementedError
-
-    def send_heartbeat(self) -> None:
-        """The GCS HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID) to every peer."""
-        self.send(None, self.mav.heartbeat_encode(
-            mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
 
     async def open(self) -> None:
         raise NotImplementedError
@@ -139,29 +124,14 @@ class Endpoint:
         raise NotImplementedError
 
 
-class _Datagrams(asyncio.DatagramProtocol):
-    def __init__(self, endpoint: UdpEndpoint) -> None:
-        self.endpoint = endpoint
-
-    def datagram_received(self, data: bytes, addr: Any) -> None:
-        self.endpoint._received(data, addr)
-
-    def error_received(self, exc: Exception) -> None:  # ICMP port unreachable etc.
-        self.endpoint.send_errors += 1
-
-
 class UdpEndpoint(Endpoint):
     """A UDP endpoint on the running asyncio loop (``udpin``/``udp`` or ``udpout``)."""
 
     def __init__(self, url: str) -> None:
         super().__init__(url)
-        self.kind, self.host, self.port = parse_url(url)
-        self.peers: dict[int, Any] = {}
-        """system id -> the address it last sent from."""
+        self.kind, self.host, self.port = parse_udp_url(url)
         self.send_errors = 0
         self._transport: asyncio.DatagramTransport | None = None
-        self._parser = mavlink.MAVLink(None)
-        self._parser.robust_parsing = True
         self._sock: socket.socket | None = None
 
     async def open(self) -> None:
@@ -178,42 +148,42 @@ class UdpEndpoint(Endpoint):
         sock.setblocking(False)
         self._sock = sock
         self._transport, _ = await loop.create_datagram_endpoint(
-            lambda: _Datagrams(self), sock=sock)
+            lambda: Datagrams(self._received, self._send_error), sock=sock)
 
     def close(self) -> None:
         if self._transport is not None:
             self._transport.close()
             self._transport = None
 
+    def _send_error(self, exc: Exception) -> None:
+        self.send_errors += 1
+
     def _received(self, data: bytes, addr: Any) -> None:
         now = time.monotonic()
-        try:
-            messages = self._parser.parse_buffer(data) or []
-        except mavlink.MAVError:
-            return
-        for msg in messages:
+        parsed = parse_datagram(data)  # a fresh parser for every datagram
+        if parsed.garbage_bytes:
+            self.garbage_datagrams += 1
+            self.garbage_bytes += parsed.garbage_bytes
+        for msg in parsed.messages:
             self._dispatch(msg, addr, now)
 
-    def _learn(self, system_id: int, address: Any) -> None:
-        self.peers[system_id] = address
-
-    def _address(self, system_id: int | None) -> list[Any]:
+    def _address(self, system_id: int) -> Any:
+        """Where `system_id`'s traffic goes: udpout's fixed address, else its pinned peer
+        (None before it is pinned: nothing is sent to an address it did not speak from)."""
         if self.kind == "out":
-            return [(self.host, self.port)]
-        if system_id is None:
-            return list(dict.fromkeys(self.peers.values()))
-        address = self.peers.get(system_id)
-        return [] if address is None else [address]
+            return (self.host, self.port)
+        link = self.vehicles.get(system_id)
+        return None if link is None else link.peer_address
 
-    def send_bytes(self, system_id: int | None, buf: bytes) -> None:
-        if self._sock is None:
+    def send_bytes(self, system_id: int, buf: bytes) -> None:
+        address = self._address(system_id)
+        if self._sock is None or address is None:
             return
-        for address in self._address(system_id):
-            try:
-                self._sock.sendto(buf, address)
-                self.bytes_sent += len(buf)
-            except (BlockingIOError, OSError):
-                self.send_errors += 1
+        try:
+            self._sock.sendto(buf, address)
+            self.bytes_sent += len(buf)
+        except (BlockingIOError, OSError):
+            self.send_errors += 1
 
 
 class ThreadedEndpoint(Endpoint):
@@ -259,7 +229,7 @@ class ThreadedEndpoint(Endpoint):
         with self._lock:  # the reader thread's connection shares this encoder
             return msg.pack(self.mav)
 
-    def send_bytes(self, system_id: int | None, buf: bytes) -> None:
+    def send_bytes(self, system_id: int, buf: bytes) -> None:
         if self._conn is None:
             return
         with self._lock:
@@ -305,17 +275,56 @@ class Telemetry:
     home: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     """HOME_POSITION ((lat, lon, alt), (x, y, z) local NED)."""
     statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
+    invalid_estimate_time: float | None = None
+    """Reception of the latest LOCAL_POSITION_NED with a NaN or infinite position or velocity
+    (never stored as the position): a fault for the monitor."""
+    invalid_estimates: int = 0
+    security: SecurityCounters = field(default_factory=lambda: SecurityCounters())
+
+
+@dataclass
+class SecurityCounters:
+    """Packets with this vehicle's system id that were dropped, by reason."""
+
+    foreign_source: int = 0
+    """From an address other than the pinned peer's (spoofing, hijacking)."""
+    other_component: int = 0
+    """From a component other than the autopilot's."""
+    unsigned: int = 0
+    """Unsigned although the vehicle has a key."""
+    bad_signature: int = 0
+    """Signed with another key, or altered."""
+    replayed: int = 0
+    """A correctly signed packet whose timestamp is not newer than its stream's last one."""
+
+    def to_dict(self) -> dict[str, int]:
+        return dict(vars(self))
+
+    @property
+    def total(self) -> int:
+        return sum(vars(self).values())
 
 
 class VehicleLink:
     """One vehicle (system id, autopilot component) on an `Endpoint`."""
 
     def __init__(self, vehicle_id: str, endpoint: Endpoint, system_id: int,
-                 component_id: int = 1) -> None:
+                 component_id: int = 1, *, signing: LinkSigning | None = None,
+                 peer: tuple[str, int] | None = None) -> None:
         self.vehicle_id = vehicle_id
         self.endpoint = endpoint
         self.system_id = system_id
         self.component_id = component_id
+        self.signing = signing
+        self.peer_address: Any = peer
+        """The pinned peer's address (None until pinned; None for serial links)."""
+        self.pinned = peer is not None
+        self.mav = endpoint.mav
+        """This vehicle's packer: the endpoint's, or its own sharing the key's signing state."""
+        if signing is not None:
+            self.mav = mavlink.MAVLink(None, srcSystem=GCS_SYSTEM_ID,
+                                       srcComponent=GCS_COMPONENT_ID)
+            self.mav.signing = signing.state
         self.telemetry = Telemetry()
         self.listeners: list[MessageCallback] = []
         """Called with (link, message, receive time) for every message of this vehicle."""
@@ -327,9 +336,36 @@ class VehicleLink:
 
     # ---------------------------------------------------------------- receiving
 
+    def _accept(self, msg: Any, address: Any) -> bool:
+        """Whether a packet with this vehicle's system id is from its pinned peer (pinning it
+        on the first acceptable packet) and, with a key, correctly signed and new."""
+        counters = self.telemetry.security
+        if self.pinned and address != self.peer_address:
+            counters.foreign_source += 1
+            return False
+        if msg.get_srcComponent() != self.component_id:
+            counters.other_component += 1
+            return False
+        if self.signing is not None:
+            reason = self.signing.verify(msg)
+            if reason is not None:
+                setattr(counters, reason, getattr(counters, reason) + 1)
+                return False
+        if not self.pinned:
+            self.peer_address = address
+            self.pinned = True
+        return True
+
     def _handle(self, msg: Any, now: float) -> None:
         kind = msg.get_type()
         tel = self.telemetry
+        if kind == "LOCAL_POSITION_NED" and not all(map(math.isfinite, (
+                msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz))):
+            # Proof of life, but not a position: never stored, never passed on.
+            tel.message_time = now
+            tel.invalid_estimate_time = now
+            tel.invalid_estimates += 1
+            return
         tel.message_time = now
         if kind == "HEARTBEAT":
             if msg.get_srcComponent() == self.component_id:
@@ -349,7 +385,7 @@ class VehicleLink:
             self._handle_ack(msg)
         elif kind == "GPS_GLOBAL_ORIGIN":
             tel.gps_origin = (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3)
-        elif kind == "HOME_POSITION":
+        elif kind == "HOME_POSITION" and all(map(math.isfinite, (msg.x, msg.y, msg.z))):
             tel.home = ((msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3),
                         (msg.x, msg.y, msg.z))
         elif kind == "STATUSTEXT":
@@ -360,6 +396,7 @@ class VehicleLink:
             self._check_waiters()
 
     def _handle_ack(self, msg: Any) -> None:
+        # Only the pinned peer's packets get here (`_accept`); only a pending command counts.
         if msg.target_system not in (0, GCS_SYSTEM_ID):
             return
         pending = self._pending.get(msg.command)
@@ -411,8 +448,25 @@ class VehicleLink:
 
     # ---------------------------------------------------------------- sending
 
+    def pack(self, msg: Any) -> bytes:
+        """`msg` encoded (and signed, with a key) for this vehicle."""
+        if self.signing is not None:
+            return self.signing.pack(msg, self.mav)
+        return self.endpoint.pack(msg)
+
     def send(self, msg: Any) -> None:
-        self.endpoint.send(self.system_id, msg)
+        self.endpoint.send_bytes(self.system_id, self.pack(msg))
+
+    def send_heartbeat(self) -> None:
+        """The GCS HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID)."""
+        self.send(self.mav.heartbeat_encode(
+            mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
+
+    def send_setup_signing(self, key: SigningKey, initial_timestamp: int) -> None:
+        """SETUP_SIGNING with `key` (provisioning: only over a link you trust, and while the
+        vehicle is disarmed; a vehicle that already has a key wants it signed with that)."""
+        self.send(self.mav.setup_signing_encode(self.system_id, self.component_id,
+                                                list(key.secret), initial_timestamp))
 
     def send_setpoint(self, setpoint: Setpoint, boot_ms: int) -> None:
         """One SET_POSITION_TARGET_LOCAL_NED to this vehicle."""
@@ -421,7 +475,7 @@ class VehicleLink:
     def pack_setpoint(self, setpoint: Setpoint, boot_ms: int) -> bytes:
         """SET_POSITION_TARGET_LOCAL_NED for this vehicle, encoded ahead of its send."""
         fields = setpoint.fields(self.system_id, self.component_id, boot_ms)
-        return self.endpoint.pack(self.endpoint.mav.set_position_target_local_ned_encode(**fields))
+        return self.pack(self.mav.set_position_target_local_ned_encode(**fields))
 
     def send_packed(self, buf: bytes) -> None:
         """Send a setpoint from `pack_setpoint`."""
@@ -445,7 +499,7 @@ class VehicleLink:
             future: asyncio.Future[int] = loop.create_future()
             pending = _PendingCommand(command, future, time.monotonic())
             self._pending[command] = pending
-            self.send(self.endpoint.mav.command_long_encode(
+            self.send(self.mav.command_long_encode(
                 self.system_id, self.component_id, command, attempt, *p))
             try:
                 while True:
@@ -481,6 +535,8 @@ class LinkHub:
     def __init__(self, heartbeat_period: float = 1.0) -> None:
         self.endpoints: dict[str, Endpoint] = {}
         self.links: dict[str, VehicleLink] = {}
+        self.signers: dict[bytes, LinkSigning] = {}
+        """One signing state per key (vehicles sharing a key share its timestamp)."""
         self.heartbeat_period = heartbeat_period
         self._heartbeat_task: asyncio.Task[None] | None = None
 
@@ -492,22 +548,36 @@ class LinkHub:
         await self.close()
 
     async def add(self, vehicle_id: str, url: str, system_id: int,
-                  component_id: int = 1) -> VehicleLink:
+                  component_id: int = 1, *, signing_key: SigningKey | None = None,
+                  peer: tuple[str, int] | None = None) -> VehicleLink:
+        """A link to one vehicle; `signing_key` signs it, `peer` pins its address up front."""
+        signing = None
+        if signing_key is not None:
+            signing = self.signers.get(signing_key.secret)
+            if signing is None:
+                try:
+                    signing = LinkSigning(signing_key)
+                except OSError as exc:
+                    raise LinkError(f"{vehicle_id}: signing key {signing_key}: {exc}") from exc
+                self.signers[signing_key.secret] = signing
         endpoint = self.endpoints.get(url)
         if endpoint is None:
-            scheme = url.partition(":")[0]
-            endpoint = UdpEndpoint(url) if scheme in ("udpin", "udp", "udpout") \
-                else ThreadedEndpoint(url)
+            endpoint = UdpEndpoint(url) if is_udp_url(url) else ThreadedEndpoint(url)
             await endpoint.open()
             self.endpoints[url] = endpoint
-        link = VehicleLink(vehicle_id, endpoint, system_id, component_id)
+        link = VehicleLink(vehicle_id, endpoint, system_id, component_id, signing=signing,
+                           peer=peer)
         self.links[vehicle_id] = link
         return link
 
     async def _heartbeats(self) -> None:
         while True:
-            for endpoint in list(self.endpoints.values()):
-                endpoint.send_heartbeat()
+            for i, link in enumerate(list(self.links.values())):
+                link.send_heartbeat()
+                if i % 10 == 9:  # a 100-vehicle round is milliseconds: let a tick through
+                    await asyncio.sleep(0)
+            for signing in self.signers.values():
+                signing.reserve()
             await asyncio.sleep(self.heartbeat_period)
 
     async def close(self) -> None:
@@ -518,3 +588,4 @@ class LinkHub:
             self._heartbeat_task = None
         for endpoint in self.endpoints.values():
             endpoint.close()
+        await asyncio.sleep(0)  # transports release their sockets on the next loop turn

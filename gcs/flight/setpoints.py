@@ -11,10 +11,8 @@ only indexes arrays. Past its last tick a track holds its final state at rest.
   horizontal, each a smooth rest-to-rest (quintic, minimum-jerk) profile.
 - `hold_track` holds one position.
 
-The message fields follow MAVLink common.xml and PX4's mavlink_receiver: frame
-MAV_FRAME_LOCAL_NED (1); type_mask 0x0800 = only yaw rate ignored, so position, velocity,
-acceleration (not force: bit 0x200 clear) and yaw are all used. `time_boot_ms` is produced
-here from the GCS clock (`time_boot_ms`), the one place the GCS makes MAVLink ms fields.
+The message fields follow MAVLink common.xml and PX4's mavlink_receiver; their encoding
+(frame, type mask, `time_boot_ms`) is defined once in `gcs.wire`.
 """
 
 from __future__ import annotations
@@ -24,37 +22,25 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from gcs import frames
+from gcs.frames import FloatArray
+from gcs.wire import MAV_FRAME_LOCAL_NED, TYPE_MASK_POS_VEL_ACC_YAW
 
 __all__ = [
     "DEFAULT_RATE_HZ",
-    "MAV_FRAME_LOCAL_NED",
     "MAX_RATE_HZ",
-    "TYPE_MASK_POS_VEL_ACC_YAW",
     "Setpoint",
     "SetpointTrack",
     "hold_track",
     "plan_tracks",
-    "time_boot_ms",
     "transfer_track",
 ]
 
-FloatArray = NDArray[np.float64]
 
 DEFAULT_RATE_HZ = 20.0
 MAX_RATE_HZ = 100.0
-#: MAV_FRAME_LOCAL_NED.
-MAV_FRAME_LOCAL_NED = 1
-#: POSITION_TARGET_TYPEMASK with only YAW_RATE_IGNORE (0x800) set: use x, y, z, vx, vy, vz,
-#: afx, afy, afz (as acceleration) and yaw.
-TYPE_MASK_POS_VEL_ACC_YAW = 0x0800
-
-
-def time_boot_ms(seconds: float) -> int:
-    """A MAVLink `time_boot_ms` (uint32, wraps) from seconds on the GCS clock."""
-    return round(max(seconds, 0.0) * 1000.0) & 0xFFFFFFFF
 
 
 @dataclass(frozen=True)

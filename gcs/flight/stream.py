@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs.flight.link import VehicleLink
-from gcs.flight.setpoints import Setpoint, SetpointTrack, time_boot_ms
+from gcs.flight.setpoints import Setpoint, SetpointTrack
+from gcs.wire import time_boot_ms
 
 __all__ = ["Assignment", "SendCallback", "Streamer", "jitter_stats"]
 

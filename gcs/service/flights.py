@@ -38,7 +38,7 @@ from gcs.service.journal import ExecutionJournal, store_failure
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED
 from gcs.service.store import ExecutionRow, Store
-from gcs.sim.mock import MockFleet, homes_under
+from gcs.sim import MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
 from planner import Plan
 

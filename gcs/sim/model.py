@@ -21,12 +21,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+
+from gcs.frames import FloatArray
+from planner.flatness import GRAVITY  # the one gravity constant (the planner's world frame)
 
 __all__ = ["GRAVITY", "FleetModel", "ModelLimits"]
-
-FloatArray = NDArray[np.float64]
-GRAVITY = 9.80665
 
 
 @dataclass(frozen=True)

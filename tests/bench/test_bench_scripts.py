@@ -33,10 +33,17 @@ def test_planner_benchmark_reports_figures_and_machine():
 
 def test_stream_benchmark_reports_rate_and_jitter():
     report = _run("stream.py", "--vehicles", "3", "--rate", "20", "--duration", "2")
-    median = report["median"]
-    assert abs(median["achieved_rate_hz"] - 20.0) < 2.0
-    assert median["jitter_p50_ms"] <= median["jitter_p99_ms"]
-    assert report["floor"]["jitter_p99_ms"] == 5.0
+    for kind in ("pack_setpoint", "receive_position"):
+        assert report["per_message_us"][kind]["signed"] > 0
+        assert report["per_message_us"][kind]["unsigned"] > 0
+    for mode in ("unsigned", "signed"):  # both by default
+        median = report[mode]["median"]
+        assert abs(median["achieved_rate_hz"] - 20.0) < 2.0
+        assert median["jitter_p50_ms"] <= median["jitter_p99_ms"]
+        assert report[mode]["floor"]["jitter_p99_ms"] == 5.0
+        # the signed run really was signed end to end: no telemetry dropped as unsigned
+        assert report[mode]["runs"][0]["telemetry_dropped_by_security"] == 0
+        assert report[mode]["runs"][0]["telemetry_messages_received_first_endpoint"] > 0
 
 
 def test_service_benchmark_reports_latency_and_flight_timing():

@@ -15,7 +15,7 @@ from gcs import px4
 from gcs.errors import ArmingRefused, MissionAborted
 from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.sim.mock import MockFleet, homes_under
+from gcs.sim import MockFleet, homes_under
 from tests.flight.support import line_scenario, mock_ports, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)

@@ -9,15 +9,10 @@ import pytest
 
 from gcs import frames
 from gcs.flight.link import LinkHub
-from gcs.flight.setpoints import (
-    MAV_FRAME_LOCAL_NED,
-    TYPE_MASK_POS_VEL_ACC_YAW,
-    plan_tracks,
-    time_boot_ms,
-    transfer_track,
-)
+from gcs.flight.setpoints import plan_tracks, transfer_track
 from gcs.flight.stream import Streamer
-from gcs.sim.mock import MockFleet
+from gcs.sim import MockFleet
+from gcs.wire import MAV_FRAME_LOCAL_NED, TYPE_MASK_POS_VEL_ACC_YAW, time_boot_ms
 from tests.flight.support import mock_ports
 
 pytestmark = pytest.mark.timeout(60)

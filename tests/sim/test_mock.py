@@ -1,4 +1,4 @@
-"""gcs.sim.mock behaves like PX4 for what we use: protocol, mode rules, failsafes, and a real
+"""gcs.sim (the mock) behaves like PX4 for what we use: protocol, mode rules, failsafes, and a real
 MAVLink client (MAVSDK) can fly it."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 from gcs import px4
 from gcs.flight.link import LinkHub, VehicleLink, mavlink
 from gcs.flight.setpoints import Setpoint, hold_track
-from gcs.sim.mock import MockFleet
+from gcs.sim import MockFleet
 from tests.flight.support import mock_ports
 
 pytestmark = pytest.mark.timeout(90)
@@ -96,11 +96,13 @@ def test_offboard_and_arming_rules() -> None:
             await asyncio.sleep(0.1)
             assert await link.command(mavlink.MAV_CMD_DO_SET_MODE, offboard) == \
                 mavlink.MAV_RESULT_ACCEPTED
-            assert await link.wait_for(lambda t: t.mode == px4.OFFBOARD, 2.0)
-            await asyncio.sleep(0.2)
-            assert link.duplicate_acks >= 1  # DO_SET_MODE answered twice
+            # stream at once: the 1 Hz HEARTBEAT confirming OFFBOARD may take longer than
+            # COM_OF_LOSS_T on a busy machine
             stream = asyncio.create_task(_stream(link, base))
             try:
+                assert await link.wait_for(lambda t: t.mode == px4.OFFBOARD, 2.0)
+                await asyncio.sleep(0.2)
+                assert link.duplicate_acks >= 1  # DO_SET_MODE answered twice
                 while mock.now() < 1.5:
                     await asyncio.sleep(0.1)
                 assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == \
@@ -113,7 +115,7 @@ def test_offboard_and_arming_rules() -> None:
                     await asyncio.sleep(0.1)
                 assert vehicle.position_ned[2] == pytest.approx(-1.0, abs=0.05), (
                     f"mode {link.telemetry.mode}, armed {link.telemetry.armed}, "
-                    f"texts {link.telemetry.statustexts[-3:]}"
+                    f"texts {list(link.telemetry.statustexts)[-3:]}"
                 )
                 # disarming in the air is refused unless forced
                 assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,)) == \
@@ -239,5 +241,54 @@ def test_a_cancelled_command_does_not_block_the_next() -> None:
             # arming is TEMPORARILY_REJECTED (settling); what matters is that it is answered
             result = await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,))
             assert result == mavlink.MAV_RESULT_ACCEPTED
+
+    asyncio.run(main())
+
+
+def test_signing_provisioned_with_setup_signing_like_px4(tmp_path) -> None:
+    """PX4's signing rules: SETUP_SIGNING unsigned only while there is no key; then signed
+    output, unsigned input rejected except HEARTBEAT & co.; a wrong key is rejected."""
+    from gcs.errors import CommandError
+    from gcs.wire import load_key, new_key_file, signing_timestamp
+
+    key = new_key_file(tmp_path / "fleet.key")
+    other = new_key_file(tmp_path / "other.key")
+    request = mavlink.MAV_CMD_REQUEST_MESSAGE
+    version = (float(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION),)
+
+    async def main() -> None:
+        async with MockFleet(1, settle_time=0.0, **mock_ports(1)) as mock:
+            vehicle = mock.vehicles[0]
+            async with LinkHub() as hub:  # the trusted provisioning link
+                link = await _connect(mock, hub)
+                link.send_setup_signing(key, signing_timestamp(time.time()))
+                await asyncio.sleep(0.2)
+                assert vehicle.signing_key == key.secret
+                # unsigned commands are now rejected (no ACK); HEARTBEAT still accepted
+                before = vehicle._mav.signing.unsigned_count
+                with pytest.raises(CommandError):
+                    await link.command(request, version, timeout=0.2, retries=1)
+                assert vehicle._mav.signing.reject_count >= 2
+                await asyncio.sleep(1.1)  # the GCS heartbeat comes round
+                assert vehicle._mav.signing.unsigned_count > before
+                # an unsigned SETUP_SIGNING cannot change the key any more
+                link.send_setup_signing(other, signing_timestamp(time.time()))
+                await asyncio.sleep(0.1)
+                assert vehicle.signing_key == key.secret
+            async with LinkHub() as hub:  # signed with the wrong key: refused both ways
+                link = await hub.add("v0", mock.gcs_url(0), 1, signing_key=load_key(other.path),
+                                     peer=vehicle.listen_address)
+                with pytest.raises(CommandError):
+                    await link.command(request, version, timeout=0.2, retries=1)
+                assert link.telemetry.heartbeat_time is None
+                assert link.telemetry.security.bad_signature > 0
+                assert vehicle._mav.signing.badsig_count >= 2
+            async with LinkHub() as hub:  # signed with the key: everything works
+                link = await hub.add("v0", mock.gcs_url(0), 1, signing_key=key)
+                assert await link.wait_for(lambda t: t.heartbeat_time is not None, 3.0)
+                assert await link.command(request, version) == mavlink.MAV_RESULT_ACCEPTED
+                assert link.telemetry.security.total == 0
+                # the vehicle's messages carry a signature with the key
+                assert vehicle._mav.signing.goodsig_count > 0
 
     asyncio.run(main())

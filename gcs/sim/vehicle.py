@@ -1,9 +1,4 @@
-"""A PX4-like autopilot endpoint for tests and demos: `MockFleet` of `MockVehicle`s.
-
-Each mock vehicle follows PX4 SITL's port convention: instance i listens on UDP
-``listen_base_port + i`` (14580 + i) and sends to ``gcs_base_port + i`` (14540 + i) on
-127.0.0.1, then to whoever last sent it a message (as PX4 does); system id i + 1, component 1.
-So ``fleetplan fly`` runs unchanged against the mock or PX4 SITL.
+"""One PX4-like vehicle of a mock fleet (`MockVehicle`): its protocol and flight rules.
 
 It speaks what a PX4 quadrotor speaks for our purposes: HEARTBEAT (MAV_TYPE_QUADROTOR,
 MAV_AUTOPILOT_PX4, custom mode main << 16 | sub << 24, armed flag), SYS_STATUS (sensors present,
@@ -23,52 +18,45 @@ MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
   then, there being no RC, AUTO.LAND after `failsafe_land_delay`; auto-disarm 2 s after
   landing, and 10 s after arming without taking off.
 
-The motion is `gcs.sim.model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the
-whole fleet at once. Faults can be injected per vehicle at any time through
-`MockVehicle.faults` (`MockFaults`): packet loss, stopped heartbeats, delay, refused arming.
+It speaks MAVLink through pymavlink directly, never through `gcs.flight`: a wire-level mistake
+in our link must not be repeated by the stand-in that should catch it. It shares on purpose only
+constants and pure functions: the PX4 facts table (`gcs.px4`: modes, timeouts), frame
+conversions (`gcs.frames`) and the MAVLink facts of `gcs.wire` (dialect, type-mask bits,
+`time_boot_ms`, the datagram adapter).
 
-Python API::
+Signing, as PX4's documentation describes it (PX4 >= 1.17, "MAVLink Message Signing"): a key
+arrives with SETUP_SIGNING (accepted unsigned only while the vehicle has no key; changing or
+clearing it needs a message signed with the current key; refused while armed; an all-zero key
+and timestamp clears it), or is there from the start (`MockFleet(signing_key=...)`: the key
+file on the SD card). While it has a key, every outgoing message is signed and incoming
+unsigned or wrongly signed ones are rejected, except PX4's documented few
+(`gcs.wire.PX4_UNSIGNED_ACCEPTED`). The signature checks are pymavlink's own, not ours.
+Each datagram is decoded by a fresh parser.
 
-    async with MockFleet(4, homes=[[0, 0, 0], [2, 0, 0], ...], gcs_base_port=24540,
-                         listen_base_port=24580, settle_time=1.0) as mock:
-        fleet_file = mock.fleet_dict()        # what `gcs.flight.executor` needs to fly them
-        mock.vehicles[2].faults.heartbeats = False
-        print(mock.vehicles[0].position_world)
-
-or run it as a process: ``fleetplan mock --vehicles 4`` (see `gcs.cli.mock_cmd`).
+Faults can be injected at any time through `MockVehicle.faults` (`MockFaults`): packet loss,
+stopped heartbeats, delay, refused arming, non-finite position reports.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import math
 import random
-import socket
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import frames, px4
 from gcs.sim.model import GRAVITY, FleetModel, ModelLimits
-from gcs.wire import mavlink
+from gcs.wire import PX4_UNSIGNED_ACCEPTED, mavlink, signing_timestamp, time_boot_ms
 
-__all__ = [
-    "DEFAULT_WORLD_ORIGIN",
-    "MockConfig",
-    "MockFaults",
-    "MockFleet",
-    "MockVehicle",
-    "ReceivedSetpoint",
-    "homes_under",
-]
+if TYPE_CHECKING:
+    from gcs.sim.fleet import MockFleet
 
-#: PX4 SITL's default home (Zurich), used as the mock's geodetic world origin.
-DEFAULT_WORLD_ORIGIN = frames.Geodetic(47.397742, 8.545594, 488.0)
+__all__ = ["MockConfig", "MockFaults", "MockVehicle", "ReceivedSetpoint"]
 
 _SENSORS = (
     mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -83,15 +71,13 @@ _SENSORS = (
 )
 _PREARM = mavlink.MAV_SYS_STATUS_PREARM_CHECK
 
-# POSITION_TARGET_TYPEMASK bits
-_IGNORE_X = 0x001  # then y = 0x002, z = 0x004
-_IGNORE_VX = 0x008  # then 0x010, 0x020
-_IGNORE_AX = 0x040  # then 0x080, 0x100
-_FORCE = 0x200
-_IGNORE_YAW = 0x400
-
-_MAV_FRAME_LOCAL_NED = 1
-_MAV_FRAME_BODY_NED = 8
+# POSITION_TARGET_TYPEMASK bits (pymavlink's enum): X, Y, Z ignore are 1, 2, 4 times the
+# first bit of each triple, and so on.
+_IGNORE_X = mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE
+_IGNORE_VX = mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE
+_IGNORE_AX = mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
+_FORCE = mavlink.POSITION_TARGET_TYPEMASK_FORCE_SET
+_IGNORE_YAW = mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
 #: PX4 v1.16.0 release: major << 24 | minor << 16 | patch << 8 | FIRMWARE_VERSION_TYPE_OFFICIAL
 _PX4_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | 255
 
@@ -139,6 +125,8 @@ class MockFaults:
     """Seconds added to every packet, both directions."""
     refuse_arming: bool = False
     """Arming answered DENIED."""
+    nan_position: bool = False
+    """LOCAL_POSITION_NED reports NaN position and velocity (a broken estimator)."""
 
 
 @dataclass(frozen=True)
@@ -192,8 +180,9 @@ class MockVehicle:
         self._failsafe_since: float | None = None
         self._mav = mavlink.MAVLink(None, srcSystem=self.system_id,
                                     srcComponent=self.component_id)
-        self._parser = mavlink.MAVLink(None)
-        self._parser.robust_parsing = True
+        self.rejected = 0
+        """Incoming packets rejected: bad CRC, truncated, or (with a key) unsigned or badly
+        signed (pymavlink's signing counters say which)."""
         self._transport: asyncio.DatagramTransport | None = None
         self._rng = random.Random(fleet.seed * 1000 + index)
         self._next = {"heartbeat": 0.0, "status": 0.0, "position": 0.0, "attitude": 0.0,
@@ -318,8 +307,10 @@ class MockVehicle:
         if now >= due["position"]:
             due["position"] = now + self.intervals["position"]
             p, v = self.model.position[self.index], self.model.velocity[self.index]
+            if self.faults.nan_position:
+                p = v = (math.nan, math.nan, math.nan)
             self._send(self._mav.local_position_ned_encode(
-                self._boot_ms(now), p[0], p[1], p[2], v[0], v[1], v[2]))
+                time_boot_ms(now), p[0], p[1], p[2], v[0], v[1], v[2]))
         if now >= due["attitude"]:
             due["attitude"] = now + 1.0 / cfg.attitude_rate
             a = self.model.acceleration[self.index]
@@ -327,7 +318,7 @@ class MockVehicle:
             forward, right = c * a[0] + s * a[1], -s * a[0] + c * a[1]
             thrust = max(GRAVITY - a[2], 0.1)
             self._send(self._mav.attitude_encode(
-                self._boot_ms(now), math.atan2(right, thrust), -math.atan2(forward, thrust),
+                time_boot_ms(now), math.atan2(right, thrust), -math.atan2(forward, thrust),
                 self.yaw, 0.0, 0.0, 0.0))
         if now >= due["global"]:
             due["global"] = now + 1.0 / cfg.global_position_rate
@@ -337,9 +328,6 @@ class MockVehicle:
             self._send(self._home_position(now))
 
     # ---------------------------------------------------------------- messages out
-
-    def _boot_ms(self, now: float) -> int:
-        return int(now * 1000.0) & 0xFFFFFFFF
 
     def _heartbeat(self) -> Any:
         base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
@@ -371,7 +359,7 @@ class MockVehicle:
         v = self.model.velocity[self.index]
         heading = int(math.degrees(self.yaw) % 360.0 * 100)
         return self._mav.global_position_int_encode(
-            self._boot_ms(now), round(g.lat * 1e7), round(g.lon * 1e7), round(g.alt * 1000),
+            time_boot_ms(now), round(g.lat * 1e7), round(g.lon * 1e7), round(g.alt * 1000),
             round(-self.model.position[self.index, 2] * 1000), round(v[0] * 100),
             round(v[1] * 100), round(v[2] * 100), heading)
 
@@ -431,20 +419,65 @@ class MockVehicle:
         else:
             self._process(data, address)
 
+    @property
+    def signing_key(self) -> bytes | None:
+        """The key it holds (None: signing off)."""
+        return self._mav.signing.secret_key
+
+    def set_signing_key(self, key: bytes | None, initial_timestamp: int = 0) -> None:
+        """Install (or with None clear) the signing key, as PX4 does on SETUP_SIGNING."""
+        signing = self._mav.signing
+        if key is None:
+            signing.secret_key = None
+            signing.sign_outgoing = False
+            signing.allow_unsigned_callback = None
+            return
+        signing.secret_key = bytes(key)
+        signing.sign_outgoing = True
+        signing.timestamp = max(signing.timestamp, initial_timestamp,
+                                signing_timestamp(time.time()))
+        signing.allow_unsigned_callback = lambda _mav, msg_id: msg_id in PX4_UNSIGNED_ACCEPTED
+        signing.stream_timestamps.clear()
+
     def _process(self, data: bytes, address: tuple[str, int]) -> None:
+        # A fresh parser per datagram (a packet never spans datagrams), with this vehicle's
+        # signing state: pymavlink checks signatures and timestamps in `decode`.
+        parser = mavlink.MAVLink(None)
+        parser.robust_parsing = True
+        parser.signing = self._mav.signing
         try:
-            messages = self._parser.parse_buffer(data) or []
+            messages = parser.parse_buffer(data) or []
         except mavlink.MAVError:
+            self.rejected += 1
             return
         for msg in messages:
             kind = msg.get_type()
             if kind == "BAD_DATA":
+                self.rejected += 1
                 continue
             self.gcs_address = address  # PX4 answers whoever last spoke to it
             if kind == "SET_POSITION_TARGET_LOCAL_NED":
                 self._on_setpoint(msg)
             elif kind in ("COMMAND_LONG", "COMMAND_INT"):
                 self._on_command(msg, kind == "COMMAND_INT")
+            elif kind == "SETUP_SIGNING":
+                self._on_setup_signing(msg)
+
+    def _on_setup_signing(self, msg: Any) -> None:
+        """Reaching here it passed pymavlink's checks: with a key set, it was signed with it."""
+        if msg.target_system != self.system_id or msg.target_component not in (
+                0, self.component_id):
+            return
+        if self.armed:
+            self.statustext(mavlink.MAV_SEVERITY_WARNING, "Signing change denied: armed")
+            return
+        key = bytes(msg.secret_key)
+        if not any(key) and msg.initial_timestamp == 0:
+            self.set_signing_key(None)
+            self._event("signing disabled")
+        else:
+            self.set_signing_key(key, msg.initial_timestamp)
+            self._event("signing key set")
 
     def _on_setpoint(self, msg: Any) -> None:
         if (msg.target_system not in (0, self.system_id)
@@ -460,7 +493,7 @@ class MockVehicle:
         pos = field3(_IGNORE_X, (msg.x, msg.y, msg.z))
         vel = field3(_IGNORE_VX, (msg.vx, msg.vy, msg.vz))
         acc = field3(_IGNORE_AX, (msg.afx, msg.afy, msg.afz))
-        if msg.coordinate_frame == _MAV_FRAME_BODY_NED:
+        if msg.coordinate_frame == mavlink.MAV_FRAME_BODY_NED:
             c, s = math.cos(self.yaw), math.sin(self.yaw)
 
             def rotate(v: tuple[float, ...]) -> tuple[float, ...]:
@@ -470,7 +503,7 @@ class MockVehicle:
                 return (c * x - s * y, s * x + c * y, z)
 
             pos, vel, acc = (math.nan,) * 3, rotate(vel), rotate(acc)
-        elif msg.coordinate_frame != _MAV_FRAME_LOCAL_NED:
+        elif msg.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED:
             self.setpoints_ignored += 1
             return
         has_acc = not all(math.isnan(x) for x in acc)
@@ -597,137 +630,3 @@ class MockVehicle:
         if message_id == mavlink.MAVLINK_MSG_ID_SYS_STATUS:
             return self._sys_status(now)
         return None
-
-
-class _VehicleProtocol(asyncio.DatagramProtocol):
-    def __init__(self, vehicle: MockVehicle) -> None:
-        self.vehicle = vehicle
-
-    def datagram_received(self, data: bytes, addr: Any) -> None:
-        self.vehicle.received_datagram(data, addr)
-
-    def error_received(self, exc: Exception) -> None:
-        pass  # nobody listening yet on the GCS port: PX4 keeps sending too
-
-
-def homes_under(starts: Sequence[ArrayLike]) -> list[list[float]]:
-    """Homes on the ground (z = 0) right under each start: the climb to the start is vertical,
-    so it needs no deconfliction (how `fleetplan fly --mock` and the service place mocks)."""
-    return [[float(s[0]), float(s[1]), 0.0] for s in np.asarray(starts, dtype=float)]
-
-
-class MockFleet:
-    """N mock PX4 vehicles on one asyncio loop, integrated together.
-
-    `homes` are the vehicles' homes (LOCAL_NED origins) in the world frame ENU; by default a
-    row 2 m apart along x. Ports: vehicle i sends to ``host:gcs_base_port + min(i,
-    max_port_offset)`` (`max_port_offset=9` reproduces PX4 SITL from instance 10 on, 0 puts the
-    whole fleet behind one port) and listens on ``host:listen_base_port + i``.
-    """
-
-    def __init__(self, count: int | None = None, *, homes: Sequence[ArrayLike] | None = None,
-                 world_origin: frames.Geodetic = DEFAULT_WORLD_ORIGIN, host: str = "127.0.0.1",
-                 gcs_base_port: int = 14540, listen_base_port: int = 14580,
-                 max_port_offset: int | None = None, config: MockConfig | None = None,
-                 seed: int = 0, **config_overrides: Any) -> None:
-        if homes is None:
-            if count is None:
-                raise ValueError("give the vehicle count or their homes")
-            homes = [[2.0 * i, 0.0, 0.0] for i in range(count)]
-        elif count is not None and count != len(homes):
-            raise ValueError(f"{count} vehicles but {len(homes)} homes")
-        self.config = config or MockConfig()
-        for key, value in config_overrides.items():
-            if not hasattr(self.config, key):
-                raise TypeError(f"unknown mock setting {key!r}")
-            setattr(self.config, key, value)
-        if self.config.physics_rate < 100.0:
-            raise ValueError("physics_rate must be at least 100 Hz")
-        self.world_origin = world_origin
-        self.host = host
-        self.gcs_base_port = gcs_base_port
-        self.listen_base_port = listen_base_port
-        self.seed = seed
-        self.model = FleetModel(len(homes), self.config.limits)
-        self.vehicles: list[MockVehicle] = []
-        for i, home in enumerate(homes):
-            offset = i if max_port_offset is None else min(i, max_port_offset)
-            self.vehicles.append(MockVehicle(
-                self, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
-        self._start = time.monotonic()
-        self._task: asyncio.Task[None] | None = None
-        self.physics_steps = 0
-
-    def now(self) -> float:
-        """Seconds since the mock started (its boot clock)."""
-        return time.monotonic() - self._start
-
-    def gcs_url(self, index: int) -> str:
-        """The pymavlink URL the GCS opens for vehicle `index`."""
-        return f"udpin:{self.host}:{self.vehicles[index].gcs_port}"
-
-    def fleet_dict(self, ids: Sequence[str] | None = None) -> dict[str, Any]:
-        """A fleet file (`gcs.flight.fleetfile` format) for these vehicles, world-frame homes."""
-        ids = list(ids) if ids is not None else [f"uav{i + 1}" for i in range(len(self.vehicles))]
-        return {"vehicles": [
-            {"id": vid, "connection": self.gcs_url(i), "system_id": v.system_id,
-             "home": v.home_world.tolist()}
-            for i, (vid, v) in enumerate(zip(ids, self.vehicles, strict=True))]}
-
-    async def start(self) -> None:
-        loop = asyncio.get_running_loop()
-        for vehicle in self.vehicles:
-            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            try:
-                sock.bind(vehicle.listen_address)
-            except OSError as exc:
-                sock.close()
-                await self.stop()
-                raise OSError(f"mock vehicle {vehicle.index}: cannot bind "
-                              f"{vehicle.listen_address}: {exc}") from exc
-            sock.setblocking(False)
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda v=vehicle: _VehicleProtocol(v), sock=sock)
-            vehicle._transport = transport
-        self._start = time.monotonic()
-        self._task = asyncio.create_task(self._run(), name="mock-fleet")
-
-    async def stop(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
-        for vehicle in self.vehicles:
-            if vehicle._transport is not None:
-                vehicle._transport.close()
-                vehicle._transport = None
-
-    async def __aenter__(self) -> MockFleet:
-        await self.start()
-        return self
-
-    async def __aexit__(self, *exc: object) -> None:
-        await self.stop()
-
-    async def run_forever(self) -> None:
-        """Start (if needed) and run until cancelled."""
-        if self._task is None:
-            await self.start()
-        assert self._task is not None
-        await self._task
-
-    async def _run(self) -> None:
-        step = 1.0 / self.config.physics_rate
-        simulated = self.now()
-        while True:
-            now = self.now()
-            # integrate in steps no longer than 1/physics_rate, however late we woke up
-            while simulated + step <= now:
-                self.model.step(step)
-                simulated += step
-                self.physics_steps += 1
-            for vehicle in self.vehicles:
-                vehicle.tick(now)
-                vehicle.send_telemetry(now)
-            await asyncio.sleep(max(0.0, simulated + step - self.now()))

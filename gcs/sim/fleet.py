@@ -1,0 +1,171 @@
+"""A fleet of PX4-like mock vehicles on one asyncio loop (`MockFleet`), and their placement.
+
+Each mock vehicle follows PX4 SITL's port convention: instance i listens on UDP
+``listen_base_port + i`` (14580 + i) and sends to ``gcs_base_port + i`` (14540 + i) on
+127.0.0.1, then to whoever last sent it a message (as PX4 does); system id i + 1, component 1.
+So ``fleetplan fly`` runs unchanged against the mock or PX4 SITL. The vehicles' protocol and
+rules are in `gcs.sim.vehicle`; their motion is `gcs.sim.model.FleetModel`, integrated at
+`physics_rate` (>= 100 Hz) for the whole fleet at once.
+
+Python API::
+
+    async with MockFleet(4, homes=[[0, 0, 0], [2, 0, 0], ...], gcs_base_port=24540,
+                         listen_base_port=24580, settle_time=1.0) as mock:
+        fleet_file = mock.fleet_dict()        # what `gcs.flight.executor` needs to fly them
+        mock.vehicles[2].faults.heartbeats = False
+        print(mock.vehicles[0].position_world)
+
+or run it as a process: ``fleetplan mock --vehicles 4`` (see `gcs.cli.mock_cmd`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import socket
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from gcs import frames
+from gcs.sim.model import FleetModel
+from gcs.sim.vehicle import MockConfig, MockVehicle
+from gcs.wire import Datagrams
+
+__all__ = ["DEFAULT_WORLD_ORIGIN", "MockFleet", "homes_under"]
+
+#: PX4 SITL's default home (Zurich), used as the mock's geodetic world origin.
+DEFAULT_WORLD_ORIGIN = frames.Geodetic(47.397742, 8.545594, 488.0)
+
+
+def homes_under(starts: Sequence[ArrayLike]) -> list[list[float]]:
+    """Homes on the ground (z = 0) right under each start: the climb to the start is vertical,
+    so it needs no deconfliction (how `fleetplan fly --mock` and the service place mocks)."""
+    return [[float(s[0]), float(s[1]), 0.0] for s in np.asarray(starts, dtype=float)]
+
+
+class MockFleet:
+    """N mock PX4 vehicles on one asyncio loop, integrated together.
+
+    `homes` are the vehicles' homes (LOCAL_NED origins) in the world frame ENU; by default a
+    row 2 m apart along x. Ports: vehicle i sends to ``host:gcs_base_port + min(i,
+    max_port_offset)`` (`max_port_offset=9` reproduces PX4 SITL from instance 10 on, 0 puts the
+    whole fleet behind one port) and listens on ``host:listen_base_port + i``.
+    `signing_key` (32 bytes): every vehicle starts with it, as if provisioned earlier; without
+    it they accept a key by SETUP_SIGNING (`gcs.sim.vehicle`).
+    """
+
+    def __init__(self, count: int | None = None, *, homes: Sequence[ArrayLike] | None = None,
+                 world_origin: frames.Geodetic = DEFAULT_WORLD_ORIGIN, host: str = "127.0.0.1",
+                 gcs_base_port: int = 14540, listen_base_port: int = 14580,
+                 max_port_offset: int | None = None, config: MockConfig | None = None,
+                 seed: int = 0, signing_key: bytes | None = None,
+                 **config_overrides: Any) -> None:
+        if homes is None:
+            if count is None:
+                raise ValueError("give the vehicle count or their homes")
+            homes = [[2.0 * i, 0.0, 0.0] for i in range(count)]
+        elif count is not None and count != len(homes):
+            raise ValueError(f"{count} vehicles but {len(homes)} homes")
+        self.config = config or MockConfig()
+        for key, value in config_overrides.items():
+            if not hasattr(self.config, key):
+                raise TypeError(f"unknown mock setting {key!r}")
+            setattr(self.config, key, value)
+        if self.config.physics_rate < 100.0:
+            raise ValueError("physics_rate must be at least 100 Hz")
+        self.world_origin = world_origin
+        self.host = host
+        self.gcs_base_port = gcs_base_port
+        self.listen_base_port = listen_base_port
+        self.seed = seed
+        self.model = FleetModel(len(homes), self.config.limits)
+        self.vehicles: list[MockVehicle] = []
+        for i, home in enumerate(homes):
+            offset = i if max_port_offset is None else min(i, max_port_offset)
+            self.vehicles.append(MockVehicle(
+                self, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
+            if signing_key is not None:  # the key already on the vehicles' SD cards
+                self.vehicles[-1].set_signing_key(signing_key)
+        self._start = time.monotonic()
+        self._task: asyncio.Task[None] | None = None
+        self.physics_steps = 0
+
+    def now(self) -> float:
+        """Seconds since the mock started (its boot clock)."""
+        return time.monotonic() - self._start
+
+    def gcs_url(self, index: int) -> str:
+        """The pymavlink URL the GCS opens for vehicle `index`."""
+        return f"udpin:{self.host}:{self.vehicles[index].gcs_port}"
+
+    def fleet_dict(self, ids: Sequence[str] | None = None) -> dict[str, Any]:
+        """A fleet file (`gcs.flight.fleetfile` format) for these vehicles, world-frame homes."""
+        ids = list(ids) if ids is not None else [f"uav{i + 1}" for i in range(len(self.vehicles))]
+        return {"vehicles": [
+            {"id": vid, "connection": self.gcs_url(i), "system_id": v.system_id,
+             "home": v.home_world.tolist()}
+            for i, (vid, v) in enumerate(zip(ids, self.vehicles, strict=True))]}
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        for vehicle in self.vehicles:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            try:
+                sock.bind(vehicle.listen_address)
+            except OSError as exc:
+                sock.close()
+                await self.stop()
+                raise OSError(f"mock vehicle {vehicle.index}: cannot bind "
+                              f"{vehicle.listen_address}: {exc}") from exc
+            sock.setblocking(False)
+            # No error callback: nobody listening yet on the GCS port is fine (PX4 keeps
+            # sending too).
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda v=vehicle: Datagrams(v.received_datagram), sock=sock)
+            vehicle._transport = transport
+        self._start = time.monotonic()
+        self._task = asyncio.create_task(self._run(), name="mock-fleet")
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+        for vehicle in self.vehicles:
+            if vehicle._transport is not None:
+                vehicle._transport.close()
+                vehicle._transport = None
+
+    async def __aenter__(self) -> MockFleet:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    async def run_forever(self) -> None:
+        """Start (if needed) and run until cancelled."""
+        if self._task is None:
+            await self.start()
+        assert self._task is not None
+        await self._task
+
+    async def _run(self) -> None:
+        step = 1.0 / self.config.physics_rate
+        simulated = self.now()
+        while True:
+            now = self.now()
+            # integrate in steps no longer than 1/physics_rate, however late we woke up
+            while simulated + step <= now:
+                self.model.step(step)
+                simulated += step
+                self.physics_steps += 1
+            for vehicle in self.vehicles:
+                vehicle.tick(now)
+                vehicle.send_telemetry(now)
+            await asyncio.sleep(max(0.0, simulated + step - self.now()))

@@ -1,0 +1,179 @@
+"""The issue-8 attacks, by a hostile process on loopback during mock flights (pinned peers,
+signing, per-datagram parsing, non-finite telemetry): nothing aborts, diverts or fakes
+anything, and the attacker receives nothing."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from gcs.flight.executor import FlightExecutor
+from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.sim import MockFleet, homes_under
+from gcs.wire import new_key_file
+from tests.flight.support import line_scenario, mock_ports, smooth_plan
+
+pytestmark = pytest.mark.timeout(150)
+
+ROOT = Path(__file__).resolve().parents[2]
+FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
+ALL_ATTACKS = "heartbeat,hijack,ack,truncated,random,nan"
+
+
+class Attacker:
+    """`tests/flight/attacker.py` in its own process."""
+
+    def __init__(self, ports: list[int], systems: list[int], attacks: str = ALL_ATTACKS
+                 ) -> None:
+        self.args = ["--ports", ",".join(map(str, ports)),
+                     "--systems", ",".join(map(str, systems)),
+                     "--duration", "90", "--attacks", attacks]
+        self.proc: asyncio.subprocess.Process | None = None
+
+    async def start(self) -> None:
+        self.proc = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "tests.flight.attacker", *self.args, cwd=ROOT,
+            stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE)
+        assert self.proc.stdout is not None
+        assert json.loads(await self.proc.stdout.readline()) == {"ready": True}
+
+    async def stop(self) -> dict[str, Any]:
+        assert self.proc is not None and self.proc.stdin is not None
+        self.proc.stdin.close()
+        out, _ = await asyncio.wait_for(self.proc.communicate(), 20)
+        return json.loads(out.decode().strip().splitlines()[-1])
+
+
+async def _fly(plan: Any, options: FlightOptions, *, key: Path | None = None,
+               attack: str = ALL_ATTACKS, impersonate: list[int] | None = None,
+               before_connect: bool = False, during: Any = None) -> tuple[Any, Any, dict]:
+    homes = homes_under(plan.scenario.starts)
+    secret = None
+    if key is not None:
+        secret = bytes.fromhex(key.read_text().strip())
+    async with MockFleet(homes=homes, settle_time=1.0, signing_key=secret,
+                         **mock_ports(len(homes))) as mock:
+        fleet_dict = mock.fleet_dict(plan.scenario.ids)
+        if key is not None:
+            fleet_dict["signing_key"] = str(key)
+        fleet = FleetSpec.from_dict(fleet_dict)
+        ports = [v.gcs_port for v in mock.vehicles]
+        attacker = Attacker(ports, impersonate or [v.system_id for v in mock.vehicles], attack)
+        mission = FlightExecutor(plan, fleet, options)
+        if before_connect:
+            await attacker.start()
+        task = mission.start()
+        if not before_connect:
+            # Without a key, the peer pinned at first contact is whoever spoke first: the
+            # attacker joins once the vehicles are connected (README threat model).
+            while mission.phase in ("created", "connecting"):
+                await asyncio.sleep(0.02)
+            await attacker.start()
+        if during is not None:
+            await during(mission, mock)
+        try:
+            outcome = await task
+        except Exception as exc:
+            outcome = exc
+        report = await attacker.stop()
+        return outcome, mock, report
+
+
+def _json_clean(record: dict) -> None:
+    json.dumps(record, allow_nan=False)  # raises on NaN/Infinity
+
+
+@pytest.mark.parametrize("signed", [False, True], ids=["pinned", "signed"])
+def test_flight_completes_under_every_attack(signed: bool, tmp_path: Path) -> None:
+    plan = smooth_plan(line_scenario(3))
+    key = new_key_file(tmp_path / "fleet.key").path if signed else None
+    record, mock, report = asyncio.run(_fly(plan, FAST, key=key, before_connect=signed))
+    assert isinstance(record, dict), record
+    summary = record["summary"]
+    assert summary["completed"] is True, summary
+    assert summary["faults"] == {}
+    assert not [e for e in record["events"] if e["kind"] in ("fault", "abort", "error")]
+    # no spoofed mode change ever reached the executor (the spoof says POSCTL)
+    modes = {m["mode"] for v in record["vehicles"] for m in v["modes"]}
+    assert "POSCTL" not in modes
+    # the attacker received nothing, although it sent a lot
+    assert report["sent"] > 1000 and report["received"] == 0, report
+    # every vehicle's spoofs were dropped and counted; the junk was counted as garbage
+    for vid in plan.scenario.ids:
+        security = summary["security"][vid]
+        assert security["foreign_source"] > 0
+        assert security["link_garbage_datagrams"] > 0
+        assert security["invalid_estimates"] == 0  # the NaN came from the attacker only
+    # the real vehicles flew the plan and never fell into a failsafe
+    for vehicle, goal in zip(mock.vehicles, plan.scenario.goals, strict=True):
+        assert np.linalg.norm(vehicle.position_world[:2] - goal[:2]) < 0.2
+        assert not [e for _, e in vehicle.events if "failsafe" in e]
+        if signed:
+            assert vehicle.signing_key is not None
+            assert vehicle._mav.signing.goodsig_count > 100
+    _json_clean(record)
+
+
+def test_spoofed_acks_do_not_hide_a_dead_vehicle() -> None:
+    """uav2 goes silent while the attacker sends ACKs, HEARTBEATs and positions as uav2:
+    the loss is still caught within the link timeout, and no landing is faked."""
+    plan = smooth_plan(line_scenario(3, steps=50))
+    started: dict[str, float] = {}
+
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
+        while (mission.mission_time() or -1.0) < 1.0:
+            await asyncio.sleep(0.02)
+        mock.vehicles[1].faults.silent = True
+        started["at"] = mission.now()
+
+    options = FAST.replace(policy="land_faulty")
+    record, mock, report = asyncio.run(_fly(plan, options, impersonate=[2], during=during))
+    assert isinstance(record, dict), record
+    flagged = [e for e in record["events"] if e["kind"] == "fault"]
+    assert [e["vehicle"] for e in flagged] == ["uav2"] and "link_lost" in flagged[0]["detail"]
+    # detected within the 1.5 s link timeout (+ a monitor period and slack for a busy box),
+    # not after the 5 s heartbeat timeout as when spoofed traffic counted as proof of life
+    assert flagged[0]["t"] - started["at"] <= options.link_timeout + 0.5
+    # the spoofed ACCEPTED for NAV_LAND was not believed: the landing is unconfirmed
+    uav2 = [e for e in record["events"] if e["vehicle"] == "uav2"]
+    assert any(e["kind"] == "land_failed" for e in uav2)
+    assert not any(e["kind"] == "land" for e in uav2)
+    assert record["summary"]["security"]["uav2"]["foreign_source"] > 0
+    assert report["received"] == 0
+    for i in (0, 2):
+        goal = plan.scenario.goals[i]
+        assert np.linalg.norm(mock.vehicles[i].position_world[:2] - goal[:2]) < 0.2
+    _json_clean(record)
+
+
+def test_non_finite_position_from_the_vehicle_is_a_fault() -> None:
+    """The real uav2 starts reporting NaN: flagged estimate_invalid, handled by the policy;
+    no NaN reaches the record or the summary."""
+    plan = smooth_plan(line_scenario(3, steps=50))
+
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
+        while (mission.mission_time() or -1.0) < 1.0:
+            await asyncio.sleep(0.02)
+        mock.vehicles[1].faults.nan_position = True
+
+    options = FAST.replace(policy="land_faulty")
+    record, mock, _report = asyncio.run(_fly(plan, options, attack="truncated",
+                                             during=during))
+    assert isinstance(record, dict), record
+    summary = record["summary"]
+    assert summary["faults"] == {"uav2": "estimate_invalid"}
+    assert summary["completed"] is False
+    assert summary["security"]["uav2"]["invalid_estimates"] > 0
+    assert summary["tracking_error_max"] is not None and np.isfinite(
+        summary["tracking_error_max"])
+    assert any("AUTO.LAND" in e for _, e in mock.vehicles[1].events)
+    for i in (0, 2):
+        goal = plan.scenario.goals[i]
+        assert np.linalg.norm(mock.vehicles[i].position_world[:2] - goal[:2]) < 0.2
+    _json_clean(record)

@@ -1,0 +1,392 @@
+"""gcs.flight.link security, packet by packet on real loopback sockets: per-datagram parsing,
+pinned peers, ACKs, non-finite telemetry, signing (unsigned, wrong key, replay) and the signing
+timestamp across restarts."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import os
+import socket
+import stat
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from gcs import px4
+from gcs.flight import signing as signing_module
+from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.signing import RESERVE, LinkSigning, timestamp_path
+from gcs.wire import (
+    GCS_SYSTEM_ID,
+    KeyFileError,
+    load_key,
+    mavlink,
+    new_key_file,
+    parse_datagram,
+    signing_timestamp,
+)
+from tests.flight.support import free_port_block
+
+pytestmark = pytest.mark.timeout(30)
+
+
+class Peer:
+    """A UDP socket speaking as system `system_id` (the vehicle, or someone pretending)."""
+
+    def __init__(self, system_id: int = 1, key: bytes | None = None,
+                 timestamp: int | None = None) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.setblocking(False)
+        self.address = self.sock.getsockname()
+        self.mav = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=1)
+        if key is not None:
+            self.mav.signing.secret_key = key
+            self.mav.signing.sign_outgoing = True
+            self.mav.signing.timestamp = timestamp or signing_timestamp(time.time())
+
+    def heartbeat(self, mode: px4.Px4Mode = px4.HOLD, armed: bool = False) -> bytes:
+        base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        if armed:
+            base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        return self.mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                         base, mode.custom_mode,
+                                         mavlink.MAV_STATE_STANDBY).pack(self.mav)
+
+    def position(self, x: float = 1.0) -> bytes:
+        return self.mav.local_position_ned_encode(0, x, 2.0, -3.0, 0.0, 0.0, 0.0).pack(self.mav)
+
+    def ack(self, command: int, result: int = mavlink.MAV_RESULT_ACCEPTED) -> bytes:
+        return self.mav.command_ack_encode(command, result, 0, 0, GCS_SYSTEM_ID,
+                                           190).pack(self.mav)
+
+    def send(self, buf: bytes, port: int) -> None:
+        self.sock.sendto(buf, ("127.0.0.1", port))
+
+    def received(self) -> list[Any]:
+        out = []
+        while True:
+            try:
+                data = self.sock.recv(4096)
+            except BlockingIOError:
+                return out
+            out.extend(parse_datagram(data).messages)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+async def _settle() -> None:
+    await asyncio.sleep(0.05)
+
+
+def _run(coro: Any) -> Any:
+    return asyncio.run(coro)
+
+
+def test_parse_datagram_counts_garbage_and_keeps_the_next_datagram() -> None:
+    real = Peer().heartbeat()
+    assert parse_datagram(b"\xfd\xff\x00").garbage_bytes == 3
+    parsed = parse_datagram(real)
+    assert [m.get_type() for m in parsed.messages] == ["HEARTBEAT"] and parsed.garbage_bytes == 0
+    junk = parse_datagram(b"\x00\x01\x02garbage")
+    assert junk.messages == [] and junk.garbage_bytes > 0
+
+
+def test_truncated_headers_cannot_desynchronise_a_vehicle() -> None:
+    """The issue's attack: 3-byte truncated headers between every real packet."""
+    async def main() -> None:
+        port = free_port_block(1)
+        vehicle, attacker = Peer(), Peer(system_id=7)
+        try:
+            async with LinkHub() as hub:
+                link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
+                positions = []
+                link.listeners.append(lambda _l, m, _t: positions.append(m.get_type()))
+                for i in range(20):
+                    attacker.send(b"\xfd\xff\x00", port)
+                    vehicle.send(vehicle.position(float(i)), port)
+                    await asyncio.sleep(0.005)
+                await _settle()
+                assert positions.count("LOCAL_POSITION_NED") == 20  # none swallowed
+                assert link.telemetry.position_ned == (19.0, 2.0, -3.0)
+                assert link.endpoint.garbage_datagrams == 20
+        finally:
+            vehicle.close()
+            attacker.close()
+
+    _run(main())
+
+
+def test_peer_is_pinned_spoofs_dropped_counted_and_never_sent_to() -> None:
+    async def main() -> None:
+        port = free_port_block(1)
+        vehicle, spoofer = Peer(), Peer()
+        try:
+            async with LinkHub(heartbeat_period=0.05) as hub:
+                link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
+                vehicle.send(vehicle.heartbeat(px4.OFFBOARD, armed=True), port)
+                await _settle()
+                assert link.peer_address == vehicle.address
+                assert link.telemetry.mode == px4.OFFBOARD
+                # spoofed HEARTBEAT (POSCTL, disarmed), positions, and the hijack's SYSTEM_TIME
+                for _ in range(10):
+                    spoofer.send(spoofer.heartbeat(px4.POSITION), port)
+                    spoofer.send(spoofer.position(99.0), port)
+                    spoofer.send(spoofer.mav.system_time_encode(0, 0).pack(spoofer.mav), port)
+                await asyncio.sleep(0.2)
+                assert link.telemetry.mode == px4.OFFBOARD and link.telemetry.armed
+                assert link.telemetry.position_ned is None
+                assert link.telemetry.security.foreign_source == 30
+                link.send_setpoint(_setpoint(), 0)
+                await _settle()
+                assert spoofer.received() == []  # nothing ever goes to the spoofer
+                kinds = {m.get_type() for m in vehicle.received()}
+                assert {"HEARTBEAT", "SET_POSITION_TARGET_LOCAL_NED"} <= kinds
+        finally:
+            vehicle.close()
+            spoofer.close()
+
+    _run(main())
+
+
+def test_peer_from_the_fleet_file_is_pinned_before_first_contact() -> None:
+    async def main() -> None:
+        port = free_port_block(1)
+        vehicle, early = Peer(), Peer()
+        try:
+            async with LinkHub() as hub:
+                link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1,
+                                     peer=vehicle.address)
+                early.send(early.heartbeat(), port)  # first to speak, but not the pinned peer
+                await _settle()
+                assert link.telemetry.heartbeat_time is None
+                assert link.telemetry.security.foreign_source == 1
+                vehicle.send(vehicle.heartbeat(), port)
+                await _settle()
+                assert link.telemetry.heartbeat_time is not None
+        finally:
+            vehicle.close()
+            early.close()
+
+    _run(main())
+
+
+def test_acks_count_only_from_the_pinned_peer_for_a_pending_command() -> None:
+    async def main() -> None:
+        port = free_port_block(1)
+        vehicle, spoofer = Peer(), Peer()
+        try:
+            async with LinkHub() as hub:
+                link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
+                vehicle.send(vehicle.heartbeat(), port)
+                await _settle()
+                land = mavlink.MAV_CMD_NAV_LAND
+                # an ACK for a command nobody sent changes nothing
+                vehicle.send(vehicle.ack(land), port)
+                await _settle()
+                assert link.duplicate_acks == 1
+                task = asyncio.create_task(link.command(land, timeout=0.3, retries=0))
+                await _settle()
+                spoofer.send(spoofer.ack(land), port)  # the spoofer's ACCEPTED is not an answer
+                await _settle()
+                assert not task.done()
+                vehicle.send(vehicle.ack(land, mavlink.MAV_RESULT_DENIED), port)
+                assert await task == mavlink.MAV_RESULT_DENIED
+                assert link.telemetry.security.foreign_source == 1
+        finally:
+            vehicle.close()
+            spoofer.close()
+
+    _run(main())
+
+
+def test_non_finite_position_is_never_stored_and_is_timestamped() -> None:
+    async def main() -> None:
+        port = free_port_block(1)
+        vehicle = Peer()
+        try:
+            async with LinkHub() as hub:
+                link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
+                seen: list[str] = []
+                link.listeners.append(lambda _l, m, _t: seen.append(m.get_type()))
+                vehicle.send(vehicle.position(1.0), port)
+                await _settle()
+                for bad in (math.nan, math.inf):
+                    vehicle.send(vehicle.mav.local_position_ned_encode(
+                        0, bad, 0.0, 0.0, 0.0, 0.0, 0.0).pack(vehicle.mav), port)
+                vehicle.send(vehicle.mav.local_position_ned_encode(
+                    0, 1.0, 0.0, 0.0, 0.0, math.nan, 0.0).pack(vehicle.mav), port)
+                await _settle()
+                tel = link.telemetry
+                assert tel.position_ned == (1.0, 2.0, -3.0)  # the last finite one
+                assert tel.invalid_estimates == 3 and tel.invalid_estimate_time is not None
+                assert seen == ["LOCAL_POSITION_NED"]  # listeners (the record) never see NaN
+        finally:
+            vehicle.close()
+
+    _run(main())
+
+
+def _setpoint() -> Any:
+    from gcs.flight.setpoints import Setpoint
+    return Setpoint((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
+
+
+# ---------------------------------------------------------------------------- signing
+
+
+def test_key_files_are_private_and_never_overwritten(tmp_path: Path) -> None:
+    path = tmp_path / "fleet.key"
+    key = new_key_file(path)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert len(key.secret) == 32 and load_key(path) == key
+    assert key.secret.hex() not in repr(key) and key.secret.hex() not in str(key)
+    with pytest.raises(KeyFileError, match="already exists"):
+        new_key_file(path)
+    os.chmod(path, 0o640)
+    with pytest.raises(KeyFileError, match="group/others"):
+        load_key(path)
+    bad = tmp_path / "bad.key"
+    bad.write_text("abcd\n")
+    os.chmod(bad, 0o600)
+    with pytest.raises(KeyFileError, match="64 hex digits"):
+        load_key(bad)
+
+
+def _signed_hub_test(tmp_path: Path, body: Any) -> None:
+    key = new_key_file(tmp_path / "k.key")
+
+    async def main() -> None:
+        port = free_port_block(1)
+        vehicle = Peer(key=key.secret)
+        try:
+            async with LinkHub() as hub:
+                link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1, signing_key=key)
+                await body(link, vehicle, port, key)
+        finally:
+            vehicle.close()
+
+    _run(main())
+
+
+def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
+        tmp_path: Path) -> None:
+    async def body(link: VehicleLink, vehicle: Peer, port: int, key: Any) -> None:
+        first = vehicle.heartbeat(px4.OFFBOARD, armed=True)
+        vehicle.send(first, port)
+        await _settle()
+        assert link.telemetry.mode == px4.OFFBOARD and link.pinned
+        # everything the GCS sends is signed with the key
+        link.send_setpoint(_setpoint(), 0)
+        await _settle()
+        received = [m for m in vehicle.received()]
+        assert received and all(m._msgbuf[2] & mavlink.MAVLINK_IFLAG_SIGNED for m in received)
+        checker = mavlink.MAVLink(None)
+        checker.signing.secret_key = key.secret
+        for m in received:
+            assert checker.decode(bytearray(m._msgbuf))._signed
+        # from the pinned address: unsigned, signed with another key, and a replay
+        unsigned = Peer()
+        unsigned.sock.close()
+        vehicle.send(unsigned.heartbeat(px4.POSITION), port)
+        wrong = Peer(key=b"\x01" * 32)
+        wrong.sock.close()
+        vehicle.send(wrong.heartbeat(px4.POSITION), port)
+        vehicle.send(first, port)  # replayed: same timestamp as an accepted one
+        await _settle()
+        sec = link.telemetry.security
+        assert (sec.unsigned, sec.bad_signature, sec.replayed) == (1, 1, 1)
+        assert link.telemetry.mode == px4.OFFBOARD
+        vehicle.send(vehicle.heartbeat(px4.POSITION), port)  # a fresh signed one counts
+        await _settle()
+        assert link.telemetry.mode == px4.POSITION
+
+    _signed_hub_test(tmp_path, body)
+
+
+def test_a_forged_future_timestamp_cannot_lock_the_stream_out(tmp_path: Path) -> None:
+    """pymavlink's own check records a timestamp before checking the signature; ours not."""
+    async def body(link: VehicleLink, vehicle: Peer, port: int, key: Any) -> None:
+        forger = Peer(key=b"\x02" * 32, timestamp=signing_timestamp(time.time()) + 10**9)
+        forger.sock.close()
+        vehicle.send(forger.heartbeat(px4.POSITION), port)  # bad signature, huge timestamp
+        vehicle.send(vehicle.heartbeat(), port)
+        await _settle()
+        assert link.telemetry.security.bad_signature == 1
+        assert link.telemetry.heartbeat_time is not None
+
+    _signed_hub_test(tmp_path, body)
+
+
+def test_signing_timestamp_never_goes_backwards_across_restarts(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    key = new_key_file(tmp_path / "k.key")
+    first = LinkSigning(key)
+    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    mav.signing = first.state
+    for _ in range(1000):
+        first.pack(mav.heartbeat_encode(6, 8, 0, 0, 4), mav)
+    last_used = first.state.timestamp - 1
+    assert stat.S_IMODE(timestamp_path(key).stat().st_mode) == 0o600
+    # the machine's clock jumps back an hour, then the GCS restarts (no clean shutdown)
+    now = time.time()
+    monkeypatch.setattr(signing_module.time, "time", lambda: now - 3600.0)
+    second = LinkSigning(key)
+    assert second.state.timestamp > last_used
+    assert int(timestamp_path(key).read_text()) >= second.state.timestamp + RESERVE - 1
+
+
+def test_fleet_file_names_the_key_and_the_peer_and_never_writes_the_key(
+        tmp_path: Path) -> None:
+    import json
+
+    from gcs.errors import FleetFileError
+    from gcs.flight.fleetfile import FleetSpec, load_fleet
+
+    key = new_key_file(tmp_path / "fleet.key")
+    other = new_key_file(tmp_path / "uav2.key")
+    fleet = {
+        "signing_key": "fleet.key",  # relative to the fleet file
+        "vehicles": [
+            {"id": "uav1", "connection": "udpin:127.0.0.1:14540", "system_id": 1,
+             "home": [0, 0, 0], "peer": "127.0.0.1:14580"},
+            {"id": "uav2", "connection": "udpin:127.0.0.1:14541", "system_id": 2,
+             "home": [2, 0, 0], "signing_key": str(other.path)},
+        ]}
+    (tmp_path / "fleet.json").write_text(json.dumps(fleet))
+    spec = load_fleet(tmp_path / "fleet.json")
+    uav1, uav2 = spec.vehicles
+    assert uav1.signing_key == key and uav2.signing_key == other
+    assert uav1.peer == ("127.0.0.1", 14580) and uav2.peer is None
+    written = json.dumps(spec.to_dict())
+    assert key.secret.hex() not in written and other.secret.hex() not in written
+    assert str(key.path) in written
+    os.chmod(other.path, 0o644)
+    with pytest.raises(FleetFileError, match=r"vehicles\[1\]\.signing_key.*group/others"):
+        load_fleet(tmp_path / "fleet.json")
+    bad_peer = {**fleet, "signing_key": str(key.path)}
+    bad_peer["vehicles"] = [{**fleet["vehicles"][0], "peer": "nowhere"}]
+    with pytest.raises(FleetFileError, match=r"vehicles\[0\]\.peer"):
+        FleetSpec.from_dict(bad_peer)
+
+
+def test_quick_restarts_still_accept_an_honest_vehicle(tmp_path: Path) -> None:
+    """Each restart starts the GCS's own counter past the last reservation (ahead of the
+    clock); a vehicle signing with the current time must still be accepted as a new stream,
+    while one a minute and more behind is refused as a replay."""
+    key = new_key_file(tmp_path / "k.key")
+    for _ in range(10):
+        signing = LinkSigning(key)
+    assert signing.state.timestamp > signing_timestamp(time.time()) + RESERVE  # ahead
+    vehicle = Peer(key=key.secret)
+    vehicle.sock.close()
+    fresh = parse_datagram(vehicle.heartbeat()).messages[0]
+    assert signing.verify(fresh) is None
+    old = Peer(system_id=2, key=key.secret,
+               timestamp=signing_timestamp(time.time()) - 61 * 100_000)
+    old.sock.close()
+    assert signing.verify(parse_datagram(old.heartbeat()).messages[0]) == "replayed"
