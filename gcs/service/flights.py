@@ -1,7 +1,7 @@
 """The configured fleet as the service sees it, and its flights (executions).
 
 `FleetService` owns one fleet: the vehicles of a fleet file (real PX4 or SITL), or mock PX4
-vehicles running in-process (`gcs.sim.mock.MockFleet`), or none. Between flights it keeps a
+vehicles running in-process (`gcs.sim.MockFleet`), or none. Between flights it keeps a
 listen-only MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live
 link state; for a flight it closes the monitor and hands the connections to a
 `gcs.flight.executor.FlightExecutor`, which does everything that talks to vehicles. One
