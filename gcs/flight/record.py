@@ -26,14 +26,27 @@ interpolated onto common instants at the stream rate.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.setpoints import Setpoint
+from gcs.flight.stream import jitter_stats
+from planner import Plan
 
-__all__ = ["FlightRecorder", "VehicleRecord", "measured_min_separation"]
+if TYPE_CHECKING:
+    from gcs.flight.vehicle import VehicleStatus
+
+__all__ = ["FlightRecorder", "VehicleRecord", "finite_or_none", "measured_min_separation",
+           "summarise"]
+
+
+def finite_or_none(x: float | None) -> float | None:
+    """`x` as a float, or None when it is None, NaN or infinite (JSON has no NaN/Infinity)."""
+    return None if x is None or not math.isfinite(x) else float(x)
 
 
 @dataclass
@@ -125,3 +138,65 @@ def measured_min_separation(times: list[np.ndarray], positions: list[np.ndarray]
     d = np.linalg.norm(stacked[i] - stacked[j], axis=2)  # (pairs, G)
     pair, instant = np.unravel_index(int(np.argmin(d)), d.shape)
     return float(d[pair, instant]), float(grid[instant])
+
+
+def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
+              vehicles: Sequence[VehicleStatus], *, mission_start: float | None, now: float,
+              missed_ticks: int, lateness: Sequence[float] | None,
+              error: BaseException | None) -> dict[str, Any]:
+    """The flight record's summary (see the module docstring) from what `recorder` holds and
+    the executor's final view of each vehicle (fault, goal error, phase). `now` is the GCS-clock
+    time at the end; `lateness` is None when nothing was streamed."""
+    scenario = plan.scenario
+    out: dict[str, Any] = {
+        "completed": False, "goal_error_max": None, "tracking_error_max": None,
+        "min_separation_measured": None, "min_separation_planned": None,
+        "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,
+        "missed_ticks": missed_ticks,
+        "faults": {v.id: v.fault for v in vehicles if v.fault is not None},
+    }
+    if plan.verification is not None:
+        out["min_separation_planned"] = plan.verification.min_separation_continuous
+    if mission_start is None:
+        return out
+    t0 = mission_start
+    end = t0 + scenario.horizon + options.hold_at_goal
+    first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
+                      default=math.inf)
+    t1 = min(end, first_fault, now)
+    tracking = []
+    times, positions = [], []
+    for v in vehicles:
+        rec = recorder.vehicles[v.id]
+        t, p = rec.telemetry_arrays()
+        stop = min(t1, v.fault_time if v.fault_time is not None else math.inf)
+        window = (t >= t0) & (t <= stop)
+        if np.any(window):
+            planned = plan.vehicles[v.index].sample(scenario.dt, t[window] - t0)
+            tracking.append(float(np.max(np.linalg.norm(p[window] - planned.position, axis=1))))
+        times.append(t)
+        positions.append(p)
+    if tracking:
+        out["tracking_error_max"] = max(tracking)
+    # Separation over the whole flight, not only up to the first fault: a vehicle sent
+    # down by land_faulty still passes the others.
+    scale = np.asarray(scenario.separation_scale, dtype=float)
+    separation, _ = measured_min_separation(times, positions, t0, min(end, now),
+                                            options.rate_hz, scale)
+    out["min_separation_measured"] = finite_or_none(separation)
+    goal_errors = [v.goal_error for v in vehicles if not math.isnan(v.goal_error)]
+    if goal_errors:
+        out["goal_error_max"] = max(goal_errors)
+    if lateness is not None:
+        counts = [sum(1 for s in recorder.vehicles[v.id].sp_t if t0 <= s <= t1)
+                  for v in vehicles]
+        if t1 > t0:
+            out["setpoint_rate_hz"] = float(np.mean(counts)) / (t1 - t0)
+        stats = jitter_stats(lateness)
+        out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
+        out["jitter_p99_ms"] = finite_or_none(stats["jitter_p99_ms"])
+    landed_ok = options.at_end != "land" or all(v.phase == "landed" for v in vehicles)
+    out["completed"] = bool(
+        error is None and not out["faults"] and len(goal_errors) == len(vehicles)
+        and max(goal_errors) <= options.goal_tolerance and landed_ok)
+    return out
