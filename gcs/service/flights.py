@@ -30,6 +30,7 @@ import orjson
 
 from gcs import frames
 from gcs.errors import FleetFileError, GcsError, InvalidRequest, MissionAborted, StateConflict
+from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, load_fleet
 from gcs.flight.link import LinkHub, VehicleLink
@@ -236,6 +237,35 @@ class FleetService:
     @property
     def active(self) -> LiveExecution | None:
         return self._active if self._active is not None and self._active.active else None
+
+    # ------------------------------------------------------------------ fleet commands
+
+    async def command(self, command: str, vehicles: list[str] | None = None, *,
+                      force: bool = False, confirm: bool = False) -> dict[str, Any]:
+        """A fleet command (`gcs.flight.commands`) to `vehicles` (default all) between flights.
+
+        StateConflict while a flight is under way (abort or pause it instead), with no fleet,
+        or when the fleet's connections are not open; InvalidRequest / StateConflict from
+        the command's own checks (nothing sent then). Returns {command, done, vehicles:
+        [outcome...]} once every vehicle answered or timed out."""
+        async with self._lock:
+            if self.active is not None:
+                raise StateConflict("fleet", f"execution {self.active.id} is flying: use its "
+                                             "abort (or pause) instead of a fleet command")
+            if self.kind == "none" or self._spec is None:
+                raise StateConflict("fleet", "no fleet configured: start the service with "
+                                             "--mock N or --fleet FLEET.json")
+            if not self._links:
+                raise StateConflict("fleet", "the fleet's connections are not open (see the "
+                                             "service log)")
+            outcomes = await fleet_command(self._links, command, vehicles, force=force,
+                                           confirm=confirm)
+        log.warning("fleet command %s to %s: %s", command,
+                    ", ".join(o.vehicle for o in outcomes),
+                    "; ".join(f"{o.vehicle} {'done' if o.done else 'NOT done'}: {o.detail}"
+                              for o in outcomes))
+        return {"command": command, "done": all(o.done for o in outcomes),
+                "vehicles": [o.to_dict() for o in outcomes]}
 
     # ------------------------------------------------------------------ flying
 

@@ -19,6 +19,8 @@ MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
 - OFFBOARD is refused (TEMPORARILY_REJECTED) unless such a setpoint arrived within
   COM_OF_LOSS_T; arming is TEMPORARILY_REJECTED during `settle_time` after start.
 - DO_SET_MODE and REQUEST_MESSAGE are ACKed twice, like PX4 does.
+- AUTO.RTL flies back over home at its height, then lands; MAV_CMD_DO_FLIGHTTERMINATION stops
+  the motors (it falls), HEARTBEAT then says MAV_STATE_FLIGHT_TERMINATION and arming is denied.
 - Offboard loss (no setpoint for COM_OF_LOSS_T) triggers the failsafe: Position mode (hold),
   then, there being no RC, AUTO.LAND after `failsafe_land_delay`; auto-disarm 2 s after
   landing, and 10 s after arming without taking off.
@@ -179,6 +181,8 @@ class MockVehicle:
         self.armed = False
         self.in_air = False
         self.failsafe = False
+        self.terminated = False
+        """MAV_CMD_DO_FLIGHTTERMINATION received: motors off until restart."""
         self.yaw = 0.0
         self.received: list[ReceivedSetpoint] = []
         self.setpoints_accepted = 0
@@ -237,6 +241,8 @@ class MockVehicle:
         i = self.index
         if mode == px4.LAND:
             self.model.descend(i, self.config.land_speed)
+        elif mode == px4.RTL:  # back over home at the current height, then down (tick)
+            self.model.hold(i, np.array([0.0, 0.0, self.model.position[i, 2]]))
         elif mode in (px4.HOLD, px4.POSITION):
             self.model.hold(i, self.model.position[i].copy())
         if mode != px4.POSITION:
@@ -284,11 +290,16 @@ class MockVehicle:
                 self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe: no RC, landing")
                 self._set_mode(px4.LAND)
                 self.failsafe = True
+        if (self.mode == px4.RTL and self.armed and np.isfinite(self.model.position_sp[i, 2])
+                and np.linalg.norm(self.model.position[i, :2]) < 0.2):
+            self.model.descend(i, cfg.land_speed)  # RTL's landing phase
         if not self.armed:
+            if self.terminated and z >= -0.05:
+                self.in_air = False
             return
         on_ground = z >= -0.05 and abs(vz) < 0.2
         if self.in_air:
-            if on_ground and self.mode == px4.LAND:
+            if on_ground and self.mode in (px4.LAND, px4.RTL):
                 if self._landed_since is None:
                     self._landed_since = now
                     self.statustext(mavlink.MAV_SEVERITY_INFO, "Landing detected")
@@ -350,7 +361,8 @@ class MockVehicle:
                      | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED)
         if self.armed:
             base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-        state = (mavlink.MAV_STATE_CRITICAL if self.failsafe else
+        state = (mavlink.MAV_STATE_FLIGHT_TERMINATION if self.terminated else
+                 mavlink.MAV_STATE_CRITICAL if self.failsafe else
                  mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY)
         return self._mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
                                           base, self.mode.custom_mode, state)
@@ -513,6 +525,10 @@ class MockVehicle:
         elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
             result = self._on_set_mode(int(p1), round(p2), round(p3), now)
             self._ack(msg, cmd, result, times=2)
+        elif cmd == mavlink.MAV_CMD_DO_FLIGHTTERMINATION and p1 >= 0.5:
+            self.terminated = True
+            self._disarm("flight termination")
+            self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
         elif cmd == mavlink.MAV_CMD_NAV_LAND:
             self._set_mode(px4.LAND)
             self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
@@ -554,6 +570,9 @@ class MockVehicle:
         cmd = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
         if self.armed:
             self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+        elif self.terminated:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Arming denied: flight terminated")
+            self._ack(msg, cmd, mavlink.MAV_RESULT_DENIED)
         elif self.faults.refuse_arming:
             self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Arming denied: injected fault")
             self._ack(msg, cmd, mavlink.MAV_RESULT_DENIED)
@@ -579,7 +598,7 @@ class MockVehicle:
             # received while in OFFBOARD)
             self.model.hold(self.index, self.model.position[self.index].copy())
             return mavlink.MAV_RESULT_ACCEPTED
-        if wanted in (px4.HOLD, px4.LAND, px4.POSITION):
+        if wanted in (px4.HOLD, px4.LAND, px4.POSITION, px4.RTL):
             self._set_mode(wanted)
             return mavlink.MAV_RESULT_ACCEPTED
         self.statustext(mavlink.MAV_SEVERITY_CRITICAL, f"Mode {wanted.name} not supported")

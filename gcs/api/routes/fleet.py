@@ -1,0 +1,85 @@
+"""/api/fleet/commands: hold, land, return to launch, disarm or terminate vehicles between flights.
+
+The same body for one vehicle at /api/vehicles/{id}/commands (`gcs.api.routes.vehicles`).
+Each command is acknowledged by the vehicle and its effect confirmed from its HEARTBEAT before
+the vehicle counts as done (`gcs.flight.commands`): a fleet left hovering can always be landed.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Body
+from pydantic import BaseModel, ConfigDict, Field
+
+from gcs.api.deps import FleetDep
+from gcs.api.errors import error_responses
+
+__all__ = ["CommandOut", "CommandRequest", "router"]
+
+router = APIRouter(prefix="/fleet", tags=["fleet"])
+
+
+class CommandRequest(BaseModel):
+    """A fleet command. Only `command` is required."""
+
+    model_config = ConfigDict(
+        extra="forbid", strict=True,
+        json_schema_extra={"examples": [{"command": "land"},
+                                        {"command": "hold", "vehicles": ["uav1", "uav3"]},
+                                        {"command": "terminate", "confirm": True}]},
+    )
+
+    command: Literal["hold", "land", "rtl", "disarm", "terminate"] = Field(
+        description="hold: PX4 Hold where it is; land: land where it is; rtl: return to "
+        "launch and land; disarm: stop the motors (refused in the air unless `force`); "
+        "terminate: flight termination, motors off at once (needs `confirm`)."
+    )
+    vehicles: list[Annotated[str, Field(max_length=64)]] | None = Field(
+        None, max_length=1000,
+        description="Vehicle ids (default: the whole fleet). Ignored on "
+        "/api/vehicles/{id}/commands.",
+    )
+    force: bool = Field(False, description="disarm only: disarm even in the air (it falls).")
+    confirm: bool = Field(False, description="terminate only: must be true.")
+
+
+class VehicleOutcome(BaseModel):
+    vehicle: str
+    command: str
+    done: bool = Field(description="Acknowledged and its effect seen in telemetry.")
+    detail: str
+    mode: str | None = Field(description="Mode in the vehicle's HEARTBEAT afterwards.")
+    armed: bool | None
+
+
+class CommandOut(BaseModel):
+    """What every vehicle did."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "command": "land", "done": True,
+        "vehicles": [{"vehicle": "uav1", "command": "land", "done": True,
+                      "detail": "landing (AUTO.LAND confirmed)", "mode": "AUTO.LAND",
+                      "armed": True}],
+    }]})
+
+    command: str
+    done: bool = Field(description="Every vehicle done.")
+    vehicles: list[VehicleOutcome]
+
+
+@router.post(
+    "/commands",
+    response_model=CommandOut,
+    summary="Command the fleet between flights (hold, land, rtl, disarm, terminate)",
+    responses=error_responses(400, 409, 413, 422),
+)
+async def fleet_commands(
+    fleet: FleetDep, request: Annotated[CommandRequest, Body()]
+) -> dict[str, Any]:
+    """Sent to every chosen vehicle at once; answers when each confirmed it (or after about
+    5 s without confirmation: `done` false, `detail` says why). 409 while a flight is under way
+    (use its abort or pause), or for a disarm in the air without `force`; 422 for a terminate
+    without `confirm` or an unknown vehicle."""
+    return await fleet.command(request.command, request.vehicles, force=request.force,
+                               confirm=request.confirm)
