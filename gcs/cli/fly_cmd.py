@@ -2,7 +2,9 @@
 
 Live progress per vehicle once a second and every event as it happens; a summary at the end;
 exit status 0 only when the flight completed. Ctrl-C aborts safely: every vehicle lands and
-the command waits for them to disarm (a second Ctrl-C exits at once).
+the command waits for them to disarm (a second Ctrl-C exits at once). SIGUSR1 pauses the
+mission (the clock stops, every vehicle holds the plan's setpoint of the same plan time),
+SIGUSR2 resumes it: ``kill -USR1 PID``.
 """
 
 from __future__ import annotations
@@ -109,8 +111,20 @@ def run(args: argparse.Namespace) -> int:
             else:
                 task.cancel()
 
+        def on_pause(resume: bool) -> None:
+            try:
+                t = executor.resume() if resume else executor.pause()
+            except GcsError as exc:
+                print(f"cannot {'resume' if resume else 'pause'}: {exc}", file=sys.stderr,
+                      flush=True)
+                return
+            print(f"{'resumed' if resume else 'paused'} at mission time {t:.2f} s "
+                  f"({'SIGUSR1 pauses' if resume else 'SIGUSR2 resumes'})", flush=True)
+
         task = executor.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
+        loop.add_signal_handler(signal.SIGUSR1, on_pause, False)
+        loop.add_signal_handler(signal.SIGUSR2, on_pause, True)
         printer = None if args.quiet else asyncio.create_task(_progress(executor))
         record = None
         status = 1
@@ -125,7 +139,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
             record = executor.record
         finally:
-            loop.remove_signal_handler(signal.SIGINT)
+            for sig in (signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2):
+                loop.remove_signal_handler(sig)
             if printer is not None:
                 printer.cancel()
                 with contextlib.suppress(asyncio.CancelledError):

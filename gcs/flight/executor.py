@@ -53,12 +53,13 @@ import contextlib
 import math
 import time
 from collections.abc import AsyncIterator, Awaitable, Iterable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from gcs import frames, px4
-from gcs.errors import MissionAborted, PlanRejected, VehicleTimeout
+from gcs.errors import MissionAborted, PlanRejected, StateConflict, VehicleTimeout
 from gcs.flight import vehicle
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link import LinkHub, VehicleLink
@@ -110,6 +111,8 @@ class FlightExecutor:
         self._t0 = time.monotonic()
         self._hub: LinkHub | None = None
         self._tracks: list[SetpointTrack] = []
+        self._mission_tick = 0
+        """Streamer tick of mission time 0, moved on by every pause."""
         self._flow: asyncio.Task[None] | None = None
         self._abort: tuple[str, str] | None = None
         self._secure_task: asyncio.Task[None] | None = None
@@ -117,6 +120,10 @@ class FlightExecutor:
         self._background: set[asyncio.Task[Any]] = set()
         self._task: asyncio.Task[dict[str, Any]] | None = None
         self._yaw_ned = frames.world_yaw_to_ned(self.options.yaw)
+        self.pauses: list[list[float | None]] = []
+        """[start, end] of every pause (GCS clock, s; end None while paused)."""
+        self._paused_total = 0.0
+        self._pause: _Pause | None = None
 
     # ================================================================ public API
 
@@ -125,7 +132,81 @@ class FlightExecutor:
         return time.monotonic() - self._t0
 
     def mission_time(self) -> float | None:
-        return None if self.mission_start is None else self.now() - self.mission_start
+        """Seconds on the shared mission clock (None before it started); it stops while
+        paused."""
+        if self.mission_start is None:
+            return None
+        if self._pause is not None:
+            return self._pause.plan_tick / self._streamer().rate
+        return self.now() - self.mission_start - self._paused_total
+
+    @property
+    def paused(self) -> bool:
+        return self._pause is not None
+
+    def pause(self) -> float:
+        """Stop the shared mission clock: from the next tick every vehicle flying the plan
+        holds the plan's setpoint of that same plan time (at rest), so the fleet stays as
+        separated as the plan is at that instant. Returns the plan time it holds.
+        `StateConflict` unless the plan is being flown (and not already paused). After
+        `pause_limit` s the `pause_expiry` action (land or hold) ends the mission."""
+        if self._pause is not None:
+            raise StateConflict("status", "already paused")
+        if self.phase != "flying" or self._abort is not None or self.mission_start is None:
+            raise StateConflict("status", f"only a flying mission can be paused (phase "
+                                          f"{self.phase})")
+        streamer = self._streamer()
+        tick = streamer.next_tick()
+        plan_tick = tick - self._mission_tick
+        held = []
+        for v, track in zip(self.vehicles, self._tracks, strict=True):
+            assignment = streamer.assignments.get(v.id)
+            if assignment is None or assignment.track is not track:
+                continue  # landing (land_faulty) or already stopped: not ours to hold
+            sp = track.at(plan_tick)
+            streamer.assign(v.id, assignment.link, hold_track(sp.position, sp.yaw,
+                                                              streamer.rate), tick)
+            held.append(v.id)
+        started = streamer.tick_time(tick) - self._t0
+        self._pause = _Pause(tick, plan_tick, held, asyncio.ensure_future(self._pause_limit()))
+        self.pauses.append([started, None])
+        self.phase = "paused"
+        t = plan_tick / streamer.rate
+        self._emit(None, "pause", f"mission clock stopped at t={t:.2f} s; "
+                                  f"{', '.join(held)} holding (limit "
+                                  f"{self.options.pause_limit:g} s, then "
+                                  f"{self.options.pause_expiry})")
+        return t
+
+    def resume(self) -> float:
+        """Restart the shared mission clock where `pause` stopped it; returns that plan time.
+        `StateConflict` unless paused."""
+        pause = self._pause
+        if pause is None or self._abort is not None:
+            raise StateConflict("status", f"not paused (phase {self.phase})")
+        streamer = self._streamer()
+        tick = streamer.next_tick()
+        for v, track in zip(self.vehicles, self._tracks, strict=True):
+            if v.id in pause.held and v.id in streamer.assignments and v.fault is None:
+                streamer.assign(v.id, streamer.assignments[v.id].link, track,
+                                tick - pause.plan_tick)
+        self._paused_total += (tick - pause.tick) / streamer.rate
+        self._mission_tick += tick - pause.tick
+        self.pauses[-1][1] = streamer.tick_time(tick) - self._t0
+        pause.limit.cancel()
+        self._pause = None
+        self.phase = "flying"
+        t = pause.plan_tick / streamer.rate
+        self._emit(None, "resume", f"mission clock running again from t={t:.2f} s after "
+                                   f"{(tick - pause.tick) / streamer.rate:.1f} s")
+        return t
+
+    async def _pause_limit(self) -> None:
+        await asyncio.sleep(self.options.pause_limit)
+        action = self.options.pause_expiry
+        self._emit(None, "pause_limit", f"paused for {self.options.pause_limit:g} s: "
+                                        f"{action} all")
+        await self.abort(action, f"paused longer than {self.options.pause_limit:g} s")
 
     def start(self) -> asyncio.Task[dict[str, Any]]:
         """Run the mission in a background task (on the running loop) and return the task."""
@@ -143,6 +224,7 @@ class FlightExecutor:
             raise ValueError("action must be 'land' or 'hold'")
         if self._abort is None:
             self._abort = (action, reason)
+            self._end_pause()
             self._emit(None, "abort", f"{reason}: {action} all")
             if self._flow is not None and not self._flow.done():
                 self._flow.cancel()
@@ -343,6 +425,7 @@ class FlightExecutor:
             streamer.assign(v.id, v.linked, track, start_tick)
             v.phase = "flying"
         self.mission_start = streamer.tick_time(start_tick) - self._t0
+        self._mission_tick = start_tick
         streamer.measuring = True
         self._emit(None, "mission_start", f"tick {start_tick}, horizon "
                                           f"{self.plan.scenario.horizon:g} s")
@@ -470,12 +553,14 @@ class FlightExecutor:
             queue.put_nowait(event)
 
     def _finish_record(self, error: BaseException | None) -> None:
+        self._end_pause()
         scenario = self.plan.scenario
         self.recorder.meta = {
             "plan": scenario.to_dict(),
             "fleet": self.fleet.to_dict(),
             "options": self.options.to_dict(),
             "mission_start": self.mission_start,
+            "pauses": self.pauses,
             "horizon": scenario.horizon,
             "error": None if error is None else {
                 "type": type(error).__name__, "message": str(error) or type(error).__name__},
@@ -483,7 +568,7 @@ class FlightExecutor:
         streamer = self.streamer
         self.recorder.summary = summarise(
             self.recorder, self.plan, self.options, self.vehicles,
-            mission_start=self.mission_start, now=self.now(),
+            mission_start=self.mission_start, pauses=self.pauses, now=self.now(),
             missed_ticks=streamer.missed_ticks if streamer is not None else 0,
             lateness=streamer.lateness if streamer is not None else None, error=error)
         self.record = self.recorder.to_dict()
@@ -495,8 +580,36 @@ class FlightExecutor:
         return self.streamer
 
     async def _sleep_until_mission_time(self, t: float) -> None:
-        assert self.mission_start is not None
-        await asyncio.sleep(max(0.0, self.mission_start + t - self.now()))
+        """Sleep until mission time `t`; a pause on the way makes it wait longer (the mission
+        clock never runs faster than the GCS clock, so sleeping the remainder never
+        oversleeps)."""
+        while True:
+            now = self.mission_time()
+            assert now is not None
+            if now >= t:
+                return
+            await asyncio.sleep(t - now)
+
+    def _end_pause(self) -> None:
+        """Forget a pause (the mission is ending); its interval ends now."""
+        if self._pause is not None:
+            self._pause.limit.cancel()
+            self._pause = None
+            if self.pauses and self.pauses[-1][1] is None:
+                self.pauses[-1][1] = self.now()
+
+
+@dataclass
+class _Pause:
+    """A pause under way."""
+
+    tick: int
+    """Streamer tick from which the fleet holds."""
+    plan_tick: int
+    """The plan's tick (mission time * rate) every vehicle holds."""
+    held: list[str]
+    limit: asyncio.Future[None]
+    """The pause-limit timer."""
 
 
 def _cancelling() -> bool:

@@ -45,6 +45,7 @@ MAX_LINK_TIMEOUT_S = 5.0
 
 __all__ = [
     "AT_END",
+    "PAUSE_EXPIRY",
     "POLICIES",
     "FleetSpec",
     "FlightOptions",
@@ -56,6 +57,8 @@ __all__ = [
 POLICIES = ("hold_all", "land_all", "land_faulty")
 #: What the fleet does once the plan has ended and it has held at the goals.
 AT_END = ("land", "hold")
+#: What the fleet does when a pause lasts longer than `pause_limit`.
+PAUSE_EXPIRY = ("land", "hold")
 
 _TOP_KEYS = {"world_origin", "vehicles", "mission"}
 _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home"}
@@ -104,6 +107,11 @@ class FlightOptions:
     """Waiting for landed vehicles to disarm (s)."""
     yaw: float = 0.0
     """Fixed heading in the world frame (rad, ENU: 0 = +x, counter-clockwise)."""
+    pause_limit: float = 120.0
+    """A paused mission may stay paused this long (s); then `pause_expiry` applies."""
+    pause_expiry: str = "land"
+    """When a pause outlasts `pause_limit`: land every vehicle, or hold (PX4 Hold); the
+    mission ends aborted either way."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = "mission") -> FlightOptions:
@@ -120,8 +128,9 @@ class FlightOptions:
     def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
-            if key in ("policy", "at_end"):
-                allowed = POLICIES if key == "policy" else AT_END
+            if key in ("policy", "at_end", "pause_expiry"):
+                allowed = {"policy": POLICIES, "at_end": AT_END,
+                           "pause_expiry": PAUSE_EXPIRY}[key]
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")
@@ -141,7 +150,7 @@ class FlightOptions:
                                  f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
                                  f"link, got {out.link_timeout:g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max", "separation_alarm",
-                    "start_tolerance", "goal_tolerance", "climb_speed"):
+                    "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit"):
             if getattr(out, key) <= 0:
                 raise FleetFileError(f"{where}.{key}", "must be positive")
         return out

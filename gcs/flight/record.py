@@ -2,11 +2,13 @@
 
 Times are seconds on the GCS clock (0 when the mission object started running);
 ``mission_start`` is the GCS-clock time of mission time 0 (null if the plan never started), so
-mission time = t - mission_start. Positions are in the world frame (ENU, m) unless the key says
+mission time = t - mission_start, less the time spent in ``pauses`` ([start, end] each, GCS
+clock) before t (`plan_times`). Positions are in the world frame (ENU, m) unless the key says
 ``_ned``. JSON layout::
 
     {"format": "fleetplan-flight-record/1", "plan": {...scenario echo...},
-     "fleet": {...}, "options": {...}, "mission_start": 12.3, "horizon": 30.0,
+     "fleet": {...}, "options": {...}, "mission_start": 12.3, "pauses": [[20.1, 25.3]],
+     "horizon": 30.0,
      "error": null | {"type": "ArmingRefused", "message": "..."},
      "vehicles": [{"id", "system_id", "home",
                    "setpoints": {"t": [...], "tick": [...], "position_ned": [[x,y,z]...],
@@ -41,7 +43,7 @@ if TYPE_CHECKING:
     from gcs.flight.vehicle import VehicleStatus
 
 __all__ = ["FlightRecorder", "VehicleRecord", "finite_or_none", "measured_min_separation",
-           "summarise"]
+           "plan_times", "summarise"]
 
 
 def finite_or_none(x: float | None) -> float | None:
@@ -140,8 +142,22 @@ def measured_min_separation(times: list[np.ndarray], positions: list[np.ndarray]
     return float(d[pair, instant]), float(grid[instant])
 
 
+def plan_times(t: np.ndarray, mission_start: float,
+               pauses: Sequence[Sequence[float | None]]) -> np.ndarray:
+    """Mission (plan) time of GCS-clock instants `t`: the clock stood still during each
+    [start, end] of `pauses` (end None: still paused)."""
+    t = np.asarray(t, dtype=float)
+    tau = t - mission_start
+    for start, end in pauses:
+        assert start is not None
+        length = math.inf if end is None else end - start
+        tau = tau - np.clip(t - start, 0.0, length)
+    return tau
+
+
 def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
-              vehicles: Sequence[VehicleStatus], *, mission_start: float | None, now: float,
+              vehicles: Sequence[VehicleStatus], *, mission_start: float | None,
+              pauses: Sequence[Sequence[float | None]] = (), now: float,
               missed_ticks: int, lateness: Sequence[float] | None,
               error: BaseException | None) -> dict[str, Any]:
     """The flight record's summary (see the module docstring) from what `recorder` holds and
@@ -160,7 +176,8 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     if mission_start is None:
         return out
     t0 = mission_start
-    end = t0 + scenario.horizon + options.hold_at_goal
+    paused = sum((now if b is None else b) - a for a, b in pauses)  # type: ignore[operator]
+    end = t0 + scenario.horizon + options.hold_at_goal + paused
     first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
                       default=math.inf)
     t1 = min(end, first_fault, now)
@@ -172,7 +189,8 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         stop = min(t1, v.fault_time if v.fault_time is not None else math.inf)
         window = (t >= t0) & (t <= stop)
         if np.any(window):
-            planned = plan.vehicles[v.index].sample(scenario.dt, t[window] - t0)
+            planned = plan.vehicles[v.index].sample(scenario.dt,
+                                                    plan_times(t[window], t0, pauses))
             tracking.append(float(np.max(np.linalg.norm(p[window] - planned.position, axis=1))))
         times.append(t)
         positions.append(p)

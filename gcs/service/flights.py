@@ -36,6 +36,7 @@ from gcs.flight.fleetfile import FleetSpec, load_fleet
 from gcs.flight.link import LinkHub, VehicleLink
 from gcs.service.events import Broadcast, Event
 from gcs.service.settings import Settings
+from gcs.service.statuses import FINISHED, LIVE, ExecutionStatus
 from gcs.service.store import ExecutionRow, Store
 from gcs.sim.mock import MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
@@ -45,11 +46,7 @@ __all__ = ["FINISHED", "LIVE", "FleetService", "LiveExecution", "execution_docum
 
 log = logging.getLogger(__name__)
 
-#: Execution statuses while the flight is under way.
-LIVE = ("starting", "running", "aborting")
-#: Final execution statuses. `incomplete`: the mission ran to its end but did not complete
-#: (a vehicle was landed by the land_faulty policy, or missed its goal).
-FINISHED = ("completed", "incomplete", "aborted", "failed", "interrupted")
+# LIVE and FINISHED (the execution statuses) are defined in gcs.service.statuses.
 #: Live telemetry snapshots per second on an execution's event stream.
 TELEMETRY_HZ = 5.0
 
@@ -60,7 +57,7 @@ class LiveExecution:
 
     id: str
     mission_id: str
-    status: str = "starting"
+    status: ExecutionStatus = ExecutionStatus.STARTING
     executor: FlightExecutor | None = None
     events: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
@@ -76,7 +73,7 @@ class LiveExecution:
     def publish(self, kind: str, data: dict[str, Any]) -> None:
         self.listeners.publish(kind, data)
 
-    def set_status(self, status: str) -> None:
+    def set_status(self, status: ExecutionStatus) -> None:
         self.status = status
         self.publish("status", {"status": status})
 
@@ -322,9 +319,38 @@ class FleetService:
                            f"(status {status})")
         if flight.abort_requested is None:
             flight.abort_requested = action
-            flight.set_status("aborting")
+            flight.set_status(ExecutionStatus.ABORTING)
             if flight.executor is not None:
                 self._spawn(flight.executor.abort(action, reason))
+        return flight
+
+    def pause(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+        """Stop the flight's mission clock, every vehicle holding the plan's setpoint of the
+        same plan time (status paused). StateConflict unless it is running its plan."""
+        flight = self._flying(execution_id, stored_status)
+        if flight.status != ExecutionStatus.RUNNING or flight.executor is None:
+            raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
+                                                f"paused (status {flight.status})")
+        flight.executor.pause()
+        flight.set_status(ExecutionStatus.PAUSED)
+        return flight
+
+    def resume(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+        """Restart a paused flight's mission clock where it stopped (status running)."""
+        flight = self._flying(execution_id, stored_status)
+        if flight.status != ExecutionStatus.PAUSED or flight.executor is None:
+            raise StateConflict("execution_id", f"execution {execution_id!r} is not paused "
+                                                f"(status {flight.status})")
+        flight.executor.resume()
+        flight.set_status(ExecutionStatus.RUNNING)
+        return flight
+
+    def _flying(self, execution_id: str, stored_status: str) -> LiveExecution:
+        flight = self._flights.get(execution_id)
+        if flight is None or not flight.active:
+            status = stored_status if flight is None else flight.status
+            raise StateConflict("execution_id", f"execution {execution_id!r} is not flying "
+                                                f"(status {status})")
         return flight
 
     def _spawn(self, coro: Any) -> None:
@@ -350,21 +376,23 @@ class FleetService:
             if flight.abort_requested is not None:  # aborted while starting
                 await executor.abort(flight.abort_requested, "operator abort")
             else:
-                flight.set_status("running")
+                flight.set_status(ExecutionStatus.RUNNING)
             record = await task
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))
-            flight.status = "completed" if completed else "incomplete"
+            flight.status = (ExecutionStatus.COMPLETED if completed
+                             else ExecutionStatus.INCOMPLETE)
         except MissionAborted as exc:
-            flight.status, flight.error = "aborted", str(exc)
+            flight.status, flight.error = ExecutionStatus.ABORTED, str(exc)
         except GcsError as exc:
-            flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
+            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
         except asyncio.CancelledError:
-            flight.status, flight.error = "interrupted", "the service stopped during the flight"
+            flight.status = ExecutionStatus.INTERRUPTED
+            flight.error = "the service stopped during the flight"
             raise
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("execution %s failed", flight.id)
-            flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
+            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
             if task is not None and not task.done() and flight.executor is not None:
                 # never leave a mission flying on its own: land everyone, then wait for it
                 with contextlib.suppress(Exception):
@@ -407,6 +435,8 @@ class FleetService:
         async for event in executor.events():
             flight.events.append(event)
             flight.publish("event", event)
+            if event["kind"] == "pause_limit" and flight.status == ExecutionStatus.PAUSED:
+                flight.set_status(ExecutionStatus.ABORTING)
 
     async def _telemetry(self, flight: LiveExecution, executor: FlightExecutor) -> None:
         while True:
@@ -441,6 +471,8 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
         "self": f"/api/executions/{row.id}",
         "events": f"/api/executions/{row.id}/events",
         "abort": f"/api/executions/{row.id}/abort",
+        "pause": f"/api/executions/{row.id}/pause",
+        "resume": f"/api/executions/{row.id}/resume",
         "record": f"/api/executions/{row.id}/record",
         "mission": f"/api/missions/{row.mission_id}",
     }

@@ -68,3 +68,31 @@ def test_fly_rejects_bad_fleet_file(tmp_path: Path) -> None:
                            "--fleet", str(fleet)], capture_output=True, text=True, timeout=30)
     assert proc.returncode == 2
     assert "vehicles[0].connection" in proc.stderr
+
+
+def test_sigusr1_pauses_and_sigusr2_resumes(tmp_path: Path) -> None:
+    proc = _fly(tmp_path)
+    assert proc.stdout is not None
+    lines = []
+    for line in proc.stdout:  # wait until the plan is being flown
+        lines.append(line)
+        if "mission_start" in line:
+            break
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGUSR1)
+    for line in proc.stdout:
+        lines.append(line)
+        if "paused at mission time" in line:
+            break
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGUSR2)
+    out, _ = proc.communicate(timeout=60)
+    out = "".join(lines) + out
+    assert proc.returncode == 0, out
+    assert "resumed at mission time" in out
+    record = json.loads((tmp_path / "record.json").read_text())
+    [[start, end]] = record["pauses"]
+    assert end - start >= 2.0
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("pause") < kinds.index("resume") < kinds.index("landed")
+    assert record["summary"]["completed"] is True

@@ -1,6 +1,7 @@
 """Flights: POST /api/missions/{id}/executions flies a mission on the configured fleet;
 /api/executions/{id} is its status and summary, /events its live telemetry and events
-(server-sent events), /abort lands (or holds) every vehicle at once, /record the flight record.
+(server-sent events), /abort lands (or holds) every vehicle at once, /pause and /resume stop
+and restart its mission clock, /record the flight record.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from starlette.concurrency import run_in_threadpool
 from gcs.api.deps import FleetDep, MissionDep, PlanCacheDep, StoreDep
 from gcs.api.errors import error_responses
 from gcs.errors import NotFound, StateConflict
-from gcs.service.flights import FINISHED, LIVE, execution_document
+from gcs.service.flights import execution_document
+from gcs.service.statuses import FINISHED, LIVE
 from gcs.service.store import ExecutionRow
 
 __all__ = ["mission_router", "router"]
@@ -75,9 +77,9 @@ class ExecutionOut(BaseModel):
 
     id: str
     mission_id: str
-    status: Literal[(*LIVE, *FINISHED)] = Field(  # type: ignore[valid-type]
-        description="starting, running, aborting while flying; then completed, incomplete "
-        "(ran to its end without completing), aborted, failed or interrupted."
+    status: Literal[tuple(str(s) for s in (*LIVE, *FINISHED))] = Field(  # type: ignore[valid-type]
+        description="starting, running, paused, aborting while flying; then completed, "
+        "incomplete (ran to its end without completing), aborted, failed or interrupted."
     )
     created_at: str
     finished_at: str | None
@@ -215,6 +217,34 @@ async def abort_execution(
     vehicles are safe. 409 if it is not flying."""
     action = "land" if request is None else request.action
     flight = await fleet.abort(execution.id, action, stored_status=execution.status)
+    return execution_document(execution, flight)
+
+
+@router.post(
+    "/{execution_id}/pause",
+    response_model=ExecutionOut,
+    summary="Pause a flight: the mission clock stops, every vehicle holds",
+    responses=error_responses(404, 409),
+)
+async def pause_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str, Any]:
+    """Every vehicle flying the plan holds the plan's setpoint of the same plan time, so the
+    fleet stays as separated as the plan is at that instant (status `paused`). After the
+    fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the
+    flight ends aborted. 409 unless the plan is being flown."""
+    flight = fleet.pause(execution.id, stored_status=execution.status)
+    return execution_document(execution, flight)
+
+
+@router.post(
+    "/{execution_id}/resume",
+    response_model=ExecutionOut,
+    summary="Resume a paused flight from where its mission clock stopped",
+    responses=error_responses(404, 409),
+)
+async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str, Any]:
+    """The mission clock runs again from the plan time it stopped at (status `running`).
+    409 unless paused."""
+    flight = fleet.resume(execution.id, stored_status=execution.status)
     return execution_document(execution, flight)
 
 
