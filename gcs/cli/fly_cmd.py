@@ -33,6 +33,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="start the clock when all are this close to their starts (m)")
     parser.add_argument("--arm-timeout", type=float,
                         help="retry TEMPORARILY_REJECTED arming this long (s, default 30)")
+    parser.add_argument("--margin-check", choices=("refuse", "warn"),
+                        help="a plan whose separation margin is below 2 x the fleet's "
+                             "position_error: refuse (default) or warn and fly")
     parser.add_argument("--base-port", type=int, default=14540,
                         help="--mock: vehicle i sends to this port + i (default 14540)")
     parser.add_argument("--listen-base-port", type=int, default=14580,
@@ -44,7 +47,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "hold_at_goal": "hold_at_goal", "tracking_error_max": "tracking_error_max",
-                 "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout"}
+                 "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
+                 "margin_check": "margin_check"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -195,10 +199,14 @@ def _print_summary(record: dict) -> None:
 
     print("summary:")
     print(f"  completed               {s['completed']}")
-    print(f"  goal_error_max          {fmt(s['goal_error_max'], ' m')}")
+    for reason in s.get("why", []):
+        print(f"    {reason}")
+    print(f"  goal_error_max          {fmt(s['goal_error_max'], ' m')}"
+          f" (tolerance {fmt(s.get('goal_tolerance'), ' m')})")
     print(f"  tracking_error_max      {fmt(s['tracking_error_max'], ' m')}")
     print(f"  min_separation_measured {fmt(s['min_separation_measured'], ' m')}"
-          f" (planned {fmt(s['min_separation_planned'], ' m')})")
+          f" (planned {fmt(s['min_separation_planned'], ' m')}, must keep "
+          f"{fmt(s.get('min_separation_required'), ' m')})")
     print(f"  setpoint_rate_hz        {fmt(s['setpoint_rate_hz'])}")
     print(f"  jitter_p99_ms           {fmt(s['jitter_p99_ms'])}")
     if s["faults"]:

@@ -63,6 +63,7 @@ from gcs.errors import MissionAborted, PlanRejected, StateConflict, VehicleTimeo
 from gcs.flight import vehicle
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
 from gcs.flight.record import FlightRecorder, finite_or_none, summarise
 from gcs.flight.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
@@ -96,6 +97,9 @@ class FlightExecutor:
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
+        self.margin = check_margin(plan, fleet.position_error)
+        if not self.margin.ok and self.options.margin_check == "refuse":
+            raise PlanRejected(f"refusing to fly: {self.margin.message()}")
         specs = fleet.for_plan(plan.scenario.ids)
         self.vehicles = [VehicleStatus(spec, i) for i, spec in enumerate(specs)]
         self._by_id = {v.id: v for v in self.vehicles}
@@ -280,6 +284,9 @@ class FlightExecutor:
         """Fly the mission; returns the flight record or raises a `GcsError` (see module)."""
         self._t0 = time.monotonic()
         error: BaseException | None = None
+        if self.margin.needed is not None or self.margin.planned > 0:
+            self._emit(None, "margin" if self.margin.ok else "margin_warning",
+                       self.margin.message())
         self.streamer = Streamer(self.options.rate_hz, boot_epoch=self._t0)
         self.streamer.listeners.append(self._on_send)
         monitor: asyncio.Task[None] | None = None
@@ -569,6 +576,7 @@ class FlightExecutor:
         self.recorder.summary = summarise(
             self.recorder, self.plan, self.options, self.vehicles,
             mission_start=self.mission_start, pauses=self.pauses, now=self.now(),
+            margin=self.margin, position_error=self.fleet.position_error,
             missed_ticks=streamer.missed_ticks if streamer is not None else 0,
             lateness=streamer.lateness if streamer is not None else None, error=error)
         self.record = self.recorder.to_dict()

@@ -9,7 +9,8 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
          "home": [4.5, 2.5, 0.0]},
         ...
       ],
-      "mission": {"policy": "land_all", "rate_hz": 20}                       (optional)
+      "mission": {"policy": "land_all", "rate_hz": 20},                      (optional)
+      "position_error": 0.25                                                 (optional)
     }
 
 - `id` matches a plan vehicle; `connection` is a pymavlink URL (vehicles may share one);
@@ -18,6 +19,9 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
   geodetic `world_origin` {lat, lon, alt (m AMSL)} is required and the home is computed from
   what the vehicle reports (GPS_GLOBAL_ORIGIN, else HOME_POSITION).
 - `mission`: `FlightOptions` fields (command-line flags override them).
+- `position_error`: how far (m) a vehicle of this fleet may be from where it reports or is
+  told to be (estimate and tracking error); plans for the fleet then keep 2x this margin
+  (`gcs.flight.margin`). Absent: not stated, no margin checked (as before).
 
 Every problem is a `FleetFileError` naming the field (e.g. ``vehicles[2].system_id``).
 """
@@ -45,6 +49,7 @@ MAX_LINK_TIMEOUT_S = 5.0
 
 __all__ = [
     "AT_END",
+    "MARGIN_CHECK",
     "PAUSE_EXPIRY",
     "POLICIES",
     "FleetSpec",
@@ -60,7 +65,9 @@ AT_END = ("land", "hold")
 #: What the fleet does when a pause lasts longer than `pause_limit`.
 PAUSE_EXPIRY = ("land", "hold")
 
-_TOP_KEYS = {"world_origin", "vehicles", "mission"}
+_TOP_KEYS = {"world_origin", "vehicles", "mission", "position_error"}
+#: What `fly` does with a plan whose separation margin is below the fleet's need.
+MARGIN_CHECK = ("refuse", "warn")
 _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home"}
 
 
@@ -112,6 +119,12 @@ class FlightOptions:
     pause_expiry: str = "land"
     """When a pause outlasts `pause_limit`: land every vehicle, or hold (PX4 Hold); the
     mission ends aborted either way."""
+    margin_check: str = "refuse"
+    """A plan whose separation margin is below 2 x the fleet's `position_error`: refuse to
+    fly it, or warn (an event in the record) and fly."""
+    goal_tolerance_k: float = 2.0
+    """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
+    position_error)."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = "mission") -> FlightOptions:
@@ -128,9 +141,9 @@ class FlightOptions:
     def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
-            if key in ("policy", "at_end", "pause_expiry"):
-                allowed = {"policy": POLICIES, "at_end": AT_END,
-                           "pause_expiry": PAUSE_EXPIRY}[key]
+            if key in ("policy", "at_end", "pause_expiry", "margin_check"):
+                allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
+                           "margin_check": MARGIN_CHECK}[key]
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")
@@ -186,6 +199,8 @@ class FleetSpec:
     vehicles: tuple[VehicleSpec, ...]
     world_origin: Geodetic | None
     options: FlightOptions
+    position_error: float | None = None
+    """Expected position error of a vehicle of this fleet (m), or None if not stated."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> FleetSpec:
@@ -197,6 +212,8 @@ class FleetSpec:
             o = self.world_origin
             out["world_origin"] = {"lat": o.lat, "lon": o.lon, "alt": o.alt}
         out["mission"] = self.options.to_dict()
+        if self.position_error is not None:
+            out["position_error"] = self.position_error
         return out
 
     def for_plan(self, plan_ids: Sequence[str]) -> list[VehicleSpec]:
@@ -301,4 +318,10 @@ def _parse(data: Any) -> FleetSpec:
                                  "is required unless the fleet has a world_origin")
         vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home))
     options = FlightOptions.from_dict(data.get("mission", {}))
-    return FleetSpec(tuple(vehicles), origin, options)
+    position_error = None
+    if "position_error" in data:
+        position_error = _number(data["position_error"], "position_error")
+        if not 0.0 <= position_error <= 10.0:
+            raise FleetFileError("position_error", f"must be within [0, 10] m, got "
+                                                   f"{position_error:g}")
+    return FleetSpec(tuple(vehicles), origin, options, position_error)

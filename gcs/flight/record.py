@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from gcs.flight.fleetfile import FlightOptions
+from gcs.flight.margin import MarginCheck
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.stream import jitter_stats
 from planner import Plan
@@ -159,21 +160,34 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
               vehicles: Sequence[VehicleStatus], *, mission_start: float | None,
               pauses: Sequence[Sequence[float | None]] = (), now: float,
               missed_ticks: int, lateness: Sequence[float] | None,
-              error: BaseException | None) -> dict[str, Any]:
+              error: BaseException | None, margin: MarginCheck | None = None,
+              position_error: float | None = None) -> dict[str, Any]:
     """The flight record's summary (see the module docstring) from what `recorder` holds and
     the executor's final view of each vehicle (fault, goal error, phase). `now` is the GCS-clock
-    time at the end; `lateness` is None when nothing was streamed."""
+    time at the end; `lateness` is None when nothing was streamed. `why` says in words why the
+    flight is or is not complete."""
     scenario = plan.scenario
+    tolerance = options.goal_tolerance
+    if position_error is not None:
+        tolerance = max(tolerance, options.goal_tolerance_k * position_error)
     out: dict[str, Any] = {
-        "completed": False, "goal_error_max": None, "tracking_error_max": None,
+        "completed": False, "why": [], "goal_error_max": None, "goal_tolerance": tolerance,
+        "tracking_error_max": None,
         "min_separation_measured": None, "min_separation_planned": None,
+        "min_separation_required": scenario.min_separation - scenario.separation_margin,
+        "separation_held": None,
+        "separation_margin": None if margin is None else margin.to_dict(),
         "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,
         "missed_ticks": missed_ticks,
         "faults": {v.id: v.fault for v in vehicles if v.fault is not None},
     }
+    why: list[str] = out["why"]
+    if error is not None:
+        why.append(f"{type(error).__name__}: {error}")
     if plan.verification is not None:
         out["min_separation_planned"] = plan.verification.min_separation_continuous
     if mission_start is None:
+        why.append("the mission clock never started")
         return out
     t0 = mission_start
     paused = sum((now if b is None else b) - a for a, b in pauses)  # type: ignore[operator]
@@ -202,6 +216,11 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     separation, _ = measured_min_separation(times, positions, t0, min(end, now),
                                             options.rate_hz, scale)
     out["min_separation_measured"] = finite_or_none(separation)
+    if out["min_separation_measured"] is not None:
+        out["separation_held"] = separation >= out["min_separation_required"]
+        if not out["separation_held"]:
+            why.append(f"vehicles came {separation:.2f} m apart, closer than the "
+                       f"{out['min_separation_required']:.2f} m they must keep")
     goal_errors = [v.goal_error for v in vehicles if not math.isnan(v.goal_error)]
     if goal_errors:
         out["goal_error_max"] = max(goal_errors)
@@ -214,7 +233,21 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
         out["jitter_p99_ms"] = finite_or_none(stats["jitter_p99_ms"])
     landed_ok = options.at_end != "land" or all(v.phase == "landed" for v in vehicles)
+    # With a stated margin the clearance is a promise: breaking it is a failure. Without
+    # one (margin 0), the plan's R is only reported against (the mock flies a few cm inside).
+    promised = scenario.separation_margin > 0
     out["completed"] = bool(
         error is None and not out["faults"] and len(goal_errors) == len(vehicles)
-        and max(goal_errors) <= options.goal_tolerance and landed_ok)
+        and max(goal_errors) <= tolerance and landed_ok
+        and not (promised and out["separation_held"] is False))
+    why += [f"{vid}: fault {kind}" for vid, kind in out["faults"].items()]
+    why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerance:.2f} m)"
+            for v in vehicles if not math.isnan(v.goal_error) and v.goal_error > tolerance]
+    if error is None and not out["faults"] and len(goal_errors) < len(vehicles):
+        why.append("not every vehicle's goal error was measured")
+    why += [f"{v.id}: not confirmed landed and disarmed ({v.phase})"
+            for v in vehicles if options.at_end == "land" and v.phase != "landed"]
+    if out["completed"]:
+        why.insert(0, f"complete: every vehicle within {tolerance:.2f} m of its goal"
+                      + (", landed and disarmed" if options.at_end == "land" else ", holding"))
     return out

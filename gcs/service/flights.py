@@ -34,6 +34,7 @@ from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, load_fleet
 from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.margin import check_margin
 from gcs.service.events import Broadcast, Event
 from gcs.service.settings import Settings
 from gcs.service.statuses import FINISHED, LIVE, ExecutionStatus
@@ -298,6 +299,9 @@ class FleetService:
                 raise InvalidRequest(exc.field, exc.reason) from None
             except TypeError as exc:
                 raise InvalidRequest("options", str(exc)) from None
+            margin = check_margin(plan, self._spec.position_error)
+            if not margin.ok and mission_options.margin_check == "refuse":
+                raise StateConflict("mission_id", margin.message())
             label = f"{self.kind}: {', '.join(ids)}"
             row = await asyncio.to_thread(self._store.create_execution, mission_id, label)
             flight = LiveExecution(row.id, mission_id)

@@ -47,6 +47,10 @@ class FlyRequest(BaseModel):
     tracking_error_max: float | None = Field(
         None, gt=0, le=100, description="Flag a vehicle this far from its plan (m)."
     )
+    margin_check: Literal["refuse", "warn"] | None = Field(
+        None, description="A plan whose separation margin is below 2 x the fleet's "
+        "position_error: refuse (default, 409) or fly it with a warning in the record."
+    )
 
 
 class AbortRequest(BaseModel):
