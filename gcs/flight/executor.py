@@ -59,9 +59,16 @@ from typing import Any
 import numpy as np
 
 from gcs import frames, px4
-from gcs.errors import MissionAborted, PlanRejected, StateConflict, VehicleTimeout
+from gcs.errors import (
+    MissionAborted,
+    PlanRejected,
+    PreflightFailed,
+    StateConflict,
+    VehicleTimeout,
+)
 from gcs.flight import vehicle
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
 from gcs.flight.link import LinkHub, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
@@ -257,6 +264,7 @@ class FlightExecutor:
                 "link_age": None if math.isinf(silent) else round(silent, 3),
                 "position": position, "velocity": velocity,
                 "tracking_error": finite_or_none(v.tracking_error),
+                **(health_report(tel) if tel is not None else {}),
             })
         return {
             "phase": self.phase,
@@ -365,10 +373,27 @@ class FlightExecutor:
             v.home, source = await vehicle.resolve_home(link, v.id, self.fleet.world_origin)
             self.recorder.vehicles[v.id].home = v.home.tolist()
             self._emit(v.id, "home", f"from {source}: {np.round(v.home, 3).tolist()}")
+        await self._preflight(v)
         v.phase = "connected"
         mode = link.telemetry.mode
         self._emit(v.id, "connected", f"mode {mode.name if mode else '?'}, home "
                                       f"{np.round(v.home, 3).tolist()}")
+
+    async def _preflight(self, v: VehicleStatus) -> None:
+        """The pre-flight gate (`gcs.flight.health`): wait up to `preflight_wait` for the
+        vehicle to be fit; then refuse it (`PreflightFailed`), or with `preflight: override`
+        record what was overridden and carry on."""
+        opts = self.options
+        limits = PreflightThresholds(min_battery_pct=opts.min_battery_pct)
+        link = v.linked
+        if opts.preflight == "check":
+            await link.wait_for(lambda t: not preflight_problems(t, limits), opts.preflight_wait)
+        problems = preflight_problems(link.telemetry, limits)
+        if not problems:
+            return
+        if opts.preflight == "check":
+            raise PreflightFailed(v.id, problems)
+        self._emit(v.id, "preflight_override", "; ".join(problems))
 
     async def _prepare(self, v: VehicleStatus) -> None:
         link = v.linked

@@ -52,6 +52,7 @@ __all__ = [
     "MARGIN_CHECK",
     "PAUSE_EXPIRY",
     "POLICIES",
+    "PREFLIGHT",
     "FleetSpec",
     "FlightOptions",
     "VehicleSpec",
@@ -68,6 +69,8 @@ PAUSE_EXPIRY = ("land", "hold")
 _TOP_KEYS = {"world_origin", "vehicles", "mission", "position_error"}
 #: What `fly` does with a plan whose separation margin is below the fleet's need.
 MARGIN_CHECK = ("refuse", "warn")
+#: The pre-flight gate: refuse an unfit vehicle, or fly anyway (recorded).
+PREFLIGHT = ("check", "override")
 _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home"}
 
 
@@ -122,6 +125,14 @@ class FlightOptions:
     margin_check: str = "refuse"
     """A plan whose separation margin is below 2 x the fleet's `position_error`: refuse to
     fly it, or warn (an event in the record) and fly."""
+    preflight: str = "check"
+    """The pre-flight gate (battery, unhealthy sensors, link loss; gcs.flight.health):
+    check (refuse to arm an unfit vehicle) or override (fly anyway; recorded as an event)."""
+    min_battery_pct: float = 30.0
+    """The pre-flight gate refuses a vehicle reporting less battery than this (%)."""
+    preflight_wait: float = 10.0
+    """How long the gate waits for a problem to clear (PX4 reports sensors unhealthy for a
+    few seconds after boot) before refusing (s)."""
     goal_tolerance_k: float = 2.0
     """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
     position_error)."""
@@ -141,9 +152,9 @@ class FlightOptions:
     def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
-            if key in ("policy", "at_end", "pause_expiry", "margin_check"):
+            if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight"):
                 allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
-                           "margin_check": MARGIN_CHECK}[key]
+                           "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT}[key]
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")

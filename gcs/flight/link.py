@@ -10,7 +10,8 @@ are asyncio's, so every link runs on the caller's event loop.
   whoever spoke last). Traffic from system id 0 (PX4's undecodable development messages) and
   from ids no vehicle is registered for is dropped and counted.
 - `VehicleLink`: one vehicle on an endpoint: its telemetry (HEARTBEAT mode/armed/age,
-  LOCAL_POSITION_NED, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT),
+  LOCAL_POSITION_NED, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT; for
+  `gcs.flight.health`: SYS_STATUS, BATTERY_STATUS, GPS_RAW_INT and sequence-number gaps),
   `command()` with COMMAND_ACK, retries and duplicate-ACK tolerance, and `send_setpoint()`.
 - `LinkHub`: opens the endpoints for a fleet, sends the GCS HEARTBEAT at 1 Hz on each, closes
   everything on exit (``async with LinkHub() as hub``).
@@ -43,6 +44,7 @@ __all__ = [
     "GCS_SYSTEM_ID",
     "Endpoint",
     "LinkHub",
+    "Telemetry",
     "ThreadedEndpoint",
     "UdpEndpoint",
     "VehicleLink",
@@ -305,6 +307,59 @@ class Telemetry:
     home: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     """HOME_POSITION ((lat, lon, alt), (x, y, z) local NED)."""
     statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
+    # --- health (issue 12; read by gcs.flight.health) ---
+    sensors_present: int | None = None
+    """SYS_STATUS onboard_control_sensors_present (MAV_SYS_STATUS_SENSOR bits)."""
+    sensors_enabled: int | None = None
+    sensors_health: int | None = None
+    battery_remaining: int | None = None
+    """Battery remaining (%) from SYS_STATUS / BATTERY_STATUS; None when not reported."""
+    battery_voltage: float = math.nan
+    """Battery voltage (V) from SYS_STATUS."""
+    gps_fix_type: int | None = None
+    """GPS_RAW_INT fix_type (GPS_FIX_TYPE: 3 = 3D fix)."""
+    gps_satellites: int | None = None
+    gps_h_acc: float = math.nan
+    """GPS_RAW_INT h_acc (m): horizontal position uncertainty."""
+    gps_v_acc: float = math.nan
+    warnings: deque[str] = field(default_factory=lambda: deque(maxlen=5))
+    """STATUSTEXT of severity WARNING or worse."""
+    seq_received: int = 0
+    """Messages from the autopilot component counted for link quality."""
+    seq_lost: int = 0
+    """Messages missing from the autopilot component's sequence numbers."""
+    last_seq: int | None = None
+
+
+def _count_sequence(tel: Telemetry, seq: int) -> None:
+    """Link quality: a gap in the sender's sequence numbers (mod 256) counts as lost
+    messages; a jump of 128 or more is taken as a restart or reordering, not a loss."""
+    if tel.last_seq is not None:
+        gap = (seq - tel.last_seq - 1) & 0xFF
+        if gap < 128:
+            tel.seq_lost += gap
+    tel.last_seq = seq
+    tel.seq_received += 1
+
+
+def _health_message(tel: Telemetry, kind: str, msg: Any) -> None:
+    """SYS_STATUS, BATTERY_STATUS and GPS_RAW_INT into `tel` (UINT16_MAX / -1 = unknown)."""
+    if kind == "SYS_STATUS":
+        tel.sensors_present = msg.onboard_control_sensors_present
+        tel.sensors_enabled = msg.onboard_control_sensors_enabled
+        tel.sensors_health = msg.onboard_control_sensors_health
+        if msg.battery_remaining >= 0:
+            tel.battery_remaining = int(msg.battery_remaining)
+        if msg.voltage_battery not in (0, 0xFFFF):
+            tel.battery_voltage = msg.voltage_battery / 1000.0
+    elif kind == "BATTERY_STATUS":
+        if msg.battery_remaining >= 0:
+            tel.battery_remaining = int(msg.battery_remaining)
+    else:  # GPS_RAW_INT
+        tel.gps_fix_type = int(msg.fix_type)
+        tel.gps_satellites = None if msg.satellites_visible == 255 else msg.satellites_visible
+        tel.gps_h_acc = msg.h_acc / 1000.0 if msg.h_acc else math.nan
+        tel.gps_v_acc = msg.v_acc / 1000.0 if msg.v_acc else math.nan
 
 
 class VehicleLink:
@@ -331,6 +386,8 @@ class VehicleLink:
         kind = msg.get_type()
         tel = self.telemetry
         tel.message_time = now
+        if msg.get_srcComponent() == self.component_id:
+            _count_sequence(tel, msg.get_seq())
         if kind == "HEARTBEAT":
             if msg.get_srcComponent() == self.component_id:
                 tel.heartbeat_time = now
@@ -354,6 +411,10 @@ class VehicleLink:
                         (msg.x, msg.y, msg.z))
         elif kind == "STATUSTEXT":
             tel.statustexts.append(str(msg.text).rstrip("\x00"))
+            if msg.severity <= mavlink.MAV_SEVERITY_WARNING:
+                tel.warnings.append(str(msg.text).rstrip("\x00"))
+        elif kind in ("SYS_STATUS", "BATTERY_STATUS", "GPS_RAW_INT"):
+            _health_message(tel, kind, msg)
         for callback in self.listeners:
             callback(self, msg, now)
         if self._waiters:

@@ -11,8 +11,12 @@ Mock vehicles are set down under the plan's starts before each flight (as
 ``fleetplan fly --mock`` does), so any verified plan with at most `mock_vehicles` vehicles can
 be flown on them; vehicles the plan does not use are parked beside its workspace.
 
-Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions); `abort`
-sends every vehicle of the active flight to land (or hold) at once.
+Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions), which first
+applies the pre-flight gate (`gcs.flight.health`) and the fleet's separation margin
+(`gcs.flight.margin`); `abort` sends every vehicle of the active flight to land (or hold) at
+once; `pause` / `resume` stop and restart its mission clock. Between flights, `command` sends a
+fleet command (`gcs.flight.commands`: hold, land, rtl, disarm, terminate) over the monitor's
+connections, so a fleet left hovering can always be landed.
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ from gcs import frames
 from gcs.errors import FleetFileError, GcsError, InvalidRequest, MissionAborted, StateConflict
 from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, load_fleet
+from gcs.flight.fleetfile import FleetSpec, FlightOptions, load_fleet
+from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
 from gcs.flight.link import LinkHub, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.service.events import Broadcast, Event
@@ -225,6 +230,7 @@ class FleetService:
                 "armed": None if tel is None or tel.heartbeat_time is None else bool(tel.armed),
                 "position": position,
                 "home": None if spec.home is None else spec.home.tolist(),
+                **(health_report(tel) if tel is not None else {}),
             })
         return out
 
@@ -299,6 +305,7 @@ class FleetService:
                 raise InvalidRequest(exc.field, exc.reason) from None
             except TypeError as exc:
                 raise InvalidRequest("options", str(exc)) from None
+            self._preflight(ids, mission_options)
             margin = check_margin(plan, self._spec.position_error)
             if not margin.ok and mission_options.margin_check == "refuse":
                 raise StateConflict("mission_id", margin.message())
@@ -309,6 +316,30 @@ class FleetService:
             self._active = flight
             self._spawn(self._run(flight, plan, mission_options))
             return row
+
+    def _preflight(self, ids: list[str], options: FlightOptions) -> None:
+        """The pre-flight gate on what the monitor sees now (battery, unhealthy sensors, link
+        loss): StateConflict naming the vehicle and the reason, unless `preflight: override`.
+        A vehicle not heard from yet is left to the executor, which waits for it and names it
+        if it never answers."""
+        if options.preflight == "override":
+            return
+        limits = PreflightThresholds(min_battery_pct=options.min_battery_pct)
+        assert self._spec is not None
+        if self.kind == "mock":  # mock vehicle i flies plan vehicle i (see _rehome_mock)
+            fleet_ids = [v.id for v in self._spec.vehicles][:len(ids)]
+            names = [f"{vid} (mock vehicle {fid})" if vid != fid else vid
+                     for vid, fid in zip(ids, fleet_ids, strict=True)]
+        else:
+            fleet_ids, names = list(ids), list(ids)
+        for fid, name in zip(fleet_ids, names, strict=True):
+            link = self._links.get(fid)
+            if link is None or link.telemetry.heartbeat_time is None:
+                continue
+            problems = preflight_problems(link.telemetry, limits, require_presence=False)
+            if problems:
+                raise StateConflict("fleet", f"pre-flight check: {name}: {'; '.join(problems)}"
+                                             " (fly with preflight: override to fly anyway)")
 
     async def abort(
         self, execution_id: str, action: str, reason: str = "operator abort",
@@ -422,8 +453,9 @@ class FleetService:
 
     async def _rehome_mock(self, plan: Plan) -> None:
         """Set the mock vehicles down under the plan's starts; park the rest beside it."""
-        if self._mock is not None:
-            await self._mock.stop()
+        old = self._mock
+        if old is not None:
+            await old.stop()
         ids = list(plan.scenario.ids)
         homes = homes_under(plan.scenario.starts)
         lo, hi = plan.scenario.limits.position_min, plan.scenario.limits.position_max
@@ -434,6 +466,10 @@ class FleetService:
                 name += "_"
             ids.append(name)
         await self._start_mock(homes, ids)
+        if old is not None and self._mock is not None:
+            # the same airframes set down elsewhere: their battery and injected faults remain
+            for before, after in zip(old.vehicles, self._mock.vehicles, strict=False):
+                after.faults, after.battery = before.faults, before.battery
 
     async def _relay_events(self, flight: LiveExecution, executor: FlightExecutor) -> None:
         async for event in executor.events():

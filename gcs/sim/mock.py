@@ -27,7 +27,10 @@ MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
 
 The motion is `gcs.sim.model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the
 whole fleet at once. Faults can be injected per vehicle at any time through
-`MockVehicle.faults` (`MockFaults`): packet loss, stopped heartbeats, delay, refused arming.
+`MockVehicle.faults` (`MockFaults`): packet loss, stopped heartbeats, delay, refused arming,
+battery level, unhealthy sensors (SYS_STATUS), GPS fix. The battery drains while armed
+(`MockConfig.battery_drain`); GPS_RAW_INT goes out at `gps_rate`; messages carry counting
+sequence numbers, so a lost one leaves a gap the GCS can count.
 
 Python API::
 
@@ -122,6 +125,10 @@ class MockConfig:
     global_position_rate: float = 5.0
     status_rate: float = 1.0
     """HEARTBEAT, SYS_STATUS, EXTENDED_SYS_STATE rate (Hz)."""
+    battery_drain: float = 0.05
+    """Battery drain while armed (% per second; a 20-minute battery)."""
+    gps_rate: float = 5.0
+    """GPS_RAW_INT rate (Hz)."""
     record_setpoints: bool = False
     """Keep every accepted setpoint in `MockVehicle.received` (for tests)."""
     limits: ModelLimits = field(default_factory=ModelLimits)
@@ -141,6 +148,12 @@ class MockFaults:
     """Seconds added to every packet, both directions."""
     refuse_arming: bool = False
     """Arming answered DENIED."""
+    battery: float | None = None
+    """Battery remaining (%) reported instead of the simulated one."""
+    unhealthy: int = 0
+    """SYS_STATUS sensor bits reported present and enabled but not healthy."""
+    gps_fix: int | None = None
+    """GPS_RAW_INT fix_type reported instead of 3 (3D fix)."""
 
 
 @dataclass(frozen=True)
@@ -192,6 +205,9 @@ class MockVehicle:
         """(mock time, what happened): mode changes, arming, failsafes."""
         self._last_setpoint_time = -math.inf
         self._armed_time = 0.0
+        self.battery = 100.0
+        self._battery_t = 0.0
+        """Simulated battery remaining (%): drains while armed (`MockConfig.battery_drain`)."""
         self._landed_since: float | None = None
         self._failsafe_since: float | None = None
         self._mav = mavlink.MAVLink(None, srcSystem=self.system_id,
@@ -276,6 +292,9 @@ class MockVehicle:
         vz = self.model.velocity[i, 2]
         if self.armed and z < -0.3:
             self.in_air = True
+        if self.armed:
+            self.battery = max(0.0, self.battery - cfg.battery_drain * (now - self._battery_t))
+        self._battery_t = now
         if self.mode == px4.OFFBOARD and now - self._last_setpoint_time > cfg.offboard_loss_timeout:
             self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
                             "Failsafe activated: offboard signal lost")
@@ -343,6 +362,9 @@ class MockVehicle:
         if now >= due["global"]:
             due["global"] = now + 1.0 / cfg.global_position_rate
             self._send(self._global_position(now))
+        if now >= due.get("gps", 0.0):
+            due["gps"] = now + 1.0 / cfg.gps_rate
+            self._send(self._gps_raw(now))
         if now >= due["home"]:
             due["home"] = now + 5.0
             self._send(self._home_position(now))
@@ -370,9 +392,18 @@ class MockVehicle:
     def _sys_status(self, now: float) -> Any:
         settled = now >= self.config.settle_time
         present = _SENSORS | _PREARM
-        health = _SENSORS | (_PREARM if settled or self.armed else 0)
-        return self._mav.sys_status_encode(present, present, health, 250, 16200, 1200, 95,
-                                           0, 0, 0, 0, 0, 0)
+        health = (_SENSORS | (_PREARM if settled or self.armed else 0)) & ~self.faults.unhealthy
+        remaining = self.battery if self.faults.battery is None else self.faults.battery
+        voltage = round(1000 * (13.2 + 3.6 * remaining / 100.0))  # 4S: 13.2 V empty, 16.8 full
+        return self._mav.sys_status_encode(present, present, health, 250, voltage, 1200,
+                                           round(remaining), 0, 0, 0, 0, 0, 0)
+
+    def _gps_raw(self, now: float) -> Any:
+        g = self._geodetic_now()
+        fix = 3 if self.faults.gps_fix is None else self.faults.gps_fix
+        return self._mav.gps_raw_int_encode(
+            int(now * 1e6), fix, round(g.lat * 1e7), round(g.lon * 1e7), round(g.alt * 1000),
+            80, 120, 0, 0, 12 if fix >= 3 else 0, 0, 300, 500, 100, 0, 0)
 
     def _geodetic_now(self) -> frames.Geodetic:
         offset = frames.ned_vector_to_world(self.model.position[self.index])
@@ -415,9 +446,12 @@ class MockVehicle:
         if self._transport is None:
             return
         faults = self.faults
-        if faults.silent or (faults.loss > 0.0 and self._rng.random() < faults.loss):
+        if faults.silent:
             return
-        buf = msg.pack(self._mav)
+        buf = msg.pack(self._mav)  # packed first: a lost message leaves a sequence gap
+        self._mav.seq = (self._mav.seq + 1) & 0xFF  # pack() stamps the number, send() counts
+        if faults.loss > 0.0 and self._rng.random() < faults.loss:
+            return
         if faults.delay > 0.0:
             asyncio.get_running_loop().call_later(faults.delay, self._sendto, buf)
         else:

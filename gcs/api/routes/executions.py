@@ -47,6 +47,11 @@ class FlyRequest(BaseModel):
     tracking_error_max: float | None = Field(
         None, gt=0, le=100, description="Flag a vehicle this far from its plan (m)."
     )
+    preflight: Literal["check", "override"] | None = Field(
+        None, description="The pre-flight gate (battery, unhealthy sensors, link loss): "
+        "check (default: 409 naming the vehicle and the reason) or override (fly anyway; "
+        "recorded as a preflight_override event)."
+    )
     margin_check: Literal["refuse", "warn"] | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "
         "position_error: refuse (default, 409) or fly it with a warning in the record."

@@ -32,7 +32,9 @@ class VehiclesOut(BaseModel):
     vehicles: list[dict[str, Any]] = Field(
         description="Per vehicle: id, heartbeat_age (s, null before the first), mode, armed, "
         "position (world frame ENU, m, when the home is known), link (monitor between "
-        "flights, flight during one)."
+        "flights, flight during one); battery {remaining_pct, voltage}, gps {fix_type, "
+        "satellites, h_acc, v_acc (m)}, health {unhealthy (sensor names), prearm_ok, "
+        "warnings}, link_quality {received, lost, loss_pct} (null = not reported)."
     )
 
 

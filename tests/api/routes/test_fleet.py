@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
@@ -87,3 +88,41 @@ def test_fleet_commands_without_a_fleet(make_settings: Callable[..., Settings]) 
         response = client.post("/api/fleet/commands", json={"command": "hold"})
         assert response.status_code == 409 and response.json()["field"] == "fleet"
         assert "no fleet" in response.json()["reason"]
+
+
+def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Settings]) -> None:
+    """GET /api/vehicles shows battery, gps, health and link quality per vehicle; Fly is
+    refused (409, naming the vehicle and the reason) for a vehicle low on battery, unless
+    the override is asked for, which the flight's events record."""
+    with TestClient(create_app(mock_settings())) as client:
+        vehicles = wait_for(
+            lambda: (lambda vs: vs if all(v["gps"]["fix_type"] == 3
+                                          and v["health"]["prearm_ok"] for v in vs) else None)(
+                client.get("/api/vehicles").json()["vehicles"]),
+            10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
+        for v in vehicles:
+            assert v["battery"]["remaining_pct"] == 100 and v["battery"]["voltage"] > 16
+            assert v["gps"]["h_acc"] == pytest.approx(0.3)
+            assert v["health"]["unhealthy"] == []
+            assert v["link_quality"]["received"] > 10 and v["link_quality"]["lost"] == 0
+        mock = client.app.state.fleet._mock  # inject a fault into the in-process mock
+        mock.vehicles[2].faults.battery = 15.0
+        wait_for(lambda: client.get("/api/vehicles").json()["vehicles"][2]["battery"]
+                 ["remaining_pct"] == 15, 5, "the low battery to be reported")
+
+        mission = plan_mission(client, SHORT_CROSSING)
+        url = f"/api/missions/{mission['id']}/executions"
+        refused = client.post(url, json={"hold_at_goal": 0.5})
+        assert refused.status_code == 409, refused.text
+        reason = refused.json()["reason"]
+        assert "uav3" in reason and "battery 15% (below 30%)" in reason
+        assert client.get("/api/executions").json() == []  # nothing was started
+
+        allowed = client.post(url, json={"hold_at_goal": 0.5, "preflight": "override"})
+        assert allowed.status_code == 201, allowed.text
+        events = sse_events(client, allowed.json()["links"]["events"])
+        assert events[-1][1]["status"] == "completed", events[-1]
+        overrides = [d for kind, d in events if kind == "event"
+                     and d["kind"] == "preflight_override"]
+        assert [d["vehicle"] for d in overrides] == ["c"]  # the airframe kept its battery
+        assert "battery 15%" in overrides[0]["detail"]
