@@ -36,6 +36,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--margin-check", choices=("refuse", "warn"),
                         help="a plan whose separation margin is below 2 x the fleet's "
                              "position_error: refuse (default) or warn and fly")
+    parser.add_argument("--message-rates", choices=("leave", "request"),
+                        help="request: ask each vehicle for the telemetry the GCS reads at the "
+                             "rates it needs and turn PX4's fast streams off (default leave)")
     parser.add_argument("--base-port", type=int, default=14540,
                         help="--mock: vehicle i sends to this port + i (default 14540)")
     parser.add_argument("--listen-base-port", type=int, default=14580,
@@ -48,7 +51,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "hold_at_goal": "hold_at_goal", "tracking_error_max": "tracking_error_max",
                  "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
-                 "margin_check": "margin_check"}
+                 "margin_check": "margin_check", "message_rates": "message_rates"}
 
 
 def run(args: argparse.Namespace) -> int:

@@ -72,7 +72,7 @@ from gcs.flight.health import PreflightThresholds, health_report, preflight_prob
 from gcs.flight.link import LinkHub, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
-from gcs.flight.record import FlightRecorder, finite_or_none, summarise
+from gcs.flight.record import FlightRecorder, finite_or_none, goal_tolerance, summarise
 from gcs.flight.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
@@ -374,6 +374,10 @@ class FlightExecutor:
             self.recorder.vehicles[v.id].home = v.home.tolist()
             self._emit(v.id, "home", f"from {source}: {np.round(v.home, 3).tolist()}")
         await self._preflight(v)
+        if self.options.message_rates == "request":
+            answers = await vehicle.request_message_rates(
+                link, vehicle.message_rates(self.options.position_rate_hz))
+            self._emit(v.id, "message_rates", ", ".join(f"{k} {a}" for k, a in answers.items()))
         v.phase = "connected"
         mode = link.telemetry.mode
         self._emit(v.id, "connected", f"mode {mode.name if mode else '?'}, home "
@@ -472,6 +476,8 @@ class FlightExecutor:
         for v in self.vehicles:
             if v.fault is None:
                 v.goal_error = v.distance_ned(v.goal_ned)
+                v.goal_tolerance = goal_tolerance(self.options, self.fleet.position_error,
+                                                  v.linked.telemetry.gps_h_acc)
         self._emit(None, "goal_errors", ", ".join(
             f"{v.id} {v.goal_error:.3f} m" for v in self.vehicles if v.fault is None))
 

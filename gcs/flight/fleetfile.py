@@ -133,6 +133,12 @@ class FlightOptions:
     preflight_wait: float = 10.0
     """How long the gate waits for a problem to clear (PX4 reports sensors unhealthy for a
     few seconds after boot) before refusing (s)."""
+    message_rates: str = "leave"
+    """leave: take the telemetry rates the vehicle sends; request: ask for what the GCS reads
+    at the rates it needs and turn off PX4's fast streams it never reads
+    (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.vehicle.message_rates`)."""
+    position_rate_hz: float = 30.0
+    """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
     goal_tolerance_k: float = 2.0
     """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
     position_error)."""
@@ -152,9 +158,11 @@ class FlightOptions:
     def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
-            if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight"):
+            if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight",
+                       "message_rates"):
                 allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
-                           "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT}[key]
+                           "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT,
+                           "message_rates": ("leave", "request")}[key]
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")
@@ -174,7 +182,8 @@ class FlightOptions:
                                  f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
                                  f"link, got {out.link_timeout:g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max", "separation_alarm",
-                    "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit"):
+                    "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
+                    "position_rate_hz"):
             if getattr(out, key) <= 0:
                 raise FleetFileError(f"{where}.{key}", "must be positive")
         return out

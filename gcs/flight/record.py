@@ -43,8 +43,8 @@ from planner import Plan
 if TYPE_CHECKING:
     from gcs.flight.vehicle import VehicleStatus
 
-__all__ = ["FlightRecorder", "VehicleRecord", "finite_or_none", "measured_min_separation",
-           "plan_times", "summarise"]
+__all__ = ["FlightRecorder", "VehicleRecord", "finite_or_none", "goal_tolerance",
+           "measured_min_separation", "plan_times", "summarise"]
 
 
 def finite_or_none(x: float | None) -> float | None:
@@ -143,6 +143,15 @@ def measured_min_separation(times: list[np.ndarray], positions: list[np.ndarray]
     return float(d[pair, instant]), float(grid[instant])
 
 
+def goal_tolerance(options: FlightOptions, position_error: float | None,
+                   h_acc: float = math.nan) -> float:
+    """How close to its goal a vehicle must end: max(goal_tolerance, goal_tolerance_k x the
+    larger of the fleet's position_error and the vehicle's reported horizontal accuracy
+    (GPS_RAW_INT h_acc, m; NaN when not reported))."""
+    accuracy = max(position_error or 0.0, h_acc if math.isfinite(h_acc) else 0.0)
+    return max(options.goal_tolerance, options.goal_tolerance_k * accuracy)
+
+
 def plan_times(t: np.ndarray, mission_start: float,
                pauses: Sequence[Sequence[float | None]]) -> np.ndarray:
     """Mission (plan) time of GCS-clock instants `t`: the clock stood still during each
@@ -167,11 +176,13 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     time at the end; `lateness` is None when nothing was streamed. `why` says in words why the
     flight is or is not complete."""
     scenario = plan.scenario
-    tolerance = options.goal_tolerance
-    if position_error is not None:
-        tolerance = max(tolerance, options.goal_tolerance_k * position_error)
+    tolerance = goal_tolerance(options, position_error)
+    # each vehicle's own: with the accuracy it reported when its goal error was measured
+    tolerances = {v.id: v.goal_tolerance if math.isfinite(v.goal_tolerance) else tolerance
+                  for v in vehicles}
     out: dict[str, Any] = {
         "completed": False, "why": [], "goal_error_max": None, "goal_tolerance": tolerance,
+        "goal_tolerances": tolerances,
         "tracking_error_max": None,
         "min_separation_measured": None, "min_separation_planned": None,
         "min_separation_required": scenario.min_separation - scenario.separation_margin,
@@ -238,16 +249,18 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     promised = scenario.separation_margin > 0
     out["completed"] = bool(
         error is None and not out["faults"] and len(goal_errors) == len(vehicles)
-        and max(goal_errors) <= tolerance and landed_ok
+        and all(v.goal_error <= tolerances[v.id] for v in vehicles) and landed_ok
         and not (promised and out["separation_held"] is False))
     why += [f"{vid}: fault {kind}" for vid, kind in out["faults"].items()]
-    why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerance:.2f} m)"
-            for v in vehicles if not math.isnan(v.goal_error) and v.goal_error > tolerance]
+    why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerances[v.id]:.2f} m)"
+            for v in vehicles
+            if not math.isnan(v.goal_error) and v.goal_error > tolerances[v.id]]
     if error is None and not out["faults"] and len(goal_errors) < len(vehicles):
         why.append("not every vehicle's goal error was measured")
     why += [f"{v.id}: not confirmed landed and disarmed ({v.phase})"
             for v in vehicles if options.at_end == "land" and v.phase != "landed"]
     if out["completed"]:
-        why.insert(0, f"complete: every vehicle within {tolerance:.2f} m of its goal"
+        why.insert(0, f"complete: every vehicle within {max(tolerances.values()):.2f} m of "
+                      f"its goal"
                       + (", landed and disarmed" if options.at_end == "land" else ", holding"))
     return out

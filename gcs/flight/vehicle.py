@@ -50,6 +50,8 @@ __all__ = [
     "land",
     "land_vehicle",
     "last_text",
+    "message_rates",
+    "request_message_rates",
     "resolve_home",
     "secure",
     "set_mode",
@@ -89,6 +91,8 @@ class VehicleStatus:
     expect_offboard: bool = False
     tracking_error: float = math.nan
     goal_error: float = math.nan
+    goal_tolerance: float = math.nan
+    """The tolerance its goal error is judged with (from its reported accuracy then)."""
     last_mode: str | None = None
     last_armed: bool | None = None
 
@@ -230,6 +234,43 @@ async def disarm(link: VehicleLink, *, force: bool = False) -> int:
     the air (the vehicle falls). Returns the MAV_RESULT."""
     params = (0.0, px4.DISARM_FORCE_MAGIC) if force else (0.0,)
     return await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, params)
+
+
+def message_rates(position_hz: float) -> dict[int, float]:
+    """What the GCS needs from a PX4 offboard link, by message id, in Hz (0 = off): position
+    at `position_hz`, status, landed state, GPS and battery at 2 Hz, and PX4's fast streams it
+    never reads (ATTITUDE 100/s, HIGHRES_IMU, ATTITUDE_QUATERNION, GLOBAL_POSITION_INT
+    50/s each, ODOMETRY 30/s on SITL) off. HEARTBEAT is absent: PX4 refuses to change it."""
+    m = mavlink
+    return {
+        m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
+        m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
+        m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
+        m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
+        m.MAVLINK_MSG_ID_ATTITUDE: 0.0,
+        m.MAVLINK_MSG_ID_HIGHRES_IMU: 0.0,
+        m.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 0.0,
+        m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.0,
+        m.MAVLINK_MSG_ID_ODOMETRY: 0.0,
+    }
+
+
+async def request_message_rates(link: VehicleLink, rates: dict[int, float]) -> dict[str, str]:
+    """MAV_CMD_SET_MESSAGE_INTERVAL for each message id (param2: interval in us, -1 = off);
+    returns {message name: "<rate> <MAV_RESULT>"}. A refusal is reported, not raised: the
+    vehicle then keeps sending at its own rate."""
+    out = {}
+    for message_id, hz in rates.items():
+        interval = -1.0 if hz <= 0 else 1e6 / hz
+        name = mavlink.mavlink_map[message_id].msgname if message_id in mavlink.mavlink_map \
+            else str(message_id)
+        try:
+            result = result_name(await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                                    (float(message_id), interval)))
+        except GcsError as exc:
+            result = f"failed ({exc})"
+        out[name] = f"{'off' if hz <= 0 else f'{hz:g} Hz'} {result}"
+    return out
 
 
 # ==================================================================== safe endings (never raise)

@@ -403,7 +403,7 @@ class MockVehicle:
         fix = 3 if self.faults.gps_fix is None else self.faults.gps_fix
         return self._mav.gps_raw_int_encode(
             int(now * 1e6), fix, round(g.lat * 1e7), round(g.lon * 1e7), round(g.alt * 1000),
-            80, 120, 0, 0, 12 if fix >= 3 else 0, 0, 300, 500, 100, 0, 0)
+            80, 120, 0, 0, 12 if fix >= 3 else 0, 0, 50, 80, 100, 0, 0)  # h/v_acc mm: ideal
 
     def _geodetic_now(self) -> frames.Geodetic:
         offset = frames.ned_vector_to_world(self.model.position[self.index])

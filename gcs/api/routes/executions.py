@@ -52,6 +52,10 @@ class FlyRequest(BaseModel):
         "check (default: 409 naming the vehicle and the reason) or override (fly anyway; "
         "recorded as a preflight_override event)."
     )
+    message_rates: Literal["leave", "request"] | None = Field(
+        None, description="request: ask each vehicle for the telemetry the GCS reads at the "
+        "rates it needs and turn PX4's fast streams off (MAV_CMD_SET_MESSAGE_INTERVAL)."
+    )
     margin_check: Literal["refuse", "warn"] | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "
         "position_error: refuse (default, 409) or fly it with a warning in the record."

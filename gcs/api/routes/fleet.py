@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from gcs.api.deps import FleetDep
 from gcs.api.errors import error_responses
 
-__all__ = ["CommandOut", "CommandRequest", "router"]
+__all__ = ["COMMAND_INFO", "CommandOut", "CommandRequest", "router"]
 
 router = APIRouter(prefix="/fleet", tags=["fleet"])
 
@@ -36,9 +36,9 @@ class CommandRequest(BaseModel):
         "terminate: flight termination, motors off at once (needs `confirm`)."
     )
     vehicles: list[Annotated[str, Field(max_length=64)]] | None = Field(
-        None, max_length=1000,
-        description="Vehicle ids (default: the whole fleet). Ignored on "
-        "/api/vehicles/{id}/commands.",
+        None, min_length=1, max_length=256,
+        description="Vehicle ids, at most 256 (default, or omitted: the whole fleet). "
+        "Ignored on /api/vehicles/{id}/commands.",
     )
     force: bool = Field(False, description="disarm only: disarm even in the air (it falls).")
     confirm: bool = Field(False, description="terminate only: must be true.")
@@ -66,6 +66,31 @@ class CommandOut(BaseModel):
     command: str
     done: bool = Field(description="Every vehicle done.")
     vehicles: list[VehicleOutcome]
+
+
+class CommandInfo(BaseModel):
+    command: str
+    description: str
+    needs: str | None = Field(description="The body field it needs (force, confirm), if any.")
+
+
+#: What each command does, for clients building their buttons (GET /api/fleet/commands).
+COMMAND_INFO = [
+    CommandInfo(command="hold", description="PX4 Hold (AUTO.LOITER) where it is.", needs=None),
+    CommandInfo(command="land", description="Land where it is (NAV_LAND).", needs=None),
+    CommandInfo(command="rtl", description="Return to launch (AUTO.RTL) and land.",
+                needs=None),
+    CommandInfo(command="disarm", description="Stop the motors; refused in the air unless "
+                "forced (the vehicle falls).", needs="force (in the air)"),
+    CommandInfo(command="terminate", description="Flight termination: motors off at once, "
+                "the vehicle falls; until it is restarted.", needs="confirm"),
+]
+
+
+@router.get("/commands", response_model=list[CommandInfo],
+            summary="The fleet commands and what each does")
+def list_commands() -> list[CommandInfo]:
+    return COMMAND_INFO
 
 
 @router.post(

@@ -10,6 +10,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
+from gcs.flight.commands import FLEET_COMMANDS
 from gcs.service.settings import Settings
 from tests.api.routes.test_executions import wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
@@ -88,6 +89,10 @@ def test_fleet_commands_without_a_fleet(make_settings: Callable[..., Settings]) 
         response = client.post("/api/fleet/commands", json={"command": "hold"})
         assert response.status_code == 409 and response.json()["field"] == "fleet"
         assert "no fleet" in response.json()["reason"]
+        # what a client builds its buttons from: every command the POST accepts, described
+        listed = client.get("/api/fleet/commands").json()
+        assert [c["command"] for c in listed] == list(FLEET_COMMANDS)
+        assert [c["command"] for c in listed if c["needs"]] == ["disarm", "terminate"]
 
 
 def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Settings]) -> None:
@@ -102,7 +107,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
             10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
         for v in vehicles:
             assert v["battery"]["remaining_pct"] == 100 and v["battery"]["voltage"] > 16
-            assert v["gps"]["h_acc"] == pytest.approx(0.3)
+            assert v["gps"]["h_acc"] == pytest.approx(0.05)
             assert v["health"]["unhealthy"] == []
             assert v["link_quality"]["received"] > 10 and v["link_quality"]["lost"] == 0
         mock = client.app.state.fleet._mock  # inject a fault into the in-process mock
