@@ -11,6 +11,8 @@
     - `ArmingRefused`: MAV_CMD_COMPONENT_ARM_DISARM was refused for good (DENIED, FAILED, or
       still TEMPORARILY_REJECTED when the arming timeout ran out).
     - `ModeRefused`: MAV_CMD_DO_SET_MODE was refused.
+  - `PreflightFailed`: the pre-flight gate found a vehicle unfit to fly (battery, unhealthy
+    sensors, link loss, missing); carries `vehicle` and `problems`.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
   - `MissionAborted`: the flight stopped before completing (abort(), a fault policy, Ctrl-C);
     `reason` says why. The vehicles were sent to hold or land before this is raised.
@@ -37,6 +39,7 @@ __all__ = [
     "ModeRefused",
     "NotFound",
     "PlanRejected",
+    "PreflightFailed",
     "RequestError",
     "ServiceBusy",
     "StateConflict",
@@ -74,6 +77,15 @@ class CommandError(GcsError):
         self.command = command
         self.result = result
         self.detail = detail
+
+
+class PreflightFailed(GcsError):
+    """The pre-flight gate refused a vehicle (`problems` say why)."""
+
+    def __init__(self, vehicle: str, problems: list[str]) -> None:
+        super().__init__(f"{vehicle}: pre-flight check failed: {'; '.join(problems)}")
+        self.vehicle = vehicle
+        self.problems = problems
 
 
 class ArmingRefused(CommandError):

@@ -26,6 +26,7 @@ __all__ = [
     "LAND",
     "OFFBOARD",
     "POSITION",
+    "RTL",
     "MainMode",
     "Px4Mode",
     "decode_custom_mode",
@@ -90,6 +91,7 @@ OFFBOARD = Px4Mode(MainMode.OFFBOARD)
 HOLD = Px4Mode(MainMode.AUTO, 3)  # AUTO.LOITER, "Hold" in QGroundControl
 LAND = Px4Mode(MainMode.AUTO, 6)  # AUTO.LAND
 POSITION = Px4Mode(MainMode.POSCTL)
+RTL = Px4Mode(MainMode.AUTO, 5)  # AUTO.RTL: return to launch (fleet command)
 
 
 def decode_custom_mode(custom_mode: int) -> Px4Mode:

@@ -46,7 +46,7 @@ MAX_STEPS = 5000
 
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
-    "max_iterations", "limits", "vehicles", "assignment",
+    "max_iterations", "limits", "vehicles", "assignment", "separation_margin",
 }
 _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
@@ -136,6 +136,10 @@ class Scenario:
     goal_order: IntArray | None = field(default=None, repr=False)
     """(N,) for 'free': the goal index each vehicle flies to (minimum total squared
     distance); None for 'fixed' (the identity)."""
+    separation_margin: float = 0.0
+    """Part of `min_separation` (m) reserved for the fleet's position error in flight
+    (2 x its expected error, `gcs.flight.margin`): the vehicles must keep
+    min_separation - separation_margin. The planner only carries it; 0 = none stated."""
 
     @property
     def order(self) -> IntArray:
@@ -189,7 +193,7 @@ class Scenario:
                 {"id": v.id, "start": v.start.tolist(), "goal": v.goal.tolist()}
                 for v in self.vehicles
             ],
-        }
+        } | ({"separation_margin": self.separation_margin} if self.separation_margin else {})
 
 
 # --------------------------------------------------------------------------- parsing helpers
@@ -311,6 +315,10 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     dt = _number(data["dt"], "dt", positive=True)
     steps = _integer(data["steps"], "steps", 3, MAX_STEPS)
     separation = _number(data["min_separation"], "min_separation", positive=True)
+    margin = _number(data.get("separation_margin", 0.0), "separation_margin", nonneg=True)
+    if margin >= separation:
+        raise ScenarioError("separation_margin", f"must be less than min_separation "
+                                                 f"{separation:g} m, got {margin:g}")
     scale = _vector(
         data.get("separation_scale", DEFAULTS["separation_scale"]),
         "separation_scale",
@@ -410,4 +418,5 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         goals=goals,
         assignment=assignment,
         goal_order=goal_order,
+        separation_margin=margin,
     )

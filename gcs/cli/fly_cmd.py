@@ -2,7 +2,9 @@
 
 Live progress per vehicle once a second and every event as it happens; a summary at the end;
 exit status 0 only when the flight completed. Ctrl-C aborts safely: every vehicle lands and
-the command waits for them to disarm (a second Ctrl-C exits at once).
+the command waits for them to disarm (a second Ctrl-C exits at once). SIGUSR1 pauses the
+mission (the clock stops, every vehicle holds the plan's setpoint of the same plan time),
+SIGUSR2 resumes it: ``kill -USR1 PID``.
 """
 
 from __future__ import annotations
@@ -31,6 +33,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="start the clock when all are this close to their starts (m)")
     parser.add_argument("--arm-timeout", type=float,
                         help="retry TEMPORARILY_REJECTED arming this long (s, default 30)")
+    parser.add_argument("--margin-check", choices=("refuse", "warn"),
+                        help="a plan whose separation margin is below 2 x the fleet's "
+                             "position_error: refuse (default) or warn and fly")
+    parser.add_argument("--message-rates", choices=("leave", "request"),
+                        help="request: ask each vehicle for the telemetry the GCS reads at the "
+                             "rates it needs and turn PX4's fast streams off (default leave)")
     parser.add_argument("--base-port", type=int, default=14540,
                         help="--mock: vehicle i sends to this port + i (default 14540)")
     parser.add_argument("--listen-base-port", type=int, default=14580,
@@ -42,7 +50,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "hold_at_goal": "hold_at_goal", "tracking_error_max": "tracking_error_max",
-                 "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout"}
+                 "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
+                 "margin_check": "margin_check", "message_rates": "message_rates"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -109,8 +118,20 @@ def run(args: argparse.Namespace) -> int:
             else:
                 task.cancel()
 
+        def on_pause(resume: bool) -> None:
+            try:
+                t = executor.resume() if resume else executor.pause()
+            except GcsError as exc:
+                print(f"cannot {'resume' if resume else 'pause'}: {exc}", file=sys.stderr,
+                      flush=True)
+                return
+            print(f"{'resumed' if resume else 'paused'} at mission time {t:.2f} s "
+                  f"({'SIGUSR1 pauses' if resume else 'SIGUSR2 resumes'})", flush=True)
+
         task = executor.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
+        loop.add_signal_handler(signal.SIGUSR1, on_pause, False)
+        loop.add_signal_handler(signal.SIGUSR2, on_pause, True)
         printer = None if args.quiet else asyncio.create_task(_progress(executor))
         record = None
         status = 1
@@ -125,7 +146,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
             record = executor.record
         finally:
-            loop.remove_signal_handler(signal.SIGINT)
+            for sig in (signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2):
+                loop.remove_signal_handler(sig)
             if printer is not None:
                 printer.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
@@ -184,10 +206,14 @@ def _print_summary(record: dict) -> None:
 
     print("summary:")
     print(f"  completed               {s['completed']}")
-    print(f"  goal_error_max          {fmt(s['goal_error_max'], ' m')}")
+    for reason in s.get("why", []):
+        print(f"    {reason}")
+    print(f"  goal_error_max          {fmt(s['goal_error_max'], ' m')}"
+          f" (tolerance {fmt(s.get('goal_tolerance'), ' m')})")
     print(f"  tracking_error_max      {fmt(s['tracking_error_max'], ' m')}")
     print(f"  min_separation_measured {fmt(s['min_separation_measured'], ' m')}"
-          f" (planned {fmt(s['min_separation_planned'], ' m')})")
+          f" (planned {fmt(s['min_separation_planned'], ' m')}, must keep "
+          f"{fmt(s.get('min_separation_required'), ' m')})")
     print(f"  setpoint_rate_hz        {fmt(s['setpoint_rate_hz'])}")
     print(f"  jitter_p99_ms           {fmt(s['jitter_p99_ms'])}")
     if s["faults"]:

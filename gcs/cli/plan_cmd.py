@@ -37,6 +37,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--scheduler", metavar="tcp://HOST:8786", default=os.environ.get(SCHEDULER_ENV) or None,
         help=f"plan as a task on this Dask cluster (default ${SCHEDULER_ENV}; unset: here)",
     )
+    parser.add_argument(
+        "--fleet", type=Path, default=None,
+        help="plan for this fleet: min_separation R + 2 x its position_error, stated in the "
+             "plan as separation_margin (gcs.flight.margin)",
+    )
 
 
 def _fail(message: str) -> int:
@@ -156,12 +161,35 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
     return planner.Plan.from_dict(json.loads(result["plan_json"]))
 
 
+def _for_fleet(data: Any, fleet_path: Path) -> Any:
+    """The scenario planned for a fleet's position error (ValueError for a bad fleet file or
+    one that states no position_error)."""
+    from gcs.errors import FleetFileError
+    from gcs.flight.fleetfile import load_fleet
+    from gcs.flight.margin import scenario_for_fleet
+
+    try:
+        fleet = load_fleet(fleet_path)
+    except FleetFileError as exc:
+        raise ValueError(f"--fleet: {exc.field}: {exc.reason}") from None
+    if fleet.position_error is None:
+        raise ValueError(f"--fleet: {fleet_path} states no position_error (m)")
+    if not isinstance(data, dict) or not isinstance(data.get("min_separation"), int | float):
+        return data  # the scenario's own validation names what is wrong
+    planned = scenario_for_fleet(data, fleet.position_error)
+    print(f"planning for the fleet: min_separation {data['min_separation']:g} m + 2 x "
+          f"{fleet.position_error:g} m = {planned['min_separation']:g} m", flush=True)
+    return planned
+
+
 def run(args: argparse.Namespace) -> int:
     import planner
     from planner.errors import FieldError, SolverError
 
     try:
         data = load_json(args.scenario)
+        if getattr(args, "fleet", None) is not None:
+            data = _for_fleet(data, args.fleet)
         scenario = planner.Scenario.from_dict(data)
     except ValueError as exc:
         return _fail(str(exc))

@@ -10,7 +10,8 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
         ...
       ],
       "mission": {"policy": "land_all", "rate_hz": 20},                      (optional)
-      "signing_key": "fleet.key"                                             (optional)
+      "signing_key": "fleet.key",                                            (optional)
+      "position_error": 0.25                                                 (optional)
     }
 
 - `id` matches a plan vehicle; `connection` is a pymavlink URL (vehicles may share one);
@@ -25,6 +26,9 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
   written out (`to_dict`), never the key.
 - `peer` (per vehicle, optional) ``"HOST:PORT"``: the vehicle's source address, pinned up front
   instead of at first contact (`gcs.flight.link`).
+- `position_error`: how far (m) a vehicle of this fleet may be from where it reports or is
+  told to be (estimate and tracking error); plans for the fleet then keep 2x this margin
+  (`gcs.flight.margin`). Absent: not stated, no margin checked (as before).
 
 Every problem is a `FleetFileError` naming the field (e.g. ``vehicles[2].system_id``).
 """
@@ -61,7 +65,10 @@ MAX_LINK_TIMEOUT_S = 5.0
 
 __all__ = [
     "AT_END",
+    "MARGIN_CHECK",
+    "PAUSE_EXPIRY",
     "POLICIES",
+    "PREFLIGHT",
     "FleetSpec",
     "FlightOptions",
     "VehicleSpec",
@@ -72,9 +79,15 @@ __all__ = [
 POLICIES = ("hold_all", "land_all", "land_faulty")
 #: What the fleet does once the plan has ended and it has held at the goals.
 AT_END = ("land", "hold")
+#: What the fleet does when a pause lasts longer than `pause_limit`.
+PAUSE_EXPIRY = ("land", "hold")
 
-_TOP_KEYS = {"world_origin", "vehicles", "mission", "signing_key"}
+_TOP_KEYS = {"world_origin", "vehicles", "mission", "signing_key", "position_error"}
 _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home", "signing_key", "peer"}
+#: What `fly` does with a plan whose separation margin is below the fleet's need.
+MARGIN_CHECK = ("refuse", "warn")
+#: The pre-flight gate: refuse an unfit vehicle, or fly anyway (recorded).
+PREFLIGHT = ("check", "override")
 
 
 @dataclass(frozen=True)
@@ -120,6 +133,31 @@ class FlightOptions:
     """Waiting for landed vehicles to disarm (s)."""
     yaw: float = 0.0
     """Fixed heading in the world frame (rad, ENU: 0 = +x, counter-clockwise)."""
+    pause_limit: float = 120.0
+    """A paused mission may stay paused this long (s); then `pause_expiry` applies."""
+    pause_expiry: str = "land"
+    """When a pause outlasts `pause_limit`: land every vehicle, or hold (PX4 Hold); the
+    mission ends aborted either way."""
+    margin_check: str = "refuse"
+    """A plan whose separation margin is below 2 x the fleet's `position_error`: refuse to
+    fly it, or warn (an event in the record) and fly."""
+    preflight: str = "check"
+    """The pre-flight gate (battery, unhealthy sensors, link loss; gcs.flight.health):
+    check (refuse to arm an unfit vehicle) or override (fly anyway; recorded as an event)."""
+    min_battery_pct: float = 30.0
+    """The pre-flight gate refuses a vehicle reporting less battery than this (%)."""
+    preflight_wait: float = 10.0
+    """How long the gate waits for a problem to clear (PX4 reports sensors unhealthy for a
+    few seconds after boot) before refusing (s)."""
+    message_rates: str = "leave"
+    """leave: take the telemetry rates the vehicle sends; request: ask for what the GCS reads
+    at the rates it needs and turn off PX4's fast streams it never reads
+    (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.vehicle.message_rates`)."""
+    position_rate_hz: float = 30.0
+    """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
+    goal_tolerance_k: float = 2.0
+    """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
+    position_error)."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = "mission") -> FlightOptions:
@@ -136,8 +174,11 @@ class FlightOptions:
     def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
-            if key in ("policy", "at_end"):
-                allowed = POLICIES if key == "policy" else AT_END
+            if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight",
+                       "message_rates"):
+                allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
+                           "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT,
+                           "message_rates": ("leave", "request")}[key]
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")
@@ -157,7 +198,8 @@ class FlightOptions:
                                  f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
                                  f"link, got {out.link_timeout:g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max", "separation_alarm",
-                    "start_tolerance", "goal_tolerance", "climb_speed"):
+                    "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
+                    "position_rate_hz"):
             if getattr(out, key) <= 0:
                 raise FleetFileError(f"{where}.{key}", "must be positive")
         return out
@@ -201,6 +243,8 @@ class FleetSpec:
     vehicles: tuple[VehicleSpec, ...]
     world_origin: Geodetic | None
     options: FlightOptions
+    position_error: float | None = None
+    """Expected position error of a vehicle of this fleet (m), or None if not stated."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], base_dir: str | Path | None = None) -> FleetSpec:
@@ -214,6 +258,8 @@ class FleetSpec:
             o = self.world_origin
             out["world_origin"] = {"lat": o.lat, "lon": o.lon, "alt": o.alt}
         out["mission"] = self.options.to_dict()
+        if self.position_error is not None:
+            out["position_error"] = self.position_error
         return out
 
     def for_plan(self, plan_ids: Sequence[str]) -> list[VehicleSpec]:
@@ -344,4 +390,10 @@ def _parse(data: Any, base_dir: Path | None = None) -> FleetSpec:
         vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home,
                                     signing_key, peer))
     options = FlightOptions.from_dict(data.get("mission", {}))
-    return FleetSpec(tuple(vehicles), origin, options)
+    position_error = None
+    if "position_error" in data:
+        position_error = _number(data["position_error"], "position_error")
+        if not 0.0 <= position_error <= 10.0:
+            raise FleetFileError("position_error", f"must be within [0, 10] m, got "
+                                                   f"{position_error:g}")
+    return FleetSpec(tuple(vehicles), origin, options, position_error)

@@ -16,7 +16,8 @@ are asyncio's, so every link runs on the caller's event loop.
   (`gcs.flight.signing`), everything it sends is signed and every unsigned, wrongly signed or
   replayed packet is dropped and counted. Its telemetry (HEARTBEAT mode/armed/age,
   LOCAL_POSITION_NED, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT, the
-  security counters); a non-finite position or velocity is never stored: it is counted and
+  security counters; for `gcs.flight.health`: SYS_STATUS, BATTERY_STATUS, GPS_RAW_INT and
+  sequence-number gaps); a non-finite position or velocity is never stored: it is counted and
   timestamped (`Telemetry.invalid_estimate_time`) for the monitor to flag. `command()` with
   COMMAND_ACK (from the pinned peer, for a pending command only), retries and duplicate-ACK
   tolerance, and `send_setpoint()`.
@@ -65,6 +66,7 @@ __all__ = [
     "Endpoint",
     "LinkHub",
     "SecurityCounters",
+    "Telemetry",
     "ThreadedEndpoint",
     "UdpEndpoint",
     "VehicleLink",
@@ -281,6 +283,29 @@ class Telemetry:
     invalid_estimates: int = 0
     security: SecurityCounters = field(default_factory=lambda: SecurityCounters())
 
+    # --- health (issue 12; read by gcs.flight.health) ---
+    sensors_present: int | None = None
+    """SYS_STATUS onboard_control_sensors_present (MAV_SYS_STATUS_SENSOR bits)."""
+    sensors_enabled: int | None = None
+    sensors_health: int | None = None
+    battery_remaining: int | None = None
+    """Battery remaining (%) from SYS_STATUS / BATTERY_STATUS; None when not reported."""
+    battery_voltage: float = math.nan
+    """Battery voltage (V) from SYS_STATUS."""
+    gps_fix_type: int | None = None
+    """GPS_RAW_INT fix_type (GPS_FIX_TYPE: 3 = 3D fix)."""
+    gps_satellites: int | None = None
+    gps_h_acc: float = math.nan
+    """GPS_RAW_INT h_acc (m): horizontal position uncertainty."""
+    gps_v_acc: float = math.nan
+    warnings: deque[str] = field(default_factory=lambda: deque(maxlen=5))
+    """STATUSTEXT of severity WARNING or worse."""
+    seq_received: int = 0
+    """Messages from the autopilot component counted for link quality."""
+    seq_lost: int = 0
+    """Messages missing from the autopilot component's sequence numbers."""
+    last_seq: int | None = None
+
 
 @dataclass
 class SecurityCounters:
@@ -303,6 +328,37 @@ class SecurityCounters:
     @property
     def total(self) -> int:
         return sum(vars(self).values())
+
+
+def _count_sequence(tel: Telemetry, seq: int) -> None:
+    """Link quality: a gap in the sender's sequence numbers (mod 256) counts as lost
+    messages; a jump of 128 or more is taken as a restart or reordering, not a loss."""
+    if tel.last_seq is not None:
+        gap = (seq - tel.last_seq - 1) & 0xFF
+        if gap < 128:
+            tel.seq_lost += gap
+    tel.last_seq = seq
+    tel.seq_received += 1
+
+
+def _health_message(tel: Telemetry, kind: str, msg: Any) -> None:
+    """SYS_STATUS, BATTERY_STATUS and GPS_RAW_INT into `tel` (UINT16_MAX / -1 = unknown)."""
+    if kind == "SYS_STATUS":
+        tel.sensors_present = msg.onboard_control_sensors_present
+        tel.sensors_enabled = msg.onboard_control_sensors_enabled
+        tel.sensors_health = msg.onboard_control_sensors_health
+        if msg.battery_remaining >= 0:
+            tel.battery_remaining = int(msg.battery_remaining)
+        if msg.voltage_battery not in (0, 0xFFFF):
+            tel.battery_voltage = msg.voltage_battery / 1000.0
+    elif kind == "BATTERY_STATUS":
+        if msg.battery_remaining >= 0:
+            tel.battery_remaining = int(msg.battery_remaining)
+    else:  # GPS_RAW_INT
+        tel.gps_fix_type = int(msg.fix_type)
+        tel.gps_satellites = None if msg.satellites_visible == 255 else msg.satellites_visible
+        tel.gps_h_acc = msg.h_acc / 1000.0 if msg.h_acc else math.nan
+        tel.gps_v_acc = msg.v_acc / 1000.0 if msg.v_acc else math.nan
 
 
 class VehicleLink:
@@ -367,6 +423,8 @@ class VehicleLink:
             tel.invalid_estimates += 1
             return
         tel.message_time = now
+        if msg.get_srcComponent() == self.component_id:
+            _count_sequence(tel, msg.get_seq())
         if kind == "HEARTBEAT":
             if msg.get_srcComponent() == self.component_id:
                 tel.heartbeat_time = now
@@ -390,6 +448,10 @@ class VehicleLink:
                         (msg.x, msg.y, msg.z))
         elif kind == "STATUSTEXT":
             tel.statustexts.append(str(msg.text).rstrip("\x00"))
+            if msg.severity <= mavlink.MAV_SEVERITY_WARNING:
+                tel.warnings.append(str(msg.text).rstrip("\x00"))
+        elif kind in ("SYS_STATUS", "BATTERY_STATUS", "GPS_RAW_INT"):
+            _health_message(tel, kind, msg)
         for callback in self.listeners:
             callback(self, msg, now)
         if self._waiters:

@@ -2,11 +2,13 @@
 
 Times are seconds on the GCS clock (0 when the mission object started running);
 ``mission_start`` is the GCS-clock time of mission time 0 (null if the plan never started), so
-mission time = t - mission_start. Positions are in the world frame (ENU, m) unless the key says
+mission time = t - mission_start, less the time spent in ``pauses`` ([start, end] each, GCS
+clock) before t (`plan_times`). Positions are in the world frame (ENU, m) unless the key says
 ``_ned``. JSON layout::
 
     {"format": "fleetplan-flight-record/1", "plan": {...scenario echo...},
-     "fleet": {...}, "options": {...}, "mission_start": 12.3, "horizon": 30.0,
+     "fleet": {...}, "options": {...}, "mission_start": 12.3, "pauses": [[20.1, 25.3]],
+     "horizon": 30.0,
      "error": null | {"type": "ArmingRefused", "message": "..."},
      "vehicles": [{"id", "system_id", "home",
                    "setpoints": {"t": [...], "tick": [...], "position_ned": [[x,y,z]...],
@@ -26,14 +28,28 @@ interpolated onto common instants at the stream rate.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from gcs.flight.fleetfile import FlightOptions
+from gcs.flight.margin import MarginCheck
 from gcs.flight.setpoints import Setpoint
+from gcs.flight.stream import jitter_stats
+from planner import Plan
 
-__all__ = ["FlightRecorder", "VehicleRecord", "measured_min_separation"]
+if TYPE_CHECKING:
+    from gcs.flight.vehicle import VehicleStatus
+
+__all__ = ["FlightRecorder", "VehicleRecord", "finite_or_none", "goal_tolerance",
+           "measured_min_separation", "plan_times", "summarise"]
+
+
+def finite_or_none(x: float | None) -> float | None:
+    """`x` as a float, or None when it is None, NaN or infinite (JSON has no NaN/Infinity)."""
+    return None if x is None or not math.isfinite(x) else float(x)
 
 
 @dataclass
@@ -125,3 +141,131 @@ def measured_min_separation(times: list[np.ndarray], positions: list[np.ndarray]
     d = np.linalg.norm(stacked[i] - stacked[j], axis=2)  # (pairs, G)
     pair, instant = np.unravel_index(int(np.argmin(d)), d.shape)
     return float(d[pair, instant]), float(grid[instant])
+
+
+def goal_tolerance(options: FlightOptions, position_error: float | None,
+                   h_acc: float = math.nan) -> float:
+    """How close to its goal a vehicle must end: max(goal_tolerance, goal_tolerance_k x the
+    larger of the fleet's position_error and the vehicle's reported horizontal accuracy
+    (GPS_RAW_INT h_acc, m; NaN when not reported))."""
+    accuracy = max(position_error or 0.0, h_acc if math.isfinite(h_acc) else 0.0)
+    return max(options.goal_tolerance, options.goal_tolerance_k * accuracy)
+
+
+def plan_times(t: np.ndarray, mission_start: float,
+               pauses: Sequence[Sequence[float | None]]) -> np.ndarray:
+    """Mission (plan) time of GCS-clock instants `t`: the clock stood still during each
+    [start, end] of `pauses` (end None: still paused)."""
+    t = np.asarray(t, dtype=float)
+    tau = t - mission_start
+    for start, end in pauses:
+        assert start is not None
+        length = math.inf if end is None else end - start
+        tau = tau - np.clip(t - start, 0.0, length)
+    return tau
+
+
+def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
+              vehicles: Sequence[VehicleStatus], *, mission_start: float | None,
+              pauses: Sequence[Sequence[float | None]] = (), now: float,
+              missed_ticks: int, lateness: Sequence[float] | None,
+              error: BaseException | None, margin: MarginCheck | None = None,
+              position_error: float | None = None) -> dict[str, Any]:
+    """The flight record's summary (see the module docstring) from what `recorder` holds and
+    the executor's final view of each vehicle (fault, goal error, phase). `now` is the GCS-clock
+    time at the end; `lateness` is None when nothing was streamed. `why` says in words why the
+    flight is or is not complete."""
+    scenario = plan.scenario
+    tolerance = goal_tolerance(options, position_error)
+    # each vehicle's own: with the accuracy it reported when its goal error was measured
+    tolerances = {v.id: v.goal_tolerance if math.isfinite(v.goal_tolerance) else tolerance
+                  for v in vehicles}
+    out: dict[str, Any] = {
+        "completed": False, "why": [], "goal_error_max": None, "goal_tolerance": tolerance,
+        "goal_tolerances": tolerances,
+        "tracking_error_max": None,
+        "min_separation_measured": None, "min_separation_planned": None,
+        "min_separation_required": scenario.min_separation - scenario.separation_margin,
+        "separation_held": None,
+        "separation_margin": None if margin is None else margin.to_dict(),
+        "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,
+        "missed_ticks": missed_ticks,
+        "faults": {v.id: v.fault for v in vehicles if v.fault is not None},
+        # packets dropped per vehicle (pinning, signing), non-finite reports, garbage per link
+        "security": {v.id: {**v.link.telemetry.security.to_dict(),
+                            "invalid_estimates": v.link.telemetry.invalid_estimates,
+                            "link_garbage_datagrams": v.link.endpoint.garbage_datagrams}
+                     for v in vehicles if v.link is not None},
+    }
+    why: list[str] = out["why"]
+    if error is not None:
+        why.append(f"{type(error).__name__}: {error}")
+    if plan.verification is not None:
+        out["min_separation_planned"] = plan.verification.min_separation_continuous
+    if mission_start is None:
+        why.append("the mission clock never started")
+        return out
+    t0 = mission_start
+    paused = sum((now if b is None else b) - a for a, b in pauses)  # type: ignore[operator]
+    end = t0 + scenario.horizon + options.hold_at_goal + paused
+    first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
+                      default=math.inf)
+    t1 = min(end, first_fault, now)
+    tracking = []
+    times, positions = [], []
+    for v in vehicles:
+        rec = recorder.vehicles[v.id]
+        t, p = rec.telemetry_arrays()
+        stop = min(t1, v.fault_time if v.fault_time is not None else math.inf)
+        window = (t >= t0) & (t <= stop)
+        if np.any(window):
+            planned = plan.vehicles[v.index].sample(scenario.dt,
+                                                    plan_times(t[window], t0, pauses))
+            tracking.append(float(np.max(np.linalg.norm(p[window] - planned.position, axis=1))))
+        times.append(t)
+        positions.append(p)
+    if tracking:
+        out["tracking_error_max"] = max(tracking)
+    # Separation over the whole flight, not only up to the first fault: a vehicle sent
+    # down by land_faulty still passes the others.
+    scale = np.asarray(scenario.separation_scale, dtype=float)
+    separation, _ = measured_min_separation(times, positions, t0, min(end, now),
+                                            options.rate_hz, scale)
+    out["min_separation_measured"] = finite_or_none(separation)
+    if out["min_separation_measured"] is not None:
+        out["separation_held"] = separation >= out["min_separation_required"]
+        if not out["separation_held"]:
+            why.append(f"vehicles came {separation:.2f} m apart, closer than the "
+                       f"{out['min_separation_required']:.2f} m they must keep")
+    goal_errors = [v.goal_error for v in vehicles if not math.isnan(v.goal_error)]
+    if goal_errors:
+        out["goal_error_max"] = max(goal_errors)
+    if lateness is not None:
+        counts = [sum(1 for s in recorder.vehicles[v.id].sp_t if t0 <= s <= t1)
+                  for v in vehicles]
+        if t1 > t0:
+            out["setpoint_rate_hz"] = float(np.mean(counts)) / (t1 - t0)
+        stats = jitter_stats(lateness)
+        out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
+        out["jitter_p99_ms"] = finite_or_none(stats["jitter_p99_ms"])
+    landed_ok = options.at_end != "land" or all(v.phase == "landed" for v in vehicles)
+    # With a stated margin the clearance is a promise: breaking it is a failure. Without
+    # one (margin 0), the plan's R is only reported against (the mock flies a few cm inside).
+    promised = scenario.separation_margin > 0
+    out["completed"] = bool(
+        error is None and not out["faults"] and len(goal_errors) == len(vehicles)
+        and all(v.goal_error <= tolerances[v.id] for v in vehicles) and landed_ok
+        and not (promised and out["separation_held"] is False))
+    why += [f"{vid}: fault {kind}" for vid, kind in out["faults"].items()]
+    why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerances[v.id]:.2f} m)"
+            for v in vehicles
+            if not math.isnan(v.goal_error) and v.goal_error > tolerances[v.id]]
+    if error is None and not out["faults"] and len(goal_errors) < len(vehicles):
+        why.append("not every vehicle's goal error was measured")
+    why += [f"{v.id}: not confirmed landed and disarmed ({v.phase})"
+            for v in vehicles if options.at_end == "land" and v.phase != "landed"]
+    if out["completed"]:
+        why.insert(0, f"complete: every vehicle within {max(tolerances.values()):.2f} m of "
+                      f"its goal"
+                      + (", landed and disarmed" if options.at_end == "land" else ", holding"))
+    return out

@@ -11,8 +11,12 @@ Mock vehicles are set down under the plan's starts before each flight (as
 ``fleetplan fly --mock`` does), so any verified plan with at most `mock_vehicles` vehicles can
 be flown on them; vehicles the plan does not use are parked beside its workspace.
 
-Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions); `abort`
-sends every vehicle of the active flight to land (or hold) at once.
+Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions), which first
+applies the pre-flight gate (`gcs.flight.health`) and the fleet's separation margin
+(`gcs.flight.margin`); `abort` sends every vehicle of the active flight to land (or hold) at
+once; `pause` / `resume` stop and restart its mission clock. Between flights, `command` sends a
+fleet command (`gcs.flight.commands`: hold, land, rtl, disarm, terminate) over the monitor's
+connections, so a fleet left hovering can always be landed.
 """
 
 from __future__ import annotations
@@ -30,13 +34,16 @@ import orjson
 
 from gcs import frames
 from gcs.errors import FleetFileError, GcsError, InvalidRequest, MissionAborted, StateConflict
+from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, load_fleet
+from gcs.flight.fleetfile import FleetSpec, FlightOptions, load_fleet
+from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
 from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.margin import check_margin
 from gcs.service.events import Broadcast, Event
 from gcs.service.journal import ExecutionJournal, store_failure
 from gcs.service.settings import Settings
-from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED
+from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.store import ExecutionRow, Store
 from gcs.sim import MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
@@ -59,7 +66,7 @@ class LiveExecution:
 
     id: str
     mission_id: str
-    status: str = "starting"
+    status: ExecutionStatus = ExecutionStatus.STARTING
     executor: FlightExecutor | None = None
     events: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
@@ -75,7 +82,7 @@ class LiveExecution:
     def publish(self, kind: str, data: dict[str, Any]) -> None:
         self.listeners.publish(kind, data)
 
-    def set_status(self, status: str) -> None:
+    def set_status(self, status: ExecutionStatus) -> None:
         self.status = status
         self.publish("status", {"status": status})
 
@@ -226,6 +233,7 @@ class FleetService:
                 "armed": None if tel is None or tel.heartbeat_time is None else bool(tel.armed),
                 "position": position,
                 "home": None if spec.home is None else spec.home.tolist(),
+                **(health_report(tel) if tel is not None else {}),
             })
         return out
 
@@ -236,6 +244,35 @@ class FleetService:
     @property
     def active(self) -> LiveExecution | None:
         return self._active if self._active is not None and self._active.active else None
+
+    # ------------------------------------------------------------------ fleet commands
+
+    async def command(self, command: str, vehicles: list[str] | None = None, *,
+                      force: bool = False, confirm: bool = False) -> dict[str, Any]:
+        """A fleet command (`gcs.flight.commands`) to `vehicles` (default all) between flights.
+
+        StateConflict while a flight is under way (abort or pause it instead), with no fleet,
+        or when the fleet's connections are not open; InvalidRequest / StateConflict from
+        the command's own checks (nothing sent then). Returns {command, done, vehicles:
+        [outcome...]} once every vehicle answered or timed out."""
+        async with self._lock:
+            if self.active is not None:
+                raise StateConflict("fleet", f"execution {self.active.id} is flying: use its "
+                                             "abort (or pause) instead of a fleet command")
+            if self.kind == "none" or self._spec is None:
+                raise StateConflict("fleet", "no fleet configured: start the service with "
+                                             "--mock N or --fleet FLEET.json")
+            if not self._links:
+                raise StateConflict("fleet", "the fleet's connections are not open (see the "
+                                             "service log)")
+            outcomes = await fleet_command(self._links, command, vehicles, force=force,
+                                           confirm=confirm)
+        log.warning("fleet command %s to %s: %s", command,
+                    ", ".join(o.vehicle for o in outcomes),
+                    "; ".join(f"{o.vehicle} {'done' if o.done else 'NOT done'}: {o.detail}"
+                              for o in outcomes))
+        return {"command": command, "done": all(o.done for o in outcomes),
+                "vehicles": [o.to_dict() for o in outcomes]}
 
     # ------------------------------------------------------------------ flying
 
@@ -271,6 +308,10 @@ class FleetService:
                 raise InvalidRequest(exc.field, exc.reason) from None
             except TypeError as exc:
                 raise InvalidRequest("options", str(exc)) from None
+            self._preflight(ids, mission_options)
+            margin = check_margin(plan, self._spec.position_error)
+            if not margin.ok and mission_options.margin_check == "refuse":
+                raise StateConflict("mission_id", margin.message())
             label = f"{self.kind}: {', '.join(ids)}"
             row = await asyncio.to_thread(self._store.create_execution, mission_id, label)
             flight = LiveExecution(row.id, mission_id)
@@ -278,6 +319,30 @@ class FleetService:
             self._active = flight
             self._spawn(self._run(flight, plan, mission_options))
             return row
+
+    def _preflight(self, ids: list[str], options: FlightOptions) -> None:
+        """The pre-flight gate on what the monitor sees now (battery, unhealthy sensors, link
+        loss): StateConflict naming the vehicle and the reason, unless `preflight: override`.
+        A vehicle not heard from yet is left to the executor, which waits for it and names it
+        if it never answers."""
+        if options.preflight == "override":
+            return
+        limits = PreflightThresholds(min_battery_pct=options.min_battery_pct)
+        assert self._spec is not None
+        if self.kind == "mock":  # mock vehicle i flies plan vehicle i (see _rehome_mock)
+            fleet_ids = [v.id for v in self._spec.vehicles][:len(ids)]
+            names = [f"{vid} (mock vehicle {fid})" if vid != fid else vid
+                     for vid, fid in zip(ids, fleet_ids, strict=True)]
+        else:
+            fleet_ids, names = list(ids), list(ids)
+        for fid, name in zip(fleet_ids, names, strict=True):
+            link = self._links.get(fid)
+            if link is None or link.telemetry.heartbeat_time is None:
+                continue
+            problems = preflight_problems(link.telemetry, limits, require_presence=False)
+            if problems:
+                raise StateConflict("fleet", f"pre-flight check: {name}: {'; '.join(problems)}"
+                                             " (fly with preflight: override to fly anyway)")
 
     async def abort(
         self, execution_id: str, action: str, reason: str = "operator abort",
@@ -292,9 +357,38 @@ class FleetService:
                            f"(status {status})")
         if flight.abort_requested is None:
             flight.abort_requested = action
-            flight.set_status("aborting")
+            flight.set_status(ExecutionStatus.ABORTING)
             if flight.executor is not None:
                 self._spawn(flight.executor.abort(action, reason))
+        return flight
+
+    def pause(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+        """Stop the flight's mission clock, every vehicle holding the plan's setpoint of the
+        same plan time (status paused). StateConflict unless it is running its plan."""
+        flight = self._flying(execution_id, stored_status)
+        if flight.status != ExecutionStatus.RUNNING or flight.executor is None:
+            raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
+                                                f"paused (status {flight.status})")
+        flight.executor.pause()
+        flight.set_status(ExecutionStatus.PAUSED)
+        return flight
+
+    def resume(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+        """Restart a paused flight's mission clock where it stopped (status running)."""
+        flight = self._flying(execution_id, stored_status)
+        if flight.status != ExecutionStatus.PAUSED or flight.executor is None:
+            raise StateConflict("execution_id", f"execution {execution_id!r} is not paused "
+                                                f"(status {flight.status})")
+        flight.executor.resume()
+        flight.set_status(ExecutionStatus.RUNNING)
+        return flight
+
+    def _flying(self, execution_id: str, stored_status: str) -> LiveExecution:
+        flight = self._flights.get(execution_id)
+        if flight is None or not flight.active:
+            status = stored_status if flight is None else flight.status
+            raise StateConflict("execution_id", f"execution {execution_id!r} is not flying "
+                                                f"(status {status})")
         return flight
 
     def _spawn(self, coro: Any) -> None:
@@ -326,21 +420,23 @@ class FleetService:
             if flight.abort_requested is not None:  # aborted while starting
                 await executor.abort(flight.abort_requested, "operator abort")
             else:
-                flight.set_status("running")
+                flight.set_status(ExecutionStatus.RUNNING)
             record = await task
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))
-            flight.status = "completed" if completed else "incomplete"
+            flight.status = (ExecutionStatus.COMPLETED if completed
+                             else ExecutionStatus.INCOMPLETE)
         except MissionAborted as exc:
-            flight.status, flight.error = "aborted", str(exc)
+            flight.status, flight.error = ExecutionStatus.ABORTED, str(exc)
         except GcsError as exc:
-            flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
+            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
         except asyncio.CancelledError:
-            flight.status, flight.error = "interrupted", "the service stopped during the flight"
+            flight.status = ExecutionStatus.INTERRUPTED
+            flight.error = "the service stopped during the flight"
             raise
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("execution %s failed", flight.id)
-            flight.status, flight.error = "failed", f"{type(exc).__name__}: {exc}"
+            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
             if task is not None and not task.done() and flight.executor is not None:
                 # never leave a mission flying on its own: land everyone, then wait for it
                 with contextlib.suppress(Exception):
@@ -367,8 +463,9 @@ class FleetService:
 
     async def _rehome_mock(self, plan: Plan) -> None:
         """Set the mock vehicles down under the plan's starts; park the rest beside it."""
-        if self._mock is not None:
-            await self._mock.stop()
+        old = self._mock
+        if old is not None:
+            await old.stop()
         ids = list(plan.scenario.ids)
         homes = homes_under(plan.scenario.starts)
         lo, hi = plan.scenario.limits.position_min, plan.scenario.limits.position_max
@@ -379,11 +476,17 @@ class FleetService:
                 name += "_"
             ids.append(name)
         await self._start_mock(homes, ids)
+        if old is not None and self._mock is not None:
+            # the same airframes set down elsewhere: their battery and injected faults remain
+            for before, after in zip(old.vehicles, self._mock.vehicles, strict=False):
+                after.faults, after.battery = before.faults, before.battery
 
     async def _relay_events(self, flight: LiveExecution, executor: FlightExecutor) -> None:
         async for event in executor.events():
             flight.events.append(event)
             flight.publish("event", event)
+            if event["kind"] == "pause_limit" and flight.status == ExecutionStatus.PAUSED:
+                flight.set_status(ExecutionStatus.ABORTING)
 
     async def _telemetry(self, flight: LiveExecution, executor: FlightExecutor) -> None:
         while True:
@@ -414,13 +517,19 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
     """`ExecutionOut`: the stored execution, with live state while it flies."""
     doc = row.to_dict()
     if flight is not None and flight.active:
+        # The live state, and the summary as soon as the flight has one (it is set together
+        # with the final status, before the row is stored): never a final status without it.
         doc.update(status=flight.status, events=list(flight.events), live=flight.snapshot())
+        if flight.summary is not None:
+            doc["summary"] = flight.summary
     else:
         doc["live"] = None
     doc["links"] = {
         "self": f"/api/executions/{row.id}",
         "events": f"/api/executions/{row.id}/events",
         "abort": f"/api/executions/{row.id}/abort",
+        "pause": f"/api/executions/{row.id}/pause",
+        "resume": f"/api/executions/{row.id}/resume",
         "record": f"/api/executions/{row.id}/record",
         "mission": f"/api/missions/{row.mission_id}",
     }

@@ -33,13 +33,15 @@ class MissionStatus(StrEnum):
 
 
 class ExecutionStatus(StrEnum):
-    """One flight: `starting`, `running`, `aborting` while the vehicles may be flying; then
-    one final status. `incomplete`: ran to its end without completing (a vehicle was landed
-    by the land_faulty policy, or missed its goal); `interrupted`: the service stopped during
-    the flight."""
+    """One flight: `starting` (links opening, arming, climbing), `running`, `paused` (the
+    flight clock stopped, every vehicle holding the setpoint of the same plan time),
+    `aborting` while the vehicles may be flying; then one final status. `incomplete`: ran to
+    its end without completing (a vehicle was landed by the land_faulty policy, or missed its
+    goal); `interrupted`: the service stopped during the flight."""
 
     STARTING = "starting"
     RUNNING = "running"
+    PAUSED = "paused"
     ABORTING = "aborting"
     COMPLETED = "completed"
     INCOMPLETE = "incomplete"
@@ -50,7 +52,8 @@ class ExecutionStatus(StrEnum):
 
 #: Execution statuses during which the vehicles are (or may be) flying.
 EXECUTION_ACTIVE: tuple[ExecutionStatus, ...] = (
-    ExecutionStatus.STARTING, ExecutionStatus.RUNNING, ExecutionStatus.ABORTING,
+    ExecutionStatus.STARTING, ExecutionStatus.RUNNING, ExecutionStatus.PAUSED,
+    ExecutionStatus.ABORTING,
 )
 #: Final execution statuses.
 EXECUTION_FINISHED: tuple[ExecutionStatus, ...] = tuple(

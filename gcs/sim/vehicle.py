@@ -14,6 +14,8 @@ MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
 - OFFBOARD is refused (TEMPORARILY_REJECTED) unless such a setpoint arrived within
   COM_OF_LOSS_T; arming is TEMPORARILY_REJECTED during `settle_time` after start.
 - DO_SET_MODE and REQUEST_MESSAGE are ACKed twice, like PX4 does.
+- AUTO.RTL flies back over home at its height, then lands; MAV_CMD_DO_FLIGHTTERMINATION stops
+  the motors (it falls), HEARTBEAT then says MAV_STATE_FLIGHT_TERMINATION and arming is denied.
 - Offboard loss (no setpoint for COM_OF_LOSS_T) triggers the failsafe: Position mode (hold),
   then, there being no RC, AUTO.LAND after `failsafe_land_delay`; auto-disarm 2 s after
   landing, and 10 s after arming without taking off.
@@ -24,6 +26,11 @@ constants and pure functions: the PX4 facts table (`gcs.px4`: modes, timeouts), 
 conversions (`gcs.frames`) and the MAVLink facts of `gcs.wire` (dialect, type-mask bits,
 `time_boot_ms`, the datagram adapter).
 
+The motion is `gcs.sim.model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the
+whole fleet at once. The battery drains while armed (`MockConfig.battery_drain`); GPS_RAW_INT
+goes out at `gps_rate`; messages carry counting sequence numbers, so a lost one leaves a gap
+the GCS can count.
+
 Signing, as PX4's documentation describes it (PX4 >= 1.17, "MAVLink Message Signing"): a key
 arrives with SETUP_SIGNING (accepted unsigned only while the vehicle has no key; changing or
 clearing it needs a message signed with the current key; refused while armed; an all-zero key
@@ -33,8 +40,9 @@ unsigned or wrongly signed ones are rejected, except PX4's documented few
 (`gcs.wire.PX4_UNSIGNED_ACCEPTED`). The signature checks are pymavlink's own, not ours.
 Each datagram is decoded by a fresh parser.
 
-Faults can be injected at any time through `MockVehicle.faults` (`MockFaults`): packet loss,
-stopped heartbeats, delay, refused arming, non-finite position reports.
+Faults can be injected per vehicle at any time through `MockVehicle.faults` (`MockFaults`):
+packet loss, stopped heartbeats, delay, refused arming, non-finite position reports, battery
+level, unhealthy sensors (SYS_STATUS), GPS fix.
 """
 
 from __future__ import annotations
@@ -106,6 +114,10 @@ class MockConfig:
     global_position_rate: float = 5.0
     status_rate: float = 1.0
     """HEARTBEAT, SYS_STATUS, EXTENDED_SYS_STATE rate (Hz)."""
+    battery_drain: float = 0.05
+    """Battery drain while armed (% per second; a 20-minute battery)."""
+    gps_rate: float = 5.0
+    """GPS_RAW_INT rate (Hz)."""
     record_setpoints: bool = False
     """Keep every accepted setpoint in `MockVehicle.received` (for tests)."""
     limits: ModelLimits = field(default_factory=ModelLimits)
@@ -127,6 +139,12 @@ class MockFaults:
     """Arming answered DENIED."""
     nan_position: bool = False
     """LOCAL_POSITION_NED reports NaN position and velocity (a broken estimator)."""
+    battery: float | None = None
+    """Battery remaining (%) reported instead of the simulated one."""
+    unhealthy: int = 0
+    """SYS_STATUS sensor bits reported present and enabled but not healthy."""
+    gps_fix: int | None = None
+    """GPS_RAW_INT fix_type reported instead of 3 (3D fix)."""
 
 
 @dataclass(frozen=True)
@@ -167,6 +185,8 @@ class MockVehicle:
         self.armed = False
         self.in_air = False
         self.failsafe = False
+        self.terminated = False
+        """MAV_CMD_DO_FLIGHTTERMINATION received: motors off until restart."""
         self.yaw = 0.0
         self.received: list[ReceivedSetpoint] = []
         self.setpoints_accepted = 0
@@ -176,6 +196,9 @@ class MockVehicle:
         """(mock time, what happened): mode changes, arming, failsafes."""
         self._last_setpoint_time = -math.inf
         self._armed_time = 0.0
+        self.battery = 100.0
+        self._battery_t = 0.0
+        """Simulated battery remaining (%): drains while armed (`MockConfig.battery_drain`)."""
         self._landed_since: float | None = None
         self._failsafe_since: float | None = None
         self._mav = mavlink.MAVLink(None, srcSystem=self.system_id,
@@ -226,6 +249,8 @@ class MockVehicle:
         i = self.index
         if mode == px4.LAND:
             self.model.descend(i, self.config.land_speed)
+        elif mode == px4.RTL:  # back over home at the current height, then down (tick)
+            self.model.hold(i, np.array([0.0, 0.0, self.model.position[i, 2]]))
         elif mode in (px4.HOLD, px4.POSITION):
             self.model.hold(i, self.model.position[i].copy())
         if mode != px4.POSITION:
@@ -259,6 +284,9 @@ class MockVehicle:
         vz = self.model.velocity[i, 2]
         if self.armed and z < -0.3:
             self.in_air = True
+        if self.armed:
+            self.battery = max(0.0, self.battery - cfg.battery_drain * (now - self._battery_t))
+        self._battery_t = now
         if self.mode == px4.OFFBOARD and now - self._last_setpoint_time > cfg.offboard_loss_timeout:
             self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
                             "Failsafe activated: offboard signal lost")
@@ -273,11 +301,16 @@ class MockVehicle:
                 self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe: no RC, landing")
                 self._set_mode(px4.LAND)
                 self.failsafe = True
+        if (self.mode == px4.RTL and self.armed and np.isfinite(self.model.position_sp[i, 2])
+                and np.linalg.norm(self.model.position[i, :2]) < 0.2):
+            self.model.descend(i, cfg.land_speed)  # RTL's landing phase
         if not self.armed:
+            if self.terminated and z >= -0.05:
+                self.in_air = False
             return
         on_ground = z >= -0.05 and abs(vz) < 0.2
         if self.in_air:
-            if on_ground and self.mode == px4.LAND:
+            if on_ground and self.mode in (px4.LAND, px4.RTL):
                 if self._landed_since is None:
                     self._landed_since = now
                     self.statustext(mavlink.MAV_SEVERITY_INFO, "Landing detected")
@@ -323,6 +356,9 @@ class MockVehicle:
         if now >= due["global"]:
             due["global"] = now + 1.0 / cfg.global_position_rate
             self._send(self._global_position(now))
+        if now >= due.get("gps", 0.0):
+            due["gps"] = now + 1.0 / cfg.gps_rate
+            self._send(self._gps_raw(now))
         if now >= due["home"]:
             due["home"] = now + 5.0
             self._send(self._home_position(now))
@@ -338,7 +374,8 @@ class MockVehicle:
                      | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED)
         if self.armed:
             base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-        state = (mavlink.MAV_STATE_CRITICAL if self.failsafe else
+        state = (mavlink.MAV_STATE_FLIGHT_TERMINATION if self.terminated else
+                 mavlink.MAV_STATE_CRITICAL if self.failsafe else
                  mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY)
         return self._mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
                                           base, self.mode.custom_mode, state)
@@ -346,9 +383,18 @@ class MockVehicle:
     def _sys_status(self, now: float) -> Any:
         settled = now >= self.config.settle_time
         present = _SENSORS | _PREARM
-        health = _SENSORS | (_PREARM if settled or self.armed else 0)
-        return self._mav.sys_status_encode(present, present, health, 250, 16200, 1200, 95,
-                                           0, 0, 0, 0, 0, 0)
+        health = (_SENSORS | (_PREARM if settled or self.armed else 0)) & ~self.faults.unhealthy
+        remaining = self.battery if self.faults.battery is None else self.faults.battery
+        voltage = round(1000 * (13.2 + 3.6 * remaining / 100.0))  # 4S: 13.2 V empty, 16.8 full
+        return self._mav.sys_status_encode(present, present, health, 250, voltage, 1200,
+                                           round(remaining), 0, 0, 0, 0, 0, 0)
+
+    def _gps_raw(self, now: float) -> Any:
+        g = self._geodetic_now()
+        fix = 3 if self.faults.gps_fix is None else self.faults.gps_fix
+        return self._mav.gps_raw_int_encode(
+            int(now * 1e6), fix, round(g.lat * 1e7), round(g.lon * 1e7), round(g.alt * 1000),
+            80, 120, 0, 0, 12 if fix >= 3 else 0, 0, 50, 80, 100, 0, 0)  # h/v_acc mm: ideal
 
     def _geodetic_now(self) -> frames.Geodetic:
         offset = frames.ned_vector_to_world(self.model.position[self.index])
@@ -391,9 +437,12 @@ class MockVehicle:
         if self._transport is None:
             return
         faults = self.faults
-        if faults.silent or (faults.loss > 0.0 and self._rng.random() < faults.loss):
+        if faults.silent:
             return
-        buf = msg.pack(self._mav)
+        buf = msg.pack(self._mav)  # packed first: a lost message leaves a sequence gap
+        self._mav.seq = (self._mav.seq + 1) & 0xFF  # pack() stamps the number, send() counts
+        if faults.loss > 0.0 and self._rng.random() < faults.loss:
+            return
         if faults.delay > 0.0:
             asyncio.get_running_loop().call_later(faults.delay, self._sendto, buf)
         else:
@@ -546,6 +595,10 @@ class MockVehicle:
         elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
             result = self._on_set_mode(int(p1), round(p2), round(p3), now)
             self._ack(msg, cmd, result, times=2)
+        elif cmd == mavlink.MAV_CMD_DO_FLIGHTTERMINATION and p1 >= 0.5:
+            self.terminated = True
+            self._disarm("flight termination")
+            self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
         elif cmd == mavlink.MAV_CMD_NAV_LAND:
             self._set_mode(px4.LAND)
             self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
@@ -587,6 +640,9 @@ class MockVehicle:
         cmd = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
         if self.armed:
             self._ack(msg, cmd, mavlink.MAV_RESULT_ACCEPTED)
+        elif self.terminated:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Arming denied: flight terminated")
+            self._ack(msg, cmd, mavlink.MAV_RESULT_DENIED)
         elif self.faults.refuse_arming:
             self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Arming denied: injected fault")
             self._ack(msg, cmd, mavlink.MAV_RESULT_DENIED)
@@ -612,7 +668,7 @@ class MockVehicle:
             # received while in OFFBOARD)
             self.model.hold(self.index, self.model.position[self.index].copy())
             return mavlink.MAV_RESULT_ACCEPTED
-        if wanted in (px4.HOLD, px4.LAND, px4.POSITION):
+        if wanted in (px4.HOLD, px4.LAND, px4.POSITION, px4.RTL):
             self._set_mode(wanted)
             return mavlink.MAV_RESULT_ACCEPTED
         self.statustext(mavlink.MAV_SEVERITY_CRITICAL, f"Mode {wanted.name} not supported")

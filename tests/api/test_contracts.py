@@ -68,7 +68,7 @@ def test_status_publishes_every_status_set(client: TestClient) -> None:
     assert statuses["mission"]["active"] == ["planning"]
     assert statuses["mission"]["failed"] == ["failed"]
     assert statuses["execution"]["all"] == [s.value for s in ExecutionStatus]
-    assert statuses["execution"]["active"] == ["starting", "running", "aborting"]
+    assert statuses["execution"]["active"] == ["starting", "running", "paused", "aborting"]
     assert set(statuses["execution"]["active"]) == set(EXECUTION_ACTIVE)
     assert set(statuses["execution"]["finished"]) == set(ExecutionStatus) - set(EXECUTION_ACTIVE)
     assert statuses["plan"]["all"] == list(PLAN_STATUSES)

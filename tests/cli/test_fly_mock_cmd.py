@@ -87,3 +87,31 @@ def test_mock_on_a_busy_port_is_one_line(tmp_path: Path) -> None:
     assert "Traceback" not in proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and str(base + 1) in lines[0]
+
+
+def test_sigusr1_pauses_and_sigusr2_resumes(tmp_path: Path) -> None:
+    proc = _fly(tmp_path)
+    assert proc.stdout is not None
+    lines = []
+    for line in proc.stdout:  # wait until the plan is being flown
+        lines.append(line)
+        if "mission_start" in line:
+            break
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGUSR1)
+    for line in proc.stdout:
+        lines.append(line)
+        if "paused at mission time" in line:
+            break
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGUSR2)
+    out, _ = proc.communicate(timeout=60)
+    out = "".join(lines) + out
+    assert proc.returncode == 0, out
+    assert "resumed at mission time" in out
+    record = json.loads((tmp_path / "record.json").read_text())
+    [[start, end]] = record["pauses"]
+    assert end - start >= 2.0
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("pause") < kinds.index("resume") < kinds.index("landed")
+    assert record["summary"]["completed"] is True

@@ -24,8 +24,6 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
 FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 
 
-
-
 async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, **mock_kw):
     """Fly `plan` on mock vehicles below its starts; returns (mission, record or exception,
     mock)."""
@@ -114,6 +112,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
     summary = record["summary"]
     assert summary["faults"] == {"uav2": kind}
     assert summary["completed"] is False
+    assert f"uav2: fault {kind}" in summary["why"]
     # policy: the faulty one was sent down, the others flew on to their goals and landed;
     # a silent vehicle cannot acknowledge NAV_LAND, so its landing is reported unconfirmed
     sent_down = {"silent": "land_failed", "heartbeats": "land"}[fault]
@@ -286,3 +285,21 @@ def test_a_separation_breach_stops_the_whole_fleet() -> None:
     assert "separation_alarm" in kinds
     assert all(v.mode == px4.HOLD for v in mock.vehicles)
     assert mission.record["summary"]["min_separation_measured"] < 0.7
+
+
+def test_a_free_assignment_plan_flies_each_vehicle_to_its_assigned_goal() -> None:
+    """With `assignment: free` the echoed scenario keeps the goals as given; the executor must
+    verify and fly the goals the planner assigned (not goals[i]), or it would refuse the plan
+    or send each vehicle across the fleet."""
+    data = line_scenario(2)
+    goals = [v["goal"] for v in data["vehicles"]]
+    data["vehicles"][0]["goal"], data["vehicles"][1]["goal"] = goals[1], goals[0]  # crossed
+    data["assignment"] = "free"
+    plan = planner.plan(data)
+    assert plan.ok, plan.message
+    assert list(plan.scenario.order) == [1, 0]  # each keeps its own lane
+    _mission, record, mock = asyncio.run(_fly(plan))
+    assert isinstance(record, dict), record
+    assert record["summary"]["completed"] is True, record["summary"]["why"]
+    for vehicle, goal in zip(mock.vehicles, plan.scenario.assigned_goals, strict=True):
+        assert np.linalg.norm(vehicle.position_world[:2] - goal[:2]) < 0.2

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from gcs.api.routes import examples, executions, missions, status, vehicles
+from gcs.api.routes import examples, executions, fleet, missions, status, vehicles
 
 __all__ = ["api_router"]
 
@@ -13,5 +13,6 @@ api_router.include_router(missions.router)
 api_router.include_router(executions.mission_router)
 api_router.include_router(executions.router)
 api_router.include_router(vehicles.router)
+api_router.include_router(fleet.router)
 api_router.include_router(examples.router)
 api_router.include_router(status.router)

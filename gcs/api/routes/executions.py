@@ -1,6 +1,7 @@
 """Flights: POST /api/missions/{id}/executions flies a mission on the configured fleet;
 /api/executions/{id} is its status and summary, /events its live telemetry and events
-(server-sent events), /abort lands (or holds) every vehicle at once, /record the flight record.
+(server-sent events), /abort lands (or holds) every vehicle at once, /pause and /resume stop
+and restart its mission clock, /record the flight record.
 """
 
 from __future__ import annotations
@@ -53,6 +54,19 @@ class FlyRequest(BaseModel):
     tracking_error_max: float | None = Field(
         None, gt=0, le=100, description="Flag a vehicle this far from its plan (m)."
     )
+    preflight: Literal["check", "override"] | None = Field(
+        None, description="The pre-flight gate (battery, unhealthy sensors, link loss): "
+        "check (default: 409 naming the vehicle and the reason) or override (fly anyway; "
+        "recorded as a preflight_override event)."
+    )
+    message_rates: Literal["leave", "request"] | None = Field(
+        None, description="request: ask each vehicle for the telemetry the GCS reads at the "
+        "rates it needs and turn PX4's fast streams off (MAV_CMD_SET_MESSAGE_INTERVAL)."
+    )
+    margin_check: Literal["refuse", "warn"] | None = Field(
+        None, description="A plan whose separation margin is below 2 x the fleet's "
+        "position_error: refuse (default, 409) or fly it with a warning in the record."
+    )
 
 
 class AbortRequest(BaseModel):
@@ -87,8 +101,8 @@ class ExecutionSummary(BaseModel):
     id: str
     mission_id: str
     status: ExecutionStatus = Field(
-        description="starting, running, aborting while flying; then completed, incomplete "
-        "(ran to its end without completing), aborted, failed or interrupted."
+        description="starting, running, paused, aborting while flying; then completed, "
+        "incomplete (ran to its end without completing), aborted, failed or interrupted."
     )
     created_at: str
     finished_at: str | None
@@ -264,6 +278,34 @@ async def abort_execution(
     vehicles are safe. 409 if it is not flying."""
     action = "land" if request is None else request.action
     flight = await fleet.abort(execution.id, action, stored_status=execution.status)
+    return _document(execution, flight)
+
+
+@router.post(
+    "/{execution_id}/pause",
+    response_model=ExecutionOut,
+    summary="Pause a flight: the mission clock stops, every vehicle holds",
+    responses=error_responses(404, 409),
+)
+async def pause_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str, Any]:
+    """Every vehicle flying the plan holds the plan's setpoint of the same plan time, so the
+    fleet stays as separated as the plan is at that instant (status `paused`). After the
+    fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the
+    flight ends aborted. 409 unless the plan is being flown."""
+    flight = fleet.pause(execution.id, stored_status=execution.status)
+    return _document(execution, flight)
+
+
+@router.post(
+    "/{execution_id}/resume",
+    response_model=ExecutionOut,
+    summary="Resume a paused flight from where its mission clock stopped",
+    responses=error_responses(404, 409),
+)
+async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str, Any]:
+    """The mission clock runs again from the plan time it stopped at (status `running`).
+    409 unless paused."""
+    flight = fleet.resume(execution.id, stored_status=execution.status)
     return _document(execution, flight)
 
 

@@ -1,13 +1,17 @@
-"""/api/vehicles: the configured fleet with every vehicle's live link state."""
+"""/api/vehicles: the configured fleet with every vehicle's live link state; a command to one
+vehicle (/api/vehicles/{id}/commands, the body of /api/fleet/commands)."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Body, Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.deps import FleetDep
+from gcs.api.errors import error_responses
+from gcs.api.routes.fleet import CommandOut, CommandRequest
+from gcs.errors import NotFound
 
 __all__ = ["router"]
 
@@ -28,10 +32,30 @@ class VehiclesOut(BaseModel):
     vehicles: list[dict[str, Any]] = Field(
         description="Per vehicle: id, heartbeat_age (s, null before the first), mode, armed, "
         "position (world frame ENU, m, when the home is known), link (monitor between "
-        "flights, flight during one)."
+        "flights, flight during one); battery {remaining_pct, voltage}, gps {fix_type, "
+        "satellites, h_acc, v_acc (m)}, health {unhealthy (sensor names), prearm_ok, "
+        "warnings}, link_quality {received, lost, loss_pct} (null = not reported)."
     )
 
 
 @router.get("", response_model=VehiclesOut, summary="The fleet and its live link state")
 def list_vehicles(fleet: FleetDep) -> dict[str, Any]:
     return {"fleet": fleet.describe(), "vehicles": fleet.vehicles()}
+
+
+@router.post(
+    "/{vehicle_id}/commands",
+    response_model=CommandOut,
+    summary="Command one vehicle between flights (hold, land, rtl, disarm, terminate)",
+    responses=error_responses(400, 404, 409, 413, 422),
+)
+async def vehicle_commands(
+    fleet: FleetDep,
+    vehicle_id: Annotated[str, Path(description="Vehicle id.", max_length=64)],
+    request: Annotated[CommandRequest, Body()],
+) -> dict[str, Any]:
+    """As POST /api/fleet/commands, for this vehicle only."""
+    if vehicle_id not in fleet.describe()["ids"]:
+        raise NotFound("vehicle_id", f"no vehicle {vehicle_id!r} in the fleet")
+    return await fleet.command(request.command, [vehicle_id], force=request.force,
+                               confirm=request.confirm)

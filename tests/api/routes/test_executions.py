@@ -198,3 +198,46 @@ def test_flights_survive_a_restart(mock_settings: Callable[..., Settings]) -> No
         assert lost["error"] == "the service stopped during this flight"
         assert [kind for kind, _ in sse_events(client, f"/api/executions/{orphan.id}/events")] \
             == ["status", "done"]
+
+
+def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]) -> None:
+    """Paused: status `paused`, the mission clock stands still and the fleet holds; resumed:
+    the flight completes. Pausing twice, resuming a running flight or a finished one: 409."""
+    with TestClient(create_app(mock_settings())) as client:
+        mission = plan_mission(client, SHORT_CROSSING)
+        execution = client.post(f"/api/missions/{mission['id']}/executions",
+                                json=QUICK).json()
+        url, links = execution["links"]["self"], execution["links"]
+        assert client.post(links["resume"]).status_code == 409  # not paused
+        wait_for(lambda: ((client.get(url).json()["live"] or {}).get("mission_time") or 0) > 3,
+                 30, "the mission clock to pass 3 s")
+        paused = client.post(links["pause"])
+        assert paused.status_code == 200, paused.text
+        assert paused.json()["status"] == "paused"
+        twice = client.post(links["pause"])
+        assert twice.status_code == 409 and "cannot be paused (status paused)" in \
+            twice.json()["reason"]
+        first = client.get(url).json()
+        time.sleep(2.0)
+        later = client.get(url).json()
+        assert later["status"] == "paused" and later["live"]["phase"] == "paused"
+        assert later["live"]["mission_time"] == pytest.approx(first["live"]["mission_time"])
+        # the fleet has settled to a hold: nobody moves more than a few cm in half a second
+        before = {v["id"]: v["position"] for v in later["live"]["vehicles"]}
+        time.sleep(0.5)
+        after = {v["id"]: v["position"] for v in client.get(url).json()["live"]["vehicles"]}
+        for vid, p in after.items():
+            assert np.linalg.norm(np.subtract(p, before[vid])) < 0.1, vid
+        assert later["live"]["min_separation_live"] > 1.0 - 0.1
+
+        resumed = client.post(links["resume"])
+        assert resumed.status_code == 200 and resumed.json()["status"] == "running"
+        events = sse_events(client, links["events"])
+        done = events[-1][1]
+        assert done["status"] == "completed", done
+        logged = [data["kind"] for kind, data in events if kind == "event"]
+        assert logged.index("pause") < logged.index("resume") < logged.index("horizon")
+        late = client.post(links["pause"])
+        assert late.status_code == 409 and "is not flying" in late.json()["reason"]
+        record = json.loads(client.get(links["record"]).content)
+        assert len(record["pauses"]) == 1 and record["summary"]["completed"] is True

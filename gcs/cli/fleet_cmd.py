@@ -1,0 +1,103 @@
+"""`fleetplan fleet COMMAND --fleet FLEET.json [--vehicle ID]`: command vehicles between flights.
+
+COMMAND is hold, land, rtl, disarm or terminate (`gcs.flight.commands`). Opens the fleet
+file's connections, waits for the chosen vehicles' HEARTBEAT, sends the command to all of them
+at once and prints what each confirmed. ``land`` and ``rtl`` then wait (``--wait``, default
+on) until every vehicle has landed and disarmed. ``disarm`` in the air needs ``--force``,
+``terminate`` needs ``--confirm``. Exit status 0 only when every vehicle did it.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["configure", "run"]
+
+#: Waiting for the chosen vehicles' first HEARTBEAT (s).
+CONNECT_TIMEOUT_S = 10.0
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("command", choices=("hold", "land", "rtl", "disarm", "terminate"),
+                        help="hold, land, rtl (return to launch), disarm (refused in the air "
+                             "unless --force), terminate (motors off; needs --confirm)")
+    parser.add_argument("--fleet", required=True, help="fleet file (JSON): connections")
+    parser.add_argument("--vehicle", action="append", metavar="ID",
+                        help="only this vehicle (repeat for more; default: the whole fleet)")
+    parser.add_argument("--force", action="store_true",
+                        help="disarm: even in the air (the vehicle falls)")
+    parser.add_argument("--confirm", action="store_true",
+                        help="terminate: yes, stop the motors in flight")
+    parser.add_argument("--no-wait", dest="wait", action="store_false",
+                        help="land/rtl: do not wait for the vehicles to land and disarm")
+    parser.add_argument("--timeout", type=float, default=120.0,
+                        help="land/rtl: wait at most this long for the disarm (s, default 120)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import asyncio
+    import sys
+    import time
+
+    from gcs.errors import FleetFileError, GcsError, RequestError
+    from gcs.flight.commands import fleet_command
+    from gcs.flight.fleetfile import load_fleet
+    from gcs.flight.link import LinkHub
+
+    try:
+        fleet = load_fleet(args.fleet)
+    except FleetFileError as exc:
+        print(f"error: {exc.field}: {exc.reason}", file=sys.stderr)
+        return 2
+    known = [v.id for v in fleet.vehicles]
+    chosen = args.vehicle or known
+    unknown = [vid for vid in chosen if vid not in known]
+    if unknown:
+        print(f"error: --vehicle: no vehicle {', '.join(unknown)} in {args.fleet} "
+              f"(it has {', '.join(known)})", file=sys.stderr)
+        return 2
+    if not (args.timeout > 0):
+        print("error: --timeout must be positive", file=sys.stderr)
+        return 2
+
+    async def main() -> int:
+        async with LinkHub() as hub:
+            links = {}
+            for spec in fleet.vehicles:
+                if spec.id in chosen:
+                    links[spec.id] = await hub.add(spec.id, spec.connection, spec.system_id,
+                                                   spec.component_id)
+            await asyncio.gather(*(link.wait_for(lambda t: t.heartbeat_time is not None,
+                                                 CONNECT_TIMEOUT_S) for link in links.values()))
+            try:
+                outcomes = await fleet_command(links, args.command, force=args.force,
+                                               confirm=args.confirm)
+            except RequestError as exc:
+                print(f"refused: {exc.field}: {exc.reason}", file=sys.stderr)
+                return 2
+            for o in outcomes:
+                state = "armed" if o.armed else "disarmed" if o.armed is not None else "?"
+                print(f"{o.vehicle}: {'done' if o.done else 'NOT DONE'}: {o.detail} "
+                      f"[{o.mode or '?'}, {state}]", flush=True)
+            if not all(o.done for o in outcomes):
+                return 1
+            if args.command in ("land", "rtl") and args.wait:
+                deadline = time.monotonic() + args.timeout
+                pending = dict(links)
+                while pending and time.monotonic() < deadline:
+                    for vid, link in list(pending.items()):
+                        if not link.telemetry.armed and link.heartbeat_age() < 3.0:
+                            print(f"{vid}: landed and disarmed", flush=True)
+                            del pending[vid]
+                    await asyncio.sleep(0.2)
+                if pending:
+                    print(f"still armed after {args.timeout:g} s: {', '.join(pending)}",
+                          file=sys.stderr)
+                    return 1
+            return 0
+
+    try:
+        return asyncio.run(main())
+    except GcsError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2

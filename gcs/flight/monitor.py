@@ -1,0 +1,134 @@
+"""Fault detection during a flight: per-vehicle checks and the fleet's live separation.
+
+`FleetMonitor.check` runs every `PERIOD` (20 Hz) while a flight is under way. Per vehicle that
+is meant to be in OFFBOARD, in this order (the first failing check flags it):
+
+1. ``link_lost``: no message at all for `link_timeout` (1.5 s);
+2. ``estimate_invalid``: a NaN or infinite position or velocity from the pinned peer within
+   `link_timeout` (the link never stores it: `Telemetry.invalid_estimate_time`): a lost
+   estimate, handled by the policy like any fault;
+3. ``heartbeat_lost``: HEARTBEAT older than `heartbeat_timeout` (5 s: mode and armed state
+   unknown);
+4. ``left_offboard``: HEARTBEAT shows another mode;
+5. ``tracking_error``: farther than `tracking_error_max` from the plan at the mission time
+   (written so that a NaN distance never passes).
+
+Then the live minimum separation over every vehicle in the air (the plan's metric), with an
+alarm below R - `separation_alarm`. The monitor only detects: what to do is the executor's
+(`on_fault`, `on_separation`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from gcs import frames, px4
+from gcs.flight.fleetfile import FlightOptions
+from gcs.flight.link import VehicleLink
+from gcs.flight.vehicle import AIRBORNE, VehicleStatus
+from planner import Plan
+
+__all__ = ["PERIOD", "FleetMonitor", "vehicle_fault"]
+
+#: Seconds between two checks.
+PERIOD = 0.05
+
+#: Called with (vehicle, fault kind, detail).
+FaultCallback = Callable[[VehicleStatus, str, str], None]
+#: Called with (closest distance, alarm threshold) when two vehicles are too close.
+SeparationCallback = Callable[[float, float], None]
+
+
+def vehicle_fault(link: VehicleLink, options: FlightOptions,
+                  now: float) -> tuple[str, str] | None:
+    """The first link/heartbeat/mode fault of a vehicle meant to be in OFFBOARD, as
+    (kind, detail), or None."""
+    tel = link.telemetry
+    silent = link.link_age(now)
+    age = link.heartbeat_age(now)
+    if silent > options.link_timeout:
+        return "link_lost", f"no message for {silent:.2f} s"
+    if (tel.invalid_estimate_time is not None
+            and now - tel.invalid_estimate_time <= options.link_timeout):
+        return "estimate_invalid", f"{tel.invalid_estimates} non-finite LOCAL_POSITION_NED"
+    if age > options.heartbeat_timeout:
+        return "heartbeat_lost", f"no HEARTBEAT for {age:.2f} s"
+    if tel.mode != px4.OFFBOARD:
+        name = tel.mode.name if tel.mode is not None else "?"
+        return "left_offboard", f"mode is now {name}"
+    return None
+
+
+class FleetMonitor:
+    """Checks every vehicle of a flight and the fleet's separation (see the module)."""
+
+    def __init__(self, vehicles: Sequence[VehicleStatus], plan: Plan, options: FlightOptions,
+                 *, mission_time: Callable[[], float | None], on_fault: FaultCallback,
+                 on_separation: SeparationCallback) -> None:
+        self.vehicles = vehicles
+        self.plan = plan
+        self.options = options
+        self.mission_time = mission_time
+        self.on_fault = on_fault
+        self.on_separation = on_separation
+        self.min_separation = math.inf
+        """Smallest separation seen so far (the plan's metric, m)."""
+        self._scale = np.asarray(plan.scenario.separation_scale, dtype=float)
+
+    async def run(self, stopped: Callable[[], bool]) -> None:
+        """Check every `PERIOD` until `stopped()`."""
+        while True:
+            await asyncio.sleep(PERIOD)
+            if stopped():
+                return
+            self.check(time.monotonic())
+
+    def positions(self, now: float) -> dict[str, np.ndarray]:
+        """Every vehicle's world position at `now`, extrapolated from its last report."""
+        out = {}
+        for v in self.vehicles:
+            if v.link is None or v.home is None:
+                continue
+            tel = v.link.telemetry
+            if tel.position_ned is not None and tel.position_time is not None:
+                p = np.asarray(tel.position_ned) + np.asarray(tel.velocity_ned) * (
+                    now - tel.position_time)
+                out[v.id] = frames.ned_to_world(p, v.home)
+        return out
+
+    def check(self, now: float) -> None:
+        """One pass: flag faulty vehicles, update the separation, raise its alarm."""
+        opts = self.options
+        plan = self.plan
+        t_mission = self.mission_time()
+        positions = self.positions(now)
+        for v in self.vehicles:
+            if v.link is None or not v.expect_offboard or v.fault is not None:
+                continue
+            fault = vehicle_fault(v.link, opts, now)
+            if fault is not None:
+                self.on_fault(v, *fault)
+            elif (t_mission is not None and v.phase in ("flying", "holding")
+                  and v.id in positions):
+                planned = plan.vehicles[v.index].sample(plan.scenario.dt, [t_mission])
+                v.tracking_error = float(np.linalg.norm(positions[v.id] - planned.position[0]))
+                if not v.tracking_error <= opts.tracking_error_max:  # NaN never passes
+                    self.on_fault(v, "tracking_error",
+                                  f"{v.tracking_error:.2f} m from the plan "
+                                  f"(bound {opts.tracking_error_max:g} m)")
+        # Every vehicle in the air counts, a faulty one going down among the others too.
+        airborne = [positions[v.id] for v in self.vehicles
+                    if v.id in positions and v.phase in AIRBORNE]
+        if len(airborne) >= 2:
+            pts = np.stack(airborne) / self._scale
+            i, j = np.triu_indices(len(pts), k=1)
+            closest = float(np.min(np.linalg.norm(pts[i] - pts[j], axis=1)))
+            self.min_separation = min(self.min_separation, closest)
+            alarm = plan.scenario.min_separation - opts.separation_alarm
+            if closest < alarm:
+                self.on_separation(closest, alarm)

@@ -1,0 +1,375 @@
+"""One PX4 vehicle: the executor's view of it (`VehicleStatus`) and the PX4 procedure on its link.
+
+The procedure steps are link-level coroutines, so a flight (`gcs.flight.executor`) and a fleet
+command outside a flight (`gcs.flight.commands`) use the same code:
+
+- `connect`: first HEARTBEAT and LOCAL_POSITION_NED; refuse a vehicle that is not PX4 or is
+  already armed; `resolve_home` places its LOCAL_NED origin in the world frame;
+- `set_mode` / `arm`: MAV_CMD_DO_SET_MODE / MAV_CMD_COMPONENT_ARM_DISARM, retried while
+  TEMPORARILY_REJECTED, each confirmed by COMMAND_ACK *and* HEARTBEAT;
+- `land` (NAV_LAND, falling back to DO_SET_MODE AUTO.LAND), `disarm`;
+- `land_vehicle`, `hold_vehicle`, `secure`, `wait_disarmed`: the executor's safe endings,
+  which never raise (a failure is an event; PX4's offboard-loss failsafe is the fallback).
+
+Streaming is not done here: the steps that must stop a vehicle's setpoints take a
+`stop_stream(vehicle_id)` callback, so this module stays below `gcs.flight.stream`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs import frames, px4
+from gcs.errors import (
+    ArmingRefused,
+    CommandError,
+    GcsError,
+    LinkError,
+    ModeRefused,
+    VehicleTimeout,
+)
+from gcs.flight.fleetfile import FlightOptions, VehicleSpec
+from gcs.flight.link import VehicleLink, mavlink, result_name
+
+__all__ = [
+    "AIRBORNE",
+    "MODE_RETRY_FOR",
+    "Emit",
+    "VehicleStatus",
+    "arm",
+    "connect",
+    "disarm",
+    "hold_vehicle",
+    "land",
+    "land_vehicle",
+    "last_text",
+    "message_rates",
+    "request_message_rates",
+    "resolve_home",
+    "secure",
+    "set_mode",
+    "wait_disarmed",
+]
+
+#: Called with (vehicle id or None for the fleet, event kind, detail).
+Emit = Callable[[str | None, str, str], None]
+#: Called with a vehicle id to stop streaming setpoints to it.
+StopStream = Callable[[str], None]
+
+#: Phases in which a vehicle is (or may be) in the air.
+AIRBORNE = ("climbing", "at_start", "flying", "holding", "landing", "faulty", "hovering")
+#: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
+MODE_RETRY_FOR = 5.0
+_POLL_PERIOD = 0.05
+
+
+@dataclass
+class VehicleStatus:
+    """The executor's view of one vehicle (see `FlightExecutor.snapshot`)."""
+
+    spec: VehicleSpec
+    index: int
+    link: VehicleLink | None = None
+    home: np.ndarray | None = None
+    start_ned: np.ndarray | None = None
+    goal_ned: np.ndarray | None = None
+    phase: str = "pending"
+    """pending, connected, arming, climbing, at_start, flying, holding, landing, landed,
+    hovering (Hold at the end), faulty, stopped."""
+    fault: str | None = None
+    fault_time: float | None = None
+    armed_by_us: bool = False
+    arm_sent: bool = False
+    """An arming command went out (it may have armed the vehicle even if we never saw it)."""
+    expect_offboard: bool = False
+    tracking_error: float = math.nan
+    goal_error: float = math.nan
+    goal_tolerance: float = math.nan
+    """The tolerance its goal error is judged with (from its reported accuracy then)."""
+    last_mode: str | None = None
+    last_armed: bool | None = None
+
+    @property
+    def id(self) -> str:
+        return self.spec.id
+
+    @property
+    def linked(self) -> VehicleLink:
+        """The vehicle's link (only once the links are open)."""
+        assert self.link is not None
+        return self.link
+
+    def distance_ned(self, target: np.ndarray | None) -> float:
+        """Reported distance to `target` (LOCAL_NED), inf when either is unknown."""
+        tel = self.linked.telemetry
+        if tel.position_ned is None or target is None:
+            return math.inf
+        return float(np.linalg.norm(np.asarray(tel.position_ned) - target))
+
+
+def last_text(link: VehicleLink) -> str:
+    """The vehicle's latest STATUSTEXT, as a suffix for an error message."""
+    texts = link.telemetry.statustexts
+    return f" (vehicle says: {texts[-1]!r})" if texts else ""
+
+
+# ==================================================================== the PX4 procedure
+
+
+async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float) -> None:
+    """Wait for the first HEARTBEAT and position; refuse a non-PX4 or already armed vehicle."""
+    ok = await link.wait_for(
+        lambda t: t.heartbeat_time is not None and t.position_ned is not None, timeout)
+    if not ok:
+        what = "HEARTBEAT" if link.telemetry.heartbeat_time is None else "LOCAL_POSITION_NED"
+        raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
+                                      f"{spec.connection} (system id {spec.system_id})")
+    tel = link.telemetry
+    if tel.autopilot != mavlink.MAV_AUTOPILOT_PX4:
+        raise LinkError(f"{spec.id}: autopilot type {tel.autopilot} is not PX4 "
+                        f"(MAV_AUTOPILOT_PX4 = {mavlink.MAV_AUTOPILOT_PX4})")
+    if tel.armed:
+        raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
+                       f"someone else armed")
+
+
+async def resolve_home(link: VehicleLink, vehicle_id: str,
+                       origin: frames.Geodetic) -> tuple[np.ndarray, str]:
+    """Home in the world frame from the vehicle's EKF origin and the fleet's world_origin;
+    returns (home, the message it came from)."""
+    for attempt in range(3):
+        with contextlib.suppress(CommandError):
+            await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
+        if await link.wait_for(lambda t: t.gps_origin is not None, 1.0 + attempt):
+            break
+    tel = link.telemetry
+    if tel.gps_origin is not None:
+        return frames.geodetic_to_enu(frames.Geodetic(*tel.gps_origin), origin), \
+            "GPS_GLOBAL_ORIGIN"
+    with contextlib.suppress(CommandError):
+        await link.request_message(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+    if not await link.wait_for(lambda t: t.home is not None, 3.0):
+        raise VehicleTimeout(vehicle_id, "reported neither GPS_GLOBAL_ORIGIN nor HOME_POSITION "
+                                         "(needed to place it with world_origin)")
+    assert tel.home is not None
+    geodetic, local = tel.home
+    # LOCAL_NED origin = home's position minus home's local offset
+    home = (frames.geodetic_to_enu(frames.Geodetic(*geodetic), origin)
+            - frames.ned_vector_to_world(local))
+    return home, "HOME_POSITION"
+
+
+async def set_mode(link: VehicleLink, mode: px4.Px4Mode, *, confirm_timeout: float,
+                   retry_for: float = 0.0) -> None:
+    """DO_SET_MODE until ACCEPTED (retrying TEMPORARILY_REJECTED for `retry_for` s), then
+    wait for HEARTBEAT to show the mode; `ModeRefused` otherwise."""
+    deadline = time.monotonic() + retry_for
+    while True:
+        result = await link.command(mavlink.MAV_CMD_DO_SET_MODE, mode.command_params)
+        if result == mavlink.MAV_RESULT_ACCEPTED:
+            if await link.wait_for(lambda t: t.mode == mode, confirm_timeout):
+                return
+            raise ModeRefused(link.vehicle_id, mavlink.MAV_CMD_DO_SET_MODE, result,
+                              f"{mode.name} accepted but not shown in HEARTBEAT within "
+                              f"{confirm_timeout:g} s")
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED and time.monotonic() < deadline:
+            await asyncio.sleep(0.5)
+            continue
+        raise ModeRefused(link.vehicle_id, mavlink.MAV_CMD_DO_SET_MODE, result,
+                          f"{mode.name} refused: {result_name(result)}{last_text(link)}")
+
+
+async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
+              on_attempt: Callable[[], None] | None = None,
+              on_accepted: Callable[[], None] | None = None) -> int:
+    """Arm, retrying TEMPORARILY_REJECTED for up to `timeout` s; confirmed by HEARTBEAT.
+    Returns the number of attempts; `ArmingRefused` otherwise. `on_attempt` is called before
+    each command goes out, `on_accepted` when one is ACCEPTED."""
+    deadline = time.monotonic() + timeout
+    attempts = 0
+    cmd = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+    while True:
+        attempts += 1
+        if on_attempt is not None:
+            on_attempt()
+        result = await link.command(cmd, (1.0,))
+        if result == mavlink.MAV_RESULT_ACCEPTED:
+            if on_accepted is not None:
+                on_accepted()
+            if await link.wait_for(lambda t: t.armed, confirm_timeout):
+                return attempts
+            raise ArmingRefused(link.vehicle_id, cmd, result,
+                                f"arming accepted but HEARTBEAT not armed within "
+                                f"{confirm_timeout:g} s")
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
+            if time.monotonic() + px4.ARM_TEMPORARILY_REJECTED_RETRY_S < deadline:
+                await asyncio.sleep(px4.ARM_TEMPORARILY_REJECTED_RETRY_S)
+                continue
+            raise ArmingRefused(link.vehicle_id, cmd, result,
+                                f"arming still TEMPORARILY_REJECTED after {timeout:g} s"
+                                f"{last_text(link)}")
+        raise ArmingRefused(link.vehicle_id, cmd, result,
+                            f"arming refused: {result_name(result)}{last_text(link)}")
+
+
+async def land(link: VehicleLink, *, confirm_timeout: float) -> bool:
+    """MAV_CMD_NAV_LAND, falling back to DO_SET_MODE AUTO.LAND if refused (then returns True,
+    the mode being confirmed); `GcsError` when neither is accepted."""
+    result = await link.command(mavlink.MAV_CMD_NAV_LAND)
+    if result == mavlink.MAV_RESULT_ACCEPTED:
+        return False
+    await set_mode(link, px4.LAND, confirm_timeout=confirm_timeout)
+    return True
+
+
+async def disarm(link: VehicleLink, *, force: bool = False) -> int:
+    """MAV_CMD_COMPONENT_ARM_DISARM(0); `force` adds PX4's magic number, which disarms even in
+    the air (the vehicle falls). Returns the MAV_RESULT."""
+    params = (0.0, px4.DISARM_FORCE_MAGIC) if force else (0.0,)
+    return await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, params)
+
+
+def message_rates(position_hz: float) -> dict[int, float]:
+    """What the GCS needs from a PX4 offboard link, by message id, in Hz (0 = off): position
+    at `position_hz`, status, landed state, GPS and battery at 2 Hz, and PX4's fast streams it
+    never reads (ATTITUDE 100/s, HIGHRES_IMU, ATTITUDE_QUATERNION, GLOBAL_POSITION_INT
+    50/s each, ODOMETRY 30/s on SITL) off. HEARTBEAT is absent: PX4 refuses to change it."""
+    m = mavlink
+    return {
+        m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
+        m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
+        m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
+        m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
+        m.MAVLINK_MSG_ID_ATTITUDE: 0.0,
+        m.MAVLINK_MSG_ID_HIGHRES_IMU: 0.0,
+        m.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 0.0,
+        m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.0,
+        m.MAVLINK_MSG_ID_ODOMETRY: 0.0,
+    }
+
+
+async def request_message_rates(link: VehicleLink, rates: dict[int, float]) -> dict[str, str]:
+    """MAV_CMD_SET_MESSAGE_INTERVAL for each message id (param2: interval in us, -1 = off);
+    returns {message name: "<rate> <MAV_RESULT>"}. A refusal is reported, not raised: the
+    vehicle then keeps sending at its own rate."""
+    out = {}
+    for message_id, hz in rates.items():
+        interval = -1.0 if hz <= 0 else 1e6 / hz
+        name = mavlink.mavlink_map[message_id].msgname if message_id in mavlink.mavlink_map \
+            else str(message_id)
+        try:
+            result = result_name(await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                                    (float(message_id), interval)))
+        except GcsError as exc:
+            result = f"failed ({exc})"
+        out[name] = f"{'off' if hz <= 0 else f'{hz:g} Hz'} {result}"
+    return out
+
+
+# ==================================================================== safe endings (never raise)
+
+
+async def land_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
+                       stop_stream: StopStream) -> None:
+    """Send `v` down; its setpoints stop either way (PX4 lands on offboard loss if the command
+    never arrived)."""
+    v.phase = "landing"
+    v.expect_offboard = False
+    try:
+        if await land(v.linked, confirm_timeout=options.heartbeat_timeout):
+            emit(v.id, "mode", f"{px4.LAND.name} confirmed")
+        emit(v.id, "land", "landing")
+    except GcsError as exc:
+        emit(v.id, "land_failed", f"{exc}; setpoints stopped, PX4's offboard-loss "
+                                  f"failsafe will land it")
+    finally:
+        stop_stream(v.id)
+
+
+async def hold_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
+                       stop_stream: StopStream) -> None:
+    """Switch `v` to PX4 Hold where it is; its setpoints stop either way."""
+    v.expect_offboard = False
+    try:
+        await set_mode(v.linked, px4.HOLD, confirm_timeout=options.heartbeat_timeout)
+        emit(v.id, "mode", f"{px4.HOLD.name} confirmed")
+        emit(v.id, "hold", "holding (PX4 Hold)")
+    except GcsError as exc:
+        emit(v.id, "hold_failed", f"{exc}; setpoints stopped, PX4's offboard-loss "
+                                  f"failsafe takes over")
+    finally:
+        stop_stream(v.id)
+
+
+async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Emit,
+                 stop_stream: StopStream) -> None:
+    """Leave `v` safe: disarmed on the ground, landing, or (action hold) in Hold."""
+    if v.link is None:
+        return
+    tel = v.link.telemetry
+    if not tel.armed and not v.arm_sent:
+        stop_stream(v.id)
+        v.expect_offboard = False
+        if v.phase not in ("landed",):
+            v.phase = "stopped"
+        return
+    on_ground = v.phase in ("arming",) or (
+        tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND)
+    if on_ground:  # armed, or an arming command may have armed it: disarm
+        v.expect_offboard = False
+        try:
+            result = await disarm(v.link)
+            emit(v.id, "disarm", f"on the ground: {result_name(result)}")
+        except GcsError as exc:
+            result = None
+            emit(v.id, "disarm_failed", str(exc))
+        if result == mavlink.MAV_RESULT_ACCEPTED:
+            stop_stream(v.id)
+            v.phase = "stopped"
+            return
+        # refused (it has taken off after all) or unanswered: land it
+    if action == "hold":
+        await hold_vehicle(v, options, emit, stop_stream)
+        v.phase = "hovering"
+    else:
+        await land_vehicle(v, options, emit, stop_stream)
+
+
+async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
+                        emit: Emit) -> None:
+    """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome."""
+    deadline = time.monotonic() + options.land_timeout
+    pending = [v for v in vehicles if v.link is not None]
+    while pending and time.monotonic() < deadline:
+        still = []
+        for v in pending:
+            link = v.linked
+            tel = link.telemetry
+            if link.link_age() > options.link_timeout:
+                emit(v.id, "disarm_unconfirmed",
+                     "link lost: cannot confirm that it landed and disarmed")
+                continue
+            stale = link.heartbeat_age() > options.heartbeat_timeout
+            if stale and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+                v.phase = "landed"
+                emit(v.id, "disarm_unconfirmed",
+                     "on the ground (EXTENDED_SYS_STATE), but no HEARTBEAT to "
+                     "confirm that it disarmed")
+                continue
+            if not tel.armed and not stale:
+                if v.phase == "landing":
+                    v.phase = "landed"
+                    emit(v.id, "landed", "landed and disarmed")
+            else:
+                still.append(v)
+        pending = still
+        await asyncio.sleep(_POLL_PERIOD)
+    for v in pending:
+        emit(v.id, "not_disarmed", f"not disarmed within {options.land_timeout:g} s")

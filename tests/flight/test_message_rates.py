@@ -1,0 +1,46 @@
+"""message_rates: request: the GCS asks each vehicle for what it reads, at the rates it needs
+(MAV_CMD_SET_MESSAGE_INTERVAL), and turns PX4's fast streams it never reads off."""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+import pytest
+
+from gcs.flight.executor import FlightExecutor
+from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.sim import MockFleet, homes_under
+from tests.flight.support import line_scenario, mock_ports, smooth_plan
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def test_requested_position_rate_is_what_arrives() -> None:
+    plan = smooth_plan(line_scenario(2))
+    options = FlightOptions(hold_at_goal=0.5, prestream=0.3, message_rates="request",
+                            position_rate_hz=50.0)
+
+    async def fly():
+        homes = homes_under(plan.scenario.starts)
+        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
+            assert mock.vehicles[0].intervals["position"] == pytest.approx(1 / 30)
+            fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+            record = await FlightExecutor(plan, fleet, options).run()
+            return record, mock
+
+    record, mock = asyncio.run(fly())
+    assert record["summary"]["completed"] is True
+    answers = [e for e in record["events"] if e["kind"] == "message_rates"]
+    assert sorted(e["vehicle"] for e in answers) == ["uav1", "uav2"]
+    for e in answers:
+        assert "LOCAL_POSITION_NED 50 Hz ACCEPTED" in e["detail"]
+        assert "ATTITUDE off ACCEPTED" in e["detail"]
+    assert all(v.intervals["position"] == pytest.approx(0.02) for v in mock.vehicles)
+    # and position reports really came at about 50 Hz while the plan was flown (30 before)
+    t0, horizon = record["mission_start"], record["horizon"]
+    for v in record["vehicles"]:
+        t = np.asarray(v["telemetry"]["t"])
+        rate = np.count_nonzero((t >= t0) & (t <= t0 + horizon)) / horizon
+        assert 40.0 < rate < 55.0, rate
+

@@ -1,0 +1,126 @@
+"""Pause and resume a flight on mock vehicles: the shared mission clock stops, every vehicle
+holds the plan's setpoint of the same plan time (so the fleet stays as separated as the plan),
+then the flight resumes from there and completes; a pause that lasts too long ends the flight."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+
+import numpy as np
+import pytest
+
+from gcs.errors import MissionAborted, StateConflict
+from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
+from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.record import plan_times
+from gcs.sim import MockFleet, homes_under
+from tests.flight.support import line_scenario, mock_ports, smooth_plan
+
+pytestmark = pytest.mark.timeout(120)
+
+FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
+#: Three vehicles 1.2 m apart (R = 1 m) flying side by side: a pause must keep them apart.
+CLOSE = line_scenario(3, spacing=1.2)
+
+
+async def _fly(plan, options, during):
+    homes = homes_under(plan.scenario.starts)
+    async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(len(homes))) as mock:
+        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+        mission = FlightExecutor(plan, fleet, options)
+        task = mission.start()
+        await during(mission, mock)
+        try:
+            outcome = await task
+        except Exception as exc:
+            outcome = exc
+        return mission, outcome
+
+
+async def _until_mission_time(mission: FlightExecutor, t: float) -> None:
+    while (mission.mission_time() or -1.0) < t:
+        await asyncio.sleep(0.02)
+
+
+def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
+    plan = smooth_plan(CLOSE)
+    r = plan.scenario.min_separation
+    seen: dict[str, object] = {}
+
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
+        with pytest.raises(StateConflict):
+            mission.resume()  # nothing to resume
+        await _until_mission_time(mission, 2.5)  # mid-plan, every vehicle moving
+        assert max(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) > 0.3
+        t_pause = mission.pause()
+        seen["t_pause"] = t_pause
+        assert mission.snapshot()["phase"] == "paused"
+        with pytest.raises(StateConflict, match="already paused"):
+            mission.pause()
+        # the vehicles brake, overshoot a little and settle on the held setpoint (PX4's
+        # position gain of about 1/s: a few seconds)
+        await asyncio.sleep(4.0)
+        assert mission.mission_time() == pytest.approx(t_pause)  # the clock stands still
+        before = np.stack([v.position_world for v in mock.vehicles])
+        distances = []
+        for _ in range(10):
+            await asyncio.sleep(0.1)
+            now = np.stack([v.position_world for v in mock.vehicles])
+            distances += [float(np.linalg.norm(now[i] - now[j]))
+                          for i, j in itertools.combinations(range(3), 2)]
+        after = np.stack([v.position_world for v in mock.vehicles])
+        # still: nobody moved more than 3 cm in the last second of the pause
+        assert np.max(np.linalg.norm(after - before, axis=1)) < 0.03
+        # every vehicle holds the plan's position of the same plan time
+        held = plan.sample([t_pause]).position[:, 0]
+        np.testing.assert_allclose(after, held, atol=0.06)
+        # and the fleet stays separated as the plan is
+        assert min(distances) >= r - TRACKING_TOLERANCE_M
+        assert mission.mission_time() == pytest.approx(t_pause)
+        assert mission.resume() == pytest.approx(t_pause)
+        assert mission.snapshot()["phase"] == "flying"
+
+    _mission, record = asyncio.run(_fly(plan, FAST, during))
+    assert isinstance(record, dict), record
+    summary = record["summary"]
+    assert summary["completed"] is True, summary
+    assert summary["goal_error_max"] < 0.2
+    assert summary["min_separation_measured"] >= r - TRACKING_TOLERANCE_M
+    # one pause of about 5 s recorded, and the tracking error is measured against the
+    # plan's time (the clock stood still), not the wall clock: small
+    [[start, end]] = record["pauses"]
+    assert 5.0 <= end - start < 7.0
+    assert summary["tracking_error_max"] < 0.3
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("pause") < kinds.index("resume") < kinds.index("horizon")
+    # the horizon came pause-length later than without the pause
+    horizon = next(e["t"] for e in record["events"] if e["kind"] == "horizon")
+    assert horizon - record["mission_start"] >= plan.scenario.horizon + (end - start) - 0.1
+
+
+def test_a_pause_longer_than_the_limit_lands_the_fleet() -> None:
+    plan = smooth_plan(line_scenario(2))
+
+    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
+        await _until_mission_time(mission, 1.5)
+        mission.pause()
+
+    options = FAST.replace(pause_limit=1.0, pause_expiry="land")
+    mission, outcome = asyncio.run(_fly(plan, options, during))
+    assert isinstance(outcome, MissionAborted)
+    assert "paused longer than 1 s" in str(outcome)
+    record = mission.record
+    assert record is not None
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("pause") < kinds.index("pause_limit") < kinds.index("abort")
+    assert {e["vehicle"] for e in record["events"] if e["kind"] == "landed"} == {"uav1", "uav2"}
+    [[start, end]] = record["pauses"]
+    assert end is not None and 0.9 <= end - start < 3.0
+
+
+def test_plan_times_stop_during_pauses() -> None:
+    t = np.array([10.0, 12.0, 13.0, 15.0, 20.0])
+    # mission started at 10; paused from 12 to 14 and from 18 (still paused)
+    np.testing.assert_allclose(plan_times(t, 10.0, [[12.0, 14.0], [18.0, None]]),
+                               [0.0, 2.0, 2.0, 3.0, 6.0])
