@@ -86,6 +86,15 @@ def result_name(result: int | None) -> str:
     return entry.name.removeprefix("MAV_RESULT_")
 
 
+def pack(msg: Any, mav: Any) -> bytes:
+    """`msg` encoded by the pymavlink `mav` (and signed, if `mav` signs), advancing `mav`'s
+    sequence number as pymavlink's own `send` does: `msg.pack` alone stamps every message with
+    the same number, which a receiver counting gaps (link quality) reads as loss."""
+    buf = msg.pack(mav)
+    mav.seq = (mav.seq + 1) & 0xFF
+    return buf
+
+
 def time_boot_ms(seconds: float) -> int:
     """A MAVLink `time_boot_ms` (uint32, wraps) from seconds since boot (rounded to 1 ms)."""
     return round(max(seconds, 0.0) * 1000.0) & 0xFFFFFFFF

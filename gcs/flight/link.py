@@ -44,7 +44,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from gcs import px4
+from gcs import px4, wire
 from gcs.errors import CommandError, LinkError
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.signing import LinkSigning
@@ -113,7 +113,7 @@ class Endpoint:
 
     def pack(self, msg: Any) -> bytes:
         """`msg` as bytes on this connection's unsigned packer (assigns its sequence number)."""
-        return msg.pack(self.mav)
+        return wire.pack(msg, self.mav)
 
     def send_bytes(self, system_id: int, buf: bytes) -> None:
         """Send an already packed message to `system_id`'s pinned peer."""
@@ -229,7 +229,7 @@ class ThreadedEndpoint(Endpoint):
 
     def pack(self, msg: Any) -> bytes:
         with self._lock:  # the reader thread's connection shares this encoder
-            return msg.pack(self.mav)
+            return wire.pack(msg, self.mav)
 
     def send_bytes(self, system_id: int, buf: bytes) -> None:
         if self._conn is None:

@@ -25,6 +25,7 @@ from typing import Any
 
 from pymavlink.dialects.v20.common import MAVLinkSigning
 
+from gcs import wire
 from gcs.wire import SigningKey, signature_of, signing_timestamp
 
 __all__ = ["NEW_STREAM_WINDOW", "RESERVE", "LinkSigning", "timestamp_path"]
@@ -91,7 +92,7 @@ class LinkSigning:
         """`msg` packed and signed by `packer` (a pymavlink MAVLink using `self.state`)."""
         if self.state.timestamp >= self._reserved:  # never sign beyond what is persisted
             self.reserve()
-        return msg.pack(packer)
+        return wire.pack(msg, packer)
 
     def verify(self, msg: Any) -> str | None:
         """None if `msg` (decoded without a key) is correctly signed and new; else the reason:

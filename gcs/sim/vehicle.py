@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gcs import frames, px4
+from gcs import frames, px4, wire
 from gcs.sim.model import GRAVITY, FleetModel, ModelLimits
 from gcs.wire import PX4_UNSIGNED_ACCEPTED, mavlink, signing_timestamp, time_boot_ms
 
@@ -439,8 +439,7 @@ class MockVehicle:
         faults = self.faults
         if faults.silent:
             return
-        buf = msg.pack(self._mav)  # packed first: a lost message leaves a sequence gap
-        self._mav.seq = (self._mav.seq + 1) & 0xFF  # pack() stamps the number, send() counts
+        buf = wire.pack(msg, self._mav)  # packed first: a lost message leaves a sequence gap
         if faults.loss > 0.0 and self._rng.random() < faults.loss:
             return
         if faults.delay > 0.0:
