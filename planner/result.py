@@ -158,7 +158,7 @@ class Plan:
     """For `infeasible`: which constraint group(s) could not be met, as far as known."""
     sequence: dict[str, Any] | None = None
     """For a stitched formation sequence: its formations, slots, timeline and legs summary
-    (`planner.sequence`); None for a single scenario's plan (and absent from its JSON)."""
+    (`planner.sequence`); None (JSON null) for a single scenario's plan."""
 
     @property
     def ok(self) -> bool:
@@ -202,7 +202,7 @@ class Plan:
             "verification": None if self.verification is None else asdict(self.verification),
             "assignment": {v.id: int(g) for v, g in zip(self.scenario.vehicles,
                                                         self.scenario.order, strict=True)},
-            **({} if self.sequence is None else {"sequence": self.sequence}),
+            "sequence": self.sequence,
         }
 
     @classmethod

@@ -32,6 +32,7 @@ __all__ = [
     "parse_sequence",
     "plan_leg",
     "plan_sequence",
+    "timeline_scenario",
     "trajectory_csv",
 ]
 
@@ -370,6 +371,13 @@ def _whole_scenario(sequence: FormationSequence, steps: int) -> Scenario:
         max_iterations=first.max_iterations, limits=first.limits, vehicles=vehicles,
         starts=starts, goals=goals,
     )
+
+
+def timeline_scenario(sequence: FormationSequence) -> Scenario:
+    """The whole timeline of a parsed sequence as one scenario (F0 to the last formation,
+    fixed assignment, steps = holds + legs): the scenario its stitched plan carries."""
+    steps = sum(sequence.holds) + sum(int(leg["steps"]) for leg in sequence.legs)
+    return _whole_scenario(sequence, steps)
 
 
 def dynamics_residual(p: FloatArray, v: FloatArray, a: FloatArray, dt: float) -> float:

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanStopped", "finite_json", "run_plan", "warm"]
+__all__ = ["PlanStopped", "finite_json", "run_plan", "stitch_sequence", "warm"]
 
 
 class PlanStopped(Exception):
@@ -82,8 +82,12 @@ def run_plan(
     topic: str | None = None,
     time_limit_s: float | None = None,
     cancel_event: str | None = None,
+    leg: int | None = None,
 ) -> dict[str, Any]:
     """Plan `scenario`; returns {"plan_json", "status", "ok"} or {"error": {field, reason}}.
+
+    `leg`: the scenario is leg `leg` of a formation sequence; every progress message and
+    iteration record says so (``"leg": k``), and the plan is returned as JSON all the same.
 
     With `topic`, progress goes out as Dask events (see the module docstring). With
     `time_limit_s`, the plan stops after the first SCP iteration that ends past the limit; with
@@ -98,7 +102,7 @@ def run_plan(
         if worker is not None:  # "sent": wall clock, to measure delivery (bench/dask_engine)
             try:
                 worker.log_event(topic, {"job": job_id, "kind": kind, "sent": time.time(),
-                                         **data})
+                                         **({} if leg is None else {"leg": leg}), **data})
             except TypeError:  # not msgpack-able: a lost progress line, never a lost plan
                 logging.getLogger(__name__).exception("progress message dropped")
 
@@ -106,7 +110,8 @@ def run_plan(
     cancelled = _cancel_flag(cancel_event if worker is not None else None)
 
     def progress(record: IterationRecord) -> None:
-        send("iteration", record=finite_json(asdict(record)))
+        row = finite_json(asdict(record))
+        send("iteration", record=row if leg is None else {**row, "leg": leg})
         if time_limit_s is not None and time.monotonic() - began > time_limit_s:
             raise PlanStopped(f"planning exceeded its time limit of {time_limit_s:g} s")
         if cancelled():
@@ -126,3 +131,31 @@ def run_plan(
         send("end")
     text = json.dumps(finite_json(result.to_dict()), allow_nan=False, separators=(",", ":"))
     return {"plan_json": text, "status": result.status, "ok": bool(result.ok)}
+
+
+def stitch_sequence(sequence: Any, *legs: dict[str, Any]) -> dict[str, Any]:
+    """Stitch the planned legs of `sequence` (a `planner.sequence.FormationSequence`; `legs`:
+    `run_plan` results in leg order) and verify the whole timeline; returns the flyable plan
+    like `run_plan`, or the first leg's error (a stopped leg stops the whole sequence)."""
+    from planner import Plan, PlannerError
+    from planner.sequence import plan_sequence
+
+    for k, result in enumerate(legs):
+        if "error" in result:
+            error = dict(result["error"])
+            if not result.get("stopped"):
+                error["reason"] = f"leg {k}: {error['reason']}"
+            return {**result, "error": error}
+    plans = [Plan.from_dict(json.loads(result["plan_json"])) for result in legs]
+
+    def planned(_fn: Any, scenarios: Any, _solvers: Any) -> list[Any]:
+        return plans[:len(list(scenarios))]
+
+    try:
+        show = plan_sequence(sequence, mapper=planned)
+        flyable = show.to_plan()
+    except PlannerError as exc:
+        field = getattr(exc, "field", None)
+        return {"error": {"field": field, "reason": getattr(exc, "reason", str(exc))}}
+    text = json.dumps(finite_json(flyable.to_dict()), allow_nan=False, separators=(",", ":"))
+    return {"plan_json": text, "status": flyable.status, "ok": bool(flyable.ok)}

@@ -200,11 +200,13 @@ def test_stitched_plan_is_flyable_verifies_and_round_trips(planned):
     assert back.sequence["timeline"][0]["kind"] == "hold"
 
 
-def test_plain_plan_json_has_no_sequence_block(planned):
+def test_plain_plan_json_has_a_null_sequence_block(planned):
     from planner import Plan
 
     leg = planned.legs[0].to_dict()
-    assert "sequence" not in leg
+    assert leg["sequence"] is None
+    assert Plan.from_dict(leg).sequence is None
+    del leg["sequence"]  # plans written before the block existed still read
     assert Plan.from_dict(leg).sequence is None
     with pytest.raises(Exception, match="sequence"):
         Plan.from_dict({**leg, "sequence": [1, 2]})
