@@ -89,6 +89,8 @@ class PlanJob:
     """End-of-progress markers to wait for: one per task (a sequence: one per leg)."""
     ends_seen: int = 0
     worker: str | None = None
+    running: dict[int | None, str] = field(default_factory=dict)
+    """Workers running this job's tasks now, by leg (None: a single scenario's task)."""
     """Address of the worker running the task (from its `started` event)."""
     stop_reason: str | None = None
     """Why the job is being stopped (cancel, time limit), once it is."""
@@ -335,20 +337,21 @@ class PlanningService:
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(job.done.wait(), self._grace)
             return
-        client, worker = self._client, job.worker
+        client = self._client
+        stuck = sorted(set(job.running.values()))
         if client is None or job.done.is_set():
             return
-        log.warning("plan %s did not stop within %.0f s (%s): restarting worker %s",
-                    job.mission_id, self._grace, job.stop_reason, worker)
+        log.warning("plan %s did not stop within %.0f s (%s): restarting worker(s) %s",
+                    job.mission_id, self._grace, job.stop_reason, stuck)
         future = job.future
         if future is not None:
             with contextlib.suppress(Exception):
                 await future.cancel()
-        if worker is not None:
+        if stuck:
             try:
-                await client.restart_workers([worker], timeout=60, raise_for_error=False)
+                await client.restart_workers(stuck, timeout=60, raise_for_error=False)
             except Exception:  # not restartable (no nanny): the task runs on, results dropped
-                log.exception("could not restart worker %s", worker)
+                log.exception("could not restart worker(s) %s", stuck)
 
     async def _watch_time(self, job: PlanJob) -> None:
         """Stop a job whose task has run past its limit (the task checks it itself too, but
@@ -489,8 +492,11 @@ class PlanningService:
             job.add_progress(message["record"])
         elif kind == "started":
             job.worker = message.get("worker")
+            if job.worker is not None:
+                job.running[message.get("leg")] = job.worker
             job.started.set()
         elif kind == "end":
+            job.running.pop(message.get("leg"), None)
             job.ends_seen += 1
             if job.ends_seen >= job.ends_expected:
                 job.progress_complete.set()

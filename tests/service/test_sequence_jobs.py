@@ -5,16 +5,24 @@ from __future__ import annotations
 
 import asyncio
 import json
+import time
 from typing import Any
 
 import pytest
 
+from gcs.service import planning as planning_module
 from gcs.service.planning import PlanJob
 from planner import Plan
 from planner.generators import show_sequence
 from planner.sequence import parse_sequence, timeline_scenario
 from tests.service.test_planning import cluster as cluster  # the module's fixtures
-from tests.service.test_planning import done, executing, started_service, wait_idle
+from tests.service.test_planning import (
+    done,
+    executing,
+    started_service,
+    wait_idle,
+    workers,
+)
 from tests.service.test_planning import store as store
 
 pytestmark = pytest.mark.timeout(300)
@@ -72,6 +80,51 @@ def test_cancel_stops_every_leg_and_frees_the_workers(store, cluster) -> None:
             row = store.get_mission(job.mission_id)
             assert row is not None and row.status == "failed"
             assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
+
+
+def stubborn_leg(job_id: str, scenario: dict[str, Any], solver: str | None, *, topic: str,
+                 leg: int | None = None, **_: Any) -> dict[str, Any]:
+    """A leg stuck in one endless SCP iteration: it never checks its cancel flag (runs on
+    the worker, imported there by reference)."""
+    from distributed import get_worker
+
+    worker = get_worker()
+    worker.log_event(topic, {"job": job_id, "kind": "started", "leg": leg,
+                             "worker": worker.address})
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+    return {"error": {"field": None, "reason": "ran for two minutes"}}
+
+
+def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, monkeypatch
+                                                             ) -> None:
+    monkeypatch.setattr(planning_module.plan_worker, "run_plan", stubborn_leg)
+    data = show_sequence(9, seed=4, hold=1.0)
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster, cancel_grace_s=0.5)
+        try:
+            job = submit_sequence(service, store, data)
+            deadline = time.monotonic() + 60
+            while len(job.running) < 2 and time.monotonic() < deadline:
+                await asyncio.sleep(0.1)
+            stuck = set(job.running.values())
+            assert len(stuck) == 2, job.running  # one leg on each worker
+            service.cancel(job.mission_id, "stop now")
+            outcome = await done(job)
+            assert outcome["error"]["reason"] == "stop now"
+            deadline = time.monotonic() + 90
+            while time.monotonic() < deadline:
+                now = await asyncio.to_thread(workers, cluster)
+                if len(now) == 2 and not (stuck & now):
+                    break
+                await asyncio.sleep(0.2)
+            assert not (stuck & now) and len(now) == 2  # both replaced by new processes
         finally:
             await service.close()
 
