@@ -78,3 +78,24 @@ def test_unsafe_ids_and_rates_are_refused_before_planning(tmp_path, capsys, sequ
     assert main(["plan", str(path), "-o", str(tmp_path / "p.json"),
                  "--csv-dir", str(tmp_path / "csv"), "--csv-rate", "nan"]) == 2
     assert "--csv-rate" in capsys.readouterr().err
+
+
+def test_sequence_legs_run_on_a_dask_cluster_with_scheduler(tmp_path, capsys, sequence):
+    from distributed import Client, LocalCluster
+
+    path = tmp_path / "show.json"
+    path.write_text(json.dumps(sequence))
+    out = tmp_path / "plan.json"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      scheduler_port=0, dashboard_address=None) as cluster:
+        code = main(["plan", str(path), "-o", str(out), "--scheduler",
+                     cluster.scheduler_address])
+        with Client(cluster.scheduler_address) as client:
+            keys = client.run_on_scheduler(
+                lambda dask_scheduler: [str(t[0]) for t in dask_scheduler.transition_log])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    assert f"on Dask at {cluster.scheduler_address}" in printed
+    assert Plan.from_dict(json.loads(out.read_text())).ok
+    # Both legs ran as tasks of this cluster (plan_leg-<hash> keys in the scheduler's log).
+    assert len({k for k in keys if "plan_leg" in k}) == 2, sorted(set(keys))
