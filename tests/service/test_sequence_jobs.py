@@ -129,3 +129,23 @@ def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, mon
             await service.close()
 
     asyncio.run(scenario_run())
+
+
+def test_the_time_limit_stops_a_sequence(store, cluster) -> None:
+    data = show_sequence(64, seed=1, hold=1.0)
+    data["assignment"] = "fixed"  # several SCP iterations of about a second per leg
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            job = submit_sequence(service, store, data, time_limit_s=0.2)
+            outcome = await done(job)
+            assert outcome["status"] == "failed"
+            assert "time limit of 0.2 s" in outcome["error"]["reason"]
+            row = store.get_mission(job.mission_id)
+            assert row is not None and row.status == "failed"
+            assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
