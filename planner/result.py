@@ -156,6 +156,9 @@ class Plan:
     solver: str
     infeasible_groups: tuple[str, ...] = field(default=())
     """For `infeasible`: which constraint group(s) could not be met, as far as known."""
+    sequence: dict[str, Any] | None = None
+    """For a stitched formation sequence: its formations, slots, timeline and legs summary
+    (`planner.sequence`); None (JSON null) for a single scenario's plan."""
 
     @property
     def ok(self) -> bool:
@@ -199,6 +202,7 @@ class Plan:
             "verification": None if self.verification is None else asdict(self.verification),
             "assignment": {v.id: int(g) for v, g in zip(self.scenario.vehicles,
                                                         self.scenario.order, strict=True)},
+            "sequence": self.sequence,
         }
 
     @classmethod
@@ -325,4 +329,14 @@ def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
         verification=verification,
         solver=str(data.get("solver", "")),
         infeasible_groups=tuple(data.get("infeasible_groups", ())),
+        sequence=_sequence_block(data.get("sequence")),
     )
+
+
+def _sequence_block(value: Any) -> dict[str, Any] | None:
+    """The optional `sequence` block of a stitched sequence's plan, kept as given."""
+    if value is None:
+        return None
+    if not isinstance(value, Mapping):
+        raise PlanFormatError("sequence", "must be a JSON object")
+    return dict(value)

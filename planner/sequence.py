@@ -20,8 +20,9 @@ from numpy.typing import NDArray
 
 from planner.assignment import assign_goals
 from planner.errors import ScenarioError
+from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.planning import plan
-from planner.result import Plan, Verification
+from planner.result import Plan, VehicleTrajectory, Verification
 from planner.scenario import DEFAULTS, MAX_STEPS, Scenario, Vehicle
 from planner.verify import BOUND_TOLERANCE, verify
 
@@ -31,6 +32,7 @@ __all__ = [
     "parse_sequence",
     "plan_leg",
     "plan_sequence",
+    "timeline_scenario",
     "trajectory_csv",
 ]
 
@@ -246,6 +248,54 @@ class SequencePlan:
     def duration(self) -> float:
         return self.accelerations.shape[1] * self.sequence.dt
 
+    def summary(self) -> dict[str, Any]:
+        """The sequence details a flyable plan carries as its `sequence` block: formations
+        and slots, the timeline, and one line per leg (status, iterations, time)."""
+        full = self.to_dict()
+        del full["legs"], full["verification"]
+        full["legs"] = [
+            {"name": leg.scenario.name, "status": leg.status, "message": leg.message,
+             "iterations": max(len(leg.iterations) - 1, 0),
+             "seconds": float(leg.timing.get("total_s", 0.0)),
+             "min_separation_continuous": (None if leg.verification is None else
+                                           leg.verification.min_separation_continuous)}
+            for leg in self.legs
+        ]
+        return full
+
+    def to_plan(self) -> Plan:
+        """The stitched timeline as one flyable `planner.Plan`: its scenario starts on F0 and
+        ends on the last formation (fixed assignment, shared limits, steps = the whole
+        timeline), so `fleetplan fly` and the executor's re-verification take it unchanged;
+        the sequence details ride along in `Plan.sequence`. Raises `ScenarioError` when the
+        timeline is longer than one scenario may be (`MAX_STEPS`)."""
+        steps = self.accelerations.shape[1]
+        if steps > MAX_STEPS:
+            raise _field_error("formations", f"the sequence lasts {steps} steps; a flyable "
+                                             f"plan holds at most {MAX_STEPS}")
+        dt = self.sequence.dt
+        whole = _whole_scenario(self.sequence, steps)
+        p, v, a = self.positions, self.velocities, self.accelerations
+        jerk = jerk_from_accelerations(a, dt)
+        f = thrust(a)
+        rates = body_rates(a, jerk)
+        times = np.arange(steps + 1) * dt
+        vehicles = tuple(
+            VehicleTrajectory(id=vid, t=times, position=p[n], velocity=v[n],
+                              acceleration=a[n], jerk=jerk[n], thrust=f[n],
+                              body_rates=rates[n])
+            for n, vid in enumerate(self.sequence.ids)
+        )
+        timing = {
+            "total_s": float(sum(leg.timing.get("total_s", 0.0) for leg in self.legs)),
+            "first_qp_s": float(sum(leg.timing.get("first_qp_s", 0.0) for leg in self.legs)),
+        }
+        return Plan(
+            status=self.status, message=self.message, scenario=whole, vehicles=vehicles,
+            iterations=(), timing=timing, verification=self.verification,
+            solver=self.legs[0].solver if self.legs else "", sequence=self.summary(),
+        )
+
     def to_dict(self) -> dict[str, Any]:
         seq = self.sequence
         return {
@@ -321,6 +371,13 @@ def _whole_scenario(sequence: FormationSequence, steps: int) -> Scenario:
         max_iterations=first.max_iterations, limits=first.limits, vehicles=vehicles,
         starts=starts, goals=goals,
     )
+
+
+def timeline_scenario(sequence: FormationSequence) -> Scenario:
+    """The whole timeline of a parsed sequence as one scenario (F0 to the last formation,
+    fixed assignment, steps = holds + legs): the scenario its stitched plan carries."""
+    steps = sum(sequence.holds) + sum(int(leg["steps"]) for leg in sequence.legs)
+    return _whole_scenario(sequence, steps)
 
 
 def dynamics_residual(p: FloatArray, v: FloatArray, a: FloatArray, dt: float) -> float:

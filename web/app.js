@@ -19,7 +19,7 @@ const TRAIL_POINTS = 1500;   // live trail kept per vehicle (5 Hz: 5 minutes)
 
 const state = {
   mission: null,       // the mission document shown (GET /api/missions/{id})
-  shownKey: null,      // the form, serialised, as it was when that mission was shown
+  shownKey: null,      // the form (or "seq:" + the sequence text) as it was when that mission was shown
   planning: false,     // a plan request is being computed
   pendingKey: null,    // the form as sent with that request
   rejected: false,     // the last plan request was refused or failed
@@ -430,6 +430,10 @@ function showError(field, reason) {
 
 // The form as one string: equal strings, same mission.
 const formKey = () => JSON.stringify(readScenario());
+// The sequence input as a key ("seq:" + its text): a mission planned from it is stale once
+// the text changes, whatever the form says.
+const sequenceKey = () => `seq:${$("#sequence-json").value}`;
+const currentKey = (shown) => (shown && shown.startsWith("seq:") ? sequenceKey() : formKey());
 
 // Any change to the form (typed, clicked on the map, preset loaded, row added or removed).
 function formEdited(ev) {
@@ -456,7 +460,9 @@ function refreshStale() {
   let why = "";
   if (shown && state.planning) why = "Planning the form's mission: the results below are the previous plan's.";
   else if (shown && state.rejected) why = "The last plan request was rejected: the results below are an older mission's and cannot be flown.";
-  else if (shown && formKey() !== state.shownKey) why = "The form has changed since this plan: the results below are stale. Press Plan to fly what the form says.";
+  else if (shown && currentKey(state.shownKey) !== state.shownKey) why = state.shownKey.startsWith("seq:")
+    ? "The sequence has changed since this plan: the results below are stale. Press Plan sequence to fly what it says."
+    : "The form has changed since this plan: the results below are stale. Press Plan to fly what the form says.";
   state.stale = Boolean(why);
   $("#stale-banner").textContent = why;
   $("#stale-banner").hidden = !why;
@@ -558,6 +564,80 @@ async function submitPlan(ev) {
   followPlanning(data, state.pendingKey);
 }
 
+// Plan the sequence JSON pasted or loaded: one mission like a scenario's, legs in parallel.
+async function submitSequence() {
+  clearErrors();
+  const box = $("#sequence-error");
+  let body;
+  try { body = JSON.parse($("#sequence-json").value); } catch (exc) {
+    box.append(errorItem("sequence", `not valid JSON: ${exc.message}`));
+    return;
+  }
+  if (!body || typeof body !== "object" || Array.isArray(body) || !("formations" in body)) {
+    box.append(errorItem("sequence", "must be a JSON object with formations"));
+    return;
+  }
+  if (state.planStream) { state.planStream.close(); state.planStream = null; }
+  state.planning = true;
+  state.rejected = false;
+  state.pendingKey = sequenceKey();
+  refreshStale();
+  $("#plan-button").disabled = true;
+  $("#sequence-plan").disabled = true;
+  $("#plan-state").textContent = "submitting…";
+  $("#progress-log").innerHTML = "";
+  $("#progress-log").hidden = false;
+  const { status, data } = await api("POST", "/api/missions?wait=0", body);
+  $("#sequence-plan").disabled = false;
+  if (status !== 201 && status !== 202) {
+    state.planning = false;
+    state.rejected = true;
+    $("#plan-button").disabled = false;
+    $("#plan-state").textContent = "";
+    $("#plan-state").append(badge(false, `rejected (${status}): see the sequence errors`));
+    const errors = (data && data.errors && data.errors.length) ? data.errors
+      : [{ field: data && data.field, reason: (data && data.reason) || "error" }];
+    for (const e of errors) box.append(errorItem(e.field || "", e.reason));
+    refreshStale();
+    return;
+  }
+  followPlanning(data, state.pendingKey);
+}
+
+async function loadSequenceFile(ev) {
+  const file = ev.target.files && ev.target.files[0];
+  if (!file) return;
+  $("#sequence-json").value = await file.text();
+  $("#sequence-panel").open = true;
+  refreshStale();
+}
+
+// A sequence's plan: its formations and timeline, and its show-tool CSVs to download.
+function renderSequence(mission) {
+  const info = $("#sequence-info");
+  const seq = mission.plan.sequence;
+  info.innerHTML = "";
+  info.hidden = !seq;
+  if (!seq) return;
+  const names = seq.formations.map((f) => f.name).join(" → ");
+  const legs = seq.legs.map((l) => `${l.status}, ${l.iterations} SCP iterations`).join("; ");
+  const head = document.createElement("div");
+  head.id = "sequence-summary";
+  head.textContent = `sequence: ${names} · ${fmt(seq.duration_s, 1)} s · legs: ${legs}`;
+  info.append(head);
+  const links = document.createElement("div");
+  links.id = "sequence-downloads";
+  links.append("show-tool CSV (time ms, x, y, z), 10 Hz: ");
+  for (const id of seq.vehicles) {
+    const a = document.createElement("a");
+    a.href = `/api/missions/${mission.id}/trajectory?format=show-csv&rate=10&vehicle=${encodeURIComponent(id)}`;
+    a.download = `${id}.csv`;
+    a.textContent = id;
+    links.append(a, " ");
+  }
+  info.append(links);
+}
+
 function followPlanning(mission, key) {
   $("#plan-state").textContent = "planning…";
   if (!missionIs(mission.status, "active")) { showMission(mission.id, key); return; }
@@ -566,11 +646,12 @@ function followPlanning(mission, key) {
   source.addEventListener("iteration", (ev) => {
     const r = JSON.parse(ev.data);
     const li = document.createElement("li");
-    li.textContent = `iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
+    const leg = (r.leg === undefined || r.leg === null) ? "" : `leg ${r.leg}, `;
+    li.textContent = `${leg}iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
       (r.cost_change === null ? "" : ` (Δ ${fmt(r.cost_change, 3)})`) +
       `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s`;
     appendScrolled($("#progress-log"), li);
-    $("#plan-state").textContent = `planning… iteration ${r.iteration}`;
+    $("#plan-state").textContent = `planning… ${leg}iteration ${r.iteration}`;
   });
   source.addEventListener("done", () => { source.close(); state.planStream = null; showMission(mission.id, key); });
   source.onerror = () => {  // stream lost: fall back to polling the mission
@@ -630,6 +711,7 @@ async function renderPlan(mission) {
   $("main").classList.add("has-plan");
   $("#plan-results").hidden = false;
   renderSummary(plan, mission.plan_ok);
+  renderSequence(mission);
   render3d(plan, traj.data);
   renderSeparation(plan, sepTraj.data);
   renderSpeed(sepTraj.data);
@@ -1346,6 +1428,9 @@ async function start() {
   buildLimitRows();
   $("#scenario-form").addEventListener("submit", submitPlan);
   $("#scenario-form").addEventListener("input", formEdited);
+  $("#sequence-plan").addEventListener("click", submitSequence);
+  $("#sequence-file").addEventListener("change", loadSequenceFile);
+  $("#sequence-json").addEventListener("input", refreshStale);
   $("#preset").addEventListener("change", presetChosen);
   $("#preset-load").addEventListener("click", () => loadPreset());
   $("#add-vehicle").addEventListener("click", () => {

@@ -73,6 +73,7 @@ _PLAN_EXAMPLE: dict[str, Any] = {
                      "thrust_range": [9.2, 10.4], "body_rate_peak": 0.3,
                      "flyable": True, "separated": True, "within_bounds": True,
                      "separation_tolerance": 0.001, "bound_tolerance": 1e-4},
+    "sequence": None,
 }
 _SUMMARY_EXAMPLE: dict[str, Any] = {
     "id": "3f2a9c81d0b4", "name": "paper-circle4", "status": "planned",

@@ -1,5 +1,10 @@
 """`fleetplan plan SCENARIO.json -o PLAN.json`: plan, print progress and a summary, save.
 
+A formation sequence (a document with a `formations` key, see `planner.sequence`) is planned
+leg by leg (in parallel: a local process pool, or Dask tasks with --scheduler), stitched and
+verified as a whole; the stitched plan is written (flyable with `fleetplan fly`) and, with
+--csv-dir, one show-tool CSV per vehicle.
+
 Exit status: 0 for a converged, verified plan; 1 when the plan was computed but did not
 converge or failed verification (the plan is still written, for inspection); 2 for bad
 input (unreadable file, invalid JSON, an invalid scenario: the message names the field).
@@ -11,6 +16,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -20,6 +26,8 @@ __all__ = ["configure", "run"]
 EXIT_OK, EXIT_NOT_VERIFIED, EXIT_BAD_INPUT = 0, 1, 2
 #: Environment variable naming the Dask scheduler (the service's `scheduler` setting).
 SCHEDULER_ENV = "FLEETPLAN_SCHEDULER"
+#: Vehicle ids that can name a CSV file as they are (no path separators, no '..').
+_SAFE_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -31,6 +39,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--solver", choices=("piqp", "clarabel", "osqp"), default=None,
         help="QP solver (default: piqp, the fastest accurate one measured)",
+    )
+    parser.add_argument(
+        "--csv-dir", type=Path, default=None,
+        help="sequences: also write one CSV per vehicle here (time ms, x, y, z; show tools)",
+    )
+    parser.add_argument(
+        "--csv-rate", type=float, default=None, metavar="HZ",
+        help="sequences: CSV sample rate (default: one row per planner step)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
     parser.add_argument(
@@ -72,7 +88,8 @@ def _summary_rows(plan: Any) -> list[tuple[str, str]]:
     rows = [
         ("status", plan.status),
         ("vehicles", str(len(plan.vehicles))),
-        ("SCP iterations", str(max(len(plan.iterations) - 1, 0))),
+        ("SCP iterations", str(max(len(plan.iterations) - 1, 0)) if plan.sequence is None
+         else " + ".join(str(leg["iterations"]) for leg in plan.sequence["legs"])),
         ("cost (sum ||a+g||^2)", _number(plan.cost, "{:.4f}")),
         ("time total / first QP", f"{plan.timing['total_s']:.3f} s / "
                                   f"{plan.timing['first_qp_s']:.3f} s"),
@@ -182,12 +199,102 @@ def _for_fleet(data: Any, fleet_path: Path) -> Any:
     return planned
 
 
+def _leg_mapper(address: str | None, legs: int) -> tuple[Any, Any]:
+    """(mapper for `plan_sequence`, closer): Dask tasks on the cluster at `address`, else a
+    local process pool (legs are independent problems; a pool of one is just `map`)."""
+    if address:
+        from distributed import Client
+
+        try:
+            client = Client(address, timeout=10)
+        except (OSError, TimeoutError) as exc:
+            raise ValueError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+
+        def on_cluster(fn: Any, *iterables: Any) -> Any:
+            return client.gather(client.map(fn, *iterables, pure=False))
+
+        return on_cluster, client.close
+    workers = min(legs, os.cpu_count() or 1)
+    if workers <= 1:
+        return map, lambda: None
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(max_workers=workers)
+    return pool.map, pool.shutdown
+
+
+def _write_csvs(show: Any, directory: Path, rate: float | None) -> None:
+    from planner.sequence import trajectory_csv
+
+    files = trajectory_csv(show.positions, show.velocities, show.accelerations,
+                           show.sequence.dt, show.sequence.ids, rate_hz=rate)
+    directory.mkdir(parents=True, exist_ok=True)
+    for vid, text in files.items():
+        (directory / f"{vid}.csv").write_text(text)
+
+
+def _run_sequence(args: argparse.Namespace, data: Any) -> int:
+    """Plan a formation sequence: legs in parallel, the stitched plan and the CSVs written."""
+    from planner.errors import FieldError, SolverError
+    from planner.sequence import parse_sequence, plan_sequence
+
+    rate = args.csv_rate
+    if rate is not None and not (math.isfinite(rate) and 0 < rate <= 1000):
+        return _fail("--csv-rate: must be in (0, 1000] Hz")
+    try:
+        sequence = parse_sequence(data)
+    except FieldError as exc:
+        return _fail(str(exc))
+    if args.csv_dir is not None:
+        unsafe = [vid for vid in sequence.ids if not _SAFE_NAME.fullmatch(vid)]
+        if unsafe:
+            return _fail(f"vehicles: id {unsafe[0]!r} cannot name a CSV file "
+                         f"(letters, digits, '.', '_', '-' only)")
+    if not args.quiet:
+        where = f"Dask at {args.scheduler}" if args.scheduler else "local processes"
+        print(f"planning {len(sequence.legs)} legs of {len(sequence.ids)} vehicles "
+              f"on {where}", flush=True)
+    try:
+        mapper, close = _leg_mapper(args.scheduler, len(sequence.legs))
+        try:
+            show = plan_sequence(sequence, solver=args.solver, mapper=mapper)
+        finally:
+            close()
+        plan = show.to_plan()
+    except (SolverError, ValueError) as exc:
+        return _fail(str(exc))
+    if not args.quiet:
+        for leg in plan.sequence["legs"]:
+            print(f"leg {leg['name']}: {leg['status']}, {leg['iterations']} SCP iterations, "
+                  f"{leg['seconds']:.2f} s", flush=True)
+    output = args.output or Path(f"{sequence.name}.plan.json")
+    try:
+        output.write_text(json.dumps(plan.to_dict()))
+        if args.csv_dir is not None:
+            _write_csvs(show, args.csv_dir, rate)
+    except OSError as exc:
+        return _fail(f"cannot write: {exc.strerror or exc}")
+    _print_summary(plan)
+    print(f"plan written to {output}")
+    if args.csv_dir is not None:
+        print(f"{len(sequence.ids)} CSV files written to {args.csv_dir}")
+    if plan.ok:
+        return EXIT_OK
+    print(f"error: plan not verified: {plan.status}: {plan.message}", file=sys.stderr)
+    return EXIT_NOT_VERIFIED
+
+
 def run(args: argparse.Namespace) -> int:
     import planner
     from planner.errors import FieldError, SolverError
 
     try:
         data = load_json(args.scenario)
+        if isinstance(data, dict) and "formations" in data:
+            if getattr(args, "fleet", None) is not None:
+                return _fail("--fleet: a fleet's margin is not applied to formation sequences "
+                             "yet; add it to the sequence's min_separation")
+            return _run_sequence(args, data)
         if getattr(args, "fleet", None) is not None:
             data = _for_fleet(data, args.fleet)
         scenario = planner.Scenario.from_dict(data)

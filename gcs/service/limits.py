@@ -19,7 +19,16 @@ from typing import Any
 from gcs.errors import InvalidRequest
 from gcs.service.settings import Settings
 
-__all__ = ["WorkBounds", "scenario_bound_errors", "trajectory_sample_count"]
+__all__ = [
+    "MAX_SEQUENCE_LEGS",
+    "WorkBounds",
+    "scenario_bound_errors",
+    "sequence_bound_errors",
+    "trajectory_sample_count",
+]
+
+#: Most legs (formations after the first) one sequence request may ask for.
+MAX_SEQUENCE_LEGS = 20
 
 
 @dataclass(frozen=True)
@@ -98,6 +107,67 @@ def scenario_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
                     f"{where}[{axis}]", f"{x:g} m is farther than {bounds.max_coordinate_m:g} m "
                     f"from the origin (setting max_coordinate_m)"))
     return errors
+
+
+def _coordinate_errors(points: list[tuple[str, Any]], bounds: WorkBounds
+                       ) -> list[InvalidRequest]:
+    errors = []
+    for where, point in points:
+        if not isinstance(point, list):
+            continue
+        for axis, component in enumerate(point):
+            x = _real(component)
+            if x is not None and math.isfinite(x) and abs(x) > bounds.max_coordinate_m:
+                errors.append(InvalidRequest(
+                    f"{where}[{axis}]", f"{x:g} m is farther than {bounds.max_coordinate_m:g} m "
+                    f"from the origin (setting max_coordinate_m)"))
+    return errors
+
+
+def sequence_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[InvalidRequest]:
+    """Every bound a formation sequence JSON exceeds: vehicles, legs, dt, the whole timeline
+    (steps and seconds: it is flown as one plan), coordinates. Empty when it fits."""
+    errors: list[InvalidRequest] = []
+    vehicles = data.get("vehicles")
+    if isinstance(vehicles, list) and len(vehicles) > bounds.max_vehicles:
+        errors.append(InvalidRequest(
+            "vehicles", f"{len(vehicles)} vehicles exceed this server's limit of "
+            f"{bounds.max_vehicles} (setting max_vehicles)"))
+    formations = data.get("formations")
+    formations = formations if isinstance(formations, list) else []
+    if len(formations) - 1 > MAX_SEQUENCE_LEGS:
+        errors.append(InvalidRequest(
+            "formations", f"{len(formations) - 1} legs exceed this server's limit of "
+            f"{MAX_SEQUENCE_LEGS}"))
+    dt = _real(data.get("dt"))
+    if dt is not None and dt > 0 and not bounds.dt_min <= dt <= bounds.dt_max:
+        errors.append(InvalidRequest(
+            "dt", f"must be between {bounds.dt_min:g} and {bounds.dt_max:g} s on this server, "
+            f"got {dt:g} (settings dt_min, dt_max)"))
+    seconds = 0.0
+    points: list[tuple[str, Any]] = []
+    limits = data.get("limits")
+    if isinstance(limits, Mapping):
+        points += [(f"limits.{key}", limits.get(key)) for key in ("position_min", "position_max")]
+    for f, formation in enumerate(formations):
+        if not isinstance(formation, Mapping):
+            continue
+        for key in ("duration", "hold"):
+            value = _real(formation.get(key))
+            if value is not None and math.isfinite(value) and value > 0:
+                seconds += value
+        positions = formation.get("positions")
+        if isinstance(positions, list):
+            points += [(f"formations[{f}].positions[{n}]", p) for n, p in enumerate(positions)]
+    if seconds > bounds.max_horizon_s:
+        errors.append(InvalidRequest(
+            "formations", f"the sequence lasts {seconds:g} s (durations and holds), more than "
+            f"this server's limit of {bounds.max_horizon_s:g} s (setting max_horizon_s)"))
+    elif dt is not None and dt > 0 and seconds / dt > bounds.max_steps + 0.5:
+        errors.append(InvalidRequest(
+            "formations", f"the sequence lasts {seconds / dt:.0f} steps of dt, more than this "
+            f"server's limit of {bounds.max_steps} (setting max_steps)"))
+    return errors + _coordinate_errors(points, bounds)
 
 
 def trajectory_sample_count(horizon: float, rate: float, vehicles: int) -> int:

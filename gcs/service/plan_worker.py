@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanStopped", "finite_json", "run_plan", "warm"]
+__all__ = ["PlanStopped", "finite_json", "run_plan", "stitch_sequence", "warm"]
 
 
 class PlanStopped(Exception):
@@ -82,9 +82,14 @@ def run_plan(
     topic: str | None = None,
     time_limit_s: float | None = None,
     cancel_event: str | None = None,
+    leg: int | None = None,
 ) -> dict[str, Any]:
     """Plan `scenario`; returns {"plan_json", "status", "ok"} or {"error": {field, reason}}.
 
+    `leg`: the scenario is leg `leg` of a formation sequence; every progress message and
+    iteration record says so (``"leg": k``), and the plan is returned as JSON all the same.
+
+    A leg's result carries the `planner.Plan` itself ("plan") rather than its JSON text.
     With `topic`, progress goes out as Dask events (see the module docstring). With
     `time_limit_s`, the plan stops after the first SCP iteration that ends past the limit; with
     `cancel_event`, after the first iteration that ends with that Dask Event set.
@@ -98,7 +103,7 @@ def run_plan(
         if worker is not None:  # "sent": wall clock, to measure delivery (bench/dask_engine)
             try:
                 worker.log_event(topic, {"job": job_id, "kind": kind, "sent": time.time(),
-                                         **data})
+                                         **({} if leg is None else {"leg": leg}), **data})
             except TypeError:  # not msgpack-able: a lost progress line, never a lost plan
                 logging.getLogger(__name__).exception("progress message dropped")
 
@@ -106,7 +111,8 @@ def run_plan(
     cancelled = _cancel_flag(cancel_event if worker is not None else None)
 
     def progress(record: IterationRecord) -> None:
-        send("iteration", record=finite_json(asdict(record)))
+        row = finite_json(asdict(record))
+        send("iteration", record=row if leg is None else {**row, "leg": leg})
         if time_limit_s is not None and time.monotonic() - began > time_limit_s:
             raise PlanStopped(f"planning exceeded its time limit of {time_limit_s:g} s")
         if cancelled():
@@ -124,5 +130,39 @@ def run_plan(
         # End-of-progress marker: events of one worker arrive in order, so once the service
         # sees it, every iteration of this job has been delivered.
         send("end")
+    if leg is not None:  # for `stitch_sequence`: the Plan itself (pickled: arrays, no JSON)
+        return {"plan": result, "status": result.status, "ok": bool(result.ok)}
     text = json.dumps(finite_json(result.to_dict()), allow_nan=False, separators=(",", ":"))
     return {"plan_json": text, "status": result.status, "ok": bool(result.ok)}
+
+
+def stitch_sequence(sequence: Any, *legs: dict[str, Any]) -> dict[str, Any]:
+    """Stitch the planned legs of `sequence` (a `planner.sequence.FormationSequence`; `legs`:
+    `run_plan` results in leg order) and verify the whole timeline; returns the flyable plan
+    like `run_plan`, or the first leg's error (a stopped leg stops the whole sequence)."""
+    import orjson
+
+    from planner import PlannerError
+    from planner.sequence import plan_sequence
+
+    for k, result in enumerate(legs):
+        if "error" in result:
+            error = dict(result["error"])
+            if not result.get("stopped"):
+                error["reason"] = f"leg {k}: {error['reason']}"
+            return {**result, "error": error}
+    plans = [result["plan"] for result in legs]
+
+    def planned(_fn: Any, scenarios: Any, _solvers: Any) -> list[Any]:
+        return plans[:len(list(scenarios))]
+
+    try:
+        show = plan_sequence(sequence, mapper=planned)
+        flyable = show.to_plan()
+    except PlannerError as exc:
+        field = getattr(exc, "field", None)
+        return {"error": {"field": field, "reason": getattr(exc, "reason", str(exc))}}
+    # orjson writes a non-finite float as null (strict JSON), ten times faster than the
+    # finite_json walk + json.dumps on a plan of megabytes.
+    text = orjson.dumps(flyable.to_dict()).decode()
+    return {"plan_json": text, "status": flyable.status, "ok": bool(flyable.ok)}

@@ -85,7 +85,12 @@ class PlanJob:
     """Set when a worker began the task (the time limit counts from here)."""
     progress_complete: asyncio.Event = field(default_factory=asyncio.Event)
     """Set when the worker's end-of-progress marker arrived (all iterations delivered)."""
+    ends_expected: int = 1
+    """End-of-progress markers to wait for: one per task (a sequence: one per leg)."""
+    ends_seen: int = 0
     worker: str | None = None
+    running: dict[int | None, str] = field(default_factory=dict)
+    """Workers running this job's tasks now, by leg (None: a single scenario's task)."""
     """Address of the worker running the task (from its `started` event)."""
     stop_reason: str | None = None
     """Why the job is being stopped (cancel, time limit), once it is."""
@@ -265,6 +270,26 @@ class PlanningService:
         self._spawn(self._run(job, scenario))
         return job
 
+    def submit_sequence(
+        self, mission_id: str, sequence: Any, *, time_limit_s: float | None = None
+    ) -> PlanJob:
+        """Start planning a stored mission that is a formation sequence (a parsed
+        `planner.sequence.FormationSequence`): one Dask task per leg, all submitted at once
+        (they run in parallel on the workers), then a task stitching and verifying the whole
+        timeline. Progress records carry their `leg`; cancel and the time limit stop every
+        leg through the job's one cancel flag."""
+        assert self._client is not None, "service not started"
+        self.check_capacity()
+        steps = sum(sequence.holds) + sum(int(leg["steps"]) for leg in sequence.legs)
+        work = len(sequence.ids) ** 2 * steps
+        job = PlanJob(mission_id, key=f"plan-{mission_id}-{uuid.uuid4().hex[:8]}", work=work,
+                      time_limit_s=self.job_time_limit(time_limit_s),
+                      ends_expected=len(sequence.legs))
+        self._jobs[mission_id] = job
+        self._by_key[job.key] = job
+        self._spawn(self._run(job, sequence))
+        return job
+
     def cancel(self, mission_id: str, reason: str = "cancelled by the operator") -> PlanJob:
         """Stop a job: its task ends after its current iteration, or its worker is restarted
         `CANCEL_GRACE_S` later. Returns at once; await `job.done`."""
@@ -312,20 +337,21 @@ class PlanningService:
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(job.done.wait(), self._grace)
             return
-        client, worker = self._client, job.worker
+        client = self._client
+        stuck = sorted(set(job.running.values()))
         if client is None or job.done.is_set():
             return
-        log.warning("plan %s did not stop within %.0f s (%s): restarting worker %s",
-                    job.mission_id, self._grace, job.stop_reason, worker)
+        log.warning("plan %s did not stop within %.0f s (%s): restarting worker(s) %s",
+                    job.mission_id, self._grace, job.stop_reason, stuck)
         future = job.future
         if future is not None:
             with contextlib.suppress(Exception):
                 await future.cancel()
-        if worker is not None:
+        if stuck:
             try:
-                await client.restart_workers([worker], timeout=60, raise_for_error=False)
+                await client.restart_workers(stuck, timeout=60, raise_for_error=False)
             except Exception:  # not restartable (no nanny): the task runs on, results dropped
-                log.exception("could not restart worker %s", worker)
+                log.exception("could not restart worker(s) %s", stuck)
 
     async def _watch_time(self, job: PlanJob) -> None:
         """Stop a job whose task has run past its limit (the task checks it itself too, but
@@ -336,7 +362,7 @@ class PlanningService:
         if not job.done.is_set():
             self._stop(job, f"planning exceeded its time limit of {job.time_limit_s:g} s")
 
-    async def _run(self, job: PlanJob, scenario: dict[str, Any]) -> None:
+    async def _run(self, job: PlanJob, scenario: Any) -> None:
         watch = self._spawn(self._watch_time(job))
         try:
             if job.work > LARGE_JOB_WORK and self._large_slots is not None:
@@ -356,17 +382,30 @@ class PlanningService:
                 with contextlib.suppress(Exception):
                     await self._cancel_flag(job).clear()
 
-    async def _compute(self, job: PlanJob, scenario: dict[str, Any]) -> dict[str, Any]:
-        """Run the task; its result, or {"error"} when it failed or was stopped."""
-        if job.stop_reason is not None:  # cancelled while waiting for a large-job slot
-            return {"error": {"field": None, "reason": job.stop_reason}, "stopped": True}
+    def _submit_tasks(self, job: PlanJob, scenario: Any) -> tuple[Any, list[Any]]:
+        """The job's final future, and the futures it depends on (a sequence's legs)."""
         client = self._client
         assert client is not None
-        future = client.submit(
-            plan_worker.run_plan, job.key, scenario, self._solver,
-            topic=self._topic, time_limit_s=job.time_limit_s, cancel_event=f"{job.key}-cancel",
-            key=job.key, pure=False, priority=-job.work, retries=0,
-        )
+        options = {"topic": self._topic, "time_limit_s": job.time_limit_s,
+                   "cancel_event": f"{job.key}-cancel"}
+        if isinstance(scenario, dict):
+            return client.submit(plan_worker.run_plan, job.key, scenario, self._solver,
+                                 **options, key=job.key, pure=False, priority=-job.work,
+                                 retries=0), []
+        legs = [
+            client.submit(plan_worker.run_plan, job.key, leg, self._solver, **options, leg=k,
+                          key=f"{job.key}-leg{k}", pure=False, priority=-job.work, retries=0)
+            for k, leg in enumerate(scenario.legs)
+        ]
+        stitched = client.submit(plan_worker.stitch_sequence, scenario, *legs, key=job.key,
+                                 pure=False, priority=-job.work, retries=0)
+        return stitched, legs
+
+    async def _compute(self, job: PlanJob, scenario: Any) -> dict[str, Any]:
+        """Run the task(s); the result, or {"error"} when it failed or was stopped."""
+        if job.stop_reason is not None:  # cancelled while waiting for a large-job slot
+            return {"error": {"field": None, "reason": job.stop_reason}, "stopped": True}
+        future, legs = self._submit_tasks(job, scenario)
         job.future = future
         try:
             result = await future
@@ -383,8 +422,9 @@ class PlanningService:
                 reason = f"{name}: {exc}"
             return {"error": {"field": None, "reason": reason}}
         finally:
-            with contextlib.suppress(Exception):
-                future.release()
+            for done in (future, *legs):
+                with contextlib.suppress(Exception):
+                    done.release()
         if job.stop_reason is not None and ("error" not in result or result.get("stopped")):
             # Stopped on request (or finished just as it was stopped: a cancel still wins):
             # the reason is the service's, not the task's generic one.
@@ -452,9 +492,14 @@ class PlanningService:
             job.add_progress(message["record"])
         elif kind == "started":
             job.worker = message.get("worker")
+            if job.worker is not None:
+                job.running[message.get("leg")] = job.worker
             job.started.set()
         elif kind == "end":
-            job.progress_complete.set()
+            job.running.pop(message.get("leg"), None)
+            job.ends_seen += 1
+            if job.ends_seen >= job.ends_expected:
+                job.progress_complete.set()
 
 
 def _short(exc: BaseException) -> str:

@@ -26,3 +26,18 @@ def test_dask_engine_benchmark_reports_overhead_and_latency() -> None:
     assert latency["messages"] >= 3  # started, iterations, end
     assert 0 <= latency["median"] <= latency["max"]
     assert report["cancel"] is None and report["workers"] == 2
+
+
+def test_dask_engine_benchmark_plans_a_sequence_through_the_engine() -> None:
+    done = subprocess.run(
+        [sys.executable, str(BENCH / "dask_engine.py"), "--only", "--repeats", "1",
+         "--cancel", "", "--sequence", "4", "--sequence-assignment", "free"],
+        capture_output=True, text=True, timeout=300, cwd="/",
+    )
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert report["scenarios"] == []
+    (row,) = report["sequences"]
+    assert row["vehicles"] == 4 and row["legs"] == 2 and row["status"] == "converged"
+    assert row["engine_median_s"] > 0 and row["serial_median_s"] > 0
+    assert len(row["leg_s"]) == 2

@@ -171,3 +171,42 @@ def test_the_readme_example_sequence_plans():
     show = plan_sequence(json.loads(block.group(1)))
     assert show.status == "converged", show.message
     assert show.duration == pytest.approx(67.0)
+
+
+def test_stitched_plan_is_flyable_verifies_and_round_trips(planned):
+    import json
+
+    from planner import Plan
+    from planner.verify import verify
+
+    flyable = planned.to_plan()
+    assert flyable.ok and flyable.status == "converged"
+    seq = planned.sequence
+    scenario = flyable.scenario
+    assert scenario.assignment == "fixed"
+    assert scenario.steps == planned.accelerations.shape[1]
+    np.testing.assert_allclose(scenario.starts, seq.points[0])
+    np.testing.assert_allclose(scenario.goals, seq.points[-1])
+    # The executor's re-verification (verify on the plan's own scenario) accepts it.
+    again = verify(scenario, flyable.positions(), flyable.velocities(), flyable.accelerations())
+    assert again.verified
+    text = json.dumps(flyable.to_dict(), allow_nan=False)
+    back = Plan.from_dict(json.loads(text))
+    assert back.ok and back.scenario.steps == scenario.steps
+    np.testing.assert_allclose(back.positions(), planned.positions)
+    assert back.sequence == flyable.sequence
+    assert [f["name"] for f in back.sequence["formations"]] == list(seq.formation_names)
+    assert [leg["status"] for leg in back.sequence["legs"]] == ["converged", "converged"]
+    assert back.sequence["timeline"][0]["kind"] == "hold"
+
+
+def test_plain_plan_json_has_a_null_sequence_block(planned):
+    from planner import Plan
+
+    leg = planned.legs[0].to_dict()
+    assert leg["sequence"] is None
+    assert Plan.from_dict(leg).sequence is None
+    del leg["sequence"]  # plans written before the block existed still read
+    assert Plan.from_dict(leg).sequence is None
+    with pytest.raises(Exception, match="sequence"):
+        Plan.from_dict({**leg, "sequence": [1, 2]})

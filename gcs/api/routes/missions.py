@@ -37,7 +37,12 @@ from gcs.api.schemas import (
     shape_errors,
 )
 from gcs.errors import InvalidRequest, StateConflict
-from gcs.service.limits import WorkBounds, scenario_bound_errors
+from gcs.service.limits import (
+    WorkBounds,
+    scenario_bound_errors,
+    sequence_bound_errors,
+    trajectory_sample_count,
+)
 from gcs.service.plan_worker import finite_json
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.plans import trajectory_csv, trajectory_json
@@ -45,6 +50,8 @@ from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
 from planner import Scenario
+from planner.sequence import FormationSequence, parse_sequence, timeline_scenario
+from planner.sequence import trajectory_csv as show_csv
 
 __all__ = ["mission_document", "router"]
 
@@ -99,6 +106,20 @@ def _validated(body: Any, settings: Settings) -> Scenario:
     return Scenario.from_dict(body)
 
 
+def is_sequence(body: Any) -> bool:
+    """A formation sequence (`planner.sequence` JSON) rather than a scenario."""
+    return isinstance(body, dict) and "formations" in body
+
+
+def _validated_sequence(body: Any, settings: Settings) -> FormationSequence:
+    """A sequence request: every work bound exceeded at once (before anything is parsed or
+    allocated), then the sequence's own validation (the first problem, by field)."""
+    bounds = sequence_bound_errors(body, WorkBounds.from_settings(settings))
+    if bounds:
+        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds])
+    return parse_sequence(body)
+
+
 @router.post(
     "",
     status_code=201,
@@ -111,7 +132,8 @@ def _validated(body: Any, settings: Settings) -> Scenario:
     },
     openapi_extra={"requestBody": {
         "required": True,
-        "description": "A scenario (the planner's scenario JSON contract).",
+        "description": "A scenario (the planner's scenario JSON contract), or a formation "
+                       "sequence (an object with `formations`: see the README).",
         "content": {"application/json": {"schema": ref("Scenario")}},
     }},
 )
@@ -133,16 +155,29 @@ async def create_mission(
 ) -> Response:
     """Validate a scenario, store it as a mission and plan it in a worker process.
 
+    A formation sequence (a body with `formations`) is a mission too: its legs are planned
+    as parallel Dask tasks (progress records carry their `leg`), stitched and verified as
+    one plan whose scenario is the whole timeline; it flies like any mission.
+
     Answers 201 with the mission and its plan when planning ends within `wait` seconds, else
     202 with the mission still `planning` (poll `GET /api/missions/{id}` or follow
     `/events`). Invalid scenarios are 422 naming each offending field and the reason (every
     type, key and server-limit problem at once); nothing is stored for them.
     """
     limit = planning.job_time_limit(time_limit)
-    parsed = await run_in_threadpool(_validated, body, settings)
-    planning.check_capacity()  # 503 before anything is stored
-    row = await run_in_threadpool(store.create_mission, parsed.to_dict())
-    job = planning.submit(row.id, parsed.to_dict(), time_limit_s=limit)
+    if is_sequence(body):
+        sequence = await run_in_threadpool(_validated_sequence, body, settings)
+        planning.check_capacity()  # 503 before anything is stored
+        # The mission's scenario is the whole timeline, F0 to the last formation: the one
+        # its stitched plan carries and a flight re-verifies.
+        whole = timeline_scenario(sequence).to_dict()
+        row = await run_in_threadpool(store.create_mission, whole)
+        job = planning.submit_sequence(row.id, sequence, time_limit_s=limit)
+    else:
+        parsed = await run_in_threadpool(_validated, body, settings)
+        planning.check_capacity()  # 503 before anything is stored
+        row = await run_in_threadpool(store.create_mission, parsed.to_dict())
+        job = planning.submit(row.id, parsed.to_dict(), time_limit_s=limit)
     timeout = settings.plan_wait_s if wait is None else wait
     with contextlib.suppress(TimeoutError):
         await asyncio.wait_for(job.done.wait(), timeout)
@@ -308,7 +343,13 @@ def get_trajectory(
     plans: PlanCacheDep,
     settings: SettingsDep,
     rate: Annotated[float, Query(gt=0, description="Samples per second (Hz).")] = 20.0,
-    format: Annotated[Literal["json", "csv"], Query(description="json or csv")] = "json",
+    format: Annotated[
+        Literal["json", "csv", "show-csv"],
+        Query(description="json, csv, or show-csv (one vehicle: time ms, x, y, z)"),
+    ] = "json",
+    vehicle: Annotated[
+        str | None, Query(max_length=64, description="show-csv: the vehicle id")
+    ] = None,
 ) -> Response:
     """Every vehicle's position, velocity and acceleration at `rate` Hz from 0 to the horizon
     (world frame ENU, exact motion between steps): what the GCS streams as setpoints. CSV has
@@ -318,6 +359,8 @@ def get_trajectory(
             "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}"
         )
     plan = plans.get(mission.id)
+    if format == "show-csv":
+        return _show_csv(mission.id, plan, rate, vehicle, settings)
     if format == "csv":
         return Response(
             trajectory_csv(plan, rate, settings.max_trajectory_samples),
@@ -330,3 +373,28 @@ def get_trajectory(
         trajectory_json(mission.id, plan, rate, settings.max_trajectory_samples),
         media_type="application/json",
     )
+
+
+def _show_csv(mission_id: str, plan: Any, rate: float, vehicle: str | None,
+              settings: Settings) -> Response:
+    """One vehicle's positions in the show-tool layout (`Time [msec],x [m],y [m],z [m]`)."""
+    if vehicle is None:
+        raise InvalidRequest("vehicle", "is required with format=show-csv (a vehicle id)")
+    ids = plan.scenario.ids
+    if vehicle not in ids:
+        raise InvalidRequest("vehicle", f"no vehicle {vehicle!r} in this plan")
+    if not plan.vehicles:
+        raise StateConflict("mission_id", f"the plan (status {plan.status}) has no "
+                            f"trajectories")
+    rows = trajectory_sample_count(plan.scenario.horizon, rate, 1)
+    if rows > settings.max_trajectory_samples:
+        raise InvalidRequest("rate", f"{rows} samples exceed this server's limit of "
+                             f"{settings.max_trajectory_samples} (setting "
+                             f"max_trajectory_samples)")
+    n = ids.index(vehicle)
+    track = plan.vehicles[n]
+    text = show_csv(track.position[None], track.velocity[None], track.acceleration[None],
+                    plan.scenario.dt, [vehicle], rate_hz=rate)[vehicle]
+    safe = "".join(c if c.isalnum() or c in "._-" else "_" for c in vehicle)
+    return Response(text, media_type="text/csv", headers={
+        "Content-Disposition": f'attachment; filename="show-{mission_id}-{safe}.csv"'})

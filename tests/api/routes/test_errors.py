@@ -151,7 +151,7 @@ def test_wrong_method_is_405_with_the_error_body(shared_client: TestClient) -> N
         ({"rate": 0}, "rate", "greater than 0"),
         ({"rate": 101}, "rate", "at most 100 Hz"),
         ({"rate": "fast"}, "rate", "valid number"),
-        ({"format": "xml"}, "format", "'json' or 'csv'"),
+        ({"format": "xml"}, "format", "'json', 'csv' or 'show-csv'"),
     ],
 )
 def test_bad_trajectory_queries(

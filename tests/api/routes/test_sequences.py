@@ -1,0 +1,152 @@
+"""Formation sequences through POST /api/missions: planned as one mission (legs as Dask
+tasks), its stitched plan flyable, exports (trajectory CSV, show-tool CSV per vehicle), work
+bounds and field-named errors before anything is stored, and a flight on the mock fleet."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from gcs.api import create_app
+from gcs.service.settings import Settings
+from planner import Plan
+from tests.api.routes.test_executions import QUICK, wait_for
+from tests.api.routes.test_missions import sse_events
+from tests.api.support import SHORT_CROSSING
+
+STARTS = [v["start"] for v in SHORT_CROSSING["vehicles"]]
+GOALS = [v["goal"] for v in SHORT_CROSSING["vehicles"]]
+
+#: Four vehicles out and back between two formations with short holds: 13.2 s in all.
+OUT_AND_BACK: dict[str, Any] = {
+    "name": "out-and-back",
+    "dt": 0.2,
+    "min_separation": 1.0,
+    "limits": SHORT_CROSSING["limits"],
+    "vehicles": ["a", "b", "c", "d"],
+    "formations": [
+        {"name": "home", "positions": STARTS, "hold": 0.4},
+        {"name": "crossed", "positions": GOALS, "duration": 6, "hold": 0.4},
+        {"name": "home", "positions": STARTS, "duration": 6, "hold": 0.4},
+    ],
+}
+
+
+def plan_sequence(client: TestClient, body: dict[str, Any]) -> dict[str, Any]:
+    response = client.post("/api/missions?wait=60", json=body)
+    assert response.status_code == 201, response.text
+    return response.json()
+
+
+def test_a_sequence_is_a_mission_with_a_stitched_flyable_plan(client: TestClient) -> None:
+    mission = plan_sequence(client, OUT_AND_BACK)
+    assert mission["status"] == "planned" and mission["plan_ok"] is True, mission["error"]
+    # The mission's scenario is the whole timeline: starts on F0, ends on the last formation.
+    scenario = mission["scenario"]
+    assert scenario["steps"] == 66 and scenario["dt"] == 0.2
+    assert [v["start"] for v in scenario["vehicles"]] == STARTS
+    assert [v["goal"] for v in scenario["vehicles"]] == STARTS
+    plan = Plan.from_dict(client.get(mission["links"]["plan"]).json())
+    assert plan.ok and plan.sequence is not None
+    assert [f["name"] for f in plan.sequence["formations"]] == ["home", "crossed", "home"]
+    assert [s["kind"] for s in plan.sequence["timeline"]] == ["hold", "leg", "hold", "leg",
+                                                             "hold"]
+    assert [leg["status"] for leg in plan.sequence["legs"]] == ["converged"] * 2
+    # At rest on the middle formation during its hold (t = 6.4 .. 6.8 s).
+    p = plan.positions()
+    np.testing.assert_allclose(p[:, 32:35], np.repeat(np.array(GOALS)[:, None], 3, 1),
+                               atol=1e-9)
+    assert sse_events(client, mission["links"]["events"])[-1][0] == "done"
+
+    csv = client.get(f"/api/missions/{mission['id']}/trajectory?rate=5&format=csv")
+    assert csv.status_code == 200
+    assert len(csv.text.strip().splitlines()) == 1 + 4 * (66 + 1)  # 13.2 s at 5 Hz, 4 vehicles
+
+    show = client.get(f"/api/missions/{mission['id']}/trajectory",
+                      params={"format": "show-csv", "vehicle": "c", "rate": 5})
+    assert show.status_code == 200, show.text
+    assert show.headers["content-type"].startswith("text/csv")
+    rows = show.text.strip().splitlines()
+    assert rows[0] == "Time [msec],x [m],y [m],z [m]"
+    assert len(rows) == 1 + 67
+    assert rows[1] == "0,2.9000,1.0000,1.3000"
+    assert rows[-1].startswith("13200,")
+    t, x, y, z = (float(c) for c in rows[34].split(","))  # t = 6.6 s: on the crossed point
+    assert t == 6600
+    np.testing.assert_allclose([x, y, z], GOALS[2], atol=1e-4)
+
+
+@pytest.mark.parametrize(
+    ("params", "field"),
+    [({"format": "show-csv"}, "vehicle"), ({"format": "show-csv", "vehicle": "zz"}, "vehicle")],
+)
+def test_show_csv_refusals_name_the_field(shared_client: TestClient, params: dict[str, str],
+                                          field: str) -> None:
+    mission = plan_sequence(shared_client, OUT_AND_BACK)
+    response = shared_client.get(f"/api/missions/{mission['id']}/trajectory", params=params)
+    assert response.status_code == 422
+    assert response.json()["field"] == field
+
+
+def _changed(change: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
+    body = copy.deepcopy(OUT_AND_BACK)
+    change(body)
+    return body
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "words"),
+    [
+        (lambda b: b["formations"][1].update(duration=1000), "formations", "max_horizon_s"),
+        (lambda b: b["formations"][2].update(duration=80), "formations", "max_steps"),
+        (lambda b: b.update(formations=[b["formations"][0]] + [b["formations"][1]] * 21),
+         "formations", "legs"),
+        (lambda b: b["formations"][1]["positions"][2].__setitem__(0, 1e9),
+         "formations[1].positions[2][0]", "max_coordinate_m"),
+        (lambda b: b["formations"][1].pop("duration"), "formations[1].duration", "required"),
+        (lambda b: b["formations"][2].update(duration=0.6), "formations[2].duration",
+         "too short"),
+        (lambda b: b["formations"][1]["positions"].__setitem__(1, GOALS[0]),
+         "formations[1].positions[1]", ""),
+    ],
+)
+def test_bad_sequences_are_422_naming_the_field_and_nothing_is_stored(
+    shared_client: TestClient, change: Callable[[dict[str, Any]], None], field: str, words: str
+) -> None:
+    before = shared_client.get("/api/missions").json()["total"]
+    response = shared_client.post("/api/missions?wait=10", json=_changed(change))
+    assert response.status_code == 422, response.text
+    body = response.json()
+    fields = [e["field"] for e in body.get("errors", [])] or [body["field"]]
+    assert field in fields, body
+    assert words in response.text
+    assert shared_client.get("/api/missions").json()["total"] == before
+
+
+def test_too_many_vehicles_is_refused_before_parsing(shared_client: TestClient) -> None:
+    body = _changed(lambda b: b.update(vehicles=[f"v{n}" for n in range(17)]))
+    response = shared_client.post("/api/missions", json=body)
+    assert response.status_code == 422
+    assert response.json()["field"] == "vehicles" and "max_vehicles" in response.text
+
+
+def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[..., Settings]
+                                                    ) -> None:
+    with TestClient(create_app(mock_settings())) as client:
+        mission = plan_sequence(client, OUT_AND_BACK)
+        assert mission["plan_ok"] is True
+        response = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
+        assert response.status_code == 201, response.text
+        execution = response.json()
+        events = sse_events(client, execution["links"]["events"])
+        done = events[-1][1]
+        assert done["status"] == "completed", done
+        assert done["summary"]["goal_error_max"] < 0.2
+        assert done["summary"]["min_separation_measured"] > 1.0 - 0.1
+        wait_for(lambda: client.get(f"/api/missions/{mission['id']}/executions").json(),
+                 5, "the execution record")

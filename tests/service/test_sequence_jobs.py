@@ -1,0 +1,151 @@
+"""Formation sequences as planning jobs: one Dask task per leg on a 2-worker cluster, progress
+per leg, the stitched plan stored, and cancel stopping every leg."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from typing import Any
+
+import pytest
+
+from gcs.service import planning as planning_module
+from gcs.service.planning import PlanJob
+from planner import Plan
+from planner.generators import show_sequence
+from planner.sequence import parse_sequence, timeline_scenario
+from tests.service.test_planning import cluster as cluster  # the module's fixtures
+from tests.service.test_planning import (
+    done,
+    executing,
+    started_service,
+    wait_idle,
+    workers,
+)
+from tests.service.test_planning import store as store
+
+pytestmark = pytest.mark.timeout(300)
+
+
+def submit_sequence(service: Any, db: Any, data: dict[str, Any], **options: Any
+                    ) -> PlanJob:
+    sequence = parse_sequence(data)
+    row = db.create_mission(timeline_scenario(sequence).to_dict())
+    return service.submit_sequence(row.id, sequence, **options)
+
+
+def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(store, cluster
+                                                                             ) -> None:
+    data = show_sequence(9, seed=4, hold=1.0)
+    data["assignment"] = "fixed"  # crossing lines: a few SCP iterations per leg
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            job = submit_sequence(service, store, data)
+            outcome = await done(job)
+        finally:
+            await service.close()
+        assert outcome["status"] == "planned" and outcome["plan_ok"] is True, outcome
+        row = store.get_mission(job.mission_id, with_plan=True)
+        assert row is not None and row.plan_json is not None
+        plan = Plan.from_dict(json.loads(row.plan_json))
+        assert plan.ok and plan.sequence is not None
+        assert plan.scenario.horizon == pytest.approx(3 * 1.0 + 2 * 30.0)
+        # Every leg reported its iterations, tagged with the leg, in order within the leg.
+        legs = plan.sequence["legs"]
+        for k, leg in enumerate(legs):
+            mine = [r["iteration"] for r in job.progress if r.get("leg") == k]
+            assert mine == list(range(leg["iterations"] + 1)), (k, mine)
+        assert {r["leg"] for r in job.progress} == {0, 1}
+        assert job.ends_seen == 2
+
+    asyncio.run(scenario_run())
+
+
+def test_cancel_stops_every_leg_and_frees_the_workers(store, cluster) -> None:
+    data = show_sequence(64, seed=1, hold=1.0)
+    data["assignment"] = "fixed"  # tens of seconds per leg on this machine
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            job = submit_sequence(service, store, data)
+            await asyncio.wait_for(job.started.wait(), 60)
+            service.cancel(job.mission_id)
+            outcome = await done(job)
+            assert outcome["status"] == "failed"
+            assert outcome["error"]["reason"] == "cancelled by the operator"
+            row = store.get_mission(job.mission_id)
+            assert row is not None and row.status == "failed"
+            assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
+
+
+def stubborn_leg(job_id: str, scenario: dict[str, Any], solver: str | None, *, topic: str,
+                 leg: int | None = None, **_: Any) -> dict[str, Any]:
+    """A leg stuck in one endless SCP iteration: it never checks its cancel flag (runs on
+    the worker, imported there by reference)."""
+    from distributed import get_worker
+
+    worker = get_worker()
+    worker.log_event(topic, {"job": job_id, "kind": "started", "leg": leg,
+                             "worker": worker.address})
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+    return {"error": {"field": None, "reason": "ran for two minutes"}}
+
+
+def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, monkeypatch
+                                                             ) -> None:
+    monkeypatch.setattr(planning_module.plan_worker, "run_plan", stubborn_leg)
+    data = show_sequence(9, seed=4, hold=1.0)
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster, cancel_grace_s=0.5)
+        try:
+            job = submit_sequence(service, store, data)
+            deadline = time.monotonic() + 60
+            while len(job.running) < 2 and time.monotonic() < deadline:
+                await asyncio.sleep(0.1)
+            stuck = set(job.running.values())
+            assert len(stuck) == 2, job.running  # one leg on each worker
+            service.cancel(job.mission_id, "stop now")
+            outcome = await done(job)
+            assert outcome["error"]["reason"] == "stop now"
+            deadline = time.monotonic() + 90
+            while time.monotonic() < deadline:
+                now = await asyncio.to_thread(workers, cluster)
+                if len(now) == 2 and not (stuck & now):
+                    break
+                await asyncio.sleep(0.2)
+            assert not (stuck & now) and len(now) == 2  # both replaced by new processes
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
+
+
+def test_the_time_limit_stops_a_sequence(store, cluster) -> None:
+    data = show_sequence(64, seed=1, hold=1.0)
+    data["assignment"] = "fixed"  # several SCP iterations of about a second per leg
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            job = submit_sequence(service, store, data, time_limit_s=0.2)
+            outcome = await done(job)
+            assert outcome["status"] == "failed"
+            assert "time limit of 0.2 s" in outcome["error"]["reason"]
+            row = store.get_mission(job.mission_id)
+            assert row is not None and row.status == "failed"
+            assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())

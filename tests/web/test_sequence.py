@@ -1,0 +1,66 @@
+"""The page's formation sequence input: paste (or load) a sequence, plan it, see the stitched
+plan in the same views with its formations and CSV downloads, fly it; errors name fields."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import httpx
+from playwright.sync_api import Page, expect
+
+from tests.api.routes.test_sequences import GOALS, OUT_AND_BACK
+from tests.api.support import ServiceProcess
+
+
+def paste(page: Page, body: dict) -> None:
+    page.click("#sequence-panel summary")
+    page.fill("#sequence-json", json.dumps(body))
+
+
+def test_paste_plan_show_download_and_fly_a_sequence(page: Page, service: ServiceProcess
+                                                    ) -> None:
+    paste(page, OUT_AND_BACK)
+    page.click("#sequence-plan")
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    expect(page.locator("#sequence-summary")).to_contain_text("home → crossed → home")
+    expect(page.locator("#sequence-summary")).to_contain_text("13.2 s")
+    expect(page.locator("#time-label")).to_contain_text("of 13.2 s")
+    mission_id = page.locator("#mission-title").inner_text().split("·")[1].strip()
+    mission = httpx.get(f"{service.base_url}/api/missions/{mission_id}").json()
+    assert mission["plan"]["sequence"]["formations"][1]["name"] == "crossed"
+
+    links = page.locator("#sequence-downloads a")
+    expect(links).to_have_count(4)
+    href = links.nth(2).get_attribute("href")
+    assert href is not None and "vehicle=c" in href
+    rows = httpx.get(service.base_url + href).text.strip().splitlines()
+    assert rows[0] == "Time [msec],x [m],y [m],z [m]"
+    t, *xyz = (float(c) for c in rows[1 + 66].split(","))  # t = 6.6 s at 10 Hz
+    assert t == 6600 and max(abs(a - b) for a, b in zip(xyz, GOALS[2], strict=True)) < 1e-3
+
+    # Editing the sequence makes the plan shown stale: Fly is refused until it is planned.
+    expect(page.locator("#fly-button")).to_be_enabled(timeout=30_000)
+    page.fill("#sequence-json", json.dumps({**OUT_AND_BACK, "name": "edited"}))
+    expect(page.locator("#stale-banner")).to_contain_text("sequence has changed")
+    expect(page.locator("#fly-button")).to_be_disabled()
+    page.fill("#sequence-json", json.dumps(OUT_AND_BACK))
+    expect(page.locator("#fly-button")).to_be_enabled()
+
+    page.click("#fly-button")
+    status = page.locator("#execution-status")
+    expect(status).to_have_attribute("data-status", "running", timeout=30_000)
+    expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
+
+
+def test_sequence_errors_name_the_field(page: Page) -> None:
+    bad = copy.deepcopy(OUT_AND_BACK)
+    del bad["formations"][2]["duration"]
+    paste(page, bad)
+    page.click("#sequence-plan")
+    expect(page.locator("#sequence-error")).to_contain_text(
+        "formations[2].duration: is required")
+    expect(page.locator("#plan-state")).to_contain_text("rejected (422)")
+    page.fill("#sequence-json", "{not json")
+    page.click("#sequence-plan")
+    expect(page.locator("#sequence-error")).to_contain_text("not valid JSON")
