@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import socket
 import time
 from collections.abc import Sequence
@@ -36,6 +37,8 @@ from gcs.sim.vehicle import MockConfig, MockVehicle
 from gcs.wire import Datagrams
 
 __all__ = ["DEFAULT_WORLD_ORIGIN", "MockFleet", "homes_under"]
+
+_log = logging.getLogger(__name__)
 
 #: PX4 SITL's default home (Zurich), used as the mock's geodetic world origin.
 DEFAULT_WORLD_ORIGIN = frames.Geodetic(47.397742, 8.545594, 488.0)
@@ -93,6 +96,8 @@ class MockFleet:
         self._start = time.monotonic()
         self._task: asyncio.Task[None] | None = None
         self.physics_steps = 0
+        self.errors = 0
+        """Physics steps that raised (each vehicle counts its own in `MockVehicle.errors`)."""
 
     def now(self) -> float:
         """Seconds since the mock started (its boot clock)."""
@@ -162,10 +167,21 @@ class MockFleet:
             now = self.now()
             # integrate in steps no longer than 1/physics_rate, however late we woke up
             while simulated + step <= now:
-                self.model.step(step)
+                try:
+                    self.model.step(step)
+                except Exception:  # never stop the fleet; the model undoes bad rows itself
+                    self.errors += 1
+                    if self.errors <= 3:
+                        _log.exception("mock fleet: physics step failed")
                 simulated += step
                 self.physics_steps += 1
-            for vehicle in self.vehicles:
-                vehicle.tick(now)
-                vehicle.send_telemetry(now)
+            for vehicle in self.vehicles:  # one vehicle's failure must not silence the others
+                try:
+                    vehicle.tick(now)
+                except Exception:
+                    vehicle.record_error("in its flight rules")
+                try:
+                    vehicle.send_telemetry(now)
+                except Exception:
+                    vehicle.record_error("sending telemetry")
             await asyncio.sleep(max(0.0, simulated + step - self.now()))

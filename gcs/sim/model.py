@@ -14,6 +14,10 @@ position gives no position feedback on that axis, a NaN velocity or acceleration
 feed-forward. With the feed-forward of a smooth plan and zero initial error the model tracks
 the plan to within centimetres; a step in position is followed with overshoot-free second-order
 dynamics (damping about 0.7 horizontally). `step` is called at the physics rate (>= 100 Hz).
+
+A vehicle whose state would become non-finite in a step (an absurd setpoint that slipped
+through, a bad limit) is put back where it was, at rest, holding that point: one vehicle's
+arithmetic can never poison the others' or the telemetry encoders (`FleetModel.recovered`).
 """
 
 from __future__ import annotations
@@ -26,6 +30,9 @@ from gcs.frames import FloatArray
 from planner.flatness import GRAVITY  # the one gravity constant (the planner's world frame)
 
 __all__ = ["GRAVITY", "FleetModel", "ModelLimits"]
+
+#: A state component beyond this (m, m/s, m/s^2) is garbage: the step is undone.
+_FAR = 1e6
 
 
 @dataclass(frozen=True)
@@ -72,6 +79,8 @@ class FleetModel:
         lim = self.limits
         self._kp = np.array([lim.pos_gain_xy, lim.pos_gain_xy, lim.pos_gain_z])
         self._kv = np.array([lim.vel_gain_xy, lim.vel_gain_xy, lim.vel_gain_z])
+        self.recovered = 0
+        """Vehicle steps undone because the state would have become non-finite."""
 
     def hold(self, index: int, position: FloatArray) -> None:
         """Hold `position` at rest."""
@@ -86,6 +95,23 @@ class FleetModel:
         self.acceleration_sp[index] = 0.0
 
     def step(self, dt: float) -> None:
+        before = self.position.copy()
+        with np.errstate(all="ignore"):
+            self._integrate(dt)
+        state = np.hstack((self.position, self.velocity, self.acceleration))
+        bad = ~np.all(np.isfinite(state) & (np.abs(state) < _FAR), axis=1)
+        if np.any(bad):  # undo those vehicles' step and hold them where they were
+            self.recovered += int(np.count_nonzero(bad))
+            back = np.nan_to_num(before[bad], nan=0.0, posinf=_FAR, neginf=-_FAR)
+            # the last position if it was sane, else the nearest sane one
+            self.position[bad] = np.clip(back, -0.1 * _FAR, 0.1 * _FAR)
+            self.velocity[bad] = 0.0
+            self.acceleration[bad] = 0.0
+            self.position_sp[bad] = self.position[bad]
+            self.velocity_sp[bad] = 0.0
+            self.acceleration_sp[bad] = 0.0
+
+    def _integrate(self, dt: float) -> None:
         lim = self.limits
         p_err = np.nan_to_num(self.position_sp - self.position, nan=0.0)
         v_ref = np.nan_to_num(self.velocity_sp, nan=0.0) + self._kp * p_err

@@ -10,7 +10,17 @@ MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
 - SET_POSITION_TARGET_LOCAL_NED is taken only for target system = own id or 0 (component own
   or 0), frame MAV_FRAME_LOCAL_NED (BODY_NED: velocity/acceleration only); IGNORE bits become
   NaN; a message with nothing left, or with the FORCE bit and an acceleration, is ignored.
-  Every accepted message is proof of life for offboard, in any mode.
+  Every accepted message is proof of life for offboard, in any mode. A setpoint with a used
+  field (IGNORE bit clear) that is not finite, or beyond `SETPOINT_LIMITS` (absurd for a
+  quadrotor), is refused whole and counted in `setpoints_invalid`: the vehicle keeps its last
+  valid setpoint and the message is no proof of life.
+- STATUSTEXT says what PX4 says ("Preflight Fail: ...", "Arming denied: Resolve system health
+  failures first"), never cut: a text over 50 bytes goes as MAVLink 2 chunks (same `id`,
+  counting `chunk_seq`, split after a space so no word is cut), and the same text is not
+  repeated within `STATUSTEXT_REPEAT_S` (a GCS retrying arming gets it once, like PX4's
+  rate-limited health reports).
+- An exception while handling a datagram is counted (`errors`) and logged, never raised into
+  asyncio (which would close the vehicle's socket and silence it).
 - OFFBOARD is refused (TEMPORARILY_REJECTED) unless such a setpoint arrived within
   COM_OF_LOSS_T; arming is TEMPORARILY_REJECTED during `settle_time` after start.
 - DO_SET_MODE and REQUEST_MESSAGE are ACKed twice, like PX4 does.
@@ -48,6 +58,8 @@ level, unhealthy sensors (SYS_STATUS), GPS fix.
 from __future__ import annotations
 
 import asyncio
+import itertools
+import logging
 import math
 import random
 import time
@@ -64,7 +76,10 @@ from gcs.wire import PX4_UNSIGNED_ACCEPTED, mavlink, signing_timestamp, time_boo
 if TYPE_CHECKING:
     from gcs.sim.fleet import MockFleet
 
-__all__ = ["MockConfig", "MockFaults", "MockVehicle", "ReceivedSetpoint"]
+__all__ = ["SETPOINT_LIMITS", "STATUSTEXT_REPEAT_S", "MockConfig", "MockFaults", "MockVehicle",
+           "ReceivedSetpoint", "setpoint_problem", "statustext_chunks"]
+
+_log = logging.getLogger(__name__)
 
 _SENSORS = (
     mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -86,8 +101,60 @@ _IGNORE_VX = mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE
 _IGNORE_AX = mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
 _FORCE = mavlink.POSITION_TARGET_TYPEMASK_FORCE_SET
 _IGNORE_YAW = mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+_IGNORE_YAW_RATE = mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+
+#: Largest |component| of a used setpoint field the mock takes (LOCAL_NED, m, m/s, m/s^2):
+#: far beyond any quadrotor, so only garbage is refused.
+SETPOINT_LIMITS = {"position": 1e5, "velocity": 1e3, "acceleration": 1e3}
+#: STATUSTEXT carries at most 50 bytes of text per message.
+STATUSTEXT_LEN = 50
+#: The same STATUSTEXT is not sent again within this many seconds.
+STATUSTEXT_REPEAT_S = 3.0
 #: PX4 v1.16.0 release: major << 24 | minor << 16 | patch << 8 | FIRMWARE_VERSION_TYPE_OFFICIAL
 _PX4_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | 255
+
+
+def setpoint_problem(msg: Any) -> str | None:
+    """Why a SET_POSITION_TARGET_LOCAL_NED must be refused (a used field not finite or absurd),
+    or None. Fields whose IGNORE bit is set are not looked at."""
+    mask = msg.type_mask
+    groups = (("position", _IGNORE_X, (msg.x, msg.y, msg.z)),
+              ("velocity", _IGNORE_VX, (msg.vx, msg.vy, msg.vz)),
+              ("acceleration", _IGNORE_AX, (msg.afx, msg.afy, msg.afz)))
+    for name, first_bit, values in groups:
+        for k, value in enumerate(values):
+            if mask & (first_bit << k):
+                continue
+            if not math.isfinite(value):
+                return f"{name} not finite"
+            if abs(value) > SETPOINT_LIMITS[name]:
+                return f"{name} beyond {SETPOINT_LIMITS[name]:g}"
+    if not mask & _IGNORE_YAW and not math.isfinite(msg.yaw):
+        return "yaw not finite"
+    if not mask & _IGNORE_YAW_RATE and not math.isfinite(msg.yaw_rate):
+        return "yaw_rate not finite"
+    return None
+
+
+def statustext_chunks(text: str) -> list[str]:
+    """`text` in pieces of at most `STATUSTEXT_LEN` bytes whose concatenation is `text`, each
+    cut just after a space where there is one (MAVLink 2 STATUSTEXT chunking). With several
+    pieces the last is shorter than the limit, so its NUL padding marks the end."""
+    data = text.encode()
+    if len(data) <= STATUSTEXT_LEN:
+        return [text]
+    chunks: list[str] = []
+    rest = data
+    while len(rest) >= STATUSTEXT_LEN:
+        space = rest.rfind(b" ", 0, STATUSTEXT_LEN)
+        cut = space + 1 if space > 0 else STATUSTEXT_LEN - 1
+        chunks.append(rest[:cut].decode(errors="replace"))
+        rest = rest[cut:]
+    chunks.append(rest.decode(errors="replace"))
+    return chunks
+
+
+_statustext_ids = itertools.count(1)
 
 
 @dataclass
@@ -191,6 +258,11 @@ class MockVehicle:
         self.received: list[ReceivedSetpoint] = []
         self.setpoints_accepted = 0
         self.setpoints_ignored = 0
+        self.setpoints_invalid = 0
+        """Setpoints refused for a used field not finite or absurd (`setpoint_problem`)."""
+        self.errors = 0
+        """Exceptions caught while handling this vehicle (datagrams, rules, telemetry)."""
+        self._said: dict[str, float] = {}
         self.statustexts: list[str] = []
         self.events: list[tuple[float, str]] = []
         """(mock time, what happened): mode changes, arming, failsafes."""
@@ -430,8 +502,17 @@ class MockVehicle:
             caps, _PX4_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.system_id)
 
     def statustext(self, severity: int, text: str) -> None:
+        """Send `text` whole (in chunks if long), unless it was sent in the last
+        `STATUSTEXT_REPEAT_S` seconds."""
+        now = self._now()
+        if now - self._said.get(text, -math.inf) < STATUSTEXT_REPEAT_S:
+            return
+        self._said[text] = now
         self.statustexts.append(text)
-        self._send(self._mav.statustext_encode(severity, text.encode()[:50]))
+        chunks = statustext_chunks(text)
+        text_id = 0 if len(chunks) == 1 else next(_statustext_ids) % 65535 + 1
+        for seq, chunk in enumerate(chunks):
+            self._send(self._mav.statustext_encode(severity, chunk.encode(), text_id, seq))
 
     def _send(self, msg: Any) -> None:
         if self._transport is None:
@@ -463,9 +544,25 @@ class MockVehicle:
         if faults.loss > 0.0 and self._rng.random() < faults.loss:
             return
         if faults.delay > 0.0:
-            asyncio.get_running_loop().call_later(faults.delay, self._process, data, address)
+            asyncio.get_running_loop().call_later(faults.delay, self._process_guarded, data,
+                                                  address)
         else:
+            self._process_guarded(data, address)
+
+    def _process_guarded(self, data: bytes, address: tuple[str, int]) -> None:
+        """`_process`, counting and logging any exception instead of raising it into asyncio
+        (which would close this vehicle's socket: one bad packet must not silence it)."""
+        try:
             self._process(data, address)
+        except Exception:
+            self.record_error("handling a datagram")
+
+    def record_error(self, doing: str) -> None:
+        """Count an exception caught while `doing` something; log the first ones in full."""
+        self.errors += 1
+        if self.errors <= 3:
+            _log.exception("mock vehicle %d: error %s (count %d)", self.system_id, doing,
+                           self.errors)
 
     @property
     def signing_key(self) -> bytes | None:
@@ -533,6 +630,9 @@ class MockVehicle:
             return
         mask = msg.type_mask
         now = self._now()
+        if setpoint_problem(msg) is not None:  # keep holding the last valid setpoint
+            self.setpoints_invalid += 1
+            return
 
         def field3(first_bit: int, values: tuple[float, float, float]) -> tuple[float, ...]:
             return tuple(math.nan if mask & (first_bit << k) else float(values[k])
@@ -645,9 +745,11 @@ class MockVehicle:
         elif self.faults.refuse_arming:
             self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Arming denied: injected fault")
             self._ack(msg, cmd, mavlink.MAV_RESULT_DENIED)
-        elif now < self.config.settle_time:
+        elif now < self.config.settle_time:  # PX4: the failed check, then the denial
             self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
-                            "Preflight Fail: resolve system health failures first")
+                            "Preflight Fail: heading estimate not stable")
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
+                            "Arming denied: Resolve system health failures first")
             self._ack(msg, cmd, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
         else:
             self._arm()

@@ -72,8 +72,11 @@ def test_offboard_and_arming_rules() -> None:
             # estimator still settling: arming refused for now
             assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == \
                 mavlink.MAV_RESULT_TEMPORARILY_REJECTED
-            assert "health" in link.telemetry.statustexts[-1] or \
-                "Preflight" in link.telemetry.statustexts[-1]
+            await asyncio.sleep(0.1)  # the STATUSTEXT after the ACK
+            assert list(link.telemetry.statustexts)[-3:] == [
+                "Preflight Fail: heading estimate not stable",
+                "Arming denied: Resolve system health failures ",  # MAVLink 2 chunks
+                "first"]
             # setpoints PX4 would ignore do not count as a live stream
             vehicle = mock.vehicles[0]
             bad = [
@@ -290,5 +293,149 @@ def test_signing_provisioned_with_setup_signing_like_px4(tmp_path) -> None:
                 assert link.telemetry.security.total == 0
                 # the vehicle's messages carry a signature with the key
                 assert vehicle._mav.signing.goodsig_count > 0
+
+    asyncio.run(main())
+
+
+def test_absurd_setpoints_are_refused_and_the_fleet_keeps_serving() -> None:
+    """NaN, inf and absurd magnitudes in a used setpoint field are refused and counted; the
+    vehicle keeps its last valid setpoint; it and the others keep talking and flying."""
+    inf, nan = float("inf"), float("nan")
+
+    async def main() -> None:
+        async with MockFleet(2, settle_time=0.2, **mock_ports(2)) as mock, LinkHub() as hub:
+            link = await _connect(mock, hub, 0)
+            other = await _connect(mock, hub, 1)
+            vehicle = mock.vehicles[0]
+            valid = Setpoint((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
+            stream = asyncio.create_task(_stream(link, valid))
+            try:
+                await asyncio.sleep(0.2)
+                assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
+                                          px4.OFFBOARD.command_params) == \
+                    mavlink.MAV_RESULT_ACCEPTED
+                await asyncio.sleep(0.2)
+                assert mock.model.position_sp[0].tolist() == [0.0, 0.0, -1.0]
+                bad = [dict(x=nan), dict(z=inf), dict(y=-inf), dict(x=1e30), dict(z=-3e38),
+                       dict(vx=1e30), dict(vz=nan), dict(afy=inf), dict(afz=-1e20),
+                       dict(yaw=nan)]
+                accepted = vehicle.setpoints_accepted
+                for change in bad:
+                    fields = valid.fields(1, 1, 0) | change
+                    link.send(link.endpoint.mav.set_position_target_local_ned_encode(**fields))
+                # an ignored field may hold anything: not refused
+                fields = valid.fields(1, 1, 0) | dict(
+                    x=nan, y=nan, z=nan,
+                    type_mask=valid.fields(1, 1, 0)["type_mask"] | 0b111)
+                link.send(link.endpoint.mav.set_position_target_local_ned_encode(**fields))
+                await asyncio.sleep(0.3)
+                assert vehicle.setpoints_invalid == len(bad)
+                assert vehicle.setpoints_accepted > accepted  # the stream goes on
+                assert vehicle.errors == 0 and mock.errors == 0
+                # still holding the last valid setpoint, state finite, still OFFBOARD
+                assert mock.model.position_sp[0].tolist() == [0.0, 0.0, -1.0]
+                assert np.all(np.isfinite(vehicle.position_ned))
+                assert vehicle.mode == px4.OFFBOARD
+                # both vehicles keep sending telemetry
+                seen = {0: 0, 1: 0}
+                link.listeners.append(lambda _l, m, _t: seen.__setitem__(0, seen[0] + 1))
+                other.listeners.append(lambda _l, m, _t: seen.__setitem__(1, seen[1] + 1))
+                await asyncio.sleep(0.5)
+                assert seen[0] > 5 and seen[1] > 5, seen
+                # a new valid setpoint is taken
+                stream.cancel()
+                link.send_setpoint(Setpoint((1.0, 0.0, -2.0), (0.0, 0.0, 0.0),
+                                            (0.0, 0.0, 0.0), 0.0), 0)
+                await asyncio.sleep(0.2)
+                assert mock.model.position_sp[0].tolist() == [1.0, 0.0, -2.0]
+            finally:
+                stream.cancel()
+
+    asyncio.run(main())
+
+
+def test_a_failing_vehicle_does_not_silence_the_fleet() -> None:
+    """A vehicle whose state is garbage (1e308: its telemetry encoders raise OverflowError) is
+    counted and recovered; the fleet loop and the other vehicles go on."""
+    async def main() -> None:
+        async with MockFleet(2, settle_time=0.2, **mock_ports(2)) as mock, LinkHub() as hub:
+            other = await _connect(mock, hub, 1)
+            mock.model.position[0] = (1e308, 0.0, -1.0)
+            mock.model.velocity[0] = (1e308, 0.0, 0.0)
+            mock.vehicles[0].faults.battery = float("inf")  # SYS_STATUS encoding raises
+            seen: list[str] = []
+            other.listeners.append(lambda _l, m, _t: seen.append(m.get_type()))
+            await asyncio.sleep(1.5)
+            assert mock.vehicles[0].errors >= 1  # caught in the fleet loop, counted
+            assert mock.vehicles[1].errors == 0
+            assert {"LOCAL_POSITION_NED", "SYS_STATUS", "HEARTBEAT"} <= set(seen)
+            assert mock.model.recovered >= 1
+            assert np.all(np.isfinite(mock.model.position))
+            assert np.all(np.abs(mock.vehicles[0].position_ned) <= 1e6)
+            link = await _connect(mock, hub, 0)  # vehicle 0 itself talks again
+            assert link.telemetry.position_ned is not None
+
+    asyncio.run(main())
+
+
+def test_statustexts_are_never_cut() -> None:
+    """Every STATUSTEXT of a flight fits 50 bytes or goes as MAVLink 2 chunks cut after a
+    space; the same text is not repeated on retries."""
+    from gcs.sim.vehicle import statustext_chunks
+
+    for text in ("Arming denied: Resolve system health failures first", "x" * 120,
+                 "short", "a " * 25 + "end", "Failsafe activated: offboard signal lost"):
+        chunks = statustext_chunks(text)
+        assert "".join(chunks) == text
+        assert all(len(c.encode()) <= 50 for c in chunks)
+        if len(chunks) > 1:
+            assert len(chunks[-1].encode()) < 50  # NUL padding marks the last chunk
+            assert all(c.endswith(" ") for c in chunks[:-1]) or " " not in text
+
+    async def main() -> None:
+        async with MockFleet(1, settle_time=1.0, **mock_ports(1)) as mock, LinkHub() as hub:
+            link = await _connect(mock, hub)
+            raw: list[tuple[str, int, int]] = []
+            link.listeners.append(lambda _l, m, _t: raw.append(
+                (m.text, m.id, m.chunk_seq)) if m.get_type() == "STATUSTEXT" else None)
+            for _ in range(4):  # a GCS retrying arming while the vehicle settles
+                assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == \
+                    mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+            await asyncio.sleep(0.1)
+            texts = [t for t, _i, _s in raw]
+            assert texts.count("Preflight Fail: heading estimate not stable") == 1
+            assert texts.count("first") == 1
+            # a normal flight: offboard, arm, climb, land, auto-disarm
+            sp = Setpoint((0.0, 0.0, -0.5), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
+            stream = asyncio.create_task(_stream(link, sp))
+            try:
+                while mock.now() < 1.1:
+                    await asyncio.sleep(0.1)
+                assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
+                                          px4.OFFBOARD.command_params) == \
+                    mavlink.MAV_RESULT_ACCEPTED
+                assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == \
+                    mavlink.MAV_RESULT_ACCEPTED
+                await asyncio.sleep(1.0)
+            finally:
+                stream.cancel()
+            assert await link.command(mavlink.MAV_CMD_NAV_LAND, ()) == \
+                mavlink.MAV_RESULT_ACCEPTED
+            assert await link.wait_for(lambda t: not t.armed, 15.0)
+            await asyncio.sleep(0.2)
+            assert any(t.startswith("Disarmed by") for t in texts + [r[0] for r in raw])
+            for text, text_id, seq in raw:
+                assert len(text.encode()) <= 50
+                if len(text.encode()) == 50 or seq > 0:
+                    assert text_id != 0  # part of a chunked text
+            # reassembled, every text is whole and the vehicle's record says the same
+            whole: dict[int, str] = {}
+            plain = []
+            for text, text_id, _seq in raw:
+                if text_id == 0:
+                    plain.append(text)
+                else:
+                    whole[text_id] = whole.get(text_id, "") + text
+            assert sorted(plain + list(whole.values())) == sorted(mock.vehicles[0].statustexts)
 
     asyncio.run(main())
