@@ -13,11 +13,10 @@ export function linkLevel(v) {
   return age <= LINK_OK_S ? "ok" : (age <= LINK_WARN_S ? "warn" : "bad");
 }
 
-// Battery: a fraction (0..1), a percentage, or {remaining (0..1) | percent, voltage}.
+// Battery, as GET /api/vehicles reports it: {remaining_pct (0..100, null unknown), voltage}.
 export function batteryCell(b) {
   if (b === null || b === undefined) return ["–", ""];
-  let pct = typeof b === "number" ? (b <= 1 ? b * 100 : b) : null;
-  if (typeof b === "object") pct = b.percent ?? (typeof b.remaining === "number" ? b.remaining * 100 : null);
+  const pct = typeof b === "object" ? (b.remaining_pct ?? null) : null;
   const volts = typeof b === "object" && b.voltage !== undefined && b.voltage !== null ? `${fmt1(b.voltage)} V` : "";
   if (pct === null) return [volts || "–", "", ""];
   return [`${Math.round(pct)} %`, pct >= 35 ? "ok" : (pct >= 20 ? "warn" : "bad"), volts];
@@ -26,25 +25,26 @@ export function batteryCell(b) {
 // MAVLink GPS_FIX_TYPE names; 3 (3D fix) and better are good enough to fly.
 const GPS_FIX = ["no GPS", "no fix", "2D", "3D", "DGPS", "RTK float", "RTK fixed", "static", "PPP"];
 
-// GPS: {fix_type (GPS_FIX_TYPE), satellites} or a word.
+// GPS, as GET /api/vehicles reports it: {fix_type (GPS_FIX_TYPE), satellites, h_acc, v_acc}.
 export function gpsCell(g) {
-  if (g === null || g === undefined) return ["–", "", ""];
-  if (typeof g !== "object") return [String(g), /^(ok|3d|rtk)/i.test(String(g)) ? "ok" : "warn", ""];
-  const fix = g.fix_type ?? g.fix;
-  const sats = g.satellites ?? g.satellites_visible;
-  const name = typeof fix === "number" ? (GPS_FIX[fix] ?? `fix ${fix}`) : (fix ?? "");
+  if (g === null || g === undefined || typeof g !== "object") return ["–", "", ""];
+  const fix = g.fix_type;
+  const sats = g.satellites;
+  const name = typeof fix === "number" ? (GPS_FIX[fix] ?? `fix ${fix}`) : "";
   const count = sats !== undefined && sats !== null ? ` ${sats}` : "";
+  const acc = typeof g.h_acc === "number" ? `, ±${fmt1(g.h_acc)} m` : "";
   return [`${name}${count}`.trim() || "–", typeof fix === "number" ? (fix >= 3 ? "ok" : "bad") : "",
-          `${name} fix${count ? `, ${sats} satellites` : ""}`];
+          `${name} fix${count ? `, ${sats} satellites` : ""}${acc}`];
 }
 
-// Health: true/false, a word, or {ok, failures: [...]}.
+// Health, as GET /api/vehicles reports it: {unhealthy: [sensor names] (null unknown),
+// prearm_ok (null unknown), warnings: [recent warning texts]}.
 export function healthCell(h, fault) {
   if (fault) return [String(fault), "bad"];
-  if (h === null || h === undefined) return ["–", ""];
-  if (typeof h === "boolean") return [h ? "ok" : "fault", h ? "ok" : "bad"];
-  if (typeof h !== "object") return [String(h), /^ok$/i.test(String(h)) ? "ok" : "warn"];
-  const failures = h.failures || h.failing || [];
-  const good = h.ok ?? failures.length === 0;
-  return [good ? "ok" : (failures.join(", ") || "fault"), good ? "ok" : "bad"];
+  if (h === null || h === undefined || typeof h !== "object") return ["–", ""];
+  const unhealthy = h.unhealthy || [];
+  if (unhealthy.length) return [unhealthy.join(", "), "bad"];
+  if (h.prearm_ok === false) return ["pre-arm failing", "bad"];
+  if (h.unhealthy === null || h.unhealthy === undefined) return ["–", ""];
+  return (h.warnings || []).length ? ["warning", "warn"] : ["ok", "ok"];
 }

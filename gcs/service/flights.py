@@ -196,13 +196,20 @@ class FleetService:
     # ------------------------------------------------------------------ state
 
     def describe(self) -> dict[str, Any]:
-        """kind (mock, file or none), vehicle count and ids, and the flight under way."""
+        """kind (mock, file or none), vehicle count and ids, the flight under way, and the
+        geodetic origin of the world frame when known (the fleet file's `world_origin`, or
+        the mock's), so a page can show coordinates and a scale without map tiles."""
         ids = [] if self._spec is None else [v.id for v in self._spec.vehicles]
+        origin = self._spec.world_origin if self._spec is not None else None
+        if origin is None and self._mock is not None:
+            origin = self._mock.world_origin
         return {
             "kind": self.kind,
             "vehicles": len(ids),
             "ids": ids,
             "flying": None if self._active is None else self._active.id,
+            "world_origin": None if origin is None else {
+                "lat": origin.lat, "lon": origin.lon, "alt": origin.alt},
         }
 
     def vehicles(self) -> list[dict[str, Any]]:

@@ -67,10 +67,13 @@ def shown_mission_id(page: Page) -> str:
 
 
 ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}
-HEALTH = {  # per vehicle: battery, gps, health as the planned GET /api/vehicles gives them
-    0: ({"remaining": 0.82, "voltage": 16.1}, {"fix_type": 3, "satellites": 14}, {"ok": True}),
-    1: ({"remaining": 0.15, "voltage": 14.2}, {"fix_type": 1, "satellites": 3},
-        {"ok": False, "failures": ["gyro"]}),
+HEALTH = {  # per vehicle: battery, gps, health in GET /api/vehicles' shapes (gcs.flight.health)
+    0: ({"remaining_pct": 82, "voltage": 16.1},
+        {"fix_type": 3, "satellites": 14, "h_acc": 0.4, "v_acc": 0.6},
+        {"unhealthy": [], "prearm_ok": True, "warnings": []}),
+    1: ({"remaining_pct": 15, "voltage": 14.2},
+        {"fix_type": 1, "satellites": 3, "h_acc": None, "v_acc": None},
+        {"unhealthy": ["3D gyro"], "prearm_ok": False, "warnings": []}),
 }
 
 

@@ -1,7 +1,8 @@
-"""The page's side of the planned fleet-control API (pause/resume, fleet and vehicle commands,
-battery/GPS/health, geodetic origin): this service does not have it yet, so the browser is
-given it through Playwright routes, and the test checks what the page sends and shows. The
-real service's side is tested in tests/api when it lands."""
+"""The page's side of the fleet-control API (pause/resume, fleet and vehicle commands,
+battery/GPS/health, geodetic origin). Playwright routes stand in for states the mock service
+cannot be put in on demand (a low battery, an unhealthy sensor, no GPS fix) and record what the
+page sends; the payloads have the real API's shapes (`gcs.flight.health.health_report`), whose
+own side is tested in tests/api/routes/test_fleet.py."""
 
 from __future__ import annotations
 
@@ -52,10 +53,11 @@ def test_commands_health_and_geodetic_reference(open_page, service: ServiceProce
     expect(rows.nth(1).locator('td[data-key="battery"]')).to_have_class("cell-bad")
     expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_text("3D 14")
     expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_attribute(
-        "title", "3D fix, 14 satellites")
+        "title", "3D fix, 14 satellites, ±0.4 m")
     expect(rows.nth(0).locator('td[data-key="gps"]')).to_have_class("cell-ok")
     expect(rows.nth(1).locator('td[data-key="gps"]')).to_have_class("cell-bad")
-    expect(rows.nth(1).locator('td[data-key="health"]')).to_have_text("gyro")
+    expect(rows.nth(0).locator('td[data-key="health"]')).to_have_text("ok")
+    expect(rows.nth(1).locator('td[data-key="health"]')).to_have_text("3D gyro")
     expect(rows.nth(1).locator('td[data-key="health"]')).to_have_class("cell-bad")
 
     # Geodetic reference: the workspace corners' coordinates (checked against gcs.frames'

@@ -105,6 +105,10 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
                                           and v["health"]["prearm_ok"] for v in vs) else None)(
                 client.get("/api/vehicles").json()["vehicles"]),
             10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
+        # the world frame's geodetic origin (the mock's), for a page's coordinates and scale
+        mock_origin = client.app.state.fleet._mock.world_origin
+        assert client.get("/api/vehicles").json()["fleet"]["world_origin"] == {
+            "lat": mock_origin.lat, "lon": mock_origin.lon, "alt": mock_origin.alt}
         for v in vehicles:
             assert v["battery"]["remaining_pct"] == 100 and v["battery"]["voltage"] > 16
             assert v["gps"]["h_acc"] == pytest.approx(0.05)
