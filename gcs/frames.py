@@ -18,7 +18,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
+
+from planner.types import FloatArray
 
 __all__ = [
     "R_ENU_TO_NED",
@@ -33,7 +35,6 @@ __all__ = [
     "world_yaw_to_ned",
 ]
 
-FloatArray = NDArray[np.float64]
 
 #: ENU -> NED rotation (also NED -> ENU: the matrix is symmetric and orthogonal).
 R_ENU_TO_NED: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])

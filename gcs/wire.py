@@ -95,6 +95,36 @@ def pack(msg: Any, mav: Any) -> bytes:
     return buf
 
 
+#: STATUSTEXT's text field (bytes); a longer text comes in chunks of this size.
+STATUSTEXT_LEN = 50
+
+
+class StatusTexts:
+    """Reassembles MAVLink 2 STATUSTEXT chunks: the same non-zero `id`, `chunk_seq` 0, 1, ...;
+    a chunk shorter than the field ends the text (PX4 splits long texts this way). Id 0 is a
+    whole text. At most `max_chunks` chunks per text are kept (a sender that never ends one
+    cannot grow it without bound)."""
+
+    def __init__(self, max_chunks: int = 8) -> None:
+        self.max_chunks = max_chunks
+        self._parts: dict[int, list[str]] = {}
+
+    def add(self, msg: Any) -> str | None:
+        """The whole text once `msg` completes it, else None."""
+        text = str(msg.text).rstrip("\x00")
+        ident = getattr(msg, "id", 0) or 0
+        if not ident:
+            return text
+        parts = self._parts.setdefault(ident, [])
+        if getattr(msg, "chunk_seq", 0) == 0:
+            parts.clear()
+        parts.append(text)
+        if len(text.encode()) < STATUSTEXT_LEN or len(parts) >= self.max_chunks:
+            del self._parts[ident]
+            return "".join(parts)
+        return None
+
+
 def time_boot_ms(seconds: float) -> int:
     """A MAVLink `time_boot_ms` (uint32, wraps) from seconds since boot (rounded to 1 ms)."""
     return round(max(seconds, 0.0) * 1000.0) & 0xFFFFFFFF

@@ -15,13 +15,12 @@ themselves are `planner.first_qp.straight_moves`.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
+
+from planner.types import FloatArray, IntArray
 
 __all__ = ["CAPT_SPACING", "assign_goals", "capt_spacing_holds"]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
 
 #: Starts and goals this many R apart (separation metric) make CAPT moves collision-free.
 CAPT_SPACING = float(np.sqrt(2.0))

@@ -9,14 +9,13 @@ the new solution breaks (`broken_boxes`), like it does with separation rows.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from planner.qp import A, BoxMask, P, V
 from planner.scenario import Scenario
+from planner.types import FloatArray
 
 __all__ = ["broken_boxes", "near_boxes"]
 
-FloatArray = NDArray[np.float64]
 
 #: A bound is "near" when the iterate uses at least this fraction of it (velocity,
 #: acceleration, jerk), or is closer to a wall than this fraction of the box's size.

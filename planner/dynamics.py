@@ -9,11 +9,12 @@ checks) goes through `interpolate` so there is one definition of that motion.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
+
+from planner.types import FloatArray
 
 __all__ = ["MotionSample", "integrate", "interpolate"]
 
-FloatArray = NDArray[np.float64]
 
 
 def integrate(

@@ -22,10 +22,10 @@ from numpy.typing import NDArray
 from planner.qp import SeparationRows, StageLayout, build_group_qp
 from planner.scenario import Scenario
 from planner.solvers import SOLVED, QPSolver
+from planner.types import FloatArray
 
 __all__ = ["FirstSolution", "solve_first_qp", "straight_moves", "unit_profile"]
 
-FloatArray = NDArray[np.float64]
 
 #: Slack allowed when deciding that the closed-form profile respects a box.
 BOX_TOLERANCE = 1e-9

@@ -8,11 +8,11 @@ axis. With yaw held at 0, R' j = (f w2, -f w1, df/dt) gives the roll/pitch rates
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+
+from planner.types import FloatArray
 
 __all__ = ["GRAVITY", "body_rates", "jerk_from_accelerations", "thrust"]
 
-FloatArray = NDArray[np.float64]
 
 #: Standard gravity (m/s^2); the world frame's gravity vector is (0, 0, -GRAVITY).
 GRAVITY = 9.81

@@ -10,7 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+
+from planner.types import FloatArray
 
 __all__ = [
     "DMPC2019_BOX",
@@ -25,7 +26,6 @@ __all__ = [
     "vertical_grid",
 ]
 
-FloatArray = NDArray[np.float64]
 
 #: The dmpc2019 benchmark's box: 1.5874 m a side, 4.00 m^3.
 DMPC2019_BOX = (np.array([-0.7937, -0.7937, 0.2]), np.array([0.7937, 0.7937, 1.7874]))

@@ -25,11 +25,10 @@ from numpy.typing import NDArray
 
 from planner.flatness import GRAVITY
 from planner.scenario import Scenario
+from planner.types import FloatArray, IntArray
 
 __all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
 
 P, V, A = 0, 1, 2
 PER_VEHICLE = 9  # p, v, a, three axes each

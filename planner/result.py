@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from planner.dynamics import MotionSample, interpolate
 from planner.errors import PlanFormatError, ScenarioError
 from planner.scenario import Scenario
+from planner.types import FloatArray
 
 __all__ = [
     "STATUSES",
@@ -27,7 +28,6 @@ __all__ = [
     "Verification",
 ]
 
-FloatArray = NDArray[np.float64]
 
 #: Every status a plan can carry. `unverified`: the loop stopped but the independent
 #: verification failed (never expected; reported rather than hidden).

@@ -14,15 +14,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from planner.assignment import assign_goals
 from planner.errors import ScenarioError
+from planner.types import FloatArray, IntArray
 
 __all__ = ["DEFAULTS", "Limits", "Scenario", "Vehicle", "minimum_transfer_time"]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
 
 #: Defaults filled in when a scenario omits a key (documented in the README).
 DEFAULTS: dict[str, Any] = {

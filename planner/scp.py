@@ -52,11 +52,10 @@ from planner.separation import (
     worst_per_run,
 )
 from planner.solvers import SOLVED, QPSolver
+from planner.types import FloatArray, IntArray
 
 __all__ = ["ScpOptions", "ScpOutcome", "run_scp", "thrust_cost"]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
 Keys = NDArray[np.int64]
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.types import FloatArray, IntArray
+
 __all__ = [
     "PairSteps",
     "all_pairs",
@@ -43,8 +45,6 @@ __all__ = [
     "worst_per_run",
 ]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
 
 #: Pair-steps handled at once (bounds temporary memory to a few tens of MB).
 CHUNK = 1 << 19

@@ -24,6 +24,7 @@ from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.planning import plan
 from planner.result import Plan, VehicleTrajectory, Verification
 from planner.scenario import DEFAULTS, MAX_STEPS, Scenario, Vehicle
+from planner.types import FloatArray
 from planner.verify import BOUND_TOLERANCE, verify
 
 __all__ = [
@@ -36,7 +37,6 @@ __all__ = [
     "trajectory_csv",
 ]
 
-FloatArray = NDArray[np.float64]
 
 _TOP_KEYS = {
     "name", "dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",

@@ -15,14 +15,13 @@ from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
-from numpy.typing import NDArray
 
 from planner.errors import SolverError
 from planner.qp import QuadraticProgram
+from planner.types import FloatArray
 
 __all__ = ["DEFAULT_SOLVER", "SOLVERS", "QPSolution", "QPSolver", "make_solver"]
 
-FloatArray = NDArray[np.float64]
 
 #: Statuses a backend reports.
 SOLVED, INFEASIBLE, MAX_ITER, FAILED = "solved", "infeasible", "max_iterations", "failed"

@@ -9,7 +9,6 @@ the flyability of thrust and body rates.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Verification
@@ -21,10 +20,10 @@ from planner.separation import (
     min_step_distance,
     near_pairs,
 )
+from planner.types import FloatArray
 
 __all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "verify"]
 
-FloatArray = NDArray[np.float64]
 
 #: A plan is separated when its continuous-time minimum is at least R minus this (m).
 SEPARATION_TOLERANCE = 1e-4

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.paths import ROOT
 
 #: package (as a path prefix) -> module prefixes it must not import
 RULES: dict[str, tuple[str, ...]] = {

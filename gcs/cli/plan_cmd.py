@@ -171,11 +171,11 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
             future.cancel()
             raise
         ended.wait(5.0)  # the last iterations travel apart from the result
-    if "error" in result:
-        error = result["error"]
+    if result.error is not None:
+        error = result.error
         where = f"{error['field']}: " if error.get("field") else ""
         raise ValueError(f"{where}{error['reason']}")
-    return planner.Plan.from_dict(json.loads(result["plan_json"]))
+    return planner.Plan.from_dict(json.loads(result.plan_json))
 
 
 def _for_fleet(data: Any, fleet_path: Path) -> Any:

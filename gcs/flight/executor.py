@@ -587,8 +587,8 @@ class FlightExecutor:
                 v.last_mode, v.last_armed = mode, tel.armed
                 rec.modes.append({"t": t, "mode": mode, "armed": tel.armed})
                 self._emit(v.id, "mode_change", f"{mode}, {'armed' if tel.armed else 'disarmed'}")
-        elif kind == "STATUSTEXT":
-            self._emit(v.id, "statustext", str(msg.text).rstrip("\x00"))
+        elif kind == "STATUSTEXT":  # the link has joined a chunked text: its latest is whole
+            self._emit(v.id, "statustext", link.telemetry.statustexts[-1])
 
     def _emit(self, vehicle: str | None, kind: str, detail: str = "") -> None:
         event = self.recorder.event(self.now(), vehicle, kind, detail)

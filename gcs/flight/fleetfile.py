@@ -44,7 +44,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from gcs.errors import FleetFileError, LinkError
 from gcs.flight.setpoints import MAX_RATE_HZ
@@ -57,6 +56,7 @@ from gcs.wire import (
     parse_host_port,
     parse_udp_url,
 )
+from planner.types import FloatArray
 
 #: PX4 leaves offboard mode when setpoints arrive at 2 Hz or slower (PX4 docs: "> 2Hz").
 MIN_RATE_HZ = 2.0
@@ -217,7 +217,7 @@ class VehicleSpec:
     """pymavlink URL, e.g. ``udpin:127.0.0.1:14540``."""
     system_id: int
     component_id: int
-    home: NDArray[np.float64] | None
+    home: FloatArray | None
     """Home (LOCAL_NED origin) in the world frame, or None to compute it from world_origin."""
     signing_key: SigningKey | None = None
     """MAVLink 2 signing key (None: unsigned link, pinning only)."""

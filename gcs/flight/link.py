@@ -384,6 +384,7 @@ class VehicleLink:
         self.telemetry = Telemetry()
         self.listeners: list[MessageCallback] = []
         """Called with (link, message, receive time) for every message of this vehicle."""
+        self._texts = wire.StatusTexts()
         self._pending: dict[int, _PendingCommand] = {}
         self._waiters: list[tuple[Callable[[Telemetry], bool], asyncio.Future[None]]] = []
         self.duplicate_acks = 0
@@ -447,9 +448,12 @@ class VehicleLink:
             tel.home = ((msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3),
                         (msg.x, msg.y, msg.z))
         elif kind == "STATUSTEXT":
-            tel.statustexts.append(str(msg.text).rstrip("\x00"))
+            text = self._texts.add(msg)
+            if text is None:  # a chunk of a longer text: listeners get the whole one
+                return
+            tel.statustexts.append(text)
             if msg.severity <= mavlink.MAV_SEVERITY_WARNING:
-                tel.warnings.append(str(msg.text).rstrip("\x00"))
+                tel.warnings.append(text)
         elif kind in ("SYS_STATUS", "BATTERY_STATUS", "GPS_RAW_INT"):
             _health_message(tel, kind, msg)
         for callback in self.listeners:

@@ -25,8 +25,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import frames
-from gcs.frames import FloatArray
 from gcs.wire import MAV_FRAME_LOCAL_NED, TYPE_MASK_POS_VEL_ACC_YAW
+from planner.types import FloatArray
 
 __all__ = [
     "DEFAULT_RATE_HZ",

@@ -97,20 +97,12 @@ def scenario_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
             errors.append(InvalidRequest(
                 "steps", f"the horizon steps * dt = {horizon:g} s exceeds this server's limit "
                 f"of {bounds.max_horizon_s:g} s (setting max_horizon_s)"))
-    for where, point in _points(data):
-        if not isinstance(point, list):
-            continue
-        for axis, component in enumerate(point):
-            x = _real(component)
-            if x is not None and math.isfinite(x) and abs(x) > bounds.max_coordinate_m:
-                errors.append(InvalidRequest(
-                    f"{where}[{axis}]", f"{x:g} m is farther than {bounds.max_coordinate_m:g} m "
-                    f"from the origin (setting max_coordinate_m)"))
-    return errors
+    return errors + _coordinate_errors(_points(data), bounds)
 
 
 def _coordinate_errors(points: list[tuple[str, Any]], bounds: WorkBounds
                        ) -> list[InvalidRequest]:
+    """Every coordinate farther than `max_coordinate_m` from the origin, each named."""
     errors = []
     for where, point in points:
         if not isinstance(point, list):

@@ -21,16 +21,39 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanStopped", "finite_json", "run_plan", "stitch_sequence", "warm"]
+__all__ = ["PlanOutcome", "PlanStopped", "finite_json", "run_plan", "stitch_sequence", "warm"]
 
 
 class PlanStopped(Exception):
     """Raised from the progress callback: the plan was cancelled or ran out of time."""
+
+
+@dataclass(frozen=True)
+class PlanOutcome:
+    """What a planning task returns: a plan, or why there is none (`error`)."""
+
+    plan_json: str | None = None
+    """The Plan JSON text (strict JSON), made on the worker."""
+    plan: Any = None
+    """A sequence leg's `planner.Plan` itself (pickled arrays, no JSON), for the stitch."""
+    status: str | None = None
+    """The plan's own status (converged, ...)."""
+    ok: bool = False
+    """The plan converged and verified."""
+    error: dict[str, Any] | None = None
+    """{"field", "reason"} when there is no plan."""
+    stopped: bool = False
+    """The error is a cancel or a time limit, not a verdict on the scenario."""
+
+    @classmethod
+    def failed(cls, reason: str, field: str | None = None, *, stopped: bool = False
+               ) -> PlanOutcome:
+        return cls(error={"field": field, "reason": reason}, stopped=stopped)
 
 
 def warm() -> bool:
@@ -83,13 +106,13 @@ def run_plan(
     time_limit_s: float | None = None,
     cancel_event: str | None = None,
     leg: int | None = None,
-) -> dict[str, Any]:
-    """Plan `scenario`; returns {"plan_json", "status", "ok"} or {"error": {field, reason}}.
+) -> PlanOutcome:
+    """Plan `scenario`; returns the plan's JSON text and status, or the error.
 
     `leg`: the scenario is leg `leg` of a formation sequence; every progress message and
     iteration record says so (``"leg": k``), and the plan is returned as JSON all the same.
 
-    A leg's result carries the `planner.Plan` itself ("plan") rather than its JSON text.
+    A leg's outcome carries the `planner.Plan` itself (`plan`) rather than its JSON text.
     With `topic`, progress goes out as Dask events (see the module docstring). With
     `time_limit_s`, the plan stops after the first SCP iteration that ends past the limit; with
     `cancel_event`, after the first iteration that ends with that Dask Event set.
@@ -121,22 +144,22 @@ def run_plan(
     try:
         result = plan(scenario, solver=solver, progress=progress)
     except PlanStopped as exc:
-        return {"error": {"field": None, "reason": str(exc)}, "stopped": True}
+        return PlanOutcome.failed(str(exc), stopped=True)
     except FieldError as exc:
-        return {"error": exc.to_dict()}
+        return PlanOutcome.failed(exc.reason, exc.field)
     except PlannerError as exc:
-        return {"error": {"field": None, "reason": f"{type(exc).__name__}: {exc}"}}
+        return PlanOutcome.failed(f"{type(exc).__name__}: {exc}")
     finally:
         # End-of-progress marker: events of one worker arrive in order, so once the service
         # sees it, every iteration of this job has been delivered.
         send("end")
     if leg is not None:  # for `stitch_sequence`: the Plan itself (pickled: arrays, no JSON)
-        return {"plan": result, "status": result.status, "ok": bool(result.ok)}
+        return PlanOutcome(plan=result, status=result.status, ok=bool(result.ok))
     text = json.dumps(finite_json(result.to_dict()), allow_nan=False, separators=(",", ":"))
-    return {"plan_json": text, "status": result.status, "ok": bool(result.ok)}
+    return PlanOutcome(plan_json=text, status=result.status, ok=bool(result.ok))
 
 
-def stitch_sequence(sequence: Any, *legs: dict[str, Any]) -> dict[str, Any]:
+def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
     """Stitch the planned legs of `sequence` (a `planner.sequence.FormationSequence`; `legs`:
     `run_plan` results in leg order) and verify the whole timeline; returns the flyable plan
     like `run_plan`, or the first leg's error (a stopped leg stops the whole sequence)."""
@@ -146,12 +169,12 @@ def stitch_sequence(sequence: Any, *legs: dict[str, Any]) -> dict[str, Any]:
     from planner.sequence import plan_sequence
 
     for k, result in enumerate(legs):
-        if "error" in result:
-            error = dict(result["error"])
-            if not result.get("stopped"):
+        if result.error is not None:
+            error = dict(result.error)
+            if not result.stopped:
                 error["reason"] = f"leg {k}: {error['reason']}"
-            return {**result, "error": error}
-    plans = [result["plan"] for result in legs]
+            return replace(result, error=error)
+    plans = [result.plan for result in legs]
 
     def planned(_fn: Any, scenarios: Any, _solvers: Any) -> list[Any]:
         return plans[:len(list(scenarios))]
@@ -161,8 +184,8 @@ def stitch_sequence(sequence: Any, *legs: dict[str, Any]) -> dict[str, Any]:
         flyable = show.to_plan()
     except PlannerError as exc:
         field = getattr(exc, "field", None)
-        return {"error": {"field": field, "reason": getattr(exc, "reason", str(exc))}}
+        return PlanOutcome.failed(getattr(exc, "reason", str(exc)), field)
     # orjson writes a non-finite float as null (strict JSON), ten times faster than the
     # finite_json walk + json.dumps on a plan of megabytes.
     text = orjson.dumps(flyable.to_dict()).decode()
-    return {"plan_json": text, "status": flyable.status, "ok": bool(flyable.ok)}
+    return PlanOutcome(plan_json=text, status=flyable.status, ok=bool(flyable.ok))

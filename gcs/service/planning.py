@@ -401,17 +401,17 @@ class PlanningService:
                                  pure=False, priority=-job.work, retries=0)
         return stitched, legs
 
-    async def _compute(self, job: PlanJob, scenario: Any) -> dict[str, Any]:
-        """Run the task(s); the result, or {"error"} when it failed or was stopped."""
+    async def _compute(self, job: PlanJob, scenario: Any) -> plan_worker.PlanOutcome:
+        """Run the task(s); the outcome (with its `error` when it failed or was stopped)."""
         if job.stop_reason is not None:  # cancelled while waiting for a large-job slot
-            return {"error": {"field": None, "reason": job.stop_reason}, "stopped": True}
+            return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
         future, legs = self._submit_tasks(job, scenario)
         job.future = future
         try:
             result = await future
         except Exception as exc:
             if job.stop_reason is not None:  # the worker was restarted to stop it
-                return {"error": {"field": None, "reason": job.stop_reason}, "stopped": True}
+                return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
             name = type(exc).__name__
             if name == "KilledWorker":
                 log.error("planner worker died while planning mission %s", job.mission_id)
@@ -420,34 +420,34 @@ class PlanningService:
             else:  # a bug in the planner: report it, keep serving
                 log.error("planning mission %s failed: %s: %s", job.mission_id, name, exc)
                 reason = f"{name}: {exc}"
-            return {"error": {"field": None, "reason": reason}}
+            return plan_worker.PlanOutcome.failed(reason)
         finally:
             for done in (future, *legs):
                 with contextlib.suppress(Exception):
                     done.release()
-        if job.stop_reason is not None and ("error" not in result or result.get("stopped")):
+        if job.stop_reason is not None and (result.error is None or result.stopped):
             # Stopped on request (or finished just as it was stopped: a cancel still wins):
             # the reason is the service's, not the task's generic one.
-            return {"error": {"field": None, "reason": job.stop_reason}, "stopped": True}
+            return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
         # Let the last iterations (sent as events) arrive first.
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(job.progress_complete.wait(), 2.0)
         return result
 
-    async def _conclude(self, job: PlanJob, result: dict[str, Any]) -> None:
+    async def _conclude(self, job: PlanJob, result: plan_worker.PlanOutcome) -> None:
         """Store the result; a store that refuses the plan leaves the mission `failed`."""
         if job.done.is_set():  # already failed by close()
             return
-        if "error" in result:
-            error = result["error"]
+        if result.error is not None:
+            error = result.error
             await self._record_failure(job, error["reason"], error.get("field"))
             job.finish({"status": "failed", "plan_status": None, "plan_ok": None,
                         "error": error})
             return
         try:
             await asyncio.to_thread(
-                self._store.finish_planning, job.mission_id, plan_json=result["plan_json"],
-                plan_status=result["status"], plan_ok=result["ok"],
+                self._store.finish_planning, job.mission_id, plan_json=result.plan_json,
+                plan_status=result.status, plan_ok=result.ok,
             )
         except Exception as exc:
             log.error("could not store the plan of mission %s: %s", job.mission_id, exc)
@@ -455,8 +455,8 @@ class PlanningService:
             await self._record_failure(job, reason)
             job.finish(_failed(reason))
             return
-        job.finish({"status": "planned", "plan_status": result["status"],
-                    "plan_ok": result["ok"], "error": None})
+        job.finish({"status": "planned", "plan_status": result.status,
+                    "plan_ok": result.ok, "error": None})
 
     async def _record_failure(
         self, job: PlanJob, reason: str, field_name: str | None = None, *, retry: bool = True

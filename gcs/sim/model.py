@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs.frames import FloatArray
 from planner.flatness import GRAVITY  # the one gravity constant (the planner's world frame)
+from planner.types import FloatArray
 
 __all__ = ["GRAVITY", "FleetModel", "ModelLimits"]
 

@@ -15,11 +15,11 @@ from typing import Any
 import httpx
 
 from gcs.sim import ports
+from tests.paths import EXAMPLES
 
 __all__ = ["EXAMPLES", "SHORT_CROSSING", "ServiceProcess", "example", "free_port",
            "free_udp_base"]
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
 
 
 def example(name: str) -> dict[str, Any]:

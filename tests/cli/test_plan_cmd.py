@@ -10,8 +10,7 @@ from pathlib import Path
 import pytest
 
 from gcs.cli.main import main
-
-EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
+from tests.paths import EXAMPLES
 
 
 def test_plans_an_example_and_writes_the_plan(tmp_path, capsys):

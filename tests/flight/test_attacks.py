@@ -18,10 +18,10 @@ from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import new_key_file
 from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.paths import ROOT
 
 pytestmark = pytest.mark.timeout(150)
 
-ROOT = Path(__file__).resolve().parents[2]
 FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 ALL_ATTACKS = "heartbeat,hijack,ack,truncated,random,nan"
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,10 +16,10 @@ from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.paths import EXAMPLES
 
 pytestmark = pytest.mark.timeout(120)
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
 FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 
 

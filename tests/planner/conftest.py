@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Any
 
 import pytest
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
+from tests.paths import EXAMPLES
+
 PAPER_CASES = [f"paper-{kind}{n}" for kind in ("circle", "random") for n in (2, 4, 6, 8)]
 
 

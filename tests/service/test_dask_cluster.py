@@ -18,10 +18,10 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from tests.api.support import EXAMPLES, example, free_port
+from tests.paths import ROOT
 
 pytestmark = pytest.mark.timeout(300)
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture

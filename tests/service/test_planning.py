@@ -131,13 +131,13 @@ def test_cancel_stops_the_computation_and_frees_the_worker(store, cluster) -> No
 
 
 def stubborn_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
-                  topic: str, **_: Any) -> dict[str, Any]:
+                  topic: str, **_: Any) -> Any:
     """A task in one very long SCP iteration: it never reaches a point where it checks its
     cancel flag (runs on the worker; imported there by reference). Scenarios of up to 4
     vehicles are planned for real."""
     from distributed import get_worker
 
-    from gcs.service.plan_worker import run_plan
+    from gcs.service.plan_worker import PlanOutcome, run_plan
 
     if len(scenario["vehicles"]) <= 4:
         return run_plan(job_id, scenario, solver, topic=topic, **_)
@@ -147,7 +147,7 @@ def stubborn_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
         time.sleep(0.05)
-    return {"error": {"field": None, "reason": "ran for two minutes"}}
+    return PlanOutcome.failed("ran for two minutes")
 
 
 def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
