@@ -263,12 +263,7 @@ class FleetService:
         the command's own checks (nothing sent then). Returns {command, done, vehicles:
         [outcome...]} once every vehicle answered or timed out."""
         async with self._lock:
-            if self.active is not None:
-                raise StateConflict("fleet", f"execution {self.active.id} is flying: use its "
-                                             "abort (or pause) instead of a fleet command")
-            if self.kind == "none" or self._spec is None:
-                raise StateConflict("fleet", "no fleet configured: start the service with "
-                                             "--mock N or --fleet FLEET.json")
+            self._check_fleet_free("use its abort (or pause) instead of a fleet command")
             if not self._links:
                 raise StateConflict("fleet", "the fleet's connections are not open (see the "
                                              "service log)")
@@ -281,6 +276,14 @@ class FleetService:
         return {"command": command, "done": all(o.done for o in outcomes),
                 "vehicles": [o.to_dict() for o in outcomes]}
 
+    def _check_fleet_free(self, while_flying: str) -> None:
+        """StateConflict unless there is a fleet and no flight is using it."""
+        if self.active is not None:
+            raise StateConflict("fleet", f"execution {self.active.id} is flying: {while_flying}")
+        if self.kind == "none" or self._spec is None:
+            raise StateConflict("fleet", "no fleet configured: start the service with --mock N "
+                                         "or --fleet FLEET.json")
+
     # ------------------------------------------------------------------ flying
 
     async def fly(self, mission_id: str, plan: Plan, options: dict[str, Any]) -> ExecutionRow:
@@ -290,12 +293,7 @@ class FleetService:
         verified, vehicles missing from the fleet); InvalidRequest for bad options.
         """
         async with self._lock:
-            if self.active is not None:
-                raise StateConflict("fleet", f"execution {self.active.id} is flying; abort it or "
-                               "wait for it to end")
-            if self.kind == "none" or self._spec is None:
-                raise StateConflict("fleet", "no fleet configured: start the service with --mock N "
-                               "or --fleet FLEET.json")
+            self._check_fleet_free("abort it or wait for it to end")
             if not plan.ok:
                 raise StateConflict("mission_id", f"the plan is not flyable: status {plan.status!r}"
                                f"{'' if plan.verification is None else ', verification failed'}"

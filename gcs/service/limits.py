@@ -76,28 +76,40 @@ def _points(data: Mapping[str, Any]) -> list[tuple[str, Any]]:
 def scenario_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[InvalidRequest]:
     """Every bound the scenario JSON exceeds (empty when it fits)."""
     errors: list[InvalidRequest] = []
-    vehicles = data.get("vehicles")
-    if isinstance(vehicles, list) and len(vehicles) > bounds.max_vehicles:
-        errors.append(InvalidRequest(
-            "vehicles", f"{len(vehicles)} vehicles exceed this server's limit of "
-            f"{bounds.max_vehicles} (setting max_vehicles)"))
+    errors += _vehicle_count_errors(data, bounds)
     steps = _real(data.get("steps"))
     if steps is not None and steps > bounds.max_steps:
         errors.append(InvalidRequest(
             "steps", f"{steps:g} steps exceed this server's limit of {bounds.max_steps} "
             f"(setting max_steps)"))
     dt = _real(data.get("dt"))
-    if dt is not None and dt > 0 and not bounds.dt_min <= dt <= bounds.dt_max:
-        errors.append(InvalidRequest(
-            "dt", f"must be between {bounds.dt_min:g} and {bounds.dt_max:g} s on this server, "
-            f"got {dt:g} (settings dt_min, dt_max)"))
-    elif dt is not None and dt > 0 and steps is not None and steps > 0:
+    dt_errors = _dt_errors(dt, bounds)
+    errors += dt_errors
+    if not dt_errors and dt is not None and dt > 0 and steps is not None and steps > 0:
         horizon = dt * steps
         if horizon > bounds.max_horizon_s:
             errors.append(InvalidRequest(
                 "steps", f"the horizon steps * dt = {horizon:g} s exceeds this server's limit "
                 f"of {bounds.max_horizon_s:g} s (setting max_horizon_s)"))
     return errors + _coordinate_errors(_points(data), bounds)
+
+
+def _vehicle_count_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[InvalidRequest]:
+    """More vehicles than `max_vehicles`."""
+    vehicles = data.get("vehicles")
+    if isinstance(vehicles, list) and len(vehicles) > bounds.max_vehicles:
+        return [InvalidRequest("vehicles", f"{len(vehicles)} vehicles exceed this server's "
+                               f"limit of {bounds.max_vehicles} (setting max_vehicles)")]
+    return []
+
+
+def _dt_errors(dt: float | None, bounds: WorkBounds) -> list[InvalidRequest]:
+    """A step length outside [dt_min, dt_max] (a non-positive one is the planner's to name)."""
+    if dt is not None and dt > 0 and not bounds.dt_min <= dt <= bounds.dt_max:
+        return [InvalidRequest("dt", f"must be between {bounds.dt_min:g} and "
+                               f"{bounds.dt_max:g} s on this server, got {dt:g} "
+                               f"(settings dt_min, dt_max)")]
+    return []
 
 
 def _coordinate_errors(points: list[tuple[str, Any]], bounds: WorkBounds
@@ -120,11 +132,7 @@ def sequence_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
     """Every bound a formation sequence JSON exceeds: vehicles, legs, dt, the whole timeline
     (steps and seconds: it is flown as one plan), coordinates. Empty when it fits."""
     errors: list[InvalidRequest] = []
-    vehicles = data.get("vehicles")
-    if isinstance(vehicles, list) and len(vehicles) > bounds.max_vehicles:
-        errors.append(InvalidRequest(
-            "vehicles", f"{len(vehicles)} vehicles exceed this server's limit of "
-            f"{bounds.max_vehicles} (setting max_vehicles)"))
+    errors += _vehicle_count_errors(data, bounds)
     formations = data.get("formations")
     formations = formations if isinstance(formations, list) else []
     if len(formations) - 1 > MAX_SEQUENCE_LEGS:
@@ -132,10 +140,7 @@ def sequence_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
             "formations", f"{len(formations) - 1} legs exceed this server's limit of "
             f"{MAX_SEQUENCE_LEGS}"))
     dt = _real(data.get("dt"))
-    if dt is not None and dt > 0 and not bounds.dt_min <= dt <= bounds.dt_max:
-        errors.append(InvalidRequest(
-            "dt", f"must be between {bounds.dt_min:g} and {bounds.dt_max:g} s on this server, "
-            f"got {dt:g} (settings dt_min, dt_max)"))
+    errors += _dt_errors(dt, bounds)
     seconds = 0.0
     points: list[tuple[str, Any]] = []
     limits = data.get("limits")
