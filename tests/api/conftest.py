@@ -25,14 +25,16 @@ def _isolated_settings(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
 
 
 @pytest.fixture
-def make_settings(tmp_path: Path) -> Callable[..., Settings]:
-    """Settings on a SQLite file in this test's temporary directory, no vehicles."""
+def make_settings(tmp_path: Path, dask_scheduler: str) -> Callable[..., Settings]:
+    """Settings on a SQLite file in this test's temporary directory, no vehicles, planning on
+    the session's Dask cluster (`tests/conftest.py`)."""
 
     def make(**overrides: Any) -> Settings:
         values: dict[str, Any] = {
             "database_url": f"sqlite:///{tmp_path / 'fleetplan.db'}",
             "mock_vehicles": 0,
             "plan_workers": 1,
+            "scheduler": dask_scheduler,
             # TestClient's requests carry "Host: testserver": the allow-list is configured.
             "allowed_hosts": ["testserver"],
         }
@@ -63,11 +65,13 @@ def client(make_settings: Callable[..., Settings]) -> Iterator[TestClient]:
 
 
 @pytest.fixture(scope="module")
-def shared_client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+def shared_client(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
+                  ) -> Iterator[TestClient]:
     """One app for a whole module, for tests that do not care about each other's missions."""
     path = tmp_path_factory.mktemp("shared") / "fleetplan.db"
     settings = Settings(
         database_url=f"sqlite:///{path}", mock_vehicles=0, plan_workers=1, max_vehicles=16,
+        scheduler=dask_scheduler,
         max_steps=400, max_body_bytes=200_000, allowed_hosts=["testserver"],
     )
     with TestClient(create_app(settings)) as test_client:

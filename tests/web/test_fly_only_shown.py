@@ -39,10 +39,11 @@ def test_nothing_to_play_or_fly_before_a_plan(page: Page) -> None:
 def test_a_changed_form_cannot_fly_the_plan_shown(page: Page, service: ServiceProcess) -> None:
     fill_scenario(page, "shown-plan", 50, CROSSING)
     first = plan(page)
-    # No pause or fleet-command endpoints on this service yet: their buttons stay hidden.
-    expect(page.locator("#pause-button")).to_be_hidden()
-    expect(page.locator(".fleet-commands")).to_be_hidden()
-    expect(page.locator('#vehicle-state button[data-vehicle-command]')).to_have_count(0)
+    # The service has the pause and fleet-command endpoints: their buttons are there, and
+    # Pause is disabled while nothing flies.
+    expect(page.locator("#pause-button")).to_be_visible()
+    expect(page.locator("#pause-button")).to_be_disabled()
+    expect(page.locator(".fleet-commands")).to_be_visible()
     fly = page.locator("#fly-button")
     banner = page.locator("#stale-banner")
     expect(fly).to_be_enabled()

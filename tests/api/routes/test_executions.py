@@ -39,7 +39,9 @@ def test_fly_to_completion_with_live_state_and_a_record(
     with TestClient(create_app(mock_settings())) as client:
         idle = client.get("/api/vehicles").json()
         assert idle["fleet"] == {"kind": "mock", "vehicles": 4, "flying": None,
-                                 "ids": ["uav1", "uav2", "uav3", "uav4"]}
+                                 "ids": ["uav1", "uav2", "uav3", "uav4"],
+                                 "world_origin": {"lat": 47.397742, "lon": 8.545594,
+                                                  "alt": 488.0}}
         wait_for(lambda: all(v["heartbeat_age"] is not None and v["heartbeat_age"] < 2
                              for v in client.get("/api/vehicles").json()["vehicles"]),
                  10, "the mock vehicles' heartbeats")
@@ -171,7 +173,8 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
 def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(make_settings(mock_vehicles=0))) as client:
         assert client.get("/api/vehicles").json() == {
-            "fleet": {"kind": "none", "vehicles": 0, "ids": [], "flying": None}, "vehicles": []}
+            "fleet": {"kind": "none", "vehicles": 0, "ids": [], "flying": None,
+                      "world_origin": None}, "vehicles": []}
         mission = plan_mission(client, SHORT_CROSSING)
         response = client.post(f"/api/missions/{mission['id']}/executions")
         assert response.status_code == 409

@@ -1,0 +1,19 @@
+"""Fixtures shared by every test package."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def dask_scheduler() -> Iterator[str]:
+    """One Dask cluster (2 worker processes) for the whole run: the in-process apps of the
+    API tests plan on it (setting `scheduler`) instead of each starting an embedded cluster,
+    which costs about 5 s per app. The embedded cluster itself is tested in tests/service."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
