@@ -35,21 +35,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import httpx
 
 from gcs.sim.ports import free_udp_base, mock_port_offsets
+from tests.api.support import SHORT_CROSSING
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: Four vehicles crossing near the centre in 10 s: a quick flight for the mock fleet.
-CROSSING: dict[str, Any] = {
-    "name": "bench-crossing", "dt": 0.2, "steps": 50, "min_separation": 1.0,
-    "limits": {"position_min": [0, 0, 0], "position_max": [6, 6, 3], "velocity_max": [2, 2, 2],
-               "acceleration_max": [3, 3, 3], "jerk_max": [5, 5, 5]},
-    "vehicles": [
-        {"id": "a", "start": [1.0, 2.8, 1.2], "goal": [4.5, 3.3, 1.4]},
-        {"id": "b", "start": [4.5, 3.0, 1.6], "goal": [1.0, 3.2, 1.5]},
-        {"id": "c", "start": [2.9, 1.0, 1.3], "goal": [3.1, 4.6, 1.7]},
-        {"id": "d", "start": [3.1, 4.8, 1.8], "goal": [2.8, 1.2, 1.2]},
-    ],
-}
+#: The API tests' quick 4-vehicle crossing (one definition): a short flight for the mock fleet.
+CROSSING = SHORT_CROSSING
 
 
 def _free_tcp_port() -> int:
