@@ -229,9 +229,12 @@ def _vector(value: Any, name: str, *, positive: bool = False) -> FloatArray:
     )
 
 
-def _check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str]) -> None:
+def check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str], *,
+               document: str = "scenario") -> None:
+    """`data` is a JSON object with only `allowed` keys and every `required` one; `name` is its
+    dotted path ("" for the whole `document`). Raises `ScenarioError` naming the key."""
     if not isinstance(data, Mapping):
-        raise ScenarioError(name or "scenario", "must be a JSON object")
+        raise ScenarioError(name or document, "must be a JSON object")
     prefix = f"{name}." if name else ""
     for key in data:
         if key not in allowed:
@@ -242,7 +245,7 @@ def _check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str]
 
 
 def _parse_limits(data: Any) -> Limits:
-    _check_keys(data, _LIMIT_KEYS, "limits", ("position_min", "position_max"))
+    check_keys(data, _LIMIT_KEYS, "limits", ("position_min", "position_max"))
     pmin = _vector(data["position_min"], "limits.position_min")
     pmax = _vector(data["position_max"], "limits.position_max")
     for axis in range(3):
@@ -306,7 +309,7 @@ def _scaled_distances(points: FloatArray, scale: FloatArray) -> tuple[FloatArray
 
 
 def _parse(data: Mapping[str, Any]) -> Scenario:
-    _check_keys(data, _TOP_KEYS, "", ("dt", "steps", "min_separation", "limits", "vehicles"))
+    check_keys(data, _TOP_KEYS, "", ("dt", "steps", "min_separation", "limits", "vehicles"))
     name = data.get("name", DEFAULTS["name"])
     if not isinstance(name, str) or not name.strip():
         raise ScenarioError("name", "must be a non-empty string")
@@ -345,7 +348,7 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     seen: dict[str, int] = {}
     for index, raw in enumerate(raw_vehicles):
         where = f"vehicles[{index}]"
-        _check_keys(raw, _VEHICLE_KEYS, where, ("id", "start", "goal"))
+        check_keys(raw, _VEHICLE_KEYS, where, ("id", "start", "goal"))
         vid = raw["id"]
         if not isinstance(vid, str) or not vid.strip():
             raise ScenarioError(f"{where}.id", "must be a non-empty string")

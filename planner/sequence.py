@@ -23,7 +23,7 @@ from planner.errors import ScenarioError
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.planning import plan
 from planner.result import Plan, VehicleTrajectory, Verification
-from planner.scenario import DEFAULTS, MAX_STEPS, Scenario, Vehicle
+from planner.scenario import DEFAULTS, MAX_STEPS, Scenario, Vehicle, check_keys
 from planner.types import FloatArray
 from planner.verify import BOUND_TOLERANCE, verify
 
@@ -90,18 +90,6 @@ def _steps(seconds: float, dt: float, field: str) -> int:
     return steps
 
 
-def _check_keys(data: Any, allowed: set[str], where: str, required: Sequence[str]) -> None:
-    if not isinstance(data, Mapping):
-        raise _field_error(where or "sequence", "must be a JSON object")
-    prefix = f"{where}." if where else ""
-    for key in data:
-        if key not in allowed:
-            raise _field_error(f"{prefix}{key}", "unknown key")
-    for key in required:
-        if key not in data:
-            raise _field_error(f"{prefix}{key}", "is required")
-
-
 def _positions(value: Any, field: str, count: int) -> FloatArray:
     if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != count:
         raise _field_error(field, f"must list {count} positions [x, y, z], one per vehicle")
@@ -118,8 +106,8 @@ def _positions(value: Any, field: str, count: int) -> FloatArray:
 def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     """Validate a sequence document and split it into leg scenarios; `ScenarioError` names
     the field (`formations[2].positions[5]`, `formations[1].duration`, ...)."""
-    _check_keys(data, _TOP_KEYS, "", ("dt", "min_separation", "limits", "vehicles",
-                                      "formations"))
+    check_keys(data, _TOP_KEYS, "", ("dt", "min_separation", "limits", "vehicles",
+                                     "formations"), document="sequence")
     name = data.get("name", "sequence")
     if not isinstance(name, str) or not name.strip():
         raise _field_error("name", "must be a non-empty string")
@@ -144,7 +132,7 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     total = 0
     for f, raw in enumerate(formations):
         where = f"formations[{f}]"
-        _check_keys(raw, _FORMATION_KEYS, where,
+        check_keys(raw, _FORMATION_KEYS, where,
                     ("positions",) if f == 0 else ("positions", "duration"))
         if f == 0 and ("duration" in raw or "assignment" in raw):
             bad = "duration" if "duration" in raw else "assignment"
