@@ -96,7 +96,8 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
     boundary = {
         "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
         "start_velocity": float(np.max(np.abs(v[:, 0]))),
-        "goal_position": float(np.max(np.abs(p[:, -1] - scenario.goals))),
+        # each vehicle's own goal: the assigned one under free assignment
+        "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
         "goal_velocity": float(np.max(np.abs(v[:, -1]))),
         "goal_acceleration": float(np.max(np.abs(a[:, -1]))),
     }

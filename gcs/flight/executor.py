@@ -96,10 +96,7 @@ class FlightExecutor:
         if plan.status != "converged":
             raise PlanRejected(f"refusing to fly a plan with status {plan.status!r}: "
                                f"{plan.message}")
-        # A free-assignment plan echoes the goals as given; it flies (and is checked against)
-        # the goal each vehicle was assigned.
-        self.scenario = plan.scenario.assigned()
-        check = verify(self.scenario, plan.positions(), plan.velocities(),
+        check = verify(plan.scenario, plan.positions(), plan.velocities(),
                        plan.accelerations())
         if not check.verified:
             raise PlanRejected("refusing to fly a plan that fails verification: "
@@ -356,10 +353,11 @@ class FlightExecutor:
         await _all(self._connect(v) for v in self.vehicles)
         self._tracks = plan_tracks(self.plan, [v.home for v in self.vehicles], opts.rate_hz,
                                    opts.yaw, extra_s=opts.hold_at_goal)
-        scenario = self.scenario
+        scenario = self.plan.scenario
+        goals = scenario.assigned_goals  # under free assignment, the goal each was given
         for v in self.vehicles:
             v.start_ned = frames.world_to_ned(scenario.starts[v.index], v.home)
-            v.goal_ned = frames.world_to_ned(scenario.goals[v.index], v.home)
+            v.goal_ned = frames.world_to_ned(goals[v.index], v.home)
         self.phase = "preparing"
         await _all(self._prepare(v) for v in self.vehicles)
         self.phase = "gathering"
