@@ -32,6 +32,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import time
 import uuid
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
@@ -326,20 +327,29 @@ class PlanningService:
         self._spawn(self._enforce_stop(job))
 
     async def _enforce_stop(self, job: PlanJob) -> None:
-        """Ask the task to stop; restart its worker if it has not stopped after the grace."""
+        """Ask the task to stop; restart its worker if it has not stopped after the grace.
+
+        Whether it stopped is asked of the workers themselves: a task cancelled just as it
+        started (before its `started` event arrived) is forgotten by the scheduler and ends
+        the job at once, but runs on in its worker until that worker is restarted."""
+        stop_asked = time.monotonic()
         with contextlib.suppress(Exception):
             await self._cancel_flag(job).set()
         if not job.started.is_set() and job.future is not None:
-            # Still queued on the scheduler: dropping the future removes the task. (Should it
-            # have just started, the flag set above stops it after its iteration.)
+            # Still queued on the scheduler: dropping the future removes the task.
             with contextlib.suppress(Exception):
                 await job.future.cancel()
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(job.done.wait(), self._grace)
+        if self._client is None:
             return
+        stuck = await self._workers_running(job)
+        left = stop_asked + self._grace - time.monotonic()
+        if stuck and left > 0:  # the job ended early (dropped future): give the task its grace
+            await asyncio.sleep(left)
+            stuck = await self._workers_running(job)
         client = self._client
-        stuck = sorted(set(job.running.values()))
-        if client is None or job.done.is_set():
+        if not stuck or client is None:
             return
         log.warning("plan %s did not stop within %.0f s (%s): restarting worker(s) %s",
                     job.mission_id, self._grace, job.stop_reason, stuck)
@@ -347,11 +357,21 @@ class PlanningService:
         if future is not None:
             with contextlib.suppress(Exception):
                 await future.cancel()
-        if stuck:
-            try:
-                await client.restart_workers(stuck, timeout=60, raise_for_error=False)
-            except Exception:  # not restartable (no nanny): the task runs on, results dropped
-                log.exception("could not restart worker(s) %s", stuck)
+        try:
+            await client.restart_workers(stuck, timeout=60, raise_for_error=False)
+        except Exception:  # not restartable (no nanny): the task runs on, results dropped
+            log.exception("could not restart worker(s) %s", stuck)
+
+    async def _workers_running(self, job: PlanJob) -> list[str]:
+        """Workers executing one of the job's tasks right now, by their own account (the
+        job's `started` events as a fallback when they cannot be asked)."""
+        client = self._client
+        assert client is not None
+        try:
+            keys = await client.run(_executing_keys, job.key)
+        except Exception:
+            return [] if job.done.is_set() else sorted(set(job.running.values()))
+        return sorted(worker for worker, running in keys.items() if running)
 
     async def _watch_time(self, job: PlanJob) -> None:
         """Stop a job whose task has run past its limit (the task checks it itself too, but
@@ -500,6 +520,12 @@ class PlanningService:
             job.ends_seen += 1
             if job.ends_seen >= job.ends_expected:
                 job.progress_complete.set()
+
+
+def _executing_keys(prefix: str, dask_worker: Any = None) -> list[str]:
+    """Keys of the tasks starting with `prefix` that this worker executes (run on workers)."""
+    return [str(task.key) for task in dask_worker.state.executing
+            if str(task.key).startswith(prefix)]
 
 
 def _short(exc: BaseException) -> str:

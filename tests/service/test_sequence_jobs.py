@@ -15,14 +15,13 @@ from gcs.service.planning import PlanJob
 from planner import Plan
 from planner.generators import show_sequence
 from planner.sequence import parse_sequence, timeline_scenario
-from tests.service.test_planning import cluster as cluster  # the module's fixtures
 from tests.service.test_planning import (
+    assert_idle,
     done,
-    executing,
     started_service,
-    wait_idle,
     workers,
 )
+from tests.service.test_planning import cluster as cluster  # the module's fixtures
 from tests.service.test_planning import store as store
 
 pytestmark = pytest.mark.timeout(300)
@@ -79,7 +78,7 @@ def test_cancel_stops_every_leg_and_frees_the_workers(store, cluster) -> None:
             assert outcome["error"]["reason"] == "cancelled by the operator"
             row = store.get_mission(job.mission_id)
             assert row is not None and row.status == "failed"
-            assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+            assert_idle(cluster)
         finally:
             await service.close()
 
@@ -144,7 +143,7 @@ def test_the_time_limit_stops_a_sequence(store, cluster) -> None:
             assert "time limit of 0.2 s" in outcome["error"]["reason"]
             row = store.get_mission(job.mission_id)
             assert row is not None and row.status == "failed"
-            assert wait_idle(cluster) == {w: 0 for w in executing(cluster)}
+            assert_idle(cluster)
         finally:
             await service.close()
 
