@@ -69,7 +69,7 @@ from gcs.errors import (
 from gcs.flight import vehicle
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
-from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
 from gcs.flight.record import FlightRecorder, finite_or_none, goal_tolerance, summarise
@@ -299,7 +299,7 @@ class FlightExecutor:
         self.streamer.listeners.append(self._on_send)
         monitor: asyncio.Task[None] | None = None
         try:
-            async with LinkHub() as hub:
+            async with LinkHub(decode_ids=DECODED_IDS) as hub:
                 self._hub = hub
                 try:
                     await self._open_links(hub)
