@@ -25,6 +25,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,7 +36,7 @@ from gcs.flight.link import VehicleLink
 from gcs.flight.setpoints import Setpoint, SetpointTrack
 from gcs.wire import time_boot_ms
 
-__all__ = ["Assignment", "SendCallback", "Streamer", "jitter_stats"]
+__all__ = ["STALL_S", "Assignment", "SendCallback", "Streamer", "jitter_stats"]
 
 #: Called after each send with (vehicle id, tick, setpoint, send instant).
 SendCallback = Callable[[str, int, Setpoint, float], None]
@@ -44,6 +45,8 @@ SendCallback = Callable[[str, int, Setpoint, float], None]
 #: covers asyncio's millisecond timer resolution and telemetry handled just before the tick;
 #: the rest is a short wait on the clock (1.5 ms gave p99 4.3 ms, 3 ms 2.6 ms, 5 ms 1.6 ms).
 WAKE_MARGIN = 0.003
+#: A wake-up this much later than planned is a stall (`Streamer.stalls`).
+STALL_S = 0.002
 
 
 @dataclass
@@ -77,6 +80,11 @@ class Streamer:
         """Send instant minus scheduled tick instant (s), one per message, while
         `measuring` is true."""
         self.measuring = False
+        self.stalls = {"busy": 0, "descheduled": 0}
+        """Wake-ups more than `STALL_S` late while `measuring`, by cause: ``descheduled`` when
+        the loop's thread waited at least half of the delay runnable but not running (the OS
+        ran another process: Linux's /proc/thread-self/schedstat), else ``busy`` (this
+        thread's own callbacks ran: telemetry, heartbeats, garbage collection)."""
         self._task: asyncio.Task[None] | None = None
 
     def tick_time(self, tick: int) -> float:
@@ -137,6 +145,17 @@ class Streamer:
         self.tick = tick
 
     async def _run(self) -> None:
+        try:
+            schedstat: int | None = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+        except OSError:  # not Linux: stalls are all counted as busy
+            schedstat = None
+        try:
+            await self._loop(schedstat)
+        finally:
+            if schedstat is not None:
+                os.close(schedstat)
+
+    async def _loop(self, schedstat: int | None) -> None:
         encode_time = 0.0
         while True:
             now = time.monotonic()
@@ -154,7 +173,19 @@ class Streamer:
                     pass  # a fraction of a millisecond: the clock, not the timer
                 self._send_tick(tick, ready)
             wake = self.tick_time(self.tick + 1) - encode_time - WAKE_MARGIN
+            waited = _run_delay(schedstat)
             await asyncio.sleep(max(0.0, wake - time.monotonic()))
+            late = time.monotonic() - wake
+            if late > STALL_S and self.measuring:
+                descheduled = _run_delay(schedstat) - waited >= late / 2
+                self.stalls["descheduled" if descheduled else "busy"] += 1
+
+
+def _run_delay(schedstat: int | None) -> float:
+    """Seconds this thread has waited runnable for a CPU (0 when unknown)."""
+    if schedstat is None:
+        return 0.0
+    return int(os.pread(schedstat, 64, 0).split()[1]) * 1e-9
 
 
 def jitter_stats(lateness: list[float] | np.ndarray) -> dict[str, float]:
