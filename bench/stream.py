@@ -66,6 +66,13 @@ from gcs.sim.ports import free_udp_base
 from gcs.wire import SigningKey, mavlink, new_key_file, signing_timestamp
 
 
+def _ordinary_priority() -> None:
+    """In the mock's process: the ordinary scheduling class (a mock started from a real-time
+    thread would inherit it; with --realtime only the GCS's loop runs real-time)."""
+    if hasattr(os, "sched_setscheduler"):
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+
+
 def proc_cpu_seconds(pid: int) -> float:
     with open(f"/proc/{pid}/stat") as f:
         fields = f.read().rsplit(")", 1)[1].split()
@@ -86,12 +93,14 @@ async def provision(base: int, vehicles: int, key: SigningKey) -> None:
 
 async def one_run(vehicles: int, rate: float, duration: float,
                   key: SigningKey | None = None, telemetry: str = "minimal",
-                  message_rates: str = "leave", decode: str = "needed") -> dict:
+                  message_rates: str = "leave", decode: str = "needed",
+                  realtime: bool = False) -> dict:
     base = free_udp_base(range(2 * vehicles))
     mock = subprocess.Popen(
         [sys.executable, "-m", "gcs.cli.main", "mock", "--vehicles", str(vehicles),
          "--base-port", str(base), "--listen-base-port", str(base + vehicles),
-         "--settle", "0", "--telemetry", telemetry], stdout=subprocess.PIPE, text=True)
+         "--settle", "0", "--telemetry", telemetry], stdout=subprocess.PIPE, text=True,
+        preexec_fn=_ordinary_priority)
     try:
         assert mock.stdout is not None
         # "mock: N PX4-like vehicles ...; time_boot_ms 0 at monotonic T" once it listens
@@ -127,7 +136,7 @@ async def one_run(vehicles: int, rate: float, duration: float,
             vel = np.stack([-np.sin(phase), np.cos(phase), np.zeros(ticks)], axis=1)
             acc = np.stack([-np.cos(phase), -np.sin(phase), np.zeros(ticks)], axis=1)
             track = SetpointTrack(pos, vel, acc, 0.0, rate)
-            streamer = Streamer(rate)
+            streamer = Streamer(rate, realtime=realtime)
             start = streamer.next_tick() + 1
             for link in links:
                 streamer.assign(link.vehicle_id, link, track, start)
@@ -166,6 +175,7 @@ async def one_run(vehicles: int, rate: float, duration: float,
         **{k: round(v, 3) for k, v in stats.items()},
         "missed_ticks": streamer.missed_ticks,
         "stalls": dict(streamer.stalls),
+        "gcs_scheduling": streamer.scheduling,
         "setpoints_sent": sent,
         "gcs_cpu_percent": round(100.0 * cpu / wall, 1),
         "mock_cpu_percent": round(100.0 * mock_cpu / wall, 1),
@@ -243,6 +253,10 @@ def main() -> None:
     parser.add_argument("--decode", choices=("needed", "all"), default="needed",
                         help="needed: drop unread message ids before decoding, like the "
                              "flight executor (default); all: decode everything")
+    parser.add_argument("--realtime", action="store_true",
+                        help="stream at real-time priority (Streamer(realtime=True): SCHED_RR 1 "
+                             "for the GCS's loop while streaming, not the mock's; needs "
+                             "CAP_SYS_NICE or an rtprio limit)")
     args = parser.parse_args()
     rate_modes = args.message_rates.split(",")
     if not set(rate_modes) <= {"leave", "request"}:
@@ -260,7 +274,7 @@ def main() -> None:
         for mode, rates in ((m, r) for m in modes for r in rate_modes):
             runs = [asyncio.run(one_run(args.vehicles, args.rate, args.duration,
                                         key if mode == "signed" else None, args.telemetry,
-                                        rates, args.decode))
+                                        rates, args.decode, args.realtime))
                     for _ in range(args.repeat)]
             median = {k: statistics.median(r[k] for r in runs if r[k] is not None)
                       for k in keys}

@@ -64,8 +64,15 @@ class Assignment:
 class Streamer:
     """The fleet's one setpoint loop at `rate` Hz (see the module docstring)."""
 
-    def __init__(self, rate: float, boot_epoch: float | None = None) -> None:
+    def __init__(self, rate: float, boot_epoch: float | None = None, *,
+                 realtime: bool = False) -> None:
         self.rate = float(rate)
+        self.realtime = realtime
+        """Ask for real-time scheduling (SCHED_RR 1) for the loop's thread while streaming,
+        see `scheduling`; off by default (today's behaviour)."""
+        self.scheduling = "ordinary"
+        """What the loop's thread ran with: ``ordinary``, ``SCHED_RR 1``, or why real-time
+        was refused (it needs CAP_SYS_NICE or an rtprio limit, e.g. `chrt`/systemd)."""
         self.period = 1.0 / self.rate
         self.epoch = time.monotonic()
         """Instant of tick 0."""
@@ -149,11 +156,33 @@ class Streamer:
             schedstat: int | None = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
         except OSError:  # not Linux: stalls are all counted as busy
             schedstat = None
+        restore = self._enter_realtime() if self.realtime else None
         try:
             await self._loop(schedstat)
         finally:
             if schedstat is not None:
                 os.close(schedstat)
+            if restore is not None:
+                with contextlib.suppress(OSError):
+                    os.sched_setscheduler(0, *restore)
+
+    def _enter_realtime(self) -> tuple[int, os.sched_param] | None:
+        """SCHED_RR priority 1 for this thread (the event loop's); returns the policy to
+        restore, None if refused (then `scheduling` says why and nothing changes).
+
+        Why: on a machine whose cores are busy (other processes, a simulator), the kernel
+        leaves a woken GCS waiting for a core for several ms, which is most of the send
+        jitter (`stalls`); a real-time thread runs as soon as it wakes. The loop's waits
+        are bounded (a fraction of a tick), so it cannot starve the machine, and Linux
+        keeps 5% of each core for ordinary processes anyway (sched_rt_runtime_us)."""
+        try:
+            old = (os.sched_getscheduler(0), os.sched_getparam(0))
+            os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(1))
+        except (AttributeError, OSError) as exc:
+            self.scheduling = f"ordinary (real-time refused: {exc})"
+            return None
+        self.scheduling = "SCHED_RR 1"
+        return old
 
     async def _loop(self, schedstat: int | None) -> None:
         encode_time = 0.0
