@@ -163,6 +163,7 @@ async def one_run(vehicles: int, rate: float, duration: float,
             dropped = sum(link.telemetry.security.total for link in links)
             lost = sum(link.telemetry.seq_lost for link in links)
             counted = sum(link.telemetry.seq_received for link in links)
+            first_endpoint = links[0].endpoint.messages_received
     finally:
         mock.terminate()
         mock.wait(timeout=10)
@@ -187,6 +188,7 @@ async def one_run(vehicles: int, rate: float, duration: float,
         "link_loss_percent": round(100.0 * lost / max(1, lost + counted), 3),
         "rate_requests_refused": refused,
         "gc_collections": gc_runs,
+        "telemetry_messages_received_first_endpoint": first_endpoint,
         "telemetry_dropped_by_security": dropped,
     }
 

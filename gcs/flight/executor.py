@@ -295,7 +295,8 @@ class FlightExecutor:
         if self.margin.needed is not None or self.margin.planned > 0:
             self._emit(None, "margin" if self.margin.ok else "margin_warning",
                        self.margin.message())
-        self.streamer = Streamer(self.options.rate_hz, boot_epoch=self._t0)
+        self.streamer = Streamer(self.options.rate_hz, boot_epoch=self._t0,
+                                 realtime=self.options.stream_priority == "realtime")
         self.streamer.listeners.append(self._on_send)
         monitor: asyncio.Task[None] | None = None
         try:
@@ -306,6 +307,9 @@ class FlightExecutor:
                     if self._abort is not None:  # aborted while the links were opening
                         raise MissionAborted(self._abort[1])
                     self.streamer.start()
+                    if self.streamer.realtime:
+                        await asyncio.sleep(0)  # its first step sets the priority
+                        self._emit(None, "stream_priority", self.streamer.scheduling)
                     monitor = asyncio.create_task(
                         self.monitor.run(lambda: self._abort is not None), name="mission-monitor")
                     self._flow = asyncio.create_task(self._fly(), name="mission-flow")

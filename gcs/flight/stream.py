@@ -18,6 +18,13 @@ out the remaining fraction of a millisecond on the clock itself, and then only s
 ready datagrams. Measured with 50 vehicles at 50 Hz (bench/stream.py, README): p50/p99
 lateness 1.5/4.2 ms when sleeping on the timer, 0.5/3.8 ms (medians of 3 runs) like this,
 for about 2.5 ms of waiting on the clock per tick (12% of a core at 50 Hz, 5% at 20 Hz).
+
+Stalls (`Streamer.stalls`): a wake-up more than `STALL_S` late is counted as *descheduled*
+(the thread waited runnable for a core: another process ran) or *busy* (its own callbacks
+ran). At 100 vehicles on a busy 2-core machine nearly all stalls are descheduled; garbage
+collection and telemetry handling are not the cause (bench/stream.py, README). Hence
+`realtime=True`: the loop's thread runs at SCHED_RR 1 while streaming, when the process may
+(CAP_SYS_NICE or an rtprio limit, e.g. ``chrt -r 1`` or systemd's CPUSchedulingPolicy).
 """
 
 from __future__ import annotations
