@@ -229,7 +229,7 @@ def peek_packet(data: bytes) -> PacketHeader | None:
         return None
     marker, length = data[0], data[1]
     if marker == _V2:
-        if n < 12:
+        if n < 12 or data[2] & ~_IFLAG_SIGNED:  # a flag we do not know: parse in full
             return None
         signed = bool(data[2] & _IFLAG_SIGNED)
         end = 10 + length

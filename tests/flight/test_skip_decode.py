@@ -60,6 +60,9 @@ def test_peek_reads_one_whole_valid_packet_only() -> None:
     corrupt[12] ^= 0xFF
     assert peek_packet(bytes(corrupt)) is None  # bad CRC
     assert peek_packet(b"\xfd\xff\x00") is None
+    odd = bytearray(buf)
+    odd[2] |= 0x02  # an incompatibility flag this dialect does not know
+    assert peek_packet(bytes(odd)) is None
     from pymavlink.dialects.v10 import common as mavlink1
 
     v1 = mavlink1.MAVLink(None, srcSystem=7, srcComponent=1)
