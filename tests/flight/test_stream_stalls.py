@@ -70,3 +70,27 @@ def test_stream_priority_is_a_checked_mission_option() -> None:
         "realtime"
     with pytest.raises(FleetFileError, match=r"mission\.stream_priority"):
         FlightOptions.from_dict({"stream_priority": "fast"})
+
+
+def test_a_flight_at_realtime_priority_completes_and_says_how_it_streamed() -> None:
+    from gcs.flight.executor import FlightExecutor
+    from gcs.flight.fleetfile import FleetSpec, FlightOptions
+    from gcs.sim import MockFleet, homes_under
+    from tests.flight.support import line_scenario, mock_ports, smooth_plan
+
+    plan = smooth_plan(line_scenario(2))
+    options = FlightOptions(hold_at_goal=0.5, prestream=0.3, stream_priority="realtime")
+    before = os.sched_getscheduler(0)
+
+    async def fly() -> dict:
+        homes = homes_under(plan.scenario.starts)
+        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
+            fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+            return await FlightExecutor(plan, fleet, options).run()
+
+    record = asyncio.run(fly())
+    assert record["summary"]["completed"] is True
+    said = [e["detail"] for e in record["events"] if e["kind"] == "stream_priority"]
+    assert len(said) == 1
+    assert said[0] == "SCHED_RR 1" or said[0].startswith("ordinary (real-time refused")
+    assert os.sched_getscheduler(0) == before  # given back after the flight
