@@ -8,7 +8,8 @@
   pymavlink, not hand-copied numbers; `time_boot_ms`;
 - UDP URLs (``udpin:HOST:PORT`` / ``udpout:HOST:PORT``): `parse_udp_url`;
 - `parse_datagram`: one UDP datagram decoded by a fresh parser, so garbage in one datagram can
-  never swallow the next one;
+  never swallow the next one; `peek_packet`: the header of a one-packet datagram, CRC checked,
+  without decoding it;
 - `Datagrams`: the one asyncio DatagramProtocol adapter (GCS endpoints and mock vehicles);
 - MAVLink 2 signing: key files (`load_key`, `new_key_file`), the signing clock
   (`signing_timestamp`), `signature_of` (a packet's signature block, checked), PX4's
@@ -47,6 +48,7 @@ __all__ = [
     "TYPE_MASK_POS_VEL_ACC_YAW",
     "Datagrams",
     "KeyFileError",
+    "PacketHeader",
     "ParsedDatagram",
     "Signature",
     "SigningKey",
@@ -57,6 +59,7 @@ __all__ = [
     "parse_datagram",
     "parse_host_port",
     "parse_udp_url",
+    "peek_packet",
     "result_name",
     "signature_of",
     "signing_timestamp",
@@ -199,6 +202,57 @@ def parse_datagram(data: bytes, parser: Any | None = None) -> ParsedDatagram:
         garbage += leftover
         errors.append("truncated packet")
     return ParsedDatagram(messages, garbage, errors)
+
+
+@dataclass(frozen=True)
+class PacketHeader:
+    """The routing fields of a datagram holding exactly one whole MAVLink packet."""
+
+    msg_id: int
+    system: int
+    component: int
+    seq: int
+    signed: bool
+
+
+_V1, _V2 = mavlink.PROTOCOL_MARKER_V1, mavlink.PROTOCOL_MARKER_V2
+
+
+def peek_packet(data: bytes) -> PacketHeader | None:
+    """The header of `data` if it is exactly one whole MAVLink 1 or 2 packet of a message
+    this dialect knows, with a valid CRC; None otherwise (then it must be parsed in full,
+    which counts any garbage). Reads no payload: ~1 us against ~15 us for a full decode,
+    so a receiver can drop the message ids it never reads before decoding them. The
+    signature, if any, is NOT checked here."""
+    n = len(data)
+    if n < 8:
+        return None
+    marker, length = data[0], data[1]
+    if marker == _V2:
+        if n < 12 or data[2] & ~_IFLAG_SIGNED:  # a flag we do not know: parse in full
+            return None
+        signed = bool(data[2] & _IFLAG_SIGNED)
+        end = 10 + length
+        if n != end + 2 + (_SIGNATURE_LEN if signed else 0):
+            return None
+        msg_id = data[7] | data[8] << 8 | data[9] << 16
+        seq, system, component = data[4], data[5], data[6]
+    elif marker == _V1:
+        end = 6 + length
+        if n != end + 2:
+            return None
+        signed = False
+        msg_id, seq, system, component = data[5], data[2], data[3], data[4]
+    else:
+        return None
+    entry = mavlink.mavlink_map.get(msg_id)
+    if entry is None:
+        return None
+    crc = mavlink.x25crc(data[1:end])
+    crc.accumulate(bytes((entry.crc_extra,)))
+    if crc.crc != (data[end] | data[end + 1] << 8):
+        return None
+    return PacketHeader(msg_id, system, component, seq, signed)
 
 
 class Datagrams(asyncio.DatagramProtocol):

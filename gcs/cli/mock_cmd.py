@@ -30,6 +30,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "5 like PX4 SITL)")
     parser.add_argument("--position-rate", type=float, default=30.0,
                         help="LOCAL_POSITION_NED rate (Hz, default 30)")
+    parser.add_argument("--telemetry", choices=("minimal", "px4"), default="minimal",
+                        help="what the vehicles send: minimal (about 65 messages/s each, the "
+                             "default) or px4 (PX4's offboard-link set and rates, about 410 "
+                             "messages/s each; gcs.sim.telemetry)")
     parser.add_argument("--loss", type=float, default=0.0,
                         help="fault: fraction of packets dropped each way (0..1)")
     parser.add_argument("--delay", type=float, default=0.0,
@@ -71,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
         mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                          listen_base_port=args.listen_base_port,
                          max_port_offset=args.max_port_offset, settle_time=args.settle,
-                         position_rate=args.position_rate)
+                         position_rate=args.position_rate,
+                         telemetry_profile=args.telemetry)
         for vehicle in mock.vehicles:
             vehicle.faults.loss = args.loss
             vehicle.faults.delay = args.delay
@@ -84,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
             Path(args.fleet_out).write_text(json.dumps(mock.fleet_dict(ids), indent=1))
         print(f"mock: {count} PX4-like vehicles, listening on "
               f"{args.listen_base_port}..{args.listen_base_port + count - 1}, sending to "
-              f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}", flush=True)
+              f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}; time_boot_ms 0 "
+              f"at monotonic {mock.boot_monotonic:.6f}", flush=True)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):

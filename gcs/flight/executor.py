@@ -69,7 +69,7 @@ from gcs.errors import (
 from gcs.flight import vehicle
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
-from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
 from gcs.flight.record import FlightRecorder, finite_or_none, goal_tolerance, summarise
@@ -295,17 +295,21 @@ class FlightExecutor:
         if self.margin.needed is not None or self.margin.planned > 0:
             self._emit(None, "margin" if self.margin.ok else "margin_warning",
                        self.margin.message())
-        self.streamer = Streamer(self.options.rate_hz, boot_epoch=self._t0)
+        self.streamer = Streamer(self.options.rate_hz, boot_epoch=self._t0,
+                                 realtime=self.options.stream_priority == "realtime")
         self.streamer.listeners.append(self._on_send)
         monitor: asyncio.Task[None] | None = None
         try:
-            async with LinkHub() as hub:
+            async with LinkHub(decode_ids=DECODED_IDS) as hub:
                 self._hub = hub
                 try:
                     await self._open_links(hub)
                     if self._abort is not None:  # aborted while the links were opening
                         raise MissionAborted(self._abort[1])
                     self.streamer.start()
+                    if self.streamer.realtime:
+                        await asyncio.sleep(0)  # its first step sets the priority
+                        self._emit(None, "stream_priority", self.streamer.scheduling)
                     monitor = asyncio.create_task(
                         self.monitor.run(lambda: self._abort is not None), name="mission-monitor")
                     self._flow = asyncio.create_task(self._fly(), name="mission-flow")

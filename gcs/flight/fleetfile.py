@@ -155,6 +155,10 @@ class FlightOptions:
     (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.vehicle.message_rates`)."""
     position_rate_hz: float = 30.0
     """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
+    stream_priority: str = "normal"
+    """normal, or realtime: stream setpoints from a real-time thread (SCHED_RR 1) where the
+    process may (`gcs.flight.stream.Streamer`; on a busy machine most send jitter is the OS
+    leaving the GCS waiting for a core); refused quietly otherwise (recorded as an event)."""
     goal_tolerance_k: float = 2.0
     """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
     position_error)."""
@@ -175,10 +179,11 @@ class FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
             if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight",
-                       "message_rates"):
+                       "message_rates", "stream_priority"):
                 allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
                            "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT,
-                           "message_rates": ("leave", "request")}[key]
+                           "message_rates": ("leave", "request"),
+                           "stream_priority": ("normal", "realtime")}[key]
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")

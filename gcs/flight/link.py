@@ -8,7 +8,10 @@ are asyncio's, so every link runs on the caller's event loop.
   ids behind one port, so an endpoint routes by system id. Each UDP datagram is decoded on its
   own by a fresh parser (`gcs.wire.parse_datagram`): garbage is counted and cannot swallow the
   next real packet. Traffic from system id 0 (PX4's undecodable development messages) and from
-  ids no vehicle is registered for is dropped and counted.
+  ids no vehicle is registered for is dropped and counted. With `decode_ids` (e.g.
+  `DECODED_IDS`, what this module reads), a datagram holding one packet of another message id
+  is dropped after a header and CRC check (`gcs.wire.peek_packet`), before any decoding, yet
+  still counted for link quality once it passed the vehicle's pinning and signing checks.
 - `VehicleLink`: one vehicle on an endpoint. Its *pinned peer* (source address + autopilot
   component) is fixed by its first accepted packet, or up front by the fleet file's ``peer``;
   packets with its system id from any other address are dropped and counted as security
@@ -57,10 +60,12 @@ from gcs.wire import (
     mavlink,
     parse_datagram,
     parse_udp_url,
+    peek_packet,
     result_name,
 )
 
 __all__ = [
+    "DECODED_IDS",
     "GCS_COMPONENT_ID",
     "GCS_SYSTEM_ID",
     "Endpoint",
@@ -76,12 +81,27 @@ __all__ = [
 
 MessageCallback = Callable[["VehicleLink", Any, float], None]
 
+_m = mavlink
+#: The message ids `VehicleLink` reads (its telemetry, COMMAND_ACK) and the flight executor's
+#: listener uses: with ``LinkHub(decode_ids=DECODED_IDS)`` every other id is dropped before
+#: decoding (PX4's offboard link sends ~410 messages/s per vehicle, ~20 kinds, most unread).
+DECODED_IDS = frozenset({
+    _m.MAVLINK_MSG_ID_HEARTBEAT, _m.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+    _m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, _m.MAVLINK_MSG_ID_COMMAND_ACK,
+    _m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, _m.MAVLINK_MSG_ID_HOME_POSITION,
+    _m.MAVLINK_MSG_ID_STATUSTEXT, _m.MAVLINK_MSG_ID_SYS_STATUS,
+    _m.MAVLINK_MSG_ID_BATTERY_STATUS, _m.MAVLINK_MSG_ID_GPS_RAW_INT,
+})
+
 
 class Endpoint:
     """One MAVLink connection shared by the vehicles registered on it (base class)."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, decode_ids: frozenset[int] | None = None) -> None:
         self.url = url
+        self.decode_ids = decode_ids
+        """Message ids decoded in full (None: all). Others are dropped after a header check
+        (`UdpEndpoint`), counted in `skipped` and in their vehicle's `Telemetry.skipped`."""
         self.mav = mavlink.MAVLink(None, srcSystem=GCS_SYSTEM_ID, srcComponent=GCS_COMPONENT_ID)
         self.mav.robust_parsing = True
         self.vehicles: dict[int, VehicleLink] = {}
@@ -92,6 +112,9 @@ class Endpoint:
         self.garbage_bytes = 0
         self.bytes_sent = 0
         self.messages_received = 0
+        """Valid messages received (decoded or skipped), whoever sent them."""
+        self.skipped = 0
+        """Messages of an id outside `decode_ids`, dropped before decoding."""
 
     def register(self, link: VehicleLink) -> None:
         if link.system_id in self.vehicles:
@@ -129,8 +152,8 @@ class Endpoint:
 class UdpEndpoint(Endpoint):
     """A UDP endpoint on the running asyncio loop (``udpin``/``udp`` or ``udpout``)."""
 
-    def __init__(self, url: str) -> None:
-        super().__init__(url)
+    def __init__(self, url: str, decode_ids: frozenset[int] | None = None) -> None:
+        super().__init__(url, decode_ids)
         self.kind, self.host, self.port = parse_udp_url(url)
         self.send_errors = 0
         self._transport: asyncio.DatagramTransport | None = None
@@ -162,12 +185,47 @@ class UdpEndpoint(Endpoint):
 
     def _received(self, data: bytes, addr: Any) -> None:
         now = time.monotonic()
+        if self.decode_ids is not None and self._skip(data, addr):
+            return
         parsed = parse_datagram(data)  # a fresh parser for every datagram
         if parsed.garbage_bytes:
             self.garbage_datagrams += 1
             self.garbage_bytes += parsed.garbage_bytes
         for msg in parsed.messages:
             self._dispatch(msg, addr, now)
+
+    def _skip(self, data: bytes, addr: Any) -> bool:
+        """Drop `data` without decoding it if it is one whole packet (CRC checked) of an id
+        outside `decode_ids`; False: decode it in full. A skipped packet passes the checks a
+        decoded one does (pinned peer, autopilot component, signature and replay with a key)
+        before its sequence number counts for link quality, so skipping never reads as loss
+        and a spoofed one changes nothing but a security counter. It is no proof of life:
+        that takes a decoded message. Before its vehicle is pinned, everything is decoded."""
+        header = peek_packet(data)
+        if header is None or header.msg_id in self.decode_ids:  # type: ignore[operator]
+            return False
+        link = self.vehicles.get(header.system)
+        if link is not None and not link.pinned:
+            return False
+        self.messages_received += 1
+        self.skipped += 1
+        if link is None:
+            self.dropped_unknown += 1
+            return True
+        counters = link.telemetry.security
+        if addr != link.peer_address:
+            counters.foreign_source += 1
+        elif header.component != link.component_id:
+            counters.other_component += 1
+        else:
+            reason = None if link.signing is None else link.signing.verify_packet(
+                data, header.system, header.component)
+            if reason is not None:
+                setattr(counters, reason, getattr(counters, reason) + 1)
+            else:
+                link.telemetry.skipped += 1
+                _count_sequence(link.telemetry, header.seq)
+        return True
 
     def _address(self, system_id: int) -> Any:
         """Where `system_id`'s traffic goes: udpout's fixed address, else its pinned peer
@@ -301,7 +359,10 @@ class Telemetry:
     warnings: deque[str] = field(default_factory=lambda: deque(maxlen=5))
     """STATUSTEXT of severity WARNING or worse."""
     seq_received: int = 0
-    """Messages from the autopilot component counted for link quality."""
+    """Messages from the autopilot component counted for link quality (decoded or skipped)."""
+    skipped: int = 0
+    """Messages from the pinned autopilot dropped before decoding (an id the endpoint does not
+    decode, `Endpoint.decode_ids`); they count for link quality, not as proof of life."""
     seq_lost: int = 0
     """Messages missing from the autopilot component's sequence numbers."""
     last_seq: int | None = None
@@ -598,7 +659,10 @@ class LinkHub:
     vehicles sharing a URL share one endpoint.
     """
 
-    def __init__(self, heartbeat_period: float = 1.0) -> None:
+    def __init__(self, heartbeat_period: float = 1.0,
+                 decode_ids: frozenset[int] | None = None) -> None:
+        self.decode_ids = decode_ids
+        """Message ids UDP endpoints decode (None: all; `DECODED_IDS`: what the link reads)."""
         self.endpoints: dict[str, Endpoint] = {}
         self.links: dict[str, VehicleLink] = {}
         self.signers: dict[bytes, LinkSigning] = {}
@@ -628,7 +692,8 @@ class LinkHub:
                 self.signers[signing_key.secret] = signing
         endpoint = self.endpoints.get(url)
         if endpoint is None:
-            endpoint = UdpEndpoint(url) if is_udp_url(url) else ThreadedEndpoint(url)
+            endpoint = (UdpEndpoint(url, self.decode_ids) if is_udp_url(url)
+                        else ThreadedEndpoint(url))
             await endpoint.open()
             self.endpoints[url] = endpoint
         link = VehicleLink(vehicle_id, endpoint, system_id, component_id, signing=signing,

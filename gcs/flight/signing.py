@@ -97,12 +97,18 @@ class LinkSigning:
     def verify(self, msg: Any) -> str | None:
         """None if `msg` (decoded without a key) is correctly signed and new; else the reason:
         ``unsigned``, ``bad_signature`` or ``replayed``."""
-        signature = signature_of(bytes(msg._msgbuf), self.key.secret)
+        return self.verify_packet(bytes(msg._msgbuf), msg.get_srcSystem(),
+                                  msg.get_srcComponent())
+
+    def verify_packet(self, packet: bytes, system: int, component: int) -> str | None:
+        """`verify` on one whole packet's bytes from (`system`, `component`): for packets
+        the link drops before decoding them (`gcs.flight.link`)."""
+        signature = signature_of(packet, self.key.secret)
         if signature is None:
             return "unsigned"
         if not signature.valid:
             return "bad_signature"
-        stream = (signature.link_id, msg.get_srcSystem(), msg.get_srcComponent())
+        stream = (signature.link_id, system, component)
         last = self._streams.get(stream)
         if last is not None:
             if signature.timestamp <= last:

@@ -18,6 +18,13 @@ out the remaining fraction of a millisecond on the clock itself, and then only s
 ready datagrams. Measured with 50 vehicles at 50 Hz (bench/stream.py, README): p50/p99
 lateness 1.5/4.2 ms when sleeping on the timer, 0.5/3.8 ms (medians of 3 runs) like this,
 for about 2.5 ms of waiting on the clock per tick (12% of a core at 50 Hz, 5% at 20 Hz).
+
+Stalls (`Streamer.stalls`): a wake-up more than `STALL_S` late is counted as *descheduled*
+(the thread waited runnable for a core: another process ran) or *busy* (its own callbacks
+ran). At 100 vehicles on a busy 2-core machine nearly all stalls are descheduled; garbage
+collection and telemetry handling are not the cause (bench/stream.py, README). Hence
+`realtime=True`: the loop's thread runs at SCHED_RR 1 while streaming, when the process may
+(CAP_SYS_NICE or an rtprio limit, e.g. ``chrt -r 1`` or systemd's CPUSchedulingPolicy).
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,7 +43,7 @@ from gcs.flight.link import VehicleLink
 from gcs.flight.setpoints import Setpoint, SetpointTrack
 from gcs.wire import time_boot_ms
 
-__all__ = ["Assignment", "SendCallback", "Streamer", "jitter_stats"]
+__all__ = ["STALL_S", "Assignment", "SendCallback", "Streamer", "jitter_stats"]
 
 #: Called after each send with (vehicle id, tick, setpoint, send instant).
 SendCallback = Callable[[str, int, Setpoint, float], None]
@@ -44,6 +52,8 @@ SendCallback = Callable[[str, int, Setpoint, float], None]
 #: covers asyncio's millisecond timer resolution and telemetry handled just before the tick;
 #: the rest is a short wait on the clock (1.5 ms gave p99 4.3 ms, 3 ms 2.6 ms, 5 ms 1.6 ms).
 WAKE_MARGIN = 0.003
+#: A wake-up this much later than planned is a stall (`Streamer.stalls`).
+STALL_S = 0.002
 
 
 @dataclass
@@ -61,8 +71,15 @@ class Assignment:
 class Streamer:
     """The fleet's one setpoint loop at `rate` Hz (see the module docstring)."""
 
-    def __init__(self, rate: float, boot_epoch: float | None = None) -> None:
+    def __init__(self, rate: float, boot_epoch: float | None = None, *,
+                 realtime: bool = False) -> None:
         self.rate = float(rate)
+        self.realtime = realtime
+        """Ask for real-time scheduling (SCHED_RR 1) for the loop's thread while streaming,
+        see `scheduling`; off by default (today's behaviour)."""
+        self.scheduling = "ordinary"
+        """What the loop's thread ran with: ``ordinary``, ``SCHED_RR 1``, or why real-time
+        was refused (it needs CAP_SYS_NICE or an rtprio limit, e.g. `chrt`/systemd)."""
         self.period = 1.0 / self.rate
         self.epoch = time.monotonic()
         """Instant of tick 0."""
@@ -77,6 +94,11 @@ class Streamer:
         """Send instant minus scheduled tick instant (s), one per message, while
         `measuring` is true."""
         self.measuring = False
+        self.stalls = {"busy": 0, "descheduled": 0}
+        """Wake-ups more than `STALL_S` late while `measuring`, by cause: ``descheduled`` when
+        the loop's thread waited at least half of the delay runnable but not running (the OS
+        ran another process: Linux's /proc/thread-self/schedstat), else ``busy`` (this
+        thread's own callbacks ran: telemetry, heartbeats, garbage collection)."""
         self._task: asyncio.Task[None] | None = None
 
     def tick_time(self, tick: int) -> float:
@@ -137,6 +159,39 @@ class Streamer:
         self.tick = tick
 
     async def _run(self) -> None:
+        try:
+            schedstat: int | None = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+        except OSError:  # not Linux: stalls are all counted as busy
+            schedstat = None
+        restore = self._enter_realtime() if self.realtime else None
+        try:
+            await self._loop(schedstat)
+        finally:
+            if schedstat is not None:
+                os.close(schedstat)
+            if restore is not None:
+                with contextlib.suppress(OSError):
+                    os.sched_setscheduler(0, *restore)
+
+    def _enter_realtime(self) -> tuple[int, os.sched_param] | None:
+        """SCHED_RR priority 1 for this thread (the event loop's); returns the policy to
+        restore, None if refused (then `scheduling` says why and nothing changes).
+
+        Why: on a machine whose cores are busy (other processes, a simulator), the kernel
+        leaves a woken GCS waiting for a core for several ms, which is most of the send
+        jitter (`stalls`); a real-time thread runs as soon as it wakes. The loop's waits
+        are bounded (a fraction of a tick), so it cannot starve the machine, and Linux
+        keeps 5% of each core for ordinary processes anyway (sched_rt_runtime_us)."""
+        try:
+            old = (os.sched_getscheduler(0), os.sched_getparam(0))
+            os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(1))
+        except (AttributeError, OSError) as exc:
+            self.scheduling = f"ordinary (real-time refused: {exc})"
+            return None
+        self.scheduling = "SCHED_RR 1"
+        return old
+
+    async def _loop(self, schedstat: int | None) -> None:
         encode_time = 0.0
         while True:
             now = time.monotonic()
@@ -154,7 +209,19 @@ class Streamer:
                     pass  # a fraction of a millisecond: the clock, not the timer
                 self._send_tick(tick, ready)
             wake = self.tick_time(self.tick + 1) - encode_time - WAKE_MARGIN
+            waited = _run_delay(schedstat)
             await asyncio.sleep(max(0.0, wake - time.monotonic()))
+            late = time.monotonic() - wake
+            if late > STALL_S and self.measuring:
+                descheduled = _run_delay(schedstat) - waited >= late / 2
+                self.stalls["descheduled" if descheduled else "busy"] += 1
+
+
+def _run_delay(schedstat: int | None) -> float:
+    """Seconds this thread has waited runnable for a CPU (0 when unknown)."""
+    if schedstat is None:
+        return 0.0
+    return int(os.pread(schedstat, 64, 0).split()[1]) * 1e-9
 
 
 def jitter_stats(lateness: list[float] | np.ndarray) -> dict[str, float]:

@@ -41,6 +41,7 @@ from gcs.flight.link import VehicleLink, mavlink, result_name
 __all__ = [
     "AIRBORNE",
     "MODE_RETRY_FOR",
+    "UNREAD_STREAMS",
     "Emit",
     "VehicleStatus",
     "arm",
@@ -236,22 +237,28 @@ async def disarm(link: VehicleLink, *, force: bool = False) -> int:
     return await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, params)
 
 
+#: PX4 offboard-link streams the GCS never reads (`gcs.flight.link.DECODED_IDS` is what it
+#: reads), turned off by `message_rates`: the fast ones (ATTITUDE 100/s, HIGHRES_IMU,
+#: ATTITUDE_QUATERNION, GLOBAL_POSITION_INT 50/s, ODOMETRY 30/s on SITL) and the 0.5-10/s rest.
+UNREAD_STREAMS = tuple(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in (
+    "ATTITUDE", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "GLOBAL_POSITION_INT", "ODOMETRY",
+    "ALTITUDE", "ATTITUDE_TARGET", "POSITION_TARGET_LOCAL_NED", "POSITION_TARGET_GLOBAL_INT",
+    "VFR_HUD", "SERVO_OUTPUT_RAW", "TIMESYNC", "SCALED_PRESSURE", "ESTIMATOR_STATUS",
+    "SYSTEM_TIME", "VIBRATION"))
+
+
 def message_rates(position_hz: float) -> dict[int, float]:
     """What the GCS needs from a PX4 offboard link, by message id, in Hz (0 = off): position
-    at `position_hz`, status, landed state, GPS and battery at 2 Hz, and PX4's fast streams it
-    never reads (ATTITUDE 100/s, HIGHRES_IMU, ATTITUDE_QUATERNION, GLOBAL_POSITION_INT
-    50/s each, ODOMETRY 30/s on SITL) off. HEARTBEAT is absent: PX4 refuses to change it."""
+    at `position_hz`, status, landed state and GPS at 2 Hz, and every stream it never reads
+    (`UNREAD_STREAMS`) off. HEARTBEAT is absent (PX4 refuses to change it); HOME_POSITION
+    and BATTERY_STATUS (0.5/s, read) keep PX4's rate."""
     m = mavlink
     return {
         m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
         m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
         m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
         m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
-        m.MAVLINK_MSG_ID_ATTITUDE: 0.0,
-        m.MAVLINK_MSG_ID_HIGHRES_IMU: 0.0,
-        m.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 0.0,
-        m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.0,
-        m.MAVLINK_MSG_ID_ODOMETRY: 0.0,
+        **dict.fromkeys(UNREAD_STREAMS, 0.0),
     }
 
 

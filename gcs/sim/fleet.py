@@ -99,6 +99,12 @@ class MockFleet:
         self.errors = 0
         """Physics steps that raised (each vehicle counts its own in `MockVehicle.errors`)."""
 
+    @property
+    def boot_monotonic(self) -> float:
+        """The `time.monotonic()` instant of the vehicles' boot (their time_boot_ms 0): a
+        process on the same machine turns their timestamps into its own clock with it."""
+        return self._start
+
     def now(self) -> float:
         """Seconds since the mock started (its boot clock)."""
         return time.monotonic() - self._start

@@ -5,7 +5,10 @@ MAV_AUTOPILOT_PX4, custom mode main << 16 | sub << 24, armed flag), SYS_STATUS (
 enabled, healthy; the pre-arm bit healthy once settled), HOME_POSITION, GPS_GLOBAL_ORIGIN,
 EXTENDED_SYS_STATE, LOCAL_POSITION_NED, ATTITUDE, GLOBAL_POSITION_INT, AUTOPILOT_VERSION,
 STATUSTEXT and COMMAND_ACK (COMMAND_LONG and COMMAND_INT), and answers
-MAV_CMD_REQUEST_MESSAGE. PX4's rules, as in its mavlink_receiver and commander:
+MAV_CMD_REQUEST_MESSAGE. Its periodic streams, their rates (``minimal``, or PX4's offboard-link
+set of about 410 messages/s with ``MockConfig.telemetry_profile = "px4"``) and
+MAV_CMD_SET_MESSAGE_INTERVAL on each are `gcs.sim.telemetry`. PX4's rules, as in its
+mavlink_receiver and commander:
 
 - SET_POSITION_TARGET_LOCAL_NED is taken only for target system = own id or 0 (component own
   or 0), frame MAV_FRAME_LOCAL_NED (BODY_NED: velocity/acceleration only); IGNORE bits become
@@ -70,7 +73,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import frames, px4, wire
-from gcs.sim.model import GRAVITY, FleetModel, ModelLimits
+from gcs.sim import telemetry
+from gcs.sim.model import FleetModel, ModelLimits
 from gcs.wire import PX4_UNSIGNED_ACCEPTED, mavlink, signing_timestamp, time_boot_ms
 
 if TYPE_CHECKING:
@@ -185,6 +189,9 @@ class MockConfig:
     """Battery drain while armed (% per second; a 20-minute battery)."""
     gps_rate: float = 5.0
     """GPS_RAW_INT rate (Hz)."""
+    telemetry_profile: str = "minimal"
+    """What the offboard link sends (`gcs.sim.telemetry`): ``minimal`` (the rates above, about
+    65 messages/s) or ``px4`` (PX4's offboard-link set and rates, about 410 messages/s)."""
     record_setpoints: bool = False
     """Keep every accepted setpoint in `MockVehicle.received` (for tests)."""
     limits: ModelLimits = field(default_factory=ModelLimits)
@@ -280,10 +287,14 @@ class MockVehicle:
         signed (pymavlink's signing counters say which)."""
         self._transport: asyncio.DatagramTransport | None = None
         self._rng = random.Random(fleet.seed * 1000 + index)
-        self._next = {"heartbeat": 0.0, "status": 0.0, "position": 0.0, "attitude": 0.0,
-                      "global": 0.0, "home": 0.0}
-        self.intervals = {"position": 1.0 / fleet.config.position_rate}
-        """Stream periods a GCS may change with MAV_CMD_SET_MESSAGE_INTERVAL (s)."""
+        self._defaults = telemetry.default_rates(fleet.config)
+        self.intervals: dict[int, float | None] = {
+            msg_id: (1.0 / hz if hz > 0 else None) for msg_id, hz in self._defaults.items()}
+        """Period (s) of each stream of `gcs.sim.telemetry.STREAMS` by message id (None: off);
+        MAV_CMD_SET_MESSAGE_INTERVAL changes it."""
+        self._next = dict.fromkeys(self.intervals, 0.0)
+        self.sent: dict[int, int] = dict.fromkeys(self.intervals, 0)
+        """Messages sent per stream (counted before any injected loss)."""
 
     # ------------------------------------------------------------------ state
 
@@ -395,45 +406,18 @@ class MockVehicle:
             self._disarm("auto preflight disarming")
 
     def send_telemetry(self, now: float) -> None:
-        """Whatever stream is due at `now`."""
-        cfg = self.config
+        """Every stream due at `now` (`gcs.sim.telemetry`), at most one message each: a
+        stream that fell behind by more than a period restarts from now (no burst)."""
         due = self._next
-        if now >= due["heartbeat"]:
-            due["heartbeat"] = now + 1.0 / cfg.status_rate
-            if self.faults.heartbeats:
-                self._send(self._heartbeat())
-        if now >= due["status"]:
-            due["status"] = now + 1.0 / cfg.status_rate
-            self._send(self._sys_status(now))
-            landed = (mavlink.MAV_LANDED_STATE_ON_GROUND if not self.in_air else
-                      mavlink.MAV_LANDED_STATE_LANDING if self.mode == px4.LAND else
-                      mavlink.MAV_LANDED_STATE_IN_AIR)
-            self._send(self._mav.extended_sys_state_encode(0, landed))
-        if now >= due["position"]:
-            due["position"] = now + self.intervals["position"]
-            p, v = self.model.position[self.index], self.model.velocity[self.index]
-            if self.faults.nan_position:
-                p = v = (math.nan, math.nan, math.nan)
-            self._send(self._mav.local_position_ned_encode(
-                time_boot_ms(now), p[0], p[1], p[2], v[0], v[1], v[2]))
-        if now >= due["attitude"]:
-            due["attitude"] = now + 1.0 / cfg.attitude_rate
-            a = self.model.acceleration[self.index]
-            c, s = math.cos(self.yaw), math.sin(self.yaw)
-            forward, right = c * a[0] + s * a[1], -s * a[0] + c * a[1]
-            thrust = max(GRAVITY - a[2], 0.1)
-            self._send(self._mav.attitude_encode(
-                time_boot_ms(now), math.atan2(right, thrust), -math.atan2(forward, thrust),
-                self.yaw, 0.0, 0.0, 0.0))
-        if now >= due["global"]:
-            due["global"] = now + 1.0 / cfg.global_position_rate
-            self._send(self._global_position(now))
-        if now >= due.get("gps", 0.0):
-            due["gps"] = now + 1.0 / cfg.gps_rate
-            self._send(self._gps_raw(now))
-        if now >= due["home"]:
-            due["home"] = now + 5.0
-            self._send(self._home_position(now))
+        for msg_id, period in self.intervals.items():
+            if period is None or now < due[msg_id]:
+                continue
+            nxt = due[msg_id] + period
+            due[msg_id] = nxt if nxt > now else now + period
+            msg = telemetry.BY_ID[msg_id].build(self, now)
+            if msg is not None:
+                self.sent[msg_id] += 1
+                self._send(msg)
 
     # ---------------------------------------------------------------- messages out
 
@@ -720,19 +704,24 @@ class MockVehicle:
             self._ack(msg, cmd, mavlink.MAV_RESULT_UNSUPPORTED)
 
     def _set_interval(self, message_id: int, interval_us: float) -> int:
-        """MAV_CMD_SET_MESSAGE_INTERVAL. Like PX4 (mavlink_receiver.cpp), HEARTBEAT's rate
-        cannot be changed (FAILED); LOCAL_POSITION_NED's can; other ids are accepted and
-        ignored. 0 = default rate, -1 = off (DENIED here: the mock never stops it)."""
-        if message_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+        """MAV_CMD_SET_MESSAGE_INTERVAL as PX4's `MavlinkReceiver::set_message_interval`:
+        HEARTBEAT cannot be changed and an id with no stream is refused (FAILED); for every
+        stream of `gcs.sim.telemetry`, an interval < 0 stops it, 0 restores its default
+        rate, > 0 sets it (at most the mock's physics rate)."""
+        if message_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT or message_id not in self.intervals:
             return mavlink.MAV_RESULT_FAILED
-        if message_id != mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
-            return mavlink.MAV_RESULT_ACCEPTED
-        if interval_us < 0:
+        if not math.isfinite(interval_us):
             return mavlink.MAV_RESULT_DENIED
-        default = 1.0 / self.config.position_rate
-        period = default if interval_us == 0 else max(interval_us * 1e-6, 0.005)
-        self.intervals["position"] = period
-        self._next["position"] = min(self._next["position"], self._now() + period)
+        if interval_us < 0:
+            period = None
+        elif interval_us == 0:
+            hz = self._defaults[message_id]
+            period = 1.0 / hz if hz > 0 else None
+        else:
+            period = max(interval_us * 1e-6, 1.0 / self.config.physics_rate)
+        self.intervals[message_id] = period
+        if period is not None:
+            self._next[message_id] = min(self._next[message_id], self._now() + period)
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _on_arm(self, msg: Any, now: float) -> None:

@@ -46,6 +46,23 @@ def test_stream_benchmark_reports_rate_and_jitter():
         assert report[mode]["runs"][0]["telemetry_messages_received_first_endpoint"] > 0
 
 
+def test_stream_benchmark_at_px4_rates_with_and_without_rate_requests():
+    report = _run("stream.py", "--vehicles", "2", "--rate", "20", "--duration", "2",
+                  "--telemetry", "px4", "--message-rates", "leave,request", "--modes",
+                  "unsigned")
+    assert report["scenario"]["telemetry"] == "px4"
+    leave, request = (report[f"unsigned/{m}"]["runs"][0] for m in ("leave", "request"))
+    assert leave["telemetry_skipped_per_s"] > 0  # unread ids dropped before decoding
+    assert request["rate_requests_refused"] == []
+    # asked for what it reads, the GCS receives a fraction of PX4's ~410/s per vehicle
+    assert request["telemetry_per_s"] < 0.3 * leave["telemetry_per_s"]
+    for run in (leave, request):
+        assert 0 < run["telemetry_latency_p50_ms"] <= run["telemetry_latency_p99_ms"]
+        assert run["link_loss_percent"] < 1.0
+        assert set(run["stalls"]) == {"busy", "descheduled"}
+    assert report["per_message_us"]["skip_attitude"]["unsigned"] > 0
+
+
 def test_service_benchmark_reports_latency_and_flight_timing():
     report = _run("service.py", "--scenario", "paper-circle8")
     run = report["runs"][0]

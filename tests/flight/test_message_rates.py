@@ -11,9 +11,12 @@ import pytest
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.sim import MockFleet, homes_under
+from gcs.wire import mavlink
 from tests.flight.support import line_scenario, mock_ports, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
+
+LPN = mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED
 
 
 def test_requested_position_rate_is_what_arrives() -> None:
@@ -24,7 +27,7 @@ def test_requested_position_rate_is_what_arrives() -> None:
     async def fly():
         homes = homes_under(plan.scenario.starts)
         async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
-            assert mock.vehicles[0].intervals["position"] == pytest.approx(1 / 30)
+            assert mock.vehicles[0].intervals[LPN] == pytest.approx(1 / 30)
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             record = await FlightExecutor(plan, fleet, options).run()
             return record, mock
@@ -36,7 +39,7 @@ def test_requested_position_rate_is_what_arrives() -> None:
     for e in answers:
         assert "LOCAL_POSITION_NED 50 Hz ACCEPTED" in e["detail"]
         assert "ATTITUDE off ACCEPTED" in e["detail"]
-    assert all(v.intervals["position"] == pytest.approx(0.02) for v in mock.vehicles)
+    assert all(v.intervals[LPN] == pytest.approx(0.02) for v in mock.vehicles)
     # and position reports really came at about 50 Hz while the plan was flown (30 before)
     t0, horizon = record["mission_start"], record["horizon"]
     for v in record["vehicles"]:

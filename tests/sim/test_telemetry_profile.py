@@ -1,0 +1,160 @@
+"""The mock's offboard-link telemetry (`gcs.sim.telemetry`): PX4's message set and rates in the
+``px4`` profile, MAV_CMD_SET_MESSAGE_INTERVAL like PX4, and what a GCS asking for what it needs
+(`message_rates: request`) then receives."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import time
+from collections import Counter
+
+import pytest
+
+from gcs.flight import vehicle
+from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
+from gcs.sim import MockConfig, MockFleet
+from gcs.sim.telemetry import STREAMS, default_rates
+from gcs.wire import mavlink, parse_datagram
+from tests.flight.support import mock_ports
+
+pytestmark = pytest.mark.timeout(60)
+
+M = mavlink
+
+
+async def _count(mock: MockFleet, seconds: float) -> Counter[int]:
+    """Message ids vehicle 0 sends in `seconds`, read off the wire by a bare socket bound to
+    the port it sends to (no GCS code involved)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", mock.vehicles[0].gcs_port))
+    sock.setblocking(False)
+    counts: Counter[int] = Counter()
+    loop = asyncio.get_running_loop()
+    end = time.monotonic() + seconds
+    try:
+        while (left := end - time.monotonic()) > 0:
+            try:
+                data = await asyncio.wait_for(loop.sock_recv(sock, 4096), left)
+            except TimeoutError:
+                break
+            for msg in parse_datagram(data).messages:
+                counts[msg.get_msgId()] += 1
+    finally:
+        sock.close()
+    return counts
+
+
+def test_minimal_profile_keeps_todays_set_and_rates() -> None:
+    rates = {k: v for k, v in default_rates(MockConfig()).items() if v > 0}
+    assert rates == {M.MAVLINK_MSG_ID_HEARTBEAT: 1.0, M.MAVLINK_MSG_ID_SYS_STATUS: 1.0,
+                     M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
+                     M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 30.0, M.MAVLINK_MSG_ID_ATTITUDE: 20.0,
+                     M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 5.0, M.MAVLINK_MSG_ID_GPS_RAW_INT: 5.0,
+                     M.MAVLINK_MSG_ID_HOME_POSITION: 0.2}
+    px4_total = sum(default_rates(MockConfig(telemetry_profile="px4")).values())
+    assert 395 <= px4_total <= 425  # PX4 SITL: about 410 messages/s
+    with pytest.raises(ValueError, match="telemetry_profile"):
+        default_rates(MockConfig(telemetry_profile="full"))
+
+
+def test_px4_profile_sends_the_table_at_its_rates() -> None:
+    async def main() -> Counter[int]:
+        async with MockFleet(1, telemetry_profile="px4", **mock_ports(1)) as mock:
+            await asyncio.sleep(0.3)
+            return await _count(mock, 2.0)
+
+    counts = asyncio.run(main())
+    for stream in STREAMS:
+        got = counts[stream.msg_id] / 2.0
+        if stream.px4_hz >= 5:
+            assert 0.7 * stream.px4_hz <= got <= 1.2 * stream.px4_hz, (stream, got)
+        else:  # 0.5-1/s: at least once in 2 s
+            assert counts[stream.msg_id] >= 1, stream
+    assert set(counts) == {s.msg_id for s in STREAMS}
+    assert 300 <= sum(counts.values()) / 2.0 <= 450
+
+
+def test_set_message_interval_like_px4() -> None:
+    async def main() -> None:
+        async with MockFleet(1, telemetry_profile="px4", **mock_ports(1)) as mock, \
+                LinkHub() as hub:
+            link = await hub.add("v", mock.gcs_url(0), 1)
+            assert await link.wait_for(lambda t: t.heartbeat_time is not None, 5.0)
+
+            async def interval(msg_id: int, us: float) -> int:
+                return await link.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, (float(msg_id), us))
+
+            assert await interval(M.MAVLINK_MSG_ID_HEARTBEAT, 100_000) == M.MAV_RESULT_FAILED
+            assert await interval(M.MAVLINK_MSG_ID_WIND_COV, 100_000) == M.MAV_RESULT_FAILED
+            assert await interval(M.MAVLINK_MSG_ID_ATTITUDE, -1) == M.MAV_RESULT_ACCEPTED
+            assert await interval(M.MAVLINK_MSG_ID_HIGHRES_IMU, 100_000) == \
+                M.MAV_RESULT_ACCEPTED
+            await hub.close()  # free the port for the bare counter
+            counts = await _count(mock, 2.0)
+            assert counts[M.MAVLINK_MSG_ID_ATTITUDE] == 0
+            assert 14 <= counts[M.MAVLINK_MSG_ID_HIGHRES_IMU] <= 24  # 10/s
+            assert counts[M.MAVLINK_MSG_ID_HEARTBEAT] >= 1  # never stopped
+            # 0: back to the default rate
+            v = mock.vehicles[0]
+            assert v._set_interval(M.MAVLINK_MSG_ID_ATTITUDE, 0) == M.MAV_RESULT_ACCEPTED
+            assert v.intervals[M.MAVLINK_MSG_ID_ATTITUDE] == pytest.approx(0.01)
+
+    asyncio.run(main())
+
+
+def test_a_minimal_vehicle_starts_a_px4_stream_on_request() -> None:
+    async def main() -> None:
+        async with MockFleet(1, **mock_ports(1)) as mock:
+            v = mock.vehicles[0]
+            assert v.intervals[M.MAVLINK_MSG_ID_ODOMETRY] is None
+            assert v._set_interval(M.MAVLINK_MSG_ID_ODOMETRY, 50_000) == M.MAV_RESULT_ACCEPTED
+            counts = await _count(mock, 1.0)
+            assert 15 <= counts[M.MAVLINK_MSG_ID_ODOMETRY] <= 22
+
+    asyncio.run(main())
+
+
+def test_a_gcs_requesting_its_rates_receives_only_what_it_needs() -> None:
+    """`request_message_rates(message_rates(30))` on a PX4-rate vehicle: every answer ACCEPTED,
+    then only the ids the GCS reads arrive, about 37 messages/s instead of 410; the link
+    counts no loss and, with `DECODED_IDS`, skips nothing because nothing unread is left."""
+    async def main() -> tuple[dict[str, str], Counter[str], VehicleLink, int]:
+        async with MockFleet(1, telemetry_profile="px4", **mock_ports(1)) as mock, \
+                LinkHub(decode_ids=DECODED_IDS) as hub:
+            link = await hub.add("v", mock.gcs_url(0), 1)
+            assert await link.wait_for(lambda t: t.heartbeat_time is not None, 5.0)
+            await asyncio.sleep(0.3)
+            assert link.telemetry.skipped > 50  # PX4's full set: unread ids are skipped
+            answers = await vehicle.request_message_rates(link, vehicle.message_rates(30.0))
+            await asyncio.sleep(0.3)  # what was in flight
+            seen: Counter[str] = Counter()
+            link.listeners.append(lambda _l, m, _t: seen.__setitem__(m.get_type(),
+                                                                     seen[m.get_type()] + 1))
+            skipped = link.telemetry.skipped
+            await asyncio.sleep(2.0)
+            return answers, seen, link, link.telemetry.skipped - skipped
+
+    answers, seen, link, skipped_after = asyncio.run(main())
+    assert all(a.endswith("ACCEPTED") for a in answers.values()), answers
+    assert skipped_after == 0
+    assert set(seen) <= {M.mavlink_map[i].msgname for i in DECODED_IDS}
+    assert 55 <= seen["LOCAL_POSITION_NED"] <= 64
+    assert 60 <= sum(seen.values()) <= 90
+    tel = link.telemetry
+    assert tel.seq_lost <= 0.01 * tel.seq_received
+
+
+def test_link_loss_stays_zero_at_px4_rates_with_skipping() -> None:
+    async def main() -> VehicleLink:
+        async with MockFleet(2, telemetry_profile="px4", **mock_ports(2)) as mock, \
+                LinkHub(decode_ids=DECODED_IDS) as hub:
+            link = await hub.add("v", mock.gcs_url(1), 2)
+            await asyncio.sleep(2.0)
+            return link
+
+    link = asyncio.run(main())
+    tel = link.telemetry
+    assert tel.skipped > 500  # ~370/s of unread ids
+    assert tel.seq_received > tel.skipped
+    assert tel.seq_lost <= 0.005 * tel.seq_received, (tel.seq_lost, tel.seq_received)
