@@ -78,10 +78,10 @@ class EstimateNoise:
     GPS as height reference (at rest the estimated altitude ranges -1.2..+0.65 m, x/y wander
     +-0.3 m; in flight the estimate holds the setpoint within about +-0.2 m)."""
 
-    bias_std_xy: float = 0.15
+    bias_std_xy: float = 0.12
     bias_std_z: float = 0.4
     bias_time_xy: float = 10.0
-    bias_time_z: float = 20.0
+    bias_time_z: float = 45.0
     white_xy: float = 0.01
     white_z: float = 0.02
 

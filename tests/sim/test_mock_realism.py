@@ -88,7 +88,7 @@ def test_noise_statistics_match_px4_sitl(seed: int) -> None:
 
 def test_the_reported_accuracy_is_the_noise() -> None:
     noise = EstimateNoise()
-    assert noise.horizontal_accuracy == pytest.approx(np.sqrt(2) * np.hypot(0.15, 0.01))
+    assert noise.horizontal_accuracy == pytest.approx(np.sqrt(2) * np.hypot(0.12, 0.01))
     assert noise.vertical_accuracy == pytest.approx(np.hypot(0.4, 0.02))
 
 
