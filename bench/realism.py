@@ -28,6 +28,7 @@ from typing import Any
 # (the planner benchmark) would shadow the planner package: the project root goes first.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from gcs.errors import GcsError
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.margin import scenario_for_fleet
@@ -49,12 +50,16 @@ async def _fly(plan: Any, realism: str, seed: int, position_error: float | None
         fleet = mock.fleet_dict(plan.scenario.ids)
         if position_error is not None:
             fleet["position_error"] = position_error
-        record = await FlightExecutor(plan, FleetSpec.from_dict(fleet),
-                                      FlightOptions(hold_at_goal=1.0)).run()
+        executor = FlightExecutor(plan, FleetSpec.from_dict(fleet),
+                                  FlightOptions(hold_at_goal=1.0))
+        try:
+            record = await executor.run()
+        except GcsError:  # aborted or failed: its record says why
+            record = executor.record
     s = record["summary"]
-    detail = next(e["detail"] for e in record["events"] if e["kind"] == "goal_errors")
-    goals = [float(item.split()[1]) for item in detail.split(", ")]
-    return {"seed": seed, "completed": s["completed"], "why": s["why"],
+    detail = next((e["detail"] for e in record["events"] if e["kind"] == "goal_errors"), "")
+    goals = [float(item.split()[1]) for item in detail.split(", ") if item]
+    return {"seed": seed, "realism": realism, "completed": s["completed"], "why": s["why"],
             "goal_errors_m": goals, "goal_tolerance_m": s["goal_tolerance"],
             "tracking_error_max_m": s["tracking_error_max"],
             "min_separation_measured_m": s["min_separation_measured"],
@@ -62,12 +67,17 @@ async def _fly(plan: Any, realism: str, seed: int, position_error: float | None
             "min_separation_required_m": s["min_separation_required"]}
 
 
-def _stats(flights: list[dict[str, Any]]) -> dict[str, Any]:
+def _stats(all_flights: list[dict[str, Any]]) -> dict[str, Any]:
+    flights = [f for f in all_flights if f["goal_errors_m"]]  # flown to the end
+    if not flights:
+        return {"flights": len(all_flights), "completed": 0}
+
     def med(key: str) -> float:
         return round(statistics.median(f[key] for f in flights), 3)
 
     goals = [g for f in flights for g in f["goal_errors_m"]]
-    return {"flights": len(flights), "completed": sum(f["completed"] for f in flights),
+    return {"flights": len(all_flights), "flown_to_the_end": len(flights),
+            "completed": sum(f["completed"] for f in flights),
             "tracking_error_max_m": {"median": med("tracking_error_max_m"),
                                      "max": round(max(f["tracking_error_max_m"]
                                                       for f in flights), 3)},

@@ -50,6 +50,11 @@ unsigned or wrongly signed ones are rejected, except PX4's documented few
 (`gcs.wire.PX4_UNSIGNED_ACCEPTED`). The signature checks are pymavlink's own, not ours.
 Each datagram is decoded by a fresh parser.
 
+Realism (`MockConfig.preset`): "ideal" reports the exact state; "px4" (`MockConfig.px4_like`)
+reports a noisy, wandering estimate (`gcs.sim.model.EstimateNoise`) with its accuracy in
+GPS_RAW_INT, lags like PX4's attitude loop, is deaf and silent for `boot_time` after start,
+refuses arming for 3.5 s and sends the second ACK of a doubly-ACKed command a little later.
+
 Faults can be injected per vehicle at any time through `MockVehicle.faults` (`MockFaults`):
 packet loss, stopped heartbeats, delay, refused arming, non-finite position reports, battery
 level, unhealthy sensors (SYS_STATUS), GPS fix.
@@ -220,7 +225,7 @@ class MockConfig:
 
     @classmethod
     def px4_like(cls) -> MockConfig:
-        """PX4 v1.16 SIH SITL as measured (docs: README "The mock autopilot"): a wandering
+        """PX4 v1.16 SIH SITL as measured (README "Mock realism" has the figures): a wandering
         position estimate (GPS-like altitude noise), the attitude loop's lag, arming refused
         for 3.5 s after boot, first HEARTBEAT after 1.5 s, PX4's offboard message set."""
         return cls(realism="px4", settle_time=3.5, boot_time=1.5,
