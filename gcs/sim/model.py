@@ -149,10 +149,6 @@ class FleetModel:
         self.velocity_sp[index] = 0.0
         self.acceleration_sp[index] = 0.0
 
-    def truth_of(self, index: int) -> FloatArray:
-        """Vehicle `index`'s true position (a copy)."""
-        return self.truth[index].copy()
-
     def descend(self, index: int, speed: float) -> None:
         """Hold the current horizontal position and descend at `speed` (m/s)."""
         self.position_sp[index] = (self.position[index, 0], self.position[index, 1], np.nan)
