@@ -17,11 +17,13 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 __all__ = [
+    "ACKED_TWICE",
     "ARM_TEMPORARILY_REJECTED_RETRY_S",
     "COM_DISARM_LAND_S",
     "COM_DISARM_PRFLT_S",
     "COM_OF_LOSS_T_S",
     "DISARM_FORCE_MAGIC",
+    "DUPLICATE_ACK_WINDOW_S",
     "HOLD",
     "LAND",
     "OFFBOARD",
@@ -43,6 +45,12 @@ COM_DISARM_LAND_S = 2.0
 DISARM_FORCE_MAGIC = 21196.0
 #: How long to wait between arming attempts answered TEMPORARILY_REJECTED.
 ARM_TEMPORARILY_REJECTED_RETRY_S = 1.0
+#: Commands PX4 (v1.16 SITL, observed) answers with two identical COMMAND_ACKs:
+#: MAV_CMD_DO_SET_MODE (176) and MAV_CMD_REQUEST_MESSAGE (512).
+ACKED_TWICE = frozenset({176, 512})
+#: How long after the first ACK of such a command its second is expected (s): meanwhile an
+#: identical ACK is taken for that echo, not for a newer command with the same id.
+DUPLICATE_ACK_WINDOW_S = 1.0
 
 
 class MainMode(IntEnum):

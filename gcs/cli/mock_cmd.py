@@ -3,6 +3,8 @@
 Vehicle i listens on UDP --listen-base-port + i and sends to --base-port + i on 127.0.0.1
 (PX4 SITL's 14580 + i / 14540 + i by default), system id i + 1. Homes: under the starts of
 --plan, or a row --spacing metres apart along x. --fleet-out writes the matching fleet file.
+--realism px4 makes them behave like PX4 v1.16 SIH SITL (noisy wandering estimate, attitude lag,
+late boot, arming refused for 3.5 s: `MockConfig.px4_like`); the default is ideal.
 """
 
 from __future__ import annotations
@@ -25,20 +27,28 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-port-offset", type=int, default=None,
                         help="vehicles from this index on share one GCS port, like PX4 SITL "
                              "from instance 10 on (9); 0 puts the whole fleet on one port")
-    parser.add_argument("--settle", type=float, default=5.0,
+    parser.add_argument("--realism", choices=("ideal", "px4"), default="ideal",
+                        help="ideal (exact state, default) or px4: PX4 SIH SITL's estimate "
+                             "noise, tracking lag and timings")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="seed of the noise and injected loss (default 0)")
+    parser.add_argument("--settle", type=float, default=None,
                         help="arming is TEMPORARILY_REJECTED this long after start (s, default "
-                             "5 like PX4 SITL)")
+                             "5 for ideal, 3.5 for px4, as PX4 SITL)")
     parser.add_argument("--position-rate", type=float, default=30.0,
                         help="LOCAL_POSITION_NED rate (Hz, default 30)")
-    parser.add_argument("--telemetry", choices=("minimal", "px4"), default="minimal",
+    parser.add_argument("--telemetry", choices=("minimal", "px4"), default=None,
                         help="what the vehicles send: minimal (about 65 messages/s each, the "
-                             "default) or px4 (PX4's offboard-link set and rates, about 410 "
-                             "messages/s each; gcs.sim.telemetry)")
+                             "default for ideal) or px4 (PX4's offboard-link set and rates, "
+                             "about 410 messages/s each; the default for --realism px4)")
     parser.add_argument("--loss", type=float, default=0.0,
                         help="fault: fraction of packets dropped each way (0..1)")
     parser.add_argument("--delay", type=float, default=0.0,
                         help="fault: seconds added to every packet")
     parser.add_argument("--fleet-out", help="write the fleet file for these vehicles here")
+    parser.add_argument("--position-error", type=float, default=None,
+                        help="state this position_error (m) in the --fleet-out file (e.g. 0.25 "
+                             "for --realism px4)")
     parser.add_argument("--duration", type=float, default=None,
                         help="stop after this many seconds (default: run until Ctrl-C)")
 
@@ -46,11 +56,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import asyncio
     import json
+    import math
     import signal
     import sys
     from pathlib import Path
 
-    from gcs.sim import MockFleet, homes_under
+    from gcs.sim import MockConfig, MockFleet, homes_under
 
     ids = None
     homes = None
@@ -65,6 +76,19 @@ def run(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 2
     count = len(homes) if homes is not None else (4 if args.vehicles is None else args.vehicles)
+    for name in ("settle", "position_rate", "position_error"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and value >= 0.0):
+            print(f"error: --{name.replace('_', '-')} must be a finite number >= 0, got {value}",
+                  file=sys.stderr)
+            return 2
+    if args.position_error is not None and args.position_error > 10.0:
+        print(f"error: --position-error must be within [0, 10] m, got {args.position_error}",
+              file=sys.stderr)
+        return 2
+    if not args.position_rate > 0.0:
+        print("error: --position-rate must be above 0", file=sys.stderr)
+        return 2
     if not 1 <= count <= 254:  # MAVLink system ids 1..254 (255 is the GCS's)
         print(f"error: --vehicles must be between 1 and 254, got {count}", file=sys.stderr)
         return 2
@@ -72,11 +96,15 @@ def run(args: argparse.Namespace) -> int:
         homes = [[args.spacing * i, 0.0, 0.0] for i in range(count)]
 
     async def main() -> int:
+        config = MockConfig.preset(args.realism, position_rate=args.position_rate,
+                                   seed=args.seed)
+        if args.settle is not None:
+            config.settle_time = args.settle
+        if args.telemetry is not None:
+            config.telemetry_profile = args.telemetry
         mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                          listen_base_port=args.listen_base_port,
-                         max_port_offset=args.max_port_offset, settle_time=args.settle,
-                         position_rate=args.position_rate,
-                         telemetry_profile=args.telemetry)
+                         max_port_offset=args.max_port_offset, config=config)
         for vehicle in mock.vehicles:
             vehicle.faults.loss = args.loss
             vehicle.faults.delay = args.delay
@@ -86,8 +114,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 2
         if args.fleet_out:
-            Path(args.fleet_out).write_text(json.dumps(mock.fleet_dict(ids), indent=1))
-        print(f"mock: {count} PX4-like vehicles, listening on "
+            fleet = mock.fleet_dict(ids)
+            if args.position_error is not None:
+                fleet["position_error"] = args.position_error
+            Path(args.fleet_out).write_text(json.dumps(fleet, indent=1))
+        print(f"mock: {count} PX4-like vehicles ({args.realism}), listening on "
               f"{args.listen_base_port}..{args.listen_base_port + count - 1}, sending to "
               f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}; time_boot_ms 0 "
               f"at monotonic {mock.boot_monotonic:.6f}", flush=True)

@@ -447,6 +447,8 @@ class VehicleLink:
         """Called with (link, message, receive time) for every message of this vehicle."""
         self._texts = wire.StatusTexts()
         self._pending: dict[int, _PendingCommand] = {}
+        self._echoes: dict[int, tuple[int, float]] = {}
+        """command -> (result, until): the second ACK still due for a command PX4 ACKs twice."""
         self._waiters: list[tuple[Callable[[Telemetry], bool], asyncio.Future[None]]] = []
         self.duplicate_acks = 0
         self.setpoints_sent = 0
@@ -526,13 +528,22 @@ class VehicleLink:
         # Only the pinned peer's packets get here (`_accept`); only a pending command counts.
         if msg.target_system not in (0, GCS_SYSTEM_ID):
             return
+        now = time.monotonic()
         pending = self._pending.get(msg.command)
+        echo = self._echoes.get(msg.command)
+        if echo is not None and (now > echo[1] or msg.result == echo[0]):
+            del self._echoes[msg.command]  # expired, or here it is
+            if now <= echo[1]:  # the previous command's second ACK: not this one's answer
+                self.duplicate_acks += 1
+                return
         if pending is None or pending.future.done():
             self.duplicate_acks += 1  # PX4 ACKs DO_SET_MODE and REQUEST_MESSAGE twice
             return
         if msg.result == mavlink.MAV_RESULT_IN_PROGRESS:
-            pending.sent_at = time.monotonic()  # keep waiting for the final result
+            pending.sent_at = now  # keep waiting for the final result
             return
+        if msg.command in px4.ACKED_TWICE:
+            self._echoes[msg.command] = (int(msg.result), now + px4.DUPLICATE_ACK_WINDOW_S)
         pending.future.set_result(int(msg.result))
 
     def _check_waiters(self) -> None:
@@ -615,7 +626,9 @@ class VehicleLink:
 
         Resends (with `confirmation` counting up) when no ACK arrives within `timeout`;
         IN_PROGRESS extends the wait; a second ACK for the same command (PX4 sends two for
-        DO_SET_MODE) is ignored. Raises `CommandError` when no ACK came after all retries.
+        DO_SET_MODE) is ignored, also when it arrives after a newer command with the same id
+        went out (`px4.ACKED_TWICE`): it never answers that one. Raises `CommandError` when no
+        ACK came after all retries.
         """
         p = (list(params) + [0.0] * 7)[:7]
         if command in self._pending and not self._pending[command].future.done():

@@ -45,7 +45,7 @@ from gcs.service.journal import ExecutionJournal, store_failure
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.store import ExecutionRow, Store
-from gcs.sim import MockFleet, homes_under
+from gcs.sim import MockConfig, MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
 from planner import Plan
 
@@ -157,8 +157,10 @@ class FleetService:
 
     async def _start_mock(self, homes: list[list[float]], ids: list[str]) -> None:
         base = self._settings.mock_base_port
-        mock = MockFleet(homes=homes, **mock_fleet_ports(base),
-                         settle_time=self._settings.mock_settle_s)
+        config = MockConfig.preset(self._settings.mock_realism)
+        if self._settings.mock_settle_s is not None:
+            config.settle_time = self._settings.mock_settle_s
+        mock = MockFleet(homes=homes, **mock_fleet_ports(base), config=config)
         # A just-stopped fleet's sockets close on a later loop iteration: retry briefly.
         for attempt in range(20):
             try:

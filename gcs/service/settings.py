@@ -13,7 +13,7 @@ import ipaddress
 import os
 from contextvars import ContextVar
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import (
@@ -101,9 +101,13 @@ class Settings(BaseSettings):
         le=65000,
         description="Mock vehicle i sends to UDP base+i and listens on base+40+i (PX4 SITL's).",
     )
-    mock_settle_s: float = Field(
-        5.0, ge=0, le=60, description="Mock vehicles refuse arming this long after they start "
-        "(PX4 SITL's estimator settles in about 4-5 s)."
+    mock_settle_s: float | None = Field(
+        None, ge=0, le=60, description="Mock vehicles refuse arming this long after they start "
+        "(default: the realism's, 5 s ideal, 3.5 s px4; PX4 SITL's estimator settles in 3-5 s)."
+    )
+    mock_realism: Literal["ideal", "px4"] = Field(
+        "ideal", description="Mock vehicles' behaviour: ideal (exact state) or px4 (PX4 SIH "
+        "SITL's estimate noise, tracking lag and timings)."
     )
     max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")

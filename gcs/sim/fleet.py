@@ -59,13 +59,15 @@ class MockFleet:
     whole fleet behind one port) and listens on ``host:listen_base_port + i``.
     `signing_key` (32 bytes): every vehicle starts with it, as if provisioned earlier; without
     it they accept a key by SETUP_SIGNING (`gcs.sim.vehicle`).
+    Behaviour: `config`, or the preset named by the keyword `realism` ("ideal", the default, or
+    "px4": `MockConfig.px4_like`), then any other keyword overrides one `MockConfig` field.
     """
 
     def __init__(self, count: int | None = None, *, homes: Sequence[ArrayLike] | None = None,
                  world_origin: frames.Geodetic = DEFAULT_WORLD_ORIGIN, host: str = "127.0.0.1",
                  gcs_base_port: int = 14540, listen_base_port: int = 14580,
                  max_port_offset: int | None = None, config: MockConfig | None = None,
-                 seed: int = 0, signing_key: bytes | None = None,
+                 seed: int | None = None, signing_key: bytes | None = None,
                  **config_overrides: Any) -> None:
         if homes is None:
             if count is None:
@@ -73,7 +75,12 @@ class MockFleet:
             homes = [[2.0 * i, 0.0, 0.0] for i in range(count)]
         elif count is not None and count != len(homes):
             raise ValueError(f"{count} vehicles but {len(homes)} homes")
-        self.config = config or MockConfig()
+        realism = config_overrides.pop("realism", None)
+        if config is None:
+            config = MockConfig.preset(realism or "ideal")
+        elif realism is not None and realism != config.realism:
+            raise ValueError(f"realism {realism!r} but the config given is {config.realism!r}")
+        self.config = config
         for key, value in config_overrides.items():
             if not hasattr(self.config, key):
                 raise TypeError(f"unknown mock setting {key!r}")
@@ -84,8 +91,10 @@ class MockFleet:
         self.host = host
         self.gcs_base_port = gcs_base_port
         self.listen_base_port = listen_base_port
-        self.seed = seed
-        self.model = FleetModel(len(homes), self.config.limits)
+        self.seed = self.config.seed if seed is None else seed
+        """Seed of the fleet's random processes (`MockConfig.seed` unless given)."""
+        self.model = FleetModel(len(homes), self.config.limits, self.config.estimate_noise,
+                                self.seed)
         self.vehicles: list[MockVehicle] = []
         for i, home in enumerate(homes):
             offset = i if max_port_offset is None else min(i, max_port_offset)

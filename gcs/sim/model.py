@@ -18,10 +18,18 @@ dynamics (damping about 0.7 horizontally). `step` is called at the physics rate 
 A vehicle whose state would become non-finite in a step (an absurd setpoint that slipped
 through, a bad limit) is put back where it was, at rest, holding that point: one vehicle's
 arithmetic can never poison the others' or the telemetry encoders (`FleetModel.recovered`).
+
+With `EstimateNoise` (the mock's "px4" realism) `position` is the vehicle's *estimate*, what it
+reports and what its controller feeds back on, and `truth` is where it really is: estimate =
+truth + a slowly wandering bias per axis (first-order Gauss-Markov, like GPS errors) + white
+noise, all from a seeded generator. The controller holds the estimate on the setpoint, so the
+estimate stays close to it while the truth wanders with the bias. Ground contact acts on the
+truth. Without noise `truth` *is* `position` (the same array) and nothing else changes.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +37,7 @@ import numpy as np
 from planner.flatness import GRAVITY  # the one gravity constant (the planner's world frame)
 from planner.types import FloatArray
 
-__all__ = ["GRAVITY", "FleetModel", "ModelLimits"]
+__all__ = ["GRAVITY", "EstimateNoise", "FleetModel", "ModelLimits"]
 
 #: A state component beyond this (m, m/s, m/s^2) is garbage: the step is undone.
 _FAR = 1e6
@@ -63,12 +71,56 @@ class ModelLimits:
     """First-order lag of the achieved acceleration (s)."""
 
 
+@dataclass(frozen=True)
+class EstimateNoise:
+    """The position estimate's error process (m, s): bias (Gauss-Markov, stationary standard
+    deviation and correlation time per axis) plus white noise. Defaults fitted to PX4 v1.16 SIH
+    SITL with GPS as height reference (at rest the estimated altitude ranges -1.2..+0.65 m, x/y
+    wander +-0.3 m; hovering, the estimate holds the setpoint within about +-0.2 m and the
+    vehicle drifts < 0.45 m sideways): a slow z bias is what keeps hover tight while the
+    altitude at rest wanders."""
+
+    bias_std_xy: float = 0.12
+    bias_std_z: float = 0.4
+    bias_time_xy: float = 10.0
+    bias_time_z: float = 45.0
+    white_xy: float = 0.01
+    white_z: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name in ("bias_std_xy", "bias_std_z", "white_xy", "white_z"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 <= value <= 10.0):
+                raise ValueError(f"{name} must be within [0, 10] m, got {value}")
+        for name in ("bias_time_xy", "bias_time_z"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.1 <= value <= 1e4):
+                raise ValueError(f"{name} must be within [0.1, 1e4] s, got {value}")
+
+    @property
+    def horizontal_accuracy(self) -> float:
+        """1-sigma horizontal error of the estimate (m), as GPS_RAW_INT h_acc reports it."""
+        return math.sqrt(2.0) * math.hypot(self.bias_std_xy, self.white_xy)
+
+    @property
+    def vertical_accuracy(self) -> float:
+        """1-sigma vertical error of the estimate (m), as GPS_RAW_INT v_acc reports it."""
+        return math.hypot(self.bias_std_z, self.white_z)
+
+
 class FleetModel:
     """The state and setpoints of N vehicles; `step(dt)` advances them all."""
 
-    def __init__(self, count: int, limits: ModelLimits | None = None) -> None:
+    def __init__(self, count: int, limits: ModelLimits | None = None,
+                 noise: EstimateNoise | None = None, seed: int = 0) -> None:
         self.limits = limits or ModelLimits()
+        self.noise = noise
         self.position = np.zeros((count, 3))
+        """Estimated position (what the vehicle reports and controls); = `truth` without noise."""
+        self.truth = self.position
+        """True position: the same array as `position` unless `noise` is set."""
+        self.bias = np.zeros((count, 3))
+        """Estimate minus truth, without the white noise (zero without `noise`)."""
         self.velocity = np.zeros((count, 3))
         self.acceleration = np.zeros((count, 3))
         self.position_sp = np.full((count, 3), np.nan)
@@ -81,6 +133,15 @@ class FleetModel:
         self._kv = np.array([lim.vel_gain_xy, lim.vel_gain_xy, lim.vel_gain_z])
         self.recovered = 0
         """Vehicle steps undone because the state would have become non-finite."""
+        self._rng = np.random.default_rng(seed)
+        if noise is not None:  # start where the error process settles (seeded)
+            self._bias_std = np.array([noise.bias_std_xy, noise.bias_std_xy, noise.bias_std_z])
+            self._bias_time = np.array([noise.bias_time_xy, noise.bias_time_xy,
+                                        noise.bias_time_z])
+            self._white = np.array([noise.white_xy, noise.white_xy, noise.white_z])
+            self.truth = np.zeros((count, 3))
+            self.bias = self._bias_std * self._rng.standard_normal((count, 3))
+            self._update_estimate()
 
     def hold(self, index: int, position: FloatArray) -> None:
         """Hold `position` at rest."""
@@ -95,23 +156,41 @@ class FleetModel:
         self.acceleration_sp[index] = 0.0
 
     def step(self, dt: float) -> None:
-        before = self.position.copy()
+        before = self.truth.copy()
         with np.errstate(all="ignore"):
             self._integrate(dt)
-        state = np.hstack((self.position, self.velocity, self.acceleration))
+            if self.noise is not None:
+                self._advance_bias(dt)
+                self._update_estimate()
+        state = np.hstack((self.position, self.truth, self.velocity, self.acceleration))
         bad = ~np.all(np.isfinite(state) & (np.abs(state) < _FAR), axis=1)
         if np.any(bad):  # undo those vehicles' step and hold them where they were
             self.recovered += int(np.count_nonzero(bad))
             back = np.nan_to_num(before[bad], nan=0.0, posinf=_FAR, neginf=-_FAR)
             # the last position if it was sane, else the nearest sane one
-            self.position[bad] = np.clip(back, -0.1 * _FAR, 0.1 * _FAR)
+            self.truth[bad] = np.clip(back, -0.1 * _FAR, 0.1 * _FAR)
+            if self.noise is not None:
+                self.bias[bad] = 0.0
+                self.position[bad] = self.truth[bad]
             self.velocity[bad] = 0.0
             self.acceleration[bad] = 0.0
             self.position_sp[bad] = self.position[bad]
             self.velocity_sp[bad] = 0.0
             self.acceleration_sp[bad] = 0.0
 
+    def _advance_bias(self, dt: float) -> None:
+        """One exact step of the Gauss-Markov bias (stationary std kept for any dt)."""
+        decay = np.exp(-dt / self._bias_time)
+        spread = self._bias_std * np.sqrt(1.0 - decay * decay)
+        self.bias = decay * self.bias + spread * self._rng.standard_normal(self.bias.shape)
+
+    def _update_estimate(self) -> None:
+        white = self._white * self._rng.standard_normal(self.truth.shape)
+        self.position[:] = self.truth + self.bias + white
+
     def _integrate(self, dt: float) -> None:
+        # Feedback on the estimate (`position`), motion of the truth (`truth`; the same array
+        # without noise).
         lim = self.limits
         p_err = np.nan_to_num(self.position_sp - self.position, nan=0.0)
         v_ref = np.nan_to_num(self.velocity_sp, nan=0.0) + self._kp * p_err
@@ -128,10 +207,10 @@ class FleetModel:
         alpha = min(1.0, dt / lim.thrust_time_constant)
         self.acceleration += alpha * (a_cmd - self.acceleration)
         self.velocity += self.acceleration * dt
-        self.position += self.velocity * dt
-        on_ground = self.position[:, 2] >= 0.0
+        self.truth += self.velocity * dt
+        on_ground = self.truth[:, 2] >= 0.0
         if np.any(on_ground):
-            self.position[on_ground, 2] = 0.0
+            self.truth[on_ground, 2] = 0.0
             self.velocity[on_ground, 2] = np.minimum(self.velocity[on_ground, 2], 0.0)
             resting = on_ground & ~self.powered
             self.velocity[resting] = 0.0

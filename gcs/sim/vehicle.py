@@ -53,6 +53,11 @@ unsigned or wrongly signed ones are rejected, except PX4's documented few
 (`gcs.wire.PX4_UNSIGNED_ACCEPTED`). The signature checks are pymavlink's own, not ours.
 Each datagram is decoded by a fresh parser.
 
+Realism (`MockConfig.preset`): "ideal" reports the exact state; "px4" (`MockConfig.px4_like`)
+reports a noisy, wandering estimate (`gcs.sim.model.EstimateNoise`) with its accuracy in
+GPS_RAW_INT, lags like PX4's attitude loop, is deaf and silent for `boot_time` after start,
+refuses arming for 3.5 s and sends the second ACK of a doubly-ACKed command a little later.
+
 Faults can be injected per vehicle at any time through `MockVehicle.faults` (`MockFaults`):
 packet loss, stopped heartbeats, delay, refused arming, non-finite position reports, battery
 level, unhealthy sensors (SYS_STATUS), GPS fix.
@@ -74,14 +79,14 @@ from numpy.typing import ArrayLike
 
 from gcs import frames, px4, wire
 from gcs.sim import telemetry
-from gcs.sim.model import FleetModel, ModelLimits
+from gcs.sim.model import EstimateNoise, FleetModel, ModelLimits
 from gcs.wire import PX4_UNSIGNED_ACCEPTED, mavlink, signing_timestamp, time_boot_ms
 
 if TYPE_CHECKING:
     from gcs.sim.fleet import MockFleet
 
-__all__ = ["SETPOINT_LIMITS", "STATUSTEXT_REPEAT_S", "MockConfig", "MockFaults", "MockVehicle",
-           "ReceivedSetpoint", "setpoint_problem", "statustext_chunks"]
+__all__ = ["REALISMS", "SETPOINT_LIMITS", "STATUSTEXT_REPEAT_S", "MockConfig", "MockFaults",
+           "MockVehicle", "ReceivedSetpoint", "setpoint_problem", "statustext_chunks"]
 
 _log = logging.getLogger(__name__)
 
@@ -160,6 +165,10 @@ def statustext_chunks(text: str) -> list[str]:
 
 _statustext_ids = itertools.count(1)
 
+#: The mock's behaviour presets (`MockConfig.preset`): "ideal" (exact state, no lag; the
+#: default) and "px4" (PX4 v1.16 SIH SITL's measured estimate noise, lag and timings).
+REALISMS = ("ideal", "px4")
+
 
 @dataclass
 class MockConfig:
@@ -195,6 +204,38 @@ class MockConfig:
     record_setpoints: bool = False
     """Keep every accepted setpoint in `MockVehicle.received` (for tests)."""
     limits: ModelLimits = field(default_factory=ModelLimits)
+    realism: str = "ideal"
+    """Which preset this is (`REALISMS`); set by `preset`, informational."""
+    seed: int = 0
+    """Seed of every random process of the fleet (estimate noise, injected loss)."""
+    estimate_noise: EstimateNoise | None = None
+    """The position estimate's error process (None: exact, as in the ideal mode)."""
+    boot_time: float = 0.0
+    """Nothing is sent or answered this long after start (PX4 SITL: first HEARTBEAT ~1.5 s)."""
+    duplicate_ack_delay: float = 0.0
+    """DO_SET_MODE and REQUEST_MESSAGE are ACKed twice; the second ACK goes this much later (s)."""
+
+    @classmethod
+    def preset(cls, realism: str = "ideal", **overrides: Any) -> MockConfig:
+        """The named preset (`REALISMS`), with `overrides` applied (unknown names: TypeError)."""
+        if realism not in REALISMS:
+            raise ValueError(f"realism must be one of {', '.join(REALISMS)}, got {realism!r}")
+        config = cls.px4_like() if realism == "px4" else cls()
+        for key, value in overrides.items():
+            if not hasattr(config, key):
+                raise TypeError(f"unknown mock setting {key!r}")
+            setattr(config, key, value)
+        return config
+
+    @classmethod
+    def px4_like(cls) -> MockConfig:
+        """PX4 v1.16 SIH SITL as measured (README "Mock realism" has the figures): a wandering
+        position estimate (GPS-like altitude noise), the attitude loop's lag, arming refused
+        for 3.5 s after boot, first HEARTBEAT after 1.5 s, PX4's offboard message set."""
+        return cls(realism="px4", settle_time=3.5, boot_time=1.5,
+                   estimate_noise=EstimateNoise(), duplicate_ack_delay=0.005,
+                   telemetry_profile="px4",
+                   limits=ModelLimits(thrust_time_constant=0.15))
 
 
 @dataclass
@@ -312,7 +353,13 @@ class MockVehicle:
 
     @property
     def position_world(self) -> np.ndarray:
+        """Where it reports it is (its estimate; exact in the ideal mode), world frame."""
         return frames.ned_to_world(self.model.position[self.index], self.home_world)
+
+    @property
+    def true_position_world(self) -> np.ndarray:
+        """Where it really is, world frame (= `position_world` in the ideal mode)."""
+        return frames.ned_to_world(self.model.truth[self.index], self.home_world)
 
     @property
     def config(self) -> MockConfig:
@@ -363,8 +410,8 @@ class MockVehicle:
         """Rules that run with the clock: failsafes, landing detection, auto-disarm."""
         cfg = self.config
         i = self.index
-        z = self.model.position[i, 2]
-        vz = self.model.velocity[i, 2]
+        z = self.model.truth[i, 2]  # PX4's land detector goes by thrust and motion, not the
+        vz = self.model.velocity[i, 2]  # estimated altitude (which wanders on the ground)
         if self.armed and z < -0.3:
             self.in_air = True
         if self.armed:
@@ -448,9 +495,12 @@ class MockVehicle:
     def _gps_raw(self, now: float) -> Any:
         g = self._geodetic_now()
         fix = 3 if self.faults.gps_fix is None else self.faults.gps_fix
+        noise = self.config.estimate_noise
+        h_acc, v_acc = (50, 80) if noise is None else (  # mm: ideal, or the noise's 1 sigma
+            round(noise.horizontal_accuracy * 1000), round(noise.vertical_accuracy * 1000))
         return self._mav.gps_raw_int_encode(
             int(now * 1e6), fix, round(g.lat * 1e7), round(g.lon * 1e7), round(g.alt * 1000),
-            80, 120, 0, 0, 12 if fix >= 3 else 0, 0, 50, 80, 100, 0, 0)  # h/v_acc mm: ideal
+            80, 120, 0, 0, 12 if fix >= 3 else 0, 0, h_acc, v_acc, 100, 0, 0)
 
     def _geodetic_now(self) -> frames.Geodetic:
         offset = frames.ned_vector_to_world(self.model.position[self.index])
@@ -502,7 +552,7 @@ class MockVehicle:
         if self._transport is None:
             return
         faults = self.faults
-        if faults.silent:
+        if faults.silent or self._booting():
             return
         buf = wire.pack(msg, self._mav)  # packed first: a lost message leaves a sequence gap
         if faults.loss > 0.0 and self._rng.random() < faults.loss:
@@ -516,15 +566,29 @@ class MockVehicle:
         if self._transport is not None:
             self._transport.sendto(buf, self.gcs_address)
 
+    def _booting(self) -> bool:
+        """Still booting (`MockConfig.boot_time`): deaf and silent, like PX4 before its first
+        HEARTBEAT."""
+        return self.config.boot_time > 0.0 and self._now() < self.config.boot_time
+
     def _ack(self, msg: Any, command: int, result: int, times: int = 1) -> None:
-        for _ in range(times):
-            self._send(self._mav.command_ack_encode(
-                command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+        """COMMAND_ACK `times` times; repeats `MockConfig.duplicate_ack_delay` apart."""
+        ack = self._mav.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(),
+                                           msg.get_srcComponent())
+        self._send(ack)
+        delay = self.config.duplicate_ack_delay
+        for k in range(1, times):
+            if delay > 0.0:
+                asyncio.get_running_loop().call_later(k * delay, self._send, ack)
+            else:
+                self._send(ack)
 
     # ---------------------------------------------------------------- messages in
 
     def received_datagram(self, data: bytes, address: tuple[str, int]) -> None:
         faults = self.faults
+        if self._booting():
+            return
         if faults.loss > 0.0 and self._rng.random() < faults.loss:
             return
         if faults.delay > 0.0:
