@@ -23,9 +23,11 @@ install: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/fleetplan serve
 
+# Test files run in parallel processes (pytest-xdist), one file per process at a time: most of
+# the time is real-time mock flights waiting on the clock, not CPU.
 test: $(STAMP) test-tools
 	$(PY) -m ruff check planner gcs tests bench
-	$(PY) -m pytest
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile
 
 # The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml;
 # a throwaway PostgreSQL server checks the service on it. Installed here when missing and
