@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.errors import FleetFileError, GcsError, RequestError
     from gcs.flight.commands import fleet_command
     from gcs.flight.fleetfile import load_fleet
-    from gcs.flight.link import LinkHub
+    from gcs.flight.link import DECODED_IDS, LinkHub
 
     try:
         fleet = load_fleet(args.fleet)
@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
 
     async def main() -> int:
-        async with LinkHub() as hub:
+        async with LinkHub(decode_ids=DECODED_IDS) as hub:
             links = {}
             for spec in fleet.vehicles:
                 if spec.id in chosen:

@@ -39,19 +39,28 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--message-rates", choices=("leave", "request"),
                         help="request: ask each vehicle for the telemetry the GCS reads at the "
                              "rates it needs and turn PX4's fast streams off (default leave)")
+    parser.add_argument("--stream-priority", choices=("normal", "realtime"),
+                        help="realtime: stream setpoints at SCHED_RR priority where the process "
+                             "may (root or CAP_SYS_NICE); keeps a large fleet's stream on time on "
+                             "a busy computer (default normal)")
     parser.add_argument("--base-port", type=int, default=14540,
                         help="--mock: vehicle i sends to this port + i (default 14540)")
     parser.add_argument("--listen-base-port", type=int, default=14580,
                         help="--mock: vehicle i listens on this port + i (default 14580)")
-    parser.add_argument("--mock-settle", type=float, default=5.0,
-                        help="--mock: arming rejected this long after start (s, default 5)")
+    parser.add_argument("--mock-settle", type=float, default=None,
+                        help="--mock: arming rejected this long after start (s, default 5, "
+                             "3.5 with --mock-realism px4)")
+    parser.add_argument("--mock-realism", choices=("ideal", "px4"), default="ideal",
+                        help="--mock: ideal vehicles (default) or px4: PX4 SITL's estimate noise, "
+                             "lag, timings and telemetry (see fleetplan mock --realism)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no live progress")
 
 
 _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "hold_at_goal": "hold_at_goal", "tracking_error_max": "tracking_error_max",
                  "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
-                 "margin_check": "margin_check", "message_rates": "message_rates"}
+                 "margin_check": "margin_check", "message_rates": "message_rates",
+                 "stream_priority": "stream_priority"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -85,9 +94,10 @@ def run(args: argparse.Namespace) -> int:
         try:
             if args.mock:
                 homes = homes_under(plan.scenario.starts)
+                settle = {} if args.mock_settle is None else {"settle_time": args.mock_settle}
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
-                                 settle_time=args.mock_settle)
+                                 realism=args.mock_realism, **settle)
                 await mock.start()
                 fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             else:

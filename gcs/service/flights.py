@@ -38,7 +38,7 @@ from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions, load_fleet
 from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
-from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.service.events import Broadcast, Event
 from gcs.service.journal import ExecutionJournal, store_failure
@@ -176,7 +176,7 @@ class FleetService:
     async def _open_monitor(self) -> None:
         if self._spec is None:
             return
-        hub = LinkHub()
+        hub = LinkHub(decode_ids=DECODED_IDS)  # PX4's ~410 messages/s: decode what is read
         await hub.__aenter__()
         try:
             for v in self._spec.vehicles:

@@ -63,6 +63,12 @@ class FlyRequest(BaseModel):
         None, description="request: ask each vehicle for the telemetry the GCS reads at the "
         "rates it needs and turn PX4's fast streams off (MAV_CMD_SET_MESSAGE_INTERVAL)."
     )
+    stream_priority: Literal["normal", "realtime"] | None = Field(
+        None, description="realtime: stream setpoints at SCHED_RR priority where the service "
+        "may (root or CAP_SYS_NICE; recorded as an event either way). Keeps a large fleet's "
+        "stream on time on a busy computer; the service's event loop shares that priority "
+        "while the flight streams."
+    )
     margin_check: Literal["refuse", "warn"] | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "
         "position_error: refuse (default, 409) or fly it with a warning in the record."

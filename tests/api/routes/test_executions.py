@@ -149,6 +149,7 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
         crossing = plan_mission(client, SHORT_CROSSING)
         url = f"/api/missions/{crossing['id']}/executions"
         for body, field in [({"policy": "explode"}, "policy"), ({"rate_hz": 500}, "rate_hz"),
+                            ({"stream_priority": "fastest"}, "stream_priority"),
                             ({"colour": 1}, "colour")]:
             response = client.post(url, json=body)
             assert response.status_code == 422, response.text
