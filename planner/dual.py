@@ -38,6 +38,11 @@ from planner.types import FloatArray, IntArray
 __all__ = ["DualOutcome", "Functionals", "functionals", "solve_group_dual"]
 
 
+#: Largest dual matrix (entries of Q before fill-in) worth building; beyond it (a vehicle
+#: with thousands of box rows, every row of every box) the primal QP is the better tool.
+MAX_PAIRS = 2_000_000
+
+
 @dataclass(frozen=True)
 class Functionals:
     """Indices of the linear functionals of one vehicle-axis trajectory, and W = T M T'."""
@@ -170,6 +175,10 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
         sep_rhs = sep_rhs + rows.offset
     rhs = np.concatenate([sep_rhs, b_rhs])
 
+    per_vehicle = np.bincount(e_veh, minlength=m)
+    if int(np.sum(per_vehicle.astype(np.int64) ** 2)) > MAX_PAIRS:
+        return None
+
     # Linear term: C x* - h (each row's slack at the straight moves).
     c = np.bincount(e_row, np.einsum("ec,ec->e", e_coef, g_star[e_veh, e_func]),
                     minlength=n_rows) - rhs
@@ -177,7 +186,6 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     # Q: every pair of entries on the same vehicle (upper triangle only).
     order = np.argsort(e_veh, kind="stable")
     veh_sorted = e_veh[order]
-    per_vehicle = np.bincount(veh_sorted, minlength=m)
     first = np.concatenate([[0], np.cumsum(per_vehicle)[:-1]])
     reps = per_vehicle[veh_sorted]
     left = np.repeat(np.arange(len(order)), reps)

@@ -187,8 +187,10 @@ class _GroupSolver:
             coef=np.tile(coef, (len(kinds), 1)),
         )
         self.solves += 1
+        outcome = None
         if self.dual and len(rows) <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
             outcome = solve_group_dual(scenario, members, rows, group_boxes)
+        if outcome is not None:
             if outcome.status != SOLVED or outcome.solution is None:
                 return outcome.status, None, keys[:0]
             solution, duals = outcome.solution, outcome.separation_duals
