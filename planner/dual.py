@@ -215,8 +215,11 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     lam = np.maximum(np.array(solver.result.x), 0.0)
 
     # x = x* + M C' lambda: each vehicle's forces on its functionals, through W.
-    force = np.zeros((m, fn.compliance.shape[0], 3))
-    np.add.at(force, (e_veh, e_func), lam[e_row, None] * e_coef)
+    functionals_count = fn.compliance.shape[0]
+    slot = e_veh * functionals_count + e_func
+    push = lam[e_row, None] * e_coef
+    force = np.stack([np.bincount(slot, push[:, c], minlength=m * functionals_count)
+                      for c in range(3)], axis=-1).reshape(m, functionals_count, 3)
     used = np.unique(e_func)
     P_rows = np.arange(steps + 1)
     want = np.concatenate([fn.position(P_rows), fn.velocity(P_rows),
