@@ -175,6 +175,8 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
         sep_rhs = sep_rhs + rows.offset
     rhs = np.concatenate([sep_rhs, b_rhs])
 
+    if n_rows == 0:  # nothing couples or bounds the group: the straight moves
+        return DualOutcome(SOLVED, base, np.zeros(0), 0)
     per_vehicle = np.bincount(e_veh, minlength=m)
     if int(np.sum(per_vehicle.astype(np.int64) ** 2)) > MAX_PAIRS:
         return None

@@ -98,7 +98,8 @@ class ScpOptions:
     dual: bool = True
     """Solve each group's QP through its dual (`planner.dual`, one variable per row; the
     same optimum) instead of the primal staged QP with the configured backend. Only with
-    the PIQP backend; other backends always solve the primal."""
+    the PIQP backend; other backends always solve the primal, and so does a group whose
+    dual is too dense (see DUAL_MAX_ROWS_PER_VEHICLE) or did not solve (infeasible, ...)."""
 
 
 @dataclass
@@ -190,11 +191,9 @@ class _GroupSolver:
         outcome = None
         if self.dual and len(rows) <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
             outcome = solve_group_dual(scenario, members, rows, group_boxes)
-        if outcome is not None:
-            if outcome.status != SOLVED or outcome.solution is None:
-                return outcome.status, None, keys[:0]
+        if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
             solution, duals = outcome.solution, outcome.separation_duals
-        else:
+        else:  # the primal QP; also the judge when the dual did not solve (infeasible, ...)
             qp = build_group_qp(scenario, members, rows, group_boxes)
             layout = StageLayout(scenario.steps, len(members))
             warm = layout.pack(*(x[members] for x in lin))

@@ -154,3 +154,22 @@ def test_other_backends_keep_the_primal_and_agree():
     data = load_example("paper-random8")
     assert (planner.plan(data, solver="clarabel").cost
             == pytest.approx(planner.plan(data).cost, rel=1e-6))
+
+
+def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
+    import planner.scp as scp
+    from planner.dual import DualOutcome
+
+    calls = []
+
+    def broken(*args, **kwargs):
+        calls.append(1)
+        return DualOutcome("failed", None, None, 0)
+
+    data = load_example("random64")
+    reference = planner.plan(data)
+    monkeypatch.setattr(scp, "solve_group_dual", broken)
+    fallback = planner.plan(data)
+    assert calls
+    assert fallback.ok, fallback.message
+    assert fallback.cost == pytest.approx(reference.cost, rel=1e-6)
