@@ -9,6 +9,8 @@
 The drone-show families (issue 11) run only when asked: --grid-sphere N... (vertical grid ->
 sphere shell, fixed and/or free assignment), --random-dense N... (random128's density, moves
 <= 40 m), --sequence N (a grid -> sphere -> grid formation sequence), each over --seeds.
+--group-qp primal solves their group QPs as the primal staged QP (before the dual, for
+comparison); --profile also takes dense<N> and grid-sphere<N>.
 
 Timings are medians over --repeats runs of the same scenario (the machines are shared and
 noisy); peak memory comes from one extra run under tracemalloc (numpy's allocations are
@@ -106,14 +108,24 @@ def memory_peaks(run: Any) -> tuple[float, float | None]:
     return round(traced, 1), None if rss is None else round(rss, 1)
 
 
-def profile(name: str, top: int = 20) -> list[dict[str, Any]]:
+def scenario_by_name(name: str) -> dict[str, Any]:
+    """An example scenario, or a generated one: dense<N> (random_dense(N, seed=0)),
+    grid-sphere<N> (grid_to_sphere(N, seed=0), fixed assignment)."""
+    if name.startswith("dense") and name[5:].isdigit():
+        return random_dense(int(name[5:]), seed=0)
+    if name.startswith("grid-sphere") and name[11:].isdigit():
+        return grid_to_sphere(int(name[11:]), seed=0)
+    return json.loads((EXAMPLES / f"{name}.json").read_text())
+
+
+def profile(name: str, options: ScpOptions, top: int = 20) -> list[dict[str, Any]]:
     """Where the time goes for one scenario: cProfile's top functions by own time."""
     import cProfile
     import pstats
 
-    data = json.loads((EXAMPLES / f"{name}.json").read_text())
+    data = scenario_by_name(name)
     profiler = cProfile.Profile()
-    profiler.runcall(planner.plan, data)
+    profiler.runcall(planner.plan, data, options=options)
     stats = pstats.Stats(profiler)
     rows = []
     for (file, line, function), (_, calls, own, cumulative, _) in stats.stats.items():
@@ -175,7 +187,7 @@ def row_modes(name: str, data: dict[str, Any], repeats: int) -> list[dict[str, A
 
 
 def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
-            memory: bool = True) -> dict[str, Any]:
+            memory: bool = True, options: ScpOptions | None = None) -> dict[str, Any]:
     """Plan `repeats` times; figures of the last run, medians of the timings. total_s is
     the wall time of `planner.plan(dict)`: validation (and goal assignment), planning and
     verification."""
@@ -184,19 +196,21 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
     plan = None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        plan = planner.plan(data, solver=solver)
+        plan = planner.plan(data, solver=solver, options=options)
         totals.append(time.perf_counter() - t0)
         firsts.append(plan.timing["first_qp_s"])
     assert plan is not None
     peak_traced = peak_rss = None
     if memory:
-        peak_traced, peak_rss = memory_peaks(lambda: planner.plan(scenario, solver=solver))
+        peak_traced, peak_rss = memory_peaks(
+            lambda: planner.plan(scenario, solver=solver, options=options))
     v = plan.verification
     result = {
         "scenario": name,
         "vehicles": len(scenario.vehicles),
         "steps": scenario.steps,
         "solver": plan.solver,
+        "group_qp": "dual" if (options or ScpOptions()).dual else "primal",
         "status": plan.status,
         "verified": plan.ok,
         "total_s": statistics.median(totals),
@@ -253,6 +267,7 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         rss = [r["peak_rss_mb"] for r in group if r["peak_rss_mb"] is not None]
         out.append({
             "family": family, "assignment": assignment, "vehicles": n, "seeds": len(group),
+            "group_qp": group[0]["group_qp"],
             "verified": sum(r["verified"] for r in group),
             "total_s_median": statistics.median(r["total_s"] for r in group),
             "total_s_max": max(r["total_s"] for r in group),
@@ -300,7 +315,8 @@ def main() -> None:
     parser.add_argument("--row-modes", nargs="*", default=["paper-circle8", "random128"],
                         help="scenarios on which to compare continuous-time safety methods")
     parser.add_argument("--profile", nargs="*", default=[],
-                        help="example scenarios to profile (cProfile, top functions)")
+                        help="scenarios to profile (cProfile, top functions): examples, "
+                             "dense<N> or grid-sphere<N> (seed 0, fixed)")
     parser.add_argument("--grid-sphere", type=int, nargs="*", default=[],
                         help="grid -> sphere show transitions of these sizes")
     parser.add_argument("--assignment", nargs="*", default=["fixed", "free"],
@@ -310,11 +326,15 @@ def main() -> None:
     parser.add_argument("--sequence", type=int, nargs="*", default=[],
                         help="grid -> sphere -> grid formation sequences of these sizes")
     parser.add_argument("--seeds", type=int, nargs="*", default=[0])
+    parser.add_argument("--group-qp", choices=["dual", "primal"], default="dual",
+                        help="how the families' and profiles' group QPs are solved "
+                             "(ScpOptions.dual)")
     parser.add_argument("--no-memory", action="store_true",
                         help="skip the extra run that measures peak memory")
     args = parser.parse_args()
 
     began = time.perf_counter()
+    options = ScpOptions(dual=args.group_qp == "dual")
     report: dict[str, Any] = {"benchmark": "planner", "machine": machine(),
                               "settings": vars(args)}
     names = args.only if args.only is not None else PAPER + SCALE
@@ -345,20 +365,20 @@ def main() -> None:
                                  args.repeats)
         ]
     if args.profile:
-        report["profiles"] = {name: profile(name) for name in args.profile}
+        report["profiles"] = {name: profile(name, options) for name in args.profile}
     families = []
     for n in args.grid_sphere:
         for assignment in args.assignment:
             for seed in args.seeds:
                 data = {**grid_to_sphere(n, seed=seed), "assignment": assignment}
                 row = measure(f"{data['name']}-{assignment}", data, args.repeats, None,
-                              memory=not args.no_memory)
+                              memory=not args.no_memory, options=options)
                 families.append({"family": "grid-sphere", "assignment": assignment,
                                  "seed": seed, **row})
     for n in args.random_dense:
         for seed in args.seeds:
             row = measure(f"dense{n}-seed{seed}", random_dense(n, seed=seed), args.repeats,
-                          None, memory=not args.no_memory)
+                          None, memory=not args.no_memory, options=options)
             families.append({"family": "random-dense", "assignment": "fixed", "seed": seed,
                              **row})
     if families:

@@ -21,6 +21,10 @@ __all__ = ["broken_boxes", "near_boxes"]
 #: acceleration, jerk), or is closer to a wall than this fraction of the box's size.
 NEAR_FRACTION = 0.5
 WALL_FRACTION = 0.1
+#: The same for the dual group QPs (`planner.dual`), where every box row is a dual variable
+#: coupled to all of its vehicle's other rows: only boxes that nearly bind are worth it.
+DUAL_NEAR_FRACTION = 0.9
+DUAL_WALL_FRACTION = 0.01
 
 
 def _masks(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
@@ -44,10 +48,14 @@ def _masks(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
     return BoxMask(bounds, jerk, wall_rows)
 
 
-def near_boxes(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> BoxMask:
-    """Boxes worth including from the start: nearly binding at (p, v, a)."""
+def near_boxes(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
+               dual: bool = False) -> BoxMask:
+    """Boxes worth including from the start: nearly binding at (p, v, a) (more nearly for
+    the dual QPs)."""
     size = scenario.limits.position_max - scenario.limits.position_min
-    return _masks(scenario, p, v, a, NEAR_FRACTION, WALL_FRACTION * size, 0.0)
+    fraction, wall = ((DUAL_NEAR_FRACTION, DUAL_WALL_FRACTION) if dual
+                      else (NEAR_FRACTION, WALL_FRACTION))
+    return _masks(scenario, p, v, a, fraction, wall * size, 0.0)
 
 
 def broken_boxes(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from planner.boxes import broken_boxes, near_boxes
+from planner.dual import solve_group_dual
 from planner.first_qp import solve_first_qp
 from planner.flatness import GRAVITY
 from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
@@ -62,6 +63,12 @@ Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 #: A separation row whose multiplier exceeds this is active and is carried to the next
 #: iteration (re-linearised there): active sets change little between SCP iterations.
 ACTIVE_DUAL = 1e-7
+#: Groups with more separation rows per vehicle than this solve the primal QP even when the
+#: dual is on: where every vehicle meets dozens of others (a crowd crossing one point) the
+#: dual's matrix couples nearly every row and its factorisation fills in. Measured on
+#: grid -> sphere 64/100 (fixed): dual faster below ~30 rows per vehicle, up to 7x slower
+#: at 43.
+DUAL_MAX_ROWS_PER_VEHICLE = 25
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
 BEND_AMPLITUDE = 0.2
@@ -88,6 +95,11 @@ class ScpOptions:
     in the README (Performance): no clear gain at 1,000 vehicles, so off by default."""
     block_size: int = 32
     """Vehicles per block of a split group."""
+    dual: bool = True
+    """Solve each group's QP through its dual (`planner.dual`, one variable per row; the
+    same optimum) instead of the primal staged QP with the configured backend. Only with
+    the PIQP backend; other backends always solve the primal, and so does a group whose
+    dual is too dense (see DUAL_MAX_ROWS_PER_VEHICLE) or did not solve (infeasible, ...)."""
 
 
 @dataclass
@@ -127,7 +139,7 @@ class _GroupSolver:
     re-solve only touches the groups whose constraints changed."""
 
     def __init__(self, scenario: Scenario, solver: QPSolver, codec: _Codec, continuous: bool,
-                 split_above: int = 0, block_size: int = 32) -> None:
+                 split_above: int = 0, block_size: int = 32, dual: bool = False) -> None:
         self.scenario = scenario
         self.solver = solver
         self.codec = codec
@@ -136,6 +148,7 @@ class _GroupSolver:
         self.solves = 0
         self.split_above = split_above
         self.block_size = block_size
+        self.dual = dual
 
     def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories
               ) -> tuple[str, Trajectories | None, Keys]:
@@ -174,17 +187,23 @@ class _GroupSolver:
             kind=np.repeat(np.array(kinds, dtype=np.intp), count),
             coef=np.tile(coef, (len(kinds), 1)),
         )
-        qp = build_group_qp(scenario, members, rows, group_boxes)
         self.solves += 1
-        layout = StageLayout(scenario.steps, len(members))
-        warm = layout.pack(*(x[members] for x in lin))
-        result = self.solver.solve(qp, warm_start=warm)
-        if result.status != SOLVED or result.x is None:
-            return result.status, None, keys[:0]
-        solution = layout.unpack(result.x)
+        outcome = None
+        if self.dual and len(rows) <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
+            outcome = solve_group_dual(scenario, members, rows, group_boxes)
+        if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
+            solution, duals = outcome.solution, outcome.separation_duals
+        else:  # the primal QP; also the judge when the dual did not solve (infeasible, ...)
+            qp = build_group_qp(scenario, members, rows, group_boxes)
+            layout = StageLayout(scenario.steps, len(members))
+            warm = layout.pack(*(x[members] for x in lin))
+            result = self.solver.solve(qp, warm_start=warm)
+            if result.status != SOLVED or result.x is None:
+                return result.status, None, keys[:0]
+            solution, duals = layout.unpack(result.x), result.separation_duals
         active = keys
-        if result.separation_duals is not None and count:
-            per_key = result.separation_duals.reshape(len(kinds), count).max(axis=0)
+        if duals is not None and count:
+            per_key = duals.reshape(len(kinds), count).max(axis=0)
             active = keys[per_key > ACTIVE_DUAL]
         self.cache[signature] = (solution, active)
         return SOLVED, solution, active
@@ -468,8 +487,9 @@ def run_scp(
     record(IterationRecord(0, cost, None, 0, first.qp_solves, 0, first_seconds))
 
     codec = _Codec(len(scenario.vehicles), scenario.steps)
+    dual = options.dual and solver.name == "piqp"
     groups_solver = _GroupSolver(scenario, solver, codec, options.continuous,
-                                 options.split_above, options.block_size)
+                                 options.split_above, options.block_size, dual)
     current = base if guess is None else guess
     carried = np.zeros(0, dtype=np.int64)
     retried = 0
@@ -482,7 +502,7 @@ def run_scp(
         groups_solver.cache.clear()
         last = _solve_iteration(
             scenario, options, codec, groups_solver, current, base, keys,
-            near_boxes(scenario, *current),
+            near_boxes(scenario, *current, dual=dual),
         )
         if last.status != SOLVED:
             # Degenerate crossings (vehicles of a symmetric swap all meeting at one point)
@@ -496,7 +516,7 @@ def run_scp(
             keys = np.union1d(_seed_keys(bent, scenario, options, codec), carried)
             last = _solve_iteration(
                 scenario, options, codec, groups_solver, bent, base, keys,
-                near_boxes(scenario, *current),
+                near_boxes(scenario, *current, dual=dual),
             )
             retried += 1
         if last.status != SOLVED:

@@ -52,6 +52,12 @@ CHUNK = 1 << 19
 _FALLBACK = np.array([0.0, 0.0, 1.0])
 
 
+def _norm(x: FloatArray) -> FloatArray:
+    """Euclidean norm over the last axis (3 coordinates): ~3x faster than np.linalg.norm
+    on the (pairs, steps, 3) arrays of the hot path, which reduce over a short axis."""
+    return np.sqrt(np.einsum("...c,...c->...", x, x))
+
+
 @dataclass(frozen=True)
 class PairSteps:
     """A set of (i, j, k): vehicle pair i < j (scenario indices) at step/interval k."""
@@ -155,8 +161,8 @@ def far_margin_bound(lin_positions: FloatArray, lin_velocities: FloatArray, dt: 
     closest point, u'x >= |c| > reach on the chord, minus dt/2 |w| at the middle point; the
     first and last intervals use the end point's direction, off by at most one step.)
     Returns (dt/2 V, D) per vehicle."""
-    speed = np.linalg.norm(lin_velocities / scale, axis=-1).max(axis=1)
-    step = np.linalg.norm(np.diff(lin_positions, axis=1) / scale, axis=-1).max(axis=1)
+    speed = _norm(lin_velocities / scale).max(axis=1)
+    step = _norm(np.diff(lin_positions, axis=1) / scale).max(axis=1)
     return 0.5 * dt * speed, step
 
 
@@ -176,7 +182,7 @@ def _keep_right(motion: FloatArray) -> FloatArray:
     the relative motion is consistent for both vehicles of a pair and differs between pairs.
     """
     right = np.stack([motion[..., 1], -motion[..., 0], np.zeros(motion.shape[:-1])], axis=-1)
-    norm = np.linalg.norm(right, axis=-1, keepdims=True)
+    norm = _norm(right)[..., None]
     out = right / np.where(norm < 1e-12, 1.0, norm)
     vertical = norm[..., 0] < 1e-12
     if vertical.any():
@@ -199,17 +205,17 @@ def _unit(d: FloatArray, motion: FloatArray, separation: float = 0.0) -> FloatAr
     jump 2R (found on symmetric swaps, which came back infeasible).
     """
     if separation > 0.0:
-        norm = np.linalg.norm(d, axis=-1, keepdims=True)
+        norm = _norm(d)[..., None]
         right = _keep_right(motion)
         side = np.where(np.einsum("...c,...c->...", d, right)[..., None] < 0.0, -1.0, 1.0)
-        moving = np.linalg.norm(motion, axis=-1, keepdims=True) >= 1e-12
+        moving = _norm(motion)[..., None] >= 1e-12
         weight = PASSING_BIAS * np.maximum(0.0, separation - norm)
         d = d + np.where(moving, weight * side, 0.0) * right
-    norm = np.linalg.norm(d, axis=-1, keepdims=True)
+    norm = _norm(d)[..., None]
     tiny = norm[..., 0] < 1e-12
     out = d / np.where(norm < 1e-12, 1.0, norm)
     if tiny.any():
-        moving = np.linalg.norm(motion[tiny], axis=-1) >= 1e-12
+        moving = _norm(motion[tiny]) >= 1e-12
         fallback = np.broadcast_to(_FALLBACK, (int(tiny.sum()), 3)).copy()
         fallback[moving] = _keep_right(motion[tiny][moving])
         out[tiny] = fallback
@@ -315,8 +321,7 @@ def displacements(lin: tuple[FloatArray, FloatArray], current: tuple[FloatArray,
     `lin` to `current`: a row's value moves by at most the sum of its two vehicles'."""
     dp = (current[0] - lin[0]) / scale
     dm = dp + 0.5 * dt * (current[1] - lin[1]) / scale
-    return np.maximum(np.linalg.norm(dp, axis=-1).max(axis=1),
-                      np.linalg.norm(dm, axis=-1).max(axis=1))
+    return np.maximum(_norm(dp).max(axis=1), _norm(dm).max(axis=1))
 
 
 def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: FloatArray,
@@ -380,10 +385,7 @@ def close_rows(positions: FloatArray, scale: FloatArray, below: float, continuou
     chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
     for i, j in chunks:
         d = scaled[i] - scaled[j]
-        if continuous:
-            dist = np.linalg.norm(_chord_closest(d[:, :-1], d[:, 1:]), axis=-1)
-        else:
-            dist = np.linalg.norm(d, axis=-1)
+        dist = _norm(_chord_closest(d[:, :-1], d[:, 1:]) if continuous else d)
         pi, kk = np.nonzero(dist < below)
         found.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))
         found_d.append(dist[pi, kk])

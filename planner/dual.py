@@ -1,0 +1,234 @@
+"""A group's QP solved through its dual: one variable per inequality row instead of nine per
+vehicle and step.
+
+Every vehicle and axis has the same equality-constrained problem (double integrator from rest
+to rest, a[K-1] = 0, cost sum a^2; the gravity term is constant on the feasible set), whose
+optimum x* is the straight synchronised move (`planner.first_qp.straight_moves`). Every row
+of the group's QP, a separation row c'(g_i - g_j) >= R or a box l <= g <= u, is a linear
+functional g of one or two vehicles' trajectories (position, velocity, Bernstein middle
+point, acceleration or jerk at a step). With M the inverse Hessian on the feasible set
+(one K x K matrix for every vehicle and axis), the QP's dual is
+
+    min_{lambda >= 0}  1/2 lambda' Q lambda + (C x* - h)' lambda,   Q = C M C',
+
+and its solution gives the QP's own: x = x* + M C' lambda (exact; the same optimum, and the
+same multipliers, as the primal QP). Q[r, s] = (c_r . c_s) sum over shared vehicles of
+sign_r sign_s W[f_r, f_s], W = T M T' the "compliance" between two functionals (one
+(F x F) matrix per (K, dt), F ~ 5K). Q has one row per constraint and couples only rows
+that share a vehicle, so it is small and sparse where the primal KKT system has ~15 rows per
+vehicle and step (measured in the README, Drone-show scale). Where every vehicle meets
+dozens of others the rows sharing vehicles couple nearly all of Q and the primal wins
+(`planner.scp.DUAL_MAX_ROWS_PER_VEHICLE`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from planner.first_qp import unit_profile
+from planner.qp import A, BoxMask, P, SeparationRows, V
+from planner.scenario import Scenario
+from planner.solvers import FAILED, INFEASIBLE, MAX_ITER, SOLVED
+from planner.types import FloatArray, IntArray
+
+__all__ = ["DualOutcome", "Functionals", "functionals", "solve_group_dual"]
+
+
+#: Largest dual matrix (entries of Q before fill-in) worth building; beyond it (a vehicle
+#: with thousands of box rows, every row of every box) the primal QP is the better tool.
+MAX_PAIRS = 2_000_000
+
+
+@dataclass(frozen=True)
+class Functionals:
+    """Indices of the linear functionals of one vehicle-axis trajectory, and W = T M T'."""
+
+    steps: int
+    compliance: FloatArray
+    """(F, F): W[f, g] = response of functional f to a unit force on functional g."""
+
+    def position(self, k: IntArray | int) -> IntArray:
+        return np.asarray(k)
+
+    def velocity(self, k: IntArray | int) -> IntArray:
+        return self.steps + 1 + np.asarray(k)
+
+    def middle(self, k: IntArray | int) -> IntArray:
+        """p_k + dt/2 v_k, the Bernstein middle point of step k."""
+        return 2 * (self.steps + 1) + np.asarray(k)
+
+    def acceleration(self, k: IntArray | int) -> IntArray:
+        return 2 * (self.steps + 1) + self.steps + np.asarray(k)
+
+    def jerk(self, k: IntArray | int) -> IntArray:
+        """a_k - a_{k-1} (a_{-1} = 0)."""
+        return 2 * (self.steps + 1) + 2 * self.steps + np.asarray(k)
+
+    def values(self, p: FloatArray, v: FloatArray, a: FloatArray, dt: float) -> FloatArray:
+        """(m, F, 3): every functional of every vehicle and axis of trajectories (p, v, a)."""
+        middle = p[:, :-1] + 0.5 * dt * v[:, :-1]
+        jerk = np.diff(a, axis=1, prepend=0.0)
+        return np.concatenate([p, v, middle, a, jerk], axis=1)
+
+
+@lru_cache(maxsize=8)
+def functionals(steps: int, dt: float) -> Functionals:
+    """The functionals' map T from one axis' accelerations a (K) and W = T M T', M = Pi / 2
+    (the cost's Hessian is 2 I; Pi projects on the null space of the boundary conditions
+    p_K, v_K, a_{K-1}, which fix the rest of the move)."""
+    k = np.arange(steps + 1)[:, None]
+    j = np.arange(steps)[None, :]
+    pos = np.where(j < k, dt * dt * (k - j - 0.5), 0.0)  # p_k - p_0 - k dt v_0 (v_0 = 0)
+    vel = np.where(j < k, dt, 0.0)
+    middle = pos[:-1] + 0.5 * dt * vel[:-1]
+    acc = np.eye(steps)
+    jerk = acc - np.eye(steps, k=-1)
+    T = np.concatenate([pos, vel, middle, acc, jerk])
+    E = np.stack([pos[-1], vel[-1], acc[-1]])
+    Pi = np.eye(steps) - E.T @ np.linalg.solve(E @ E.T, E)
+    TP = T @ Pi
+    return Functionals(steps, 0.5 * TP @ T.T)
+
+
+@dataclass(frozen=True)
+class DualOutcome:
+    status: str
+    solution: tuple[FloatArray, FloatArray, FloatArray] | None
+    separation_duals: FloatArray | None
+    """Multipliers of the separation rows, in the order given."""
+    iterations: int
+
+
+def _box_rows(scenario: Scenario, fn: Functionals, boxes: BoxMask
+              ) -> tuple[IntArray, IntArray, IntArray, FloatArray, FloatArray]:
+    """One-sided rows (vehicle, functional, axis, sign, rhs) for every finite side of every
+    box in the mask: sign * g >= rhs."""
+    lim = scenario.limits
+    inf3 = np.full(3, np.inf)
+    vmax = inf3 if lim.velocity_max is None else lim.velocity_max
+    amax = inf3 if lim.acceleration_max is None else lim.acceleration_max
+    jmax = inf3 if lim.jerk_max is None else lim.jerk_max * scenario.dt
+    parts = []
+    for var, where, lo, hi in (
+        (P, fn.position, lim.position_min, lim.position_max),
+        (V, fn.velocity, -vmax, vmax),
+        (A, fn.acceleration, -amax, amax),
+    ):
+        veh, k, axis = np.nonzero(boxes.bounds[:, :, var, :])
+        parts.append((veh, where(k), axis, lo[axis], hi[axis]))
+    if lim.jerk_max is not None:
+        veh, k, axis = np.nonzero(boxes.jerk)
+        parts.append((veh, fn.jerk(k), axis, -jmax[axis], jmax[axis]))
+    veh, k, axis = np.nonzero(boxes.wall)
+    parts.append((veh, fn.middle(k), axis, lim.position_min[axis], lim.position_max[axis]))
+    veh = np.concatenate([x[0] for x in parts])
+    func = np.concatenate([x[1] for x in parts])
+    axis = np.concatenate([x[2] for x in parts])
+    lo = np.concatenate([x[3] for x in parts])
+    hi = np.concatenate([x[4] for x in parts])
+    low_ok, high_ok = np.isfinite(lo), np.isfinite(hi)
+    return (np.concatenate([veh[low_ok], veh[high_ok]]),
+            np.concatenate([func[low_ok], func[high_ok]]),
+            np.concatenate([axis[low_ok], axis[high_ok]]),
+            np.concatenate([np.ones(int(low_ok.sum())), -np.ones(int(high_ok.sum()))]),
+            np.concatenate([lo[low_ok], -hi[high_ok]]))
+
+
+def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows,
+                     boxes: BoxMask, tolerance: float = 1e-8) -> DualOutcome:
+    """The group QP of `build_group_qp(scenario, members, rows, boxes)`, solved through
+    its dual. Returns the group's (p, v, a) and the separation rows'
+    multipliers."""
+    import piqp
+
+    dt, steps = scenario.dt, scenario.steps
+    fn = functionals(steps, dt)
+    m = len(members)
+    phi_p, phi_v, phi_a = unit_profile(steps, dt)
+    start = scenario.starts[members][:, None, :]
+    move = (scenario.goals[members] - scenario.starts[members])[:, None, :]
+    base = (start + move * phi_p[None, :, None], move * phi_v[None, :, None],
+            move * phi_a[None, :, None])
+    g_star = fn.values(*base, dt)
+
+    # Entries: (row, vehicle, functional, coefficient vector); a row has one or two.
+    n_sep = len(rows)
+    f_sep = np.where(rows.kind == 0, fn.position(rows.k),
+                     np.where(rows.kind == 1, fn.middle(rows.k), fn.position(rows.k + 1)))
+    b_veh, b_func, b_axis, b_sign, b_rhs = _box_rows(scenario, fn, boxes)
+    n_box = len(b_veh)
+    n_rows = n_sep + n_box
+    box_coef = np.zeros((n_box, 3))
+    box_coef[np.arange(n_box), b_axis] = b_sign
+    sep_ids = np.arange(n_sep)
+    two = rows.j >= 0  # one-sided rows (j = -1) hold the other vehicle fixed
+    e_row = np.concatenate([sep_ids, sep_ids[two], n_sep + np.arange(n_box)])
+    e_veh = np.concatenate([rows.i, rows.j[two], b_veh])
+    e_func = np.concatenate([f_sep, f_sep[two], b_func])
+    e_coef = np.concatenate([rows.coef, -rows.coef[two], box_coef])
+    sep_rhs = np.full(n_sep, scenario.min_separation)
+    if rows.offset is not None:
+        sep_rhs = sep_rhs + rows.offset
+    rhs = np.concatenate([sep_rhs, b_rhs])
+
+    if n_rows == 0:  # nothing couples or bounds the group: the straight moves
+        return DualOutcome(SOLVED, base, np.zeros(0), 0)
+    per_vehicle = np.bincount(e_veh, minlength=m)
+    if int(np.sum(per_vehicle.astype(np.int64) ** 2)) > MAX_PAIRS:
+        return None
+
+    # Linear term: C x* - h (each row's slack at the straight moves).
+    c = np.bincount(e_row, np.einsum("ec,ec->e", e_coef, g_star[e_veh, e_func]),
+                    minlength=n_rows) - rhs
+
+    # Q: every pair of entries on the same vehicle (upper triangle only).
+    order = np.argsort(e_veh, kind="stable")
+    veh_sorted = e_veh[order]
+    first = np.concatenate([[0], np.cumsum(per_vehicle)[:-1]])
+    reps = per_vehicle[veh_sorted]
+    left = np.repeat(np.arange(len(order)), reps)
+    block_start = np.repeat(np.cumsum(reps) - reps, reps)
+    right = first[veh_sorted[left]] + (np.arange(len(left)) - block_start)
+    left, right = order[left], order[right]
+    keep = e_row[left] <= e_row[right]
+    left, right = left[keep], right[keep]
+    values = (np.einsum("ec,ec->e", e_coef[left], e_coef[right])
+              * fn.compliance[e_func[left], e_func[right]])
+    Q = sp.csc_matrix((values, (e_row[left], e_row[right])), shape=(n_rows, n_rows))
+
+    solver = piqp.SparseSolver()
+    s = solver.settings
+    s.eps_abs = tolerance
+    s.eps_rel = tolerance * 1e-1
+    s.max_iter = 200
+    solver.setup(Q, c, None, None, None, None, None, np.zeros(n_rows),
+                 np.full(n_rows, np.inf))
+    status = solver.solve()
+    iterations = int(solver.result.info.iter)
+    if status != piqp.PIQP_SOLVED:
+        # The dual (bounds only) is always feasible; unbounded means the QP is infeasible.
+        name = (INFEASIBLE if status in (piqp.PIQP_PRIMAL_INFEASIBLE, piqp.PIQP_DUAL_INFEASIBLE)
+                else MAX_ITER if status == piqp.PIQP_MAX_ITER_REACHED else FAILED)
+        return DualOutcome(name, None, None, iterations)
+    lam = np.maximum(np.array(solver.result.x), 0.0)
+
+    # x = x* + M C' lambda: each vehicle's forces on its functionals, through W.
+    functionals_count = fn.compliance.shape[0]
+    slot = e_veh * functionals_count + e_func
+    push = lam[e_row, None] * e_coef
+    force = np.stack([np.bincount(slot, push[:, c], minlength=m * functionals_count)
+                      for c in range(3)], axis=-1).reshape(m, functionals_count, 3)
+    used = np.unique(e_func)
+    P_rows = np.arange(steps + 1)
+    want = np.concatenate([fn.position(P_rows), fn.velocity(P_rows),
+                           fn.acceleration(np.arange(steps))])
+    W = fn.compliance[np.ix_(want, used)]
+    delta = np.einsum("fg,mgc->mfc", W, force[:, used, :], optimize=True)
+    p = base[0] + delta[:, :steps + 1]
+    v = base[1] + delta[:, steps + 1:2 * (steps + 1)]
+    a = base[2] + delta[:, 2 * (steps + 1):]
+    return DualOutcome(SOLVED, (p, v, a), lam[:n_sep], iterations)
