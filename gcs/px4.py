@@ -50,7 +50,9 @@ ARM_TEMPORARILY_REJECTED_RETRY_S = 1.0
 ACKED_TWICE = frozenset({176, 512})
 #: How long after the first ACK of such a command its second is expected (s): meanwhile an
 #: identical ACK is taken for that echo, not for a newer command with the same id.
-DUPLICATE_ACK_WINDOW_S = 1.0
+DUPLICATE_ACK_WINDOW_S = 0.25
+#: (the mock's echo follows 5 ms later; a window of seconds would take the genuine answer of a
+#: quick next command with the same id and result for an echo whose original was lost)
 
 
 class MainMode(IntEnum):

@@ -139,10 +139,10 @@ def _box_rows(scenario: Scenario, fn: Functionals, boxes: BoxMask
 
 
 def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows,
-                     boxes: BoxMask, tolerance: float = 1e-8) -> DualOutcome:
+                     boxes: BoxMask, tolerance: float = 1e-8) -> DualOutcome | None:
     """The group QP of `build_group_qp(scenario, members, rows, boxes)`, solved through
-    its dual. Returns the group's (p, v, a) and the separation rows'
-    multipliers."""
+    its dual. Returns the group's (p, v, a) and the separation rows' multipliers, or None
+    when the dual's matrix would exceed `MAX_PAIRS` entries (the caller solves the primal)."""
     import piqp
 
     dt, steps = scenario.dt, scenario.steps

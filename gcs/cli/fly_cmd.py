@@ -53,6 +53,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mock-realism", choices=("ideal", "px4"), default="ideal",
                         help="--mock: ideal vehicles (default) or px4: PX4 SITL's estimate noise, "
                              "lag, timings and telemetry (see fleetplan mock --realism)")
+    parser.add_argument("--mock-position-error", type=float, default=None,
+                        help="--mock: the fleet's position_error (m) for the margin check and "
+                             "the goal tolerance, as a fleet file states it (e.g. 0.25 with "
+                             "--mock-realism px4)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no live progress")
 
 
@@ -89,6 +93,11 @@ def run(args: argparse.Namespace) -> int:
             Path(args.record).write_text(json.dumps(record))
             print(f"flight record written to {args.record}")
 
+    if args.mock_settle is not None and not 0.0 <= args.mock_settle <= 60.0:
+        print(f"error: --mock-settle must be within [0, 60] s, got {args.mock_settle}",
+              file=sys.stderr)
+        return 2
+
     async def main() -> int:
         mock = None
         try:
@@ -99,7 +108,10 @@ def run(args: argparse.Namespace) -> int:
                                  listen_base_port=args.listen_base_port,
                                  realism=args.mock_realism, **settle)
                 await mock.start()
-                fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+                fleet_dict = mock.fleet_dict(plan.scenario.ids)
+                if args.mock_position_error is not None:
+                    fleet_dict["position_error"] = args.mock_position_error
+                fleet = FleetSpec.from_dict(fleet_dict)
             else:
                 fleet = load_fleet(args.fleet)
             changes = {field: getattr(args, flag) for flag, field in _OPTION_FLAGS.items()

@@ -82,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: --{name.replace('_', '-')} must be a finite number >= 0, got {value}",
                   file=sys.stderr)
             return 2
+    if not 0 <= args.seed < 2**32:
+        print(f"error: --seed must be an integer in [0, 2^32), got {args.seed}", file=sys.stderr)
+        return 2
     if args.position_error is not None and args.position_error > 10.0:
         print(f"error: --position-error must be within [0, 10] m, got {args.position_error}",
               file=sys.stderr)

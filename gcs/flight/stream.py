@@ -184,7 +184,9 @@ class Streamer:
         keeps 5% of each core for ordinary processes anyway (sched_rt_runtime_us)."""
         try:
             old = (os.sched_getscheduler(0), os.sched_getparam(0))
-            os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(1))
+            # RESET_ON_FORK: threads and processes started meanwhile (the API's worker
+            # threads under `fleetplan serve`) get ordinary scheduling, not this priority.
+            os.sched_setscheduler(0, os.SCHED_RR | os.SCHED_RESET_ON_FORK, os.sched_param(1))
         except (AttributeError, OSError) as exc:
             self.scheduling = f"ordinary (real-time refused: {exc})"
             return None

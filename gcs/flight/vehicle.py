@@ -265,17 +265,24 @@ def message_rates(position_hz: float) -> dict[int, float]:
 async def request_message_rates(link: VehicleLink, rates: dict[int, float]) -> dict[str, str]:
     """MAV_CMD_SET_MESSAGE_INTERVAL for each message id (param2: interval in us, -1 = off);
     returns {message name: "<rate> <MAV_RESULT>"}. A refusal is reported, not raised: the
-    vehicle then keeps sending at its own rate."""
-    out = {}
+    vehicle then keeps sending at its own rate. After a request that goes unanswered the rest
+    are reported "not sent" (a vehicle that ignores them would otherwise hold the connect
+    phase for minutes). PX4 keeps the rates it was given until it reboots."""
+    out: dict[str, str] = {}
+    unanswered = False
     for message_id, hz in rates.items():
         interval = -1.0 if hz <= 0 else 1e6 / hz
         name = mavlink.mavlink_map[message_id].msgname if message_id in mavlink.mavlink_map \
             else str(message_id)
+        if unanswered:
+            out[name] = f"{'off' if hz <= 0 else f'{hz:g} Hz'} not sent"
+            continue
         try:
             result = result_name(await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
                                                     (float(message_id), interval)))
         except GcsError as exc:
             result = f"failed ({exc})"
+            unanswered = True
         out[name] = f"{'off' if hz <= 0 else f'{hz:g} Hz'} {result}"
     return out
 

@@ -58,6 +58,8 @@ CANCEL_GRACE_S = 5.0
 #: Estimated work (vehicles^2 x steps: the pair rows the planner may check) above which a job
 #: is "large": 16 vehicles over 250 steps.
 LARGE_JOB_WORK = 16 * 16 * 250
+#: How long the workers may take to say which of a stopped job's tasks they still run (s).
+WORKER_QUERY_S = 10.0
 #: Retry period of a mission's final write when the store refused it.
 STORE_RETRY_S = 2.0
 
@@ -367,11 +369,16 @@ class PlanningService:
         job's `started` events as a fallback when they cannot be asked)."""
         client = self._client
         assert client is not None
+        started = set(job.running.values())
         try:
-            keys = await client.run(_executing_keys, job.key)
-        except Exception:
-            return [] if job.done.is_set() else sorted(set(job.running.values()))
-        return sorted(worker for worker, running in keys.items() if running)
+            answers = await asyncio.wait_for(
+                client.run(_executing_keys, job.key, on_error="return"), WORKER_QUERY_S)
+        except Exception:  # the scheduler did not answer: go by the started events
+            return sorted(started)
+        running = {worker for worker, keys in answers.items()
+                   if not isinstance(keys, BaseException) and keys}
+        silent = {worker for worker, keys in answers.items() if isinstance(keys, BaseException)}
+        return sorted(running | (started & silent))
 
     async def _watch_time(self, job: PlanJob) -> None:
         """Stop a job whose task has run past its limit (the task checks it itself too, but

@@ -211,7 +211,8 @@ class MockConfig:
     estimate_noise: EstimateNoise | None = None
     """The position estimate's error process (None: exact, as in the ideal mode)."""
     boot_time: float = 0.0
-    """Nothing is sent or answered this long after start (PX4 SITL: first HEARTBEAT ~1.5 s)."""
+    """Nothing is sent or answered this long after start; the first HEARTBEAT then goes at
+    the next 1 s tick (2 s for 1.5 s; PX4 SITL: 1.7-2.7 s)."""
     duplicate_ack_delay: float = 0.0
     """DO_SET_MODE and REQUEST_MESSAGE are ACKed twice; the second ACK goes this much later (s)."""
 
@@ -231,7 +232,8 @@ class MockConfig:
     def px4_like(cls) -> MockConfig:
         """PX4 v1.16 SIH SITL as measured (README "Mock realism" has the figures): a wandering
         position estimate (GPS-like altitude noise), the attitude loop's lag, arming refused
-        for 3.5 s after boot, first HEARTBEAT after 1.5 s, PX4's offboard message set."""
+        for 3.5 s after boot, deaf and silent for 1.5 s (first HEARTBEAT at 2 s), PX4's
+        offboard message set."""
         return cls(realism="px4", settle_time=3.5, boot_time=1.5,
                    estimate_noise=EstimateNoise(), duplicate_ack_delay=0.005,
                    telemetry_profile="px4",

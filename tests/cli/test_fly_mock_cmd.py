@@ -118,19 +118,27 @@ def test_sigusr1_pauses_and_sigusr2_resumes(tmp_path: Path) -> None:
 
 
 def test_fly_mock_realism_px4_with_realtime_streaming(tmp_path: Path) -> None:
-    """`--mock-realism px4` flies PX4-like vehicles (their GPS accuracy widens the goal
-    tolerance past the fixed 0.2 m) and `--stream-priority` reaches the stream (recorded)."""
-    proc = _fly(tmp_path, "--mock-realism", "px4", "--stream-priority", "realtime", "-q")
+    """`--mock-realism px4` flies PX4-like vehicles, `--mock-position-error` states the
+    fleet's position error (goal tolerance 2 x 0.25 m instead of the fixed 0.2 m) and
+    `--stream-priority` reaches the stream (recorded)."""
+    # (the plan has no margin for that error: flown anyway with a warning)
+    proc = _fly(tmp_path, "--mock-realism", "px4", "--mock-position-error", "0.25",
+                "--margin-check", "warn", "--stream-priority", "realtime", "-q")
     out, _ = proc.communicate(timeout=80)
     record = json.loads((tmp_path / "record.json").read_text())
     assert proc.returncode == (0 if record["summary"]["completed"] else 1), out
     tolerances = record["summary"]["goal_tolerances"]
     assert set(tolerances) == {"uav1", "uav2"}
-    assert all(t > 0.2 for t in tolerances.values()), tolerances  # 2 x h_acc 0.17 m
+    assert all(t == pytest.approx(0.5) for t in tolerances.values()), tolerances
+    assert record["events"][0]["kind"] == "margin_warning", record["events"][0]
     assert [e["kind"] for e in record["events"]].count("stream_priority") == 1
 
 
-def test_fly_rejects_an_unknown_stream_priority(tmp_path: Path) -> None:
-    proc = _fly(tmp_path, "--stream-priority", "fastest")
+@pytest.mark.parametrize("extra, says", [
+    (("--stream-priority", "fastest"), "--stream-priority"),
+    (("--mock-position-error", "-1"), "position_error"),
+])
+def test_fly_rejects_bad_options(tmp_path: Path, extra: tuple[str, ...], says: str) -> None:
+    proc = _fly(tmp_path, *extra)
     out, _ = proc.communicate(timeout=30)
-    assert proc.returncode == 2 and "--stream-priority" in out
+    assert proc.returncode == 2 and says in out and "Traceback" not in out, out

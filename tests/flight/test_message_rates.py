@@ -47,3 +47,15 @@ def test_requested_position_rate_is_what_arrives() -> None:
         rate = np.count_nonzero((t >= t0) & (t <= t0 + horizon)) / horizon
         assert 36.0 < rate < 55.0, rate  # the default 30 Hz is below; a starved mock sends less
 
+
+
+def test_what_is_turned_off_is_never_what_the_gcs_decodes() -> None:
+    """`message_rates: request` turns UNREAD_STREAMS off; none of them may be a message the
+    link reads (DECODED_IDS), or the GCS would switch off its own telemetry."""
+    from gcs.flight.link import DECODED_IDS
+    from gcs.flight.vehicle import UNREAD_STREAMS, message_rates
+
+    assert DECODED_IDS.isdisjoint(UNREAD_STREAMS)
+    asked = message_rates(30.0)
+    assert all(hz > 0 for mid, hz in asked.items() if mid in DECODED_IDS)
+    assert all(asked.get(mid, 0.0) <= 0 for mid in UNREAD_STREAMS)

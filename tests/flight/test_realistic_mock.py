@@ -67,9 +67,10 @@ def test_doubled_mode_acks_are_counted_once_and_never_answer_a_later_command() -
     the next DO_SET_MODE goes out must not be taken for that command's answer."""
 
     async def run() -> dict[str, Any]:
-        # the second ACK 0.3 s late, each packet 0.2 s on its way: the refusal's second ACK
-        # arrives before the answer to the next command (0.4 s round trip)
-        async with MockFleet(1, realism="px4", duplicate_ack_delay=0.3, boot_time=0.0,
+        # the second ACK 0.15 s late (inside the GCS's window for it), each packet 0.2 s on
+        # its way: the refusal's second ACK arrives before the answer to the next command
+        # (0.4 s round trip)
+        async with MockFleet(1, realism="px4", duplicate_ack_delay=0.15, boot_time=0.0,
                              **mock_ports(1)) as mock:
             mock.vehicles[0].faults.delay = 0.2
             hub, link = await _link(mock)

@@ -44,17 +44,20 @@ def test_a_callback_blocking_the_loop_counts_as_a_busy_stall() -> None:
 def test_realtime_is_asked_for_while_streaming_and_given_back() -> None:
     before = os.sched_getscheduler(0)
 
-    async def main() -> tuple[Streamer, int]:
+    async def main() -> tuple[Streamer, int, int]:
         streamer = _streamer(realtime=True)
         streamer.start()
         await asyncio.sleep(0.1)
         during = os.sched_getscheduler(0)  # the loop's thread: this one
+        # a thread started meanwhile (the API's worker threads under `serve`) is ordinary
+        spawned = await asyncio.to_thread(os.sched_getscheduler, 0)
         await streamer.stop()
-        return streamer, during
+        return streamer, during, spawned
 
-    streamer, during = asyncio.run(main())
+    streamer, during, spawned = asyncio.run(main())
     if streamer.scheduling == "SCHED_RR 1":
-        assert during == os.SCHED_RR
+        assert during & ~os.SCHED_RESET_ON_FORK == os.SCHED_RR
+        assert spawned == os.SCHED_OTHER
     else:  # no CAP_SYS_NICE / rtprio limit: refused, said why, nothing changed
         assert streamer.scheduling.startswith("ordinary (real-time refused")
         assert during == before

@@ -62,6 +62,7 @@ def test_mock_realism_px4_runs_px4_like_vehicles(tmp_path: Path) -> None:
     (("--position-error", "20"), "--position-error must be within [0, 10] m"),
     (("--settle", "nan"), "--settle must be a finite number"),
     (("--position-rate", "0"), "--position-rate must be above 0"),
+    (("--seed", "-1"), "--seed must be an integer in [0, 2^32)"),
 ])
 def test_bad_mock_options_are_one_line_errors(extra: tuple[str, ...], says: str) -> None:
     proc = _mock("--vehicles", "1", "--duration", "1", *extra)
