@@ -58,6 +58,10 @@ CANCEL_GRACE_S = 5.0
 #: Estimated work (vehicles^2 x steps: the pair rows the planner may check) above which a job
 #: is "large": 16 vehicles over 250 steps.
 LARGE_JOB_WORK = 16 * 16 * 250
+#: A stopped job whose task had not started yet: how many times, how far apart (s), the
+#: workers are asked whether it started after all.
+STARTING_LOOKS = 4
+STARTING_LOOK_S = 0.5
 #: How long the workers may take to say which of a stopped job's tasks they still run (s).
 WORKER_QUERY_S = 10.0
 #: Retry period of a mission's final write when the store refused it.
@@ -345,7 +349,14 @@ class PlanningService:
             await asyncio.wait_for(job.done.wait(), self._grace)
         if self._client is None:
             return
-        stuck = await self._workers_running(job)
+        # A task dropped before its `started` event may still be on its way to a worker and
+        # start a moment later: look again a few times before concluding it never ran.
+        for look in range(1 if job.started.is_set() else STARTING_LOOKS):
+            if look:
+                await asyncio.sleep(STARTING_LOOK_S)
+            stuck = await self._workers_running(job)
+            if stuck:
+                break
         left = stop_asked + self._grace - time.monotonic()
         if stuck and left > 0:  # the job ended early (dropped future): give the task its grace
             await asyncio.sleep(left)
