@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -79,6 +80,13 @@ def workers(cluster: LocalCluster) -> set[str]:
     """Addresses of the workers the scheduler knows now."""
     with Client(cluster.scheduler_address, timeout=10) as client:
         return set(client.scheduler_info()["workers"])
+
+
+def worker_pids(cluster: LocalCluster) -> dict[str, int]:
+    """Process id of each worker that answers, by address (a restarted worker may get a freed
+    port back, so processes are told apart by pid)."""
+    with Client(cluster.scheduler_address, timeout=10) as client:
+        return client.run(os.getpid, on_error="ignore")
 
 
 def wait_idle(cluster: LocalCluster, timeout: float = 60.0) -> dict[str, int]:
@@ -168,13 +176,13 @@ def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
         try:
             job = submit(service, store, "random128")
             await asyncio.wait_for(job.started.wait(), 60)
-            old = job.worker
+            old = (await asyncio.to_thread(worker_pids, cluster))[job.worker]
             service.cancel(job.mission_id, "stop now")
             outcome = await done(job)
             assert outcome["error"]["reason"] == "stop now"
             deadline = time.monotonic() + 60
             while time.monotonic() < deadline:
-                now = await asyncio.to_thread(workers, cluster)
+                now = set((await asyncio.to_thread(worker_pids, cluster)).values())
                 if len(now) == 2 and old not in now:
                     break
                 await asyncio.sleep(0.2)

@@ -19,7 +19,7 @@ from tests.service.test_planning import (
     assert_idle,
     done,
     started_service,
-    workers,
+    worker_pids,
 )
 from tests.service.test_planning import cluster as cluster  # the module's fixtures
 from tests.service.test_planning import store as store
@@ -112,18 +112,20 @@ def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, mon
             deadline = time.monotonic() + 60
             while len(job.running) < 2 and time.monotonic() < deadline:
                 await asyncio.sleep(0.1)
-            stuck = set(job.running.values())
-            assert len(stuck) == 2, job.running  # one leg on each worker
+            assert len(set(job.running.values())) == 2, job.running  # a leg on each worker
+            stuck = set((await asyncio.to_thread(worker_pids, cluster)).values())
             service.cancel(job.mission_id, "stop now")
             outcome = await done(job)
             assert outcome["error"]["reason"] == "stop now"
+            # Both replaced by new processes (a new worker may get a freed port back, so
+            # processes are told apart by their pid, not their address).
             deadline = time.monotonic() + 90
             while time.monotonic() < deadline:
-                now = await asyncio.to_thread(workers, cluster)
+                now = set((await asyncio.to_thread(worker_pids, cluster)).values())
                 if len(now) == 2 and not (stuck & now):
                     break
                 await asyncio.sleep(0.2)
-            assert not (stuck & now) and len(now) == 2  # both replaced by new processes
+            assert not (stuck & now) and len(now) == 2, (stuck, now)
         finally:
             await service.close()
 
