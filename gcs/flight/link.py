@@ -212,19 +212,11 @@ class UdpEndpoint(Endpoint):
         if link is None:
             self.dropped_unknown += 1
             return True
-        counters = link.telemetry.security
-        if addr != link.peer_address:
-            counters.foreign_source += 1
-        elif header.component != link.component_id:
-            counters.other_component += 1
-        else:
-            reason = None if link.signing is None else link.signing.verify_packet(
-                data, header.system, header.component)
-            if reason is not None:
-                setattr(counters, reason, getattr(counters, reason) + 1)
-            else:
-                link.telemetry.skipped += 1
-                _count_sequence(link.telemetry, header.seq)
+        if link._admit(header.component, addr,
+                       lambda signing: signing.verify_packet(data, header.system,
+                                                             header.component)):
+            link.telemetry.skipped += 1
+            _count_sequence(link.telemetry, header.seq)
         return True
 
     def _address(self, system_id: int) -> Any:
@@ -457,17 +449,24 @@ class VehicleLink:
     # ---------------------------------------------------------------- receiving
 
     def _accept(self, msg: Any, address: Any) -> bool:
-        """Whether a packet with this vehicle's system id is from its pinned peer (pinning it
-        on the first acceptable packet) and, with a key, correctly signed and new."""
+        """Whether a decoded packet with this vehicle's system id is from its pinned peer
+        (pinning it on the first acceptable packet) and, with a key, correctly signed and new."""
+        return self._admit(msg.get_srcComponent(), address,
+                           lambda signing: signing.verify(msg))
+
+    def _admit(self, component: int, address: Any,
+               verify: Callable[[LinkSigning], str | None]) -> bool:
+        """`_accept` for a packet from `component` at `address` whose signature `verify`
+        checks (None: good; else the security counter to raise); decoded or not."""
         counters = self.telemetry.security
         if self.pinned and address != self.peer_address:
             counters.foreign_source += 1
             return False
-        if msg.get_srcComponent() != self.component_id:
+        if component != self.component_id:
             counters.other_component += 1
             return False
         if self.signing is not None:
-            reason = self.signing.verify(msg)
+            reason = verify(self.signing)
             if reason is not None:
                 setattr(counters, reason, getattr(counters, reason) + 1)
                 return False

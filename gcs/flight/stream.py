@@ -211,10 +211,11 @@ class Streamer:
                     pass  # a fraction of a millisecond: the clock, not the timer
                 self._send_tick(tick, ready)
             wake = self.tick_time(self.tick + 1) - encode_time - WAKE_MARGIN
-            waited = _run_delay(schedstat)
+            measuring = self.measuring
+            waited = _run_delay(schedstat) if measuring else 0.0
             await asyncio.sleep(max(0.0, wake - time.monotonic()))
             late = time.monotonic() - wake
-            if late > STALL_S and self.measuring:
+            if late > STALL_S and measuring:
                 descheduled = _run_delay(schedstat) - waited >= late / 2
                 self.stalls["descheduled" if descheduled else "busy"] += 1
 
