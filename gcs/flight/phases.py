@@ -1,0 +1,105 @@
+"""The flight's vocabulary, defined once: flight phases, vehicle phases and event kinds.
+
+A *phase* is where a flight (`FlightPhase`) or one of its vehicles (`VehiclePhase`) is inside
+its run; an *event kind* (`EventKind`) names one line of a flight's event log. They are
+StrEnums, so records, JSON and stored rows carry the plain value, and
+`GET /api/status` publishes them (`vocabulary()`) beside the statuses.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+__all__ = ["AIRBORNE", "EventKind", "FlightPhase", "VehiclePhase", "vocabulary"]
+
+
+class FlightPhase(StrEnum):
+    """Where a whole flight is: created, then connecting → preparing → gathering → flying
+    (⇄ paused) → finishing → finished; or aborted / failed."""
+
+    CREATED = "created"
+    CONNECTING = "connecting"
+    PREPARING = "preparing"
+    GATHERING = "gathering"
+    FLYING = "flying"
+    PAUSED = "paused"
+    FINISHING = "finishing"
+    FINISHED = "finished"
+    ABORTED = "aborted"
+    FAILED = "failed"
+
+
+class VehiclePhase(StrEnum):
+    """Where one vehicle is inside its flight."""
+
+    PENDING = "pending"
+    CONNECTED = "connected"
+    ARMING = "arming"
+    CLIMBING = "climbing"
+    AT_START = "at_start"
+    FLYING = "flying"
+    HOLDING = "holding"
+    FAULTY = "faulty"
+    LANDING = "landing"
+    LANDED = "landed"
+    HOVERING = "hovering"
+    STOPPED = "stopped"
+
+
+#: Vehicle phases in which the vehicle is (or may be) in the air.
+AIRBORNE: tuple[VehiclePhase, ...] = (
+    VehiclePhase.CLIMBING, VehiclePhase.AT_START, VehiclePhase.FLYING, VehiclePhase.HOLDING,
+    VehiclePhase.LANDING, VehiclePhase.FAULTY, VehiclePhase.HOVERING,
+)
+
+
+class EventKind(StrEnum):
+    """The kind of one flight event (``{"t", "vehicle", "kind", "detail"}``)."""
+
+    # the fleet
+    MARGIN = "margin"
+    MARGIN_WARNING = "margin_warning"
+    STREAM_PRIORITY = "stream_priority"
+    FLIGHT_START = "mission_start"
+    HORIZON = "horizon"
+    GOAL_ERRORS = "goal_errors"
+    PAUSE = "pause"
+    RESUME = "resume"
+    PAUSE_LIMIT = "pause_limit"
+    ABORT = "abort"
+    ERROR = "error"
+    SEPARATION_ALARM = "separation_alarm"
+    STATION_STALL = "station_stall"
+    # one vehicle
+    HOME = "home"
+    CONNECTED = "connected"
+    MESSAGE_RATES = "message_rates"
+    PREFLIGHT_OVERRIDE = "preflight_override"
+    MODE = "mode"
+    MODE_CHANGE = "mode_change"
+    ARMED = "armed"
+    CLIMB = "climb"
+    AT_START = "at_start"
+    FAULT = "fault"
+    STATUSTEXT = "statustext"
+    LAND = "land"
+    LAND_FAILED = "land_failed"
+    LANDED = "landed"
+    HOLD = "hold"
+    HOLD_FAILED = "hold_failed"
+    DISARM = "disarm"
+    DISARM_FAILED = "disarm_failed"
+    DISARM_UNCONFIRMED = "disarm_unconfirmed"
+    NOT_DISARMED = "not_disarmed"
+    STILL_ARMED = "still_armed"
+
+
+def vocabulary() -> dict[str, list[str]]:
+    """Every phase set and the event kinds, as served by `GET /api/status` (``phases``,
+    ``event_kinds``)."""
+    return {
+        "flight": [p.value for p in FlightPhase],
+        "vehicle": [p.value for p in VehiclePhase],
+        "airborne": [p.value for p in AIRBORNE],
+        "event_kinds": [k.value for k in EventKind],
+    }
