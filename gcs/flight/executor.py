@@ -76,6 +76,7 @@ from gcs.flight.record import FlightRecorder, finite_or_none, goal_tolerance, su
 from gcs.flight.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
+from gcs.tasks import TaskSet
 from planner import Plan
 from planner.verify import verify
 
@@ -128,7 +129,7 @@ class FlightExecutor:
         self._abort: tuple[str, str] | None = None
         self._secure_task: asyncio.Task[None] | None = None
         self._subscribers: list[asyncio.Queue[dict[str, Any] | None]] = []
-        self._background: set[asyncio.Task[Any]] = set()
+        self._background = TaskSet()
         self._task: asyncio.Task[dict[str, Any]] | None = None
         self._yaw_ned = frames.world_yaw_to_ned(self.options.yaw)
         self.pauses: list[list[float | None]] = []
@@ -548,10 +549,10 @@ class FlightExecutor:
         policy = self.options.policy
         self._emit(v.id, "fault", f"{kind}: {detail} -> policy {policy}")
         if policy == "land_faulty":
-            self._spawn(self._land(v))
+            self._background.spawn(self._land(v))
         else:
             action = "hold" if policy == "hold_all" else "land"
-            self._spawn(self.abort(action, f"{v.id} {kind} ({detail})"))
+            self._background.spawn(self.abort(action, f"{v.id} {kind} ({detail})"))
 
     def _on_separation(self, closest: float, alarm: float) -> None:
         if self._abort is not None:
@@ -560,12 +561,7 @@ class FlightExecutor:
         # (PX4 Hold) rather than send anyone down through others.
         self._emit(None, "separation_alarm",
                    f"vehicles {closest:.2f} m apart (alarm below {alarm:.2f} m)")
-        self._spawn(self.abort("hold", f"separation {closest:.2f} m"))
-
-    def _spawn(self, coro: Awaitable[Any]) -> None:
-        task = asyncio.ensure_future(coro)
-        self._background.add(task)
-        task.add_done_callback(self._background.discard)
+        self._background.spawn(self.abort("hold", f"separation {closest:.2f} m"))
 
     # ================================================================ recording
 

@@ -47,6 +47,7 @@ from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, Execution
 from gcs.service.store import ExecutionRow, Store
 from gcs.sim import MockConfig, MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
+from gcs.tasks import TaskSet
 from planner import Plan
 
 __all__ = ["FINISHED", "LIVE", "FleetService", "LiveExecution", "execution_document"]
@@ -123,7 +124,7 @@ class FleetService:
         self._links: dict[str, VehicleLink] = {}
         self._flights: dict[str, LiveExecution] = {}
         self._active: LiveExecution | None = None
-        self._tasks: set[asyncio.Task[Any]] = set()
+        self._tasks = TaskSet()
         self._lock = asyncio.Lock()
 
     # ------------------------------------------------------------------ lifecycle
@@ -146,10 +147,8 @@ class FleetService:
             await self.abort(flight.id, "land", "the service is stopping")
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(flight.done.wait(), 60.0)
-        for task in list(self._tasks):
-            task.cancel()
-        if self._tasks:  # let cancelled flights store what they have
-            await asyncio.wait(list(self._tasks), timeout=10.0)
+        self._tasks.cancel_all()
+        await self._tasks.wait(timeout=10.0)  # let cancelled flights store what they have
         await self._close_monitor()
         if self._mock is not None:
             await self._mock.stop()
@@ -324,7 +323,7 @@ class FleetService:
             flight = LiveExecution(row.id, mission_id)
             self._flights[row.id] = flight
             self._active = flight
-            self._spawn(self._run(flight, plan, mission_options))
+            self._tasks.spawn(self._run(flight, plan, mission_options))
             return row
 
     def _preflight(self, ids: list[str], options: FlightOptions) -> None:
@@ -366,7 +365,7 @@ class FleetService:
             flight.abort_requested = action
             flight.set_status(ExecutionStatus.ABORTING)
             if flight.executor is not None:
-                self._spawn(flight.executor.abort(action, reason))
+                self._tasks.spawn(flight.executor.abort(action, reason))
         return flight
 
     def pause(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
@@ -397,11 +396,6 @@ class FleetService:
             raise StateConflict("execution_id", f"execution {execution_id!r} is not flying "
                                                 f"(status {status})")
         return flight
-
-    def _spawn(self, coro: Any) -> None:
-        task = asyncio.ensure_future(coro)
-        self._tasks.add(task)
-        task.add_done_callback(self._tasks.discard)
 
     async def _run(self, flight: LiveExecution, plan: Plan, options: Any) -> None:
         record: dict[str, Any] | None = None

@@ -42,6 +42,7 @@ from gcs.errors import InvalidRequest, ServiceBusy, StateConflict
 from gcs.service import plan_worker
 from gcs.service.events import Broadcast, Event
 from gcs.service.store import Store
+from gcs.tasks import TaskSet
 
 if TYPE_CHECKING:
     from distributed import Client, LocalCluster
@@ -153,7 +154,7 @@ class PlanningService:
         self._topic = f"fleetplan-progress-{uuid.uuid4().hex[:12]}"
         self._jobs: dict[str, PlanJob] = {}
         self._by_key: dict[str, PlanJob] = {}
-        self._tasks: set[asyncio.Task[Any]] = set()
+        self._tasks = TaskSet()
         self._large_slots: asyncio.Semaphore | None = None
         self._closing = False
         self.on_message: Callable[[dict[str, Any]], None] | None = None
@@ -219,10 +220,8 @@ class PlanningService:
                 if job.started.is_set():
                     with contextlib.suppress(Exception):
                         await self._cancel_flag(job).set()
-        for task in list(self._tasks):
-            task.cancel()
-        if self._tasks:
-            await asyncio.wait(list(self._tasks), timeout=5)
+        self._tasks.cancel_all()
+        await self._tasks.wait(timeout=5)
         if client is not None:
             with contextlib.suppress(Exception):
                 client.unsubscribe_topic(self._topic)
@@ -274,7 +273,7 @@ class PlanningService:
                       work=job_work(scenario), time_limit_s=self.job_time_limit(time_limit_s))
         self._jobs[mission_id] = job
         self._by_key[job.key] = job
-        self._spawn(self._run(job, scenario))
+        self._tasks.spawn(self._run(job, scenario))
         return job
 
     def submit_sequence(
@@ -294,7 +293,7 @@ class PlanningService:
                       ends_expected=len(sequence.legs))
         self._jobs[mission_id] = job
         self._by_key[job.key] = job
-        self._spawn(self._run(job, sequence))
+        self._tasks.spawn(self._run(job, sequence))
         return job
 
     def cancel(self, mission_id: str, reason: str = "cancelled by the operator") -> PlanJob:
@@ -315,12 +314,6 @@ class PlanningService:
 
     # ------------------------------------------------------------------ internals
 
-    def _spawn(self, coro: Any) -> asyncio.Task[Any]:
-        task = asyncio.ensure_future(coro)
-        self._tasks.add(task)
-        task.add_done_callback(self._tasks.discard)
-        return task
-
     def _cancel_flag(self, job: PlanJob) -> Any:
         from distributed import Event as DaskEvent
 
@@ -330,7 +323,7 @@ class PlanningService:
         if job.stop_reason is not None:
             return
         job.stop_reason = reason
-        self._spawn(self._enforce_stop(job))
+        self._tasks.spawn(self._enforce_stop(job))
 
     async def _enforce_stop(self, job: PlanJob) -> None:
         """Ask the task to stop; restart its worker if it has not stopped after the grace.
@@ -401,7 +394,7 @@ class PlanningService:
             self._stop(job, f"planning exceeded its time limit of {job.time_limit_s:g} s")
 
     async def _run(self, job: PlanJob, scenario: Any) -> None:
-        watch = self._spawn(self._watch_time(job))
+        watch = self._tasks.spawn(self._watch_time(job))
         try:
             if job.work > LARGE_JOB_WORK and self._large_slots is not None:
                 async with self._large_slots:
@@ -506,7 +499,7 @@ class PlanningService:
         except Exception as exc:
             log.error("could not mark mission %s failed: %s", job.mission_id, exc)
             if retry and not self._closing:
-                self._spawn(self._retry_failure(job.mission_id, error))
+                self._tasks.spawn(self._retry_failure(job.mission_id, error))
 
     async def _retry_failure(self, mission_id: str, error: dict[str, Any]) -> None:
         while not self._closing:
