@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench install clean test-tools
+.PHONY: run test test-fast lint bench install clean test-tools
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -23,11 +23,15 @@ install: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/fleetplan serve
 
-# Test files run in parallel processes (pytest-xdist), one file per process at a time: most of
-# the time is real-time mock flights waiting on the clock, not CPU.
-test: $(STAMP) test-tools
-	$(PY) -m ruff check planner gcs tests bench
-	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile
+# Every check: lint (ruff, mypy), then every test. Test files run in parallel processes
+# (pytest-xdist), one file per process at a time; the 15 slowest tests are listed at the end.
+test: lint test-tools
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15
+
+# The inner loop: no browser and no full mock flights (markers `browser`, `flight`).
+test-fast: $(STAMP)
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15 \
+	  -m "not browser and not flight"
 
 # The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml;
 # a throwaway PostgreSQL server checks the service on it. Installed here when missing and
@@ -50,6 +54,7 @@ test-tools:
 
 lint: $(STAMP)
 	$(PY) -m ruff check planner gcs tests bench
+	$(PY) -m mypy
 
 bench: $(STAMP)
 	$(PY) bench/planner.py
