@@ -17,7 +17,8 @@ import pytest
 
 from gcs import px4
 from gcs.flight import signing as signing_module
-from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import VehicleLink
 from gcs.flight.signing import RESERVE, LinkSigning, timestamp_path
 from gcs.wire import (
     GCS_SYSTEM_ID,

@@ -6,7 +6,8 @@ joined."""
 from __future__ import annotations
 
 from gcs import wire
-from gcs.flight.link import UdpEndpoint, VehicleLink
+from gcs.flight.endpoints import UdpEndpoint
+from gcs.flight.link import VehicleLink
 from gcs.wire import mavlink, parse_datagram
 
 
@@ -37,7 +38,8 @@ def test_a_vehicle_link_numbers_heartbeats_commands_and_setpoints_in_order() -> 
 def test_chunked_statustexts_are_joined_before_anyone_sees_them() -> None:
     """PX4 (and the mock) split a text over 50 bytes into chunks with one id; the link keeps
     and reports the whole text, and a plain text (id 0) passes as it is."""
-    from gcs.flight.link import UdpEndpoint, VehicleLink
+    from gcs.flight.endpoints import UdpEndpoint
+    from gcs.flight.link import VehicleLink
 
     link = VehicleLink("uav1", UdpEndpoint("udpin:127.0.0.1:14998"), system_id=1)
     seen: list[str] = []
