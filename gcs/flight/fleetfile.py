@@ -301,7 +301,7 @@ def load_fleet(path: str | Path) -> FleetSpec:
         raise FleetFileError("fleet", f"cannot read {path}: {exc.strerror}") from None
     except json.JSONDecodeError as exc:
         raise FleetFileError("fleet", f"{path} is not valid JSON: {exc}") from None
-    return FleetSpec.from_dict(data, Path(path).parent)
+    return _parse(data, Path(path).parent, source=str(path))
 
 
 def _number(value: Any, where: str) -> float:
@@ -329,20 +329,22 @@ def _peer(value: Any, where: str) -> tuple[str, int]:
         raise FleetFileError(where, f"must look like HOST:PORT, got {value!r}") from None
 
 
-def _options(data: Mapping[str, Any]) -> FlightOptions:
-    """The flight options under `_OPTIONS_KEY`, or under `_OLD_OPTIONS_KEY` with a warning."""
+def _options(data: Mapping[str, Any], source: str) -> FlightOptions:
+    """The flight options under `_OPTIONS_KEY`, or under `_OLD_OPTIONS_KEY` with a warning
+    naming `source` (the fleet file)."""
     if _OPTIONS_KEY in data and _OLD_OPTIONS_KEY in data:
         raise FleetFileError(_OLD_OPTIONS_KEY, f"is the old name of {_OPTIONS_KEY!r}: give "
                              f"the flight options once, under {_OPTIONS_KEY!r} (this file has "
                              f"both {_OPTIONS_KEY!r} and {_OLD_OPTIONS_KEY!r})")
     if _OLD_OPTIONS_KEY in data:
-        warnings.warn(f"fleet file key {_OLD_OPTIONS_KEY!r} is read as {_OPTIONS_KEY!r}: rename "
+        warnings.warn(f"{source}: key {_OLD_OPTIONS_KEY!r} is read as {_OPTIONS_KEY!r}: rename "
                       f"it to {_OPTIONS_KEY!r}", FleetFileWarning, stacklevel=2)
         return FlightOptions.from_dict(data[_OLD_OPTIONS_KEY], _OLD_OPTIONS_KEY)
     return FlightOptions.from_dict(data.get(_OPTIONS_KEY, {}))
 
 
-def _parse(data: Any, base_dir: Path | None = None) -> FleetSpec:
+def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") -> FleetSpec:
+    """`FleetSpec.from_dict`; `source` names the document in warnings."""
     if not isinstance(data, Mapping):
         raise FleetFileError("fleet", "must be a JSON object")
     for key in data:
@@ -422,7 +424,7 @@ def _parse(data: Any, base_dir: Path | None = None) -> FleetSpec:
         peer = _peer(raw["peer"], f"{where}.peer") if "peer" in raw else None
         vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home,
                                     signing_key, peer))
-    options = _options(data)
+    options = _options(data, source)
     position_error = None
     if "position_error" in data:
         position_error = _number(data["position_error"], "position_error")

@@ -106,4 +106,4 @@ def test_the_cli_user_sees_the_old_key_warning(tmp_path: Path) -> None:
         env={"PYTHONPATH": str(Path(__file__).parents[2])})
     assert done.returncode == 2  # the fleet states no position_error: refused before planning
     assert "states no position_error" in done.stderr
-    assert "FleetFileWarning" in done.stderr and "rename it to 'flight'" in done.stderr
+    assert f"{fleet}: key 'mission' is read as 'flight': rename it to 'flight'" in done.stderr

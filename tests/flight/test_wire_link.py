@@ -5,10 +5,15 @@ joined."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import pytest
+
 from gcs import wire
 from gcs.flight.endpoints import UdpEndpoint
 from gcs.flight.link import VehicleLink
 from gcs.flight.setpoints import Setpoint
+from gcs.flight.signing import LinkSigning
 from gcs.wire import mavlink, parse_datagram
 
 VEHICLE = ("127.0.0.1", 14580)
@@ -25,9 +30,12 @@ def test_wire_pack_advances_the_sequence_and_wraps() -> None:
     assert _sequence(packets) == [254, 255, 0]
 
 
-def test_a_vehicle_link_numbers_heartbeats_commands_and_setpoints_in_order() -> None:
+@pytest.mark.parametrize("signed", [False, True], ids=["unsigned", "signed"])
+def test_a_vehicle_link_numbers_heartbeats_commands_and_setpoints_in_order(
+        signed: bool, tmp_path: Path) -> None:
     endpoint = UdpEndpoint("udpin:127.0.0.1:14999")  # never opened: packing needs no socket
-    link = VehicleLink("uav1", endpoint, system_id=1)
+    signing = LinkSigning(wire.new_key_file(tmp_path / "k.key")) if signed else None
+    link = VehicleLink("uav1", endpoint, system_id=1, signing=signing)
     mav = link.mav
     packets = [
         link.pack(mav.heartbeat_encode(6, 8, 0, 0, 4)),
@@ -36,6 +44,7 @@ def test_a_vehicle_link_numbers_heartbeats_commands_and_setpoints_in_order() -> 
     ]
     first = _sequence(packets)[0]
     assert _sequence(packets) == [first, (first + 1) % 256, (first + 2) % 256]
+    assert all(bool(buf[2] & mavlink.MAVLINK_IFLAG_SIGNED) == signed for buf in packets)
 
 
 def test_chunked_statustexts_are_joined_before_anyone_sees_them() -> None:
