@@ -73,7 +73,7 @@ class Peer:
 
     def received(self) -> list[Any]:
         """Every message that has arrived since the last call."""
-        out = []
+        out: list[Any] = []
         while True:
             try:
                 data = self.sock.recv(4096)
@@ -84,8 +84,12 @@ class Peer:
     async def receive_until(self, kind: str) -> list[Any]:
         """Every message that arrives up to and including the first of type `kind`."""
         out: list[Any] = []
-        await _until(lambda: (out.extend(self.received()) or
-                              any(m.get_type() == kind for m in out)))
+
+        def arrived() -> bool:
+            out.extend(self.received())
+            return any(m.get_type() == kind for m in out)
+
+        await _until(arrived)
         return out
 
     def close(self) -> None:
@@ -368,7 +372,7 @@ def test_fleet_file_names_the_key_and_the_peer_and_never_writes_the_key(
 
     key = new_key_file(tmp_path / "fleet.key")
     other = new_key_file(tmp_path / "uav2.key")
-    fleet = {
+    fleet: dict[str, Any] = {
         "signing_key": "fleet.key",  # relative to the fleet file
         "vehicles": [
             {"id": "uav1", "connection": "udpin:127.0.0.1:14540", "system_id": 1,
