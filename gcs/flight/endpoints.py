@@ -88,6 +88,7 @@ class Endpoint:
         self.vehicles[receiver.system_id] = receiver
 
     def _dispatch(self, msg: Any, address: Any, now: float) -> None:
+        """Count a decoded message and hand it to its system id's receiver."""
         if msg.get_type() == "BAD_DATA":
             self.garbage_datagrams += 1
             self.garbage_bytes += len(msg.data)
@@ -151,6 +152,7 @@ class UdpEndpoint(Endpoint):
         self.send_errors += 1
 
     def _received(self, data: bytes, addr: Any) -> None:
+        """One datagram from `addr`: skipped, or decoded on its own and dispatched."""
         now = time.monotonic()
         if self._skip(data, addr):
             return

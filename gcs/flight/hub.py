@@ -66,6 +66,7 @@ class LinkHub:
         return link
 
     async def _heartbeats(self) -> None:
+        """The GCS HEARTBEAT to every vehicle each period; signing reservations kept ahead."""
         while True:
             for i, link in enumerate(list(self.links.values())):
                 link.send_heartbeat()

@@ -139,6 +139,7 @@ class VehicleLink:
             self._check_waiters()
 
     def _handle_ack(self, msg: Any) -> None:
+        """A COMMAND_ACK: the answer of the pending command with its id, or a duplicate."""
         # Only the pinned peer's packets get here (`_admit`); only a pending command counts.
         if msg.target_system not in (0, GCS_SYSTEM_ID):
             return
@@ -161,6 +162,7 @@ class VehicleLink:
         pending.future.set_result(int(msg.result))
 
     def _check_waiters(self) -> None:
+        """Wake every `wait_for` whose predicate now holds."""
         keep = []
         for predicate, future in self._waiters:
             if future.done():

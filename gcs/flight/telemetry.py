@@ -152,6 +152,7 @@ class Telemetry:
         return True
 
     def _heartbeat(self, msg: Any, now: float) -> None:
+        """The autopilot's HEARTBEAT: mode, armed state, type, status."""
         self.heartbeat_time = now
         self.autopilot = msg.autopilot
         self.vehicle_type = msg.type
@@ -160,6 +161,7 @@ class Telemetry:
         self.system_status = msg.system_status
 
     def _statustext(self, msg: Any) -> bool:
+        """A STATUSTEXT or one chunk of it; True once its text is whole."""
         text = self.text_chunks.add(msg)
         if text is None:  # a chunk of a longer text: listeners get the whole one
             return False
