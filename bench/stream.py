@@ -56,7 +56,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
-from gcs.flight.link import DECODED_IDS, LinkHub, UdpEndpoint, VehicleLink
+from gcs.flight.endpoints import UdpEndpoint
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import DECODED_IDS, VehicleLink
 from gcs.flight.setpoints import Setpoint, SetpointTrack
 from gcs.flight.signing import LinkSigning
 from gcs.flight.stream import Streamer, jitter_stats

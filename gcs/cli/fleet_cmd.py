@@ -42,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     from gcs.errors import FleetFileError, GcsError, RequestError
     from gcs.flight.commands import fleet_command
     from gcs.flight.fleetfile import load_fleet
-    from gcs.flight.link import DECODED_IDS, LinkHub
+    from gcs.flight.hub import LinkHub
+    from gcs.flight.link import DECODED_IDS
 
     try:
         fleet = load_fleet(args.fleet)

@@ -31,7 +31,8 @@ from dataclasses import asdict, dataclass
 from gcs import px4
 from gcs.errors import GcsError, InvalidRequest, StateConflict
 from gcs.flight import vehicle
-from gcs.flight.link import VehicleLink, mavlink, result_name
+from gcs.flight.link import VehicleLink
+from gcs.wire import mavlink, result_name
 
 __all__ = ["FLEET_COMMANDS", "CommandOutcome", "check_command", "fleet_command", "run_command"]
 

@@ -69,7 +69,8 @@ from gcs.errors import (
 from gcs.flight import vehicle
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
-from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import DECODED_IDS, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
 from gcs.flight.record import FlightRecorder, finite_or_none, goal_tolerance, summarise

@@ -1,4 +1,4 @@
-"""The fleet file (JSON) and mission options: parsing and validation.
+"""The fleet file (JSON) and flight options: parsing and validation.
 
 A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home) lies::
 
@@ -9,7 +9,7 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
          "home": [4.5, 2.5, 0.0]},
         ...
       ],
-      "mission": {"policy": "land_all", "rate_hz": 20},                      (optional)
+      "flight": {"policy": "land_all", "rate_hz": 20},                       (optional)
       "signing_key": "fleet.key",                                            (optional)
       "position_error": 0.25                                                 (optional)
     }
@@ -19,7 +19,9 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
 - `home` [x, y, z]: the vehicle's home in the world frame (ENU, m). Without it, the fleet-wide
   geodetic `world_origin` {lat, lon, alt (m AMSL)} is required and the home is computed from
   what the vehicle reports (GPS_GLOBAL_ORIGIN, else HOME_POSITION).
-- `mission`: `FlightOptions` fields (command-line flags override them).
+- `flight`: `FlightOptions` fields (command-line flags override them). The same object under
+  its old key `mission` is still read, with a `FleetFileWarning` saying to rename it; a file
+  with both keys is refused.
 - `signing_key` (fleet-wide, or per vehicle to override it): a MAVLink 2 signing key file
   (``fleetplan keys new FILE``; relative paths are relative to the fleet file). Read when the
   fleet file is loaded; a file group or others can access is refused. Only the path is ever
@@ -28,7 +30,7 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
   instead of at first contact (`gcs.flight.link`).
 - `position_error`: how far (m) a vehicle of this fleet may be from where it reports or is
   told to be (estimate and tracking error); plans for the fleet then keep 2x this margin
-  (`gcs.flight.margin`). Absent: not stated, no margin checked (as before).
+  (`gcs.flight.margin`). Absent: not stated, no margin checked.
 
 Every problem is a `FleetFileError` naming the field (e.g. ``vehicles[2].system_id``).
 """
@@ -38,6 +40,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -69,6 +72,7 @@ __all__ = [
     "PAUSE_EXPIRY",
     "POLICIES",
     "PREFLIGHT",
+    "FleetFileWarning",
     "FleetSpec",
     "FlightOptions",
     "VehicleSpec",
@@ -82,7 +86,11 @@ AT_END = ("land", "hold")
 #: What the fleet does when a pause lasts longer than `pause_limit`.
 PAUSE_EXPIRY = ("land", "hold")
 
-_TOP_KEYS = {"world_origin", "vehicles", "mission", "signing_key", "position_error"}
+#: The key of the flight options, and the old name still read (with a `FleetFileWarning`).
+_OPTIONS_KEY = "flight"
+_OLD_OPTIONS_KEY = "mission"
+_TOP_KEYS = {"world_origin", "vehicles", _OPTIONS_KEY, _OLD_OPTIONS_KEY, "signing_key",
+             "position_error"}
 _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home", "signing_key", "peer"}
 #: What `fly` does with a plan whose separation margin is below the fleet's need.
 MARGIN_CHECK = ("refuse", "warn")
@@ -90,9 +98,15 @@ MARGIN_CHECK = ("refuse", "warn")
 PREFLIGHT = ("check", "override")
 
 
+class FleetFileWarning(UserWarning):
+    """A fleet file that is read as it is but should be changed (a key under its old name).
+
+    A `UserWarning`, so Python shows it on stderr by default (the CLI user sees it)."""
+
+
 @dataclass(frozen=True)
 class FlightOptions:
-    """How a mission is flown; defaults are for real vehicles."""
+    """How a flight is run; defaults are for real vehicles."""
 
     rate_hz: float = 20.0
     """Setpoint stream rate (Hz), up to 100."""
@@ -114,9 +128,9 @@ class FlightOptions:
     tracking_error_max: float = 1.0
     """A vehicle farther than this from its planned position is flagged (m)."""
     start_tolerance: float = 0.3
-    """The mission clock starts when every vehicle is this close to its start (m)."""
+    """The flight clock starts when every vehicle is this close to its start (m)."""
     goal_tolerance: float = 0.2
-    """A completed mission ends with every vehicle this close to its goal (m)."""
+    """A completed flight ends with every vehicle this close to its goal (m)."""
     hold_at_goal: float = 2.0
     """Seconds to hold at the goals after the plan's horizon, before `at_end`."""
     climb_speed: float = 1.0
@@ -134,10 +148,10 @@ class FlightOptions:
     yaw: float = 0.0
     """Fixed heading in the world frame (rad, ENU: 0 = +x, counter-clockwise)."""
     pause_limit: float = 120.0
-    """A paused mission may stay paused this long (s); then `pause_expiry` applies."""
+    """A paused flight may stay paused this long (s); then `pause_expiry` applies."""
     pause_expiry: str = "land"
     """When a pause outlasts `pause_limit`: land every vehicle, or hold (PX4 Hold); the
-    mission ends aborted either way."""
+    flight ends aborted either way."""
     margin_check: str = "refuse"
     """A plan whose separation margin is below 2 x the fleet's `position_error`: refuse to
     fly it, or warn (an event in the record) and fly."""
@@ -164,7 +178,8 @@ class FlightOptions:
     position_error)."""
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], where: str = "mission") -> FlightOptions:
+    def from_dict(cls, data: Mapping[str, Any], where: str = _OPTIONS_KEY) -> FlightOptions:
+        """Validated options from a fleet file's `flight` object (errors name ``where.key``)."""
         if not isinstance(data, Mapping):
             raise FleetFileError(where, "must be a JSON object")
         known = {f.name: f for f in fields(cls)}
@@ -262,7 +277,7 @@ class FleetSpec:
         if self.world_origin is not None:
             o = self.world_origin
             out["world_origin"] = {"lat": o.lat, "lon": o.lon, "alt": o.alt}
-        out["mission"] = self.options.to_dict()
+        out[_OPTIONS_KEY] = self.options.to_dict()
         if self.position_error is not None:
             out["position_error"] = self.position_error
         return out
@@ -286,7 +301,7 @@ def load_fleet(path: str | Path) -> FleetSpec:
         raise FleetFileError("fleet", f"cannot read {path}: {exc.strerror}") from None
     except json.JSONDecodeError as exc:
         raise FleetFileError("fleet", f"{path} is not valid JSON: {exc}") from None
-    return FleetSpec.from_dict(data, Path(path).parent)
+    return _parse(data, Path(path).parent, source=str(path))
 
 
 def _number(value: Any, where: str) -> float:
@@ -314,7 +329,22 @@ def _peer(value: Any, where: str) -> tuple[str, int]:
         raise FleetFileError(where, f"must look like HOST:PORT, got {value!r}") from None
 
 
-def _parse(data: Any, base_dir: Path | None = None) -> FleetSpec:
+def _options(data: Mapping[str, Any], source: str) -> FlightOptions:
+    """The flight options under `_OPTIONS_KEY`, or under `_OLD_OPTIONS_KEY` with a warning
+    naming `source` (the fleet file)."""
+    if _OPTIONS_KEY in data and _OLD_OPTIONS_KEY in data:
+        raise FleetFileError(_OLD_OPTIONS_KEY, f"is the old name of {_OPTIONS_KEY!r}: give "
+                             f"the flight options once, under {_OPTIONS_KEY!r} (this file has "
+                             f"both {_OPTIONS_KEY!r} and {_OLD_OPTIONS_KEY!r})")
+    if _OLD_OPTIONS_KEY in data:
+        warnings.warn(f"{source}: key {_OLD_OPTIONS_KEY!r} is read as {_OPTIONS_KEY!r}: rename "
+                      f"it to {_OPTIONS_KEY!r}", FleetFileWarning, stacklevel=2)
+        return FlightOptions.from_dict(data[_OLD_OPTIONS_KEY], _OLD_OPTIONS_KEY)
+    return FlightOptions.from_dict(data.get(_OPTIONS_KEY, {}))
+
+
+def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") -> FleetSpec:
+    """`FleetSpec.from_dict`; `source` names the document in warnings."""
     if not isinstance(data, Mapping):
         raise FleetFileError("fleet", "must be a JSON object")
     for key in data:
@@ -394,7 +424,7 @@ def _parse(data: Any, base_dir: Path | None = None) -> FleetSpec:
         peer = _peer(raw["peer"], f"{where}.peer") if "peer" in raw else None
         vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home,
                                     signing_key, peer))
-    options = FlightOptions.from_dict(data.get("mission", {}))
+    options = _options(data, source)
     position_error = None
     if "position_error" in data:
         position_error = _number(data["position_error"], "position_error")

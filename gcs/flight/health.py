@@ -21,8 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from gcs.flight.link import Telemetry, mavlink
 from gcs.flight.record import finite_or_none
+from gcs.flight.telemetry import Telemetry
+from gcs.wire import mavlink
 
 __all__ = ["PreflightThresholds", "health_report", "preflight_problems", "sensor_names"]
 

@@ -1,85 +1,40 @@
-"""MAVLink links to vehicles: sockets, routing by system id, heartbeats, commands, telemetry.
+"""One vehicle's MAVLink link (`VehicleLink`): which of its packets are admitted, its telemetry
+and listeners, waits on that telemetry, and what the GCS sends it (commands, setpoints).
 
-pymavlink is the wire format (its MAVLink 2 `common` dialect encodes and decodes); the sockets
-are asyncio's, so every link runs on the caller's event loop.
+Admission: the *pinned peer* (source address + autopilot component) is fixed by the first
+accepted packet, or up front by the fleet file's ``peer``; packets with the vehicle's system id
+from any other address or component are dropped and counted (`SecurityCounters`), and nothing
+is ever sent anywhere but the pinned address. With a signing key (`gcs.flight.signing`),
+everything it sends is signed and every unsigned, wrongly signed or replayed packet is dropped
+and counted. A packet the endpoint did not decode (an id outside `DECODED_IDS`) passes the same
+check before its sequence number counts for link quality.
 
-- `Endpoint`: one connection (one UDP socket), shared by every vehicle whose fleet entry names
-  the same URL. PX4 SITL from instance 10 on, and telemetry radio networks, put several system
-  ids behind one port, so an endpoint routes by system id. Each UDP datagram is decoded on its
-  own by a fresh parser (`gcs.wire.parse_datagram`): garbage is counted and cannot swallow the
-  next real packet. Traffic from system id 0 (PX4's undecodable development messages) and from
-  ids no vehicle is registered for is dropped and counted. With `decode_ids` (e.g.
-  `DECODED_IDS`, what this module reads), a datagram holding one packet of another message id
-  is dropped after a header and CRC check (`gcs.wire.peek_packet`), before any decoding, yet
-  still counted for link quality once it passed the vehicle's pinning and signing checks.
-- `VehicleLink`: one vehicle on an endpoint. Its *pinned peer* (source address + autopilot
-  component) is fixed by its first accepted packet, or up front by the fleet file's ``peer``;
-  packets with its system id from any other address are dropped and counted as security
-  events, and nothing is ever sent anywhere but the pinned address. With a signing key
-  (`gcs.flight.signing`), everything it sends is signed and every unsigned, wrongly signed or
-  replayed packet is dropped and counted. Its telemetry (HEARTBEAT mode/armed/age,
-  LOCAL_POSITION_NED, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT, the
-  security counters; for `gcs.flight.health`: SYS_STATUS, BATTERY_STATUS, GPS_RAW_INT and
-  sequence-number gaps); a non-finite position or velocity is never stored: it is counted and
-  timestamped (`Telemetry.invalid_estimate_time`) for the monitor to flag. `command()` with
-  COMMAND_ACK (from the pinned peer, for a pending command only), retries and duplicate-ACK
-  tolerance, and `send_setpoint()`.
-- `LinkHub`: opens the endpoints for a fleet, sends every vehicle the GCS HEARTBEAT at 1 Hz,
-  keeps the signing timestamps persisted, closes everything on exit
-  (``async with LinkHub() as hub``).
-
-URLs: ``udpin:HOST:PORT`` (also ``udp:``; bind, and pin each vehicle at first contact: what
-PX4's offboard link needs), ``udpout:HOST:PORT`` (send to a fixed address). Other pymavlink
-URLs (serial ports, ``tcp:``) are opened with pymavlink's `mavutil` on a reader thread
-(`ThreadedEndpoint`; pinned by component only, there being no address).
+Commands: `command()` sends COMMAND_LONG and waits for a COMMAND_ACK from the pinned peer, for a
+pending command only, with retries and duplicate-ACK tolerance. The sockets are
+`gcs.flight.endpoints`; several links and their heartbeats are `gcs.flight.hub.LinkHub`.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import math
-import socket
-import threading
 import time
-from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
-from gcs import px4, wire
-from gcs.errors import CommandError, LinkError
+from gcs import px4
+from gcs.errors import CommandError
+from gcs.flight.endpoints import Endpoint
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.signing import LinkSigning
-from gcs.wire import (
-    GCS_COMPONENT_ID,
-    GCS_SYSTEM_ID,
-    Datagrams,
-    SigningKey,
-    is_udp_url,
-    mavlink,
-    parse_datagram,
-    parse_udp_url,
-    peek_packet,
-    result_name,
-)
+from gcs.flight.telemetry import Telemetry
+from gcs.wire import GCS_COMPONENT_ID, GCS_SYSTEM_ID, PacketHeader, SigningKey, mavlink
 
-__all__ = [
-    "DECODED_IDS",
-    "GCS_COMPONENT_ID",
-    "GCS_SYSTEM_ID",
-    "Endpoint",
-    "LinkHub",
-    "SecurityCounters",
-    "Telemetry",
-    "ThreadedEndpoint",
-    "UdpEndpoint",
-    "VehicleLink",
-    "mavlink",
-    "result_name",
-]
+__all__ = ["DECODED_IDS", "MessageCallback", "VehicleLink"]
 
 MessageCallback = Callable[["VehicleLink", Any, float], None]
+"""A listener: called with (link, message, receive time) for every message passed on."""
 
 _m = mavlink
 #: The message ids `VehicleLink` reads (its telemetry, COMMAND_ACK) and the flight executor's
@@ -94,324 +49,13 @@ DECODED_IDS = frozenset({
 })
 
 
-class Endpoint:
-    """One MAVLink connection shared by the vehicles registered on it (base class)."""
-
-    def __init__(self, url: str, decode_ids: frozenset[int] | None = None) -> None:
-        self.url = url
-        self.decode_ids = decode_ids
-        """Message ids decoded in full (None: all). Others are dropped after a header check
-        (`UdpEndpoint`), counted in `skipped` and in their vehicle's `Telemetry.skipped`."""
-        self.mav = mavlink.MAVLink(None, srcSystem=GCS_SYSTEM_ID, srcComponent=GCS_COMPONENT_ID)
-        self.mav.robust_parsing = True
-        self.vehicles: dict[int, VehicleLink] = {}
-        self.dropped_unknown = 0
-        """Messages dropped because their system id is 0 or not registered."""
-        self.garbage_datagrams = 0
-        """Datagrams holding bytes that were not a valid packet (junk, truncated, bad CRC)."""
-        self.garbage_bytes = 0
-        self.bytes_sent = 0
-        self.messages_received = 0
-        """Valid messages received (decoded or skipped), whoever sent them."""
-        self.skipped = 0
-        """Messages of an id outside `decode_ids`, dropped before decoding."""
-
-    def register(self, link: VehicleLink) -> None:
-        if link.system_id in self.vehicles:
-            raise LinkError(f"system id {link.system_id} registered twice on {self.url}")
-        self.vehicles[link.system_id] = link
-
-    def _dispatch(self, msg: Any, address: Any, now: float) -> None:
-        if msg.get_type() == "BAD_DATA":
-            self.garbage_datagrams += 1
-            self.garbage_bytes += len(msg.data)
-            return
-        self.messages_received += 1
-        link = self.vehicles.get(msg.get_srcSystem())
-        if link is None:
-            self.dropped_unknown += 1
-            return
-        if link._accept(msg, address):
-            link._handle(msg, now)
-
-    def pack(self, msg: Any) -> bytes:
-        """`msg` as bytes on this connection's unsigned packer (assigns its sequence number)."""
-        return wire.pack(msg, self.mav)
-
-    def send_bytes(self, system_id: int, buf: bytes) -> None:
-        """Send an already packed message to `system_id`'s pinned peer."""
-        raise NotImplementedError
-
-    async def open(self) -> None:
-        raise NotImplementedError
-
-    def close(self) -> None:
-        raise NotImplementedError
-
-
-class UdpEndpoint(Endpoint):
-    """A UDP endpoint on the running asyncio loop (``udpin``/``udp`` or ``udpout``)."""
-
-    def __init__(self, url: str, decode_ids: frozenset[int] | None = None) -> None:
-        super().__init__(url, decode_ids)
-        self.kind, self.host, self.port = parse_udp_url(url)
-        self.send_errors = 0
-        self._transport: asyncio.DatagramTransport | None = None
-        self._sock: socket.socket | None = None
-
-    async def open(self) -> None:
-        loop = asyncio.get_running_loop()
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            if self.kind == "in":
-                sock.bind((self.host, self.port))
-            else:
-                sock.bind(("0.0.0.0", 0))
-        except OSError as exc:
-            sock.close()
-            raise LinkError(f"cannot open {self.url}: {exc}") from exc
-        sock.setblocking(False)
-        self._sock = sock
-        self._transport, _ = await loop.create_datagram_endpoint(
-            lambda: Datagrams(self._received, self._send_error), sock=sock)
-
-    def close(self) -> None:
-        if self._transport is not None:
-            self._transport.close()
-            self._transport = None
-
-    def _send_error(self, exc: Exception) -> None:
-        self.send_errors += 1
-
-    def _received(self, data: bytes, addr: Any) -> None:
-        now = time.monotonic()
-        if self.decode_ids is not None and self._skip(data, addr):
-            return
-        parsed = parse_datagram(data)  # a fresh parser for every datagram
-        if parsed.garbage_bytes:
-            self.garbage_datagrams += 1
-            self.garbage_bytes += parsed.garbage_bytes
-        for msg in parsed.messages:
-            self._dispatch(msg, addr, now)
-
-    def _skip(self, data: bytes, addr: Any) -> bool:
-        """Drop `data` without decoding it if it is one whole packet (CRC checked) of an id
-        outside `decode_ids`; False: decode it in full. A skipped packet passes the checks a
-        decoded one does (pinned peer, autopilot component, signature and replay with a key)
-        before its sequence number counts for link quality, so skipping never reads as loss
-        and a spoofed one changes nothing but a security counter. It is no proof of life:
-        that takes a decoded message. Before its vehicle is pinned, everything is decoded."""
-        header = peek_packet(data)
-        if header is None or header.msg_id in self.decode_ids:  # type: ignore[operator]
-            return False
-        link = self.vehicles.get(header.system)
-        if link is not None and not link.pinned:
-            return False
-        self.messages_received += 1
-        self.skipped += 1
-        if link is None:
-            self.dropped_unknown += 1
-            return True
-        if link._admit(header.component, addr,
-                       lambda signing: signing.verify_packet(data, header.system,
-                                                             header.component)):
-            link.telemetry.skipped += 1
-            _count_sequence(link.telemetry, header.seq)
-        return True
-
-    def _address(self, system_id: int) -> Any:
-        """Where `system_id`'s traffic goes: udpout's fixed address, else its pinned peer
-        (None before it is pinned: nothing is sent to an address it did not speak from)."""
-        if self.kind == "out":
-            return (self.host, self.port)
-        link = self.vehicles.get(system_id)
-        return None if link is None else link.peer_address
-
-    def send_bytes(self, system_id: int, buf: bytes) -> None:
-        address = self._address(system_id)
-        if self._sock is None or address is None:
-            return
-        try:
-            self._sock.sendto(buf, address)
-            self.bytes_sent += len(buf)
-        except (BlockingIOError, OSError):
-            self.send_errors += 1
-
-
-class ThreadedEndpoint(Endpoint):
-    """Any other pymavlink URL (serial port, tcp): `mavutil` on a reader thread.
-
-    Writes go to the one underlying port (a radio network broadcasts), so routing by system id
-    only happens on receive.
-    """
-
-    def __init__(self, url: str) -> None:
-        super().__init__(url)
-        self._conn: Any = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
-        self._lock = threading.Lock()
-
-    async def open(self) -> None:
-        from pymavlink import mavutil
-
-        loop = asyncio.get_running_loop()
-        try:
-            self._conn = await loop.run_in_executor(None, lambda: mavutil.mavlink_connection(
-                self.url, source_system=GCS_SYSTEM_ID, source_component=GCS_COMPONENT_ID,
-                dialect="common", autoreconnect=True))
-        except Exception as exc:  # pymavlink raises many kinds
-            raise LinkError(f"cannot open {self.url}: {exc}") from exc
-        self.mav = self._conn.mav
-
-        def reader() -> None:
-            while not self._stop.is_set():
-                try:
-                    msg = self._conn.recv_match(blocking=True, timeout=0.2)
-                except Exception:
-                    continue
-                if msg is not None:
-                    now = time.monotonic()
-                    loop.call_soon_threadsafe(self._dispatch, msg, None, now)
-
-        self._thread = threading.Thread(target=reader, name=f"mavlink {self.url}", daemon=True)
-        self._thread.start()
-
-    def pack(self, msg: Any) -> bytes:
-        with self._lock:  # the reader thread's connection shares this encoder
-            return wire.pack(msg, self.mav)
-
-    def send_bytes(self, system_id: int, buf: bytes) -> None:
-        if self._conn is None:
-            return
-        with self._lock:
-            self._conn.write(buf)
-            self.bytes_sent += len(buf)
-
-    def close(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=1.0)
-        if self._conn is not None:
-            with contextlib.suppress(Exception):
-                self._conn.close()
-            self._conn = None
-
-
 @dataclass
 class _PendingCommand:
+    """A COMMAND_LONG waiting for its COMMAND_ACK."""
+
     command: int
     future: asyncio.Future[int]
     sent_at: float
-
-
-@dataclass
-class Telemetry:
-    """The latest state one vehicle reported (times are `time.monotonic()` at reception)."""
-
-    heartbeat_time: float | None = None
-    message_time: float | None = None
-    """Reception of the vehicle's latest message of any kind: the link's proof of life."""
-    autopilot: int | None = None
-    vehicle_type: int | None = None
-    mode: px4.Px4Mode | None = None
-    armed: bool = False
-    system_status: int | None = None
-    landed_state: int | None = None
-    """MAV_LANDED_STATE from EXTENDED_SYS_STATE (1 on ground, 2 in air, 4 landing)."""
-    position_ned: tuple[float, float, float] | None = None
-    velocity_ned: tuple[float, float, float] | None = None
-    position_time: float | None = None
-    gps_origin: tuple[float, float, float] | None = None
-    """GPS_GLOBAL_ORIGIN (lat deg, lon deg, alt m)."""
-    home: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
-    """HOME_POSITION ((lat, lon, alt), (x, y, z) local NED)."""
-    statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
-    invalid_estimate_time: float | None = None
-    """Reception of the latest LOCAL_POSITION_NED with a NaN or infinite position or velocity
-    (never stored as the position): a fault for the monitor."""
-    invalid_estimates: int = 0
-    security: SecurityCounters = field(default_factory=lambda: SecurityCounters())
-
-    # --- health (issue 12; read by gcs.flight.health) ---
-    sensors_present: int | None = None
-    """SYS_STATUS onboard_control_sensors_present (MAV_SYS_STATUS_SENSOR bits)."""
-    sensors_enabled: int | None = None
-    sensors_health: int | None = None
-    battery_remaining: int | None = None
-    """Battery remaining (%) from SYS_STATUS / BATTERY_STATUS; None when not reported."""
-    battery_voltage: float = math.nan
-    """Battery voltage (V) from SYS_STATUS."""
-    gps_fix_type: int | None = None
-    """GPS_RAW_INT fix_type (GPS_FIX_TYPE: 3 = 3D fix)."""
-    gps_satellites: int | None = None
-    gps_h_acc: float = math.nan
-    """GPS_RAW_INT h_acc (m): horizontal position uncertainty."""
-    gps_v_acc: float = math.nan
-    warnings: deque[str] = field(default_factory=lambda: deque(maxlen=5))
-    """STATUSTEXT of severity WARNING or worse."""
-    seq_received: int = 0
-    """Messages from the autopilot component counted for link quality (decoded or skipped)."""
-    skipped: int = 0
-    """Messages from the pinned autopilot dropped before decoding (an id the endpoint does not
-    decode, `Endpoint.decode_ids`); they count for link quality, not as proof of life."""
-    seq_lost: int = 0
-    """Messages missing from the autopilot component's sequence numbers."""
-    last_seq: int | None = None
-
-
-@dataclass
-class SecurityCounters:
-    """Packets with this vehicle's system id that were dropped, by reason."""
-
-    foreign_source: int = 0
-    """From an address other than the pinned peer's (spoofing, hijacking)."""
-    other_component: int = 0
-    """From a component other than the autopilot's."""
-    unsigned: int = 0
-    """Unsigned although the vehicle has a key."""
-    bad_signature: int = 0
-    """Signed with another key, or altered."""
-    replayed: int = 0
-    """A correctly signed packet whose timestamp is not newer than its stream's last one."""
-
-    def to_dict(self) -> dict[str, int]:
-        return dict(vars(self))
-
-    @property
-    def total(self) -> int:
-        return sum(vars(self).values())
-
-
-def _count_sequence(tel: Telemetry, seq: int) -> None:
-    """Link quality: a gap in the sender's sequence numbers (mod 256) counts as lost
-    messages; a jump of 128 or more is taken as a restart or reordering, not a loss."""
-    if tel.last_seq is not None:
-        gap = (seq - tel.last_seq - 1) & 0xFF
-        if gap < 128:
-            tel.seq_lost += gap
-    tel.last_seq = seq
-    tel.seq_received += 1
-
-
-def _health_message(tel: Telemetry, kind: str, msg: Any) -> None:
-    """SYS_STATUS, BATTERY_STATUS and GPS_RAW_INT into `tel` (UINT16_MAX / -1 = unknown)."""
-    if kind == "SYS_STATUS":
-        tel.sensors_present = msg.onboard_control_sensors_present
-        tel.sensors_enabled = msg.onboard_control_sensors_enabled
-        tel.sensors_health = msg.onboard_control_sensors_health
-        if msg.battery_remaining >= 0:
-            tel.battery_remaining = int(msg.battery_remaining)
-        if msg.voltage_battery not in (0, 0xFFFF):
-            tel.battery_voltage = msg.voltage_battery / 1000.0
-    elif kind == "BATTERY_STATUS":
-        if msg.battery_remaining >= 0:
-            tel.battery_remaining = int(msg.battery_remaining)
-    else:  # GPS_RAW_INT
-        tel.gps_fix_type = int(msg.fix_type)
-        tel.gps_satellites = None if msg.satellites_visible == 255 else msg.satellites_visible
-        tel.gps_h_acc = msg.h_acc / 1000.0 if msg.h_acc else math.nan
-        tel.gps_v_acc = msg.v_acc / 1000.0 if msg.v_acc else math.nan
 
 
 class VehicleLink:
@@ -437,7 +81,6 @@ class VehicleLink:
         self.telemetry = Telemetry()
         self.listeners: list[MessageCallback] = []
         """Called with (link, message, receive time) for every message of this vehicle."""
-        self._texts = wire.StatusTexts()
         self._pending: dict[int, _PendingCommand] = {}
         self._echoes: dict[int, tuple[int, float]] = {}
         """command -> (result, until): the second ACK still due for a command PX4 ACKs twice."""
@@ -448,16 +91,25 @@ class VehicleLink:
 
     # ---------------------------------------------------------------- receiving
 
-    def _accept(self, msg: Any, address: Any) -> bool:
-        """Whether a decoded packet with this vehicle's system id is from its pinned peer
-        (pinning it on the first acceptable packet) and, with a key, correctly signed and new."""
-        return self._admit(msg.get_srcComponent(), address,
-                           lambda signing: signing.verify(msg))
+    def receive(self, msg: Any, address: Any, now: float) -> None:
+        """A decoded packet with this vehicle's system id: handled if it is admitted."""
+        if self._admit(msg.get_srcComponent(), address, lambda signing: signing.verify(msg)):
+            self._handle(msg, now)
+
+    def receive_skipped(self, header: PacketHeader, packet: bytes, address: Any) -> None:
+        """A packet the endpoint did not decode: if admitted, it counts for link quality (not
+        as proof of life: that takes a decoded message); else only a security counter moves."""
+        if self._admit(header.component, address,
+                       lambda signing: signing.verify_packet(packet, header.system,
+                                                             header.component)):
+            self.telemetry.skipped += 1
+            self.telemetry.count_sequence(header.seq)
 
     def _admit(self, component: int, address: Any,
                verify: Callable[[LinkSigning], str | None]) -> bool:
-        """`_accept` for a packet from `component` at `address` whose signature `verify`
-        checks (None: good; else the security counter to raise); decoded or not."""
+        """Whether a packet from `component` at `address` whose signature `verify` checks
+        (None: good; else the security counter to raise) is from the pinned peer and, with a
+        key, correctly signed and new; the first admitted packet pins the peer."""
         counters = self.telemetry.security
         if self.pinned and address != self.peer_address:
             counters.foreign_source += 1
@@ -468,7 +120,7 @@ class VehicleLink:
         if self.signing is not None:
             reason = verify(self.signing)
             if reason is not None:
-                setattr(counters, reason, getattr(counters, reason) + 1)
+                counters.count(reason)
                 return False
         if not self.pinned:
             self.peer_address = address
@@ -476,55 +128,19 @@ class VehicleLink:
         return True
 
     def _handle(self, msg: Any, now: float) -> None:
-        kind = msg.get_type()
-        tel = self.telemetry
-        if kind == "LOCAL_POSITION_NED" and not all(map(math.isfinite, (
-                msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz))):
-            # Proof of life, but not a position: never stored, never passed on.
-            tel.message_time = now
-            tel.invalid_estimate_time = now
-            tel.invalid_estimates += 1
+        """An admitted message: into the telemetry, to a pending command, to the listeners."""
+        if not self.telemetry.update(msg, now, self.component_id):
             return
-        tel.message_time = now
-        if msg.get_srcComponent() == self.component_id:
-            _count_sequence(tel, msg.get_seq())
-        if kind == "HEARTBEAT":
-            if msg.get_srcComponent() == self.component_id:
-                tel.heartbeat_time = now
-                tel.autopilot = msg.autopilot
-                tel.vehicle_type = msg.type
-                tel.mode = px4.decode_custom_mode(msg.custom_mode)
-                tel.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-                tel.system_status = msg.system_status
-        elif kind == "LOCAL_POSITION_NED":
-            tel.position_ned = (msg.x, msg.y, msg.z)
-            tel.velocity_ned = (msg.vx, msg.vy, msg.vz)
-            tel.position_time = now
-        elif kind == "EXTENDED_SYS_STATE":
-            tel.landed_state = msg.landed_state
-        elif kind == "COMMAND_ACK":
+        if msg.get_type() == "COMMAND_ACK":
             self._handle_ack(msg)
-        elif kind == "GPS_GLOBAL_ORIGIN":
-            tel.gps_origin = (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3)
-        elif kind == "HOME_POSITION" and all(map(math.isfinite, (msg.x, msg.y, msg.z))):
-            tel.home = ((msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3),
-                        (msg.x, msg.y, msg.z))
-        elif kind == "STATUSTEXT":
-            text = self._texts.add(msg)
-            if text is None:  # a chunk of a longer text: listeners get the whole one
-                return
-            tel.statustexts.append(text)
-            if msg.severity <= mavlink.MAV_SEVERITY_WARNING:
-                tel.warnings.append(text)
-        elif kind in ("SYS_STATUS", "BATTERY_STATUS", "GPS_RAW_INT"):
-            _health_message(tel, kind, msg)
         for callback in self.listeners:
             callback(self, msg, now)
         if self._waiters:
             self._check_waiters()
 
     def _handle_ack(self, msg: Any) -> None:
-        # Only the pinned peer's packets get here (`_accept`); only a pending command counts.
+        """A COMMAND_ACK: the answer of the pending command with its id, or a duplicate."""
+        # Only the pinned peer's packets get here (`_admit`); only a pending command counts.
         if msg.target_system not in (0, GCS_SYSTEM_ID):
             return
         now = time.monotonic()
@@ -546,6 +162,7 @@ class VehicleLink:
         pending.future.set_result(int(msg.result))
 
     def _check_waiters(self) -> None:
+        """Wake every `wait_for` whose predicate now holds."""
         keep = []
         for predicate, future in self._waiters:
             if future.done():
@@ -592,6 +209,7 @@ class VehicleLink:
         return self.endpoint.pack(msg)
 
     def send(self, msg: Any) -> None:
+        """`msg` to this vehicle's pinned peer."""
         self.endpoint.send_bytes(self.system_id, self.pack(msg))
 
     def send_heartbeat(self) -> None:
@@ -663,72 +281,3 @@ class VehicleLink:
         return await self.command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(message_id),),
                                   timeout=timeout)
 
-
-class LinkHub:
-    """The endpoints of a fleet, their GCS heartbeats (1 Hz) and their vehicles.
-
-    Use as ``async with LinkHub() as hub: link = hub.add(vehicle_id, url, system_id)``;
-    vehicles sharing a URL share one endpoint.
-    """
-
-    def __init__(self, heartbeat_period: float = 1.0,
-                 decode_ids: frozenset[int] | None = None) -> None:
-        self.decode_ids = decode_ids
-        """Message ids UDP endpoints decode (None: all; `DECODED_IDS`: what the link reads)."""
-        self.endpoints: dict[str, Endpoint] = {}
-        self.links: dict[str, VehicleLink] = {}
-        self.signers: dict[bytes, LinkSigning] = {}
-        """One signing state per key (vehicles sharing a key share its timestamp)."""
-        self.heartbeat_period = heartbeat_period
-        self._heartbeat_task: asyncio.Task[None] | None = None
-
-    async def __aenter__(self) -> LinkHub:
-        self._heartbeat_task = asyncio.create_task(self._heartbeats(), name="gcs-heartbeat")
-        return self
-
-    async def __aexit__(self, *exc: object) -> None:
-        await self.close()
-
-    async def add(self, vehicle_id: str, url: str, system_id: int,
-                  component_id: int = 1, *, signing_key: SigningKey | None = None,
-                  peer: tuple[str, int] | None = None) -> VehicleLink:
-        """A link to one vehicle; `signing_key` signs it, `peer` pins its address up front."""
-        signing = None
-        if signing_key is not None:
-            signing = self.signers.get(signing_key.secret)
-            if signing is None:
-                try:
-                    signing = LinkSigning(signing_key)
-                except OSError as exc:
-                    raise LinkError(f"{vehicle_id}: signing key {signing_key}: {exc}") from exc
-                self.signers[signing_key.secret] = signing
-        endpoint = self.endpoints.get(url)
-        if endpoint is None:
-            endpoint = (UdpEndpoint(url, self.decode_ids) if is_udp_url(url)
-                        else ThreadedEndpoint(url))
-            await endpoint.open()
-            self.endpoints[url] = endpoint
-        link = VehicleLink(vehicle_id, endpoint, system_id, component_id, signing=signing,
-                           peer=peer)
-        self.links[vehicle_id] = link
-        return link
-
-    async def _heartbeats(self) -> None:
-        while True:
-            for i, link in enumerate(list(self.links.values())):
-                link.send_heartbeat()
-                if i % 10 == 9:  # a 100-vehicle round is milliseconds: let a tick through
-                    await asyncio.sleep(0)
-            for signing in self.signers.values():
-                signing.reserve()
-            await asyncio.sleep(self.heartbeat_period)
-
-    async def close(self) -> None:
-        if self._heartbeat_task is not None:
-            self._heartbeat_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._heartbeat_task
-            self._heartbeat_task = None
-        for endpoint in self.endpoints.values():
-            endpoint.close()
-        await asyncio.sleep(0)  # transports release their sockets on the next loop turn

@@ -11,9 +11,8 @@
   or a new stream more than a minute behind the wall clock -> ``replayed``. (The wall clock,
   not our own counter: after a restart that counter may run ahead of time by a reservation,
   and the MAVLink spec's "behind our timestamp" would then refuse honest vehicles.) The
-  signature is
-  checked *before* any state changes (pymavlink's own check records the timestamp first, which
-  lets one forged packet with a huge timestamp lock a stream out).
+  signature is checked *before* any state changes (pymavlink's own check records the timestamp
+  first, which lets one forged packet with a huge timestamp lock a stream out).
 """
 
 from __future__ import annotations
@@ -102,7 +101,7 @@ class LinkSigning:
 
     def verify_packet(self, packet: bytes, system: int, component: int) -> str | None:
         """`verify` on one whole packet's bytes from (`system`, `component`): for packets
-        the link drops before decoding them (`gcs.flight.link`)."""
+        an endpoint hands on undecoded (`gcs.flight.endpoints`)."""
         signature = signature_of(packet, self.key.secret)
         if signature is None:
             return "unsigned"

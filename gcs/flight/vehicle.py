@@ -36,7 +36,8 @@ from gcs.errors import (
     VehicleTimeout,
 )
 from gcs.flight.fleetfile import FlightOptions, VehicleSpec
-from gcs.flight.link import VehicleLink, mavlink, result_name
+from gcs.flight.link import VehicleLink
+from gcs.wire import mavlink, result_name
 
 __all__ = [
     "AIRBORNE",

@@ -38,7 +38,8 @@ from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions, load_fleet
 from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
-from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import DECODED_IDS, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.service.events import Broadcast, Event
 from gcs.service.journal import ExecutionJournal, store_failure

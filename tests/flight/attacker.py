@@ -1,4 +1,5 @@
-"""A hostile process on loopback: sends the issue-8 attacks to a GCS's vehicle ports.
+"""A hostile process on loopback: sends spoofing and malformed-packet attacks to a GCS's
+vehicle ports.
 
     python -m tests.flight.attacker --ports 24540,24541 --systems 1,2 --duration 8 \
         --attacks heartbeat,hijack,ack,truncated,random,nan

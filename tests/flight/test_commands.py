@@ -14,7 +14,8 @@ from gcs.errors import InvalidRequest, MissionAborted, StateConflict
 from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import VehicleLink
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import line_scenario, mock_ports, smooth_plan
 

@@ -8,10 +8,12 @@ import asyncio
 import pytest
 
 from gcs.errors import PreflightFailed
+from gcs.flight.endpoints import Endpoint
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.health import health_report, preflight_problems
-from gcs.flight.link import Endpoint, LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import VehicleLink
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
 from tests.flight.support import line_scenario, mock_ports, smooth_plan

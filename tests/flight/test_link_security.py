@@ -1,6 +1,9 @@
-"""gcs.flight.link security, packet by packet on real loopback sockets: per-datagram parsing,
+"""The GCS link's security, packet by packet on real loopback sockets: per-datagram parsing,
 pinned peers, ACKs, non-finite telemetry, signing (unsigned, wrong key, replay) and the signing
-timestamp across restarts."""
+timestamp across restarts.
+
+No test sleeps for a fixed time: each waits for the count or state the packets it sent must
+produce (`_until`), and checks what must not have happened once that has."""
 
 from __future__ import annotations
 
@@ -10,6 +13,7 @@ import os
 import socket
 import stat
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +21,8 @@ import pytest
 
 from gcs import px4
 from gcs.flight import signing as signing_module
-from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import VehicleLink
 from gcs.flight.signing import RESERVE, LinkSigning, timestamp_path
 from gcs.wire import (
     GCS_SYSTEM_ID,
@@ -67,7 +72,8 @@ class Peer:
         self.sock.sendto(buf, ("127.0.0.1", port))
 
     def received(self) -> list[Any]:
-        out = []
+        """Every message that has arrived since the last call."""
+        out: list[Any] = []
         while True:
             try:
                 data = self.sock.recv(4096)
@@ -75,12 +81,28 @@ class Peer:
                 return out
             out.extend(parse_datagram(data).messages)
 
+    async def receive_until(self, kind: str) -> list[Any]:
+        """Every message that arrives up to and including the first of type `kind`."""
+        out: list[Any] = []
+
+        def arrived() -> bool:
+            out.extend(self.received())
+            return any(m.get_type() == kind for m in out)
+
+        await _until(arrived)
+        return out
+
     def close(self) -> None:
         self.sock.close()
 
 
-async def _settle() -> None:
-    await asyncio.sleep(0.05)
+async def _until(condition: Callable[[], Any], bound: float = 10.0) -> None:
+    """Wait, a loop turn at a time, until `condition()` holds (the packets that make it true
+    have been handled); fail after `bound` seconds."""
+    deadline = time.monotonic() + bound  # bound
+    while not condition():
+        assert time.monotonic() < deadline, "what the packets sent must cause never happened"
+        await asyncio.sleep(0.001)
 
 
 def _run(coro: Any) -> Any:
@@ -97,7 +119,7 @@ def test_parse_datagram_counts_garbage_and_keeps_the_next_datagram() -> None:
 
 
 def test_truncated_headers_cannot_desynchronise_a_vehicle() -> None:
-    """The issue's attack: 3-byte truncated headers between every real packet."""
+    """3-byte truncated headers between every real packet swallow none of them."""
     async def main() -> None:
         port = free_port_block(1)
         vehicle, attacker = Peer(), Peer(system_id=7)
@@ -109,8 +131,8 @@ def test_truncated_headers_cannot_desynchronise_a_vehicle() -> None:
                 for i in range(20):
                     attacker.send(b"\xfd\xff\x00", port)
                     vehicle.send(vehicle.position(float(i)), port)
-                    await asyncio.sleep(0.005)
-                await _settle()
+                await _until(lambda: link.endpoint.garbage_datagrams == 20
+                             and len(positions) == 20)
                 assert positions.count("LOCAL_POSITION_NED") == 20  # none swallowed
                 assert link.telemetry.position_ned == (19.0, 2.0, -3.0)
                 assert link.endpoint.garbage_datagrams == 20
@@ -129,7 +151,7 @@ def test_peer_is_pinned_spoofs_dropped_counted_and_never_sent_to() -> None:
             async with LinkHub(heartbeat_period=0.05) as hub:
                 link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
                 vehicle.send(vehicle.heartbeat(px4.OFFBOARD, armed=True), port)
-                await _settle()
+                await _until(lambda: link.pinned)
                 assert link.peer_address == vehicle.address
                 assert link.telemetry.mode == px4.OFFBOARD
                 # spoofed HEARTBEAT (POSCTL, disarmed), positions, and the hijack's SYSTEM_TIME
@@ -137,15 +159,16 @@ def test_peer_is_pinned_spoofs_dropped_counted_and_never_sent_to() -> None:
                     spoofer.send(spoofer.heartbeat(px4.POSITION), port)
                     spoofer.send(spoofer.position(99.0), port)
                     spoofer.send(spoofer.mav.system_time_encode(0, 0).pack(spoofer.mav), port)
-                await asyncio.sleep(0.2)
+                await _until(lambda: link.telemetry.security.foreign_source == 30)
                 assert link.telemetry.mode == px4.OFFBOARD and link.telemetry.armed
                 assert link.telemetry.position_ned is None
-                assert link.telemetry.security.foreign_source == 30
+                assert link.peer_address == vehicle.address
+                vehicle.received()
+                # a heartbeat round and a setpoint, both sent after every spoof was handled
+                await vehicle.receive_until("HEARTBEAT")
                 link.send_setpoint(_setpoint(), 0)
-                await _settle()
+                await vehicle.receive_until("SET_POSITION_TARGET_LOCAL_NED")
                 assert spoofer.received() == []  # nothing ever goes to the spoofer
-                kinds = {m.get_type() for m in vehicle.received()}
-                assert {"HEARTBEAT", "SET_POSITION_TARGET_LOCAL_NED"} <= kinds
         finally:
             vehicle.close()
             spoofer.close()
@@ -162,12 +185,11 @@ def test_peer_from_the_fleet_file_is_pinned_before_first_contact() -> None:
                 link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1,
                                      peer=vehicle.address)
                 early.send(early.heartbeat(), port)  # first to speak, but not the pinned peer
-                await _settle()
-                assert link.telemetry.heartbeat_time is None
-                assert link.telemetry.security.foreign_source == 1
+                await _until(lambda: link.telemetry.security.foreign_source == 1)
+                assert link.telemetry.heartbeat_time is None and link.telemetry.seq_received == 0
                 vehicle.send(vehicle.heartbeat(), port)
-                await _settle()
-                assert link.telemetry.heartbeat_time is not None
+                await _until(lambda: link.telemetry.heartbeat_time is not None)
+                assert link.peer_address == vehicle.address
         finally:
             vehicle.close()
             early.close()
@@ -183,20 +205,21 @@ def test_acks_count_only_from_the_pinned_peer_for_a_pending_command() -> None:
             async with LinkHub() as hub:
                 link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
                 vehicle.send(vehicle.heartbeat(), port)
-                await _settle()
+                await _until(lambda: link.pinned)
                 land = mavlink.MAV_CMD_NAV_LAND
                 # an ACK for a command nobody sent changes nothing
                 vehicle.send(vehicle.ack(land), port)
-                await _settle()
-                assert link.duplicate_acks == 1
-                task = asyncio.create_task(link.command(land, timeout=0.3, retries=0))
-                await _settle()
+                await _until(lambda: link.duplicate_acks == 1)
+                # one try, with a timeout no busy machine reaches: only an ACK ends it
+                task = asyncio.create_task(link.command(land, timeout=30.0, retries=0))
+                sent = await vehicle.receive_until("COMMAND_LONG")
+                assert [m.command for m in sent if m.get_type() == "COMMAND_LONG"] == [land]
                 spoofer.send(spoofer.ack(land), port)  # the spoofer's ACCEPTED is not an answer
-                await _settle()
+                await _until(lambda: link.telemetry.security.foreign_source == 1)
                 assert not task.done()
                 vehicle.send(vehicle.ack(land, mavlink.MAV_RESULT_DENIED), port)
                 assert await task == mavlink.MAV_RESULT_DENIED
-                assert link.telemetry.security.foreign_source == 1
+                assert link.telemetry.security.foreign_source == 1 and link.duplicate_acks == 1
         finally:
             vehicle.close()
             spoofer.close()
@@ -214,16 +237,17 @@ def test_non_finite_position_is_never_stored_and_is_timestamped() -> None:
                 seen: list[str] = []
                 link.listeners.append(lambda _l, m, _t: seen.append(m.get_type()))
                 vehicle.send(vehicle.position(1.0), port)
-                await _settle()
+                await _until(lambda: link.telemetry.position_ned is not None)
                 for bad in (math.nan, math.inf):
                     vehicle.send(vehicle.mav.local_position_ned_encode(
                         0, bad, 0.0, 0.0, 0.0, 0.0, 0.0).pack(vehicle.mav), port)
                 vehicle.send(vehicle.mav.local_position_ned_encode(
                     0, 1.0, 0.0, 0.0, 0.0, math.nan, 0.0).pack(vehicle.mav), port)
-                await _settle()
                 tel = link.telemetry
+                await _until(lambda: tel.invalid_estimates == 3)
                 assert tel.position_ned == (1.0, 2.0, -3.0)  # the last finite one
-                assert tel.invalid_estimates == 3 and tel.invalid_estimate_time is not None
+                assert tel.invalid_estimate_time is not None and tel.position_time is not None
+                assert tel.invalid_estimate_time >= tel.position_time  # the bad ones' time
                 assert seen == ["LOCAL_POSITION_NED"]  # listeners (the record) never see NaN
         finally:
             vehicle.close()
@@ -278,13 +302,12 @@ def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
     async def body(link: VehicleLink, vehicle: Peer, port: int, key: Any) -> None:
         first = vehicle.heartbeat(px4.OFFBOARD, armed=True)
         vehicle.send(first, port)
-        await _settle()
-        assert link.telemetry.mode == px4.OFFBOARD and link.pinned
+        await _until(lambda: link.telemetry.mode == px4.OFFBOARD)
+        assert link.pinned
         # everything the GCS sends is signed with the key
         link.send_setpoint(_setpoint(), 0)
-        await _settle()
-        received = [m for m in vehicle.received()]
-        assert received and all(m._msgbuf[2] & mavlink.MAVLINK_IFLAG_SIGNED for m in received)
+        received = await vehicle.receive_until("SET_POSITION_TARGET_LOCAL_NED")
+        assert all(m._msgbuf[2] & mavlink.MAVLINK_IFLAG_SIGNED for m in received)
         checker = mavlink.MAVLink(None)
         checker.signing.secret_key = key.secret
         for m in received:
@@ -297,13 +320,13 @@ def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
         wrong.sock.close()
         vehicle.send(wrong.heartbeat(px4.POSITION), port)
         vehicle.send(first, port)  # replayed: same timestamp as an accepted one
-        await _settle()
         sec = link.telemetry.security
+        await _until(lambda: sec.total == 3)
         assert (sec.unsigned, sec.bad_signature, sec.replayed) == (1, 1, 1)
         assert link.telemetry.mode == px4.OFFBOARD
         vehicle.send(vehicle.heartbeat(px4.POSITION), port)  # a fresh signed one counts
-        await _settle()
-        assert link.telemetry.mode == px4.POSITION
+        await _until(lambda: link.telemetry.mode == px4.POSITION)
+        assert sec.total == 3
 
     _signed_hub_test(tmp_path, body)
 
@@ -314,10 +337,10 @@ def test_a_forged_future_timestamp_cannot_lock_the_stream_out(tmp_path: Path) ->
         forger = Peer(key=b"\x02" * 32, timestamp=signing_timestamp(time.time()) + 10**9)
         forger.sock.close()
         vehicle.send(forger.heartbeat(px4.POSITION), port)  # bad signature, huge timestamp
-        vehicle.send(vehicle.heartbeat(), port)
-        await _settle()
-        assert link.telemetry.security.bad_signature == 1
-        assert link.telemetry.heartbeat_time is not None
+        vehicle.send(vehicle.heartbeat(), port)  # after it, on the same socket
+        await _until(lambda: link.telemetry.security.bad_signature == 1)
+        await _until(lambda: link.telemetry.heartbeat_time is not None)
+        assert link.telemetry.security.total == 1
 
     _signed_hub_test(tmp_path, body)
 
@@ -349,7 +372,7 @@ def test_fleet_file_names_the_key_and_the_peer_and_never_writes_the_key(
 
     key = new_key_file(tmp_path / "fleet.key")
     other = new_key_file(tmp_path / "uav2.key")
-    fleet = {
+    fleet: dict[str, Any] = {
         "signing_key": "fleet.key",  # relative to the fleet file
         "vehicles": [
             {"id": "uav1", "connection": "udpin:127.0.0.1:14540", "system_id": 1,

@@ -15,7 +15,8 @@ from gcs import px4
 from gcs.flight import vehicle as gcs_vehicle
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.link import LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import VehicleLink
 from gcs.flight.margin import scenario_for_fleet
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from gcs import frames
-from gcs.flight.link import LinkHub
+from gcs.flight.hub import LinkHub
 from gcs.flight.setpoints import plan_tracks, transfer_track
 from gcs.flight.stream import Streamer
 from gcs.sim import MockFleet

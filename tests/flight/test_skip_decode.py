@@ -10,7 +10,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from gcs.flight.link import DECODED_IDS, UdpEndpoint, VehicleLink
+from gcs.flight.endpoints import UdpEndpoint
+from gcs.flight.link import DECODED_IDS, VehicleLink
 from gcs.flight.signing import LinkSigning
 from gcs.wire import mavlink, new_key_file, pack, peek_packet, signing_timestamp
 

@@ -8,7 +8,8 @@ import time
 
 import pytest
 
-from gcs.flight.link import UdpEndpoint, VehicleLink
+from gcs.flight.endpoints import UdpEndpoint
+from gcs.flight.link import VehicleLink
 from gcs.flight.setpoints import hold_track
 from gcs.flight.stream import STALL_S, Streamer
 

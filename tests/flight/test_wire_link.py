@@ -5,9 +5,18 @@ joined."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import pytest
+
 from gcs import wire
-from gcs.flight.link import UdpEndpoint, VehicleLink
+from gcs.flight.endpoints import UdpEndpoint
+from gcs.flight.link import VehicleLink
+from gcs.flight.setpoints import Setpoint
+from gcs.flight.signing import LinkSigning
 from gcs.wire import mavlink, parse_datagram
+
+VEHICLE = ("127.0.0.1", 14580)
 
 
 def _sequence(packets: list[bytes]) -> list[int]:
@@ -21,24 +30,26 @@ def test_wire_pack_advances_the_sequence_and_wraps() -> None:
     assert _sequence(packets) == [254, 255, 0]
 
 
-def test_a_vehicle_link_numbers_heartbeats_commands_and_setpoints_in_order() -> None:
+@pytest.mark.parametrize("signed", [False, True], ids=["unsigned", "signed"])
+def test_a_vehicle_link_numbers_heartbeats_commands_and_setpoints_in_order(
+        signed: bool, tmp_path: Path) -> None:
     endpoint = UdpEndpoint("udpin:127.0.0.1:14999")  # never opened: packing needs no socket
-    link = VehicleLink("uav1", endpoint, system_id=1)
+    signing = LinkSigning(wire.new_key_file(tmp_path / "k.key")) if signed else None
+    link = VehicleLink("uav1", endpoint, system_id=1, signing=signing)
     mav = link.mav
     packets = [
         link.pack(mav.heartbeat_encode(6, 8, 0, 0, 4)),
         link.pack(mav.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)),
-        link.pack(mav.heartbeat_encode(6, 8, 0, 0, 4)),
+        link.pack_setpoint(Setpoint((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0), 0),
     ]
     first = _sequence(packets)[0]
     assert _sequence(packets) == [first, (first + 1) % 256, (first + 2) % 256]
+    assert all(bool(buf[2] & mavlink.MAVLINK_IFLAG_SIGNED) == signed for buf in packets)
 
 
 def test_chunked_statustexts_are_joined_before_anyone_sees_them() -> None:
     """PX4 (and the mock) split a text over 50 bytes into chunks with one id; the link keeps
     and reports the whole text, and a plain text (id 0) passes as it is."""
-    from gcs.flight.link import UdpEndpoint, VehicleLink
-
     link = VehicleLink("uav1", UdpEndpoint("udpin:127.0.0.1:14998"), system_id=1)
     seen: list[str] = []
     link.listeners.append(lambda _link, msg, _now: seen.append(msg.get_type()))
@@ -48,10 +59,10 @@ def test_chunked_statustexts_are_joined_before_anyone_sees_them() -> None:
     for seq, text in enumerate(chunks):
         msg = parse_datagram(wire.pack(mav.statustext_encode(2, text.encode(), 7, seq),
                                        mav)).messages[0]
-        link._handle(msg, 0.0)
+        link.receive(msg, VEHICLE, 0.0)
     plain = parse_datagram(wire.pack(mav.statustext_encode(6, b"Takeoff detected"),
                                      mav)).messages[0]
-    link._handle(plain, 0.0)
+    link.receive(plain, VEHICLE, 0.0)
     assert list(link.telemetry.statustexts) == [whole, "Takeoff detected"]
     assert seen == ["STATUSTEXT", "STATUSTEXT"]  # the first chunk alone reached nobody
     assert list(link.telemetry.warnings) == [whole]

@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 
 from gcs import px4
-from gcs.flight.link import LinkHub, VehicleLink, mavlink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import VehicleLink
 from gcs.flight.setpoints import Setpoint, hold_track
 from gcs.sim import MockFleet
+from gcs.wire import mavlink
 from tests.flight.support import mock_ports
 
 pytestmark = pytest.mark.timeout(90)

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from gcs.flight.fleetfile import FleetSpec
-from gcs.flight.link import LinkHub
+from gcs.flight.hub import LinkHub
 from gcs.sim.model import EstimateNoise
 from tests.flight.support import free_port_block
 

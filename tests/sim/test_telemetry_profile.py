@@ -12,7 +12,8 @@ from collections import Counter
 import pytest
 
 from gcs.flight import vehicle
-from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import DECODED_IDS, VehicleLink
 from gcs.sim import MockConfig, MockFleet
 from gcs.sim.telemetry import STREAMS, default_rates
 from gcs.wire import mavlink, parse_datagram
