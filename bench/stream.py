@@ -1,7 +1,7 @@
 """Setpoint streaming benchmark: N mock vehicles in another process, one GCS process streaming.
 
 Starts `fleetplan mock` (python -m gcs.cli.main mock) with N vehicles on free ports, connects
-one `gcs.flight.link.LinkHub`, and streams every vehicle a moving setpoint track through the shared
+one `gcs.flight.hub.LinkHub`, and streams every vehicle a moving setpoint track through the shared
 clock (`gcs.flight.stream.Streamer`) at RATE Hz for DURATION s. Prints one JSON document: scenario,
 achieved rate, send-instant jitter p50/p99/max (lateness of each send against its tick's
 scheduled instant), missed ticks, CPU of the GCS process and of the mock process, machine
