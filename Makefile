@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test test-fast lint bench install clean test-tools
+.PHONY: run test test-fast lint bench install clean test-tools docs
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -60,4 +60,9 @@ bench: $(STAMP)
 	$(PY) bench/planner.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache .ruff_cache
+	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache site
+
+# The documentation site (MkDocs, Material theme) from docs/ into site/; --strict turns broken
+# links, anchors and pages missing from the nav into errors. Nothing is fetched: it builds offline.
+docs: $(STAMP)
+	$(PY) -m mkdocs build --strict --site-dir site

@@ -107,7 +107,7 @@ def render(lines: dict[tuple[str, str, str], list[tuple[int, float]]], note: str
         legend_y += 22
     parts.append(f'<line x1="{x1 + 12}" y1="{legend_y}" x2="{x1 + 34}" y2="{legend_y}" '
                  'stroke="#d62728" stroke-width="3"/>')
-    parts.append(f'<text x="{x1 + 40}" y="{legend_y + 4}">issue 11 floor</text>')
+    parts.append(f'<text x="{x1 + 40}" y="{legend_y + 4}">drone-show floor</text>')
     parts.append("</svg>")
     return "\n".join(parts) + "\n"
 

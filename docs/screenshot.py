@@ -1,4 +1,4 @@
-"""Take the README's screenshots of a running service's page with Playwright and Debian's
+"""Take the documentation's screenshots of a running service's page with Playwright and Debian's
 Chromium: the fly screen at 1440x900 and the page at phone width (390x844).
 
     .venv/bin/fleetplan serve --port 8000 --mock 8 &

@@ -160,13 +160,13 @@ def test_csv_has_one_file_per_vehicle_with_millisecond_times(planned):
                        seq.ids, rate_hz=float("nan"))
 
 
-def test_the_readme_example_sequence_plans():
+def test_the_documented_example_sequence_plans():
     import json
     import re
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    block = re.search(r"### Formation sequences.*?```json\n(.*?)```", readme, re.S)
+    page = (Path(__file__).resolve().parents[2] / "docs/planning/sequences.md").read_text()
+    block = re.search(r"# Formation sequences.*?```json\n(.*?)```", page, re.S)
     assert block is not None
     show = plan_sequence(json.loads(block.group(1)))
     assert show.status == "converged", show.message

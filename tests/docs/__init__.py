@@ -1,0 +1,1 @@
+"""Tests of the documentation: the MkDocs site and the README."""
