@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import socket
 import time
@@ -32,8 +33,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import frames
+from gcs.sim.config import MockConfig
+from gcs.sim.core import VehicleContext
 from gcs.sim.model import FleetModel
-from gcs.sim.vehicle import MockConfig, MockVehicle
+from gcs.sim.vehicle import MockVehicle
 from gcs.wire import Datagrams
 
 __all__ = ["DEFAULT_WORLD_ORIGIN", "MockFleet", "homes_under"]
@@ -95,11 +98,12 @@ class MockFleet:
         """Seed of the fleet's random processes (`MockConfig.seed` unless given)."""
         self.model = FleetModel(len(homes), self.config.limits, self.config.estimate_noise,
                                 self.seed)
+        context = VehicleContext(self.now, self.model, self.config, world_origin, self.seed)
         self.vehicles: list[MockVehicle] = []
         for i, home in enumerate(homes):
             offset = i if max_port_offset is None else min(i, max_port_offset)
             self.vehicles.append(MockVehicle(
-                self, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
+                context, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
             if signing_key is not None:  # the key already on the vehicles' SD cards
                 self.vehicles[-1].set_signing_key(signing_key)
         self._start = time.monotonic()
@@ -145,8 +149,8 @@ class MockFleet:
             # No error callback: nobody listening yet on the GCS port is fine (PX4 keeps
             # sending too).
             transport, _ = await loop.create_datagram_endpoint(
-                lambda v=vehicle: Datagrams(v.received_datagram), sock=sock)
-            vehicle._transport = transport
+                functools.partial(Datagrams, vehicle.received_datagram), sock=sock)
+            vehicle.attach(transport)
         self._start = time.monotonic()
         self._task = asyncio.create_task(self._run(), name="mock-fleet")
 
@@ -157,9 +161,7 @@ class MockFleet:
                 await self._task
             self._task = None
         for vehicle in self.vehicles:
-            if vehicle._transport is not None:
-                vehicle._transport.close()
-                vehicle._transport = None
+            vehicle.detach()
 
     async def __aenter__(self) -> MockFleet:
         await self.start()

@@ -268,12 +268,12 @@ def test_signing_provisioned_with_setup_signing_like_px4(tmp_path) -> None:
                 await asyncio.sleep(0.2)
                 assert vehicle.signing_key == key.secret
                 # unsigned commands are now rejected (no ACK); HEARTBEAT still accepted
-                before = vehicle._mav.signing.unsigned_count
+                before = vehicle.signing.unsigned_count
                 with pytest.raises(CommandError):
                     await link.command(request, version, timeout=0.2, retries=1)
-                assert vehicle._mav.signing.reject_count >= 2
+                assert vehicle.signing.reject_count >= 2
                 await asyncio.sleep(1.1)  # the GCS heartbeat comes round
-                assert vehicle._mav.signing.unsigned_count > before
+                assert vehicle.signing.unsigned_count > before
                 # an unsigned SETUP_SIGNING cannot change the key any more
                 link.send_setup_signing(other, signing_timestamp(time.time()))
                 await asyncio.sleep(0.1)
@@ -285,14 +285,14 @@ def test_signing_provisioned_with_setup_signing_like_px4(tmp_path) -> None:
                     await link.command(request, version, timeout=0.2, retries=1)
                 assert link.telemetry.heartbeat_time is None
                 assert link.telemetry.security.bad_signature > 0
-                assert vehicle._mav.signing.badsig_count >= 2
+                assert vehicle.signing.badsig_count >= 2
             async with LinkHub() as hub:  # signed with the key: everything works
                 link = await hub.add("v0", mock.gcs_url(0), 1, signing_key=key)
                 assert await link.wait_for(lambda t: t.heartbeat_time is not None, 3.0)
                 assert await link.command(request, version) == mavlink.MAV_RESULT_ACCEPTED
                 assert link.telemetry.security.total == 0
                 # the vehicle's messages carry a signature with the key
-                assert vehicle._mav.signing.goodsig_count > 0
+                assert vehicle.signing.goodsig_count > 0
 
     asyncio.run(main())
 
@@ -381,7 +381,7 @@ def test_a_failing_vehicle_does_not_silence_the_fleet() -> None:
 def test_statustexts_are_never_cut() -> None:
     """Every STATUSTEXT of a flight fits 50 bytes or goes as MAVLink 2 chunks cut after a
     space; the same text is not repeated on retries."""
-    from gcs.sim.vehicle import statustext_chunks
+    from gcs.sim.statustext import statustext_chunks
 
     for text in ("Arming denied: Resolve system health failures first", "x" * 120,
                  "short", "a " * 25 + "end", "Failsafe activated: offboard signal lost"):

@@ -97,7 +97,7 @@ def test_set_message_interval_like_px4() -> None:
             assert counts[M.MAVLINK_MSG_ID_HEARTBEAT] >= 1  # never stopped
             # 0: back to the default rate
             v = mock.vehicles[0]
-            assert v._set_interval(M.MAVLINK_MSG_ID_ATTITUDE, 0) == M.MAV_RESULT_ACCEPTED
+            assert v.set_interval(M.MAVLINK_MSG_ID_ATTITUDE, 0) == M.MAV_RESULT_ACCEPTED
             assert v.intervals[M.MAVLINK_MSG_ID_ATTITUDE] == pytest.approx(0.01)
 
     asyncio.run(main())
@@ -108,7 +108,7 @@ def test_a_minimal_vehicle_starts_a_px4_stream_on_request() -> None:
         async with MockFleet(1, **mock_ports(1)) as mock:
             v = mock.vehicles[0]
             assert v.intervals[M.MAVLINK_MSG_ID_ODOMETRY] is None
-            assert v._set_interval(M.MAVLINK_MSG_ID_ODOMETRY, 50_000) == M.MAV_RESULT_ACCEPTED
+            assert v.set_interval(M.MAVLINK_MSG_ID_ODOMETRY, 50_000) == M.MAV_RESULT_ACCEPTED
             counts = await _count(mock, 1.0)
             assert 15 <= counts[M.MAVLINK_MSG_ID_ODOMETRY] <= 22
 
