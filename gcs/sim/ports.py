@@ -17,11 +17,7 @@ from collections.abc import Iterable
 
 from gcs import px4
 
-__all__ = ["DEFAULT_BASE_PORT", "LISTEN_OFFSET", "free_udp_base", "mock_fleet_ports",
-           "mock_port_offsets"]
-
-#: A mock fleet's default base port: PX4 SITL's, so a GCS runs unchanged against either.
-DEFAULT_BASE_PORT = px4.OFFBOARD_GCS_BASE_PORT
+__all__ = ["LISTEN_OFFSET", "free_udp_base", "mock_fleet_ports", "mock_port_offsets"]
 
 #: Vehicle i of a mock fleet on base B listens on B + LISTEN_OFFSET + i (PX4 SITL's offset, 40).
 LISTEN_OFFSET = px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT
