@@ -24,9 +24,12 @@ __all__ = [
     "COM_OF_LOSS_T_S",
     "DISARM_FORCE_MAGIC",
     "DUPLICATE_ACK_WINDOW_S",
+    "GCS_LINK_PORT",
     "HOLD",
     "LAND",
     "OFFBOARD",
+    "OFFBOARD_GCS_BASE_PORT",
+    "OFFBOARD_VEHICLE_BASE_PORT",
     "POSITION",
     "RTL",
     "MainMode",
@@ -35,6 +38,13 @@ __all__ = [
     "mode_name",
 ]
 
+#: PX4 SITL's offboard/API link: instance i sends to UDP OFFBOARD_GCS_BASE_PORT + i, where
+#: the GCS binds (MAVLink mode "onboard" in PX4's mavlink_main.cpp) ...
+OFFBOARD_GCS_BASE_PORT = 14540
+#: ... and listens on UDP OFFBOARD_VEHICLE_BASE_PORT + i.
+OFFBOARD_VEHICLE_BASE_PORT = 14580
+#: PX4's GCS link (QGroundControl): the vehicle sends to UDP 14550.
+GCS_LINK_PORT = 14550
 #: Offboard loss timeout (PX4 parameter COM_OF_LOSS_T, default 1 s).
 COM_OF_LOSS_T_S = 1.0
 #: Auto-disarm when armed on the ground without taking off (COM_DISARM_PRFLT, default 10 s).

@@ -8,11 +8,17 @@ Imports only run downward (DESIGN.md, README "Architecture"):
 - `gcs/service/` never imports `gcs.api`, `gcs.cli` or FastAPI/Starlette;
 - the shared bottom layer (`gcs/frames.py`, `gcs/px4.py`, `gcs/wire.py`, `gcs/errors.py`)
   imports no other part of `gcs`.
+
+And no module of `planner` or `gcs` imports, directly or through others, a module that imports
+it back: the module import graph (imports under ``if TYPE_CHECKING:`` and inside functions
+included, relative imports resolved, ``from pkg import module`` as an import of the module)
+has no cycle.
 """
 
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import pytest
@@ -75,3 +81,156 @@ def test_the_checker_sees_a_forbidden_import(tmp_path: Path) -> None:
     assert "gcs.api.app" in found
     assert "gcs.service.store" in found
     assert "fastapi.FastAPI" in found
+
+
+# ------------------------------------------------------------------------ import cycles
+
+#: The package trees whose module graph must have no cycle.
+CYCLE_TREES = ("planner", "gcs")
+
+
+def module_name(path: Path, root: Path) -> str:
+    """Dotted name of the module in `path` under `root` (a package's ``__init__`` is the
+    package)."""
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _resolve(name: str, known: set[str]) -> str | None:
+    """`name`, or its longest prefix that is a known module (None: outside the graph)."""
+    while name:
+        if name in known:
+            return name
+        name = name.rpartition(".")[0]
+    return None
+
+
+def import_graph(root: Path, trees: Iterable[str] = CYCLE_TREES) -> dict[str, set[str]]:
+    """module -> the modules of `trees` it imports (`root` holds the trees' directories)."""
+    paths = {module_name(p, root): p for tree in trees for p in sorted((root / tree).rglob("*.py"))}
+    known = set(paths)
+    graph: dict[str, set[str]] = {}
+    for module, path in paths.items():
+        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base_parts = package.split(".")
+                    base_parts = base_parts[:len(base_parts) - (node.level - 1)]
+                    base = ".".join([*base_parts, *([node.module] if node.module else [])])
+                else:
+                    base = node.module or ""
+                # `from pkg import module` imports the module; `from pkg import name`, pkg
+                names = [f"{base}.{alias.name}" if f"{base}.{alias.name}" in known else base
+                         for alias in node.names]
+            else:
+                continue
+            targets.update(t for t in (_resolve(n, known) for n in names) if t is not None)
+        targets.discard(module)  # `from . import x` in x's own package __init__ resolves here
+        graph[module] = targets
+    return graph
+
+
+def strongly_connected(graph: Mapping[str, Iterable[str]]) -> list[list[str]]:
+    """The strongly connected components of `graph` with more than one node (Tarjan), each
+    sorted; every one of them holds a cycle."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for succ in graph.get(node, ()):
+            if succ not in index:
+                visit(succ)
+                low[node] = min(low[node], low[succ])
+            elif succ in on_stack:
+                low[node] = min(low[node], index[succ])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return sorted(found)
+
+
+def a_cycle(graph: Mapping[str, Iterable[str]], component: list[str]) -> list[str]:
+    """One cycle through the component's first module, as a path that returns to it."""
+    start, members = component[0], set(component)
+    paths = {start: [start]}
+    frontier = [start]
+    while frontier:
+        nxt = []
+        for node in frontier:
+            for succ in sorted(graph.get(node, ())):
+                if succ == start:
+                    return [*paths[node], start]
+                if succ in members and succ not in paths:
+                    paths[succ] = [*paths[node], succ]
+                    nxt.append(succ)
+        frontier = nxt
+    raise AssertionError(f"{component} is not strongly connected")
+
+
+def import_cycles(root: Path = ROOT) -> dict[frozenset[str], str]:
+    """Every import cycle of the trees: component -> its modules and one cycle through them,
+    as ``a, b: a -> b -> a``."""
+    graph = import_graph(root)
+    return {frozenset(c): f"{', '.join(c)}: {' -> '.join(a_cycle(graph, c))}"
+            for c in strongly_connected(graph)}
+
+
+def test_no_import_cycle() -> None:
+    """Each module can be understood (and imported) before the ones that import it."""
+    assert sorted(import_cycles().values()) == []
+
+
+def _package(root: Path, files: Mapping[str, str]) -> None:
+    for rel, text in files.items():
+        path = root / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+
+
+def test_the_cycle_checker_sees_every_import_form(tmp_path: Path) -> None:
+    """A cycle closed by a relative import, by ``from pkg import module`` and by an import
+    under TYPE_CHECKING is found; an acyclic package is not reported."""
+    _package(tmp_path, {
+        "gcs/__init__.py": "",
+        "gcs/a.py": "from . import b\n",
+        "gcs/b.py": "from gcs import c\n",
+        "gcs/c.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                    "    from gcs.a import Thing\n",
+        "gcs/d.py": "from .sub.e import f\nimport gcs.a\n",
+        "gcs/sub/__init__.py": "",
+        "gcs/sub/e.py": "from ..c import x\n",
+        "planner/__init__.py": "",
+        "planner/p.py": "import planner.q\n",
+        "planner/q.py": "def f():\n    from planner import p\n",
+    })
+    graph = import_graph(tmp_path)
+    assert graph["gcs.a"] == {"gcs.b"}
+    assert graph["gcs.c"] == {"gcs.a"}
+    assert graph["gcs.d"] == {"gcs.sub.e", "gcs.a"}
+    assert graph["gcs.sub.e"] == {"gcs.c"}
+    assert strongly_connected(graph) == [["gcs.a", "gcs.b", "gcs.c"], ["planner.p", "planner.q"]]
+    assert a_cycle(graph, ["gcs.a", "gcs.b", "gcs.c"]) == ["gcs.a", "gcs.b", "gcs.c", "gcs.a"]
+    assert strongly_connected({"x": {"y"}, "y": {"z"}, "z": set()}) == []

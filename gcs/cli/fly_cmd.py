@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 
+from gcs import px4
+
 __all__ = ["configure", "run"]
 
 
@@ -43,10 +45,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="realtime: stream setpoints at SCHED_RR priority where the process "
                              "may (root or CAP_SYS_NICE); keeps a large fleet's stream on time on "
                              "a busy computer (default normal)")
-    parser.add_argument("--base-port", type=int, default=14540,
-                        help="--mock: vehicle i sends to this port + i (default 14540)")
-    parser.add_argument("--listen-base-port", type=int, default=14580,
-                        help="--mock: vehicle i listens on this port + i (default 14580)")
+    parser.add_argument("--base-port", type=int, default=px4.OFFBOARD_GCS_BASE_PORT,
+                        help="--mock: vehicle i sends to this port + i (default %(default)s)")
+    parser.add_argument("--listen-base-port", type=int, default=px4.OFFBOARD_VEHICLE_BASE_PORT,
+                        help="--mock: vehicle i listens on this port + i (default %(default)s)")
     parser.add_argument("--mock-settle", type=float, default=None,
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")

@@ -1,7 +1,7 @@
 """`fleetplan mock`: run N PX4-like mock vehicles (gcs.sim) until interrupted.
 
 Vehicle i listens on UDP --listen-base-port + i and sends to --base-port + i on 127.0.0.1
-(PX4 SITL's 14580 + i / 14540 + i by default), system id i + 1. Homes: under the starts of
+(PX4 SITL's offboard ports by default, `gcs.px4`), system id i + 1. Homes: under the starts of
 --plan, or a row --spacing metres apart along x. --fleet-out writes the matching fleet file.
 --realism px4 makes them behave like PX4 v1.16 SIH SITL (noisy wandering estimate, attitude lag,
 late boot, arming refused for 3.5 s: `MockConfig.px4_like`); the default is ideal.
@@ -10,6 +10,8 @@ late boot, arming refused for 3.5 s: `MockConfig.px4_like`); the default is idea
 from __future__ import annotations
 
 import argparse
+
+from gcs import px4
 
 __all__ = ["configure", "run"]
 
@@ -20,10 +22,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plan", help="put the homes under this plan's starts (Plan JSON)")
     parser.add_argument("--spacing", type=float, default=2.0,
                         help="without --plan: homes this far apart along x (m, default 2)")
-    parser.add_argument("--base-port", type=int, default=14540,
-                        help="vehicle i sends to this port + i (default 14540)")
-    parser.add_argument("--listen-base-port", type=int, default=14580,
-                        help="vehicle i listens on this port + i (default 14580)")
+    parser.add_argument("--base-port", type=int, default=px4.OFFBOARD_GCS_BASE_PORT,
+                        help="vehicle i sends to this port + i (default %(default)s)")
+    parser.add_argument("--listen-base-port", type=int, default=px4.OFFBOARD_VEHICLE_BASE_PORT,
+                        help="vehicle i listens on this port + i (default %(default)s)")
     parser.add_argument("--max-port-offset", type=int, default=None,
                         help="vehicles from this index on share one GCS port, like PX4 SITL "
                              "from instance 10 on (9); 0 puts the whole fleet on one port")

@@ -24,6 +24,8 @@ from pydantic_settings import (
     TomlConfigSettingsSource,
 )
 
+from gcs import px4
+
 __all__ = [
     "CONFIG_ENV",
     "DEFAULT_CONFIG_FILE",
@@ -96,7 +98,7 @@ class Settings(BaseSettings):
         4, ge=0, le=64, description="Mock PX4 vehicles started in-process when no fleet file."
     )
     mock_base_port: int = Field(
-        14540,
+        px4.OFFBOARD_GCS_BASE_PORT,
         ge=1024,
         le=65000,
         description="Mock vehicle i sends to UDP base+i and listens on base+40+i (PX4 SITL's).",

@@ -1,11 +1,12 @@
 """A fleet of PX4-like mock vehicles on one asyncio loop (`MockFleet`), and their placement.
 
-Each mock vehicle follows PX4 SITL's port convention: instance i listens on UDP
-``listen_base_port + i`` (14580 + i) and sends to ``gcs_base_port + i`` (14540 + i) on
-127.0.0.1, then to whoever last sent it a message (as PX4 does); system id i + 1, component 1.
-So ``fleetplan fly`` runs unchanged against the mock or PX4 SITL. The vehicles' protocol and
-rules are in `gcs.sim.vehicle`; their motion is `gcs.sim.model.FleetModel`, integrated at
-`physics_rate` (>= 100 Hz) for the whole fleet at once.
+Each mock vehicle follows PX4 SITL's port convention (`gcs.px4`): instance i listens on UDP
+``listen_base_port + i`` (`OFFBOARD_VEHICLE_BASE_PORT` + i) and sends to ``gcs_base_port + i``
+(`OFFBOARD_GCS_BASE_PORT` + i) on 127.0.0.1, then to whoever last sent it a message (as PX4
+does); system id i + 1, component 1. So ``fleetplan fly`` runs unchanged against the mock or
+PX4 SITL. The vehicles' protocol and rules are in `gcs.sim.vehicle`; their motion is
+`gcs.sim.model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the whole fleet at
+once.
 
 Python API::
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import socket
 import time
@@ -31,9 +33,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gcs import frames
+from gcs import frames, px4
+from gcs.sim.config import MockConfig
+from gcs.sim.core import VehicleContext
 from gcs.sim.model import FleetModel
-from gcs.sim.vehicle import MockConfig, MockVehicle
+from gcs.sim.vehicle import MockVehicle
 from gcs.wire import Datagrams
 
 __all__ = ["DEFAULT_WORLD_ORIGIN", "MockFleet", "homes_under"]
@@ -44,7 +48,7 @@ _log = logging.getLogger(__name__)
 DEFAULT_WORLD_ORIGIN = frames.Geodetic(47.397742, 8.545594, 488.0)
 
 
-def homes_under(starts: Sequence[ArrayLike]) -> list[list[float]]:
+def homes_under(starts: ArrayLike) -> list[list[float]]:
     """Homes on the ground (z = 0) right under each start: the climb to the start is vertical,
     so it needs no deconfliction (how `fleetplan fly --mock` and the service place mocks)."""
     return [[float(s[0]), float(s[1]), 0.0] for s in np.asarray(starts, dtype=float)]
@@ -65,7 +69,8 @@ class MockFleet:
 
     def __init__(self, count: int | None = None, *, homes: Sequence[ArrayLike] | None = None,
                  world_origin: frames.Geodetic = DEFAULT_WORLD_ORIGIN, host: str = "127.0.0.1",
-                 gcs_base_port: int = 14540, listen_base_port: int = 14580,
+                 gcs_base_port: int = px4.OFFBOARD_GCS_BASE_PORT,
+                 listen_base_port: int = px4.OFFBOARD_VEHICLE_BASE_PORT,
                  max_port_offset: int | None = None, config: MockConfig | None = None,
                  seed: int | None = None, signing_key: bytes | None = None,
                  **config_overrides: Any) -> None:
@@ -95,11 +100,12 @@ class MockFleet:
         """Seed of the fleet's random processes (`MockConfig.seed` unless given)."""
         self.model = FleetModel(len(homes), self.config.limits, self.config.estimate_noise,
                                 self.seed)
+        context = VehicleContext(self.now, self.model, self.config, world_origin, self.seed)
         self.vehicles: list[MockVehicle] = []
         for i, home in enumerate(homes):
             offset = i if max_port_offset is None else min(i, max_port_offset)
             self.vehicles.append(MockVehicle(
-                self, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
+                context, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
             if signing_key is not None:  # the key already on the vehicles' SD cards
                 self.vehicles[-1].set_signing_key(signing_key)
         self._start = time.monotonic()
@@ -145,8 +151,8 @@ class MockFleet:
             # No error callback: nobody listening yet on the GCS port is fine (PX4 keeps
             # sending too).
             transport, _ = await loop.create_datagram_endpoint(
-                lambda v=vehicle: Datagrams(v.received_datagram), sock=sock)
-            vehicle._transport = transport
+                functools.partial(Datagrams, vehicle.received_datagram), sock=sock)
+            vehicle.attach(transport)
         self._start = time.monotonic()
         self._task = asyncio.create_task(self._run(), name="mock-fleet")
 
@@ -157,9 +163,7 @@ class MockFleet:
                 await self._task
             self._task = None
         for vehicle in self.vehicles:
-            if vehicle._transport is not None:
-                vehicle._transport.close()
-                vehicle._transport = None
+            vehicle.detach()
 
     async def __aenter__(self) -> MockFleet:
         await self.start()

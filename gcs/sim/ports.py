@@ -1,7 +1,8 @@
 """The mock fleet's port rule, and free local UDP ports for mock fleets.
 
-A mock fleet on base port B is laid out like PX4 SITL on 14540: vehicle i sends its offboard
-link to B + i and listens on B + `LISTEN_OFFSET` + i (14540 + i / 14580 + i).
+A mock fleet on base port B is laid out like PX4 SITL on `gcs.px4.OFFBOARD_GCS_BASE_PORT`:
+vehicle i sends its offboard link to B + i and listens on B + `LISTEN_OFFSET` + i (PX4:
+`OFFBOARD_GCS_BASE_PORT` + i / `OFFBOARD_VEHICLE_BASE_PORT` + i).
 
 Tests, benchmarks and demos run mock vehicles while other fleets (PX4 SITL, another test
 suite) may be running on the same machine; a random base far from PX4's ports that binds
@@ -14,10 +15,12 @@ import random
 import socket
 from collections.abc import Iterable
 
+from gcs import px4
+
 __all__ = ["LISTEN_OFFSET", "free_udp_base", "mock_fleet_ports", "mock_port_offsets"]
 
-#: Vehicle i of a mock fleet on base B listens on B + LISTEN_OFFSET + i (PX4 SITL: 14580 + i).
-LISTEN_OFFSET = 40
+#: Vehicle i of a mock fleet on base B listens on B + LISTEN_OFFSET + i (PX4 SITL's offset, 40).
+LISTEN_OFFSET = px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT
 
 
 def mock_port_offsets(count: int) -> list[int]:

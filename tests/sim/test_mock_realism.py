@@ -12,22 +12,26 @@ from gcs.sim.model import EstimateNoise, FleetModel, ModelLimits
 STEP = 0.005  # the mock's physics step (200 Hz)
 
 
-def _ground_and_hover(seed: int, seconds: float = 120.0) -> tuple[np.ndarray, np.ndarray,
-                                                                    np.ndarray]:
-    """Vehicle 0 rests on the ground, vehicle 1 hovers at 2 m (LOCAL_NED z = -2) holding its
-    setpoint; (estimates of 0, estimates of 1, truths of 1) every 0.1 s."""
-    model = FleetModel(2, MockConfig.px4_like().limits, EstimateNoise(), seed)
-    model.powered[1] = True
-    model.truth[1] = (0.0, 0.0, -2.0) - model.bias[1]  # start hovering where it thinks 2 m is
-    model.hold(1, np.array([0.0, 0.0, -2.0]))
+def _ground_and_hover(seed: int, seconds: float = 120.0, pairs: int = 1
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`pairs` vehicles rest on the ground and as many hover at 2 m (LOCAL_NED z = -2) holding
+    their setpoint, each with its own noise draw, in one model; (estimates of the resting
+    ones, estimates of the hovering ones, truths of the hovering ones) every 0.1 s, shaped
+    (samples, pairs, 3)."""
+    model = FleetModel(2 * pairs, MockConfig.px4_like().limits, EstimateNoise(), seed)
+    up = np.arange(pairs, 2 * pairs)
+    model.powered[up] = True
+    for i in up:
+        model.truth[i] = (0.0, 0.0, -2.0) - model.bias[i]  # hover where it thinks 2 m is
+        model.hold(int(i), np.array([0.0, 0.0, -2.0]))
     ground, hover, truth = [], [], []
     every = round(0.1 / STEP)
     for k in range(round(seconds / STEP)):
         model.step(STEP)
         if k % every == 0:
-            ground.append(model.position[0].copy())
-            hover.append(model.position[1].copy())
-            truth.append(model.truth[1].copy())
+            ground.append(model.position[:pairs].copy())
+            hover.append(model.position[up].copy())
+            truth.append(model.truth[up].copy())
     return np.array(ground), np.array(hover), np.array(truth)
 
 
@@ -67,12 +71,22 @@ def test_the_estimate_noise_is_seeded() -> None:
     assert MockFleet(1, config=MockConfig.preset("px4", seed=9)).seed == 9
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_noise_statistics_match_px4_sitl(seed: int) -> None:
+PAIRS = 3
+
+
+@pytest.fixture(scope="module")
+def noise_run() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Two minutes of `PAIRS` resting and hovering vehicles (one model, independent draws)."""
+    return _ground_and_hover(0, pairs=PAIRS)
+
+
+@pytest.mark.parametrize("pair", range(PAIRS))
+def test_noise_statistics_match_px4_sitl(
+        pair: int, noise_run: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
     """At rest the estimated altitude wanders like SIH's (-1.2..+0.65 m seen, 0.5 m GPS
     vertical noise) and x/y about +-0.3 m; hovering, the estimate holds the setpoint within
     about +-0.2 m while the true position wanders with the estimate's bias."""
-    ground, hover, truth = _ground_and_hover(seed)
+    ground, hover, truth = (a[:, pair] for a in noise_run)
     assert np.all(np.isfinite(ground)) and np.all(np.isfinite(hover))
     z_std = float(np.std(ground[:, 2]))
     assert 0.1 < z_std < 0.7, z_std

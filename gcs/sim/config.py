@@ -1,0 +1,110 @@
+"""How a mock fleet behaves (`MockConfig`, its presets `REALISMS`) and what faults are injected
+into one vehicle (`MockFaults`): plain settings, read by every other module of `gcs.sim`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from gcs import px4
+from gcs.sim.model import EstimateNoise, ModelLimits
+
+__all__ = ["REALISMS", "MockConfig", "MockFaults"]
+
+#: The mock's behaviour presets (`MockConfig.preset`): "ideal" (exact state, no lag; the
+#: default) and "px4" (PX4 v1.16 SIH SITL's measured estimate noise, lag and timings).
+REALISMS = ("ideal", "px4")
+
+
+@dataclass
+class MockConfig:
+    """Behaviour shared by every vehicle of a `MockFleet` (PX4 defaults unless said)."""
+
+    settle_time: float = 5.0
+    """Arming is TEMPORARILY_REJECTED this long after start (PX4 SITL: about 4-5 s)."""
+    offboard_loss_timeout: float = px4.COM_OF_LOSS_T_S
+    """COM_OF_LOSS_T (s)."""
+    failsafe_land_delay: float = 1.0
+    """After the offboard-loss failsafe has held position this long, land (no RC)."""
+    disarm_after_land: float = px4.COM_DISARM_LAND_S
+    """COM_DISARM_LAND (s)."""
+    disarm_preflight: float = px4.COM_DISARM_PRFLT_S
+    """COM_DISARM_PRFLT (s)."""
+    land_speed: float = 0.7
+    """MPC_LAND_SPEED (m/s)."""
+    physics_rate: float = 200.0
+    """Integration rate of the vehicle model (Hz, >= 100)."""
+    position_rate: float = 30.0
+    """LOCAL_POSITION_NED rate (Hz), as PX4's onboard link streams it."""
+    attitude_rate: float = 20.0
+    global_position_rate: float = 5.0
+    status_rate: float = 1.0
+    """HEARTBEAT, SYS_STATUS, EXTENDED_SYS_STATE rate (Hz)."""
+    battery_drain: float = 0.05
+    """Battery drain while armed (% per second; a 20-minute battery)."""
+    gps_rate: float = 5.0
+    """GPS_RAW_INT rate (Hz)."""
+    telemetry_profile: str = "minimal"
+    """What the offboard link sends (`gcs.sim.telemetry`): ``minimal`` (the rates above, about
+    65 messages/s) or ``px4`` (PX4's offboard-link set and rates, about 410 messages/s)."""
+    record_setpoints: bool = False
+    """Keep every accepted setpoint in `MockVehicle.received` (for tests)."""
+    limits: ModelLimits = field(default_factory=ModelLimits)
+    realism: str = "ideal"
+    """Which preset this is (`REALISMS`); set by `preset`, informational."""
+    seed: int = 0
+    """Seed of every random process of the fleet (estimate noise, injected loss)."""
+    estimate_noise: EstimateNoise | None = None
+    """The position estimate's error process (None: exact, as in the ideal mode)."""
+    boot_time: float = 0.0
+    """Nothing is sent or answered this long after start; the first HEARTBEAT then goes at
+    the next 1 s tick (2 s for 1.5 s; PX4 SITL: 1.7-2.7 s)."""
+    duplicate_ack_delay: float = 0.0
+    """DO_SET_MODE and REQUEST_MESSAGE are ACKed twice; the second ACK goes this much later (s)."""
+
+    @classmethod
+    def preset(cls, realism: str = "ideal", **overrides: Any) -> MockConfig:
+        """The named preset (`REALISMS`), with `overrides` applied (unknown names: TypeError)."""
+        if realism not in REALISMS:
+            raise ValueError(f"realism must be one of {', '.join(REALISMS)}, got {realism!r}")
+        config = cls.px4_like() if realism == "px4" else cls()
+        for key, value in overrides.items():
+            if not hasattr(config, key):
+                raise TypeError(f"unknown mock setting {key!r}")
+            setattr(config, key, value)
+        return config
+
+    @classmethod
+    def px4_like(cls) -> MockConfig:
+        """PX4 v1.16 SIH SITL as measured (README "Mock realism" has the figures): a wandering
+        position estimate (GPS-like altitude noise), the attitude loop's lag, arming refused
+        for 3.5 s after boot, deaf and silent for 1.5 s (first HEARTBEAT at 2 s), PX4's
+        offboard message set."""
+        return cls(realism="px4", settle_time=3.5, boot_time=1.5,
+                   estimate_noise=EstimateNoise(), duplicate_ack_delay=0.005,
+                   telemetry_profile="px4",
+                   limits=ModelLimits(thrust_time_constant=0.15))
+
+
+@dataclass
+class MockFaults:
+    """Faults injected into one mock vehicle; change them at any time."""
+
+    loss: float = 0.0
+    """Fraction of packets dropped, each direction independently (0..1)."""
+    heartbeats: bool = True
+    """False: stop sending HEARTBEAT (everything else continues)."""
+    silent: bool = False
+    """True: send nothing at all (a dead radio or a crashed companion link)."""
+    delay: float = 0.0
+    """Seconds added to every packet, both directions."""
+    refuse_arming: bool = False
+    """Arming answered DENIED."""
+    nan_position: bool = False
+    """LOCAL_POSITION_NED reports NaN position and velocity (a broken estimator)."""
+    battery: float | None = None
+    """Battery remaining (%) reported instead of the simulated one."""
+    unhealthy: int = 0
+    """SYS_STATUS sensor bits reported present and enabled but not healthy."""
+    gps_fix: int | None = None
+    """GPS_RAW_INT fix_type reported instead of 3 (3D fix)."""

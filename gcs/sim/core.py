@@ -1,0 +1,336 @@
+"""A mock vehicle's state, flight rules and output (`VehicleCore`), and what it is given by
+its fleet (`VehicleContext`).
+
+The rules, as in PX4's commander: AUTO.RTL flies back over home at its height, then lands;
+offboard loss (no setpoint for COM_OF_LOSS_T) triggers the failsafe: Position mode (hold),
+then, there being no RC, AUTO.LAND after `failsafe_land_delay`; auto-disarm 2 s after
+landing, and 10 s after arming without taking off. The output: the periodic streams
+(`gcs.sim.telemetry`, their intervals changed by MAV_CMD_SET_MESSAGE_INTERVAL), STATUSTEXT
+(`gcs.sim.statustext`), COMMAND_ACK, each packed with the vehicle's own pymavlink instance
+(counting sequence numbers, signed with its key) and subject to the injected faults.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import random
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from gcs import frames, px4, wire
+from gcs.sim import telemetry
+from gcs.sim.config import MockConfig, MockFaults
+from gcs.sim.model import FleetModel
+from gcs.sim.statustext import StatusTextOut
+from gcs.wire import mavlink
+
+__all__ = ["VehicleContext", "VehicleCore"]
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class VehicleContext:
+    """What a vehicle takes from its fleet: the shared clock, model and settings."""
+
+    clock: Callable[[], float]
+    """Mock time (s since the fleet started: the vehicles' boot clock)."""
+    model: FleetModel
+    """The whole fleet's motion; the vehicle is its row `index`."""
+    config: MockConfig
+    world_origin: frames.Geodetic
+    """Geodetic origin of the world frame."""
+    seed: int
+    """Seed of the fleet's random processes."""
+
+
+class VehicleCore:
+    """One mock vehicle's state, flight-mode rules, failsafes and output; what it receives is
+    `gcs.sim.vehicle.MockVehicle`."""
+
+    def __init__(self, context: VehicleContext, index: int, home_world: ArrayLike,
+                 gcs_address: tuple[str, int], listen_address: tuple[str, int]) -> None:
+        self.context = context
+        self.index = index
+        self.system_id = index + 1
+        self.component_id = 1
+        self.home_world = np.asarray(home_world, dtype=float)
+        self.origin = frames.enu_to_geodetic(self.home_world, context.world_origin)
+        """Geodetic EKF origin (= home) reported in GPS_GLOBAL_ORIGIN and HOME_POSITION."""
+        self.gcs_address = gcs_address
+        """Where telemetry goes: the configured GCS port until someone speaks to us."""
+        self.gcs_port = gcs_address[1]
+        self.listen_address = listen_address
+        self.faults = MockFaults()
+        self.mode = px4.HOLD
+        self.armed = False
+        self.in_air = False
+        self.failsafe = False
+        self.terminated = False
+        """MAV_CMD_DO_FLIGHTTERMINATION received: motors off until restart."""
+        self.yaw = 0.0
+        self.errors = 0
+        """Exceptions caught while handling this vehicle (datagrams, rules, telemetry)."""
+        self._texts = StatusTextOut()
+        self.statustexts: list[str] = self._texts.said
+        """Every STATUSTEXT it said, in order (repeats suppressed)."""
+        self.events: list[tuple[float, str]] = []
+        """(mock time, what happened): mode changes, arming, failsafes."""
+        self.last_setpoint_time = -math.inf
+        """Mock time of the last accepted setpoint (offboard's proof of life)."""
+        self._armed_time = 0.0
+        self.battery = 100.0
+        """Simulated battery remaining (%): drains while armed (`MockConfig.battery_drain`)."""
+        self._battery_t = 0.0
+        self._landed_since: float | None = None
+        self._failsafe_since: float | None = None
+        self._mav = mavlink.MAVLink(None, srcSystem=self.system_id,
+                                    srcComponent=self.component_id)
+        self._transport: asyncio.DatagramTransport | None = None
+        self._rng = random.Random(context.seed * 1000 + index)
+        self._defaults = telemetry.default_rates(context.config)
+        self.intervals: dict[int, float | None] = {
+            msg_id: (1.0 / hz if hz > 0 else None) for msg_id, hz in self._defaults.items()}
+        """Period (s) of each stream of `gcs.sim.telemetry.STREAMS` by message id (None: off);
+        MAV_CMD_SET_MESSAGE_INTERVAL changes it."""
+        self._next = dict.fromkeys(self.intervals, 0.0)
+        self.sent: dict[int, int] = dict.fromkeys(self.intervals, 0)
+        """Messages sent per stream (counted before any injected loss)."""
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def model(self) -> FleetModel:
+        return self.context.model
+
+    @property
+    def config(self) -> MockConfig:
+        return self.context.config
+
+    @property
+    def world_origin(self) -> frames.Geodetic:
+        return self.context.world_origin
+
+    @property
+    def signing(self) -> Any:
+        """pymavlink's signing state of this vehicle (key, timestamps, counters)."""
+        return self._mav.signing
+
+    @property
+    def position_ned(self) -> np.ndarray:
+        return self.model.position[self.index].copy()
+
+    @property
+    def velocity_ned(self) -> np.ndarray:
+        return self.model.velocity[self.index].copy()
+
+    @property
+    def position_world(self) -> np.ndarray:
+        """Where it reports it is (its estimate; exact in the ideal mode), world frame."""
+        return frames.ned_to_world(self.model.position[self.index], self.home_world)
+
+    @property
+    def true_position_world(self) -> np.ndarray:
+        """Where it really is, world frame (= `position_world` in the ideal mode)."""
+        return frames.ned_to_world(self.model.truth[self.index], self.home_world)
+
+    def now(self) -> float:
+        """Mock time (s since boot)."""
+        return self.context.clock()
+
+    def event(self, what: str) -> None:
+        """Record that `what` happened now (`events`)."""
+        self.events.append((self.now(), what))
+
+    def record_error(self, doing: str) -> None:
+        """Count an exception caught while `doing` something; log the first ones in full."""
+        self.errors += 1
+        if self.errors <= 3:
+            _log.exception("mock vehicle %d: error %s (count %d)", self.system_id, doing,
+                           self.errors)
+
+    # ------------------------------------------------------------------ rules
+
+    def set_mode(self, mode: px4.Px4Mode) -> None:
+        """Enter `mode`: LAND descends, RTL heads over home, HOLD/POSITION hold here."""
+        if mode == self.mode:
+            return
+        self.event(f"mode {self.mode.name} -> {mode.name}")
+        self.mode = mode
+        i = self.index
+        if mode == px4.LAND:
+            self.model.descend(i, self.config.land_speed)
+        elif mode == px4.RTL:  # back over home at the current height, then down (tick)
+            self.model.hold(i, np.array([0.0, 0.0, self.model.position[i, 2]]))
+        elif mode in (px4.HOLD, px4.POSITION):
+            self.model.hold(i, self.model.position[i].copy())
+        if mode != px4.POSITION:
+            self._failsafe_since = None
+            self.failsafe = False
+
+    def arm(self) -> None:
+        """Motors on (the caller has checked that arming is allowed)."""
+        self.armed = True
+        self._armed_time = self.now()
+        self.model.powered[self.index] = True
+        if self.mode in (px4.HOLD, px4.POSITION):
+            self.model.hold(self.index, self.model.position[self.index].copy())
+        self.event("armed")
+
+    def disarm(self, why: str) -> None:
+        """Motors off, saying `why` in STATUSTEXT."""
+        if not self.armed:
+            return
+        self.armed = False
+        self.model.powered[self.index] = False
+        self._landed_since = None
+        self.event(f"disarmed ({why})")
+        self.statustext(mavlink.MAV_SEVERITY_INFO, f"Disarmed by {why}")
+
+    def tick(self, now: float) -> None:
+        """Rules that run with the clock: failsafes, landing detection, auto-disarm."""
+        cfg = self.config
+        i = self.index
+        z = self.model.truth[i, 2]  # PX4's land detector goes by thrust and motion, not the
+        vz = self.model.velocity[i, 2]  # estimated altitude (which wanders on the ground)
+        if self.armed and z < -0.3:
+            self.in_air = True
+        if self.armed:
+            self.battery = max(0.0, self.battery - cfg.battery_drain * (now - self._battery_t))
+        self._battery_t = now
+        if self.mode == px4.OFFBOARD and now - self.last_setpoint_time > cfg.offboard_loss_timeout:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
+                            "Failsafe activated: offboard signal lost")
+            self.set_mode(px4.POSITION)
+            self.failsafe = True
+            self._failsafe_since = now
+            self.event("failsafe: offboard loss")
+        if (self.failsafe and self._failsafe_since is not None
+                and now - self._failsafe_since >= cfg.failsafe_land_delay):
+            self._failsafe_since = None
+            if self.in_air:
+                self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe: no RC, landing")
+                self.set_mode(px4.LAND)
+                self.failsafe = True
+        if (self.mode == px4.RTL and self.armed and np.isfinite(self.model.position_sp[i, 2])
+                and np.linalg.norm(self.model.position[i, :2]) < 0.2):
+            self.model.descend(i, cfg.land_speed)  # RTL's landing phase
+        if not self.armed:
+            if self.terminated and z >= -0.05:
+                self.in_air = False
+            return
+        on_ground = z >= -0.05 and abs(vz) < 0.2
+        if self.in_air:
+            if on_ground and self.mode in (px4.LAND, px4.RTL):
+                if self._landed_since is None:
+                    self._landed_since = now
+                    self.statustext(mavlink.MAV_SEVERITY_INFO, "Landing detected")
+                elif now - self._landed_since >= cfg.disarm_after_land:
+                    self.in_air = False
+                    self.disarm("auto disarm on land")
+            else:
+                self._landed_since = None
+        elif now - self._armed_time >= cfg.disarm_preflight:
+            self.disarm("auto preflight disarming")
+
+    # ---------------------------------------------------------------- streams
+
+    def send_telemetry(self, now: float) -> None:
+        """Every stream due at `now` (`gcs.sim.telemetry`), at most one message each: a
+        stream that fell behind by more than a period restarts from now (no burst)."""
+        due = self._next
+        for msg_id, period in self.intervals.items():
+            if period is None or now < due[msg_id]:
+                continue
+            nxt = due[msg_id] + period
+            due[msg_id] = nxt if nxt > now else now + period
+            msg = telemetry.BY_ID[msg_id].build(self, now)
+            if msg is not None:
+                self.sent[msg_id] += 1
+                self.send(msg)
+
+    def set_interval(self, message_id: int, interval_us: float) -> int:
+        """MAV_CMD_SET_MESSAGE_INTERVAL as PX4's `MavlinkReceiver::set_message_interval`:
+        HEARTBEAT cannot be changed and an id with no stream is refused (FAILED); for every
+        stream of `gcs.sim.telemetry`, an interval < 0 stops it, 0 restores its default
+        rate, > 0 sets it (at most the mock's physics rate). Returns the MAV_RESULT."""
+        if message_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT or message_id not in self.intervals:
+            return mavlink.MAV_RESULT_FAILED
+        if not math.isfinite(interval_us):
+            return mavlink.MAV_RESULT_DENIED
+        if interval_us < 0:
+            period = None
+        elif interval_us == 0:
+            hz = self._defaults[message_id]
+            period = 1.0 / hz if hz > 0 else None
+        else:
+            period = max(interval_us * 1e-6, 1.0 / self.config.physics_rate)
+        self.intervals[message_id] = period
+        if period is not None:
+            self._next[message_id] = min(self._next[message_id], self.now() + period)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    # ---------------------------------------------------------------- output
+
+    def attach(self, transport: asyncio.DatagramTransport) -> None:
+        """Send through `transport` (the fleet's socket for this vehicle) from now on."""
+        self._transport = transport
+
+    def detach(self) -> None:
+        """Close the transport, if any: the vehicle falls silent."""
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None
+
+    def booting(self) -> bool:
+        """Still booting (`MockConfig.boot_time`): deaf and silent, like PX4 before its first
+        HEARTBEAT."""
+        return self.config.boot_time > 0.0 and self.now() < self.config.boot_time
+
+    def lost(self) -> bool:
+        """Whether the injected loss (`MockFaults.loss`) takes this packet."""
+        return self.faults.loss > 0.0 and self._rng.random() < self.faults.loss
+
+    def send(self, msg: Any) -> None:
+        """Pack `msg` and send it to the GCS, unless silent, booting or lost (delayed by
+        `MockFaults.delay`)."""
+        if self._transport is None:
+            return
+        faults = self.faults
+        if faults.silent or self.booting():
+            return
+        buf = wire.pack(msg, self._mav)  # packed first: a lost message leaves a sequence gap
+        if self.lost():
+            return
+        if faults.delay > 0.0:
+            asyncio.get_running_loop().call_later(faults.delay, self._sendto, buf)
+        else:
+            self._sendto(buf)
+
+    def _sendto(self, buf: bytes) -> None:
+        if self._transport is not None:
+            self._transport.sendto(buf, self.gcs_address)
+
+    def statustext(self, severity: int, text: str) -> None:
+        """Send `text` whole (in chunks if long), unless it was sent in the last
+        `STATUSTEXT_REPEAT_S` seconds."""
+        for msg in self._texts.messages(severity, text, self.now()):
+            self.send(msg)
+
+    def ack(self, msg: Any, command: int, result: int, times: int = 1) -> None:
+        """COMMAND_ACK of `msg` `times` times; repeats `MockConfig.duplicate_ack_delay` apart."""
+        ack = self._mav.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(),
+                                           msg.get_srcComponent())
+        self.send(ack)
+        delay = self.config.duplicate_ack_delay
+        for k in range(1, times):
+            if delay > 0.0:
+                asyncio.get_running_loop().call_later(k * delay, self.send, ack)
+            else:
+                self.send(ack)
