@@ -64,7 +64,7 @@ RANGES: dict[str, tuple[float, float]] = {
     "jerk_max": (1e-2, 1e4),
     "thrust_min": (0.0, 100.0),
     "thrust_max": (0.0, 100.0),
-    "body_rate_max": (1e-2, 100.0),
+    "body_rate_max": (1e-6, 100.0),
 }
 
 _TOP_KEYS = {
