@@ -179,12 +179,20 @@ class Plan:
 
     @property
     def ok(self) -> bool:
-        """A converged plan whose verification passed."""
-        return (
-            self.status == "converged"
-            and self.verification is not None
-            and self.verification.verified
-        )
+        """A converged plan whose verification passed (`problems` is empty)."""
+        return not self.problems()
+
+    def problems(self) -> list[str]:
+        """Why the plan is not verified, in words; empty for a converged plan whose
+        verification passed. The one verdict `ok`, the CLI table and its exit status use."""
+        out = []
+        if self.status != "converged":
+            out.append(f"status {self.status}" + (f": {self.message}" if self.message else ""))
+        if self.verification is None:
+            out.append("no verification")
+        else:
+            out += [f for f in self.verification.failures() if f not in self.message]
+        return out
 
     @property
     def cost(self) -> float:
