@@ -140,7 +140,11 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     scale = check_vector(shared.get("separation_scale", DEFAULTS["separation_scale"]),
                          "separation_scale", positive=True, within="separation_scale")
     count = len(ids)
-    names, holds, points, slots, legs = [], [], [], [], []
+    names: list[str] = []
+    holds: list[int] = []
+    points: list[FloatArray] = []
+    slots: list[tuple[int, ...]] = []
+    legs: list[dict[str, Any]] = []
     total = 0
     for f, raw in enumerate(formations):
         where = f"formations[{f}]"

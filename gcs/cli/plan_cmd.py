@@ -191,6 +191,8 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
         error = result.error
         where = f"{error['field']}: " if error.get("field") else ""
         raise ValueError(f"{where}{error['reason']}")
+    if result.plan_json is None:
+        raise ValueError("the planning task returned neither a plan nor an error")
     return planner.Plan.from_dict(json.loads(result.plan_json))
 
 
@@ -279,7 +281,7 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
         plan = show.to_plan()
     except (SolverError, ValueError) as exc:
         return _fail(str(exc))
-    if not args.quiet:
+    if not args.quiet and plan.sequence is not None:
         for leg in plan.sequence["legs"]:
             print(f"leg {leg['name']}: {leg['status']}, {leg['iterations']} SCP iterations, "
                   f"{leg['seconds']:.2f} s", flush=True)
