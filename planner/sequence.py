@@ -85,11 +85,8 @@ def _field_error(field: str, reason: str) -> ScenarioError:
 
 
 def _seconds(value: Any, field: str, *, positive: bool) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise _field_error(field, "must be a finite number of seconds")
-    if value < 0 or (positive and value == 0):
-        raise _field_error(field, "must be positive" if positive else "must not be negative")
-    return float(value)
+    """A finite number of seconds, positive or not negative (integers of any size too)."""
+    return check_number(value, field, positive=positive, nonneg=not positive)
 
 
 def _steps(seconds: float, dt: float, field: str) -> int:

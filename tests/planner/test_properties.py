@@ -173,3 +173,45 @@ def test_extreme_magnitudes_are_refused_by_name_or_planned_soundly(path, value):
         assert check.min_separation_continuous >= (scenario.min_separation
                                                    - check.separation_tolerance)
     assert plan.ok == (plan.status == "converged" and check.verified)
+
+
+#: Every numeric field of a formation sequence that is not a leg scenario's own setting.
+SEQUENCE_FIELDS = [
+    ("dt",), ("formations", 1, "duration"), ("formations", 1, "hold"),
+    ("formations", 0, "hold"), ("formations", 1, "positions", 0, 0),
+    ("formations", 1, "positions", 1, 2), ("separation_scale", 1),
+]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(SEQUENCE_FIELDS),
+       st.one_of(st.sampled_from(EXTREMES), st.floats(), st.integers()))
+def test_extreme_magnitudes_in_a_sequence_are_refused_by_name(path, value):
+    """The same magnitudes on a sequence's own numbers: parsed into legs or refused naming a
+    field, without overflow and without a leg longer than a scenario may be."""
+    from planner.scenario import MAX_STEPS
+    from planner.sequence import parse_sequence
+
+    data = {
+        "name": "property", "dt": 0.2, "min_separation": 1.0,
+        "separation_scale": [1.0, 1.0, 1.0],
+        "limits": {"position_min": [0, 0, 0], "position_max": [6, 6, 3],
+                   "velocity_max": [2, 2, 2], "acceleration_max": [3, 3, 3]},
+        "vehicles": ["a", "b"],
+        "formations": [
+            {"positions": [[1, 1, 1], [4, 1, 1]]},
+            {"positions": [[1, 4, 1], [4, 4, 1]], "duration": 6.0, "hold": 1.0},
+        ],
+    }
+    node: Any = data
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    try:
+        with np.errstate(all="raise"):
+            sequence = parse_sequence(data)
+    except ScenarioError as error:
+        assert error.field and error.reason and len(error.reason) < 300
+        return
+    assert all(3 <= leg["steps"] <= MAX_STEPS for leg in sequence.legs)
+    assert sum(sequence.holds) <= 10 * MAX_STEPS
