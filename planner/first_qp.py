@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -147,7 +148,7 @@ def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:
     return FirstSolution("solved", p, v, a, 1)
 
 
-def _feasible(scenario: Scenario, vehicle: int, solver: QPSolver, **relax: object) -> bool:
+def _feasible(scenario: Scenario, vehicle: int, solver: QPSolver, **relax: Any) -> bool:
     limits = dataclasses.replace(scenario.limits, **relax)
     relaxed = dataclasses.replace(scenario, limits=limits)
     qp = build_group_qp(relaxed, np.array([vehicle]), SeparationRows.empty())

@@ -11,7 +11,7 @@ import numpy as np
 
 from planner.types import FloatArray
 
-__all__ = ["GRAVITY", "body_rates", "jerk_from_accelerations", "thrust"]
+__all__ = ["GRAVITY", "THRUST_FLOOR", "body_rates", "jerk_from_accelerations", "thrust"]
 
 
 #: Standard gravity (m/s^2); the world frame's gravity vector is (0, 0, -GRAVITY).
@@ -31,14 +31,25 @@ def thrust(accelerations: FloatArray) -> FloatArray:
     return np.linalg.norm(np.asarray(accelerations, dtype=float) + _UP, axis=-1)
 
 
+#: Thrust (m/s^2) below which the body axes are taken as at this thrust: at zero thrust
+#: (free fall) the attitude is undefined; the floor keeps the rates finite and huge, so such
+#: a plan is reported not flyable instead of carrying NaN.
+THRUST_FLOOR = 1e-6
+
+
 def body_rates(accelerations: FloatArray, jerk: FloatArray) -> FloatArray:
     """(..., K, 3) body rates (w1, w2, 0) in rad/s for yaw 0, paper eq. 20."""
     force = np.asarray(accelerations, dtype=float) + _UP
-    f = np.linalg.norm(force, axis=-1, keepdims=True)
-    z_body = force / f
-    # Yaw 0: the body x axis is the world x axis tilted into the plane normal to z_body.
+    f = np.maximum(np.linalg.norm(force, axis=-1, keepdims=True), THRUST_FLOOR)
+    # at zero thrust, any body z axis; "up" keeps the rates finite
+    z_body = np.where(np.linalg.norm(force, axis=-1, keepdims=True) < THRUST_FLOOR,
+                      np.array([0.0, 0.0, 1.0]), force / f)
+    # Yaw 0: the body x axis is the world x axis tilted into the plane normal to z_body;
+    # with z_body along x (thrust exactly sideways), the world y axis stands in for it.
     heading = np.broadcast_to(np.array([1.0, 0.0, 0.0]), z_body.shape)
     y_body = np.cross(z_body, heading)
+    sideways = np.linalg.norm(y_body, axis=-1, keepdims=True) < 1e-12
+    y_body = np.where(sideways, np.array([0.0, 1.0, 0.0]), y_body)
     y_body /= np.linalg.norm(y_body, axis=-1, keepdims=True)
     x_body = np.cross(y_body, z_body)
     j = np.asarray(jerk, dtype=float)

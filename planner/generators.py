@@ -242,7 +242,7 @@ def _spread_vectorised(rng: np.random.Generator, count: int, low: FloatArray, hi
                 candidate = low + (high - low) * rng.random(3)
             else:
                 direction = rng.normal(size=3)
-                direction /= max(np.linalg.norm(direction), 1e-12)
+                direction /= max(float(np.linalg.norm(direction)), 1e-12)
                 candidate = near[n] + direction * reach * rng.random() ** (1.0 / 3.0)
                 if np.any(candidate < low) or np.any(candidate > high):
                     continue

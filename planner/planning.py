@@ -22,6 +22,7 @@ from planner.result import IterationRecord, Plan, VehicleTrajectory
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp
 from planner.solvers import make_solver
+from planner.types import FloatArray
 from planner.verify import verify
 
 __all__ = ["plan"]
@@ -54,7 +55,7 @@ def plan(
     jerk = jerk_from_accelerations(a, spec.dt)
     f = thrust(a)
     rates = body_rates(a, jerk)
-    times = np.arange(spec.steps + 1) * spec.dt
+    times: FloatArray = np.arange(spec.steps + 1, dtype=np.float64) * spec.dt
     vehicles = tuple(
         VehicleTrajectory(
             id=vehicle.id, t=times, position=p[n], velocity=v[n], acceleration=a[n],

@@ -196,8 +196,8 @@ def build_group_qp(
     k_dyn = np.arange(steps)
 
     # --- equality rows: dynamics (2 K per chain) then boundary conditions (5 per chain).
-    kk, vv = np.meshgrid(k_dyn, np.arange(3 * m), indexing="ij")  # (K, 3m)
-    kk, vv = kk.ravel(), vv.ravel()
+    grid_k, grid_v = np.meshgrid(k_dyn, np.arange(3 * m), indexing="ij")  # (K, 3m)
+    kk, vv = grid_k.ravel(), grid_v.ravel()
     ve, ax = veh[vv], axis[vv]
     n_dyn = kk.size
     row_p = np.arange(n_dyn)

@@ -96,25 +96,29 @@ class Verification:
     """Checks of the final trajectories, computed independently of the solver."""
 
     min_separation: float | None
-    """Smallest pair distance at the steps, in the separation metric (m); None: one vehicle."""
+    """Smallest pair distance at the steps, in the separation metric (m); None with one
+    vehicle, or when it is undefined (non-finite motion, an overflowing metric)."""
     min_separation_continuous: float | None
-    """Smallest pair distance over continuous time, exact motion between steps (m)."""
+    """Smallest pair distance over continuous time, exact motion between steps (m); None
+    as for min_separation."""
     closest_pair: list[str]
-    """The two vehicle ids of the continuous-time minimum (empty with one vehicle)."""
+    """The two vehicle ids of the continuous-time minimum (empty when there is none)."""
     closest_time: float
     """When the continuous-time minimum happens (s)."""
-    max_violation: dict[str, float]
-    """Largest excess over each bound group (position, velocity, acceleration, jerk, ...)."""
-    boundary_error: dict[str, float]
-    """Largest error of each boundary condition (start/goal position, velocities, accel)."""
-    thrust_range: list[float]
-    """[min, max] thrust over all vehicles and steps (m/s^2)."""
-    body_rate_peak: float
-    """Largest |w1| or |w2| over all vehicles and steps (rad/s)."""
+    max_violation: dict[str, float | None]
+    """Largest excess over each bound group (position, velocity, acceleration, jerk, ...);
+    None where it cannot be computed (non-finite motion)."""
+    boundary_error: dict[str, float | None]
+    """Largest error of each boundary condition (start/goal position, velocities, accel);
+    None where it cannot be computed."""
+    thrust_range: list[float | None]
+    """[min, max] thrust over all vehicles and steps (m/s^2); None where undefined."""
+    body_rate_peak: float | None
+    """Largest |w1| or |w2| over all vehicles and steps (rad/s); None where undefined."""
     flyable: bool
     """Thrust within [thrust_min, thrust_max] and body rates under body_rate_max."""
     separated: bool
-    """Continuous-time separation >= R - separation_tolerance."""
+    """Continuous-time separation >= R - separation_tolerance (false when undefined)."""
     within_bounds: bool
     """Every box and boundary condition holds within bound_tolerance."""
     separation_tolerance: float
@@ -129,17 +133,30 @@ class Verification:
         """What failed, in words (empty when verified)."""
         out = []
         if not self.separated:
-            out.append(f"continuous-time separation {self.min_separation_continuous:.4f} m "
-                       f"is below R")
+            if self.min_separation_continuous is None:
+                out.append("continuous-time separation is undefined (non-finite motion or "
+                           "an overflowing separation metric)")
+            else:
+                out.append(f"continuous-time separation {self.min_separation_continuous:.4f} m "
+                           f"is below R")
         if not self.within_bounds:
-            worst = max({**self.max_violation, **self.boundary_error}.items(),
-                        key=lambda kv: kv[1])
-            out.append(f"{worst[0]} off by {worst[1]:.3g}")
+            errors = {**self.max_violation, **self.boundary_error}
+            undefined = [key for key, x in errors.items() if x is None]
+            if undefined:
+                out.append(f"{', '.join(undefined)} undefined (non-finite motion)")
+            else:
+                key, worst = max(errors.items(), key=lambda kv: kv[1] or 0.0)
+                out.append(f"{key} off by {worst:.3g}")
         if not self.flyable:
-            out.append(f"not flyable: thrust {self.thrust_range[0]:.2f}..."
-                       f"{self.thrust_range[1]:.2f} m/s^2, body rate peak "
-                       f"{self.body_rate_peak:.2f} rad/s against the limits")
+            out.append(f"not flyable: thrust {_figure(self.thrust_range[0], '.2f')}..."
+                       f"{_figure(self.thrust_range[1], '.2f')} m/s^2, body rate peak "
+                       f"{_figure(self.body_rate_peak, '.2f')} rad/s against the limits")
         return out
+
+
+def _figure(x: float | None, fmt: str) -> str:
+    """A figure for a message: 'undefined' for None."""
+    return "undefined" if x is None else format(x, fmt)
 
 
 @dataclass(frozen=True)
@@ -162,12 +179,20 @@ class Plan:
 
     @property
     def ok(self) -> bool:
-        """A converged plan whose verification passed."""
-        return (
-            self.status == "converged"
-            and self.verification is not None
-            and self.verification.verified
-        )
+        """A converged plan whose verification passed (`problems` is empty)."""
+        return not self.problems()
+
+    def problems(self) -> list[str]:
+        """Why the plan is not verified, in words; empty for a converged plan whose
+        verification passed. The one verdict `ok`, the CLI table and its exit status use."""
+        out = []
+        if self.status != "converged":
+            out.append(f"status {self.status}" + (f": {self.message}" if self.message else ""))
+        if self.verification is None:
+            out.append("no verification")
+        else:
+            out += [f for f in self.verification.failures() if f not in self.message]
+        return out
 
     @property
     def cost(self) -> float:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,7 +20,8 @@ from planner.assignment import assign_goals
 from planner.errors import ScenarioError
 from planner.types import FloatArray, IntArray
 
-__all__ = ["DEFAULTS", "Limits", "Scenario", "Vehicle", "minimum_transfer_time"]
+__all__ = ["DEFAULTS", "RANGES", "Limits", "Scenario", "Vehicle", "check_id", "check_keys",
+           "check_number", "check_vector", "minimum_transfer_time"]
 
 
 #: Defaults filled in when a scenario omits a key (documented in the README).
@@ -41,6 +43,29 @@ ASSIGNMENTS = ("fixed", "free")
 #: Hard caps that keep one scenario from exhausting memory (not physical limits).
 MAX_VEHICLES = 1000
 MAX_STEPS = 5000
+MAX_ITERATIONS = 1000
+#: Longest vehicle id (characters): ids name CSV files and appear in every table.
+MAX_ID_LENGTH = 64
+
+#: Inclusive range of every number of a scenario, by field (`coordinate`: every position,
+#: workspace corners, starts, goals; m). A value outside is refused, naming the field: the
+#: ranges keep everything derived from the numbers (scaled distances and their squares,
+#: costs, horizons, jerk) finite, so no magnitude can overflow a check into passing. They are
+#: sanity bounds for a quadcopter fleet, not any vehicle's physical limits.
+RANGES: dict[str, tuple[float, float]] = {
+    "dt": (1e-3, 10.0),
+    "min_separation": (1e-2, 100.0),
+    "separation_margin": (0.0, 100.0),
+    "separation_scale": (0.1, 10.0),
+    "cost_threshold": (1e-9, 1e9),
+    "coordinate": (-1e4, 1e4),
+    "velocity_max": (1e-2, 100.0),
+    "acceleration_max": (1e-2, 100.0),
+    "jerk_max": (1e-2, 1e4),
+    "thrust_min": (0.0, 100.0),
+    "thrust_max": (0.0, 100.0),
+    "body_rate_max": (1e-6, 100.0),
+}
 
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
@@ -197,17 +222,39 @@ class Scenario:
 # --------------------------------------------------------------------------- parsing helpers
 
 
-def _number(value: Any, name: str, *, positive: bool = False, nonneg: bool = False) -> float:
+def _show(value: int | float) -> str:
+    """A number for an error message, short even for an integer of a thousand digits."""
+    if isinstance(value, int) and abs(value) >= 10**15:
+        return f"an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits"
+    return f"{value:g}"
+
+
+def check_number(value: Any, name: str, *, positive: bool = False, nonneg: bool = False,
+                 within: str | None = None) -> float:
+    """A finite float; with `within`, inside `RANGES[within]`. Raises `ScenarioError`
+    naming the field `name` and the reason (the range, for a value outside it)."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ScenarioError(name, f"must be a number, got {type(value).__name__}")
-    x = float(value)
+    if within is not None:
+        lo, hi = RANGES[within]
+        if not lo <= value <= hi:  # exact for integers of any size, false for NaN
+            if isinstance(value, float) and not math.isfinite(value):
+                raise ScenarioError(name, "must be a finite number")
+            if positive and value <= 0:
+                raise ScenarioError(name, f"must be positive, got {_show(value)}")
+            raise ScenarioError(name, f"must be between {lo:g} and {hi:g}, "
+                                      f"got {_show(value)}")
+    try:
+        x = float(value)
+    except OverflowError:
+        raise ScenarioError(name, f"must be a finite number, got {_show(value)}") from None
     if not math.isfinite(x):
         raise ScenarioError(name, "must be a finite number")
     if positive and x <= 0:
         raise ScenarioError(name, f"must be positive, got {x:g}")
     if nonneg and x < 0:
         raise ScenarioError(name, f"must not be negative, got {x:g}")
-    return x
+    return x + 0.0  # -0.0 is 0.0
 
 
 def _integer(value: Any, name: str, lo: int, hi: int) -> int:
@@ -215,18 +262,41 @@ def _integer(value: Any, name: str, lo: int, hi: int) -> int:
         raise ScenarioError(name, f"must be an integer, got {type(value).__name__}")
     if isinstance(value, float) and not value.is_integer():
         raise ScenarioError(name, f"must be an integer, got {value}")
-    n = int(value)
-    if not lo <= n <= hi:
-        raise ScenarioError(name, f"must be between {lo} and {hi}, got {n}")
-    return n
+    if not lo <= value <= hi:
+        raise ScenarioError(name, f"must be between {lo} and {hi}, got {_show(value)}")
+    return int(value)
 
 
-def _vector(value: Any, name: str, *, positive: bool = False) -> FloatArray:
+def check_vector(value: Any, name: str, *, positive: bool = False,
+                 within: str = "coordinate") -> FloatArray:
+    """[x, y, z] of numbers each inside `RANGES[within]` (`check_number` per component)."""
     if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 3:
         raise ScenarioError(name, "must be a list of 3 numbers [x, y, z]")
     return np.array(
-        [_number(c, f"{name}[{i}]", positive=positive) for i, c in enumerate(value)], dtype=float
+        [check_number(c, f"{name}[{i}]", positive=positive, within=within)
+         for i, c in enumerate(value)], dtype=float
     )
+
+
+#: Unicode categories refused in ids: control (C0, DEL, C1), format (bidi overrides,
+#: zero-width), surrogates, line and paragraph separators.
+_UNSAFE_CATEGORIES = frozenset({"Cc", "Cf", "Cs", "Zl", "Zp"})
+
+
+def check_id(value: Any, name: str) -> str:
+    """A vehicle id: a non-empty string of at most `MAX_ID_LENGTH` printable characters
+    (no control or invisible formatting characters: ids reach terminals, CSV files and
+    logs). Raises `ScenarioError` naming the field."""
+    if not isinstance(value, str) or not value.strip():
+        raise ScenarioError(name, "must be a non-empty string")
+    if len(value) > MAX_ID_LENGTH:
+        raise ScenarioError(name, f"must be at most {MAX_ID_LENGTH} characters, "
+                                  f"got {len(value)}")
+    for index, char in enumerate(value):
+        if unicodedata.category(char) in _UNSAFE_CATEGORIES:
+            raise ScenarioError(name, f"must not contain control characters "
+                                      f"(U+{ord(char):04X} at index {index})")
+    return value
 
 
 def check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str], *,
@@ -246,8 +316,8 @@ def check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str],
 
 def _parse_limits(data: Any) -> Limits:
     check_keys(data, _LIMIT_KEYS, "limits", ("position_min", "position_max"))
-    pmin = _vector(data["position_min"], "limits.position_min")
-    pmax = _vector(data["position_max"], "limits.position_max")
+    pmin = check_vector(data["position_min"], "limits.position_min")
+    pmax = check_vector(data["position_max"], "limits.position_max")
     for axis in range(3):
         if pmax[axis] <= pmin[axis]:
             raise ScenarioError(
@@ -257,20 +327,24 @@ def _parse_limits(data: Any) -> Limits:
 
     def optional(key: str) -> FloatArray | None:
         value = data.get(key)
-        return None if value is None else _vector(value, f"limits.{key}", positive=True)
+        return (None if value is None
+                else check_vector(value, f"limits.{key}", positive=True, within=key))
 
-    thrust_min = _number(
-        data.get("thrust_min", DEFAULTS["thrust_min"]), "limits.thrust_min", nonneg=True
+    thrust_min = check_number(
+        data.get("thrust_min", DEFAULTS["thrust_min"]), "limits.thrust_min", nonneg=True,
+        within="thrust_min",
     )
-    thrust_max = _number(
-        data.get("thrust_max", DEFAULTS["thrust_max"]), "limits.thrust_max", positive=True
+    thrust_max = check_number(
+        data.get("thrust_max", DEFAULTS["thrust_max"]), "limits.thrust_max", positive=True,
+        within="thrust_max",
     )
     if thrust_max <= thrust_min:
         raise ScenarioError(
             "limits.thrust_max", f"must be greater than thrust_min ({thrust_min:g})"
         )
-    body_rate_max = _number(
-        data.get("body_rate_max", DEFAULTS["body_rate_max"]), "limits.body_rate_max", positive=True
+    body_rate_max = check_number(
+        data.get("body_rate_max", DEFAULTS["body_rate_max"]), "limits.body_rate_max",
+        positive=True, within="body_rate_max",
     )
     return Limits(
         position_min=pmin,
@@ -313,23 +387,28 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     name = data.get("name", DEFAULTS["name"])
     if not isinstance(name, str) or not name.strip():
         raise ScenarioError("name", "must be a non-empty string")
-    dt = _number(data["dt"], "dt", positive=True)
+    dt = check_number(data["dt"], "dt", positive=True, within="dt")
     steps = _integer(data["steps"], "steps", 3, MAX_STEPS)
-    separation = _number(data["min_separation"], "min_separation", positive=True)
-    margin = _number(data.get("separation_margin", 0.0), "separation_margin", nonneg=True)
+    separation = check_number(data["min_separation"], "min_separation", positive=True,
+                         within="min_separation")
+    margin = check_number(data.get("separation_margin", 0.0), "separation_margin", nonneg=True,
+                     within="separation_margin")
     if margin >= separation:
         raise ScenarioError("separation_margin", f"must be less than min_separation "
                                                  f"{separation:g} m, got {margin:g}")
-    scale = _vector(
+    scale = check_vector(
         data.get("separation_scale", DEFAULTS["separation_scale"]),
         "separation_scale",
         positive=True,
+        within="separation_scale",
     )
-    threshold = _number(
-        data.get("cost_threshold", DEFAULTS["cost_threshold"]), "cost_threshold", positive=True
+    threshold = check_number(
+        data.get("cost_threshold", DEFAULTS["cost_threshold"]), "cost_threshold", positive=True,
+        within="cost_threshold",
     )
     max_iterations = _integer(
-        data.get("max_iterations", DEFAULTS["max_iterations"]), "max_iterations", 1, 1000
+        data.get("max_iterations", DEFAULTS["max_iterations"]), "max_iterations", 1,
+        MAX_ITERATIONS,
     )
     limits = _parse_limits(data["limits"])
     assignment = data.get("assignment", DEFAULTS["assignment"])
@@ -349,14 +428,12 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     for index, raw in enumerate(raw_vehicles):
         where = f"vehicles[{index}]"
         check_keys(raw, _VEHICLE_KEYS, where, ("id", "start", "goal"))
-        vid = raw["id"]
-        if not isinstance(vid, str) or not vid.strip():
-            raise ScenarioError(f"{where}.id", "must be a non-empty string")
+        vid = check_id(raw["id"], f"{where}.id")
         if vid in seen:
             raise ScenarioError(f"{where}.id", f"duplicate id {vid!r} (also vehicles[{seen[vid]}])")
         seen[vid] = index
-        start = _vector(raw["start"], f"{where}.start")
-        goal = _vector(raw["goal"], f"{where}.goal")
+        start = check_vector(raw["start"], f"{where}.start")
+        goal = check_vector(raw["goal"], f"{where}.goal")
         for label, point in (("start", start), ("goal", goal)):
             outside = (point < limits.position_min) | (point > limits.position_max)
             if outside.any():

@@ -23,7 +23,16 @@ from planner.errors import ScenarioError
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.planning import plan
 from planner.result import Plan, VehicleTrajectory, Verification
-from planner.scenario import DEFAULTS, MAX_STEPS, Scenario, Vehicle, check_keys
+from planner.scenario import (
+    DEFAULTS,
+    MAX_STEPS,
+    Scenario,
+    Vehicle,
+    check_id,
+    check_keys,
+    check_number,
+    check_vector,
+)
 from planner.types import FloatArray
 from planner.verify import BOUND_TOLERANCE, verify
 
@@ -76,14 +85,13 @@ def _field_error(field: str, reason: str) -> ScenarioError:
 
 
 def _seconds(value: Any, field: str, *, positive: bool) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise _field_error(field, "must be a finite number of seconds")
-    if value < 0 or (positive and value == 0):
-        raise _field_error(field, "must be positive" if positive else "must not be negative")
-    return float(value)
+    """A finite number of seconds, positive or not negative (integers of any size too)."""
+    return check_number(value, field, positive=positive, nonneg=not positive)
 
 
 def _steps(seconds: float, dt: float, field: str) -> int:
+    if seconds > MAX_STEPS * 10 * dt:
+        raise _field_error(field, f"must be at most {MAX_STEPS * 10} steps of dt = {dt:g} s")
     steps = round(seconds / dt)
     if abs(steps * dt - seconds) > 1e-6 * max(1.0, seconds):
         raise _field_error(field, f"must be a whole number of steps of dt = {dt:g} s")
@@ -95,11 +103,7 @@ def _positions(value: Any, field: str, count: int) -> FloatArray:
         raise _field_error(field, f"must list {count} positions [x, y, z], one per vehicle")
     out = np.empty((count, 3))
     for n, point in enumerate(value):
-        if (not isinstance(point, Sequence) or isinstance(point, str) or len(point) != 3
-                or any(isinstance(c, bool) or not isinstance(c, int | float)
-                       or not math.isfinite(c) for c in point)):
-            raise _field_error(f"{field}[{n}]", "must be a list of 3 finite numbers [x, y, z]")
-        out[n] = point
+        out[n] = check_vector(point, f"{field}[{n}]")
     return out
 
 
@@ -115,6 +119,8 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     if (not isinstance(ids, Sequence) or isinstance(ids, str) or not ids
             or not all(isinstance(i, str) and i.strip() for i in ids)):
         raise _field_error("vehicles", "must be a non-empty list of vehicle ids (strings)")
+    for n, vid in enumerate(ids):
+        check_id(vid, f"vehicles[{n}]")
     if len(set(ids)) != len(ids):
         raise _field_error("vehicles", "ids must be unique")
     default_assignment = data.get("assignment", DEFAULTS["assignment"])
@@ -126,9 +132,16 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     if not 2 <= len(formations) <= MAX_FORMATIONS:
         raise _field_error("formations", f"must hold 2 to {MAX_FORMATIONS} formations")
     shared = {key: data[key] for key in _SHARED if key in data}
-    dt = _seconds(data["dt"], "dt", positive=True)
+    dt = check_number(data["dt"], "dt", positive=True, within="dt")
+    # checked here, before it weighs any assignment; the legs check every other setting
+    scale = check_vector(shared.get("separation_scale", DEFAULTS["separation_scale"]),
+                         "separation_scale", positive=True, within="separation_scale")
     count = len(ids)
-    names, holds, points, slots, legs = [], [], [], [], []
+    names: list[str] = []
+    holds: list[int] = []
+    points: list[FloatArray] = []
+    slots: list[tuple[int, ...]] = []
+    legs: list[dict[str, Any]] = []
     total = 0
     for f, raw in enumerate(formations):
         where = f"formations[{f}]"
@@ -157,7 +170,6 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
                                    f"must be 'fixed' or 'free', got {assignment!r}")
             order = np.arange(count)
             if assignment == "free":
-                scale = np.asarray(shared.get("separation_scale", [1.0, 1.0, 1.0]), float)
                 order = assign_goals(points[-1], given, scale)
             leg = {
                 "name": f"{name}: {names[-1]} -> {label}", **shared, "steps": steps,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -47,6 +47,18 @@ class QPSolver(Protocol):
 
 def _objective(qp: QuadraticProgram, x: FloatArray) -> float:
     return float(0.5 * x @ (qp.P @ x) + qp.q @ x + qp.constant)
+
+
+def solved(qp: QuadraticProgram, x: FloatArray, iterations: int, seconds: float,
+           duals: FloatArray | None) -> QPSolution:
+    """A backend's "solved" answer, checked: a solution with NaN or infinite entries (or
+    objective) is a breakdown (`FAILED`), so no non-finite trajectory leaves the SCP loop."""
+    if not np.isfinite(x).all():
+        return QPSolution(FAILED, None, float("nan"), iterations, seconds)
+    objective = _objective(qp, x)
+    if not np.isfinite(objective):
+        return QPSolution(FAILED, None, float("nan"), iterations, seconds)
+    return QPSolution(SOLVED, x, objective, iterations, seconds, duals)
 
 
 class PiqpSolver:
@@ -86,7 +98,7 @@ class PiqpSolver:
         if status == piqp.PIQP_SOLVED:
             x = np.array(solver.result.x)
             duals = np.array(solver.result.z_l)[qp.G.shape[0] - qp.separation_rows:]
-            return QPSolution(SOLVED, x, _objective(qp, x), iterations, seconds, duals)
+            return solved(qp, x, iterations, seconds, duals)
         if status in (piqp.PIQP_PRIMAL_INFEASIBLE, piqp.PIQP_DUAL_INFEASIBLE):
             return QPSolution(INFEASIBLE, None, float("nan"), iterations, seconds)
         if status == piqp.PIQP_MAX_ITER_REACHED:
@@ -148,7 +160,7 @@ class ClarabelSolver:
             if qp.separation_rows:
                 z = np.array(sol.z)
                 duals = z[lower_rows_of_g[qp.G.shape[0] - qp.separation_rows:]]
-            return QPSolution(SOLVED, x, _objective(qp, x), int(sol.iterations), seconds, duals)
+            return solved(qp, x, int(sol.iterations), seconds, duals)
         if "Infeasible" in status:
             return QPSolution(INFEASIBLE, None, float("nan"), int(sol.iterations), seconds)
         if status == "MaxIterations":
@@ -167,7 +179,8 @@ class OsqpSolver:
 
         self._osqp = osqp
         self._tolerance = tolerance
-        self._solver: object | None = None
+        self._solver: Any = None
+        """The OSQP instance of the last problem (reused while the sparsity is the same)."""
         self._pattern: tuple[tuple[int, ...], bytes, bytes] | None = None
 
     @staticmethod
@@ -208,7 +221,7 @@ class OsqpSolver:
             x = np.array(result.x)
             end = qp.A.shape[0] + qp.G.shape[0]
             duals = np.maximum(0.0, -np.array(result.y)[end - qp.separation_rows:end])
-            return QPSolution(SOLVED, x, _objective(qp, x), iterations, seconds, duals)
+            return solved(qp, x, iterations, seconds, duals)
         if "infeasible" in status:
             return QPSolution(INFEASIBLE, None, float("nan"), iterations, seconds)
         if "maximum iterations" in status:

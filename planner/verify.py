@@ -8,6 +8,8 @@ the flyability of thrust and body rates.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
@@ -78,50 +80,82 @@ def continuous_minimum(scenario: Scenario, p: FloatArray, v: FloatArray, a: Floa
     return step_min, best[0], best[1], best[2], best[3]
 
 
+def _finite(x: float) -> float | None:
+    """`x`, or None where it is NaN or infinite (undefined: JSON has neither)."""
+    return float(x) if np.isfinite(x) else None
+
+
+def _worst(values: dict[str, float]) -> dict[str, float | None]:
+    return {key: _finite(x) for key, x in values.items()}
+
+
 def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> Verification:
-    """Check trajectories (N, K+1, 3) / (N, K, 3) against every requirement of the scenario."""
+    """Check trajectories (N, K+1, 3) / (N, K, 3) against every requirement of the scenario.
+
+    A figure that cannot be computed (non-finite motion, or a distance that overflows the
+    separation metric) is reported as None and fails its check: undefined is never a pass.
+    """
     lim = scenario.limits
     dt = scenario.dt
-    step_min, cont_min, i, j, when = continuous_minimum(scenario, p, v, a)
-    lo, hi = _position_extremes(p, v, a, dt)
-    jerk = jerk_from_accelerations(a, dt)
-    f = thrust(a)
-    rates = body_rates(a, jerk)
-    violation = {
-        "position": float(max(0.0, np.max(lim.position_min - lo), np.max(hi - lim.position_max))),
-        "velocity": _excess(v, lim.velocity_max),
-        "acceleration": _excess(a, lim.acceleration_max),
-        "jerk": _excess(jerk, lim.jerk_max),
-    }
-    boundary = {
-        "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
-        "start_velocity": float(np.max(np.abs(v[:, 0]))),
-        # each vehicle's own goal: the assigned one under free assignment
-        "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
-        "goal_velocity": float(np.max(np.abs(v[:, -1]))),
-        "goal_acceleration": float(np.max(np.abs(a[:, -1]))),
-    }
-    thrust_range = [float(f.min()), float(f.max())]
-    rate_peak = float(np.max(np.abs(rates[..., :2])))
+    finite = bool(np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all())
+    pairs = len(p) >= 2
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        measurable = finite and bool(np.isfinite(p / scenario.separation_scale).all())
+        if measurable:
+            step_min, cont_min, i, j, when = continuous_minimum(scenario, p, v, a)
+        else:
+            step_min, cont_min, i, j, when = math.nan, math.nan, -1, -1, 0.0
+        lo, hi = _position_extremes(p, v, a, dt)
+        jerk = jerk_from_accelerations(a, dt)
+        f = thrust(a)
+        rates = body_rates(a, jerk)
+        violation = {
+            "position": float(max(0.0, np.max(lim.position_min - lo),
+                                  np.max(hi - lim.position_max))),
+            "velocity": _excess(v, lim.velocity_max),
+            "acceleration": _excess(a, lim.acceleration_max),
+            "jerk": _excess(jerk, lim.jerk_max),
+        }
+        boundary = {
+            "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
+            "start_velocity": float(np.max(np.abs(v[:, 0]))),
+            # each vehicle's own goal: the assigned one under free assignment
+            "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
+            "goal_velocity": float(np.max(np.abs(v[:, -1]))),
+            "goal_acceleration": float(np.max(np.abs(a[:, -1]))),
+        }
+        thrust_range = [float(f.min()), float(f.max())]
+        rate_peak = float(np.max(np.abs(rates[..., :2])))
+    # With two or more vehicles the minimum must be a number: inf or NaN means the metric
+    # overflowed or the motion is undefined, not that the vehicles are far apart.
+    measured = not pairs or (math.isfinite(step_min) and math.isfinite(cont_min) and i >= 0)
     flyable = (
-        thrust_range[0] >= lim.thrust_min
+        finite
+        and bool(np.isfinite(f).all() and np.isfinite(rates).all())
+        and thrust_range[0] >= lim.thrust_min
         and thrust_range[1] <= lim.thrust_max
         and rate_peak <= lim.body_rate_max
     )
+    # NaN compares false everywhere (and max(0.0, nan) is 0.0): finiteness is checked first
+    bounded = finite and all(math.isfinite(x) for x in (*violation.values(),
+                                                        *boundary.values()))
     ids = scenario.ids
     return Verification(
-        min_separation=step_min if np.isfinite(step_min) else None,
-        min_separation_continuous=cont_min if np.isfinite(cont_min) else None,
-        closest_pair=[ids[i], ids[j]] if i >= 0 else [],
-        closest_time=float(when),
-        max_violation=violation,
-        boundary_error=boundary,
-        thrust_range=thrust_range,
-        body_rate_peak=rate_peak,
+        min_separation=step_min if pairs and measured else None,
+        min_separation_continuous=cont_min if pairs and measured else None,
+        closest_pair=[ids[i], ids[j]] if pairs and measured else [],
+        closest_time=float(when) if pairs and measured else 0.0,
+        max_violation=_worst(violation),
+        boundary_error=_worst(boundary),
+        thrust_range=[_finite(x) for x in thrust_range],
+        body_rate_peak=_finite(rate_peak),
         flyable=bool(flyable),
-        separated=bool(cont_min >= scenario.min_separation - SEPARATION_TOLERANCE),
+        separated=bool(not pairs or (measured
+                                     and cont_min >= scenario.min_separation
+                                     - SEPARATION_TOLERANCE)),
         within_bounds=bool(
-            max(violation.values()) <= BOUND_TOLERANCE
+            bounded
+            and max(violation.values()) <= BOUND_TOLERANCE
             and max(boundary.values()) <= BOUND_TOLERANCE
         ),
         separation_tolerance=SEPARATION_TOLERANCE,

@@ -101,19 +101,35 @@ def _summary_rows(plan: Any) -> list[tuple[str, str]]:
             rows += [
                 ("min separation (steps)", f"{v.min_separation:.4f} m (R = {sep:g} m)"),
                 ("min separation (continuous)",
-                 f"{v.min_separation_continuous:.4f} m, {' & '.join(v.closest_pair)} "
-                 f"at t = {v.closest_time:.2f} s"),
+                 f"{_number(v.min_separation_continuous, '{:.4f}')} m, "
+                 f"{' & '.join(v.closest_pair)} at t = {v.closest_time:.2f} s"),
             ]
-        worst = max(v.max_violation.items(), key=lambda kv: kv[1])
+        elif len(plan.vehicles) > 1:
+            rows.append(("min separation", f"undefined (R = {sep:g} m)"))
+        worst = max(v.max_violation.items(), key=lambda kv: -1.0 if kv[1] is None else kv[1])
+        boundary = [x for x in v.boundary_error.values() if x is not None]
         rows += [
-            ("max box violation", f"{worst[1]:.2e} ({worst[0]})"),
-            ("max boundary error", f"{max(v.boundary_error.values()):.2e} m"),
-            ("thrust range", f"{v.thrust_range[0]:.2f} .. {v.thrust_range[1]:.2f} m/s^2"),
-            ("peak body rate", f"{v.body_rate_peak:.3f} rad/s"),
+            ("max box violation", f"{_number(worst[1], '{:.2e}')} ({worst[0]})"),
+            ("max boundary error", f"{_number(max(boundary, default=None), '{:.2e}')} m"),
+            ("thrust range", f"{_number(v.thrust_range[0], '{:.2f}')} .. "
+                             f"{_number(v.thrust_range[1], '{:.2f}')} m/s^2"),
+            ("peak body rate", f"{_number(v.body_rate_peak, '{:.3f}')} rad/s"),
             ("flyable", "yes" if v.flyable else "no"),
-            ("verified", "yes" if v.verified else "NO"),
+            ("checks", "pass" if v.verified else "FAIL"),
         ]
+    # the verdict: the same `Plan.problems` as the exit status and the error line
+    problems = plan.problems()
+    rows.append(("verified", "yes" if not problems else "NO: " + "; ".join(problems)))
     return rows
+
+
+def _verdict(plan: Any) -> int:
+    """Exit status from the plan's one verdict (`Plan.problems`, as in the table)."""
+    problems = plan.problems()
+    if not problems:
+        return EXIT_OK
+    print(f"error: plan not verified: {'; '.join(problems)}", file=sys.stderr)
+    return EXIT_NOT_VERIFIED
 
 
 def _print_summary(plan: Any) -> None:
@@ -175,6 +191,8 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
         error = result.error
         where = f"{error['field']}: " if error.get("field") else ""
         raise ValueError(f"{where}{error['reason']}")
+    if result.plan_json is None:
+        raise ValueError("the planning task returned neither a plan nor an error")
     return planner.Plan.from_dict(json.loads(result.plan_json))
 
 
@@ -263,7 +281,7 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
         plan = show.to_plan()
     except (SolverError, ValueError) as exc:
         return _fail(str(exc))
-    if not args.quiet:
+    if not args.quiet and plan.sequence is not None:
         for leg in plan.sequence["legs"]:
             print(f"leg {leg['name']}: {leg['status']}, {leg['iterations']} SCP iterations, "
                   f"{leg['seconds']:.2f} s", flush=True)
@@ -278,10 +296,7 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
     print(f"plan written to {output}")
     if args.csv_dir is not None:
         print(f"{len(sequence.ids)} CSV files written to {args.csv_dir}")
-    if plan.ok:
-        return EXIT_OK
-    print(f"error: plan not verified: {plan.status}: {plan.message}", file=sys.stderr)
-    return EXIT_NOT_VERIFIED
+    return _verdict(plan)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -329,7 +344,4 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"cannot write {output}: {exc.strerror or exc}")
     _print_summary(plan)
     print(f"plan written to {output}")
-    if plan.ok:
-        return EXIT_OK
-    print(f"error: plan not verified: {plan.status}: {plan.message}", file=sys.stderr)
-    return EXIT_NOT_VERIFIED
+    return _verdict(plan)

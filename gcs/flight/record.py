@@ -39,6 +39,7 @@ from gcs.flight.margin import MarginCheck
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.stream import jitter_stats
 from planner import Plan
+from planner.verify import SEPARATION_TOLERANCE
 
 if TYPE_CHECKING:
     from gcs.flight.vehicle import VehicleStatus
@@ -232,11 +233,17 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     separation, _ = measured_min_separation(times, positions, t0, min(end, now),
                                             options.rate_hz, scale)
     out["min_separation_measured"] = finite_or_none(separation)
+    required = out["min_separation_required"]
+    # judged as the planner verifies a plan: within its one SEPARATION_TOLERANCE
+    unknown = len(vehicles) > 1 and out["min_separation_measured"] is None
     if out["min_separation_measured"] is not None:
-        out["separation_held"] = separation >= out["min_separation_required"]
+        out["separation_held"] = bool(separation >= required - SEPARATION_TOLERANCE)
         if not out["separation_held"]:
-            why.append(f"vehicles came {separation:.2f} m apart, closer than the "
-                       f"{out['min_separation_required']:.2f} m they must keep")
+            why.append(f"vehicles came {separation:.4f} m apart, closer than the "
+                       f"{required:.4f} m they must keep")
+    elif unknown:
+        why.append("separation unknown: too few or non-finite position reports to measure "
+                   "how close the vehicles came")
     goal_errors = [v.goal_error for v in vehicles if not math.isnan(v.goal_error)]
     if goal_errors:
         out["goal_error_max"] = max(goal_errors)
@@ -255,7 +262,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     out["completed"] = bool(
         error is None and not out["faults"] and len(goal_errors) == len(vehicles)
         and all(v.goal_error <= tolerances[v.id] for v in vehicles) and landed_ok
-        and not (promised and out["separation_held"] is False))
+        and not (promised and (out["separation_held"] is False or unknown)))
     why += [f"{vid}: fault {kind}" for vid, kind in out["faults"].items()]
     why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerances[v.id]:.2f} m)"
             for v in vehicles
@@ -267,5 +274,6 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     if out["completed"]:
         why.insert(0, f"complete: every vehicle within {max(tolerances.values()):.2f} m of "
                       f"its goal"
-                      + (", landed and disarmed" if options.at_end == "land" else ", holding"))
+                      + (", landed and disarmed" if options.at_end == "land" else ", holding")
+                      + ("; separation unknown" if unknown else ""))
     return out

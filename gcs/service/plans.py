@@ -20,7 +20,7 @@ from gcs.service.statuses import MissionStatus
 from gcs.service.store import Store
 from planner import Plan, PlanFormatError
 
-__all__ = ["PlanCache", "sample_times", "trajectory_csv", "trajectory_json"]
+__all__ = ["PlanCache", "csv_text_field", "sample_times", "trajectory_csv", "trajectory_json"]
 
 
 class PlanCache:
@@ -116,7 +116,16 @@ def trajectory_json(mission_id: str, plan: Plan, rate: float, max_rows: int) -> 
 CSV_HEADER = "vehicle,t,x,y,z,vx,vy,vz,ax,ay,az\n"
 
 
-def _csv_field(text: str) -> str:
+#: Leading characters that make a spreadsheet read a cell as a formula (OWASP CSV injection).
+FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def csv_text_field(text: str) -> str:
+    """A text cell (such as a vehicle id) safe to open in a spreadsheet: a leading formula
+    trigger is neutralised with a single quote (OWASP), then the cell is quoted if needed.
+    Numbers never go through here: a negative coordinate stays a number."""
+    if text.startswith(FORMULA_TRIGGERS):
+        text = "'" + text
     if any(c in text for c in ',"\r\n'):
         return '"' + text.replace('"', '""') + '"'
     return text
@@ -134,6 +143,6 @@ def trajectory_csv(plan: Plan, rate: float, max_rows: int) -> str:
         )
         # Rounded to the printed precision, then + 0.0: no "-0.000000" for tiny negatives.
         table = np.round(table, 6) + 0.0
-        prefix = _csv_field(vehicle.id).replace("%", "%%")
+        prefix = csv_text_field(vehicle.id).replace("%", "%%")
         np.savetxt(out, table, fmt=prefix + ",%.6f" + ",%.6f" * 9)
     return out.getvalue()

@@ -81,3 +81,45 @@ def test_version(capsys):
     printed = capsys.readouterr().out.split()
     assert printed[0] == "fleetplan"
     assert printed[1][0].isdigit()  # the installed package's version, e.g. 0.1.0
+
+
+def _table_row(printed: str, label: str) -> str:
+    """The value column of the summary-table row `label` (rich box or plain text)."""
+    for line in printed.splitlines():
+        cells = [c.strip() for c in line.replace("│", "|").split("|") if c.strip()]
+        if cells and cells[0] == label:
+            return " ".join(cells[1:])
+    raise AssertionError(f"no row {label!r} in:\n{printed}")
+
+
+def test_the_table_and_the_exit_verdict_are_one_verification(tmp_path, capsys):
+    """max_iterations 1 stops an 8-vehicle circle before it converges: its checks pass, but
+    the plan is not verified, and the table says the same as the error line."""
+    data = json.loads((EXAMPLES / "paper-circle8.json").read_text())
+    data["max_iterations"] = 1
+    path = tmp_path / "short.json"
+    path.write_text(json.dumps(data))
+    assert main(["plan", str(path), "-o", str(tmp_path / "p.json"), "-q"]) == 1
+    captured = capsys.readouterr()
+    verified = _table_row(captured.out, "verified")
+    assert verified.startswith("NO") and "max_iterations" in verified
+    assert "error: plan not verified: status max_iterations" in captured.err
+    assert _table_row(captured.out, "checks") == "pass"
+
+
+def test_a_converged_plan_reads_verified_in_both(tmp_path, capsys):
+    assert main(["plan", str(EXAMPLES / "paper-circle2.json"), "-o",
+                 str(tmp_path / "p.json"), "-q"]) == 0
+    captured = capsys.readouterr()
+    assert _table_row(captured.out, "verified") == "yes"
+    assert "error" not in captured.err
+
+
+def test_a_scale_that_would_overflow_the_metric_is_bad_input(tmp_path, capsys):
+    data = json.loads((EXAMPLES / "paper-circle4.json").read_text())
+    data["separation_scale"] = [1e-300, 1e-300, 1e-300]
+    path = tmp_path / "tiny.json"
+    path.write_text(json.dumps(data))
+    assert main(["plan", str(path), "-o", str(tmp_path / "p.json"), "-q"]) == 2
+    assert "separation_scale[0]: must be between 0.1 and 10" in capsys.readouterr().err
+    assert not (tmp_path / "p.json").exists()

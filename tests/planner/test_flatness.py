@@ -50,3 +50,13 @@ def test_body_rates_match_the_derivative_of_the_attitude():
 def test_thrust_is_the_norm_of_a_plus_g():
     a = np.array([[3.0, 4.0, -GRAVITY], [0.0, 0.0, 1.0]])
     np.testing.assert_allclose(thrust(a), [5.0, GRAVITY + 1.0])
+
+
+def test_free_fall_and_sideways_thrust_give_finite_rates():
+    """At zero thrust (a = -g) the attitude is undefined and with thrust along x the yaw-0
+    frame degenerates: the rates stay finite (huge where the vehicle cannot follow), so a
+    plan carries numbers, never NaN."""
+    a = np.array([[0.0, 0.0, -GRAVITY], [1.0, 0.0, -GRAVITY], [0.0, 0.0, 0.0]])
+    with np.errstate(all="raise"):
+        rates = body_rates(a, jerk_from_accelerations(a, 0.1))
+    assert np.isfinite(rates).all()

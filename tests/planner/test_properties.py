@@ -4,6 +4,10 @@ converged that fails its own independent verification."""
 
 from __future__ import annotations
 
+import json
+import math
+from typing import Any
+
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -11,6 +15,7 @@ from hypothesis import strategies as st
 import planner
 from planner import ScenarioError
 from planner.verify import verify
+from tests.planner.conftest import load_example
 
 
 @st.composite
@@ -68,3 +73,145 @@ def test_plan_is_verified_or_explicitly_not(data):
     # Every iterate after the first QP is separated, converged or not.
     if len(plan.iterations) > 1:
         assert check.separated
+
+
+#: Magnitudes that break naive arithmetic: overflow when squared or divided by, underflow,
+#: subnormals, negative zero, integers beyond any float, and what JSON cannot carry.
+EXTREMES = [
+    1e-300, -1e-300, 1e300, -1e300, 5e-324, -5e-324, 2.2250738585072014e-308,
+    1.7976931348623157e308, -0.0, 0.0, 10**400, -(10**400), 2**63, 2**53 + 1, -(2**63),
+    math.nan, math.inf, -math.inf, 1e-9, 1e9,
+]
+
+#: Every numeric field of a scenario, as a path into the JSON document.
+NUMERIC_FIELDS = [
+    ("dt",), ("steps",), ("min_separation",), ("separation_margin",), ("cost_threshold",),
+    ("max_iterations",),
+    *[("separation_scale", i) for i in range(3)],
+    *[("limits", key, i) for key in ("position_min", "position_max", "velocity_max",
+                                     "acceleration_max", "jerk_max") for i in range(3)],
+    ("limits", "thrust_min"), ("limits", "thrust_max"), ("limits", "body_rate_max"),
+    *[("vehicles", n, end, i) for n in range(2) for end in ("start", "goal")
+      for i in range(3)],
+]
+
+
+def _dotted(path: tuple[Any, ...]) -> str:
+    out = ""
+    for key in path:
+        out += f"[{key}]" if isinstance(key, int) else (f".{key}" if out else key)
+    return out
+
+
+def _base_scenario() -> dict[str, Any]:
+    data = load_example("paper-circle2")
+    data.update(steps=60, separation_scale=[1.0, 1.0, 1.0], separation_margin=0.0)
+    data["limits"]["velocity_max"] = [3.0, 3.0, 3.0]
+    for vehicle, (start, goal) in zip(data["vehicles"], [([1.0, 2.5, 1.1], [4.0, 2.5, 1.1]),
+                                                         ([4.0, 2.5, 1.9], [1.0, 2.5, 1.9])],
+                                      strict=True):
+        vehicle.update(start=start, goal=goal)
+    return data
+
+
+def _finite_figures(value: Any) -> bool:
+    """Every number in a JSON-like value is finite (None stands for undefined)."""
+    if isinstance(value, dict):
+        return all(_finite_figures(v) for v in value.values())
+    if isinstance(value, list | tuple):
+        return all(_finite_figures(v) for v in value)
+    if isinstance(value, float):
+        return math.isfinite(value)
+    return True
+
+
+def test_the_base_of_the_extreme_magnitudes_plans():
+    """The scenario the next test perturbs is valid and flies a crossing (so a perturbation
+    that is accepted exercises the separation rows)."""
+    plan = planner.plan(_base_scenario())
+    assert plan.ok, plan.message
+    assert plan.iterations[-1].separation_rows > 0
+
+
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(st.sampled_from(NUMERIC_FIELDS),
+       st.one_of(st.sampled_from(EXTREMES), st.floats(), st.integers(),
+                 st.floats(-12.0, 12.0)))
+def test_extreme_magnitudes_are_refused_by_name_or_planned_soundly(path, value):
+    """Any magnitude on any numeric field gives either a validation error naming a field and
+    saying why, or a plan whose verification is finite and agrees with itself; never an
+    overflow, a NaN in the JSON, or a check that passes because it could not be computed."""
+    data = _base_scenario()
+    node = data
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    try:
+        with np.errstate(all="raise"):  # validation does no arithmetic that can overflow
+            scenario = planner.Scenario.from_dict(data)
+    except ScenarioError as error:
+        assert error.field and error.reason
+        assert len(error.reason) < 300  # a huge integer is not spelled out
+        # the value's own field, or a check relating it to another (workspace, R, ...)
+        assert error.field == _dotted(path) or error.field.startswith(
+            ("vehicles[", "limits.position_max", "limits.thrust_max", "separation_margin"))
+        return
+    # Accepted: the work is bounded by the ranges; plan and check the result.
+    assert scenario.steps * len(scenario.vehicles) <= 5000 * 1000
+    plan = planner.plan(scenario)
+    document = plan.to_dict()
+    json.dumps(document, allow_nan=False)
+    if plan.verification is None:
+        assert plan.status == "infeasible"
+        return
+    check = verify(scenario, plan.positions(), plan.velocities(), plan.accelerations())
+    assert check == plan.verification
+    assert _finite_figures(document["verification"])
+    if check.separated:
+        assert check.min_separation_continuous is not None
+        assert check.min_separation_continuous >= (scenario.min_separation
+                                                   - check.separation_tolerance)
+    assert plan.ok == (plan.status == "converged" and check.verified)
+
+
+#: Every numeric field of a formation sequence that is not a leg scenario's own setting.
+SEQUENCE_FIELDS = [
+    ("dt",), ("formations", 1, "duration"), ("formations", 1, "hold"),
+    ("formations", 0, "hold"), ("formations", 1, "positions", 0, 0),
+    ("formations", 1, "positions", 1, 2), ("separation_scale", 1),
+]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(SEQUENCE_FIELDS),
+       st.one_of(st.sampled_from(EXTREMES), st.floats(), st.integers()))
+def test_extreme_magnitudes_in_a_sequence_are_refused_by_name(path, value):
+    """The same magnitudes on a sequence's own numbers: parsed into legs or refused naming a
+    field, without overflow and without a leg longer than a scenario may be."""
+    from planner.scenario import MAX_STEPS
+    from planner.sequence import parse_sequence
+
+    data = {
+        "name": "property", "dt": 0.2, "min_separation": 1.0,
+        "separation_scale": [1.0, 1.0, 1.0],
+        "limits": {"position_min": [0, 0, 0], "position_max": [6, 6, 3],
+                   "velocity_max": [2, 2, 2], "acceleration_max": [3, 3, 3]},
+        "vehicles": ["a", "b"],
+        "formations": [
+            {"positions": [[1, 1, 1], [4, 1, 1]]},
+            {"positions": [[1, 4, 1], [4, 4, 1]], "duration": 6.0, "hold": 1.0},
+        ],
+    }
+    node: Any = data
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    try:
+        with np.errstate(all="raise"):
+            sequence = parse_sequence(data)
+    except ScenarioError as error:
+        assert error.field and error.reason and len(error.reason) < 300
+        return
+    assert all(3 <= leg["steps"] <= MAX_STEPS for leg in sequence.legs)
+    assert sum(sequence.holds) <= 10 * MAX_STEPS

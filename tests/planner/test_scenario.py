@@ -100,3 +100,96 @@ def test_separation_scale_changes_which_starts_are_too_close():
 
 def test_not_an_object():
     assert _error([1, 2]).field == "scenario"  # type: ignore[arg-type]
+
+
+HUGE_INT = 10**400  # beyond any float: float(HUGE_INT) raises OverflowError
+SUBNORMAL = 5e-324
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "field"),
+    [
+        (["separation_scale"], [1e-300, 1e-300, 1e-300], "separation_scale[0]"),
+        (["separation_scale"], [1.0, 1.0, 1e300], "separation_scale[2]"),
+        (["separation_scale"], [1.0, SUBNORMAL, 1.0], "separation_scale[1]"),
+        (["separation_scale"], [1.0, 1.0, HUGE_INT], "separation_scale[2]"),
+        (["dt"], 1e-300, "dt"),
+        (["dt"], 1e300, "dt"),
+        (["dt"], HUGE_INT, "dt"),
+        (["dt"], -0.0, "dt"),
+        (["steps"], HUGE_INT, "steps"),
+        (["steps"], 1e300, "steps"),
+        (["steps"], -0.0, "steps"),
+        (["min_separation"], SUBNORMAL, "min_separation"),
+        (["min_separation"], 1e300, "min_separation"),
+        (["min_separation"], HUGE_INT, "min_separation"),
+        (["cost_threshold"], 1e-300, "cost_threshold"),
+        (["cost_threshold"], 1e300, "cost_threshold"),
+        (["max_iterations"], HUGE_INT, "max_iterations"),
+        (["max_iterations"], 1e300, "max_iterations"),
+        (["separation_margin"], HUGE_INT, "separation_margin"),
+        (["limits", "position_min"], [-1e300, 0.0, 0.0], "limits.position_min[0]"),
+        (["limits", "position_max"], [5.0, HUGE_INT, 3.0], "limits.position_max[1]"),
+        (["limits", "velocity_max"], [1e-300, 2.0, 2.0], "limits.velocity_max[0]"),
+        (["limits", "velocity_max"], [2.0, 1e300, 2.0], "limits.velocity_max[1]"),
+        (["limits", "acceleration_max"], [3.0, 3.0, SUBNORMAL], "limits.acceleration_max[2]"),
+        (["limits", "acceleration_max"], [HUGE_INT, 3.0, 3.0], "limits.acceleration_max[0]"),
+        (["limits", "jerk_max"], [5.0, 1e300, 5.0], "limits.jerk_max[1]"),
+        (["limits", "jerk_max"], [5.0, 5.0, 1e-300], "limits.jerk_max[2]"),
+        (["limits", "thrust_min"], 1e300, "limits.thrust_min"),
+        (["limits", "thrust_max"], 1e300, "limits.thrust_max"),
+        (["limits", "thrust_max"], HUGE_INT, "limits.thrust_max"),
+        (["limits", "body_rate_max"], 1e-300, "limits.body_rate_max"),
+        (["limits", "body_rate_max"], 1e300, "limits.body_rate_max"),
+        (["vehicles", 0, "start"], [4.5, 2.5, HUGE_INT], "vehicles[0].start[2]"),
+        (["vehicles", 2, "goal"], [1e300, 2.5, 1.1], "vehicles[2].goal[0]"),
+    ],
+    ids=lambda x: "huge-int" if x is HUGE_INT else None,
+)
+def test_numbers_outside_their_sane_range_are_refused(path, value, field):
+    """No magnitude switches a check off or overflows what is derived from it: every number
+    has a range, and a value outside it is an error naming the field and the range."""
+    error = _error(_mutate(path, value))
+    assert error.field == field
+    assert "must be" in error.reason
+    assert len(error.reason) < 200  # a huge integer is not printed digit by digit
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"separation_scale": [0.1, 0.1, 0.1]},
+        {"separation_scale": [10.0, 10.0, 10.0], "min_separation": 0.1},
+        {"dt": 0.05, "steps": 5000},
+        {"cost_threshold": 1e-9},
+        {"max_iterations": 1000.0},
+        {"min_separation": 0.01},
+    ],
+)
+def test_numbers_at_the_ends_of_their_ranges_are_accepted(changes):
+    data = _base() | changes
+    data["limits"]["position_min"] = [-0.0, 0.0, -0.0]  # negative zero is zero
+    Scenario.from_dict(data)
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "field"),
+    [
+        (["vehicles", 1, "id"], "uav\x002", "vehicles[1].id"),
+        (["vehicles", 0, "id"], "uav1\r\n=cmd", "vehicles[0].id"),
+        (["vehicles", 2, "id"], "\tuav3", "vehicles[2].id"),
+        (["vehicles", 3, "id"], "uav\x1b[31m4", "vehicles[3].id"),
+        (["vehicles", 3, "id"], "uav\x7f", "vehicles[3].id"),
+        (["vehicles", 3, "id"], "uav\u202e4", "vehicles[3].id"),  # bidi override
+        (["vehicles", 3, "id"], "u" * 65, "vehicles[3].id"),
+    ],
+)
+def test_vehicle_ids_with_control_characters_are_refused(path, value, field):
+    error = _error(_mutate(path, value))
+    assert error.field == field
+    assert "character" in error.reason or "at most" in error.reason
+
+
+def test_printable_ids_are_kept_as_given():
+    data = _mutate(["vehicles", 0, "id"], "=uav 1 ü")
+    assert Scenario.from_dict(data).ids[0] == "=uav 1 ü"

@@ -122,7 +122,7 @@ def test_sequence_errors_name_the_field(small):
     assert _broken(small, ["formations", 0, "duration"], 5) == "formations[0].duration"
     assert _broken(small, ["formations", 2, "positions"], sphere[:3]) == "formations[2].positions"
     assert (_broken(small, ["formations", 1, "positions", 2], [1, "x", 2])
-            == "formations[1].positions[2]")
+            == "formations[1].positions[2][1]")
     close = copy.deepcopy(sphere)
     close[4] = [close[3][0] + 0.1, close[3][1], close[3][2]]
     assert _broken(small, ["formations", 1, "positions"], close).startswith(
@@ -132,6 +132,27 @@ def test_sequence_errors_name_the_field(small):
     assert _broken(small, ["formations"], small["formations"][:1]) == "formations"
     assert _broken(small, ["vehicles"], ["a"] * 9) == "vehicles"
     assert _broken(small, ["assignment"], "some") == "assignment"
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "field"),
+    [
+        (["dt"], 1e-300, "dt"),
+        (["dt"], 10**400, "dt"),
+        (["separation_scale"], [1e-300, 1e-300, 1e-300], "separation_scale[0]"),
+        (["formations", 1, "duration"], 1e308, "formations[1].duration"),
+        (["formations", 1, "hold"], 1e300, "formations[1].hold"),
+        (["formations", 1, "positions", 0], [1e300, 0.0, 1.0], "formations[1].positions[0][0]"),
+        (["formations", 1, "positions", 0], [10**400, 0.0, 1.0],
+         "formations[1].positions[0][0]"),
+        (["vehicles", 3], "uav\x004", "vehicles[3]"),
+        (["vehicles", 0], "\x1b]0;owned\x07", "vehicles[0]"),
+    ],
+    ids=lambda x: "huge-int" if x == 10**400 else None,
+)
+def test_sequence_numbers_and_ids_outside_their_ranges_are_refused(small, path, value, field):
+    """Checked before any assignment or step count is derived from them."""
+    assert _broken(small, path, value) == field
 
 
 def test_csv_has_one_file_per_vehicle_with_millisecond_times(planned):

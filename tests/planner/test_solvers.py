@@ -76,3 +76,26 @@ def test_every_backend_plans_a_paper_case(solver):
     plan = planner.plan(load_example("paper-random4"), solver=solver)
     assert plan.ok
     assert plan.solver == solver
+
+
+def test_a_non_finite_solution_is_a_solver_failure_not_a_plan(monkeypatch):
+    """A backend that answers "solved" with NaN in x must not put NaN trajectories in a
+    plan: the answer counts as a breakdown and the plan says so, in strict JSON."""
+    import json
+
+    from planner.solvers import PiqpSolver, solved
+
+    class Broken(PiqpSolver):
+        name = "broken"
+
+        def solve(self, qp, warm_start=None):
+            good = super().solve(qp, warm_start)
+            x = good.x.copy()
+            x[len(x) // 2] = np.nan
+            return solved(qp, x, good.iterations, good.seconds, good.separation_duals)
+
+    monkeypatch.setitem(SOLVERS, "broken", Broken)
+    plan = planner.plan(load_example("paper-circle2"), solver="broken")
+    assert not plan.ok and plan.status == "infeasible"
+    assert "failed" in plan.message
+    json.dumps(plan.to_dict(), allow_nan=False)

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
+import pytest
 
 import planner
 from planner.dynamics import integrate
+from planner.types import FloatArray
 from planner.verify import verify
 from tests.planner.conftest import load_example
 
@@ -73,3 +76,45 @@ def test_limits_and_flyability():
                    plan.velocities(), plan.accelerations())
     assert not check.flyable
     assert check.thrust_range[1] > 9.81
+
+
+def _hovering_pair(gap: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Two vehicles hovering `gap` m apart along x for 4 steps of 1 s."""
+    p = np.zeros((2, 5, 3))
+    p[0, :] = [2.0, 2.5, 1.5]
+    p[1, :] = [2.0 + gap, 2.5, 1.5]
+    return p, np.zeros((2, 5, 3)), np.zeros((2, 4, 3))
+
+
+@pytest.mark.parametrize("scale", [1e-300, 5e-324])
+def test_an_overflowing_distance_is_not_separated(scale):
+    """Scaled by 1e-300, 0.40 m is 4e299 and its square overflows: the distance is
+    undefined, and undefined is a failure, never 'separated'."""
+    scenario = _two_vehicle_scenario(steps=4, dt=1.0)
+    # the scenario parser refuses this scale; the verifier must not depend on that
+    tiny = dataclasses.replace(scenario, separation_scale=np.full(3, scale))
+    with np.errstate(all="raise"):  # and no floating-point warning escapes
+        check = verify(tiny, *_hovering_pair(0.40))
+    assert not check.separated and not check.verified
+    assert check.min_separation is None and check.min_separation_continuous is None
+    assert any("separation" in f and "undefined" in f for f in check.failures())
+
+
+def test_non_finite_trajectories_fail_every_check():
+    scenario = _two_vehicle_scenario(steps=4, dt=1.0)
+    p, v, a = _hovering_pair(3.0)
+    p[1, 2, 0] = np.nan
+    a[0, 1, 2] = np.inf
+    check = verify(scenario, p, v, a)
+    assert not (check.separated or check.within_bounds or check.flyable)
+    assert check.min_separation is None and check.min_separation_continuous is None
+    assert len(check.failures()) == 3
+    # and the verification block stays valid JSON (no NaN, no Infinity)
+    json.dumps(dataclasses.asdict(check), allow_nan=False)
+
+
+def test_one_vehicle_is_separated_by_definition():
+    scenario = planner.Scenario.from_dict(
+        load_example("paper-circle2") | {"vehicles": load_example("paper-circle2")["vehicles"][:1]})
+    check = verify(scenario, *(x[:1] for x in _hovering_pair(0.0)))
+    assert check.separated and check.min_separation is None and check.closest_pair == []
