@@ -160,9 +160,9 @@ export async function showMission(id, key) {
   if (missionIs(data.status, "active")) { followPlanning(data, key); return; }
   finishPlanning();
   refreshMissionList();
-  $("#plan-state").innerHTML = "";
   if (missionIs(data.status, "failed") || !data.plan) {
     planning.rejected = true;
+    $("#plan-state").innerHTML = "";
     $("#plan-state").append(badge(false, `planning failed: ${data.error ? data.error.reason : data.status}`));
     if (data.error && data.error.field) showError(data.error.field, data.error.reason);
     refreshStale();
@@ -173,12 +173,15 @@ export async function showMission(id, key) {
   planning.shownKey = key;
   planning.rejected = false;
   $("#mission-title").textContent = `${data.name} · ${data.id}`;
-  $("#plan-state").append(badge(data.plan_ok, `${data.plan_status}${data.plan_ok ? ", verified" : ", not verified"}`));
-  $("#plan-state").title = data.plan.message || "";
-  if (!data.plan_ok && data.plan.message) $("#plan-state").append(` · ${data.plan.message}`);
   if (changed && !flight.active) { closeReplay(); clearFlightView(); }
-  $("#progress-log").hidden = true;  // the solver figures below sum it up
   await renderPlan(data);
+  // The plan's status once its views are drawn: what it says is on screen.
+  const state = $("#plan-state");
+  state.innerHTML = "";
+  state.append(badge(data.plan_ok, `${data.plan_status}${data.plan_ok ? ", verified" : ", not verified"}`));
+  state.title = data.plan.message || "";
+  if (!data.plan_ok && data.plan.message) state.append(` · ${data.plan.message}`);
+  $("#progress-log").hidden = true;  // the solver figures below sum it up
   refreshStale();
   loadFlights(data.id);
 }

@@ -42,9 +42,10 @@ def browser() -> Iterator[Browser]:
             launched.close()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
-    """`fleetplan serve` with 4 mock vehicles on free ports."""
+    """`fleetplan serve` with 4 mock vehicles on free ports, shared by every browser test:
+    each test opens its own page, and each flight a test starts ends before the test does."""
     workdir = tmp_path_factory.mktemp("web")
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
     with ServiceProcess(workdir, "--mock", "4", "--workers", "1", env=env) as running:

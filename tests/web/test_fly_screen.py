@@ -1,7 +1,7 @@
 """The fly screen at 1440x900 while mock vehicles fly: the top-down view with labelled live
 icons, planned paths and trails, the fleet table with health colours beside it, the progress
 bar on the plan's time slider following the flight, a clamped clock once the plan is flown,
-pause/resume and per-vehicle commands (their planned endpoints given through routes, see
+pause/resume of the flight itself, per-vehicle commands (answered through routes, see
 test_controls_and_health), and Abort from anywhere."""
 
 from __future__ import annotations
@@ -85,8 +85,11 @@ def test_fly_screen_follows_the_flight_then_abort(
     page.click("#pause-button")
     expect(page.locator("#resume-button")).to_be_enabled()
     expect(page.locator("#pause-button")).to_be_disabled()
+    expect(status).to_have_attribute("data-status", "paused")  # the service paused it
     page.click("#resume-button")
     expect(page.locator("#pause-button")).to_be_enabled()
+    expect(page.locator("#resume-button")).to_be_disabled()
+    expect(status).to_have_attribute("data-status", "running")
     page.locator('#vehicle-state tr[data-id="c"] button[data-vehicle-command="land"]').click()
     expect(page.locator("#command-result")).to_have_text("land sent to c")
     assert sent == [(f"/api/executions/{execution_id}/pause", None),
