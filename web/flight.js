@@ -62,7 +62,11 @@ export function followExecution(execution) {
   source.addEventListener("telemetry", (ev) => showTelemetry(JSON.parse(ev.data)));
   source.addEventListener("event", (ev) => logEvent(JSON.parse(ev.data)));
   source.addEventListener("status", (ev) => {
-    setExecutionStatus(JSON.parse(ev.data).status);
+    const { status } = JSON.parse(ev.data);
+    setExecutionStatus(status);
+    // Paused or not as the flight says (once a pause answer named the paused status): a
+    // flight paused elsewhere, resumed, or aborting while paused sets the buttons right.
+    if (flight.pausedStatus) { flight.paused = status === flight.pausedStatus; updateCommandButtons(); }
     if (planning.mission) loadFlights(planning.mission.id);  // its badges follow
     refreshMissionList();
   });

@@ -83,10 +83,13 @@ def test_fly_screen_follows_the_flight_then_abort(
     # Pause and resume go to this flight; per-vehicle commands from the vehicle's row.
     execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
     page.click("#pause-button")
+    # The service's answers may be slow on a busy machine: awaited, not timed.
+    expect(page.locator("#command-result")).to_have_text("paused", timeout=30_000)
     expect(page.locator("#resume-button")).to_be_enabled()
     expect(page.locator("#pause-button")).to_be_disabled()
     expect(status).to_have_attribute("data-status", "paused")  # the service paused it
     page.click("#resume-button")
+    expect(page.locator("#command-result")).to_have_text("resumed", timeout=30_000)
     expect(page.locator("#pause-button")).to_be_enabled()
     expect(page.locator("#resume-button")).to_be_disabled()
     expect(status).to_have_attribute("data-status", "running")
