@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
+from playwright.sync_api import Browser, BrowserContext, Page, ViewportSize, sync_playwright
 
 from tests.api.support import ServiceProcess, free_udp_base
 
@@ -53,8 +53,8 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess
 
 
 #: The operator's screens the page is made for: a laptop and a phone.
-DESKTOP = {"width": 1440, "height": 900}
-PHONE = {"width": 390, "height": 844}
+DESKTOP: ViewportSize = {"width": 1440, "height": 900}
+PHONE: ViewportSize = {"width": 390, "height": 844}
 
 
 @pytest.fixture
@@ -63,7 +63,7 @@ def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..
     before it loads (to install routes). Every page must end without JavaScript errors."""
     contexts: list[tuple[BrowserContext, list[str]]] = []
 
-    def opener(viewport: dict[str, int] = DESKTOP,
+    def opener(viewport: ViewportSize = DESKTOP,
                before: Callable[[Page], None] | None = None) -> Page:
         context = browser.new_context(viewport=viewport)
         opened = context.new_page()

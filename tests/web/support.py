@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from typing import Any
 
 import httpx
@@ -25,7 +26,7 @@ VEHICLES = [
 
 def fill_scenario(
     page: Page, name: str = "browser-swap", steps: int = 100,
-    vehicles: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = VEHICLES,
+    vehicles: Sequence[tuple[str, tuple[float, ...], tuple[float, ...]]] = VEHICLES,
 ) -> None:
     """Type a whole scenario into the form, as an operator would."""
     page.fill("#f-name", name)

@@ -60,14 +60,17 @@ def test_fly_screen_follows_the_flight_then_abort(
                 icons: Array.from(document.querySelectorAll('#fly-view g.vehicle-icon text'),
                                   (t) => t.textContent)};
     }""", timeout=60_000).json_value()
-    mission_time = float(re.search(r"t = (\d+\.\d) s of 10\.0 s", now["label"]).group(1))
+    reading = re.search(r"t = (\d+\.\d) s of 10\.0 s", now["label"])
+    assert reading, now["label"]
+    mission_time = float(reading.group(1))
     assert now["slider"] == round(mission_time * 10)  # trajectory sampled at 10 Hz
     assert abs(now["progress"] - 1000 * mission_time / 10.0) <= 6
     # Live icons: one per vehicle, labelled with id and altitude.
     parsed = [ICON_LABEL.match(text) for text in now["icons"]]
-    assert all(parsed), now["icons"]
-    assert sorted(m.group(1) for m in parsed) == ["a", "b", "c", "d"]
-    assert all(0.1 < float(m.group(2)) <= 3.0 for m in parsed), now  # airborne, in the box
+    labels = [m for m in parsed if m]
+    assert len(labels) == len(parsed), now["icons"]
+    assert sorted(m.group(1) for m in labels) == ["a", "b", "c", "d"]
+    assert all(0.1 < float(m.group(2)) <= 3.0 for m in labels), now  # airborne, in the box
     expect(page.locator("#fly-view polyline.planned-path")).to_have_count(4)
     expect(page.locator("#fly-view polyline.trail")).to_have_count(4)
     expect(page.locator("#fly-view circle.planned-icon")).to_have_count(4)

@@ -23,6 +23,7 @@ def test_plan_clicked_as_soon_as_enabled_sends_the_whole_preset(
         plan_button.click()
     request: Request = sent.value
     body = request.post_data_json
+    assert body is not None
     preset = example("paper-circle4")
     assert body["limits"]["position_min"] == preset["limits"]["position_min"]
     assert [v["id"] for v in body["vehicles"]] == [v["id"] for v in preset["vehicles"]]
