@@ -1,20 +1,23 @@
+// @ts-check
 // The top-down fly view: planned paths, where each vehicle should be at the slider's time,
 // where it is (live or replayed) with a label (id, altitude) and its trail, a scale bar and,
 // when the fleet has a geodetic origin, latitude/longitude at the corners. No map tiles: the
 // page works offline. Pure drawing: no fetches, no page state.
-"use strict";
+import { svgEl } from "./dom.js";
 
-const NS = "http://www.w3.org/2000/svg";
+/** @typedef {{lat: number, lon: number}} LatLon */
+/** @typedef {{lo: number[], hi: number[], scale: number,
+ *   toSvg: (x: number, y: number) => number[]}} ViewTransform */
+/** @typedef {{id: string, color: string, position?: number[] | null, velocity?: number[],
+ *   trail?: number[][], alert?: boolean}} MovingVehicle */
+
 export const VIEW = 400;  // viewBox size (square)
 
-export function svgEl(tag, attrs, parent) {
-  const el = document.createElementNS(NS, tag);
-  for (const [k, v] of Object.entries(attrs)) el.setAttribute(k, v);
-  if (parent) parent.appendChild(el);
-  return el;
-}
-
-/** World (x east, y north; m) <-> viewBox coordinates for the workspace box [lo, hi]. */
+/** World (x east, y north; m) <-> viewBox coordinates for the workspace box [lo, hi].
+ * @param {number[]} lo
+ * @param {number[]} hi
+ * @param {number} [pad]
+ * @returns {ViewTransform} */
 export function viewTransform(lo, hi, pad = 28) {
   const span = Math.max(hi[0] - lo[0], hi[1] - lo[1]);
   const scale = (VIEW - 2 * pad) / span;
@@ -29,7 +32,11 @@ export function viewTransform(lo, hi, pad = 28) {
 
 /** Latitude and longitude (degrees) of world point (x east, y north) for a geodetic origin
  * {lat, lon}: the local tangent plane on the WGS-84 ellipsoid, good to centimetres over a
- * few kilometres, which is all a fleet's workspace spans. */
+ * few kilometres, which is all a fleet's workspace spans.
+ * @param {LatLon} origin
+ * @param {number} x
+ * @param {number} y
+ * @returns {LatLon} */
 export function toGeodetic(origin, x, y) {
   const a = 6378137.0, e2 = 6.69437999014e-3;
   const phi = (origin.lat * Math.PI) / 180;
@@ -42,7 +49,9 @@ export function toGeodetic(origin, x, y) {
   };
 }
 
-/** The longest 1, 2 or 5 x 10^k metres not longer than `max` metres. */
+/** The longest 1, 2 or 5 x 10^k metres not longer than `max` metres.
+ * @param {number} max
+ * @returns {number} */
 export function niceLength(max) {
   if (!(max > 0)) return 1;
   const p = 10 ** Math.floor(Math.log10(max));
@@ -50,11 +59,19 @@ export function niceLength(max) {
   return p;
 }
 
+/** @param {number} d @param {string} pos @param {string} neg */
 const fmtDeg = (d, pos, neg) => `${Math.abs(d).toFixed(6)}° ${d >= 0 ? pos : neg}`;
+/** "47.397742° N 8.545594° E".
+ * @param {LatLon} g
+ * @returns {string} */
 export const latLonText = (g) => `${fmtDeg(g.lat, "N", "S")} ${fmtDeg(g.lon, "E", "W")}`;
 
 /** Draw what does not move: workspace, planned paths, starts and goals, scale bar, geodetic
- * corners. Returns the transform for `drawMoving`. */
+ * corners. Returns the transform for `drawMoving`.
+ * @param {SVGSVGElement} svg
+ * @param {{lo: number[], hi: number[], origin: LatLon | null,
+ *   paths: {id: string, color: string, points: number[][]}[]}} scene
+ * @returns {ViewTransform} */
 export function drawStatic(svg, scene) {
   svg.innerHTML = "";
   const tf = viewTransform(scene.lo, scene.hi);
@@ -66,7 +83,7 @@ export function drawStatic(svg, scene) {
     const pts = path.points.map(([x, y]) => tf.toSvg(x, y).map((v) => v.toFixed(1)).join(",")).join(" ");
     svgEl("polyline", { points: pts, fill: "none", stroke: path.color, "stroke-width": 1.2,
                         "stroke-opacity": 0.55, class: "planned-path", "data-id": path.id }, stat);
-    const [gx, gy] = tf.toSvg(...path.points[path.points.length - 1]);
+    const [gx, gy] = tf.toSvg(path.points[path.points.length - 1][0], path.points[path.points.length - 1][1]);
     svgEl("path", { d: `M${gx - 4},${gy - 4}L${gx + 4},${gy + 4}M${gx - 4},${gy + 4}L${gx + 4},${gy - 4}`,
                     stroke: path.color, "stroke-width": 1.5 }, stat);
   }
@@ -77,6 +94,7 @@ export function drawStatic(svg, scene) {
   const bar = svgEl("g", { class: "scale-bar", "data-metres": metres }, stat);
   svgEl("path", { d: `M${bx},${by - 4}V${by}H${bx + len}V${by - 4}`, fill: "none", stroke: "#1d232b", "stroke-width": 1.5 }, bar);
   svgEl("text", { x: bx + len + 4, y: by, "font-size": 10, fill: "#1d232b" }, bar).textContent = `${metres} m`;
+  /** @param {number} x @param {number} y @param {string} anchor @param {number} dy */
   const corner = (x, y, anchor, dy) => {
     const [sx, sy] = tf.toSvg(x, y);
     const text = scene.origin ? latLonText(toGeodetic(scene.origin, x, y)) : `(${x}, ${y}) m`;
@@ -95,7 +113,11 @@ export function drawStatic(svg, scene) {
 }
 
 /** Draw what moves: planned positions now (rings), trails, and the vehicles (live or
- * replayed) as filled, labelled icons. */
+ * replayed) as filled, labelled icons.
+ * @param {SVGSVGElement} svg
+ * @param {{toSvg: (x: number, y: number) => number[]}} tf
+ * @param {{planned: {id: string, color: string, position: number[]}[],
+ *   vehicles: MovingVehicle[]}} moving */
 export function drawMoving(svg, tf, moving) {
   const layer = svg.querySelector("g.moving");
   if (!layer) return;

@@ -1,12 +1,15 @@
+// @ts-check
 // The fleet table's health cells: text, level (ok, warn, bad) and a title per value, from
 // what GET /api/vehicles reports. Tolerant of the shapes the planned fields may take.
-"use strict";
-
+/** @param {number} x */
 const fmt1 = (x) => Number(x.toFixed(1)).toString();
 
 // Link colours from the heartbeat age (s): PX4 sends 1 Hz heartbeats.
 const LINK_OK_S = 1.5, LINK_WARN_S = 3.0;
 
+/** The link's level from its heartbeat age.
+ * @param {{heartbeat_age?: number | null}} v
+ * @returns {"ok" | "warn" | "bad"} */
 export function linkLevel(v) {
   const age = v.heartbeat_age;
   if (age === null || age === undefined) return "bad";
@@ -14,6 +17,7 @@ export function linkLevel(v) {
 }
 
 // Battery, as GET /api/vehicles reports it: {remaining_pct (0..100, null unknown), voltage}.
+/** @param {any} b @returns {string[]} [text, level, title] */
 export function batteryCell(b) {
   if (b === null || b === undefined) return ["–", ""];
   const pct = typeof b === "object" ? (b.remaining_pct ?? null) : null;
@@ -26,6 +30,7 @@ export function batteryCell(b) {
 const GPS_FIX = ["no GPS", "no fix", "2D", "3D", "DGPS", "RTK float", "RTK fixed", "static", "PPP"];
 
 // GPS, as GET /api/vehicles reports it: {fix_type (GPS_FIX_TYPE), satellites, h_acc, v_acc}.
+/** @param {any} g @returns {string[]} [text, level, title] */
 export function gpsCell(g) {
   if (g === null || g === undefined || typeof g !== "object") return ["–", "", ""];
   const fix = g.fix_type;
@@ -39,6 +44,7 @@ export function gpsCell(g) {
 
 // Health, as GET /api/vehicles reports it: {unhealthy: [sensor names] (null unknown),
 // prearm_ok (null unknown), warnings: [recent warning texts]}.
+/** @param {any} h @param {string} [fault] @returns {string[]} [text, level] */
 export function healthCell(h, fault) {
   if (fault) return [String(fault), "bad"];
   if (h === null || h === undefined || typeof h !== "object") return ["–", ""];

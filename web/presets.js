@@ -1,13 +1,18 @@
+// @ts-check
 // Generated presets: a circle swap and a random fleet of any size, with limits and a horizon
 // long enough for them. Pure functions: scenario JSON out.
-"use strict";
+/** @typedef {import("./state.js").Scenario} Scenario */
 
+/** Steps for a move of `distance` metres.
+ * @param {number} distance @param {number} dt @returns {number} */
 function transferSteps(distance, dt) {
   // Time for a rest-to-rest move at 2 m/s, 3 m/s², with slack for avoidance manoeuvres.
   const t = distance / 2 + 2 / 3;
   return Math.ceil((1.6 * t + 4) / dt);
 }
 
+/** n vehicles swapping places across a circle.
+ * @param {number} n @returns {Scenario} */
 export function circleScenario(n) {
   const R = 1.0;
   const radius = Math.max(2.5, (1.6 * n * R) / (2 * Math.PI));
@@ -26,10 +31,13 @@ export function circleScenario(n) {
   };
 }
 
+/** n vehicles at random starts and goals, at least 1.5 R apart.
+ * @param {number} n @returns {Scenario} */
 export function randomScenario(n) {
   const R = 1.0;
   const side = Math.max(5, Math.ceil(Math.sqrt(n * 6)));
   const size = [side, side, 4];
+  /** @param {number[][]} taken @returns {number[]} */
   const pick = (taken) => {
     for (let tries = 0; tries < 10000; tries++) {
       const p = [0.5 + Math.random() * (side - 1), 0.5 + Math.random() * (side - 1),
@@ -38,7 +46,10 @@ export function randomScenario(n) {
     }
     throw new Error("workspace too crowded");
   };
-  const starts = [], goals = [];
+  /** @type {number[][]} */
+  const starts = [];
+  /** @type {number[][]} */
+  const goals = [];
   for (let i = 0; i < n; i++) { starts.push(pick(starts)); goals.push(pick(goals)); }
   const far = Math.max(...starts.map((s, i) => Math.hypot(...s.map((v, a) => v - goals[i][a]))));
   return {
@@ -48,7 +59,9 @@ export function randomScenario(n) {
   };
 }
 
+/** @param {number} x @returns {number} */
 export const round2 = (x) => Math.round(x * 100) / 100;
+/** @param {number[]} max */
 const standardLimits = (max) => ({
   position_min: [0, 0, 0], position_max: max.map(round2),
   velocity_max: [2, 2, 2], acceleration_max: [3, 3, 3], jerk_max: [5, 5, 5],

@@ -1,8 +1,9 @@
+// @ts-check
 // Positions over time: interpolating a recorded track, and the minimum pairwise distance of
 // a fleet (planned or recorded) in the plan's separation metric ||diag(1/scale) d||.
-"use strict";
-
-/** Linear interpolation of a track (times, points) at time t, held at its ends. */
+/** Linear interpolation of a track (times, points) at time t, held at its ends.
+ * @param {number[]} times @param {number[][]} points @param {number} t
+ * @returns {number[] | null} */
 export function sampleAt(times, points, t) {
   if (!times.length) return null;
   if (t <= times[0]) return points[0];
@@ -13,7 +14,8 @@ export function sampleAt(times, points, t) {
   return points[lo].map((p, a) => p + w * (points[hi][a] - p));
 }
 
-/** The smallest scaled distance between any two of `points` ([[x, y, z]...]). */
+/** The smallest scaled distance between any two of `points` ([[x, y, z]...]).
+ * @param {number[][]} points @param {number[]} scale @returns {number} */
 export function closestPair(points, scale) {
   let best = Infinity;
   for (let i = 0; i < points.length; i++) {
@@ -27,7 +29,10 @@ export function closestPair(points, scale) {
   return best;
 }
 
-/** Planned minimum separation at every sample of a /trajectory answer: {t, d}. */
+/** Planned minimum separation at every sample of a /trajectory answer: {t, d}.
+ * @param {{scenario: {separation_scale?: number[]}}} plan
+ * @param {{t: number[], vehicles: {position: number[][]}[]}} traj
+ * @returns {{t: number[], d: number[]}} */
 export function minSeparation(plan, traj) {
   const scale = plan.scenario.separation_scale || [1, 1, 1];
   const d = traj.t.map((_, k) => closestPair(traj.vehicles.map((v) => v.position[k]), scale));
@@ -35,14 +40,19 @@ export function minSeparation(plan, traj) {
 }
 
 /** Measured minimum separation of recorded tracks [{t, position}...], 5 per second over
- * [0, end] (mission time): {t, d}, or null with fewer than two tracks. */
+ * [0, end] (mission time): {t, d}, or null with fewer than two tracks.
+ * @param {{t: number[], position: number[][]}[]} tracks
+ * @param {number[]} scale
+ * @param {number} end
+ * @returns {{t: number[], d: number[], label?: string} | null} */
 export function measuredSeparation(tracks, scale, end) {
   if (tracks.length < 2) return null;
   const t = [], d = [];
   for (let k = 0; k * 0.2 <= end + 1e-9; k++) {
     const s = k * 0.2;
     t.push(Number(s.toFixed(3)));
-    d.push(closestPair(tracks.map((v) => sampleAt(v.t, v.position, s)), scale));
+    // Every track has samples, so sampleAt gives a point.
+    d.push(closestPair(tracks.map((v) => /** @type {number[]} */ (sampleAt(v.t, v.position, s))), scale));
   }
   return { t, d };
 }

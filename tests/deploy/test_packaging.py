@@ -62,7 +62,7 @@ def test_wheel_carries_the_page_and_finds_it(tmp_path: Path) -> None:
     assert build.returncode == 0, build.stderr
     wheel = next(tmp_path.glob("fleetplan-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
-    assert "gcs/web/index.html" in names and "gcs/web/app.js" in names
+    assert {"gcs/web/index.html", "gcs/web/main.js", "gcs/web/planview.js"} <= set(names)
     target = tmp_path / "site"
     install = subprocess.run(
         [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target),

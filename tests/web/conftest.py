@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, sync_playwright
+from playwright.sync_api import Browser, BrowserContext, Page, ViewportSize, sync_playwright
 
 from tests.api.support import ServiceProcess, free_udp_base
 
@@ -42,9 +42,10 @@ def browser() -> Iterator[Browser]:
             launched.close()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
-    """`fleetplan serve` with 4 mock vehicles on free ports."""
+    """`fleetplan serve` with 4 mock vehicles on free ports, shared by every browser test:
+    each test opens its own page, and each flight a test starts ends before the test does."""
     workdir = tmp_path_factory.mktemp("web")
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
     with ServiceProcess(workdir, "--mock", "4", "--workers", "1", env=env) as running:
@@ -52,8 +53,8 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess
 
 
 #: The operator's screens the page is made for: a laptop and a phone.
-DESKTOP = {"width": 1440, "height": 900}
-PHONE = {"width": 390, "height": 844}
+DESKTOP: ViewportSize = {"width": 1440, "height": 900}
+PHONE: ViewportSize = {"width": 390, "height": 844}
 
 
 @pytest.fixture
@@ -62,7 +63,7 @@ def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..
     before it loads (to install routes). Every page must end without JavaScript errors."""
     contexts: list[tuple[BrowserContext, list[str]]] = []
 
-    def opener(viewport: dict[str, int] = DESKTOP,
+    def opener(viewport: ViewportSize = DESKTOP,
                before: Callable[[Page], None] | None = None) -> Page:
         context = browser.new_context(viewport=viewport)
         opened = context.new_page()

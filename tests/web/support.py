@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from typing import Any
 
 import httpx
-from playwright.sync_api import Page, Route, expect
+from playwright.sync_api import Page, Request, Route, expect
 
 from tests.api.support import SHORT_CROSSING, ServiceProcess
 
@@ -25,7 +26,7 @@ VEHICLES = [
 
 def fill_scenario(
     page: Page, name: str = "browser-swap", steps: int = 100,
-    vehicles: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = VEHICLES,
+    vehicles: Sequence[tuple[str, tuple[float, ...], tuple[float, ...]]] = VEHICLES,
 ) -> None:
     """Type a whole scenario into the form, as an operator would."""
     page.fill("#f-name", name)
@@ -77,8 +78,13 @@ HEALTH = {  # per vehicle: battery, gps, health in GET /api/vehicles' shapes (gc
 }
 
 
+FLIGHT_CONTROL = re.compile(r".*/api/executions/[^/]+/(pause|resume)$")
+
+
 def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]) -> None:
-    """Routes giving the page the planned endpoints; requests to them land in `sent`."""
+    """Routes giving the page the planned fleet endpoints (battery, GPS, health, a geodetic
+    origin; fleet and vehicle commands answered here); requests to them land in `sent`, and
+    so do pause and resume, which go to the service and really pause the flight."""
     spec = httpx.get(f"{service.base_url}/openapi.json").json()
     for path in ("/api/executions/{execution_id}/pause", "/api/executions/{execution_id}/resume",
                  "/api/fleet/commands", "/api/vehicles/{vehicle_id}/commands"):
@@ -101,7 +107,12 @@ def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]
         status=200, content_type="application/json", body=json.dumps(spec)))
     page.route(re.compile(r".*/api/vehicles$"), vehicles)
     page.route(re.compile(r".*/api/(fleet|vehicles/[^/]+)/commands$"), command)
-    page.route(re.compile(r".*/api/executions/[^/]+/(pause|resume)$"), command)
+
+    def flight_control(request: Request) -> None:
+        if request.method == "POST" and FLIGHT_CONTROL.match(request.url):
+            sent.append((request.url.removeprefix(service.base_url), request.post_data_json))
+
+    page.on("request", flight_control)
 
 
 NO_SIDEWAYS_SCROLL = ("() => ({doc: document.documentElement.scrollWidth, "

@@ -15,17 +15,10 @@ TOKEN = "browser-operator-token-0123"
 PLANNING = re.compile(r"planning \d+")
 
 
-@pytest.fixture(scope="module")
-def docs_service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
-    with ServiceProcess(tmp_path_factory.mktemp("docs"), "--mock", "0", "--workers", "1"
-                        ) as running:
-        yield running
-
-
-def test_docs_render_the_operations_list(browser: Browser, docs_service: ServiceProcess) -> None:
+def test_docs_render_the_operations_list(browser: Browser, service: ServiceProcess) -> None:
     context = browser.new_context(viewport={"width": 1400, "height": 1000})
     page = context.new_page()
-    page.goto(docs_service.base_url + "/docs")
+    page.goto(service.base_url + "/docs")
     operations = page.locator(".opblock")
     expect(operations.first).to_be_visible(timeout=20_000)
     assert operations.count() >= 15

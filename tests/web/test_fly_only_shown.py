@@ -128,8 +128,10 @@ def test_the_first_preset_never_loads_over_typing(open_page: Callable[..., Page]
     page.fill("#f-name", "typed-first")
     page.fill("#f-steps", "77")
     assert len(held) == 1  # the preset's scenario arrives only now
+    expect(page.locator("#plan-button")).to_be_disabled()  # the page waits for its preset
     held[0].continue_()
-    page.wait_for_timeout(300)  # let the (ignored) answer arrive
+    # Plan enables once the preset's answer has been taken in (and ignored).
+    expect(page.locator("#plan-button")).to_be_enabled()
     expect(page.locator("#f-name")).to_have_value("typed-first")
     expect(page.locator("#f-steps")).to_have_value("77")
 

@@ -34,16 +34,17 @@ def test_plan_from_the_form_shows_plots_and_separation(
     assert traces[:4] == ["a", "b", "c", "d"] and len(traces) == 6
     assert page.locator("#plot3d canvas").count() > 0  # WebGL scene drawn
     # The separation figure: minimum pairwise distance over time against R.
-    shown = float(page.locator("#min-separation-value").get_attribute("data-value"))
+    shown = float(page.locator("#min-separation-value").get_attribute("data-value") or "nan")
     assert shown == verification["min_separation_continuous"]
-    sampled_min = float(page.locator("#separation-plot").get_attribute("data-minimum"))
+    sampled_min = float(page.locator("#separation-plot").get_attribute("data-minimum") or "nan")
     assert verification["min_separation_continuous"] - 1e-6 <= sampled_min
     assert sampled_min >= 1.0 - 1e-3  # never closer than R at the samples
     sep = page.evaluate("document.getElementById('separation-plot').data"
                         ".map(t => ({name: t.name, n: t.y.length, y0: t.y[0]}))")
     assert sep[1]["name"] == "R = 1 m" and sep[1]["y0"] == 1.0
     assert sep[0]["n"] == 401  # 20 s at 20 Hz, both ends
-    assert "minimum pairwise separation" in page.locator("#separation-plot .gtitle").text_content()
+    title = page.locator("#separation-plot .gtitle").text_content() or ""
+    assert "minimum pairwise separation" in title
     for plot in ("#speed-plot", "#thrust-plot"):
         assert page.evaluate(f"document.querySelector('{plot}').data.length") >= 4
     expect(page.locator("#verification")).to_contain_text("within bounds")

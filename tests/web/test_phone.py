@@ -28,7 +28,8 @@ def test_phone_width_fits_before_and_after_a_plan(open_page: Callable[..., Page]
     # The fly screen comes first on a narrow screen: map, then controls and fleet.
     top = page.evaluate("document.getElementById('fly-view').getBoundingClientRect().top"
                         " + window.scrollY")
-    assert page.locator("#fly-view").bounding_box()["width"] <= 390 and top < 300
+    view = page.locator("#fly-view").bounding_box()
+    assert view and view["width"] <= 390 and top < 300
     expect(page.locator("#fly-button")).to_be_enabled()
     page.locator("#fly-button").scroll_into_view_if_needed()
     expect(page.locator("#vehicle-state")).to_be_visible()

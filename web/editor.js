@@ -1,0 +1,140 @@
+// @ts-check
+// The editor: vehicles added, removed, selected and placed on the top view; every edit
+// clears the errors it answers and marks the plan shown stale; presets fill the form.
+import { api } from "./api.js";
+import { $, clamp } from "./dom.js";
+import { clearErrors, clearErrorsFor, hasErrors } from "./fielderrors.js";
+import { refreshStale } from "./flygate.js";
+import { addVehicleRow, renumberVehicles, vehicleRows, workspace, writeScenario } from "./form.js";
+import { circleScenario, randomScenario, round2 } from "./presets.js";
+import { editor, planning } from "./state.js";
+import { drawTopView, worldAt } from "./topview.js";
+
+/** @typedef {import("./state.js").Scenario} Scenario */
+
+const rowEvents = { onRemove: removeVehicle, onSelect: selectVehicle };
+
+/** @param {HTMLTableRowElement} tr */
+function removeVehicle(tr) {
+  const next = tr.nextElementSibling;
+  if (next && next.classList.contains("error-row")) next.remove();
+  tr.remove();
+  renumberVehicles();
+  editor.selected = Math.min(editor.selected, vehicleRows().length - 1);
+  formEdited();
+}
+
+/** The row the top view places points for.
+ * @param {number} index */
+function selectVehicle(index) {
+  editor.selected = index;
+  vehicleRows().forEach((tr, i) => tr.classList.toggle("selected", i === index));
+  drawTopView();
+}
+
+function nextVehicleId() {
+  const ids = new Set(vehicleRows().map((tr) => /** @type {HTMLInputElement} */ ($("input", tr)).value));
+  let n = vehicleRows().length + 1;
+  while (ids.has(`uav${n}`)) n++;
+  return `uav${n}`;
+}
+
+/** "Add vehicle": a new row in the middle of the workspace, selected, its start placed next. */
+export function addVehicle() {
+  const { lo, hi } = workspace();
+  const mid = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 1];
+  addVehicleRow({ id: nextVehicleId(), start: mid.map(round2), goal: mid.map(round2) }, rowEvents);
+  selectVehicle(vehicleRows().length - 1);
+  $('input[name="place"][value="start"]').checked = true;
+  formEdited();
+}
+
+/** A click on the top view places the selected vehicle's start, then its goal.
+ * @param {MouseEvent} ev */
+export function onTopViewClick(ev) {
+  const [x, y] = worldAt(ev).map(round2);
+  if (vehicleRows().length === 0) {
+    addVehicleRow({ id: nextVehicleId(), start: [x, y, 1], goal: [x, y, 1] }, rowEvents);
+    selectVehicle(0);
+  }
+  const which = $('input[name="place"]:checked').value;
+  const tr = vehicleRows()[editor.selected];
+  const inputs = Array.from(tr.querySelectorAll("input")).slice(1);
+  const offset = which === "start" ? 0 : 3;
+  inputs[offset].value = String(x);
+  inputs[offset + 1].value = String(y);
+  if (inputs[offset + 2].value === "") inputs[offset + 2].value = "1";
+  // Start placed: the next click places this vehicle's goal.
+  $(`input[name="place"][value="${which === "start" ? "goal" : "start"}"]`).checked = true;
+  formEdited();
+}
+
+/** Any change to the form (typed, clicked on the map, a row added or removed).
+ * @param {Event} [ev] */
+export function formEdited(ev) {
+  const target = /** @type {any} */ (ev && ev.target);
+  editor.touched = true;
+  if (target && target.dataset) clearErrorsFor(target);
+  // A preset edited is a new mission: say so in its name, unless the operator named it.
+  const name = $("#f-name");
+  if (target !== name && editor.presetName && name.value === editor.presetName) {
+    name.value = `${editor.presetName}-edited`;
+    editor.presetName = null;
+  }
+  if (target === name) editor.presetName = null;
+  // "rejected (422)" described the form as it was: once edited, say what to do next.
+  if (planning.rejected && !planning.planning && target) {
+    $("#plan-state").textContent = hasErrors() ? "fix the fields marked, then Plan" : "edited: press Plan";
+  }
+  drawTopView();
+  refreshStale();
+}
+
+/** Write a scenario into the form, its first vehicle selected, no errors left.
+ * @param {Scenario} scenario */
+export function fillForm(scenario) {
+  writeScenario(scenario, rowEvents);
+  clearErrors();
+  selectVehicle(0);
+}
+
+/** The paper cases the service bundles, in the preset menu. */
+export async function loadExampleList() {
+  const { ok, data } = await api("GET", "/api/examples");
+  if (!ok) return;
+  const group = $("#preset-examples");
+  for (const example of data) {
+    const option = document.createElement("option");
+    option.value = `example:${example.name}`;
+    option.textContent = `${example.name} · ${example.vehicles} vehicles`;
+    group.appendChild(option);
+  }
+  $("#preset").value = "example:paper-circle4";
+  presetChosen();
+}
+
+/** The vehicle count applies to the generated presets only: shown with them alone. */
+export function presetChosen() {
+  $("#preset-count-label").hidden = !$("#preset").value.startsWith("gen:");
+}
+
+/** Fill the form with the preset chosen. `auto`: the page's first preset, which must not
+ * land on a form the operator has touched.
+ * @param {boolean} [auto] */
+export async function loadPreset(auto = false) {
+  if (auto && editor.touched) return;
+  const choice = $("#preset").value;
+  const n = clamp(Math.round(Number($("#preset-count").value) || 8), 2, 128);
+  let scenario = null;
+  if (choice === "gen:circle") scenario = circleScenario(n);
+  else if (choice === "gen:random") scenario = randomScenario(n);
+  else if (choice.startsWith("example:")) {
+    const { ok, data } = await api("GET", `/api/examples/${choice.slice(8)}`);
+    if (!ok) return;
+    scenario = data;
+    if (auto && editor.touched) return;
+  } else return;
+  fillForm(scenario);
+  editor.presetName = $("#f-name").value;
+  refreshStale();
+}

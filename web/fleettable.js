@@ -1,0 +1,89 @@
+// @ts-check
+// The fleet table: one row per vehicle, the flight's telemetry (5 per second) merged with
+// GET /api/vehicles (link, mode, battery, GPS, health), and per-vehicle command buttons.
+import { vehicleCommand } from "./commands.js";
+import { $ } from "./dom.js";
+import { colorOf } from "./flyscreen.js";
+import { batteryCell, gpsCell, healthCell, linkLevel } from "./health.js";
+import { fleet, flight } from "./state.js";
+
+/** @typedef {import("./state.js").VehicleRow} VehicleRow */
+
+/** @type {[string, string, (value: any) => string[]][]} */
+const OPTIONAL_COLUMNS = [["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
+
+/** Redraw the table from the fleet and the flight under way. */
+export function showVehicleTable() {
+  const byId = new Map(fleet.vehicles.map((v) => [v.id, v]));
+  /** @type {VehicleRow[]} */
+  const rows = flight.live && flight.active
+    ? flight.live.vehicles.map((v) => ({ ...(byId.get(v.id) || {}), ...v }))
+    : fleet.vehicles;
+  const optional = OPTIONAL_COLUMNS.filter(([key]) => rows.some((v) => v[key] !== undefined && v[key] !== null));
+  const health = rows.some((v) => v.health !== undefined && v.health !== null);
+  const actions = fleet.caps.vehicleCommands;
+  const heads = ["vehicle", "link", "mode", "armed", "alt", ...optional.map((c) => c[1]),
+                 ...(health ? ["health"] : []), "phase", ...(actions ? [""] : [])];
+  const thead = $("#vehicle-state thead");
+  const headHtml = `<tr>${heads.map((h) => `<th>${h}</th>`).join("")}</tr>`;
+  if (thead.innerHTML !== headHtml) thead.innerHTML = headHtml;
+  const tbody = $("#vehicle-state tbody");
+  tbody.innerHTML = "";
+  for (const v of rows) tbody.appendChild(vehicleRow(v, optional, health, actions));
+}
+
+/** @param {VehicleRow} v
+ * @param {[string, string, (value: any) => string[]][]} optional
+ * @param {boolean} health
+ * @param {boolean} actions
+ * @returns {HTMLTableRowElement} */
+function vehicleRow(v, optional, health, actions) {
+  const tr = document.createElement("tr");
+  tr.dataset.id = v.id;
+  /** @param {string} text @param {string} [level] @param {string} [key] */
+  const cell = (text, level, key) => {
+    const td = document.createElement("td");
+    td.textContent = text;
+    if (level) td.className = `cell-${level}`;
+    if (key) td.dataset.key = key;
+    tr.appendChild(td);
+    return td;
+  };
+  const name = cell("", "", "id");
+  const dot = document.createElement("span");
+  dot.className = "swatch";
+  dot.style.background = colorOf(v.id);
+  name.append(dot, v.id);
+  const age = v.heartbeat_age;
+  const link = cell(age === null || age === undefined ? "no link" : `${age.toFixed(1)} s`, linkLevel(v), "link");
+  link.title = `heartbeat age${v.link ? ` (${v.link})` : ""}`;
+  // PX4's AUTO.* modes by their short names (LOITER, LAND, RTL): the full name in the title.
+  cell(v.mode ? v.mode.replace(/^AUTO\./, "") : "–", v.mode ? "" : "warn", "mode").title = v.mode ?? "";
+  cell(v.armed === null || v.armed === undefined ? "–" : (v.armed ? "armed" : "no"),
+    v.armed ? "armed" : "", "armed").title = v.armed ? "armed" : "disarmed";
+  const position = v.position;
+  const alt = position ? `${position[2].toFixed(1)} m` : "–";
+  cell(alt, "", "alt").title = position ? `world ${position.map((x) => x.toFixed(2)).join(", ")} m` +
+    (v.tracking_error === null || v.tracking_error === undefined ? "" : ` · ±${v.tracking_error.toFixed(2)} m from plan`) : "";
+  for (const [key, , render] of optional) {
+    const [text, level, title] = render(v[key]);
+    cell(text, level, key).title = title ?? "";
+  }
+  if (health) { const [text, level] = healthCell(v.health, v.fault); cell(text, level, "health"); }
+  cell(v.phase ?? "idle", v.fault ? "bad" : "", "phase").title = v.fault || "";
+  if (actions) {
+    const td = cell("", "", "actions");
+    for (const [command, label] of [["hold", "H"], ["land", "L"], ["rtl", "R"]]) {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.className = "mini";
+      b.textContent = label;
+      b.title = `${command} ${v.id}`;
+      b.dataset.vehicleCommand = command;
+      b.addEventListener("click", () => vehicleCommand(v.id, command));
+      td.appendChild(b);
+    }
+  }
+  if (v.fault) tr.className = "bad";
+  return tr;
+}

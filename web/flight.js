@@ -1,0 +1,202 @@
+// @ts-check
+// The flight under way: Fly, its telemetry and events followed live (server-sent events,
+// polling when the stream is lost), its status in the header, its summary once it ends, and
+// Abort for every flight in the air.
+import { api, rowsOf } from "./api.js";
+import { updateCommandButtons } from "./commands.js";
+import { $, appendScrolled, badge, fmt } from "./dom.js";
+import { fillForm } from "./editor.js";
+import { showVehicleTable } from "./fleettable.js";
+import { flyBlocker, updateFlyButton } from "./flygate.js";
+import { clearFlightView, drawFlyMoving, moveSlider, showClock } from "./flyscreen.js";
+import { formKey } from "./form.js";
+import { closeReplay, loadFlights, refreshMissionList } from "./history.js";
+import { showMission } from "./planning.js";
+import { editor, fleet, flight, planning, views } from "./state.js";
+
+/** @typedef {import("./state.js").Telemetry} Telemetry */
+
+const TRAIL_POINTS = 1500;   // live trail kept per vehicle (5 Hz: 5 minutes)
+
+/** A flight is under way while it has no finish time.
+ * @param {{finished_at?: string | null}} execution */
+export const isLive = (execution) => !execution.finished_at;
+
+/** Fly: start the mission on screen, if nothing blocks it. */
+export async function fly() {
+  if (flyBlocker()) return;  // the button is disabled then; a stale click does nothing
+  const mission = /** @type {import("./state.js").Mission} */ (planning.mission);
+  $("#fly-button").disabled = true;
+  $("#event-log").innerHTML = "";
+  $("#flight-summary").textContent = "";
+  const { status, data } = await api("POST", `/api/missions/${mission.id}/executions`);
+  if (status !== 201) {
+    $("#execution-status").textContent = `refused (${status}): ${data.reason}`;
+    $("#execution-status").className = "bad";
+    updateFlyButton();
+    return;
+  }
+  $("#follow").checked = true;
+  followExecution(data);
+  loadFlights(mission.id);
+  refreshMissionList();
+  $("#fly-screen").scrollIntoView({ block: "nearest" });
+}
+
+/** Follow a flight under way: its telemetry, events and status.
+ * @param {any} execution  GET /api/executions/{id} */
+export function followExecution(execution) {
+  if (flight.stream) flight.stream.close();
+  closeReplay();
+  if (flight.execution !== execution.id) { clearFlightView(); flight.pausedStatus = null; }
+  flight.execution = execution.id;
+  flight.active = true;
+  flight.paused = Boolean(flight.pausedStatus) && execution.status === flight.pausedStatus;
+  setExecutionStatus(execution.status);
+  updateFlyButton();
+  if (!planning.mission || planning.mission.id !== execution.mission_id) {
+    showFlownMission(execution.mission_id);  // flown from elsewhere: show its plan
+  }
+  const source = new EventSource(`/api/executions/${execution.id}/events`);
+  flight.stream = source;
+  source.addEventListener("telemetry", (ev) => showTelemetry(JSON.parse(ev.data)));
+  source.addEventListener("event", (ev) => logEvent(JSON.parse(ev.data)));
+  source.addEventListener("status", (ev) => {
+    const { status } = JSON.parse(ev.data);
+    setExecutionStatus(status);
+    // Paused or not as the flight says (once a pause answer named the paused status): a
+    // flight paused elsewhere, resumed, or aborting while paused sets the buttons right.
+    if (flight.pausedStatus) { flight.paused = status === flight.pausedStatus; updateCommandButtons(); }
+    if (planning.mission) loadFlights(planning.mission.id);  // its badges follow
+    refreshMissionList();
+  });
+  source.addEventListener("done", (ev) => {
+    source.close();
+    flight.stream = null;
+    const done = JSON.parse(ev.data);
+    flightEnded(done.status, done);
+  });
+  source.onerror = () => {  // stream lost: poll the execution instead
+    source.close();
+    if (flight.stream === source) flight.stream = null;
+    setTimeout(() => pollExecution(execution.id), 1000);
+  };
+}
+
+/** The flight shown has ended with `status`; `done` its summary.
+ * @param {string} status
+ * @param {any} done */
+function flightEnded(status, done) {
+  flight.active = false;
+  flight.paused = false;
+  setExecutionStatus(status, Boolean(done && done.summary && done.summary.completed));
+  showFlightSummary(done);
+  showClock();
+  showVehicleTable();
+  updateFlyButton();
+  refreshMissionList();
+  if (planning.mission) loadFlights(planning.mission.id);
+}
+
+/** Show the plan of a flight started elsewhere. A page with nothing planned yet takes that
+ * mission into its form too; otherwise the operator's form is kept (and reads as stale).
+ * @param {string} id */
+async function showFlownMission(id) {
+  if (planning.mission || planning.planning || editor.touched) { showMission(id, null); return; }
+  const got = await api("GET", `/api/missions/${id}`);
+  if (!got.ok) return;
+  fillForm(got.data.scenario);
+  editor.presetName = null;
+  showMission(id, formKey());
+}
+
+/** Read a flight once: follow it while it flies, else show how it ended.
+ * @param {string} id */
+export async function pollExecution(id) {
+  const { ok, data } = await api("GET", `/api/executions/${id}`);
+  if (!ok) return;
+  if (isLive(data)) {
+    if (!(flight.active && flight.execution === id && flight.stream)) followExecution(data);
+  } else { flight.execution = id; flightEnded(data.status, data); }
+}
+
+/** The flight's status line and the header banner. `good`: the finished flight completed
+ * (from its summary); undefined while it flies.
+ * @param {string} status
+ * @param {boolean} [good] */
+export function setExecutionStatus(status, good) {
+  const el = $("#execution-status");
+  el.textContent = `flight ${flight.execution}: ${status}`;
+  el.dataset.status = status;
+  el.className = flight.active || good === undefined ? "" : (good ? "ok" : "bad");
+  $("#flight-banner").textContent = flight.active ? `✈ ${status}` : "";
+  $("#flight-banner").title = flight.active ? `flight ${flight.execution}` : "";
+}
+
+/** One telemetry snapshot: trails grow; drawn once per frame at most.
+ * @param {Telemetry} t */
+function showTelemetry(t) {
+  flight.live = t;
+  for (const v of t.vehicles) {
+    if (!v.position) continue;
+    const trail = flight.trails[v.id] || (flight.trails[v.id] = []);
+    trail.push([v.position[0], v.position[1]]);
+    if (trail.length > TRAIL_POINTS) trail.splice(0, trail.length - TRAIL_POINTS);
+  }
+  // A slow machine skips frames instead of falling behind.
+  if (!flight.drawPending) {
+    flight.drawPending = true;
+    requestAnimationFrame(() => { flight.drawPending = false; drawTelemetry(flight.live); });
+  }
+}
+
+/** Draw a snapshot: the fleet table, the closest pair, the slider when it follows.
+ * @param {Telemetry | null} t */
+export function drawTelemetry(t) {
+  if (!t) return;
+  showVehicleTable();
+  const sep = t.min_separation_live === null ? "" : `closest pair now ${t.min_separation_live.toFixed(2)} m`;
+  $("#flight-phase").textContent = sep;
+  if ($("#follow").checked && views.traj && t.mission_time !== null && t.mission_time !== undefined) {
+    moveSlider(Math.round(t.mission_time * views.traj.rate));
+  } else {
+    drawFlyMoving();
+    showClock();
+  }
+}
+
+/** One line of the event log.
+ * @param {{t: number, vehicle?: string, kind: string, detail?: string}} e */
+export function logEvent(e) {
+  const li = document.createElement("li");
+  li.textContent = `${fmt(e.t, 2)} s ${e.vehicle ? e.vehicle + ": " : ""}${e.kind} ${e.detail ?? ""}`;
+  appendScrolled($("#event-log"), li);
+}
+
+/** A finished flight's summary line.
+ * @param {any} done */
+export function showFlightSummary(done) {
+  const s = done.summary;
+  const box = $("#flight-summary");
+  box.textContent = "";
+  if (done.error) box.append(badge(false, `${done.error} `));
+  if (!s) return;
+  box.append(badge(Boolean(s.completed), `completed: ${s.completed ? "yes" : "no"}`),
+    ` · goal error max ${fmt(s.goal_error_max)} m · tracking error max ${fmt(s.tracking_error_max)} m · ` +
+    `measured min separation ${fmt(s.min_separation_measured)} m · setpoints ${fmt(s.setpoint_rate_hz, 1)} Hz, ` +
+    `jitter p99 ${fmt(s.jitter_p99_ms, 2)} ms`);
+}
+
+/** Abort the flight shown and any other one under way: this button must always work. */
+export async function abortAll() {
+  const { ok, data } = await api("GET", "/api/executions?active=true");
+  const ids = new Set(ok ? rowsOf(data, "executions").map((e) => e.id) : []);
+  if (flight.execution && flight.active) ids.add(flight.execution);
+  if (fleet.fleet && fleet.fleet.flying) ids.add(fleet.fleet.flying);
+  if (!ids.size) { $("#flight-banner").textContent = "nothing is flying"; return; }
+  for (const id of ids) {
+    const r = await api("POST", `/api/executions/${id}/abort`, { action: "land" });
+    if (r.ok && id === flight.execution) setExecutionStatus(r.data.status);
+  }
+  updateCommandButtons();
+}

@@ -1,0 +1,162 @@
+// @ts-check
+// The scenario form: its inputs built and read as a scenario, a scenario written into it,
+// and the form as one comparable key. No requests; edits are handled in editor.js.
+import { $, $$ } from "./dom.js";
+import { editor } from "./state.js";
+
+/** @typedef {import("./state.js").Scenario} Scenario */
+/** @typedef {import("./state.js").ScenarioVehicle} ScenarioVehicle */
+
+export const LIMIT_KEYS = ["position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max"];
+
+/** @param {string} field @param {unknown} [value] @returns {HTMLInputElement} */
+function numberInput(field, value) {
+  const input = document.createElement("input");
+  input.type = "number";
+  input.step = "any";
+  input.dataset.field = field;
+  if (value !== undefined && value !== null) input.value = String(value);
+  return input;
+}
+
+/** The x, y, z inputs of every limit row. */
+export function buildLimitRows() {
+  for (const key of LIMIT_KEYS) {
+    const row = $(`tr[data-limit="${key}"]`);
+    for (let a = 0; a < 3; a++) {
+      const td = document.createElement("td");
+      td.appendChild(numberInput(`limits.${key}[${a}]`));
+      row.appendChild(td);
+    }
+  }
+}
+
+/** @returns {HTMLTableRowElement[]} */
+export function vehicleRows() { return $$("#vehicle-table tbody tr.vehicle"); }
+
+/** A row of the vehicle table; `onRemove` and `onSelect` are the editor's.
+ * @param {ScenarioVehicle} vehicle
+ * @param {{onRemove: (tr: HTMLTableRowElement) => void, onSelect: (index: number) => void}} on */
+export function addVehicleRow(vehicle, on) {
+  const tbody = $("#vehicle-table tbody");
+  const index = vehicleRows().length;
+  const tr = document.createElement("tr");
+  tr.className = "vehicle";
+  const idCell = document.createElement("td");
+  const idInput = document.createElement("input");
+  idInput.dataset.field = `vehicles[${index}].id`;
+  idInput.value = vehicle.id;
+  idInput.size = 6;
+  idCell.appendChild(idInput);
+  tr.appendChild(idCell);
+  for (const which of /** @type {const} */ (["start", "goal"])) {
+    for (let a = 0; a < 3; a++) {
+      const td = document.createElement("td");
+      td.appendChild(numberInput(`vehicles[${index}].${which}[${a}]`, vehicle[which][a]));
+      tr.appendChild(td);
+    }
+  }
+  const rm = document.createElement("td");
+  const button = document.createElement("button");
+  button.type = "button";
+  button.textContent = "✕";
+  button.title = "remove this vehicle";
+  button.className = "remove-vehicle";
+  button.addEventListener("click", (ev) => { ev.stopPropagation(); on.onRemove(tr); });
+  rm.appendChild(button);
+  tr.appendChild(rm);
+  tr.addEventListener("click", () => on.onSelect(vehicleRows().indexOf(tr)));
+  tbody.appendChild(tr);
+}
+
+/** Field names follow the rows' order after one is removed. */
+export function renumberVehicles() {
+  vehicleRows().forEach((tr, i) => {
+    for (const input of $$("input", tr)) {
+      input.dataset.field = input.dataset.field.replace(/^vehicles\[\d+\]/, `vehicles[${i}]`);
+    }
+  });
+}
+
+/** @param {HTMLInputElement} input @returns {number | null} */
+export const readNumber = (input) => (input.value.trim() === "" ? null : Number(input.value));
+
+/** The scenario the form says, with the keys it has no inputs for.
+ * @returns {Scenario} */
+export function readScenario() {
+  /** @param {string} name */
+  const value = (name) => $(`#f-${name}`).value;
+  /** @type {Record<string, any>} */
+  const limits = {};
+  for (const key of LIMIT_KEYS) {
+    const v = $$(`tr[data-limit="${key}"] input`).map(readNumber);
+    if (v.every((x) => x === null)) continue;  // optional bounds may be left empty
+    limits[key] = v;
+  }
+  const vehicles = vehicleRows().map((tr) => {
+    const inputs = $$("input", tr);
+    const nums = inputs.slice(1).map(readNumber);
+    return { id: inputs[0].value, start: nums.slice(0, 3), goal: nums.slice(3, 6) };
+  });
+  /** @type {Scenario} */
+  const scenario = {
+    name: value("name"),
+    dt: /** @type {number} */ (readNumber($("#f-dt"))),
+    steps: /** @type {number} */ (readNumber($("#f-steps"))),
+    min_separation: /** @type {number} */ (readNumber($("#f-min_separation"))),
+    limits,
+    vehicles,
+  };
+  Object.assign(scenario, editor.extra);
+  Object.assign(scenario.limits, editor.limitExtras);
+  return scenario;
+}
+
+/** Write a scenario into the form (the vehicle rows through `on`).
+ * @param {Scenario} scenario
+ * @param {{onRemove: (tr: HTMLTableRowElement) => void, onSelect: (index: number) => void}} on */
+export function writeScenario(scenario, on) {
+  $("#f-name").value = scenario.name ?? "scenario";
+  $("#f-dt").value = scenario.dt;
+  $("#f-steps").value = scenario.steps;
+  $("#f-min_separation").value = scenario.min_separation;
+  for (const key of LIMIT_KEYS) {
+    const v = scenario.limits[key];
+    $$(`tr[data-limit="${key}"] input`).forEach((input, a) => { input.value = v ? v[a] : ""; });
+  }
+  // Keys the form has no inputs for travel along unchanged.
+  editor.extra = {};
+  for (const key of ["separation_scale", "cost_threshold", "max_iterations"]) {
+    if (scenario[key] !== undefined) editor.extra[key] = scenario[key];
+  }
+  editor.limitExtras = {};
+  for (const key of ["thrust_min", "thrust_max", "body_rate_max"]) {
+    if (scenario.limits[key] !== undefined) editor.limitExtras[key] = scenario.limits[key];
+  }
+  $("#vehicle-table tbody").innerHTML = "";
+  for (const vehicle of scenario.vehicles) addVehicleRow(vehicle, on);
+}
+
+/** The workspace box the form's position limits give (a default box while they are unset).
+ * @returns {{lo: number[], hi: number[]}} */
+export function workspace() {
+  /** @param {string} key @returns {any[]} */
+  const read = (key) => $$(`tr[data-limit="${key}"] input`).map(readNumber);
+  const lo = read("position_min"), hi = read("position_max");
+  const okBox = [0, 1].every((a) => Number.isFinite(lo[a]) && Number.isFinite(hi[a]) && hi[a] > lo[a]);
+  return okBox ? { lo, hi } : { lo: [0, 0, 0], hi: [10, 10, 3] };
+}
+
+/** The form as one string: equal strings, same mission.
+ * @returns {string} */
+export const formKey = () => JSON.stringify(readScenario());
+
+/** The sequence input as a key ("seq:" + its text): a mission planned from it is stale once
+ * the text changes, whatever the form says.
+ * @returns {string} */
+export const sequenceKey = () => `seq:${$("#sequence-json").value}`;
+
+/** The key of what is on screen now, of the kind `shown` is (form or sequence).
+ * @param {string | null} shown
+ * @returns {string} */
+export const currentKey = (shown) => (shown && shown.startsWith("seq:") ? sequenceKey() : formKey());

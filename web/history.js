@@ -1,0 +1,159 @@
+// @ts-check
+// History: the missions list (with their flights' badges), a mission's flights, and a
+// finished flight reopened: its summary, events, and a replay of the recorded positions
+// against the plan, driven by the time slider.
+import { api, rowsOf } from "./api.js";
+import { $, $$, fmt } from "./dom.js";
+import { fillForm } from "./editor.js";
+import { followExecution, isLive, logEvent, setExecutionStatus, showFlightSummary } from "./flight.js";
+import { clearFlightView, horizon, moveSlider, stopPlay } from "./flyscreen.js";
+import { formKey } from "./form.js";
+import { closePlanStream, showMission } from "./planning.js";
+import { renderSeparation } from "./planview.js";
+import { editor, flight, planning, views } from "./state.js";
+import { measuredSeparation } from "./tracks.js";
+
+/** A status badge for a flight: green completed, neutral while flying, red otherwise.
+ * @param {any} execution
+ * @returns {HTMLSpanElement} */
+function flightBadge(execution) {
+  const span = document.createElement("span");
+  span.className = `status-badge ${isLive(execution) ? "live" : (execution.summary && execution.summary.completed ? "good" : "poor")}`;
+  span.textContent = execution.status;
+  return span;
+}
+
+/** The flights of the mission shown, newest first.
+ * @param {string} missionId */
+export async function loadFlights(missionId) {
+  const { ok, data } = await api("GET", `/api/missions/${missionId}/executions`);
+  const list = $("#flight-list");
+  if (!ok || !planning.mission || planning.mission.id !== missionId) return;
+  list.innerHTML = "";
+  const flights = rowsOf(data, "executions");
+  if (!flights.length) {
+    const li = document.createElement("li");
+    li.className = "muted";
+    li.textContent = "not flown yet";
+    list.appendChild(li);
+    return;
+  }
+  for (const e of flights) {
+    const li = document.createElement("li");
+    li.dataset.id = e.id;
+    li.dataset.status = e.status;
+    li.classList.toggle("selected", e.id === flight.execution);
+    const when = new Date(e.created_at).toLocaleTimeString();
+    li.append(flightBadge(e), ` ${e.id} · ${when}`);
+    if (e.summary && e.summary.goal_error_max !== undefined) li.append(` · goal error ${fmt(e.summary.goal_error_max, 2)} m`);
+    li.title = isLive(e) ? "flying: follow it" : "reopen: summary, events, replay";
+    li.addEventListener("click", () => openFlight(e.id));
+    list.appendChild(li);
+  }
+}
+
+/** Reopen a flight: follow it while it flies, else its summary, events and replay.
+ * @param {string} id */
+async function openFlight(id) {
+  const { ok, data } = await api("GET", `/api/executions/${id}`);
+  if (!ok) return;
+  if (isLive(data)) { followExecution(data); return; }
+  if (flight.active) return;  // the flight under way keeps the screen
+  stopPlay();
+  flight.execution = id;
+  clearFlightView();
+  setExecutionStatus(data.status, Boolean(data.summary && data.summary.completed));
+  showFlightSummary(data);
+  $$("#flight-list li").forEach((li) => li.classList.toggle("selected", li.dataset.id === id));
+  let events = data.events;
+  let record = null;
+  if (data.has_record !== false) {
+    const r = await api("GET", `/api/executions/${id}/record`);
+    if (r.ok) record = r.data;
+  }
+  if (!events && record) events = record.events;
+  $("#event-log").innerHTML = "";
+  for (const e of events || []) logEvent(e);
+  if (record) startReplay(id, record);
+}
+
+/** Replay: recorded positions against the plan, on mission time (record t - mission_start).
+ * @param {string} id
+ * @param {any} record  GET /api/executions/{id}/record */
+function startReplay(id, record) {
+  const t0 = record.mission_start ?? 0;
+  flight.replay = {
+    id,
+    vehicles: record.vehicles.map((/** @type {any} */ v) => ({
+      id: v.id, t: v.telemetry.t.map((/** @type {number} */ t) => t - t0), position: v.telemetry.position,
+    })).filter((/** @type {{t: number[]}} */ v) => v.t.length),
+  };
+  const plan = planning.mission && planning.mission.plan;
+  const scale = (plan && plan.scenario.separation_scale) || [1, 1, 1];
+  views.measured = measuredSeparation(flight.replay.vehicles, scale, horizon());
+  if (views.measured) views.measured.label = `measured (flight ${id})`;
+  if (views.sepTraj && plan) renderSeparation(plan, views.sepTraj);
+  $("#follow").checked = false;
+  moveSlider(Number($("#time-slider").max));  // the end: where everyone went; ▶ replays it
+}
+
+/** Leave the replay shown, if any. */
+export function closeReplay() {
+  if (!flight.replay) return;
+  flight.replay = null;
+  views.measured = null;
+  const plan = planning.mission && planning.mission.plan;
+  if (views.sepTraj && plan) renderSeparation(plan, views.sepTraj);
+}
+
+/** The missions list: name, size, plan status, flights (the latest one's badge). */
+export async function refreshMissionList() {
+  const [missions, flights] = await Promise.all([
+    api("GET", "/api/missions?limit=30"), api("GET", "/api/executions"),
+  ]);
+  if (!missions.ok) return;
+  // Flights per mission, newest first (the executions list is newest first).
+  /** @type {Map<string, any[]>} */
+  const byMission = new Map();
+  for (const e of flights.ok ? rowsOf(flights.data, "executions") : []) {
+    if (!byMission.has(e.mission_id)) byMission.set(e.mission_id, []);
+    byMission.get(e.mission_id)?.push(e);
+  }
+  const list = $("#mission-list");
+  list.innerHTML = "";
+  for (const m of rowsOf(missions.data, "missions")) {
+    const li = document.createElement("li");
+    li.dataset.id = m.id;
+    li.classList.toggle("selected", Boolean(planning.mission && planning.mission.id === m.id));
+    const when = new Date(m.created_at).toLocaleString();
+    const name = document.createElement("b");
+    name.textContent = m.name;
+    const plan = m.plan_status ? (m.plan_ok ? "verified" : `${m.plan_status}, not verified`) : m.status;
+    li.append(name, ` · ${m.vehicle_count} vehicles · ${plan} · `);
+    const flown = byMission.get(m.id) || (m.flights ? null : []);
+    const count = flown ? flown.length : m.flights.count;
+    const flightsSpan = document.createElement("span");
+    flightsSpan.className = "flight-count";
+    flightsSpan.textContent = count ? `${count} flight${count > 1 ? "s" : ""} ` : "not flown ";
+    li.append(flightsSpan);
+    if (flown && flown.length) li.append(flightBadge(flown[0]));
+    const small = document.createElement("span");
+    small.className = "muted small";
+    small.textContent = ` ${when}`;
+    li.append(small);
+    li.addEventListener("click", () => openMission(m.id));
+    list.appendChild(li);
+  }
+}
+
+/** A mission from the list: into the form, and shown.
+ * @param {string} id */
+async function openMission(id) {
+  const got = await api("GET", `/api/missions/${id}`);
+  if (!got.ok) return;
+  closePlanStream();
+  fillForm(got.data.scenario);
+  editor.presetName = null;
+  planning.rejected = false;
+  showMission(id, formKey());
+}

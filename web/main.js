@@ -1,0 +1,62 @@
+// @ts-check
+// fleetplan browser page: enter a mission, plan it, inspect the plan, fly exactly the plan on
+// screen, watch the fleet, reopen and replay past flights, abort. Plain JavaScript modules, no
+// build step; they talk only to this service's /api (see /docs). This module wires the
+// controls to the views and loads the page's state; Plan waits for that state.
+import { fleetCommand, loadCapabilities, pauseOrResume } from "./commands.js";
+import { $, $$ } from "./dom.js";
+import { addVehicle, formEdited, loadExampleList, loadPreset, onTopViewClick, presetChosen } from "./editor.js";
+import { refreshStale } from "./flygate.js";
+import { abortAll, drawTelemetry, fly } from "./flight.js";
+import { setTime, togglePlay } from "./flyscreen.js";
+import { buildLimitRows } from "./form.js";
+import { refreshMissionList } from "./history.js";
+import { loadSequenceFile, submitPlan, submitSequence, updatePlanButtons } from "./planning.js";
+import { editor, flight } from "./state.js";
+import { refreshStatus, refreshVehicles } from "./status.js";
+
+const STATUS_EVERY_MS = 5000;
+const VEHICLES_EVERY_MS = 2000;
+
+function wire() {
+  $("#scenario-form").addEventListener("submit", submitPlan);
+  $("#scenario-form").addEventListener("input", formEdited);
+  $("#sequence-plan").addEventListener("click", submitSequence);
+  $("#sequence-file").addEventListener("change", loadSequenceFile);
+  $("#sequence-json").addEventListener("input", refreshStale);
+  $("#preset").addEventListener("change", presetChosen);
+  $("#preset-load").addEventListener("click", () => loadPreset());
+  $("#add-vehicle").addEventListener("click", addVehicle);
+  $("#top-view").addEventListener("click", onTopViewClick);
+  $("#time-slider").addEventListener("input", (/** @type {Event} */ ev) => {
+    $("#follow").checked = false;  // the operator looks elsewhere in time; "follow" brings it back
+    setTime(Number(/** @type {HTMLInputElement} */ (ev.target).value));
+  });
+  $("#follow").addEventListener("change", () => drawTelemetry(flight.live));
+  $("#play").addEventListener("click", togglePlay);
+  $("#fly-button").addEventListener("click", fly);
+  $("#pause-button").addEventListener("click", () => pauseOrResume("pause"));
+  $("#resume-button").addEventListener("click", () => pauseOrResume("resume"));
+  for (const b of $$(".fleet-commands button")) b.addEventListener("click", () => fleetCommand(b.dataset.command));
+  $("#abort-button").addEventListener("click", abortAll);
+}
+
+function start() {
+  buildLimitRows();
+  wire();
+  updatePlanButtons();  // disabled until the status sets and the first preset are in
+  refreshStatus();
+  // The first preset fills the form, unless the operator started typing meanwhile.
+  loadExampleList().then(() => loadPreset(true)).finally(() => {
+    editor.presetSettled = true;
+    updatePlanButtons();
+  });
+  loadCapabilities();
+  refreshMissionList();
+  refreshVehicles();
+  setInterval(refreshStatus, STATUS_EVERY_MS);
+  setInterval(refreshVehicles, VEHICLES_EVERY_MS);
+}
+
+if (document.readyState === "loading") document.addEventListener("DOMContentLoaded", start);
+else start();

@@ -1,0 +1,205 @@
+// @ts-check
+// The plan's figures: the verification and solver tables, the 3-D trajectories (with the
+// planned-now and flown markers the fly screen moves), the separation, speed and thrust
+// plots. plotly.js (3.5 MB) is loaded only when a plan is first shown, never before the
+// editor is usable.
+import { $, badge, color, fmt } from "./dom.js";
+import { views } from "./state.js";
+import { minSeparation } from "./tracks.js";
+
+/** @typedef {import("./state.js").Plan} Plan */
+/** @typedef {import("./state.js").Trajectory} Trajectory */
+
+const PLOT_CONFIG = { responsive: true, displaylogo: false };
+const PLOTLY_URL = "/vendor/plotly.min.js";
+
+/** @type {Promise<any> | null} */
+let plotlyLoading = null;
+
+/** The Plotly global once loaded, else null. @returns {any} */
+const plotly = () => /** @type {any} */ (window).Plotly ?? null;
+
+/** plotly.js, loaded once on first use (a script element: it is not an ES module).
+ * @returns {Promise<any>} */
+export function loadPlotly() {
+  if (plotly()) return Promise.resolve(plotly());
+  plotlyLoading ??= new Promise((resolve, reject) => {
+    const script = document.createElement("script");
+    script.src = PLOTLY_URL;
+    script.onload = () => resolve(plotly());
+    script.onerror = () => { plotlyLoading = null; reject(new Error(`${PLOTLY_URL} did not load`)); };
+    document.head.appendChild(script);
+  });
+  return plotlyLoading;
+}
+
+/** Draw every figure of a plan (plotly loaded first; without it the tables alone).
+ * @param {Plan} plan
+ * @param {boolean} planOk
+ * @param {Trajectory} traj  10 Hz samples
+ * @param {Trajectory} sepTraj  20 Hz samples */
+export async function renderFigures(plan, planOk, traj, sepTraj) {
+  // The tables wait for the plots too, so a plan appears whole.
+  const Plotly = await loadPlotly().catch(() => null);
+  renderSummary(plan, planOk);
+  if (!Plotly) return;
+  render3d(plan, traj);
+  renderSeparation(plan, sepTraj);
+  renderSpeed(sepTraj);
+  renderThrust(plan);
+}
+
+/** @param {Plan} plan @param {Trajectory} traj */
+function render3d(plan, traj) {
+  const many = traj.vehicles.length > 16;
+  const lines = traj.vehicles.map((v, i) => ({
+    type: "scatter3d", mode: "lines", name: v.id,
+    x: v.position.map((p) => p[0]), y: v.position.map((p) => p[1]), z: v.position.map((p) => p[2]),
+    line: { color: color(i), width: 3 }, hoverinfo: "name",
+  }));
+  const now = {
+    type: "scatter3d", mode: "markers", name: "planned now", showlegend: false,
+    x: [], y: [], z: [], text: traj.vehicles.map((v) => v.id), hoverinfo: "text",
+    marker: { size: 4, color: traj.vehicles.map((_, i) => color(i)), opacity: 0.5 },
+  };
+  const flown = {
+    type: "scatter3d", mode: "markers+text", name: "flown",
+    x: [], y: [], z: [], text: [], hoverinfo: "text", textposition: "top center",
+    marker: { size: 6, symbol: "diamond", color: [] },
+  };
+  const s = plan.scenario.limits;
+  const layout = {
+    margin: { l: 0, r: 0, t: 24, b: 0 }, showlegend: !many,
+    title: { text: "trajectories (world frame, z up); rings: plan now, diamonds: flown", font: { size: 13 } },
+    scene: {
+      aspectmode: "data",
+      xaxis: { title: { text: "x (m)" }, range: [s.position_min[0], s.position_max[0]] },
+      yaxis: { title: { text: "y (m)" }, range: [s.position_min[1], s.position_max[1]] },
+      zaxis: { title: { text: "z (m)" }, range: [s.position_min[2], s.position_max[2]] },
+    },
+    uirevision: "keep",
+  };
+  plotly().react("plot3d", [...lines, now, flown], layout, PLOT_CONFIG);
+}
+
+/** Move the 3-D view's "planned now" markers (the trace after the vehicles' lines).
+ * @param {number} lines  the number of line traces
+ * @param {number[][]} positions */
+export function showPlannedNow(lines, positions) {
+  if (!$("#plot3d").data) return;
+  plotly().restyle("plot3d", { x: [positions.map((p) => p[0])], y: [positions.map((p) => p[1])],
+                               z: [positions.map((p) => p[2])] }, [lines]);
+}
+
+/** Move the 3-D view's "flown" markers (the last trace), labelled with the vehicles' ids.
+ * @param {number} lines
+ * @param {{id: string, color: string, position: number[]}[]} shown */
+export function showFlown(lines, shown) {
+  if (!$("#plot3d").data) return;
+  plotly().restyle("plot3d", {
+    x: [shown.map((v) => v.position[0])], y: [shown.map((v) => v.position[1])],
+    z: [shown.map((v) => v.position[2])], text: [shown.map((v) => v.id)],
+    "marker.color": [shown.map((v) => v.color)],
+  }, [lines + 1]);
+}
+
+/** @param {HTMLTableElement} table @param {string} label @param {string} value
+ * @param {boolean} [good] */
+function row(table, label, value, good) {
+  const tr = document.createElement("tr");
+  const a = document.createElement("td"), b = document.createElement("td");
+  a.textContent = label;
+  if (good === undefined) b.textContent = value; else b.append(badge(good, value));
+  tr.append(a, b);
+  table.appendChild(tr);
+  return b;
+}
+
+/** @param {Plan} plan @param {boolean} planOk */
+function renderSummary(plan, planOk) {
+  const v = plan.verification || {};
+  const R = plan.scenario.min_separation;
+  const ver = $("#verification");
+  ver.innerHTML = "<caption>verification</caption>";
+  row(ver, "status", `${plan.status}${plan.message ? ": " + plan.message : ""}`, planOk);
+  const cell = row(ver, "min separation (continuous)", `${fmt(v.min_separation_continuous)} m (R = ${R} m)`, v.separated);
+  cell.id = "min-separation-value";
+  cell.dataset.value = v.min_separation_continuous;
+  if (v.closest_pair && v.closest_pair.length) row(ver, "closest pair", `${v.closest_pair.join(" – ")} at t = ${fmt(v.closest_time, 2)} s`);
+  row(ver, "within bounds", v.within_bounds ? "yes" : "no", v.within_bounds);
+  row(ver, "flyable", v.flyable ? "yes" : "no", v.flyable);
+  row(ver, "thrust range", v.thrust_range ? `${fmt(v.thrust_range[0], 3)} – ${fmt(v.thrust_range[1], 3)} m/s²` : "–");
+  row(ver, "body-rate peak", `${fmt(v.body_rate_peak, 2)} rad/s`);
+  /** @type {[string, number][]} */
+  const excess = Object.entries(v.max_violation || {});
+  const worst = excess.sort((a, b) => (b[1] ?? 0) - (a[1] ?? 0))[0];
+  if (worst) row(ver, "largest bound excess", `${worst[0]}: ${fmt(worst[1], 6)}`);
+  const sol = $("#solver-figures");
+  sol.innerHTML = "<caption>solver</caption>";
+  const its = plan.iterations || [];
+  row(sol, "solver", String(plan.solver));
+  row(sol, "SCP iterations", its.length ? String(its[its.length - 1].iteration) : "–");
+  row(sol, "final cost", its.length ? fmt(its[its.length - 1].cost, 2) : "–");
+  row(sol, "QP solves", String(its.reduce((s, r) => s + r.qp_solves, 0)));
+  row(sol, "separation rows (last)", its.length ? String(its[its.length - 1].separation_rows) : "–");
+  row(sol, "planning time", `${fmt(plan.timing.total_s, 3)} s`);
+  row(sol, "first QP", `${fmt(plan.timing.first_qp_s, 3)} s`);
+  row(sol, "vehicles × steps", `${plan.vehicles.length} × ${plan.scenario.steps} (dt ${plan.scenario.dt} s)`);
+}
+
+/** The separation plot: the plan's minimum pairwise distance against R, and the measured
+ * one of the flight replayed (views.measured) when there is one.
+ * @param {Plan} plan
+ * @param {Trajectory} traj */
+export function renderSeparation(plan, traj) {
+  const Plotly = plotly();
+  if (!Plotly) return;
+  const R = plan.scenario.min_separation;
+  if (traj.vehicles.length < 2) { Plotly.purge("separation-plot"); return; }
+  const sep = minSeparation(plan, traj);
+  views.sep = sep;
+  const low = Math.min(...sep.d);
+  /** @type {any[]} */
+  const traces = [
+    { x: sep.t, y: sep.d, mode: "lines", name: "min pairwise distance", line: { color: "#1f6feb" } },
+    { x: [0, traj.t[traj.t.length - 1]], y: [R, R], mode: "lines", name: `R = ${R} m`, line: { color: "#c62828", dash: "dash" } },
+  ];
+  if (views.measured) {
+    traces.push({ x: views.measured.t, y: views.measured.d, mode: "lines", name: views.measured.label,
+                  line: { color: "#2e7d32" } });
+  }
+  Plotly.react("separation-plot", traces, {
+    title: { text: `minimum pairwise separation: ${low.toFixed(3)} m (R = ${R} m)`, font: { size: 13 } },
+    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } },
+    yaxis: { title: { text: "m" }, rangemode: "tozero" }, legend: { orientation: "h" },
+  }, PLOT_CONFIG);
+  $("#separation-plot").dataset.minimum = low;
+}
+
+/** @param {Trajectory} traj */
+function renderSpeed(traj) {
+  plotly().react("speed-plot", traj.vehicles.map((v, i) => ({
+    x: traj.t, y: v.velocity.map((u) => Math.hypot(u[0], u[1], u[2])), mode: "lines", name: v.id,
+    line: { color: color(i), width: 1 },
+  })), {
+    title: { text: "speed per vehicle", font: { size: 13 } }, showlegend: false,
+    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s" } },
+  }, PLOT_CONFIG);
+}
+
+/** @param {Plan} plan */
+function renderThrust(plan) {
+  const lim = plan.scenario.limits;
+  const end = plan.scenario.steps * plan.scenario.dt;
+  /** @type {any[]} */
+  const traces = plan.vehicles.map((v, i) => ({
+    x: v.t.slice(0, -1), y: v.thrust, mode: "lines", name: v.id, line: { color: color(i), width: 1, shape: "hv" },
+  }));
+  for (const [key, label] of [["thrust_min", "min"], ["thrust_max", "max"]]) {
+    if (lim[key] !== undefined) traces.push({ x: [0, end], y: [lim[key], lim[key]], mode: "lines", name: `thrust ${label}`, line: { color: "#c62828", dash: "dot" } });
+  }
+  plotly().react("thrust-plot", traces, {
+    title: { text: "mass-normalised thrust per vehicle", font: { size: 13 } }, showlegend: false,
+    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s²" } },
+  }, PLOT_CONFIG);
+}

@@ -1,0 +1,116 @@
+// @ts-check
+// What the page holds, one small record per view. Each view module owns its record's
+// writes; the others read it. Shapes of the service's JSON are typed only as far as the page
+// reads them.
+
+/** @typedef {[number, number, number]} Vec3 */
+/** @typedef {{id: string, start: (number | null)[], goal: (number | null)[]}} ScenarioVehicle
+ *  (null: an input left empty) */
+/** @typedef {{name?: string, dt: number, steps: number, min_separation: number,
+ *   limits: Record<string, any>, vehicles: ScenarioVehicle[], separation_scale?: number[],
+ *   [key: string]: any}} Scenario */
+/** @typedef {{id: string, t: number[], thrust: number[]}} PlanVehicle */
+/** @typedef {{status: string, message?: string, solver?: string, scenario: Scenario,
+ *   vehicles: PlanVehicle[], verification?: any, iterations?: any[], timing: any,
+ *   sequence?: any}} Plan */
+/** @typedef {{id: string, name: string, status: string, plan: Plan | null, plan_ok: boolean,
+ *   plan_status?: string, scenario: Scenario, error?: {field?: string, reason: string}}} Mission */
+/** @typedef {{rate: number, t: number[], vehicles: {id: string, position: number[][],
+ *   velocity: number[][]}[]}} Trajectory  GET /api/missions/{id}/trajectory */
+/** @typedef {{t: number[], d: number[], label?: string}} SeparationSeries */
+/** @typedef {{id: string, position?: number[], velocity?: number[], fault?: string,
+ *   phase?: string, heartbeat_age?: number | null, [key: string]: any}} VehicleRow */
+/** @typedef {{mission_time?: number | null, phase: string, min_separation_live: number | null,
+ *   vehicles: VehicleRow[]}} Telemetry  one `telemetry` event of a flight */
+/** @typedef {{id: string, vehicles: {id: string, t: number[], position: number[][]}[]}} Replay */
+/** @typedef {{kind?: string, vehicles?: number, ids?: string[], flying?: string | null,
+ *   world_origin?: {lat: number, lon: number, alt: number}}} Fleet */
+/** @typedef {{pause: boolean, resume: boolean, fleetCommands: boolean,
+ *   vehicleCommands: boolean}} Capabilities */
+/** @typedef {Record<string, Record<string, string[]>>} StatusSets  GET /api/status `statuses` */
+
+/** The service: its status sets (never a copy in the page) once GET /api/status answered.
+ * @type {{statuses: StatusSets | null}} */
+export const service = { statuses: null };
+
+/** The editor: what the form holds beyond its inputs.
+ * @type {{presetName: string | null, touched: boolean, selected: number,
+ *   extra: Record<string, unknown>, limitExtras: Record<string, unknown>,
+ *   presetSettled: boolean}} */
+export const editor = {
+  presetName: null,     // name of the preset loaded, until the operator edits the form
+  touched: false,       // the operator has typed in the form: nothing loads over it by itself
+  selected: 0,          // vehicle row the top view places points for
+  extra: {},            // scenario keys without inputs (separation_scale, ...), kept as loaded
+  limitExtras: {},      // limits without inputs (thrust_min, thrust_max, body_rate_max)
+  presetSettled: false, // the first preset has loaded (or could not be): the form is the page's
+};
+
+/** Planning: the mission shown and the request under way.
+ * @type {{mission: Mission | null, shownKey: string | null, planning: boolean,
+ *   pendingKey: string | null, rejected: boolean, stale: boolean,
+ *   stream: EventSource | null}} */
+export const planning = {
+  mission: null,     // the mission document shown (GET /api/missions/{id})
+  shownKey: null,    // the form (or "seq:" + the sequence text) that mission was shown for
+  planning: false,   // a plan request is being computed
+  pendingKey: null,  // the form as sent with that request
+  rejected: false,   // the last plan request was refused or failed
+  stale: false,      // the results shown are not the form's mission
+  stream: null,      // EventSource of the planning progress
+};
+
+/** The plan's views: trajectories sampled for the plots, the slider and the fly view.
+ * @type {{traj: Trajectory | null, sepTraj: Trajectory | null,
+ *   sep: SeparationSeries | null, measured: SeparationSeries | null,
+ *   flyTf: {toSvg: (x: number, y: number) => number[]} | null,
+ *   playTimer: ReturnType<typeof setInterval> | null}} */
+export const views = {
+  traj: null,      // /trajectory?rate=10 for the views and the slider
+  sepTraj: null,   // /trajectory?rate=20 for the separation and speed plots
+  sep: null,       // minimum pairwise separation over time (plan)
+  measured: null,  // measured separation of the flight replayed
+  flyTf: null,     // transform of the fly view
+  playTimer: null,
+};
+
+/** The flight shown, live or replayed.
+ * @type {{execution: string | null, active: boolean, paused: boolean,
+ *   pausedStatus: string | null, commandPending: boolean, stream: EventSource | null,
+ *   live: Telemetry | null, trails: Record<string, number[][]>, drawPending: boolean,
+ *   replay: Replay | null}} */
+export const flight = {
+  execution: null,      // id of the flight shown (live or replayed)
+  active: false,        // that flight is under way
+  paused: false,        // its mission clock is stopped (by Pause)
+  pausedStatus: null,   // the status the service gives a paused flight (from its pause answer)
+  commandPending: false,// a pause or resume request is on its way
+  stream: null,         // EventSource of the flight telemetry
+  live: null,           // last telemetry snapshot of the flight under way
+  trails: {},           // id -> [[x, y]...] live positions so far
+  drawPending: false,   // a frame is requested to draw the last snapshot
+  replay: null,         // the finished flight replayed
+};
+
+/** The fleet: GET /api/vehicles and the control endpoints this service has.
+ * @type {{vehicles: VehicleRow[], fleet: Fleet | null, caps: Capabilities}} */
+export const fleet = {
+  vehicles: [],
+  fleet: null,
+  caps: { pause: false, resume: false, fleetCommands: false, vehicleCommands: false },
+};
+
+/** The page holds its state: the service's status sets and the first preset (or the
+ * operator's own typing). Until then Plan and the preset loader stay disabled.
+ * @returns {boolean} */
+export const ready = () => Boolean(service.statuses) && editor.presetSettled;
+
+/** Whether a mission status has a role ("active": still planning, "failed") in the service's
+ * own status sets; false until they are known.
+ * @param {string} status
+ * @param {string} role
+ * @returns {boolean} */
+export function missionIs(status, role) {
+  const sets = service.statuses && service.statuses.mission;
+  return Boolean(sets && sets[role] && sets[role].includes(status));
+}

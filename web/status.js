@@ -1,0 +1,42 @@
+// @ts-check
+// The service and fleet as the header and fleet table show them: GET /api/status (status
+// sets, fleet, planning jobs) and GET /api/vehicles, polled; a flight started elsewhere is
+// picked up from the fleet's `flying`.
+import { api } from "./api.js";
+import { $ } from "./dom.js";
+import { pollExecution } from "./flight.js";
+import { showVehicleTable } from "./fleettable.js";
+import { updateFlyButton } from "./flygate.js";
+import { drawFlyStatic, origin } from "./flyscreen.js";
+import { updatePlanButtons } from "./planning.js";
+import { fleet, flight, service } from "./state.js";
+
+/** GET /api/vehicles into the fleet table (and a flight under way found). */
+export async function refreshVehicles() {
+  const { ok, data } = await api("GET", "/api/vehicles");
+  if (!ok) return;
+  fleet.vehicles = data.vehicles;
+  const hadOrigin = Boolean(origin());
+  fleet.fleet = { ...(fleet.fleet || {}), ...data.fleet };
+  if (Boolean(origin()) !== hadOrigin) drawFlyStatic();
+  showVehicleTable();
+  updateFlyButton();
+  if (data.fleet.flying && data.fleet.flying !== flight.execution && !flight.active) {
+    pollExecution(data.fleet.flying);  // a flight started elsewhere: show it (and its Abort)
+  }
+}
+
+/** GET /api/status into the header; the status sets every mission shown is judged by. */
+export async function refreshStatus() {
+  const { ok, data } = await api("GET", "/api/status");
+  const el = $("#service-status");
+  if (!ok) { el.textContent = "service unreachable"; el.className = "bad"; return; }
+  el.className = "muted";
+  service.statuses = data.statuses || service.statuses;
+  const f = data.fleet;
+  el.textContent = `${f.kind === "none" ? "no fleet" : `${f.vehicles} ${f.kind} vehicles`} · planning ${data.planning_jobs}`;
+  el.title = `fleetplan ${data.version}: fleet ${f.kind}, ${data.planning_jobs} planning jobs`;
+  fleet.fleet = { ...(fleet.fleet || {}), ...f };
+  updateFlyButton();
+  updatePlanButtons();
+}

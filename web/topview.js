@@ -1,0 +1,55 @@
+// @ts-check
+// The editor's top view: the workspace, every vehicle's start (dot), goal (cross) and the
+// line between, and the world point under a click.
+import { $, $$, color, svgEl } from "./dom.js";
+import { readNumber, vehicleRows, workspace } from "./form.js";
+import { editor } from "./state.js";
+
+const SIZE = 400, PAD = 20;
+
+function transform() {
+  const { lo, hi } = workspace();
+  const scale = (SIZE - 2 * PAD) / Math.max(hi[0] - lo[0], hi[1] - lo[1]);
+  return {
+    lo, hi,
+    /** @param {number} x @param {number} y */
+    toSvg: (x, y) => [PAD + (x - lo[0]) * scale, SIZE - PAD - (y - lo[1]) * scale],
+    /** @param {number} sx @param {number} sy */
+    toWorld: (sx, sy) => [lo[0] + (sx - PAD) / scale, lo[1] + (SIZE - PAD - sy) / scale],
+  };
+}
+
+/** Draw the form's vehicles; the selected one bold. */
+export function drawTopView() {
+  const view = $("#top-view");
+  view.innerHTML = "";
+  const tf = transform();
+  const [x0, y0] = tf.toSvg(tf.lo[0], tf.lo[1]);
+  const [x1, y1] = tf.toSvg(tf.hi[0], tf.hi[1]);
+  svgEl("rect", { x: x0, y: y1, width: x1 - x0, height: y0 - y1, fill: "#fff", stroke: "#9aa4af" }, view);
+  svgEl("text", { x: x0, y: y0 + 14, "font-size": 10, fill: "#6b7480" }, view).textContent =
+    `(${tf.lo[0]}, ${tf.lo[1]})`;
+  svgEl("text", { x: x1, y: y1 - 4, "font-size": 10, fill: "#6b7480", "text-anchor": "end" }, view)
+    .textContent = `(${tf.hi[0]}, ${tf.hi[1]}) m`;
+  vehicleRows().forEach((tr, i) => {
+    const v = $$("input", tr).slice(1).map(readNumber).map(Number);  // empty reads 0
+    const [sx, sy] = tf.toSvg(v[0], v[1]);
+    const [gx, gy] = tf.toSvg(v[3], v[4]);
+    if (![sx, sy, gx, gy].every(Number.isFinite)) return;
+    const c = color(i), selected = i === editor.selected;
+    svgEl("line", { x1: sx, y1: sy, x2: gx, y2: gy, stroke: c, "stroke-dasharray": "4 3", "stroke-width": selected ? 2 : 1 }, view);
+    svgEl("circle", { cx: sx, cy: sy, r: selected ? 6 : 4, fill: c }, view);
+    svgEl("path", { d: `M${gx - 5},${gy - 5}L${gx + 5},${gy + 5}M${gx - 5},${gy + 5}L${gx + 5},${gy - 5}`, stroke: c, "stroke-width": selected ? 3 : 2 }, view);
+    svgEl("text", { x: sx + 6, y: sy - 6, "font-size": 10, fill: c }, view).textContent = $("input", tr).value;
+  });
+}
+
+/** The world point (x, y; m) under a click on the top view.
+ * @param {MouseEvent} ev
+ * @returns {number[]} */
+export function worldAt(ev) {
+  const box = $("#top-view").getBoundingClientRect();
+  const sx = ((ev.clientX - box.left) / box.width) * SIZE;
+  const sy = ((ev.clientY - box.top) / box.height) * SIZE;
+  return transform().toWorld(sx, sy);
+}
