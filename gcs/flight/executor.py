@@ -74,6 +74,8 @@ from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
 from gcs.flight.record import FlightRecorder, finite_or_none, goal_tolerance, summarise
 from gcs.flight.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
+from gcs.flight.phases import EventKind
+from gcs.flight.station import StallReport, StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
 from gcs.tasks import TaskSet
@@ -116,9 +118,13 @@ class FlightExecutor:
         self.record: dict[str, Any] | None = None
         self.mission_start: float | None = None
         """GCS-clock time (s) of mission time 0."""
+        self.stalls = StationStalls()
+        """The station's own stalls (`gcs.flight.station`), not counted against vehicles."""
+        self.stalls.listeners.append(self._on_stall)
+        self._stall_report = StallReport()
         self.monitor = FleetMonitor(self.vehicles, plan, self.options,
-                                    mission_time=self.mission_time, on_fault=self._on_fault,
-                                    on_separation=self._on_separation)
+                                    flight_time=self.mission_time, on_fault=self._on_fault,
+                                    on_separation=self._on_separation, stalls=self.stalls)
         self.streamer: Streamer | None = None
         self._t0 = time.monotonic()
         self._hub: LinkHub | None = None
@@ -299,6 +305,7 @@ class FlightExecutor:
         self.streamer = Streamer(self.options.rate_hz, boot_epoch=self._t0,
                                  realtime=self.options.stream_priority == "realtime")
         self.streamer.listeners.append(self._on_send)
+        self.streamer.stall_listeners.append(self.stalls.note)
         monitor: asyncio.Task[None] | None = None
         try:
             async with LinkHub(decode_ids=DECODED_IDS) as hub:
@@ -375,7 +382,7 @@ class FlightExecutor:
 
     async def _connect(self, v: VehicleStatus) -> None:
         link = v.linked
-        await vehicle.connect(link, v.spec, self.options.connect_timeout)
+        await vehicle.connect(link, v.spec, self.options.connect_timeout, self.stalls)
         if v.home is None:
             assert self.fleet.world_origin is not None
             v.home, source = await vehicle.resolve_home(link, v.id, self.fleet.world_origin)
@@ -416,7 +423,7 @@ class FlightExecutor:
         await asyncio.sleep(opts.prestream)
         v.phase = "arming"
         await vehicle.set_mode(link, px4.OFFBOARD, confirm_timeout=opts.heartbeat_timeout,
-                               retry_for=vehicle.MODE_RETRY_FOR)
+                               retry_for=vehicle.MODE_RETRY_FOR, stalls=self.stalls)
         self._emit(v.id, "mode", f"{px4.OFFBOARD.name} confirmed")
         v.expect_offboard = True
 
@@ -428,7 +435,8 @@ class FlightExecutor:
 
         attempts = await vehicle.arm(link, timeout=opts.arm_timeout,
                                      confirm_timeout=opts.heartbeat_timeout,
-                                     on_attempt=attempt, on_accepted=accepted)
+                                     on_attempt=attempt, on_accepted=accepted,
+                                     stalls=self.stalls)
         self._emit(v.id, "armed", f"after {attempts} attempt(s)")
         assert v.start_ned is not None
         track = transfer_track(here, v.start_ned, opts.climb_speed, self._yaw_ned, opts.rate_hz)
@@ -438,7 +446,8 @@ class FlightExecutor:
 
     async def _gather(self) -> None:
         tol = self.options.start_tolerance
-        deadline = time.monotonic() + self.options.gather_timeout
+        clock = self.stalls.clock  # the station's own stalls do not use up the timeout
+        deadline = clock() + self.options.gather_timeout
         streamer = self._streamer()
         while True:
             waiting = []
@@ -455,7 +464,7 @@ class FlightExecutor:
                     waiting.append((v.id, error))
             if not waiting:
                 return
-            if time.monotonic() > deadline:
+            if clock() > deadline:
                 vid, error = waiting[0]
                 raise VehicleTimeout(vid, f"not within {tol:g} m of its start after "
                                           f"{self.options.gather_timeout:g} s "
@@ -499,15 +508,17 @@ class FlightExecutor:
             await _all(self._land(v) for v in live)
         # and the ones a land_faulty policy sent down
         await vehicle.wait_disarmed([v for v in self.vehicles if v.phase == "landing"],
-                                    self.options, self._emit)
+                                    self.options, self._emit, self.stalls)
 
     # ================================================================ making safe
 
     def _land(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.land_vehicle(v, self.options, self._emit, self._stop_stream)
+        return vehicle.land_vehicle(v, self.options, self._emit, self._stop_stream,
+                                    self.stalls)
 
     def _hold(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.hold_vehicle(v, self.options, self._emit, self._stop_stream)
+        return vehicle.hold_vehicle(v, self.options, self._emit, self._stop_stream,
+                                    self.stalls)
 
     def _stop_stream(self, vehicle_id: str) -> None:
         self._streamer().unassign(vehicle_id)
@@ -524,7 +535,8 @@ class FlightExecutor:
                         streamer.assign(vid, assignment.link, hold_track(
                             assignment.last.position, assignment.last.yaw, streamer.rate))
             self._secure_task = asyncio.ensure_future(asyncio.gather(
-                *(vehicle.secure(v, action, self.options, self._emit, self._stop_stream)
+                *(vehicle.secure(v, action, self.options, self._emit, self._stop_stream,
+                                 self.stalls)
                   for v in self.vehicles),
                 return_exceptions=True))
         await asyncio.shield(self._secure_task)
@@ -535,7 +547,7 @@ class FlightExecutor:
         await self._secure_all(action)
         if action == "land":
             await vehicle.wait_disarmed([v for v in self.vehicles if v.arm_sent], self.options,
-                                        self._emit)
+                                        self._emit, self.stalls)
         for v in self.vehicles:
             if v.link is not None and v.link.telemetry.armed and v.phase != "hovering":
                 self._emit(v.id, "still_armed", "still armed: operator attention required")
@@ -588,6 +600,11 @@ class FlightExecutor:
         elif kind == "STATUSTEXT":  # the link has joined a chunked text: its latest is whole
             self._emit(v.id, "statustext", link.telemetry.statustexts[-1])
 
+    def _on_stall(self, start: float, end: float) -> None:
+        text = self._stall_report.add(start, end)
+        if text is not None:
+            self._emit(None, EventKind.STATION_STALL, text)
+
     def _emit(self, vehicle: str | None, kind: str, detail: str = "") -> None:
         event = self.recorder.event(self.now(), vehicle, kind, detail)
         for queue in self._subscribers:
@@ -595,6 +612,9 @@ class FlightExecutor:
 
     def _finish_record(self, error: BaseException | None) -> None:
         self._end_pause()
+        text = self._stall_report.flush(time.monotonic())
+        if text is not None:
+            self._emit(None, EventKind.STATION_STALL, text)
         scenario = self.plan.scenario
         self.recorder.meta = {
             "plan": scenario.to_dict(),
@@ -662,6 +682,8 @@ def _cancelling() -> bool:
 async def _all(coros: Iterable[Awaitable[Any]]) -> None:
     """Run concurrently; on the first error cancel the rest and raise that error."""
     tasks = [asyncio.ensure_future(c) for c in coros]
+    if not tasks:  # nothing to run (no vehicle left): asyncio.wait refuses an empty set
+        return
     try:
         done, _pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
         for task in done:

@@ -408,6 +408,11 @@ class MockVehicle:
 
     # ---------------------------------------------------------------- periodic
 
+    def forgive_stall(self, seconds: float) -> None:
+        """The mock's own process did not run for `seconds` (a real PX4 runs on): that time
+        does not count towards the offboard-loss timeout."""
+        self._last_setpoint_time += seconds
+
     def tick(self, now: float) -> None:
         """Rules that run with the clock: failsafes, landing detection, auto-disarm."""
         cfg = self.config
