@@ -72,9 +72,9 @@ from gcs.flight.health import PreflightThresholds, health_report, preflight_prob
 from gcs.flight.link import DECODED_IDS, LinkHub, VehicleLink
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
+from gcs.flight.phases import EventKind
 from gcs.flight.record import FlightRecorder, finite_or_none, goal_tolerance, summarise
 from gcs.flight.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
-from gcs.flight.phases import EventKind
 from gcs.flight.station import StallReport, StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
@@ -488,7 +488,13 @@ class FlightExecutor:
             if v.phase == "flying":
                 v.phase = "holding"
         self._emit(None, "horizon", "plan ended, holding at the goals")
+        held = time.monotonic()
         await self._sleep_until_mission_time(horizon + self.options.hold_at_goal)
+        # the hold lasts `hold_at_goal` of station-running time: a vehicle that got no
+        # setpoints during a stall of the station is still catching up
+        while (lost := self.stalls.overlap(held, time.monotonic())) > 0:
+            held += lost
+            await asyncio.sleep(lost)
         streamer.measuring = False
         for v in self.vehicles:
             if v.fault is None:
