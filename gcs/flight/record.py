@@ -243,7 +243,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     if lateness is not None:
         counts = [sum(1 for s in recorder.vehicles[v.id].sp_t if t0 <= s <= t1)
                   for v in vehicles]
-        if t1 > t0:
+        if t1 > t0 and counts:
             out["setpoint_rate_hz"] = float(np.mean(counts)) / (t1 - t0)
         stats = jitter_stats(lateness)
         out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
@@ -253,13 +253,15 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     # one (margin 0), the plan's R is only reported against (the mock flies a few cm inside).
     promised = scenario.separation_margin > 0
     out["completed"] = bool(
-        error is None and not out["faults"] and len(goal_errors) == len(vehicles)
+        vehicles and error is None and not out["faults"] and len(goal_errors) == len(vehicles)
         and all(v.goal_error <= tolerances[v.id] for v in vehicles) and landed_ok
         and not (promised and out["separation_held"] is False))
     why += [f"{vid}: fault {kind}" for vid, kind in out["faults"].items()]
     why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerances[v.id]:.2f} m)"
             for v in vehicles
             if not math.isnan(v.goal_error) and v.goal_error > tolerances[v.id]]
+    if not vehicles:
+        why.append("no vehicle flew")
     if error is None and not out["faults"] and len(goal_errors) < len(vehicles):
         why.append("not every vehicle's goal error was measured")
     why += [f"{v.id}: not confirmed landed and disarmed ({v.phase})"

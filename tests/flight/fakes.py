@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Callable
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,7 @@ class FakeLink:
         self.answer = answer
         """False: commands go unanswered (`GcsError` like a real link's retries)."""
         self.commands: list[int] = []
+        self.endpoint = SimpleNamespace(garbage_datagrams=0)
         self.alive()
 
     def alive(self, now: float | None = None) -> None:
