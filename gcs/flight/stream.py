@@ -34,7 +34,7 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -235,7 +235,7 @@ def _run_delay(schedstat: int | None) -> float:
     return int(os.pread(schedstat, 64, 0).split()[1]) * 1e-9
 
 
-def jitter_stats(lateness: list[float] | np.ndarray) -> dict[str, float]:
+def jitter_stats(lateness: Sequence[float] | np.ndarray) -> dict[str, float]:
     """p50/p99/max of the send-instant lateness, in milliseconds."""
     values = np.asarray(lateness, dtype=float) * 1000.0
     if values.size == 0:

@@ -104,6 +104,12 @@ class VehicleStatus:
         return self.spec.id
 
     @property
+    def placed(self) -> np.ndarray:
+        """The vehicle's home in the world frame (only once connected)."""
+        assert self.home is not None
+        return self.home
+
+    @property
     def linked(self) -> VehicleLink:
         """The vehicle's link (only once the links are open)."""
         assert self.link is not None

@@ -19,7 +19,7 @@ from gcs.flight.fleetfile import VehicleSpec
 from gcs.flight.link import Telemetry, mavlink
 from gcs.flight.vehicle import VehicleStatus
 
-__all__ = ["FakeLink", "fake_vehicle"]
+__all__ = ["FakeLink", "fake_link", "fake_vehicle"]
 
 
 class FakeLink:
@@ -48,7 +48,8 @@ class FakeLink:
         self.commands.append(command)
         await asyncio.sleep(0)
         if not self.answer:
-            raise CommandError(f"{self.vehicle_id}: no COMMAND_ACK for command {command}")
+            raise CommandError(self.vehicle_id, command, None,
+                               f"no COMMAND_ACK for command {command}")
         tel = self.telemetry
         if command == mavlink.MAV_CMD_NAV_LAND:
             tel.mode, tel.armed = px4.LAND, False
@@ -76,6 +77,12 @@ class FakeLink:
     def heartbeat_age(self, now: float | None = None) -> float:
         t = self.telemetry.heartbeat_time
         return float("inf") if t is None else (now or time.monotonic()) - t
+
+
+def fake_link(v: VehicleStatus) -> FakeLink:
+    """The `FakeLink` of a vehicle made by `fake_vehicle`."""
+    assert isinstance(v.link, FakeLink)
+    return v.link
 
 
 def fake_vehicle(index: int, *, home: tuple[float, float, float] = (0.0, 0.0, 0.0),

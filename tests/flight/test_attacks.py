@@ -65,18 +65,18 @@ async def _fly(plan: Any, options: FlightOptions, *, key: Path | None = None,
         fleet = FleetSpec.from_dict(fleet_dict)
         ports = [v.gcs_port for v in mock.vehicles]
         attacker = Attacker(ports, impersonate or [v.system_id for v in mock.vehicles], attack)
-        mission = FlightExecutor(plan, fleet, options)
+        flight = FlightExecutor(plan, fleet, options)
         if before_connect:
             await attacker.start()
-        task = mission.start()
+        task = flight.start()
         if not before_connect:
             # Without a key, the peer pinned at first contact is whoever spoke first: the
             # attacker joins once the vehicles are connected (README threat model).
-            while mission.phase in ("created", "connecting"):
+            while flight.phase in ("created", "connecting"):
                 await asyncio.sleep(0.02)
             await attacker.start()
         if during is not None:
-            await during(mission, mock)
+            await during(flight, mock)
         try:
             outcome = await task
         except Exception as exc:
@@ -126,11 +126,11 @@ def test_spoofed_acks_do_not_hide_a_dead_vehicle() -> None:
     plan = smooth_plan(line_scenario(3, steps=50))
     started: dict[str, float] = {}
 
-    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
-        while (mission.mission_time() or -1.0) < 1.0:
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
+        while (flight.flight_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         mock.vehicles[1].faults.silent = True
-        started["at"] = mission.now()
+        started["at"] = flight.now()
 
     options = FAST.replace(policy="land_faulty")
     record, mock, report = asyncio.run(_fly(plan, options, impersonate=[2], during=during))
@@ -157,8 +157,8 @@ def test_non_finite_position_from_the_vehicle_is_a_fault() -> None:
     no NaN reaches the record or the summary."""
     plan = smooth_plan(line_scenario(3, steps=50))
 
-    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
-        while (mission.mission_time() or -1.0) < 1.0:
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
+        while (flight.flight_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         mock.vehicles[1].faults.nan_position = True
 

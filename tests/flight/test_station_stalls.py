@@ -13,7 +13,7 @@ from gcs.flight.monitor import FleetMonitor, vehicle_fault
 from gcs.flight.phases import EventKind, VehiclePhase
 from gcs.flight.station import StallReport, StationStalls
 from gcs.flight.vehicle import VehicleStatus
-from tests.flight.fakes import fake_vehicle
+from tests.flight.fakes import fake_link, fake_vehicle
 from tests.flight.support import line_scenario, smooth_plan
 from tests.flight.test_executor import FAST, _fly
 
@@ -53,16 +53,20 @@ def test_stall_events_need_the_threshold_and_are_rate_limited() -> None:
 def test_a_gap_inside_a_station_stall_is_not_a_lost_link() -> None:
     options = FlightOptions()
     v = fake_vehicle(0)
+    fake_link(v).alive(100.0)
     link = v.linked
-    link.alive(100.0)
     stalls = StationStalls()
     # 2 s without a message, 1.8 s of which the station itself did not run
     stalls.note(100.1, 101.9)
-    assert vehicle_fault(link, options, 102.0, stalls) is None  # type: ignore[arg-type]
+    assert vehicle_fault(link, options, 102.0, stalls) is None
     # the same gap without a stall is a lost link
-    assert vehicle_fault(link, options, 102.0, StationStalls())[0] == "link_lost"  # type: ignore[arg-type, index]
+    assert _kind(vehicle_fault(link, options, 102.0, StationStalls())) == "link_lost"
     # and station-running time keeps counting: 1.6 s of it since the last message
-    assert vehicle_fault(link, options, 103.5, stalls)[0] == "link_lost"  # type: ignore[arg-type, index]
+    assert _kind(vehicle_fault(link, options, 103.5, stalls)) == "link_lost"
+
+
+def _kind(fault: tuple[str, str] | None) -> str | None:
+    return None if fault is None else fault[0]
 
 
 def _monitor(vehicles: list[VehicleStatus], faults: list[tuple[str, str, float]],
@@ -79,7 +83,7 @@ async def _feed(vehicles: list[VehicleStatus], silent: set[str]) -> None:
     while True:
         for v in vehicles:
             if v.id not in silent:
-                v.linked.alive()
+                fake_link(v).alive()
         await asyncio.sleep(0.05)
 
 
@@ -136,7 +140,7 @@ def test_a_silent_vehicle_is_still_caught_across_a_station_stall() -> None:
 
     async def main() -> None:
         monitor = _monitor(vehicles, faults, stalls)
-        vehicles[0].linked.alive()
+        fake_link(vehicles[0]).alive()
         task = asyncio.create_task(monitor.run(lambda: bool(faults)))
         await asyncio.sleep(0.5)
         asyncio.get_running_loop().call_soon(time.sleep, 2.0)
@@ -152,12 +156,12 @@ def test_a_flight_survives_the_station_blocked_for_two_seconds() -> None:
     completes, and the record says the station stalled."""
     plan = smooth_plan(line_scenario(2))
 
-    async def during(mission, mock) -> None:
-        while (mission.mission_time() or -1.0) < 1.0:
+    async def during(flight, mock) -> None:
+        while (flight.flight_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         asyncio.get_running_loop().call_soon(time.sleep, 2.0)
 
-    _mission, record, _mock = asyncio.run(_fly(plan, FAST, settle=0.5, during=during))
+    _flight, record, _mock = asyncio.run(_fly(plan, FAST, settle=0.5, during=during))
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True, record["summary"]["why"]
     stalls = [e for e in record["events"] if e["kind"] == EventKind.STATION_STALL]
@@ -169,12 +173,12 @@ def test_eight_vehicles_complete_with_two_cpu_hogs_running() -> None:
     plan = smooth_plan(line_scenario(8, steps=20))
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(2)]
     try:
-        _mission, record, _mock = asyncio.run(_fly(plan, FAST, settle=0.5))
+        _flight, record, _mock = asyncio.run(_fly(plan, FAST, settle=0.5))
     finally:
         for hog in hogs:
             hog.kill()
             hog.wait()
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True, record["summary"]["why"]
-    phases = {v["phase"] for v in _mission.snapshot()["vehicles"]}
+    phases = {v["phase"] for v in _flight.snapshot()["vehicles"]}
     assert phases == {VehiclePhase.LANDED}
