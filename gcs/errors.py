@@ -15,7 +15,8 @@
     sensors, link loss, missing); carries `vehicle` and `problems`.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
   - `FlightAborted` (alias `MissionAborted`): the flight stopped before completing (abort(),
-    a fault policy, Ctrl-C); `reason` says why. The vehicles were sent to hold or land before this is raised.
+    a fault policy, Ctrl-C); `reason` says why. The vehicles were sent to hold or land
+    before this is raised.
   - `RequestError` (also a `FieldError`): the service cannot carry out a request; `field` names
     what is wrong. `gcs.api.errors` maps each subclass to one HTTP status, in one place.
     - `NotFound`: no such mission, execution, example or vehicle.
