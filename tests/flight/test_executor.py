@@ -89,7 +89,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
                                                       bound: float) -> None:
     """A silent vehicle (nothing arrives: lost link) is flagged within 1.5 s; one that only
     stops its 1 Hz HEARTBEAT (mode and armed state unknown) within the 5 s bound."""
-    plan = smooth_plan(line_scenario(3, steps=60))
+    plan = smooth_plan(line_scenario(3, steps=50))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         while (flight.flight_time() or -1.0) < 1.0:
@@ -129,7 +129,9 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
     assert mock.vehicles[1].position_world[1] < plan.scenario.goals[1][1] - 0.3
 
 
-@pytest.mark.parametrize(("policy", "mode"), [("land_all", px4.LAND), ("hold_all", px4.HOLD)])
+# (what each policy does is tested on its own in test_flight_parts.py; hold at an abort in
+# test_abort_from_the_api_holds_everyone_at_once)
+@pytest.mark.parametrize(("policy", "mode"), [("land_all", px4.LAND)])
 def test_lost_link_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
     plan = smooth_plan(line_scenario(2))
 
@@ -212,8 +214,8 @@ def test_abort_from_the_api_holds_everyone_at_once() -> None:
     assert "abort" in seen and "hold" in seen
 
 
-@pytest.mark.parametrize(("yields", "wait"), [(0, 0.0), (1, 0.0), (5, 0.0), (200, 0.0),
-                                              (0, 0.5), (0, 1.5)])
+@pytest.mark.parametrize(("yields", "wait"), [(0, 0.0), (5, 0.0), (200, 0.0), (0, 0.5),
+                                              (0, 1.5)])
 def test_abort_right_after_start_stops_everything(yields: int, wait: float) -> None:
     """An abort in the first moments (links still opening, vehicles connecting or arming)
     must stop the flight: no vehicle is left flying or armed, and abort() itself works."""

@@ -154,7 +154,7 @@ def test_a_silent_vehicle_is_still_caught_across_a_station_stall() -> None:
 def test_a_flight_survives_the_station_blocked_for_two_seconds() -> None:
     """The whole loop (station and in-process mock) blocks for 2 s mid-flight: the flight
     completes, and the record says the station stalled."""
-    plan = smooth_plan(line_scenario(2))
+    plan = smooth_plan(line_scenario(2, steps=20))
 
     async def during(flight, mock) -> None:
         while (flight.flight_time() or -1.0) < 1.0:
