@@ -108,7 +108,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
     # flagged for a gap of at least the timeout (station-running time), while the others
     # were still flying the plan
     gap = float(flagged[0]["detail"].split(" for ")[1].split(" s")[0])
-    assert gap > bound
+    assert gap >= bound  # (the detail says it to 0.01 s)
     kinds = [e["kind"] for e in record["events"]]
     assert kinds.index(EventKind.FAULT) < kinds.index(EventKind.HORIZON)
     summary = record["summary"]

@@ -71,7 +71,7 @@ def test_stream_priority_is_a_checked_mission_option() -> None:
     assert FlightOptions().stream_priority == "normal"  # today's behaviour by default
     assert FlightOptions.from_dict({"stream_priority": "realtime"}).stream_priority == \
         "realtime"
-    with pytest.raises(FleetFileError, match=r"flight\.stream_priority"):
+    with pytest.raises(FleetFileError, match=r"mission\.stream_priority"):
         FlightOptions.from_dict({"stream_priority": "fast"})
 
 
