@@ -14,8 +14,9 @@
   - `PreflightFailed`: the pre-flight gate found a vehicle unfit to fly (battery, unhealthy
     sensors, link loss, missing); carries `vehicle` and `problems`.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
-  - `MissionAborted`: the flight stopped before completing (abort(), a fault policy, Ctrl-C);
-    `reason` says why. The vehicles were sent to hold or land before this is raised.
+  - `FlightAborted` (alias `MissionAborted`): the flight stopped before completing (abort(),
+    a fault policy, Ctrl-C); `reason` says why. The vehicles were sent to hold or land
+    before this is raised.
   - `RequestError` (also a `FieldError`): the service cannot carry out a request; `field` names
     what is wrong. `gcs.api.errors` maps each subclass to one HTTP status, in one place.
     - `NotFound`: no such mission, execution, example or vehicle.
@@ -32,6 +33,7 @@ __all__ = [
     "ArmingRefused",
     "CommandError",
     "FleetFileError",
+    "FlightAborted",
     "GcsError",
     "InvalidRequest",
     "LinkError",
@@ -100,12 +102,17 @@ class PlanRejected(GcsError):
     """The plan may not be flown."""
 
 
-class MissionAborted(GcsError):
-    """The mission stopped before completing; the vehicles were sent to hold or land."""
+class FlightAborted(GcsError):
+    """The flight stopped before completing; the vehicles were sent to hold or land."""
 
     def __init__(self, reason: str) -> None:
         super().__init__(reason)
         self.reason = reason
+
+
+#: The name users' scripts know `FlightAborted` by: the same class, kept so that
+#: ``except MissionAborted`` goes on catching an aborted flight.
+MissionAborted = FlightAborted
 
 
 class RequestError(GcsError, FieldError):

@@ -10,12 +10,20 @@ is meant to be in OFFBOARD, in this order (the first failing check flags it):
 3. ``heartbeat_lost``: HEARTBEAT older than `heartbeat_timeout` (5 s: mode and armed state
    unknown);
 4. ``left_offboard``: HEARTBEAT shows another mode;
-5. ``tracking_error``: farther than `tracking_error_max` from the plan at the mission time
+5. ``tracking_error``: farther than `tracking_error_max` from the plan at the flight time
    (written so that a NaN distance never passes).
 
 Then the live minimum separation over every vehicle in the air (the plan's metric), with an
 alarm below R - `separation_alarm`. The monitor only detects: what to do is the executor's
 (`on_fault`, `on_separation`).
+
+The station's own stalls (`gcs.flight.station`) are not a vehicle's fault: the monitor notes
+each of its wake-ups later than `STALL_NOTE_S`; the link and heartbeat gaps count in
+station-running time (the gap minus the station's stalls in it); after a late wake-up the
+position checks wait one pass, so that the sockets have been read before positions are
+judged (never two passes in a row, so a constantly busy station still judges); and a
+vehicle may trail the plan by the stall time that ended within `CATCH_UP_S` (it got no
+setpoints meanwhile).
 """
 
 from __future__ import annotations
@@ -30,13 +38,19 @@ import numpy as np
 from gcs import frames, px4
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.link import VehicleLink
-from gcs.flight.vehicle import AIRBORNE, VehicleStatus
+from gcs.flight.phases import AIRBORNE, VehiclePhase
+from gcs.flight.station import STALL_NOTE_S, StationStalls
+from gcs.flight.vehicle import VehicleStatus
 from planner import Plan
 
-__all__ = ["PERIOD", "FleetMonitor", "vehicle_fault"]
+__all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "vehicle_fault"]
 
 #: Seconds between two checks.
 PERIOD = 0.05
+#: For this long after a station stall ends, a vehicle may trail the plan by the stall's
+#: duration (it held its last setpoint meanwhile, then catches up).
+CATCH_UP_S = 3.0
+_TRACKED = (VehiclePhase.FLYING, VehiclePhase.HOLDING)
 
 #: Called with (vehicle, fault kind, detail).
 FaultCallback = Callable[[VehicleStatus, str, str], None]
@@ -44,13 +58,14 @@ FaultCallback = Callable[[VehicleStatus, str, str], None]
 SeparationCallback = Callable[[float, float], None]
 
 
-def vehicle_fault(link: VehicleLink, options: FlightOptions,
-                  now: float) -> tuple[str, str] | None:
+def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
+                  stalls: StationStalls | None = None) -> tuple[str, str] | None:
     """The first link/heartbeat/mode fault of a vehicle meant to be in OFFBOARD, as
-    (kind, detail), or None."""
+    (kind, detail), or None; gaps count in station-running time when `stalls` is given."""
     tel = link.telemetry
-    silent = link.link_age(now)
-    age = link.heartbeat_age(now)
+    stalls = stalls if stalls is not None else StationStalls()
+    silent = stalls.age(tel.message_time, now)
+    age = stalls.age(tel.heartbeat_time, now)
     if silent > options.link_timeout:
         return "link_lost", f"no message for {silent:.2f} s"
     if (tel.invalid_estimate_time is not None
@@ -68,25 +83,37 @@ class FleetMonitor:
     """Checks every vehicle of a flight and the fleet's separation (see the module)."""
 
     def __init__(self, vehicles: Sequence[VehicleStatus], plan: Plan, options: FlightOptions,
-                 *, mission_time: Callable[[], float | None], on_fault: FaultCallback,
-                 on_separation: SeparationCallback) -> None:
+                 *, flight_time: Callable[[], float | None], on_fault: FaultCallback,
+                 on_separation: SeparationCallback,
+                 stalls: StationStalls | None = None) -> None:
         self.vehicles = vehicles
         self.plan = plan
         self.options = options
-        self.mission_time = mission_time
+        self.flight_time = flight_time
         self.on_fault = on_fault
         self.on_separation = on_separation
         self.min_separation = math.inf
         """Smallest separation seen so far (the plan's metric, m)."""
+        self.stalls = stalls if stalls is not None else StationStalls()
+        """The station's own stalls, which this monitor's late wake-ups add to."""
         self._scale = np.asarray(plan.scenario.separation_scale, dtype=float)
 
     async def run(self, stopped: Callable[[], bool]) -> None:
-        """Check every `PERIOD` until `stopped()`."""
+        """Check every `PERIOD` until `stopped()`, noting the station's stalls."""
+        waited = False
         while True:
+            due = time.monotonic() + PERIOD
             await asyncio.sleep(PERIOD)
             if stopped():
                 return
-            self.check(time.monotonic())
+            woke = time.monotonic()
+            late = woke - due > STALL_NOTE_S
+            if late:
+                self.stalls.note(due, woke)
+            # positions read before the stall are stale: judge them once the sockets were read
+            wait = late and not waited
+            self.check(woke, positions=not wait)
+            waited = wait
 
     def positions(self, now: float) -> dict[str, np.ndarray]:
         """Every vehicle's world position at `now`, extrapolated from its last report."""
@@ -101,26 +128,41 @@ class FleetMonitor:
                 out[v.id] = frames.ned_to_world(p, v.home)
         return out
 
-    def check(self, now: float) -> None:
-        """One pass: flag faulty vehicles, update the separation, raise its alarm."""
+    def check(self, now: float, *, positions: bool = True) -> None:
+        """One pass: flag faulty vehicles, update the separation, raise its alarm; with
+        `positions` false only the link, heartbeat and mode checks run."""
         opts = self.options
-        plan = self.plan
-        t_mission = self.mission_time()
-        positions = self.positions(now)
+        t_flight = self.flight_time()
+        where = self.positions(now) if positions else {}
+        trail = self.stalls.ended_since(now - CATCH_UP_S)
         for v in self.vehicles:
             if v.link is None or not v.expect_offboard or v.fault is not None:
                 continue
-            fault = vehicle_fault(v.link, opts, now)
+            fault = vehicle_fault(v.link, opts, now, self.stalls)
             if fault is not None:
                 self.on_fault(v, *fault)
-            elif (t_mission is not None and v.phase in ("flying", "holding")
-                  and v.id in positions):
-                planned = plan.vehicles[v.index].sample(plan.scenario.dt, [t_mission])
-                v.tracking_error = float(np.linalg.norm(positions[v.id] - planned.position[0]))
+            elif t_flight is not None and v.phase in _TRACKED and v.id in where:
+                v.tracking_error = self._tracking_error(v, where[v.id], t_flight, trail)
                 if not v.tracking_error <= opts.tracking_error_max:  # NaN never passes
                     self.on_fault(v, "tracking_error",
                                   f"{v.tracking_error:.2f} m from the plan "
                                   f"(bound {opts.tracking_error_max:g} m)")
+        if positions:
+            self._separation(where)
+
+    def _tracking_error(self, v: VehicleStatus, position: np.ndarray, t: float,
+                        trail: float) -> float:
+        """Distance to the plan at flight time `t`, or to the nearest plan point of the last
+        `trail` s (the plan time the station lost to its own stalls)."""
+        plan = self.plan
+        times = [t] if trail <= 0 else np.linspace(max(0.0, t - trail), t, min(
+            64, 2 + math.ceil(4 * trail / plan.scenario.dt)))
+        planned = plan.vehicles[v.index].sample(plan.scenario.dt, times).position
+        return float(np.min(np.linalg.norm(planned - position, axis=1)))
+
+    def _separation(self, positions: dict[str, np.ndarray]) -> None:
+        plan = self.plan
+        opts = self.options
         # Every vehicle in the air counts, a faulty one going down among the others too.
         airborne = [positions[v.id] for v in self.vehicles
                     if v.id in positions and v.phase in AIRBORNE]

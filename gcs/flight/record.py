@@ -1,13 +1,14 @@
 """The flight record: what was sent, what the vehicles reported, what happened, and a summary.
 
-Times are seconds on the GCS clock (0 when the mission object started running);
-``mission_start`` is the GCS-clock time of mission time 0 (null if the plan never started), so
-mission time = t - mission_start, less the time spent in ``pauses`` ([start, end] each, GCS
-clock) before t (`plan_times`). Positions are in the world frame (ENU, m) unless the key says
-``_ned``. JSON layout::
+Times are seconds on the GCS clock (0 when the executor started running); ``flight_start`` is
+the GCS-clock time of flight time 0 (null if the plan never started; ``mission_start`` carries
+the same value for consumers of that key), so flight time = t - flight_start, less the time
+spent in ``pauses`` ([start, end] each, GCS clock) before t (`plan_times`). Positions are
+in the world frame (ENU, m) unless the key says ``_ned``. JSON layout::
 
     {"format": "fleetplan-flight-record/1", "plan": {...scenario echo...},
-     "fleet": {...}, "options": {...}, "mission_start": 12.3, "pauses": [[20.1, 25.3]],
+     "fleet": {...}, "options": {...}, "flight_start": 12.3, "mission_start": 12.3,
+     "pauses": [[20.1, 25.3]],
      "horizon": 30.0,
      "error": null | {"type": "ArmingRefused", "message": "..."},
      "vehicles": [{"id", "system_id", "home",
@@ -20,7 +21,7 @@ clock) before t (`plan_times`). Positions are in the world frame (ENU, m) unless
                  "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms", ...}}
 
 `summarise` computes the summary from the recorded data: tracking errors of every position
-report during the mission against the plan at its receive time; the measured minimum
+report during the flight against the plan at its receive time; the measured minimum
 separation (the plan's metric, diag(1/separation_scale)) from every vehicle's reports
 interpolated onto common instants at the stream rate.
 """
@@ -36,6 +37,7 @@ import numpy as np
 
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.margin import MarginCheck
+from gcs.flight.phases import VehiclePhase
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.stream import jitter_stats
 from planner import Plan
@@ -99,7 +101,7 @@ class VehicleRecord:
 
 
 class FlightRecorder:
-    """Collects a mission's record; `to_dict` gives the JSON document."""
+    """Collects a flight's record; `to_dict` gives the JSON document."""
 
     def __init__(self, ids: list[str], system_ids: list[int]) -> None:
         self.vehicles = {vid: VehicleRecord(vid, sid) for vid, sid in
@@ -153,12 +155,12 @@ def goal_tolerance(options: FlightOptions, position_error: float | None,
     return max(options.goal_tolerance, options.goal_tolerance_k * accuracy)
 
 
-def plan_times(t: np.ndarray, mission_start: float,
+def plan_times(t: np.ndarray, flight_start: float,
                pauses: Sequence[Sequence[float | None]]) -> np.ndarray:
-    """Mission (plan) time of GCS-clock instants `t`: the clock stood still during each
+    """Flight (plan) time of GCS-clock instants `t`: the clock stood still during each
     [start, end] of `pauses` (end None: still paused)."""
     t = np.asarray(t, dtype=float)
-    tau = t - mission_start
+    tau = t - flight_start
     for start, end in pauses:
         assert start is not None
         length = math.inf if end is None else end - start
@@ -167,7 +169,7 @@ def plan_times(t: np.ndarray, mission_start: float,
 
 
 def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
-              vehicles: Sequence[VehicleStatus], *, mission_start: float | None,
+              vehicles: Sequence[VehicleStatus], *, flight_start: float | None,
               pauses: Sequence[Sequence[float | None]] = (), now: float,
               missed_ticks: int, lateness: Sequence[float] | None,
               error: BaseException | None, margin: MarginCheck | None = None,
@@ -203,11 +205,14 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         why.append(f"{type(error).__name__}: {error}")
     if plan.verification is not None:
         out["min_separation_planned"] = plan.verification.min_separation_continuous
-    if mission_start is None:
-        why.append("the mission clock never started")
+    if flight_start is None:
+        why.append("the flight clock never started")
         return out
-    t0 = mission_start
-    paused = sum((now if b is None else b) - a for a, b in pauses)  # type: ignore[operator]
+    t0 = flight_start
+    paused = 0.0
+    for a, b in pauses:
+        assert a is not None
+        paused += (now if b is None else b) - a
     end = t0 + scenario.horizon + options.hold_at_goal + paused
     first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
                       default=math.inf)
@@ -250,27 +255,30 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     if lateness is not None:
         counts = [sum(1 for s in recorder.vehicles[v.id].sp_t if t0 <= s <= t1)
                   for v in vehicles]
-        if t1 > t0:
+        if t1 > t0 and counts:
             out["setpoint_rate_hz"] = float(np.mean(counts)) / (t1 - t0)
         stats = jitter_stats(lateness)
         out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
         out["jitter_p99_ms"] = finite_or_none(stats["jitter_p99_ms"])
-    landed_ok = options.at_end != "land" or all(v.phase == "landed" for v in vehicles)
+    landed_ok = options.at_end != "land" or all(v.phase == VehiclePhase.LANDED for v in vehicles)
     # With a stated margin the clearance is a promise: breaking it is a failure. Without
     # one (margin 0), the plan's R is only reported against (the mock flies a few cm inside).
     promised = scenario.separation_margin > 0
     out["completed"] = bool(
-        error is None and not out["faults"] and len(goal_errors) == len(vehicles)
+        vehicles and error is None and not out["faults"] and len(goal_errors) == len(vehicles)
         and all(v.goal_error <= tolerances[v.id] for v in vehicles) and landed_ok
         and not (promised and (out["separation_held"] is False or unknown)))
     why += [f"{vid}: fault {kind}" for vid, kind in out["faults"].items()]
     why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerances[v.id]:.2f} m)"
             for v in vehicles
             if not math.isnan(v.goal_error) and v.goal_error > tolerances[v.id]]
+    if not vehicles:
+        why.append("no vehicle flew")
     if error is None and not out["faults"] and len(goal_errors) < len(vehicles):
         why.append("not every vehicle's goal error was measured")
     why += [f"{v.id}: not confirmed landed and disarmed ({v.phase})"
-            for v in vehicles if options.at_end == "land" and v.phase != "landed"]
+            for v in vehicles if options.at_end == "land"
+            and v.phase != VehiclePhase.LANDED]
     if out["completed"]:
         why.insert(0, f"complete: every vehicle within {max(tolerances.values()):.2f} m of "
                       f"its goal"

@@ -118,7 +118,7 @@ def plan_tracks(plan: Any, homes_world: Sequence[ArrayLike] | ArrayLike, rate: f
                 yaw_world: float = 0.0, extra_s: float = 0.0) -> list[SetpointTrack]:
     """Every vehicle's track for `plan` (a `planner.Plan`), in plan vehicle order.
 
-    Tick k is mission time k / rate, sampled with the plan's exact motion; the track covers the
+    Tick k is flight time k / rate, sampled with the plan's exact motion; the track covers the
     horizon plus `extra_s` seconds (holding the goal at rest). `homes_world[i]` is vehicle i's
     LOCAL_NED origin in the world frame.
     """

@@ -2,9 +2,9 @@
 
 One `Streamer` ticks at the stream rate for the whole fleet: at tick k (scheduled instant
 ``epoch + k / rate`` on `time.monotonic`) it sends every assigned vehicle the setpoint of its
-track for that tick, all within the same tick, so the shared mission clock is simply "tick k".
+track for that tick, all within the same tick, so the shared flight clock is simply "tick k".
 A vehicle's track is assigned with the tick at which its tick 0 falls; the plan's tracks of all
-vehicles get the same start tick, which is what starts the mission clock.
+vehicles get the same start tick, which is what starts the flight clock.
 
 If the loop wakes up more than a whole tick late it sends the current tick (never a burst of
 old ones) and counts the ticks it skipped. Each send's lateness against its tick's scheduled
@@ -34,13 +34,14 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from gcs.flight.link import VehicleLink
 from gcs.flight.setpoints import Setpoint, SetpointTrack
+from gcs.flight.station import STALL_NOTE_S
 from gcs.wire import time_boot_ms
 
 __all__ = ["STALL_S", "Assignment", "SendCallback", "Streamer", "jitter_stats"]
@@ -99,6 +100,9 @@ class Streamer:
         the loop's thread waited at least half of the delay runnable but not running (the OS
         ran another process: Linux's /proc/thread-self/schedstat), else ``busy`` (this
         thread's own callbacks ran: telemetry, heartbeats, garbage collection)."""
+        self.stall_listeners: list[Callable[[float, float], None]] = []
+        """Called with (planned, actual) wake-up instant of every wake-up more than
+        `gcs.flight.station.STALL_NOTE_S` late, measuring or not (the station's stalls)."""
         self._task: asyncio.Task[None] | None = None
 
     def tick_time(self, tick: int) -> float:
@@ -214,7 +218,11 @@ class Streamer:
             measuring = self.measuring
             waited = _run_delay(schedstat) if measuring else 0.0
             await asyncio.sleep(max(0.0, wake - time.monotonic()))
-            late = time.monotonic() - wake
+            woke = time.monotonic()
+            late = woke - wake
+            if late > STALL_NOTE_S:
+                for listener in self.stall_listeners:
+                    listener(wake, woke)
             if late > STALL_S and measuring:
                 descheduled = _run_delay(schedstat) - waited >= late / 2
                 self.stalls["descheduled" if descheduled else "busy"] += 1
@@ -227,7 +235,7 @@ def _run_delay(schedstat: int | None) -> float:
     return int(os.pread(schedstat, 64, 0).split()[1]) * 1e-9
 
 
-def jitter_stats(lateness: list[float] | np.ndarray) -> dict[str, float]:
+def jitter_stats(lateness: Sequence[float] | np.ndarray) -> dict[str, float]:
     """p50/p99/max of the send-instant lateness, in milliseconds."""
     values = np.asarray(lateness, dtype=float) * 1000.0
     if values.size == 0:

@@ -11,6 +11,9 @@ command outside a flight (`gcs.flight.commands`) use the same code:
 - `land_vehicle`, `hold_vehicle`, `secure`, `wait_disarmed`: the executor's safe endings,
   which never raise (a failure is an event; PX4's offboard-loss failsafe is the fallback).
 
+Every timeout counts station-running time when given the flight's `StationStalls`
+(`gcs.flight.station`): the station's own stalls do not use it up.
+
 Streaming is not done here: the steps that must stop a vehicle's setpoints take a
 `stop_stream(vehicle_id)` callback, so this module stays below `gcs.flight.stream`.
 """
@@ -37,10 +40,12 @@ from gcs.errors import (
 )
 from gcs.flight.fleetfile import FlightOptions, VehicleSpec
 from gcs.flight.link import VehicleLink
+from gcs.flight.phases import EventKind, VehiclePhase
+from gcs.flight.station import StationStalls
+from gcs.flight.telemetry import Telemetry
 from gcs.wire import mavlink, result_name
 
 __all__ = [
-    "AIRBORNE",
     "MODE_RETRY_FOR",
     "UNREAD_STREAMS",
     "Emit",
@@ -58,6 +63,7 @@ __all__ = [
     "secure",
     "set_mode",
     "wait_disarmed",
+    "wait_running",
 ]
 
 #: Called with (vehicle id or None for the fleet, event kind, detail).
@@ -65,8 +71,6 @@ Emit = Callable[[str | None, str, str], None]
 #: Called with a vehicle id to stop streaming setpoints to it.
 StopStream = Callable[[str], None]
 
-#: Phases in which a vehicle is (or may be) in the air.
-AIRBORNE = ("climbing", "at_start", "flying", "holding", "landing", "faulty", "hovering")
 #: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
 MODE_RETRY_FOR = 5.0
 _POLL_PERIOD = 0.05
@@ -82,9 +86,8 @@ class VehicleStatus:
     home: np.ndarray | None = None
     start_ned: np.ndarray | None = None
     goal_ned: np.ndarray | None = None
-    phase: str = "pending"
-    """pending, connected, arming, climbing, at_start, flying, holding, landing, landed,
-    hovering (Hold at the end), faulty, stopped."""
+    phase: VehiclePhase = VehiclePhase.PENDING
+    """Where it is in the flight (HOVERING: in PX4 Hold at the end)."""
     fault: str | None = None
     fault_time: float | None = None
     armed_by_us: bool = False
@@ -101,6 +104,12 @@ class VehicleStatus:
     @property
     def id(self) -> str:
         return self.spec.id
+
+    @property
+    def placed(self) -> np.ndarray:
+        """The vehicle's home in the world frame (only once connected)."""
+        assert self.home is not None
+        return self.home
 
     @property
     def linked(self) -> VehicleLink:
@@ -125,10 +134,29 @@ def last_text(link: VehicleLink) -> str:
 # ==================================================================== the PX4 procedure
 
 
-async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float) -> None:
+def _clock(stalls: StationStalls | None) -> Callable[[], float]:
+    return stalls.clock if stalls is not None else time.monotonic
+
+
+async def wait_running(link: VehicleLink, predicate: Callable[[Telemetry], bool],
+                       timeout: float, stalls: StationStalls | None = None) -> bool:
+    """`link.wait_for` with `timeout` in station-running time (see the module)."""
+    clock = _clock(stalls)
+    deadline = clock() + timeout
+    while True:
+        remaining = deadline - clock()
+        if remaining <= 0:
+            return predicate(link.telemetry)
+        if await link.wait_for(predicate, remaining):
+            return True
+
+
+async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
+                  stalls: StationStalls | None = None) -> None:
     """Wait for the first HEARTBEAT and position; refuse a non-PX4 or already armed vehicle."""
-    ok = await link.wait_for(
-        lambda t: t.heartbeat_time is not None and t.position_ned is not None, timeout)
+    ok = await wait_running(
+        link, lambda t: t.heartbeat_time is not None and t.position_ned is not None, timeout,
+        stalls)
     if not ok:
         what = "HEARTBEAT" if link.telemetry.heartbeat_time is None else "LOCAL_POSITION_NED"
         raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
@@ -169,19 +197,20 @@ async def resolve_home(link: VehicleLink, vehicle_id: str,
 
 
 async def set_mode(link: VehicleLink, mode: px4.Px4Mode, *, confirm_timeout: float,
-                   retry_for: float = 0.0) -> None:
+                   retry_for: float = 0.0, stalls: StationStalls | None = None) -> None:
     """DO_SET_MODE until ACCEPTED (retrying TEMPORARILY_REJECTED for `retry_for` s), then
     wait for HEARTBEAT to show the mode; `ModeRefused` otherwise."""
-    deadline = time.monotonic() + retry_for
+    clock = _clock(stalls)
+    deadline = clock() + retry_for
     while True:
         result = await link.command(mavlink.MAV_CMD_DO_SET_MODE, mode.command_params)
         if result == mavlink.MAV_RESULT_ACCEPTED:
-            if await link.wait_for(lambda t: t.mode == mode, confirm_timeout):
+            if await wait_running(link, lambda t: t.mode == mode, confirm_timeout, stalls):
                 return
             raise ModeRefused(link.vehicle_id, mavlink.MAV_CMD_DO_SET_MODE, result,
                               f"{mode.name} accepted but not shown in HEARTBEAT within "
                               f"{confirm_timeout:g} s")
-        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED and time.monotonic() < deadline:
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED and clock() < deadline:
             await asyncio.sleep(0.5)
             continue
         raise ModeRefused(link.vehicle_id, mavlink.MAV_CMD_DO_SET_MODE, result,
@@ -190,11 +219,13 @@ async def set_mode(link: VehicleLink, mode: px4.Px4Mode, *, confirm_timeout: flo
 
 async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
               on_attempt: Callable[[], None] | None = None,
-              on_accepted: Callable[[], None] | None = None) -> int:
+              on_accepted: Callable[[], None] | None = None,
+              stalls: StationStalls | None = None) -> int:
     """Arm, retrying TEMPORARILY_REJECTED for up to `timeout` s; confirmed by HEARTBEAT.
     Returns the number of attempts; `ArmingRefused` otherwise. `on_attempt` is called before
     each command goes out, `on_accepted` when one is ACCEPTED."""
-    deadline = time.monotonic() + timeout
+    clock = _clock(stalls)
+    deadline = clock() + timeout
     attempts = 0
     cmd = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
     while True:
@@ -205,13 +236,13 @@ async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
         if result == mavlink.MAV_RESULT_ACCEPTED:
             if on_accepted is not None:
                 on_accepted()
-            if await link.wait_for(lambda t: t.armed, confirm_timeout):
+            if await wait_running(link, lambda t: t.armed, confirm_timeout, stalls):
                 return attempts
             raise ArmingRefused(link.vehicle_id, cmd, result,
                                 f"arming accepted but HEARTBEAT not armed within "
                                 f"{confirm_timeout:g} s")
         if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
-            if time.monotonic() + px4.ARM_TEMPORARILY_REJECTED_RETRY_S < deadline:
+            if clock() + px4.ARM_TEMPORARILY_REJECTED_RETRY_S < deadline:
                 await asyncio.sleep(px4.ARM_TEMPORARILY_REJECTED_RETRY_S)
                 continue
             raise ArmingRefused(link.vehicle_id, cmd, result,
@@ -221,13 +252,14 @@ async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
                             f"arming refused: {result_name(result)}{last_text(link)}")
 
 
-async def land(link: VehicleLink, *, confirm_timeout: float) -> bool:
+async def land(link: VehicleLink, *, confirm_timeout: float,
+               stalls: StationStalls | None = None) -> bool:
     """MAV_CMD_NAV_LAND, falling back to DO_SET_MODE AUTO.LAND if refused (then returns True,
     the mode being confirmed); `GcsError` when neither is accepted."""
     result = await link.command(mavlink.MAV_CMD_NAV_LAND)
     if result == mavlink.MAV_RESULT_ACCEPTED:
         return False
-    await set_mode(link, px4.LAND, confirm_timeout=confirm_timeout)
+    await set_mode(link, px4.LAND, confirm_timeout=confirm_timeout, stalls=stalls)
     return True
 
 
@@ -292,39 +324,40 @@ async def request_message_rates(link: VehicleLink, rates: dict[int, float]) -> d
 
 
 async def land_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                       stop_stream: StopStream) -> None:
+                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
     """Send `v` down; its setpoints stop either way (PX4 lands on offboard loss if the command
     never arrived)."""
-    v.phase = "landing"
+    v.phase = VehiclePhase.LANDING
     v.expect_offboard = False
     try:
-        if await land(v.linked, confirm_timeout=options.heartbeat_timeout):
-            emit(v.id, "mode", f"{px4.LAND.name} confirmed")
-        emit(v.id, "land", "landing")
+        if await land(v.linked, confirm_timeout=options.heartbeat_timeout, stalls=stalls):
+            emit(v.id, EventKind.MODE, f"{px4.LAND.name} confirmed")
+        emit(v.id, EventKind.LAND, "landing")
     except GcsError as exc:
-        emit(v.id, "land_failed", f"{exc}; setpoints stopped, PX4's offboard-loss "
+        emit(v.id, EventKind.LAND_FAILED, f"{exc}; setpoints stopped, PX4's offboard-loss "
                                   f"failsafe will land it")
     finally:
         stop_stream(v.id)
 
 
 async def hold_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                       stop_stream: StopStream) -> None:
+                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
     """Switch `v` to PX4 Hold where it is; its setpoints stop either way."""
     v.expect_offboard = False
     try:
-        await set_mode(v.linked, px4.HOLD, confirm_timeout=options.heartbeat_timeout)
-        emit(v.id, "mode", f"{px4.HOLD.name} confirmed")
-        emit(v.id, "hold", "holding (PX4 Hold)")
+        await set_mode(v.linked, px4.HOLD, confirm_timeout=options.heartbeat_timeout,
+                       stalls=stalls)
+        emit(v.id, EventKind.MODE, f"{px4.HOLD.name} confirmed")
+        emit(v.id, EventKind.HOLD, "holding (PX4 Hold)")
     except GcsError as exc:
-        emit(v.id, "hold_failed", f"{exc}; setpoints stopped, PX4's offboard-loss "
+        emit(v.id, EventKind.HOLD_FAILED, f"{exc}; setpoints stopped, PX4's offboard-loss "
                                   f"failsafe takes over")
     finally:
         stop_stream(v.id)
 
 
 async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Emit,
-                 stop_stream: StopStream) -> None:
+                 stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
     """Leave `v` safe: disarmed on the ground, landing, or (action hold) in Hold."""
     if v.link is None:
         return
@@ -332,59 +365,62 @@ async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Em
     if not tel.armed and not v.arm_sent:
         stop_stream(v.id)
         v.expect_offboard = False
-        if v.phase not in ("landed",):
-            v.phase = "stopped"
+        if v.phase != VehiclePhase.LANDED:
+            v.phase = VehiclePhase.STOPPED
         return
-    on_ground = v.phase in ("arming",) or (
+    on_ground = v.phase == VehiclePhase.ARMING or (
         tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND)
     if on_ground:  # armed, or an arming command may have armed it: disarm
         v.expect_offboard = False
         try:
             result = await disarm(v.link)
-            emit(v.id, "disarm", f"on the ground: {result_name(result)}")
+            emit(v.id, EventKind.DISARM, f"on the ground: {result_name(result)}")
         except GcsError as exc:
             result = None
-            emit(v.id, "disarm_failed", str(exc))
+            emit(v.id, EventKind.DISARM_FAILED, str(exc))
         if result == mavlink.MAV_RESULT_ACCEPTED:
             stop_stream(v.id)
-            v.phase = "stopped"
+            v.phase = VehiclePhase.STOPPED
             return
         # refused (it has taken off after all) or unanswered: land it
     if action == "hold":
-        await hold_vehicle(v, options, emit, stop_stream)
-        v.phase = "hovering"
+        await hold_vehicle(v, options, emit, stop_stream, stalls)
+        v.phase = VehiclePhase.HOVERING
     else:
-        await land_vehicle(v, options, emit, stop_stream)
+        await land_vehicle(v, options, emit, stop_stream, stalls)
 
 
 async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
-                        emit: Emit) -> None:
-    """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome."""
-    deadline = time.monotonic() + options.land_timeout
+                        emit: Emit, stalls: StationStalls | None = None) -> None:
+    """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome
+    (nothing to wait for when `vehicles` is empty)."""
+    stalls = stalls if stalls is not None else StationStalls()
+    deadline = stalls.clock() + options.land_timeout
     pending = [v for v in vehicles if v.link is not None]
-    while pending and time.monotonic() < deadline:
+    while pending and stalls.clock() < deadline:
         still = []
+        now = time.monotonic()
         for v in pending:
             link = v.linked
             tel = link.telemetry
-            if link.link_age() > options.link_timeout:
-                emit(v.id, "disarm_unconfirmed",
+            if stalls.age(tel.message_time, now) > options.link_timeout:
+                emit(v.id, EventKind.DISARM_UNCONFIRMED,
                      "link lost: cannot confirm that it landed and disarmed")
                 continue
-            stale = link.heartbeat_age() > options.heartbeat_timeout
+            stale = stalls.age(tel.heartbeat_time, now) > options.heartbeat_timeout
             if stale and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
-                v.phase = "landed"
-                emit(v.id, "disarm_unconfirmed",
+                v.phase = VehiclePhase.LANDED
+                emit(v.id, EventKind.DISARM_UNCONFIRMED,
                      "on the ground (EXTENDED_SYS_STATE), but no HEARTBEAT to "
                      "confirm that it disarmed")
                 continue
             if not tel.armed and not stale:
-                if v.phase == "landing":
-                    v.phase = "landed"
-                    emit(v.id, "landed", "landed and disarmed")
+                if v.phase == VehiclePhase.LANDING:
+                    v.phase = VehiclePhase.LANDED
+                    emit(v.id, EventKind.LANDED, "landed and disarmed")
             else:
                 still.append(v)
         pending = still
         await asyncio.sleep(_POLL_PERIOD)
     for v in pending:
-        emit(v.id, "not_disarmed", f"not disarmed within {options.land_timeout:g} s")
+        emit(v.id, EventKind.NOT_DISARMED, f"not disarmed within {options.land_timeout:g} s")

@@ -193,6 +193,11 @@ class VehicleCore:
         self.event(f"disarmed ({why})")
         self.statustext(mavlink.MAV_SEVERITY_INFO, f"Disarmed by {why}")
 
+    def forgive_stall(self, seconds: float) -> None:
+        """The mock's own process did not run for `seconds` (a real PX4 runs on): that time
+        does not count towards the offboard-loss timeout."""
+        self.last_setpoint_time += seconds
+
     def tick(self, now: float) -> None:
         """Rules that run with the clock: failsafes, landing detection, auto-disarm."""
         cfg = self.config

@@ -46,6 +46,9 @@ _log = logging.getLogger(__name__)
 
 #: PX4 SITL's default home (Zurich), used as the mock's geodetic world origin.
 DEFAULT_WORLD_ORIGIN = frames.Geodetic(47.397742, 8.545594, 488.0)
+#: A wake-up of the fleet's loop this much late is its own process stalling (in-process with
+#: the GCS, the GCS stalled too): the vehicles do not count it as offboard silence.
+OWN_STALL_S = 0.1
 
 
 def homes_under(starts: ArrayLike) -> list[list[float]]:
@@ -203,4 +206,9 @@ class MockFleet:
                     vehicle.send_telemetry(now)
                 except Exception:
                     vehicle.record_error("sending telemetry")
-            await asyncio.sleep(max(0.0, simulated + step - self.now()))
+            wake = simulated + step
+            await asyncio.sleep(max(0.0, wake - self.now()))
+            late = self.now() - wake
+            if late > OWN_STALL_S:  # this process stalled: not the GCS's silence
+                for vehicle in self.vehicles:
+                    vehicle.forgive_stall(late)

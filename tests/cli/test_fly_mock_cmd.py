@@ -50,7 +50,7 @@ def test_ctrl_c_lands_everyone(tmp_path: Path) -> None:
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=60)
     assert proc.returncode == 1, out
-    assert "MissionAborted" in out
+    assert "FlightAborted" in out
     record = json.loads((tmp_path / "record.json").read_text())
     landed = {e["vehicle"] for e in record["events"] if e["kind"] == "landed"}
     assert landed == {"uav1", "uav2"}

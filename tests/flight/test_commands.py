@@ -1,5 +1,5 @@
 """gcs.flight.commands: fleet commands outside a flight, on mock vehicles left hovering by an
-abort with hold (the situation of issue 12: nothing could land them)."""
+abort with hold (nothing in a flight is left to land them)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gcs import px4
-from gcs.errors import InvalidRequest, MissionAborted, StateConflict
+from gcs.errors import FlightAborted, InvalidRequest, StateConflict
 from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
@@ -44,10 +44,10 @@ async def _hovering_fleet(count: int,
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         executor = FlightExecutor(plan, fleet, FAST)
         task = executor.start()
-        while (executor.mission_time() or -1.0) < 1.0:
+        while (executor.flight_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         await executor.abort("hold", "operator abort")
-        with pytest.raises(MissionAborted):
+        with pytest.raises(FlightAborted):
             await task
         # the flight is over and nothing flies it any more: the fleet hovers in Hold
         assert all(v.armed and v.in_air and v.mode == px4.HOLD for v in mock.vehicles)

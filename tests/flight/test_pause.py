@@ -1,4 +1,4 @@
-"""Pause and resume a flight on mock vehicles: the shared mission clock stops, every vehicle
+"""Pause and resume a flight on mock vehicles: the shared flight clock stops, every vehicle
 holds the plan's setpoint of the same plan time (so the fleet stays as separated as the plan),
 then the flight resumes from there and completes; a pause that lasts too long ends the flight."""
 
@@ -10,7 +10,7 @@ import itertools
 import numpy as np
 import pytest
 
-from gcs.errors import MissionAborted, StateConflict
+from gcs.errors import FlightAborted, StateConflict
 from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.record import plan_times
@@ -28,18 +28,18 @@ async def _fly(plan, options, during):
     homes = homes_under(plan.scenario.starts)
     async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(len(homes))) as mock:
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
-        mission = FlightExecutor(plan, fleet, options)
-        task = mission.start()
-        await during(mission, mock)
+        flight = FlightExecutor(plan, fleet, options)
+        task = flight.start()
+        await during(flight, mock)
         try:
             outcome = await task
         except Exception as exc:
             outcome = exc
-        return mission, outcome
+        return flight, outcome
 
 
-async def _until_mission_time(mission: FlightExecutor, t: float) -> None:
-    while (mission.mission_time() or -1.0) < t:
+async def _until_flight_time(flight: FlightExecutor, t: float) -> None:
+    while (flight.flight_time() or -1.0) < t:
         await asyncio.sleep(0.02)
 
 
@@ -48,20 +48,20 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     r = plan.scenario.min_separation
     seen: dict[str, object] = {}
 
-    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         with pytest.raises(StateConflict):
-            mission.resume()  # nothing to resume
-        await _until_mission_time(mission, 2.5)  # mid-plan, every vehicle moving
+            flight.resume()  # nothing to resume
+        await _until_flight_time(flight, 2.5)  # mid-plan, every vehicle moving
         assert max(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) > 0.3
-        t_pause = mission.pause()
+        t_pause = flight.pause()
         seen["t_pause"] = t_pause
-        assert mission.snapshot()["phase"] == "paused"
+        assert flight.snapshot()["phase"] == "paused"
         with pytest.raises(StateConflict, match="already paused"):
-            mission.pause()
+            flight.pause()
         # the vehicles brake, overshoot a little and settle on the held setpoint (PX4's
         # position gain of about 1/s: a few seconds)
         await asyncio.sleep(4.0)
-        assert mission.mission_time() == pytest.approx(t_pause)  # the clock stands still
+        assert flight.flight_time() == pytest.approx(t_pause)  # the clock stands still
         before = np.stack([v.position_world for v in mock.vehicles])
         distances = []
         for _ in range(10):
@@ -77,11 +77,11 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
         np.testing.assert_allclose(after, held, atol=0.06)
         # and the fleet stays separated as the plan is
         assert min(distances) >= r - TRACKING_TOLERANCE_M
-        assert mission.mission_time() == pytest.approx(t_pause)
-        assert mission.resume() == pytest.approx(t_pause)
-        assert mission.snapshot()["phase"] == "flying"
+        assert flight.flight_time() == pytest.approx(t_pause)
+        assert flight.resume() == pytest.approx(t_pause)
+        assert flight.snapshot()["phase"] == "flying"
 
-    _mission, record = asyncio.run(_fly(plan, FAST, during))
+    _flight, record = asyncio.run(_fly(plan, FAST, during))
     assert isinstance(record, dict), record
     summary = record["summary"]
     assert summary["completed"] is True, summary
@@ -102,15 +102,15 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
 def test_a_pause_longer_than_the_limit_lands_the_fleet() -> None:
     plan = smooth_plan(line_scenario(2))
 
-    async def during(mission: FlightExecutor, mock: MockFleet) -> None:
-        await _until_mission_time(mission, 1.5)
-        mission.pause()
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
+        await _until_flight_time(flight, 1.5)
+        flight.pause()
 
     options = FAST.replace(pause_limit=1.0, pause_expiry="land")
-    mission, outcome = asyncio.run(_fly(plan, options, during))
-    assert isinstance(outcome, MissionAborted)
+    flight, outcome = asyncio.run(_fly(plan, options, during))
+    assert isinstance(outcome, FlightAborted)
     assert "paused longer than 1 s" in str(outcome)
-    record = mission.record
+    record = flight.record
     assert record is not None
     kinds = [e["kind"] for e in record["events"]]
     assert kinds.index("pause") < kinds.index("pause_limit") < kinds.index("abort")
@@ -121,6 +121,6 @@ def test_a_pause_longer_than_the_limit_lands_the_fleet() -> None:
 
 def test_plan_times_stop_during_pauses() -> None:
     t = np.array([10.0, 12.0, 13.0, 15.0, 20.0])
-    # mission started at 10; paused from 12 to 14 and from 18 (still paused)
+    # flight started at 10; paused from 12 to 14 and from 18 (still paused)
     np.testing.assert_allclose(plan_times(t, 10.0, [[12.0, 14.0], [18.0, None]]),
                                [0.0, 2.0, 2.0, 3.0, 6.0])

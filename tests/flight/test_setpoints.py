@@ -96,7 +96,7 @@ async def _stream_and_receive(plan, homes, shared: bool, rate: float, seconds: f
             tracks = plan_tracks(plan, homes, rate)
             streamer = Streamer(rate)
             start_tick = streamer.next_tick() + 2
-            # time_boot_ms counts from 1 s before mission time 0 (tick `start_tick`); ticks
+            # time_boot_ms counts from 1 s before flight time 0 (tick `start_tick`); ticks
             # before it are sent the track's first setpoint, the plan's start at rest
             streamer.boot_epoch = streamer.tick_time(start_tick) - 1.0
             for vid, link, track in zip(plan.scenario.ids, links, tracks, strict=True):

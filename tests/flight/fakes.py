@@ -1,0 +1,98 @@
+"""A fake `VehicleLink`: the few things the monitor and the vehicle procedure use, no sockets.
+
+`FakeLink` answers commands from a small PX4-like rule set (modes and arming take effect at
+once, NAV_LAND lands and disarms) and lets a test set telemetry directly.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from gcs import px4
+from gcs.flight.fleetfile import VehicleSpec
+from gcs.flight.link import Telemetry, mavlink
+from gcs.flight.vehicle import VehicleStatus
+
+__all__ = ["FakeLink", "fake_link", "fake_vehicle"]
+
+
+class FakeLink:
+    """What the executor's helpers use from a `VehicleLink`, in memory."""
+
+    def __init__(self, vehicle_id: str, *, answer: bool = True) -> None:
+        self.vehicle_id = vehicle_id
+        self.component_id = 1
+        self.telemetry = Telemetry(autopilot=mavlink.MAV_AUTOPILOT_PX4, mode=px4.OFFBOARD,
+                                   position_ned=(0.0, 0.0, -1.5), velocity_ned=(0.0, 0.0, 0.0))
+        self.answer = answer
+        """False: commands go unanswered (`GcsError` like a real link's retries)."""
+        self.commands: list[int] = []
+        self.endpoint = SimpleNamespace(garbage_datagrams=0)
+        self.alive()
+
+    def alive(self, now: float | None = None) -> None:
+        """A HEARTBEAT and a position arrive now."""
+        now = time.monotonic() if now is None else now
+        tel = self.telemetry
+        tel.message_time = tel.heartbeat_time = tel.position_time = now
+
+    async def command(self, command: int, params: Any = ()) -> int:
+        from gcs.errors import CommandError
+
+        self.commands.append(command)
+        await asyncio.sleep(0)
+        if not self.answer:
+            raise CommandError(self.vehicle_id, command, None,
+                               f"no COMMAND_ACK for command {command}")
+        tel = self.telemetry
+        if command == mavlink.MAV_CMD_NAV_LAND:
+            tel.mode, tel.armed = px4.LAND, False
+            tel.landed_state = mavlink.MAV_LANDED_STATE_ON_GROUND
+        elif command == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+            tel.armed = bool(params and params[0])
+        elif command == mavlink.MAV_CMD_DO_SET_MODE:
+            tel.mode = next(m for m in (px4.OFFBOARD, px4.HOLD, px4.LAND, px4.POSITION)
+                            if m.command_params == tuple(params))
+        self.alive()
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not predicate(self.telemetry):
+            if time.monotonic() >= deadline:
+                return False
+            await asyncio.sleep(0.01)
+        return True
+
+    def link_age(self, now: float | None = None) -> float:
+        t = self.telemetry.message_time
+        return float("inf") if t is None else (now or time.monotonic()) - t
+
+    def heartbeat_age(self, now: float | None = None) -> float:
+        t = self.telemetry.heartbeat_time
+        return float("inf") if t is None else (now or time.monotonic()) - t
+
+
+def fake_link(v: VehicleStatus) -> FakeLink:
+    """The `FakeLink` of a vehicle made by `fake_vehicle`."""
+    assert isinstance(v.link, FakeLink)
+    return v.link
+
+
+def fake_vehicle(index: int, *, home: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 **link_kw: Any) -> VehicleStatus:
+    """A `VehicleStatus` on a `FakeLink`, meant to be in OFFBOARD (as while flying)."""
+    vid = f"uav{index + 1}"
+    spec = VehicleSpec(id=vid, connection=f"udpin:127.0.0.1:{40000 + index}",
+                       system_id=index + 1, component_id=1, home=np.asarray(home, dtype=float))
+    v = VehicleStatus(spec, index)
+    v.link = FakeLink(vid, **link_kw)  # type: ignore[assignment]
+    v.home = np.asarray(home, dtype=float)
+    v.expect_offboard = True
+    return v

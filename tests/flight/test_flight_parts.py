@@ -1,0 +1,122 @@
+"""The executor's parts on their own: flight clock, fault policy, event fan-out, snapshot."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+import pytest
+
+from gcs.flight.clock import FlightClock
+from gcs.flight.events import EventFanout
+from gcs.flight.fleetfile import FlightOptions
+from gcs.flight.phases import EventKind, VehiclePhase
+from gcs.flight.policy import FaultPolicy
+from gcs.flight.record import FlightRecorder
+from gcs.flight.snapshot import flight_snapshot
+from tests.flight.fakes import fake_vehicle
+
+
+def test_flight_clock_stops_while_paused_and_moves_its_start_on() -> None:
+    clock = FlightClock(rate=10.0, epoch=100.0, t0=100.0)
+    assert clock.flight_time() is None
+    clock.begin(20)  # flight time 0 at tick 20 = GCS-clock 2.0 s
+    assert clock.start == pytest.approx(2.0)
+    pause = clock.stop(50)
+    assert pause.plan_tick == 30
+    assert clock.flight_time() == pytest.approx(3.0)  # held, whatever the wall clock says
+    ended, paused = clock.restart(80)
+    assert ended is pause and paused == pytest.approx(3.0)
+    assert clock.start_tick == 50 and clock.paused_total == pytest.approx(3.0)
+    assert clock.pauses == [[pytest.approx(5.0), pytest.approx(8.0)]]
+    assert clock.end_pause() is None  # nothing paused: nothing to end
+
+
+def test_a_pause_cut_short_by_the_end_of_the_flight_gets_an_end() -> None:
+    clock = FlightClock(rate=10.0, epoch=0.0, t0=0.0)
+    clock.begin(0)
+    clock.stop(10)
+    assert clock.end_pause() is not None
+    assert clock.pause is None and clock.pauses[-1][1] is not None
+
+
+def _policy(policy: str) -> tuple[FaultPolicy, list[Any], list[tuple[str | None, str]]]:
+    calls: list[Any] = []
+    events: list[tuple[str | None, str]] = []
+
+    async def land(v: Any) -> None:
+        calls.append(("land", v.id))
+
+    async def abort(action: str, reason: str) -> None:
+        calls.append(("abort", action, reason))
+
+    out = FaultPolicy(FlightOptions(policy=policy), lambda vid, kind, _d: events.append(
+        (vid, kind)), lambda: 1.0, land=land, abort=abort, aborting=lambda: False)
+    return out, calls, events
+
+
+@pytest.mark.parametrize(("policy", "expected"), [
+    ("land_faulty", ("land", "uav1")),
+    ("land_all", ("abort", "land", "uav1 link_lost (gone)")),
+    ("hold_all", ("abort", "hold", "uav1 link_lost (gone)")),
+])
+def test_each_policy_does_what_it_says(policy: str, expected: tuple[str, ...]) -> None:
+    async def main() -> tuple[Any, list[Any], list[tuple[str | None, str]]]:
+        p, calls, events = _policy(policy)
+        v = fake_vehicle(0)
+        p.on_fault(v, "link_lost", "gone")
+        await asyncio.gather(*p.tasks)
+        return v, calls, events
+
+    v, calls, events = asyncio.run(main())
+    assert calls == [expected]
+    assert events == [("uav1", EventKind.FAULT)]
+    assert v.fault == "link_lost" and v.phase == VehiclePhase.FAULTY and v.fault_time == 1.0
+
+
+def test_a_separation_alarm_holds_everyone_once() -> None:
+    async def main() -> list[Any]:
+        p, calls, _events = _policy("land_faulty")
+        p.on_separation(0.4, 0.7)
+        await asyncio.gather(*p.tasks)
+        p.aborting = lambda: True  # the abort is under way: no second one
+        p.on_separation(0.3, 0.7)
+        return calls
+
+    assert asyncio.run(main()) == [("abort", "hold", "separation 0.40 m")]
+
+
+def test_events_reach_the_record_and_every_subscriber_until_closed() -> None:
+    async def main() -> tuple[list[str], list[str], FlightRecorder]:
+        recorder = FlightRecorder(["uav1"], [1])
+        fanout = EventFanout(recorder, lambda: 0.5)
+        seen: list[list[str]] = [[], []]
+
+        async def watch(i: int) -> None:
+            async for event in fanout.events():
+                seen[i].append(event["kind"])
+
+        watchers = [asyncio.create_task(watch(i)) for i in range(2)]
+        await asyncio.sleep(0)
+        fanout.emit("uav1", EventKind.ARMED, "after 1 attempt(s)")
+        fanout.emit(None, EventKind.HORIZON)
+        fanout.close()
+        await asyncio.wait_for(asyncio.gather(*watchers), 5.0)  # bound
+        late = [e async for e in fanout.events()]  # a subscriber after the end gets nothing
+        assert late == []
+        return seen[0], seen[1], recorder
+
+    first, second, recorder = asyncio.run(main())
+    assert first == second == ["armed", "horizon"]
+    assert [e["t"] for e in recorder.events] == [0.5, 0.5]
+
+
+def test_snapshot_carries_flight_time_under_both_names() -> None:
+    v = fake_vehicle(0, home=(1.0, 2.0, 0.0))
+    snap = flight_snapshot(VehiclePhase.FLYING, 3.5, 6.0, float("inf"), [v], 7)
+    assert snap["flight_time"] == snap["mission_time"] == 3.5
+    assert snap["min_separation_live"] is None  # no pair yet: not a number to show
+    [vehicle] = snap["vehicles"]
+    # LOCAL_NED (0, 0, -1.5) from a home at (1, 2, 0): 1.5 m up in the world frame
+    assert vehicle["position"] == pytest.approx([1.0, 2.0, 1.5])
+    assert vehicle["mode"] == "OFFBOARD" and vehicle["heartbeat_age"] is not None
