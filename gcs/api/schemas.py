@@ -181,7 +181,7 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
     docs = _attribute_docs(cls)
     properties: dict[str, Any] = {}
     required: list[str] = []
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+    for f in dataclasses.fields(cls):
         if not f.repr:
             continue
         doc = docs.get(f.name, "")
@@ -198,7 +198,7 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
             required.append(f.name)
         properties[f.name] = schema
     description = " ".join((inspect.getdoc(cls) or "").split())
-    component = {
+    component: dict[str, Any] = {
         "title": name, "type": "object", "description": description,
         "properties": properties, "required": required, "examples": [_EXAMPLES[name]],
     }

@@ -244,7 +244,8 @@ async def execution_events(
     flight = fleet.flight(execution.id)
     if flight is None:
         # Finished: the store has it (read again: it may have ended a moment ago).
-        execution = await run_in_threadpool(store.get_execution, execution.id) or execution
+        stored = await run_in_threadpool(store.get_execution, execution.id)
+        execution = stored or execution
         stream: AsyncIterable[tuple[str, dict[str, Any]]] = _stored_stream(execution)
     else:
         stream = flight.stream()
