@@ -75,7 +75,7 @@ def test_a_flight_the_store_refuses_ends_failed_with_the_reason(
                                 json={"hold_at_goal": 0.5}).json()
         streamed = sse_events(client, execution["links"]["events"])
         done = streamed[-1]
-        assert done[0] == "done" and done[1]["status"] == "completed"
+        assert done[0] == "done" and done[1]["status"] == "completed", done[1]
         stored = client.get(execution["links"]["self"]).json()
         assert stored["status"] == "failed"
         assert "could not be stored" in stored["error"]
