@@ -159,7 +159,7 @@ REQUEST_ERROR_STATUS: dict[type[RequestError], int] = {
 def _status_of(exc: RequestError) -> int:
     for cls in type(exc).__mro__:
         if cls in REQUEST_ERROR_STATUS:
-            return REQUEST_ERROR_STATUS[cls]  # type: ignore[index]
+            return REQUEST_ERROR_STATUS[cls]
     return 422
 
 

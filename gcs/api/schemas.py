@@ -20,6 +20,7 @@ import inspect
 import itertools
 import json
 import re
+import threading
 import types
 import typing
 from functools import cache
@@ -181,7 +182,7 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
     docs = _attribute_docs(cls)
     properties: dict[str, Any] = {}
     required: list[str] = []
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+    for f in dataclasses.fields(cls):
         if not f.repr:
             continue
         doc = docs.get(f.name, "")
@@ -198,7 +199,7 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
             required.append(f.name)
         properties[f.name] = schema
     description = " ".join((inspect.getdoc(cls) or "").split())
-    component = {
+    component: dict[str, Any] = {
         "title": name, "type": "object", "description": description,
         "properties": properties, "required": required, "examples": [_EXAMPLES[name]],
     }
@@ -209,9 +210,19 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
     return component
 
 
-@cache
+#: Builds the components once: the first requests arrive together, from several threads, and
+#: `ast.parse` (the field docs) is not safe to run in parallel in CPython 3.11.
+_BUILD_LOCK = threading.Lock()
+
+
 def planner_schemas() -> dict[str, dict[str, Any]]:
     """OpenAPI components for the scenario (input rules) and the plan (every field present)."""
+    with _BUILD_LOCK:
+        return _planner_schemas()
+
+
+@cache
+def _planner_schemas() -> dict[str, dict[str, Any]]:
     out = {name: _component(name, cls, input_rules=True) for name, cls in _SCENARIO_TYPES.items()}
     out.update(
         {name: _component(name, cls, input_rules=False) for name, cls in _PLAN_TYPES.items()}

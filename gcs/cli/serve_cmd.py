@@ -130,7 +130,7 @@ async def _on_stop_signal(app: Any) -> None:
     end_streams()
     fleet = getattr(app.state, "fleet", None)
     flight = None if fleet is None else fleet.active
-    if flight is not None:
+    if fleet is not None and flight is not None:
         with contextlib.suppress(Exception):
             await fleet.abort(flight.id, "land", "the service is stopping")
 

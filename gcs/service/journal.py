@@ -1,10 +1,12 @@
-"""An execution's state, events and flight record written to the store while it flies.
+"""An execution's state, events and flight record written to the store while it flies, and
+its final write when it ends.
 
-A flight used to be stored only at its end, so a crash (kill -9, power loss) left an
-`interrupted` execution with no events and no record. `ExecutionJournal` writes the status and
-the events so far about once a second (batched: nothing is written when nothing changed), and
-a snapshot of the flight record so far every few seconds (it grows with the flight, so less
-often). The final write at the end of the flight (`FleetService._persist`) replaces all of it.
+So that a crash (kill -9, power loss) keeps what a flight did, `ExecutionJournal` writes the
+status and the events so far about once a second (batched: nothing is written when nothing
+changed), and a snapshot of the flight record so far every few seconds (it grows with the
+flight, so less often). The final write at the end of the flight (`store_final`) replaces all
+of it; if the store refuses that, `store_failure` leaves the execution `failed` with the
+reason, never stored as flying.
 
 Snapshots are taken on the event loop as shallow list copies (fast, and consistent with the
 loop that appends to them); the JSON is made and written in a thread. A failing write is
@@ -26,7 +28,7 @@ from gcs.service.store import Store
 if TYPE_CHECKING:
     from gcs.flight.record import FlightRecorder
 
-__all__ = ["ExecutionJournal", "record_snapshot", "store_failure"]
+__all__ = ["ExecutionJournal", "record_snapshot", "store_failure", "store_final"]
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +76,7 @@ class ExecutionJournal:
         self._task: asyncio.Task[None] | None = None
 
     def start(self) -> None:
+        """Start writing in the background."""
         self._task = asyncio.ensure_future(self._loop())
 
     async def close(self) -> None:
@@ -157,3 +160,28 @@ async def store_failure(store: Store, execution_id: str, reason: str,
     _retries.add(task)
     task.add_done_callback(_retries.discard)
     return False
+
+
+async def store_final(store: Store, execution_id: str, *, status: str,
+                      events: list[dict[str, Any]], summary: dict[str, Any] | None,
+                      record: dict[str, Any] | None, error: str | None) -> bool:
+    """The final write of a flight: status, events, summary, record and error. When the
+    store refuses it, the execution is marked `failed` with the reason (`store_failure`).
+    True if the final state was stored."""
+
+    def write() -> None:
+        text = None
+        if record is not None:
+            # orjson: a flight record is megabytes; json.dumps would hold the GIL longer.
+            text = orjson.dumps(record, option=orjson.OPT_SERIALIZE_NUMPY).decode()
+        store.update_execution(execution_id, status=status, events=events, summary=summary,
+                               record_json=text, error=error, finished=True)
+
+    try:
+        await asyncio.to_thread(write)
+        return True
+    except Exception as exc:
+        log.exception("could not store execution %s", execution_id)
+        await store_failure(store, execution_id, f"the flight ({status}) could not be stored: "
+                            f"{type(exc).__name__}: {exc}"[:500], events)
+        return False

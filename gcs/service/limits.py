@@ -20,8 +20,11 @@ from gcs.errors import InvalidRequest
 from gcs.service.settings import Settings
 
 __all__ = [
+    "LIMIT_NAMES",
     "MAX_SEQUENCE_LEGS",
+    "MIN_STEPS",
     "WorkBounds",
+    "limits_in_force",
     "scenario_bound_errors",
     "sequence_bound_errors",
     "trajectory_sample_count",
@@ -29,6 +32,22 @@ __all__ = [
 
 #: Most legs (formations after the first) one sequence request may ask for.
 MAX_SEQUENCE_LEGS = 20
+#: Fewest `steps` a scenario may have (the planner's own minimum).
+MIN_STEPS = 3
+#: The settings that bound a request, as `GET /api/status` publishes them (``limits``).
+LIMIT_NAMES: tuple[str, ...] = (
+    "max_vehicles", "max_steps", "dt_min", "dt_max", "max_horizon_s", "max_coordinate_m",
+    "max_body_bytes", "max_trajectory_rate", "max_trajectory_samples", "plan_queue_max",
+    "plan_time_limit_s",
+)
+
+
+def limits_in_force(settings: Settings) -> dict[str, int | float]:
+    """Every limit a request is checked against, by name: the settings of `LIMIT_NAMES` and
+    `max_sequence_legs`."""
+    limits: dict[str, int | float] = {name: getattr(settings, name) for name in LIMIT_NAMES}
+    limits["max_sequence_legs"] = MAX_SEQUENCE_LEGS
+    return limits
 
 
 @dataclass(frozen=True)
@@ -82,6 +101,10 @@ def scenario_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
         errors.append(InvalidRequest(
             "steps", f"{steps:g} steps exceed this server's limit of {bounds.max_steps} "
             f"(setting max_steps)"))
+    elif steps is not None and steps < MIN_STEPS:
+        errors.append(InvalidRequest(
+            "steps", f"must be between {MIN_STEPS} and {bounds.max_steps} on this server, "
+            f"got {steps:g} (setting max_steps)"))
     dt = _real(data.get("dt"))
     dt_errors = _dt_errors(dt, bounds)
     errors += dt_errors

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, cast
 
 from sqlalchemy import (
     DateTime,
@@ -32,7 +32,7 @@ from sqlalchemy import (
     select,
     update,
 )
-from sqlalchemy.engine import Engine
+from sqlalchemy.engine import CursorResult, Engine, Result
 from sqlalchemy.orm import (
     DeclarativeBase,
     Mapped,
@@ -49,6 +49,7 @@ __all__ = [
     "ExecutionRow",
     "MissionRow",
     "Store",
+    "new_mission_id",
 ]
 
 
@@ -58,6 +59,11 @@ def _now() -> datetime:
 
 def _new_id() -> str:
     return uuid.uuid4().hex[:12]
+
+
+def new_mission_id() -> str:
+    """A fresh mission id (the planning queue names a mission before it is stored)."""
+    return _new_id()
 
 
 class _Base(DeclarativeBase):
@@ -207,6 +213,12 @@ def _execution_row(
     )
 
 
+def _changed(result: Result[Any]) -> int:
+    """Rows an UPDATE changed: its result is a `CursorResult` (`Session.execute` is typed
+    as returning any `Result`)."""
+    return int(cast("CursorResult[Any]", result).rowcount or 0)
+
+
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
     cursor = dbapi_connection.cursor()
     # WAL lets readers proceed while a plan is being written; foreign keys make the
@@ -251,11 +263,13 @@ class Store:
 
     # ------------------------------------------------------------------ missions
 
-    def create_mission(self, scenario: dict[str, Any]) -> MissionRow:
-        """Store a validated scenario (with defaults filled in) as a mission being planned."""
+    def create_mission(self, scenario: dict[str, Any], mission_id: str | None = None
+                       ) -> MissionRow:
+        """Store a validated scenario (with defaults filled in) as a mission being planned,
+        under `mission_id` (default: a fresh one)."""
         now = _now()
         mission = _Mission(
-            id=_new_id(),
+            id=mission_id or _new_id(),
             name=str(scenario["name"])[:200],
             status=MissionStatus.PLANNING,
             created_at=now,
@@ -307,6 +321,18 @@ class Store:
             mission_id, status=MissionStatus.FAILED, error_json=json.dumps(error)
         )
 
+    def fail_stale_planning(self, mission_id: str, error: dict[str, Any]) -> bool:
+        """Mark one mission failed if it is still `planning` (no job holds it); False if it
+        is not (planned, failed or deleted meanwhile)."""
+        with self._session() as session:
+            result = session.execute(
+                update(_Mission)
+                .where(_Mission.id == mission_id, _Mission.status == MissionStatus.PLANNING)
+                .values(status=MissionStatus.FAILED, error_json=json.dumps(error),
+                        updated_at=_now())
+            )
+            return _changed(result) > 0
+
     def fail_unfinished_planning(self, reason: str) -> int:
         """Mark missions left `planning` (by a stopped server) as failed; returns how many."""
         with self._session() as session:
@@ -319,7 +345,7 @@ class Store:
                     updated_at=_now(),
                 )
             )
-            return int(result.rowcount or 0)
+            return _changed(result)
 
     def _update_mission(self, mission_id: str, **values: Any) -> bool:
         with self._session() as session:
@@ -328,7 +354,7 @@ class Store:
                 .where(_Mission.id == mission_id)
                 .values(updated_at=_now(), **values)
             )
-            return bool(result.rowcount)
+            return _changed(result) > 0
 
     def delete_mission(self, mission_id: str) -> bool:
         """Delete a mission and its executions; False if there was none."""
@@ -424,7 +450,7 @@ class Store:
             result = session.execute(
                 update(_Execution).where(_Execution.id == execution_id).values(**values)
             )
-            return bool(result.rowcount)
+            return _changed(result) > 0
 
     def fail_unfinished_executions(self, reason: str) -> int:
         """Executions a stopped server left active: mark them `interrupted`."""
@@ -434,4 +460,4 @@ class Store:
                 .where(_Execution.status.in_(EXECUTION_ACTIVE))
                 .values(status=ExecutionStatus.INTERRUPTED, error=reason, finished_at=_now())
             )
-            return int(result.rowcount or 0)
+            return _changed(result)

@@ -17,8 +17,8 @@ import httpx
 from gcs.sim import ports
 from tests.paths import EXAMPLES
 
-__all__ = ["EXAMPLES", "SHORT_CROSSING", "ServiceProcess", "example", "free_port",
-           "free_udp_base"]
+__all__ = ["EXAMPLES", "QUICK_CROSSING", "SHORT_CROSSING", "ServiceProcess", "example",
+           "free_port", "free_udp_base"]
 
 
 
@@ -39,6 +39,10 @@ SHORT_CROSSING: dict[str, Any] = {
         {"id": "d", "start": [3.1, 4.8, 1.8], "goal": [2.8, 1.2, 1.2]},
     ],
 }
+
+
+#: The same crossing in 6 s: for tests that fly to the end and need no time inside the flight.
+QUICK_CROSSING: dict[str, Any] = {**SHORT_CROSSING, "name": "quick-crossing", "steps": 30}
 
 
 def free_udp_base(count: int) -> int:

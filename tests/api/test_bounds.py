@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from gcs.service.limits import trajectory_sample_count
+from gcs.service.limits import LIMIT_NAMES, MAX_SEQUENCE_LEGS, trajectory_sample_count
 from gcs.service.plans import sample_times
 from tests.api.support import example
 
@@ -35,7 +35,8 @@ def _scenario(**changes: Any) -> dict[str, Any]:
 @pytest.mark.parametrize(
     ("changes", "field", "reason"),
     [
-        # The probes of issue 9: each used to converge, 500, or put Infinity in JSON.
+        # Absurd values that would otherwise plan for ever, fail inside, or put Infinity
+        # into JSON.
         ({"dt": 10_000, "steps": 1000}, "dt", "must be between 0.01 and 5 s"),
         ({"dt": 1e8}, "dt", "(settings dt_min, dt_max)"),
         ({"dt": 1e308}, "dt", "got 1e+308"),
@@ -45,6 +46,9 @@ def _scenario(**changes: Any) -> dict[str, Any]:
         ({"limits.position_max": [1e308, 5, 3]}, "limits.position_max[0]",
          "1e+308 m is farther than 10000 m from the origin (setting max_coordinate_m)"),
         ({"limits.position_min": [0, -20_000, 0]}, "limits.position_min[1]", "10000 m"),
+        # `steps` errors quote the limit in force (max_steps 400 here), not the planner's.
+        ({"steps": 2}, "steps", "must be between 3 and 400 on this server, got 2"),
+        ({"steps": 6000, "dt": 0.1}, "steps", "6000 steps exceed this server's limit of 400"),
     ],
 )
 def test_work_bounds_name_the_field_and_setting(
@@ -100,3 +104,18 @@ def test_the_export_size_is_counted_without_allocating(horizon: float, rate: flo
         assert count == 3 * len(sample_times(horizon, rate))
     else:  # 2e8 samples: counted, never built
         assert count == 3 * (int(horizon * rate) + 1)
+
+
+def test_status_publishes_every_limit_in_force(shared_client: TestClient) -> None:
+    limits = shared_client.get("/api/status").json()["limits"]
+    assert set(limits) == {*LIMIT_NAMES, "max_sequence_legs"}
+    settings = shared_client.app.state.settings  # type: ignore[attr-defined]
+    for name in LIMIT_NAMES:
+        assert limits[name] == getattr(settings, name), name
+    assert limits["max_sequence_legs"] == MAX_SEQUENCE_LEGS
+    # The values are the shared app's own (not the defaults) ...
+    assert (limits["max_steps"], limits["max_vehicles"]) == (400, 16)
+    # ... and the ones its answers quote.
+    too_many = _scenario(steps=limits["max_steps"] + 1)
+    reason = shared_client.post("/api/missions", json=too_many).json()["reason"]
+    assert f"limit of {limits['max_steps']} " in reason

@@ -11,8 +11,9 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.api.schemas import planner_schemas, shape_errors
+from gcs.flight.phases import EventKind, vocabulary
 from gcs.service.settings import Settings
-from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus
+from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus, status_sets
 from planner import Plan, Scenario
 from planner.result import STATUSES as PLAN_STATUSES
 from planner.scenario import DEFAULTS, Limits, Vehicle
@@ -72,6 +73,25 @@ def test_status_publishes_every_status_set(client: TestClient) -> None:
     assert set(statuses["execution"]["active"]) == set(EXECUTION_ACTIVE)
     assert set(statuses["execution"]["finished"]) == set(ExecutionStatus) - set(EXECUTION_ACTIVE)
     assert statuses["plan"]["all"] == list(PLAN_STATUSES)
+
+
+def test_status_publishes_the_phases_and_event_kinds(shared_client: TestClient) -> None:
+    phases = shared_client.get("/api/status").json()["phases"]
+    assert phases == vocabulary()
+    assert set(phases) == {"flight", "vehicle", "airborne", "event_kinds"}
+    assert EventKind.PAUSE_LIMIT.value in phases["event_kinds"]
+    assert set(phases["airborne"]) <= set(phases["vehicle"])
+
+
+def test_the_status_example_is_made_from_the_definitions(shared_client: TestClient) -> None:
+    component = shared_client.get("/openapi.json").json()["components"]["schemas"]["StatusOut"]
+    assert "phases" in component["properties"] and "phases" in component["required"]
+    example = component["examples"][0]
+    assert example["statuses"] == status_sets()
+    assert ExecutionStatus.PAUSED.value in example["statuses"]["execution"]["active"]
+    assert example["phases"] == vocabulary()
+    assert set(example["limits"]) == set(shared_client.get("/api/status").json()["limits"])
+    assert example["limits"]["max_steps"] == Settings.model_fields["max_steps"].default
 
 
 def _validator(schema: dict, component: str) -> Any:

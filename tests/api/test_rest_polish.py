@@ -14,7 +14,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.support import SHORT_CROSSING, example
+from tests.api.support import QUICK_CROSSING, example
 
 
 def sse(client: TestClient, url: str, headers: dict[str, str] | None = None
@@ -82,7 +82,7 @@ def test_flight_events_resume_and_flights_are_paginated_without_events(
     mock_settings: Callable[..., Settings],
 ) -> None:
     with TestClient(create_app(mock_settings())) as client:
-        mission = client.post("/api/missions?wait=60", json=SHORT_CROSSING).json()
+        mission = client.post("/api/missions?wait=60", json=QUICK_CROSSING).json()
         flight = client.post(f"/api/missions/{mission['id']}/executions",
                              json={"hold_at_goal": 0.5}).json()
         live = sse(client, flight["links"]["events"])

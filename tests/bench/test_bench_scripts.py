@@ -4,9 +4,13 @@ print the JSON the README's figures come from. Their timings are not asserted he
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+from importlib import metadata
 from pathlib import Path
+
+import pytest
 
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 
@@ -25,10 +29,18 @@ def test_planner_benchmark_reports_figures_and_machine():
     row = report["scenarios"][0]
     assert row["scenario"] == "paper-circle2" and row["status"] == "converged"
     assert row["min_separation_continuous"] >= row["R"] - 1e-4
-    assert row["total_s"] > 0
+    assert row["vehicles"] == 2 and row["verified"] is True
+    assert row["qp_solves"] >= row["scp_iterations"] >= 1
+    # One repeat: the reported time is that run's, the first QP is part of it, and the
+    # speed-up is computed from the figures it prints.
+    assert row["total_s_runs"] == [pytest.approx(row["total_s"], abs=1e-4)]
+    assert row["first_qp_s"] <= row["total_s"]
+    assert row["speedup_vs_paper"] == pytest.approx(row["paper_total_s"] / row["total_s"])
     assert row["peak_rss_mb"] is None or row["peak_rss_mb"] > 0  # None off Linux
-    assert report["dmpc2019"]["4"]["verified"] == 1
-    assert report["machine"]["cpus"] >= 1
+    assert report["dmpc2019"]["4"]["trials"] == 1 and report["dmpc2019"]["4"]["verified"] == 1
+    # The machine it ran on, as this process sees it.
+    assert report["machine"]["cpus"] == os.cpu_count()
+    assert report["machine"]["packages"]["numpy"] == metadata.version("numpy")
 
 
 def test_stream_benchmark_reports_rate_and_jitter():
@@ -70,4 +82,9 @@ def test_service_benchmark_reports_latency_and_flight_timing():
     latency = run["latency"]
     assert 0 < latency["p50_ms"] <= latency["p99_ms"] <= latency["max_ms"]
     assert latency["requests"] == sum(p["requests"] for p in run["by_path"].values())
-    assert report["median"]["setpoint_rate_hz"] > 0 and report["missed_ticks_max"] >= 0
+    # One run: the medians and the worst case are that run's own figures.
+    assert report["scenario"]["planned_meanwhile"] == "paper-circle8"
+    assert report["scenario"]["vehicles"] == 8 and report["scenario"]["repeat"] == 1
+    assert report["median"]["setpoint_rate_hz"] == run["flight"]["setpoint_rate_hz"]
+    assert report["median"]["latency_max_ms"] == latency["max_ms"]
+    assert report["missed_ticks_max"] == (run["flight"]["missed_ticks"] or 0)

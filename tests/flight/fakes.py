@@ -16,8 +16,9 @@ import numpy as np
 
 from gcs import px4
 from gcs.flight.fleetfile import VehicleSpec
-from gcs.flight.link import Telemetry, mavlink
+from gcs.flight.telemetry import Telemetry
 from gcs.flight.vehicle import VehicleStatus
+from gcs.wire import mavlink
 
 __all__ = ["FakeLink", "fake_link", "fake_vehicle"]
 

@@ -66,7 +66,9 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         # What the service has shown so far; the journal writes it within about a second.
         seen = httpx.get(exec_url, timeout=5).json()["events"]
         assert seen, "no flight events yet"
-        time.sleep(6.0)  # past one record snapshot (every ~5 s) too
+        # The journal's first record snapshot (every ~5 s) is stored too.
+        _wait(lambda: httpx.get(exec_url, timeout=5).json()["has_record"], 30,
+              "the first record snapshot")
         statuses = {m: httpx.get(f"{url}/api/missions/{m}", timeout=5).json()["status"]
                     for m in created}
         assert "planning" in statuses.values(), statuses

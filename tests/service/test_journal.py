@@ -17,7 +17,7 @@ from gcs.service.settings import Settings
 from gcs.service.store import Store
 from planner import Scenario
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import SHORT_CROSSING, example
+from tests.api.support import QUICK_CROSSING, example
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -70,12 +70,12 @@ def test_a_flight_the_store_refuses_ends_failed_with_the_reason(
             return real_update(execution_id, **values)
 
         monkeypatch.setattr(store, "update_execution", update)
-        mission = plan_mission(client, SHORT_CROSSING)
+        mission = plan_mission(client, QUICK_CROSSING)
         execution = client.post(f"/api/missions/{mission['id']}/executions",
                                 json={"hold_at_goal": 0.5}).json()
         streamed = sse_events(client, execution["links"]["events"])
         done = streamed[-1]
-        assert done[0] == "done" and done[1]["status"] == "completed"
+        assert done[0] == "done" and done[1]["status"] == "completed", done[1]
         stored = client.get(execution["links"]["self"]).json()
         assert stored["status"] == "failed"
         assert "could not be stored" in stored["error"]

@@ -21,8 +21,8 @@ def _mock_config(**values: object):  # type: ignore[no-untyped-def]
         service = FleetService(settings, store=None)  # type: ignore[arg-type]
         await service.start()
         try:
-            assert service._mock is not None
-            return service._mock.config
+            assert service.fleet.mock is not None
+            return service.fleet.mock.config
         finally:
             await service.close()
 

@@ -18,7 +18,7 @@ from distributed import Client, LocalCluster
 from sqlalchemy import event
 
 from gcs.errors import ServiceBusy
-from gcs.service import planning as planning_module
+from gcs.service import plan_runner, plan_worker
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.store import Store
 from planner import Scenario
@@ -169,7 +169,7 @@ def stubborn_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
 def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
     store, cluster, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(planning_module.plan_worker, "run_plan", stubborn_plan)
+    monkeypatch.setattr(plan_worker, "run_plan", stubborn_plan)
 
     async def scenario_run() -> None:
         service = await started_service(store, cluster, cancel_grace_s=0.5)
@@ -229,7 +229,7 @@ def test_a_full_queue_is_refused_and_small_jobs_pass_large_ones(
     store, cluster, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # Large jobs that never end by themselves: the outcome cannot depend on timing.
-    monkeypatch.setattr(planning_module.plan_worker, "run_plan", stubborn_plan)
+    monkeypatch.setattr(plan_worker, "run_plan", stubborn_plan)
 
     async def scenario_run() -> None:
         service = await started_service(store, cluster, queue_max=3, cancel_grace_s=0.05)
@@ -293,7 +293,7 @@ def test_a_plan_the_disk_cannot_hold_fails_the_mission_with_the_reason(store, cl
 def test_a_refused_failure_write_is_retried_until_stored(
     store, cluster, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(planning_module, "STORE_RETRY_S", 0.05)
+    monkeypatch.setattr(plan_runner, "STORE_RETRY_S", 0.05)
     real_fail = store.fail_planning
     refusals = {"finish": 0, "fail": 0}
 

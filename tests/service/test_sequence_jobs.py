@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from gcs.service import planning as planning_module
+from gcs.service import plan_worker
 from gcs.service.planning import PlanJob
 from planner import Plan
 from planner.generators import show_sequence
@@ -102,7 +102,7 @@ def stubborn_leg(job_id: str, scenario: dict[str, Any], solver: str | None, *, t
 
 def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, monkeypatch
                                                              ) -> None:
-    monkeypatch.setattr(planning_module.plan_worker, "run_plan", stubborn_leg)
+    monkeypatch.setattr(plan_worker, "run_plan", stubborn_leg)
     data = show_sequence(9, seed=4, hold=1.0)
 
     async def scenario_run() -> None:

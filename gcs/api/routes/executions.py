@@ -24,8 +24,9 @@ from gcs.api.deps import (
 )
 from gcs.api.errors import error_responses
 from gcs.errors import StateConflict
+from gcs.flight.phases import EventKind
 from gcs.service.flights import LiveExecution, execution_document
-from gcs.service.statuses import ExecutionStatus
+from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.store import ExecutionRow
 
 __all__ = ["mission_router", "router"]
@@ -87,7 +88,7 @@ class AbortRequest(BaseModel):
 
 
 _EXECUTION_EXAMPLE: dict[str, Any] = {
-    "id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "status": "completed",
+    "id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "status": ExecutionStatus.COMPLETED,
     "created_at": "2026-11-23T08:40:00+00:00", "finished_at": "2026-11-23T08:41:02+00:00",
     "fleet": "mock: uav1, uav2, uav3, uav4",
     "summary": {"completed": True, "goal_error_max": 0.04, "tracking_error_max": 0.12,
@@ -107,8 +108,9 @@ class ExecutionSummary(BaseModel):
     id: str
     mission_id: str
     status: ExecutionStatus = Field(
-        description="starting, running, paused, aborting while flying; then completed, "
-        "incomplete (ran to its end without completing), aborted, failed or interrupted."
+        description=f"{', '.join(EXECUTION_ACTIVE)} while flying; then one of "
+        f"{', '.join(EXECUTION_FINISHED)} ({ExecutionStatus.INCOMPLETE}: ran to its end "
+        "without completing)."
     )
     created_at: str
     finished_at: str | None
@@ -128,7 +130,8 @@ class ExecutionOut(ExecutionSummary):
 
     model_config = ConfigDict(json_schema_extra={"examples": [{
         **_EXECUTION_EXAMPLE, "live": None,
-        "events": [{"t": 0.8, "vehicle": "uav1", "kind": "connected", "detail": "mode HOLD"}],
+        "events": [{"t": 0.8, "vehicle": "uav1", "kind": EventKind.CONNECTED,
+                    "detail": "mode HOLD"}],
     }]})
 
     events: list[dict[str, Any]] = Field(description="{t, vehicle, kind, detail} each.")
@@ -244,7 +247,8 @@ async def execution_events(
     flight = fleet.flight(execution.id)
     if flight is None:
         # Finished: the store has it (read again: it may have ended a moment ago).
-        execution = await run_in_threadpool(store.get_execution, execution.id) or execution
+        stored = await run_in_threadpool(store.get_execution, execution.id)
+        execution = stored or execution
         stream: AsyncIterable[tuple[str, dict[str, Any]]] = _stored_stream(execution)
     else:
         stream = flight.stream()

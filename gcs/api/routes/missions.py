@@ -84,6 +84,32 @@ def mission_document(row: MissionRow, job: PlanJob | None) -> str:
     return f'{text[:-1]},"plan":{row.plan_json or "null"}}}'
 
 
+async def _admit(store: Store, planning: PlanningService, scenario: dict[str, Any],
+                 sequence: FormationSequence | None, time_limit_s: float
+                 ) -> tuple[MissionRow, PlanJob]:
+    """Store the mission and start its job, or neither: a place in the queue is reserved
+    before the row is written (503 otherwise, nothing stored), and a row whose job could not
+    start is deleted again."""
+    reservation = planning.reserve()
+    try:
+        row = await run_in_threadpool(store.create_mission, scenario, reservation.mission_id)
+        if sequence is not None:
+            job = planning.submit_sequence(row.id, sequence, time_limit_s=time_limit_s,
+                                           reservation=reservation)
+        else:
+            job = planning.submit(row.id, scenario, time_limit_s=time_limit_s,
+                                  reservation=reservation)
+    except BaseException:
+        # The row may exist (written, then no job): never leave it `planning` without one.
+        with contextlib.suppress(Exception):
+            await asyncio.shield(run_in_threadpool(store.delete_mission,
+                                                   reservation.mission_id))
+        raise
+    finally:
+        reservation.release()
+    return row, job
+
+
 def _json(text: str, status_code: int = 200, headers: dict[str, str] | None = None) -> Response:
     return Response(text, status_code=status_code, media_type="application/json",
                     headers=headers)
@@ -165,19 +191,15 @@ async def create_mission(
     type, key and server-limit problem at once); nothing is stored for them.
     """
     limit = planning.job_time_limit(time_limit)
+    sequence: FormationSequence | None = None
     if is_sequence(body):
         sequence = await run_in_threadpool(_validated_sequence, body, settings)
-        planning.check_capacity()  # 503 before anything is stored
         # The mission's scenario is the whole timeline, F0 to the last formation: the one
         # its stitched plan carries and a flight re-verifies.
-        whole = timeline_scenario(sequence).to_dict()
-        row = await run_in_threadpool(store.create_mission, whole)
-        job = planning.submit_sequence(row.id, sequence, time_limit_s=limit)
+        scenario = timeline_scenario(sequence).to_dict()
     else:
-        parsed = await run_in_threadpool(_validated, body, settings)
-        planning.check_capacity()  # 503 before anything is stored
-        row = await run_in_threadpool(store.create_mission, parsed.to_dict())
-        job = planning.submit(row.id, parsed.to_dict(), time_limit_s=limit)
+        scenario = (await run_in_threadpool(_validated, body, settings)).to_dict()
+    row, job = await _admit(store, planning, scenario, sequence, limit)
     timeout = settings.plan_wait_s if wait is None else wait
     with contextlib.suppress(TimeoutError):
         await asyncio.wait_for(job.done.wait(), timeout)
@@ -236,7 +258,7 @@ async def delete_mission(
     """Delete a mission, its plan and its flight records; a plan still computing is cancelled
     first (its worker is freed). Refused (409) while the mission is flying."""
     if mission.status == MissionStatus.PLANNING:
-        await _stop_planning(planning, mission.id, "the mission was deleted")
+        await _stop_planning(planning, store, mission.id, "the mission was deleted")
     executions = await run_in_threadpool(store.list_executions, mission.id)
     flying = [e.id for e in executions if e.status in EXECUTION_ACTIVE]
     if flying:
@@ -248,11 +270,22 @@ async def delete_mission(
     return Response(status_code=204)
 
 
-async def _stop_planning(planning: PlanningService, mission_id: str, reason: str) -> None:
+async def _stop_planning(planning: PlanningService, store: Store, mission_id: str,
+                         reason: str) -> None:
     """Cancel a mission's plan and wait until its job has ended (and the mission is stored
-    as failed); 409 if it is not planning in this service."""
-    job = planning.cancel(mission_id, reason)
-    await job.done.wait()
+    as failed). A `planning` row that no job holds (its final write was refused, or a
+    previous run left it) is marked failed with the reason; 409 only for a mission whose job
+    is being started this instant."""
+    job = planning.job(mission_id)
+    if job is not None and not job.done.is_set():
+        planning.cancel(mission_id, reason)
+        await job.done.wait()
+        return
+    if planning.holds(mission_id):
+        raise StateConflict("mission_id", f"mission {mission_id!r} is being admitted to the "
+                            "planning queue; retry")
+    await run_in_threadpool(store.fail_stale_planning, mission_id,
+                            {"field": None, "reason": f"{reason} (no plan job held it)"})
 
 
 @router.post(
@@ -264,11 +297,12 @@ async def _stop_planning(planning: PlanningService, mission_id: str, reason: str
 async def cancel_mission(mission: MissionDep, store: StoreDep, planning: PlanningDep
                          ) -> Response:
     """Stop planning this mission now: the computation ends and its worker is freed. The
-    mission is kept, with status `failed` and the reason. 409 if it is not planning."""
-    if mission.status != "planning":
+    mission is kept, with status `failed` and the reason (also when no job held it any
+    more). 409 if it is not planning."""
+    if mission.status != MissionStatus.PLANNING:
         raise StateConflict("mission_id", f"mission {mission.id!r} is not planning (status "
                             f"{mission.status})")
-    await _stop_planning(planning, mission.id, "cancelled by the operator")
+    await _stop_planning(planning, store, mission.id, "cancelled by the operator")
     text = await _document(store, planning, mission.id)
     if text is None:
         raise StateConflict("mission_id", f"mission {mission.id!r} was just deleted")

@@ -1,52 +1,65 @@
-"""/api/status: is the service up, what are its limits, what is it doing."""
+"""/api/status: is the service up, what are its limits, what is it doing, and the vocabulary
+(statuses, phases, event kinds) clients read instead of keeping a copy."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from fastapi import APIRouter, Request
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.deps import PlanningDep, SettingsDep
+from gcs.flight.phases import vocabulary
+from gcs.service.limits import LIMIT_NAMES, limits_in_force
+from gcs.service.settings import Settings
 from gcs.service.statuses import status_sets
 
-__all__ = ["StatusOut", "router"]
+__all__ = ["StatusOut", "router", "status_example"]
 
 router = APIRouter(prefix="/status", tags=["status"])
+
+
+def status_example() -> dict[str, Any]:
+    """An example answer made from the definitions themselves (status sets, vocabulary, the
+    settings' defaults), so it always lists what the service really serves."""
+    defaults = Settings.model_construct()  # the defaults, no environment or config file
+    return {
+        "status": "ok", "version": "0.1.0", "planning_jobs": 0,
+        "plan_workers": defaults.plan_workers,
+        "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
+                  "flying": None, "world_origin": None},
+        "limits": limits_in_force(defaults),
+        "statuses": status_sets(),
+        "phases": vocabulary(),
+    }
 
 
 class StatusOut(BaseModel):
     """Service health and the limits a client should respect."""
 
-    model_config = {"json_schema_extra": {"examples": [{
-        "status": "ok", "version": "0.1.0", "planning_jobs": 0, "plan_workers": 1,
-        "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
-                  "flying": None},
-        "limits": {"max_vehicles": 128, "max_steps": 1000, "max_body_bytes": 2000000,
-                   "max_trajectory_rate": 100.0},
-        "statuses": {
-            "mission": {"all": ["planning", "planned", "failed"]},
-            "execution": {"all": ["starting", "running", "aborting", "completed", "incomplete",
-                                  "aborted", "failed", "interrupted"],
-                          "active": ["starting", "running", "aborting"],
-                          "finished": ["completed", "incomplete", "aborted", "failed",
-                                       "interrupted"]},
-            "plan": {"all": ["converged", "max_iterations", "infeasible", "unverified"]}}}]}}
+    model_config = ConfigDict(json_schema_extra={"examples": [status_example()]})
 
     status: str = Field(examples=["ok"])
     version: str
     planning_jobs: int = Field(description="Plans computing now.")
     plan_workers: int
     fleet: dict[str, Any] = Field(
-        description="kind (mock, file or none), vehicles, ids, flying (execution id or null)."
+        description="kind (mock, file or none), vehicles, ids, flying (execution id or null), "
+        "world_origin."
     )
     limits: dict[str, int | float] = Field(
-        description="max_vehicles, max_steps, max_body_bytes, max_trajectory_rate."
+        description="Every limit a request is checked against: "
+        f"{', '.join(LIMIT_NAMES)} (the settings of the same names) and max_sequence_legs."
     )
     statuses: dict[str, dict[str, list[str]]] = Field(
         description="Every status set, defined once in the service: mission.all, "
         "execution.all / .active (the vehicles may be flying) / .finished, plan.all (the "
         "planner's). Clients read these rather than keeping a copy."
+    )
+    phases: dict[str, list[str]] = Field(
+        description="The flight's vocabulary, defined once (`gcs.flight.phases`): flight "
+        "(phases of a whole flight), vehicle (phases of one vehicle), airborne (the vehicle "
+        "phases in the air), event_kinds (the `kind` of each flight event)."
     )
 
 
@@ -60,11 +73,7 @@ def get_status(request: Request, settings: SettingsDep, planning: PlanningDep) -
         "planning_jobs": planning.active,
         "plan_workers": settings.plan_workers,
         "fleet": fleet.describe() if fleet is not None else {"kind": "none", "vehicles": 0},
-        "limits": {
-            "max_vehicles": settings.max_vehicles,
-            "max_steps": settings.max_steps,
-            "max_body_bytes": settings.max_body_bytes,
-            "max_trajectory_rate": settings.max_trajectory_rate,
-        },
+        "limits": limits_in_force(settings),
         "statuses": status_sets(),
+        "phases": vocabulary(),
     }

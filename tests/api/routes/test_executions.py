@@ -17,7 +17,7 @@ from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import SHORT_CROSSING, example
+from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example
 
 #: Quick flights: half a second at the goals.
 QUICK = {"hold_at_goal": 0.5}
@@ -49,7 +49,7 @@ def test_fly_to_completion_with_live_state_and_a_record(
             assert v["link"] == "monitor" and v["armed"] is False and v["mode"]
             np.testing.assert_allclose(v["position"], v["home"], atol=0.05)
 
-        mission = plan_mission(client, SHORT_CROSSING)
+        mission = plan_mission(client, QUICK_CROSSING)
         response = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
         assert response.status_code == 201, response.text
         execution = response.json()
@@ -74,7 +74,8 @@ def test_fly_to_completion_with_live_state_and_a_record(
         assert summary["completed"] is True
         assert summary["goal_error_max"] < 0.2
         assert summary["min_separation_measured"] > 1.0 - 0.1
-        assert summary["setpoint_rate_hz"] == pytest.approx(20.0, rel=0.05)
+        # Setpoints streamed all through (rate figures: bench/stream.py, bench/service.py).
+        assert summary["setpoint_rate_hz"] > 10.0  # bound
 
         stored = client.get(execution["links"]["self"]).json()
         assert stored["status"] == "completed" and stored["has_record"]
@@ -222,7 +223,7 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
         assert twice.status_code == 409 and "cannot be paused (status paused)" in \
             twice.json()["reason"]
         first = client.get(url).json()
-        time.sleep(2.0)
+        time.sleep(2.0)  # time passing while paused (and the fleet settling to its hold)
         later = client.get(url).json()
         assert later["status"] == "paused" and later["live"]["phase"] == "paused"
         assert later["live"]["mission_time"] == pytest.approx(first["live"]["mission_time"])

@@ -14,14 +14,14 @@ from gcs.flight.commands import FLEET_COMMANDS
 from gcs.service.settings import Settings
 from tests.api.routes.test_executions import wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import SHORT_CROSSING
+from tests.api.support import QUICK_CROSSING
 
 
 def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
     mock_settings: Callable[..., Settings],
 ) -> None:
     with TestClient(create_app(mock_settings())) as client:
-        mission = plan_mission(client, SHORT_CROSSING)
+        mission = plan_mission(client, QUICK_CROSSING)
         execution = client.post(f"/api/missions/{mission['id']}/executions").json()
         url = execution["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
@@ -106,7 +106,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
                 client.get("/api/vehicles").json()["vehicles"]),
             10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
         # the world frame's geodetic origin (the mock's), for a page's coordinates and scale
-        mock_origin = client.app.state.fleet._mock.world_origin
+        mock_origin = client.app.state.fleet.fleet.mock.world_origin
         assert client.get("/api/vehicles").json()["fleet"]["world_origin"] == {
             "lat": mock_origin.lat, "lon": mock_origin.lon, "alt": mock_origin.alt}
         for v in vehicles:
@@ -114,12 +114,12 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
             assert v["gps"]["h_acc"] == pytest.approx(0.05)
             assert v["health"]["unhealthy"] == []
             assert v["link_quality"]["received"] > 10 and v["link_quality"]["lost"] == 0
-        mock = client.app.state.fleet._mock  # inject a fault into the in-process mock
+        mock = client.app.state.fleet.fleet.mock  # inject a fault into the in-process mock
         mock.vehicles[2].faults.battery = 15.0
         wait_for(lambda: client.get("/api/vehicles").json()["vehicles"][2]["battery"]
                  ["remaining_pct"] == 15, 5, "the low battery to be reported")
 
-        mission = plan_mission(client, SHORT_CROSSING)
+        mission = plan_mission(client, QUICK_CROSSING)
         url = f"/api/missions/{mission['id']}/executions"
         refused = client.post(url, json={"hold_at_goal": 0.5})
         assert refused.status_code == 409, refused.text

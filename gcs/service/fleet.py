@@ -1,0 +1,273 @@
+"""The configured fleet: its vehicles, the in-process mocks, the link monitor, and what may be
+sent to the vehicles between flights.
+
+`Fleet` owns one fleet: the vehicles of a fleet file (real PX4 or SITL), or mock PX4 vehicles
+running in-process (`gcs.sim.MockFleet`), or none. Between flights it keeps a listen-only
+MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live link state;
+a flight closes the monitor and takes the connections (`gcs.service.flights`). Mock vehicles
+are set down under a plan's starts before each flight (as ``fleetplan fly --mock`` does);
+vehicles the plan does not use are parked beside its workspace. `command` sends a fleet
+command (`gcs.flight.commands`: hold, land, rtl, disarm, terminate) over the monitor's
+connections, so a fleet left hovering can always be landed.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from typing import Any, Literal
+
+import numpy as np
+
+from gcs import frames
+from gcs.errors import FleetFileError, GcsError, InvalidRequest, StateConflict
+from gcs.flight.commands import fleet_command
+from gcs.flight.fleetfile import FleetSpec, FlightOptions, load_fleet
+from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
+from gcs.flight.hub import LinkHub
+from gcs.flight.link import DECODED_IDS, VehicleLink
+from gcs.flight.margin import check_margin
+from gcs.service.settings import Settings
+from gcs.sim import MockConfig, MockFleet, homes_under
+from gcs.sim.ports import mock_fleet_ports
+from planner import Plan
+
+__all__ = ["Fleet", "FleetKind"]
+
+log = logging.getLogger(__name__)
+
+#: Where the fleet comes from: a fleet file, the in-process mocks, or nothing.
+FleetKind = Literal["file", "mock", "none"]
+#: A just-stopped mock fleet's sockets close on a later loop iteration: start attempts, gap.
+MOCK_START_ATTEMPTS = 20
+MOCK_START_RETRY_S = 0.05
+
+
+class Fleet:
+    """The vehicles of the service (file, mock or none) and their monitor links."""
+
+    def __init__(self, settings: Settings) -> None:
+        self._settings = settings
+        self.kind: FleetKind
+        if settings.fleet_file is not None:
+            self.kind = "file"
+        elif settings.mock_vehicles > 0:
+            self.kind = "mock"
+        else:
+            self.kind = "none"
+        self.spec: FleetSpec | None = None
+        """The fleet as a fleet file describes it (the mocks' own, for a mock fleet)."""
+        self.mock: MockFleet | None = None
+        """The in-process mock vehicles, for a mock fleet."""
+        self._monitor: LinkHub | None = None
+        self.links: dict[str, VehicleLink] = {}
+        """The monitor's link to each vehicle, by id (empty while a flight has them)."""
+
+    # ------------------------------------------------------------------ lifecycle
+
+    async def start(self) -> None:
+        """Load the fleet file or start the mocks, then open the monitor."""
+        if self.kind == "file":
+            assert self._settings.fleet_file is not None
+            self.spec = load_fleet(self._settings.fleet_file)
+        elif self.kind == "mock":
+            count = self._settings.mock_vehicles
+            await self._start_mock([[2.0 * i, -2.0, 0.0] for i in range(count)],
+                                   [f"uav{i + 1}" for i in range(count)])
+        await self.open_monitor()
+
+    async def close(self) -> None:
+        """Close the monitor and stop the mocks."""
+        await self.close_monitor()
+        if self.mock is not None:
+            await self.mock.stop()
+            self.mock = None
+
+    async def _start_mock(self, homes: list[list[float]], ids: list[str]) -> None:
+        ports = mock_fleet_ports(self._settings.mock_base_port)
+        config = MockConfig.preset(self._settings.mock_realism)
+        if self._settings.mock_settle_s is not None:
+            config.settle_time = self._settings.mock_settle_s
+        mock = MockFleet(homes=homes, gcs_base_port=ports["gcs_base_port"],
+                         listen_base_port=ports["listen_base_port"], config=config)
+        for attempt in range(MOCK_START_ATTEMPTS):
+            try:
+                await mock.start()
+                break
+            except OSError:
+                if attempt == MOCK_START_ATTEMPTS - 1:
+                    raise
+                await asyncio.sleep(MOCK_START_RETRY_S)
+        self.mock = mock
+        self.spec = FleetSpec.from_dict(mock.fleet_dict(ids))
+
+    async def open_monitor(self) -> None:
+        """Listen on every vehicle's connection (logged, and left closed, if one fails)."""
+        if self.spec is None:
+            return
+        hub = LinkHub(decode_ids=DECODED_IDS)  # PX4's ~410 messages/s: decode what is read
+        await hub.__aenter__()
+        try:
+            for v in self.spec.vehicles:
+                self.links[v.id] = await hub.add(v.id, v.connection, v.system_id,
+                                                 v.component_id)
+        except (OSError, GcsError) as exc:
+            log.error("cannot open the fleet's connections to watch them: %s", exc)
+            await hub.close()
+            self.links = {}
+            return
+        self._monitor = hub
+
+    async def close_monitor(self) -> None:
+        """Release the fleet's connections (before a flight opens them)."""
+        if self._monitor is not None:
+            await self._monitor.close()
+            self._monitor = None
+        self.links = {}
+
+    async def rehome_mock(self, plan: Plan) -> None:
+        """Set the mock vehicles down under the plan's starts; park the rest beside it."""
+        old = self.mock
+        if old is not None:
+            await old.stop()
+        ids = list(plan.scenario.ids)
+        homes = homes_under(list(plan.scenario.starts))
+        lo, hi = plan.scenario.limits.position_min, plan.scenario.limits.position_max
+        for spare in range(self._settings.mock_vehicles - len(ids)):
+            homes.append([float(hi[0]) + 2.0 + 2.0 * spare, float(lo[1]), 0.0])
+            name = f"spare{spare + 1}"
+            while name in ids:
+                name += "_"
+            ids.append(name)
+        await self._start_mock(homes, ids)
+        if old is not None and self.mock is not None:
+            # the same airframes set down elsewhere: their battery and injected faults remain
+            for before, after in zip(old.vehicles, self.mock.vehicles, strict=False):
+                after.faults, after.battery = before.faults, before.battery
+
+    # ------------------------------------------------------------------ state
+
+    def describe(self) -> dict[str, Any]:
+        """kind, vehicle count and ids, and the geodetic origin of the world frame when known
+        (the fleet file's `world_origin`, or the mock's)."""
+        ids = [] if self.spec is None else [v.id for v in self.spec.vehicles]
+        origin = self.spec.world_origin if self.spec is not None else None
+        if origin is None and self.mock is not None:
+            origin = self.mock.world_origin
+        return {
+            "kind": self.kind,
+            "vehicles": len(ids),
+            "ids": ids,
+            "world_origin": None if origin is None else {
+                "lat": origin.lat, "lon": origin.lon, "alt": origin.alt},
+        }
+
+    def monitored(self) -> list[dict[str, Any]]:
+        """Every vehicle's link state as the monitor sees it (heartbeat age, mode, armed,
+        world-frame position when the home is known, health)."""
+        if self.spec is None:
+            return []
+        now = time.monotonic()
+        out = []
+        for spec in self.spec.vehicles:
+            link = self.links.get(spec.id)
+            tel = None if link is None else link.telemetry
+            age = None if link is None else link.heartbeat_age(now)
+            position = None
+            if tel is not None and tel.position_ned is not None and spec.home is not None:
+                position = frames.ned_to_world(tel.position_ned, spec.home).tolist()
+            out.append({
+                "id": spec.id,
+                "system_id": spec.system_id,
+                "connection": spec.connection,
+                "link": "monitor" if link is not None else "closed",
+                "heartbeat_age": None if age is None or not np.isfinite(age) else round(age, 3),
+                "mode": None if tel is None or tel.mode is None else tel.mode.name,
+                "armed": None if tel is None or tel.heartbeat_time is None else bool(tel.armed),
+                "position": position,
+                "home": None if spec.home is None else spec.home.tolist(),
+                **(health_report(tel) if tel is not None else {}),
+            })
+        return out
+
+    def configured(self) -> FleetSpec:
+        """The fleet's spec; StateConflict when there is no fleet."""
+        if self.kind == "none" or self.spec is None:
+            raise StateConflict("fleet", "no fleet configured: start the service with --mock N "
+                                         "or --fleet FLEET.json")
+        return self.spec
+
+    # ------------------------------------------------------------------ commands
+
+    async def command(self, command: str, vehicles: list[str] | None, *, force: bool,
+                      confirm: bool) -> dict[str, Any]:
+        """A fleet command over the monitor's links (the caller checks no flight has them):
+        {command, done, vehicles: [outcome...]} once every vehicle answered or timed out."""
+        self.configured()
+        if not self.links:
+            raise StateConflict("fleet", "the fleet's connections are not open (see the "
+                                         "service log)")
+        outcomes = await fleet_command(self.links, command, vehicles, force=force,
+                                       confirm=confirm)
+        log.warning("fleet command %s to %s: %s", command,
+                    ", ".join(o.vehicle for o in outcomes),
+                    "; ".join(f"{o.vehicle} {'done' if o.done else 'NOT done'}: {o.detail}"
+                              for o in outcomes))
+        return {"command": command, "done": all(o.done for o in outcomes),
+                "vehicles": [o.to_dict() for o in outcomes]}
+
+    # ------------------------------------------------------------------ before a flight
+
+    def flight_options(self, plan: Plan, options: dict[str, Any]) -> FlightOptions:
+        """The fleet's flight options with the request's, once the fleet can fly `plan`:
+        StateConflict when it cannot (plan not verified, vehicles missing, pre-flight gate,
+        separation margin refused), InvalidRequest for bad options."""
+        spec = self.configured()
+        if not plan.ok:
+            raise StateConflict("mission_id", f"the plan is not flyable: status {plan.status!r}"
+                           f"{'' if plan.verification is None else ', verification failed'}"
+                           "; only converged, verified plans are flown")
+        ids = plan.scenario.ids
+        if self.kind == "mock" and len(ids) > self._settings.mock_vehicles:
+            raise StateConflict("fleet", f"the plan has {len(ids)} vehicles, the mock fleet "
+                           f"{self._settings.mock_vehicles} (setting mock_vehicles)")
+        if self.kind == "file":
+            try:
+                spec.for_plan(ids)
+            except FleetFileError as exc:
+                raise StateConflict("fleet", exc.reason) from None
+        try:
+            flight_options = spec.options.replace(where="options", **options)
+        except FleetFileError as exc:
+            raise InvalidRequest(exc.field, exc.reason) from None
+        except TypeError as exc:
+            raise InvalidRequest("options", str(exc)) from None
+        self._preflight(spec, ids, flight_options)
+        margin = check_margin(plan, spec.position_error)
+        if not margin.ok and flight_options.margin_check == "refuse":
+            raise StateConflict("mission_id", margin.message())
+        return flight_options
+
+    def _preflight(self, spec: FleetSpec, ids: list[str], options: FlightOptions) -> None:
+        """The pre-flight gate on what the monitor sees now (battery, unhealthy sensors, link
+        loss): StateConflict naming the vehicle and the reason, unless `preflight: override`.
+        A vehicle not heard from yet is left to the executor, which waits for it and names it
+        if it never answers."""
+        if options.preflight == "override":
+            return
+        limits = PreflightThresholds(min_battery_pct=options.min_battery_pct)
+        if self.kind == "mock":  # mock vehicle i flies plan vehicle i (see rehome_mock)
+            fleet_ids = [v.id for v in spec.vehicles][:len(ids)]
+            names = [f"{vid} (mock vehicle {fid})" if vid != fid else vid
+                     for vid, fid in zip(ids, fleet_ids, strict=True)]
+        else:
+            fleet_ids, names = list(ids), list(ids)
+        for fid, name in zip(fleet_ids, names, strict=True):
+            link = self.links.get(fid)
+            if link is None or link.telemetry.heartbeat_time is None:
+                continue
+            problems = preflight_problems(link.telemetry, limits, require_presence=False)
+            if problems:
+                raise StateConflict("fleet", f"pre-flight check: {name}: {'; '.join(problems)}"
+                                             " (fly with preflight: override to fly anyway)")

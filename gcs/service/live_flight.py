@@ -1,0 +1,90 @@
+"""One flight while it is under way, in memory: its status, events, live telemetry and the
+listeners of its event stream; and the REST document of an execution (stored row + live
+state)."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from gcs.flight.executor import FlightExecutor
+from gcs.service.events import Broadcast, Event
+from gcs.service.statuses import ExecutionStatus
+from gcs.service.store import ExecutionRow
+
+__all__ = ["LiveExecution", "execution_document"]
+
+
+@dataclass
+class LiveExecution:
+    """One execution being flown (in memory while it runs)."""
+
+    id: str
+    mission_id: str
+    status: ExecutionStatus = ExecutionStatus.STARTING
+    executor: FlightExecutor | None = None
+    events: list[dict[str, Any]] = field(default_factory=list)
+    summary: dict[str, Any] | None = None
+    error: str | None = None
+    abort_requested: str | None = None
+    done: asyncio.Event = field(default_factory=asyncio.Event)
+    listeners: Broadcast = field(default_factory=Broadcast)
+
+    @property
+    def active(self) -> bool:
+        """The flight has not ended (the vehicles may be flying)."""
+        return not self.done.is_set()
+
+    def publish(self, kind: str, data: dict[str, Any]) -> None:
+        """Tell the stream's listeners."""
+        self.listeners.publish(kind, data)
+
+    def set_status(self, status: ExecutionStatus) -> None:
+        """Change the status and tell the listeners."""
+        self.status = status
+        self.publish("status", {"status": status})
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """The executor's live state (phase, vehicles), once it exists."""
+        return None if self.executor is None else self.executor.snapshot()
+
+    def outcome(self) -> dict[str, Any]:
+        """The stream's final `done` event."""
+        return {"status": self.status, "summary": self.summary, "error": self.error}
+
+    async def stream(self) -> AsyncIterator[Event]:
+        """("status"|"event"|"telemetry", data)... then ("done", outcome); events so far
+        first, then live."""
+        history: list[Event] = [("status", {"status": self.status})]
+        history += [("event", event) for event in self.events]
+        snapshot = self.snapshot()
+        if snapshot is not None:
+            history.append(("telemetry", snapshot))
+        done = None if self.active else ("done", self.outcome())
+        async for event in self.listeners.follow(history, done):
+            yield event
+
+
+def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[str, Any]:
+    """`ExecutionOut`: the stored execution, with live state while it flies."""
+    doc = row.to_dict()
+    if flight is not None and flight.active:
+        # The live state, and the summary as soon as the flight has one (it is set together
+        # with the final status, before the row is stored): never a final status without it.
+        doc.update(status=flight.status, events=list(flight.events), live=flight.snapshot())
+        if flight.summary is not None:
+            doc["summary"] = flight.summary
+    else:
+        doc["live"] = None
+    doc["links"] = {
+        "self": f"/api/executions/{row.id}",
+        "events": f"/api/executions/{row.id}/events",
+        "abort": f"/api/executions/{row.id}/abort",
+        "pause": f"/api/executions/{row.id}/pause",
+        "resume": f"/api/executions/{row.id}/resume",
+        "record": f"/api/executions/{row.id}/record",
+        "mission": f"/api/missions/{row.mission_id}",
+    }
+    return doc
