@@ -125,6 +125,29 @@ function renderSequence(mission) {
   info.append(links);
 }
 
+/** One line of the progress log: an SCP iteration (live event or the plan's own record).
+ * @param {any} r
+ * @returns {HTMLLIElement} */
+function iterationItem(r) {
+  const li = document.createElement("li");
+  const leg = (r.leg === undefined || r.leg === null) ? "" : `leg ${r.leg}, `;
+  li.textContent = `${leg}iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
+    (r.cost_change === null ? "" : ` (Δ ${fmt(r.cost_change, 3)})`) +
+    `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s`;
+  return li;
+}
+
+/** The progress log holds every iteration of the plan shown: a plan that finished before its
+ * stream was followed (a quick plan, a busy browser) is listed from the plan's own record.
+ * @param {any} plan */
+function completeProgressLog(plan) {
+  const log = $("#progress-log");
+  const iterations = Array.isArray(plan.iterations) ? plan.iterations : [];
+  if (log.children.length >= iterations.length) return;
+  log.innerHTML = "";
+  for (const r of iterations) log.append(iterationItem(r));
+}
+
 /** Follow a mission being planned (its SCP iterations), then show it.
  * @param {Mission} mission
  * @param {string | null} key */
@@ -135,12 +158,8 @@ function followPlanning(mission, key) {
   planning.stream = source;
   source.addEventListener("iteration", (ev) => {
     const r = JSON.parse(ev.data);
-    const li = document.createElement("li");
+    appendScrolled($("#progress-log"), iterationItem(r));
     const leg = (r.leg === undefined || r.leg === null) ? "" : `leg ${r.leg}, `;
-    li.textContent = `${leg}iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
-      (r.cost_change === null ? "" : ` (Δ ${fmt(r.cost_change, 3)})`) +
-      `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s`;
-    appendScrolled($("#progress-log"), li);
     $("#plan-state").textContent = `planning… ${leg}iteration ${r.iteration}`;
   });
   source.addEventListener("done", () => { source.close(); planning.stream = null; showMission(mission.id, key); });
@@ -181,6 +200,7 @@ export async function showMission(id, key) {
   state.append(badge(data.plan_ok, `${data.plan_status}${data.plan_ok ? ", verified" : ", not verified"}`));
   state.title = data.plan.message || "";
   if (!data.plan_ok && data.plan.message) state.append(` · ${data.plan.message}`);
+  completeProgressLog(data.plan);
   $("#progress-log").hidden = true;  // the solver figures below sum it up
   refreshStale();
   loadFlights(data.id);

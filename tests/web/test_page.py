@@ -56,6 +56,24 @@ def test_plan_from_the_form_shows_plots_and_separation(
     expect(page.locator("#mission-list li").first).to_contain_text("browser-swap")
 
 
+def test_a_plan_whose_progress_stream_was_missed_still_lists_every_iteration(
+    page: Page, service: ServiceProcess
+) -> None:
+    """A plan that ends before the page follows its stream (a quick plan, a busy browser):
+    the progress log is completed from the plan's own iteration record."""
+    page.route("**/api/missions/*/events", lambda route: route.abort())
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
+    fill_scenario(page, name="browser-missed-stream")
+    page.click("#plan-button")
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    mission_id = page.locator("#mission-title").inner_text().split("·")[1].strip()
+    mission = httpx.get(f"{service.base_url}/api/missions/{mission_id}").json()
+    iterations = mission["plan"]["iterations"]
+    log = page.locator("#progress-log li")
+    expect(log).to_have_count(len(iterations))
+    expect(log.last).to_contain_text(f"iteration {iterations[-1]['iteration']}:")
+
+
 def test_validation_errors_appear_next_to_the_field(page: Page) -> None:
     expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
     page.fill('input[data-field="vehicles[2].goal[0]"]', "9")  # outside the 5 m box
@@ -103,7 +121,7 @@ def test_top_view_click_places_the_selected_vehicle(page: Page) -> None:
 
 def test_the_page_keeps_no_copy_of_the_status_sets() -> None:
     """Mission and execution statuses come from GET /api/status (`statuses`), not from
-    literals in the page's scripts (issue: the sets used to live in four places)."""
+    literals in the page's scripts."""
     import re
     from pathlib import Path
 
