@@ -6,7 +6,7 @@
     python bench/planner.py --only --dmpc-sizes --no-solver-comparison --row-modes \
         --grid-sphere 25 64 100 256 --assignment fixed free --random-dense 256 --seeds 0 1
 
-The drone-show families (issue 11) run only when asked: --grid-sphere N... (vertical grid ->
+The drone-show families run only when asked: --grid-sphere N... (vertical grid ->
 sphere shell, fixed and/or free assignment), --random-dense N... (random128's density, moves
 <= 40 m), --sequence N (a grid -> sphere -> grid formation sequence), each over --seeds.
 --group-qp primal solves their group QPs as the primal staged QP (before the dual, for

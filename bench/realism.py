@@ -6,7 +6,7 @@ with `realism="px4"` (PX4 v1.16 SIH SITL's estimate noise and lag, `gcs.sim`) th
 `FlightExecutor`, once per seed. Prints one JSON document: per flight the summary's figures
 (completed, goal errors, tracking error, separation measured against planned and required),
 and their medians and ranges over the seeds, next to the figures measured on real PX4 SITL
-(issue 12). Real time: about 25 s a flight.
+(the PX4 SITL flight in the platform notes). Real time: about 25 s a flight.
 
     python bench/realism.py                 # seeds 0..4
     python bench/realism.py --seeds 3 --ideal   # also the ideal mock, for comparison
@@ -37,7 +37,7 @@ from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
 from planner import plan as make_plan
 from tests.api.support import SHORT_CROSSING
 
-#: Issue 12's 4-vehicle crossing on PX4 v1.16 SIH SITL (R = 1 m, no margin).
+#: The 4-vehicle crossing on PX4 v1.16 SIH SITL (R = 1 m, no margin).
 PX4_SITL = {"goal_error_m": [0.04, 0.27], "tracking_error_max_m": 0.42,
             "min_separation_measured_m": [0.81, 0.96], "min_separation_planned_m": 1.0}
 

@@ -3,7 +3,7 @@
     python bench/scaling_plot.py A.json B.json [C.json ...] -o docs/scaling.svg
 
 Reads each report's `families_summary` (medians over seeds) and draws one line per (family,
-assignment, group QP method) on log-log axes, with the issue's floors as red bars. Written
+assignment, group QP method) on log-log axes, with the drone-show floors as red bars. Written
 by hand (no plotting dependency): the project has no matplotlib.
 """
 
@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-#: The issue's floors (family, assignment, vehicles, seconds).
+#: The drone-show floors (family, assignment, vehicles, seconds).
 FLOORS = [
     ("grid-sphere", "fixed", 100, 10.0),
     ("grid-sphere", "free", 100, 2.0),

@@ -1,6 +1,6 @@
 """Scenario generators: the paper-style circle swap, seeded random transitions, the
 dmpc2019 benchmark's trial distribution (Luis & Schoellig, RA-L 2019), and the drone-show
-families of issue 11 (grid -> sphere show transitions, dense random transitions).
+families (grid -> sphere show transitions, dense random transitions).
 
 All return scenario dicts (the JSON contract), ready for `Scenario.from_dict` or `plan`.
 """
@@ -161,7 +161,7 @@ def dmpc2019_scenario(vehicles: int, *, seed: int = 0, trial: int = 0,
 
 # --------------------------------------------------------------------------- drone-show families
 
-#: Horizon, limits and separation of the show families (issue 11): 30 s, v and a <= 3,
+#: Horizon, limits and separation of the show families: 30 s, v and a <= 3,
 #: jerk <= 5, R = 1 m.
 SHOW_DT, SHOW_STEPS, SHOW_SEPARATION = 0.2, 150, 1.0
 #: Volume per vehicle of random128 (128 vehicles in 40 x 40 x 8 m).

@@ -100,7 +100,7 @@ def test_a_flight_with_a_margin_reports_separation_against_r_and_why_it_complete
 
 def test_goal_tolerance_accounts_for_the_reported_accuracy() -> None:
     """max(configured, k x the larger of the fleet's position_error and the vehicle's h_acc):
-    the SITL flight of issue 12 (goal errors up to 0.27 m) completes with a 0.25 m error."""
+    the SITL flight (goal errors up to 0.27 m) completes with a 0.25 m error."""
     opts = FlightOptions()
     assert goal_tolerance(opts, None) == pytest.approx(0.2)  # as before
     assert goal_tolerance(opts, None, 0.05) == pytest.approx(0.2)

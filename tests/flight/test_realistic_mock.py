@@ -160,7 +160,7 @@ FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 
 
 def test_a_crossing_on_px4_like_mocks_completes_with_the_fleets_position_error() -> None:
-    """Planned and judged for position_error 0.25 m (issue 12's SITL flight): it completes,
+    """Planned and judged for position_error 0.25 m (as the SITL flight was): it completes,
     each goal judged with max(0.2, 2 x max(0.25, reported h_acc)), tracking error nonzero
     (the estimate wanders, the attitude lags) but bounded."""
     record = _fly_crossing(0.25, FAST, seed=1)

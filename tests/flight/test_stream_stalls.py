@@ -1,4 +1,4 @@
-"""The Streamer's stall accounting and its optional real-time scheduling (issue 8 item 6)."""
+"""The Streamer's stall accounting and its optional real-time scheduling."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Fleet commands through the API (POST /api/fleet/commands, /api/vehicles/{id}/commands) on
-in-process mock PX4 vehicles: the issue's scenario, a fleet left hovering by an abort with
+in-process mock PX4 vehicles: a fleet left hovering by an abort with
 hold, landed by a fleet command; and every refusal."""
 
 from __future__ import annotations
