@@ -44,6 +44,7 @@ async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, *
         return flight, outcome, mock
 
 
+@pytest.mark.flight
 @pytest.mark.slow
 def test_paper_circle4_end_to_end() -> None:
     """Plan the paper's 4-vehicle case with the SCP planner and fly it on 4 mock vehicles."""
@@ -85,6 +86,7 @@ def test_paper_circle4_end_to_end() -> None:
     ("silent", "link_lost", FlightOptions().link_timeout),
     ("heartbeats", "heartbeat_lost", FlightOptions().heartbeat_timeout),
 ])
+@pytest.mark.flight
 def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
                                                       bound: float) -> None:
     """A silent vehicle (nothing arrives: lost link) is flagged within 1.5 s; one that only
@@ -131,6 +133,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
 
 # (what each policy does is tested on its own in test_flight_parts.py; hold at an abort in
 # test_abort_from_the_api_holds_everyone_at_once)
+@pytest.mark.flight
 @pytest.mark.parametrize(("policy", "mode"), [("land_all", px4.LAND)])
 def test_lost_link_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
     plan = smooth_plan(line_scenario(2))
@@ -153,6 +156,7 @@ def test_lost_link_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
             assert vehicle.armed and vehicle.in_air
 
 
+@pytest.mark.flight
 def test_twenty_percent_packet_loss_still_completes() -> None:
     plan = smooth_plan(line_scenario(3))
 
@@ -188,6 +192,7 @@ def test_arming_refused_clear_error_and_nobody_left_armed() -> None:
     assert flight.record["error"]["type"] == "ArmingRefused"
 
 
+@pytest.mark.flight
 def test_abort_from_the_api_holds_everyone_at_once() -> None:
     plan = smooth_plan(line_scenario(2))
     seen: list[str] = []
@@ -266,6 +271,7 @@ def test_a_plan_file_is_verified_again_before_flying() -> None:
         FlightExecutor(Plan.from_dict(doc), fleet)
 
 
+@pytest.mark.flight
 def test_a_separation_breach_stops_the_whole_fleet() -> None:
     from gcs import frames
 
@@ -289,6 +295,7 @@ def test_a_separation_breach_stops_the_whole_fleet() -> None:
     assert flight.record["summary"]["min_separation_measured"] < 0.7
 
 
+@pytest.mark.flight
 def test_a_free_assignment_plan_flies_each_vehicle_to_its_assigned_goal() -> None:
     """With `assignment: free` the echoed scenario keeps the goals as given; the executor must
     verify and fly the goals the planner assigned (not goals[i]), or it would refuse the plan

@@ -100,6 +100,7 @@ def test_the_gate_refuses_an_unfit_vehicle_before_anything_is_armed(
     assert executor.record["error"]["type"] == "PreflightFailed"
 
 
+@pytest.mark.flight
 def test_an_override_flies_and_is_recorded_and_the_battery_drains() -> None:
     def inject(mock: MockFleet) -> None:
         mock.vehicles[1].faults.battery = 12.0

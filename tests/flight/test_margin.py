@@ -68,6 +68,7 @@ def test_fly_refuses_a_plan_short_of_the_fleets_margin_unless_told_to_warn() -> 
     FlightExecutor(margined, fleet)
 
 
+@pytest.mark.flight
 def test_a_flight_with_a_margin_reports_separation_against_r_and_why_it_completed() -> None:
     """Planned for position_error 0.15 m (R 1 m -> 1.3 m): the summary judges the goals with
     max(0.2, 2 x 0.15) = 0.3 m, the separation flown against the 1 m the vehicles must keep,

@@ -19,6 +19,7 @@ pytestmark = pytest.mark.timeout(120)
 LPN = mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED
 
 
+@pytest.mark.flight
 def test_requested_position_rate_is_what_arrives() -> None:
     plan = smooth_plan(line_scenario(2))
     options = FlightOptions(hold_at_goal=0.5, prestream=0.3, message_rates="request",

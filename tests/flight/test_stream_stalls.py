@@ -76,6 +76,7 @@ def test_stream_priority_is_a_checked_flight_option() -> None:
         FlightOptions.from_dict({"stream_priority": "fast"})
 
 
+@pytest.mark.flight
 def test_a_flight_at_realtime_priority_completes_and_says_how_it_streamed() -> None:
     from gcs.flight.executor import FlightExecutor
     from gcs.flight.fleetfile import FleetSpec, FlightOptions
