@@ -38,7 +38,7 @@ def _summary(gap: float, *, reports: int = 80, margin: float = 0.0,
                                 goal_error=0.05, goal_tolerance=math.nan, phase="landed",
                                 link=None)
                 for n, vid in enumerate(["uav1", "uav2"])]
-    return summarise(recorder, plan, FlightOptions(), vehicles, mission_start=0.0,
+    return summarise(recorder, plan, FlightOptions(), vehicles, flight_start=0.0,
                      now=horizon + 3.0, missed_ticks=0, lateness=None, error=None)
 
 
