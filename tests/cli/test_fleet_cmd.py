@@ -63,6 +63,7 @@ def _fleet(*args: str) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=90)
 
 
+@pytest.mark.flight
 def test_fleet_land_lands_a_hovering_fleet(hovering: tuple[Path, MockFleet]) -> None:
     path, mock = hovering
     assert all(v.armed and v.in_air for v in mock.vehicles)

@@ -27,6 +27,7 @@ def _fly(tmp_path: Path, *extra: str) -> subprocess.Popen:
          *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+@pytest.mark.flight
 def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
     proc = _fly(tmp_path)
     out, _ = proc.communicate(timeout=80)
@@ -39,6 +40,7 @@ def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
                             "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms"}
 
 
+@pytest.mark.flight
 def test_ctrl_c_lands_everyone(tmp_path: Path) -> None:
     proc = _fly(tmp_path)
     assert proc.stdout is not None
@@ -89,6 +91,7 @@ def test_mock_on_a_busy_port_is_one_line(tmp_path: Path) -> None:
     assert len(lines) == 1 and lines[0].startswith("error: ") and str(base + 1) in lines[0]
 
 
+@pytest.mark.flight
 def test_sigusr1_pauses_and_sigusr2_resumes(tmp_path: Path) -> None:
     proc = _fly(tmp_path)
     assert proc.stdout is not None
@@ -117,6 +120,7 @@ def test_sigusr1_pauses_and_sigusr2_resumes(tmp_path: Path) -> None:
     assert record["summary"]["completed"] is True
 
 
+@pytest.mark.flight
 def test_fly_mock_realism_px4_with_realtime_streaming(tmp_path: Path) -> None:
     """`--mock-realism px4` flies PX4-like vehicles, `--mock-position-error` states the
     fleet's position error (goal tolerance 2 x 0.25 m instead of the fixed 0.2 m) and

@@ -6,12 +6,23 @@ from typing import Any
 
 import numpy as np
 
+from gcs.flight.fleetfile import FlightOptions
 from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
 from planner.first_qp import unit_profile
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Plan, VehicleTrajectory
 from planner.scenario import Scenario
 from planner.verify import verify
+
+__all__ = ["QUICK", "QUICK_MOCK", "free_port_block", "line_scenario", "mock_ports",
+           "short_line", "smooth_plan"]
+
+#: Mock settings that shorten a flight's landing, not what it checks: PX4's MPC_LAND_SPEED
+#: and COM_DISARM_LAND set to other legal values (land at 1 m/s, disarm 0.5 s after).
+QUICK_MOCK: dict[str, Any] = {"land_speed": 1.0, "disarm_after_land": 0.5}
+
+#: Flight options for tests: a short hold at the goals and prestream, a 2 m/s climb.
+QUICK = FlightOptions(hold_at_goal=0.5, prestream=0.3, climb_speed=2.0)
 
 
 def free_port_block(count: int) -> int:
@@ -66,3 +77,9 @@ def line_scenario(count: int, *, dt: float = 0.2, steps: int = 30, spacing: floa
                    "velocity_max": [3.0, 3.0, 3.0], "acceleration_max": [5.0, 5.0, 5.0]},
         "vehicles": vehicles,
     }
+
+
+def short_line(count: int, *, steps: int = 15, altitude: float = 1.0,
+               **kw: Any) -> dict[str, Any]:
+    """`line_scenario` flown in 3 s at 1 m: a whole flight in a few seconds of real time."""
+    return line_scenario(count, steps=steps, altitude=altitude, **kw)

@@ -20,7 +20,7 @@ from gcs.wire import new_key_file
 from tests.flight.support import line_scenario, mock_ports, smooth_plan
 from tests.paths import ROOT
 
-pytestmark = pytest.mark.timeout(150)
+pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 
 FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 ALL_ATTACKS = "heartbeat,hijack,ack,truncated,random,nan"

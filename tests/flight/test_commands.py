@@ -19,7 +19,7 @@ from gcs.flight.link import VehicleLink
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import line_scenario, mock_ports, smooth_plan
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.flight]
 
 FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 

@@ -16,12 +16,12 @@ from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.phases import EventKind
 from gcs.sim import MockFleet, homes_under
-from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
 from tests.paths import EXAMPLES
 
 pytestmark = pytest.mark.timeout(120)
 
-FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
+FAST = QUICK
 
 
 async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, **mock_kw):
@@ -29,7 +29,7 @@ async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, *
     mock)."""
     homes = homes_under(plan.scenario.starts)
     async with MockFleet(homes=homes, settle_time=settle, **mock_ports(len(homes)),
-                         **mock_kw) as mock:
+                         **{**QUICK_MOCK, **mock_kw}) as mock:
         if configure is not None:
             configure(mock)
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
@@ -44,6 +44,7 @@ async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, *
         return flight, outcome, mock
 
 
+@pytest.mark.flight
 @pytest.mark.slow
 def test_paper_circle4_end_to_end() -> None:
     """Plan the paper's 4-vehicle case with the SCP planner and fly it on 4 mock vehicles."""
@@ -85,11 +86,12 @@ def test_paper_circle4_end_to_end() -> None:
     ("silent", "link_lost", FlightOptions().link_timeout),
     ("heartbeats", "heartbeat_lost", FlightOptions().heartbeat_timeout),
 ])
+@pytest.mark.flight
 def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
                                                       bound: float) -> None:
     """A silent vehicle (nothing arrives: lost link) is flagged within 1.5 s; one that only
     stops its 1 Hz HEARTBEAT (mode and armed state unknown) within the 5 s bound."""
-    plan = smooth_plan(line_scenario(3, steps=50))
+    plan = smooth_plan(short_line(3, steps=50))  # 10 s: caught and sent down mid-plan
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         while (flight.flight_time() or -1.0) < 1.0:
@@ -131,9 +133,10 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
 
 # (what each policy does is tested on its own in test_flight_parts.py; hold at an abort in
 # test_abort_from_the_api_holds_everyone_at_once)
+@pytest.mark.flight
 @pytest.mark.parametrize(("policy", "mode"), [("land_all", px4.LAND)])
 def test_lost_link_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
-    plan = smooth_plan(line_scenario(2))
+    plan = smooth_plan(short_line(2, steps=20))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         while (flight.flight_time() or -1.0) < 1.0:
@@ -153,8 +156,9 @@ def test_lost_link_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
             assert vehicle.armed and vehicle.in_air
 
 
+@pytest.mark.flight
 def test_twenty_percent_packet_loss_still_completes() -> None:
-    plan = smooth_plan(line_scenario(3))
+    plan = smooth_plan(short_line(3))
 
     def lossy(mock: MockFleet) -> None:
         for vehicle in mock.vehicles:
@@ -171,7 +175,7 @@ def test_twenty_percent_packet_loss_still_completes() -> None:
 
 
 def test_arming_refused_clear_error_and_nobody_left_armed() -> None:
-    plan = smooth_plan(line_scenario(3))
+    plan = smooth_plan(short_line(3))
 
     def refuse(mock: MockFleet) -> None:
         mock.vehicles[2].faults.refuse_arming = True
@@ -188,8 +192,9 @@ def test_arming_refused_clear_error_and_nobody_left_armed() -> None:
     assert flight.record["error"]["type"] == "ArmingRefused"
 
 
+@pytest.mark.flight
 def test_abort_from_the_api_holds_everyone_at_once() -> None:
-    plan = smooth_plan(line_scenario(2))
+    plan = smooth_plan(short_line(2))
     seen: list[str] = []
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
@@ -219,7 +224,7 @@ def test_abort_from_the_api_holds_everyone_at_once() -> None:
 def test_abort_right_after_start_stops_everything(yields: int, wait: float) -> None:
     """An abort in the first moments (links still opening, vehicles connecting or arming)
     must stop the flight: no vehicle is left flying or armed, and abort() itself works."""
-    plan = smooth_plan(line_scenario(2))
+    plan = smooth_plan(short_line(2))
     result: dict[str, object] = {}
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
@@ -249,7 +254,7 @@ def test_a_plan_file_is_verified_again_before_flying() -> None:
     from gcs.errors import PlanRejected
     from planner import Plan
 
-    plan = smooth_plan(line_scenario(2))
+    plan = smooth_plan(short_line(2))
     doc = plan.to_dict()
     doc["vehicles"][1].update({k: doc["vehicles"][0][k] for k in
                                ("position", "velocity", "acceleration")})
@@ -266,10 +271,11 @@ def test_a_plan_file_is_verified_again_before_flying() -> None:
         FlightExecutor(Plan.from_dict(doc), fleet)
 
 
+@pytest.mark.flight
 def test_a_separation_breach_stops_the_whole_fleet() -> None:
     from gcs import frames
 
-    plan = smooth_plan(line_scenario(2))
+    plan = smooth_plan(short_line(2, steps=20))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         while (flight.flight_time() or -1.0) < 1.0:
@@ -289,11 +295,12 @@ def test_a_separation_breach_stops_the_whole_fleet() -> None:
     assert flight.record["summary"]["min_separation_measured"] < 0.7
 
 
+@pytest.mark.flight
 def test_a_free_assignment_plan_flies_each_vehicle_to_its_assigned_goal() -> None:
     """With `assignment: free` the echoed scenario keeps the goals as given; the executor must
     verify and fly the goals the planner assigned (not goals[i]), or it would refuse the plan
     or send each vehicle across the fleet."""
-    data = line_scenario(2)
+    data = short_line(2)
     goals = [v["goal"] for v in data["vehicles"]]
     data["vehicles"][0]["goal"], data["vehicles"][1]["goal"] = goals[1], goals[0]  # crossed
     data["assignment"] = "free"

@@ -16,11 +16,11 @@ from gcs.flight.hub import LinkHub
 from gcs.flight.link import VehicleLink
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
-from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
-FAST = FlightOptions(hold_at_goal=0.5, prestream=0.3, preflight_wait=1.0)
+FAST = QUICK.replace(preflight_wait=1.0)
 GPS = mavlink.MAV_SYS_STATUS_SENSOR_GPS
 GYRO = mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
 PREARM = mavlink.MAV_SYS_STATUS_PREARM_CHECK
@@ -65,11 +65,12 @@ def test_health_from_messages() -> None:
 
 
 def _fly(configure, options: FlightOptions = FAST):
-    plan = smooth_plan(line_scenario(2))
+    plan = smooth_plan(short_line(2))
 
     async def main():
         homes = homes_under(plan.scenario.starts)
-        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
+        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
+                             **QUICK_MOCK) as mock:
             configure(mock)
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             executor = FlightExecutor(plan, fleet, options)
@@ -100,6 +101,7 @@ def test_the_gate_refuses_an_unfit_vehicle_before_anything_is_armed(
     assert executor.record["error"]["type"] == "PreflightFailed"
 
 
+@pytest.mark.flight
 def test_an_override_flies_and_is_recorded_and_the_battery_drains() -> None:
     def inject(mock: MockFleet) -> None:
         mock.vehicles[1].faults.battery = 12.0

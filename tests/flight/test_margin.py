@@ -18,7 +18,14 @@ from gcs.flight.margin import check_margin, scenario_for_fleet
 from gcs.flight.record import goal_tolerance
 from gcs.sim import MockFleet, homes_under
 from planner import Scenario
-from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.flight.support import (
+    QUICK,
+    QUICK_MOCK,
+    line_scenario,
+    mock_ports,
+    short_line,
+    smooth_plan,
+)
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -68,19 +75,20 @@ def test_fly_refuses_a_plan_short_of_the_fleets_margin_unless_told_to_warn() -> 
     FlightExecutor(margined, fleet)
 
 
+@pytest.mark.flight
 def test_a_flight_with_a_margin_reports_separation_against_r_and_why_it_completed() -> None:
     """Planned for position_error 0.15 m (R 1 m -> 1.3 m): the summary judges the goals with
     max(0.2, 2 x 0.15) = 0.3 m, the separation flown against the 1 m the vehicles must keep,
     and says why the flight is complete."""
-    plan = smooth_plan(scenario_for_fleet(line_scenario(2, spacing=1.5), 0.15))
+    plan = smooth_plan(scenario_for_fleet(short_line(2, spacing=1.5), 0.15))
 
     async def fly() -> dict:
         homes = homes_under(plan.scenario.starts)
-        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
+        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
+                             **QUICK_MOCK) as mock:
             fleet = FleetSpec.from_dict({**mock.fleet_dict(plan.scenario.ids),
                                          "position_error": 0.15})
-            executor = FlightExecutor(plan, fleet, FlightOptions(hold_at_goal=0.5,
-                                                                 prestream=0.3))
+            executor = FlightExecutor(plan, fleet, QUICK)
             return await executor.run()
 
     record = asyncio.run(fly())

@@ -9,24 +9,25 @@ import numpy as np
 import pytest
 
 from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.fleetfile import FleetSpec
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
-from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
 LPN = mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED
 
 
+@pytest.mark.flight
 def test_requested_position_rate_is_what_arrives() -> None:
-    plan = smooth_plan(line_scenario(2))
-    options = FlightOptions(hold_at_goal=0.5, prestream=0.3, message_rates="request",
-                            position_rate_hz=50.0)
+    plan = smooth_plan(short_line(2))
+    options = QUICK.replace(message_rates="request", position_rate_hz=50.0)
 
     async def fly():
         homes = homes_under(plan.scenario.starts)
-        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
+        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
+                             **QUICK_MOCK) as mock:
             assert mock.vehicles[0].intervals[LPN] == pytest.approx(1 / 30)
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             record = await FlightExecutor(plan, fleet, options).run()

@@ -43,6 +43,7 @@ async def _until_flight_time(flight: FlightExecutor, t: float) -> None:
         await asyncio.sleep(0.02)
 
 
+@pytest.mark.flight
 def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     plan = smooth_plan(CLOSE)
     r = plan.scenario.min_separation
@@ -99,6 +100,7 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     assert horizon - record["mission_start"] >= plan.scenario.horizon + (end - start) - 0.1
 
 
+@pytest.mark.flight
 def test_a_pause_longer_than_the_limit_lands_the_fleet() -> None:
     plan = smooth_plan(line_scenario(2))
 

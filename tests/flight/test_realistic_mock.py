@@ -159,6 +159,7 @@ def _goal_errors(record: dict[str, Any]) -> dict[str, float]:
 FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
 
 
+@pytest.mark.flight
 def test_a_crossing_on_px4_like_mocks_completes_with_the_fleets_position_error() -> None:
     """Planned and judged for position_error 0.25 m (as the SITL flight was): it completes,
     each goal judged with max(0.2, 2 x max(0.25, reported h_acc)), tracking error nonzero
@@ -175,6 +176,7 @@ def test_a_crossing_on_px4_like_mocks_completes_with_the_fleets_position_error()
     assert s["min_separation_measured"] >= s["min_separation_required"]
 
 
+@pytest.mark.flight
 def test_the_same_crossing_judged_with_a_fixed_tolerance_says_why() -> None:
     """No position_error and a fixed 0.2 m (k = 0): whatever the noise makes of the goals, the
     summary's verdict agrees with the goal errors it reports and states the reasons."""

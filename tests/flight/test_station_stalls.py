@@ -151,6 +151,7 @@ def test_a_silent_vehicle_is_still_caught_across_a_station_stall() -> None:
     assert stalls.total >= 1.9
 
 
+@pytest.mark.flight
 def test_a_flight_survives_the_station_blocked_for_two_seconds() -> None:
     """The whole loop (station and in-process mock) blocks for 2 s mid-flight: the flight
     completes, and the record says the station stalled."""
@@ -169,6 +170,7 @@ def test_a_flight_survives_the_station_blocked_for_two_seconds() -> None:
     assert not [e for e in record["events"] if e["kind"] == EventKind.FAULT]
 
 
+@pytest.mark.flight
 def test_eight_vehicles_complete_with_two_cpu_hogs_running() -> None:
     plan = smooth_plan(line_scenario(8, steps=20))
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(2)]

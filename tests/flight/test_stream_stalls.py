@@ -76,19 +76,21 @@ def test_stream_priority_is_a_checked_flight_option() -> None:
         FlightOptions.from_dict({"stream_priority": "fast"})
 
 
+@pytest.mark.flight
 def test_a_flight_at_realtime_priority_completes_and_says_how_it_streamed() -> None:
     from gcs.flight.executor import FlightExecutor
-    from gcs.flight.fleetfile import FleetSpec, FlightOptions
+    from gcs.flight.fleetfile import FleetSpec
     from gcs.sim import MockFleet, homes_under
-    from tests.flight.support import line_scenario, mock_ports, smooth_plan
+    from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
 
-    plan = smooth_plan(line_scenario(2))
-    options = FlightOptions(hold_at_goal=0.5, prestream=0.3, stream_priority="realtime")
+    plan = smooth_plan(short_line(2))
+    options = QUICK.replace(stream_priority="realtime")
     before = os.sched_getscheduler(0)
 
     async def fly() -> dict:
         homes = homes_under(plan.scenario.starts)
-        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
+        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
+                             **QUICK_MOCK) as mock:
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             return await FlightExecutor(plan, fleet, options).run()
 

@@ -183,6 +183,7 @@ def test_auto_disarm_when_armed_without_taking_off() -> None:
     asyncio.run(main())
 
 
+@pytest.mark.flight
 def test_mavsdk_flies_the_mock() -> None:
     """MAVSDK's native 4.x API connects, sees a PX4 autopilot, arms (after the settling time),
     starts offboard with position setpoints, and the mock's reported position gets there."""
