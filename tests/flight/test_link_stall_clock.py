@@ -98,7 +98,12 @@ async def _command_across_a_stall(stalls: StationStalls | None) -> int:
             task = asyncio.create_task(link.command(ARM, (1.0,), timeout=TRY_S, retries=0,
                                                     clock=clock))
             sent: list[int] = []
-            await _until(lambda: sent.extend(vehicle.commands()) or ARM in sent)
+
+            def arm_sent() -> bool:
+                sent.extend(vehicle.commands())
+                return ARM in sent
+
+            await _until(arm_sent)
             _stall(stalls if stalls is not None else StationStalls())
             # let the loop run the try's expired wall-time timer before the answer goes out
             await asyncio.sleep(0.1)
