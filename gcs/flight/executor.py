@@ -59,27 +59,27 @@ from typing import Any
 
 import numpy as np
 
-from gcs import frames, px4
+from gcs import frames
 from gcs.errors import (
     FlightAborted,
     PlanRejected,
-    PreflightFailed,
     StateConflict,
     VehicleTimeout,
 )
 from gcs.flight import vehicle
+from gcs.flight.boarding import connect_vehicle, prepare_vehicle
 from gcs.flight.clock import FlightClock
 from gcs.flight.events import EventFanout
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.health import PreflightThresholds, preflight_problems
 from gcs.flight.hub import LinkHub
-from gcs.flight.link import DECODED_IDS, VehicleLink
+from gcs.flight.link import DECODED_IDS
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
 from gcs.flight.phases import EventKind, FlightPhase, VehiclePhase
 from gcs.flight.policy import FaultPolicy
-from gcs.flight.record import FlightRecorder, goal_tolerance, summarise
-from gcs.flight.setpoints import Setpoint, SetpointTrack, hold_track, plan_tracks, transfer_track
+from gcs.flight.record import FlightRecorder, goal_tolerance
+from gcs.flight.recording import FlightRecording, finish_record
+from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.snapshot import flight_snapshot
 from gcs.flight.station import StallReport, StationStalls
 from gcs.flight.stream import Streamer
@@ -117,7 +117,6 @@ class FlightExecutor:
             raise PlanRejected(f"refusing to fly: {self.margin.message()}")
         specs = fleet.for_plan(plan.scenario.ids)
         self.vehicles = [VehicleStatus(spec, i) for i, spec in enumerate(specs)]
-        self._by_id = {v.id: v for v in self.vehicles}
         self.recorder = FlightRecorder([s.id for s in specs], [s.system_id for s in specs])
         self.phase = FlightPhase.CREATED
         self.record: dict[str, Any] | None = None
@@ -126,6 +125,8 @@ class FlightExecutor:
         """The flight clock (`gcs.flight.clock`); made again on the streamer's ticks by
         `run`."""
         self._events = EventFanout(self.recorder, self.now)
+        self._recording = FlightRecording(self.recorder, {v.id: v for v in self.vehicles},
+                                          lambda: self._t0, self._emit)
         self.stalls = StationStalls()
         """The station's own stalls (`gcs.flight.station`), not counted against vehicles."""
         self.stalls.listeners.append(self._on_stall)
@@ -283,7 +284,7 @@ class FlightExecutor:
         self.streamer = Streamer(self.options.rate_hz, boot_epoch=self._t0,
                                  realtime=self.options.stream_priority == "realtime")
         self.clock = FlightClock(self.options.rate_hz, self.streamer.epoch, self._t0)
-        self.streamer.listeners.append(self._on_send)
+        self.streamer.listeners.append(self._recording.on_send)
         self.streamer.stall_listeners.append(self.stalls.note)
         monitor: asyncio.Task[None] | None = None
         try:
@@ -333,7 +334,7 @@ class FlightExecutor:
             v.link = await hub.add(v.id, v.spec.connection, v.spec.system_id,
                                    v.spec.component_id, signing_key=v.spec.signing_key,
                                    peer=v.spec.peer)
-            v.link.listeners.append(self._on_message)
+            v.link.listeners.append(self._recording.on_message)
             if v.spec.home is not None:
                 v.home = np.asarray(v.spec.home, dtype=float)
                 self.recorder.vehicles[v.id].home = v.home.tolist()
@@ -341,7 +342,8 @@ class FlightExecutor:
     async def _fly(self) -> None:
         opts = self.options
         self.phase = FlightPhase.CONNECTING
-        await _all(self._connect(v) for v in self.vehicles)
+        await _all(connect_vehicle(v, opts, self.fleet.world_origin, self.recorder,
+                                   self._emit, self.stalls) for v in self.vehicles)
         homes = [v.placed for v in self.vehicles]
         self._tracks = plan_tracks(self.plan, homes, opts.rate_hz, opts.yaw,
                                    extra_s=opts.hold_at_goal)
@@ -351,7 +353,9 @@ class FlightExecutor:
             v.start_ned = frames.world_to_ned(scenario.starts[v.index], home)
             v.goal_ned = frames.world_to_ned(goals[v.index], home)
         self.phase = FlightPhase.PREPARING
-        await _all(self._prepare(v) for v in self.vehicles)
+        streamer = self._streamer()
+        await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit, self.stalls)
+                   for v in self.vehicles)
         self.phase = FlightPhase.GATHERING
         await self._gather()
         self.phase = FlightPhase.FLYING
@@ -359,71 +363,6 @@ class FlightExecutor:
         self.phase = FlightPhase.FINISHING
         await self._finish()
         self.phase = FlightPhase.FINISHED
-
-    async def _connect(self, v: VehicleStatus) -> None:
-        link = v.linked
-        await vehicle.connect(link, v.spec, self.options.connect_timeout, self.stalls)
-        if v.home is None:
-            assert self.fleet.world_origin is not None
-            v.home, source = await vehicle.resolve_home(link, v.id, self.fleet.world_origin)
-            self.recorder.vehicles[v.id].home = v.home.tolist()
-            self._emit(v.id, EventKind.HOME, f"from {source}: {np.round(v.home, 3).tolist()}")
-        await self._preflight(v)
-        if self.options.message_rates == "request":
-            answers = await vehicle.request_message_rates(
-                link, vehicle.message_rates(self.options.position_rate_hz))
-            self._emit(v.id, EventKind.MESSAGE_RATES,
-                       ", ".join(f"{k} {a}" for k, a in answers.items()))
-        v.phase = VehiclePhase.CONNECTED
-        mode = link.telemetry.mode
-        self._emit(v.id, EventKind.CONNECTED, f"mode {mode.name if mode else '?'}, home "
-                                      f"{np.round(v.home, 3).tolist()}")
-
-    async def _preflight(self, v: VehicleStatus) -> None:
-        """The pre-flight gate (`gcs.flight.health`): wait up to `preflight_wait` for the
-        vehicle to be fit; then refuse it (`PreflightFailed`), or with `preflight: override`
-        record what was overridden and carry on."""
-        opts = self.options
-        limits = PreflightThresholds(min_battery_pct=opts.min_battery_pct)
-        link = v.linked
-        if opts.preflight == "check":
-            await link.wait_for(lambda t: not preflight_problems(t, limits), opts.preflight_wait)
-        problems = preflight_problems(link.telemetry, limits)
-        if not problems:
-            return
-        if opts.preflight == "check":
-            raise PreflightFailed(v.id, problems)
-        self._emit(v.id, EventKind.PREFLIGHT_OVERRIDE, "; ".join(problems))
-
-    async def _prepare(self, v: VehicleStatus) -> None:
-        link = v.linked
-        streamer = self._streamer()
-        opts = self.options
-        here = np.asarray(link.telemetry.position_ned, dtype=float)
-        streamer.assign(v.id, link, hold_track(here, self._yaw_ned, opts.rate_hz))
-        await asyncio.sleep(opts.prestream)
-        v.phase = VehiclePhase.ARMING
-        await vehicle.set_mode(link, px4.OFFBOARD, confirm_timeout=opts.heartbeat_timeout,
-                               retry_for=vehicle.MODE_RETRY_FOR, stalls=self.stalls)
-        self._emit(v.id, EventKind.MODE, f"{px4.OFFBOARD.name} confirmed")
-        v.expect_offboard = True
-
-        def attempt() -> None:
-            v.arm_sent = True
-
-        def accepted() -> None:
-            v.armed_by_us = True
-
-        attempts = await vehicle.arm(link, timeout=opts.arm_timeout,
-                                     confirm_timeout=opts.heartbeat_timeout,
-                                     on_attempt=attempt, on_accepted=accepted,
-                                     stalls=self.stalls)
-        self._emit(v.id, EventKind.ARMED, f"after {attempts} attempt(s)")
-        assert v.start_ned is not None
-        track = transfer_track(here, v.start_ned, opts.climb_speed, self._yaw_ned, opts.rate_hz)
-        streamer.assign(v.id, link, track)
-        v.phase = VehiclePhase.CLIMBING
-        self._emit(v.id, EventKind.CLIMB, f"to start, {track.duration:.1f} s")
 
     async def _gather(self) -> None:
         tol = self.options.start_tolerance
@@ -542,30 +481,6 @@ class FlightExecutor:
 
     # ================================================================ recording
 
-    def _on_send(self, vehicle_id: str, tick: int, setpoint: Setpoint, sent: float) -> None:
-        self.recorder.vehicles[vehicle_id].add_setpoint(round(sent - self._t0, 5), tick,
-                                                        setpoint)
-
-    def _on_message(self, link: VehicleLink, msg: Any, now: float) -> None:
-        kind = msg.get_type()
-        v = self._by_id[link.vehicle_id]
-        rec = self.recorder.vehicles[v.id]
-        t = round(now - self._t0, 5)
-        if kind == "LOCAL_POSITION_NED" and v.home is not None:
-            rec.tel_t.append(t)
-            rec.tel_pos.append(frames.ned_to_world((msg.x, msg.y, msg.z), v.home).tolist())
-            rec.tel_vel.append(frames.ned_vector_to_world((msg.vx, msg.vy, msg.vz)).tolist())
-        elif kind == "HEARTBEAT" and msg.get_srcComponent() == link.component_id:
-            tel = link.telemetry
-            mode = tel.mode.name if tel.mode is not None else None
-            if mode != v.last_mode or tel.armed != v.last_armed:
-                v.last_mode, v.last_armed = mode, tel.armed
-                rec.modes.append({"t": t, "mode": mode, "armed": tel.armed})
-                self._emit(v.id, EventKind.MODE_CHANGE,
-                           f"{mode}, {'armed' if tel.armed else 'disarmed'}")
-        elif kind == "STATUSTEXT":  # the link has joined a chunked text: its latest is whole
-            self._emit(v.id, EventKind.STATUSTEXT, link.telemetry.statustexts[-1])
-
     def _on_stall(self, start: float, end: float) -> None:
         text = self._stall_report.add(start, end)
         if text is not None:
@@ -579,26 +494,10 @@ class FlightExecutor:
         text = self._stall_report.flush(time.monotonic())
         if text is not None:
             self._emit(None, EventKind.STATION_STALL, text)
-        scenario = self.plan.scenario
-        self.recorder.meta = {
-            "plan": scenario.to_dict(),
-            "fleet": self.fleet.to_dict(),
-            "options": self.options.to_dict(),
-            "flight_start": self.flight_start,
-            "mission_start": self.flight_start,  # the same, for consumers of that key
-            "pauses": self.pauses,
-            "horizon": scenario.horizon,
-            "error": None if error is None else {
-                "type": type(error).__name__, "message": str(error) or type(error).__name__},
-        }
-        streamer = self.streamer
-        self.recorder.summary = summarise(
-            self.recorder, self.plan, self.options, self.vehicles,
+        self.record = finish_record(
+            self.recorder, self.plan, self.fleet, self.options, self.vehicles,
             flight_start=self.flight_start, pauses=self.pauses, now=self.now(),
-            margin=self.margin, position_error=self.fleet.position_error,
-            missed_ticks=streamer.missed_ticks if streamer is not None else 0,
-            lateness=streamer.lateness if streamer is not None else None, error=error)
-        self.record = self.recorder.to_dict()
+            margin=self.margin, streamer=self.streamer, error=error)
 
     # ================================================================ helpers
 

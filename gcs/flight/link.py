@@ -28,6 +28,7 @@ from gcs.errors import CommandError
 from gcs.flight.endpoints import Endpoint
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.signing import LinkSigning
+from gcs.flight.station import Clock
 from gcs.flight.telemetry import Telemetry
 from gcs.wire import GCS_COMPONENT_ID, GCS_SYSTEM_ID, PacketHeader, SigningKey, mavlink
 
@@ -56,6 +57,8 @@ class _PendingCommand:
     command: int
     future: asyncio.Future[int]
     sent_at: float
+    clock: Clock
+    """The clock `sent_at` and the try's timeout are on."""
 
 
 class VehicleLink:
@@ -155,7 +158,7 @@ class VehicleLink:
             self.duplicate_acks += 1  # PX4 ACKs DO_SET_MODE and REQUEST_MESSAGE twice
             return
         if msg.result == mavlink.MAV_RESULT_IN_PROGRESS:
-            pending.sent_at = now  # keep waiting for the final result
+            pending.sent_at = pending.clock()  # keep waiting for the final result
             return
         if msg.command in px4.ACKED_TWICE:
             self._echoes[msg.command] = (int(msg.result), now + px4.DUPLICATE_ACK_WINDOW_S)
@@ -173,17 +176,25 @@ class VehicleLink:
                 keep.append((predicate, future))
         self._waiters = keep
 
-    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float) -> bool:
-        """Wait until `predicate(telemetry)` holds after some message; False on timeout."""
+    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float, *,
+                       clock: Clock | None = None) -> bool:
+        """Wait until `predicate(telemetry)` holds after some message; False on timeout.
+        `timeout` is on `clock` (monotonic time unless given; `StationStalls.clock` makes the
+        station's own stalls not use it up)."""
         if predicate(self.telemetry):
             return True
+        now = clock or time.monotonic
+        deadline = now() + timeout
         future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         self._waiters.append((predicate, future))
         try:
-            await asyncio.wait_for(future, timeout)
-            return True
-        except TimeoutError:
-            return False
+            while (remaining := deadline - now()) > 0:
+                try:
+                    await asyncio.wait_for(asyncio.shield(future), remaining)
+                    return True
+                except TimeoutError:
+                    continue
+            return predicate(self.telemetry)
         finally:
             if not future.done():
                 future.cancel()
@@ -238,29 +249,32 @@ class VehicleLink:
         self.setpoints_sent += 1
 
     async def command(self, command: int, params: tuple[float, ...] = (), *,
-                      timeout: float = 1.0, retries: int = 8) -> int:
+                      timeout: float = 1.0, retries: int = 8,
+                      clock: Clock | None = None) -> int:
         """Send COMMAND_LONG and return the final MAV_RESULT of its COMMAND_ACK.
 
         Resends (with `confirmation` counting up) when no ACK arrives within `timeout`;
         IN_PROGRESS extends the wait; a second ACK for the same command (PX4 sends two for
         DO_SET_MODE) is ignored, also when it arrives after a newer command with the same id
         went out (`px4.ACKED_TWICE`): it never answers that one. Raises `CommandError` when no
-        ACK came after all retries.
+        ACK came after all retries. Each try's `timeout` is on `clock` (monotonic time unless
+        given; with `StationStalls.clock` a stall of the station does not use a try up).
         """
         p = (list(params) + [0.0] * 7)[:7]
         if command in self._pending and not self._pending[command].future.done():
             raise CommandError(self.vehicle_id, command, None,
                                f"command {command} already in flight")
         loop = asyncio.get_running_loop()
+        now = clock or time.monotonic
         for attempt in range(retries + 1):
             future: asyncio.Future[int] = loop.create_future()
-            pending = _PendingCommand(command, future, time.monotonic())
+            pending = _PendingCommand(command, future, now(), now)
             self._pending[command] = pending
             self.send(self.mav.command_long_encode(
                 self.system_id, self.component_id, command, attempt, *p))
             try:
                 while True:
-                    remaining = pending.sent_at + timeout - time.monotonic()
+                    remaining = pending.sent_at + timeout - now()
                     if remaining <= 0:
                         break
                     try:
@@ -276,8 +290,9 @@ class VehicleLink:
         raise CommandError(self.vehicle_id, command, None,
                            f"no COMMAND_ACK for command {command} after {retries + 1} tries")
 
-    async def request_message(self, message_id: int, timeout: float = 1.0) -> int:
+    async def request_message(self, message_id: int, timeout: float = 1.0, *,
+                              clock: Clock | None = None) -> int:
         """MAV_CMD_REQUEST_MESSAGE for `message_id`; returns the MAV_RESULT."""
         return await self.command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(message_id),),
-                                  timeout=timeout)
+                                  timeout=timeout, clock=clock)
 

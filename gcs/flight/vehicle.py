@@ -141,14 +141,7 @@ def _clock(stalls: StationStalls | None) -> Callable[[], float]:
 async def wait_running(link: VehicleLink, predicate: Callable[[Telemetry], bool],
                        timeout: float, stalls: StationStalls | None = None) -> bool:
     """`link.wait_for` with `timeout` in station-running time (see the module)."""
-    clock = _clock(stalls)
-    deadline = clock() + timeout
-    while True:
-        remaining = deadline - clock()
-        if remaining <= 0:
-            return predicate(link.telemetry)
-        if await link.wait_for(predicate, remaining):
-            return True
+    return await link.wait_for(predicate, timeout, clock=_clock(stalls))
 
 
 async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
@@ -170,22 +163,23 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
                        f"someone else armed")
 
 
-async def resolve_home(link: VehicleLink, vehicle_id: str,
-                       origin: frames.Geodetic) -> tuple[np.ndarray, str]:
+async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodetic,
+                       stalls: StationStalls | None = None) -> tuple[np.ndarray, str]:
     """Home in the world frame from the vehicle's EKF origin and the fleet's world_origin;
     returns (home, the message it came from)."""
+    clock = _clock(stalls)
     for attempt in range(3):
         with contextlib.suppress(CommandError):
-            await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
-        if await link.wait_for(lambda t: t.gps_origin is not None, 1.0 + attempt):
+            await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, clock=clock)
+        if await link.wait_for(lambda t: t.gps_origin is not None, 1.0 + attempt, clock=clock):
             break
     tel = link.telemetry
     if tel.gps_origin is not None:
         return frames.geodetic_to_enu(frames.Geodetic(*tel.gps_origin), origin), \
             "GPS_GLOBAL_ORIGIN"
     with contextlib.suppress(CommandError):
-        await link.request_message(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
-    if not await link.wait_for(lambda t: t.home is not None, 3.0):
+        await link.request_message(mavlink.MAVLINK_MSG_ID_HOME_POSITION, clock=clock)
+    if not await link.wait_for(lambda t: t.home is not None, 3.0, clock=clock):
         raise VehicleTimeout(vehicle_id, "reported neither GPS_GLOBAL_ORIGIN nor HOME_POSITION "
                                          "(needed to place it with world_origin)")
     assert tel.home is not None
@@ -203,7 +197,8 @@ async def set_mode(link: VehicleLink, mode: px4.Px4Mode, *, confirm_timeout: flo
     clock = _clock(stalls)
     deadline = clock() + retry_for
     while True:
-        result = await link.command(mavlink.MAV_CMD_DO_SET_MODE, mode.command_params)
+        result = await link.command(mavlink.MAV_CMD_DO_SET_MODE, mode.command_params,
+                                    clock=clock)
         if result == mavlink.MAV_RESULT_ACCEPTED:
             if await wait_running(link, lambda t: t.mode == mode, confirm_timeout, stalls):
                 return
@@ -232,7 +227,7 @@ async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
         attempts += 1
         if on_attempt is not None:
             on_attempt()
-        result = await link.command(cmd, (1.0,))
+        result = await link.command(cmd, (1.0,), clock=clock)
         if result == mavlink.MAV_RESULT_ACCEPTED:
             if on_accepted is not None:
                 on_accepted()
@@ -256,18 +251,20 @@ async def land(link: VehicleLink, *, confirm_timeout: float,
                stalls: StationStalls | None = None) -> bool:
     """MAV_CMD_NAV_LAND, falling back to DO_SET_MODE AUTO.LAND if refused (then returns True,
     the mode being confirmed); `GcsError` when neither is accepted."""
-    result = await link.command(mavlink.MAV_CMD_NAV_LAND)
+    result = await link.command(mavlink.MAV_CMD_NAV_LAND, clock=_clock(stalls))
     if result == mavlink.MAV_RESULT_ACCEPTED:
         return False
     await set_mode(link, px4.LAND, confirm_timeout=confirm_timeout, stalls=stalls)
     return True
 
 
-async def disarm(link: VehicleLink, *, force: bool = False) -> int:
+async def disarm(link: VehicleLink, *, force: bool = False,
+                 stalls: StationStalls | None = None) -> int:
     """MAV_CMD_COMPONENT_ARM_DISARM(0); `force` adds PX4's magic number, which disarms even in
     the air (the vehicle falls). Returns the MAV_RESULT."""
     params = (0.0, px4.DISARM_FORCE_MAGIC) if force else (0.0,)
-    return await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, params)
+    return await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, params,
+                              clock=_clock(stalls))
 
 
 #: PX4 offboard-link streams the GCS never reads (`gcs.flight.link.DECODED_IDS` is what it
@@ -295,7 +292,8 @@ def message_rates(position_hz: float) -> dict[int, float]:
     }
 
 
-async def request_message_rates(link: VehicleLink, rates: dict[int, float]) -> dict[str, str]:
+async def request_message_rates(link: VehicleLink, rates: dict[int, float],
+                                stalls: StationStalls | None = None) -> dict[str, str]:
     """MAV_CMD_SET_MESSAGE_INTERVAL for each message id (param2: interval in us, -1 = off);
     returns {message name: "<rate> <MAV_RESULT>"}. A refusal is reported, not raised: the
     vehicle then keeps sending at its own rate. After a request that goes unanswered the rest
@@ -312,7 +310,8 @@ async def request_message_rates(link: VehicleLink, rates: dict[int, float]) -> d
             continue
         try:
             result = result_name(await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-                                                    (float(message_id), interval)))
+                                                    (float(message_id), interval),
+                                                    clock=_clock(stalls)))
         except GcsError as exc:
             result = f"failed ({exc})"
             unanswered = True
@@ -373,7 +372,7 @@ async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Em
     if on_ground:  # armed, or an arming command may have armed it: disarm
         v.expect_offboard = False
         try:
-            result = await disarm(v.link)
+            result = await disarm(v.link, stalls=stalls)
             emit(v.id, EventKind.DISARM, f"on the ground: {result_name(result)}")
         except GcsError as exc:
             result = None

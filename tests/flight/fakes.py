@@ -43,7 +43,7 @@ class FakeLink:
         tel = self.telemetry
         tel.message_time = tel.heartbeat_time = tel.position_time = now
 
-    async def command(self, command: int, params: Any = ()) -> int:
+    async def command(self, command: int, params: Any = (), clock: Any = None) -> int:
         from gcs.errors import CommandError
 
         self.commands.append(command)
@@ -63,7 +63,8 @@ class FakeLink:
         self.alive()
         return mavlink.MAV_RESULT_ACCEPTED
 
-    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float) -> bool:
+    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float,
+                       clock: Any = None) -> bool:
         deadline = time.monotonic() + timeout
         while not predicate(self.telemetry):
             if time.monotonic() >= deadline:
