@@ -1,12 +1,13 @@
 """The fleet executor: fly a plan on a fleet of PX4 vehicles with one shared flight clock.
 
 `FlightExecutor(plan, fleet)` runs the whole flight on the caller's asyncio loop. It keeps the
-orchestration of the phases; the PX4 procedure of one vehicle is `gcs.flight.vehicle`, fault
-detection `gcs.flight.monitor`, what a fault does `gcs.flight.policy`, the flight clock and its
-pauses `gcs.flight.clock`, the live state `gcs.flight.snapshot`, the event fan-out
-`gcs.flight.events`, the station's own stalls `gcs.flight.station`, the record and its
-summary `gcs.flight.record`. A setpoint goes executor -> `Streamer` (one tick for the whole
-fleet) -> `VehicleLink` -> UDP:
+orchestration of the phases; one vehicle's way into the air is `gcs.flight.boarding` (on the
+PX4 procedure primitives of `gcs.flight.vehicle`), fault detection `gcs.flight.monitor`, what
+a fault does `gcs.flight.policy`, the flight clock and its pauses `gcs.flight.clock`, the live
+state `gcs.flight.snapshot`, the event fan-out `gcs.flight.events`, the station's own stalls
+`gcs.flight.station`, what the links and the streamer put in the record
+`gcs.flight.recording`, the record and its summary `gcs.flight.record`. A setpoint goes
+executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
 
 1. connect: open the fleet's links, send the GCS HEARTBEAT at 1 Hz, wait for every vehicle's
    HEARTBEAT and LOCAL_POSITION_NED (refuse a vehicle that is already armed or not PX4);
