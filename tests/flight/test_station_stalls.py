@@ -154,8 +154,9 @@ def test_a_silent_vehicle_is_still_caught_across_a_station_stall() -> None:
 @pytest.mark.flight
 def test_a_flight_survives_the_station_blocked_for_two_seconds() -> None:
     """The whole loop (station and in-process mock) blocks for 2 s mid-flight: the flight
-    completes, and the record says the station stalled."""
-    plan = smooth_plan(line_scenario(2, steps=20))
+    completes, and the record says the station stalled. The plan runs on 5 s after the stall,
+    long enough for the vehicles to catch up with a clock that kept running."""
+    plan = smooth_plan(line_scenario(2, steps=40))
 
     async def during(flight, mock) -> None:
         while (flight.flight_time() or -1.0) < 1.0:
