@@ -89,7 +89,7 @@ def worker_pids(cluster: LocalCluster) -> dict[str, int]:
         return client.run(os.getpid, on_error="ignore")
 
 
-def wait_idle(cluster: LocalCluster, timeout: float = 60.0) -> dict[str, int]:
+def wait_idle(cluster: LocalCluster, timeout: float = 180.0) -> dict[str, int]:
     deadline = time.monotonic() + timeout
     while True:
         counts = executing(cluster)

@@ -51,14 +51,19 @@ def test_fly_screen_follows_the_flight_then_abort(
     assert view and table and table["x"] >= view["x"] + view["width"]  # docked beside it
 
     # Mid-plan: the slider follows mission time and the bar fills with it. One reading of
-    # the page, taken while the plan is between a quarter and nine tenths flown.
+    # the page, taken while the plan is between a quarter and six tenths flown, and Pause
+    # clicked by the page in the same moment: the checks below then read a fleet that holds
+    # still, however slowly a busy machine lets them run.
     now = page.wait_for_function("""() => {
         const progress = document.getElementById('flight-progress').value;
-        if (progress < 250 || progress > 900) return null;
-        return {slider: Number(document.getElementById('time-slider').value), progress,
-                label: document.getElementById('time-label').textContent,
+        const pause = document.getElementById('pause-button');
+        if (progress < 250 || progress > 600 || pause.disabled) return null;
+        const reading = {slider: Number(document.getElementById('time-slider').value),
+                progress, label: document.getElementById('time-label').textContent,
                 icons: Array.from(document.querySelectorAll('#fly-view g.vehicle-icon text'),
                                   (t) => t.textContent)};
+        pause.click();
+        return reading;
     }""", timeout=60_000).json_value()
     reading = re.search(r"t = (\d+\.\d) s of 10\.0 s", now["label"])
     assert reading, now["label"]
@@ -85,7 +90,6 @@ def test_fly_screen_follows_the_flight_then_abort(
     assert sorted(flown) == ["a", "b", "c", "d"]
     # Pause and resume go to this flight; per-vehicle commands from the vehicle's row.
     execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
-    page.click("#pause-button")
     # The service's answers may be slow on a busy machine: awaited, not timed.
     expect(page.locator("#command-result")).to_have_text("paused", timeout=30_000)
     expect(page.locator("#resume-button")).to_be_enabled()
