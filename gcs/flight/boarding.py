@@ -44,6 +44,7 @@ async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
         answers = await vehicle.request_message_rates(
             link, vehicle.message_rates(options.position_rate_hz), stalls)
         emit(v.id, EventKind.MESSAGE_RATES, ", ".join(f"{k} {a}" for k, a in answers.items()))
+    vehicle.refuse_other_claimants(link, v.spec)  # over the whole connect, not its start
     v.phase = VehiclePhase.CONNECTED
     mode = link.telemetry.mode
     emit(v.id, EventKind.CONNECTED, f"mode {mode.name if mode else '?'}, home "

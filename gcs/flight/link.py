@@ -32,7 +32,7 @@ from gcs.flight.station import Clock
 from gcs.flight.telemetry import Telemetry
 from gcs.wire import GCS_COMPONENT_ID, GCS_SYSTEM_ID, PacketHeader, SigningKey, mavlink
 
-__all__ = ["DECODED_IDS", "MessageCallback", "VehicleLink"]
+__all__ = ["DECODED_IDS", "MAX_CLAIMANTS", "MessageCallback", "VehicleLink"]
 
 MessageCallback = Callable[["VehicleLink", Any, float], None]
 """A listener: called with (link, message, receive time) for every message passed on."""
@@ -48,6 +48,9 @@ DECODED_IDS = frozenset({
     _m.MAVLINK_MSG_ID_STATUSTEXT, _m.MAVLINK_MSG_ID_SYS_STATUS,
     _m.MAVLINK_MSG_ID_BATTERY_STATUS, _m.MAVLINK_MSG_ID_GPS_RAW_INT,
 })
+
+#: How many other claimants of one vehicle are remembered (enough to name them; bounded).
+MAX_CLAIMANTS = 4
 
 
 @dataclass
@@ -75,6 +78,12 @@ class VehicleLink:
         self.peer_address: Any = peer
         """The pinned peer's address (None until pinned; None for serial links)."""
         self.pinned = peer is not None
+        self.peer_given = peer is not None
+        """Whether the peer was pinned up front (the fleet file's ``peer``)."""
+        self.claimants: list[Any] = []
+        """Other addresses that claimed this unsigned vehicle (its system id and component)
+        after first contact pinned one: two sources for one vehicle, which the connect step
+        refuses (`other_claimants`). At most `MAX_CLAIMANTS` are kept."""
         self.mav = endpoint.mav
         """This vehicle's packer: the endpoint's, or its own sharing the key's signing state."""
         if signing is not None:
@@ -116,6 +125,9 @@ class VehicleLink:
         counters = self.telemetry.security
         if self.pinned and address != self.peer_address:
             counters.foreign_source += 1
+            if (not self.peer_given and self.signing is None and component == self.component_id
+                    and address not in self.claimants and len(self.claimants) < MAX_CLAIMANTS):
+                self.claimants.append(address)
             return False
         if component != self.component_id:
             counters.other_component += 1

@@ -58,6 +58,7 @@ __all__ = [
     "land_vehicle",
     "last_text",
     "message_rates",
+    "refuse_other_claimants",
     "request_message_rates",
     "resolve_home",
     "secure",
@@ -161,6 +162,24 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
     if tel.armed:
         raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
                        f"someone else armed")
+    refuse_other_claimants(link, spec)
+
+
+def refuse_other_claimants(link: VehicleLink, spec: VehicleSpec) -> None:
+    """Two sources claiming one vehicle while it connects: refuse it and name both, so the
+    first is never pinned silently (pin the real one with the fleet file's ``peer``)."""
+    if link.claimants:
+        others = ", ".join(_address(a) for a in link.claimants)
+        raise LinkError(f"{spec.id}: two sources claim system id {spec.system_id}: "
+                        f"{_address(link.peer_address)} and {others}; set the vehicle's `peer` "
+                        f"in the fleet file to the real one")
+
+
+def _address(address: object) -> str:
+    """``HOST:PORT`` for a UDP address tuple, else the address as text."""
+    if isinstance(address, tuple) and len(address) == 2:
+        return f"{address[0]}:{address[1]}"
+    return str(address)
 
 
 async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodetic,

@@ -132,11 +132,14 @@ class MockFleet:
         return f"udpin:{self.host}:{self.vehicles[index].gcs_port}"
 
     def fleet_dict(self, ids: Sequence[str] | None = None) -> dict[str, Any]:
-        """A fleet file (`gcs.flight.fleetfile` format) for these vehicles, world-frame homes."""
+        """A fleet file (`gcs.flight.fleetfile` format) for these vehicles: world-frame homes,
+        and each vehicle's source address as its `peer`."""
         ids = list(ids) if ids is not None else [f"uav{i + 1}" for i in range(len(self.vehicles))]
         return {"vehicles": [
             {"id": vid, "connection": self.gcs_url(i), "system_id": v.system_id,
-             "home": v.home_world.tolist()}
+             "home": v.home_world.tolist(),
+             # the mock's own address, known here: pinned up front, never at first contact
+             "peer": f"{v.listen_address[0]}:{v.listen_address[1]}"}
             for i, (vid, v) in enumerate(zip(ids, self.vehicles, strict=True))]}
 
     async def start(self) -> None:

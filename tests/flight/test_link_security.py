@@ -20,10 +20,14 @@ from typing import Any
 import pytest
 
 from gcs import px4
+from gcs.errors import LinkError
 from gcs.flight import signing as signing_module
+from gcs.flight.fleetfile import FleetSpec, VehicleSpec
 from gcs.flight.hub import LinkHub
 from gcs.flight.link import VehicleLink
 from gcs.flight.signing import RESERVE, LinkSigning, timestamp_path
+from gcs.flight.vehicle import connect
+from gcs.sim import MockFleet
 from gcs.wire import (
     GCS_SYSTEM_ID,
     KeyFileError,
@@ -33,7 +37,7 @@ from gcs.wire import (
     parse_datagram,
     signing_timestamp,
 )
-from tests.flight.support import free_port_block
+from tests.flight.support import free_port_block, mock_ports
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -413,3 +417,58 @@ def test_quick_restarts_still_accept_an_honest_vehicle(tmp_path: Path) -> None:
                timestamp=signing_timestamp(time.time()) - 61 * 100_000)
     old.sock.close()
     assert signing.verify(parse_datagram(old.heartbeat()).messages[0]) == "replayed"
+
+
+def test_two_sources_for_one_vehicle_fail_its_connect_naming_both() -> None:
+    async def main() -> None:
+        port = free_port_block(1)
+        spoofer, vehicle = Peer(), Peer()
+        spec = VehicleSpec(id="uav1", connection=f"udpin:127.0.0.1:{port}", system_id=1,
+                           component_id=1, home=None)
+        try:
+            async with LinkHub() as hub:
+                link = await hub.add("uav1", spec.connection, 1)
+                # the spoofer speaks first and is pinned; the real vehicle claims it too
+                spoofer.send(spoofer.heartbeat(), port)
+                spoofer.send(spoofer.position(), port)
+                await _until(lambda: link.pinned)
+                vehicle.send(vehicle.heartbeat(), port)
+                await _until(lambda: link.claimants)
+                with pytest.raises(LinkError) as refused:
+                    await connect(link, spec, 5.0)
+                text = str(refused.value)
+                for address in (spoofer.address, vehicle.address):
+                    assert f"{address[0]}:{address[1]}" in text
+                assert "peer" in text  # what to do about it
+        finally:
+            vehicle.close()
+            spoofer.close()
+
+    _run(main())
+
+
+def test_a_vehicle_pinned_up_front_connects_beside_a_spoofer() -> None:
+    async def main() -> None:
+        port = free_port_block(1)
+        spoofer, vehicle = Peer(), Peer()
+        spec = VehicleSpec(id="uav1", connection=f"udpin:127.0.0.1:{port}", system_id=1,
+                           component_id=1, home=None, peer=vehicle.address)
+        try:
+            async with LinkHub() as hub:
+                link = await hub.add("uav1", spec.connection, 1, peer=vehicle.address)
+                spoofer.send(spoofer.heartbeat(), port)
+                vehicle.send(vehicle.heartbeat(), port)
+                vehicle.send(vehicle.position(), port)
+                await connect(link, spec, 5.0)  # the spoofer is known foreign: no dispute
+                assert link.claimants == [] and link.telemetry.security.foreign_source == 1
+        finally:
+            vehicle.close()
+            spoofer.close()
+
+    _run(main())
+
+
+def test_the_mocks_fleet_file_pins_each_mock_by_its_address() -> None:
+    mock = MockFleet(homes=[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]], **mock_ports(2))
+    fleet = FleetSpec.from_dict(mock.fleet_dict())
+    assert [v.peer for v in fleet.vehicles] == [v.listen_address for v in mock.vehicles]
