@@ -160,8 +160,12 @@ def _server(app: Any, settings: Settings, log_level: str) -> Any:
             self.stopping.add(task)
             task.add_done_callback(self.stopping.discard)
 
+    from gcs.api.connection_timeout import request_deadline_protocol
+
     config = uvicorn.Config(app, host=settings.host, port=settings.port, log_level=log_level,
-                            timeout_graceful_shutdown=GRACEFUL_SHUTDOWN_S)
+                            timeout_graceful_shutdown=GRACEFUL_SHUTDOWN_S,
+                            http=request_deadline_protocol(settings.request_timeout_s),
+                            timeout_keep_alive=max(1, round(settings.idle_timeout_s)))
     return Server(config)
 
 

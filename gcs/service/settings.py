@@ -127,6 +127,14 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest request body accepted (bytes)."
     )
+    request_timeout_s: float = Field(
+        10.0, gt=0, le=600, description="Longest a request may take to arrive in full (head "
+        "and body) once started; a connection that sends nothing, or too slowly, is closed."
+    )
+    idle_timeout_s: float = Field(
+        5.0, ge=1, le=600, description="How long a kept-alive connection may stay idle "
+        "between requests before it is closed."
+    )
     max_trajectory_rate: float = Field(
         100.0, gt=0, le=1000, description="Highest sampling rate of /trajectory (Hz)."
     )
