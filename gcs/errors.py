@@ -132,4 +132,9 @@ class InvalidRequest(RequestError):
 
 
 class ServiceBusy(RequestError):
-    """The service cannot take this work now (a full queue): retry later."""
+    """The service cannot take this work now (a full queue, every export or stream slot
+    held): retry later, after about `retry_after_s` (the answer's Retry-After)."""
+
+    def __init__(self, field: str, reason: str, retry_after_s: float = 5.0) -> None:
+        super().__init__(field, reason)
+        self.retry_after_s = retry_after_s

@@ -27,6 +27,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 import gcs
 from gcs.api.errors import FALLBACK, allowed_methods, install_error_handlers
+from gcs.api.fanout import SharedJson, Slots, StreamSlots
 from gcs.api.limits import BodyLimitMiddleware
 from gcs.api.routes import api_router
 from gcs.api.schemas import planner_schemas
@@ -104,6 +105,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.planning = planning
         app.state.plans = PlanCache(store)
         app.state.fleet = fleet
+        app.state.exports = Slots(settings.max_concurrent_exports, "max_concurrent_exports",
+                                  "trajectory exports")
+        app.state.streams = StreamSlots(settings.max_event_streams,
+                                        settings.max_event_streams_per_resource)
+        app.state.shared_json = SharedJson()
         try:
             await fleet.start()
             yield

@@ -8,7 +8,7 @@ before a route (or a stream) starts.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Annotated, Any, TypeVar
 
 import orjson
@@ -16,6 +16,7 @@ from fastapi import Depends, Header, Path, Request
 from starlette.concurrency import run_in_threadpool
 
 from gcs.api.errors import BadRequest, Unprocessable
+from gcs.api.fanout import SharedJson
 from gcs.errors import NotFound
 from gcs.service.flights import FleetService
 from gcs.service.planning import PlanningService
@@ -24,8 +25,10 @@ from gcs.service.settings import Settings
 from gcs.service.store import ExecutionRow, MissionRow, Store
 
 __all__ = [
+    "EventStreamSlot",
     "ExecutionDep",
     "ExecutionIdPath",
+    "ExportSlot",
     "FleetDep",
     "JsonBody",
     "LastEventId",
@@ -34,6 +37,7 @@ __all__ = [
     "PlanCacheDep",
     "PlanningDep",
     "SettingsDep",
+    "SharedJsonDep",
     "StoreDep",
 ]
 
@@ -58,7 +62,27 @@ def _fleet(request: Request) -> FleetService:
     return request.app.state.fleet
 
 
+def _export_slot(request: Request) -> Iterator[None]:
+    """One of the `max_concurrent_exports` slots while the export is computed and sent."""
+    with request.app.state.exports.hold():
+        yield
+
+
+def _event_stream_slot(request: Request) -> Iterator[None]:
+    """One of the event-stream slots (in total, and on this path's resource) while the
+    stream is open."""
+    with request.app.state.streams.hold(request.url.path):
+        yield
+
+
+def _shared_json(request: Request) -> SharedJson:
+    return request.app.state.shared_json
+
+
 SettingsDep = Annotated[Settings, Depends(_settings)]
+ExportSlot = Annotated[None, Depends(_export_slot)]
+EventStreamSlot = Annotated[None, Depends(_event_stream_slot)]
+SharedJsonDep = Annotated[SharedJson, Depends(_shared_json)]
 StoreDep = Annotated[Store, Depends(_store)]
 PlanningDep = Annotated[PlanningService, Depends(_planning)]
 PlanCacheDep = Annotated[PlanCache, Depends(_plans)]

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -267,6 +268,8 @@ def install_error_handlers(app: FastAPI) -> None:
         assert isinstance(exc, RequestError)
         error = ApiError(exc.field, exc.reason)
         error.status = _status_of(exc)
+        if isinstance(exc, ServiceBusy):
+            error.headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after_s)))
         return _respond(error)
 
     async def field_error(_request: Request, exc: Exception) -> JSONResponse:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import threading
 from collections import OrderedDict
+from collections.abc import Iterator
 
 import numpy as np
 import orjson
@@ -20,7 +21,8 @@ from gcs.service.statuses import MissionStatus
 from gcs.service.store import Store
 from planner import Plan, PlanFormatError
 
-__all__ = ["PlanCache", "csv_text_field", "sample_times", "trajectory_csv", "trajectory_json"]
+__all__ = ["PlanCache", "csv_text_field", "sample_times", "trajectory_csv",
+           "trajectory_csv_chunks", "trajectory_json"]
 
 
 class PlanCache:
@@ -131,18 +133,34 @@ def csv_text_field(text: str) -> str:
     return text
 
 
+def trajectory_csv_chunks(plan: Plan, rate: float, max_rows: int) -> Iterator[str]:
+    """The trajectory CSV (`trajectory_csv`) in pieces of at most `CSV_CHUNK_ROWS` rows, for
+    a response that sends rows as they are written instead of holding the whole text. The
+    size is checked here, before the first piece: a refusal is an error, not a cut stream."""
+    times = _check_size(plan, rate, max_rows)
+    return _csv_pieces(plan, times)
+
+
+#: Rows per piece of a streamed CSV export.
+CSV_CHUNK_ROWS = 5000
+
+
+def _csv_pieces(plan: Plan, times: np.ndarray) -> Iterator[str]:
+    yield CSV_HEADER
+    for vehicle in plan.vehicles:
+        prefix = csv_text_field(vehicle.id).replace("%", "%%")
+        for start in range(0, len(times), CSV_CHUNK_ROWS):
+            part = times[start:start + CSV_CHUNK_ROWS]
+            motion = vehicle.sample(plan.scenario.dt, part)
+            table = np.column_stack([part, motion.position, motion.velocity,
+                                     motion.acceleration])
+            # Rounded to the printed precision, then + 0.0: no "-0.000000" for tiny negatives.
+            table = np.round(table, 6) + 0.0
+            out = io.StringIO()
+            np.savetxt(out, table, fmt=prefix + ",%.6f" + ",%.6f" * 9)
+            yield out.getvalue()
+
+
 def trajectory_csv(plan: Plan, rate: float, max_rows: int) -> str:
     """One row per vehicle and time: vehicle,t,x,y,z,vx,vy,vz,ax,ay,az (SI, world ENU)."""
-    times = _check_size(plan, rate, max_rows)
-    motion = plan.sample(times)
-    out = io.StringIO()
-    out.write(CSV_HEADER)
-    for i, vehicle in enumerate(plan.vehicles):
-        table = np.column_stack(
-            [times, motion.position[i], motion.velocity[i], motion.acceleration[i]]
-        )
-        # Rounded to the printed precision, then + 0.0: no "-0.000000" for tiny negatives.
-        table = np.round(table, 6) + 0.0
-        prefix = csv_text_field(vehicle.id).replace("%", "%%")
-        np.savetxt(out, table, fmt=prefix + ",%.6f" + ",%.6f" * 9)
-    return out.getvalue()
+    return "".join(trajectory_csv_chunks(plan, rate, max_rows))

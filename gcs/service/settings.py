@@ -135,6 +135,18 @@ class Settings(BaseSettings):
         5.0, ge=1, le=600, description="How long a kept-alive connection may stay idle "
         "between requests before it is closed."
     )
+    max_concurrent_exports: int = Field(
+        4, ge=1, le=256, description="Trajectory exports computed at once; more answer 503 "
+        "with Retry-After."
+    )
+    max_event_streams: int = Field(
+        128, ge=1, le=10_000, description="Event streams (server-sent events) open at once "
+        "in total; more answer 503 with Retry-After."
+    )
+    max_event_streams_per_resource: int = Field(
+        32, ge=1, le=10_000, description="Event streams open at once on one mission or "
+        "flight; more answer 503 with Retry-After."
+    )
     max_trajectory_rate: float = Field(
         100.0, gt=0, le=1000, description="Highest sampling rate of /trajectory (Hz)."
     )

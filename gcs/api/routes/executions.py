@@ -15,11 +15,13 @@ from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 
 from gcs.api.deps import (
+    EventStreamSlot,
     ExecutionDep,
     FleetDep,
     LastEventId,
     MissionDep,
     PlanCacheDep,
+    SharedJsonDep,
     StoreDep,
 )
 from gcs.api.errors import error_responses
@@ -234,16 +236,19 @@ def get_execution(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> 
     "/{execution_id}/events",
     response_class=EventSourceResponse,
     summary="Live telemetry and events (server-sent events)",
-    responses=error_responses(404, json_content=True),
+    responses=error_responses(404, 503, json_content=True),
 )
 async def execution_events(
-    execution: ExecutionDep, store: StoreDep, fleet: FleetDep, after: LastEventId
+    execution: ExecutionDep, store: StoreDep, fleet: FleetDep, after: LastEventId,
+    _slot: EventStreamSlot, shared: SharedJsonDep,
 ) -> AsyncIterable[ServerSentEvent]:
     """`status` {status}, `event` {t, vehicle, kind, detail}, `telemetry` (5 per second:
     phase, mission_time, vehicles with world-frame position, mode, armed, heartbeat_age),
     then `done` {status, summary, error}; then the stream ends. Each `event` has an `id:`
     (its index in the flight's events); a client reconnecting with `Last-Event-ID: n` gets
-    the current status and telemetry and only the events after n."""
+    the current status and telemetry and only the events after n. Streams are bounded in
+    total and per flight (settings `max_event_streams`, `max_event_streams_per_resource`):
+    past either bound the answer is 503 with Retry-After."""
     flight = fleet.flight(execution.id)
     if flight is None:
         # Finished: the store has it (read again: it may have ended a moment ago).
@@ -257,9 +262,9 @@ async def execution_events(
         if kind == "event":
             number, sequence = sequence, sequence + 1
             if after is None or number > after:
-                yield ServerSentEvent(event=kind, data=data, id=str(number))
+                yield ServerSentEvent(event=kind, raw_data=shared.text(data), id=str(number))
         else:
-            yield ServerSentEvent(event=kind, data=data)
+            yield ServerSentEvent(event=kind, raw_data=shared.text(data))
 
 
 async def _stored_stream(execution: ExecutionRow) -> AsyncIterable[tuple[str, dict[str, Any]]]:

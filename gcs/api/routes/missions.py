@@ -15,16 +15,20 @@ from collections.abc import AsyncIterable
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Response
+from fastapi.responses import StreamingResponse
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 from starlette.concurrency import run_in_threadpool
 
 from gcs.api.deps import (
+    EventStreamSlot,
+    ExportSlot,
     JsonBody,
     LastEventId,
     MissionDep,
     PlanCacheDep,
     PlanningDep,
     SettingsDep,
+    SharedJsonDep,
     StoreDep,
 )
 from gcs.api.errors import ErrorItem, Unprocessable, error_responses
@@ -45,7 +49,7 @@ from gcs.service.limits import (
 )
 from gcs.service.plan_worker import finite_json
 from gcs.service.planning import PlanJob, PlanningService
-from gcs.service.plans import trajectory_csv, trajectory_json
+from gcs.service.plans import trajectory_csv_chunks, trajectory_json
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
@@ -313,16 +317,17 @@ async def cancel_mission(mission: MissionDep, store: StoreDep, planning: Plannin
     "/{mission_id}/events",
     response_class=EventSourceResponse,
     summary="Planning progress (server-sent events)",
-    responses=error_responses(404, json_content=True),
+    responses=error_responses(404, 503, json_content=True),
 )
 async def mission_events(
-    mission: MissionDep, planning: PlanningDep, after: LastEventId
+    mission: MissionDep, planning: PlanningDep, after: LastEventId,
+    _slot: EventStreamSlot, shared: SharedJsonDep,
 ) -> AsyncIterable[ServerSentEvent]:
     """`iteration` events (one per SCP iteration: iteration, cost, cost_change,
     separation_rows, qp_solves, groups, seconds) while planning, then one `done` event
     {status, plan_status, plan_ok, error}; then the stream ends. Each `iteration` has an
     `id:` (0, 1, ...); a client reconnecting with `Last-Event-ID: n` gets the iterations
-    after n, then `done`."""
+    after n, then `done`. Streams are bounded like a flight's (503 with Retry-After)."""
     job = planning.job(mission.id)
     if job is None or mission.status != MissionStatus.PLANNING:
         yield ServerSentEvent(
@@ -336,9 +341,9 @@ async def mission_events(
         if kind == "iteration":
             number, sequence = sequence, sequence + 1
             if after is None or number > after:
-                yield ServerSentEvent(event=kind, data=data, id=str(number))
+                yield ServerSentEvent(event=kind, raw_data=shared.text(data), id=str(number))
         else:
-            yield ServerSentEvent(event=kind, data=data)
+            yield ServerSentEvent(event=kind, raw_data=shared.text(data))
 
 
 @router.get(
@@ -369,13 +374,14 @@ def get_plan(mission: MissionDep, store: StoreDep) -> Response:
             "content": {"text/csv": {"example": "vehicle,t,x,y,z,vx,vy,vz,ax,ay,az\n"
                                      "uav1,0.000000,4.500000,2.500000,1.100000,..."}},
         },
-        **error_responses(404, 409, 422),
+        **error_responses(404, 409, 422, 503),
     },
 )
 def get_trajectory(
     mission: MissionDep,
     plans: PlanCacheDep,
     settings: SettingsDep,
+    _slot: ExportSlot,
     rate: Annotated[float, Query(gt=0, description="Samples per second (Hz).")] = 20.0,
     format: Annotated[
         Literal["json", "csv", "show-csv"],
@@ -387,7 +393,8 @@ def get_trajectory(
 ) -> Response:
     """Every vehicle's position, velocity and acceleration at `rate` Hz from 0 to the horizon
     (world frame ENU, exact motion between steps): what the GCS streams as setpoints. CSV has
-    one row per vehicle and time."""
+    one row per vehicle and time, sent as it is written. At most `max_concurrent_exports`
+    are computed at once; past that the answer is 503 with Retry-After."""
     if rate > settings.max_trajectory_rate:
         raise InvalidRequest(
             "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}"
@@ -396,8 +403,8 @@ def get_trajectory(
     if format == "show-csv":
         return _show_csv(mission.id, plan, rate, vehicle, settings)
     if format == "csv":
-        return Response(
-            trajectory_csv(plan, rate, settings.max_trajectory_samples),
+        return StreamingResponse(
+            trajectory_csv_chunks(plan, rate, settings.max_trajectory_samples),
             media_type="text/csv",
             headers={
                 "Content-Disposition": f'attachment; filename="trajectory-{mission.id}.csv"'

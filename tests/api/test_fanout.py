@@ -1,0 +1,139 @@
+"""Fan-out bounds: trajectory exports at once and event streams (in total, per resource)
+answer 503 with Retry-After past their limit, release their slot when they end, and an
+event is serialised once for every stream that sends it."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import threading
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from gcs.api.fanout import SharedJson, Slots, StreamSlots
+from gcs.errors import ServiceBusy
+from gcs.service import plans
+from tests.api.support import example
+
+
+@pytest.fixture(scope="module")
+def planned(shared_client: TestClient) -> str:
+    response = shared_client.post("/api/missions?wait=60", json=example("paper-circle2"))
+    assert response.status_code == 201, response.text
+    return response.json()["id"]
+
+
+def _busy(response: Any, setting: str) -> None:
+    assert response.status_code == 503, response.text
+    assert int(response.headers["Retry-After"]) >= 1
+    body = response.json()
+    assert body["field"] == setting and setting in body["reason"]
+
+
+def test_exports_past_the_limit_answer_503_and_a_finished_export_frees_its_slot(
+    shared_client: TestClient, planned: str
+) -> None:
+    exports: Slots = shared_client.app.state.exports  # type: ignore[attr-defined]
+    url = f"/api/missions/{planned}/trajectory?rate=20&format=csv"
+    held = exports.held
+    exports.held = exports.limit  # every slot taken by exports in progress
+    try:
+        _busy(shared_client.get(url), "max_concurrent_exports")
+        _busy(shared_client.get(url.replace("&format=csv", "")), "max_concurrent_exports")
+    finally:
+        exports.held = held
+    answer = shared_client.get(url)
+    assert answer.status_code == 200 and answer.text.startswith("vehicle,t,")
+    assert exports.held == held  # released once sent
+
+
+def test_a_streamed_csv_export_is_the_whole_table(
+    shared_client: TestClient, planned: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Sent in pieces of 7 rows, the rows still run 0..horizon for each vehicle in order,
+    each exactly once."""
+    monkeypatch.setattr(plans, "CSV_CHUNK_ROWS", 7)
+    plan = shared_client.get(f"/api/missions/{planned}/plan").json()
+    horizon = plan["scenario"]["dt"] * plan["scenario"]["steps"]
+    exports: Slots = shared_client.app.state.exports  # type: ignore[attr-defined]
+    held = exports.held
+    with shared_client.stream(
+            "GET", f"/api/missions/{planned}/trajectory?rate=100&format=csv") as response:
+        assert response.status_code == 200
+        pieces = response.iter_text()
+        text = next(pieces)
+        assert exports.held == held + 1  # its slot is held while rows are still being sent
+        text += "".join(pieces)
+    assert exports.held == held
+    rows = list(csv.DictReader(io.StringIO(text)))
+    per_vehicle = math.floor(horizon * 100 + 1e-9) + 1
+    assert per_vehicle > 7
+    ids = [v["id"] for v in plan["scenario"]["vehicles"]]
+    assert [r["vehicle"] for r in rows] == [i for i in ids for _ in range(per_vehicle)]
+    for vehicle in ids:
+        times = [float(r["t"]) for r in rows if r["vehicle"] == vehicle]
+        assert times == sorted(times) and times[0] == 0.0
+        assert times[-1] == pytest.approx(horizon, abs=1e-6)
+
+
+def test_event_streams_are_bounded_per_resource_and_in_total(
+    shared_client: TestClient, planned: str
+) -> None:
+    streams: StreamSlots = shared_client.app.state.streams  # type: ignore[attr-defined]
+    path = f"/api/missions/{planned}/events"
+    streams.open[path] = streams.per_resource
+    try:
+        _busy(shared_client.get(path), "max_event_streams_per_resource")
+    finally:
+        del streams.open[path]
+    streams.open["/api/elsewhere"] = streams.total
+    try:
+        _busy(shared_client.get(path), "max_event_streams")
+    finally:
+        del streams.open["/api/elsewhere"]
+    with shared_client.stream("GET", path) as response:  # a planned mission: `done`, then end
+        assert response.status_code == 200
+        assert "event: done" in "".join(response.iter_text())
+    assert streams.open == {}  # released when the stream ended
+
+
+def test_slots_are_counted_across_threads() -> None:
+    slots = Slots(3, "max_concurrent_exports", "exports")
+    entered, release = threading.Barrier(4), threading.Event()
+    refused: list[ServiceBusy] = []
+
+    def hold() -> None:
+        with slots.hold():
+            entered.wait(10)
+            release.wait(10)
+
+    threads = [threading.Thread(target=hold) for _ in range(3)]
+    for thread in threads:
+        thread.start()
+    entered.wait(10)
+    try:
+        with slots.hold():
+            pass
+    except ServiceBusy as exc:
+        refused.append(exc)
+    release.set()
+    for thread in threads:
+        thread.join(10)
+    assert len(refused) == 1 and refused[0].retry_after_s > 0
+    assert slots.held == 0
+    with slots.hold():
+        assert slots.held == 1
+
+
+def test_one_serialisation_per_event_object_and_never_nan() -> None:
+    shared = SharedJson(size=2)
+    event = {"t": 1.5, "x": float("nan"), "v": [1.0, float("inf")]}
+    text = shared.text(event)
+    assert text == '{"t": 1.5, "x": null, "v": [1.0, null]}'
+    assert shared.text(event) is text  # the same object: computed once
+    assert shared.text(dict(event)) == text  # an equal object: the same text
+    for n in range(5):  # bounded: old entries go, and a new object never gets a stale text
+        assert shared.text({"n": n}) == f'{{"n": {n}}}'
