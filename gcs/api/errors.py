@@ -33,11 +33,13 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
+from sqlalchemy.exc import SQLAlchemyError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match, Mount
 from starlette.types import Send
 
 from gcs.errors import InvalidRequest, NotFound, RequestError, ServiceBusy, StateConflict
+from gcs.service.storage_faults import is_disk_full, storage_reason
 from planner.errors import FieldError
 
 __all__ = [
@@ -180,6 +182,7 @@ def error_responses(*codes: int, json_content: bool = False) -> dict[int | str, 
         415: "The body is not declared as JSON (Content-Type: application/json)",
         422: "Invalid input: the body names the field and the reason",
         503: "Service unavailable",
+        507: "Disk full: the database cannot store this",
     }
     if json_content:
         content = {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorBody"}}}
@@ -291,6 +294,16 @@ def install_error_handlers(app: FastAPI) -> None:
             response.headers["Allow"] = ", ".join(allowed)
         return response
 
+    async def storage_error(_request: Request, exc: Exception) -> JSONResponse:
+        # The database refused a write or a read: a full disk is 507, anything else 503
+        # (retry later); never a 500 that does not say why.
+        log.error("storage error: %s", exc)
+        error = ApiError(None, storage_reason(exc))
+        error.status = 507 if is_disk_full(exc) else 503
+        if error.status == 503:
+            error.headers["Retry-After"] = "5"
+        return _respond(error)
+
     async def unexpected(_request: Request, exc: Exception) -> JSONResponse:
         log.exception("unhandled error", exc_info=exc)
         error = ApiError(None, f"internal error: {type(exc).__name__}")
@@ -301,5 +314,6 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, validation_error)
     app.add_exception_handler(RequestError, request_error)
     app.add_exception_handler(FieldError, field_error)
+    app.add_exception_handler(SQLAlchemyError, storage_error)
     app.add_exception_handler(StarletteHTTPException, http_error)
     app.add_exception_handler(Exception, unexpected)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+from datetime import UTC, datetime
 from typing import Any
 
 from gcs.errors import GcsError, MissionAborted, StateConflict
@@ -26,10 +27,11 @@ from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.phases import EventKind
 from gcs.service.fleet import Fleet
-from gcs.service.journal import ExecutionJournal, store_final
+from gcs.service.journal import ExecutionJournal, store_failure, write_final
 from gcs.service.live_flight import LiveExecution, execution_document
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
+from gcs.service.storage_faults import storage_reason
 from gcs.service.store import ExecutionRow, Store
 from gcs.tasks import TaskSet
 from planner import Plan
@@ -45,6 +47,9 @@ FINISHED = EXECUTION_FINISHED
 TELEMETRY_HZ = 5.0
 #: How long closing the service waits for an aborted flight to land (s).
 CLOSE_LANDING_S = 60.0
+#: First and longest wait between retries of an ended flight's final write (s).
+STORE_RETRY_S = 1.0
+STORE_RETRY_MAX_S = 10.0
 
 
 class FleetService:
@@ -58,6 +63,7 @@ class FleetService:
         self._active: LiveExecution | None = None
         self._tasks = TaskSet()
         self._lock = asyncio.Lock()
+        self._closing = False
 
     @property
     def kind(self) -> str:
@@ -71,7 +77,9 @@ class FleetService:
         await self.fleet.start()
 
     async def close(self) -> None:
-        """Land an active flight (waiting for it up to a minute), then release everything."""
+        """Land an active flight (waiting for it up to a minute), then release everything
+        (a flight still waiting for the store gets a last try)."""
+        self._closing = True
         flight = self._active
         if flight is not None and flight.active:
             log.warning("service stopping during execution %s: landing every vehicle", flight.id)
@@ -101,7 +109,8 @@ class FleetService:
         return self.fleet.monitored()
 
     def flight(self, execution_id: str) -> LiveExecution | None:
-        """The flight while it is under way (afterwards the store has it)."""
+        """The flight while it is under way, or ended and waiting for the store to take its
+        final state (afterwards the store has it)."""
         return self._flights.get(execution_id)
 
     @property
@@ -247,16 +256,60 @@ class FleetService:
             if record is not None and flight.summary is None:
                 flight.summary = record.get("summary")
             await journal.close()
-            await store_final(self._store, flight.id, status=flight.status,
-                              events=flight.events, summary=flight.summary, record=record,
-                              error=flight.error)
+            stored = await self._store_final(flight, record)
+            flight.finished_at = datetime.now(UTC)
             if self._active is flight:
                 self._active = None
             flight.done.set()
             flight.publish("done", flight.outcome())
-            # Stored now: drop it (and its executor, which holds the whole record) from memory.
-            self._flights.pop(flight.id, None)
+            if stored:
+                # Stored: drop it (and its executor, which holds the whole record) from memory.
+                self._flights.pop(flight.id, None)
+            elif self._closing:
+                await store_failure(self._store, flight.id, self._unstored_reason(flight),
+                                    flight.events)
+            else:
+                self._tasks.spawn(self._store_later(flight, record))
             await self.fleet.open_monitor()
+
+    async def _store_final(self, flight: LiveExecution, record: dict[str, Any] | None) -> bool:
+        """One try at the flight's final write; on failure the reason is kept on the flight
+        (`unstored`) and False returned."""
+        try:
+            await write_final(self._store, flight.id, status=flight.status,
+                              events=flight.events, summary=flight.summary, record=record,
+                              error=flight.error)
+        except Exception as exc:
+            flight.unstored = storage_reason(exc)
+            log.error("could not store execution %s (kept in memory, retrying): %s",
+                      flight.id, flight.unstored)
+            return False
+        flight.unstored = None
+        return True
+
+    async def _store_later(self, flight: LiveExecution, record: dict[str, Any] | None) -> None:
+        """Retry an ended flight's final write (backing off to `STORE_RETRY_MAX_S`) until the
+        store takes it, then drop the flight from memory. If the service stops first, the
+        execution is at least marked failed with the reason."""
+        delay = STORE_RETRY_S
+        try:
+            while True:
+                await asyncio.sleep(delay)
+                delay = min(2 * delay, STORE_RETRY_MAX_S)
+                if await self._store_final(flight, record):
+                    log.info("execution %s stored after a storage fault", flight.id)
+                    self._flights.pop(flight.id, None)
+                    return
+        except asyncio.CancelledError:
+            if not await self._store_final(flight, record):
+                await store_failure(self._store, flight.id, self._unstored_reason(flight),
+                                    flight.events)
+            raise
+
+    @staticmethod
+    def _unstored_reason(flight: LiveExecution) -> str:
+        return (f"the flight ({flight.status}) could not be stored before the service "
+                f"stopped: {flight.unstored}")[:500]
 
     async def _relay_events(self, flight: LiveExecution, executor: FlightExecutor) -> None:
         """The executor's events into the flight's log and stream; a pause past its limit

@@ -4,9 +4,10 @@ its final write when it ends.
 So that a crash (kill -9, power loss) keeps what a flight did, `ExecutionJournal` writes the
 status and the events so far about once a second (batched: nothing is written when nothing
 changed), and a snapshot of the flight record so far every few seconds (it grows with the
-flight, so less often). The final write at the end of the flight (`store_final`) replaces all
-of it; if the store refuses that, `store_failure` leaves the execution `failed` with the
-reason, never stored as flying.
+flight, so less often). The final write at the end of the flight (`write_final`) replaces all
+of it; while the store refuses that (a full disk), the flight service keeps the final state
+in memory and retries, and only a service that stops meanwhile leaves the execution `failed`
+with the reason (`store_failure`), never stored as flying.
 
 Snapshots are taken on the event loop as shallow list copies (fast, and consistent with the
 loop that appends to them); the JSON is made and written in a thread. A failing write is
@@ -28,7 +29,7 @@ from gcs.service.store import Store
 if TYPE_CHECKING:
     from gcs.flight.record import FlightRecorder
 
-__all__ = ["ExecutionJournal", "record_snapshot", "store_failure", "store_final"]
+__all__ = ["ExecutionJournal", "record_snapshot", "store_failure", "write_final"]
 
 log = logging.getLogger(__name__)
 
@@ -162,12 +163,12 @@ async def store_failure(store: Store, execution_id: str, reason: str,
     return False
 
 
-async def store_final(store: Store, execution_id: str, *, status: str,
+async def write_final(store: Store, execution_id: str, *, status: str,
                       events: list[dict[str, Any]], summary: dict[str, Any] | None,
-                      record: dict[str, Any] | None, error: str | None) -> bool:
-    """The final write of a flight: status, events, summary, record and error. When the
-    store refuses it, the execution is marked `failed` with the reason (`store_failure`).
-    True if the final state was stored."""
+                      record: dict[str, Any] | None, error: str | None) -> None:
+    """The final write of a flight: status, events, summary, record and error, in one
+    update. Raises what the store raised: the caller keeps the flight in memory and retries
+    (`gcs.service.flights`)."""
 
     def write() -> None:
         text = None
@@ -177,11 +178,4 @@ async def store_final(store: Store, execution_id: str, *, status: str,
         store.update_execution(execution_id, status=status, events=events, summary=summary,
                                record_json=text, error=error, finished=True)
 
-    try:
-        await asyncio.to_thread(write)
-        return True
-    except Exception as exc:
-        log.exception("could not store execution %s", execution_id)
-        await store_failure(store, execution_id, f"the flight ({status}) could not be stored: "
-                            f"{type(exc).__name__}: {exc}"[:500], events)
-        return False
+    await asyncio.to_thread(write)

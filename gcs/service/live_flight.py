@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any
 
 from gcs.flight.executor import FlightExecutor
@@ -29,6 +30,11 @@ class LiveExecution:
     summary: dict[str, Any] | None = None
     error: str | None = None
     abort_requested: str | None = None
+    finished_at: datetime | None = None
+    """When the flight ended (its final state is set by then)."""
+    unstored: str | None = None
+    """Why the ended flight's final state is not stored yet (it is held here and retried);
+    None once stored, and while flying."""
     done: asyncio.Event = field(default_factory=asyncio.Event)
     listeners: Broadcast = field(default_factory=Broadcast)
 
@@ -76,8 +82,16 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
         doc.update(status=flight.status, events=list(flight.events), live=flight.snapshot())
         if flight.summary is not None:
             doc["summary"] = flight.summary
+    elif flight is not None and flight.unstored is not None:
+        # Ended, but the store refused its final state: memory holds it, never "running".
+        doc.update(status=flight.status, events=list(flight.events), summary=flight.summary,
+                   error=flight.error, live=None,
+                   has_record=flight.executor is not None and flight.executor.record is not None,
+                   finished_at=None if flight.finished_at is None
+                   else flight.finished_at.isoformat())
     else:
         doc["live"] = None
+    doc["storage"] = None if flight is None else flight.unstored
     doc["links"] = {
         "self": f"/api/executions/{row.id}",
         "events": f"/api/executions/{row.id}/events",

@@ -1,23 +1,18 @@
-"""Executions stored while they fly (`ExecutionJournal`), and a flight whose final write fails
-ends `failed` with the reason instead of staying `running`."""
+"""Executions stored while they fly (`ExecutionJournal`). A flight whose final write fails
+is tests/service/test_storage_faults.py's."""
 
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
-from fastapi.testclient import TestClient
 
-from gcs.api import create_app
 from gcs.service.journal import ExecutionJournal
-from gcs.service.settings import Settings
 from gcs.service.store import Store
 from planner import Scenario
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_CROSSING, example
+from tests.api.support import example
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -55,32 +50,3 @@ def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> 
     row = store.get_execution(execution.id)
     assert row is not None and row.status == "running" and row.events == state["events"]
     store.close()
-
-
-def test_a_flight_the_store_refuses_ends_failed_with_the_reason(
-    mock_settings: Callable[..., Settings], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    with TestClient(create_app(mock_settings())) as client:
-        store = client.app.state.store
-        real_update = store.update_execution
-
-        def update(execution_id: str, **values: Any) -> bool:
-            if values.get("finished") and values.get("record_json") is not None:
-                raise OSError(28, "No space left on device")
-            return real_update(execution_id, **values)
-
-        monkeypatch.setattr(store, "update_execution", update)
-        mission = plan_mission(client, QUICK_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/executions",
-                                json={"hold_at_goal": 0.5}).json()
-        streamed = sse_events(client, execution["links"]["events"])
-        done = streamed[-1]
-        assert done[0] == "done" and done[1]["status"] == "completed", done[1]
-        stored = client.get(execution["links"]["self"]).json()
-        assert stored["status"] == "failed"
-        assert "could not be stored" in stored["error"]
-        assert "No space left on device" in stored["error"]
-        assert stored["finished_at"] is not None
-        # The flight's events are kept even though its record could not be.
-        assert stored["events"] == [data for kind, data in streamed if kind == "event"]
-        assert stored["events"]

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import AsyncIterable
 from typing import Annotated, Any, Literal
 
+import orjson
 from fastapi import APIRouter, Body, Query, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 from pydantic import BaseModel, ConfigDict, Field
@@ -124,6 +125,10 @@ class ExecutionSummary(BaseModel):
     error: str | None
     has_record: bool
     event_count: int = Field(description="How many events the flight has recorded so far.")
+    storage: str | None = Field(
+        None, description="Why the ended flight's final state is not stored yet (\"disk "
+        "full: ...\"): the service holds it in memory, serves it from there and retries; "
+        "null once stored.")
     links: dict[str, str]
 
 
@@ -330,8 +335,17 @@ async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str
     summary="Download the flight record",
     responses={200: {"content": {"application/json": {}}}, **error_responses(404, 409)},
 )
-def get_record(execution: ExecutionDep, store: StoreDep) -> Response:
+def get_record(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> Response:
     """Setpoints sent, telemetry received, events and the summary (gcs flight record)."""
+    flight = fleet.flight(execution.id)
+    held = None if flight is None or flight.unstored is None or flight.executor is None \
+        else flight.executor.record
+    if held is not None:
+        # ended, not stored yet (a storage fault): the record is in memory
+        return Response(
+            orjson.dumps(held, option=orjson.OPT_SERIALIZE_NUMPY),
+            media_type="application/json",
+            headers={"Content-Disposition": f'attachment; filename="flight-{execution.id}.json"'})
     row = store.get_execution(execution.id, with_record=True)
     if row is None or row.record_json is None:
         raise StateConflict("execution_id", f"execution {execution.id!r} has no flight record "
