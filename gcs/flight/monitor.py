@@ -172,5 +172,5 @@ class FleetMonitor:
             closest = float(np.min(np.linalg.norm(pts[i] - pts[j], axis=1)))
             self.min_separation = min(self.min_separation, closest)
             alarm = plan.scenario.min_separation - opts.separation_alarm
-            if closest < alarm:
+            if not closest >= alarm:  # a distance that is not a number alarms too
                 self.on_separation(closest, alarm)
