@@ -82,7 +82,7 @@ from gcs.flight.record import FlightRecorder, goal_tolerance
 from gcs.flight.recording import FlightRecording, finish_record
 from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.snapshot import flight_snapshot
-from gcs.flight.station import StallReport, StationStalls
+from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
 from planner import Plan
@@ -509,13 +509,18 @@ class FlightExecutor:
     async def _sleep_until_flight_time(self, t: float) -> None:
         """Sleep until flight time `t`; a pause on the way makes it wait longer (the flight
         clock never runs faster than the GCS clock, so sleeping the remainder never
-        oversleeps)."""
+        oversleeps). A late wake-up is noted as a stall of the station at once, so that the
+        goal errors judged next wait for it even before the monitor or streamer saw it."""
         while True:
             now = self.flight_time()
             assert now is not None
             if now >= t:
                 return
+            due = time.monotonic() + (t - now)
             await asyncio.sleep(t - now)
+            woke = time.monotonic()
+            if woke - due > STALL_NOTE_S:
+                self.stalls.note(due, woke)
 
     def _end_pause(self) -> None:
         """Forget a pause (the flight is ending)."""
