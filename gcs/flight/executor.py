@@ -432,7 +432,9 @@ class FlightExecutor:
                 v.phase = VehiclePhase.HOVERING
         else:
             await _all(self._land(v) for v in live)
-        # and the ones a land_faulty policy sent down
+        # and the ones a land_faulty policy sent down, once their landing command has an
+        # outcome (an unanswered one is given up on after its retries: land_failed)
+        await asyncio.gather(*self.policy.landings, return_exceptions=True)
         await vehicle.wait_disarmed([v for v in self.vehicles
                                      if v.phase == VehiclePhase.LANDING],
                                     self.options, self._emit, self.stalls)

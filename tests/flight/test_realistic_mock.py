@@ -171,14 +171,17 @@ def test_a_crossing_on_px4_like_mocks_completes_with_the_fleets_position_error()
     """Planned and judged for position_error 0.25 m (as the SITL flight was): it completes,
     each goal judged with max(0.2, 2 x max(0.25, reported h_acc)), tracking error nonzero
     (the estimate wanders, the attitude lags) but bounded."""
-    record = _fly_crossing(0.25, FAST, seed=1)
+    # a wide live tracking bound: a starved station (the in-process mock starves with it)
+    # trails the plan by what it lost, which is the paper case's and stall tests' concern;
+    # the raw figure is judged below when the station ran throughout
+    record = _fly_crossing(0.25, FAST.replace(tracking_error_max=5.0), seed=1)
     s = record["summary"]
     assert s["completed"] is True, s["why"]
     assert s["why"][0].startswith("complete")
     expected = max(0.2, 2.0 * max(0.25, record["_h_acc"]))
     assert s["goal_tolerances"] == {vid: pytest.approx(expected) for vid in "abcd"}
     assert 0.0 < s["goal_error_max"] <= expected
-    assert s["faults"] == {}  # the live tracking and separation checks never tripped
+    assert s["faults"] == {}
     assert s["tracking_error_max"] > 0.05, s
     # The summary's figures are measured on the station's clock: a stall of the station
     # (the in-process mock and its vehicles stall with it, then catch up) adds what the
@@ -197,8 +200,9 @@ def test_the_same_crossing_judged_with_a_fixed_tolerance_says_why() -> None:
     summary's verdict agrees with the goal errors it reports and states the reasons."""
     # a wide tracking bound: what is judged here is the goal verdict (a stall of the station,
     # which the in-process mock shares, lets the vehicles trail the plan meanwhile)
-    record = _fly_crossing(None, FAST.replace(goal_tolerance_k=0.0, tracking_error_max=5.0),
-                           seed=2)
+    # (and only the messages the GCS reads, asked for: half the work of PX4's whole set)
+    record = _fly_crossing(None, FAST.replace(goal_tolerance_k=0.0, tracking_error_max=5.0,
+                                              message_rates="request"), seed=2)
     s = record["summary"]
     assert s["goal_tolerances"] == {vid: pytest.approx(0.2) for vid in "abcd"}
     errors = _goal_errors(record)
