@@ -82,7 +82,7 @@ from gcs.flight.record import FlightRecorder, goal_tolerance
 from gcs.flight.recording import FlightRecording, finish_record
 from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.snapshot import flight_snapshot
-from gcs.flight.station import StallReport, StationStalls
+from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
 from planner import Plan
@@ -432,7 +432,9 @@ class FlightExecutor:
                 v.phase = VehiclePhase.HOVERING
         else:
             await _all(self._land(v) for v in live)
-        # and the ones a land_faulty policy sent down
+        # and the ones a land_faulty policy sent down, once their landing command has an
+        # outcome (an unanswered one is given up on after its retries: land_failed)
+        await asyncio.gather(*self.policy.landings, return_exceptions=True)
         await vehicle.wait_disarmed([v for v in self.vehicles
                                      if v.phase == VehiclePhase.LANDING],
                                     self.options, self._emit, self.stalls)
@@ -509,13 +511,18 @@ class FlightExecutor:
     async def _sleep_until_flight_time(self, t: float) -> None:
         """Sleep until flight time `t`; a pause on the way makes it wait longer (the flight
         clock never runs faster than the GCS clock, so sleeping the remainder never
-        oversleeps)."""
+        oversleeps). A late wake-up is noted as a stall of the station at once, so that the
+        goal errors judged next wait for it even before the monitor or streamer saw it."""
         while True:
             now = self.flight_time()
             assert now is not None
             if now >= t:
                 return
+            due = time.monotonic() + (t - now)
             await asyncio.sleep(t - now)
+            woke = time.monotonic()
+            if woke - due > STALL_NOTE_S:
+                self.stalls.note(due, woke)
 
     def _end_pause(self) -> None:
         """Forget a pause (the flight is ending)."""

@@ -8,6 +8,7 @@ are (PX4 Hold) rather than send anyone down through the others.
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import Awaitable, Callable
 
 from gcs.flight.fleetfile import FlightOptions
@@ -35,6 +36,8 @@ class FaultPolicy:
         self.aborting = aborting
         self.tasks = TaskSet()
         """The landings and aborts started here."""
+        self.landings: list[asyncio.Future[None]] = []
+        """The landings of land_faulty (a flight's end waits for their outcome)."""
 
     def on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
         """Mark `v` faulty and apply the policy."""
@@ -44,7 +47,7 @@ class FaultPolicy:
         policy = self.options.policy
         self.emit(v.id, EventKind.FAULT, f"{kind}: {detail} -> policy {policy}")
         if policy == "land_faulty":
-            self.tasks.spawn(self.land(v))
+            self.landings.append(self.tasks.spawn(self.land(v)))
         else:
             action = "hold" if policy == "hold_all" else "land"
             self.tasks.spawn(self.abort(action, f"{v.id} {kind} ({detail})"))

@@ -2,7 +2,7 @@
 vehicle ports.
 
     python -m tests.flight.attacker --ports 24540,24541 --systems 1,2 --duration 8 \
-        --attacks heartbeat,hijack,ack,truncated,random,nan
+        --attacks heartbeat,hijack,ack,truncated,random,nan [--rate-scale 0.2]
 
 Attacks, each to every port, for every system id given (the vehicles it impersonates):
 - heartbeat: HEARTBEAT in POSCTL, disarmed (10 Hz);
@@ -11,6 +11,8 @@ Attacks, each to every port, for every system id given (the vehicles it imperson
 - truncated: the 3-byte truncated header ``fd ff 00`` (20 Hz);
 - random: random datagrams of 1..280 bytes (20 Hz);
 - nan: LOCAL_POSITION_NED with NaN position and velocity (30 Hz).
+
+`--rate-scale` multiplies every rate (1 by default).
 
 It stops after `duration` or when its stdin closes, whichever comes first. It listens on its
 own socket the whole time and prints one JSON line at the end:
@@ -66,6 +68,7 @@ def main() -> None:
     parser.add_argument("--systems", required=True)
     parser.add_argument("--duration", type=float, required=True)
     parser.add_argument("--attacks", default=",".join(RATES))
+    parser.add_argument("--rate-scale", type=float, default=1.0)
     args = parser.parse_args()
     ports = [int(p) for p in args.ports.split(",")]
     systems = [int(s) for s in args.systems.split(",")]
@@ -82,7 +85,7 @@ def main() -> None:
     while (now := time.monotonic()) < start + args.duration:
         for kind in attacks:
             if now >= due[kind]:
-                due[kind] += 1.0 / RATES[kind]
+                due[kind] += 1.0 / (RATES[kind] * args.rate_scale)
                 for system_id in systems:
                     for buf in packets(kind, system_id, rng):
                         for port in ports:

@@ -14,12 +14,17 @@ from planner.result import Plan, VehicleTrajectory
 from planner.scenario import Scenario
 from planner.verify import verify
 
-__all__ = ["QUICK", "QUICK_MOCK", "free_port_block", "line_scenario", "mock_ports",
+__all__ = ["FAST_MOCK", "QUICK", "QUICK_MOCK", "free_port_block", "line_scenario", "mock_ports",
            "short_line", "smooth_plan"]
 
 #: Mock settings that shorten a flight's landing, not what it checks: PX4's MPC_LAND_SPEED
 #: and COM_DISARM_LAND set to other legal values (land at 1 m/s, disarm 0.5 s after).
 QUICK_MOCK: dict[str, Any] = {"land_speed": 1.0, "disarm_after_land": 0.5}
+
+#: `QUICK_MOCK` with HEARTBEAT, SYS_STATUS and EXTENDED_SYS_STATE at 5 Hz (PX4: 1 Hz by
+#: default, a `mavlink stream -r` setting): each mode, arming and disarming change shows in
+#: HEARTBEAT within 0.2 s instead of 1 s, which saves the GCS about 1 s per confirmation.
+FAST_MOCK: dict[str, Any] = {**QUICK_MOCK, "status_rate": 5.0}
 
 #: Flight options for tests: a short hold at the goals and prestream, a 2 m/s climb.
 QUICK = FlightOptions(hold_at_goal=0.5, prestream=0.3, climb_speed=2.0)

@@ -13,15 +13,15 @@ from gcs import px4
 from gcs.errors import FlightAborted, InvalidRequest, StateConflict
 from gcs.flight.commands import fleet_command
 from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.fleetfile import FleetSpec
 from gcs.flight.hub import LinkHub
 from gcs.flight.link import VehicleLink
 from gcs.sim import MockFleet, homes_under
-from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.flight.support import FAST_MOCK, QUICK, line_scenario, mock_ports, smooth_plan
 
 pytestmark = [pytest.mark.timeout(120), pytest.mark.flight]
 
-FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
+FAST = QUICK
 
 
 async def _until(predicate: Callable[[], bool], timeout: float) -> bool:
@@ -40,7 +40,8 @@ async def _hovering_fleet(count: int,
     Hold), then open the fleet's connections afresh and run `then(mock, links)`."""
     plan = smooth_plan(line_scenario(count))
     homes = homes_under(plan.scenario.starts)
-    async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(count)) as mock:
+    async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(count),
+                         **FAST_MOCK) as mock:
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         executor = FlightExecutor(plan, fleet, FAST)
         task = executor.start()

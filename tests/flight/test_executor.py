@@ -16,7 +16,7 @@ from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.phases import EventKind
 from gcs.sim import MockFleet, homes_under
-from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
+from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 from tests.paths import EXAMPLES
 
 pytestmark = pytest.mark.timeout(120)
@@ -24,12 +24,12 @@ pytestmark = pytest.mark.timeout(120)
 FAST = QUICK
 
 
-async def _fly(plan, options=FAST, *, settle=1.0, configure=None, during=None, **mock_kw):
+async def _fly(plan, options=FAST, *, settle=0.5, configure=None, during=None, **mock_kw):
     """Fly `plan` on mock vehicles below its starts; returns (flight, record or exception,
     mock)."""
     homes = homes_under(plan.scenario.starts)
     async with MockFleet(homes=homes, settle_time=settle, **mock_ports(len(homes)),
-                         **{**QUICK_MOCK, **mock_kw}) as mock:
+                         **{**FAST_MOCK, **mock_kw}) as mock:
         if configure is not None:
             configure(mock)
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
@@ -77,10 +77,11 @@ def test_paper_circle4_end_to_end() -> None:
     for v in record["vehicles"]:
         ticks = v["setpoints"]["tick"]
         assert all(b > a for a, b in itertools.pairwise(ticks))
-    # the record carries what was sent and what was flown
+    # the record carries what was sent and what was flown (a busy machine sends and
+    # receives fewer: the streamer skips late ticks, the starved mock sends less)
     for v in record["vehicles"]:
-        assert len(v["setpoints"]["t"]) >= 20 * 30
-        assert len(v["telemetry"]["t"]) >= 25 * 30
+        assert len(v["setpoints"]["t"]) >= 10 * 30  # bound
+        assert len(v["telemetry"]["t"]) >= 10 * 30  # bound
         assert [m["mode"] for m in v["modes"]][-2:] == ["AUTO.LAND", "AUTO.LAND"]
     kinds = [e["kind"] for e in record["events"]]
     assert kinds.index(EventKind.FLIGHT_START) < kinds.index("horizon") < kinds.index("landed")
@@ -94,8 +95,10 @@ def test_paper_circle4_end_to_end() -> None:
 def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
                                                       bound: float) -> None:
     """A silent vehicle (nothing arrives: lost link) is flagged within 1.5 s; one that only
-    stops its 1 Hz HEARTBEAT (mode and armed state unknown) within the 5 s bound."""
-    plan = smooth_plan(short_line(3, steps=50))  # 10 s: caught and sent down mid-plan
+    stops its HEARTBEAT (mode and armed state unknown) within the 5 s bound."""
+    # 10 s: caught and sent down mid-plan, and the silent one's unanswered landing has
+    # been given up on (land_failed) before the flight ends
+    plan = smooth_plan(short_line(3, steps=50))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         while (flight.flight_time() or -1.0) < 1.0:
@@ -132,7 +135,12 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
         np.testing.assert_allclose(mock.vehicles[i].position_world[:2],
                                    plan.scenario.goals[i][:2], atol=0.05)
         assert not mock.vehicles[i].armed
-    assert mock.vehicles[1].position_world[1] < plan.scenario.goals[1][1] - 0.3
+    # sent down where it was when flagged (on a busy machine that comes later in plan time,
+    # the station's stalls not counting in the gap), not flown on to its goal
+    t_fault = flagged[0]["t"] - record["mission_start"]
+    where = plan.sample([t_fault]).position[1, 0]
+    assert where[1] < plan.scenario.goals[1][1] - 0.05
+    assert mock.vehicles[1].position_world[1] < where[1] + 0.3
 
 
 # (what each policy does is tested on its own in test_flight_parts.py; hold at an abort in
@@ -241,7 +249,9 @@ def test_abort_right_after_start_stops_everything(yields: int, wait: float) -> N
         except Exception as exc:  # pragma: no cover - the failure being tested
             result["abort"] = exc
 
-    _flight, outcome, mock = asyncio.run(_fly(plan, FAST, settle=0.0, during=during))
+    # the PX4 default 1 Hz HEARTBEAT: the waits land in connecting, OFFBOARD and arming
+    _flight, outcome, mock = asyncio.run(_fly(plan, FAST, settle=0.0, during=during,
+                                              status_rate=1.0))
     assert result["abort"] == "ok"
     assert isinstance(outcome, FlightAborted)
     for vehicle in mock.vehicles:

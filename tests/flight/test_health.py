@@ -16,7 +16,7 @@ from gcs.flight.hub import LinkHub
 from gcs.flight.link import VehicleLink
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
-from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
+from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -70,7 +70,7 @@ def _fly(configure, options: FlightOptions = FAST):
     async def main():
         homes = homes_under(plan.scenario.starts)
         async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
-                             **QUICK_MOCK) as mock:
+                             **FAST_MOCK) as mock:
             configure(mock)
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             executor = FlightExecutor(plan, fleet, options)

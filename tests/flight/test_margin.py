@@ -19,8 +19,8 @@ from gcs.flight.record import goal_tolerance
 from gcs.sim import MockFleet, homes_under
 from planner import Scenario
 from tests.flight.support import (
+    FAST_MOCK,
     QUICK,
-    QUICK_MOCK,
     line_scenario,
     mock_ports,
     short_line,
@@ -85,7 +85,7 @@ def test_a_flight_with_a_margin_reports_separation_against_r_and_why_it_complete
     async def fly() -> dict:
         homes = homes_under(plan.scenario.starts)
         async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
-                             **QUICK_MOCK) as mock:
+                             **FAST_MOCK) as mock:
             fleet = FleetSpec.from_dict({**mock.fleet_dict(plan.scenario.ids),
                                          "position_error": 0.15})
             executor = FlightExecutor(plan, fleet, QUICK)

@@ -12,7 +12,7 @@ from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
-from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
+from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -27,7 +27,7 @@ def test_requested_position_rate_is_what_arrives() -> None:
     async def fly():
         homes = homes_under(plan.scenario.starts)
         async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
-                             **QUICK_MOCK) as mock:
+                             **FAST_MOCK) as mock:
             assert mock.vehicles[0].intervals[LPN] == pytest.approx(1 / 30)
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             record = await FlightExecutor(plan, fleet, options).run()

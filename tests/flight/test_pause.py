@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import time
 
 import numpy as np
 import pytest
@@ -13,9 +14,10 @@ import pytest
 from gcs.errors import FlightAborted, StateConflict
 from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.phases import EventKind
 from gcs.flight.record import plan_times
 from gcs.sim import MockFleet, homes_under
-from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -26,7 +28,8 @@ CLOSE = line_scenario(3, spacing=1.2)
 
 async def _fly(plan, options, during):
     homes = homes_under(plan.scenario.starts)
-    async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(len(homes))) as mock:
+    async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(len(homes)),
+                         **FAST_MOCK) as mock:
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         flight = FlightExecutor(plan, fleet, options)
         task = flight.start()
@@ -52,16 +55,29 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         with pytest.raises(StateConflict):
             flight.resume()  # nothing to resume
-        await _until_flight_time(flight, 2.5)  # mid-plan, every vehicle moving
-        assert max(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) > 0.3
+        # mid-plan, every vehicle moving: a busy machine starves the in-process mock, whose
+        # vehicles then trail the plan, so wait for the motion itself, not a plan time
+        await _until_flight_time(flight, 2.0)
+        while min(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) <= 0.3:
+            assert flight.flight_time() < plan.scenario.horizon, "never moving"
+            await asyncio.sleep(0.02)
         t_pause = flight.pause()
+        paused_at = time.monotonic()
         seen["t_pause"] = t_pause
         assert flight.snapshot()["phase"] == "paused"
         with pytest.raises(StateConflict, match="already paused"):
             flight.pause()
         # the vehicles brake, overshoot a little and settle on the held setpoint (PX4's
         # position gain of about 1/s: a few seconds)
-        await asyncio.sleep(4.0)
+        held = plan.sample([t_pause]).position[:, 0]
+
+        def settled() -> bool:
+            where = np.stack([v.position_world for v in mock.vehicles])
+            return (max(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) < 0.01
+                    and float(np.max(np.linalg.norm(where - held, axis=1))) < 0.03)
+
+        while not settled():
+            await asyncio.sleep(0.05)
         assert flight.flight_time() == pytest.approx(t_pause)  # the clock stands still
         before = np.stack([v.position_world for v in mock.vehicles])
         distances = []
@@ -74,12 +90,12 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
         # still: nobody moved more than 3 cm in the last second of the pause
         assert np.max(np.linalg.norm(after - before, axis=1)) < 0.03
         # every vehicle holds the plan's position of the same plan time
-        held = plan.sample([t_pause]).position[:, 0]
         np.testing.assert_allclose(after, held, atol=0.06)
         # and the fleet stays separated as the plan is
         assert min(distances) >= r - TRACKING_TOLERANCE_M
         assert flight.flight_time() == pytest.approx(t_pause)
         assert flight.resume() == pytest.approx(t_pause)
+        seen["paused_for"] = time.monotonic() - paused_at
         assert flight.snapshot()["phase"] == "flying"
 
     _flight, record = asyncio.run(_fly(plan, FAST, during))
@@ -88,11 +104,15 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     assert summary["completed"] is True, summary
     assert summary["goal_error_max"] < 0.2
     assert summary["min_separation_measured"] >= r - TRACKING_TOLERANCE_M
-    # one pause of about 5 s recorded, and the tracking error is measured against the
-    # plan's time (the clock stood still), not the wall clock: small
+    # the one pause recorded as long as it lasted, and the tracking error is measured
+    # against the plan's time (the clock stood still), not the wall clock: small (on the
+    # wall clock the held vehicles would be over 1 m behind). A stall of the station (a
+    # busy machine: the in-process mock stalls with it) lets them trail the plan meanwhile,
+    # which the record says.
     [[start, end]] = record["pauses"]
-    assert 5.0 <= end - start < 7.0
-    assert summary["tracking_error_max"] < 0.3
+    assert end - start == pytest.approx(seen["paused_for"], abs=0.25)
+    stalled = any(e["kind"] == EventKind.STATION_STALL for e in record["events"])
+    assert summary["tracking_error_max"] < (FAST.tracking_error_max if stalled else 0.3)
     kinds = [e["kind"] for e in record["events"]]
     assert kinds.index("pause") < kinds.index("resume") < kinds.index("horizon")
     # the horizon came pause-length later than without the pause

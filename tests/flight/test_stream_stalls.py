@@ -81,7 +81,7 @@ def test_a_flight_at_realtime_priority_completes_and_says_how_it_streamed() -> N
     from gcs.flight.executor import FlightExecutor
     from gcs.flight.fleetfile import FleetSpec
     from gcs.sim import MockFleet, homes_under
-    from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
+    from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 
     plan = smooth_plan(short_line(2))
     options = QUICK.replace(stream_priority="realtime")
@@ -90,7 +90,7 @@ def test_a_flight_at_realtime_priority_completes_and_says_how_it_streamed() -> N
     async def fly() -> dict:
         homes = homes_under(plan.scenario.starts)
         async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2),
-                             **QUICK_MOCK) as mock:
+                             **FAST_MOCK) as mock:
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             return await FlightExecutor(plan, fleet, options).run()
 

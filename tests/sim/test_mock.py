@@ -15,7 +15,7 @@ from gcs.flight.link import VehicleLink
 from gcs.flight.setpoints import Setpoint, hold_track
 from gcs.sim import MockFleet
 from gcs.wire import mavlink
-from tests.flight.support import mock_ports
+from tests.flight.support import FAST_MOCK, mock_ports
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -135,7 +135,9 @@ def test_setpoints_stop_trigger_the_failsafe_then_land_and_disarm() -> None:
     async def main() -> None:
         # HEARTBEAT at 20 Hz (configured, as PX4 refuses to change it over MAVLink) so that
         # the short Position phase shows in it
-        async with MockFleet(1, settle_time=0.2, failsafe_land_delay=0.5, status_rate=20.0,
+        # (and the quick landing of QUICK_MOCK: the failsafe's landing is what is checked)
+        async with MockFleet(1, settle_time=0.2, failsafe_land_delay=0.5,
+                             **{**FAST_MOCK, "status_rate": 20.0},
                              **mock_ports(1)) as mock, LinkHub() as hub:
             link = await _connect(mock, hub)
             vehicle = mock.vehicles[0]
@@ -194,7 +196,7 @@ def test_mavsdk_flies_the_mock() -> None:
 
     async def main() -> None:
         ports = mock_ports(1)
-        async with MockFleet(1, settle_time=1.0, **ports) as mock:
+        async with MockFleet(1, settle_time=0.5, **ports) as mock:
             config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
             async with Mavsdk(config) as sdk:
                 await sdk.add_any_connection(f"udpin://127.0.0.1:{ports['gcs_base_port']}")
@@ -211,11 +213,11 @@ def test_mavsdk_flies_the_mock() -> None:
                         break
                     except Exception:
                         assert time.monotonic() < deadline
-                        await asyncio.sleep(0.5)
+                        await asyncio.sleep(0.2)
                 assert mock.vehicles[0].armed
-                await offboard.set_position_ned(PositionNedYaw(1.0, -2.0, -3.0, 90.0))
+                await offboard.set_position_ned(PositionNedYaw(0.5, -1.0, -1.5, 90.0))
                 await offboard.start()
-                target = np.array([1.0, -2.0, -3.0])
+                target = np.array([0.5, -1.0, -1.5])
                 reported = None
                 deadline = time.monotonic() + 15.0
                 while time.monotonic() < deadline:  # MAVSDK's latest LOCAL_POSITION_NED
@@ -223,7 +225,7 @@ def test_mavsdk_flies_the_mock() -> None:
                     reported = np.array([p.north_m, p.east_m, p.down_m])
                     if np.linalg.norm(reported - target) < 0.05:
                         break
-                    await asyncio.sleep(0.2)
+                    await asyncio.sleep(0.05)
                 assert reported is not None
                 np.testing.assert_allclose(reported, target, atol=0.05)
                 assert mock.vehicles[0].mode == px4.OFFBOARD
@@ -399,7 +401,9 @@ def test_statustexts_are_never_cut() -> None:
             assert all(c.endswith(" ") for c in chunks[:-1]) or " " not in text
 
     async def main() -> None:
-        async with MockFleet(1, settle_time=1.0, **mock_ports(1)) as mock, LinkHub() as hub:
+        # landing and auto-disarm shortened (FAST_MOCK): the texts are what is checked
+        async with MockFleet(1, settle_time=1.0, **mock_ports(1), **FAST_MOCK) as mock, \
+                LinkHub() as hub:
             link = await _connect(mock, hub)
             raw: list[tuple[str, int, int]] = []
             link.listeners.append(lambda _l, m, _t: raw.append(
