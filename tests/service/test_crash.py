@@ -15,12 +15,10 @@ import psutil
 import pytest
 
 from planner.generators import grid_to_sphere
-from tests.api.support import QUICK_CROSSING, ServiceProcess, example, free_udp_base
+from tests.api.support import QUICK_PAIR, ServiceProcess, example, free_udp_base
 
 pytestmark = pytest.mark.timeout(400)
 
-#: Two vehicles of the quick crossing: the flight under way at the crash.
-PAIR = {**QUICK_CROSSING, "name": "quick-pair", "vehicles": QUICK_CROSSING["vehicles"][:2]}
 #: Generous for every request: the service shares the machine with two planner workers.
 HTTP_S = 30.0
 
@@ -41,7 +39,8 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
     service = ServiceProcess(tmp_path, "--mock", "2", env=env).start()
     try:
         url = service.base_url
-        planned = httpx.post(f"{url}/api/missions?wait=120", json=PAIR, timeout=130).json()
+        planned = httpx.post(f"{url}/api/missions?wait=120", json=QUICK_PAIR,
+                             timeout=130).json()
         assert planned["status"] == "planned", planned
         execution = httpx.post(f"{url}/api/missions/{planned['id']}/executions",
                                json={"hold_at_goal": 60}, timeout=HTTP_S).json()

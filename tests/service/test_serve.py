@@ -18,7 +18,7 @@ import pytest
 
 from gcs.cli.serve_cmd import _port_free
 from gcs.service.store import Store
-from tests.api.support import QUICK_CROSSING, ServiceProcess, free_port, free_udp_base
+from tests.api.support import QUICK_PAIR, ServiceProcess, free_port, free_udp_base
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -79,9 +79,6 @@ def test_database_problems_are_one_line_and_exit_2(tmp_path: Path, db: str,
     assert "serving on" not in result.stdout
 
 
-#: Two vehicles of the quick crossing: a fleet in the air is all the stop needs.
-PAIR = {**QUICK_CROSSING, "name": "quick-pair", "vehicles": QUICK_CROSSING["vehicles"][:2]}
-
 
 def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> None:
     base = free_udp_base(2)
@@ -90,7 +87,8 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
                                   "FLEETPLAN_MOCK_SETTLE_S": "0.5"})
     with service:
         url = service.base_url
-        mission = httpx.post(f"{url}/api/missions?wait=120", json=PAIR, timeout=130).json()
+        mission = httpx.post(f"{url}/api/missions?wait=120", json=QUICK_PAIR,
+                             timeout=130).json()
         assert mission["status"] == "planned", mission
         # Six seconds of mission then a minute of holding: it would not end by itself soon.
         execution = httpx.post(f"{url}/api/missions/{mission['id']}/executions",
