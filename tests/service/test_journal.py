@@ -17,7 +17,7 @@ from gcs.service.settings import Settings
 from gcs.service.store import Store
 from planner import Scenario
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_PAIR, example, free_udp_base
+from tests.api.support import QUICK_CROSSING, example
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -60,8 +60,7 @@ def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> 
 def test_a_flight_the_store_refuses_ends_failed_with_the_reason(
     mock_settings: Callable[..., Settings], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    settings = mock_settings(mock_vehicles=2, mock_base_port=free_udp_base(2))
-    with TestClient(create_app(settings)) as client:
+    with TestClient(create_app(mock_settings())) as client:
         store = client.app.state.store
         real_update = store.update_execution
 
@@ -71,7 +70,7 @@ def test_a_flight_the_store_refuses_ends_failed_with_the_reason(
             return real_update(execution_id, **values)
 
         monkeypatch.setattr(store, "update_execution", update)
-        mission = plan_mission(client, QUICK_PAIR)
+        mission = plan_mission(client, QUICK_CROSSING)
         execution = client.post(f"/api/missions/{mission['id']}/executions",
                                 json={"hold_at_goal": 0.5}).json()
         streamed = sse_events(client, execution["links"]["events"])
