@@ -11,6 +11,10 @@ reports the medians. These are the README's figures; the test suite only bounds 
 
     python bench/service.py                       # random64 while a mock flight streams
     python bench/service.py --repeat 3
+    python bench/service.py --scenario paper-circle8 --flight quick --hold-at-goal 0.5
+
+--flight quick flies the 6 s crossing instead of the 10 s one and --hold-at-goal sets the
+flight's hold at the goals (default: the service's): a smaller run, as the tests use.
 """
 
 from __future__ import annotations
@@ -35,12 +39,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import httpx
 
 from gcs.sim.ports import free_udp_base, mock_port_offsets
-from tests.api.support import SHORT_CROSSING
+from tests.api.support import QUICK_CROSSING, SHORT_CROSSING
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: The API tests' quick 4-vehicle crossing (one definition): a short flight for the mock fleet.
-CROSSING = SHORT_CROSSING
+#: The API tests' 4-vehicle crossings (one definition), by --flight: 10 s or 6 s of flight.
+CROSSINGS: dict[str, dict[str, Any]] = {"short": SHORT_CROSSING, "quick": QUICK_CROSSING}
 
 
 def _free_tcp_port() -> int:
@@ -68,7 +72,8 @@ def _wait(predicate: Any, timeout: float, what: str) -> None:
         time.sleep(0.1)
 
 
-def one_run(big: dict[str, Any], workdir: Path) -> dict[str, Any]:
+def one_run(big: dict[str, Any], workdir: Path, crossing: dict[str, Any],
+            flight_options: dict[str, Any]) -> dict[str, Any]:
     port = _free_tcp_port()
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": str(ROOT),
            "FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(mock_port_offsets(4))),
@@ -89,8 +94,9 @@ def one_run(big: dict[str, Any], workdir: Path) -> dict[str, Any]:
                     return False
 
             _wait(up, 60, "the service")
-            small = client.post("/api/missions?wait=60", json=CROSSING).json()
-            flight = client.post(f"/api/missions/{small['id']}/executions").json()
+            small = client.post("/api/missions?wait=60", json=crossing).json()
+            flight = client.post(f"/api/missions/{small['id']}/executions",
+                                 json=flight_options or None).json()
             flight_url = f"/api/executions/{flight['id']}"
             _wait(lambda: (client.get(flight_url).json()["live"] or {}).get("phase")
                   == "flying", 30, "the flight")
@@ -139,10 +145,16 @@ def main() -> None:
     parser.add_argument("--scenario", default="random64",
                         help="bundled example planned meanwhile (planner/examples/NAME.json)")
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--flight", choices=sorted(CROSSINGS), default="short",
+                        help="the crossing flown: short (10 s, default) or quick (6 s)")
+    parser.add_argument("--hold-at-goal", type=float, default=None, metavar="S",
+                        help="the flight's hold at the goals (default: the service's)")
     args = parser.parse_args()
+    options = {} if args.hold_at_goal is None else {"hold_at_goal": args.hold_at_goal}
     big = json.loads((ROOT / "planner" / "examples" / f"{args.scenario}.json").read_text())
     with tempfile.TemporaryDirectory(prefix="fleetplan-bench-") as tmp:
-        runs = [one_run(big, Path(tmp)) for _ in range(args.repeat)]
+        runs = [one_run(big, Path(tmp), CROSSINGS[args.flight], options)
+                for _ in range(args.repeat)]
     median = {
         "planning_s": statistics.median(r["planning_s"] for r in runs),
         **{f"latency_{k}": statistics.median(r["latency"][k] for r in runs)
@@ -155,7 +167,8 @@ def main() -> None:
     out = {
         "benchmark": "service",
         "scenario": {"planned_meanwhile": args.scenario, "vehicles": len(big["vehicles"]),
-                     "flight": "4 mock vehicles, 20 Hz setpoints", "plan_workers": 1,
+                     "flight": "4 mock vehicles, 20 Hz setpoints", "crossing": args.flight,
+                     "plan_workers": 1,
                      "repeat": args.repeat},
         "median": median,
         "missed_ticks_max": worst_missed,

@@ -15,7 +15,6 @@ themselves are `planner.first_qp.straight_moves`.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from planner.types import FloatArray, IntArray
 
@@ -30,6 +29,8 @@ def assign_goals(starts: FloatArray, goals: FloatArray, scale: FloatArray | None
                  ) -> IntArray:
     """order[n]: the index of the goal vehicle n flies to, minimising the total squared
     (scaled) distance. Deterministic for given inputs."""
+    from scipy.optimize import linear_sum_assignment  # on first use: slow to import
+
     s = np.ones(3) if scale is None else np.asarray(scale, dtype=float)
     a, b = starts / s, goals / s
     # ||a||^2 + ||b||^2 - 2 a.b, without an (N, N, 3) temporary.

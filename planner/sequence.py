@@ -21,7 +21,6 @@ from numpy.typing import NDArray
 from planner.assignment import assign_goals
 from planner.errors import ScenarioError
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.planning import plan
 from planner.result import Plan, VehicleTrajectory, Verification
 from planner.scenario import (
     DEFAULTS,
@@ -216,6 +215,8 @@ def _leg_error(exc: ScenarioError, f: int, previous: tuple[int, ...], order: NDA
 def plan_leg(scenario: Mapping[str, Any], solver: str | None = None) -> Plan:
     """Plan one leg: a pure function of picklable inputs (a scenario dict, a solver name),
     so legs can run in any process or on any worker."""
+    from planner.planning import plan  # the solver stack, imported when a leg is planned
+
     return plan(scenario, solver=solver)
 
 

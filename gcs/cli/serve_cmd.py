@@ -172,7 +172,6 @@ def _server(app: Any, settings: Settings, log_level: str) -> Any:
 def run(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
-    from gcs.api import create_app
     from gcs.service.settings import Settings, SettingsFileError
 
     overrides = {
@@ -197,6 +196,8 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         print(f"fleetplan serve: {problem}", file=sys.stderr)
         return 2
+    from gcs.api import create_app  # the web stack: imported once the settings are usable
+
     app = create_app(settings)
     fleet = (
         f"fleet file {settings.fleet_file}"

@@ -57,8 +57,11 @@ class PlanOutcome:
 
 
 def warm() -> bool:
-    """Import the planner now (run on every worker at start: the first plan should not pay)."""
-    import planner  # noqa: F401
+    """Import the planner now (run on every worker at start: the first plan should not pay):
+    the solver stack and the goal assignment, which `import planner` alone leaves for later."""
+    import scipy.optimize  # noqa: F401
+
+    import planner.planning  # noqa: F401
 
     return True
 

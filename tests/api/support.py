@@ -17,8 +17,8 @@ import httpx
 from gcs.sim import ports
 from tests.paths import EXAMPLES
 
-__all__ = ["EXAMPLES", "QUICK_CROSSING", "SHORT_CROSSING", "ServiceProcess", "example",
-           "free_port", "free_udp_base"]
+__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING", "ServiceProcess",
+           "example", "free_port", "free_udp_base"]
 
 
 
@@ -43,6 +43,17 @@ SHORT_CROSSING: dict[str, Any] = {
 
 #: The same crossing in 6 s: for tests that fly to the end and need no time inside the flight.
 QUICK_CROSSING: dict[str, Any] = {**SHORT_CROSSING, "name": "quick-crossing", "steps": 30}
+
+
+#: Two vehicles crossing in 6 s at 0.6-0.8 m: a short climb and landing, for tests that need
+#: a fleet in the air (or one whole flight) and nothing of a larger one.
+QUICK_PAIR: dict[str, Any] = {
+    **QUICK_CROSSING, "name": "quick-pair",
+    "vehicles": [
+        {"id": "a", "start": [1.0, 2.8, 0.6], "goal": [4.5, 3.3, 0.8]},
+        {"id": "b", "start": [4.5, 3.0, 0.8], "goal": [1.0, 3.2, 0.7]},
+    ],
+}
 
 
 def free_udp_base(count: int) -> int:

@@ -77,7 +77,8 @@ def test_stream_benchmark_at_px4_rates_with_and_without_rate_requests():
 
 
 def test_service_benchmark_reports_latency_and_flight_timing():
-    report = _run("service.py", "--scenario", "paper-circle8")
+    report = _run("service.py", "--scenario", "paper-circle8", "--flight", "quick",
+                  "--hold-at-goal", "0.5")
     run = report["runs"][0]
     assert run["plan_status"] == "planned" and run["flight"]["status"] == "completed"
     latency = run["latency"]
@@ -86,6 +87,7 @@ def test_service_benchmark_reports_latency_and_flight_timing():
     # One run: the medians and the worst case are that run's own figures.
     assert report["scenario"]["planned_meanwhile"] == "paper-circle8"
     assert report["scenario"]["vehicles"] == 8 and report["scenario"]["repeat"] == 1
+    assert report["scenario"]["crossing"] == "quick"
     assert report["median"]["setpoint_rate_hz"] == run["flight"]["setpoint_rate_hz"]
     assert report["median"]["latency_max_ms"] == latency["max_ms"]
     assert report["missed_ticks_max"] == (run["flight"]["missed_ticks"] or 0)

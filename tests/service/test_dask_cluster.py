@@ -24,9 +24,12 @@ pytestmark = pytest.mark.timeout(300)
 
 
 
-@pytest.fixture
-def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]]]:
-    """A scheduler and two single-thread workers, each its own `dask` process."""
+@pytest.fixture(scope="module")
+def dask_cluster(tmp_path_factory: pytest.TempPathFactory
+                 ) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]]]:
+    """A scheduler and two single-thread workers, each its own `dask` process, shared by the
+    module's tests (each only plans on it; none stops a worker)."""
+    tmp_path = tmp_path_factory.mktemp("dask")
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -50,7 +53,7 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
                 pass
             if time.monotonic() > deadline:
                 raise RuntimeError((tmp_path / "dask.log").read_text(errors="replace"))
-            time.sleep(0.5)
+            time.sleep(0.1)
         yield address, processes
     finally:
         for process in reversed(processes):
@@ -103,7 +106,7 @@ def test_service_plans_on_the_cluster(dask_cluster,
                                       make_settings: Callable[..., Settings]) -> None:
     address, _ = dask_cluster
     with TestClient(create_app(make_settings(scheduler=address))) as client:
-        response = client.post("/api/missions?wait=120", json=example("circle16"))
+        response = client.post("/api/missions?wait=120", json=example("paper-circle4"))
         assert response.status_code == 201, response.text
         mission = response.json()
         assert mission["status"] == "planned" and mission["plan"]["status"] == "converged"
