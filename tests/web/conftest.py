@@ -7,13 +7,22 @@ FLEETPLAN_REQUIRE_BROWSER=1 (CI), where a missing browser is a failure.
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, ViewportSize, sync_playwright
+from playwright.sync_api import (
+    Browser,
+    BrowserContext,
+    Page,
+    Route,
+    ViewportSize,
+    sync_playwright,
+)
 
 from tests.api.support import ServiceProcess, free_udp_base
 
@@ -31,8 +40,9 @@ def _chromium() -> str:
     pytest.skip(message)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def browser() -> Iterator[Browser]:
+    """One Chromium per test process: every test opens its own context (cookies, routes)."""
     executable = _chromium()
     with sync_playwright() as playwright:
         launched = playwright.chromium.launch(executable_path=executable, headless=True)
@@ -47,9 +57,27 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess
     """`fleetplan serve` with 4 mock vehicles on free ports, shared by every browser test:
     each test opens its own page, and each flight a test starts ends before the test does."""
     workdir = tmp_path_factory.mktemp("web")
-    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2"}
     with ServiceProcess(workdir, "--mock", "4", "--workers", "1", env=env) as running:
         yield running
+
+
+#: How the page's Fly flies in these tests (the page itself sends no options): a short hold
+#: at the goals, and a tracking bound the mocks keep even when a starved machine stalls the
+#: service's loop (the mocks run in it) for 2 s; the flight's own checks are tested in
+#: tests/flight.
+FLY_OPTIONS = {"hold_at_goal": 0.5, "tracking_error_max": 3.0}
+FLY_REQUEST = re.compile(r".*/api/missions/[^/]+/executions$")
+
+
+def _quick_flights(route: Route) -> None:
+    request = route.request
+    if request.method != "POST":
+        route.fallback()
+        return
+    assert request.post_data is None, request.post_data  # the page sends no options
+    route.fallback(post_data=json.dumps(FLY_OPTIONS),
+                   headers={**request.headers, "content-type": "application/json"})
 
 
 #: The operator's screens the page is made for: a laptop and a phone.
@@ -60,7 +88,8 @@ PHONE: ViewportSize = {"width": 390, "height": 844}
 @pytest.fixture
 def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..., Page]]:
     """open_page(viewport, before=None): a fresh page on the service; `before(page)` runs
-    before it loads (to install routes). Every page must end without JavaScript errors."""
+    before it loads (to install routes; they take precedence over the FLY_OPTIONS route).
+    Every page must end without JavaScript errors."""
     contexts: list[tuple[BrowserContext, list[str]]] = []
 
     def opener(viewport: ViewportSize = DESKTOP,
@@ -70,6 +99,7 @@ def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..
         errors: list[str] = []
         opened.on("pageerror", lambda exc: errors.append(str(exc)))
         contexts.append((context, errors))
+        opened.route(FLY_REQUEST, _quick_flights)
         if before is not None:
             before(opened)
         opened.goto(service.base_url + "/")
