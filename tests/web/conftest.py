@@ -25,6 +25,7 @@ from playwright.sync_api import (
 )
 
 from tests.api.support import ServiceProcess, free_udp_base
+from tests.web.support import ServiceStarting
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
 
@@ -41,8 +42,23 @@ def _chromium() -> str:
 
 
 @pytest.fixture(scope="session")
-def browser() -> Iterator[Browser]:
-    """One Chromium per test process: every test opens its own context (cookies, routes)."""
+def service_starting(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceStarting]:
+    """`fleetplan serve` with 4 mock vehicles on free ports, booting in the background while
+    Chromium launches."""
+    workdir = tmp_path_factory.mktemp("web")
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2"}
+    starting = ServiceStarting(ServiceProcess(workdir, "--mock", "4", "--workers", "1",
+                                              env=env))
+    try:
+        yield starting
+    finally:
+        starting.stop()
+
+
+@pytest.fixture(scope="session")
+def browser(service_starting: ServiceStarting) -> Iterator[Browser]:
+    """One Chromium per test process: every test opens its own context (cookies, routes).
+    Asking for it starts the service too, so the two boot together."""
     executable = _chromium()
     with sync_playwright() as playwright:
         launched = playwright.chromium.launch(executable_path=executable, headless=True)
@@ -53,13 +69,10 @@ def browser() -> Iterator[Browser]:
 
 
 @pytest.fixture(scope="session")
-def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
-    """`fleetplan serve` with 4 mock vehicles on free ports, shared by every browser test:
-    each test opens its own page, and each flight a test starts ends before the test does."""
-    workdir = tmp_path_factory.mktemp("web")
-    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2"}
-    with ServiceProcess(workdir, "--mock", "4", "--workers", "1", env=env) as running:
-        yield running
+def service(service_starting: ServiceStarting) -> ServiceProcess:
+    """The service shared by every browser test of the process: each test opens its own
+    page, and each flight a test starts ends before the test does."""
+    return service_starting.ready()
 
 
 #: How the page's Fly flies in these tests (the page itself sends no options): a short hold
