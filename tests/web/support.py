@@ -138,6 +138,11 @@ def assert_fits(page: Page) -> None:
     assert wider == [], wider
 
 
+#: How long a service may take to answer (a loose bound: a machine this test suite shares
+#: with others can take over a minute to boot it while Chromium and another service boot).
+START_TIMEOUT_S = 240.0
+
+
 class ServiceStarting:
     """A `ServiceProcess` starting in a background thread: other tests run while it boots."""
 
@@ -149,7 +154,7 @@ class ServiceStarting:
 
     def _start(self) -> None:
         try:
-            self.service.start()
+            self.service.start(timeout=START_TIMEOUT_S)
         except BaseException as exc:  # handed to the test that waits for it
             self._error = exc
 
