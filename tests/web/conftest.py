@@ -11,9 +11,11 @@ import json
 import os
 import re
 import shutil
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import httpx
 import pytest
 from playwright.sync_api import (
     Browser,
@@ -73,6 +75,26 @@ def service(service_starting: ServiceStarting) -> ServiceProcess:
     """The service shared by every browser test of the process: each test opens its own
     page, and each flight a test starts ends before the test does."""
     return service_starting.ready()
+
+
+@pytest.fixture(autouse=True)
+def no_flight_left(request: pytest.FixtureRequest) -> Iterator[None]:
+    """A test that fails mid-flight leaves no flight behind for the next test (which would
+    see it as a flight started elsewhere, or be refused a flight of its own): aborted, and
+    waited for (a loose bound) until it has landed."""
+    yield
+    if "service" not in request.fixturenames:
+        return
+    base = request.getfixturevalue("service").base_url
+    flying = httpx.get(f"{base}/api/vehicles", timeout=30).json()["fleet"]["flying"]
+    if flying is None:
+        return
+    httpx.post(f"{base}/api/executions/{flying}/abort", json={"action": "land"}, timeout=30)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if httpx.get(f"{base}/api/executions/{flying}", timeout=30).json()["finished_at"]:
+            return
+        time.sleep(0.1)
 
 
 #: How the page's Fly flies in these tests (the page itself sends no options): a short hold
