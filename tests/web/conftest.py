@@ -97,11 +97,11 @@ def no_flight_left(request: pytest.FixtureRequest) -> Iterator[None]:
         time.sleep(0.1)
 
 
-#: How the page's Fly flies in these tests (the page itself sends no options): a short hold
-#: at the goals, and a tracking bound the mocks keep even when a starved machine stalls the
-#: service's loop (the mocks run in it) for 2 s; the flight's own checks are tested in
-#: tests/flight.
-FLY_OPTIONS = {"hold_at_goal": 0.5, "tracking_error_max": 3.0}
+#: How the page's Fly flies in these tests (the page itself sends no options): a tracking
+#: bound the mocks keep even when a starved machine stalls the service's loop (the mocks run
+#: in it) for 2 s; the hold at the goals stays the default, which lets a vehicle that fell
+#: behind reach its goal before it is judged. The flight's own checks are in tests/flight.
+FLY_OPTIONS = {"tracking_error_max": 3.0}
 FLY_REQUEST = re.compile(r".*/api/missions/[^/]+/executions$")
 
 
