@@ -7,15 +7,27 @@ FLEETPLAN_REQUIRE_BROWSER=1 (CI), where a missing browser is a failure.
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import shutil
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import httpx
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, ViewportSize, sync_playwright
+from playwright.sync_api import (
+    Browser,
+    BrowserContext,
+    Page,
+    Route,
+    ViewportSize,
+    sync_playwright,
+)
 
 from tests.api.support import ServiceProcess, free_udp_base
+from tests.web.support import ServiceStarting
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
 
@@ -31,8 +43,24 @@ def _chromium() -> str:
     pytest.skip(message)
 
 
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Browser]:
+@pytest.fixture(scope="session")
+def service_starting(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceStarting]:
+    """`fleetplan serve` with 4 mock vehicles on free ports, booting in the background while
+    Chromium launches."""
+    workdir = tmp_path_factory.mktemp("web")
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2"}
+    starting = ServiceStarting(ServiceProcess(workdir, "--mock", "4", "--workers", "1",
+                                              env=env))
+    try:
+        yield starting
+    finally:
+        starting.stop()
+
+
+@pytest.fixture(scope="session")
+def browser(service_starting: ServiceStarting) -> Iterator[Browser]:
+    """One Chromium per test process: every test opens its own context (cookies, routes).
+    Asking for it starts the service too, so the two boot together."""
     executable = _chromium()
     with sync_playwright() as playwright:
         launched = playwright.chromium.launch(executable_path=executable, headless=True)
@@ -43,13 +71,48 @@ def browser() -> Iterator[Browser]:
 
 
 @pytest.fixture(scope="session")
-def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
-    """`fleetplan serve` with 4 mock vehicles on free ports, shared by every browser test:
-    each test opens its own page, and each flight a test starts ends before the test does."""
-    workdir = tmp_path_factory.mktemp("web")
-    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
-    with ServiceProcess(workdir, "--mock", "4", "--workers", "1", env=env) as running:
-        yield running
+def service(service_starting: ServiceStarting) -> ServiceProcess:
+    """The service shared by every browser test of the process: each test opens its own
+    page, and each flight a test starts ends before the test does."""
+    return service_starting.ready()
+
+
+@pytest.fixture(autouse=True)
+def no_flight_left(request: pytest.FixtureRequest) -> Iterator[None]:
+    """A test that fails mid-flight leaves no flight behind for the next test (which would
+    see it as a flight started elsewhere, or be refused a flight of its own): aborted, and
+    waited for (a loose bound) until it has landed."""
+    yield
+    if "service" not in request.fixturenames:
+        return
+    base = request.getfixturevalue("service").base_url
+    flying = httpx.get(f"{base}/api/vehicles", timeout=30).json()["fleet"]["flying"]
+    if flying is None:
+        return
+    httpx.post(f"{base}/api/executions/{flying}/abort", json={"action": "land"}, timeout=30)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if httpx.get(f"{base}/api/executions/{flying}", timeout=30).json()["finished_at"]:
+            return
+        time.sleep(0.1)
+
+
+#: How the page's Fly flies in these tests (the page itself sends no options): a tracking
+#: bound the mocks keep even when a starved machine stalls the service's loop (the mocks run
+#: in it) for 2 s; the hold at the goals stays the default, which lets a vehicle that fell
+#: behind reach its goal before it is judged. The flight's own checks are in tests/flight.
+FLY_OPTIONS = {"tracking_error_max": 3.0}
+FLY_REQUEST = re.compile(r".*/api/missions/[^/]+/executions$")
+
+
+def _quick_flights(route: Route) -> None:
+    request = route.request
+    if request.method != "POST":
+        route.fallback()
+        return
+    assert request.post_data is None, request.post_data  # the page sends no options
+    route.fallback(post_data=json.dumps(FLY_OPTIONS),
+                   headers={**request.headers, "content-type": "application/json"})
 
 
 #: The operator's screens the page is made for: a laptop and a phone.
@@ -60,7 +123,8 @@ PHONE: ViewportSize = {"width": 390, "height": 844}
 @pytest.fixture
 def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..., Page]]:
     """open_page(viewport, before=None): a fresh page on the service; `before(page)` runs
-    before it loads (to install routes). Every page must end without JavaScript errors."""
+    before it loads (to install routes; they take precedence over the FLY_OPTIONS route).
+    Every page must end without JavaScript errors."""
     contexts: list[tuple[BrowserContext, list[str]]] = []
 
     def opener(viewport: ViewportSize = DESKTOP,
@@ -70,6 +134,7 @@ def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..
         errors: list[str] = []
         opened.on("pageerror", lambda exc: errors.append(str(exc)))
         contexts.append((context, errors))
+        opened.route(FLY_REQUEST, _quick_flights)
         if before is not None:
             before(opened)
         opened.goto(service.base_url + "/")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import threading
 from collections.abc import Sequence
 from typing import Any
 
@@ -12,8 +13,8 @@ from playwright.sync_api import Page, Request, Route, expect
 
 from tests.api.support import SHORT_CROSSING, ServiceProcess
 
-__all__ = ["CROSSING", "HEALTH", "ORIGIN", "VEHICLES", "assert_fits", "fill_scenario", "plan",
-           "planned_api", "shown_mission_id"]
+__all__ = ["CROSSING", "HEALTH", "ORIGIN", "VEHICLES", "ServiceStarting", "assert_fits",
+           "fill_scenario", "plan", "planned_api", "shown_mission_id"]
 
 # A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
 VEHICLES = [
@@ -135,3 +136,35 @@ def assert_fits(page: Page) -> None:
     # Inner scroll areas (the fleet table's wrapper) may scroll; nothing pokes out of the page.
     wider = page.evaluate(WIDER_THAN_VIEW)
     assert wider == [], wider
+
+
+#: How long a service may take to answer (a loose bound: a machine this test suite shares
+#: with others can take over a minute to boot it while Chromium and another service boot).
+START_TIMEOUT_S = 240.0
+
+
+class ServiceStarting:
+    """A `ServiceProcess` starting in a background thread: other tests run while it boots."""
+
+    def __init__(self, service: ServiceProcess) -> None:
+        self.service = service
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._start, name="service-start", daemon=True)
+        self._thread.start()
+
+    def _start(self) -> None:
+        try:
+            self.service.start(timeout=START_TIMEOUT_S)
+        except BaseException as exc:  # handed to the test that waits for it
+            self._error = exc
+
+    def ready(self) -> ServiceProcess:
+        """The service once it answers (ServiceProcess.start's own deadline applies)."""
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self.service
+
+    def stop(self) -> None:
+        self._thread.join()
+        self.service.stop()

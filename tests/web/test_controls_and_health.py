@@ -85,8 +85,9 @@ def test_unavailable_endpoint_hides_its_button(open_page, service: ServiceProces
 
     page = open_page(before=routes)
     expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
-    plan(page)
-    page.click('.fleet-commands button[data-command="hold"]')
+    hold = page.locator('.fleet-commands button[data-command="hold"]')
+    expect(hold).to_be_enabled()  # fleet commands need a fleet, not a plan
+    hold.click()
     expect(page.locator("#command-result")).to_contain_text("not available on this service")
     expect(page.locator(".fleet-commands")).to_be_hidden()
     assert sent == []

@@ -9,6 +9,7 @@ import pytest
 from playwright.sync_api import Browser, Dialog, expect
 
 from tests.api.support import ServiceProcess
+from tests.web.support import ServiceStarting
 
 TOKEN = "browser-operator-token-0123"
 #: What the header's service status shows once GET /api/status answered ("... · planning 0").
@@ -30,16 +31,23 @@ def test_docs_render_the_operations_list(browser: Browser, service: ServiceProce
     context.close()
 
 
-@pytest.fixture(scope="module")
-def token_service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
-    with ServiceProcess(tmp_path_factory.mktemp("token"), "--mock", "0", "--workers", "1",
-                        env={"FLEETPLAN_API_TOKEN": TOKEN}, token=TOKEN) as running:
-        yield running
+@pytest.fixture(scope="module", autouse=True)
+def token_service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceStarting]:
+    """A service with an operator token (and no vehicles), started in the background when
+    the module begins, so its start-up overlaps the docs test; `.ready()` waits for it."""
+    starting = ServiceStarting(ServiceProcess(
+        tmp_path_factory.mktemp("token"), "--mock", "0", "--workers", "1",
+        env={"FLEETPLAN_API_TOKEN": TOKEN}, token=TOKEN))
+    try:
+        yield starting
+    finally:
+        starting.stop()
 
 
 def test_the_page_asks_for_the_token_once_and_then_works(
-    browser: Browser, token_service: ServiceProcess
+    browser: Browser, token_service: ServiceStarting
 ) -> None:
+    service = token_service.ready()
     context = browser.new_context(viewport={"width": 1400, "height": 1000})
     page = context.new_page()
     prompts: list[str] = []
@@ -49,7 +57,7 @@ def test_the_page_asks_for_the_token_once_and_then_works(
         dialog.accept(TOKEN)
 
     page.on("dialog", answer)
-    page.goto(token_service.base_url + "/")
+    page.goto(service.base_url + "/")
     expect(page.locator("#service-status")).to_contain_text(PLANNING, timeout=20_000)
     assert len(prompts) == 1 and "API token" in prompts[0]
     cookies = {c["name"]: c for c in context.cookies()}

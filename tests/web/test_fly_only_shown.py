@@ -36,9 +36,18 @@ def test_nothing_to_play_or_fly_before_a_plan(page: Page) -> None:
     expect(page.locator("#f-name")).to_have_value("circle6")
 
 
-def test_a_changed_form_cannot_fly_the_plan_shown(page: Page, service: ServiceProcess) -> None:
+def test_a_changed_form_cannot_fly_the_plan_shown_and_loads_nothing_from_elsewhere(
+    open_page: Callable[..., Page], service: ServiceProcess
+) -> None:
+    """Field laptops are often offline too: every request the page makes, from loading to
+    planning (and so fetching plotly.js) and flying, goes to the service."""
+    urls: list[str] = []
+    page = open_page(before=lambda p: p.on("request", lambda r: urls.append(r.url)))
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
     fill_scenario(page, "shown-plan", 50, CROSSING)
     first = plan(page)
+    assert any(u.endswith("/vendor/plotly.min.js") for u in urls)
+    assert any(u.endswith("/flyview.js") for u in urls)
     # The service has the pause and fleet-command endpoints: their buttons are there, and
     # Pause is disabled while nothing flies.
     expect(page.locator("#pause-button")).to_be_visible()
@@ -92,6 +101,8 @@ def test_a_changed_form_cannot_fly_the_plan_shown(page: Page, service: ServicePr
     assert posted == [f"{service.base_url}/api/missions/{second}/executions"]
     mission = httpx.get(f"{service.base_url}/api/missions/{second}").json()
     assert mission["scenario"]["steps"] == 55 and mission["scenario"]["dt"] == 0.2
+    foreign = [u for u in urls if not u.startswith(service.base_url) and not u.startswith("data:")]
+    assert foreign == []
 
 
 def test_an_edited_preset_is_named_apart_and_the_mapping_shows_mismatches(page: Page) -> None:
@@ -134,18 +145,3 @@ def test_the_first_preset_never_loads_over_typing(open_page: Callable[..., Page]
     expect(page.locator("#plan-button")).to_be_enabled()
     expect(page.locator("#f-name")).to_have_value("typed-first")
     expect(page.locator("#f-steps")).to_have_value("77")
-
-
-def test_the_page_loads_nothing_from_elsewhere(
-    open_page: Callable[..., Page], service: ServiceProcess
-) -> None:
-    """Field laptops are often offline: every request the page makes goes to the service."""
-    urls: list[str] = []
-    page = open_page(before=lambda p: p.on("request", lambda r: urls.append(r.url)))
-    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
-    fill_scenario(page, "offline", 50, CROSSING)
-    plan(page)
-    assert any(u.endswith("/vendor/plotly.min.js") for u in urls)
-    assert any(u.endswith("/flyview.js") for u in urls)
-    foreign = [u for u in urls if not u.startswith(service.base_url) and not u.startswith("data:")]
-    assert foreign == []

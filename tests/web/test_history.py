@@ -12,16 +12,18 @@ import numpy as np
 from playwright.sync_api import Page, expect
 
 from tests.api.support import SHORT_CROSSING, ServiceProcess
-from tests.web.conftest import PHONE
+from tests.web.conftest import FLY_OPTIONS, PHONE
 from tests.web.support import assert_fits
 
 
 def fly_through_the_api(base: str) -> tuple[str, str]:
-    """Plan SHORT_CROSSING and start flying it on the mock fleet: (mission id, flight id)."""
+    """Plan SHORT_CROSSING and start flying it on the mock fleet, as the page's Fly does in
+    these tests (FLY_OPTIONS): (mission id, flight id)."""
     scenario = {**SHORT_CROSSING, "name": "history-flight"}
     mission = httpx.post(f"{base}/api/missions?wait=60", json=scenario, timeout=90).json()
     assert mission["plan_ok"], mission
-    flight = httpx.post(f"{base}/api/missions/{mission['id']}/executions", timeout=30).json()
+    flight = httpx.post(f"{base}/api/missions/{mission['id']}/executions", json=FLY_OPTIONS,
+                        timeout=30).json()
     return mission["id"], flight["id"]
 
 
@@ -32,7 +34,7 @@ def wait_finished(base: str, flight_id: str) -> None:
         if got["finished_at"]:
             assert got["status"] == "completed", got
             return
-        time.sleep(0.5)
+        time.sleep(0.1)
     raise AssertionError(f"flight {flight_id} did not finish")
 
 

@@ -7,7 +7,7 @@ import httpx
 from playwright.sync_api import Page, expect
 
 from tests.api.support import ServiceProcess, example
-from tests.web.support import fill_scenario
+from tests.web.support import CROSSING, fill_scenario
 
 
 def test_plan_from_the_form_shows_plots_and_separation(
@@ -63,7 +63,7 @@ def test_a_plan_whose_progress_stream_was_missed_still_lists_every_iteration(
     the progress log is completed from the plan's own iteration record."""
     page.route("**/api/missions/*/events", lambda route: route.abort())
     expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
-    fill_scenario(page, name="browser-missed-stream")
+    fill_scenario(page, "browser-missed-stream", 50, CROSSING)  # a quick plan
     page.click("#plan-button")
     expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
     mission_id = page.locator("#mission-title").inner_text().split("·")[1].strip()
