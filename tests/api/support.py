@@ -9,17 +9,18 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-from gcs.sim import ports
+from gcs.sim import MockConfig, ports
 from tests.paths import EXAMPLES
 
 __all__ = ["EXAMPLES", "QUICK_CROSSING", "SHORT_CROSSING", "ServiceProcess", "example",
-           "free_port", "free_udp_base"]
-
+           "free_port", "free_udp_base", "quick_service_mocks"]
 
 
 def example(name: str) -> dict[str, Any]:
@@ -43,6 +44,28 @@ SHORT_CROSSING: dict[str, Any] = {
 
 #: The same crossing in 6 s: for tests that fly to the end and need no time inside the flight.
 QUICK_CROSSING: dict[str, Any] = {**SHORT_CROSSING, "name": "quick-crossing", "steps": 30}
+
+
+class _QuickMockConfig(MockConfig):
+    """MockConfig whose presets carry `QUICK_MOCK` (other legal PX4 values)."""
+
+    @classmethod
+    def preset(cls, realism: str = "ideal", **overrides: Any) -> MockConfig:
+        from tests.flight.support import QUICK_MOCK
+
+        return MockConfig.preset(realism, **{**QUICK_MOCK, **overrides})
+
+
+@contextmanager
+def quick_service_mocks() -> Iterator[None]:
+    """While open, the mock vehicles an in-process service starts (`gcs.service.fleet`) land
+    at 1 m/s and disarm 0.5 s after touching down (`QUICK_MOCK`): a landing shortened, not
+    what a flight checks."""
+    import pytest
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr("gcs.service.fleet.MockConfig", _QuickMockConfig)
+        yield
 
 
 def free_udp_base(count: int) -> int:
