@@ -115,7 +115,7 @@ class ServiceProcess:
                     return self
             except httpx.HTTPError:
                 pass
-            time.sleep(0.1)
+            time.sleep(0.05)
         self.stop()
         raise RuntimeError(f"fleetplan serve did not answer within {timeout} s:\n{self.log()}")
 
