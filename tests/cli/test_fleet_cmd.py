@@ -9,6 +9,7 @@ import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -31,8 +32,8 @@ def hovering(tmp_path: Path) -> Iterator[tuple[Path, MockFleet]]:
 
     async def serve() -> None:
         homes = homes_under(plan.scenario.starts)
-        async with MockFleet(homes=homes, settle_time=0.5, **QUICK_MOCK,
-                             **mock_ports(2)) as mock:
+        settings: dict[str, Any] = {"settle_time": 0.5, **QUICK_MOCK, **mock_ports(2)}
+        async with MockFleet(homes=homes, **settings) as mock:
             fleet = mock.fleet_dict(plan.scenario.ids)
             executor = FlightExecutor(plan, FleetSpec.from_dict(fleet),
                                       QUICK.replace(at_end="hold"))

@@ -5,6 +5,7 @@ hold, landed by a fleet command; and every refusal."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any, cast
 
 import pytest
 from fastapi.testclient import TestClient
@@ -108,7 +109,8 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
                 client.get("/api/vehicles").json()["vehicles"]),
             10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
         # the world frame's geodetic origin (the mock's), for a page's coordinates and scale
-        mock_origin = client.app.state.fleet.fleet.mock.world_origin
+        app = cast(Any, client.app)  # the FastAPI app (its state holds the in-process mock)
+        mock_origin = app.state.fleet.fleet.mock.world_origin
         assert client.get("/api/vehicles").json()["fleet"]["world_origin"] == {
             "lat": mock_origin.lat, "lon": mock_origin.lon, "alt": mock_origin.alt}
         for v in vehicles:
@@ -116,7 +118,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
             assert v["gps"]["h_acc"] == pytest.approx(0.05)
             assert v["health"]["unhealthy"] == []
             assert v["link_quality"]["received"] > 10 and v["link_quality"]["lost"] == 0
-        mock = client.app.state.fleet.fleet.mock  # inject a fault into the in-process mock
+        mock = app.state.fleet.fleet.mock  # inject a fault into the in-process mock
         mock.vehicles[2].faults.battery = 15.0
         wait_for(lambda: client.get("/api/vehicles").json()["vehicles"][2]["battery"]
                  ["remaining_pct"] == 15, 5, "the low battery to be reported")
