@@ -15,6 +15,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
+from tests.api.routes.test_executions import QUICK
 from tests.api.support import QUICK_CROSSING, example
 
 
@@ -86,7 +87,7 @@ def test_flight_events_resume_and_flights_are_paginated_without_events(
     with TestClient(create_app(mock_settings())) as client:
         mission = client.post("/api/missions?wait=60", json=QUICK_CROSSING).json()
         flight = client.post(f"/api/missions/{mission['id']}/executions",
-                             json={"hold_at_goal": 0.5}).json()
+                             json=QUICK).json()
         live = sse(client, flight["links"]["events"])
         assert live[-1][0] == "done" and live[-1][2]["status"] == "completed"
         recorded = [(event_id, data) for kind, event_id, data in live if kind == "event"]

@@ -20,8 +20,11 @@ from gcs.service.store import Store
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example, quick_service_mocks
 
-#: Quick flights: half a second at the goals.
-QUICK = {"hold_at_goal": 0.5}
+#: Quick flights: half a second at the goals. A vehicle is flagged 2 m (not 1 m) off its
+#: plan: on a loaded machine the station and its in-process mocks stall together and a
+#: vehicle falls behind while both catch up; the flight's accuracy is what these tests
+#: judge by its goal errors and separation (tracking is tested in tests/flight).
+QUICK = {"hold_at_goal": 0.5, "tracking_error_max": 2.0}
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float, what: str) -> Any:

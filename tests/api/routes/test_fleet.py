@@ -13,7 +13,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.flight.commands import FLEET_COMMANDS
 from gcs.service.settings import Settings
-from tests.api.routes.test_executions import wait_for
+from tests.api.routes.test_executions import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING
 
@@ -79,8 +79,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
                              for v in client.get("/api/vehicles").json()["vehicles"]),
                  20, "every vehicle landed and disarmed")
         # and the landed fleet can fly again
-        again = client.post(f"/api/missions/{mission['id']}/executions", json={
-            "hold_at_goal": 0.5})
+        again = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
         assert again.status_code == 201, again.text
         final = sse_events(client, again.json()["links"]["events"])[-1]
         assert final[1]["status"] == "completed", final
@@ -131,7 +130,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
         assert "uav3" in reason and "battery 15% (below 30%)" in reason
         assert client.get("/api/executions").json()["executions"] == []  # nothing was started
 
-        allowed = client.post(url, json={"hold_at_goal": 0.5, "preflight": "override"})
+        allowed = client.post(url, json={**QUICK, "preflight": "override"})
         assert allowed.status_code == 201, allowed.text
         events = sse_events(client, allowed.json()["links"]["events"])
         assert events[-1][1]["status"] == "completed", events[-1]
