@@ -84,8 +84,10 @@ class ServiceProcess:
     """`python -m gcs.cli.main serve ...` with its own database under `workdir`."""
 
     def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None,
-                 token: str | None = None) -> None:
+                 token: str | None = None, start_timeout: float = 60.0) -> None:
         self.workdir = workdir
+        #: How long `with ServiceProcess(...)` waits for the service to answer (s).
+        self.start_timeout = start_timeout
         #: The API token the service is configured with (sent while waiting for it), if any.
         self.headers = {} if token is None else {"Authorization": f"Bearer {token}"}
         self.port = free_port()
@@ -111,7 +113,7 @@ class ServiceProcess:
                 raise RuntimeError(f"fleetplan serve exited:\n{self.log()}")
             try:
                 if httpx.get(f"{self.base_url}/api/status", headers=self.headers,
-                             timeout=1.0).status_code == 200:
+                             timeout=5.0).status_code == 200:
                     return self
             except httpx.HTTPError:
                 pass
@@ -133,7 +135,7 @@ class ServiceProcess:
             self.process.wait(5)
 
     def __enter__(self) -> ServiceProcess:
-        return self.start()
+        return self.start(self.start_timeout)
 
     def __exit__(self, *exc: object) -> None:
         self.stop()

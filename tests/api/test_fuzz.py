@@ -25,8 +25,8 @@ def fuzz_service(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
     env = {"FLEETPLAN_MAX_VEHICLES": "4", "FLEETPLAN_MAX_STEPS": "60",
            "FLEETPLAN_PLAN_WAIT_S": "0", "FLEETPLAN_MAX_BODY_BYTES": "100000"}
     workdir: Path = tmp_path_factory.mktemp("fuzz")
-    with ServiceProcess(workdir, "--mock", "0", "--scheduler", dask_scheduler,
-                        env=env) as service:
+    with ServiceProcess(workdir, "--mock", "0", "--scheduler", dask_scheduler, env=env,
+                        start_timeout=120) as service:
         yield service
 
 
