@@ -37,15 +37,6 @@ OUT_AND_BACK: dict[str, Any] = {
 }
 
 
-#: The same out and back in 4 s legs: 9.2 s, for the flight.
-QUICK_OUT_AND_BACK: dict[str, Any] = {
-    **OUT_AND_BACK, "name": "quick-out-and-back",
-    "formations": [{**OUT_AND_BACK["formations"][0]},
-                   {**OUT_AND_BACK["formations"][1], "duration": 4},
-                   {**OUT_AND_BACK["formations"][2], "duration": 4}],
-}
-
-
 def plan_sequence(client: TestClient, body: dict[str, Any]) -> dict[str, Any]:
     response = client.post("/api/missions?wait=60", json=body)
     assert response.status_code == 201, response.text
@@ -155,7 +146,7 @@ def test_too_many_vehicles_is_refused_before_parsing(shared_client: TestClient) 
 def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[..., Settings]
                                                     ) -> None:
     with TestClient(create_app(mock_settings())) as client:
-        mission = plan_sequence(client, QUICK_OUT_AND_BACK)
+        mission = plan_sequence(client, OUT_AND_BACK)
         assert mission["plan_ok"] is True
         response = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
         assert response.status_code == 201, response.text
