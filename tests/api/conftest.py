@@ -12,7 +12,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.support import free_udp_base
+from tests.api.support import free_udp_base, quick_service_mocks
 
 
 @pytest.fixture(autouse=True)
@@ -76,3 +76,26 @@ def shared_client(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
     )
     with TestClient(create_app(settings)) as test_client:
         yield test_client
+
+
+@pytest.fixture
+def quick_mocks() -> Iterator[None]:
+    """The mock vehicles of an app started in this test land and disarm quickly
+    (`tests.api.support.quick_service_mocks`)."""
+    with quick_service_mocks():
+        yield
+
+
+@pytest.fixture(scope="module")
+def module_mock_settings(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
+                         ) -> Settings:
+    """What `mock_settings()` gives, for a whole module: 4 mock vehicles quick to arm, on free
+    UDP ports, a database of the module's own; no FLEETPLAN_* variable read."""
+    path = tmp_path_factory.mktemp("module") / "fleetplan.db"
+    with pytest.MonkeyPatch.context() as patch:
+        for name in list(os.environ):
+            if name.startswith("FLEETPLAN_") and name != "FLEETPLAN_REQUIRE_BROWSER":
+                patch.delenv(name)
+        return Settings(database_url=f"sqlite:///{path}", mock_vehicles=4,
+                        mock_base_port=free_udp_base(4), mock_settle_s=0.5, plan_workers=1,
+                        scheduler=dask_scheduler, allowed_hosts=["testserver"])

@@ -9,17 +9,18 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-from gcs.sim import ports
+from gcs.sim import MockConfig, ports
 from tests.paths import EXAMPLES
 
 __all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING", "ServiceProcess",
-           "example", "free_port", "free_udp_base"]
-
+           "example", "free_port", "free_udp_base", "quick_service_mocks"]
 
 
 def example(name: str) -> dict[str, Any]:
@@ -56,6 +57,28 @@ QUICK_PAIR: dict[str, Any] = {
 }
 
 
+class _QuickMockConfig(MockConfig):
+    """MockConfig whose presets carry `QUICK_MOCK` (other legal PX4 values)."""
+
+    @classmethod
+    def preset(cls, realism: str = "ideal", **overrides: Any) -> MockConfig:
+        from tests.flight.support import QUICK_MOCK
+
+        return MockConfig.preset(realism, **{**QUICK_MOCK, **overrides})
+
+
+@contextmanager
+def quick_service_mocks() -> Iterator[None]:
+    """While open, the mock vehicles an in-process service starts (`gcs.service.fleet`) land
+    at 1 m/s and disarm 0.5 s after touching down (`QUICK_MOCK`): a landing shortened, not
+    what a flight checks."""
+    import pytest
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr("gcs.service.fleet.MockConfig", _QuickMockConfig)
+        yield
+
+
 def free_udp_base(count: int) -> int:
     """A mock base port whose every port (`gcs.sim.ports` rule) is free now: never PX4's."""
     return ports.free_udp_base(ports.mock_port_offsets(count))
@@ -72,8 +95,10 @@ class ServiceProcess:
     """`python -m gcs.cli.main serve ...` with its own database under `workdir`."""
 
     def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None,
-                 token: str | None = None) -> None:
+                 token: str | None = None, start_timeout: float = 60.0) -> None:
         self.workdir = workdir
+        #: How long `with ServiceProcess(...)` waits for the service to answer (s).
+        self.start_timeout = start_timeout
         #: The API token the service is configured with (sent while waiting for it), if any.
         self.headers = {} if token is None else {"Authorization": f"Bearer {token}"}
         self.port = free_port()
@@ -99,11 +124,11 @@ class ServiceProcess:
                 raise RuntimeError(f"fleetplan serve exited:\n{self.log()}")
             try:
                 if httpx.get(f"{self.base_url}/api/status", headers=self.headers,
-                             timeout=1.0).status_code == 200:
+                             timeout=5.0).status_code == 200:
                     return self
             except httpx.HTTPError:
                 pass
-            time.sleep(0.1)
+            time.sleep(0.05)
         self.stop()
         raise RuntimeError(f"fleetplan serve did not answer within {timeout} s:\n{self.log()}")
 
@@ -121,7 +146,7 @@ class ServiceProcess:
             self.process.wait(5)
 
     def __enter__(self) -> ServiceProcess:
-        return self.start()
+        return self.start(self.start_timeout)
 
     def __exit__(self, *exc: object) -> None:
         self.stop()

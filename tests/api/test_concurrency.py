@@ -17,10 +17,12 @@ from tests.api.support import SHORT_CROSSING, ServiceProcess, example, free_udp_
 
 @pytest.mark.slow
 def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
-    tmp_path: Path,
+    tmp_path: Path, dask_scheduler: str
 ) -> None:
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
-    with ServiceProcess(tmp_path, "--mock", "4", "--workers", "1", env=env) as service, \
+    # planning in the worker processes of the session's Dask cluster
+    with ServiceProcess(tmp_path, "--mock", "4", "--scheduler", dask_scheduler, env=env,
+                        start_timeout=120) as service, \
             httpx.Client(base_url=service.base_url, timeout=30) as client:
         small = client.post("/api/missions?wait=60", json=SHORT_CROSSING)
         assert small.status_code == 201
@@ -31,7 +33,7 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
         while (client.get(f"/api/executions/{flight['id']}").json()["live"] or {}).get(
                 "phase") != "flying":
             assert time.monotonic() < deadline, "the flight did not start"
-            time.sleep(0.1)
+            time.sleep(0.05)
 
         started = time.monotonic()
         big = client.post("/api/missions?wait=0", json=example("random64"))
@@ -65,7 +67,7 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
         while (execution := client.get(f"/api/executions/{flight['id']}").json())[
                 "status"] in ("starting", "running"):
             assert time.monotonic() < deadline, "the flight did not end"
-            time.sleep(0.2)
+            time.sleep(0.05)
 
     assert big_mission["status"] == "planned", big_mission["error"]
     assert len(big_mission["plan"]["vehicles"]) == 64

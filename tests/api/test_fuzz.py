@@ -3,6 +3,7 @@ the input, the answer is never a 5xx, and it conforms to the documented schema."
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -17,12 +18,15 @@ from tests.api.support import ServiceProcess
 
 
 @pytest.fixture(scope="module")
-def fuzz_service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
-    # Small limits keep any plan the fuzzer manages to submit cheap; no waiting for plans.
+def fuzz_service(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
+                 ) -> Iterator[ServiceProcess]:
+    # Small limits keep any plan the fuzzer manages to submit cheap; no waiting for plans;
+    # planning on the session's Dask cluster (no embedded cluster to start).
     env = {"FLEETPLAN_MAX_VEHICLES": "4", "FLEETPLAN_MAX_STEPS": "60",
            "FLEETPLAN_PLAN_WAIT_S": "0", "FLEETPLAN_MAX_BODY_BYTES": "100000"}
     workdir: Path = tmp_path_factory.mktemp("fuzz")
-    with ServiceProcess(workdir, "--mock", "0", "--workers", "1", env=env) as service:
+    with ServiceProcess(workdir, "--mock", "0", "--scheduler", dask_scheduler, env=env,
+                        start_timeout=120) as service:
         yield service
 
 
@@ -32,9 +36,14 @@ schema = schemathesis.openapi.from_dict(
 )
 
 
+#: Examples per operation: 20 reach every operation's parameters and bodies (valid and
+#: invalid) in a test run; FLEETPLAN_FUZZ_EXAMPLES=500 (say) for a deep run.
+EXAMPLES = int(os.environ.get("FLEETPLAN_FUZZ_EXAMPLES", "20"))
+
+
 @pytest.mark.slow
 @schema.parametrize()
-@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck))
 def test_no_server_errors_and_documented_answers(
     case: schemathesis.Case, fuzz_service: ServiceProcess
 ) -> None:

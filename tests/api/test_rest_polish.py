@@ -10,10 +10,12 @@ import json
 from collections.abc import Callable
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
+from tests.api.routes.test_executions import QUICK
 from tests.api.support import QUICK_CROSSING, example
 
 
@@ -78,13 +80,14 @@ def test_planning_events_have_ids_and_resume_after_last_event_id(
         assert full == [("done", None, resumed[-1][2])]
 
 
+@pytest.mark.usefixtures("quick_mocks")
 def test_flight_events_resume_and_flights_are_paginated_without_events(
     mock_settings: Callable[..., Settings],
 ) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = client.post("/api/missions?wait=60", json=QUICK_CROSSING).json()
         flight = client.post(f"/api/missions/{mission['id']}/executions",
-                             json={"hold_at_goal": 0.5}).json()
+                             json=QUICK).json()
         live = sse(client, flight["links"]["events"])
         assert live[-1][0] == "done" and live[-1][2]["status"] == "completed"
         recorded = [(event_id, data) for kind, event_id, data in live if kind == "event"]

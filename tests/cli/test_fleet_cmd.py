@@ -9,33 +9,34 @@ import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.fleetfile import FleetSpec
 from gcs.sim import MockFleet, homes_under
-from tests.flight.support import line_scenario, mock_ports, smooth_plan
+from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
 
 @pytest.fixture
 def hovering(tmp_path: Path) -> Iterator[tuple[Path, MockFleet]]:
-    """Two mock vehicles (on a thread of their own) that flew a plan and stayed hovering in
-    PX4 Hold (`at_end: hold`), and their fleet file."""
-    plan = smooth_plan(line_scenario(2))
+    """Two mock vehicles (on a thread of their own) that flew a 3 s plan and stayed hovering
+    in PX4 Hold (`at_end: hold`), and their fleet file."""
+    plan = smooth_plan(short_line(2))
     ready = threading.Event()
     stop = threading.Event()
     holder: dict[str, object] = {}
 
     async def serve() -> None:
         homes = homes_under(plan.scenario.starts)
-        async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(2)) as mock:
+        settings: dict[str, Any] = {"settle_time": 0.5, **QUICK_MOCK, **mock_ports(2)}
+        async with MockFleet(homes=homes, **settings) as mock:
             fleet = mock.fleet_dict(plan.scenario.ids)
             executor = FlightExecutor(plan, FleetSpec.from_dict(fleet),
-                                      FlightOptions(hold_at_goal=0.5, prestream=0.3,
-                                                    at_end="hold"))
+                                      QUICK.replace(at_end="hold"))
             try:
                 holder["record"] = await executor.run()
             except Exception as exc:  # reported by the fixture below

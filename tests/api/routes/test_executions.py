@@ -7,6 +7,7 @@ import copy
 import json
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -17,10 +18,13 @@ from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example
+from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example, quick_service_mocks
 
-#: Quick flights: half a second at the goals.
-QUICK = {"hold_at_goal": 0.5}
+#: Quick flights: half a second at the goals. A vehicle is flagged 2 m (not 1 m) off its
+#: plan: on a loaded machine the station and its in-process mocks stall together and a
+#: vehicle falls behind while both catch up; the flight's accuracy is what these tests
+#: judge by its goal errors and separation (tracking is tested in tests/flight).
+QUICK = {"hold_at_goal": 0.5, "tracking_error_max": 2.0}
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float, what: str) -> Any:
@@ -29,80 +33,110 @@ def wait_for(predicate: Callable[[], Any], timeout: float, what: str) -> Any:
         value = predicate()
         if value:
             return value
-        time.sleep(0.1)
+        time.sleep(0.05)
     raise AssertionError(f"timed out waiting for {what}")
 
 
-def test_fly_to_completion_with_live_state_and_a_record(
-    mock_settings: Callable[..., Settings],
-) -> None:
-    with TestClient(create_app(mock_settings())) as client:
-        idle = client.get("/api/vehicles").json()
-        assert idle["fleet"] == {"kind": "mock", "vehicles": 4, "flying": None,
-                                 "ids": ["uav1", "uav2", "uav3", "uav4"],
-                                 "world_origin": {"lat": 47.397742, "lon": 8.545594,
-                                                  "alt": 488.0}}
-        wait_for(lambda: all(v["heartbeat_age"] is not None and v["heartbeat_age"] < 2
-                             for v in client.get("/api/vehicles").json()["vehicles"]),
-                 10, "the mock vehicles' heartbeats")
-        for v in client.get("/api/vehicles").json()["vehicles"]:
-            assert v["link"] == "monitor" and v["armed"] is False and v["mode"]
-            np.testing.assert_allclose(v["position"], v["home"], atol=0.05)
+def heard(client: TestClient) -> list[dict[str, Any]] | None:
+    """Every vehicle's monitor state once each HEARTBEAT is fresh, else None."""
+    vehicles: list[dict[str, Any]] = client.get("/api/vehicles").json()["vehicles"]
+    fresh = all(v["heartbeat_age"] is not None and v["heartbeat_age"] < 2 for v in vehicles)
+    return vehicles if fresh else None
 
+
+@dataclass
+class Flown:
+    """One flight flown to completion on a fresh service, and what the API said around it."""
+
+    settings: Settings
+    idle: dict[str, Any]
+    idle_vehicles: list[dict[str, Any]]
+    mission: dict[str, Any]
+    created: dict[str, Any]
+    events: list[tuple[str, dict[str, Any]]]
+    stored: dict[str, Any]
+    record: dict[str, Any]
+    listed: list[dict[str, Any]]
+    active: list[dict[str, Any]]
+    after: dict[str, Any]
+    after_vehicles: list[dict[str, Any]]
+
+
+@pytest.fixture(scope="module")
+def flown(module_mock_settings: Settings) -> Flown:
+    """QUICK_CROSSING flown once (the tests below read it; the restart test reopens its
+    database)."""
+    with quick_service_mocks(), TestClient(create_app(module_mock_settings)) as client:
+        idle = client.get("/api/vehicles").json()
+        idle_vehicles = wait_for(lambda: heard(client), 10, "the mock vehicles' heartbeats")
         mission = plan_mission(client, QUICK_CROSSING)
         response = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
         assert response.status_code == 201, response.text
-        execution = response.json()
-        assert execution["status"] == "starting" and execution["mission_id"] == mission["id"]
-
-        events = sse_events(client, execution["links"]["events"])
-        kinds = [kind for kind, _ in events]
-        assert kinds[0] == "status" and kinds[-1] == "done"
-        statuses = [data["status"] for kind, data in events if kind == "status"]
-        assert "running" in statuses
-        telemetry = [data for kind, data in events if kind == "telemetry"]
-        flying = [t for t in telemetry if t["phase"] == "flying"]
-        assert flying, "no telemetry while the mission clock ran"
-        assert {v["id"] for v in flying[-1]["vehicles"]} == {"a", "b", "c", "d"}
-        assert all(v["mode"] == "OFFBOARD" and v["armed"] for v in flying[-1]["vehicles"])
-        logged = [data["kind"] for kind, data in events if kind == "event"]
-        assert "mission_start" in logged and "landed" in logged
-
-        done = events[-1][1]
-        assert done["status"] == "completed", done
-        summary = done["summary"]
-        assert summary["completed"] is True
-        assert summary["goal_error_max"] < 0.2
-        assert summary["min_separation_measured"] > 1.0 - 0.1
-        # Setpoints streamed all through (rate figures: bench/stream.py, bench/service.py).
-        assert summary["setpoint_rate_hz"] > 10.0  # bound
-
-        stored = client.get(execution["links"]["self"]).json()
-        assert stored["status"] == "completed" and stored["has_record"]
-        assert stored["summary"] == summary and stored["live"] is None
-        assert [e["kind"] for e in stored["events"]] == logged
-        record = client.get(execution["links"]["record"])
+        created = response.json()
+        events = sse_events(client, created["links"]["events"])
+        stored = client.get(created["links"]["self"]).json()
+        record = client.get(created["links"]["record"])
         assert record.status_code == 200
-        assert json.loads(record.text)["summary"] == summary
         listed = client.get(f"/api/missions/{mission['id']}/executions").json()
-        assert [e["id"] for e in listed] == [execution["id"]]
-        assert client.get("/api/executions?active=true").json()["executions"] == []
-
-        # Back to the monitor: the vehicles are landed, disarmed, at their goals.
+        active = client.get("/api/executions?active=true").json()["executions"]
         after = client.get("/api/vehicles").json()
-        assert after["fleet"]["flying"] is None
-        by_id = {v["id"]: v for v in after["vehicles"]}
-        wait_for(lambda: all(v["heartbeat_age"] is not None and v["heartbeat_age"] < 2
-                             for v in client.get("/api/vehicles").json()["vehicles"]),
-                 10, "the monitor to hear the vehicles again")
-        by_id = {v["id"]: v for v in client.get("/api/vehicles").json()["vehicles"]}
-        for planned in SHORT_CROSSING["vehicles"]:
-            v = by_id[planned["id"]]
-            assert v["armed"] is False
-            np.testing.assert_allclose(v["position"][:2], planned["goal"][:2], atol=0.2)
-            assert v["position"][2] < 0.1
+        after_vehicles = wait_for(lambda: heard(client), 10,
+                                  "the monitor to hear the vehicles again")
+    return Flown(module_mock_settings, idle, idle_vehicles, mission, created, events, stored,
+                 json.loads(record.text), listed, active, after, after_vehicles)
 
 
+def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
+    assert flown.idle["fleet"] == {"kind": "mock", "vehicles": 4, "flying": None,
+                                   "ids": ["uav1", "uav2", "uav3", "uav4"],
+                                   "world_origin": {"lat": 47.397742, "lon": 8.545594,
+                                                    "alt": 488.0}}
+    for v in flown.idle_vehicles:
+        assert v["link"] == "monitor" and v["armed"] is False and v["mode"]
+        np.testing.assert_allclose(v["position"], v["home"], atol=0.05)
+
+    mission, execution, events = flown.mission, flown.created, flown.events
+    assert execution["status"] == "starting" and execution["mission_id"] == mission["id"]
+    kinds = [kind for kind, _ in events]
+    assert kinds[0] == "status" and kinds[-1] == "done"
+    statuses = [data["status"] for kind, data in events if kind == "status"]
+    assert "running" in statuses
+    telemetry = [data for kind, data in events if kind == "telemetry"]
+    flying = [t for t in telemetry if t["phase"] == "flying"]
+    assert flying, "no telemetry while the mission clock ran"
+    assert {v["id"] for v in flying[-1]["vehicles"]} == {"a", "b", "c", "d"}
+    assert all(v["mode"] == "OFFBOARD" and v["armed"] for v in flying[-1]["vehicles"])
+    logged = [data["kind"] for kind, data in events if kind == "event"]
+    assert "mission_start" in logged and "landed" in logged
+
+    done = events[-1][1]
+    assert done["status"] == "completed", done
+    summary = done["summary"]
+    assert summary["completed"] is True
+    assert summary["goal_error_max"] < 0.2
+    assert summary["min_separation_measured"] > 1.0 - 0.1
+    # Setpoints streamed all through (rate figures: bench/stream.py, bench/service.py).
+    assert summary["setpoint_rate_hz"] > 10.0  # bound
+
+    stored = flown.stored
+    assert stored["status"] == "completed" and stored["has_record"]
+    assert stored["summary"] == summary and stored["live"] is None
+    assert [e["kind"] for e in stored["events"]] == logged
+    assert flown.record["summary"] == summary
+    assert [e["id"] for e in flown.listed] == [execution["id"]]
+    assert flown.active == []
+
+    # Back to the monitor: the vehicles are landed, disarmed, at their goals.
+    assert flown.after["fleet"]["flying"] is None
+    by_id = {v["id"]: v for v in flown.after_vehicles}
+    for planned in QUICK_CROSSING["vehicles"]:
+        v = by_id[planned["id"]]
+        assert v["armed"] is False
+        np.testing.assert_allclose(v["position"][:2], planned["goal"][:2], atol=0.2)
+        assert v["position"][2] < 0.1
+
+
+@pytest.mark.usefixtures("quick_mocks")
 def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
@@ -183,16 +217,14 @@ def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> Non
         assert "no fleet configured" in response.json()["reason"]
 
 
-def test_flights_survive_a_restart(mock_settings: Callable[..., Settings]) -> None:
-    settings = mock_settings()
-    with TestClient(create_app(settings)) as client:
-        mission = plan_mission(client, SHORT_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK).json()
-        done = sse_events(client, execution["links"]["events"])[-1][1]
-        assert done["status"] == "completed"
+def test_flights_survive_a_restart(flown: Flown) -> None:
+    """A restarted service on the flight's database (the service that flew it has stopped)
+    serves the finished flight, and marks one a killed server left 'starting' interrupted."""
+    settings, execution, done = flown.settings, flown.created, flown.events[-1][1]
+    assert done["status"] == "completed"
     # What a killed server leaves behind: a flight still 'starting'.
     store = Store(settings.database_url)
-    orphan = store.create_execution(mission["id"], "mock: a, b, c, d")
+    orphan = store.create_execution(flown.mission["id"], "mock: a, b, c, d")
     store.close()
     with TestClient(create_app(settings)) as client:
         again = client.get(execution["links"]["self"]).json()
@@ -205,17 +237,19 @@ def test_flights_survive_a_restart(mock_settings: Callable[..., Settings]) -> No
             == ["status", "done"]
 
 
+@pytest.mark.usefixtures("quick_mocks")
 def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]) -> None:
     """Paused: status `paused`, the mission clock stands still and the fleet holds; resumed:
     the flight completes. Pausing twice, resuming a running flight or a finished one: 409."""
     with TestClient(create_app(mock_settings())) as client:
-        mission = plan_mission(client, SHORT_CROSSING)
+        mission = plan_mission(client, QUICK_CROSSING)
         execution = client.post(f"/api/missions/{mission['id']}/executions",
                                 json=QUICK).json()
         url, links = execution["links"]["self"], execution["links"]
         assert client.post(links["resume"]).status_code == 409  # not paused
-        wait_for(lambda: ((client.get(url).json()["live"] or {}).get("mission_time") or 0) > 3,
-                 30, "the mission clock to pass 3 s")
+        # paused 1 s into the 6 s plan, the fleet moving
+        wait_for(lambda: ((client.get(url).json()["live"] or {}).get("mission_time") or 0) > 1,
+                 30, "the mission clock to pass 1 s")
         paused = client.post(links["pause"])
         assert paused.status_code == 200, paused.text
         assert paused.json()["status"] == "paused"
@@ -223,16 +257,24 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
         assert twice.status_code == 409 and "cannot be paused (status paused)" in \
             twice.json()["reason"]
         first = client.get(url).json()
-        time.sleep(2.0)  # time passing while paused (and the fleet settling to its hold)
-        later = client.get(url).json()
+        # Time passes while paused, the fleet settling to its hold: then nobody moves more
+        # than a few cm in half a second.
+        seen: list[tuple[float, dict[str, Any]]] = []
+
+        def settled() -> dict[str, Any] | None:
+            now, live = time.monotonic(), client.get(url).json()
+            seen.append((now, live))
+            older = [doc for t, doc in seen if now - t >= 0.5]
+            if not older:
+                return None
+            before = {v["id"]: v["position"] for v in older[-1]["live"]["vehicles"]}
+            moved = max(np.linalg.norm(np.subtract(v["position"], before[v["id"]]))
+                        for v in live["live"]["vehicles"])
+            return live if moved < 0.1 else None
+
+        later = wait_for(settled, 15, "the paused fleet to settle to its hold")
         assert later["status"] == "paused" and later["live"]["phase"] == "paused"
         assert later["live"]["mission_time"] == pytest.approx(first["live"]["mission_time"])
-        # the fleet has settled to a hold: nobody moves more than a few cm in half a second
-        before = {v["id"]: v["position"] for v in later["live"]["vehicles"]}
-        time.sleep(0.5)
-        after = {v["id"]: v["position"] for v in client.get(url).json()["live"]["vehicles"]}
-        for vid, p in after.items():
-            assert np.linalg.norm(np.subtract(p, before[vid])) < 0.1, vid
         assert later["live"]["min_separation_live"] > 1.0 - 0.1
 
         resumed = client.post(links["resume"])

@@ -5,6 +5,7 @@ hold, landed by a fleet command; and every refusal."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any, cast
 
 import pytest
 from fastapi.testclient import TestClient
@@ -12,11 +13,12 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.flight.commands import FLEET_COMMANDS
 from gcs.service.settings import Settings
-from tests.api.routes.test_executions import wait_for
+from tests.api.routes.test_executions import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING
 
 
+@pytest.mark.usefixtures("quick_mocks")
 def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
     mock_settings: Callable[..., Settings],
 ) -> None:
@@ -77,8 +79,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
                              for v in client.get("/api/vehicles").json()["vehicles"]),
                  20, "every vehicle landed and disarmed")
         # and the landed fleet can fly again
-        again = client.post(f"/api/missions/{mission['id']}/executions", json={
-            "hold_at_goal": 0.5})
+        again = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
         assert again.status_code == 201, again.text
         final = sse_events(client, again.json()["links"]["events"])[-1]
         assert final[1]["status"] == "completed", final
@@ -95,6 +96,7 @@ def test_fleet_commands_without_a_fleet(make_settings: Callable[..., Settings]) 
         assert [c["command"] for c in listed if c["needs"]] == ["disarm", "terminate"]
 
 
+@pytest.mark.usefixtures("quick_mocks")
 def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Settings]) -> None:
     """GET /api/vehicles shows battery, gps, health and link quality per vehicle; Fly is
     refused (409, naming the vehicle and the reason) for a vehicle low on battery, unless
@@ -106,7 +108,8 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
                 client.get("/api/vehicles").json()["vehicles"]),
             10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
         # the world frame's geodetic origin (the mock's), for a page's coordinates and scale
-        mock_origin = client.app.state.fleet.fleet.mock.world_origin
+        app = cast(Any, client.app)  # the FastAPI app (its state holds the in-process mock)
+        mock_origin = app.state.fleet.fleet.mock.world_origin
         assert client.get("/api/vehicles").json()["fleet"]["world_origin"] == {
             "lat": mock_origin.lat, "lon": mock_origin.lon, "alt": mock_origin.alt}
         for v in vehicles:
@@ -114,7 +117,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
             assert v["gps"]["h_acc"] == pytest.approx(0.05)
             assert v["health"]["unhealthy"] == []
             assert v["link_quality"]["received"] > 10 and v["link_quality"]["lost"] == 0
-        mock = client.app.state.fleet.fleet.mock  # inject a fault into the in-process mock
+        mock = app.state.fleet.fleet.mock  # inject a fault into the in-process mock
         mock.vehicles[2].faults.battery = 15.0
         wait_for(lambda: client.get("/api/vehicles").json()["vehicles"][2]["battery"]
                  ["remaining_pct"] == 15, 5, "the low battery to be reported")
@@ -127,7 +130,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
         assert "uav3" in reason and "battery 15% (below 30%)" in reason
         assert client.get("/api/executions").json()["executions"] == []  # nothing was started
 
-        allowed = client.post(url, json={"hold_at_goal": 0.5, "preflight": "override"})
+        allowed = client.post(url, json={**QUICK, "preflight": "override"})
         assert allowed.status_code == 201, allowed.text
         events = sse_events(client, allowed.json()["links"]["events"])
         assert events[-1][1]["status"] == "completed", events[-1]

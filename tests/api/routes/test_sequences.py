@@ -81,13 +81,20 @@ def test_a_sequence_is_a_mission_with_a_stitched_flyable_plan(client: TestClient
     np.testing.assert_allclose([x, y, z], GOALS[2], atol=1e-4)
 
 
+@pytest.fixture(scope="module")
+def shared_sequence(shared_client: TestClient) -> dict[str, Any]:
+    """OUT_AND_BACK planned once on the module's app."""
+    return plan_sequence(shared_client, OUT_AND_BACK)
+
+
 @pytest.mark.parametrize(
     ("params", "field"),
     [({"format": "show-csv"}, "vehicle"), ({"format": "show-csv", "vehicle": "zz"}, "vehicle")],
 )
-def test_show_csv_refusals_name_the_field(shared_client: TestClient, params: dict[str, str],
-                                          field: str) -> None:
-    mission = plan_sequence(shared_client, OUT_AND_BACK)
+def test_show_csv_refusals_name_the_field(shared_client: TestClient,
+                                          shared_sequence: dict[str, Any],
+                                          params: dict[str, str], field: str) -> None:
+    mission = shared_sequence
     response = shared_client.get(f"/api/missions/{mission['id']}/trajectory", params=params)
     assert response.status_code == 422
     assert response.json()["field"] == field
@@ -135,6 +142,7 @@ def test_too_many_vehicles_is_refused_before_parsing(shared_client: TestClient) 
     assert response.json()["field"] == "vehicles" and "max_vehicles" in response.text
 
 
+@pytest.mark.usefixtures("quick_mocks")
 def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[..., Settings]
                                                     ) -> None:
     with TestClient(create_app(mock_settings())) as client:
