@@ -15,6 +15,7 @@ from gcs.flight.phases import EventKind
 from tests.api.support import SHORT_CROSSING, ServiceProcess, example, free_udp_base
 
 
+@pytest.mark.flight
 @pytest.mark.slow
 def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
     tmp_path: Path, dask_scheduler: str

@@ -80,6 +80,7 @@ def test_planning_events_have_ids_and_resume_after_last_event_id(
         assert full == [("done", None, resumed[-1][2])]
 
 
+@pytest.mark.flight
 @pytest.mark.usefixtures("quick_mocks")
 def test_flight_events_resume_and_flights_are_paginated_without_events(
     mock_settings: Callable[..., Settings],

@@ -76,6 +76,7 @@ def test_stream_benchmark_at_px4_rates_with_and_without_rate_requests():
     assert report["per_message_us"]["skip_attitude"]["unsigned"] > 0
 
 
+@pytest.mark.flight
 def test_service_benchmark_reports_latency_and_flight_timing():
     report = _run("service.py", "--scenario", "paper-circle8", "--flight", "quick",
                   "--hold-at-goal", "0.5")

@@ -33,6 +33,7 @@ def _wait(predicate: Any, timeout: float, what: str) -> Any:
     raise AssertionError(f"timed out waiting for {what}")
 
 
+@pytest.mark.flight
 def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(2)), "FLEETPLAN_MOCK_SETTLE_S": "0.5",
            "FLEETPLAN_PLAN_WORKERS": "2", "FLEETPLAN_MAX_VEHICLES": "256"}

@@ -66,6 +66,7 @@ def postgres_url() -> Iterator[str]:
         shutil.rmtree(top, ignore_errors=True)
 
 
+@pytest.mark.flight
 @pytest.mark.slow
 def test_missions_and_flights_on_postgresql(
     postgres_url: str, mock_settings: Callable[..., Settings]

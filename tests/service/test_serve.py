@@ -79,6 +79,7 @@ def test_database_problems_are_one_line_and_exit_2(tmp_path: Path, db: str,
     assert "serving on" not in result.stdout
 
 
+@pytest.mark.flight
 def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> None:
     base = free_udp_base(2)
     service = ServiceProcess(tmp_path, "--mock", "2", "--workers", "1",

@@ -22,6 +22,7 @@ from tests.api.support import QUICK_CROSSING, example
 pytestmark = pytest.mark.timeout(300)
 
 
+@pytest.mark.flight
 def test_a_flight_the_store_refuses_is_held_in_memory_then_stored_in_full(
     mock_settings: Callable[..., Settings], monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -86,6 +86,7 @@ def flown(module_mock_settings: Settings) -> Flown:
                  json.loads(record.text), listed, active, after, after_vehicles)
 
 
+@pytest.mark.flight
 def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
     assert flown.idle["fleet"] == {"kind": "mock", "vehicles": 4, "flying": None,
                                    "ids": ["uav1", "uav2", "uav3", "uav4"],
@@ -136,6 +137,7 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
         assert v["position"][2] < 0.1
 
 
+@pytest.mark.flight
 @pytest.mark.usefixtures("quick_mocks")
 def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
@@ -217,6 +219,7 @@ def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> Non
         assert "no fleet configured" in response.json()["reason"]
 
 
+@pytest.mark.flight
 def test_flights_survive_a_restart(flown: Flown) -> None:
     """A restarted service on the flight's database (the service that flew it has stopped)
     serves the finished flight, and marks one a killed server left 'starting' interrupted."""
@@ -237,6 +240,7 @@ def test_flights_survive_a_restart(flown: Flown) -> None:
             == ["status", "done"]
 
 
+@pytest.mark.flight
 @pytest.mark.usefixtures("quick_mocks")
 def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]) -> None:
     """Paused: status `paused`, the mission clock stands still and the fleet holds; resumed:

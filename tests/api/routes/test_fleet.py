@@ -18,6 +18,7 @@ from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING
 
 
+@pytest.mark.flight
 @pytest.mark.usefixtures("quick_mocks")
 def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
     mock_settings: Callable[..., Settings],

@@ -142,6 +142,7 @@ def test_too_many_vehicles_is_refused_before_parsing(shared_client: TestClient) 
     assert response.json()["field"] == "vehicles" and "max_vehicles" in response.text
 
 
+@pytest.mark.flight
 @pytest.mark.usefixtures("quick_mocks")
 def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[..., Settings]
                                                     ) -> None:
