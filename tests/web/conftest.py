@@ -57,9 +57,11 @@ def service_starting(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Servi
         starting.stop()
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser(service_starting: ServiceStarting) -> Iterator[Browser]:
-    """One Chromium per test process: every test opens its own context (cookies, routes).
+    """One Chromium per test file: every test opens its own context (cookies, routes).
+    Playwright's sync API keeps an event loop running in the process while it is open, so
+    it is closed with the file: later tests in the same process may run their own loop.
     Asking for it starts the service too, so the two boot together."""
     executable = _chromium()
     with sync_playwright() as playwright:
