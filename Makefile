@@ -23,15 +23,15 @@ install: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/fleetplan serve
 
-# Every check: lint (ruff, mypy), then every test. Test files run in 3 parallel processes
-# (pytest-xdist; most tests wait on real-time mock flights, so 3 fit on 2 cores), one file per
-# process at a time; the 15 slowest tests are listed at the end.
+# Every check: lint (ruff, mypy), then every test. Test files run in parallel processes
+# (pytest-xdist, one per core, at most 3), one file per process at a time; the 15 slowest
+# tests are listed at the end.
 test: lint test-tools
-	$(PY) -m pytest -n 3 --dist loadfile --durations=15
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15
 
 # The inner loop: no browser and no full mock flights (markers `browser`, `flight`).
 test-fast: $(STAMP)
-	$(PY) -m pytest -n 3 --dist loadfile --durations=15 \
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15 \
 	  -m "not browser and not flight"
 
 # The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml;
