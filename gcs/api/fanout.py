@@ -15,6 +15,7 @@ from typing import Any
 from fastapi.encoders import jsonable_encoder
 
 from gcs.errors import ServiceBusy
+from gcs.service.plan_worker import finite_json
 
 __all__ = ["SharedJson", "Slots", "StreamSlots"]
 
@@ -95,19 +96,9 @@ class SharedJson:
         cached = self._texts.get(key)
         if cached is not None and cached[0] is data:
             return cached[1]
-        text = json.dumps(_finite(jsonable_encoder(data)))
+        text = json.dumps(finite_json(jsonable_encoder(data)), allow_nan=False)
         self._texts[key] = (data, text)  # the object is kept, so its id is not reused
         while len(self._texts) > self._size:
             self._texts.popitem(last=False)
         return text
 
-
-def _finite(value: Any) -> Any:
-    """`value` with every non-finite float replaced by None."""
-    if isinstance(value, float):
-        return value if value == value and value not in (float("inf"), float("-inf")) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value

@@ -33,8 +33,8 @@ def is_disk_full(exc: BaseException) -> bool:
 def storage_reason(exc: BaseException) -> str:
     """One line for the user: "disk full: ..." or "storage unavailable: ...", with the
     database's own words (bounded in length)."""
-    detail = str(getattr(exc, "orig", None) or exc).splitlines()[0][:200] if str(exc) else \
-        type(exc).__name__
+    words = str(getattr(exc, "orig", None) or exc).strip()
+    detail = words.splitlines()[0][:200] if words else type(exc).__name__
     if is_disk_full(exc):
         return f"disk full: the database cannot store this ({detail})"
     return f"storage unavailable: {type(exc).__name__}: {detail}"

@@ -15,7 +15,6 @@ from typing import Any
 import psutil
 import pytest
 from distributed import Client, LocalCluster
-from sqlalchemy import event
 
 from gcs.errors import ServiceBusy
 from gcs.service import plan_runner, plan_worker
@@ -23,6 +22,7 @@ from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.store import Store
 from planner import Scenario
 from tests.api.support import example
+from tests.service.support import fill_the_disk
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -278,26 +278,13 @@ def test_a_full_queue_is_refused_and_small_jobs_pass_large_ones(
     assert_idle(cluster)
 
 
-def _full_disk(store: Store) -> None:
-    """Make the SQLite file unable to grow (SQLITE_FULL), as a full disk would."""
-
-    def cap(connection: Any, _record: Any) -> None:
-        cursor = connection.cursor()
-        pages = cursor.execute("PRAGMA page_count").fetchone()[0]
-        cursor.execute(f"PRAGMA max_page_count={pages}")
-        cursor.close()
-
-    event.listen(store.engine, "connect", cap)
-    store.engine.dispose()
-
-
 def test_a_plan_the_disk_cannot_hold_fails_the_mission_with_the_reason(store, cluster) -> None:
     async def scenario_run() -> None:
         service = await started_service(store, cluster)
         try:
             data = scenario("circle16")
             row = store.create_mission(data)
-            _full_disk(store)
+            fill_the_disk(store)
             job = service.submit(row.id, data)
             outcome = await done(job)
         finally:

@@ -11,13 +11,13 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import event
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.storage_faults import is_disk_full, storage_reason
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING, example
+from tests.service.support import fill_the_disk
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -65,26 +65,13 @@ def test_a_flight_the_store_refuses_is_held_in_memory_then_stored_in_full(
         assert client.app.state.fleet.flight(execution["id"]) is None  # type: ignore[attr-defined]
 
 
-def _fill_the_disk(store: Any) -> None:
-    """Make the SQLite file unable to grow (SQLITE_FULL), as a full disk would."""
-
-    def cap(connection: Any, _record: Any) -> None:
-        cursor = connection.cursor()
-        pages = cursor.execute("PRAGMA page_count").fetchone()[0]
-        cursor.execute(f"PRAGMA max_page_count={pages}")
-        cursor.close()
-
-    event.listen(store.engine, "connect", cap)
-    store.engine.dispose()
-
-
 def test_a_write_on_a_full_disk_answers_507_disk_full(
     make_settings: Callable[..., Settings]
 ) -> None:
     with TestClient(create_app(make_settings()), raise_server_exceptions=False) as client:
         first = client.post("/api/missions?wait=60", json=example("paper-circle2"))
         assert first.status_code == 201
-        _fill_the_disk(client.app.state.store)  # type: ignore[attr-defined]
+        fill_the_disk(client.app.state.store)  # type: ignore[attr-defined]
         big = {**example("circle16"), "name": "x" * 200}
         answers = [client.post("/api/missions?wait=0", json=big) for _ in range(20)]
         refused = [a for a in answers if a.status_code != 202]
