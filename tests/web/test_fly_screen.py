@@ -31,15 +31,28 @@ def test_fly_screen_follows_the_flight_then_abort(
     expect(page.locator("#mapping-pairs")).to_have_text("a→mock 1, b→mock 2, c→mock 3, d→mock 4")
     expect(page.locator("#flight-list")).to_contain_text("not flown yet")
 
-    # Every clock text the page shows, kept by the page itself (no race with the test).
-    page.evaluate("""() => { window.clockTexts = [];
-        new MutationObserver(() => window.clockTexts.push(
-            document.getElementById('time-label').textContent)).observe(
-            document.getElementById('time-label'), {childList: true, characterData: true,
-                                                     subtree: true}); }""")
+    # Every clock text the page shows, kept by the page itself (no race with the test). At the
+    # first clock update while the plan is between 15 % and 85 % flown, the page itself takes
+    # one reading and clicks Pause in the same moment: the checks below then read a fleet that
+    # holds still, however slowly a busy machine lets the test run.
+    page.evaluate("""() => { window.clockTexts = []; window.midPlan = null;
+        const label = document.getElementById('time-label');
+        new MutationObserver(() => {
+            window.clockTexts.push(label.textContent);
+            const progress = document.getElementById('flight-progress').value;
+            const pause = document.getElementById('pause-button');
+            if (window.midPlan || progress < 150 || progress > 850 || pause.disabled) return;
+            window.midPlan = {slider: Number(document.getElementById('time-slider').value),
+                progress, label: label.textContent,
+                icons: Array.from(document.querySelectorAll('#fly-view g.vehicle-icon text'),
+                                  (t) => t.textContent)};
+            pause.click();
+        }).observe(label, {childList: true, characterData: true, subtree: true}); }""")
     page.click("#fly-button")
     status = page.locator("#execution-status")
-    expect(status).to_have_attribute("data-status", "running", timeout=30_000)
+    # Running, or already paused by the page's own mid-plan click.
+    expect(status).to_have_attribute("data-status", re.compile("^(running|paused)$"),
+                                     timeout=30_000)
     expect(page.locator("#fly-button")).to_be_disabled()
     expect(page.locator("#flight-list li[data-id]")).to_have_count(1)
     expect(page.locator("#flight-list .status-badge.live")).to_have_count(1)
@@ -50,21 +63,9 @@ def test_fly_screen_follows_the_flight_then_abort(
     table = page.locator("#vehicle-state").bounding_box()
     assert view and table and table["x"] >= view["x"] + view["width"]  # docked beside it
 
-    # Mid-plan: the slider follows mission time and the bar fills with it. One reading of
-    # the page, taken while the plan is between a quarter and six tenths flown, and Pause
-    # clicked by the page in the same moment: the checks below then read a fleet that holds
-    # still, however slowly a busy machine lets them run.
-    now = page.wait_for_function("""() => {
-        const progress = document.getElementById('flight-progress').value;
-        const pause = document.getElementById('pause-button');
-        if (progress < 250 || progress > 600 || pause.disabled) return null;
-        const reading = {slider: Number(document.getElementById('time-slider').value),
-                progress, label: document.getElementById('time-label').textContent,
-                icons: Array.from(document.querySelectorAll('#fly-view g.vehicle-icon text'),
-                                  (t) => t.textContent)};
-        pause.click();
-        return reading;
-    }""", timeout=60_000).json_value()
+    # Mid-plan: the slider follows mission time and the bar fills with it (the page's one
+    # reading, taken as it clicked Pause).
+    now = page.wait_for_function("window.midPlan", timeout=90_000).json_value()
     reading = re.search(r"t = (\d+\.\d) s of 10\.0 s", now["label"])
     assert reading, now["label"]
     mission_time = float(reading.group(1))
