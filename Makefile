@@ -8,11 +8,13 @@ STAMP := $(VENV)/.installed-stamp
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet uv
 
-# Reinstall whenever the project's dependencies change.
+# Reinstall whenever the project's dependencies change. uv installs the same packages from
+# the same index as pip, in seconds rather than a minute and a half; pip is the fallback.
 $(STAMP): pyproject.toml | $(PY)
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(VENV)/bin/uv pip install --quiet --python $(PY) -e '.[test]' || \
+	  $(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -23,11 +25,15 @@ install: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/fleetplan serve
 
-# Every check: lint (ruff, mypy), then every test. Test files run in parallel processes
-# (pytest-xdist, one per core, at most 3), one file per process at a time; the 15 slowest
-# tests are listed at the end.
-test: lint test-tools
-	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15
+# Every check: ruff, then every test with mypy beside them (its report follows the tests').
+# Test files run in parallel processes (pytest-xdist, one per core, at most 3), one file per
+# process at a time; the 15 slowest tests are listed at the end.
+test: $(STAMP) test-tools
+	$(PY) -m ruff check planner gcs tests bench
+	@$(PY) -m mypy > $(VENV)/mypy.log 2>&1 & types=$$!; \
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15; tests=$$?; \
+	wait $$types; typed=$$?; echo "mypy:"; cat $(VENV)/mypy.log; \
+	test $$tests -eq 0 && test $$typed -eq 0
 
 # The inner loop: no browser and no full mock flights (markers `browser`, `flight`).
 test-fast: $(STAMP)
