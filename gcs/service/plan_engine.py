@@ -6,7 +6,7 @@ with a scheduler address it plans on an existing cluster instead (`dask schedule
 `dask worker`). Each plan is one task (`plan_worker.run_plan`; a sequence: one per leg and a
 stitching task); its progress comes back as Dask structured events on one topic per engine.
 The embedded cluster's processes exit by themselves when the service dies (distributed's
-parent-alive pipe).
+parent-alive pipe), and run at a lower CPU priority than the service (`plan_priority`).
 """
 
 from __future__ import annotations
@@ -82,6 +82,10 @@ class DaskEngine:
             on_message(event[1])
 
         client.subscribe_topic(self._topic, on_event)
+        if self._cluster is not None:  # our own workers share the service's cores
+            from gcs.service.plan_priority import LowerPriority
+
+            await client.register_plugin(LowerPriority())
         # Import the planner on every worker now rather than on the first request.
         await client.run(plan_worker.warm)
 
