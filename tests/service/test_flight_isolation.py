@@ -4,7 +4,9 @@ loop blocked for 1.5 s while a flight streams delays no setpoint tick, loses no 
 from __future__ import annotations
 
 import asyncio
+import os
 import re
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -12,7 +14,7 @@ from typing import Any
 import pytest
 
 from gcs.flight.phases import EventKind
-from gcs.flight.vehicle_loop import VehicleLoop, VehicleLoopStopped
+from gcs.flight.vehicle_loop import SWITCH_INTERVAL_S, VehicleLoop, VehicleLoopStopped
 from gcs.service.flights import FleetService
 from gcs.service.settings import Settings
 from gcs.service.store import Store
@@ -88,3 +90,29 @@ def test_a_call_on_a_stopped_vehicle_loop_is_refused_not_left_waiting() -> None:
             await vehicles.run(lambda: None)
 
     asyncio.run(main())
+
+
+def test_the_vehicle_threads_scheduling_is_what_it_reports() -> None:
+    """realtime: SCHED_RR 1 where Linux allows it, else ordinary with the refusal named;
+    either way the report matches the thread's own policy, and the GIL switch interval is
+    short only while a vehicle loop runs."""
+    before = sys.getswitchinterval()
+    vehicles = VehicleLoop(name="fleetplan-test-rt", realtime=True)
+    vehicles.start()
+
+    async def policy() -> int:
+        return await vehicles.run(lambda: os.sched_getscheduler(0))
+
+    try:
+        assert sys.getswitchinterval() <= SWITCH_INTERVAL_S
+        seen = asyncio.run(policy()) & ~os.SCHED_RESET_ON_FORK
+    finally:
+        vehicles.stop()
+    if vehicles.scheduling == "SCHED_RR 1":
+        assert seen == os.SCHED_RR
+    else:
+        assert vehicles.scheduling.startswith("ordinary (real-time refused: ")
+        assert seen == os.SCHED_OTHER
+    assert sys.getswitchinterval() == before
+    # the caller's own thread keeps its scheduling
+    assert os.sched_getscheduler(0) & ~os.SCHED_RESET_ON_FORK == os.SCHED_OTHER
