@@ -63,6 +63,7 @@ class VehicleLoop:
         self._pending: set[concurrent.futures.Future[Any]] = set()
         self._pending_lock = threading.Lock()
         self._switch_held = False
+        self._stop_posted = False
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -93,8 +94,11 @@ class VehicleLoop:
         from a thread, e.g. ``await asyncio.to_thread(loop.stop)``)."""
         loop, thread = self._loop, self._thread
         if loop is not None and thread is not None and thread.is_alive():
-            with contextlib.suppress(RuntimeError):  # closed meanwhile
-                loop.call_soon_threadsafe(loop.stop)
+            if self._ready.is_set() and not self._stop_posted:
+                # once only: a second stop would cut short the tasks' cleanup (`_main`)
+                self._stop_posted = True
+                with contextlib.suppress(RuntimeError):  # closed meanwhile
+                    loop.call_soon_threadsafe(loop.stop)
             thread.join(timeout)
         self._release_switch_interval()
 
@@ -112,8 +116,10 @@ class VehicleLoop:
         finally:
             self._ready.clear()
             self._fail_pending()
-            with contextlib.suppress(Exception):
+            try:
                 _cancel_all(loop)
+            except BaseException:
+                log.exception("the vehicle loop %s could not finish its tasks", self.name)
             loop.close()
 
     def _enter_realtime(self) -> None:

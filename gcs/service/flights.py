@@ -256,9 +256,10 @@ class FleetService:
         except MissionAborted as exc:
             flight.status, flight.error = ExecutionStatus.ABORTED, str(exc)
         except VehicleLoopStopped as exc:
-            # The vehicle thread ended: nothing streams any more, so PX4's offboard-loss
-            # failsafe lands the vehicles; the operator must look at them.
-            log.critical("execution %s: %s; the vehicles get no setpoints (PX4 failsafe)",
+            # The vehicle thread's loop ended: its cleanup cancels the flight (which sends
+            # every vehicle to land), nothing streams any more (PX4's offboard-loss failsafe
+            # lands a vehicle that missed the command); the operator must look at them.
+            log.critical("execution %s: %s; the setpoint stream has stopped, check the fleet",
                          flight.id, exc)
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
         except GcsError as exc:

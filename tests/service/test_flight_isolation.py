@@ -116,3 +116,42 @@ def test_the_vehicle_threads_scheduling_is_what_it_reports() -> None:
     assert sys.getswitchinterval() == before
     # the caller's own thread keeps its scheduling
     assert os.sched_getscheduler(0) & ~os.SCHED_RESET_ON_FORK == os.SCHED_OTHER
+
+
+@pytest.mark.flight
+def test_a_vehicle_thread_that_dies_mid_flight_fails_the_flight(tmp_path: Path) -> None:
+    """The thread's loop ending (here a SystemExit out of a callback) stops every stream; the
+    service does not wait on it for ever: the flight is stored failed, naming the cause."""
+    plan = smooth_plan(short_line(2, steps=25))
+    settings = Settings(mock_vehicles=2, mock_base_port=free_udp_base(2), mock_settle_s=0.5,
+                        database_url=f"sqlite:///{tmp_path / 'fleet.db'}")
+    store = Store(settings.database_url)
+    mission = store.create_mission(plan.scenario.to_dict())
+
+    def die() -> None:
+        raise SystemExit("the vehicle thread dies")
+
+    async def fly() -> str:
+        service = FleetService(settings, store)
+        await service.start()
+        try:
+            row = await service.fly(mission.id, plan, {"hold_at_goal": 0.5})
+            flight = service.flight(row.id)
+            assert flight is not None
+            await _wait_for(lambda: any(e["kind"] == EventKind.FLIGHT_START
+                                        for e in flight.events), "the plan started")
+            service.vehicle_loop.post(die)
+            await asyncio.wait_for(flight.done.wait(), 60)
+            assert flight.status == "failed"
+            assert flight.error is not None and "VehicleLoopStopped" in flight.error
+            assert service.active is None
+            return row.id
+        finally:
+            await service.close()
+
+    with quick_service_mocks():
+        execution_id = asyncio.run(fly())
+    stored = store.get_execution(execution_id)
+    store.close()
+    assert stored is not None and stored.status == "failed"
+    assert "VehicleLoopStopped" in (stored.error or "")
