@@ -4,7 +4,9 @@ Live progress per vehicle once a second and every event as it happens; a summary
 exit status 0 only when the flight completed. Ctrl-C aborts safely: every vehicle lands and
 the command waits for them to disarm (a second Ctrl-C exits at once). SIGUSR1 pauses the
 mission (the clock stops, every vehicle holds the plan's setpoint of the same plan time),
-SIGUSR2 resumes it: ``kill -USR1 PID``.
+SIGUSR2 resumes it: ``kill -USR1 PID``. The flight and the mock vehicles run on their own
+thread (`gcs.flight.vehicle_loop`), driven through a `gcs.flight.flight_handle.FlightHandle`
+as the REST service drives them; the signals are handled on the main thread's loop.
 """
 
 from __future__ import annotations
@@ -78,8 +80,9 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gcs.errors import FleetFileError, GcsError
-    from gcs.flight.executor import FlightExecutor
     from gcs.flight.fleetfile import FleetSpec, load_fleet
+    from gcs.flight.flight_handle import FlightHandle
+    from gcs.flight.vehicle_loop import VehicleLoop
     from gcs.sim import MockFleet, homes_under
     from planner.errors import PlannerError
     from planner.result import Plan
@@ -101,7 +104,16 @@ def run(args: argparse.Namespace) -> int:
         return 2
 
     async def main() -> int:
+        vehicles = VehicleLoop()  # the flight and the mocks run apart from this loop
+        vehicles.start()
+        try:
+            return await fly(vehicles)
+        finally:
+            await asyncio.to_thread(vehicles.stop)
+
+    async def fly(vehicles: VehicleLoop) -> int:
         mock = None
+        events: asyncio.Queue[dict | None] = asyncio.Queue()
         try:
             if args.mock:
                 homes = homes_under(plan.scenario.starts)
@@ -109,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
                                  realism=args.mock_realism, **settle)
-                await mock.start()
+                await vehicles.call(mock.start)
                 fleet_dict = mock.fleet_dict(plan.scenario.ids)
                 if args.mock_position_error is not None:
                     fleet_dict["position_error"] = args.mock_position_error
@@ -119,10 +131,11 @@ def run(args: argparse.Namespace) -> int:
             changes = {field: getattr(args, flag) for flag, field in _OPTION_FLAGS.items()
                        if getattr(args, flag) is not None}
             options = fleet.options.replace(where="option", **changes)
-            executor = FlightExecutor(plan, fleet, options)
+            handle = await FlightHandle.create(vehicles, plan, fleet, options,
+                                               on_event=events.put_nowait)
         except (GcsError, OSError) as exc:
             if mock is not None:
-                await mock.stop()
+                await vehicles.call(mock.stop)
             where = f"{exc.field}: " if isinstance(exc, FleetFileError) else ""
             print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}",
                   file=sys.stderr)
@@ -138,13 +151,13 @@ def run(args: argparse.Namespace) -> int:
             if interrupts == 1:
                 print("\nCtrl-C: aborting, every vehicle lands (Ctrl-C again to quit now)",
                       file=sys.stderr, flush=True)
-                aborts.append(asyncio.ensure_future(executor.abort("land", "interrupted (Ctrl-C)")))
+                aborts.append(asyncio.ensure_future(handle.abort("land", "interrupted (Ctrl-C)")))
             else:
                 task.cancel()
 
-        def on_pause(resume: bool) -> None:
+        async def pause_or_resume(resume: bool) -> None:
             try:
-                t = executor.resume() if resume else executor.pause()
+                t = await (handle.resume() if resume else handle.pause())
             except GcsError as exc:
                 print(f"cannot {'resume' if resume else 'pause'}: {exc}", file=sys.stderr,
                       flush=True)
@@ -152,11 +165,14 @@ def run(args: argparse.Namespace) -> int:
             print(f"{'resumed' if resume else 'paused'} at mission time {t:.2f} s "
                   f"({'SIGUSR1 pauses' if resume else 'SIGUSR2 resumes'})", flush=True)
 
-        task = executor.start()
+        def on_pause(resume: bool) -> None:
+            aborts.append(asyncio.ensure_future(pause_or_resume(resume)))
+
+        task = handle.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
         loop.add_signal_handler(signal.SIGUSR1, on_pause, False)
         loop.add_signal_handler(signal.SIGUSR2, on_pause, True)
-        printer = None if args.quiet else asyncio.create_task(_progress(executor))
+        printer = None if args.quiet else asyncio.create_task(_progress(handle, events))
         record = None
         status = 1
         try:
@@ -164,20 +180,21 @@ def run(args: argparse.Namespace) -> int:
             status = 0 if record["summary"]["completed"] else 1
         except asyncio.CancelledError:
             print("interrupted again: quitting without waiting", file=sys.stderr)
-            record = executor.record
+            record = handle.record
             status = 130
         except GcsError as exc:
             print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
-            record = executor.record
+            record = handle.record
         finally:
             for sig in (signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2):
                 loop.remove_signal_handler(sig)
             if printer is not None:
+                events.put_nowait(None)
                 printer.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
                     await printer
-            if mock is not None:
-                await mock.stop()
+            if mock is not None and vehicles.alive:
+                await vehicles.call(mock.stop)
         if record is not None:
             _print_summary(record)
         write_record(record)
@@ -186,9 +203,10 @@ def run(args: argparse.Namespace) -> int:
     return asyncio.run(main())
 
 
-async def _progress(executor) -> None:
-    """Events as they happen, and the status table (`gcs.cli.fly_status`): redrawn in place on
-    a terminal, printed every 5 s otherwise (logs stay readable)."""
+async def _progress(handle, events) -> None:
+    """Events as they happen (from `events`, the queue the flight hands them to), and the
+    status table (`gcs.cli.fly_status`): redrawn in place on a terminal, printed every 5 s
+    otherwise (logs stay readable)."""
     import asyncio
 
     from rich.console import Console
@@ -198,26 +216,26 @@ async def _progress(executor) -> None:
 
     console = Console(highlight=False)
 
-    async def events() -> None:
-        async for event in executor.events():
+    async def print_events() -> None:
+        while (event := await events.get()) is not None:
             if event["kind"] in ("statustext", "mode_change") and event["vehicle"]:
                 continue
             who = event["vehicle"] or "fleet"
             console.print(f"  [{event['t']:7.2f}] {who}: {event['kind']} {event['detail']}",
                           markup=False)
 
-    watcher = asyncio.create_task(events())
+    watcher = asyncio.create_task(print_events())
     try:
         if console.is_terminal:
-            with Live(status_table(executor.snapshot()), console=console,
+            with Live(status_table(handle.snapshot()), console=console,
                       refresh_per_second=4, transient=False) as live:
                 while True:
                     await asyncio.sleep(0.25)
-                    live.update(status_table(executor.snapshot()))
+                    live.update(status_table(handle.snapshot()))
         else:
             while True:
                 await asyncio.sleep(5.0)
-                console.print(status_table(executor.snapshot()))
+                console.print(status_table(handle.snapshot()))
     finally:
         watcher.cancel()
 

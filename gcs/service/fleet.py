@@ -4,7 +4,8 @@ sent to the vehicles between flights.
 `Fleet` owns one fleet: the vehicles of a fleet file (real PX4 or SITL), or mock PX4 vehicles
 running in-process (`gcs.sim.MockFleet`), or none. Between flights it keeps a listen-only
 MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live link state;
-a flight closes the monitor and takes the connections (`gcs.service.flights`). Mock vehicles
+a flight closes the monitor and takes the connections (`gcs.service.flights`). Everything
+here but `describe` runs on the vehicle loop (`gcs.flight.vehicle_loop`). Mock vehicles
 are set down under a plan's starts before each flight (as ``fleetplan fly --mock`` does);
 vehicles the plan does not use are parked beside its workspace. `command` sends a fleet
 command (`gcs.flight.commands`: hold, land, rtl, disarm, terminate) over the monitor's
@@ -150,11 +151,13 @@ class Fleet:
 
     def describe(self) -> dict[str, Any]:
         """kind, vehicle count and ids, and the geodetic origin of the world frame when known
-        (the fleet file's `world_origin`, or the mock's)."""
-        ids = [] if self.spec is None else [v.id for v in self.spec.vehicles]
-        origin = self.spec.world_origin if self.spec is not None else None
-        if origin is None and self.mock is not None:
-            origin = self.mock.world_origin
+        (the fleet file's `world_origin`, or the mock's). Safe from any thread: it reads the
+        spec and the mock once, and the vehicle loop replaces them whole."""
+        spec, mock = self.spec, self.mock  # each replaced whole on the vehicle loop
+        ids = [] if spec is None else [v.id for v in spec.vehicles]
+        origin = spec.world_origin if spec is not None else None
+        if origin is None and mock is not None:
+            origin = mock.world_origin
         return {
             "kind": self.kind,
             "vehicles": len(ids),

@@ -2,10 +2,15 @@
 from its start to its stored record.
 
 `FleetService` owns the configured fleet (`gcs.service.fleet.Fleet`) and its one active
-flight: the fleet is one set of aircraft. For a flight it closes the fleet's monitor and hands
-the connections to a `gcs.flight.executor.FlightExecutor`, which does everything that talks to
-vehicles; the flight's state lives in a `LiveExecution` (`gcs.service.live_flight`) and is
-journaled to the store while it flies (`gcs.service.journal`).
+flight: the fleet is one set of aircraft. Everything that talks to vehicles runs apart from the
+service's event loop, on the vehicle loop (`gcs.flight.vehicle_loop.VehicleLoop`, its own
+thread): the fleet (mocks, monitor links, fleet commands) and each flight's
+`gcs.flight.executor.FlightExecutor`, driven through a `gcs.flight.flight_handle.FlightHandle`
+(start, pause, resume, abort, snapshots, events). So no request handler, export, event stream,
+planning job or store write on the service's loop can delay a setpoint tick. For a flight it
+closes the fleet's monitor and hands the connections to the executor; the flight's state
+lives in a `LiveExecution` (`gcs.service.live_flight`) and is journaled to the store while it
+flies (`gcs.service.journal`).
 
 Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions), which first
 applies the pre-flight gate (`gcs.flight.health`) and the fleet's separation margin
@@ -19,15 +24,17 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+from collections.abc import Awaitable, Callable
 from datetime import UTC, datetime
 from typing import Any
 
 from gcs.errors import GcsError, MissionAborted, StateConflict
-from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FlightOptions
+from gcs.flight.flight_handle import FlightHandle
 from gcs.flight.phases import EventKind
+from gcs.flight.vehicle_loop import VehicleLoop, VehicleLoopStopped
 from gcs.service.fleet import Fleet
-from gcs.service.journal import ExecutionJournal, store_failure, write_final
+from gcs.service.journal import ExecutionJournal, record_snapshot, store_failure, write_final
 from gcs.service.live_flight import LiveExecution, execution_document
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
@@ -57,8 +64,11 @@ class FleetService:
 
     def __init__(self, settings: Settings, store: Store) -> None:
         self._store = store
+        self.vehicle_loop = VehicleLoop(realtime=settings.vehicle_thread_priority == "realtime")
+        """The thread everything that talks to vehicles runs on (fleet, mocks, flights)."""
         self.fleet = Fleet(settings)
-        """The vehicles (file, mock or none) and their monitor links."""
+        """The vehicles (file, mock or none) and their monitor links; used on the vehicle
+        loop only (`describe` excepted)."""
         self._flights: dict[str, LiveExecution] = {}
         self._active: LiveExecution | None = None
         self._tasks = TaskSet()
@@ -73,8 +83,12 @@ class FleetService:
     # ------------------------------------------------------------------ lifecycle
 
     async def start(self) -> None:
-        """Load the fleet (or start the mocks) and watch its links."""
-        await self.fleet.start()
+        """Start the vehicle loop, load the fleet (or start the mocks there) and watch its
+        links."""
+        self.vehicle_loop.start()
+        if self.vehicle_loop.scheduling != "ordinary":
+            log.info("vehicle loop scheduling: %s", self.vehicle_loop.scheduling)
+        await self.vehicle_loop.call(self.fleet.start)
 
     async def close(self) -> None:
         """Land an active flight (waiting for it up to a minute), then release everything
@@ -88,7 +102,12 @@ class FleetService:
                 await asyncio.wait_for(flight.done.wait(), CLOSE_LANDING_S)
         self._tasks.cancel_all()
         await self._tasks.wait(timeout=10.0)  # let cancelled flights store what they have
-        await self.fleet.close()
+        if self.vehicle_loop.alive:
+            try:
+                await self.vehicle_loop.call(self.fleet.close)
+            except Exception:
+                log.exception("could not close the fleet")
+        await asyncio.to_thread(self.vehicle_loop.stop)
 
     # ------------------------------------------------------------------ state
 
@@ -99,14 +118,15 @@ class FleetService:
         described = self.fleet.describe()
         return {**described, "flying": None if self._active is None else self._active.id}
 
-    def vehicles(self) -> list[dict[str, Any]]:
+    async def vehicles(self) -> list[dict[str, Any]]:
         """Every vehicle's live link state: from the flight under way, else from the
-        monitor (heartbeat age, mode, armed, world-frame position when the home is known)."""
+        monitor (heartbeat age, mode, armed, world-frame position when the home is known),
+        read on the vehicle loop."""
         flight = self._active
         snapshot = flight.snapshot() if flight is not None else None
         if snapshot is not None:
             return [{**v, "link": "flight"} for v in snapshot["vehicles"]]
-        return self.fleet.monitored()
+        return await self.vehicle_loop.run(self.fleet.monitored)
 
     def flight(self, execution_id: str) -> LiveExecution | None:
         """The flight while it is under way, or ended and waiting for the store to take its
@@ -130,7 +150,8 @@ class FleetService:
         [outcome...]} once every vehicle answered or timed out."""
         async with self._lock:
             self._check_not_flying("use its abort (or pause) instead of a fleet command")
-            return await self.fleet.command(command, vehicles, force=force, confirm=confirm)
+            return await self.vehicle_loop.call(lambda: self.fleet.command(
+                command, vehicles, force=force, confirm=confirm))
 
     def _check_not_flying(self, while_flying: str) -> None:
         if self.active is not None:
@@ -146,7 +167,8 @@ class FleetService:
         """
         async with self._lock:
             self._check_not_flying("abort it or wait for it to end")
-            flight_options = self.fleet.flight_options(plan, options)
+            flight_options = await self.vehicle_loop.run(
+                lambda: self.fleet.flight_options(plan, options))
             label = f"{self.kind}: {', '.join(plan.scenario.ids)}"
             row = await asyncio.to_thread(self._store.create_execution, mission_id, label)
             flight = LiveExecution(row.id, mission_id)
@@ -165,28 +187,28 @@ class FleetService:
         if flight.abort_requested is None:
             flight.abort_requested = action
             flight.set_status(ExecutionStatus.ABORTING)
-            if flight.executor is not None:
-                self._tasks.spawn(flight.executor.abort(action, reason))
+            if flight.handle is not None:
+                self._tasks.spawn(flight.handle.abort(action, reason))
         return flight
 
-    def pause(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+    async def pause(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
         """Stop the flight's clock, every vehicle holding the plan's setpoint of the same plan
         time (status paused). StateConflict unless it is running its plan."""
         flight = self._flying(execution_id, stored_status)
-        if flight.status != ExecutionStatus.RUNNING or flight.executor is None:
+        if flight.status != ExecutionStatus.RUNNING or flight.handle is None:
             raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
                                                 f"paused (status {flight.status})")
-        flight.executor.pause()
+        await flight.handle.pause()
         flight.set_status(ExecutionStatus.PAUSED)
         return flight
 
-    def resume(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+    async def resume(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
         """Restart a paused flight's clock where it stopped (status running)."""
         flight = self._flying(execution_id, stored_status)
-        if flight.status != ExecutionStatus.PAUSED or flight.executor is None:
+        if flight.status != ExecutionStatus.PAUSED or flight.handle is None:
             raise StateConflict("execution_id", f"execution {execution_id!r} is not paused "
                                                 f"(status {flight.status})")
-        flight.executor.resume()
+        await flight.handle.resume()
         flight.set_status(ExecutionStatus.RUNNING)
         return flight
 
@@ -204,25 +226,26 @@ class FleetService:
     async def _run(self, flight: LiveExecution, plan: Plan, options: FlightOptions) -> None:
         record: dict[str, Any] | None = None
         ticker: asyncio.Task[None] | None = None
-        relay: asyncio.Task[None] | None = None
-        task: asyncio.Task[dict[str, Any]] | None = None
+        task: asyncio.Future[dict[str, Any]] | None = None
+        vehicles = self.vehicle_loop
         # State, events and the record so far are stored about every second while flying,
-        # so a crash keeps them.
+        # so a crash keeps them; the record is copied on the vehicle loop that appends to it.
         journal = ExecutionJournal(self._store, flight.id, lambda: (
-            flight.status, flight.events,
-            None if flight.executor is None else flight.executor.recorder))
+            flight.status, flight.events, _record_copy(flight.handle)))
         journal.start()
         try:
-            await self.fleet.close_monitor()
+            await vehicles.call(self.fleet.close_monitor)
             if self.kind == "mock":
-                await self.fleet.rehome_mock(plan)
-            executor = FlightExecutor(plan, self.fleet.configured(), options)
-            flight.executor = executor
-            relay = asyncio.create_task(self._relay_events(flight, executor))
-            ticker = asyncio.create_task(self._telemetry(flight, executor))
-            task = executor.start()
+                await vehicles.call(lambda: self.fleet.rehome_mock(plan))
+            spec = await vehicles.run(self.fleet.configured)
+            handle = await FlightHandle.create(
+                vehicles, plan, spec, options, snapshot_hz=TELEMETRY_HZ,
+                on_event=lambda event: self._on_event(flight, event))
+            flight.handle = handle
+            ticker = asyncio.create_task(self._telemetry(flight, handle))
+            task = handle.start()
             if flight.abort_requested is not None:  # aborted while starting
-                await executor.abort(flight.abort_requested, "operator abort")
+                await handle.abort(flight.abort_requested, "operator abort")
             else:
                 flight.set_status(ExecutionStatus.RUNNING)
             record = await task
@@ -232,6 +255,13 @@ class FleetService:
                              else ExecutionStatus.INCOMPLETE)
         except MissionAborted as exc:
             flight.status, flight.error = ExecutionStatus.ABORTED, str(exc)
+        except VehicleLoopStopped as exc:
+            # The vehicle thread's loop ended: its cleanup cancels the flight (which sends
+            # every vehicle to land), nothing streams any more (PX4's offboard-loss failsafe
+            # lands a vehicle that missed the command); the operator must look at them.
+            log.critical("execution %s: %s; the setpoint stream has stopped, check the fleet",
+                         flight.id, exc)
+            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
         except GcsError as exc:
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
         except asyncio.CancelledError:
@@ -241,18 +271,17 @@ class FleetService:
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("execution %s failed", flight.id)
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
-            if task is not None and not task.done() and flight.executor is not None:
+            if task is not None and not task.done() and flight.handle is not None:
                 # never leave a flight going on its own: land everyone, then wait for it
                 with contextlib.suppress(Exception):
-                    await flight.executor.abort("land", f"service error: {type(exc).__name__}")
+                    await flight.handle.abort("land", f"service error: {type(exc).__name__}")
                 with contextlib.suppress(BaseException):
                     await task
         finally:
-            for helper in (ticker, relay):
-                if helper is not None:
-                    helper.cancel()
-            if record is None and flight.executor is not None:
-                record = flight.executor.record
+            if ticker is not None:
+                ticker.cancel()
+            if record is None and flight.handle is not None:
+                record = flight.handle.record
             if record is not None and flight.summary is None:
                 flight.summary = record.get("summary")
             await journal.close()
@@ -263,14 +292,18 @@ class FleetService:
             flight.done.set()
             flight.publish("done", flight.outcome())
             if stored:
-                # Stored: drop it (and its executor, which holds the whole record) from memory.
+                # Stored: drop it (and its handle, which holds the whole record) from memory.
                 self._flights.pop(flight.id, None)
             elif self._closing:
                 await store_failure(self._store, flight.id, self._unstored_reason(flight),
                                     flight.events)
             else:
                 self._tasks.spawn(self._store_later(flight, record))
-            await self.fleet.open_monitor()
+            if vehicles.alive:
+                try:
+                    await vehicles.call(self.fleet.open_monitor)
+                except VehicleLoopStopped:
+                    log.error("the vehicle loop stopped: the fleet is not watched")
 
     async def _store_final(self, flight: LiveExecution, record: dict[str, Any] | None) -> bool:
         """One try at the flight's final write; on failure the reason is kept on the flight
@@ -311,17 +344,26 @@ class FleetService:
         return (f"the flight ({flight.status}) could not be stored before the service "
                 f"stopped: {flight.unstored}")[:500]
 
-    async def _relay_events(self, flight: LiveExecution, executor: FlightExecutor) -> None:
-        """The executor's events into the flight's log and stream; a pause past its limit
-        ends the pause (the executor lands or holds the fleet)."""
-        async for event in executor.events():
-            flight.events.append(event)
-            flight.publish("event", event)
-            if event["kind"] == EventKind.PAUSE_LIMIT and flight.status == ExecutionStatus.PAUSED:
-                flight.set_status(ExecutionStatus.ABORTING)
+    def _on_event(self, flight: LiveExecution, event: dict[str, Any]) -> None:
+        """One event of the flight (handed over from the vehicle loop, in order) into the
+        flight's log and stream; a pause past its limit ends the pause (the executor lands
+        or holds the fleet)."""
+        flight.events.append(event)
+        flight.publish("event", event)
+        if event["kind"] == EventKind.PAUSE_LIMIT and flight.status == ExecutionStatus.PAUSED:
+            flight.set_status(ExecutionStatus.ABORTING)
 
-    async def _telemetry(self, flight: LiveExecution, executor: FlightExecutor) -> None:
-        """Live snapshots on the flight's stream at TELEMETRY_HZ."""
+    async def _telemetry(self, flight: LiveExecution, handle: FlightHandle) -> None:
+        """Live snapshots on the flight's stream at TELEMETRY_HZ (the latest the vehicle
+        loop posted)."""
         while True:
-            flight.publish("telemetry", executor.snapshot())
+            flight.publish("telemetry", handle.snapshot())
             await asyncio.sleep(1.0 / TELEMETRY_HZ)
+
+
+def _record_copy(handle: FlightHandle | None) -> Callable[[], Awaitable[dict[str, Any]]] | None:
+    """How the journal takes the record so far: on the vehicle loop (None before the
+    flight has one)."""
+    if handle is None:
+        return None
+    return lambda: handle.with_recorder(record_snapshot)

@@ -9,8 +9,9 @@ of it; while the store refuses that (a full disk), the flight service keeps the 
 in memory and retries, and only a service that stops meanwhile leaves the execution `failed`
 with the reason (`store_failure`), never stored as flying.
 
-Snapshots are taken on the event loop as shallow list copies (fast, and consistent with the
-loop that appends to them); the JSON is made and written in a thread. A failing write is
+The record so far is taken as shallow list copies by the source (`record_snapshot`, run on the
+vehicle loop that appends to those lists, so they are consistent and the copy is fast); the
+JSON is made and written in a thread. A failing write is
 logged and retried on the next beat: the flight itself never waits for the store.
 """
 
@@ -19,7 +20,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
 import orjson
@@ -29,7 +30,8 @@ from gcs.service.store import Store
 if TYPE_CHECKING:
     from gcs.flight.record import FlightRecorder
 
-__all__ = ["ExecutionJournal", "record_snapshot", "store_failure", "write_final"]
+__all__ = ["ExecutionJournal", "RecordCopy", "Source", "record_snapshot", "store_failure",
+           "write_final"]
 
 log = logging.getLogger(__name__)
 
@@ -57,8 +59,11 @@ def record_snapshot(recorder: FlightRecorder) -> dict[str, Any]:
             "vehicles": vehicles, "events": list(recorder.events), "summary": None}
 
 
-#: What the journal reads each beat: (status, events so far, flight recorder or None).
-Source = Callable[[], tuple[str, list[dict[str, Any]], "FlightRecorder | None"]]
+#: How the journal takes the record so far (`record_snapshot` where the recorder lives).
+RecordCopy = Callable[[], Awaitable[dict[str, Any]]]
+#: What the journal reads each beat: (status, events so far, how to take the record so far,
+#: or None while there is none).
+Source = Callable[[], tuple[str, list[dict[str, Any]], RecordCopy | None]]
 
 
 class ExecutionJournal:
@@ -102,13 +107,18 @@ class ExecutionJournal:
     async def flush(self, *, with_record: bool = False) -> bool:
         """Write the state now if it changed (and the record so far if asked); False if the
         store refused it."""
-        status, live_events, recorder = self._source()
+        status, live_events, take_record = self._source()
         state = (status, len(live_events))
-        with_record = with_record and recorder is not None
+        with_record = with_record and take_record is not None
         if state == self._written and not with_record:
             return True
         events = list(live_events)
-        record = None if not with_record or recorder is None else record_snapshot(recorder)
+        record = None
+        if with_record and take_record is not None:
+            try:
+                record = await take_record()
+            except Exception as exc:  # the flight ended meanwhile: the final write has it
+                log.debug("no record so far of %s: %s", self._id, exc)
 
         def write() -> None:
             text = None

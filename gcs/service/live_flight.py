@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from gcs.flight.executor import FlightExecutor
+from gcs.flight.flight_handle import FlightHandle
 from gcs.service.events import Broadcast, Event
 from gcs.service.statuses import ExecutionStatus
 from gcs.service.store import ExecutionRow
@@ -25,7 +25,8 @@ class LiveExecution:
     id: str
     mission_id: str
     status: ExecutionStatus = ExecutionStatus.STARTING
-    executor: FlightExecutor | None = None
+    handle: FlightHandle | None = None
+    """The flight on the vehicle loop, once it is made."""
     events: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
     error: str | None = None
@@ -53,8 +54,9 @@ class LiveExecution:
         self.publish("status", {"status": status})
 
     def snapshot(self) -> dict[str, Any] | None:
-        """The executor's live state (phase, vehicles), once it exists."""
-        return None if self.executor is None else self.executor.snapshot()
+        """The flight's live state (phase, vehicles) as the vehicle loop last posted it, once
+        the flight exists."""
+        return None if self.handle is None else self.handle.snapshot()
 
     def outcome(self) -> dict[str, Any]:
         """The stream's final `done` event."""
@@ -86,7 +88,7 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
         # Ended, but the store refused its final state: memory holds it, never "running".
         doc.update(status=flight.status, events=list(flight.events), summary=flight.summary,
                    error=flight.error, live=None,
-                   has_record=flight.executor is not None and flight.executor.record is not None,
+                   has_record=flight.handle is not None and flight.handle.record is not None,
                    finished_at=None if flight.finished_at is None
                    else flight.finished_at.isoformat())
     else:

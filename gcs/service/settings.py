@@ -111,6 +111,11 @@ class Settings(BaseSettings):
         "ideal", description="Mock vehicles' behaviour: ideal (exact state) or px4 (PX4 SIH "
         "SITL's estimate noise, tracking lag and timings)."
     )
+    vehicle_thread_priority: Literal["ordinary", "realtime"] = Field(
+        "ordinary", description="Scheduling of the thread that talks to the vehicles (flights, "
+        "mock vehicles, fleet monitor): realtime asks Linux for SCHED_RR 1 (root or "
+        "CAP_SYS_NICE; refused: logged, ordinary scheduling)."
+    )
     max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")
     dt_min: float = Field(0.01, gt=0, description="Shortest step `dt` a mission may use (s).")

@@ -312,7 +312,7 @@ async def pause_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str,
     fleet stays as separated as the plan is at that instant (status `paused`). After the
     fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the
     flight ends aborted. 409 unless the plan is being flown."""
-    flight = fleet.pause(execution.id, stored_status=execution.status)
+    flight = await fleet.pause(execution.id, stored_status=execution.status)
     return _document(execution, flight)
 
 
@@ -325,7 +325,7 @@ async def pause_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str,
 async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str, Any]:
     """The mission clock runs again from the plan time it stopped at (status `running`).
     409 unless paused."""
-    flight = fleet.resume(execution.id, stored_status=execution.status)
+    flight = await fleet.resume(execution.id, stored_status=execution.status)
     return _document(execution, flight)
 
 
@@ -338,8 +338,8 @@ async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str
 def get_record(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> Response:
     """Setpoints sent, telemetry received, events and the summary (gcs flight record)."""
     flight = fleet.flight(execution.id)
-    held = None if flight is None or flight.unstored is None or flight.executor is None \
-        else flight.executor.record
+    held = None if flight is None or flight.unstored is None or flight.handle is None \
+        else flight.handle.record
     if held is not None:
         # ended, not stored yet (a storage fault): the record is in memory
         return Response(

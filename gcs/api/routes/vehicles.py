@@ -41,8 +41,8 @@ class VehiclesOut(BaseModel):
 
 
 @router.get("", response_model=VehiclesOut, summary="The fleet and its live link state")
-def list_vehicles(fleet: FleetDep) -> dict[str, Any]:
-    return {"fleet": fleet.describe(), "vehicles": fleet.vehicles()}
+async def list_vehicles(fleet: FleetDep) -> dict[str, Any]:
+    return {"fleet": fleet.describe(), "vehicles": await fleet.vehicles()}
 
 
 @router.post(
