@@ -6,16 +6,19 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import threading
 from typing import Any
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api.fanout import SharedJson, Slots, StreamSlots
 from gcs.errors import ServiceBusy
 from gcs.service import plans
+from planner import Plan
 from tests.api.support import example
 
 
@@ -77,6 +80,37 @@ def test_a_streamed_csv_export_is_the_whole_table(
         times = [float(r["t"]) for r in rows if r["vehicle"] == vehicle]
         assert times == sorted(times) and times[0] == 0.0
         assert times[-1] == pytest.approx(horizon, abs=1e-6)
+
+
+def test_a_streamed_json_export_is_the_plan_sampled_one_vehicle_at_a_time(
+    shared_client: TestClient, planned: str
+) -> None:
+    """Sent in one piece per vehicle (after the times), the document is the TrajectoryOut
+    the plan's own sampling gives, strict JSON, and holds its slot until it is sent."""
+    plan = Plan.from_dict(shared_client.get(f"/api/missions/{planned}/plan").json())
+    exports: Slots = shared_client.app.state.exports  # type: ignore[attr-defined]
+    held = exports.held
+    with shared_client.stream("GET", f"/api/missions/{planned}/trajectory?rate=50"
+                              ) as response:
+        assert response.status_code == 200
+        assert response.headers["content-type"].startswith("application/json")
+        pieces = response.iter_raw()
+        body = next(pieces)
+        assert exports.held == held + 1  # its slot is held while vehicles are still sent
+        body += b"".join(pieces)
+    assert exports.held == held
+    assert b"NaN" not in body and b"Infinity" not in body  # strict JSON
+    document = json.loads(body)
+    times = np.asarray(document["t"])
+    expected = plan.sample(times)
+    assert document["mission_id"] == planned and document["rate"] == 50.0
+    assert document["frame"] == "world_enu"
+    assert times[0] == 0.0 and times[-1] == pytest.approx(plan.scenario.horizon, abs=1e-9)
+    assert [v["id"] for v in document["vehicles"]] == list(plan.scenario.ids)
+    for i, vehicle in enumerate(document["vehicles"]):
+        for key, want in (("position", expected.position), ("velocity", expected.velocity),
+                          ("acceleration", expected.acceleration)):
+            np.testing.assert_allclose(np.asarray(vehicle[key]), want[i], atol=1e-12)
 
 
 def test_event_streams_are_bounded_per_resource_and_in_total(

@@ -49,7 +49,7 @@ from gcs.service.limits import (
 )
 from gcs.service.plan_worker import finite_json
 from gcs.service.planning import PlanJob, PlanningService
-from gcs.service.plans import trajectory_csv_chunks, trajectory_json
+from gcs.service.plans import trajectory_csv_chunks, trajectory_json_chunks
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
@@ -393,8 +393,9 @@ def get_trajectory(
 ) -> Response:
     """Every vehicle's position, velocity and acceleration at `rate` Hz from 0 to the horizon
     (world frame ENU, exact motion between steps): what the GCS streams as setpoints. CSV has
-    one row per vehicle and time, sent as it is written. At most `max_concurrent_exports`
-    are computed at once; past that the answer is 503 with Retry-After."""
+    one row per vehicle and time. Both formats are sent as they are written (JSON one vehicle
+    at a time). At most `max_concurrent_exports` are computed at once; past that the answer
+    is 503 with Retry-After."""
     if rate > settings.max_trajectory_rate:
         raise InvalidRequest(
             "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}"
@@ -410,8 +411,8 @@ def get_trajectory(
                 "Content-Disposition": f'attachment; filename="trajectory-{mission.id}.csv"'
             },
         )
-    return Response(
-        trajectory_json(mission.id, plan, rate, settings.max_trajectory_samples),
+    return StreamingResponse(
+        trajectory_json_chunks(mission.id, plan, rate, settings.max_trajectory_samples),
         media_type="application/json",
     )
 
