@@ -79,10 +79,19 @@ class JobRunner:
 
     async def _enforce_stop(self, job: PlanJob) -> None:
         """Ask the task to stop; restart its worker if it has not stopped after the grace.
+        The cancel flag is cleared only then: a task dropped just as it started, which a
+        busy worker may begin seconds later, still finds it set and stops by itself."""
+        try:
+            await self._stop_or_restart(job)
+        finally:
+            if self._engine.started:
+                with contextlib.suppress(Exception):
+                    await self._engine.cancel_flag(job).clear()
 
-        Whether it stopped is asked of the workers themselves: a task cancelled just as it
-        started (before its `started` event arrived) is forgotten by the scheduler and ends
-        the job at once, but runs on in its worker until that worker is restarted."""
+    async def _stop_or_restart(self, job: PlanJob) -> None:
+        """Whether the task stopped is asked of the workers themselves: a task cancelled just
+        as it started (before its `started` event arrived) is forgotten by the scheduler and
+        ends the job at once, but runs on in its worker until that worker is restarted."""
         stop_asked = time.monotonic()
         with contextlib.suppress(Exception):
             await self._engine.cancel_flag(job).set()
@@ -142,9 +151,6 @@ class JobRunner:
         finally:
             watch.cancel()
             job.future = None
-            if job.stop_reason is not None and self._engine.started:
-                with contextlib.suppress(Exception):
-                    await self._engine.cancel_flag(job).clear()
 
     async def _compute(self, job: PlanJob, scenario: Any) -> plan_worker.PlanOutcome:
         """Run the task(s); the outcome (with its `error` when it failed or was stopped)."""

@@ -15,6 +15,7 @@ from typing import Any
 import psutil
 import pytest
 from distributed import Client, LocalCluster
+from distributed import Event as DaskEvent
 
 from gcs.errors import ServiceBusy
 from gcs.service import plan_runner, plan_worker
@@ -275,6 +276,36 @@ def test_a_full_queue_is_refused_and_small_jobs_pass_large_ones(
             await service.close()
 
     asyncio.run(scenario_run())
+    assert_idle(cluster)
+
+
+def test_a_task_dropped_as_it_starts_still_finds_its_cancel_flag_set(
+    store, cluster, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Cancelled before its `started` event arrived, the job ends at once; the task may
+    still begin on a busy worker moments later, so its cancel flag stays set while the
+    service looks for it (then it is cleared: nothing is left on the scheduler)."""
+    monkeypatch.setattr(plan_worker, "run_plan", patient_plan)
+
+    async def scenario_run() -> tuple[bool, bool]:
+        service = await started_service(store, cluster)
+        try:
+            job = submit(service, store, "random128")
+            service.cancel(job.mission_id)  # before any worker said it started
+            outcome = await done(job)
+            assert outcome["error"]["reason"] == "cancelled by the operator"
+            async with Client(cluster.scheduler_address, asynchronous=True) as client:
+                flag = DaskEvent(f"{job.key}-cancel", client=client)
+                set_after_done = await flag.is_set()
+                await service.close()  # waits for the stop to finish its looks
+                set_after_close = await flag.is_set()
+            return set_after_done, set_after_close
+        finally:
+            await service.close()
+
+    set_after_done, set_after_close = asyncio.run(scenario_run())
+    assert set_after_done
+    assert not set_after_close
     assert_idle(cluster)
 
 
