@@ -97,6 +97,7 @@ def test_fleet_commands_without_a_fleet(make_settings: Callable[..., Settings]) 
         assert [c["command"] for c in listed if c["needs"]] == ["disarm", "terminate"]
 
 
+@pytest.mark.flight
 @pytest.mark.usefixtures("quick_mocks")
 def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Settings]) -> None:
     """GET /api/vehicles shows battery, gps, health and link quality per vehicle; Fly is
