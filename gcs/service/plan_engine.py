@@ -82,12 +82,13 @@ class DaskEngine:
             on_message(event[1])
 
         client.subscribe_topic(self._topic, on_event)
+        # Import the planner on every worker now rather than on the first request (at full
+        # priority: the service's start waits for it).
+        await client.run(plan_worker.warm)
         if self._cluster is not None:  # our own workers share the service's cores
             from gcs.service.plan_priority import LowerPriority
 
             await client.register_plugin(LowerPriority())
-        # Import the planner on every worker now rather than on the first request.
-        await client.run(plan_worker.warm)
 
     async def close(self) -> None:
         """Close the client and the embedded cluster (tasks of an external one run on until

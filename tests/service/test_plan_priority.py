@@ -19,17 +19,17 @@ def _niceness() -> int:
 
 def test_embedded_workers_plan_at_lower_priority_even_after_a_restart() -> None:
     async def scenario() -> tuple[int, list[int], list[int]]:
-        engine = DaskEngine(workers=2, solver=None, scheduler=None)
+        engine = DaskEngine(workers=1, solver=None, scheduler=None)
         await engine.start(lambda message: None)
         try:
             address = engine.scheduler_address
             assert address is not None
             async with Client(address, asynchronous=True) as client:
                 before = await client.gather(
-                    [client.submit(_niceness, pure=False, key=f"nice-{k}") for k in range(4)])
+                    [client.submit(_niceness, pure=False, key=f"nice-{k}") for k in range(2)])
                 await client.restart_workers(list(client.scheduler_info()["workers"]))
                 after = await client.gather(
-                    [client.submit(_niceness, pure=False, key=f"again-{k}") for k in range(4)])
+                    [client.submit(_niceness, pure=False, key=f"again-{k}") for k in range(2)])
             return _niceness(), before, after
         finally:
             await engine.close()
