@@ -16,7 +16,7 @@ import pytest
 
 from gcs.flight.phases import EventKind
 from gcs.flight.vehicle_loop import SWITCH_INTERVAL_S, VehicleLoop, VehicleLoopStopped
-from gcs.service.flights import FleetService
+from gcs.service.flights import FleetService, LiveExecution
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.support import free_udp_base, quick_service_mocks
@@ -37,6 +37,16 @@ async def _wait_for(condition: Any, what: str, bound: float = 60.0) -> None:
 
 
 @pytest.mark.flight
+async def _flying(service: FleetService, mission_id: str, plan: Any) -> LiveExecution:
+    """Fly `plan` on the service's fleet; the live flight, once the plan's clock started."""
+    row = await service.fly(mission_id, plan, {"hold_at_goal": 0.5})
+    flight = service.flight(row.id)
+    assert flight is not None
+    await _wait_for(lambda: any(e["kind"] == EventKind.FLIGHT_START for e in flight.events),
+                    "the plan started")
+    return flight
+
+
 def test_a_blocked_service_loop_delays_no_tick_of_the_flight(tmp_path: Path) -> None:
     plan = smooth_plan(short_line(2, steps=25))  # 5 s: the block falls inside the plan
     settings = Settings(mock_vehicles=2, mock_base_port=free_udp_base(2), mock_settle_s=0.5,
@@ -48,11 +58,7 @@ def test_a_blocked_service_loop_delays_no_tick_of_the_flight(tmp_path: Path) -> 
         service = FleetService(settings, store)
         await service.start()
         try:
-            row = await service.fly(mission.id, plan, {"hold_at_goal": 0.5})
-            flight = service.flight(row.id)
-            assert flight is not None
-            await _wait_for(lambda: any(e["kind"] == EventKind.FLIGHT_START
-                                        for e in flight.events), "the plan started")
+            flight = await _flying(service, mission.id, plan)
             time.sleep(BLOCK_S)  # the service's loop does nothing else meanwhile
             await asyncio.wait_for(flight.done.wait(), 120)
             assert flight.status == "completed", (flight.status, flight.error, flight.summary)
@@ -145,17 +151,13 @@ def test_a_vehicle_thread_that_dies_mid_flight_fails_the_flight(tmp_path: Path) 
         service = FleetService(settings, store)
         await service.start()
         try:
-            row = await service.fly(mission.id, plan, {"hold_at_goal": 0.5})
-            flight = service.flight(row.id)
-            assert flight is not None
-            await _wait_for(lambda: any(e["kind"] == EventKind.FLIGHT_START
-                                        for e in flight.events), "the plan started")
+            flight = await _flying(service, mission.id, plan)
             service.vehicle_loop.post(die)
             await asyncio.wait_for(flight.done.wait(), 60)
             assert flight.status == "failed"
             assert flight.error is not None and "VehicleLoopStopped" in flight.error
             assert service.active is None
-            return row.id
+            return flight.id
         finally:
             await service.close()
 
