@@ -8,10 +8,10 @@ named (`Worker.log_event`), the scheduler forwards them to the subscribed client
 can restart that worker to stop a task that does not stop by itself), ``iteration`` (one SCP
 `IterationRecord`) and ``end`` (no more iterations follow).
 
-The task stops cooperatively: after every SCP iteration it checks its time limit and its
-cancel flag (a `distributed.Event`) and raises `PlanStopped` out of the planner's `progress`
-callback. The plan comes back as JSON text, serialised here so the service never spends
-event-loop time on a multi-megabyte document.
+The task stops cooperatively: after every SCP iteration it checks its time limit, its
+cancel flag (a `distributed.Event`) and whether the scheduler released it, and raises
+`PlanStopped` out of the planner's `progress` callback. The plan comes back as JSON text,
+serialised here so the service never spends event-loop time on a multi-megabyte document.
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanOutcome", "PlanStopped", "finite_json", "run_plan", "stitch_sequence", "warm"]
+__all__ = ["PlanOutcome", "PlanStopped", "finite_json", "run_plan", "stitch_sequence", "stop_check",
+           "warm"]
 
 
 class PlanStopped(Exception):
@@ -90,14 +91,24 @@ def _dask_worker() -> Any:
         return None
 
 
-def _cancel_flag(name: str | None) -> Callable[[], bool]:
-    """A cheap `is cancelled?` check: the named `distributed.Event` (one scheduler call)."""
-    if name is None:
+def stop_check(name: str | None) -> Callable[[], bool]:
+    """A cheap `should this task stop?` check, for a task running on a Dask worker: its
+    named cancel flag (a `distributed.Event`, one scheduler call) is set, or the scheduler
+    has released the task itself (its future was dropped), which the worker records at once
+    and which no flag timing can miss."""
+    worker = _dask_worker()
+    if name is None or worker is None:
         return lambda: False
     from distributed import Event
 
     event = Event(name)
-    return event.is_set
+    key = worker.get_current_task()
+
+    def stop() -> bool:
+        task = worker.state.tasks.get(key)
+        return task is None or task.state == "cancelled" or bool(event.is_set())
+
+    return stop
 
 
 def run_plan(
@@ -134,7 +145,7 @@ def run_plan(
                 logging.getLogger(__name__).exception("progress message dropped")
 
     send("started", worker=None if worker is None else worker.address)
-    cancelled = _cancel_flag(cancel_event if worker is not None else None)
+    cancelled = stop_check(cancel_event if worker is not None else None)
 
     def progress(record: IterationRecord) -> None:
         row = finite_json(asdict(record))

@@ -228,19 +228,19 @@ def test_requested_time_limit_is_bounded_by_the_setting(store, cluster) -> None:
 
 def patient_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
                  topic: str, cancel_event: str | None = None, **_: Any) -> Any:
-    """A task that runs until its cancel flag is set, looking at it every 50 ms as the planner
-    does after each SCP iteration (runs on the worker; imported there by reference).
+    """A task that runs until told to stop, looking every 50 ms with the check the planner
+    makes after each SCP iteration (runs on the worker; imported there by reference).
     Scenarios of up to 4 vehicles are planned for real."""
-    from distributed import Event, get_worker
+    from distributed import get_worker
 
-    from gcs.service.plan_worker import PlanOutcome, run_plan
+    from gcs.service.plan_worker import PlanOutcome, run_plan, stop_check
 
     if len(scenario["vehicles"]) <= 4:
         return run_plan(job_id, scenario, solver, topic=topic, cancel_event=cancel_event, **_)
 
     worker = get_worker()
     worker.log_event(topic, {"job": job_id, "kind": "started", "worker": worker.address})
-    cancelled = Event(cancel_event).is_set if cancel_event else (lambda: False)
+    cancelled = stop_check(cancel_event)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not cancelled():
         time.sleep(0.05)
@@ -307,6 +307,24 @@ def test_a_task_dropped_as_it_starts_still_finds_its_cancel_flag_set(
     assert set_after_done
     assert not set_after_close
     assert_idle(cluster)
+
+
+def test_a_task_whose_future_is_dropped_stops_by_itself_with_no_flag_set(cluster) -> None:
+    """A task the scheduler released (its future dropped while it ran) stops at its next
+    look, even when its cancel flag is never set: it cannot run on for its whole length
+    however late the flag is looked at or cleared."""
+    with Client(cluster.scheduler_address, timeout=10) as client:
+        future = client.submit(patient_plan, "dropped", scenario("random128"), None,
+                               topic="dropped-task", cancel_event="a-flag-nobody-sets",
+                               key="dropped-task", pure=False)
+        deadline = time.monotonic() + 60
+        while not any(executing(cluster).values()):
+            assert time.monotonic() < deadline, "the task never started"
+            time.sleep(0.05)
+        future.cancel()
+    # patient_plan would run 120 s by itself.
+    counts = wait_idle(cluster, timeout=60)
+    assert len(counts) == 2 and not any(counts.values()), counts
 
 
 def test_a_plan_the_disk_cannot_hold_fails_the_mission_with_the_reason(store, cluster) -> None:
