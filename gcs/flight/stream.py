@@ -40,6 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs.flight.link import VehicleLink
+from gcs.flight.realtime import enter_realtime
+from gcs.flight.realtime import restore as restore_scheduling
 from gcs.flight.setpoints import Setpoint, SetpointTrack
 from gcs.flight.station import STALL_NOTE_S
 from gcs.wire import time_boot_ms
@@ -167,35 +169,16 @@ class Streamer:
             schedstat: int | None = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
         except OSError:  # not Linux: stalls are all counted as busy
             schedstat = None
-        restore = self._enter_realtime() if self.realtime else None
+        scheduling = enter_realtime() if self.realtime else None
+        if scheduling is not None:
+            self.scheduling = scheduling.text
         try:
             await self._loop(schedstat)
         finally:
             if schedstat is not None:
                 os.close(schedstat)
-            if restore is not None:
-                with contextlib.suppress(OSError):
-                    os.sched_setscheduler(0, *restore)
-
-    def _enter_realtime(self) -> tuple[int, os.sched_param] | None:
-        """SCHED_RR priority 1 for this thread (the event loop's); returns the policy to
-        restore, None if refused (then `scheduling` says why and nothing changes).
-
-        Why: on a machine whose cores are busy (other processes, a simulator), the kernel
-        leaves a woken GCS waiting for a core for several ms, which is most of the send
-        jitter (`stalls`); a real-time thread runs as soon as it wakes. The loop's waits
-        are bounded (a fraction of a tick), so it cannot starve the machine, and Linux
-        keeps 5% of each core for ordinary processes anyway (sched_rt_runtime_us)."""
-        try:
-            old = (os.sched_getscheduler(0), os.sched_getparam(0))
-            # RESET_ON_FORK: threads and processes started meanwhile (the API's worker
-            # threads under `fleetplan serve`) get ordinary scheduling, not this priority.
-            os.sched_setscheduler(0, os.SCHED_RR | os.SCHED_RESET_ON_FORK, os.sched_param(1))
-        except (AttributeError, OSError) as exc:
-            self.scheduling = f"ordinary (real-time refused: {exc})"
-            return None
-        self.scheduling = "SCHED_RR 1"
-        return old
+            if scheduling is not None:
+                restore_scheduling(scheduling)
 
     async def _loop(self, schedstat: int | None) -> None:
         encode_time = 0.0

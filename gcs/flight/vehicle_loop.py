@@ -18,13 +18,13 @@ import asyncio
 import concurrent.futures
 import contextlib
 import logging
-import os
 import sys
 import threading
 from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar
 
 from gcs.errors import GcsError
+from gcs.flight.realtime import enter_realtime
 
 __all__ = ["SWITCH_INTERVAL_S", "VehicleLoop", "VehicleLoopStopped"]
 
@@ -123,16 +123,11 @@ class VehicleLoop:
             loop.close()
 
     def _enter_realtime(self) -> None:
-        """SCHED_RR 1 for this thread (as `gcs.flight.stream.Streamer` does while streaming);
-        threads started from it get ordinary scheduling (RESET_ON_FORK)."""
-        try:
-            os.sched_setscheduler(0, os.SCHED_RR | os.SCHED_RESET_ON_FORK, os.sched_param(1))
-        except (AttributeError, OSError) as exc:
-            self.scheduling = f"ordinary (real-time refused: {exc})"
-            log.warning("vehicle loop: real-time priority refused (%s); ordinary scheduling",
-                        exc)
-            return
-        self.scheduling = "SCHED_RR 1"
+        """SCHED_RR 1 for this thread (`gcs.flight.realtime`), or a warning saying why not."""
+        scheduling = enter_realtime()
+        self.scheduling = scheduling.text
+        if not scheduling.granted:
+            log.warning("vehicle loop: %s", scheduling.text)
 
     def _fail_pending(self) -> None:
         """The thread is ending: every caller still waiting gets VehicleLoopStopped."""
