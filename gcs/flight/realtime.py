@@ -14,7 +14,7 @@ import contextlib
 import os
 from dataclasses import dataclass
 
-__all__ = ["REALTIME", "Scheduling", "enter_realtime", "restore"]
+__all__ = ["REALTIME", "Scheduling", "enter_realtime", "leave_realtime"]
 
 #: How a thread that got real-time scheduling reports it.
 REALTIME = "SCHED_RR 1"
@@ -46,7 +46,7 @@ def enter_realtime() -> Scheduling:
     return Scheduling(REALTIME, previous)
 
 
-def restore(scheduling: Scheduling) -> None:
+def leave_realtime(scheduling: Scheduling) -> None:
     """Give back what the thread ran with before `enter_realtime` (nothing if refused)."""
     if scheduling.previous is not None:
         with contextlib.suppress(OSError):

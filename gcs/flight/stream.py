@@ -40,8 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs.flight.link import VehicleLink
-from gcs.flight.realtime import enter_realtime
-from gcs.flight.realtime import restore as restore_scheduling
+from gcs.flight.realtime import enter_realtime, leave_realtime
 from gcs.flight.setpoints import Setpoint, SetpointTrack
 from gcs.flight.station import STALL_NOTE_S
 from gcs.wire import time_boot_ms
@@ -178,7 +177,7 @@ class Streamer:
             if schedstat is not None:
                 os.close(schedstat)
             if scheduling is not None:
-                restore_scheduling(scheduling)
+                leave_realtime(scheduling)
 
     async def _loop(self, schedstat: int | None) -> None:
         encode_time = 0.0

@@ -92,21 +92,21 @@ def _dask_worker() -> Any:
 
 
 def stop_check(name: str | None) -> Callable[[], bool]:
-    """A cheap `should this task stop?` check, for a task running on a Dask worker: its
-    named cancel flag (a `distributed.Event`, one scheduler call) is set, or the scheduler
-    has released the task itself (its future was dropped), which the worker records at once
-    and which no flag timing can miss."""
+    """A cheap `should this task stop?` check, for a task running on a Dask worker (never
+    true elsewhere): its named cancel flag (a `distributed.Event`, one scheduler call) is
+    set, or the scheduler has released the task itself (its future was dropped), which the
+    worker records at once and which no flag timing can miss."""
     worker = _dask_worker()
-    if name is None or worker is None:
+    if worker is None:
         return lambda: False
     from distributed import Event
 
-    event = Event(name)
+    flag = Event(name).is_set if name is not None else (lambda: False)
     key = worker.get_current_task()
 
     def stop() -> bool:
         task = worker.state.tasks.get(key)
-        return task is None or task.state == "cancelled" or bool(event.is_set())
+        return task is None or task.state == "cancelled" or bool(flag())
 
     return stop
 
@@ -145,7 +145,7 @@ def run_plan(
                 logging.getLogger(__name__).exception("progress message dropped")
 
     send("started", worker=None if worker is None else worker.address)
-    cancelled = stop_check(cancel_event if worker is not None else None)
+    cancelled = stop_check(cancel_event)
 
     def progress(record: IterationRecord) -> None:
         row = finite_json(asdict(record))

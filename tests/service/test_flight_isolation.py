@@ -36,7 +36,6 @@ async def _wait_for(condition: Any, what: str, bound: float = 60.0) -> None:
         await asyncio.sleep(0.02)
 
 
-@pytest.mark.flight
 async def _flying(service: FleetService, mission_id: str, plan: Any) -> LiveExecution:
     """Fly `plan` on the service's fleet; the live flight, once the plan's clock started."""
     row = await service.fly(mission_id, plan, {"hold_at_goal": 0.5})
@@ -47,6 +46,7 @@ async def _flying(service: FleetService, mission_id: str, plan: Any) -> LiveExec
     return flight
 
 
+@pytest.mark.flight
 def test_a_blocked_service_loop_delays_no_tick_of_the_flight(tmp_path: Path) -> None:
     plan = smooth_plan(short_line(2, steps=25))  # 5 s: the block falls inside the plan
     settings = Settings(mock_vehicles=2, mock_base_port=free_udp_base(2), mock_settle_s=0.5,
