@@ -11,6 +11,7 @@ import httpx
 import numpy as np
 from playwright.sync_api import Page, expect
 
+from gcs.flight.phases import FlightPhase
 from tests.api.support import SHORT_CROSSING, ServiceProcess
 from tests.web.conftest import FLY_OPTIONS, PHONE
 from tests.web.support import assert_fits
@@ -25,6 +26,21 @@ def fly_through_the_api(base: str) -> tuple[str, str]:
     flight = httpx.post(f"{base}/api/missions/{mission['id']}/executions", json=FLY_OPTIONS,
                         timeout=30).json()
     return mission["id"], flight["id"]
+
+
+def pause_when_running(base: str, flight_id: str) -> None:
+    """Pause the flight as soon as it flies its plan: a paused flight stays live as long as the
+    checks on the pages take, however busy the machine (its plan lasts 10 s)."""
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        got = httpx.get(f"{base}/api/executions/{flight_id}", timeout=10).json()
+        assert not got["finished_at"], got
+        if (got.get("live") or {}).get("phase") == FlightPhase.FLYING:
+            paused = httpx.post(f"{base}/api/executions/{flight_id}/pause", timeout=30)
+            assert paused.status_code == 200, paused.text
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"flight {flight_id} never ran its plan")
 
 
 def wait_finished(base: str, flight_id: str) -> None:
@@ -47,22 +63,25 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     phone = open_page(PHONE)
     expect(phone.locator("#vehicle-table tr.vehicle")).to_have_count(4)
     mission_id, flight_id = fly_through_the_api(service.base_url)
+    pause_when_running(service.base_url, flight_id)
     # A flight started elsewhere (here: the API) shows up on the open pages, with its mission
     # taken into the empty form, so the plan shown is not stale.
-    expect(page.locator("#execution-status")).to_have_attribute("data-status", "running",
+    expect(page.locator("#execution-status")).to_have_attribute("data-status", "paused",
                                                                 timeout=30_000)
-    expect(page.locator("#flight-banner")).to_contain_text("running")
+    expect(page.locator("#flight-banner")).to_contain_text("paused")
     expect(page.locator("#f-name")).to_have_value("history-flight")
     expect(page.locator("#mission-title")).to_contain_text(mission_id)
     expect(page.locator("#stale-banner")).to_be_hidden()
     expect(page.locator("#fly-view g.vehicle-icon")).to_have_count(4, timeout=30_000)
     expect(page.locator("#fly-button")).to_be_disabled()  # one flight at a time
     # On the phone: still one header line, nothing sideways.
-    expect(phone.locator("#flight-banner")).to_contain_text("running", timeout=30_000)
+    expect(phone.locator("#flight-banner")).to_contain_text("paused", timeout=30_000)
     expect(phone.locator("#fly-view g.vehicle-icon")).to_have_count(4, timeout=30_000)
     header = phone.locator("header").bounding_box()
     assert header and header["height"] <= 48
     assert_fits(phone)
+    resumed = httpx.post(f"{service.base_url}/api/executions/{flight_id}/resume", timeout=30)
+    assert resumed.status_code == 200, resumed.text
     wait_finished(service.base_url, flight_id)
     record = httpx.get(f"{service.base_url}/api/executions/{flight_id}/record").json()
     page.reload()
