@@ -28,7 +28,7 @@ def fly_through_the_api(base: str) -> tuple[str, str]:
     return mission["id"], flight["id"]
 
 
-def pause_when_running(base: str, flight_id: str) -> None:
+def pause_once_flying(base: str, flight_id: str) -> None:
     """Pause the flight as soon as it flies its plan: a paused flight stays live as long as the
     checks on the pages take, however busy the machine (its plan lasts 10 s)."""
     deadline = time.monotonic() + 120
@@ -63,7 +63,7 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     phone = open_page(PHONE)
     expect(phone.locator("#vehicle-table tr.vehicle")).to_have_count(4)
     mission_id, flight_id = fly_through_the_api(service.base_url)
-    pause_when_running(service.base_url, flight_id)
+    pause_once_flying(service.base_url, flight_id)
     # A flight started elsewhere (here: the API) shows up on the open pages, with its mission
     # taken into the empty form, so the plan shown is not stale.
     expect(page.locator("#execution-status")).to_have_attribute("data-status", "paused",
