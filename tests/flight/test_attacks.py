@@ -1,4 +1,4 @@
-"""The issue-8 attacks, by a hostile process on loopback during mock flights (pinned peers,
+"""Attacks by a hostile process on loopback during mock flights (pinned peers,
 signing, per-datagram parsing, non-finite telemetry): nothing aborts, diverts or fakes
 anything, and the attacker receives nothing."""
 
