@@ -85,11 +85,17 @@ class Fleet:
             await self.mock.stop()
             self.mock = None
 
+    def _mock_overrides(self) -> dict[str, float]:
+        """The mock settings given, as `MockConfig` fields (the rest stay the realism's)."""
+        given = {"settle_time": self._settings.mock_settle_s,
+                 "status_rate": self._settings.mock_status_rate_hz,
+                 "land_speed": self._settings.mock_land_speed,
+                 "disarm_after_land": self._settings.mock_disarm_after_land_s}
+        return {name: value for name, value in given.items() if value is not None}
+
     async def _start_mock(self, homes: list[list[float]], ids: list[str]) -> None:
         ports = mock_fleet_ports(self._settings.mock_base_port)
-        config = MockConfig.preset(self._settings.mock_realism)
-        if self._settings.mock_settle_s is not None:
-            config.settle_time = self._settings.mock_settle_s
+        config = MockConfig.preset(self._settings.mock_realism, **self._mock_overrides())
         mock = MockFleet(homes=homes, gcs_base_port=ports["gcs_base_port"],
                          listen_base_port=ports["listen_base_port"], config=config)
         for attempt in range(MOCK_START_ATTEMPTS):

@@ -43,3 +43,24 @@ def test_an_unknown_realism_is_refused_by_name(monkeypatch: pytest.MonkeyPatch) 
     monkeypatch.setenv("FLEETPLAN_MOCK_REALISM", "gazebo")
     with pytest.raises(ValidationError, match="mock_realism"):
         Settings()
+
+
+def test_the_mock_px4_timings_are_settings_over_the_realism() -> None:
+    """Status rate, landing speed and disarm delay (PX4's stream rate, MPC_LAND_SPEED,
+    COM_DISARM_LAND) reach the mocks; unset ones stay the realism's."""
+    quick = _mock_config(mock_realism="px4", mock_status_rate_hz=5.0, mock_land_speed=1.0,
+                         mock_disarm_after_land_s=0.5)
+    assert (quick.status_rate, quick.land_speed, quick.disarm_after_land) == (5.0, 1.0, 0.5)
+    assert quick.estimate_noise == EstimateNoise()  # still the px4 realism
+    plain = _mock_config()
+    assert (plain.status_rate, plain.land_speed, plain.disarm_after_land) == (1.0, 0.7, 2.0)
+
+
+@pytest.mark.parametrize(("name", "value"), [("MOCK_STATUS_RATE_HZ", "0"),
+                                             ("MOCK_LAND_SPEED", "10"),
+                                             ("MOCK_DISARM_AFTER_LAND_S", "nan")])
+def test_a_mock_timing_out_of_range_is_refused_by_name(
+        monkeypatch: pytest.MonkeyPatch, name: str, value: str) -> None:
+    monkeypatch.setenv(f"FLEETPLAN_{name}", value)
+    with pytest.raises(ValidationError, match=name.lower()):
+        Settings()

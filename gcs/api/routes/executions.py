@@ -39,7 +39,7 @@ mission_router = APIRouter(prefix="/missions", tags=["executions"])
 
 
 class FlyRequest(BaseModel):
-    """How to fly (every field optional; the fleet file's `mission` options otherwise)."""
+    """How to fly (every field optional; the fleet file's `flight` options otherwise)."""
 
     model_config = ConfigDict(
         extra="forbid", strict=True,
@@ -55,6 +55,13 @@ class FlyRequest(BaseModel):
     )
     rate_hz: float | None = Field(None, gt=0, le=100, description="Setpoint rate (Hz).")
     hold_at_goal: float | None = Field(None, ge=0, le=600, description="Seconds at the goals.")
+    climb_speed: float | None = Field(
+        None, gt=0, le=5, description="Peak speed of the climb from home to the start (m/s)."
+    )
+    prestream: float | None = Field(
+        None, ge=0, le=10, description="Seconds of hold setpoints streamed before OFFBOARD "
+        "is asked for (PX4 refuses OFFBOARD without a live stream)."
+    )
     tracking_error_max: float | None = Field(
         None, gt=0, le=100, description="Flag a vehicle this far from its plan (m)."
     )
