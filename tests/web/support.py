@@ -11,10 +11,11 @@ from typing import Any
 import httpx
 from playwright.sync_api import Page, Request, Route, expect
 
-from tests.api.support import SHORT_CROSSING, ServiceProcess
+from tests.api.support import QUICK_CROSSING, ServiceProcess
 
-__all__ = ["CROSSING", "HEALTH", "ORIGIN", "VEHICLES", "ServiceStarting", "assert_fits",
-           "fill_scenario", "plan", "planned_api", "shown_mission_id"]
+__all__ = ["CROSSING", "CROSSING_HORIZON_S", "CROSSING_STEPS", "HEALTH", "ORIGIN", "VEHICLES",
+           "ServiceStarting", "assert_fits", "fill_scenario", "plan", "planned_api",
+           "shown_mission_id"]
 
 # A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
 VEHICLES = [
@@ -50,8 +51,12 @@ def fill_scenario(
             page.fill(f'input[data-field="vehicles[{index}].goal[{axis}]"]', str(goal[axis]))
 
 
-#: SHORT_CROSSING's vehicles (a 10 s flight for the mock fleet) as form rows.
-CROSSING = [(v["id"], tuple(v["start"]), tuple(v["goal"])) for v in SHORT_CROSSING["vehicles"]]
+#: QUICK_CROSSING's vehicles as form rows: with CROSSING_STEPS steps (fill_scenario's dt is
+#: QUICK_CROSSING's), a flight of CROSSING_HORIZON_S for the mock fleet.
+CROSSING = [(v["id"], tuple(v["start"]), tuple(v["goal"])) for v in QUICK_CROSSING["vehicles"]]
+CROSSING_STEPS: int = QUICK_CROSSING["steps"]
+#: The crossing's horizon (s), steps x dt, as the page's clock shows it (one decimal).
+CROSSING_HORIZON_S: float = round(CROSSING_STEPS * QUICK_CROSSING["dt"], 1)
 
 
 def plan(page: Page, expect_text: str = "converged") -> str:

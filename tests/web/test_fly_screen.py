@@ -14,9 +14,18 @@ import httpx
 from playwright.sync_api import Page, expect
 
 from tests.api.support import ServiceProcess
-from tests.web.support import CROSSING, fill_scenario, plan, planned_api
+from tests.web.support import (
+    CROSSING,
+    CROSSING_HORIZON_S,
+    CROSSING_STEPS,
+    fill_scenario,
+    plan,
+    planned_api,
+)
 
 ICON_LABEL = re.compile(r"^([a-d]) (-?\d+\.\d) m$")
+#: The plan's horizon as the clock shows it ("6.0").
+HORIZON = f"{CROSSING_HORIZON_S:.1f}"
 
 
 def test_fly_screen_follows_the_flight_then_abort(
@@ -25,7 +34,7 @@ def test_fly_screen_follows_the_flight_then_abort(
     sent: list[tuple[str, Any]] = []
     page = open_page(before=lambda p: planned_api(p, service, sent))
     expect(page.locator("#service-status")).to_contain_text("4 mock vehicles")
-    fill_scenario(page, "browser-flight", 50, CROSSING)
+    fill_scenario(page, "browser-flight", CROSSING_STEPS, CROSSING)
     mission_id = plan(page)
     expect(page.locator("#pause-button")).to_be_disabled()  # nothing flying yet
     expect(page.locator("#mapping-pairs")).to_have_text("a→mock 1, b→mock 2, c→mock 3, d→mock 4")
@@ -66,11 +75,11 @@ def test_fly_screen_follows_the_flight_then_abort(
     # Mid-plan: the slider follows mission time and the bar fills with it (the page's one
     # reading, taken as it clicked Pause).
     now = page.wait_for_function("window.midPlan", timeout=90_000).json_value()
-    reading = re.search(r"t = (\d+\.\d) s of 10\.0 s", now["label"])
+    reading = re.search(rf"t = (\d+\.\d) s of {re.escape(HORIZON)} s", now["label"])
     assert reading, now["label"]
     mission_time = float(reading.group(1))
     assert now["slider"] == round(mission_time * 10)  # trajectory sampled at 10 Hz
-    assert abs(now["progress"] - 1000 * mission_time / 10.0) <= 6
+    assert abs(now["progress"] - 1000 * mission_time / CROSSING_HORIZON_S) <= 6
     # Live icons: one per vehicle, labelled with id and altitude.
     parsed = [ICON_LABEL.match(text) for text in now["icons"]]
     labels = [m for m in parsed if m]
@@ -108,17 +117,17 @@ def test_fly_screen_follows_the_flight_then_abort(
                     ("/api/vehicles/c/commands", {"command": "land", "confirm": True})]
 
     expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
-    # Past the plan's end (holding, landing) the clock stopped at the horizon: never "t = 13
-    # / 10 s"; the bar full.
+    # Past the plan's end (holding, landing) the clock stopped at the horizon: never "t = 9
+    # s of 6 s"; the bar full.
     clocks = page.evaluate("window.clockTexts")
-    assert any("plan flown (10.0 s of 10.0 s), +" in c for c in clocks), clocks[-5:]
+    assert any(f"plan flown ({HORIZON} s of {HORIZON} s), +" in c for c in clocks), clocks[-5:]
     for c in clocks:
-        assert all(float(t) <= 10.0 for t in re.findall(r"t = (\d+\.\d)", c)), c
+        assert all(float(t) <= CROSSING_HORIZON_S for t in re.findall(r"t = (\d+\.\d)", c)), c
     assert page.evaluate("document.getElementById('flight-progress').value") == 1000
     expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
     expect(page.locator("#event-log")).to_contain_text("mission_start")
     clock = page.locator("#time-label").inner_text()
-    assert all(float(t) <= 10.0 for t in re.findall(r"t = (\d+\.\d)", clock)), clock
+    assert all(float(t) <= CROSSING_HORIZON_S for t in re.findall(r"t = (\d+\.\d)", clock)), clock
     expect(page.locator("#flight-list .status-badge.good")).to_have_text("completed")
     expect(page.locator("#fly-button")).to_be_enabled()
     record = httpx.get(f"{service.base_url}/api/executions/{execution_id}").json()

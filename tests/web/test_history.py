@@ -12,15 +12,15 @@ import numpy as np
 from playwright.sync_api import Page, expect
 
 from gcs.flight.phases import FlightPhase
-from tests.api.support import SHORT_CROSSING, ServiceProcess
+from tests.api.support import QUICK_CROSSING, ServiceProcess
 from tests.web.conftest import FLY_OPTIONS, PHONE
-from tests.web.support import assert_fits
+from tests.web.support import CROSSING_HORIZON_S, assert_fits
 
 
 def fly_through_the_api(base: str) -> tuple[str, str]:
-    """Plan SHORT_CROSSING and start flying it on the mock fleet, as the page's Fly does in
+    """Plan QUICK_CROSSING and start flying it on the mock fleet, as the page's Fly does in
     these tests (FLY_OPTIONS): (mission id, flight id)."""
-    scenario = {**SHORT_CROSSING, "name": "history-flight"}
+    scenario = {**QUICK_CROSSING, "name": "history-flight"}
     mission = httpx.post(f"{base}/api/missions?wait=60", json=scenario, timeout=90).json()
     assert mission["plan_ok"], mission
     flight = httpx.post(f"{base}/api/missions/{mission['id']}/executions", json=FLY_OPTIONS,
@@ -30,7 +30,7 @@ def fly_through_the_api(base: str) -> tuple[str, str]:
 
 def pause_once_flying(base: str, flight_id: str) -> None:
     """Pause the flight as soon as it flies its plan: a paused flight stays live as long as the
-    checks on the pages take, however busy the machine (its plan lasts 10 s)."""
+    checks on the pages take, however busy the machine (its whole plan lasts a few seconds)."""
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
         got = httpx.get(f"{base}/api/executions/{flight_id}", timeout=10).json()
@@ -112,9 +112,11 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     expect(page.locator("#fly-view g.vehicle-icon")).to_have_count(4)
     expect(page.locator("#fly-view polyline.trail")).to_have_count(4)
     start = record["mission_start"]
-    for k in (0, 40, 100):
+    end = round(CROSSING_HORIZON_S * 10)  # the slider's last sample (10 Hz)
+    for k in (0, 40, end):
         page.locator("#time-slider").fill(str(k))
-        expect(page.locator("#time-label")).to_contain_text(f"t = {k / 10:.1f} s of 10.0 s")
+        expect(page.locator("#time-label")).to_contain_text(
+            f"t = {k / 10:.1f} s of {CROSSING_HORIZON_S:.1f} s")
         flown = page.evaluate("""() => { const t = document.getElementById('plot3d').data.at(-1);
                                   return {ids: t.text, x: t.x, y: t.y, z: t.z}; }""")
         for i, vid in enumerate(flown["ids"]):
