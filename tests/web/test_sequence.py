@@ -12,10 +12,8 @@ from playwright.sync_api import Page, expect
 from tests.api.routes.test_sequences import GOALS, OUT_AND_BACK
 from tests.api.support import ServiceProcess
 
-#: Out to the crossed formation only, in 4 s (4.8 s with the holds): the sequence's flight
-#: kept short.
-OUT: dict = {**OUT_AND_BACK, "name": "out", "formations": [
-    OUT_AND_BACK["formations"][0], {**OUT_AND_BACK["formations"][1], "duration": 4}]}
+#: Out to the crossed formation only (6.8 s): the sequence's flight kept short.
+OUT: dict = {**OUT_AND_BACK, "name": "out", "formations": OUT_AND_BACK["formations"][:2]}
 
 
 def paste(page: Page, body: dict) -> None:
@@ -30,8 +28,8 @@ def test_paste_plan_show_download_and_fly_a_sequence(page: Page, service: Servic
     page.click("#sequence-plan")
     expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
     expect(page.locator("#sequence-summary")).to_contain_text("sequence: home → crossed ·")
-    expect(page.locator("#sequence-summary")).to_contain_text("4.8 s")
-    expect(page.locator("#time-label")).to_contain_text("of 4.8 s")
+    expect(page.locator("#sequence-summary")).to_contain_text("6.8 s")
+    expect(page.locator("#time-label")).to_contain_text("of 6.8 s")
     mission_id = page.locator("#mission-title").inner_text().split("·")[1].strip()
     mission = httpx.get(f"{service.base_url}/api/missions/{mission_id}").json()
     assert mission["plan"]["sequence"]["formations"][1]["name"] == "crossed"
@@ -42,8 +40,8 @@ def test_paste_plan_show_download_and_fly_a_sequence(page: Page, service: Servic
     assert href is not None and "vehicle=c" in href
     rows = httpx.get(service.base_url + href).text.strip().splitlines()
     assert rows[0] == "Time [msec],x [m],y [m],z [m]"
-    t, *xyz = (float(c) for c in rows[1 + 46].split(","))  # t = 4.6 s at 10 Hz: crossed
-    assert t == 4600 and max(abs(a - b) for a, b in zip(xyz, GOALS[2], strict=True)) < 1e-3
+    t, *xyz = (float(c) for c in rows[1 + 66].split(","))  # t = 6.6 s at 10 Hz: crossed
+    assert t == 6600 and max(abs(a - b) for a, b in zip(xyz, GOALS[2], strict=True)) < 1e-3
 
     # Editing the sequence makes the plan shown stale: Fly is refused until it is planned.
     expect(page.locator("#fly-button")).to_be_enabled(timeout=30_000)
