@@ -19,8 +19,8 @@ import httpx
 from gcs.sim import MockConfig, ports
 from tests.paths import EXAMPLES
 
-__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING", "ServiceProcess",
-           "example", "free_port", "free_udp_base", "quick_service_mocks"]
+__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_MOCK_ENV", "QUICK_PAIR", "SHORT_CROSSING",
+           "ServiceProcess", "example", "free_port", "free_udp_base", "quick_service_mocks"]
 
 
 def example(name: str) -> dict[str, Any]:
@@ -55,6 +55,14 @@ QUICK_PAIR: dict[str, Any] = {
         {"id": "b", "start": [4.5, 3.0, 0.8], "goal": [1.0, 3.2, 0.7]},
     ],
 }
+
+
+#: The service settings (as environment) for a `fleetplan serve` child's mock vehicles that
+#: `quick_service_mocks` gives in-process ones, and HEARTBEAT at 5 Hz (`FAST_MOCK`): other
+#: legal PX4 values that shorten the landing and each mode or arming confirmation.
+QUICK_MOCK_ENV: dict[str, str] = {"FLEETPLAN_MOCK_LAND_SPEED": "1.0",
+                                  "FLEETPLAN_MOCK_DISARM_AFTER_LAND_S": "0.5",
+                                  "FLEETPLAN_MOCK_STATUS_RATE_HZ": "5"}
 
 
 class _QuickMockConfig(MockConfig):

@@ -26,7 +26,7 @@ from playwright.sync_api import (
     sync_playwright,
 )
 
-from tests.api.support import ServiceProcess, free_udp_base
+from tests.api.support import QUICK_MOCK_ENV, ServiceProcess, free_udp_base
 from tests.web.support import ServiceStarting
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
@@ -48,7 +48,8 @@ def service_starting(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Servi
     """`fleetplan serve` with 4 mock vehicles on free ports, booting in the background while
     Chromium launches."""
     workdir = tmp_path_factory.mktemp("web")
-    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2"}
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2",
+           **QUICK_MOCK_ENV}
     starting = ServiceStarting(ServiceProcess(workdir, "--mock", "4", "--workers", "1",
                                               env=env))
     try:
@@ -101,9 +102,10 @@ def no_flight_left(request: pytest.FixtureRequest) -> Iterator[None]:
 
 #: How the page's Fly flies in these tests (the page itself sends no options): a tracking
 #: bound the mocks keep even when a starved machine stalls the service's loop (the mocks run
-#: in it) for 2 s; the hold at the goals stays the default, which lets a vehicle that fell
-#: behind reach its goal before it is judged. The flight's own checks are in tests/flight.
-FLY_OPTIONS = {"tracking_error_max": 3.0}
+#: in it) for 2 s; a 2 m/s climb and a short prestream; the hold at the goals stays the
+#: default, which lets a vehicle that fell behind reach its goal before it is judged. The
+#: flight's own checks are in tests/flight.
+FLY_OPTIONS = {"tracking_error_max": 3.0, "climb_speed": 2.0, "prestream": 0.3}
 FLY_REQUEST = re.compile(r".*/api/missions/[^/]+/executions$")
 
 
