@@ -58,20 +58,21 @@ QUICK_PAIR: dict[str, Any] = {
 
 
 class _QuickMockConfig(MockConfig):
-    """MockConfig whose presets carry `QUICK_MOCK` (other legal PX4 values)."""
+    """MockConfig whose presets carry `FAST_MOCK` (other legal PX4 values)."""
 
     @classmethod
     def preset(cls, realism: str = "ideal", **overrides: Any) -> MockConfig:
-        from tests.flight.support import QUICK_MOCK
+        from tests.flight.support import FAST_MOCK
 
-        return MockConfig.preset(realism, **{**QUICK_MOCK, **overrides})
+        return MockConfig.preset(realism, **{**FAST_MOCK, **overrides})
 
 
 @contextmanager
 def quick_service_mocks() -> Iterator[None]:
     """While open, the mock vehicles an in-process service starts (`gcs.service.fleet`) land
-    at 1 m/s and disarm 0.5 s after touching down (`QUICK_MOCK`): a landing shortened, not
-    what a flight checks."""
+    at 1 m/s, disarm 0.5 s after touching down and send HEARTBEAT, SYS_STATUS and
+    EXTENDED_SYS_STATE at 5 Hz (`FAST_MOCK`): a landing shortened and each mode or arming
+    change confirmed within 0.2 s instead of 1 s, not what a flight checks."""
     import pytest
 
     with pytest.MonkeyPatch.context() as patch:
