@@ -17,10 +17,10 @@ from typing import Any
 import httpx
 
 from gcs.sim import MockConfig, ports
-from tests.paths import EXAMPLES
+from tests.paths import EXAMPLES, ROOT
 
-__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING", "ServiceProcess",
-           "example", "free_port", "free_udp_base", "quick_service_mocks"]
+__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING", "QuickMockConfig",
+           "ServiceProcess", "example", "free_port", "free_udp_base", "quick_service_mocks"]
 
 
 def example(name: str) -> dict[str, Any]:
@@ -57,7 +57,7 @@ QUICK_PAIR: dict[str, Any] = {
 }
 
 
-class _QuickMockConfig(MockConfig):
+class QuickMockConfig(MockConfig):
     """MockConfig whose presets carry `FAST_MOCK` (other legal PX4 values)."""
 
     @classmethod
@@ -76,7 +76,7 @@ def quick_service_mocks() -> Iterator[None]:
     import pytest
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("gcs.service.fleet.MockConfig", _QuickMockConfig)
+        patch.setattr("gcs.service.fleet.MockConfig", QuickMockConfig)
         yield
 
 
@@ -93,10 +93,12 @@ def free_port() -> int:
 
 
 class ServiceProcess:
-    """`python -m gcs.cli.main serve ...` with its own database under `workdir`."""
+    """`python -m gcs.cli.main serve ...` with its own database under `workdir`; with
+    `quick_mocks`, the same service whose mock vehicles carry `FAST_MOCK`."""
 
     def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None,
-                 token: str | None = None, start_timeout: float = 60.0) -> None:
+                 token: str | None = None, start_timeout: float = 60.0,
+                 quick_mocks: bool = False) -> None:
         self.workdir = workdir
         #: How long `with ServiceProcess(...)` waits for the service to answer (s).
         self.start_timeout = start_timeout
@@ -106,12 +108,16 @@ class ServiceProcess:
         self.base_url = f"http://127.0.0.1:{self.port}"
         self.log_path = workdir / f"serve-{self.port}.log"
         self.command = [
-            sys.executable, "-m", "gcs.cli.main", "serve",
+            sys.executable, "-m", "tests.api.quick_serve" if quick_mocks else "gcs.cli.main",
+            "serve",
             "--host", "127.0.0.1", "--port", str(self.port),
             "--db", f"sqlite:///{workdir / 'fleetplan.db'}",
             *args,
         ]
         self.env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+        if quick_mocks:  # the child runs in workdir: `tests` is found from the root
+            self.env["PYTHONPATH"] = os.pathsep.join(
+                p for p in (str(ROOT), self.env.get("PYTHONPATH")) if p)
         self.process: subprocess.Popen[bytes] | None = None
 
     def start(self, timeout: float = 60.0) -> ServiceProcess:
