@@ -19,7 +19,7 @@ import httpx
 from gcs.sim import MockConfig, ports
 from tests.paths import EXAMPLES
 
-__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_MOCK_ENV", "QUICK_PAIR", "SHORT_CROSSING",
+__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING",
            "ServiceProcess", "example", "free_port", "free_udp_base", "quick_service_mocks"]
 
 
@@ -57,29 +57,22 @@ QUICK_PAIR: dict[str, Any] = {
 }
 
 
-#: The service settings (as environment) for a `fleetplan serve` child's mock vehicles that
-#: `quick_service_mocks` gives in-process ones, and HEARTBEAT at 5 Hz (`FAST_MOCK`): other
-#: legal PX4 values that shorten the landing and each mode or arming confirmation.
-QUICK_MOCK_ENV: dict[str, str] = {"FLEETPLAN_MOCK_LAND_SPEED": "1.0",
-                                  "FLEETPLAN_MOCK_DISARM_AFTER_LAND_S": "0.5",
-                                  "FLEETPLAN_MOCK_STATUS_RATE_HZ": "5"}
-
-
 class _QuickMockConfig(MockConfig):
-    """MockConfig whose presets carry `QUICK_MOCK` (other legal PX4 values)."""
+    """MockConfig whose presets carry `FAST_MOCK` (other legal PX4 values)."""
 
     @classmethod
     def preset(cls, realism: str = "ideal", **overrides: Any) -> MockConfig:
-        from tests.flight.support import QUICK_MOCK
+        from tests.flight.support import FAST_MOCK
 
-        return MockConfig.preset(realism, **{**QUICK_MOCK, **overrides})
+        return MockConfig.preset(realism, **{**FAST_MOCK, **overrides})
 
 
 @contextmanager
 def quick_service_mocks() -> Iterator[None]:
     """While open, the mock vehicles an in-process service starts (`gcs.service.fleet`) land
-    at 1 m/s and disarm 0.5 s after touching down (`QUICK_MOCK`): a landing shortened, not
-    what a flight checks."""
+    at 1 m/s, disarm 0.5 s after touching down and send HEARTBEAT, SYS_STATUS and
+    EXTENDED_SYS_STATE at 5 Hz (`FAST_MOCK`): a landing shortened and each mode or arming
+    change confirmed within 0.2 s instead of 1 s, not what a flight checks."""
     import pytest
 
     with pytest.MonkeyPatch.context() as patch:
@@ -100,10 +93,12 @@ def free_port() -> int:
 
 
 class ServiceProcess:
-    """`python -m gcs.cli.main serve ...` with its own database under `workdir`."""
+    """`python -m gcs.cli.main serve ...` with its own database under `workdir`; with
+    `quick_mocks`, its mock vehicles get `FAST_MOCK`'s timings (`QUICK_MOCK_ENV`)."""
 
     def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None,
-                 token: str | None = None, start_timeout: float = 60.0) -> None:
+                 token: str | None = None, start_timeout: float = 60.0,
+                 quick_mocks: bool = False) -> None:
         self.workdir = workdir
         #: How long `with ServiceProcess(...)` waits for the service to answer (s).
         self.start_timeout = start_timeout
@@ -118,7 +113,10 @@ class ServiceProcess:
             "--db", f"sqlite:///{workdir / 'fleetplan.db'}",
             *args,
         ]
-        self.env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+        from tests.flight.support import QUICK_MOCK_ENV
+
+        self.env = {**os.environ, "PYTHONUNBUFFERED": "1",
+                    **(QUICK_MOCK_ENV if quick_mocks else {}), **(env or {})}
         self.process: subprocess.Popen[bytes] | None = None
 
     def start(self, timeout: float = 60.0) -> ServiceProcess:

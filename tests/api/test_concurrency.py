@@ -23,7 +23,7 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
     # planning in the worker processes of the session's Dask cluster
     with ServiceProcess(tmp_path, "--mock", "4", "--scheduler", dask_scheduler, env=env,
-                        start_timeout=120) as service, \
+                        start_timeout=120, quick_mocks=True) as service, \
             httpx.Client(base_url=service.base_url, timeout=30) as client:
         small = client.post("/api/missions?wait=60", json=SHORT_CROSSING)
         assert small.status_code == 201

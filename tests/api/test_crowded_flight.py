@@ -84,7 +84,7 @@ def test_a_crowded_service_flies_and_refuses_only_with_503(
                                "plans": list(plans)}
 
     with ServiceProcess(tmp_path, "--mock", "4", "--scheduler", dask_scheduler, env=env,
-                        start_timeout=120) as service:
+                        start_timeout=120, quick_mocks=True) as service:
         execution, answers = asyncio.run(crowd(service.base_url))
 
     assert execution["status"] == "completed", (execution["status"], execution["error"])

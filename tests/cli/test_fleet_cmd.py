@@ -16,7 +16,7 @@ import pytest
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec
 from gcs.sim import MockFleet, homes_under
-from tests.flight.support import QUICK, QUICK_MOCK, mock_ports, short_line, smooth_plan
+from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -32,7 +32,7 @@ def hovering(tmp_path: Path) -> Iterator[tuple[Path, MockFleet]]:
 
     async def serve() -> None:
         homes = homes_under(plan.scenario.starts)
-        settings: dict[str, Any] = {"settle_time": 0.5, **QUICK_MOCK, **mock_ports(2)}
+        settings: dict[str, Any] = {"settle_time": 0.5, **FAST_MOCK, **mock_ports(2)}
         async with MockFleet(homes=homes, **settings) as mock:
             fleet = mock.fleet_dict(plan.scenario.ids)
             executor = FlightExecutor(plan, FleetSpec.from_dict(fleet),

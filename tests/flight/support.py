@@ -14,8 +14,8 @@ from planner.result import Plan, VehicleTrajectory
 from planner.scenario import Scenario
 from planner.verify import verify
 
-__all__ = ["FAST_MOCK", "QUICK", "QUICK_MOCK", "free_port_block", "line_scenario", "mock_ports",
-           "short_line", "smooth_plan"]
+__all__ = ["FAST_MOCK", "QUICK", "QUICK_MOCK", "QUICK_MOCK_ENV", "free_port_block",
+           "line_scenario", "mock_ports", "short_line", "smooth_plan"]
 
 #: Mock settings that shorten a flight's landing, not what it checks: PX4's MPC_LAND_SPEED
 #: and COM_DISARM_LAND set to other legal values (land at 1 m/s, disarm 0.5 s after).
@@ -25,6 +25,14 @@ QUICK_MOCK: dict[str, Any] = {"land_speed": 1.0, "disarm_after_land": 0.5}
 #: default, a `mavlink stream -r` setting): each mode, arming and disarming change shows in
 #: HEARTBEAT within 0.2 s instead of 1 s, which saves the GCS about 1 s per confirmation.
 FAST_MOCK: dict[str, Any] = {**QUICK_MOCK, "status_rate": 5.0}
+
+#: The service settings (as environment) that give a `fleetplan serve` child's mock vehicles
+#: `FAST_MOCK`, as `tests.api.support.quick_service_mocks` gives an in-process service's.
+QUICK_MOCK_ENV: dict[str, str] = {
+    "FLEETPLAN_MOCK_LAND_SPEED": str(FAST_MOCK["land_speed"]),
+    "FLEETPLAN_MOCK_DISARM_AFTER_LAND_S": str(FAST_MOCK["disarm_after_land"]),
+    "FLEETPLAN_MOCK_STATUS_RATE_HZ": str(FAST_MOCK["status_rate"]),
+}
 
 #: Flight options for tests: a short hold at the goals and prestream, a 2 m/s climb.
 QUICK = FlightOptions(hold_at_goal=0.5, prestream=0.3, climb_speed=2.0)

@@ -37,7 +37,7 @@ def _wait(predicate: Any, timeout: float, what: str) -> Any:
 def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(2)), "FLEETPLAN_MOCK_SETTLE_S": "0.5",
            "FLEETPLAN_PLAN_WORKERS": "2", "FLEETPLAN_MAX_VEHICLES": "256"}
-    service = ServiceProcess(tmp_path, "--mock", "2", env=env).start()
+    service = ServiceProcess(tmp_path, "--mock", "2", env=env, quick_mocks=True).start()
     try:
         url = service.base_url
         planned = httpx.post(f"{url}/api/missions?wait=120", json=QUICK_PAIR,

@@ -84,7 +84,7 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
     base = free_udp_base(2)
     service = ServiceProcess(tmp_path, "--mock", "2", "--workers", "1",
                              env={"FLEETPLAN_MOCK_BASE_PORT": str(base),
-                                  "FLEETPLAN_MOCK_SETTLE_S": "0.5"})
+                                  "FLEETPLAN_MOCK_SETTLE_S": "0.5"}, quick_mocks=True)
     with service:
         url = service.base_url
         mission = httpx.post(f"{url}/api/missions?wait=120", json=QUICK_PAIR,

@@ -26,7 +26,8 @@ from playwright.sync_api import (
     sync_playwright,
 )
 
-from tests.api.support import QUICK_MOCK_ENV, ServiceProcess, free_udp_base
+from tests.api.support import ServiceProcess, free_udp_base
+from tests.flight.support import QUICK_MOCK_ENV
 from tests.web.support import ServiceStarting
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")

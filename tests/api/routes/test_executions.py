@@ -20,11 +20,12 @@ from gcs.service.store import Store
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example, quick_service_mocks
 
-#: Quick flights: half a second at the goals. A vehicle is flagged 2 m (not 1 m) off its
-#: plan: on a loaded machine the station and its in-process mocks stall together and a
-#: vehicle falls behind while both catch up; the flight's accuracy is what these tests
-#: judge by its goal errors and separation (tracking is tested in tests/flight).
-QUICK = {"hold_at_goal": 0.5, "tracking_error_max": 2.0}
+#: Quick flights: half a second at the goals, a 2 m/s climb after a 0.3 s prestream. A
+#: vehicle is flagged 2 m (not 1 m) off its plan: on a loaded machine the station and its
+#: in-process mocks stall together and a vehicle falls behind while both catch up; the
+#: flight's accuracy is what these tests judge by its goal errors and separation (tracking
+#: is tested in tests/flight).
+QUICK = {"hold_at_goal": 0.5, "tracking_error_max": 2.0, "climb_speed": 2.0, "prestream": 0.3}
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float, what: str) -> Any:
@@ -124,6 +125,8 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
     assert stored["summary"] == summary and stored["live"] is None
     assert [e["kind"] for e in stored["events"]] == logged
     assert flown.record["summary"] == summary
+    # the request's options are the ones flown (the rest are the fleet's)
+    assert {k: flown.record["options"][k] for k in QUICK} == QUICK
     assert [e["id"] for e in flown.listed] == [execution["id"]]
     assert flown.active == []
 
@@ -187,6 +190,7 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
         url = f"/api/missions/{crossing['id']}/executions"
         for body, field in [({"policy": "explode"}, "policy"), ({"rate_hz": 500}, "rate_hz"),
                             ({"stream_priority": "fastest"}, "stream_priority"),
+                            ({"climb_speed": 0}, "climb_speed"), ({"prestream": 60}, "prestream"),
                             ({"colour": 1}, "colour")]:
             response = client.post(url, json=body)
             assert response.status_code == 422, response.text
