@@ -31,6 +31,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--at-end", choices=("land", "hold"),
                         help="after the plan: land (default) or hold in PX4 Hold mode")
     parser.add_argument("--hold-at-goal", type=float, help="seconds at the goals (default 2)")
+    parser.add_argument("--climb-speed", type=float,
+                        help="peak speed of the climb from home to the start (m/s, default 1)")
+    parser.add_argument("--prestream", type=float,
+                        help="seconds of hold setpoints before OFFBOARD is asked for (default "
+                             "0.5)")
     parser.add_argument("--tracking-error-max", type=float,
                         help="flag a vehicle this far from the plan (m, default 1)")
     parser.add_argument("--start-tolerance", type=float,
@@ -65,7 +70,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
-                 "hold_at_goal": "hold_at_goal", "tracking_error_max": "tracking_error_max",
+                 "hold_at_goal": "hold_at_goal", "climb_speed": "climb_speed",
+                 "prestream": "prestream", "tracking_error_max": "tracking_error_max",
                  "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
                  "margin_check": "margin_check", "message_rates": "message_rates",
                  "stream_priority": "stream_priority"}

@@ -23,7 +23,8 @@ def _fly(tmp_path: Path, *extra: str) -> subprocess.Popen:
     base = free_port_block(4)
     return subprocess.Popen(
         [sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path), "--mock",
-         "--mock-settle", "0.5", "--hold-at-goal", "0.5", "--base-port", str(base),
+         "--mock-settle", "0.5", "--hold-at-goal", "0.5", "--climb-speed", "2",
+         "--prestream", "0.3", "--base-port", str(base),
          "--listen-base-port", str(base + 2), "--record", str(tmp_path / "record.json"),
          *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
@@ -37,6 +38,7 @@ def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
     record = json.loads((tmp_path / "record.json").read_text())
     summary = record["summary"]
     assert summary["completed"] is True and summary["goal_error_max"] < 0.2
+    assert (record["options"]["climb_speed"], record["options"]["prestream"]) == (2.0, 0.3)
     assert set(summary) >= {"completed", "goal_error_max", "tracking_error_max",
                             "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms"}
 
@@ -142,6 +144,8 @@ def test_fly_mock_realism_px4_with_realtime_streaming(tmp_path: Path) -> None:
 @pytest.mark.parametrize("extra, says", [
     (("--stream-priority", "fastest"), "--stream-priority"),
     (("--mock-position-error", "-1"), "position_error"),
+    (("--climb-speed", "0"), "climb_speed"),
+    (("--prestream", "-1"), "prestream"),
 ])
 def test_fly_rejects_bad_options(tmp_path: Path, extra: tuple[str, ...], says: str) -> None:
     proc = _fly(tmp_path, *extra)
