@@ -38,11 +38,11 @@ def planned(client: TestClient) -> str:
     return response.json()["id"]
 
 
-def test_the_forged_fly_request_of_issue_9_is_refused(
+def test_a_forged_cross_site_fly_request_is_refused(
     mock_settings: Callable[..., Settings],
 ) -> None:
     # text/plain, empty body, Origin http://evil.example: a browser sends this cross-site
-    # without a CORS preflight. It used to answer 201 and arm the fleet.
+    # without a CORS preflight; answered, it would arm the fleet.
     with TestClient(create_app(mock_settings())) as client:
         mission = client.post("/api/missions?wait=60", json=example("paper-circle2")).json()
         url = f"/api/missions/{mission['id']}/executions"

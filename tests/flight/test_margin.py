@@ -45,7 +45,7 @@ def test_scenario_for_fleet_adds_twice_the_error_and_states_it() -> None:
     scenario = Scenario.from_dict(planned)
     assert scenario.separation_margin == pytest.approx(0.5)
     assert scenario.to_dict()["separation_margin"] == pytest.approx(0.5)
-    # a scenario without a margin says nothing about it (its JSON is as before)
+    # a scenario without a margin says nothing about it (no margin keys in its JSON)
     assert "separation_margin" not in Scenario.from_dict(base).to_dict()
     with pytest.raises(ValueError, match="separation_margin"):
         Scenario.from_dict({**base, "separation_margin": 1.0})
@@ -110,7 +110,7 @@ def test_goal_tolerance_accounts_for_the_reported_accuracy() -> None:
     """max(configured, k x the larger of the fleet's position_error and the vehicle's h_acc):
     the SITL flight (goal errors up to 0.27 m) completes with a 0.25 m error."""
     opts = FlightOptions()
-    assert goal_tolerance(opts, None) == pytest.approx(0.2)  # as before
+    assert goal_tolerance(opts, None) == pytest.approx(0.2)  # the fixed tolerance
     assert goal_tolerance(opts, None, 0.05) == pytest.approx(0.2)
     assert goal_tolerance(opts, 0.25) == pytest.approx(0.5)
     assert goal_tolerance(opts, 0.1, 0.4) == pytest.approx(0.8)

@@ -32,7 +32,7 @@ def _mock_config(**values: object):  # type: ignore[no-untyped-def]
 def test_the_default_mock_is_ideal_and_px4_realism_is_chosen_by_setting() -> None:
     ideal = _mock_config()
     assert ideal.realism == "ideal" and ideal.estimate_noise is None
-    assert ideal.settle_time == 5.0  # as before
+    assert ideal.settle_time == 5.0  # PX4 SITL's estimator settling
     px4 = _mock_config(mock_realism="px4")
     assert px4.realism == "px4" and px4.estimate_noise == EstimateNoise()
     assert px4.settle_time == 3.5
