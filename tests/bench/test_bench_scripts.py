@@ -12,12 +12,14 @@ from pathlib import Path
 
 import pytest
 
+from tests.flight.support import QUICK_MOCK_ENV
+
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 
 
-def _run(script: str, *args: str) -> dict:
+def _run(script: str, *args: str, env: dict[str, str] | None = None) -> dict:
     done = subprocess.run([sys.executable, str(BENCH / script), *args], capture_output=True,
-                          text=True, timeout=300, cwd="/")
+                          text=True, timeout=300, cwd="/", env={**os.environ, **(env or {})})
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)
 
@@ -78,8 +80,9 @@ def test_stream_benchmark_at_px4_rates_with_and_without_rate_requests():
 
 @pytest.mark.flight
 def test_service_benchmark_reports_latency_and_flight_timing():
+    # the service it starts reads the mock settings from the environment: quick mocks
     report = _run("service.py", "--scenario", "paper-circle8", "--flight", "quick",
-                  "--hold-at-goal", "0.5")
+                  "--hold-at-goal", "0.5", env=QUICK_MOCK_ENV)
     run = report["runs"][0]
     assert run["plan_status"] == "planned" and run["flight"]["status"] == "completed"
     latency = run["latency"]

@@ -21,7 +21,7 @@ from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_pl
 
 pytestmark = pytest.mark.timeout(120)
 
-FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3)
+FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3, climb_speed=2.0)
 #: Three vehicles 1.2 m apart (R = 1 m) flying side by side: a pause must keep them apart.
 CLOSE = line_scenario(3, spacing=1.2)
 
