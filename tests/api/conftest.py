@@ -12,7 +12,8 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.support import free_udp_base, quick_service_mocks
+from tests.api.support import free_udp_base
+from tests.flight.support import QUICK_MOCK_SETTINGS
 
 
 @pytest.fixture(autouse=True)
@@ -46,11 +47,12 @@ def make_settings(tmp_path: Path, dask_scheduler: str) -> Callable[..., Settings
 
 @pytest.fixture
 def mock_settings(make_settings: Callable[..., Settings]) -> Callable[..., Settings]:
-    """Settings with 4 in-process mock vehicles on free UDP ports, quick to arm."""
+    """Settings with 4 in-process mock vehicles on free UDP ports, quick to arm, to confirm
+    each mode change and to land (`QUICK_MOCK_SETTINGS`)."""
 
     def make(**overrides: Any) -> Settings:
         values: dict[str, Any] = {"mock_vehicles": 4, "mock_base_port": free_udp_base(4),
-                                  "mock_settle_s": 0.5}
+                                  "mock_settle_s": 0.5, **QUICK_MOCK_SETTINGS}
         values.update(overrides)
         return make_settings(**values)
 
@@ -78,14 +80,6 @@ def shared_client(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
         yield test_client
 
 
-@pytest.fixture
-def quick_mocks() -> Iterator[None]:
-    """The mock vehicles of an app started in this test land and disarm quickly
-    (`tests.api.support.quick_service_mocks`)."""
-    with quick_service_mocks():
-        yield
-
-
 @pytest.fixture(scope="module")
 def module_mock_settings(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
                          ) -> Settings:
@@ -98,4 +92,5 @@ def module_mock_settings(tmp_path_factory: pytest.TempPathFactory, dask_schedule
                 patch.delenv(name)
         return Settings(database_url=f"sqlite:///{path}", mock_vehicles=4,
                         mock_base_port=free_udp_base(4), mock_settle_s=0.5, plan_workers=1,
-                        scheduler=dask_scheduler, allowed_hosts=["testserver"])
+                        scheduler=dask_scheduler, allowed_hosts=["testserver"],
+                        **QUICK_MOCK_SETTINGS)

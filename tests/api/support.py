@@ -9,18 +9,16 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-from gcs.sim import MockConfig, ports
+from gcs.sim import ports
 from tests.paths import EXAMPLES
 
 __all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING",
-           "ServiceProcess", "example", "free_port", "free_udp_base", "quick_service_mocks"]
+           "ServiceProcess", "example", "free_port", "free_udp_base"]
 
 
 def example(name: str) -> dict[str, Any]:
@@ -55,29 +53,6 @@ QUICK_PAIR: dict[str, Any] = {
         {"id": "b", "start": [4.5, 3.0, 0.8], "goal": [1.0, 3.2, 0.7]},
     ],
 }
-
-
-class _QuickMockConfig(MockConfig):
-    """MockConfig whose presets carry `FAST_MOCK` (other legal PX4 values)."""
-
-    @classmethod
-    def preset(cls, realism: str = "ideal", **overrides: Any) -> MockConfig:
-        from tests.flight.support import FAST_MOCK
-
-        return MockConfig.preset(realism, **{**FAST_MOCK, **overrides})
-
-
-@contextmanager
-def quick_service_mocks() -> Iterator[None]:
-    """While open, the mock vehicles an in-process service starts (`gcs.service.fleet`) land
-    at 1 m/s, disarm 0.5 s after touching down and send HEARTBEAT, SYS_STATUS and
-    EXTENDED_SYS_STATE at 5 Hz (`FAST_MOCK`): a landing shortened and each mode or arming
-    change confirmed within 0.2 s instead of 1 s, not what a flight checks."""
-    import pytest
-
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("gcs.service.fleet.MockConfig", _QuickMockConfig)
-        yield
 
 
 def free_udp_base(count: int) -> int:

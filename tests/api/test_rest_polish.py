@@ -81,7 +81,6 @@ def test_planning_events_have_ids_and_resume_after_last_event_id(
 
 
 @pytest.mark.flight
-@pytest.mark.usefixtures("quick_mocks")
 def test_flight_events_resume_and_flights_are_paginated_without_events(
     mock_settings: Callable[..., Settings],
 ) -> None:

@@ -14,7 +14,8 @@ from planner.result import Plan, VehicleTrajectory
 from planner.scenario import Scenario
 from planner.verify import verify
 
-__all__ = ["FAST_MOCK", "QUICK", "QUICK_MOCK", "QUICK_MOCK_ENV", "free_port_block",
+__all__ = ["FAST_MOCK", "QUICK", "QUICK_MOCK", "QUICK_MOCK_ENV",
+           "QUICK_MOCK_SETTINGS", "free_port_block",
            "line_scenario", "mock_ports", "short_line", "smooth_plan"]
 
 #: Mock settings that shorten a flight's landing, not what it checks: PX4's MPC_LAND_SPEED
@@ -26,12 +27,16 @@ QUICK_MOCK: dict[str, Any] = {"land_speed": 1.0, "disarm_after_land": 0.5}
 #: HEARTBEAT within 0.2 s instead of 1 s, which saves the GCS about 1 s per confirmation.
 FAST_MOCK: dict[str, Any] = {**QUICK_MOCK, "status_rate": 5.0}
 
-#: The service settings (as environment) that give a `fleetplan serve` child's mock vehicles
-#: `FAST_MOCK`, as `tests.api.support.quick_service_mocks` gives an in-process service's.
+#: The service settings that give an in-process service's mock vehicles `FAST_MOCK`.
+QUICK_MOCK_SETTINGS: dict[str, float] = {
+    "mock_land_speed": FAST_MOCK["land_speed"],
+    "mock_disarm_after_land_s": FAST_MOCK["disarm_after_land"],
+    "mock_status_rate_hz": FAST_MOCK["status_rate"],
+}
+
+#: `QUICK_MOCK_SETTINGS` as the environment of a `fleetplan serve` child.
 QUICK_MOCK_ENV: dict[str, str] = {
-    "FLEETPLAN_MOCK_LAND_SPEED": str(FAST_MOCK["land_speed"]),
-    "FLEETPLAN_MOCK_DISARM_AFTER_LAND_S": str(FAST_MOCK["disarm_after_land"]),
-    "FLEETPLAN_MOCK_STATUS_RATE_HZ": str(FAST_MOCK["status_rate"]),
+    f"FLEETPLAN_{name.upper()}": str(value) for name, value in QUICK_MOCK_SETTINGS.items()
 }
 
 #: Flight options for tests: a short hold at the goals and prestream, a 2 m/s climb.

@@ -19,8 +19,8 @@ from gcs.flight.vehicle_loop import SWITCH_INTERVAL_S, VehicleLoop, VehicleLoopS
 from gcs.service.flights import FleetService, LiveExecution
 from gcs.service.settings import Settings
 from gcs.service.store import Store
-from tests.api.support import free_udp_base, quick_service_mocks
-from tests.flight.support import short_line, smooth_plan
+from tests.api.support import free_udp_base
+from tests.flight.support import QUICK_MOCK_SETTINGS, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -50,7 +50,7 @@ async def _flying(service: FleetService, mission_id: str, plan: Any) -> LiveExec
 def test_a_blocked_service_loop_delays_no_tick_of_the_flight(tmp_path: Path) -> None:
     plan = smooth_plan(short_line(2, steps=25))  # 5 s: the block falls inside the plan
     settings = Settings(mock_vehicles=2, mock_base_port=free_udp_base(2), mock_settle_s=0.5,
-                        database_url=f"sqlite:///{tmp_path / 'fleet.db'}")
+                        database_url=f"sqlite:///{tmp_path / 'fleet.db'}", **QUICK_MOCK_SETTINGS)
     store = Store(settings.database_url)
     mission = store.create_mission(plan.scenario.to_dict())
 
@@ -68,8 +68,7 @@ def test_a_blocked_service_loop_delays_no_tick_of_the_flight(tmp_path: Path) -> 
             await service.close()
             store.close()
 
-    with quick_service_mocks():
-        record = asyncio.run(fly())
+    record = asyncio.run(fly())
     summary = record["summary"]
     assert summary["completed"] is True, summary["why"]
     assert not summary["faults"]  # no vehicle lost its link or left OFFBOARD
@@ -140,7 +139,7 @@ def test_a_vehicle_thread_that_dies_mid_flight_fails_the_flight(tmp_path: Path) 
     service does not wait on it for ever: the flight is stored failed, naming the cause."""
     plan = smooth_plan(short_line(2, steps=25))
     settings = Settings(mock_vehicles=2, mock_base_port=free_udp_base(2), mock_settle_s=0.5,
-                        database_url=f"sqlite:///{tmp_path / 'fleet.db'}")
+                        database_url=f"sqlite:///{tmp_path / 'fleet.db'}", **QUICK_MOCK_SETTINGS)
     store = Store(settings.database_url)
     mission = store.create_mission(plan.scenario.to_dict())
 
@@ -161,8 +160,7 @@ def test_a_vehicle_thread_that_dies_mid_flight_fails_the_flight(tmp_path: Path) 
         finally:
             await service.close()
 
-    with quick_service_mocks():
-        execution_id = asyncio.run(fly())
+    execution_id = asyncio.run(fly())
     stored = store.get_execution(execution_id)
     store.close()
     assert stored is not None and stored.status == "failed"

@@ -18,7 +18,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_PAIR, free_port, free_udp_base, quick_service_mocks
+from tests.api.support import QUICK_PAIR, free_port, free_udp_base
 
 
 def _as_server_user() -> tuple[list[str], int | None]:
@@ -73,7 +73,7 @@ def test_missions_and_flights_on_postgresql(
 ) -> None:
     settings = mock_settings(database_url=postgres_url, mock_vehicles=2,
                              mock_base_port=free_udp_base(2))
-    with quick_service_mocks(), TestClient(create_app(settings)) as client:
+    with TestClient(create_app(settings)) as client:
         mission = plan_mission(client, QUICK_PAIR)
         assert mission["plan"]["status"] == "converged"
         execution = client.post(f"/api/missions/{mission['id']}/executions",

@@ -16,7 +16,7 @@ from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.storage_faults import is_disk_full, storage_reason
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_CROSSING, example, quick_service_mocks
+from tests.api.support import QUICK_CROSSING, example
 from tests.service.support import fill_the_disk
 
 pytestmark = pytest.mark.timeout(300)
@@ -29,7 +29,7 @@ def test_a_flight_the_store_refuses_is_held_in_memory_then_stored_in_full(
     # The refused final write is retried 0.2 s later, then at doubling delays (the
     # service's first delay is 1 s): the same back-off, sooner.
     monkeypatch.setattr("gcs.service.flights.STORE_RETRY_S", 0.2)
-    with quick_service_mocks(), TestClient(create_app(mock_settings())) as client:
+    with TestClient(create_app(mock_settings())) as client:
         store = client.app.state.store  # type: ignore[attr-defined]
         real_update = store.update_execution
         disk_full = [True]

@@ -27,7 +27,6 @@ from playwright.sync_api import (
 )
 
 from tests.api.support import ServiceProcess, free_udp_base
-from tests.flight.support import QUICK_MOCK_ENV
 from tests.web.support import ServiceStarting
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
@@ -49,10 +48,9 @@ def service_starting(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Servi
     """`fleetplan serve` with 4 mock vehicles on free ports, booting in the background while
     Chromium launches."""
     workdir = tmp_path_factory.mktemp("web")
-    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2",
-           **QUICK_MOCK_ENV}
+    env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(4)), "FLEETPLAN_MOCK_SETTLE_S": "0.2"}
     starting = ServiceStarting(ServiceProcess(workdir, "--mock", "4", "--workers", "1",
-                                              env=env))
+                                              env=env, quick_mocks=True))
     try:
         yield starting
     finally:

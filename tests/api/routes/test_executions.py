@@ -18,7 +18,7 @@ from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example, quick_service_mocks
+from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example
 
 #: Quick flights: half a second at the goals, a 2 m/s climb after a 0.3 s prestream. A
 #: vehicle is flagged 2 m (not 1 m) off its plan: on a loaded machine the station and its
@@ -67,7 +67,7 @@ class Flown:
 def flown(module_mock_settings: Settings) -> Flown:
     """QUICK_CROSSING flown once (the tests below read it; the restart test reopens its
     database)."""
-    with quick_service_mocks(), TestClient(create_app(module_mock_settings)) as client:
+    with TestClient(create_app(module_mock_settings)) as client:
         idle = client.get("/api/vehicles").json()
         idle_vehicles = wait_for(lambda: heard(client), 10, "the mock vehicles' heartbeats")
         mission = plan_mission(client, QUICK_CROSSING)
@@ -141,7 +141,6 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
 
 
 @pytest.mark.flight
-@pytest.mark.usefixtures("quick_mocks")
 def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
@@ -245,7 +244,6 @@ def test_flights_survive_a_restart(flown: Flown) -> None:
 
 
 @pytest.mark.flight
-@pytest.mark.usefixtures("quick_mocks")
 def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]) -> None:
     """Paused: status `paused`, the mission clock stands still and the fleet holds; resumed:
     the flight completes. Pausing twice, resuming a running flight or a finished one: 409."""

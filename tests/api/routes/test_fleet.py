@@ -19,7 +19,6 @@ from tests.api.support import QUICK_CROSSING
 
 
 @pytest.mark.flight
-@pytest.mark.usefixtures("quick_mocks")
 def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
     mock_settings: Callable[..., Settings],
 ) -> None:
@@ -98,7 +97,6 @@ def test_fleet_commands_without_a_fleet(make_settings: Callable[..., Settings]) 
 
 
 @pytest.mark.flight
-@pytest.mark.usefixtures("quick_mocks")
 def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Settings]) -> None:
     """GET /api/vehicles shows battery, gps, health and link quality per vehicle; Fly is
     refused (409, naming the vehicle and the reason) for a vehicle low on battery, unless

@@ -143,7 +143,6 @@ def test_too_many_vehicles_is_refused_before_parsing(shared_client: TestClient) 
 
 
 @pytest.mark.flight
-@pytest.mark.usefixtures("quick_mocks")
 def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[..., Settings]
                                                     ) -> None:
     with TestClient(create_app(mock_settings())) as client:
