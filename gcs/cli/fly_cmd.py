@@ -59,6 +59,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mock-settle", type=float, default=None,
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
+    parser.add_argument("--mock-status-rate", type=float, default=None,
+                        help="--mock: HEARTBEAT, SYS_STATUS and EXTENDED_SYS_STATE rate (Hz, "
+                             "default 1 as PX4); faster confirms mode changes sooner")
+    parser.add_argument("--mock-land-speed", type=float, default=None,
+                        help="--mock: descent speed when landing (m/s, default 0.7 as PX4's "
+                             "MPC_LAND_SPEED)")
+    parser.add_argument("--mock-disarm-after-land", type=float, default=None,
+                        help="--mock: disarm this long after touchdown (s, default 2 as PX4's "
+                             "COM_DISARM_LAND)")
     parser.add_argument("--mock-realism", choices=("ideal", "px4"), default="ideal",
                         help="--mock: ideal vehicles (default) or px4: PX4 SITL's estimate noise, "
                              "lag, timings and telemetry (see fleetplan mock --realism)")
@@ -76,6 +85,11 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "margin_check": "margin_check", "message_rates": "message_rates",
                  "stream_priority": "stream_priority"}
 
+#: The --mock flags that set the mock vehicles' timings (`gcs.sim.config.TIMING_BOUNDS`).
+_MOCK_TIMING_FLAGS = {"mock_settle": "settle_time", "mock_status_rate": "status_rate",
+                      "mock_land_speed": "land_speed",
+                      "mock_disarm_after_land": "disarm_after_land"}
+
 
 def run(args: argparse.Namespace) -> int:
     import asyncio
@@ -90,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.flight.flight_handle import FlightHandle
     from gcs.flight.vehicle_loop import VehicleLoop
     from gcs.sim import MockFleet, homes_under
+    from gcs.sim.config import timing_error
     from planner.errors import PlannerError
     from planner.result import Plan
 
@@ -104,10 +119,15 @@ def run(args: argparse.Namespace) -> int:
             Path(args.record).write_text(json.dumps(record))
             print(f"flight record written to {args.record}")
 
-    if args.mock_settle is not None and not 0.0 <= args.mock_settle <= 60.0:
-        print(f"error: --mock-settle must be within [0, 60] s, got {args.mock_settle}",
-              file=sys.stderr)
-        return 2
+    mock_timings: dict[str, float] = {}
+    for flag, name in _MOCK_TIMING_FLAGS.items():
+        value = getattr(args, flag)
+        if value is None:
+            continue
+        if (reason := timing_error(name, value)) is not None:
+            print(f"error: --{flag.replace('_', '-')} {reason}", file=sys.stderr)
+            return 2
+        mock_timings[name] = value
 
     async def main() -> int:
         vehicles = VehicleLoop()  # the flight and the mocks run apart from this loop
@@ -123,10 +143,9 @@ def run(args: argparse.Namespace) -> int:
         try:
             if args.mock:
                 homes = homes_under(plan.scenario.starts)
-                settle = {} if args.mock_settle is None else {"settle_time": args.mock_settle}
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
-                                 realism=args.mock_realism, **settle)
+                                 realism=args.mock_realism, **mock_timings)
                 await vehicles.call(mock.start)
                 fleet_dict = mock.fleet_dict(plan.scenario.ids)
                 if args.mock_position_error is not None:

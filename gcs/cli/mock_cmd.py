@@ -37,6 +37,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--settle", type=float, default=None,
                         help="arming is TEMPORARILY_REJECTED this long after start (s, default "
                              "5 for ideal, 3.5 for px4, as PX4 SITL)")
+    parser.add_argument("--status-rate", type=float, default=None,
+                        help="HEARTBEAT, SYS_STATUS and EXTENDED_SYS_STATE rate (Hz, default 1 "
+                             "as PX4)")
+    parser.add_argument("--land-speed", type=float, default=None,
+                        help="descent speed when landing (m/s, default 0.7 as PX4's "
+                             "MPC_LAND_SPEED)")
+    parser.add_argument("--disarm-after-land", type=float, default=None,
+                        help="disarm this long after touchdown (s, default 2 as PX4's "
+                             "COM_DISARM_LAND)")
     parser.add_argument("--position-rate", type=float, default=30.0,
                         help="LOCAL_POSITION_NED rate (Hz, default 30)")
     parser.add_argument("--telemetry", choices=("minimal", "px4"), default=None,
@@ -64,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gcs.sim import MockConfig, MockFleet, homes_under
+    from gcs.sim.config import timing_error
 
     ids = None
     homes = None
@@ -91,6 +101,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: --position-error must be within [0, 10] m, got {args.position_error}",
               file=sys.stderr)
         return 2
+    timings: dict[str, float] = {}
+    for name in ("status_rate", "land_speed", "disarm_after_land"):
+        value = getattr(args, name)
+        if value is None:
+            continue
+        if (reason := timing_error(name, value)) is not None:
+            print(f"error: --{name.replace('_', '-')} {reason}", file=sys.stderr)
+            return 2
+        timings[name] = value
     if not args.position_rate > 0.0:
         print("error: --position-rate must be above 0", file=sys.stderr)
         return 2
@@ -102,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
 
     async def main() -> int:
         config = MockConfig.preset(args.realism, position_rate=args.position_rate,
-                                   seed=args.seed)
+                                   seed=args.seed, **timings)
         if args.settle is not None:
             config.settle_time = args.settle
         if args.telemetry is not None:

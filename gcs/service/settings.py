@@ -25,6 +25,7 @@ from pydantic_settings import (
 )
 
 from gcs import px4
+from gcs.sim.config import TIMING_BOUNDS
 
 __all__ = [
     "CONFIG_ENV",
@@ -104,20 +105,24 @@ class Settings(BaseSettings):
         description="Mock vehicle i sends to UDP base+i and listens on base+40+i (PX4 SITL's).",
     )
     mock_settle_s: float | None = Field(
-        None, ge=0, le=60, description="Mock vehicles refuse arming this long after they start "
+        None, ge=TIMING_BOUNDS["settle_time"][0], le=TIMING_BOUNDS["settle_time"][1],
+        description="Mock vehicles refuse arming this long after they start "
         "(default: the realism's, 5 s ideal, 3.5 s px4; PX4 SITL's estimator settles in 3-5 s)."
     )
     mock_status_rate_hz: float | None = Field(
-        None, gt=0, le=50, description="Mock vehicles' HEARTBEAT, SYS_STATUS and "
+        None, gt=TIMING_BOUNDS["status_rate"][0], le=TIMING_BOUNDS["status_rate"][1],
+        description="Mock vehicles' HEARTBEAT, SYS_STATUS and "
         "EXTENDED_SYS_STATE rate (Hz; default the realism's, 1 Hz as PX4's `mavlink stream` "
         "default): a faster one confirms mode and arming changes sooner."
     )
     mock_land_speed: float | None = Field(
-        None, ge=0.2, le=3, description="Mock vehicles' descent speed when landing (m/s; "
+        None, ge=TIMING_BOUNDS["land_speed"][0], le=TIMING_BOUNDS["land_speed"][1],
+        description="Mock vehicles' descent speed when landing (m/s; "
         "PX4's MPC_LAND_SPEED, default 0.7)."
     )
     mock_disarm_after_land_s: float | None = Field(
-        None, ge=0.1, le=20, description="Mock vehicles disarm this long after touching down "
+        None, ge=TIMING_BOUNDS["disarm_after_land"][0], le=TIMING_BOUNDS["disarm_after_land"][1],
+        description="Mock vehicles disarm this long after touching down "
         "(s; PX4's COM_DISARM_LAND, default 2)."
     )
     mock_realism: Literal["ideal", "px4"] = Field(

@@ -3,17 +3,39 @@ into one vehicle (`MockFaults`): plain settings, read by every other module of `
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from gcs import px4
 from gcs.sim.model import EstimateNoise, ModelLimits
 
-__all__ = ["REALISMS", "MockConfig", "MockFaults"]
+__all__ = ["REALISMS", "TIMING_BOUNDS", "MockConfig", "MockFaults", "timing_error"]
 
 #: The mock's behaviour presets (`MockConfig.preset`): "ideal" (exact state, no lag; the
 #: default) and "px4" (PX4 v1.16 SIH SITL's measured estimate noise, lag and timings).
 REALISMS = ("ideal", "px4")
+
+
+#: The `MockConfig` timings a user may change (`fleetplan fly --mock` and `fleetplan mock`
+#: flags, the service's mock_* settings): field -> (lowest, highest, unit). A status rate must
+#: be above its lowest; the others may equal it.
+TIMING_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "settle_time": (0.0, 60.0, "s"),
+    "status_rate": (0.0, 50.0, "Hz"),
+    "land_speed": (0.2, 3.0, "m/s"),
+    "disarm_after_land": (0.1, 20.0, "s"),
+}
+
+
+def timing_error(name: str, value: float) -> str | None:
+    """Why `value` cannot be the timing `name` (`TIMING_BOUNDS`), or None when it can."""
+    low, high, unit = TIMING_BOUNDS[name]
+    above = value > low if name == "status_rate" else value >= low
+    if math.isfinite(value) and above and value <= high:
+        return None
+    bracket = "(" if name == "status_rate" else "["
+    return f"must be within {bracket}{low:g}, {high:g}] {unit}, got {value}"
 
 
 @dataclass

@@ -17,13 +17,16 @@ pytestmark = pytest.mark.timeout(90)
 
 
 def _fly(tmp_path: Path, *extra: str) -> subprocess.Popen:
-    """`fleetplan fly --mock` of two vehicles flying 2 m in 3 s at 1 m, in the background."""
+    """`fleetplan fly --mock` of two vehicles flying 2 m in 3 s at 1 m, in the background; the
+    mocks report their state at 5 Hz, land at 1 m/s and disarm 0.5 s after touchdown, so the
+    flight's mode changes and its landing take less time than PX4's defaults would."""
     plan_path = tmp_path / "plan.json"
     plan_path.write_text(json.dumps(smooth_plan(short_line(2)).to_dict()))
     base = free_port_block(4)
     return subprocess.Popen(
         [sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path), "--mock",
-         "--mock-settle", "0.5", "--hold-at-goal", "0.5", "--climb-speed", "2",
+         "--mock-settle", "0.5", "--mock-status-rate", "5", "--mock-land-speed", "1",
+         "--mock-disarm-after-land", "0.5", "--hold-at-goal", "0.5", "--climb-speed", "2",
          "--prestream", "0.3", "--base-port", str(base),
          "--listen-base-port", str(base + 2), "--record", str(tmp_path / "record.json"),
          *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -146,6 +149,8 @@ def test_fly_mock_realism_px4_with_realtime_streaming(tmp_path: Path) -> None:
     (("--mock-position-error", "-1"), "position_error"),
     (("--climb-speed", "0"), "climb_speed"),
     (("--prestream", "-1"), "prestream"),
+    (("--mock-land-speed", "0.1"), "--mock-land-speed must be within [0.2, 3] m/s"),
+    (("--mock-settle", "nan"), "--mock-settle must be within [0, 60] s"),
 ])
 def test_fly_rejects_bad_options(tmp_path: Path, extra: tuple[str, ...], says: str) -> None:
     proc = _fly(tmp_path, *extra)

@@ -36,7 +36,7 @@ def _wait(predicate: Any, timeout: float, what: str) -> Any:
 @pytest.mark.flight
 def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
     env = {"FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(2)), "FLEETPLAN_MOCK_SETTLE_S": "0.5",
-           "FLEETPLAN_PLAN_WORKERS": "2", "FLEETPLAN_MAX_VEHICLES": "256"}
+           "FLEETPLAN_PLAN_WORKERS": "1", "FLEETPLAN_MAX_VEHICLES": "256"}
     service = ServiceProcess(tmp_path, "--mock", "2", env=env, quick_mocks=True).start()
     try:
         url = service.base_url
@@ -55,17 +55,18 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
             assert response.status_code in (201, 202), response.text
             created.append(response.json()["id"])
 
-        # Three 256-vehicle show transitions with fixed goals (the crowded case: about 12 s
-        # each here), one large job at a time on two workers, so plans are still `planning`
-        # at the kill (some 8 s later) however fast the machine is.
-        big = [grid_to_sphere(256, seed=seed) for seed in range(3)]
+        # Two 256-vehicle show transitions with fixed goals (the crowded case: about 12 s
+        # each here) and a small plan, all on one planner worker: one computes and the rest
+        # wait their turn, so plans are still `planning` at the kill (some 8 s later) however
+        # fast the machine is, while the planner takes one core, not two.
+        big = [grid_to_sphere(256, seed=seed) for seed in range(2)]
         posters = [threading.Thread(target=post, args=(scenario,))
                    for scenario in (*big, example("paper-circle4"))]
         for thread in posters:
             thread.start()
         for thread in posters:
             thread.join(60)
-        assert len(created) == 4
+        assert len(created) == 3
         _wait(lambda: (httpx.get(exec_url, timeout=HTTP_S).json().get("live") or {})
               .get("phase") == "flying", 60, "the flight to be flying")
         # What the service has shown so far; the journal writes it within about a second.
@@ -80,7 +81,7 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         assert service.process is not None
         tree = psutil.Process(service.process.pid).children(recursive=True)
         workers = [p for p in tree if "resource_tracker" not in " ".join(p.cmdline())]
-        assert len(workers) >= 2, [p.cmdline() for p in tree]
+        assert workers, [p.cmdline() for p in tree]  # the planner worker
         service.process.send_signal(signal.SIGKILL)
         service.process.wait(10)
     finally:

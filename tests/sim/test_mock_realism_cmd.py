@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from pymavlink import mavutil
 
 from gcs.flight.fleetfile import FleetSpec
 from gcs.flight.hub import LinkHub
@@ -58,11 +59,44 @@ def test_mock_realism_px4_runs_px4_like_vehicles(tmp_path: Path) -> None:
     assert proc.returncode == 0, out
 
 
+def test_mock_status_rate_sets_how_often_the_vehicles_report_their_state() -> None:
+    """--status-rate 5: HEARTBEAT at 5 Hz beside LOCAL_POSITION_NED at 30 Hz (counted as a
+    ratio of the two, which a busy machine slows alike), where PX4's default is 1 Hz."""
+    base = free_port_block(2)
+    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{base}", source_system=255)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gcs.cli.main", "mock", "--vehicles", "1", "--status-rate", "5",
+         "--settle", "0", "--base-port", str(base), "--listen-base-port", str(base + 1),
+         "--duration", "4"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    counts = {"HEARTBEAT": 0, "LOCAL_POSITION_NED": 0}
+    try:
+        while proc.poll() is None or counts["LOCAL_POSITION_NED"] == 0:
+            message = gcs.recv_match(type=list(counts), blocking=True, timeout=1.0)
+            if message is None:
+                if proc.poll() is not None:
+                    break
+                continue
+            counts[message.get_type()] += 1
+        out, _ = proc.communicate(timeout=20)
+    finally:
+        gcs.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, out
+    assert counts["LOCAL_POSITION_NED"] >= 30, counts
+    # 5/30 = 0.17 here; PX4's 1 Hz would give 0.03
+    assert counts["HEARTBEAT"] / counts["LOCAL_POSITION_NED"] > 0.1, counts
+
+
 @pytest.mark.parametrize("extra, says", [
     (("--position-error", "20"), "--position-error must be within [0, 10] m"),
     (("--settle", "nan"), "--settle must be a finite number"),
     (("--position-rate", "0"), "--position-rate must be above 0"),
     (("--seed", "-1"), "--seed must be an integer in [0, 2^32)"),
+    (("--status-rate", "0"), "--status-rate must be within (0, 50] Hz"),
+    (("--land-speed", "5"), "--land-speed must be within [0.2, 3] m/s"),
+    (("--disarm-after-land", "inf"), "--disarm-after-land must be within [0.1, 20] s"),
 ])
 def test_bad_mock_options_are_one_line_errors(extra: tuple[str, ...], says: str) -> None:
     proc = _mock("--vehicles", "1", "--duration", "1", *extra)
