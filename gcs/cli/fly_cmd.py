@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.flight.fleetfile import FleetSpec, load_fleet
     from gcs.flight.flight_handle import FlightHandle
     from gcs.flight.vehicle_loop import VehicleLoop
-    from gcs.sim import MockFleet, homes_under
+    from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
     from planner.errors import PlannerError
     from planner.result import Plan
@@ -145,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
                 homes = homes_under(plan.scenario.starts)
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
-                                 realism=args.mock_realism, **mock_timings)
+                                 config=MockConfig.preset(args.mock_realism, **mock_timings))
                 await vehicles.call(mock.start)
                 fleet_dict = mock.fleet_dict(plan.scenario.ids)
                 if args.mock_position_error is not None:
