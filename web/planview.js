@@ -82,25 +82,60 @@ function render3d(plan, traj) {
   plotly().react("plot3d", [...lines, now, flown], layout, PLOT_CONFIG);
 }
 
+/** The 3-D view's moving markers: their data changes at once, the WebGL scene is redrawn
+ * once per frame at most and only while the view is on screen (an off-screen redraw costs a
+ * laptop CPU for nothing; it is drawn as it scrolls into view). */
+const markers = { lines: 0, scheduled: false, onScreen: true, watched: false };
+
+/** @returns {any} the 3-D view's element (its `data` once plotted) */
+const scene = () => /** @type {any} */ ($("#plot3d"));
+
+/** Redraw the markers in the next frame, if the view is on screen. */
+function scheduleMarkers() {
+  if (!markers.watched && typeof IntersectionObserver !== "undefined") {
+    markers.watched = true;
+    new IntersectionObserver((entries) => {
+      markers.onScreen = entries.some((e) => e.isIntersecting);
+      scheduleMarkers();
+    }).observe(scene());
+  }
+  if (markers.scheduled || !markers.onScreen) return;
+  markers.scheduled = true;
+  requestAnimationFrame(() => {
+    markers.scheduled = false;
+    const data = scene().data;
+    if (!markers.onScreen || !data || !data[markers.lines + 1]) return;
+    const traces = [data[markers.lines], data[markers.lines + 1]];
+    plotly().restyle("plot3d", {  // both traces in one redraw
+      x: traces.map((t) => t.x.slice()), y: traces.map((t) => t.y.slice()),
+      z: traces.map((t) => t.z.slice()), text: traces.map((t) => t.text.slice()),
+      "marker.color": traces.map((t) => t.marker.color.slice()),
+    }, [markers.lines, markers.lines + 1]);
+  });
+}
+
 /** Move the 3-D view's "planned now" markers (the trace after the vehicles' lines).
  * @param {number} lines  the number of line traces
  * @param {number[][]} positions */
 export function showPlannedNow(lines, positions) {
-  if (!$("#plot3d").data) return;
-  plotly().restyle("plot3d", { x: [positions.map((p) => p[0])], y: [positions.map((p) => p[1])],
-                               z: [positions.map((p) => p[2])] }, [lines]);
+  const trace = scene().data?.[lines];
+  if (!trace) return;
+  [trace.x, trace.y, trace.z] = [0, 1, 2].map((a) => positions.map((p) => p[a]));
+  markers.lines = lines;
+  scheduleMarkers();
 }
 
 /** Move the 3-D view's "flown" markers (the last trace), labelled with the vehicles' ids.
  * @param {number} lines
  * @param {{id: string, color: string, position: number[]}[]} shown */
 export function showFlown(lines, shown) {
-  if (!$("#plot3d").data) return;
-  plotly().restyle("plot3d", {
-    x: [shown.map((v) => v.position[0])], y: [shown.map((v) => v.position[1])],
-    z: [shown.map((v) => v.position[2])], text: [shown.map((v) => v.id)],
-    "marker.color": [shown.map((v) => v.color)],
-  }, [lines + 1]);
+  const trace = scene().data?.[lines + 1];
+  if (!trace) return;
+  [trace.x, trace.y, trace.z] = [0, 1, 2].map((a) => shown.map((v) => v.position[a]));
+  trace.text = shown.map((v) => v.id);
+  trace.marker.color = shown.map((v) => v.color);
+  markers.lines = lines;
+  scheduleMarkers();
 }
 
 /** @param {HTMLTableElement} table @param {string} label @param {string} value

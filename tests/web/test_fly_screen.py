@@ -101,6 +101,11 @@ def test_fly_screen_follows_the_flight_then_abort(
     # The 3-D view shows the live positions too, labelled.
     flown = page.evaluate("document.getElementById('plot3d').data.at(-1).text")
     assert sorted(flown) == ["a", "b", "c", "d"]
+    # The view lies below the fly screen, so its scene is redrawn only once it is scrolled
+    # into view: then it draws them (plotly's drawn data, `_fullData`).
+    page.locator("#plot3d").scroll_into_view_if_needed()
+    page.wait_for_function("""() => { const drawn = document.getElementById('plot3d')._fullData;
+        return drawn && [...drawn.at(-1).text].sort().join() === 'a,b,c,d'; }""")
     # Pause and resume go to this flight; per-vehicle commands from the vehicle's row.
     execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
     # The service's answers may be slow on a busy machine: awaited, not timed.
