@@ -47,9 +47,11 @@ async def _fly(plan, options=FAST, *, settle=0.5, configure=None, during=None, *
 @pytest.mark.flight
 @pytest.mark.slow
 def test_paper_circle4_end_to_end() -> None:
-    """Plan the paper's 4-vehicle case with the SCP planner and fly it on 4 mock vehicles."""
-    scenario = planner.Scenario.from_dict(
-        json.loads((EXAMPLES / "paper-circle4.json").read_text()))
+    """Plan the paper's 4-vehicle case with the SCP planner and fly it on 4 mock vehicles:
+    its circle swap and limits, in 12 s instead of the paper's 30 s (the same tight crossing,
+    flown faster; the suite's flights are short)."""
+    data = json.loads((EXAMPLES / "paper-circle4.json").read_text())
+    scenario = planner.Scenario.from_dict({**data, "steps": 60})
     plan = planner.plan(scenario)
     assert plan.ok
     _flight, record, mock = asyncio.run(_fly(plan))
@@ -80,8 +82,8 @@ def test_paper_circle4_end_to_end() -> None:
     # the record carries what was sent and what was flown (a busy machine sends and
     # receives fewer: the streamer skips late ticks, the starved mock sends less)
     for v in record["vehicles"]:
-        assert len(v["setpoints"]["t"]) >= 10 * 30  # bound
-        assert len(v["telemetry"]["t"]) >= 10 * 30  # bound
+        assert len(v["setpoints"]["t"]) >= 10 * 12  # bound: 20 Hz over 12 s and more
+        assert len(v["telemetry"]["t"]) >= 10 * 12  # bound: 30 Hz
         assert [m["mode"] for m in v["modes"]][-2:] == ["AUTO.LAND", "AUTO.LAND"]
     kinds = [e["kind"] for e in record["events"]]
     assert kinds.index(EventKind.FLIGHT_START) < kinds.index("horizon") < kinds.index("landed")
