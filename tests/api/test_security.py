@@ -38,7 +38,6 @@ def planned(client: TestClient) -> str:
     return response.json()["id"]
 
 
-@pytest.mark.slow
 def test_a_forged_cross_site_fly_request_is_refused(
     mock_settings: Callable[..., Settings],
 ) -> None:

@@ -27,7 +27,6 @@ def report() -> dict[str, Any]:
     return json.loads(done.stdout)
 
 
-@pytest.mark.slow
 def test_dask_engine_benchmark_reports_overhead_and_latency(report: dict[str, Any]) -> None:
     (row,) = report["scenarios"]  # --only: just the scenario named, not the default two
     assert row["scenario"] == "paper-circle4" and row["vehicles"] == 4

@@ -80,7 +80,6 @@ def test_unsafe_ids_and_rates_are_refused_before_planning(tmp_path, capsys, sequ
     assert "--csv-rate" in capsys.readouterr().err
 
 
-@pytest.mark.slow
 def test_sequence_legs_run_on_a_dask_cluster_with_scheduler(tmp_path, capsys, sequence):
     from distributed import Client, LocalCluster
 

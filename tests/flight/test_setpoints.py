@@ -110,7 +110,6 @@ async def _stream_and_receive(plan, homes, shared: bool, rate: float, seconds: f
 
 
 @pytest.mark.parametrize("shared", [False, True], ids=["own-ports", "shared-connection"])
-@pytest.mark.slow
 def test_received_setpoints_equal_the_plan(line3_plan, shared: bool) -> None:
     """What each mock vehicle receives, converted back to the world frame with its own home,
     equals the plan at the sampled instants within 1e-6 m."""

@@ -31,7 +31,6 @@ def _one_iteration(data, **options):
 
 @pytest.mark.parametrize("continuous", [False, True], ids=["step-rows", "interval-rows"])
 @pytest.mark.parametrize("name", sorted(SCENARIOS))
-@pytest.mark.slow
 def test_culled_equals_all_pairs(name, continuous):
     data = SCENARIOS[name]()
     culled = _one_iteration(data, culling=True, continuous=continuous)

@@ -48,7 +48,6 @@ def test_compliance_is_symmetric_and_moves_nothing_fixed():
         assert np.abs(W[f]).max() < 1e-9
 
 
-@pytest.mark.slow
 def test_dual_group_equals_primal():
     # random16 linearised about the straight moves: rows at every interval where a pair is
     # within 1.2 R, and boxes of every kind (velocity, acceleration, jerk, wall rows) over
@@ -141,7 +140,6 @@ def test_a_row_on_the_fixed_start_is_reported_infeasible():
     grid_to_sphere(25, seed=1),  # a crowd crossing the centre: some groups stay primal
     random_dense(48, seed=3),
 ], ids=["random64", "grid-sphere25", "dense48"])
-@pytest.mark.slow
 def test_plans_with_dual_groups_are_verified_at_the_primal_cost(data):
     dual = planner.plan(data)
     primal = planner.plan(data, options=ScpOptions(dual=False))
@@ -158,7 +156,6 @@ def test_other_backends_keep_the_primal_and_agree():
             == pytest.approx(planner.plan(data).cost, rel=1e-6))
 
 
-@pytest.mark.slow
 def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
     import planner.scp as scp
     from planner.dual import DualOutcome

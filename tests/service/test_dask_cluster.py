@@ -71,7 +71,6 @@ def cluster_workers(address: str) -> set[str]:
         return set(client.scheduler_info()["workers"])
 
 
-@pytest.mark.slow
 def test_cli_plans_on_the_cluster(dask_cluster, tmp_path: Path) -> None:
     address, _ = dask_cluster
     out = tmp_path / "plan.json"
@@ -92,7 +91,6 @@ def test_cli_plans_on_the_cluster(dask_cluster, tmp_path: Path) -> None:
     assert len(printed) == len(plan["iterations"])
 
 
-@pytest.mark.slow
 def test_cli_reports_an_unreachable_scheduler(tmp_path: Path) -> None:
     result = subprocess.run(
         [sys.executable, "-m", "gcs.cli.main", "plan", str(EXAMPLES / "paper-circle2.json"),
@@ -104,7 +102,6 @@ def test_cli_reports_an_unreachable_scheduler(tmp_path: Path) -> None:
     assert "Traceback" not in result.stderr
 
 
-@pytest.mark.slow
 def test_service_plans_on_the_cluster(dask_cluster,
                                       make_settings: Callable[..., Settings]) -> None:
     address, _ = dask_cluster

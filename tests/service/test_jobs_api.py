@@ -22,7 +22,6 @@ def jobs_client(make_settings: Callable[..., Settings]) -> Iterator[TestClient]:
         yield client
 
 
-@pytest.mark.slow
 def test_cancel_fails_the_mission_and_frees_the_queue(jobs_client: TestClient) -> None:
     client = jobs_client
     # Plans that outlast the test, with SCP iterations short enough to stop at the next.

@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import os
 
-import pytest
 from distributed import Client
 
 from gcs.service.plan_engine import DaskEngine
@@ -18,7 +17,6 @@ def _niceness() -> int:
     return os.getpriority(os.PRIO_PROCESS, 0)
 
 
-@pytest.mark.slow
 def test_embedded_workers_plan_at_lower_priority_even_after_a_restart() -> None:
     async def scenario() -> tuple[int, list[int], list[int]]:
         engine = DaskEngine(workers=1, solver=None, scheduler=None)

@@ -105,7 +105,6 @@ def assert_idle(cluster: LocalCluster) -> None:
     assert len(counts) == 2 and not any(counts.values()), counts
 
 
-@pytest.mark.slow
 def test_progress_arrives_in_order_and_matches_the_stored_plan(store, cluster) -> None:
     async def scenario_run() -> None:
         service = await started_service(store, cluster)
@@ -168,7 +167,6 @@ def stubborn_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
     return PlanOutcome.failed("ran for two minutes")
 
 
-@pytest.mark.slow
 def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
     store, cluster, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -197,7 +195,6 @@ def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
     asyncio.run(scenario_run())
 
 
-@pytest.mark.slow
 def test_time_limit_fails_the_mission_with_the_reason(store, cluster) -> None:
     async def scenario_run() -> None:
         service = await started_service(store, cluster, time_limit_s=30)
@@ -393,7 +390,6 @@ def test_a_refused_failure_write_is_retried_until_stored(
     assert refusals == {"finish": 1, "fail": 3}
 
 
-@pytest.mark.slow
 def test_the_embedded_cluster_leaves_no_process_behind(store) -> None:
     me = psutil.Process()
     before = {p.pid for p in me.children(recursive=True)}

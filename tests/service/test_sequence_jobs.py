@@ -34,7 +34,6 @@ def submit_sequence(service: Any, db: Any, data: dict[str, Any], **options: Any
     return service.submit_sequence(row.id, sequence, **options)
 
 
-@pytest.mark.slow
 def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(store, cluster
                                                                              ) -> None:
     data = show_sequence(9, seed=4, hold=1.0)
@@ -64,7 +63,6 @@ def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(st
     asyncio.run(scenario_run())
 
 
-@pytest.mark.slow
 def test_cancel_stops_every_leg_and_frees_the_workers(store, cluster) -> None:
     data = show_sequence(64, seed=1, hold=1.0)
     data["assignment"] = "fixed"  # tens of seconds per leg on this machine
@@ -102,7 +100,6 @@ def stubborn_leg(job_id: str, scenario: dict[str, Any], solver: str | None, *, t
     return {"error": {"field": None, "reason": "ran for two minutes"}}
 
 
-@pytest.mark.slow
 def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, monkeypatch
                                                              ) -> None:
     monkeypatch.setattr(plan_worker, "run_plan", stubborn_leg)
@@ -135,7 +132,6 @@ def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, mon
     asyncio.run(scenario_run())
 
 
-@pytest.mark.slow
 def test_the_time_limit_stops_a_sequence(store, cluster) -> None:
     data = show_sequence(64, seed=1, hold=1.0)
     data["assignment"] = "fixed"  # several SCP iterations of about a second per leg

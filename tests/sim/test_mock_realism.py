@@ -81,7 +81,6 @@ def noise_run() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("pair", range(PAIRS))
-@pytest.mark.slow
 def test_noise_statistics_match_px4_sitl(
         pair: int, noise_run: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
     """At rest the estimated altitude wanders like SIH's (-1.2..+0.65 m seen, 0.5 m GPS

@@ -26,7 +26,6 @@ def _mock(*extra: str, timeout: float = 30.0) -> subprocess.CompletedProcess[str
                           capture_output=True, text=True, timeout=timeout)
 
 
-@pytest.mark.slow
 def test_mock_realism_px4_runs_px4_like_vehicles(tmp_path: Path) -> None:
     base = free_port_block(4)
     fleet_path = tmp_path / "fleet.json"
@@ -60,7 +59,6 @@ def test_mock_realism_px4_runs_px4_like_vehicles(tmp_path: Path) -> None:
     assert proc.returncode == 0, out
 
 
-@pytest.mark.slow
 def test_mock_status_rate_sets_how_often_the_vehicles_report_their_state() -> None:
     """--status-rate 5: HEARTBEAT at 5 Hz beside LOCAL_POSITION_NED at 30 Hz (counted as a
     ratio of the two, which a busy machine slows alike), where PX4's default is 1 Hz."""

@@ -72,7 +72,6 @@ BAD_SCENARIOS = [
 
 
 @pytest.mark.parametrize(("change", "field", "reason"), BAD_SCENARIOS)
-@pytest.mark.slow
 def test_invalid_scenarios_are_422_naming_the_field(
     shared_client: TestClient, change: Callable[[dict[str, Any]], None], field: str, reason: str
 ) -> None:
