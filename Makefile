@@ -27,18 +27,17 @@ run: $(STAMP)
 
 # Every check: ruff, then every test with mypy beside them (its report follows the tests').
 # Test files run in parallel processes (pytest-xdist, one per core, at most 3), one file per
-# process at a time, in the order tests/conftest.py gives (long files first); the 15 slowest
-# tests are listed at the end.
+# process at a time; the 15 slowest tests are listed at the end.
 test: $(STAMP) test-tools
 	$(PY) -m ruff check planner gcs tests bench
 	@$(PY) -m mypy > $(VENV)/mypy.log 2>&1 & types=$$!; \
-	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --no-loadscope-reorder --durations=15; tests=$$?; \
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15; tests=$$?; \
 	wait $$types; typed=$$?; echo "mypy:"; cat $(VENV)/mypy.log; \
 	test $$tests -eq 0 && test $$typed -eq 0
 
 # The inner loop: no browser and no full mock flights (markers `browser`, `flight`).
 test-fast: $(STAMP)
-	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --no-loadscope-reorder --durations=15 \
+	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15 \
 	  -m "not browser and not flight"
 
 # The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml;

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -27,14 +25,12 @@ LONG_MARKERS = ("browser", "flight", "slow")
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Every test that drives Chromium is marked `browser`, so `make test-fast` can leave it
-    out without each file having to say so. Files holding long tests run first, most first:
-    with `--dist loadfile --no-loadscope-reorder` (xdist's default order is by the number of
-    tests per file) the short files then fill the workers' last minutes, instead of one long
-    file running on alone at the end."""
+    out without each file having to say so. Files holding long tests run first: with
+    `--dist loadfile` the short files then fill the workers' last minutes, instead of one
+    long file running on alone at the end."""
     for item in items:
         if "browser" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.browser)
-    long_tests: Counter[Path] = Counter(
-        item.path for item in items if any(item.get_closest_marker(m) for m in LONG_MARKERS))
-    # the files with the most long tests first; stable, so each file's own order is kept
-    items.sort(key=lambda item: -long_tests[item.path])
+    long_files = {item.path for item in items
+                  if any(item.get_closest_marker(m) for m in LONG_MARKERS)}
+    items.sort(key=lambda item: item.path not in long_files)  # stable: file order kept
