@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 
 from gcs import px4
+from gcs.cli import mock_timings
 
 __all__ = ["configure", "run"]
 
@@ -59,15 +60,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mock-settle", type=float, default=None,
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
-    parser.add_argument("--mock-status-rate", type=float, default=None,
-                        help="--mock: HEARTBEAT, SYS_STATUS and EXTENDED_SYS_STATE rate (Hz, "
-                             "default 1 as PX4); faster confirms mode changes sooner")
-    parser.add_argument("--mock-land-speed", type=float, default=None,
-                        help="--mock: descent speed when landing (m/s, default 0.7 as PX4's "
-                             "MPC_LAND_SPEED)")
-    parser.add_argument("--mock-disarm-after-land", type=float, default=None,
-                        help="--mock: disarm this long after touchdown (s, default 2 as PX4's "
-                             "COM_DISARM_LAND)")
+    mock_timings.add_flags(parser, "mock-")
     parser.add_argument("--mock-realism", choices=("ideal", "px4"), default="ideal",
                         help="--mock: ideal vehicles (default) or px4: PX4 SITL's estimate noise, "
                              "lag, timings and telemetry (see fleetplan mock --realism)")
@@ -84,12 +77,6 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
                  "margin_check": "margin_check", "message_rates": "message_rates",
                  "stream_priority": "stream_priority"}
-
-#: The --mock flags that set the mock vehicles' timings (`gcs.sim.config.TIMING_BOUNDS`).
-_MOCK_TIMING_FLAGS = {"mock_settle": "settle_time", "mock_status_rate": "status_rate",
-                      "mock_land_speed": "land_speed",
-                      "mock_disarm_after_land": "disarm_after_land"}
-
 
 def run(args: argparse.Namespace) -> int:
     import asyncio
@@ -119,15 +106,16 @@ def run(args: argparse.Namespace) -> int:
             Path(args.record).write_text(json.dumps(record))
             print(f"flight record written to {args.record}")
 
-    mock_timings: dict[str, float] = {}
-    for flag, name in _MOCK_TIMING_FLAGS.items():
-        value = getattr(args, flag)
-        if value is None:
-            continue
-        if (reason := timing_error(name, value)) is not None:
-            print(f"error: --{flag.replace('_', '-')} {reason}", file=sys.stderr)
+    try:
+        timings = mock_timings.chosen(args, "mock-")
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.mock_settle is not None:
+        if (reason := timing_error("settle_time", args.mock_settle)) is not None:
+            print(f"error: --mock-settle {reason}", file=sys.stderr)
             return 2
-        mock_timings[name] = value
+        timings["settle_time"] = args.mock_settle
 
     async def main() -> int:
         vehicles = VehicleLoop()  # the flight and the mocks run apart from this loop
@@ -145,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
                 homes = homes_under(plan.scenario.starts)
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
-                                 config=MockConfig.preset(args.mock_realism, **mock_timings))
+                                 config=MockConfig.preset(args.mock_realism, **timings))
                 await vehicles.call(mock.start)
                 fleet_dict = mock.fleet_dict(plan.scenario.ids)
                 if args.mock_position_error is not None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 
 from gcs import px4
+from gcs.cli import mock_timings
 
 __all__ = ["configure", "run"]
 
@@ -37,15 +38,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--settle", type=float, default=None,
                         help="arming is TEMPORARILY_REJECTED this long after start (s, default "
                              "5 for ideal, 3.5 for px4, as PX4 SITL)")
-    parser.add_argument("--status-rate", type=float, default=None,
-                        help="HEARTBEAT, SYS_STATUS and EXTENDED_SYS_STATE rate (Hz, default 1 "
-                             "as PX4)")
-    parser.add_argument("--land-speed", type=float, default=None,
-                        help="descent speed when landing (m/s, default 0.7 as PX4's "
-                             "MPC_LAND_SPEED)")
-    parser.add_argument("--disarm-after-land", type=float, default=None,
-                        help="disarm this long after touchdown (s, default 2 as PX4's "
-                             "COM_DISARM_LAND)")
+    mock_timings.add_flags(parser)
     parser.add_argument("--position-rate", type=float, default=30.0,
                         help="LOCAL_POSITION_NED rate (Hz, default 30)")
     parser.add_argument("--telemetry", choices=("minimal", "px4"), default=None,
@@ -73,7 +66,6 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gcs.sim import MockConfig, MockFleet, homes_under
-    from gcs.sim.config import timing_error
 
     ids = None
     homes = None
@@ -101,15 +93,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: --position-error must be within [0, 10] m, got {args.position_error}",
               file=sys.stderr)
         return 2
-    timings: dict[str, float] = {}
-    for name in ("status_rate", "land_speed", "disarm_after_land"):
-        value = getattr(args, name)
-        if value is None:
-            continue
-        if (reason := timing_error(name, value)) is not None:
-            print(f"error: --{name.replace('_', '-')} {reason}", file=sys.stderr)
-            return 2
-        timings[name] = value
+    try:
+        timings = mock_timings.chosen(args)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     if not args.position_rate > 0.0:
         print("error: --position-rate must be above 0", file=sys.stderr)
         return 2
