@@ -69,6 +69,10 @@ ACTIVE_DUAL = 1e-7
 #: grid -> sphere 64/100 (fixed): dual faster below ~30 rows per vehicle, up to 7x slower
 #: at 43.
 DUAL_MAX_ROWS_PER_VEHICLE = 25
+#: Horizons of more steps solve the primal QP: the dual's functional matrix is dense in the
+#: steps (5K x 5K doubles: 32 MB at 400 steps, 5 GB at the 5,000 allowed) and the primal is
+#: faster there anyway (2 vehicles crossing: 0.02 s against 0.29 s at 600 steps).
+DUAL_MAX_STEPS = 400
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
 BEND_AMPLITUDE = 0.2
@@ -98,8 +102,9 @@ class ScpOptions:
     dual: bool = True
     """Solve each group's QP through its dual (`planner.dual`, one variable per row; the
     same optimum) instead of the primal staged QP with the configured backend. Only with
-    the PIQP backend; other backends always solve the primal, and so does a group whose
-    dual is too dense (see DUAL_MAX_ROWS_PER_VEHICLE) or did not solve (infeasible, ...)."""
+    the PIQP backend; other backends always solve the primal, and so does a plan of more
+    than DUAL_MAX_STEPS steps, or a group whose dual is too dense (DUAL_MAX_ROWS_PER_VEHICLE)
+    or did not solve (infeasible, ...)."""
 
 
 @dataclass
@@ -487,7 +492,7 @@ def run_scp(
     record(IterationRecord(0, cost, None, 0, first.qp_solves, 0, first_seconds))
 
     codec = _Codec(len(scenario.vehicles), scenario.steps)
-    dual = options.dual and solver.name == "piqp"
+    dual = options.dual and solver.name == "piqp" and scenario.steps <= DUAL_MAX_STEPS
     groups_solver = _GroupSolver(scenario, solver, codec, options.continuous,
                                  options.split_above, options.block_size, dual)
     current = base if guess is None else guess

@@ -173,3 +173,27 @@ def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
     assert calls
     assert fallback.ok, fallback.message
     assert fallback.cost == pytest.approx(reference.cost, rel=1e-6)
+
+
+def test_a_long_horizon_keeps_the_primal(monkeypatch):
+    """Above DUAL_MAX_STEPS the dual's dense functional matrix (5K x 5K) is never built: a
+    2-vehicle crossing over 5,000 steps would need 5 GB for it."""
+    import planner.scp as scp
+    from planner.dual import DualOutcome
+
+    calls: list[int] = []
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return DualOutcome("failed", None, None, 0)
+
+    monkeypatch.setattr(scp, "solve_group_dual", counting)
+    data = load_example("paper-circle2")
+    data["steps"] = scp.DUAL_MAX_STEPS
+    assert planner.plan(data).ok and calls  # at the bound the dual is still tried
+    calls.clear()
+    data["steps"] = scp.DUAL_MAX_STEPS + 1
+    plan = planner.plan(data)
+    assert plan.ok, plan.message
+    assert plan.iterations[-1].separation_rows > 0  # the crossing did meet separation rows
+    assert calls == []
