@@ -122,9 +122,11 @@ class FlightOptions:
     """A vehicle whose HEARTBEAT is older than this is flagged: its mode and armed state are
     no longer known (s). Five missed at PX4's 1 Hz: at 20% packet loss that happens by chance
     with probability 0.2^5 = 3e-4 per heartbeat, while a lost link is caught in 1.5 s."""
-    separation_alarm: float = 0.3
-    """The whole fleet is stopped (PX4 Hold) when two vehicles come closer than R minus this,
-    in the plan's separation metric (m): three times the tracking tolerance."""
+    separation_alarm: float | None = None
+    """The alarm band (m): the whole fleet is stopped (PX4 Hold) when two vehicles come
+    closer than the clearance they must keep (R = min_separation - separation_margin) minus
+    this, in the plan's separation metric. None: 0 for a plan with a margin (the margin is
+    the tracking tolerance), 0.3 m without one (`gcs.flight.margin.alarm_band`)."""
     tracking_error_max: float = 1.0
     """A vehicle farther than this from its planned position is flagged (m)."""
     start_tolerance: float = 0.3
@@ -202,6 +204,8 @@ class FlightOptions:
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")
+            elif key == "separation_alarm" and value is None:
+                pass  # the band follows the plan's margin (`gcs.flight.margin.alarm_band`)
             else:
                 if isinstance(value, bool) or not isinstance(value, int | float) \
                         or not math.isfinite(value):
@@ -217,7 +221,7 @@ class FlightOptions:
             raise FleetFileError(f"{where}.link_timeout",
                                  f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
                                  f"link, got {out.link_timeout:g}")
-        for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max", "separation_alarm",
+        for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
                     "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
                     "position_rate_hz"):
             if getattr(out, key) <= 0:

@@ -9,6 +9,8 @@ that fleet uses R + 2e (`scenario_for_fleet`), and the plan says so in its scena
 
 `check_margin` compares a plan's stated margin with what the fleet needs; `fleetplan fly`
 and the executor refuse (or, with `margin_check: warn`, warn about) a plan short of it.
+`separation_alarm_at` is where the live separation alarm stops the fleet: below the clearance
+the vehicles must keep, never below the inflated planning separation.
 """
 
 from __future__ import annotations
@@ -18,8 +20,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from planner import Plan
+from planner.scenario import Scenario
 
-__all__ = ["MarginCheck", "check_margin", "scenario_for_fleet"]
+__all__ = ["UNMARGINED_ALARM_BAND", "MarginCheck", "alarm_band", "check_margin",
+           "scenario_for_fleet", "separation_alarm_at"]
+
+#: The alarm band below R of a plan that states no margin (m): such a plan leaves the
+#: vehicles' tracking error nowhere else (the mock flies a few cm inside R, SITL up to 0.3 m).
+UNMARGINED_ALARM_BAND = 0.3
 
 
 def scenario_for_fleet(scenario: dict[str, Any], position_error: float) -> dict[str, Any]:
@@ -68,3 +76,18 @@ def check_margin(plan: Plan, position_error: float | None) -> MarginCheck:
     return MarginCheck(scenario.separation_margin,
                        None if position_error is None else 2.0 * position_error,
                        scenario.min_separation - scenario.separation_margin)
+
+
+def alarm_band(scenario: Scenario, band: float | None) -> float:
+    """The alarm band below the clearance (m): `band` when stated, else 0 for a plan that
+    states a margin (the margin is the vehicles' tolerance) and `UNMARGINED_ALARM_BAND`
+    for one that does not."""
+    if band is not None:
+        return float(band)
+    return 0.0 if scenario.separation_margin > 0 else UNMARGINED_ALARM_BAND
+
+
+def separation_alarm_at(scenario: Scenario, band: float | None) -> float:
+    """Two vehicles closer than this (the plan's metric, m) stop the whole fleet: the
+    clearance they must keep (min_separation - separation_margin) minus `alarm_band`."""
+    return (scenario.min_separation - scenario.separation_margin) - alarm_band(scenario, band)

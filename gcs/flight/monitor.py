@@ -14,7 +14,8 @@ is meant to be in OFFBOARD, in this order (the first failing check flags it):
    (written so that a NaN distance never passes).
 
 Then the live minimum separation over every vehicle in the air (the plan's metric), with an
-alarm below R - `separation_alarm`. The monitor only detects: what to do is the executor's
+alarm below the clearance the vehicles must keep minus the alarm band
+(`gcs.flight.margin.separation_alarm_at`). The monitor only detects: what to do is the executor's
 (`on_fault`, `on_separation`).
 
 The station's own stalls (`gcs.flight.station`) are not a vehicle's fault: the monitor notes
@@ -38,6 +39,7 @@ import numpy as np
 from gcs import frames, px4
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.link import VehicleLink
+from gcs.flight.margin import separation_alarm_at
 from gcs.flight.phases import AIRBORNE, VehiclePhase
 from gcs.flight.station import STALL_NOTE_S, StationStalls
 from gcs.flight.vehicle import VehicleStatus
@@ -171,6 +173,6 @@ class FleetMonitor:
             i, j = np.triu_indices(len(pts), k=1)
             closest = float(np.min(np.linalg.norm(pts[i] - pts[j], axis=1)))
             self.min_separation = min(self.min_separation, closest)
-            alarm = plan.scenario.min_separation - opts.separation_alarm
+            alarm = separation_alarm_at(plan.scenario, opts.separation_alarm)
             if not closest >= alarm:  # a distance that is not a number alarms too
                 self.on_separation(closest, alarm)

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.margin import MarginCheck
+from gcs.flight.margin import MarginCheck, separation_alarm_at
 from gcs.flight.phases import VehiclePhase
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.stream import jitter_stats
@@ -189,6 +189,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         "tracking_error_max": None,
         "min_separation_measured": None, "min_separation_planned": None,
         "min_separation_required": scenario.min_separation - scenario.separation_margin,
+        "separation_alarm_at": separation_alarm_at(scenario, options.separation_alarm),
         "separation_held": None,
         "separation_margin": None if margin is None else margin.to_dict(),
         "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,

@@ -9,15 +9,20 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gcs.errors import FleetFileError, PlanRejected
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.margin import check_margin, scenario_for_fleet
+from gcs.flight.margin import check_margin, scenario_for_fleet, separation_alarm_at
+from gcs.flight.monitor import FleetMonitor
+from gcs.flight.phases import VehiclePhase
 from gcs.flight.record import goal_tolerance
+from gcs.flight.station import StationStalls
 from gcs.sim import MockFleet, homes_under
 from planner import Scenario
+from tests.flight.fakes import fake_vehicle
 from tests.flight.support import (
     FAST_MOCK,
     QUICK,
@@ -140,3 +145,38 @@ def test_plan_for_a_fleet_from_the_command_line(tmp_path: Path) -> None:
                            "--fleet", str(fleet), "-o", str(out), "-q"],
                           capture_output=True, text=True, timeout=90)
     assert proc.returncode == 2 and "states no position_error" in proc.stderr
+
+
+def test_the_alarm_sits_at_the_clearance_the_vehicles_must_keep() -> None:
+    """Planned for R 1 m + a 0.5 m margin: the alarm line is R (not 1.5 m - 0.3 m = 1.2 m);
+    without a margin it keeps the 0.3 m band below R; a stated band applies below R."""
+    margin_plan = smooth_plan(scenario_for_fleet(short_line(2), 0.25))
+    assert margin_plan.scenario.min_separation == pytest.approx(1.5)
+    assert separation_alarm_at(margin_plan.scenario, None) == pytest.approx(1.0)
+    assert separation_alarm_at(margin_plan.scenario, 0.1) == pytest.approx(0.9)
+    bare = smooth_plan(short_line(2)).scenario
+    assert separation_alarm_at(bare, None) == pytest.approx(0.7)
+    assert separation_alarm_at(bare, 0.0) == pytest.approx(1.0)
+    assert FlightOptions.from_dict({"separation_alarm": None}).separation_alarm is None
+    assert FlightOptions.from_dict({"separation_alarm": 0}).separation_alarm == 0
+    with pytest.raises(FleetFileError, match=r"flight\.separation_alarm"):
+        FlightOptions.from_dict({"separation_alarm": -0.1})
+
+
+def test_the_live_alarm_lets_a_flight_use_its_margin_and_stops_one_below_r() -> None:
+    """The monitor on a margin plan (R 1 m, planned 1.5 m): two vehicles 1.1 m apart are in
+    the margin and fly on; 0.95 m apart they are below R and the fleet is stopped."""
+    plan = smooth_plan(scenario_for_fleet(short_line(2), 0.25))
+    vehicles = [fake_vehicle(0), fake_vehicle(1)]
+    for v in vehicles:
+        v.phase = VehiclePhase.FLYING
+    alarms: list[tuple[float, float]] = []
+    monitor = FleetMonitor(vehicles, plan, FlightOptions(), flight_time=lambda: None,
+                           on_fault=lambda *_: None,
+                           on_separation=lambda closest, at: alarms.append((closest, at)),
+                           stalls=StationStalls())
+    for gap in (1.4, 1.2, 1.1, 1.001):
+        monitor._separation({"uav1": np.zeros(3), "uav2": np.array([gap, 0.0, 0.0])})
+    assert alarms == []
+    monitor._separation({"uav1": np.zeros(3), "uav2": np.array([0.95, 0.0, 0.0])})
+    assert alarms == [(pytest.approx(0.95), pytest.approx(1.0))]
