@@ -32,19 +32,23 @@ install: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/fleetplan serve
 
+# Test processes (pytest-xdist): one more than the cores, at most 3 (`make test JOBS=N` to
+# choose). Much of the suite waits on real-time mock flights, so a core would otherwise idle.
+JOBS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); echo $$((n + 1 < 3 ? n + 1 : 3)))
+
 # Every check: ruff, then every test with mypy beside them (its report follows the tests').
-# Test files run in parallel processes (pytest-xdist, one per core, at most 3), one file per
-# process at a time; the 15 slowest tests are listed at the end.
+# Test files run in parallel processes (JOBS), one file per process at a time; the 15 slowest
+# tests are listed at the end.
 test: $(STAMP) test-tools
 	$(PY) -m ruff check planner gcs tests bench
 	@$(PY) -m mypy > $(VENV)/mypy.log 2>&1 & types=$$!; \
-	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15; tests=$$?; \
+	$(PY) -m pytest -n $(JOBS) --dist loadfile --durations=15; tests=$$?; \
 	wait $$types; typed=$$?; echo "mypy:"; cat $(VENV)/mypy.log; \
 	test $$tests -eq 0 && test $$typed -eq 0
 
 # The inner loop: no browser and no full mock flights (markers `browser`, `flight`).
 test-fast: $(STAMP)
-	$(PY) -m pytest -n auto --maxprocesses 3 --dist loadfile --durations=15 \
+	$(PY) -m pytest -n $(JOBS) --dist loadfile --durations=15 \
 	  -m "not browser and not flight"
 
 # The browser tests drive Debian's Chromium; docker-compose validates docker-compose.yml;

@@ -23,20 +23,24 @@ def test_commands_health_and_geodetic_reference(open_page, service: ServiceProce
     fill_scenario(page, "controls", 50, CROSSING)
     plan(page)
 
-    # Fleet commands: visible, and sent with every fleet vehicle and the confirmation.
+    # Fleet commands: visible, and sent with every fleet vehicle and the confirmation (each
+    # answer waits for the vehicles' acknowledgements: awaited, not timed).
     expect(page.locator(".fleet-commands")).to_be_visible()
     expect(page.locator("#pause-button")).to_be_visible()
     expect(page.locator("#pause-button")).to_be_disabled()  # nothing is flying
     ids = httpx.get(f"{service.base_url}/api/vehicles").json()["fleet"]["ids"]
     page.click('.fleet-commands button[data-command="land"]')
-    expect(page.locator("#command-result")).to_have_text(f"land sent to {len(ids)} vehicles")
+    expect(page.locator("#command-result")).to_have_text(f"land sent to {len(ids)} vehicles",
+                                                         timeout=30_000)
     page.click('.fleet-commands button[data-command="rtl"]')
-    expect(page.locator("#command-result")).to_have_text(f"rtl sent to {len(ids)} vehicles")
+    expect(page.locator("#command-result")).to_have_text(f"rtl sent to {len(ids)} vehicles",
+                                                         timeout=30_000)
     # Per vehicle, from its row in the fleet table.
     first = page.locator("#vehicle-state tbody tr").first
     vid = first.get_attribute("data-id")
     first.locator('button[data-vehicle-command="hold"]').click()
-    expect(page.locator("#command-result")).to_have_text(f"hold sent to {vid}")
+    expect(page.locator("#command-result")).to_have_text(f"hold sent to {vid}",
+                                                         timeout=30_000)
     assert sent == [
         ("/api/fleet/commands", {"command": "land", "vehicles": ids, "confirm": True}),
         ("/api/fleet/commands", {"command": "rtl", "vehicles": ids, "confirm": True}),

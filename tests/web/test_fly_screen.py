@@ -119,7 +119,8 @@ def test_fly_screen_follows_the_flight_then_abort(
     expect(page.locator("#resume-button")).to_be_disabled()
     expect(status).to_have_attribute("data-status", "running")
     page.locator('#vehicle-state tr[data-id="c"] button[data-vehicle-command="land"]').click()
-    expect(page.locator("#command-result")).to_have_text("land sent to c")
+    # answered once the vehicle acknowledged LAND: awaited like pause and resume
+    expect(page.locator("#command-result")).to_have_text("land sent to c", timeout=30_000)
     assert sent == [(f"/api/executions/{execution_id}/pause", None),
                     (f"/api/executions/{execution_id}/resume", None),
                     ("/api/vehicles/c/commands", {"command": "land", "confirm": True})]
