@@ -99,6 +99,9 @@ class VehicleLink:
         self._waiters: list[tuple[Callable[[Telemetry], bool], asyncio.Future[None]]] = []
         self.duplicate_acks = 0
         self.setpoints_sent = 0
+        self.dropped_from: dict[str, tuple[Any, int]] = {}
+        """Security counter name -> (address, component) of the latest packet dropped for
+        it: what a connect that heard nothing it could admit reports (`drop_diagnosis`)."""
         endpoint.register(self)
 
     # ---------------------------------------------------------------- receiving
@@ -125,17 +128,20 @@ class VehicleLink:
         counters = self.telemetry.security
         if self.pinned and address != self.peer_address:
             counters.foreign_source += 1
+            self.dropped_from["foreign_source"] = (address, component)
             if (not self.peer_given and self.signing is None and component == self.component_id
                     and address not in self.claimants and len(self.claimants) < MAX_CLAIMANTS):
                 self.claimants.append(address)
             return False
         if component != self.component_id:
             counters.other_component += 1
+            self.dropped_from["other_component"] = (address, component)
             return False
         if self.signing is not None:
             reason = verify(self.signing)
             if reason is not None:
                 counters.count(reason)
+                self.dropped_from[reason] = (address, component)
                 return False
         if not self.pinned:
             self.peer_address = address

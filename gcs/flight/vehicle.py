@@ -152,9 +152,14 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
         link, lambda t: t.heartbeat_time is not None and t.position_ned is not None, timeout,
         stalls)
     if not ok:
+        dropped = drop_diagnosis(link, spec)
+        if dropped and link.telemetry.heartbeat_time is None:
+            raise VehicleTimeout(spec.id, f"heard within {timeout:g} s on {spec.connection}, "
+                                          f"but nothing it could accept: {dropped}")
         what = "HEARTBEAT" if link.telemetry.heartbeat_time is None else "LOCAL_POSITION_NED"
         raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
-                                      f"{spec.connection} (system id {spec.system_id})")
+                                      f"{spec.connection} (system id {spec.system_id})"
+                                      + (f"; also dropped: {dropped}" if dropped else ""))
     tel = link.telemetry
     if tel.autopilot != mavlink.MAV_AUTOPILOT_PX4:
         raise LinkError(f"{spec.id}: autopilot type {tel.autopilot} is not PX4 "
@@ -163,6 +168,41 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
         raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
                        f"someone else armed")
     refuse_other_claimants(link, spec)
+
+
+#: Packets dropped from a vehicle's system id, by security counter: what they were, the
+#: likely cause and what to do.
+_DROP_CAUSES: dict[str, tuple[str, str]] = {
+    "unsigned": ("unsigned packets",
+                 "the fleet file gives this vehicle a signing_key but the key is not "
+                 "provisioned on the vehicle (SETUP_SIGNING, see the docs' Security, "
+                 "Provisioning) or signing is off there"),
+    "bad_signature": ("wrongly signed packets",
+                      "signed with another key than the fleet file's signing_key: provision "
+                      "this key on the vehicle, or give the fleet file the vehicle's key"),
+    "replayed": ("replayed packets",
+                 "signed with this key but with old timestamps: a replay, or a vehicle whose "
+                 "clock went back (restart it)"),
+    "other_component": ("packets from another component",
+                        "not the fleet file's component_id: set it to the autopilot's"),
+    "foreign_source": ("packets from another address",
+                       "not the pinned peer: a second source, or the fleet file's peer is not "
+                       "the vehicle's address"),
+}
+
+
+def drop_diagnosis(link: VehicleLink, spec: VehicleSpec) -> str:
+    """What the link dropped from this vehicle's system id and the likely cause, one clause
+    per reason ("" when it dropped nothing): a misconfigured link reads as what it is, not
+    as a silent vehicle."""
+    counts = link.telemetry.security.to_dict()
+    parts = []
+    for reason, (what, cause) in _DROP_CAUSES.items():
+        if counts.get(reason, 0) and reason in link.dropped_from:
+            address, component = link.dropped_from[reason]
+            parts.append(f"{counts[reason]} {what} from {_address(address)} (system id "
+                         f"{spec.system_id}, component {component}): {cause}")
+    return "; ".join(parts)
 
 
 def refuse_other_claimants(link: VehicleLink, spec: VehicleSpec) -> None:

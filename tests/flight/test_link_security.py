@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from gcs import px4
-from gcs.errors import LinkError
+from gcs.errors import LinkError, VehicleTimeout
 from gcs.flight import signing as signing_module
 from gcs.flight.fleetfile import FleetSpec, VehicleSpec
 from gcs.flight.hub import LinkHub
@@ -331,6 +331,41 @@ def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
         vehicle.send(vehicle.heartbeat(px4.POSITION), port)  # a fresh signed one counts
         await _until(lambda: link.telemetry.mode == px4.POSITION)
         assert sec.total == 3
+
+    _signed_hub_test(tmp_path, body)
+
+
+def test_a_key_not_on_the_vehicle_fails_connect_naming_the_cause(tmp_path: Path) -> None:
+    """A vehicle sending unsigned packets to a link with a key is heard, not silent: the
+    connect timeout says how many were dropped, from where, and why, never "no HEARTBEAT";
+    one signed with another key is told apart."""
+    async def body(link: VehicleLink, vehicle: Peer, port: int, key: Any) -> None:
+        spec = VehicleSpec(id="uav1", connection=f"udpin:127.0.0.1:{port}", system_id=1,
+                           component_id=1, home=None)
+        unkeyed = Peer()
+        try:
+            for _ in range(3):
+                unkeyed.send(unkeyed.heartbeat(), port)
+                unkeyed.send(unkeyed.position(), port)
+            await _until(lambda: link.telemetry.security.unsigned == 6)
+            with pytest.raises(VehicleTimeout) as refused:
+                await connect(link, spec, 0.2)
+            text = str(refused.value)
+            address = f"{unkeyed.address[0]}:{unkeyed.address[1]}"
+            assert f"6 unsigned packets from {address}" in text
+            assert "not provisioned on the vehicle" in text
+            assert "no HEARTBEAT" not in text
+        finally:
+            unkeyed.close()
+        other = Peer(key=b"\x02" * 32)
+        try:
+            other.send(other.heartbeat(), port)
+            await _until(lambda: link.telemetry.security.bad_signature == 1)
+            with pytest.raises(VehicleTimeout, match=r"1 wrongly signed packets from .*another "
+                                                     r"key than the fleet file's"):
+                await connect(link, spec, 0.2)
+        finally:
+            other.close()
 
     _signed_hub_test(tmp_path, body)
 
