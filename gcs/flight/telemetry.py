@@ -94,7 +94,8 @@ class Telemetry:
     """GPS_RAW_INT h_acc (m): horizontal position uncertainty."""
     gps_v_acc: float = math.nan
     warnings: deque[str] = field(default_factory=lambda: deque(maxlen=5))
-    """STATUSTEXT of severity WARNING or worse."""
+    """STATUSTEXT of severity WARNING or worse since the vehicle last armed: arming clears
+    them, so "Preflight Fail: ..." from before does not stay for the whole flight."""
     seq_received: int = 0
     """Messages from the autopilot component counted for link quality (decoded or skipped)."""
     skipped: int = 0
@@ -157,7 +158,10 @@ class Telemetry:
         self.autopilot = msg.autopilot
         self.vehicle_type = msg.type
         self.mode = px4.decode_custom_mode(msg.custom_mode)
-        self.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+        armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+        if armed and not self.armed:
+            self.warnings.clear()  # the pre-arm checks passed: their warnings are over
+        self.armed = armed
         self.system_status = msg.system_status
 
     def _statustext(self, msg: Any) -> bool:

@@ -64,6 +64,32 @@ def test_health_from_messages() -> None:
     assert "battery 12% (below 30%)" in preflight_problems(link.telemetry)
 
 
+def _heartbeat(mav: mavlink.MAVLink, armed: bool) -> object:
+    base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
+        mavlink.MAV_MODE_FLAG_SAFETY_ARMED if armed else 0)
+    return mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base, 0,
+                                mavlink.MAV_STATE_STANDBY)
+
+
+def test_pre_arm_warnings_clear_when_the_vehicle_arms() -> None:
+    """"Preflight Fail: ..." from before arming does not stay in the health report for the
+    whole flight; a warning after arming stays, and a disarm-arm cycle clears it again."""
+    link, mav = _link()
+    _feed(link, mav, _heartbeat(mav, armed=False))
+    _feed(link, mav, mav.statustext_encode(mavlink.MAV_SEVERITY_CRITICAL,
+                                           b"Preflight Fail: heading estimate not stable"))
+    _feed(link, mav, _heartbeat(mav, armed=False))
+    assert health_report(link.telemetry)["health"]["warnings"] == \
+        ["Preflight Fail: heading estimate not stable"]
+    _feed(link, mav, _heartbeat(mav, armed=True))
+    assert health_report(link.telemetry)["health"]["warnings"] == []
+    _feed(link, mav, mav.statustext_encode(mavlink.MAV_SEVERITY_WARNING, b"Low battery"))
+    _feed(link, mav, _heartbeat(mav, armed=True))
+    assert health_report(link.telemetry)["health"]["warnings"] == ["Low battery"]
+    # the text itself is kept in the vehicle's status texts
+    assert "Preflight Fail: heading estimate not stable" in link.telemetry.statustexts
+
+
 def _fly(configure, options: FlightOptions = FAST):
     plan = smooth_plan(short_line(2))
 
