@@ -78,6 +78,15 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "margin_check": "margin_check", "message_rates": "message_rates",
                  "stream_priority": "stream_priority"}
 
+def _is_scenario(document: object) -> bool:
+    """A scenario JSON (vehicles with start and goal, no plan status) given where a plan goes."""
+    if not isinstance(document, dict) or "status" in document:
+        return False
+    vehicles = document.get("vehicles")
+    return (isinstance(vehicles, list) and bool(vehicles) and isinstance(vehicles[0], dict)
+            and "start" in vehicles[0] and "goal" in vehicles[0])
+
+
 def run(args: argparse.Namespace) -> int:
     import asyncio
     import contextlib
@@ -86,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
+    from gcs.cli.hints import port_in_use_hint
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
     from gcs.flight.flight_handle import FlightHandle
@@ -96,7 +106,13 @@ def run(args: argparse.Namespace) -> int:
     from planner.result import Plan
 
     try:
-        plan = Plan.from_dict(json.loads(Path(args.plan).read_text()))
+        document = json.loads(Path(args.plan).read_text())
+        if _is_scenario(document):
+            print(f"error: {args.plan} is a scenario, not a plan: plan it first "
+                  f"(fleetplan plan {args.plan} -o PLAN.json), then fly PLAN.json",
+                  file=sys.stderr)
+            return 2
+        plan = Plan.from_dict(document)
     except (OSError, json.JSONDecodeError, PlannerError) as exc:
         print(f"error: cannot use plan {args.plan}: {exc}", file=sys.stderr)
         return 2
@@ -150,8 +166,10 @@ def run(args: argparse.Namespace) -> int:
             if mock is not None:
                 await vehicles.call(mock.stop)
             where = f"{exc.field}: " if isinstance(exc, FleetFileError) else ""
-            print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}",
-                  file=sys.stderr)
+            ports = ("--base-port (the GCS side) and --listen-base-port (the mock vehicles)"
+                     if args.mock else "the connection URLs in the fleet file")
+            print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}"
+                  f"{port_in_use_hint(exc, ports)}", file=sys.stderr)
             return 2
 
         loop = asyncio.get_running_loop()

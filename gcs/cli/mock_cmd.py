@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
+    from gcs.cli.hints import port_in_use_hint
     from gcs.sim import MockConfig, MockFleet, homes_under
 
     ids = None
@@ -123,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             await mock.start()
         except OSError as exc:  # a busy port: one line, not a traceback
-            print(f"error: {exc}", file=sys.stderr)
+            print(f"error: {exc}{port_in_use_hint(exc, '--base-port and --listen-base-port')}",
+                  file=sys.stderr)
             return 2
         if args.fleet_out:
             fleet = mock.fleet_dict(ids)

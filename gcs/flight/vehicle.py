@@ -157,9 +157,18 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
             raise VehicleTimeout(spec.id, f"heard within {timeout:g} s on {spec.connection}, "
                                           f"but nothing it could accept: {dropped}")
         what = "HEARTBEAT" if link.telemetry.heartbeat_time is None else "LOCAL_POSITION_NED"
+        endpoint = link.endpoint
+        if endpoint.messages_received == 0 and endpoint.garbage_datagrams == 0:
+            hint = ("; nothing at all arrived there: is the vehicle running and sending to "
+                    "this port? (mock vehicles: fleetplan mock; PX4 SITL sends its offboard "
+                    "link to 14540 + instance)")
+        elif endpoint.dropped_unknown and link.telemetry.heartbeat_time is None:
+            hint = (f"; {endpoint.dropped_unknown} messages arrived there from other system "
+                    f"ids: is system_id {spec.system_id} right for this vehicle?")
+        else:
+            hint = f"; also dropped: {dropped}" if dropped else ""
         raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
-                                      f"{spec.connection} (system id {spec.system_id})"
-                                      + (f"; also dropped: {dropped}" if dropped else ""))
+                                      f"{spec.connection} (system id {spec.system_id}){hint}")
     tel = link.telemetry
     if tel.autopilot != mavlink.MAV_AUTOPILOT_PX4:
         raise LinkError(f"{spec.id}: autopilot type {tel.autopilot} is not PX4 "

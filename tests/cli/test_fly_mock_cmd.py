@@ -95,6 +95,54 @@ def test_mock_on_a_busy_port_is_one_line(tmp_path: Path) -> None:
     assert "Traceback" not in proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and str(base + 1) in lines[0]
+    assert "choose free ports with --base-port and --listen-base-port" in lines[0]
+
+
+def test_fly_mock_on_a_busy_port_names_the_options(tmp_path: Path) -> None:
+    import socket
+
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(short_line(1)).to_dict()))
+    base = free_port_block(2)
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("127.0.0.1", base + 1))  # the mock vehicle's listen port
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path), "--mock",
+             "--base-port", str(base), "--listen-base-port", str(base + 1)],
+            capture_output=True, text=True, timeout=30)
+    finally:
+        busy.close()
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "--base-port (the GCS side) and --listen-base-port (the mock vehicles)" \
+        in proc.stderr
+
+
+def test_fly_given_a_scenario_says_to_plan_it_first(tmp_path: Path) -> None:
+    scenario = tmp_path / "scenario.json"
+    scenario.write_text(json.dumps(short_line(2)))
+    proc = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(scenario),
+                           "--mock"], capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == (f"error: {scenario} is a scenario, not a plan: plan it "
+                                   f"first (fleetplan plan {scenario} -o PLAN.json), then fly "
+                                   "PLAN.json")
+
+
+def test_fly_with_nothing_listening_names_the_port_and_the_mock(tmp_path: Path) -> None:
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(short_line(1)).to_dict()))
+    port = free_port_block(1)
+    fleet = tmp_path / "fleet.json"
+    fleet.write_text(json.dumps({
+        "vehicles": [{"id": "uav1", "connection": f"udpin:127.0.0.1:{port}", "system_id": 1,
+                      "home": [0, 0, 0]}],
+        "flight": {"connect_timeout": 0.5}}))
+    proc = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path),
+                           "--fleet", str(fleet)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    assert f"no HEARTBEAT within 0.5 s on udpin:127.0.0.1:{port}" in proc.stderr
+    assert "nothing at all arrived there" in proc.stderr and "fleetplan mock" in proc.stderr
 
 
 @pytest.mark.flight

@@ -1,0 +1,18 @@
+"""What to do about an error, added to the CLI's one-line messages (defined once for the
+commands that meet the same error)."""
+
+from __future__ import annotations
+
+import errno
+
+__all__ = ["port_in_use_hint"]
+
+
+def port_in_use_hint(exc: BaseException, options: str) -> str:
+    """" (...: choose free ports with OPTIONS)" when `exc` or its cause is a UDP port that is
+    already taken, else ""."""
+    for error in (exc, exc.__cause__):
+        if isinstance(error, OSError) and error.errno == errno.EADDRINUSE:
+            return (f" (the port is taken, perhaps by another fleetplan fly or mock: choose "
+                    f"free ports with {options})")
+    return ""
