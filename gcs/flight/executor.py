@@ -139,7 +139,9 @@ class FlightExecutor:
                                     flight_time=self.flight_time,
                                     on_fault=self.policy.on_fault,
                                     on_separation=self.policy.on_separation,
-                                    stalls=self.stalls)
+                                    stalls=self.stalls,
+                                    on_drops=lambda v, detail: self._emit(
+                                        v.id, EventKind.DROPPED_PACKETS, detail))
         self.streamer: Streamer | None = None
         self._hub: LinkHub | None = None
         self._tracks: list[SetpointTrack] = []

@@ -18,6 +18,11 @@ alarm below the clearance the vehicles must keep minus the alarm band
 (`gcs.flight.margin.separation_alarm_at`). The monitor only detects: what to do is the executor's
 (`on_fault`, `on_separation`).
 
+Packets with a vehicle's system id that its link dropped (another address, another
+component, bad signatures: `SecurityCounters`) are told as they happen (`on_drops`, at most
+once per `DROPS_NOTE_S` per vehicle), not only in the record: someone else is talking to the
+fleet.
+
 The station's own stalls (`gcs.flight.station`) are not a vehicle's fault: the monitor notes
 each of its wake-ups later than `STALL_NOTE_S`; the link and heartbeat gaps count in
 station-running time (the gap minus the station's stalls in it); after a late wake-up the
@@ -81,14 +86,36 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
     return None
 
 
+#: A vehicle's newly dropped packets are told at most this often (s).
+DROPS_NOTE_S = 5.0
+
+DropsCallback = Callable[[VehicleStatus, str], None]
+
+
+def drops_text(delta: dict[str, int], latest: tuple[object, int] | None) -> str:
+    """"12 more packets dropped (12 foreign_source), the latest from 127.0.0.1:5555"."""
+    reasons = ", ".join(f"{n} {reason}" for reason, n in delta.items() if n)
+    where = ""
+    if latest is not None:
+        address, component = latest
+        if isinstance(address, tuple) and len(address) == 2:
+            address = f"{address[0]}:{address[1]}"
+        where = f", the latest from {address} (component {component})"
+    return f"{sum(delta.values())} more packets dropped ({reasons}){where}"
+
+
 class FleetMonitor:
     """Checks every vehicle of a flight and the fleet's separation (see the module)."""
 
     def __init__(self, vehicles: Sequence[VehicleStatus], plan: Plan, options: FlightOptions,
                  *, flight_time: Callable[[], float | None], on_fault: FaultCallback,
                  on_separation: SeparationCallback,
-                 stalls: StationStalls | None = None) -> None:
+                 stalls: StationStalls | None = None,
+                 on_drops: DropsCallback | None = None) -> None:
         self.vehicles = vehicles
+        self.on_drops = on_drops
+        self._drops_told: dict[str, tuple[dict[str, int], float]] = {}
+        """Per vehicle: the counters last told and when."""
         self.plan = plan
         self.options = options
         self.flight_time = flight_time
@@ -151,6 +178,24 @@ class FleetMonitor:
                                   f"(bound {opts.tracking_error_max:g} m)")
         if positions:
             self._separation(where)
+        if self.on_drops is not None:
+            self._drops(now)
+
+    def _drops(self, now: float) -> None:
+        """Tell each vehicle's packets dropped since last told (at most every DROPS_NOTE_S)."""
+        assert self.on_drops is not None
+        for v in self.vehicles:
+            if v.link is None:
+                continue
+            counts = v.link.telemetry.security.to_dict()
+            told, when = self._drops_told.get(v.id, ({}, -math.inf))
+            if sum(counts.values()) == sum(told.values()) or now - when < DROPS_NOTE_S:
+                continue
+            delta = {k: n - told.get(k, 0) for k, n in counts.items()}
+            latest = max(((k, a) for k, a in v.link.dropped_from.items()
+                          if delta.get(k)), default=None, key=lambda item: delta[item[0]])
+            self._drops_told[v.id] = (counts, now)
+            self.on_drops(v, drops_text(delta, None if latest is None else latest[1]))
 
     def _tracking_error(self, v: VehicleStatus, position: np.ndarray, t: float,
                         trail: float) -> float:

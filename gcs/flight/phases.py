@@ -82,6 +82,7 @@ class EventKind(StrEnum):
     AT_START = "at_start"
     FAULT = "fault"
     STATUSTEXT = "statustext"
+    DROPPED_PACKETS = "dropped_packets"
     LAND = "land"
     LAND_FAILED = "land_failed"
     LANDED = "landed"

@@ -35,6 +35,7 @@ class FakeLink:
         """False: commands go unanswered (`GcsError` like a real link's retries)."""
         self.commands: list[int] = []
         self.endpoint = SimpleNamespace(garbage_datagrams=0)
+        self.dropped_from: dict[str, tuple[Any, int]] = {}
         self.alive()
 
     def alive(self, now: float | None = None) -> None:

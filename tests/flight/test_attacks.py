@@ -111,7 +111,10 @@ def test_flight_completes_under_every_attack(signed: bool, tmp_path: Path) -> No
     assert "POSCTL" not in modes
     # the attacker received nothing, although it sent a lot
     assert report["sent"] > 1000 and report["received"] == 0, report
-    # every vehicle's spoofs were dropped and counted; the junk was counted as garbage
+    # every vehicle's spoofs were dropped and counted, and told live as events; the junk was
+    # counted as garbage
+    told = {e["vehicle"] for e in record["events"] if e["kind"] == "dropped_packets"}
+    assert told == set(plan.scenario.ids)
     for vid in plan.scenario.ids:
         security = summary["security"][vid]
         assert security["foreign_source"] > 0

@@ -120,3 +120,35 @@ def test_snapshot_carries_flight_time_under_both_names() -> None:
     # LOCAL_NED (0, 0, -1.5) from a home at (1, 2, 0): 1.5 m up in the world frame
     assert vehicle["position"] == pytest.approx([1.0, 2.0, 1.5])
     assert vehicle["mode"] == "OFFBOARD" and vehicle["heartbeat_age"] is not None
+
+
+def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() -> None:
+    """Someone else talking as a vehicle is told live (once per DROPS_NOTE_S per vehicle,
+    with the counts since the last time and the latest source), not only in the record."""
+    from gcs.flight.monitor import DROPS_NOTE_S, FleetMonitor
+    from gcs.flight.station import StationStalls
+    from tests.flight.fakes import fake_link
+    from tests.flight.support import line_scenario, smooth_plan
+
+    vehicles = [fake_vehicle(0), fake_vehicle(1)]
+    told: list[tuple[str, str]] = []
+    monitor = FleetMonitor(vehicles, smooth_plan(line_scenario(2)), FlightOptions(),
+                           flight_time=lambda: None, on_fault=lambda *_: None,
+                           on_separation=lambda *_: None, stalls=StationStalls(),
+                           on_drops=lambda v, detail: told.append((v.id, detail)))
+    link = fake_link(vehicles[1])
+    monitor._drops(100.0)
+    assert told == []  # nothing dropped: nothing said
+    link.telemetry.security.foreign_source = 12
+    link.dropped_from["foreign_source"] = (("127.0.0.1", 5555), 1)
+    monitor._drops(100.0)
+    assert told == [("uav2", "12 more packets dropped (12 foreign_source), the latest from "
+                             "127.0.0.1:5555 (component 1)")]
+    link.telemetry.security.foreign_source = 20
+    monitor._drops(100.0 + DROPS_NOTE_S / 2)  # too soon: kept for the next report
+    assert len(told) == 1
+    monitor._drops(100.0 + DROPS_NOTE_S)
+    assert told[-1] == ("uav2", "8 more packets dropped (8 foreign_source), the latest from "
+                                "127.0.0.1:5555 (component 1)")
+    monitor._drops(200.0)  # no new drops
+    assert len(told) == 2
