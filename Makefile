@@ -32,9 +32,9 @@ install: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/fleetplan serve
 
-# Test processes (pytest-xdist): one more than the cores, at most 3 (`make test JOBS=N` to
-# choose). Much of the suite waits on real-time mock flights, so a core would otherwise idle.
-JOBS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); echo $$((n + 1 < 3 ? n + 1 : 3)))
+# Test processes (pytest-xdist): one per core, plus one when the machine is idle at the start
+# (tests/jobs.py), at most 3; `make test JOBS=N` to choose.
+JOBS ?= $(shell $(PYTHON) tests/jobs.py 2>/dev/null || echo 2)
 
 # Every check: ruff, then every test with mypy beside them (its report follows the tests').
 # Test files run in parallel processes (JOBS), one file per process at a time; the 15 slowest
