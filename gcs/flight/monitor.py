@@ -187,10 +187,11 @@ class FleetMonitor:
         for v in self.vehicles:
             if v.link is None:
                 continue
-            counts = v.link.telemetry.security.to_dict()
+            security = v.link.telemetry.security
             told, when = self._drops_told.get(v.id, ({}, -math.inf))
-            if sum(counts.values()) == sum(told.values()) or now - when < DROPS_NOTE_S:
+            if now - when < DROPS_NOTE_S or security.total == sum(told.values()):
                 continue
+            counts = security.to_dict()
             delta = {k: n - told.get(k, 0) for k, n in counts.items()}
             latest = max(((k, a) for k, a in v.link.dropped_from.items()
                           if delta.get(k)), default=None, key=lambda item: delta[item[0]])
