@@ -130,3 +130,7 @@ class MockFaults:
     """SYS_STATUS sensor bits reported present and enabled but not healthy."""
     gps_fix: int | None = None
     """GPS_RAW_INT fix_type reported instead of 3 (3D fix)."""
+    offset_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Added to every position setpoint the vehicle then takes (LOCAL_NED, m): it holds a
+    constant error from the plan (an uncompensated wind, a biased controller) and reports
+    where it really is."""

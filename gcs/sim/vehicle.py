@@ -47,6 +47,7 @@ import asyncio
 import math
 from typing import Any
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import px4
@@ -153,7 +154,7 @@ class MockVehicle(VehicleCore):
             self.received.append(got)
         if self.mode == px4.OFFBOARD:
             i = self.index
-            self.model.position_sp[i] = got.position
+            self.model.position_sp[i] = got.position + np.asarray(self.faults.offset_ned)
             self.model.velocity_sp[i] = got.velocity
             self.model.acceleration_sp[i] = got.acceleration
             if not math.isnan(got.yaw):

@@ -12,6 +12,7 @@ from typing import Any
 import pytest
 
 from gcs import px4
+from gcs.errors import FlightAborted
 from gcs.flight import vehicle as gcs_vehicle
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
@@ -23,7 +24,7 @@ from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
 from planner import plan as make_plan
 from tests.api.support import QUICK_CROSSING
-from tests.flight.support import FAST_MOCK, mock_ports
+from tests.flight.support import FAST_MOCK, mock_ports, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(150)
 
@@ -216,3 +217,61 @@ def test_the_same_crossing_judged_with_a_fixed_tolerance_says_why() -> None:
     else:
         assert not s["why"][0].startswith("complete")
         assert over or any("separat" in w or "fault" in w for w in s["why"]), s["why"]
+
+
+def _fly_side_by_side(offset_m: float) -> dict[str, Any]:
+    """Two px4-like vehicles side by side, planned 1.5 m apart for R 1 m + a 0.5 m margin
+    (position_error 0.25 m); once the flight clock runs, uav2 holds `offset_m` towards uav1
+    off every setpoint (an uncompensated wind), reported as it is."""
+    plan = smooth_plan(scenario_for_fleet(short_line(2, spacing=1.5), 0.25))
+    assert plan.scenario.min_separation == pytest.approx(1.5)
+
+    async def fly() -> dict[str, Any]:
+        homes = homes_under(plan.scenario.starts)
+        async with MockFleet(homes=homes, realism="px4", seed=3, **mock_ports(2),
+                             **FAST_MOCK) as mock:
+            fleet = FleetSpec.from_dict({**mock.fleet_dict(plan.scenario.ids),
+                                         "position_error": 0.25})
+            executor = FlightExecutor(plan, fleet, FAST.replace(at_end="hold"))
+
+            async def push() -> None:
+                while executor.flight_time() is None:
+                    await asyncio.sleep(0.02)
+                # world -x (towards uav1) is LOCAL_NED -y (east)
+                mock.vehicles[1].faults.offset_ned = (0.0, -offset_m, 0.0)
+
+            pusher = asyncio.create_task(push())
+            try:
+                return await executor.run()
+            except FlightAborted:  # the alarm: the record says why
+                assert executor.record is not None
+                return executor.record
+            finally:
+                pusher.cancel()
+
+    return asyncio.run(fly())
+
+
+@pytest.mark.flight
+@pytest.mark.parametrize(("offset_m", "alarmed"), [(0.2, False), (0.7, True)],
+                         ids=["into-the-margin", "below-R"])
+def test_the_separation_alarm_lets_a_flight_use_its_margin_and_stops_it_below_r(
+        offset_m: float, alarmed: bool) -> None:
+    """0.2 m closer (1.3 m apart, and the step's overshoot to about 1.13 m: inside the
+    margin, above R, below the 1.2 m that 1.5 m minus a 0.3 m band would give) flies on
+    and completes;
+    0.7 m closer (about 0.8 m, below R) is stopped by the alarm at R = 1.0 m, not at the
+    inflated 1.5 m minus a band."""
+    record = _fly_side_by_side(offset_m)
+    summary = record["summary"]
+    assert summary["separation_alarm_at"] == pytest.approx(1.0)
+    alarms = [e for e in record["events"] if e["kind"] == EventKind.SEPARATION_ALARM]
+    if alarmed:
+        assert alarms and "alarm below 1.00 m" in alarms[0]["detail"], record["events"]
+        assert summary["completed"] is False
+        assert summary["separation_held"] is False
+    else:
+        assert alarms == []
+        assert summary["completed"] is True, summary["why"]
+        assert summary["separation_held"] is True
+        assert summary["min_separation_measured"] < 1.2  # it did use the margin
