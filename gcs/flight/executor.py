@@ -94,6 +94,8 @@ __all__ = ["TRACKING_TOLERANCE_M", "FlightExecutor", "VehicleStatus"]
 #: tracking error of each (centimetres on the mock) plus the skew between their position
 #: reports. The end-to-end test checks the measured separation against R minus this.
 TRACKING_TOLERANCE_M = 0.1
+#: How often the hold at the goals looks again for vehicles still arriving (s).
+SETTLE_POLL_S = 0.05
 
 
 class FlightExecutor:
@@ -417,6 +419,7 @@ class FlightExecutor:
         while (lost := self.stalls.overlap(since, checked := time.monotonic())) > 0:
             since = checked
             await asyncio.sleep(lost)
+        await self._settle_at_goals()
         streamer.measuring = False
         for v in self.vehicles:
             if v.fault is None:
@@ -425,6 +428,22 @@ class FlightExecutor:
                                                   v.linked.telemetry.gps_h_acc)
         self._emit(None, EventKind.GOAL_ERRORS, ", ".join(
             f"{v.id} {v.goal_error:.3f} m" for v in self.vehicles if v.fault is None))
+
+    async def _settle_at_goals(self) -> None:
+        """Hold on, up to `goal_settle_max`, while a healthy vehicle is not yet within its goal
+        tolerance (the stream keeps it at its goal); the extension is recorded."""
+        started = time.monotonic()
+
+        def arriving() -> list[VehicleStatus]:
+            return [v for v in self.vehicles if v.fault is None and not v.distance_ned(
+                v.goal_ned) <= goal_tolerance(self.options, self.fleet.position_error,
+                                              v.linked.telemetry.gps_h_acc)]
+
+        waited = 0.0
+        while waited < self.options.goal_settle_max and arriving():
+            await asyncio.sleep(SETTLE_POLL_S)
+            waited = time.monotonic() - started
+        self.recorder.goal_settle_s = waited
 
     async def _finish(self) -> None:
         live = [v for v in self.vehicles if v.fault is None]

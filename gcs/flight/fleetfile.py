@@ -135,6 +135,10 @@ class FlightOptions:
     """A completed flight ends with every vehicle this close to its goal (m)."""
     hold_at_goal: float = 2.0
     """Seconds to hold at the goals after the plan's horizon, before `at_end`."""
+    goal_settle_max: float = 3.0
+    """After the hold, a vehicle not yet within its goal tolerance is waited for up to this
+    long (s), still held at its goal by the stream, before the goal errors are measured: a
+    gust or a loaded station delays its arrival, not its verdict. 0: no wait."""
     climb_speed: float = 1.0
     """Peak speed of the climb from home to the start (m/s)."""
     prestream: float = 0.5

@@ -109,6 +109,9 @@ class FlightRecorder:
         self.events: list[dict[str, Any]] = []
         self.summary: dict[str, Any] = {}
         self.meta: dict[str, Any] = {}
+        self.goal_settle_s = 0.0
+        """Seconds the hold at the goals was extended for vehicles still arriving
+        (`FlightOptions.goal_settle_max`): the summary's window includes them."""
 
     def event(self, t: float, vehicle: str | None, kind: str, detail: str = "") -> dict[str, Any]:
         entry = {"t": round(t, 4), "vehicle": vehicle, "kind": kind, "detail": detail}
@@ -190,6 +193,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         "min_separation_measured": None, "min_separation_planned": None,
         "min_separation_required": scenario.min_separation - scenario.separation_margin,
         "separation_alarm_at": separation_alarm_at(scenario, options.separation_alarm),
+        "goal_settle_s": round(recorder.goal_settle_s, 3),
         "separation_held": None,
         "separation_margin": None if margin is None else margin.to_dict(),
         "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,
@@ -214,7 +218,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     for a, b in pauses:
         assert a is not None
         paused += (now if b is None else b) - a
-    end = t0 + scenario.horizon + options.hold_at_goal + paused
+    end = t0 + scenario.horizon + options.hold_at_goal + recorder.goal_settle_s + paused
     first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
                       default=math.inf)
     t1 = min(end, first_fault, now)

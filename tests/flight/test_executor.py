@@ -328,3 +328,33 @@ def test_a_free_assignment_plan_flies_each_vehicle_to_its_assigned_goal() -> Non
     assert record["summary"]["completed"] is True, record["summary"]["why"]
     for vehicle, goal in zip(mock.vehicles, plan.scenario.assigned_goals, strict=True):
         assert np.linalg.norm(vehicle.position_world[:2] - goal[:2]) < 0.2
+
+
+@pytest.mark.flight
+@pytest.mark.parametrize("returns", [True, False], ids=["arrives-late", "never-arrives"])
+def test_the_hold_waits_for_a_vehicle_still_arriving_then_judges_it(returns: bool) -> None:
+    """uav2 is pushed 0.5 m off its goal by the hold at the goals: when it is back within
+    its tolerance in time the flight completes after that extra wait (goal_settle_s); when it
+    never is, the wait ends at goal_settle_max and its goal error fails the flight."""
+    plan = smooth_plan(short_line(2))
+    options = FAST.replace(goal_settle_max=2.0)
+
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
+        horizon = plan.scenario.horizon
+        while (flight.flight_time() or -1.0) < horizon - 1.0:
+            await asyncio.sleep(0.02)
+        mock.vehicles[1].faults.offset_ned = (0.5, 0.0, 0.0)  # 0.5 m off by the hold
+        if returns:
+            await asyncio.sleep(1.0 + options.hold_at_goal + 0.3)  # still off when it ends
+            mock.vehicles[1].faults.offset_ned = (0.0, 0.0, 0.0)
+
+    _flight, record, _mock = asyncio.run(_fly(plan, options, during=during))
+    assert isinstance(record, dict), record
+    summary = record["summary"]
+    if returns:
+        assert summary["completed"] is True, summary["why"]
+        assert 0.0 < summary["goal_settle_s"] < options.goal_settle_max
+    else:
+        assert summary["completed"] is False
+        assert summary["goal_settle_s"] == pytest.approx(options.goal_settle_max, abs=0.2)
+        assert any(w.startswith("uav2: 0.5") for w in summary["why"]), summary["why"]

@@ -55,6 +55,9 @@ class FlyRequest(BaseModel):
     )
     rate_hz: float | None = Field(None, gt=0, le=100, description="Setpoint rate (Hz).")
     hold_at_goal: float | None = Field(None, ge=0, le=600, description="Seconds at the goals.")
+    goal_settle_max: float | None = Field(
+        None, ge=0, le=60,
+        description="After the hold, seconds more to wait for a vehicle still arriving.")
     climb_speed: float | None = Field(
         None, gt=0, le=5, description="Peak speed of the climb from home to the start (m/s)."
     )
