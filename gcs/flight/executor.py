@@ -424,10 +424,14 @@ class FlightExecutor:
         for v in self.vehicles:
             if v.fault is None:
                 v.goal_error = v.distance_ned(v.goal_ned)
-                v.goal_tolerance = goal_tolerance(self.options, self.fleet.position_error,
-                                                  v.linked.telemetry.gps_h_acc)
+                v.goal_tolerance = self._goal_tolerance(v)
         self._emit(None, EventKind.GOAL_ERRORS, ", ".join(
             f"{v.id} {v.goal_error:.3f} m" for v in self.vehicles if v.fault is None))
+
+    def _goal_tolerance(self, v: VehicleStatus) -> float:
+        """How close to its goal `v` must end, with the accuracy it reports now."""
+        return goal_tolerance(self.options, self.fleet.position_error,
+                              v.linked.telemetry.gps_h_acc)
 
     async def _settle_at_goals(self) -> None:
         """Hold on, up to `goal_settle_max`, while a healthy vehicle is not yet within its goal
@@ -435,9 +439,8 @@ class FlightExecutor:
         started = time.monotonic()
 
         def arriving() -> list[VehicleStatus]:
-            return [v for v in self.vehicles if v.fault is None and not v.distance_ned(
-                v.goal_ned) <= goal_tolerance(self.options, self.fleet.position_error,
-                                              v.linked.telemetry.gps_h_acc)]
+            return [v for v in self.vehicles if v.fault is None
+                    and not v.distance_ned(v.goal_ned) <= self._goal_tolerance(v)]
 
         waited = 0.0
         while waited < self.options.goal_settle_max and arriving():

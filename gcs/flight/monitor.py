@@ -47,7 +47,7 @@ from gcs.flight.link import VehicleLink
 from gcs.flight.margin import separation_alarm_at
 from gcs.flight.phases import AIRBORNE, VehiclePhase
 from gcs.flight.station import STALL_NOTE_S, StationStalls
-from gcs.flight.vehicle import VehicleStatus
+from gcs.flight.vehicle import VehicleStatus, address_text
 from planner import Plan
 
 __all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "vehicle_fault"]
@@ -98,9 +98,7 @@ def drops_text(delta: dict[str, int], latest: tuple[object, int] | None) -> str:
     where = ""
     if latest is not None:
         address, component = latest
-        if isinstance(address, tuple) and len(address) == 2:
-            address = f"{address[0]}:{address[1]}"
-        where = f", the latest from {address} (component {component})"
+        where = f", the latest from {address_text(address)} (component {component})"
     return f"{sum(delta.values())} more packets dropped ({reasons}){where}"
 
 

@@ -29,10 +29,14 @@ class ProvisionOutcome:
     """What provisioning did for one vehicle."""
 
     vehicle: str
-    ok: bool
     status: str
     """provisioned, changed, already (it signs with the fleet's key), or failed."""
     detail: str
+
+    @property
+    def ok(self) -> bool:
+        """Whether the vehicle's traffic is signed with its key."""
+        return self.status != "failed"
 
     def line(self) -> str:
         return f"{self.vehicle}: {self.status}: {self.detail}"
@@ -54,12 +58,17 @@ def _listen(link: VehicleLink, heard: _Heard) -> None:
     link.listeners.append(on_message)
 
 
+async def _link(hub: LinkHub, spec: VehicleSpec, key: SigningKey | None) -> VehicleLink:
+    """The vehicle's configured link, signed with `key` (None: unsigned)."""
+    return await hub.add(spec.id, spec.connection, spec.system_id, spec.component_id,
+                         signing_key=key, peer=spec.peer)
+
+
 async def _heard(spec: VehicleSpec, key: SigningKey | None, timeout: float) -> _Heard | None:
     """The vehicle's first HEARTBEAT admitted by a link signed with `key` (None: unsigned,
     which admits signed packets too), or None within `timeout`."""
     async with LinkHub() as hub:
-        link = await hub.add(spec.id, spec.connection, spec.system_id, spec.component_id,
-                             signing_key=key, peer=spec.peer)
+        link = await _link(hub, spec, key)
         heard = _Heard()
         _listen(link, heard)
         await link.wait_for(lambda t: t.heartbeat_time is not None, timeout)
@@ -72,8 +81,7 @@ async def _send_setup(spec: VehicleSpec, new: SigningKey, signer: SigningKey | N
     the vehicle is heard on that link (its address pinned) and repeated twice: it has no
     acknowledgement; the check that follows tells whether it took."""
     async with LinkHub() as hub:
-        link = await hub.add(spec.id, spec.connection, spec.system_id, spec.component_id,
-                             signing_key=signer, peer=spec.peer)
+        link = await _link(hub, spec, signer)
         await link.wait_for(lambda t: t.heartbeat_time is not None, timeout)
         for _ in range(3):
             link.send_setup_signing(new, signing_timestamp(time.time()))
@@ -85,26 +93,26 @@ async def provision_vehicle(spec: VehicleSpec, old_key: SigningKey | None = None
     """Provision `spec.signing_key` on one vehicle (see the module)."""
     new = spec.signing_key
     if new is None:
-        return ProvisionOutcome(spec.id, False, "failed",
+        return ProvisionOutcome(spec.id, "failed",
                                 "the fleet file gives this vehicle no signing_key")
     heard = await _heard(spec, None, timeout)
     if heard is None:
-        return ProvisionOutcome(spec.id, False, "failed",
+        return ProvisionOutcome(spec.id, "failed",
                                 f"no HEARTBEAT within {timeout:g} s on {spec.connection} "
                                 f"(system id {spec.system_id}): is it on and connected?")
     if heard.armed:
-        return ProvisionOutcome(spec.id, False, "failed",
+        return ProvisionOutcome(spec.id, "failed",
                                 "armed: keys are changed only on a disarmed vehicle")
     if heard.signed:
         if await _heard(spec, new, timeout) is not None:
-            return ProvisionOutcome(spec.id, True, "already",
+            return ProvisionOutcome(spec.id, "already",
                                     f"its traffic is signed with {new.path}")
         if old_key is None:
-            return ProvisionOutcome(spec.id, False, "failed",
+            return ProvisionOutcome(spec.id, "failed",
                                     f"it signs with another key than {new.path}: give the key "
                                     "it has (--old-key FILE) to change it")
         if await _heard(spec, old_key, timeout) is None:
-            return ProvisionOutcome(spec.id, False, "failed",
+            return ProvisionOutcome(spec.id, "failed",
                                     f"it signs with neither {new.path} nor {old_key.path}")
         await _send_setup(spec, new, old_key, timeout)
         status = "changed"
@@ -112,11 +120,11 @@ async def provision_vehicle(spec: VehicleSpec, old_key: SigningKey | None = None
         await _send_setup(spec, new, None, timeout)
         status = "provisioned"
     if await _heard(spec, new, timeout) is None:
-        return ProvisionOutcome(spec.id, False, "failed",
+        return ProvisionOutcome(spec.id, "failed",
                                 f"sent SETUP_SIGNING, but its traffic is not signed with "
                                 f"{new.path} within {timeout:g} s (some PX4 versions take "
                                 "SETUP_SIGNING on USB only)")
-    return ProvisionOutcome(spec.id, True, status, f"its traffic is now signed with {new.path}")
+    return ProvisionOutcome(spec.id, status, f"its traffic is now signed with {new.path}")
 
 
 async def provision_fleet(fleet: FleetSpec, vehicle_ids: Sequence[str] = (),

@@ -209,7 +209,7 @@ def drop_diagnosis(link: VehicleLink, spec: VehicleSpec) -> str:
     for reason, (what, cause) in _DROP_CAUSES.items():
         if counts.get(reason, 0) and reason in link.dropped_from:
             address, component = link.dropped_from[reason]
-            parts.append(f"{counts[reason]} {what} from {_address(address)} (system id "
+            parts.append(f"{counts[reason]} {what} from {address_text(address)} (system id "
                          f"{spec.system_id}, component {component}): {cause}")
     return "; ".join(parts)
 
@@ -218,13 +218,13 @@ def refuse_other_claimants(link: VehicleLink, spec: VehicleSpec) -> None:
     """Two sources claiming one vehicle while it connects: refuse it and name both, so the
     first is never pinned silently (pin the real one with the fleet file's ``peer``)."""
     if link.claimants:
-        others = ", ".join(_address(a) for a in link.claimants)
+        others = ", ".join(address_text(a) for a in link.claimants)
         raise LinkError(f"{spec.id}: two sources claim system id {spec.system_id}: "
-                        f"{_address(link.peer_address)} and {others}; set the vehicle's `peer` "
+                        f"{address_text(link.peer_address)} and {others}; set the vehicle's `peer` "
                         f"in the fleet file to the real one")
 
 
-def _address(address: object) -> str:
+def address_text(address: object) -> str:
     """``HOST:PORT`` for a UDP address tuple, else the address as text."""
     if isinstance(address, tuple) and len(address) == 2:
         return f"{address[0]}:{address[1]}"
