@@ -27,6 +27,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from planner.errors import FieldError
 
 __all__ = [
@@ -51,6 +53,19 @@ __all__ = [
 
 class GcsError(Exception):
     """Base class of the GCS's errors."""
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled with its attributes, whatever its constructor takes: errors raised in the
+        flight's process reach the service as they were raised (`gcs.flight.vehicle_process`)."""
+        return (_rebuild, (type(self), self.args, self.__dict__))
+
+
+def _rebuild(cls: type[GcsError], args: tuple[Any, ...], state: dict[str, Any]) -> GcsError:
+    """A pickled `GcsError` as it was (its constructor is not called again)."""
+    error = cls.__new__(cls)
+    error.args = args
+    error.__dict__.update(state)
+    return error
 
 
 class FleetFileError(GcsError, FieldError):
