@@ -11,7 +11,7 @@ reports the medians. The floors (docs: Benchmarks) are: the flight completes wit
 losses and p99 jitter <= 5 ms, RSS <= 1 GB, every refused request a 503.
 
     python bench/fanout.py
-    python bench/fanout.py --exports 40 --streams 200 --plans 20 --repeat 3 --priority realtime
+    python bench/fanout.py --exports 40 --streams 200 --plans 20 --repeat 3 --priority ordinary
 """
 
 from __future__ import annotations
@@ -182,7 +182,7 @@ def main() -> None:
     parser.add_argument("--streams", type=int, default=200)
     parser.add_argument("--plans", type=int, default=20)
     parser.add_argument("--repeat", type=int, default=1)
-    parser.add_argument("--priority", choices=("ordinary", "realtime"), default="ordinary",
+    parser.add_argument("--priority", choices=("ordinary", "realtime"), default="realtime",
                         help="the service's vehicle_thread_priority (realtime: SCHED_RR 1 "
                              "for the vehicle process's thread, where allowed)")
     args = parser.parse_args()

@@ -99,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
     from gcs.flight.flight_handle import FlightHandle
+    from gcs.flight.realtime import settle_heap
     from gcs.flight.vehicle_loop import VehicleLoop
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
@@ -199,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
         def on_pause(resume: bool) -> None:
             aborts.append(asyncio.ensure_future(pause_or_resume(resume)))
 
+        settle_heap()  # this process's collections then skip the libraries (gcs.flight.realtime)
         task = handle.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
         loop.add_signal_handler(signal.SIGUSR1, on_pause, False)

@@ -36,6 +36,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from gcs.errors import GcsError
+from gcs.flight.realtime import settle_heap
 from gcs.flight.vehicle_loop import VehicleLoop, VehicleLoopStopped
 
 __all__ = ["HostContext", "VehicleProcess"]
@@ -265,6 +266,7 @@ def _child_main(conn: Connection, factory: Callable[[HostContext], Any], name: s
         vehicles.stop()
         return
     outbox.put(("ready", vehicles.scheduling))
+    settle_heap()  # the imported code and the host: never walked by a collection again
     try:
         _serve(conn, host, vehicles, outbox)
     except _Stop:

@@ -23,6 +23,7 @@ from typing import Any
 from gcs.errors import StateConflict
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.flight_handle import FlightHandle
+from gcs.flight.realtime import settle_heap
 from gcs.flight.vehicle_process import HostContext
 from gcs.service.fleet import Fleet
 from gcs.service.record_mirror import record_delta
@@ -128,6 +129,7 @@ class FleetHost:
             await self.fleet.open_monitor()
             raise
         self._flight, self._execution = flight, execution
+        settle_heap()  # before the stream starts, not in the middle of it
         self._result = flight.start()
         self._ticker = asyncio.ensure_future(self._post_snapshots(flight, execution,
                                                                   1.0 / snapshot_hz))
