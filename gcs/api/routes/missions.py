@@ -455,7 +455,7 @@ def _show_csv(mission_id: str, plan: Any, rate: float, vehicle: str | None,
         **error_responses(404, 409, 422, 503),
     },
 )
-def get_show(
+def download_show(
     mission: MissionDep,
     plans: PlanCacheDep,
     settings: SettingsDep,
