@@ -12,9 +12,9 @@ import argparse
 
 __all__ = ["FORMATS", "configure", "run"]
 
-#: The formats `export` writes: name -> what it is.
+#: The formats `export` writes: name -> what the file is.
 FORMATS: dict[str, str] = {
-    "skyc": "Skybrush compiled show (.skyc), for Skybrush Live, Viewer and Studio",
+    "skyc": "Skybrush compiled show",
 }
 
 EXIT_WRITTEN = 0
@@ -25,8 +25,8 @@ EXIT_BAD_INPUT = 2
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("plan", help="Plan JSON (from `fleetplan plan`)")
     parser.add_argument("--format", choices=sorted(FORMATS), default="skyc",
-                        help="; ".join(f"{name}: {what}" for name, what in FORMATS.items())
-                        + " (default %(default)s)")
+                        help="skyc: a Skybrush compiled show (.skyc), which Skybrush Live "
+                             "flies and Skybrush Viewer plays (default %(default)s)")
     parser.add_argument("-o", "--output", required=True, help="the file to write")
     parser.add_argument("--origin", metavar="LAT,LON[,AMSL]",
                         help="where the world origin (0, 0, 0) is on the Earth (degrees, "
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         return _fail(f"cannot write {output}: {exc.strerror or exc}")
     scenario = plan.scenario
-    print(f"{output}: {FORMATS[args.format].split(' (')[0]}, {len(plan.vehicles)} drones, "
+    print(f"{output}: {FORMATS[args.format]}, {len(plan.vehicles)} drones, "
           f"{scenario.horizon:g} s, {size / 1024:.1f} KiB (show frame: the plan's world "
           f"frame, x east, y north, z up"
           + ("" if origin is None else f", origin {origin.lat:.7f}, {origin.lon:.7f}") + ")")

@@ -59,8 +59,8 @@ __all__ = [
     "write_skyc",
 ]
 
-#: What an HTTP answer calls a .skyc file (the ZIP container; Skybrush's own server sends
-#: its compiled shows as application/zip too).
+#: What an HTTP answer calls a .skyc file: its container, a ZIP archive (Skybrush Studio's
+#: client takes compiled shows as application/zip).
 SKYC_MEDIA_TYPE = "application/zip"
 #: The one archive entry Skybrush reads first.
 SHOW_ENTRY = "show.json"
