@@ -14,6 +14,8 @@
   - `PreflightFailed`: the pre-flight gate found a vehicle unfit to fly (battery, unhealthy
     sensors, link loss, missing); carries `vehicle` and `problems`.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
+  - `ExportError` (also a `FieldError`): a plan cannot be written in the asked format (a step
+    the format cannot time), or an export option is invalid; `field` names which.
   - `FlightAborted` (alias `MissionAborted`): the flight stopped before completing (abort(),
     a fault policy, Ctrl-C); `reason` says why. The vehicles were sent to hold or land
     before this is raised.
@@ -34,6 +36,7 @@ from planner.errors import FieldError
 __all__ = [
     "ArmingRefused",
     "CommandError",
+    "ExportError",
     "FleetFileError",
     "FlightAborted",
     "GcsError",
@@ -115,6 +118,10 @@ class ModeRefused(CommandError):
 
 class PlanRejected(GcsError):
     """The plan may not be flown."""
+
+
+class ExportError(GcsError, FieldError):
+    """A plan cannot be exported as asked: `field` names the plan field or export option."""
 
 
 class FlightAborted(GcsError):

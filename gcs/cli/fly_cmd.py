@@ -78,15 +78,6 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "margin_check": "margin_check", "message_rates": "message_rates",
                  "stream_priority": "stream_priority"}
 
-def _is_scenario(document: object) -> bool:
-    """A scenario JSON (vehicles with start and goal, no plan status) given where a plan goes."""
-    if not isinstance(document, dict) or "status" in document:
-        return False
-    vehicles = document.get("vehicles")
-    return (isinstance(vehicles, list) and bool(vehicles) and isinstance(vehicles[0], dict)
-            and "start" in vehicles[0] and "goal" in vehicles[0])
-
-
 def run(args: argparse.Namespace) -> int:
     import asyncio
     import contextlib
@@ -96,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gcs.cli.hints import port_in_use_hint
+    from gcs.cli.plan_file import read_plan
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
     from gcs.flight.flight_handle import FlightHandle
@@ -103,19 +95,10 @@ def run(args: argparse.Namespace) -> int:
     from gcs.flight.vehicle_loop import VehicleLoop
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
-    from planner.errors import PlannerError
-    from planner.result import Plan
-
     try:
-        document = json.loads(Path(args.plan).read_text())
-        if _is_scenario(document):
-            print(f"error: {args.plan} is a scenario, not a plan: plan it first "
-                  f"(fleetplan plan {args.plan} -o PLAN.json), then fly PLAN.json",
-                  file=sys.stderr)
-            return 2
-        plan = Plan.from_dict(document)
-    except (OSError, json.JSONDecodeError, PlannerError) as exc:
-        print(f"error: cannot use plan {args.plan}: {exc}", file=sys.stderr)
+        plan = read_plan(args.plan, "fly")
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
 
     def write_record(record: dict | None) -> None:
