@@ -11,8 +11,9 @@ STATUSTEXT and no PARAM_VALUE. PX4 stores values outside a parameter's documente
 STATUSTEXT and the unchanged PARAM_VALUE, because it could not model them.
 
 Values travel as PX4 sends them: REAL32 as the float, INT32 byte-wise in the float field
-(MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE). A parameter the mock models (`MODELLED`)
-writes its `MockConfig` field, so PARAM_SET changes that vehicle's behaviour at once.
+(MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE). A parameter the mock models writes its
+`MockConfig` field (`MODELLED`) or its row of the model's speed limits (`MODEL_LIMITS`), so
+PARAM_SET changes that vehicle's behaviour at once.
 """
 
 from __future__ import annotations
@@ -24,11 +25,12 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 from gcs.sim.config import MockConfig
+from gcs.sim.model import FleetModel
 from gcs.sim.paramdefs import PX4_PARAMS, ParamDef
 from gcs.wire import mavlink
 
-__all__ = ["HASH_PARAM", "MODELLED", "PARAMS_PER_TICK", "ParamHost", "VehicleParams",
-           "decode_value", "encode_value"]
+__all__ = ["HASH_PARAM", "MODELLED", "MODEL_LIMITS", "PARAMS_PER_TICK", "ParamHost",
+           "VehicleParams", "decode_value", "encode_value"]
 
 #: The pseudo-parameter PX4 sends first in a list (its value: a hash of all values).
 HASH_PARAM = "_HASH_CHECK"
@@ -44,6 +46,12 @@ MODELLED: dict[str, str] = {
     "RTL_RETURN_ALT": "rtl_return_altitude",
     "GF_ACTION": "geofence_action",
     "COM_RC_LOSS_T": "manual_control_timeout",
+}
+#: Parameters that set the vehicle's row of a `FleetModel` speed-limit array.
+MODEL_LIMITS: dict[str, str] = {
+    "MPC_XY_VEL_MAX": "velocity_xy_max",
+    "MPC_Z_VEL_MAX_UP": "velocity_up_max",
+    "MPC_Z_VEL_MAX_DN": "velocity_down_max",
 }
 
 _m = mavlink
@@ -69,9 +77,12 @@ class ParamHost(Protocol):
 
     system_id: int
     component_id: int
+    index: int
 
     @property
     def config(self) -> MockConfig: ...
+    @property
+    def model(self) -> FleetModel: ...
     def send(self, msg: Any) -> None: ...
     def reply(self, msg: Any) -> None: ...
     def statustext(self, severity: int, text: str) -> None: ...
@@ -87,6 +98,8 @@ class VehicleParams:
         self.values["MAV_SYS_ID"] = float(host.system_id)
         for name, field in MODELLED.items():
             self.values[name] = float(getattr(host.config, field))
+        for name, field in MODEL_LIMITS.items():
+            self.values[name] = float(getattr(host.model, field)[host.index])
         self.names = list(PX4_PARAMS)
         """Parameter names by index (PX4's order: sorted by name)."""
         self._index = {name: i for i, name in enumerate(self.names)}
@@ -170,9 +183,10 @@ class VehicleParams:
         problem = _range_problem(d, value)
         if problem is None:
             self.values[name] = value
-            field = MODELLED.get(name)
-            if field is not None:
-                setattr(host.config, field, value)
+            if name in MODELLED:
+                setattr(host.config, MODELLED[name], value)
+            elif name in MODEL_LIMITS:
+                getattr(host.model, MODEL_LIMITS[name])[host.index] = value
             host.send(self.message(self._index[name]))  # PX4 broadcasts the new value
         else:
             host.statustext(_m.MAV_SEVERITY_WARNING, f"[pm] {name}: {problem}")

@@ -16,6 +16,7 @@ STATUSTEXT and COMMAND_ACK. The parts, one module each:
 - `gcs.sim.setpoints`: SET_POSITION_TARGET_LOCAL_NED (offboard);
 - `gcs.sim.protocols`: parameters (`gcs.sim.params`, the set `gcs.sim.paramdefs`), missions,
   fences and rally points (`gcs.sim.missions`), TIMESYNC, MANUAL_CONTROL;
+- `gcs.sim.geofence`: the stored fence checked, GF_ACTION on a breach;
 - `gcs.sim.links`: its UDP links (offboard, optional GCS link) and their latched partners;
 - `gcs.sim.signing`: SETUP_SIGNING and the signing key;
 - `gcs.sim.statustext`: STATUSTEXT chunks and repeats;
@@ -56,7 +57,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import px4
-from gcs.sim import protocols, signing
+from gcs.sim import geofence, protocols, signing
 from gcs.sim.commands import handle_command
 from gcs.sim.core import VehicleContext, VehicleCore
 from gcs.sim.links import UdpLink
@@ -89,12 +90,20 @@ class MockVehicle(VehicleCore):
         """Its PX4 parameters and the parameter protocol (`gcs.sim.params`)."""
         self.missions = VehicleMissions(self)
         """Its mission, fence and rally lists and the mission protocol (`gcs.sim.missions`)."""
+        self.geofence = geofence.Geofence(self.origin)
+        """Its fence in LOCAL_NED and breach state (`gcs.sim.geofence`)."""
+        self.missions.changed = self._mission_changed
 
     def tick(self, now: float) -> None:
         """The flight rules (`VehicleCore.tick`), then the protocols' own timers."""
         super().tick(now)
         self.params.drain()
         self.missions.tick(now)
+        geofence.check(self, now)
+
+    def _mission_changed(self, mission_type: int) -> None:
+        if mission_type == mavlink.MAV_MISSION_TYPE_FENCE:
+            self.geofence.load(self.missions.fence)
 
     # ---------------------------------------------------------------- signing
 

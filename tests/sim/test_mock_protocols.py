@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from gcs import px4
-from gcs.sim import MockFleet
+from gcs.sim import DEFAULT_WORLD_ORIGIN, MockFleet
 from gcs.sim.paramdefs import PX4_PARAMS
 from gcs.sim.params import encode_value
 from gcs.wire import mavlink
@@ -104,6 +104,9 @@ def test_parameter_list_read_and_set_as_px4() -> None:
             assert _param_value(got) == pytest.approx(3.5)
             assert mock.vehicles[1].config.offboard_loss_timeout == pytest.approx(3.5)
             assert mock.vehicles[0].config.offboard_loss_timeout == pytest.approx(1.0)
+            c.set_param("MPC_XY_VEL_MAX", 4.0)
+            await c.wait("PARAM_VALUE", lambda m: m.param_id == "MPC_XY_VEL_MAX", since=since)
+            assert list(mock.model.velocity_xy_max) == [12.0, 4.0]  # this vehicle's limit
             c.set_param("GF_ACTION", 1, _m.MAV_PARAM_TYPE_INT32,
                         field=encode_value("i", 1))
             got = await c.wait("PARAM_VALUE", lambda m: m.param_id == "GF_ACTION", since=since)
@@ -343,6 +346,7 @@ def test_takeoff_then_rtl_as_px4() -> None:
             c.set_param("MIS_TAKEOFF_ALT", 1.5)
             c.set_param("RTL_RETURN_ALT", 2.5)
             c.set_param("MPC_LAND_SPEED", 3.0)
+            c.set_param("MPC_Z_VEL_MAX_UP", 0.8)
             await asyncio.sleep(0.2)
             since = time.monotonic()
             c.command(_m.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
@@ -354,9 +358,12 @@ def test_takeoff_then_rtl_as_px4() -> None:
             await c.wait("STATUSTEXT", lambda m: "Using minimum takeoff altitude: 1.50 m"
                          in m.text, since=since)
             deadline = time.monotonic() + 10.0
+            fastest_climb = 0.0
             while v.mode != px4.HOLD:
                 assert time.monotonic() < deadline, "takeoff did not end in Hold"
-                await asyncio.sleep(0.05)
+                fastest_climb = max(fastest_climb, -v.velocity_ned[2])
+                await asyncio.sleep(0.02)
+            assert 0.5 < fastest_climb < 0.85  # MPC_Z_VEL_MAX_UP 0.8 (default 3 m/s)
             assert -v.position_ned[2] == pytest.approx(1.5, abs=0.2)
             await asyncio.sleep(0.5)
             assert -v.position_ned[2] == pytest.approx(1.5, abs=0.1)  # it holds there
@@ -471,5 +478,73 @@ def test_gcs_link_beside_the_offboard_link() -> None:
                 assert not c.messages("PARAM_VALUE", since)  # the reply went on its link
                 await c.wait("HEARTBEAT", since=since)  # telemetry goes on both links
                 assert gcs_link.partner == ("127.0.0.1", gcs_port)
+
+    asyncio.run(main())
+
+
+# ---------------------------------------------------------------------------- geofence
+
+
+def test_geofence_rule_as_px4() -> None:
+    """Inside one inclusion shape at least (when there are any), outside every exclusion one,
+    within GF_MAX_HOR_DIST / GF_MAX_VER_DIST."""
+    from gcs.sim.geofence import Geofence
+    from gcs.sim.missions import FenceShape
+
+    origin = DEFAULT_WORLD_ORIGIN
+    m_lat, m_lon = 1 / 111_195.0, 1 / (111_195.0 * math.cos(math.radians(origin.lat)))
+    square = FenceShape(True, tuple((origin.lat + n * m_lat, origin.lon + e * m_lon)
+                                    for n, e in ((-10, -10), (10, -10), (10, 10), (-10, 10))))
+    hole = FenceShape(False, ((origin.lat + 5 * m_lat, origin.lon),), 2.0)
+    far_circle = FenceShape(True, ((origin.lat + 30 * m_lat, origin.lon),), 3.0)
+    fence = Geofence(origin)
+    fence.load([square, hole, far_circle])
+
+    def inside(n: float, e: float, up: float = 2.0, max_h: float = 0.0,
+               max_v: float = 0.0) -> bool:
+        return fence.inside(np.array([n, e, -up]), max_h, max_v)
+
+    assert inside(0, 0) and inside(9, -9) and inside(30, 1)  # in the square, in the circle
+    assert not inside(11, 0) and not inside(0, -11)  # outside every inclusion
+    assert not inside(5, 0.5)  # in the exclusion circle
+    assert not inside(0, 0, max_h=0.0, max_v=1.5)  # above GF_MAX_VER_DIST
+    assert not inside(9, 0, max_h=8.0)  # beyond GF_MAX_HOR_DIST
+    empty = Geofence(origin)
+    assert empty.inside(np.array([1e3, 1e3, -50.0]), 0.0, 0.0)
+
+
+def test_geofence_breach_holds_and_is_reported() -> None:
+    """A vehicle leaving its inclusion circle with GF_ACTION 2: PX4's warning, Hold at the last
+    point inside, SYS_STATUS geofence unhealthy until it is back inside."""
+    async def main() -> None:
+        async with _vehicle() as (mock, c):
+            v = mock.vehicles[0]
+            o = v.origin
+            circle = [(_m.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, 4.0, o.lat, o.lon)]
+            assert await _upload(c, _FENCE, circle) == _m.MAV_MISSION_ACCEPTED
+            c.set_param("MIS_TAKEOFF_ALT", 1.0)
+            await asyncio.sleep(0.2)
+            c.command(_m.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+            c.command(_m.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan)
+            deadline = time.monotonic() + 10.0
+            while v.mode != px4.HOLD or not v.in_air:
+                assert time.monotonic() < deadline, "no takeoff"
+                await asyncio.sleep(0.05)
+            assert not v.fence_breached
+            mock.model.hold(0, np.array([8.0, 0.0, -1.0]))  # out of the 4 m circle
+            while v.mode == px4.HOLD and not v.fence_breached:
+                assert time.monotonic() < deadline + 10.0, "no breach"
+                await asyncio.sleep(0.02)
+            since = time.monotonic()
+            await c.wait("STATUSTEXT", lambda m: m.text == "Approaching on Geofence",
+                         since=since - 1.0)
+            status = await c.wait("SYS_STATUS", since=since)
+            assert not status.onboard_control_sensors_health & _m.MAV_SYS_STATUS_GEOFENCE
+            assert v.mode == px4.HOLD
+            await asyncio.sleep(2.5)  # held at the last point inside: back within the circle
+            assert np.hypot(*v.position_ned[:2]) < 4.2
+            assert not v.fence_breached
+            status = await c.wait("SYS_STATUS", since=time.monotonic())
+            assert status.onboard_control_sensors_health & _m.MAV_SYS_STATUS_GEOFENCE
 
     asyncio.run(main())
