@@ -16,18 +16,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
-from gcs import px4
+from gcs import frames, px4
+from gcs.sim.config import MockConfig
+from gcs.sim.model import FleetModel
 from gcs.wire import mavlink
 
-if TYPE_CHECKING:
-    from gcs.sim.core import VehicleCore
-
-__all__ = ["ALTITUDE_REACHED_M", "HOME_REACHED_M", "AutoState", "enter", "takeoff_height",
-           "tick"]
+__all__ = ["ALTITUDE_REACHED_M", "HOME_REACHED_M", "AutoHost", "AutoState", "enter",
+           "takeoff_height", "tick"]
 
 #: A takeoff or RTL climb is done within this of its altitude (m).
 ALTITUDE_REACHED_M = 0.15
@@ -46,7 +45,24 @@ class AutoState:
     rtl_height: float = 0.0
 
 
-def takeoff_height(v: VehicleCore, amsl: float) -> float:
+class AutoHost(Protocol):
+    """What the AUTO modes need of a vehicle (`gcs.sim.core.VehicleCore` has it)."""
+
+    index: int
+    auto: AutoState
+    origin: frames.Geodetic
+
+    @property
+    def mode(self) -> px4.Px4Mode: ...
+    @property
+    def config(self) -> MockConfig: ...
+    @property
+    def model(self) -> FleetModel: ...
+    def set_mode(self, mode: px4.Px4Mode) -> None: ...
+    def statustext(self, severity: int, text: str) -> None: ...
+
+
+def takeoff_height(v: AutoHost, amsl: float) -> float:
     """The height above home a MAV_CMD_NAV_TAKEOFF to `amsl` (param7; NaN: none) climbs to,
     saying what PX4 says when it changes it."""
     minimum = float(v.config.takeoff_altitude)
@@ -67,7 +83,7 @@ def takeoff_height(v: VehicleCore, amsl: float) -> float:
     return height
 
 
-def enter(v: VehicleCore, mode: px4.Px4Mode) -> None:
+def enter(v: AutoHost, mode: px4.Px4Mode) -> None:
     """Start `mode` (AUTO.TAKEOFF or AUTO.RTL) from where the vehicle is."""
     i = v.index
     p = v.model.position[i]
@@ -83,7 +99,7 @@ def enter(v: VehicleCore, mode: px4.Px4Mode) -> None:
         v.model.hold(i, np.array([target[0], target[1], -v.auto.rtl_height]))
 
 
-def tick(v: VehicleCore, now: float) -> None:
+def tick(v: AutoHost, now: float) -> None:
     """Advance AUTO.TAKEOFF or AUTO.RTL (called every mock tick while armed)."""
     i = v.index
     p = v.model.position[i]

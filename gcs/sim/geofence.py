@@ -15,18 +15,18 @@ termination, 5 Land. SYS_STATUS reports the geofence unhealthy while it is breac
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from gcs import frames, px4
+from gcs.sim.config import MockConfig
 from gcs.sim.missions import FenceShape
+from gcs.sim.model import FleetModel
+from gcs.sim.params import VehicleParams
 from gcs.wire import mavlink
 
-if TYPE_CHECKING:
-    from gcs.sim.vehicle import MockVehicle
-
-__all__ = ["CHECK_INTERVAL_S", "Geofence", "LocalShape", "check"]
+__all__ = ["CHECK_INTERVAL_S", "FenceHost", "Geofence", "LocalShape", "check"]
 
 #: How often the fence is checked (s).
 CHECK_INTERVAL_S = 0.1
@@ -95,7 +95,30 @@ class Geofence:
         return bool(self.shapes)
 
 
-def check(v: MockVehicle, now: float) -> None:
+class FenceHost(Protocol):
+    """What the fence check needs of a vehicle (`gcs.sim.vehicle.MockVehicle` has it)."""
+
+    index: int
+    geofence: Geofence
+    params: VehicleParams
+    fence_breached: bool
+    terminated: bool
+
+    @property
+    def armed(self) -> bool: ...
+    @property
+    def config(self) -> MockConfig: ...
+    @property
+    def model(self) -> FleetModel: ...
+    @property
+    def position_ned(self) -> np.ndarray: ...
+    def set_mode(self, mode: px4.Px4Mode) -> None: ...
+    def disarm(self, why: str) -> None: ...
+    def event(self, what: str) -> None: ...
+    def statustext(self, severity: int, text: str) -> None: ...
+
+
+def check(v: FenceHost, now: float) -> None:
     """Check `v`'s fence (every `CHECK_INTERVAL_S`) and act on a new breach."""
     fence = v.geofence
     if now < fence.next_check:

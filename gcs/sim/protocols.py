@@ -13,14 +13,13 @@ once instead of timing out.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from gcs.sim.messages import ENCODER
+from gcs.sim.missions import VehicleMissions
+from gcs.sim.params import VehicleParams
 
-if TYPE_CHECKING:
-    from gcs.sim.vehicle import MockVehicle
-
-__all__ = ["HANDLED", "handle"]
+__all__ = ["HANDLED", "ServiceHost", "ftp_answer", "handle"]
 
 _PARAMS = frozenset({"PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"})
 _MISSIONS = frozenset({"MISSION_REQUEST_LIST", "MISSION_REQUEST_INT", "MISSION_REQUEST",
@@ -35,7 +34,19 @@ _FTP_ACK, _FTP_NAK = 128, 129
 _FTP_FILE_NOT_FOUND = 10
 
 
-def handle(v: MockVehicle, msg: Any) -> None:
+class ServiceHost(Protocol):
+    """What these services need of a vehicle (`gcs.sim.vehicle.MockVehicle` has it)."""
+
+    system_id: int
+    params: VehicleParams
+    missions: VehicleMissions
+    last_manual_control: float
+
+    def now(self) -> float: ...
+    def reply(self, msg: Any) -> None: ...
+
+
+def handle(v: ServiceHost, msg: Any) -> None:
     """Handle one message of a type in `HANDLED`."""
     kind = msg.get_type()
     if kind in _PARAMS:
