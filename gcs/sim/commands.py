@@ -19,7 +19,7 @@ from typing import Any
 from gcs import px4
 from gcs.sim import automodes, messages
 from gcs.sim.core import VehicleCore
-from gcs.wire import mavlink
+from gcs.wire import addressed_to, mavlink
 
 __all__ = ["handle_command", "requested_message"]
 
@@ -43,7 +43,7 @@ def requested_message(v: VehicleCore, message_id: int, now: float) -> Any:
 
 def handle_command(v: VehicleCore, msg: Any) -> None:
     """Carry out a COMMAND_LONG or COMMAND_INT addressed to `v` and ACK it."""
-    if msg.target_system != v.system_id or msg.target_component not in (0, v.component_id):
+    if not addressed_to(msg, v.system_id, v.component_id):
         return
     cmd = msg.command
     p1, p2, p3 = msg.param1, msg.param2, msg.param3

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from gcs.wire import mavlink
+from gcs.wire import addressed_to, mavlink
 
 __all__ = ["MAX_ITEMS", "RETRY_S", "TIMEOUT_S", "FenceShape", "MissionHost", "MissionItem",
            "VehicleMissions"]
@@ -133,8 +133,7 @@ class VehicleMissions:
     def handle(self, msg: Any) -> None:
         """A mission-protocol message addressed to this vehicle."""
         host = self.host
-        if msg.target_system != host.system_id or msg.target_component not in (
-                0, host.component_id):
+        if not addressed_to(msg, host.system_id, host.component_id):
             return
         kind = msg.get_type()
         mission_type = getattr(msg, "mission_type", MISSION)

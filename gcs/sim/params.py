@@ -27,7 +27,7 @@ from typing import Any, Protocol
 from gcs.sim.config import MockConfig
 from gcs.sim.model import FleetModel
 from gcs.sim.paramdefs import PX4_PARAMS, ParamDef
-from gcs.wire import mavlink
+from gcs.wire import addressed_to, mavlink
 
 __all__ = ["HASH_PARAM", "MODELLED", "MODEL_LIMITS", "PARAMS_PER_TICK", "ParamHost",
            "VehicleParams", "decode_value", "encode_value"]
@@ -118,8 +118,7 @@ class VehicleParams:
     def handle(self, msg: Any) -> None:
         """PARAM_REQUEST_LIST, PARAM_REQUEST_READ or PARAM_SET addressed to this vehicle."""
         host = self.host
-        if msg.target_system != host.system_id or msg.target_component not in (
-                0, host.component_id):
+        if not addressed_to(msg, host.system_id, host.component_id):
             return
         kind = msg.get_type()
         if kind == "PARAM_REQUEST_LIST":

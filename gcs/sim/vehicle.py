@@ -64,7 +64,7 @@ from gcs.sim.links import UdpLink
 from gcs.sim.missions import VehicleMissions
 from gcs.sim.params import VehicleParams
 from gcs.sim.setpoints import ReceivedSetpoint, read_setpoint, refusal_text
-from gcs.wire import mavlink
+from gcs.wire import addressed_to, mavlink
 
 __all__ = ["MockVehicle"]
 
@@ -204,8 +204,7 @@ class MockVehicle(VehicleCore):
 
     def _on_setup_signing(self, msg: Any) -> None:
         """Reaching here it passed pymavlink's checks: with a key set, it was signed with it."""
-        if msg.target_system != self.system_id or msg.target_component not in (
-                0, self.component_id):
+        if not addressed_to(msg, self.system_id, self.component_id):
             return
         if self.armed:
             self.statustext(mavlink.MAV_SEVERITY_WARNING, "Signing change denied: armed")
