@@ -5,7 +5,8 @@ It speaks what a PX4 quadrotor speaks for our purposes: HEARTBEAT (MAV_TYPE_QUAD
 MAV_AUTOPILOT_PX4, custom mode main << 16 | sub << 24, armed flag), SYS_STATUS (sensors present,
 enabled, healthy; the pre-arm bit healthy once settled), HOME_POSITION, GPS_GLOBAL_ORIGIN,
 EXTENDED_SYS_STATE, LOCAL_POSITION_NED, ATTITUDE, GLOBAL_POSITION_INT, AUTOPILOT_VERSION,
-STATUSTEXT and COMMAND_ACK. The parts, one module each:
+STATUSTEXT and COMMAND_ACK, and what ground stations ask of PX4: parameters, missions, fences
+and rally points, TIMESYNC, PROTOCOL_VERSION, MAVFTP (no files). The parts, one module each:
 
 - `gcs.sim.core`: state, flight rules (failsafes, RTL, auto-disarm) and output;
 - `gcs.sim.messages`: how each message is encoded; `gcs.sim.telemetry`: the periodic streams
