@@ -335,6 +335,12 @@ class VehicleCore:
         none is being handled)."""
         self._send(msg, self.links if self._reply_link is None else [self._reply_link])
 
+    def replier(self) -> Callable[[Any], None]:
+        """A function sending, later too, on the link of the message being handled (`reply`
+        for answers that go on after it: a parameter list, a mission upload's retries)."""
+        links = self.links if self._reply_link is None else [self._reply_link]
+        return lambda msg: self._send(msg, links)
+
     def _send(self, msg: Any, links: list[UdpLink]) -> None:
         if not links:
             return

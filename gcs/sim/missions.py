@@ -81,6 +81,7 @@ class MissionHost(Protocol):
 
     def now(self) -> float: ...
     def reply(self, msg: Any) -> None: ...
+    def replier(self) -> Callable[[Any], None]: ...
     def statustext(self, severity: int, text: str) -> None: ...
 
 
@@ -222,7 +223,8 @@ class VehicleMissions:
             self._ack(msg, _m.MAV_MISSION_ACCEPTED, mission_type)
             return
         now = self.host.now()
-        self._upload = _Upload(mission_type, msg.count, partner, self.host.reply, [], now, now)
+        self._upload = _Upload(mission_type, msg.count, partner, self.host.replier(), [], now,
+                               now)
         self._request(self._upload, now)
 
     def _request(self, up: _Upload, now: float) -> None:

@@ -85,6 +85,7 @@ class ParamHost(Protocol):
     def model(self) -> FleetModel: ...
     def send(self, msg: Any) -> None: ...
     def reply(self, msg: Any) -> None: ...
+    def replier(self) -> Callable[[Any], None]: ...
     def statustext(self, severity: int, text: str) -> None: ...
 
 
@@ -122,7 +123,7 @@ class VehicleParams:
             return
         kind = msg.get_type()
         if kind == "PARAM_REQUEST_LIST":
-            self._reply = host.reply
+            self._reply = host.replier()
             self._queue = [-1, *range(len(self.names))]
         elif kind == "PARAM_REQUEST_READ":
             self._read(msg)

@@ -474,8 +474,11 @@ def test_gcs_link_beside_the_offboard_link() -> None:
                 qgc.send(qgc.mav.param_request_read_encode(1, 1, b"MAV_SYS_ID", -1))
                 got = await qgc.wait("PARAM_VALUE", since=since)
                 assert got.param_id == "MAV_SYS_ID"
-                await asyncio.sleep(0.3)
-                assert not c.messages("PARAM_VALUE", since)  # the reply went on its link
+                qgc.send(qgc.mav.param_request_list_encode(1, 1))  # streamed over many ticks
+                await qgc.wait("PARAM_VALUE", lambda m: m.param_index == len(PX4_PARAMS) - 1,
+                               since=since)
+                assert len(qgc.messages("PARAM_VALUE", since)) == len(PX4_PARAMS) + 2
+                assert not c.messages("PARAM_VALUE", since)  # the replies went on its link
                 await c.wait("HEARTBEAT", since=since)  # telemetry goes on both links
                 assert gcs_link.partner == ("127.0.0.1", gcs_port)
 
