@@ -61,6 +61,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
     mock_timings.add_flags(parser, "mock-")
+    parser.add_argument("--mock-gcs-port", type=int, default=None,
+                        help="--mock: also give every vehicle a GCS link sending to this port, "
+                             "like PX4's, so QGroundControl or MAVProxy can watch the flight "
+                             "(they listen on 14550; default: none)")
     parser.add_argument("--mock-realism", choices=("ideal", "px4"), default="ideal",
                         help="--mock: ideal vehicles (default) or px4: PX4 SITL's estimate noise, "
                              "lag, timings and telemetry (see fleetplan mock --realism)")
@@ -111,6 +115,10 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if args.mock_gcs_port is not None and not 1 <= args.mock_gcs_port <= 65535:
+        print(f"error: --mock-gcs-port must be a UDP port (1..65535), got {args.mock_gcs_port}",
+              file=sys.stderr)
+        return 2
     if args.mock_settle is not None:
         if (reason := timing_error("settle_time", args.mock_settle)) is not None:
             print(f"error: --mock-settle {reason}", file=sys.stderr)
@@ -133,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
                 homes = homes_under(plan.scenario.starts)
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
-                                 config=MockConfig.preset(args.mock_realism, **timings))
+                                 config=MockConfig.preset(args.mock_realism, **timings),
+                                 gcs_link_port=args.mock_gcs_port)
                 await vehicles.call(mock.start)
                 fleet_dict = mock.fleet_dict(plan.scenario.ids)
                 if args.mock_position_error is not None:
