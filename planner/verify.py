@@ -106,7 +106,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         else:
             step_min, cont_min, i, j, when = math.nan, math.nan, -1, -1, 0.0
         lo, hi = _position_extremes(p, v, a, dt)
-        jerk = jerk_from_accelerations(a, dt)
+        jerk = jerk_from_accelerations(a, dt, scenario.start_accelerations)
         f = thrust(a)
         rates = body_rates(a, jerk)
         violation = {
@@ -118,7 +118,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         }
         boundary = {
             "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
-            "start_velocity": float(np.max(np.abs(v[:, 0]))),
+            "start_velocity": float(np.max(np.abs(v[:, 0] - scenario.initial_velocities))),
             # each vehicle's own goal: the assigned one under free assignment
             "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
             "goal_velocity": float(np.max(np.abs(v[:, -1]))),
