@@ -11,8 +11,10 @@ landing height (the workspace floor plus `landing_height`) below or beside each 
 - the horizon is what the farthest vehicle needs under the velocity and acceleration boxes
   (stopping from its current velocity, then its move), with room to give way;
 - the result is verified like every plan (continuous-time separation, boxes, boundary
-  conditions, flyability). The separation it keeps is R, or the fleet's own current
-  minimum where the fleet is already closer than R (it cannot be planned apart in no time).
+  conditions, flyability). The separation it keeps is R, or less where the fleet's state
+  does not allow R: vehicles already closer than R cannot be planned apart in no time, and
+  a pair passing each other near R keeps what the first step's rows allow
+  (`first_step_clearance`, a few centimetres less).
 
 Numerics only: the ground station streams the plan and hands over to PX4's Land at the
 touchdown points (`gcs.flight.landing`).
@@ -35,12 +37,17 @@ from planner.scenario import Scenario, minimum_transfer_time
 from planner.scp import ScpOptions
 from planner.types import FloatArray
 
-__all__ = ["LandingError", "LandingPlan", "plan_landing", "touchdown_points"]
+__all__ = ["LandingError", "LandingPlan", "first_step_clearance", "plan_landing",
+           "touchdown_points"]
 
 
 #: Touchdown points keep R (1 + this) apart horizontally, so that a vehicle descending
 #: vertically onto its point (PX4 Land) stays R from one standing on its own.
 TOUCHDOWN_SLACK = 0.05
+#: Where the fleet's state holds R within this fraction of it (vehicles passing each other
+#: near R), the landing keeps R (or less, `first_step_clearance`) minus this fraction: rows
+#: linearised at the very edge of what the state allows leave its QP no room.
+START_SLACK = 0.01
 #: Rounds of pushing touchdown points apart before giving up (the floor is too crowded).
 SPREAD_ROUNDS = 200
 #: The horizon is this many times the farthest vehicle's minimum time, plus `HORIZON_EXTRA_S`:
@@ -66,7 +73,8 @@ class LandingPlan:
     plan: Plan
     """Converged and verified; its goals are the touchdown points, its starts the state."""
     separation: float
-    """The separation it keeps (m): R, or the fleet's smaller current minimum."""
+    """The separation it keeps (m): R, or less where the state does not allow R
+    (`first_step_clearance`); its verification checks the plan against this."""
     seconds: float
     """Planning time, touchdown placement included (s)."""
     attempts: int
@@ -110,6 +118,41 @@ def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float) ->
     out[:, :2] = xy * scale
     out[:, 2] = height
     return out
+
+
+def first_step_clearance(p: FloatArray, v: FloatArray, a: FloatArray, scenario: Scenario
+                         ) -> float:
+    """The separation a plan starting in this state can be held to (m, scaled metric): the
+    first step's rows are nearly fixed by the state (p0 and v0 are, a0 stays within the jerk
+    box of the acceleration before), so they hold for at most the smallest value, along the
+    direction of the closest point of the step's chord (the SCP's direction for a moving
+    start, `planner.separation.directions`), of the step's start, middle point and end with
+    a0 unchanged. From a verified plan's state this is R within a fraction of a millimetre.
+    inf when no two vehicles come within R (1 + START_SLACK) over the step."""
+    if len(p) < 2:
+        return math.inf
+    scale = scenario.separation_scale
+    dt = scenario.dt
+    scaled = p / scale
+    # pairs that can come within R over the step (each moves at most |v| dt + |a| dt^2 / 2)
+    reach = float(np.max(np.linalg.norm((v * dt + 0.5 * dt * dt * np.abs(a)) / scale,
+                                        axis=1)))
+    near = scenario.min_separation * (1.0 + START_SLACK) + 2.0 * reach + 1e-9
+    pairs = cKDTree(scaled).query_pairs(near, output_type="ndarray")
+    if len(pairs) == 0:
+        return math.inf
+    i, j = pairs[:, 0], pairs[:, 1]
+    d0 = scaled[i] - scaled[j]
+    dv = (v[i] - v[j]) / scale
+    da = (a[i] - a[j]) / scale
+    d1 = d0 + dt * dv + 0.5 * dt * dt * da
+    chord = d1 - d0
+    along = np.clip(-np.einsum("rc,rc->r", d0, chord)
+                    / np.maximum(np.einsum("rc,rc->r", chord, chord), 1e-18), 0.0, 1.0)
+    closest = d0 + along[:, None] * chord
+    u = closest / np.maximum(np.linalg.norm(closest, axis=1), 1e-12)[:, None]
+    values = [np.einsum("rc,rc->r", u, x) for x in (d0, d0 + 0.5 * dt * dv, d1)]
+    return float(np.min(np.minimum.reduce(values))) * (1.0 - 1e-9)
 
 
 def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
@@ -159,11 +202,11 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     if lim.acceleration_max is not None:
         a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
     goals = touchdown_points(p, scenario, height)
+    clearance = first_step_clearance(p, v, a, scenario)
     separation = scenario.min_separation
-    if len(p) >= 2:
-        scaled = p / scenario.separation_scale
-        nearest, _ = cKDTree(scaled).query(scaled, k=2)
-        separation = min(separation, float(nearest[:, 1].min()) * (1.0 - 1e-9))
+    if clearance < separation + START_SLACK * separation:
+        # rows at the very edge of what the state allows leave the QP no room: give a hair
+        separation = min(separation, clearance) - START_SLACK * separation
     horizon = _horizon(p, v, goals, scenario)
     failures: list[str] = []
     for attempts, factor in enumerate(RETRY_FACTORS, start=1):

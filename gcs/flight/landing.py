@@ -167,7 +167,7 @@ class PlannedLanding:
         kept = verification.min_separation_continuous if verification is not None else None
         self.emit(None, EventKind.LANDING_PLAN, (
             f"{len(self.steered)} vehicle(s) land by a verified plan from t+{bound:g} s: "
-            f"touchdown in {horizon:.1f} s, closest {_figure(kept)} m (keeps "
+            f"touchdown in {horizon:.1f} s, closest {_figure(kept)} m (keeps at least "
             f"{result.separation:.2f} m), planned in {result.seconds:.3f} s"))
         end = switch_at + horizon + SETTLE_S
         while (left := end - time.monotonic()) > 0:
