@@ -30,6 +30,11 @@ minimum separation. A flagged vehicle triggers the policy: ``hold_all`` / ``land
 flight (`FlightAborted`), ``land_faulty`` lands that vehicle and carries on (the flight then
 does not count as completed).
 
+An abort with land (or an error) while the plan is flown flies a verified landing plan first
+(`gcs.flight.landing`): planned from the plan's state `landing_plan_timeout` ahead, streamed
+like the plan, then PX4's Land at the touchdown points; PX4's Land straight away for vehicles
+that cannot be steered, or for all when no plan is ready in time.
+
 Safety: nothing is armed before `run()`; every error path ends in `vehicle.secure`, which disarms
 armed vehicles still on the ground, sends airborne ones to land (or Hold for an explicit hold
 abort), stops their streams, and waits for landed vehicles to disarm. A vehicle that does not
@@ -113,6 +118,11 @@ class FlightExecutor:
         if not check.verified:
             raise PlanRejected("refusing to fly a plan that fails verification: "
                                + "; ".join(check.failures()))
+        moving = plan.scenario.start_velocities
+        if moving is not None and np.any(moving != 0.0):
+            n = int(np.flatnonzero(np.any(moving != 0.0, axis=1))[0])
+            raise PlanRejected(f"refusing to fly a plan that starts moving (vehicles[{n}]."
+                               f"start_velocity): a flight starts from a hover at the starts")
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
