@@ -51,7 +51,9 @@ def test_stacked_pair_aborted_with_land_keeps_r_until_down() -> None:
     verified landing plan to touchdown points R apart and PX4 lands them from there; the
     flown separation stays >= R - 0.05 m until both are on the ground, disarmed."""
     plan = smooth_plan(STACKED)
-    flight, outcome, mock, aborted_at = asyncio.run(_abort_at(plan, 1.0, QUICK))
+    # a bound a busy machine always meets (the plan takes milliseconds; 0.5 s by default)
+    options = QUICK.replace(landing_plan_timeout=2.0)
+    flight, outcome, mock, aborted_at = asyncio.run(_abort_at(plan, 1.0, options))
     record = flight.record
     assert record is not None and not isinstance(outcome, dict)
     kinds = [e["kind"] for e in record["events"]]

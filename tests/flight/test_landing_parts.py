@@ -63,7 +63,7 @@ def test_a_vehicle_out_of_reach_gets_px4_land_the_other_flies_the_plan() -> None
     switch tick to a touchdown point, then is handed to PX4's Land."""
     vehicles, streamer, events, secured = _setup()
     vehicles[1].linked.telemetry.message_time = time.monotonic() - 10.0
-    landing = _landing(vehicles, streamer, events, secured)
+    landing = _landing(vehicles, streamer, events, secured, landing_plan_timeout=1.0)
     assert [v.id for v in landing.eligible()] == ["uav1"]
     asyncio.run(landing.run())
     kinds = [(vid, kind) for vid, kind, _ in events]
