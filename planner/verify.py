@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.result import Verification
+from planner.result import Plan, Verification
 from planner.scenario import Scenario
 from planner.separation import (
     NEAR_MIN_VEHICLES,
@@ -24,7 +24,7 @@ from planner.separation import (
 )
 from planner.types import FloatArray
 
-__all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "verify"]
+__all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "refusal", "verify"]
 
 
 #: A plan is separated when its continuous-time minimum is at least R minus this (m).
@@ -161,3 +161,20 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         separation_tolerance=SEPARATION_TOLERANCE,
         bound_tolerance=BOUND_TOLERANCE,
     )
+
+
+def refusal(plan: Plan) -> str | None:
+    """Why `plan` must not be flown or handed to a show tool, checked anew on its
+    trajectories (a plan file's own verification block is only a claim: it may have been
+    edited, or written by another tool); None when it converged and verifies."""
+    if plan.status != "converged":
+        return f"its status is {plan.status!r}" + (f": {plan.message}" if plan.message else "")
+    check = verify(plan.scenario, plan.positions(), plan.velocities(), plan.accelerations())
+    if not check.verified:
+        return "it fails verification: " + "; ".join(check.failures())
+    moving = plan.scenario.start_velocities
+    if moving is not None and np.any(moving != 0.0):
+        n = int(np.flatnonzero(np.any(moving != 0.0, axis=1))[0])
+        return (f"it starts moving (vehicles[{n}].start_velocity): a flight or show starts "
+                f"from a hover at the starts")
+    return None

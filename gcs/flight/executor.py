@@ -92,7 +92,7 @@ from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
 from planner import Plan
-from planner.verify import verify
+from planner.verify import refusal
 
 __all__ = ["TRACKING_TOLERANCE_M", "FlightExecutor", "VehicleStatus"]
 
@@ -108,21 +108,9 @@ class FlightExecutor:
     """One flight of a plan on a fleet; see the module docstring."""
 
     def __init__(self, plan: Plan, fleet: FleetSpec, options: FlightOptions | None = None) -> None:
-        # Checked again here on the trajectories themselves: a plan file's own verification
-        # block is only a claim (it may have been edited, or written by another tool).
-        if plan.status != "converged":
-            raise PlanRejected(f"refusing to fly a plan with status {plan.status!r}: "
-                               f"{plan.message}")
-        check = verify(plan.scenario, plan.positions(), plan.velocities(),
-                       plan.accelerations())
-        if not check.verified:
-            raise PlanRejected("refusing to fly a plan that fails verification: "
-                               + "; ".join(check.failures()))
-        moving = plan.scenario.start_velocities
-        if moving is not None and np.any(moving != 0.0):
-            n = int(np.flatnonzero(np.any(moving != 0.0, axis=1))[0])
-            raise PlanRejected(f"refusing to fly a plan that starts moving (vehicles[{n}]."
-                               f"start_velocity): a flight starts from a hover at the starts")
+        why = refusal(plan)  # verified again on the trajectories themselves
+        if why is not None:
+            raise PlanRejected(f"refusing to fly the plan: {why}")
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options

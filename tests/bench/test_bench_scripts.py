@@ -109,3 +109,15 @@ def test_landing_benchmark_reports_verified_landings():
         assert case["ok"] is True
         assert case["min_separation_continuous"] >= case["separation_kept"] - 1e-4
     assert report["summary"]["8"]["verified"] == 1 and report["summary"]["12"]["cases"] == 1
+
+
+def test_export_benchmark_reports_time_size_and_pieces():
+    report = _run("export.py", "--vehicles", "4", "--repeats", "2")
+    (row,) = report["sizes"]
+    assert row["vehicles"] == 4 and row["plan_ok"] is True
+    assert len(row["export_s_runs"]) == 2 and row["export_s"] > 0
+    # A ZIP of deflated JSON: smaller than the JSON it holds; one keyframe per step at most.
+    assert 0 < row["skyc_bytes"] < row["show_json_bytes"]
+    assert 0 < row["keyframes"] <= row["keyframes_one_per_step"] == 4 * (row["steps"] + 1)
+    assert 0 < row["largest_piece_bytes"] <= row["skyc_bytes"]
+    assert report["machine"]["cpus"] == os.cpu_count()
