@@ -106,7 +106,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         else:
             step_min, cont_min, i, j, when = math.nan, math.nan, -1, -1, 0.0
         lo, hi = _position_extremes(p, v, a, dt)
-        jerk = jerk_from_accelerations(a, dt)
+        jerk = jerk_from_accelerations(a, dt, scenario.start_accelerations)
         f = thrust(a)
         rates = body_rates(a, jerk)
         violation = {
@@ -118,7 +118,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         }
         boundary = {
             "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
-            "start_velocity": float(np.max(np.abs(v[:, 0]))),
+            "start_velocity": float(np.max(np.abs(v[:, 0] - scenario.initial_velocities))),
             # each vehicle's own goal: the assigned one under free assignment
             "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
             "goal_velocity": float(np.max(np.abs(v[:, -1]))),
@@ -172,4 +172,9 @@ def refusal(plan: Plan) -> str | None:
     check = verify(plan.scenario, plan.positions(), plan.velocities(), plan.accelerations())
     if not check.verified:
         return "it fails verification: " + "; ".join(check.failures())
+    moving = plan.scenario.start_velocities
+    if moving is not None and np.any(moving != 0.0):
+        n = int(np.flatnonzero(np.any(moving != 0.0, axis=1))[0])
+        return (f"it starts moving (vehicles[{n}].start_velocity): a flight or show starts "
+                f"from a hover at the starts")
     return None

@@ -169,13 +169,14 @@ def run(args: argparse.Namespace) -> int:
         interrupts = 0
         aborts: list[asyncio.Future] = []
 
-        def on_interrupt() -> None:
+        def on_interrupt(name: str = "Ctrl-C") -> None:
             nonlocal interrupts
             interrupts += 1
             if interrupts == 1:
-                print("\nCtrl-C: aborting, every vehicle lands (Ctrl-C again to quit now)",
+                print(f"\n{name}: aborting, every vehicle lands (Ctrl-C again to quit now)",
                       file=sys.stderr, flush=True)
-                aborts.append(asyncio.ensure_future(handle.abort("land", "interrupted (Ctrl-C)")))
+                aborts.append(asyncio.ensure_future(handle.abort("land",
+                                                                 f"interrupted ({name})")))
             else:
                 task.cancel()
 
@@ -195,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
         settle_heap()  # this process's collections then skip the libraries (gcs.flight.realtime)
         task = handle.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
+        loop.add_signal_handler(signal.SIGTERM, on_interrupt, "SIGTERM")
         loop.add_signal_handler(signal.SIGUSR1, on_pause, False)
         loop.add_signal_handler(signal.SIGUSR2, on_pause, True)
         printer = None if args.quiet else asyncio.create_task(_progress(handle, events))
@@ -211,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
             record = handle.record
         finally:
-            for sig in (signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2):
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2):
                 loop.remove_signal_handler(sig)
             if printer is not None:
                 events.put_nowait(None)

@@ -97,6 +97,20 @@ def test_service_benchmark_reports_latency_and_flight_timing():
     assert report["missed_ticks_max"] == (run["flight"]["missed_ticks"] or 0)
 
 
+def test_landing_benchmark_reports_verified_landings():
+    """bench/landing.py on the paper circle's states and a small random crowd's: every
+    landing verified, R kept, each figure counted in the summary."""
+    report = _run("landing.py", "--sizes", "8", "12", "--seeds", "0", "--times", "6",
+                  "--crowd-states", "12")
+    assert report["benchmark"] == "landing" and report["cpus"] == os.cpu_count()
+    states = [c["state"] for c in report["cases"]]
+    assert states == ["paper-circle8 at t=6 s", "random crowd"]
+    for case in report["cases"]:
+        assert case["ok"] is True
+        assert case["min_separation_continuous"] >= case["separation_kept"] - 1e-4
+    assert report["summary"]["8"]["verified"] == 1 and report["summary"]["12"]["cases"] == 1
+
+
 def test_export_benchmark_reports_time_size_and_pieces():
     report = _run("export.py", "--vehicles", "4", "--repeats", "2")
     (row,) = report["sizes"]
