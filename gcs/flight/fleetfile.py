@@ -178,10 +178,11 @@ class FlightOptions:
     (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.vehicle.message_rates`)."""
     position_rate_hz: float = 30.0
     """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
-    stream_priority: str = "normal"
-    """normal, or realtime: stream setpoints from a real-time thread (SCHED_RR 1) where the
+    stream_priority: str = "realtime"
+    """realtime (default): stream setpoints from a real-time thread (SCHED_RR 1) where the
     process may (`gcs.flight.stream.Streamer`; on a busy machine most send jitter is the OS
-    leaving the GCS waiting for a core); refused quietly otherwise (recorded as an event)."""
+    leaving the GCS waiting for a core); refused quietly otherwise (recorded as an event).
+    normal never asks."""
     goal_tolerance_k: float = 2.0
     """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
     position_error)."""

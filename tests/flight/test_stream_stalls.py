@@ -69,7 +69,7 @@ def test_realtime_is_asked_for_while_streaming_and_given_back() -> None:
 def test_stream_priority_is_a_checked_flight_option() -> None:
     from gcs.flight.fleetfile import FleetFileError, FlightOptions
 
-    assert FlightOptions().stream_priority == "normal"  # today's behaviour by default
+    assert FlightOptions().stream_priority == "realtime"  # asked for by default
     assert FlightOptions.from_dict({"stream_priority": "realtime"}).stream_priority == \
         "realtime"
     with pytest.raises(FleetFileError, match=r"flight\.stream_priority"):

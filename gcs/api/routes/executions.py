@@ -78,10 +78,10 @@ class FlyRequest(BaseModel):
         "rates it needs and turn PX4's fast streams off (MAV_CMD_SET_MESSAGE_INTERVAL)."
     )
     stream_priority: Literal["normal", "realtime"] | None = Field(
-        None, description="realtime: stream setpoints at SCHED_RR priority where the service "
-        "may (root or CAP_SYS_NICE; recorded as an event either way). Keeps a large fleet's "
-        "stream on time on a busy computer; the service's event loop shares that priority "
-        "while the flight streams."
+        None, description="realtime (the default): stream setpoints at SCHED_RR priority "
+        "where the vehicle process may (root or CAP_SYS_NICE; recorded as an event either "
+        "way), which keeps a large fleet's stream on time on a busy computer; normal: never "
+        "ask."
     )
     margin_check: Literal["refuse", "warn"] | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "
