@@ -3,8 +3,9 @@
 PX4's UDP link sends to its configured remote (the offboard link: 127.0.0.1:14540 + i; the GCS
 link: 14550) until it has a partner, then latches the first one it hears (a localhost remote
 latches at once; `MavlinkReceiver`: "partner IP") and keeps it: a later packet from another
-address is still handled but never pulls the link's traffic away. The mock latches at the
-first valid MAVLink message (PX4: the first datagram, even an undecodable one).
+address is still handled but never pulls the link's traffic away. Like PX4, the mock latches
+at the first datagram, before parsing it: even one that is junk or that the signing rules
+reject (`gcs.sim.receiver`).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ class UdpLink:
         return (str(host), int(port))
 
     def heard(self, address: tuple[str, int]) -> None:
-        """A valid message came from `address`: latch it if this is the first."""
+        """A datagram came from `address`: latch it if this is the first."""
         if self.partner is None:
             self.partner = address
 

@@ -20,13 +20,16 @@ and rally points, TIMESYNC, PROTOCOL_VERSION, MAVFTP (no files). The parts, one 
 - `gcs.sim.geofence`: the stored fence checked, GF_ACTION on a breach;
 - `gcs.sim.links`: its UDP links (offboard, optional GCS link) and their latched partners;
 - `gcs.sim.signing`: SETUP_SIGNING and the signing key;
+- `gcs.sim.receiver`: what comes in, as PX4 takes it: the partner latched by the first
+  datagram, the signing rules, every rejection counted;
 - `gcs.sim.statustext`: STATUSTEXT chunks and repeats;
 - `gcs.sim.config`: the settings (`MockConfig`) and injected faults (`MockFaults`).
 
 Each datagram is decoded by a fresh parser with the vehicle's signing state; an exception while
 handling one is counted (`errors`) and logged, never raised into asyncio (which would close the
-vehicle's socket and silence it). Each link latches the first partner it hears and keeps
-it, as PX4's UDP links do (`gcs.sim.links`).
+vehicle's socket and silence it). Each link latches the source of the first datagram it
+hears, whatever it holds, and keeps it, as PX4's UDP links do; with a key only signed packets
+(and PX4's unsigned allowlist) reach the handlers (`gcs.sim.receiver`).
 
 It speaks MAVLink through pymavlink directly, never through `gcs.flight`: a wire-level mistake
 in our link must not be repeated by the stand-in that should catch it. It shares on purpose only
@@ -64,6 +67,7 @@ from gcs.sim.core import VehicleContext, VehicleCore
 from gcs.sim.links import UdpLink
 from gcs.sim.missions import VehicleMissions
 from gcs.sim.params import VehicleParams
+from gcs.sim.receiver import MavlinkIntake
 from gcs.sim.setpoints import ReceivedSetpoint, read_setpoint, refusal_text
 from gcs.wire import addressed_to, mavlink
 
@@ -84,9 +88,9 @@ class MockVehicle(VehicleCore):
         self.setpoints_ignored = 0
         self.setpoints_invalid = 0
         """Setpoints refused for a used field not finite or absurd (`setpoint_problem`)."""
-        self.rejected = 0
-        """Incoming packets rejected: bad CRC, truncated, or (with a key) unsigned or badly
-        signed (pymavlink's signing counters, `signing`, say which)."""
+        self.intake = MavlinkIntake(self.signing)
+        """What came in and what became of it, as PX4 decides it: accepted, rejected by the
+        signing rules (by kind), garbage (`gcs.sim.receiver`)."""
         self.params = VehicleParams(self)
         """Its PX4 parameters and the parameter protocol (`gcs.sim.params`)."""
         self.missions = VehicleMissions(self)
@@ -94,6 +98,13 @@ class MockVehicle(VehicleCore):
         self.geofence = geofence.Geofence(self.origin)
         """Its fence in LOCAL_NED and breach state (`gcs.sim.geofence`)."""
         self.missions.changed = self._mission_changed
+
+    @property
+    def rejected(self) -> int:
+        """Incoming packets rejected: bad CRC, truncated, or (with a key) unsigned or badly
+        signed (`intake.counters` says which)."""
+        counters = self.intake.counters
+        return counters.rejected + counters.garbage
 
     def tick(self, now: float) -> None:
         """The flight rules (`VehicleCore.tick`), then the protocols' own timers."""
@@ -150,22 +161,8 @@ class MockVehicle(VehicleCore):
             self._reply_link = None
 
     def _process(self, data: bytes, address: tuple[str, int], link: UdpLink) -> None:
-        # A fresh parser per datagram (a packet never spans datagrams), with this vehicle's
-        # signing state: pymavlink checks signatures and timestamps in `decode`.
-        parser = mavlink.MAVLink(None)
-        parser.robust_parsing = True
-        parser.signing = self.signing
-        try:
-            messages = parser.parse_buffer(data) or []
-        except mavlink.MAVError:
-            self.rejected += 1
-            return
-        for msg in messages:
+        for msg in self.intake.receive(data, address, link):  # PX4's partner, signing rules
             kind = msg.get_type()
-            if kind == "BAD_DATA":
-                self.rejected += 1
-                continue
-            link.heard(address)  # the first partner is kept (PX4's UDP link)
             if kind == "SET_POSITION_TARGET_LOCAL_NED":
                 self._on_setpoint(msg)
             elif kind in ("COMMAND_LONG", "COMMAND_INT"):
