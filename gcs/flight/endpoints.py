@@ -8,9 +8,10 @@
 - `UdpEndpoint`: ``udpin:HOST:PORT`` (also ``udp:``; bind, and send each vehicle's traffic only
   to its pinned peer: what PX4's offboard link needs) or ``udpout:HOST:PORT`` (send to a fixed
   address), on the running asyncio loop. Each datagram is decoded on its own by a fresh parser
-  (`gcs.wire.parse_datagram`): garbage is counted and cannot swallow the next real packet. With
-  `decode_ids`, a datagram holding one packet of another message id is handed on undecoded
-  after a header and CRC check (`gcs.wire.peek_packet`).
+  (`gcs.wire.parse_datagram`): garbage is counted and cannot swallow the next real packet. A
+  datagram holding one whole packet (header and CRC checked, `gcs.wire.peek_packet`) that its
+  receiver refuses on the header (another address, another component, unsigned while a key
+  is set) is handed on undecoded, and so is, with `decode_ids`, one of another message id.
 - `ThreadedEndpoint`: any other pymavlink URL (serial ports, ``tcp:``), opened with pymavlink's
   `mavutil` on a reader thread (its vehicles are pinned by component only: there is no address).
 
@@ -56,7 +57,12 @@ class Receiver(Protocol):
         """A decoded message from `address`, received at `now`."""
 
     def receive_skipped(self, header: PacketHeader, packet: bytes, address: Any) -> None:
-        """One whole valid packet from `address` of an id the endpoint does not decode."""
+        """One whole valid packet from `address` that the endpoint did not decode (an id it
+        does not read, or one `refuses` drops)."""
+
+    def refuses(self, header: PacketHeader, address: Any) -> bool:
+        """Whether a packet with `header` from `address` is dropped whatever its payload
+        (judged on the header alone, so that it is never decoded)."""
 
 
 class Endpoint:
@@ -80,6 +86,9 @@ class Endpoint:
         """Valid messages received (decoded or skipped), whoever sent them."""
         self.skipped = 0
         """Messages of an id outside `decode_ids`, dropped before decoding."""
+        self.refused = 0
+        """Messages their receiver refused on the header alone (`Receiver.refuses`), never
+        decoded; each is also counted by the receiver's security counters."""
 
     def register(self, receiver: Receiver) -> None:
         """Route `receiver.system_id`'s packets to `receiver` (one receiver per system id)."""
@@ -152,9 +161,11 @@ class UdpEndpoint(Endpoint):
         self.send_errors += 1
 
     def _received(self, data: bytes, addr: Any) -> None:
-        """One datagram from `addr`: skipped, or decoded on its own and dispatched."""
+        """One datagram from `addr`: refused or skipped on its header, or decoded on its own
+        and dispatched."""
         now = time.monotonic()
-        if self._skip(data, addr):
+        header = peek_packet(data)
+        if header is not None and self._skip(header, data, addr):
             return
         parsed = parse_datagram(data)  # a fresh parser for every datagram
         if parsed.garbage_bytes:
@@ -163,16 +174,20 @@ class UdpEndpoint(Endpoint):
         for msg in parsed.messages:
             self._dispatch(msg, addr, now)
 
-    def _skip(self, data: bytes, addr: Any) -> bool:
-        """Hand `data` on undecoded if it is one whole packet (CRC checked) of an id outside
-        `decode_ids` for a pinned receiver; False: decode it in full. Before its receiver is
-        pinned, everything is decoded."""
-        if self.decode_ids is None:
-            return False
-        header = peek_packet(data)
-        if header is None or header.msg_id in self.decode_ids:
-            return False
+    def _skip(self, header: PacketHeader, data: bytes, addr: Any) -> bool:
+        """Hand on undecoded a datagram that is one whole packet (CRC checked, `header`) and
+        that its receiver refuses on the header (another address than its pinned peer,
+        another component, unsigned while it has a key: a flood of them costs a header check
+        each, never a decode), or whose id is outside `decode_ids` for a pinned receiver.
+        False: decode it in full (before its receiver is pinned, everything it admits is)."""
         receiver = self.vehicles.get(header.system)
+        if receiver is not None and receiver.refuses(header, addr):
+            self.messages_received += 1
+            self.refused += 1
+            receiver.receive_skipped(header, data, addr)  # counted, and dropped, there
+            return True
+        if self.decode_ids is None or header.msg_id in self.decode_ids:
+            return False
         if receiver is not None and not receiver.pinned:
             return False
         self.messages_received += 1

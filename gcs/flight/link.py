@@ -112,13 +112,25 @@ class VehicleLink:
             self._handle(msg, now)
 
     def receive_skipped(self, header: PacketHeader, packet: bytes, address: Any) -> None:
-        """A packet the endpoint did not decode: if admitted, it counts for link quality (not
-        as proof of life: that takes a decoded message); else only a security counter moves."""
+        """A packet the endpoint did not decode (an id not read, or one `refuses` drops): if
+        admitted, it counts for link quality (not as proof of life: that takes a decoded
+        message); else only a security counter moves."""
         if self._admit(header.component, address,
                        lambda signing: signing.verify_packet(packet, header.system,
                                                              header.component)):
             self.telemetry.skipped += 1
             self.telemetry.count_sequence(header.seq)
+
+    def refuses(self, header: PacketHeader, address: Any) -> bool:
+        """Whether `_admit` drops a packet with `header` from `address` whatever its payload:
+        another address than the pinned peer, another component, or unsigned while this
+        vehicle has a key. The endpoint asks before decoding, so hostile traffic costs a
+        header check; the drop is then counted by `receive_skipped`."""
+        if self.pinned and address != self.peer_address:
+            return True
+        if header.component != self.component_id:
+            return True
+        return self.signing is not None and not header.signed
 
     def _admit(self, component: int, address: Any,
                verify: Callable[[LinkSigning], str | None]) -> bool:

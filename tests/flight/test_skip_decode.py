@@ -173,3 +173,44 @@ def test_an_unpinned_vehicle_is_pinned_by_a_decoded_packet_only() -> None:
     unknown = mavlink.MAVLink(None, srcSystem=9, srcComponent=1)
     endpoint._received(pack(unknown.attitude_encode(0, 0, 0, 0, 0, 0, 0), unknown), VEHICLE)
     assert endpoint.dropped_unknown == 1
+
+
+def _command(sender: Sender) -> bytes:
+    """A COMMAND_LONG (a decoded id) from `sender`: NAV_LAND to vehicle 1."""
+    return pack(sender.mav.command_long_encode(1, 1, mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0,
+                                               0, 0, 0), sender.mav)
+
+
+def test_refused_packets_are_never_decoded(tmp_path: Path, monkeypatch: Any) -> None:
+    """Hostile traffic of ids the link reads (positions, heartbeats, commands) from another
+    address, another component, or unsigned while a key is set is judged on its header: the
+    security counters move exactly as a full decode would make them, and nothing is decoded;
+    the vehicle's own signed traffic is still decoded and admitted."""
+    import gcs.flight.endpoints as endpoints
+
+    key = new_key_file(tmp_path / "k.key")
+    endpoint, link, seen = _endpoint(LinkSigning(key))
+    good = Sender(key.secret)
+    endpoint._received(good.position(5.0), VEHICLE)
+    decoded = []
+    real_parse = endpoints.parse_datagram
+    monkeypatch.setattr(endpoints, "parse_datagram",
+                        lambda data: decoded.append(data) or real_parse(data))
+    signed_elsewhere = Sender(key.secret)
+    unsigned = Sender()
+    other_component = Sender(key.secret, component=42)
+    for _ in range(10):
+        endpoint._received(signed_elsewhere.position(9.0), ELSEWHERE)
+        endpoint._received(_command(unsigned), VEHICLE)
+        endpoint._received(unsigned.heartbeat(), VEHICLE)
+        endpoint._received(other_component.position(9.0), VEHICLE)
+    assert decoded == []
+    assert endpoint.refused == 40 and endpoint.messages_received == 41
+    security = link.telemetry.security
+    assert (security.foreign_source, security.unsigned, security.other_component) == (
+        10, 20, 10)
+    assert link.dropped_from["unsigned"] == (VEHICLE, 1)
+    assert link.telemetry.position_ned == (5.0, 2.0, -3.0)
+    endpoint._received(good.position(6.0), VEHICLE)  # the vehicle's own: decoded, admitted
+    assert len(decoded) == 1 and link.telemetry.position_ned == (6.0, 2.0, -3.0)
+    assert seen == ["LOCAL_POSITION_NED", "LOCAL_POSITION_NED"]
