@@ -20,8 +20,8 @@ alarm below the clearance the vehicles must keep minus the alarm band
 
 Packets with a vehicle's system id that its link dropped (another address, another
 component, bad signatures: `SecurityCounters`) are told as they happen (`on_drops`, at most
-once per `DROPS_NOTE_S` per vehicle), not only in the record: someone else is talking to the
-fleet.
+once per `DROPS_NOTE_S` per vehicle, with their rate over the time since the last report),
+not only in the record: someone else is talking to the fleet.
 
 The station's own stalls (`gcs.flight.station`) are not a vehicle's fault: the monitor notes
 each of its wake-ups later than `STALL_NOTE_S`; the link and heartbeat gaps count in
@@ -92,14 +92,19 @@ DROPS_NOTE_S = 5.0
 DropsCallback = Callable[[VehicleStatus, str], None]
 
 
-def drops_text(delta: dict[str, int], latest: tuple[object, int] | None) -> str:
-    """"12 more packets dropped (12 foreign_source), the latest from 127.0.0.1:5555"."""
+def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
+               window: float = 0.0) -> str:
+    """"40 more packets dropped in 5.0 s, 8.0/s (40 unsigned), the latest from
+    127.0.0.1:5555 (component 1)": the rate over `window` s (left out when 0) is the health
+    signal, hostile traffic arriving as the vehicle's."""
     reasons = ", ".join(f"{n} {reason}" for reason, n in delta.items() if n)
+    total = sum(delta.values())
+    over = f" in {window:.1f} s, {total / window:.1f}/s" if window > 0.0 else ""
     where = ""
     if latest is not None:
         address, component = latest
         where = f", the latest from {address_text(address)} (component {component})"
-    return f"{sum(delta.values())} more packets dropped ({reasons}){where}"
+    return f"{total} more packets dropped{over} ({reasons}){where}"
 
 
 class FleetMonitor:
@@ -114,6 +119,8 @@ class FleetMonitor:
         self.on_drops = on_drops
         self._drops_told: dict[str, tuple[dict[str, int], float]] = {}
         """Per vehicle: the counters last told and when."""
+        self._drops_since: float | None = None
+        """When the drops were first looked at (the first report's window starts there)."""
         self.plan = plan
         self.options = options
         self.flight_time = flight_time
@@ -182,6 +189,8 @@ class FleetMonitor:
     def _drops(self, now: float) -> None:
         """Tell each vehicle's packets dropped since last told (at most every DROPS_NOTE_S)."""
         assert self.on_drops is not None
+        if self._drops_since is None:
+            self._drops_since = now
         for v in self.vehicles:
             if v.link is None:
                 continue
@@ -194,7 +203,8 @@ class FleetMonitor:
             latest = max(((k, a) for k, a in v.link.dropped_from.items()
                           if delta.get(k)), default=None, key=lambda item: delta[item[0]])
             self._drops_told[v.id] = (counts, now)
-            self.on_drops(v, drops_text(delta, None if latest is None else latest[1]))
+            window = now - (when if math.isfinite(when) else self._drops_since)
+            self.on_drops(v, drops_text(delta, None if latest is None else latest[1], window))
 
     def _tracking_error(self, v: VehicleStatus, position: np.ndarray, t: float,
                         trail: float) -> float:

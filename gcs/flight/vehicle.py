@@ -161,7 +161,10 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
         if endpoint.messages_received == 0 and endpoint.garbage_datagrams == 0:
             hint = ("; nothing at all arrived there: is the vehicle running and sending to "
                     "this port? (mock vehicles: fleetplan mock; PX4 SITL sends its offboard "
-                    "link to 14540 + instance)")
+                    "link to 14540 + instance). PX4 sends its replies to the first address "
+                    "it hears after boot, for good: if another process spoke to it first "
+                    "(even one it rejected), restart the vehicle with only the GCS talking "
+                    "to it, or fix its partner with mavlink start -t")
         elif endpoint.dropped_unknown and link.telemetry.heartbeat_time is None:
             hint = (f"; {endpoint.dropped_unknown} messages arrived there from other system "
                     f"ids: is system_id {spec.system_id} right for this vehicle?")

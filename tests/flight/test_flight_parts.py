@@ -142,7 +142,8 @@ def test_snapshot_carries_flight_time_under_both_names() -> None:
 
 def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() -> None:
     """Someone else talking as a vehicle is told live (once per DROPS_NOTE_S per vehicle,
-    with the counts since the last time and the latest source), not only in the record."""
+    with the counts and their rate since the last time, and the latest source), not only in
+    the record."""
     from gcs.flight.monitor import DROPS_NOTE_S, FleetMonitor
     from gcs.flight.station import StationStalls
     from tests.flight.fakes import fake_link
@@ -166,7 +167,7 @@ def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() ->
     monitor._drops(100.0 + DROPS_NOTE_S / 2)  # too soon: kept for the next report
     assert len(told) == 1
     monitor._drops(100.0 + DROPS_NOTE_S)
-    assert told[-1] == ("uav2", "8 more packets dropped (8 foreign_source), the latest from "
-                                "127.0.0.1:5555 (component 1)")
+    assert told[-1] == ("uav2", "8 more packets dropped in 5.0 s, 1.6/s (8 foreign_source), "
+                                "the latest from 127.0.0.1:5555 (component 1)")
     monitor._drops(200.0)  # no new drops
     assert len(told) == 2
