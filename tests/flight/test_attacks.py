@@ -33,7 +33,9 @@ RATE_SCALE = 0.2
 
 
 class Attacker:
-    """`tests/flight/attacker.py` in its own process."""
+    """`tests/flight/attacker.py` (`module`) in its own process."""
+
+    module = "tests.flight.attacker"
 
     def __init__(self, ports: list[int], systems: list[int], attacks: str = ALL_ATTACKS
                  ) -> None:
@@ -45,7 +47,7 @@ class Attacker:
 
     async def start(self) -> None:
         self.proc = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", "tests.flight.attacker", *self.args, cwd=ROOT,
+            sys.executable, "-m", self.module, *self.args, cwd=ROOT,
             stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE)
         assert self.proc.stdout is not None
         assert json.loads(await self.proc.stdout.readline()) == {"ready": True}

@@ -1,0 +1,112 @@
+"""Issue 17's hostile traffic on the px4-like mock: a signed fleet flying with its margin while
+another local process sends every vehicle 40 unsigned LAND / force-DISARM commands per second
+(`tests/flight/rejected_commands.py`, MAVSDK's way), and spoofs the vehicles' ACKs to the
+GCS.
+
+The vehicles reject the commands as PX4 does (`gcs.sim.receiver`: once the GCS has spoken
+first, nobody moves their replies); the GCS drops the spoofs on their headers and tells them
+live. The flight completes with its margin intact. No timing is asserted: what is judged is
+what happened (completed, separation flown, rejections counted, events told)."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from gcs.errors import FlightAborted
+from gcs.flight.executor import FlightExecutor
+from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.margin import scenario_for_fleet
+from gcs.flight.phases import EventKind
+from gcs.sim import MockFleet, homes_under
+from gcs.wire import new_key_file
+from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
+from tests.flight.test_attacks import Attacker
+
+pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
+
+#: Rejected commands per second, per vehicle (the issue's figure).
+RATE = 40.0
+POSITION_ERROR = 0.25
+
+
+class CommandAttacker(Attacker):
+    """`tests/flight/rejected_commands.py` in its own process, MAVSDK's way (its unsigned GCS
+    HEARTBEAT at 1 Hz, which PX4 accepts with a key): commands to the vehicles' ports,
+    spoofed ACKs to the GCS's."""
+
+    module = "tests.flight.rejected_commands"
+
+    def __init__(self, vehicles: list[tuple[int, int]], gcs_ports: list[int]) -> None:
+        super().__init__([], [])
+        self.args = ["--rate", str(RATE), "--duration", "90", "--style", "mavsdk", "--vehicles",
+                     ",".join(f"127.0.0.1:{port}={system}" for port, system in vehicles),
+                     "--gcs-ports", ",".join(map(str, gcs_ports))]
+
+
+async def _fly(tmp_path: Path) -> tuple[dict[str, Any], MockFleet, dict[str, Any]]:
+    # three vehicles 1.5 m apart, planned for R 1 m + 2 x 0.25 m (the margin procedure)
+    plan = smooth_plan(scenario_for_fleet(line_scenario(3, spacing=1.5, steps=20),
+                                          POSITION_ERROR))
+    assert plan.scenario.min_separation == pytest.approx(1.5)
+    key = new_key_file(tmp_path / "fleet.key")
+    homes = homes_under(plan.scenario.starts)
+    async with MockFleet(homes=homes, realism="px4", seed=5, signing_key=key.secret,
+                         **mock_ports(len(homes)), **FAST_MOCK) as mock:
+        fleet = FleetSpec.from_dict({**mock.fleet_dict(plan.scenario.ids),
+                                     "signing_key": str(key.path),
+                                     "position_error": POSITION_ERROR})
+        executor = FlightExecutor(plan, fleet, FlightOptions(hold_at_goal=1.0, prestream=0.3,
+                                                             climb_speed=2.0))
+        task = executor.start()
+        # the GCS speaks to the vehicles first (their replies are latched to it), as in
+        # the issue's flights; then the attack starts, before the vehicles take off
+        while executor.phase in ("created", "connecting") and not task.done():
+            await asyncio.sleep(0.02)
+        attacker = CommandAttacker(
+            [(v.listen_address[1], v.system_id) for v in mock.vehicles],
+            [v.gcs_port for v in mock.vehicles])
+        await attacker.start()
+        try:
+            record = await task
+        except FlightAborted:  # the record says why; the assertions below show it
+            assert executor.record is not None
+            record = executor.record
+        report = await attacker.stop()
+        return record, mock, report
+
+
+def test_a_signed_flight_under_40_rejected_commands_a_second_keeps_its_margin(
+        tmp_path: Path) -> None:
+    record, mock, report = asyncio.run(_fly(tmp_path))
+    ids = [v["id"] for v in record["vehicles"]]
+    summary = record["summary"]
+    assert summary["completed"] is True, summary["why"]
+    # the margin held: what the vehicles must keep (R = 1.5 - 2 x 0.25 m) was kept
+    assert summary["min_separation_required"] == pytest.approx(1.0)
+    assert summary["separation_held"] is True
+    assert summary["min_separation_measured"] >= summary["min_separation_required"]
+    assert not [e for e in record["events"] if e["kind"] == EventKind.SEPARATION_ALARM]
+    # the attack ran at its rate and was rejected by every vehicle, counted by kind
+    per_vehicle = report["commands"] / len(mock.vehicles)
+    assert report["commands_per_s_per_vehicle"] > 0.5 * RATE and per_vehicle > 100, report
+    for vehicle in mock.vehicles:
+        counters = vehicle.intake.counters
+        assert counters.rejected_unsigned >= 0.9 * per_vehicle, (vehicle.index, counters)
+        assert counters.rejected_bad_signature == 0
+        assert counters.unsigned_allowed >= 1  # its HEARTBEATs, accepted unsigned as by PX4
+        # nothing it sent took the vehicle's replies: they went to the GCS all along
+        assert vehicle.intake.partner == ("127.0.0.1", vehicle.gcs_port)
+        assert not [e for _, e in vehicle.events if "failsafe" in e]
+        assert [e for _, e in vehicle.events if e.startswith("disarmed")] == [
+            "disarmed (auto disarm on land)"]  # the forced disarms did nothing
+    assert report["received"] == 0  # no vehicle ever answered the attacker
+    # the spoofed ACKs reached the GCS: dropped on their headers (another address than the
+    # pinned vehicle), counted and told live
+    told = {e["vehicle"] for e in record["events"] if e["kind"] == EventKind.DROPPED_PACKETS}
+    assert told == set(ids) and len(ids) == len(mock.vehicles)
+    for vid in ids:
+        assert summary["security"][vid]["foreign_source"] >= 0.9 * per_vehicle
