@@ -62,6 +62,21 @@ def packets(kind: str, system_id: int, rng: random.Random) -> list[bytes]:
     raise ValueError(kind)
 
 
+def drain(sock: socket.socket) -> tuple[int, set[str]]:
+    """Read every datagram waiting on the non-blocking `sock`: how many there were, and the
+    message types they held (what a vehicle or the GCS sent the attacker back)."""
+    count, types = 0, set()
+    while True:
+        try:
+            data = sock.recv(65536)
+        except BlockingIOError:
+            return count, types
+        count += 1
+        parsed = mavlink.MAVLink(None)
+        parsed.robust_parsing = True
+        types.update(m.get_type() for m in parsed.parse_buffer(data) or [])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--ports", required=True)
@@ -91,15 +106,9 @@ def main() -> None:
                         for port in ports:
                             sock.sendto(buf, ("127.0.0.1", port))
                             sent += 1
-        while True:
-            try:
-                data = sock.recv(65536)
-            except BlockingIOError:
-                break
-            received += 1
-            parsed = mavlink.MAVLink(None)
-            parsed.robust_parsing = True
-            types.update(m.get_type() for m in parsed.parse_buffer(data) or [])
+        count, kinds = drain(sock)
+        received += count
+        types |= kinds
         if select.select([sys.stdin], [], [], 0.002)[0]:
             break  # stdin closed (or written to): stop
     print(json.dumps({"sent": sent, "received": received, "received_types": sorted(types)}),

@@ -36,6 +36,8 @@ os.environ.setdefault("MAVLINK20", "1")
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from tests.flight.attacker import drain
+
 #: MAV_CMD_COMPONENT_ARM_DISARM's param2 that forces a disarm in flight.
 FORCE = 21196.0
 STYLES = ("raw", "mavsdk")
@@ -91,7 +93,7 @@ def main() -> None:
     period = 1.0 / args.rate
     next_command, next_heartbeat, k = start, start, 0
     sent = {"commands": 0, "heartbeats": 0, "acks_to_gcs": 0}
-    received, types = 0, set()
+    received, types = 0, set[str]()
     while (now := time.monotonic()) < start + args.duration:
         if args.style == "mavsdk" and now >= next_heartbeat:
             next_heartbeat += 1.0
@@ -112,15 +114,9 @@ def main() -> None:
                     sock.sendto(_spoofed_ack(system_id, k), ("127.0.0.1", gcs_ports[i]))
                     sent["acks_to_gcs"] += 1
             k += 1
-        while True:
-            try:
-                data = sock.recv(65536)
-            except BlockingIOError:
-                break
-            received += 1
-            parsed = mavlink.MAVLink(None)
-            parsed.robust_parsing = True
-            types.update(m.get_type() for m in parsed.parse_buffer(data) or [])
+        count, kinds = drain(sock)
+        received += count
+        types |= kinds
         wait = max(0.0, min(next_command, next_heartbeat if args.style == "mavsdk"
                             else next_command) - time.monotonic())
         if select.select([sys.stdin], [], [], min(wait, 0.05))[0]:
