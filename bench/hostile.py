@@ -78,7 +78,7 @@ async def _mock_child(spec: dict[str, Any]) -> None:
         print(json.dumps({"ready": True}), flush=True)
         await asyncio.get_running_loop().run_in_executor(None, sys.stdin.read)
         print(json.dumps({"vehicles": [
-            {**vars(v.intake.counters), "partner": list(v.intake.partner),
+            {**vars(v.intake.counters), "partner": list(v.links[0].address),
              "errors": v.errors, "failsafes": [e for _, e in v.events if "failsafe" in e],
              "disarmed": [e for _, e in v.events if e.startswith("disarmed")]}
             for v in mock.vehicles]}), flush=True)

@@ -47,7 +47,10 @@ class CommandAttacker(Attacker):
                      "--gcs-ports", ",".join(map(str, gcs_ports))]
 
 
-async def _fly(tmp_path: Path) -> tuple[dict[str, Any], MockFleet, dict[str, Any]]:
+async def _fly(tmp_path: Path) -> tuple[dict[str, Any], MockFleet, dict[str, Any],
+                                        list[tuple[str, int]]]:
+    """The flight's record, the mock fleet, the attacker's report, and where each vehicle's
+    replies went at the end (its offboard link's partner)."""
     # three vehicles side by side, planned for R 1 m + 2 x 0.25 m (the margin procedure),
     # 1.7 m apart: the px4 preset's wandering estimates alone bring side-by-side vehicles
     # 1.5 m apart to 1.12-1.21 m over a flight, which leaves a busy machine's stalls little
@@ -78,12 +81,12 @@ async def _fly(tmp_path: Path) -> tuple[dict[str, Any], MockFleet, dict[str, Any
             assert executor.record is not None
             record = executor.record
         report = await attacker.stop()
-        return record, mock, report
+        return record, mock, report, [v.links[0].address for v in mock.vehicles]
 
 
 def test_a_signed_flight_under_40_rejected_commands_a_second_keeps_its_margin(
         tmp_path: Path) -> None:
-    record, mock, report = asyncio.run(_fly(tmp_path))
+    record, mock, report, partners = asyncio.run(_fly(tmp_path))
     ids = [v["id"] for v in record["vehicles"]]
     summary = record["summary"]
     assert summary["completed"] is True, summary["why"]
@@ -95,13 +98,13 @@ def test_a_signed_flight_under_40_rejected_commands_a_second_keeps_its_margin(
     # the attack ran at its rate and was rejected by every vehicle, counted by kind
     per_vehicle = report["commands"] / len(mock.vehicles)
     assert report["commands_per_s_per_vehicle"] > 0.5 * RATE and per_vehicle > 100, report
-    for vehicle in mock.vehicles:
+    for vehicle, partner in zip(mock.vehicles, partners, strict=True):
         counters = vehicle.intake.counters
         assert counters.rejected_unsigned >= 0.9 * per_vehicle, (vehicle.index, counters)
         assert counters.rejected_bad_signature == 0
         assert counters.unsigned_allowed >= 1  # its HEARTBEATs, accepted unsigned as by PX4
         # nothing it sent took the vehicle's replies: they went to the GCS all along
-        assert vehicle.intake.partner == ("127.0.0.1", vehicle.gcs_port)
+        assert partner == ("127.0.0.1", vehicle.gcs_port)
         assert not [e for _, e in vehicle.events if "failsafe" in e]
         assert [e for _, e in vehicle.events if e.startswith("disarmed")] == [
             "disarmed (auto disarm on land)"]  # the forced disarms did nothing
