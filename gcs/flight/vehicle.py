@@ -158,16 +158,17 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
                                           f"but nothing it could accept: {dropped}")
         what = "HEARTBEAT" if link.telemetry.heartbeat_time is None else "LOCAL_POSITION_NED"
         endpoint = link.endpoint
+        heard = link.telemetry.message_time is not None
         if endpoint.messages_received == 0 and endpoint.garbage_datagrams == 0:
             hint = ("; nothing at all arrived there: is the vehicle running and sending to "
                     "this port? (mock vehicles: fleetplan mock; PX4 SITL sends its offboard "
-                    "link to 14540 + instance). PX4 sends its replies to the first address "
-                    "it hears after boot, for good: if another process spoke to it first "
-                    "(even one it rejected), restart the vehicle with only the GCS talking "
-                    "to it, or fix its partner with mavlink start -t")
+                    "link to 14540 + instance). " + _PARTNER_HINT)
         elif endpoint.dropped_unknown and link.telemetry.heartbeat_time is None:
             hint = (f"; {endpoint.dropped_unknown} messages arrived there from other system "
                     f"ids: is system_id {spec.system_id} right for this vehicle?")
+        elif heard and link.telemetry.heartbeat_time is None and link.link_age() > timeout / 2:
+            hint = (f"; its first messages arrived, then nothing for {link.link_age():.0f} s. "
+                    + _PARTNER_HINT)
         else:
             hint = f"; also dropped: {dropped}" if dropped else ""
         raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
@@ -180,6 +181,13 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
         raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
                        f"someone else armed")
     refuse_other_claimants(link, spec)
+
+
+#: Why a PX4 vehicle that is running may send the GCS nothing (its UDP link's partner).
+_PARTNER_HINT = ("PX4 sends its replies to the first address it hears after boot, for good: "
+                 "if another process spoke to it first (even with packets it rejected), "
+                 "restart the vehicle with only the GCS talking to it, or fix its partner "
+                 "with mavlink start -t")
 
 
 #: Packets dropped from a vehicle's system id, by security counter: what they were, the

@@ -11,18 +11,22 @@ what happened (completed, separation flown, rejections counted, events told)."""
 from __future__ import annotations
 
 import asyncio
+import socket
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from gcs.errors import FlightAborted
+from gcs.errors import FlightAborted, VehicleTimeout
 from gcs.flight.executor import FlightExecutor
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.hub import LinkHub
 from gcs.flight.margin import scenario_for_fleet
 from gcs.flight.phases import EventKind
+from gcs.flight.vehicle import connect
 from gcs.sim import MockFleet, homes_under
-from gcs.wire import new_key_file
+from gcs.wire import mavlink, new_key_file, pack
+from tests.flight.attacker import drain
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
 from tests.flight.test_attacks import Attacker
 
@@ -115,3 +119,41 @@ def test_a_signed_flight_under_40_rejected_commands_a_second_keeps_its_margin(
     assert told == set(ids) and len(ids) == len(mock.vehicles)
     for vid in ids:
         assert summary["security"][vid]["foreign_source"] >= 0.9 * per_vehicle
+
+
+def test_a_rejected_packet_heard_first_takes_the_vehicles_replies_and_connect_says_so(
+        tmp_path: Path) -> None:
+    """As on PX4, the first datagram a vehicle hears fixes where its replies go, even an
+    unsigned command its key makes it reject: the sender receives its telemetry, the GCS
+    that connects afterwards hears nothing, and its error names that cause and the fix."""
+    key = new_key_file(tmp_path / "fleet.key")
+
+    async def run() -> tuple[str, int, int]:
+        async with MockFleet(1, signing_key=key.secret, **mock_ports(1)) as mock:
+            v = mock.vehicles[0]
+            attacker = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            attacker.bind(("127.0.0.1", 0))
+            attacker.setblocking(False)
+            try:
+                mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+                attacker.sendto(pack(mav.command_long_encode(
+                    1, 1, mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0), mav),
+                    v.listen_address)
+                await asyncio.sleep(1.5)  # a HEARTBEAT (1 Hz) goes out meanwhile
+                received, _types = drain(attacker)
+                fleet = FleetSpec.from_dict({**mock.fleet_dict(["uav1"]),
+                                             "signing_key": str(key.path)})
+                async with LinkHub() as hub:
+                    spec = fleet.vehicles[0]
+                    link = await hub.add(spec.id, spec.connection, spec.system_id,
+                                         signing_key=spec.signing_key, peer=spec.peer)
+                    with pytest.raises(VehicleTimeout) as silent:
+                        await connect(link, spec, 1.0)
+                return str(silent.value), received, v.intake.counters.rejected_unsigned
+            finally:
+                attacker.close()
+
+    error, received, rejected = asyncio.run(run())
+    assert rejected == 1 and received > 10  # rejected, yet it got the telemetry
+    assert "no HEARTBEAT" in error and "nothing at all arrived there" in error
+    assert "first address it hears after boot" in error and "mavlink start -t" in error
