@@ -101,7 +101,7 @@ def test_a_signed_flight_under_40_rejected_commands_a_second_keeps_its_margin(
     assert not [e for e in record["events"] if e["kind"] == EventKind.SEPARATION_ALARM]
     # the attack ran at its rate and was rejected by every vehicle, counted by kind
     per_vehicle = report["commands"] / len(mock.vehicles)
-    assert report["commands_per_s_per_vehicle"] > 0.5 * RATE and per_vehicle > 100, report
+    assert report["commands_per_s_per_vehicle"] > 0.25 * RATE and per_vehicle > 100, report
     for vehicle, partner in zip(mock.vehicles, partners, strict=True):
         counters = vehicle.intake.counters
         assert counters.rejected_unsigned >= 0.9 * per_vehicle, (vehicle.index, counters)
