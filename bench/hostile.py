@@ -27,6 +27,7 @@ against decoded in full). Real time: about 25 s a flight.
 
     python bench/hostile.py                     # every case once
     python bench/hostile.py --repeats 3 --cases quiet,raw
+    python bench/hostile.py --priority realtime     # the stream at real-time priority
 """
 
 from __future__ import annotations
@@ -114,7 +115,8 @@ async def _attacker(case: str, listen: list[int], gcs: list[int]
     return await _start(args)
 
 
-async def fly_case(case: str, plan: Any, key: Path, seed: int) -> dict[str, Any]:
+async def fly_case(case: str, plan: Any, key: Path, seed: int, priority: str = "normal"
+                   ) -> dict[str, Any]:
     """One signed flight with `case`'s attacker and load; its figures."""
     homes = homes_under(plan.scenario.starts)
     ports = mock_fleet_ports(free_udp_base(mock_port_offsets(len(homes))))
@@ -135,7 +137,8 @@ async def fly_case(case: str, plan: Any, key: Path, seed: int) -> dict[str, Any]
                           "system_id": i + 1, "home": homes[i],
                           "peer": f"127.0.0.1:{listen[i]}"}
                          for i, vid in enumerate(plan.scenario.ids)]})
-        executor = FlightExecutor(plan, fleet, FlightOptions(hold_at_goal=1.0))
+        executor = FlightExecutor(plan, fleet, FlightOptions(hold_at_goal=1.0,
+                                                             stream_priority=priority))
         task = executor.start()
         if case not in ("quiet", "hogs", "raw_first"):
             # the GCS spoke first (the vehicles' replies are latched to it), as in the issue
@@ -226,6 +229,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1, help="flights per case (default 1)")
     parser.add_argument("--cases", default=",".join(CASES), help="comma-separated, of "
                         + ", ".join(CASES))
+    parser.add_argument("--priority", choices=("normal", "realtime"), default="normal",
+                        help="the stream's priority (default normal: the issue's station; "
+                             "realtime needs CAP_SYS_NICE)")
     parser.add_argument("--mock-child", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.mock_child:
@@ -240,6 +246,7 @@ def main() -> None:
                                        "cpus": os.cpu_count(),
                                        "load_average": list(os.getloadavg())},
                            "rate_per_vehicle": RATE, "position_error": POSITION_ERROR,
+                           "stream_priority": args.priority,
                            "min_separation_planned": plan.scenario.min_separation,
                            "gcs_cost_per_rejected_packet": rejection_cost(), "cases": {}}
     with tempfile.TemporaryDirectory() as tmp:
@@ -247,7 +254,8 @@ def main() -> None:
         flights: dict[str, list[dict[str, Any]]] = {case: [] for case in cases}
         for seed in range(args.repeats):  # interleaved: the machine's load drifts
             for case in cases:
-                flights[case].append(asyncio.run(fly_case(case, plan, key, seed)))
+                flights[case].append(asyncio.run(fly_case(case, plan, key, seed,
+                                                          args.priority)))
     for case in cases:
         out["cases"][case] = {"summary": summarize(flights[case]), "flights": flights[case]}
     out["machine"]["load_average_after"] = list(os.getloadavg())
