@@ -13,6 +13,8 @@ the CLI and the API report all of them the same way.
 
 from __future__ import annotations
 
+from typing import Any
+
 __all__ = ["FieldError", "PlanFormatError", "PlannerError", "ScenarioError", "SolverError"]
 
 
@@ -28,9 +30,23 @@ class FieldError(ValueError):
         self.field = field
         self.reason = reason
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled with its fields (the constructor takes two arguments, `args` holds one),
+        so an error raised in another process arrives as it was raised."""
+        return (_rebuild_field_error, (type(self), self.args, self.__dict__))
+
     def to_dict(self) -> dict[str, str]:
         """JSON-friendly form used by the CLI and the REST API."""
         return {"field": self.field, "reason": self.reason}
+
+
+def _rebuild_field_error(cls: type[FieldError], args: tuple[Any, ...],
+                         state: dict[str, Any]) -> FieldError:
+    """A pickled `FieldError` as it was (its constructor is not called again)."""
+    error = cls.__new__(cls)
+    error.args = args
+    error.__dict__.update(state)
+    return error
 
 
 class ScenarioError(PlannerError, FieldError):

@@ -39,6 +39,7 @@ from starlette.routing import Match, Mount
 from starlette.types import Send
 
 from gcs.errors import InvalidRequest, NotFound, RequestError, ServiceBusy, StateConflict
+from gcs.flight.vehicle_loop import VehicleLoopStopped
 from gcs.service.storage_faults import is_disk_full, storage_reason
 from planner.errors import FieldError
 
@@ -304,6 +305,16 @@ def install_error_handlers(app: FastAPI) -> None:
             error.headers["Retry-After"] = "5"
         return _respond(error)
 
+    async def vehicles_stopped(_request: Request, exc: Exception) -> JSONResponse:
+        # The vehicle process is not running (it died, or is being restarted): the fleet
+        # cannot be reached now, which is a state of the service, not a bug.
+        log.error("vehicle process: %s", exc)
+        error = ApiError("fleet", f"{exc}: the fleet cannot be reached now; the service "
+                                  "restarts its vehicle process (GET /api/status shows it)")
+        error.status = 503
+        error.headers["Retry-After"] = "5"
+        return _respond(error)
+
     async def unexpected(_request: Request, exc: Exception) -> JSONResponse:
         log.exception("unhandled error", exc_info=exc)
         error = ApiError(None, f"internal error: {type(exc).__name__}")
@@ -315,5 +326,6 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestError, request_error)
     app.add_exception_handler(FieldError, field_error)
     app.add_exception_handler(SQLAlchemyError, storage_error)
+    app.add_exception_handler(VehicleLoopStopped, vehicles_stopped)
     app.add_exception_handler(StarletteHTTPException, http_error)
     app.add_exception_handler(Exception, unexpected)

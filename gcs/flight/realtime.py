@@ -55,13 +55,17 @@ def leave_realtime(scheduling: Scheduling) -> None:
 
 
 def settle_heap() -> None:
-    """Collect the heap once and freeze what is left, before a flight streams.
+    """Collect the whole heap once and freeze what is left: before a flight streams, and
+    again once it ended.
 
     Python's oldest-generation collection walks every tracked object of the process: with the
     imported libraries (numpy, pymavlink, the planner) that is 100-160 ms, in which no tick is
     sent, once every few seconds of a 50 Hz flight (measured: 27-37 missed ticks in a 30 s
     8-vehicle flight, real-time priority or not). Frozen objects are never walked again (they
     are still freed by reference counting), so later collections see only what the flight
-    itself allocates."""
+    itself allocates. A frozen reference cycle is never collected, so what was frozen is
+    unfrozen first: a flight that ended in an error (its executor, traceback and record in one
+    cycle) is freed by the next call."""
+    gc.unfreeze()
     gc.collect()
     gc.freeze()

@@ -46,13 +46,40 @@ from planner.verify import SEPARATION_TOLERANCE
 if TYPE_CHECKING:
     from gcs.flight.vehicle import VehicleStatus
 
-__all__ = ["FlightRecorder", "VehicleRecord", "finite_or_none", "goal_tolerance",
+__all__ = ["COLUMNS", "RECORD_FORMAT", "Column", "FlightRecorder", "VehicleRecord",
+           "finite_or_none", "goal_tolerance",
            "measured_min_separation", "plan_times", "summarise"]
 
 
 def finite_or_none(x: float | None) -> float | None:
     """`x` as a float, or None when it is None, NaN or infinite (JSON has no NaN/Infinity)."""
     return None if x is None or not math.isfinite(x) else float(x)
+
+
+#: The flight record's format name (its ``format`` key).
+RECORD_FORMAT = "fleetplan-flight-record/1"
+
+
+@dataclass(frozen=True)
+class Column:
+    """One recorded column of a vehicle: its `VehicleRecord` attribute, where it sits in the
+    JSON (section, key), and the numbers per entry (1, or 3 for a vector)."""
+
+    attribute: str
+    section: str
+    key: str
+    width: int
+
+
+#: A vehicle's recorded columns, in the JSON's order (`VehicleRecord.to_dict`).
+COLUMNS = (
+    Column("sp_t", "setpoints", "t", 1), Column("sp_tick", "setpoints", "tick", 1),
+    Column("sp_pos", "setpoints", "position_ned", 3),
+    Column("sp_vel", "setpoints", "velocity_ned", 3),
+    Column("sp_acc", "setpoints", "acceleration_ned", 3),
+    Column("tel_t", "telemetry", "t", 1), Column("tel_pos", "telemetry", "position", 3),
+    Column("tel_vel", "telemetry", "velocity", 3),
+)
 
 
 @dataclass
@@ -85,19 +112,13 @@ class VehicleRecord:
         return t, p
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "id": self.id,
-            "system_id": self.system_id,
-            "home": self.home,
-            "setpoints": {
-                "t": self.sp_t, "tick": self.sp_tick,
-                "position_ned": [list(p) for p in self.sp_pos],
-                "velocity_ned": [list(v) for v in self.sp_vel],
-                "acceleration_ned": [list(a) for a in self.sp_acc],
-            },
-            "telemetry": {"t": self.tel_t, "position": self.tel_pos, "velocity": self.tel_vel},
-            "modes": self.modes,
-        }
+        doc: dict[str, Any] = {"id": self.id, "system_id": self.system_id, "home": self.home,
+                               "setpoints": {}, "telemetry": {}, "modes": self.modes}
+        for column in COLUMNS:
+            values = getattr(self, column.attribute)
+            doc[column.section][column.key] = (
+                values if column.width == 1 else [list(v) for v in values])
+        return doc
 
 
 class FlightRecorder:
@@ -120,7 +141,7 @@ class FlightRecorder:
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "format": "fleetplan-flight-record/1",
+            "format": RECORD_FORMAT,
             **self.meta,
             "vehicles": [v.to_dict() for v in self.vehicles.values()],
             "events": self.events,

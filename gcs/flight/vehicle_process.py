@@ -184,9 +184,11 @@ class VehicleProcess:
                 message = self._conn.recv()
             except (EOFError, OSError):
                 break
-            except Exception:  # an answer that does not unpickle here: a bug, not the end
-                log.exception("unreadable message from the vehicle process")
-                continue
+            except Exception:  # a message that does not unpickle here: its caller would
+                # wait for ever, so the process is given up (its callers fail at once)
+                log.exception("unreadable message from the vehicle process: giving it up")
+                self._process.terminate()  # SIGTERM: the host lands what flies, then exits
+                break
             if not self._to_caller(self._dispatch, message):
                 return
         self._to_caller(self._end)
@@ -222,8 +224,9 @@ class VehicleProcess:
             self._ready.set_exception(message[1])
 
     def _end(self) -> None:
-        """The child's end of the pipe closed: every waiting call fails, and the caller is
-        told (notice ``ended``) unless it asked for the stop."""
+        """The child's end of the pipe closed (or its messages cannot be read): every waiting
+        call fails, and the caller is told (notice ``ended``, also after a stop it asked
+        for)."""
         self._ended = True
         code = None if self._process is None else self._process.exitcode
         why = f"the vehicle process ended (exit code {code})"

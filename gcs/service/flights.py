@@ -25,6 +25,7 @@ import asyncio
 import contextlib
 import functools
 import logging
+import time
 from datetime import UTC, datetime
 from typing import Any
 
@@ -41,7 +42,7 @@ from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.storage_faults import storage_reason
 from gcs.service.store import ExecutionRow, Store
-from gcs.service.vehicle_host import PRELOAD, FleetHost
+from gcs.service.vehicle_host import CLOSE_LANDING_S, PRELOAD, FleetHost
 from gcs.tasks import TaskSet
 from planner import Plan
 
@@ -54,10 +55,10 @@ LIVE = EXECUTION_ACTIVE
 FINISHED = EXECUTION_FINISHED
 #: Live telemetry snapshots per second on an execution's event stream.
 TELEMETRY_HZ = 5.0
-#: How long closing the service waits for an aborted flight to land (s).
-CLOSE_LANDING_S = 60.0
-#: How the service names its vehicle process.
-PROCESS_NAME = "fleetplan-vehicles"
+#: How often the record's mirror is brought up to date while a flight flies (s).
+MIRROR_PERIOD_S = 1.0
+#: A vehicle process that ended is restarted, unless the last restart was this recent (s).
+RESTART_HOLDOFF_S = 30.0
 #: First and longest wait between retries of an ended flight's final write (s).
 STORE_RETRY_S = 1.0
 STORE_RETRY_MAX_S = 10.0
@@ -68,11 +69,10 @@ class FleetService:
 
     def __init__(self, settings: Settings, store: Store) -> None:
         self._store = store
-        self.vehicle_process = VehicleProcess(
-            functools.partial(FleetHost, settings=settings), name=PROCESS_NAME,
-            realtime=settings.vehicle_thread_priority == "realtime",
-            on_notice=self._on_notice, preload=PRELOAD)
+        self._settings = settings
+        self.vehicle_process = self._new_process()
         """The process everything that talks to vehicles runs in (fleet, mocks, flights)."""
+        self._restarted_at: float | None = None
         self._kind: FleetKind = fleet_kind(settings)
         self._described: dict[str, Any] = {"kind": self._kind, "vehicles": 0, "ids": [],
                                            "world_origin": None}
@@ -81,6 +81,12 @@ class FleetService:
         self._tasks = TaskSet()
         self._lock = asyncio.Lock()
         self._closing = False
+
+    def _new_process(self) -> VehicleProcess:
+        return VehicleProcess(
+            functools.partial(FleetHost, settings=self._settings),
+            realtime=self._settings.vehicle_thread_priority == "realtime",
+            on_notice=self._on_notice, preload=PRELOAD)
 
     @property
     def kind(self) -> str:
@@ -111,13 +117,39 @@ class FleetService:
         await self._tasks.wait(timeout=10.0)  # let cancelled flights store what they have
         await self.vehicle_process.stop()  # its host lands what still flies, then the fleet
 
+    async def _restart_vehicles(self) -> None:
+        """A new vehicle process once the ended one's flight (if any) is stored as failed, so
+        the fleet is watched again and a fleet left hovering can be landed with a fleet
+        command. Not again within RESTART_HOLDOFF_S of the last restart (a process that dies at
+        once is left stopped, and GET /api/status says so)."""
+        now = time.monotonic()
+        if self._restarted_at is not None and now - self._restarted_at < RESTART_HOLDOFF_S:
+            log.error("the vehicle process ended again within %.0f s of its restart: left "
+                      "stopped; restart the service", RESTART_HOLDOFF_S)
+            return
+        self._restarted_at = now
+        while self._active is not None and not self._closing:
+            await asyncio.sleep(0.1)  # the flight's run stores it failed first
+        if self._closing:
+            return
+        await self.vehicle_process.stop()
+        self.vehicle_process = self._new_process()
+        try:
+            await self.vehicle_process.start()
+            self._described = await self.vehicle_process.call("describe")
+        except GcsError as exc:
+            log.error("could not restart the vehicle process: %s", exc)
+            return
+        log.warning("vehicle process restarted: the fleet is watched again")
+
     # ------------------------------------------------------------------ state
 
     def describe(self) -> dict[str, Any]:
         """kind (mock, file or none), vehicle count and ids, the flight under way, and the
         geodetic origin of the world frame when known, so a page can show coordinates and a
         scale without map tiles."""
-        described = self._described
+        described = {**self._described,
+                     "vehicle_process": "running" if self.vehicle_process.alive else "stopped"}
         return {**described, "flying": None if self._active is None else self._active.id}
 
     async def vehicles(self) -> list[dict[str, Any]]:
@@ -202,7 +234,8 @@ class FleetService:
             raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
                                                 f"paused (status {flight.status})")
         await flight.handle.pause()
-        flight.set_status(ExecutionStatus.PAUSED)
+        if flight.status == ExecutionStatus.RUNNING:  # not aborted meanwhile
+            flight.set_status(ExecutionStatus.PAUSED)
         return flight
 
     async def resume(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
@@ -212,7 +245,8 @@ class FleetService:
             raise StateConflict("execution_id", f"execution {execution_id!r} is not paused "
                                                 f"(status {flight.status})")
         await flight.handle.resume()
-        flight.set_status(ExecutionStatus.RUNNING)
+        if flight.status == ExecutionStatus.PAUSED:  # not aborted meanwhile
+            flight.set_status(ExecutionStatus.RUNNING)
         return flight
 
     def _flying(self, execution_id: str, stored_status: str) -> LiveExecution:
@@ -229,6 +263,7 @@ class FleetService:
     async def _run(self, flight: LiveExecution, plan: Plan, options: FlightOptions) -> None:
         record: dict[str, Any] | None = None
         ticker: asyncio.Task[None] | None = None
+        mirror: asyncio.Task[None] | None = None
         flying = False
         process = self.vehicle_process
         # State, events and the record so far are stored about every second while flying,
@@ -243,6 +278,7 @@ class FleetService:
             flying = True
             flight.handle = handle
             ticker = asyncio.create_task(self._telemetry(flight, handle))
+            mirror = asyncio.create_task(self._mirror(handle))
             if flight.abort_requested is not None:  # aborted while starting
                 await handle.abort(flight.abort_requested, "operator abort")
             else:
@@ -262,6 +298,7 @@ class FleetService:
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
         except GcsError as exc:
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
+            await _land_if_left_flying(flight, flying, type(exc).__name__)
         except asyncio.CancelledError:
             flight.status = ExecutionStatus.INTERRUPTED
             flight.error = "the service stopped during the flight"
@@ -269,15 +306,11 @@ class FleetService:
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("execution %s failed", flight.id)
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
-            if flying and flight.handle is not None and flight.handle.record is None:
-                # never leave a flight going on its own: land everyone, then wait for it
-                with contextlib.suppress(Exception):
-                    await flight.handle.abort("land", f"service error: {type(exc).__name__}")
-                with contextlib.suppress(BaseException):
-                    await flight.handle.result()
+            await _land_if_left_flying(flight, flying, type(exc).__name__)
         finally:
-            if ticker is not None:
-                ticker.cancel()
+            for task in (ticker, mirror):
+                if task is not None:
+                    task.cancel()
             if record is None and flight.handle is not None:
                 record = flight.handle.record
             if record is not None and flight.summary is None:
@@ -343,6 +376,7 @@ class FleetService:
         if kind == "ended":
             if not self._closing:
                 log.critical("%s: the fleet is not watched and no flight streams", data["reason"])
+                self._tasks.spawn(self._restart_vehicles())
             return
         flight = self._flights.get(data["execution"])
         if flight is None:
@@ -361,6 +395,17 @@ class FleetService:
         if event["kind"] == EventKind.PAUSE_LIMIT and flight.status == ExecutionStatus.PAUSED:
             flight.set_status(ExecutionStatus.ABORTING)
 
+    @staticmethod
+    async def _mirror(handle: RemoteFlight) -> None:
+        """Keep the record's mirror up to date every MIRROR_PERIOD_S, in small pieces (a
+        failed refresh is retried on the next)."""
+        while True:
+            await asyncio.sleep(MIRROR_PERIOD_S)
+            try:
+                await handle.refresh()
+            except (GcsError, VehicleLoopStopped) as exc:
+                log.debug("record mirror: %s", exc)
+
     async def _telemetry(self, flight: LiveExecution, handle: RemoteFlight) -> None:
         """Live snapshots on the flight's stream at TELEMETRY_HZ (the latest the vehicle
         process posted)."""
@@ -369,3 +414,15 @@ class FleetService:
             if snapshot is not None:
                 flight.publish("telemetry", snapshot)
             await asyncio.sleep(1.0 / TELEMETRY_HZ)
+
+
+async def _land_if_left_flying(flight: LiveExecution, flying: bool, why: str) -> None:
+    """A flight whose run here failed before it ended there is never left going on its own:
+    every vehicle lands, and its end is awaited."""
+    handle = flight.handle
+    if not flying or handle is None or handle.record is not None:
+        return
+    with contextlib.suppress(Exception):
+        await handle.abort("land", f"service error: {why}")
+    with contextlib.suppress(BaseException):
+        await handle.result()

@@ -1,44 +1,44 @@
 """The flight record so far, carried from the vehicle process to the service in pieces.
 
-The recorder lives with the flight in the vehicle process and grows by hundreds of entries
-a second. The journal stores the record so far every few seconds; copying it whole each time
-would cost the flight's process a pickle of the whole flight. So the service keeps a
-`RecordMirror`: it asks for what was added since its cursor (`record_delta`, run where the
-recorder lives, a few list slices) and appends it to its own copy. The document it gives is
-the flight record's (`FlightRecorder.to_dict`'s shape), marked ``"partial": true``.
+The recorder lives with the flight in the vehicle process and grows by thousands of entries
+a second on a large fleet. The journal stores the record so far every few seconds; copying it
+whole each time would cost the flight's process a pickle of the whole flight, with its
+interpreter lock held. So the service keeps a `RecordMirror`: about once a second it asks for
+what was added since its cursor (`record_delta`, run where the recorder lives: list slices)
+and appends it to its own copy. The entries are plain floats and ints (setpoints are made of
+Python floats, `gcs.flight.setpoints`), which pickle fast: a second of 100 vehicles at 50 Hz
+takes about 2-3 ms to pickle (numpy scalars took ten times longer), so the sender thread
+holds the vehicle process's interpreter lock that long once a second. The document it gives
+is the flight record's (`FlightRecorder.to_dict`'s shape, `gcs.flight.record.COLUMNS`),
+marked ``"partial": true``.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from gcs.flight.record import COLUMNS, RECORD_FORMAT
+
 if TYPE_CHECKING:
     from gcs.flight.record import FlightRecorder
 
 __all__ = ["RecordMirror", "record_delta"]
 
-#: A vehicle's columns, as (delta key, recorder attribute, record section, record key).
-COLUMNS = (
-    ("sp_t", "setpoints", "t"), ("sp_tick", "setpoints", "tick"),
-    ("sp_pos", "setpoints", "position_ned"), ("sp_vel", "setpoints", "velocity_ned"),
-    ("sp_acc", "setpoints", "acceleration_ned"),
-    ("tel_t", "telemetry", "t"), ("tel_pos", "telemetry", "position"),
-    ("tel_vel", "telemetry", "velocity"),
-)
-
 
 def record_delta(recorder: FlightRecorder, cursor: dict[str, Any]) -> dict[str, Any]:
-    """What `recorder` holds beyond `cursor` (a `RecordMirror.cursor()`): the meta, the new
-    events and each vehicle's new column entries and mode changes. Runs on the vehicle loop,
-    so the lists are not appended to meanwhile."""
+    """What `recorder` holds beyond `cursor` (a `RecordMirror.cursor()`): the meta when it
+    changed, the new events and each vehicle's new column entries and mode changes.
+    Runs on the vehicle loop, so the lists are not appended to meanwhile."""
     seen = cursor.get("vehicles", {})
     vehicles = []
     for v in recorder.vehicles.values():
         had = seen.get(v.id, {})
-        columns = {name: list(getattr(v, name)[had.get(name, 0):]) for name, _, _ in COLUMNS}
+        columns = {c.attribute: getattr(v, c.attribute)[had.get(c.attribute, 0):]
+                   for c in COLUMNS}
         vehicles.append({"id": v.id, "system_id": v.system_id, "home": v.home,
                          "columns": columns, "modes": list(v.modes[had.get("modes", 0):])})
-    return {"meta": dict(recorder.meta), "events": list(recorder.events[cursor.get("events", 0):]),
+    meta = None if len(recorder.meta) == cursor.get("meta_keys") else dict(recorder.meta)
+    return {"meta": meta, "events": list(recorder.events[cursor.get("events", 0):]),
             "vehicles": vehicles}
 
 
@@ -52,19 +52,21 @@ class RecordMirror:
 
     def cursor(self) -> dict[str, Any]:
         """How much of the record this copy holds, for the next `record_delta`."""
-        return {"events": len(self._events),
-                "vehicles": {vid: {**{name: len(v["columns"][name]) for name, _, _ in COLUMNS},
+        return {"events": len(self._events), "meta_keys": len(self._meta),
+                "vehicles": {vid: {**{c.attribute: len(v["columns"][c.attribute])
+                                      for c in COLUMNS},
                                    "modes": len(v["modes"])}
                              for vid, v in self._vehicles.items()}}
 
     def apply(self, delta: dict[str, Any]) -> None:
         """Append a `record_delta` taken at this copy's cursor."""
-        self._meta = delta["meta"]
+        if delta["meta"] is not None:
+            self._meta = delta["meta"]
         self._events.extend(delta["events"])
         for v in delta["vehicles"]:
             mine = self._vehicles.setdefault(v["id"], {
                 "id": v["id"], "system_id": v["system_id"], "home": v["home"],
-                "columns": {name: [] for name, _, _ in COLUMNS}, "modes": []})
+                "columns": {c.attribute: [] for c in COLUMNS}, "modes": []})
             mine["home"] = v["home"]
             for name, entries in v["columns"].items():
                 mine["columns"][name].extend(entries)
@@ -77,8 +79,8 @@ class RecordMirror:
         for v in self._vehicles.values():
             doc: dict[str, Any] = {"id": v["id"], "system_id": v["system_id"], "home": v["home"],
                                    "setpoints": {}, "telemetry": {}, "modes": v["modes"]}
-            for name, section, key in COLUMNS:
-                doc[section][key] = v["columns"][name]
+            for c in COLUMNS:  # vectors stay tuples: orjson writes them as the lists they are
+                doc[c.section][c.key] = v["columns"][c.attribute]
             vehicles.append(doc)
-        return {"format": "fleetplan-flight-record/1", "partial": True, **self._meta,
+        return {"format": RECORD_FORMAT, "partial": True, **self._meta,
                 "vehicles": vehicles, "events": self._events, "summary": None}

@@ -8,6 +8,7 @@ notices (`posted`), and its record so far is mirrored in pieces (`gcs.service.re
 
 from __future__ import annotations
 
+import asyncio
 from typing import Any
 
 from gcs.flight.vehicle_process import VehicleProcess
@@ -24,6 +25,7 @@ class RemoteFlight:
         self._execution = execution
         self._snapshot: dict[str, Any] | None = None
         self._mirror = RecordMirror()
+        self._mirroring = asyncio.Lock()  # one delta at a time: each is taken at the cursor
         self.record: dict[str, Any] | None = None
         """The flight record once the flight ended (also after an error or abort)."""
         self.scheduling = process.scheduling
@@ -58,8 +60,14 @@ class RemoteFlight:
             raise error
         return dict(record)
 
+    async def refresh(self) -> None:
+        """Bring the record's mirror up to date (only what is new crosses over); called about
+        once a second, so each piece stays small."""
+        async with self._mirroring:
+            self._mirror.apply(await self._process.call("record_delta", self._execution,
+                                                        self._mirror.cursor()))
+
     async def record_so_far(self) -> dict[str, Any]:
-        """The flight record so far, ``"partial": true`` (only what is new crosses over)."""
-        self._mirror.apply(await self._process.call("record_delta", self._execution,
-                                                    self._mirror.cursor()))
+        """The flight record so far, ``"partial": true``."""
+        await self.refresh()
         return self._mirror.snapshot()

@@ -158,6 +158,7 @@ class FleetHost:
             self._ticker.cancel()
         self._notify("snapshot", {"execution": self._execution, "snapshot": flight.snapshot()})
         self._flight, self._result, self._ticker = None, None, None
+        settle_heap()  # between flights: what earlier flights left in cycles is freed
         await self.fleet.open_monitor()
 
     def _flying(self) -> bool:

@@ -71,9 +71,10 @@ class Geofence:
         for shape in shapes:
             points = []
             for lat, lon in shape.vertices:
-                e, n, _u = frames.geodetic_to_enu(frames.Geodetic(lat, lon, self.origin.alt),
-                                                  self.origin)
-                points.append((n, e))
+                enu = frames.geodetic_to_enu(frames.Geodetic(lat, lon, self.origin.alt),
+                                             self.origin)
+                north, east, _down = frames.world_vector_to_ned(enu)
+                points.append((north, east))
             local.append(LocalShape(shape.inclusion, np.array(points, dtype=float),
                                     shape.radius))
         self.shapes = local

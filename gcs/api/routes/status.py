@@ -27,7 +27,7 @@ def status_example() -> dict[str, Any]:
         "status": "ok", "version": "0.1.0", "planning_jobs": 0,
         "plan_workers": defaults.plan_workers,
         "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
-                  "flying": None, "world_origin": None},
+                  "flying": None, "world_origin": None, "vehicle_process": "running"},
         "limits": limits_in_force(defaults),
         "statuses": status_sets(),
         "phases": vocabulary(),
@@ -39,13 +39,15 @@ class StatusOut(BaseModel):
 
     model_config = ConfigDict(json_schema_extra={"examples": [status_example()]})
 
-    status: str = Field(examples=["ok"])
+    status: str = Field(examples=["ok"], description="ok; degraded while the vehicle "
+                        "process is not running (the fleet cannot be reached; the service "
+                        "restarts it)")
     version: str
     planning_jobs: int = Field(description="Plans computing now.")
     plan_workers: int
     fleet: dict[str, Any] = Field(
         description="kind (mock, file or none), vehicles, ids, flying (execution id or null), "
-        "world_origin."
+        "world_origin, vehicle_process (running or stopped)."
     )
     limits: dict[str, int | float] = Field(
         description="Every limit a request is checked against: "
@@ -67,12 +69,13 @@ class StatusOut(BaseModel):
 def get_status(request: Request, settings: SettingsDep, planning: PlanningDep) -> dict[str, Any]:
     """Always answers quickly; use it as a health check."""
     fleet = getattr(request.app.state, "fleet", None)
+    described = fleet.describe() if fleet is not None else {"kind": "none", "vehicles": 0}
     return {
-        "status": "ok",
+        "status": "degraded" if described.get("vehicle_process") == "stopped" else "ok",
         "version": request.app.version,
         "planning_jobs": planning.active,
         "plan_workers": settings.plan_workers,
-        "fleet": fleet.describe() if fleet is not None else {"kind": "none", "vehicles": 0},
+        "fleet": described,
         "limits": limits_in_force(settings),
         "statuses": status_sets(),
         "phases": vocabulary(),

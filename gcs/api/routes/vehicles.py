@@ -21,7 +21,7 @@ router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 class VehiclesOut(BaseModel):
     model_config = ConfigDict(json_schema_extra={"examples": [{
         "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
-                  "flying": None,
+                  "flying": None, "vehicle_process": "running",
                   "world_origin": {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}},
         "vehicles": [{"id": "uav1", "system_id": 1, "connection": "udpin:127.0.0.1:14540",
                       "link": "monitor", "heartbeat_age": 0.12, "mode": "AUTO.LOITER",
@@ -29,8 +29,10 @@ class VehiclesOut(BaseModel):
     }]})
 
     fleet: dict[str, Any] = Field(description="kind (mock, file, none), vehicles, ids, the "
-                                  "execution flying now (or null), and world_origin {lat, lon, "
-                                  "alt} (deg, deg, m AMSL) of the world frame, or null.")
+                                  "execution flying now (or null), world_origin {lat, lon, "
+                                  "alt} (deg, deg, m AMSL) of the world frame, or null, and "
+                                  "vehicle_process (running, or stopped while the service "
+                                  "restarts it).")
     vehicles: list[dict[str, Any]] = Field(
         description="Per vehicle: id, heartbeat_age (s, null before the first), mode, armed, "
         "position (world frame ENU, m, when the home is known), link (monitor between "
