@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from gcs.cli.hints import port_in_use_hint
+    from gcs.cli.hints import port_error, port_in_use_hint
     from gcs.cli.plan_file import read_plan
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
@@ -115,9 +115,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    if args.mock_gcs_port is not None and not 1 <= args.mock_gcs_port <= 65535:
-        print(f"error: --mock-gcs-port must be a UDP port (1..65535), got {args.mock_gcs_port}",
-              file=sys.stderr)
+    if (bad_port := port_error("--mock-gcs-port", args.mock_gcs_port)) is not None:
+        print(f"error: {bad_port}", file=sys.stderr)
         return 2
     if args.mock_settle is not None:
         if (reason := timing_error("settle_time", args.mock_settle)) is not None:
@@ -173,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
             nonlocal interrupts
             interrupts += 1
             if interrupts == 1:
-                print(f"\n{name}: aborting, every vehicle lands (Ctrl-C again to quit now)",
+                print(f"\n{name}: aborting, every vehicle lands ({name} again quits at once)",
                       file=sys.stderr, flush=True)
                 aborts.append(asyncio.ensure_future(handle.abort("land",
                                                                  f"interrupted ({name})")))

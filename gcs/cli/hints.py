@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import errno
 
-__all__ = ["port_in_use_hint"]
+__all__ = ["port_error", "port_in_use_hint"]
 
 
 def port_in_use_hint(exc: BaseException, options: str) -> str:
@@ -16,3 +16,10 @@ def port_in_use_hint(exc: BaseException, options: str) -> str:
             return (f" (the port is taken, perhaps by another fleetplan fly or mock: choose "
                     f"free ports with {options})")
     return ""
+
+
+def port_error(flag: str, port: int | None) -> str | None:
+    """Why `port` given as `flag` is not a UDP port, or None (also when not given)."""
+    if port is None or 1 <= port <= 65535:
+        return None
+    return f"{flag} must be a UDP port (1..65535), got {port}"

@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from gcs.cli.hints import port_in_use_hint
+    from gcs.cli.hints import port_error, port_in_use_hint
     from gcs.sim import MockConfig, MockFleet, homes_under
 
     ids = None
@@ -107,9 +107,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.position_rate > 0.0:
         print("error: --position-rate must be above 0", file=sys.stderr)
         return 2
-    if args.gcs_port is not None and not 1 <= args.gcs_port <= 65535:
-        print(f"error: --gcs-port must be a UDP port (1..65535), got {args.gcs_port}",
-              file=sys.stderr)
+    if (bad_port := port_error("--gcs-port", args.gcs_port)) is not None:
+        print(f"error: {bad_port}", file=sys.stderr)
         return 2
     if not 1 <= count <= 254:  # MAVLink system ids 1..254 (255 is the GCS's)
         print(f"error: --vehicles must be between 1 and 254, got {count}", file=sys.stderr)
