@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -83,32 +84,34 @@ def test_mavproxy_fetches_parameters_lists_missions_and_takes_off(tmp_path: Path
             v = mock.vehicles[0]
             proxy = _MavProxy(f"udpin:127.0.0.1:{v.gcs_port}", tmp_path)
             try:
-                await asyncio.to_thread(_drive, proxy)
+                await asyncio.to_thread(_connect_and_list, proxy)
+                proxy.send("param set MIS_TAKEOFF_ALT 2")
+                await _until(lambda: v.config.takeoff_altitude == 2.0, "MIS_TAKEOFF_ALT set")
+                proxy.send("arm throttle")
+                await asyncio.to_thread(proxy.expect, "COMPONENT_ARM_DISARM: ACCEPTED", 30.0)
+                await _until(lambda: v.armed, "armed")
+                proxy.send("takeoff 2")
+                await asyncio.to_thread(proxy.expect, "NAV_TAKEOFF: ACCEPTED", 30.0)
                 # MAVProxy's takeoff 2 (param7 = 2 m AMSL, as MAVProxy sends it) is raised to
                 # MIS_TAKEOFF_ALT, which MAVProxy set to 2 m: the vehicle holds 2 m up
-                deadline = time.monotonic() + 15.0
-                while v.mode != px4.HOLD or not v.in_air:
-                    assert time.monotonic() < deadline, f"still {v.mode.name}"
-                    await asyncio.sleep(0.1)
+                await _until(lambda: v.mode == px4.HOLD and v.in_air, "holding after takeoff")
                 assert v.armed and -v.position_ned[2] == pytest.approx(2.0, abs=0.2)
             finally:
                 proxy.close()
 
-    def _drive(proxy: _MavProxy) -> None:
+    def _connect_and_list(proxy: _MavProxy) -> None:
         proxy.expect("online system 1", 30.0)
         proxy.send("param fetch")
         proxy.expect(f"Received {len(PX4_PARAMS)} parameters", 30.0)
         proxy.send("wp list")
-        proxy.expect("Requesting 0 waypoints", 10.0)
+        proxy.expect("Requesting 0 waypoints", 30.0)
         proxy.send("fence list")
-        proxy.expect("Requesting 0 fence items", 10.0)
-        proxy.send("param set MIS_TAKEOFF_ALT 2")
-        proxy.send("param show MIS_TAKEOFF_ALT")
-        proxy.expect("MIS_TAKEOFF_ALT", 10.0)
-        proxy.send("arm throttle")
-        proxy.expect("COMPONENT_ARM_DISARM: ACCEPTED", 10.0)
-        proxy.send("takeoff 2")
-        proxy.expect("NAV_TAKEOFF: ACCEPTED", 10.0)
-        proxy.expect("Mode LOITER", 15.0)  # AUTO.TAKEOFF done, holding (PX4's AUTO.LOITER)
+        proxy.expect("Requesting 0 fence items", 30.0)
+
+    async def _until(condition: Callable[[], bool], what: str) -> None:
+        deadline = time.monotonic() + 30.0  # bound: each step, on a busy machine
+        while not condition():
+            assert time.monotonic() < deadline, f"never: {what}"
+            await asyncio.sleep(0.05)
 
     asyncio.run(main())
