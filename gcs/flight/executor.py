@@ -75,12 +75,13 @@ from gcs.errors import (
 from gcs.flight import vehicle
 from gcs.flight.boarding import connect_vehicle, prepare_vehicle
 from gcs.flight.clock import FlightClock
+from gcs.flight.descent import DescentConflict, descent_conflicts
 from gcs.flight.events import EventFanout
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.hub import LinkHub
 from gcs.flight.landing import PlannedLanding
 from gcs.flight.link import DECODED_IDS
-from gcs.flight.margin import check_margin
+from gcs.flight.margin import check_margin, required_separation
 from gcs.flight.monitor import PERIOD, FleetMonitor
 from gcs.flight.phases import EventKind, FlightPhase, VehiclePhase
 from gcs.flight.policy import FaultPolicy
@@ -135,7 +136,8 @@ class FlightExecutor:
         self._stall_report = StallReport()
         self._abort: tuple[str, str] | None = None
         self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land,
-                                  abort=self.abort, aborting=lambda: self._abort is not None)
+                                  abort=self.abort, aborting=lambda: self._abort is not None,
+                                  descent=self._descent_conflicts)
         self.monitor = FleetMonitor(self.vehicles, plan, self.options,
                                     flight_time=self.flight_time,
                                     on_fault=self.policy.on_fault,
@@ -470,6 +472,21 @@ class FlightExecutor:
     def _land(self, v: VehicleStatus) -> Awaitable[None]:
         return vehicle.land_vehicle(v, self.options, self._emit, self._stop_stream,
                                     self.stalls)
+
+    def _descent_conflicts(self, v: VehicleStatus) -> list[DescentConflict] | None:
+        """The others whose plan `v`'s straight descent from where it was last seen would
+        come closer than R to (`gcs.flight.descent`); None when that cannot be known (no
+        position, or the plan's clock not started)."""
+        now = self.flight_time()
+        tel = None if v.link is None else v.link.telemetry
+        if now is None or v.home is None or tel is None or tel.position_ned is None:
+            return None
+        position = frames.ned_to_world(tel.position_ned, v.home)
+        if not np.all(np.isfinite(position)):
+            return None
+        return descent_conflicts(self.plan, self.plan.scenario.ids[v.index], position, now,
+                                 required_separation(self.plan.scenario),
+                                 ground=float(v.home[2]))
 
     def _hold(self, v: VehicleStatus) -> Awaitable[None]:
         return vehicle.hold_vehicle(v, self.options, self._emit, self._stop_stream,

@@ -87,7 +87,13 @@ def alarm_band(scenario: Scenario, band: float | None) -> float:
     return 0.0 if scenario.separation_margin > 0 else UNMARGINED_ALARM_BAND
 
 
+def required_separation(scenario: Scenario) -> float:
+    """The clearance the vehicles must keep (m): R, the plan's min_separation less the
+    separation_margin it was inflated by."""
+    return scenario.min_separation - scenario.separation_margin
+
+
 def separation_alarm_at(scenario: Scenario, band: float | None) -> float:
     """Two vehicles closer than this (the plan's metric, m) stop the whole fleet: the
-    clearance they must keep (min_separation - separation_margin) minus `alarm_band`."""
-    return (scenario.min_separation - scenario.separation_margin) - alarm_band(scenario, band)
+    clearance they must keep (`required_separation`) minus `alarm_band`."""
+    return required_separation(scenario) - alarm_band(scenario, band)

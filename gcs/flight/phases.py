@@ -74,6 +74,12 @@ class EventKind(StrEnum):
     """An abort with land: the steerable vehicles fly a verified landing plan."""
     LANDING_FALLBACK = "landing_fallback"
     """PX4's own Land instead of a landing plan (the fleet's or one vehicle's), and why."""
+    DESCENT_CLEAR = "descent_clear"
+    """land_faulty: the unsteerable vehicle's straight descent was checked clear of every
+    other vehicle's plan (`gcs.flight.descent`): the others fly on."""
+    DESCENT_CONFLICT = "descent_conflict"
+    """land_faulty: that descent would come within R of others' plans (named): the others
+    hold where they are instead of flying on."""
     # one vehicle
     HOME = "home"
     CONNECTED = "connected"

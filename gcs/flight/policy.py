@@ -3,9 +3,11 @@
 ``land_faulty`` lands the faulty vehicle and the others fly on (the flight then does not count
 as completed); with ``landing: planned`` (the default) a faulty vehicle that still follows
 setpoints (a tracking error) cannot simply descend through the others' airspace: the whole
-fleet lands by a verified landing plan (`gcs.flight.landing`) instead. ``land_all`` /
-``hold_all`` abort the flight (every vehicle lands / holds). Two
-vehicles about to meet is nobody's single fault: a separation alarm stops everyone where they
+fleet lands by a verified landing plan (`gcs.flight.landing`) instead. One that cannot be
+steered goes straight down with PX4's Land; the others fly on only where that descent was
+checked clear of their plans (`gcs.flight.descent`), and otherwise hold where they are.
+``land_all`` / ``hold_all`` abort the flight (every vehicle lands / holds). Two vehicles
+about to meet is nobody's single fault: a separation alarm stops everyone where they
 are (PX4 Hold) rather than send anyone down through the others.
 """
 
@@ -14,6 +16,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Awaitable, Callable
 
+from gcs.flight.descent import DescentConflict
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.landing import STEERABLE_FAULTS
 from gcs.flight.phases import EventKind, VehiclePhase
@@ -29,7 +32,9 @@ class FaultPolicy:
     def __init__(self, options: FlightOptions, emit: Emit, now: Callable[[], float], *,
                  land: Callable[[VehicleStatus], Awaitable[None]],
                  abort: Callable[[str, str], Awaitable[None]],
-                 aborting: Callable[[], bool]) -> None:
+                 aborting: Callable[[], bool],
+                 descent: Callable[[VehicleStatus], list[DescentConflict] | None]
+                 = lambda v: None) -> None:
         self.options = options
         self.emit = emit
         self.now = now
@@ -38,6 +43,9 @@ class FaultPolicy:
         self.abort = abort
         """Stops the whole flight: (action land | hold, reason)."""
         self.aborting = aborting
+        self.descent = descent
+        """The others whose plan a vehicle's straight descent would come too close to
+        (`gcs.flight.descent`), or None when it cannot be checked."""
         self.tasks = TaskSet()
         """The landings and aborts started here."""
         self.landings: list[asyncio.Future[None]] = []
@@ -56,12 +64,32 @@ class FaultPolicy:
                                                     f"lands the fleet by a landing plan"))
                 return
             self.emit(v.id, EventKind.LANDING_FALLBACK, f"PX4 Land: cannot be steered "
-                                                        f"(fault {kind}); the others fly on")
+                                                        f"(fault {kind})")
         if policy == "land_faulty":
             self.landings.append(self.tasks.spawn(self.land(v)))
+            self._give_way(v)
         else:
             action = "hold" if policy == "hold_all" else "land"
             self.tasks.spawn(self.abort(action, f"{v.id} {kind} ({detail})"))
+
+    def _give_way(self, v: VehicleStatus) -> None:
+        """`v` goes straight down: the others fly on only where its descent was checked
+        clear of their plans; otherwise they hold where they are."""
+        conflicts = self.descent(v)
+        if conflicts is None:
+            self.emit(v.id, EventKind.DESCENT_CONFLICT, "descent not checked (position or "
+                                                        "flight time unknown): the others hold")
+        elif not conflicts:
+            self.emit(v.id, EventKind.DESCENT_CLEAR, "straight descent clear of every other "
+                                                     "vehicle's plan: the others fly on")
+            return
+        else:
+            named = ", ".join(f"{c.vehicle} {c.distance:.2f} m at t={c.flight_time:.1f} s"
+                              for c in conflicts)
+            self.emit(v.id, EventKind.DESCENT_CONFLICT,
+                      f"straight descent too close to {named}: the others hold")
+        if not self.aborting():
+            self.tasks.spawn(self.abort("hold", f"{v.id} lands across the others' plans"))
 
     def on_separation(self, closest: float, alarm: float) -> None:
         """Two vehicles closer than `alarm`: every vehicle to Hold."""

@@ -126,6 +126,9 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
     assert summary["faults"] == {"uav2": kind}
     assert summary["completed"] is False
     assert f"uav2: fault {kind}" in summary["why"]
+    # its straight descent was checked clear of the others' plans (3 m beside them)
+    assert [e["vehicle"] for e in record["events"]
+            if e["kind"] == EventKind.DESCENT_CLEAR] == ["uav2"]
     # policy: the faulty one was sent down, the others flew on to their goals and landed;
     # a silent vehicle cannot acknowledge NAV_LAND, so its landing is reported unconfirmed
     sent_down = {"silent": "land_failed", "heartbeats": "land"}[fault]

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 from typing import Any
 
 import pytest
 
 from gcs.flight.clock import FlightClock
+from gcs.flight.descent import DescentConflict, descent_conflicts
 from gcs.flight.events import EventFanout
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.phases import EventKind, VehiclePhase
@@ -15,6 +17,7 @@ from gcs.flight.policy import FaultPolicy
 from gcs.flight.record import FlightRecorder
 from gcs.flight.snapshot import flight_snapshot
 from tests.flight.fakes import fake_vehicle
+from tests.flight.support import short_line, smooth_plan
 
 
 def test_flight_clock_stops_while_paused_and_moves_its_start_on() -> None:
@@ -40,7 +43,8 @@ def test_a_pause_cut_short_by_the_end_of_the_flight_gets_an_end() -> None:
     assert clock.pause is None and clock.pauses[-1][1] is not None
 
 
-def _policy(policy: str) -> tuple[FaultPolicy, list[Any], list[tuple[str | None, str]]]:
+def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] = lambda v: []
+            ) -> tuple[FaultPolicy, list[Any], list[tuple[str | None, str]]]:
     calls: list[Any] = []
     events: list[tuple[str | None, str]] = []
 
@@ -51,7 +55,8 @@ def _policy(policy: str) -> tuple[FaultPolicy, list[Any], list[tuple[str | None,
         calls.append(("abort", action, reason))
 
     out = FaultPolicy(FlightOptions(policy=policy), lambda vid, kind, _d: events.append(
-        (vid, kind)), lambda: 1.0, land=land, abort=abort, aborting=lambda: False)
+        (vid, kind)), lambda: 1.0, land=land, abort=abort, aborting=lambda: False,
+        descent=descent)
     return out, calls, events
 
 
@@ -71,9 +76,50 @@ def test_each_policy_does_what_it_says(policy: str, expected: tuple[str, ...]) -
     v, calls, events = asyncio.run(main())
     assert calls == [expected]
     # land_faulty cannot steer a vehicle whose link is lost down a landing plan: PX4 lands it
-    fallback = [("uav1", EventKind.LANDING_FALLBACK)] if policy == "land_faulty" else []
+    fallback = [("uav1", EventKind.LANDING_FALLBACK), ("uav1", EventKind.DESCENT_CLEAR)] \
+        if policy == "land_faulty" else []
     assert events == [("uav1", EventKind.FAULT), *fallback]
     assert v.fault == "link_lost" and v.phase == VehiclePhase.FAULTY and v.fault_time == 1.0
+
+
+@pytest.mark.parametrize(("descent", "why"), [
+    (lambda v: [DescentConflict("uav2", 0.4, 3.2)], "uav2 0.40 m at t=3.2 s"),
+    (lambda v: None, "not checked"),
+])
+def test_land_faulty_holds_the_others_unless_the_descent_is_clear(
+        descent: Callable[[Any], list[DescentConflict] | None], why: str) -> None:
+    """An unsteerable vehicle goes straight down: where that descent would come within R of
+    another's plan (or cannot be checked), the others hold instead of flying on."""
+    async def main() -> tuple[list[Any], list[str]]:
+        said: list[str] = []
+        p, calls, _events = _policy("land_faulty", descent)
+        p.emit = lambda vid, kind, detail: said.append(f"{kind}: {detail}")
+        p.on_fault(fake_vehicle(0), "link_lost", "gone")
+        await asyncio.gather(*p.tasks)
+        return calls, said
+
+    calls, said = asyncio.run(main())
+    assert calls[0] == ("land", "uav1")
+    assert calls[1][:2] == ("abort", "hold") and "across the others' plans" in calls[1][2]
+    conflict = [s for s in said if s.startswith(EventKind.DESCENT_CONFLICT)]
+    assert len(conflict) == 1 and why in conflict[0]
+
+
+def test_a_descent_column_is_checked_against_the_others_plan() -> None:
+    """uav2 flies y 1 -> 3 at x 4, z 1 (R = 1 m): a descent right above its path crosses it;
+    1.5 m beside it, or ending 1.3 m below it, does not; 1.5 m beside is too close for 2 m."""
+    plan = smooth_plan(short_line(2))
+    assert [c.vehicle for c in descent_conflicts(plan, "uav1", [4.0, 2.0, 3.0], 0.0, 1.0)] \
+        == ["uav2"]
+    [hit] = descent_conflicts(plan, "uav1", [4.0, 2.0, 3.0], 0.0, 1.0)
+    assert hit.distance < 0.05 and 0.0 <= hit.flight_time <= plan.scenario.horizon
+    assert descent_conflicts(plan, "uav1", [2.5, 2.0, 3.0], 0.0, 1.0) == []
+    assert [c.vehicle for c in descent_conflicts(plan, "uav1", [2.5, 2.0, 3.0], 0.0, 2.0)] \
+        == ["uav2"]
+    # a column that ends below uav2's altitude (a vehicle already low) is clear of it
+    assert descent_conflicts(plan, "uav1", [4.0, 2.0, -0.3], 0.0, 1.0, ground=-1.0) == []
+    # the faulty vehicle's own plan never counts
+    assert descent_conflicts(plan, "uav2", [4.0, 2.0, 3.0], 0.0, 1.0) == []
 
 
 def test_land_faulty_lands_the_fleet_by_a_plan_when_the_vehicle_can_be_steered() -> None:
