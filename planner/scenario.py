@@ -12,13 +12,17 @@ import math
 import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from planner.assignment import assign_goals
 from planner.errors import ScenarioError
 from planner.types import FloatArray, IntArray
+
+if TYPE_CHECKING:
+    from planner.obstacles import Obstacle, ObstacleSet
 
 __all__ = ["DEFAULTS", "RANGES", "Limits", "Scenario", "Vehicle", "check_id", "check_keys",
            "check_number", "check_vector", "minimum_transfer_time"]
@@ -70,6 +74,7 @@ RANGES: dict[str, tuple[float, float]] = {
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
     "max_iterations", "limits", "vehicles", "assignment", "separation_margin",
+    "obstacles", "obstacle_clearance",
 }
 _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
@@ -163,6 +168,26 @@ class Scenario:
     """Part of `min_separation` (m) reserved for the fleet's position error in flight
     (2 x its expected error, `gcs.flight.margin`): the vehicles must keep
     min_separation - separation_margin. The planner only carries it; 0 = none stated."""
+    obstacles: tuple[Obstacle, ...] = ()
+    """Keep-out volumes (boxes, vertical cylinders, convex prisms; `planner.obstacles`);
+    ids are unique."""
+    obstacle_clearance: float | None = None
+    """Distance (m) every vehicle keeps from every obstacle's solid at every instant;
+    default (None) min_separation / 2."""
+
+    @property
+    def clearance(self) -> float:
+        """`obstacle_clearance` with its default resolved (m)."""
+        if self.obstacle_clearance is None:
+            return 0.5 * self.min_separation
+        return self.obstacle_clearance
+
+    @cached_property
+    def obstacle_set(self) -> ObstacleSet:
+        """The obstacles as arrays for vectorised geometry (built once)."""
+        from planner.obstacles import ObstacleSet
+
+        return ObstacleSet.build(self.obstacles)
 
     @property
     def order(self) -> IntArray:
@@ -216,7 +241,10 @@ class Scenario:
                 {"id": v.id, "start": v.start.tolist(), "goal": v.goal.tolist()}
                 for v in self.vehicles
             ],
-        } | ({"separation_margin": self.separation_margin} if self.separation_margin else {})
+        } | ({"separation_margin": self.separation_margin} if self.separation_margin else {}
+             ) | ({"obstacle_clearance": self.clearance,
+                   "obstacles": [o.to_dict() for o in self.obstacles]}
+                  if self.obstacles or self.obstacle_clearance is not None else {})
 
 
 # --------------------------------------------------------------------------- parsing helpers
@@ -460,6 +488,12 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
                 f"closer than min_separation {separation:g} m",
             )
 
+    from planner.obstacles import check_clear, parse_obstacles
+
+    obstacles, clearance = parse_obstacles(data, separation)
+    check_clear(obstacles, clearance, starts, "start")
+    check_clear(obstacles, clearance, goals, "goal")
+
     goal_order = None
     if assignment == "free":
         goal_order = assign_goals(starts, goals, scale)
@@ -497,4 +531,6 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         assignment=assignment,
         goal_order=goal_order,
         separation_margin=margin,
+        obstacles=obstacles,
+        obstacle_clearance=clearance if "obstacle_clearance" in data or obstacles else None,
     )

@@ -1,0 +1,265 @@
+"""Route search that seeds SCP around obstacles, and the early verdict on unreachable goals.
+
+Linearised about a straight line through a wall, SCP's planes push the path back where it
+came from and it stalls. So before the first SCP iteration every vehicle whose initial
+trajectory comes within the clearance of an obstacle gets a route: a shortest path on a
+3-D grid over the workspace (26 neighbours, Euclidean weights, scipy's Dijkstra), shortened
+by dropping waypoints while the straight segment stays in free cells, and time-parametrised
+with the minimum-thrust rest-to-rest profile of `planner.first_qp`. That is the point the
+first iteration is linearised about (Hönig et al. 2018: discrete route, continuous
+refinement).
+
+Two occupancy grids are built from the cells' signed distance to the nearest obstacle:
+
+- for routing, a cell is blocked when its centre is within clearance + a quarter cell;
+- for the verdict, only when the whole cell lies within the clearance (centre distance
+  <= clearance - half its diagonal; the distance is 1-Lipschitz). Every continuous free path
+  passes through cells that are free in that grid, in 26-connected order, so a start and
+  goal in different components of it are truly disconnected: the plan ends `infeasible` at
+  once, naming the vehicle and the obstacles bordering both sides.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.spatial import cKDTree
+
+from planner.first_qp import unit_profile
+from planner.obstacle_rows import ObstacleRows, chord_nearest
+from planner.obstacles import describe
+from planner.scenario import Scenario
+from planner.types import FloatArray, IntArray
+
+__all__ = ["Grid", "RouteSeed", "build_grid", "seed_routes"]
+
+Trajectories = tuple[FloatArray, FloatArray, FloatArray]
+
+#: Most grid cells (the cell size grows to stay under it; smallest cell MIN_CELL m).
+MAX_CELLS = 60_000
+MIN_CELL = 0.15
+#: Sources per Dijkstra call (bounds its (sources, cells) output).
+DIJKSTRA_BATCH = 16
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A cell grid over the workspace with each cell centre's distance to the obstacles."""
+
+    origin: FloatArray
+    """(3,) the centre of cell (0, 0, 0)."""
+    spacing: FloatArray
+    """(3,) cell size per axis (m)."""
+    shape: tuple[int, int, int]
+    distance: FloatArray
+    """(cells,) signed distance of each centre to the nearest obstacle (flat, C order)."""
+    nearest: IntArray
+    """(cells,) that obstacle's index."""
+
+    @property
+    def centres(self) -> FloatArray:
+        idx = np.indices(self.shape).reshape(3, -1).T
+        return self.origin + idx * self.spacing
+
+    @property
+    def half_diagonal(self) -> float:
+        return 0.5 * float(np.linalg.norm(self.spacing))
+
+    def cell_of(self, points: FloatArray) -> IntArray:
+        """Flat index of the cell containing each point (clipped to the grid)."""
+        idx = np.rint((points - self.origin) / self.spacing).astype(np.intp)
+        idx = np.clip(idx, 0, np.array(self.shape) - 1)
+        return np.ravel_multi_index(tuple(idx.T), self.shape)
+
+    def graph(self, free: np.ndarray) -> sp.csr_matrix:
+        """The 26-neighbour graph of the free cells, edges weighted by length."""
+        shape = np.array(self.shape)
+        grid_free = free.reshape(self.shape)
+        rows, cols, weights = [], [], []
+        for off in np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1)
+                             for c in (-1, 0, 1)]):
+            if tuple(off) <= (0, 0, 0):  # each undirected edge once
+                continue
+            lo = np.maximum(0, -off)
+            hi = shape - np.maximum(0, off)
+            here = grid_free[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
+            there = grid_free[lo[0] + off[0]:hi[0] + off[0], lo[1] + off[1]:hi[1] + off[1],
+                              lo[2] + off[2]:hi[2] + off[2]]
+            both = np.argwhere(here & there) + lo
+            a = np.ravel_multi_index(tuple(both.T), self.shape)
+            b = np.ravel_multi_index(tuple((both + off).T), self.shape)
+            rows.append(a)
+            cols.append(b)
+            weights.append(np.full(len(a), float(np.linalg.norm(off * self.spacing))))
+        r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
+        n = int(np.prod(shape))
+        return sp.csr_matrix((np.concatenate([w, w]), (np.concatenate([r, c]),
+                                                       np.concatenate([c, r]))), shape=(n, n))
+
+
+def build_grid(scenario: Scenario) -> Grid:
+    """The grid over the workspace and every cell centre's distance to the obstacles."""
+    lim = scenario.limits
+    size = lim.position_max - lim.position_min
+    cell = max(MIN_CELL, float(np.prod(size) / MAX_CELLS) ** (1.0 / 3.0))
+    shape = np.maximum(1, np.ceil(size / cell).astype(int))
+    spacing = size / shape
+    origin = lim.position_min + 0.5 * spacing
+    geometry = scenario.obstacle_set
+    n = int(np.prod(shape))
+    distance = np.full(n, np.inf)
+    nearest = np.zeros(n, dtype=np.intp)
+    reach = scenario.clearance + 2.0 * float(np.linalg.norm(spacing))
+    for o in range(len(geometry)):
+        lo = np.clip(np.floor((geometry.lo[o] - reach - origin) / spacing), 0, shape - 1)
+        hi = np.clip(np.ceil((geometry.hi[o] + reach - origin) / spacing), 0, shape - 1)
+        axes = [np.arange(int(a), int(b) + 1) for a, b in zip(lo, hi, strict=True)]
+        idx = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        flat = np.ravel_multi_index(tuple(idx.T), tuple(shape))
+        d = geometry.signed_distance(origin + idx * spacing, np.full(len(idx), o))
+        closer = d < distance[flat]
+        distance[flat[closer]] = d[closer]
+        nearest[flat[closer]] = o
+    return Grid(origin, spacing, (int(shape[0]), int(shape[1]), int(shape[2])), distance,
+                nearest)
+
+
+@dataclass(frozen=True)
+class RouteSeed:
+    """The first linearisation point with routes, or why a goal cannot be reached."""
+
+    guess: Trajectories
+    routed: tuple[int, ...]
+    """Vehicles given a route."""
+    unreachable: str | None = None
+    """For an unreachable goal: the message naming the vehicle and the obstacles."""
+    vehicle: int = -1
+
+
+def blocked_vehicles(scenario: Scenario, lin: Trajectories) -> IntArray:
+    """Vehicles whose trajectory `lin` comes within the clearance of an obstacle (checked on
+    the chords between steps)."""
+    rows = ObstacleRows(scenario)
+    t = rows.near(lin[0], lin[1], 0.0)
+    if len(t) == 0:
+        return np.zeros(0, dtype=np.intp)
+    a, b = lin[0][t.vehicle, t.k], lin[0][t.vehicle, t.k + 1]
+    q = chord_nearest(rows.geometry, a, b, t.obstacle)
+    close = rows.geometry.signed_distance(q, t.obstacle) < scenario.clearance
+    return np.unique(t.vehicle[close])
+
+
+def _cutting(grid: Grid, free: np.ndarray, labels: IntArray, start: int, goal: int
+             ) -> list[int]:
+    """Obstacles of the blocked cells next to both the start's and the goal's component."""
+    shape = grid.shape
+    lab = labels.reshape(shape)
+    blocked = ~free.reshape(shape)
+    sides = []
+    for component in (labels[start], labels[goal]):
+        region = lab == component
+        grown = region.copy()
+        for axis in range(3):
+            for shift in (-1, 1):
+                grown |= np.roll(region, shift, axis=axis)
+        grown &= blocked
+        sides.append(set(grid.nearest.reshape(shape)[grown].tolist()))
+    both = sides[0] & sides[1]
+    return sorted(both or sides[0])
+
+
+def _shortcut(grid: Grid, free: np.ndarray, points: FloatArray) -> FloatArray:
+    """Drops waypoints while the straight segment between the kept ones stays in free
+    cells (sampled every quarter cell): greedy, farthest visible waypoint first."""
+    step = 0.25 * float(grid.spacing.min())
+    kept = [0]
+    i = 0
+    while i < len(points) - 1:
+        later = np.arange(i + 1, len(points))
+        length = np.linalg.norm(points[later] - points[i], axis=1)
+        samples = int(np.ceil(length.max() / step)) + 1
+        s = np.linspace(0.0, 1.0, samples)
+        seg = points[i] + s[None, :, None] * (points[later] - points[i])[:, None, :]
+        clear = free[grid.cell_of(seg.reshape(-1, 3))].reshape(len(later), samples).all(axis=1)
+        clear[0] = True  # the next waypoint is always reachable along the grid path
+        i = int(later[np.flatnonzero(clear).max()])
+        kept.append(i)
+    return points[kept]
+
+
+def _along(points: FloatArray, scenario: Scenario) -> Trajectories:
+    """A trajectory along the polyline `points`, timed by the unit rest-to-rest profile."""
+    phi_p, phi_v, phi_a = unit_profile(scenario.steps, scenario.dt)
+    seg = np.diff(points, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    total = float(cum[-1])
+    s = np.clip(phi_p, 0.0, 1.0) * total
+    piece = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+    frac = (s - cum[piece]) / np.maximum(seg_len[piece], 1e-12)
+    p = points[piece] + frac[:, None] * seg[piece]
+    p[0], p[-1] = points[0], points[-1]
+    tangent = seg / np.maximum(seg_len, 1e-12)[:, None]
+    v = tangent[piece] * (total * phi_v)[:, None]
+    a_piece = piece[:-1]
+    a = tangent[a_piece] * (total * phi_a)[:, None]
+    v[0], v[-1] = 0.0, 0.0
+    return p, v, a
+
+
+def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
+    """Routes around the obstacles for every vehicle whose `lin` comes within the clearance
+    of one (the others keep `lin`), or the first vehicle whose goal is cut off."""
+    blocked = blocked_vehicles(scenario, lin)
+    if blocked.size == 0:
+        return RouteSeed(lin, ())
+    grid = build_grid(scenario)
+    c = scenario.clearance
+    starts, goals = scenario.starts[blocked], scenario.goals[blocked]
+
+    sure = ~(grid.distance <= c - grid.half_diagonal)  # free unless wholly within clearance
+    _, labels = connected_components(grid.graph(sure), directed=False)
+    s_cell, g_cell = grid.cell_of(starts), grid.cell_of(goals)
+    cut = np.flatnonzero(labels[s_cell] != labels[g_cell])
+    if cut.size:
+        index = int(blocked[cut[0]])
+        obstacles = _cutting(grid, sure, labels, int(s_cell[cut[0]]), int(g_cell[cut[0]]))
+        names = describe([scenario.obstacles[o].id for o in obstacles])
+        message = (f"vehicles[{index}] ({scenario.vehicles[index].id!r}) cannot reach its goal: "
+                   f"no free path from its start keeps the clearance {c:g} m; obstacles "
+                   f"{names} cut it off")
+        return RouteSeed(lin, (), message, index)
+
+    free = grid.distance >= c + 0.25 * float(grid.spacing.min())
+    p, v, a = (x.copy() for x in lin)
+    centres = grid.centres
+    pending = list(range(len(blocked)))
+    for route_free in (free, sure):  # the optimistic grid where a gap is under a cell
+        todo, pending = np.array(pending, dtype=np.intp), []
+        graph = grid.graph(route_free)
+        free_idx = np.flatnonzero(route_free)
+        tree = cKDTree(centres[free_idx])
+        src = free_idx[tree.query(starts[todo])[1]]
+        dst = free_idx[tree.query(goals[todo])[1]]
+        for lo in range(0, len(todo), DIJKSTRA_BATCH):
+            batch = slice(lo, lo + DIJKSTRA_BATCH)
+            dist, pred = dijkstra(graph, indices=src[batch], return_predecessors=True)
+            for row, n in enumerate(todo[batch]):
+                target = int(dst[lo + row])
+                if not np.isfinite(dist[row, target]):
+                    pending.append(n)
+                    continue
+                path = [target]
+                while path[-1] != src[lo + row]:
+                    path.append(int(pred[row, path[-1]]))
+                waypoints = np.vstack([starts[n], centres[path[::-1]], goals[n]])
+                waypoints = _shortcut(grid, route_free, waypoints)
+                vehicle = int(blocked[n])
+                p[vehicle], v[vehicle], a[vehicle] = _along(waypoints, scenario)
+        if not pending:
+            break
+    routed = tuple(int(blocked[n]) for n in range(len(blocked)) if n not in pending)
+    return RouteSeed((p, v, a), routed)
