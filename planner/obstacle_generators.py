@@ -92,7 +92,8 @@ def sealed_wall(vehicles: int = 2, *, seed: int = 0) -> dict[str, Any]:
 def shelving(vehicles: int = 16, *, seed: int = 0, rows: int = 4, separation: float = 0.8,
              clearance: float = 0.3, dt: float = 0.2, steps: int = 100) -> dict[str, Any]:
     """Vehicles cross `rows` rows of shelving (2.5-3 m high, 0.8 m deep) in a 20 x 18 x 5 m
-    warehouse, from one wall to the other, over the shelves or around their ends."""
+    warehouse side by side, from one wall to the other, over the shelves or around their
+    ends."""
     rng = np.random.default_rng(seed)
     size = np.array([20.0, 18.0, 5.0])
     obstacles = []
@@ -105,7 +106,7 @@ def shelving(vehicles: int = 16, *, seed: int = 0, rows: int = 4, separation: fl
     xs = np.linspace(1.5, size[0] - 1.5, vehicles)
     zs = np.where(np.arange(vehicles) % 2 == 0, 1.5, 2.2)
     starts = np.stack([xs, np.full(vehicles, 1.2), zs], axis=1)
-    goals = np.stack([xs[::-1], np.full(vehicles, size[1] - 1.2), zs], axis=1)
+    goals = np.stack([xs, np.full(vehicles, size[1] - 1.2), zs], axis=1)
     return {
         "name": f"shelving{vehicles}-seed{seed}",
         "dt": dt, "steps": steps, "min_separation": separation,
@@ -120,8 +121,8 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
            separation: float = 0.8, clearance: float = 0.4, dt: float = 0.25,
            steps: int | None = None) -> dict[str, Any]:
     """Vehicles cross a size x size m forest of `pillars` trees (radius 0.2-0.5 m, floor to
-    ceiling, 2.5 m apart at least), half from the west edge to the east and half back, at
-    two heights."""
+    ceiling, 2.5 m apart at least), each in its own lane: half from the west edge to the
+    east at 1.3 m, half from the east to the west at 2.7 m."""
     rng = np.random.default_rng(seed)
     height = 4.0
     trees: list[FloatArray] = []
@@ -140,20 +141,14 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
         for n, c in enumerate(trees)]
     east_count = vehicles // 2
     west_count = vehicles - east_count
-
-    def edge(count: int, x: float) -> FloatArray:
-        levels = 2
-        per = -(-count // levels)
-        ys = np.linspace(1.0, size - 1.0, per)
-        pts = [(x, ys[i % per], 1.3 + 1.4 * (i // per)) for i in range(count)]
-        return np.array(pts)
-
-    west, east = edge(west_count, 1.0), edge(east_count, size - 1.0)
-    perm_w, perm_e = rng.permutation(west_count), rng.permutation(east_count)
-    east_goals = np.array([(size - 1.0, y, z) for _, y, z in west[perm_w]])
-    west_goals = np.array([(1.0, y, z) for _, y, z in east[perm_e]])
-    starts = np.vstack([west, east])
-    goals = np.vstack([east_goals, west_goals])
+    # Each vehicle keeps its lane: westerners fly east at 1.3 m, easterners west at 2.7 m.
+    west_y = np.linspace(1.0, size - 1.0, west_count) + rng.uniform(-0.1, 0.1, west_count)
+    east_y = np.linspace(1.0, size - 1.0, east_count) + rng.uniform(-0.1, 0.1, east_count)
+    starts = np.vstack([np.stack([np.full(west_count, 1.0), west_y, np.full(west_count, 1.3)], 1),
+                        np.stack([np.full(east_count, size - 1.0), east_y,
+                                  np.full(east_count, 2.7)], 1)])
+    goals = starts.copy()
+    goals[:, 0] = size - starts[:, 0]
     # Cross at up to 2 m/s with room for detours.
     k = steps if steps is not None else int(np.ceil((1.6 * size / 2.0 + 4.0) / dt))
     return {

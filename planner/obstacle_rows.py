@@ -37,7 +37,7 @@ SEED_FRACTION = 0.5
 SEED_MIN = 0.2
 #: Golden-section steps locating a chord's point nearest an obstacle (interval shrinks to
 #: 0.618^N of the chord).
-CHORD_STEPS = 28
+CHORD_STEPS = 20
 
 
 @dataclass(frozen=True)
@@ -98,6 +98,10 @@ class ObstacleRows:
         self.vehicles = len(scenario.vehicles)
         self.obstacles = len(self.geometry)
         self.intervals = scenario.steps
+        self._cache_lin: FloatArray | None = None
+        self._cache_keys: Keys = np.zeros(0, dtype=np.int64)
+        self._cache_normal: FloatArray = np.zeros((0, 3))
+        self._cache_rhs: FloatArray = np.zeros(0)
 
     # ---------------------------------------------------------------- keys
 
@@ -132,6 +136,24 @@ class ObstacleRows:
         _, point, normal = self.geometry.support(q, t.obstacle, right)
         return normal, np.einsum("tc,tc->t", normal, point) + self.clearance
 
+    def key_planes(self, lin: FloatArray, keys: Keys) -> tuple[FloatArray, FloatArray]:
+        """`planes` of the triples of `keys`, remembered for the current `lin` (an SCP
+        iteration asks for the same rows again after each round)."""
+        if self._cache_lin is not lin:
+            self._cache_lin = lin
+            self._cache_keys = np.zeros(0, dtype=np.int64)
+            self._cache_normal, self._cache_rhs = np.zeros((0, 3)), np.zeros(0)
+        missing = np.setdiff1d(keys, self._cache_keys)
+        if missing.size:
+            normal, rhs = self.planes(lin, self.decode(missing))
+            merged = np.concatenate([self._cache_keys, missing])
+            order = np.argsort(merged, kind="stable")
+            self._cache_keys = merged[order]
+            self._cache_normal = np.concatenate([self._cache_normal, normal])[order]
+            self._cache_rhs = np.concatenate([self._cache_rhs, rhs])[order]
+        at = np.searchsorted(self._cache_keys, keys)
+        return self._cache_normal[at], self._cache_rhs[at]
+
     def values(self, p: FloatArray, v: FloatArray, t: Triples, normal: FloatArray,
                rhs: FloatArray) -> FloatArray:
         """Per triple the smallest n'x - rhs over the interval's control points at (p, v)
@@ -158,9 +180,10 @@ class ObstacleRows:
         t = self.near(lin[0], lin[1], margin)
         if len(t) == 0:
             return np.zeros(0, dtype=np.int64)
-        normal, rhs = self.planes(lin[0], t)
+        keys = self.encode(t)
+        normal, rhs = self.key_planes(lin[0], keys)
         close = self.values(lin[0], lin[1], t, normal, rhs) < margin
-        return np.unique(self.encode(Triples(t.vehicle[close], t.obstacle[close], t.k[close])))
+        return np.unique(keys[close])
 
     def violated(self, lin: FloatArray, p: FloatArray, v: FloatArray, keys: Keys,
                  tolerance: float) -> Keys:
@@ -174,16 +197,17 @@ class ObstacleRows:
         t = Triples(t.vehicle[fresh], t.obstacle[fresh], t.k[fresh])
         if len(t) == 0:
             return np.zeros(0, dtype=np.int64)
-        normal, rhs = self.planes(lin, t)
+        keys_t = self.encode(t)
+        normal, rhs = self.key_planes(lin, keys_t)
         bad = self.values(p, v, t, normal, rhs) < -tolerance
-        return np.unique(self.encode(Triples(t.vehicle[bad], t.obstacle[bad], t.k[bad])))
+        return np.unique(keys_t[bad])
 
     def rows(self, lin: FloatArray, keys: Keys, local: IntArray) -> SeparationRows:
         """The QP rows of `keys` (three per key, kinds 0, 1, 2, kind-major like the
         separation rows), one-sided: n'x >= R + offset with offset = rhs - R. `local` maps
         scenario vehicle indices to the group's."""
         t = self.decode(keys)
-        normal, rhs = self.planes(lin, t)
+        normal, rhs = self.key_planes(lin, keys)
         kinds = np.repeat(np.arange(3, dtype=np.intp), len(t))
         return SeparationRows(
             i=np.tile(local[t.vehicle], 3), j=np.full(3 * len(t), -1, dtype=np.intp),

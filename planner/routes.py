@@ -28,7 +28,6 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from planner.first_qp import unit_profile
 from planner.obstacle_rows import ObstacleRows, chord_nearest
 from planner.obstacles import describe
 from planner.scenario import Scenario
@@ -190,9 +189,11 @@ def _shortcut(grid: Grid, free: np.ndarray, points: FloatArray) -> FloatArray:
     return points[kept]
 
 
-def _along(points: FloatArray, scenario: Scenario) -> Trajectories:
-    """A trajectory along the polyline `points`, timed by the unit rest-to-rest profile."""
-    phi_p, phi_v, phi_a = unit_profile(scenario.steps, scenario.dt)
+def _along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectories:
+    """A trajectory along the polyline `points` that waits `delay` steps at the start, then
+    moves rest to rest on the minimum-jerk profile 10u^3 - 15u^4 + 6u^5 of the remaining
+    steps (a linearisation point only: SCP makes it dynamically exact)."""
+    phi_p, phi_v, phi_a = _min_jerk(scenario.steps - delay, scenario.dt)
     seg = np.diff(points, axis=0)
     seg_len = np.linalg.norm(seg, axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg_len)])
@@ -204,9 +205,55 @@ def _along(points: FloatArray, scenario: Scenario) -> Trajectories:
     p[0], p[-1] = points[0], points[-1]
     tangent = seg / np.maximum(seg_len, 1e-12)[:, None]
     v = tangent[piece] * (total * phi_v)[:, None]
-    a_piece = piece[:-1]
-    a = tangent[a_piece] * (total * phi_a)[:, None]
+    a = tangent[piece[:-1]] * (total * phi_a)[:, None]
     v[0], v[-1] = 0.0, 0.0
+    if delay:
+        p = np.vstack([np.repeat(points[:1], delay, axis=0), p])
+        v = np.vstack([np.zeros((delay, 3)), v])
+        a = np.vstack([np.zeros((delay, 3)), a])
+    return p, v, a
+
+
+def _min_jerk(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(position (K+1,), velocity (K+1,), acceleration (K,)) of the minimum-jerk move from 0
+    to 1 over `steps` steps (accelerations at the middle of each step)."""
+    horizon = steps * dt
+    u = np.linspace(0.0, 1.0, steps + 1)
+    mid = (np.arange(steps) + 0.5) / steps
+    position = u**3 * (10 - 15 * u + 6 * u * u)
+    velocity = 30 * u * u * (1 - u) ** 2 / horizon
+    acceleration = 60 * mid * (1 - mid) * (1 - 2 * mid) / horizon**2
+    return position, velocity, acceleration
+
+
+def _stagger(scenario: Scenario, guess: Trajectories, routes: dict[int, FloatArray]
+             ) -> Trajectories:
+    """Delays routed vehicles' departures, one by one, until each is R away (at the steps,
+    in the separation metric) from every vehicle already placed: routes of neighbouring
+    vehicles often share the shortest corridor, and rows linearised about two vehicles at
+    one point cannot order them along it. Up to a third of the horizon; where no delay
+    separates a vehicle, the one that keeps it farthest from the others."""
+    p, v, a = (x.copy() for x in guess)
+    scale, separation = scenario.separation_scale, scenario.min_separation
+    placed = np.ones(len(p), dtype=bool)
+    placed[list(routes)] = False
+    longest = scenario.steps // 3
+    for vehicle, points in routes.items():
+        others = np.flatnonzero(placed)
+        best, best_gap = None, -np.inf
+        for delay in range(0, longest + 1, max(1, longest // 30)):
+            trial = _along(points, scenario, delay)
+            if len(others) == 0:
+                best = trial
+                break
+            gap = float(np.min(np.linalg.norm((p[others] - trial[0][None]) / scale, axis=2)))
+            if gap > best_gap:
+                best, best_gap = trial, gap
+            if gap >= 1.05 * separation:
+                break
+        assert best is not None
+        p[vehicle], v[vehicle], a[vehicle] = best
+        placed[vehicle] = True
     return p, v, a
 
 
@@ -234,7 +281,7 @@ def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
         return RouteSeed(lin, (), message, index)
 
     free = grid.distance >= c + 0.25 * float(grid.spacing.min())
-    p, v, a = (x.copy() for x in lin)
+    routes: dict[int, FloatArray] = {}
     centres = grid.centres
     pending = list(range(len(blocked)))
     for route_free in (free, sure):  # the optimistic grid where a gap is under a cell
@@ -256,10 +303,7 @@ def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
                 while path[-1] != src[lo + row]:
                     path.append(int(pred[row, path[-1]]))
                 waypoints = np.vstack([starts[n], centres[path[::-1]], goals[n]])
-                waypoints = _shortcut(grid, route_free, waypoints)
-                vehicle = int(blocked[n])
-                p[vehicle], v[vehicle], a[vehicle] = _along(waypoints, scenario)
+                routes[int(blocked[n])] = _shortcut(grid, route_free, waypoints)
         if not pending:
             break
-    routed = tuple(int(blocked[n]) for n in range(len(blocked)) if n not in pending)
-    return RouteSeed((p, v, a), routed)
+    return RouteSeed(_stagger(scenario, lin, routes), tuple(sorted(routes)))

@@ -207,7 +207,8 @@ class _GroupSolver:
             rows = concat_rows(rows, self.obstacles.rows(lin_positions, okeys, local))
         self.solves += 1
         outcome = None
-        if self.dual and len(rows) <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
+        # Obstacle rows bind one vehicle each: they couple no vehicles in the dual's matrix.
+        if self.dual and pair_rows <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
             outcome = solve_group_dual(scenario, members, rows, group_boxes)
         if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
             solution, duals = outcome.solution, outcome.separation_duals
