@@ -70,7 +70,9 @@ def window_wall(vehicles: int = 8, *, seed: int = 0, window: tuple[float, float]
     ys = np.linspace(1.0, size[1] - 1.0, per_side) + rng.uniform(-0.2, 0.2, per_side)
     zs = np.where(np.arange(per_side) % 2 == 0, 1.4, 2.6)
     west = np.stack([np.full(per_side, 1.5), ys, zs], axis=1)
-    east = np.stack([np.full(per_side, size[0] - 1.5), ys[::-1], zs], axis=1)
+    # Each vehicle flies straight across in its lane; the lanes' two directions at
+    # different heights.
+    east = np.stack([np.full(per_side, size[0] - 1.5), ys, 4.0 - zs], axis=1)
     starts = np.vstack([west, east])
     goals = np.vstack([east, west])
     return {
@@ -122,7 +124,7 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
            steps: int | None = None) -> dict[str, Any]:
     """Vehicles cross a size x size m forest of `pillars` trees (radius 0.2-0.5 m, floor to
     ceiling, 2.5 m apart at least), each in its own lane: half from the west edge to the
-    east at 1.3 m, half from the east to the west at 2.7 m."""
+    east low (1.0 or 1.8 m), half from the east to the west high (2.6 or 3.4 m)."""
     rng = np.random.default_rng(seed)
     height = 4.0
     trees: list[FloatArray] = []
@@ -141,12 +143,15 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
         for n, c in enumerate(trees)]
     east_count = vehicles // 2
     west_count = vehicles - east_count
-    # Each vehicle keeps its lane: westerners fly east at 1.3 m, easterners west at 2.7 m.
-    west_y = np.linspace(1.0, size - 1.0, west_count) + rng.uniform(-0.1, 0.1, west_count)
-    east_y = np.linspace(1.0, size - 1.0, east_count) + rng.uniform(-0.1, 0.1, east_count)
-    starts = np.vstack([np.stack([np.full(west_count, 1.0), west_y, np.full(west_count, 1.3)], 1),
-                        np.stack([np.full(east_count, size - 1.0), east_y,
-                                  np.full(east_count, 2.7)], 1)])
+    # Each vehicle keeps its lane: westerners fly east at 1.0 or 1.8 m, easterners west at
+    # 2.6 or 3.4 m, alternating along the edge.
+    def edge(count: int, x: float, levels: tuple[float, float]) -> FloatArray:
+        y = np.linspace(1.0, size - 1.0, count) + rng.uniform(-0.05, 0.05, count)
+        z = np.where(np.arange(count) % 2 == 0, levels[0], levels[1])
+        return np.stack([np.full(count, x), y, z], axis=1)
+
+    starts = np.vstack([edge(west_count, 1.0, (1.0, 1.8)),
+                        edge(east_count, size - 1.0, (2.6, 3.4))])
     goals = starts.copy()
     goals[:, 0] = size - starts[:, 0]
     # Cross at up to 2 m/s with room for detours.
