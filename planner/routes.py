@@ -40,6 +40,11 @@ Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 #: Most grid cells (the cell size grows to stay under it; smallest cell MIN_CELL m).
 MAX_CELLS = 60_000
 MIN_CELL = 0.15
+#: A routed vehicle departs later only while it comes closer than this (in units of R) to
+#: a vehicle already placed: enough to order vehicles that share a corridor (rows about two
+#: coincident points cannot), while a pair merely closer than R is left to the rows (a
+#: delay the QP then undoes costs more iterations than it saves).
+STAGGER_GAP = 0.5
 #: Sources per Dijkstra call (bounds its (sources, cells) output).
 DIJKSTRA_BATCH = 16
 
@@ -228,11 +233,11 @@ def _min_jerk(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray
 
 def _stagger(scenario: Scenario, guess: Trajectories, routes: dict[int, FloatArray]
              ) -> Trajectories:
-    """Delays routed vehicles' departures, one by one, until each is R away (at the steps,
-    in the separation metric) from every vehicle already placed: routes of neighbouring
-    vehicles often share the shortest corridor, and rows linearised about two vehicles at
-    one point cannot order them along it. Up to a third of the horizon; where no delay
-    separates a vehicle, the one that keeps it farthest from the others."""
+    """Delays routed vehicles' departures, one by one, until each is STAGGER_GAP R away (at
+    the steps, in the separation metric) from every vehicle already placed: routes of
+    neighbouring vehicles often share the shortest corridor, and rows linearised about two
+    vehicles at one point cannot order them along it. Up to a third of the horizon; where
+    no delay separates a vehicle, the one that keeps it farthest from the others."""
     p, v, a = (x.copy() for x in guess)
     scale, separation = scenario.separation_scale, scenario.min_separation
     placed = np.ones(len(p), dtype=bool)
@@ -249,7 +254,7 @@ def _stagger(scenario: Scenario, guess: Trajectories, routes: dict[int, FloatArr
             gap = float(np.min(np.linalg.norm((p[others] - trial[0][None]) / scale, axis=2)))
             if gap > best_gap:
                 best, best_gap = trial, gap
-            if gap >= 1.05 * separation:
+            if gap >= STAGGER_GAP * separation:
                 break
         assert best is not None
         p[vehicle], v[vehicle], a[vehicle] = best

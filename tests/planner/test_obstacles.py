@@ -178,13 +178,14 @@ def test_route_seeding_goes_through_the_window_and_scp_follows() -> None:
     data = families.window_wall(8, seed=1)
     scenario = planner.Scenario.from_dict(data)
     seeded = seed_routes(scenario, straight_moves(scenario))
-    assert seeded.unreachable is None and len(seeded.routed) == 8
+    # The outer lanes meet the wall: they get routes; the middle ones fly through as they are.
+    assert seeded.unreachable is None and seeded.routed == (0, 3, 4, 7)
     below = next(o for o in data["obstacles"] if o["id"] == "wall-below")["box"]
     y0, y1 = below["min"][1], below["max"][1]
     z0 = below["max"][2]
     z1 = next(o for o in data["obstacles"] if o["id"] == "wall-above")["box"]["min"][2]
     p = seeded.guess[0]
-    for path in p:  # where each route crosses the wall's plane x = 6, it is in the window
+    for path in p:  # where each path crosses the wall's plane x = 6, it is in the window
         k = int(np.argmin(np.abs(path[:, 0] - 6.0)))
         assert y0 < path[k, 1] < y1 and z0 < path[k, 2] < z1
     result = planner.plan(scenario)
@@ -206,7 +207,7 @@ def test_an_unreachable_goal_is_named_at_once() -> None:
 
 
 def test_a_gap_narrower_than_the_clearance_allows_is_unreachable_too() -> None:
-    data = families.window_wall(2, window=(0.4, 0.4), clearance=0.3)
+    data = families.window_wall(2, window=(0.25, 0.25), clearance=0.3)
     result = planner.plan(data)
     assert result.status == "infeasible"
     assert {"'wall-left'", "'wall-right'"} <= set(result.message.replace(",", " ").split())
