@@ -38,7 +38,7 @@ __all__ = ["Grid", "RouteSeed", "build_grid", "seed_routes"]
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 
 #: Most grid cells (the cell size grows to stay under it; smallest cell MIN_CELL m).
-MAX_CELLS = 60_000
+MAX_CELLS = 30_000
 MIN_CELL = 0.15
 #: A routed vehicle departs later only while it comes closer than this (in units of R) to
 #: a vehicle already placed: enough to order vehicles that share a corridor (rows about two
@@ -194,6 +194,37 @@ def _shortcut(grid: Grid, free: np.ndarray, points: FloatArray) -> FloatArray:
     return points[kept]
 
 
+def _segments_free(grid: Grid, free: np.ndarray, a: FloatArray, b: FloatArray) -> np.ndarray:
+    """Per segment [a, b] ((S, 3) each): every sample (a quarter cell apart) in a free cell."""
+    step = 0.25 * float(grid.spacing.min())
+    samples = int(np.ceil(float(np.linalg.norm(b - a, axis=1).max(initial=0.0)) / step)) + 1
+    s = np.linspace(0.0, 1.0, samples)
+    points = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
+    return free[grid.cell_of(points.reshape(-1, 3))].reshape(len(a), samples).all(axis=1)
+
+
+def _toward_line(grid: Grid, free: np.ndarray, points: FloatArray) -> FloatArray:
+    """Moves each inner waypoint toward the vehicle's straight line (start to goal) as far as
+    its two segments stay free (trying all, 3/4, 1/2, 1/4 of the way). Grid paths snap to
+    cell centres, so neighbouring vehicles' routes would share waypoints (and altitudes);
+    pulled toward their own lines they keep their lanes and heights where the obstacles
+    allow."""
+    out = points.copy()
+    start, goal = points[0], points[-1]
+    line = goal - start
+    length2 = max(float(line @ line), 1e-12)
+    for i in range(1, len(out) - 1):
+        foot = start + np.clip((out[i] - start) @ line / length2, 0.0, 1.0) * line
+        for alpha in (1.0, 0.75, 0.5, 0.25):
+            trial = out[i] + alpha * (foot - out[i])
+            ok = _segments_free(grid, free, np.stack([out[i - 1], trial]),
+                                np.stack([trial, out[i + 1]]))
+            if ok.all():
+                out[i] = trial
+                break
+    return out
+
+
 def _along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectories:
     """A trajectory along the polyline `points` that waits `delay` steps at the start, then
     moves rest to rest on the minimum-jerk profile 10u^3 - 15u^4 + 6u^5 of the remaining
@@ -308,7 +339,8 @@ def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
                 while path[-1] != src[lo + row]:
                     path.append(int(pred[row, path[-1]]))
                 waypoints = np.vstack([starts[n], centres[path[::-1]], goals[n]])
-                routes[int(blocked[n])] = _shortcut(grid, route_free, waypoints)
+                routes[int(blocked[n])] = _toward_line(
+                    grid, route_free, _shortcut(grid, route_free, waypoints))
         if not pending:
             break
     return RouteSeed(_stagger(scenario, lin, routes), tuple(sorted(routes)))
