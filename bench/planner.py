@@ -12,9 +12,10 @@
 The drone-show families run only when asked: --grid-sphere N... (vertical grid ->
 sphere shell, fixed and/or free assignment), --random-dense N... (random128's density, moves
 <= 40 m), --sequence N (a grid -> sphere -> grid formation sequence), each over --seeds.
---obstacles NAME... runs the obstacle families (a pillar in the paper's circle,
-a window in a wall, shelving, forests), each with its floor. --group-qp primal solves their group QPs as the primal staged QP (before the dual, for
-comparison); --profile also takes dense<N> and grid-sphere<N>.
+--obstacles NAME... runs the obstacle families (a pillar in the paper's circle, a window in
+a wall, shelving, forests), each with its floor. --group-qp primal solves their group QPs as
+the primal staged QP (before the dual, for comparison); --profile also takes dense<N> and
+grid-sphere<N>.
 
 Timings are medians over --repeats runs of the same scenario (the machines are shared and
 noisy); peak memory comes from one extra run under tracemalloc (numpy's allocations are

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from planner.checks import check_id, check_keys, check_number, check_vector
 from planner.errors import ScenarioError
-from planner.scenario import check_id, check_keys, check_number, check_vector
 from planner.types import FloatArray, IntArray
 
 __all__ = ["MAX_OBSTACLES", "MAX_POLYGON_VERTICES", "BoxShape", "CylinderShape", "Obstacle",
@@ -212,7 +212,8 @@ def parse_obstacles(data: Mapping[str, Any], min_separation: float
         kind, shape = _shape(item, where)
         oid = check_id(item["id"], f"{where}.id")
         if oid in seen:
-            raise ScenarioError(f"{where}.id", f"duplicate id {oid!r} (also obstacles[{seen[oid]}])")
+            raise ScenarioError(f"{where}.id",
+                                f"duplicate id {oid!r} (also obstacles[{seen[oid]}])")
         seen[oid] = index
         out.append(Obstacle(oid, **{kind: shape}))
     return tuple(out), clearance

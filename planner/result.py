@@ -91,6 +91,12 @@ class IterationRecord:
     """Vehicles in the largest group."""
 
 
+#: Field metadata of the verification's obstacle figures: the plan JSON leaves them out
+#: for a scenario without obstacles (so such plans read as before), and the published
+#: schema does not require them.
+_OBSTACLE_FIELD: dict[str, Any] = {"omitted": "without obstacles"}
+
+
 @dataclass(frozen=True)
 class Verification:
     """Checks of the final trajectories, computed independently of the solver."""
@@ -123,15 +129,15 @@ class Verification:
     """Every box and boundary condition holds within bound_tolerance."""
     separation_tolerance: float
     bound_tolerance: float
-    obstacle_distance_min: float | None = None
+    obstacle_distance_min: float | None = field(default=None, metadata=_OBSTACLE_FIELD)
     """Smallest distance of any vehicle to any obstacle's solid over continuous time (m;
-    negative inside one); absent (None) without obstacles or when undefined."""
-    closest_obstacle: dict[str, Any] | None = None
+    negative inside one); absent without obstacles, null when undefined."""
+    closest_obstacle: dict[str, Any] | None = field(default=None, metadata=_OBSTACLE_FIELD)
     """Where that happens: {"id": obstacle id, "vehicle": vehicle id, "time": s}; absent
     without obstacles."""
-    clear: bool = True
-    """obstacle_distance_min >= obstacle_clearance - separation_tolerance (true without
-    obstacles, false when undefined)."""
+    clear: bool = field(default=True, metadata=_OBSTACLE_FIELD)
+    """obstacle_distance_min >= obstacle_clearance - separation_tolerance; absent (true)
+    without obstacles, false when undefined."""
 
     @property
     def verified(self) -> bool:
@@ -143,8 +149,9 @@ class Verification:
         """The JSON form; the obstacle fields only for a scenario with obstacles."""
         out = asdict(self)
         if self.closest_obstacle is None and self.clear:
-            for key in ("obstacle_distance_min", "closest_obstacle", "clear"):
-                del out[key]
+            for f in fields(self):
+                if "omitted" in f.metadata:
+                    del out[f.name]
         return out
 
     def failures(self) -> list[str]:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
@@ -36,6 +37,7 @@ from planner.types import FloatArray, IntArray
 __all__ = ["Grid", "RouteSeed", "build_grid", "seed_routes"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
+BoolArray = NDArray[np.bool_]
 
 #: Most grid cells (the cell size grows to stay under it; smallest cell MIN_CELL m).
 MAX_CELLS = 30_000
@@ -76,9 +78,9 @@ class Grid:
         """Flat index of the cell containing each point (clipped to the grid)."""
         idx = np.rint((points - self.origin) / self.spacing).astype(np.intp)
         idx = np.clip(idx, 0, np.array(self.shape) - 1)
-        return np.ravel_multi_index(tuple(idx.T), self.shape)
+        return np.asarray(np.ravel_multi_index(tuple(idx.T), self.shape), dtype=np.intp)
 
-    def graph(self, free: np.ndarray) -> sp.csr_matrix:
+    def graph(self, free: BoolArray) -> sp.csr_matrix:
         """The 26-neighbour graph of the free cells, edges weighted by length."""
         shape = np.array(self.shape)
         grid_free = free.reshape(self.shape)
@@ -122,7 +124,7 @@ def build_grid(scenario: Scenario) -> Grid:
         hi = np.clip(np.ceil((geometry.hi[o] + reach - origin) / spacing), 0, shape - 1)
         axes = [np.arange(int(a), int(b) + 1) for a, b in zip(lo, hi, strict=True)]
         idx = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        flat = np.ravel_multi_index(tuple(idx.T), tuple(shape))
+        flat = np.asarray(np.ravel_multi_index(tuple(idx.T), tuple(shape)), dtype=np.intp)
         d = geometry.signed_distance(origin + idx * spacing, np.full(len(idx), o))
         closer = d < distance[flat]
         distance[flat[closer]] = d[closer]
@@ -156,7 +158,7 @@ def blocked_vehicles(scenario: Scenario, lin: Trajectories) -> IntArray:
     return np.unique(t.vehicle[close])
 
 
-def _cutting(grid: Grid, free: np.ndarray, labels: IntArray, start: int, goal: int
+def _cutting(grid: Grid, free: BoolArray, labels: IntArray, start: int, goal: int
              ) -> list[int]:
     """Obstacles of the blocked cells next to both the start's and the goal's component."""
     shape = grid.shape
@@ -175,35 +177,32 @@ def _cutting(grid: Grid, free: np.ndarray, labels: IntArray, start: int, goal: i
     return sorted(both or sides[0])
 
 
-def _shortcut(grid: Grid, free: np.ndarray, points: FloatArray) -> FloatArray:
+def _shortcut(grid: Grid, free: BoolArray, points: FloatArray) -> FloatArray:
     """Drops waypoints while the straight segment between the kept ones stays in free
     cells (sampled every quarter cell): greedy, farthest visible waypoint first."""
-    step = 0.25 * float(grid.spacing.min())
     kept = [0]
     i = 0
     while i < len(points) - 1:
         later = np.arange(i + 1, len(points))
-        length = np.linalg.norm(points[later] - points[i], axis=1)
-        samples = int(np.ceil(length.max() / step)) + 1
-        s = np.linspace(0.0, 1.0, samples)
-        seg = points[i] + s[None, :, None] * (points[later] - points[i])[:, None, :]
-        clear = free[grid.cell_of(seg.reshape(-1, 3))].reshape(len(later), samples).all(axis=1)
+        clear = _segments_free(grid, free, np.repeat(points[i:i + 1], len(later), axis=0),
+                               points[later])
         clear[0] = True  # the next waypoint is always reachable along the grid path
         i = int(later[np.flatnonzero(clear).max()])
         kept.append(i)
     return points[kept]
 
 
-def _segments_free(grid: Grid, free: np.ndarray, a: FloatArray, b: FloatArray) -> np.ndarray:
+def _segments_free(grid: Grid, free: BoolArray, a: FloatArray, b: FloatArray) -> BoolArray:
     """Per segment [a, b] ((S, 3) each): every sample (a quarter cell apart) in a free cell."""
     step = 0.25 * float(grid.spacing.min())
     samples = int(np.ceil(float(np.linalg.norm(b - a, axis=1).max(initial=0.0)) / step)) + 1
     s = np.linspace(0.0, 1.0, samples)
     points = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
-    return free[grid.cell_of(points.reshape(-1, 3))].reshape(len(a), samples).all(axis=1)
+    inside = free[grid.cell_of(points.reshape(-1, 3))].reshape(len(a), samples)
+    return np.asarray(inside.all(axis=1), dtype=bool)
 
 
-def _toward_line(grid: Grid, free: np.ndarray, points: FloatArray) -> FloatArray:
+def _toward_line(grid: Grid, free: BoolArray, points: FloatArray) -> FloatArray:
     """Moves each inner waypoint toward the vehicle's straight line (start to goal) as far as
     its two segments stay free (trying all, 3/4, 1/2, 1/4 of the way). Grid paths snap to
     cell centres, so neighbouring vehicles' routes would share waypoints (and altitudes);

@@ -208,8 +208,8 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
         default = planner_scenario.DEFAULTS.get(f.name, f.default)
         if input_rules and default is not dataclasses.MISSING:
             schema["default"] = default
-        elif not (input_rules and optional):
-            required.append(f.name)
+        elif not (input_rules and optional) and "omitted" not in f.metadata:
+            required.append(f.name)  # (fields a document may omit say so in their metadata)
         properties[f.name] = schema
     description = " ".join((inspect.getdoc(cls) or "").split())
     component: dict[str, Any] = {
