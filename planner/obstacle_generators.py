@@ -124,7 +124,7 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
            steps: int | None = None) -> dict[str, Any]:
     """Vehicles cross a size x size m forest of `pillars` trees (radius 0.2-0.5 m, floor to
     ceiling, 2.5 m apart at least), each in its own lane: half from the west edge to the
-    east low (1.0 or 1.8 m), half from the east to the west high (2.6 or 3.4 m)."""
+    east low (1.0 or 1.8 m), half from the east to the west high (2.8 or 3.6 m)."""
     rng = np.random.default_rng(seed)
     height = 4.0
     trees: list[FloatArray] = []
@@ -144,14 +144,14 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
     east_count = vehicles // 2
     west_count = vehicles - east_count
     # Each vehicle keeps its lane: westerners fly east at 1.0 or 1.8 m, easterners west at
-    # 2.6 or 3.4 m, alternating along the edge.
+    # 2.8 or 3.6 m, alternating along the edge.
     def edge(count: int, x: float, levels: tuple[float, float]) -> FloatArray:
         y = np.linspace(1.0, size - 1.0, count) + rng.uniform(-0.05, 0.05, count)
         z = np.where(np.arange(count) % 2 == 0, levels[0], levels[1])
         return np.stack([np.full(count, x), y, z], axis=1)
 
     starts = np.vstack([edge(west_count, 1.0, (1.0, 1.8)),
-                        edge(east_count, size - 1.0, (2.6, 3.4))])
+                        edge(east_count, size - 1.0, (2.8, 3.6))])
     goals = starts.copy()
     goals[:, 0] = size - starts[:, 0]
     # Cross at up to 2 m/s with room for detours.
