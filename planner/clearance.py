@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.golden import golden_minimum
 from planner.obstacle_rows import ObstacleRows, Triples, chord_nearest
 from planner.scenario import Scenario
 from planner.types import FloatArray
@@ -61,19 +62,7 @@ def _interval_minima(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatA
     best = np.argmin(values, axis=1)
     step = dt / (SAMPLES - 1)
     lo, hi = np.clip(grid[best] - step, 0.0, dt), np.clip(grid[best] + step, 0.0, dt)
-    ratio = (np.sqrt(5.0) - 1.0) / 2.0
-    x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
-    f1, f2 = dist(x1), dist(x2)
-    for _ in range(REFINEMENTS):
-        left = f1 < f2
-        hi = np.where(left, x2, hi)
-        lo = np.where(left, lo, x1)
-        probe = np.where(left, hi - ratio * (hi - lo), lo + ratio * (hi - lo))
-        fp = dist(probe)
-        x1, x2, f1, f2 = (np.where(left, probe, x2), np.where(left, x1, probe),
-                          np.where(left, fp, f2), np.where(left, f1, fp))
-    when = np.where(f1 < f2, x1, x2)
-    low = np.minimum(f1, f2)
+    when, low = golden_minimum(dist, lo, hi, REFINEMENTS)
     sampled = values[np.arange(len(t)), best]
     use = sampled < low
     return np.where(use, sampled, low), np.where(use, grid[best], when)

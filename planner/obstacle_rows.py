@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.golden import golden_minimum
 from planner.obstacles import ObstacleSet
 from planner.qp import SeparationRows
 from planner.scenario import Scenario
@@ -62,27 +63,15 @@ def chord_nearest(geometry: ObstacleSet, a: FloatArray, b: FloatArray, o: IntArr
                   ) -> FloatArray:
     """The point of each segment [a, b] ((Q, 3) each) nearest obstacle o (Q,): the signed
     distance to a convex set is convex along a segment, so a golden-section search finds it."""
-    lo, hi = np.zeros(len(a)), np.ones(len(a))
-    ratio = (np.sqrt(5.0) - 1.0) / 2.0
     d = b - a
 
     def dist(t: FloatArray) -> FloatArray:
         return geometry.signed_distance(a + t[:, None] * d, o)
 
-    x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
-    f1, f2 = dist(x1), dist(x2)
-    for _ in range(CHORD_STEPS):
-        left = f1 < f2
-        hi = np.where(left, x2, hi)
-        lo = np.where(left, lo, x1)
-        probe = np.where(left, hi - ratio * (hi - lo), lo + ratio * (hi - lo))
-        fp = dist(probe)
-        x1, x2, f1, f2 = (np.where(left, probe, x2), np.where(left, x1, probe),
-                          np.where(left, fp, f2), np.where(left, f1, fp))
-    t = np.where(f1 < f2, x1, x2)
+    t, best_inner = golden_minimum(dist, np.zeros(len(a)), np.ones(len(a)), CHORD_STEPS)
     # The ends can be nearer than the interior search's best (the minimum sits at an end).
     ends = np.stack([np.zeros(len(a)), t, np.ones(len(a))], axis=1)
-    values = np.stack([dist(ends[:, 0]), np.minimum(f1, f2), dist(ends[:, 2])], axis=1)
+    values = np.stack([dist(ends[:, 0]), best_inner, dist(ends[:, 2])], axis=1)
     best = ends[np.arange(len(a)), np.argmin(values, axis=1)]
     return a + best[:, None] * d
 
