@@ -39,9 +39,11 @@ __all__ = ["Grid", "RouteSeed", "build_grid", "seed_routes"]
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 BoolArray = NDArray[np.bool_]
 
-#: Most grid cells (the cell size grows to stay under it; smallest cell MIN_CELL m).
+#: Most grid cells (the cell size grows to stay under it); the cells are at least MIN_CELL m
+#: and half the clearance (finer cells than that find no more openings worth routing).
 MAX_CELLS = 30_000
 MIN_CELL = 0.15
+CELL_PER_CLEARANCE = 0.5
 #: A routed vehicle departs later only while it comes closer than this (in units of R) to
 #: a vehicle already placed: enough to order vehicles that share a corridor (rows about two
 #: coincident points cannot), while a pair merely closer than R is left to the rows (a
@@ -110,7 +112,8 @@ def build_grid(scenario: Scenario) -> Grid:
     """The grid over the workspace and every cell centre's distance to the obstacles."""
     lim = scenario.limits
     size = lim.position_max - lim.position_min
-    cell = max(MIN_CELL, float(np.prod(size) / MAX_CELLS) ** (1.0 / 3.0))
+    cell = max(MIN_CELL, CELL_PER_CLEARANCE * scenario.clearance,
+               float(np.prod(size) / MAX_CELLS) ** (1.0 / 3.0))
     shape = np.maximum(1, np.ceil(size / cell).astype(int))
     spacing = size / shape
     origin = lim.position_min + 0.5 * spacing
