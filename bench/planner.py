@@ -64,7 +64,7 @@ PAPER = [f"paper-{kind}{n}" for kind in ("circle", "random") for n in (2, 4, 6, 
 SCALE = ["circle16", "random16", "random64", "random128"]
 PUBLISHED = json.loads((Path(__file__).parent / "dmpc2019-published.json").read_text())
 PAPER_TIMES = {2: (2.45, 35), 4: (4.86, 67), 6: (6.75, 94), 8: (10.85, 168)}
-#: The obstacle families (issue 18) by name: the generator of a seed's instance and the
+#: The obstacle families by name: the generator of a seed's instance and the
 #: floor (s, median on a quiet machine).
 OBSTACLE_FAMILIES: dict[str, tuple[Any, float]] = {
     "pillar-circle8": (lambda seed: pillar_circle(8, seed=seed), 0.5),
@@ -351,7 +351,7 @@ def main() -> None:
                         help="grid -> sphere -> grid formation sequences of these sizes")
     parser.add_argument("--obstacles", nargs="*", default=[],
                         choices=list(OBSTACLE_FAMILIES),
-                        help="obstacle families (issue 18) to run over --seeds")
+                        help="obstacle families to run over --seeds")
     parser.add_argument("--seeds", type=int, nargs="*", default=[0])
     parser.add_argument("--group-qp", choices=["dual", "primal"], default="dual",
                         help="how the families' and profiles' group QPs are solved "
