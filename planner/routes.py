@@ -146,6 +146,7 @@ class RouteSeed:
     unreachable: str | None = None
     """For an unreachable goal: the message naming the vehicle and the obstacles."""
     vehicle: int = -1
+    """For an unreachable goal: that vehicle's index (-1 otherwise)."""
 
 
 def blocked_vehicles(scenario: Scenario, lin: Trajectories) -> IntArray:
