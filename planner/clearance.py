@@ -75,22 +75,18 @@ def closest_obstacle(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatA
         return None
     rows = ObstacleRows(scenario)
     geometry = rows.geometry
-    lim = scenario.limits
     reach = 1.0
-    span = float(np.linalg.norm(np.maximum(lim.position_max, geometry.hi.max(axis=0))
-                                - np.minimum(lim.position_min, geometry.lo.min(axis=0))))
-    # Widen the broad phase until the minimum found is within its reach: triples it
-    # leaves out are farther than clearance + reach.
+    span = float(np.linalg.norm(np.maximum(p.max(axis=(0, 1)), geometry.hi.max(axis=0))
+                                - np.minimum(p.min(axis=(0, 1)), geometry.lo.min(axis=0))))
+    # Widen the broad phase until it finds something: triples it leaves out are farther
+    # than clearance + reach, so the verdict is exact; the figure is exact when it is within
+    # clearance + reach, else the smallest of those found (all beyond clearance + reach / 4).
     while True:
         t = rows.near(p, v, reach)
-        if reach > 2 * span:
-            t = Triples(*(x.ravel() for x in np.meshgrid(
-                np.arange(len(p)), np.arange(len(geometry)), np.arange(scenario.steps),
-                indexing="ij")))
         if len(t):
-            best = _minimum(scenario, p, v, a, t)
-            if best.distance <= scenario.clearance + reach or reach > 2 * span:
-                return best
+            return _minimum(scenario, p, v, a, t)
+        if reach > 2 * span:  # cannot happen: beyond the span every triple is near
+            return None
         reach *= 4.0
 
 

@@ -289,3 +289,24 @@ def test_a_plan_that_grazes_the_clearance_is_never_converged(monkeypatch) -> Non
     monkeypatch.setattr(planning, "run_scp", fake)
     result = planning.plan(scenario)
     assert result.status == "unverified" and "obstacle 'pillar'" in result.message
+
+
+def test_the_reported_minimum_matches_dense_sampling_near_and_far() -> None:
+    """The continuous-time figure equals a brute-force dense sampling of the exact motion,
+    for a plan that grazes an obstacle and for one that stays metres away from another."""
+    near = planner.plan(load_example("pillar-circle8"))
+    far = planner.plan(_with([{"id": "crate", "box": {"min": [0.0, 0.0, 0.0],
+                                                       "max": [0.3, 0.3, 0.3]}}]))
+    for result in (near, far):
+        assert result.ok, result.problems()
+        scenario = result.scenario
+        times = np.linspace(0.0, scenario.horizon, 20 * scenario.steps + 1)
+        sample = result.sample(times).position.reshape(-1, 3)
+        geometry = ObstacleSet.build(scenario.obstacles)
+        dense = min(float(geometry.signed_distance(sample, np.full(len(sample), o)).min())
+                    for o in range(len(geometry)))
+        check = result.verification
+        assert check is not None and check.obstacle_distance_min is not None
+        assert check.obstacle_distance_min <= dense + 1e-9
+        assert check.obstacle_distance_min == pytest.approx(dense, abs=2e-3)
+    assert far.verification is not None and far.verification.obstacle_distance_min > 1.0
