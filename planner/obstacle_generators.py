@@ -153,7 +153,7 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
     def edge(count: int, x: float, inward: float, levels: tuple[float, float]) -> FloatArray:
         lanes = 2 * (int((size - 2.0) // LANE) + 1)
         columns = -(-count // lanes)
-        out = []
+        out: list[FloatArray] = []
         for column in range(columns):
             n = min(-(-count // columns), count - len(out))
             y = np.linspace(1.0, size - 1.0, n) + rng.uniform(-0.05, 0.05, n)
