@@ -22,10 +22,9 @@ constraints are slack at the optimum, so it is solved as a sequence of smaller Q
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -406,9 +405,9 @@ class _IterationResult:
     groups: int
     largest_group: int
     failed: list[int]
-    obstacle_keys: Keys = dataclasses.field(default_factory=lambda: np.zeros(0, np.int64))
+    obstacle_keys: Keys = field(default_factory=lambda: np.zeros(0, np.int64))
     """Every obstacle row used in the last round."""
-    obstacle_active: Keys = dataclasses.field(default_factory=lambda: np.zeros(0, np.int64))
+    obstacle_active: Keys = field(default_factory=lambda: np.zeros(0, np.int64))
     """Obstacle rows with a positive multiplier in the last round."""
 
 
