@@ -11,7 +11,7 @@ reports the medians. The floors (docs: Benchmarks) are: the flight completes wit
 losses and p99 jitter <= 5 ms, RSS <= 1 GB, every refused request a 503.
 
     python bench/fanout.py
-    python bench/fanout.py --exports 40 --streams 200 --plans 20 --repeat 3
+    python bench/fanout.py --exports 40 --streams 200 --plans 20 --repeat 3 --priority ordinary
 """
 
 from __future__ import annotations
@@ -90,7 +90,8 @@ async def one_run(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     port = _free_tcp_port()
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": str(ROOT),
            "FLEETPLAN_MOCK_BASE_PORT": str(free_udp_base(mock_port_offsets(VEHICLES))),
-           "FLEETPLAN_MOCK_SETTLE_S": "0.5"}
+           "FLEETPLAN_MOCK_SETTLE_S": "0.5",
+           "FLEETPLAN_VEHICLE_THREAD_PRIORITY": args.priority}
     log = (workdir / f"serve-{port}.log").open("wb")
     server = subprocess.Popen(
         [sys.executable, "-m", "gcs.cli.main", "serve", "--host", "127.0.0.1", "--port",
@@ -181,6 +182,9 @@ def main() -> None:
     parser.add_argument("--streams", type=int, default=200)
     parser.add_argument("--plans", type=int, default=20)
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--priority", choices=("ordinary", "realtime"), default="realtime",
+                        help="the service's vehicle_thread_priority (realtime: SCHED_RR 1 "
+                             "for the vehicle process's thread, where allowed)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="fleetplan-fanout-") as tmp:
         runs = [asyncio.run(one_run(args, Path(tmp))) for _ in range(args.repeat)]
@@ -197,7 +201,8 @@ def main() -> None:
         "benchmark": "fanout",
         "scenario": {"vehicles": VEHICLES, "rate_hz": 50, "flight": "paper-circle8",
                      "exports": args.exports, "export": "circle16 CSV at 100 Hz",
-                     "streams": args.streams, "plans": args.plans, "repeat": args.repeat},
+                     "streams": args.streams, "plans": args.plans, "repeat": args.repeat,
+                     "vehicle_thread_priority": args.priority},
         "median": median,
         "floors": {"completed": all(f["status"] == "completed" for f in flights),
                    "link_losses": sum(f["link_losses"] for f in flights),

@@ -14,6 +14,8 @@
   - `PreflightFailed`: the pre-flight gate found a vehicle unfit to fly (battery, unhealthy
     sensors, link loss, missing); carries `vehicle` and `problems`.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
+  - `ExportError` (also a `FieldError`): a plan cannot be written in the asked format (a step
+    the format cannot time), or an export option is invalid; `field` names which.
   - `FlightAborted` (alias `MissionAborted`): the flight stopped before completing (abort(),
     a fault policy, Ctrl-C); `reason` says why. The vehicles were sent to hold or land
     before this is raised.
@@ -27,11 +29,14 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from planner.errors import FieldError
 
 __all__ = [
     "ArmingRefused",
     "CommandError",
+    "ExportError",
     "FleetFileError",
     "FlightAborted",
     "GcsError",
@@ -51,6 +56,19 @@ __all__ = [
 
 class GcsError(Exception):
     """Base class of the GCS's errors."""
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled with its attributes, whatever its constructor takes: errors raised in the
+        flight's process reach the service as they were raised (`gcs.flight.vehicle_process`)."""
+        return (_rebuild, (type(self), self.args, self.__dict__))
+
+
+def _rebuild(cls: type[GcsError], args: tuple[Any, ...], state: dict[str, Any]) -> GcsError:
+    """A pickled `GcsError` as it was (its constructor is not called again)."""
+    error = cls.__new__(cls)
+    error.args = args
+    error.__dict__.update(state)
+    return error
 
 
 class FleetFileError(GcsError, FieldError):
@@ -100,6 +118,10 @@ class ModeRefused(CommandError):
 
 class PlanRejected(GcsError):
     """The plan may not be flown."""
+
+
+class ExportError(GcsError, FieldError):
+    """A plan cannot be exported as asked: `field` names the plan field or export option."""
 
 
 class FlightAborted(GcsError):

@@ -10,7 +10,8 @@ origin, which is where it started (its home), so it differs from vehicle to vehi
 R_ENU_TO_NED swaps x and y and negates z; it is symmetric and its own inverse. This module is
 the only place in `gcs` where frames are converted, including headings (ENU yaw is measured
 from +x east counter-clockwise, NED yaw from north clockwise) and geodetic coordinates (WGS84),
-which place a vehicle's home in the world frame from the origin it reports.
+which place a vehicle's home in the world frame from the origin it reports, and the show
+frame that a Skybrush show file (`gcs.export.skyc`) is written in.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from planner.types import FloatArray
 
 __all__ = [
     "R_ENU_TO_NED",
+    "SHOW_AXES",
+    "SHOW_ORIENTATION_DEG",
     "Geodetic",
     "enu_to_geodetic",
     "geodetic_to_enu",
@@ -31,6 +34,7 @@ __all__ = [
     "ned_vector_to_world",
     "ned_yaw_to_world",
     "world_to_ned",
+    "world_to_show",
     "world_vector_to_ned",
     "world_yaw_to_ned",
 ]
@@ -147,3 +151,21 @@ def enu_to_geodetic(p_enu: ArrayLike, origin: Geodetic) -> Geodetic:
     """Inverse of `geodetic_to_enu`."""
     ecef = _to_ecef(origin) + _ecef_to_enu_matrix(origin).T @ np.asarray(p_enu, dtype=float)
     return _from_ecef(ecef)
+
+
+# ------------------------------------------------------------------------ show frame
+
+#: Skybrush's show coordinate system: a flat-Earth frame, right-handed and z up ("nwu": x
+#: along the show's heading, y 90 degrees to its left, z up), placed on the Earth by an origin
+#: and the heading of its x axis from north towards east (degrees). Its z is the height above
+#: the origin, as the world frame's z.
+SHOW_AXES = "nwu"
+#: The heading of the show frame's x axis, degrees from north towards east: with x pointing
+#: east, y points north, so the show frame is the world frame (ENU) itself.
+SHOW_ORIENTATION_DEG = 90.0
+
+
+def world_to_show(p_world: ArrayLike) -> FloatArray:
+    """World (ENU) positions in the show frame of `SHOW_AXES` at `SHOW_ORIENTATION_DEG`: the
+    same numbers (x east, y north, z up), so a show file needs no rotation; (..., 3)."""
+    return np.array(p_world, dtype=float)

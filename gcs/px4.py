@@ -32,6 +32,7 @@ __all__ = [
     "OFFBOARD_VEHICLE_BASE_PORT",
     "POSITION",
     "RTL",
+    "TAKEOFF",
     "MainMode",
     "Px4Mode",
     "decode_custom_mode",
@@ -112,6 +113,7 @@ HOLD = Px4Mode(MainMode.AUTO, 3)  # AUTO.LOITER, "Hold" in QGroundControl
 LAND = Px4Mode(MainMode.AUTO, 6)  # AUTO.LAND
 POSITION = Px4Mode(MainMode.POSCTL)
 RTL = Px4Mode(MainMode.AUTO, 5)  # AUTO.RTL: return to launch (fleet command)
+TAKEOFF = Px4Mode(MainMode.AUTO, 2)  # AUTO.TAKEOFF: climb to MIS_TAKEOFF_ALT, then Hold
 
 
 def decode_custom_mode(custom_mode: int) -> Px4Mode:

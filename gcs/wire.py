@@ -52,6 +52,7 @@ __all__ = [
     "ParsedDatagram",
     "Signature",
     "SigningKey",
+    "addressed_to",
     "is_udp_url",
     "load_key",
     "mavlink",
@@ -126,6 +127,12 @@ class StatusTexts:
             del self._parts[ident]
             return "".join(parts)
         return None
+
+
+def addressed_to(msg: Any, system_id: int, component_id: int) -> bool:
+    """Whether `msg` (with target_system / target_component) is for that system and
+    component: its own system id, and its own component or 0 (every component)."""
+    return bool(msg.target_system == system_id and msg.target_component in (0, component_id))
 
 
 def time_boot_ms(seconds: float) -> int:

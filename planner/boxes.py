@@ -41,7 +41,10 @@ def _masks(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
         bounds[:, :-1, A, :] = np.abs(a) > lim.acceleration_max * fraction + extra
     jerk = np.zeros(a.shape, dtype=bool)
     if lim.jerk_max is not None:
-        change = np.abs(np.diff(a, axis=1, prepend=0.0))
+        # (p holds every vehicle of the scenario, in order)
+        before = (0.0 if scenario.start_accelerations is None
+                  else scenario.start_accelerations[:, None, :])
+        change = np.abs(np.diff(a, axis=1, prepend=before))
         jerk = change > lim.jerk_max * scenario.dt * fraction + extra
     middle = p[:, :-1] + 0.5 * scenario.dt * v[:, :-1]
     wall_rows = (middle < lim.position_min + wall) | (middle > lim.position_max - wall)

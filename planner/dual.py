@@ -29,7 +29,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from planner.first_qp import unit_profile
+from planner.first_qp import straight_moves_of
 from planner.qp import A, BoxMask, P, SeparationRows, V
 from planner.scenario import Scenario
 from planner.solvers import FAILED, INFEASIBLE, MAX_ITER, SOLVED
@@ -103,10 +103,11 @@ class DualOutcome:
     iterations: int
 
 
-def _box_rows(scenario: Scenario, fn: Functionals, boxes: BoxMask
+def _box_rows(scenario: Scenario, fn: Functionals, boxes: BoxMask, members: IntArray
               ) -> tuple[IntArray, IntArray, IntArray, FloatArray, FloatArray]:
     """One-sided rows (vehicle, functional, axis, sign, rhs) for every finite side of every
-    box in the mask: sign * g >= rhs."""
+    box in the mask: sign * g >= rhs. The jerk functional takes a[-1] = 0, so the first
+    step's jerk box is shifted by each vehicle's acceleration before the start."""
     lim = scenario.limits
     inf3 = np.full(3, np.inf)
     vmax = inf3 if lim.velocity_max is None else lim.velocity_max
@@ -122,7 +123,8 @@ def _box_rows(scenario: Scenario, fn: Functionals, boxes: BoxMask
         parts.append((veh, where(k), axis, lo[axis], hi[axis]))
     if lim.jerk_max is not None:
         veh, k, axis = np.nonzero(boxes.jerk)
-        parts.append((veh, fn.jerk(k), axis, -jmax[axis], jmax[axis]))
+        before = np.where(k == 0, scenario.initial_accelerations[members][veh, axis], 0.0)
+        parts.append((veh, fn.jerk(k), axis, before - jmax[axis], before + jmax[axis]))
     veh, k, axis = np.nonzero(boxes.wall)
     parts.append((veh, fn.middle(k), axis, lim.position_min[axis], lim.position_max[axis]))
     veh = np.concatenate([x[0] for x in parts])
@@ -148,18 +150,14 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     dt, steps = scenario.dt, scenario.steps
     fn = functionals(steps, dt)
     m = len(members)
-    phi_p, phi_v, phi_a = unit_profile(steps, dt)
-    start = scenario.starts[members][:, None, :]
-    move = (scenario.goals[members] - scenario.starts[members])[:, None, :]
-    base = (start + move * phi_p[None, :, None], move * phi_v[None, :, None],
-            move * phi_a[None, :, None])
+    base = straight_moves_of(scenario, members)
     g_star = fn.values(*base, dt)
 
     # Entries: (row, vehicle, functional, coefficient vector); a row has one or two.
     n_sep = len(rows)
     f_sep = np.where(rows.kind == 0, fn.position(rows.k),
                      np.where(rows.kind == 1, fn.middle(rows.k), fn.position(rows.k + 1)))
-    b_veh, b_func, b_axis, b_sign, b_rhs = _box_rows(scenario, fn, boxes)
+    b_veh, b_func, b_axis, b_sign, b_rhs = _box_rows(scenario, fn, boxes, members)
     n_box = len(b_veh)
     n_rows = n_sep + n_box
     box_coef = np.zeros((n_box, 3))

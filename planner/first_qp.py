@@ -25,7 +25,8 @@ from planner.scenario import Scenario
 from planner.solvers import SOLVED, QPSolver
 from planner.types import FloatArray
 
-__all__ = ["FirstSolution", "solve_first_qp", "straight_moves", "unit_profile"]
+__all__ = ["FirstSolution", "solve_first_qp", "straight_moves", "straight_moves_of",
+           "unit_profile", "velocity_profile"]
 
 
 #: Slack allowed when deciding that the closed-form profile respects a box.
@@ -75,8 +76,22 @@ def unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatAr
     return _unit_profile_cached(int(steps), float(dt))
 
 
-def _solve_unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    # One fake vehicle moving from 0 to 1 on every axis; only the equalities matter here.
+@lru_cache(maxsize=32)
+def _velocity_profile_cached(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    return _solve_unit_profile(steps, dt, moving=True)
+
+
+def velocity_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(p, v, a) of the minimum-thrust move from 0 at unit velocity back to 0 at rest: the
+    part of the optimum that a start velocity adds (the optimum is linear in the start
+    state and the goal)."""
+    return _velocity_profile_cached(int(steps), float(dt))
+
+
+def _solve_unit_profile(steps: int, dt: float, moving: bool = False
+                        ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    # One fake vehicle moving from 0 to 1 on every axis (or, `moving`, from 0 at unit
+    # velocity back to 0); only the equalities matter here.
     from planner.scenario import Limits, Vehicle
 
     limits = Limits(
@@ -88,7 +103,8 @@ def _solve_unit_profile(steps: int, dt: float) -> tuple[FloatArray, FloatArray, 
         name="unit", dt=dt, steps=steps, min_separation=1.0,
         separation_scale=np.ones(3), cost_threshold=1.0, max_iterations=1, limits=limits,
         vehicles=(Vehicle("u", np.zeros(3), np.ones(3)),),
-        starts=np.zeros((1, 3)), goals=np.ones((1, 3)),
+        starts=np.zeros((1, 3)), goals=np.zeros((1, 3)) if moving else np.ones((1, 3)),
+        start_velocities=np.ones((1, 3)) if moving else None,
     )
     qp = build_group_qp(unit, np.arange(1), SeparationRows.empty())
     n = qp.size
@@ -116,19 +132,34 @@ def _profile_fits(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArra
     if lim.acceleration_max is not None:
         ok &= np.all(np.abs(a) <= lim.acceleration_max + tol, axis=(1, 2))
     if lim.jerk_max is not None:
-        da = np.diff(a, axis=1, prepend=0.0)
+        da = np.diff(a, axis=1, prepend=scenario.initial_accelerations[:, None, :])
         ok &= np.all(np.abs(da) <= lim.jerk_max * scenario.dt + tol, axis=(1, 2))
     return ok
 
 
 def straight_moves(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Every vehicle on the unit profile scaled by its move: synchronised straight
-    rest-to-rest moves (CAPT's trajectories, see `planner.assignment`), boxes ignored."""
+    rest-to-rest moves (CAPT's trajectories, see `planner.assignment`), boxes ignored; a
+    vehicle with a start velocity adds the velocity profile scaled by it (then the move is
+    no longer straight, but it is still the separation-free optimum without boxes)."""
+    return straight_moves_of(scenario, np.arange(len(scenario.vehicles)))
+
+
+def straight_moves_of(scenario: Scenario, members: NDArray[np.intp]
+                      ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """`straight_moves` of the vehicles `members` (scenario indices)."""
     phi_p, phi_v, phi_a = unit_profile(scenario.steps, scenario.dt)
-    start = scenario.starts[:, None, :]
-    move = (scenario.goals - scenario.starts)[:, None, :]
-    return (start + move * phi_p[None, :, None], move * phi_v[None, :, None],
-            move * phi_a[None, :, None])
+    start = scenario.starts[members][:, None, :]
+    move = (scenario.goals[members] - scenario.starts[members])[:, None, :]
+    p = start + move * phi_p[None, :, None]
+    v = move * phi_v[None, :, None]
+    a = move * phi_a[None, :, None]
+    if scenario.start_velocities is not None:
+        psi_p, psi_v, psi_a = velocity_profile(scenario.steps, scenario.dt)
+        v0 = scenario.start_velocities[members][:, None, :]
+        p, v, a = p + v0 * psi_p[None, :, None], v + v0 * psi_v[None, :, None], \
+            a + v0 * psi_a[None, :, None]
+    return p, v, a
 
 
 def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:

@@ -19,10 +19,15 @@ GRAVITY = 9.81
 _UP = np.array([0.0, 0.0, GRAVITY])
 
 
-def jerk_from_accelerations(accelerations: FloatArray, dt: float) -> FloatArray:
-    """(..., K, 3) jerk (a[k] - a[k-1]) / dt, with a[-1] = 0 (the vehicle starts hovering)."""
+def jerk_from_accelerations(accelerations: FloatArray, dt: float,
+                            initial: FloatArray | None = None) -> FloatArray:
+    """(..., K, 3) jerk (a[k] - a[k-1]) / dt, with a[-1] = `initial` ((..., 3): the
+    acceleration before the start), or 0 (the vehicle starts hovering)."""
     a = np.asarray(accelerations, dtype=float)
-    previous = np.concatenate([np.zeros_like(a[..., :1, :]), a[..., :-1, :]], axis=-2)
+    before = (np.zeros_like(a[..., :1, :]) if initial is None
+              else np.broadcast_to(np.asarray(initial, dtype=float)[..., None, :],
+                                   a[..., :1, :].shape))
+    previous = np.concatenate([before, a[..., :-1, :]], axis=-2)
     return (a - previous) / dt
 
 

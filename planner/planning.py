@@ -52,7 +52,7 @@ def plan(
     guess = straight_moves(work) if spec.assignment == "free" else None
     outcome = run_scp(work, backend, options, progress, guess)
     p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
-    jerk = jerk_from_accelerations(a, spec.dt)
+    jerk = jerk_from_accelerations(a, spec.dt, spec.start_accelerations)
     f = thrust(a)
     rates = body_rates(a, jerk)
     times: FloatArray = np.arange(spec.steps + 1, dtype=np.float64) * spec.dt

@@ -221,7 +221,8 @@ def build_group_qp(
     ]
     starts = scenario.starts[members].reshape(-1)  # chain order: vehicle-major, axis
     goals = scenario.goals[members].reshape(-1)
-    bc_rhs = [starts, np.zeros(3 * m), goals, np.zeros(3 * m), np.zeros(3 * m)]
+    start_v = scenario.initial_velocities[members].reshape(-1)
+    bc_rhs = [starts, start_v, goals, np.zeros(3 * m), np.zeros(3 * m)]
     base = 2 * n_dyn
     for idx, col in enumerate(bc_cols):
         rows.append(base + idx * 3 * m + chains)
@@ -231,7 +232,8 @@ def build_group_qp(
     A_eq = _coo(rows, cols, vals, (n_eq, n))
     b = np.concatenate([np.zeros(2 * n_dyn), *bc_rhs])
 
-    # --- inequality rows: jerk (a_k - a_{k-1} within +-jmax dt, a_{-1} = 0), then separation.
+    # --- inequality rows: jerk (a_k - a_{k-1} within +-jmax dt, a_{-1} the acceleration
+    # before the start), then separation.
     g_rows: list[IntArray] = []
     g_cols: list[IntArray] = []
     g_vals: list[FloatArray] = []
@@ -251,8 +253,11 @@ def build_group_qp(
         g_cols += [lay.index(jk[later] - 1, veh[jv[later]], A, axis[jv[later]])]
         g_vals += [-np.ones(int(later.sum()))]
         bound = (limits.jerk_max * dt)[axis[jv]]
-        h_l_parts.append(-bound)
-        h_u_parts.append(bound)
+        # the first step's row bounds a_0 alone: shift it by the acceleration before the start
+        before = np.where(later, 0.0,
+                          scenario.initial_accelerations[members][veh[jv], axis[jv]])
+        h_l_parts.append(before - bound)
+        h_u_parts.append(before + bound)
 
     n_wall = 0
     if boxes.wall.any():

@@ -48,7 +48,8 @@ class VehicleTrajectory:
     acceleration: FloatArray
     """(K, 3) accelerations, constant over each step (m/s^2)."""
     jerk: FloatArray
-    """(K, 3) jerk (a[k] - a[k-1]) / dt with a[-1] = 0: the vehicle starts hovering (m/s^3)."""
+    """(K, 3) jerk (a[k] - a[k-1]) / dt with a[-1] the vehicle's start acceleration (0: it
+    starts hovering) (m/s^3)."""
     thrust: FloatArray
     """(K,) mass-normalised thrust ||a + g|| (m/s^2), paper eq. 14."""
     body_rates: FloatArray

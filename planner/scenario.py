@@ -65,7 +65,7 @@ _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
     "thrust_min", "thrust_max", "body_rate_max",
 }
-_VEHICLE_KEYS = {"id", "start", "goal"}
+_VEHICLE_KEYS = {"id", "start", "goal", "start_velocity", "start_acceleration"}
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,8 @@ class Limits:
 
 @dataclass(frozen=True)
 class Vehicle:
-    """One vehicle's task: fly from `start` (at rest) to `goal` (at rest), world frame ENU."""
+    """One vehicle's task: fly from `start` (at rest, unless `start_velocity` says it is
+    moving) to `goal` (at rest), world frame ENU."""
 
     id: str
     """Unique vehicle id; a fleet file maps it to a vehicle."""
@@ -116,6 +117,11 @@ class Vehicle:
     """Where the vehicle starts, hovering (m)."""
     goal: FloatArray
     """Where it must arrive and stop (m)."""
+    start_velocity: FloatArray | None = None
+    """Its velocity at the start (m/s); None: at rest (the JSON omits it)."""
+    start_acceleration: FloatArray | None = None
+    """Its acceleration just before the start (m/s^2), which the first step's jerk is
+    measured from; None: hovering (the JSON omits it)."""
 
 
 @dataclass(frozen=True)
@@ -173,6 +179,24 @@ class Scenario:
         from planner.obstacles import ObstacleSet
 
         return ObstacleSet.build(self.obstacles)
+    start_velocities: FloatArray | None = field(default=None, repr=False)
+    """(N, 3) start velocities (m/s), when some vehicle has one; None: all start at rest."""
+    start_accelerations: FloatArray | None = field(default=None, repr=False)
+    """(N, 3) accelerations before the start (m/s^2), when some vehicle has one; None: 0."""
+
+    @property
+    def initial_velocities(self) -> FloatArray:
+        """(N, 3) every vehicle's velocity at the start (zeros when all start at rest)."""
+        if self.start_velocities is None:
+            return np.zeros((len(self.vehicles), 3))
+        return self.start_velocities
+
+    @property
+    def initial_accelerations(self) -> FloatArray:
+        """(N, 3) every vehicle's acceleration before the start (the first jerk's a[-1])."""
+        if self.start_accelerations is None:
+            return np.zeros((len(self.vehicles), 3))
+        return self.start_accelerations
 
     @property
     def order(self) -> IntArray:
@@ -192,7 +216,7 @@ class Scenario:
         if self.goal_order is None:
             return self
         goals = self.assigned_goals
-        vehicles = tuple(Vehicle(v.id, v.start, g)
+        vehicles = tuple(dataclasses.replace(v, goal=g)
                          for v, g in zip(self.vehicles, goals, strict=True))
         return dataclasses.replace(self, vehicles=vehicles, goals=goals, assignment="fixed",
                                    goal_order=None)
@@ -222,14 +246,21 @@ class Scenario:
             "max_iterations": self.max_iterations,
             "limits": self.limits.to_dict(),
             "assignment": self.assignment,
-            "vehicles": [
-                {"id": v.id, "start": v.start.tolist(), "goal": v.goal.tolist()}
-                for v in self.vehicles
-            ],
+            "vehicles": [_vehicle_dict(v) for v in self.vehicles],
         } | ({"separation_margin": self.separation_margin} if self.separation_margin else {}
              ) | ({"obstacle_clearance": self.clearance,
                    "obstacles": [o.to_dict() for o in self.obstacles]}
                   if self.obstacles or self.obstacle_clearance is not None else {})
+
+
+def _vehicle_dict(v: Vehicle) -> dict[str, Any]:
+    """One vehicle's JSON; the start state only where it was given."""
+    out: dict[str, Any] = {"id": v.id, "start": v.start.tolist(), "goal": v.goal.tolist()}
+    if v.start_velocity is not None:
+        out["start_velocity"] = v.start_velocity.tolist()
+    if v.start_acceleration is not None:
+        out["start_acceleration"] = v.start_acceleration.tolist()
+    return out
 
 
 # --------------------------------------------------------------------------- parsing helpers
@@ -364,10 +395,13 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
                     f"{point.tolist()} lies outside the workspace on axis {'xyz'[axis]} "
                     f"[{limits.position_min[axis]:g}, {limits.position_max[axis]:g}]",
                 )
-        vehicles.append(Vehicle(vid, start, goal))
+        vehicles.append(Vehicle(vid, start, goal,
+                                *_start_state(raw, where, limits)))
 
     starts = np.array([v.start for v in vehicles])
     goals = np.array([v.goal for v in vehicles])
+    start_velocities = _stack_given([v.start_velocity for v in vehicles])
+    start_accelerations = _stack_given([v.start_acceleration for v in vehicles])
     for label, points in (("start", starts), ("goal", goals)):
         if len(points) < 2:
             continue
@@ -396,6 +430,9 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     targets = goals if goal_order is None else goals[goal_order]
     need = minimum_transfer_time(targets - starts, limits.velocity_max,
                                  limits.acceleration_max)
+    if start_velocities is not None:
+        # a rest-to-rest bound says nothing about a vehicle already moving: the QP judges it
+        need[np.any(start_velocities != 0.0, axis=1)] = 0.0
     worst_vehicle, worst_axis = np.unravel_index(int(np.argmax(need)), need.shape)
     if need[worst_vehicle, worst_axis] > usable + 1e-9:
         culprit = worst_vehicle if goal_order is None else int(goal_order[worst_vehicle])
@@ -424,6 +461,35 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         assignment=assignment,
         goal_order=goal_order,
         separation_margin=margin,
+        start_velocities=start_velocities,
+        start_accelerations=start_accelerations,
         obstacles=obstacles,
         obstacle_clearance=clearance if "obstacle_clearance" in data or obstacles else None,
     )
+
+
+def _start_state(raw: Mapping[str, Any], where: str, limits: Limits
+                 ) -> tuple[FloatArray | None, FloatArray | None]:
+    """A vehicle's optional `start_velocity` and `start_acceleration`, each finite and inside
+    the scenario's velocity / acceleration box (a start outside it cannot be planned from)."""
+    out: list[FloatArray | None] = []
+    for key, box, unit in (("start_velocity", limits.velocity_max, "m/s"),
+                           ("start_acceleration", limits.acceleration_max, "m/s^2")):
+        if raw.get(key) is None:
+            out.append(None)
+            continue
+        value = check_vector(raw[key], f"{where}.{key}")
+        if box is not None and np.any(np.abs(value) > box):
+            axis = int(np.argmax(np.abs(value) - box))
+            raise ScenarioError(f"{where}.{key}",
+                                f"{value[axis]:g} {unit} on axis {'xyz'[axis]} exceeds the "
+                                f"limit {box[axis]:g} {unit}")
+        out.append(value)
+    return out[0], out[1]
+
+
+def _stack_given(values: list[FloatArray | None]) -> FloatArray | None:
+    """(N, 3) of the given vectors (zeros where omitted), or None when none was given."""
+    if all(x is None for x in values):
+        return None
+    return np.array([np.zeros(3) if x is None else x for x in values])

@@ -188,7 +188,7 @@ class _GroupSolver:
         scenario = self.scenario
         pairs = self.codec.decode(keys)
         u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
-                       scenario.min_separation)
+                       scenario.min_separation, _moving(scenario))
         coef = u / scenario.separation_scale
         local = np.full(self.codec.n, -1, dtype=np.intp)
         local[members] = np.arange(len(members))
@@ -243,7 +243,7 @@ class _GroupSolver:
         m = len(members)
         pairs = self.codec.decode(keys)
         u = directions(lin[0], scenario.separation_scale, pairs, self.continuous,
-                       scenario.min_separation)
+                       scenario.min_separation, _moving(scenario))
         coef = u / scenario.separation_scale
         local = np.full(self.codec.n, -1, dtype=np.intp)
         local[members] = np.arange(m)
@@ -292,6 +292,11 @@ class _GroupSolver:
                 hit = np.flatnonzero(take)[result.separation_duals > ACTIVE_DUAL] % count
                 active[hit] = True
         return (p, v, a), keys[active]
+
+
+def _moving(scenario: Scenario) -> bool:
+    """Does some vehicle start moving (first intervals linearised along their chords)?"""
+    return scenario.start_velocities is not None
 
 
 def _spatial_blocks(points: FloatArray, size: int) -> list[IntArray]:
@@ -378,7 +383,7 @@ def _margins(scenario: Scenario, options: ScpOptions, lin: Trajectories, pair_i:
     n, scale, separation = len(lin[0]), scenario.separation_scale, scenario.min_separation
     if n < NEAR_MIN_VEHICLES:
         return pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous,
-                            separation) - separation
+                            separation, moving=_moving(scenario)) - separation
     half_speed, step = far_margin_bound(lin[0], lin[1], scenario.dt, scale)
     own = half_speed + step
     # Far pairs get a margin of at least FAR_SLACK * R: they are checked only once their
@@ -389,7 +394,7 @@ def _margins(scenario: Scenario, options: ScpOptions, lin: Trajectories, pair_i:
     if len(near_i):
         margin[pair_index(near_i, near_j, n)] = pair_margins(
             lin[0], lin[1], scenario.dt, scale, options.continuous, separation,
-            (near_i, near_j)) - separation
+            (near_i, near_j), _moving(scenario)) - separation
     return margin
 
 
@@ -455,7 +460,7 @@ def _solve_iteration(
         suspect = margin - moved[pair_i] - moved[pair_j] < tolerance
         violated, _ = violated_rows(
             lin[0], p, v, scenario.dt, scale, scenario.min_separation, tolerance,
-            options.continuous, (pair_i[suspect], pair_j[suspect]),
+            options.continuous, (pair_i[suspect], pair_j[suspect]), _moving(scenario),
         )
         added = np.setdiff1d(codec.encode(violated), keys)
         new_boxes = broken_boxes(scenario, p, v, a, tolerance) - boxes

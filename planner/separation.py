@@ -236,11 +236,14 @@ def _chord_closest(u: FloatArray, w: FloatArray) -> FloatArray:
     return u + tau[..., None] * chord
 
 
-def _interval_directions_all(d: FloatArray, separation: float) -> FloatArray:
-    """Unit directions (pairs, K, 3) of every interval from scaled differences (pairs, K+1, 3)."""
+def _interval_directions_all(d: FloatArray, separation: float, moving: bool = False
+                             ) -> FloatArray:
+    """Unit directions (pairs, K, 3) of every interval from scaled differences (pairs, K+1, 3);
+    `moving`: see `directions`."""
     chord = d[:, 1:] - d[:, :-1]
     u = _unit(_chord_closest(d[:, :-1], d[:, 1:]), chord, separation)
-    u[:, 0] = _unit(d[:, 0], chord[:, 0], separation)
+    if not moving:
+        u[:, 0] = _unit(d[:, 0], chord[:, 0], separation)
     u[:, -1] = _unit(d[:, -1], chord[:, -1], separation)
     return u
 
@@ -251,10 +254,14 @@ def _step_directions_all(d: FloatArray, separation: float) -> FloatArray:
 
 
 def directions(lin_positions: FloatArray, scale: FloatArray, rows: PairSteps,
-               continuous: bool, separation: float) -> FloatArray:
+               continuous: bool, separation: float, moving: bool = False) -> FloatArray:
     """(rows, 3) unit directions u (scaled space) of the rows' linearisations at `lin`.
 
-    The QP row coefficients on p_i - p_j are u / scale.
+    The QP row coefficients on p_i - p_j are u / scale. The first interval's direction is
+    that of the fixed start difference d0 (its rows at p0 then hold exactly), except with
+    `moving` starts (a scenario with start velocities): there a pair passing another near R
+    turns within the first step, d0's half-space cuts its step end, and the chord's closest
+    point (as for every other interval) is the direction its rows can hold along.
     """
     last = lin_positions.shape[1] - 1
 
@@ -268,7 +275,7 @@ def directions(lin_positions: FloatArray, scale: FloatArray, rows: PairSteps,
     after = diff(rows.k + 1)
     chord = after - here
     u = _unit(_chord_closest(here, after), chord, separation)
-    first, final = rows.k == 0, rows.k == last - 1
+    first, final = (rows.k == 0) & (not moving), rows.k == last - 1
     u[first] = _unit(here[first], chord[first], separation)
     u[final] = _unit(after[final], chord[final], separation)
     return u
@@ -299,7 +306,8 @@ def _chunks_of(i: IntArray, j: IntArray, stages: int) -> Iterator[tuple[IntArray
 
 def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
                  scale: FloatArray, continuous: bool, separation: float,
-                 pairs: tuple[IntArray, IntArray] | None = None) -> FloatArray:
+                 pairs: tuple[IntArray, IntArray] | None = None,
+                 moving: bool = False) -> FloatArray:
     """Per pair (in `all_pairs` order, or of `pairs`), the smallest value of its linearised
     rows at `lin` itself: the starting point of the pruning bound of `violated_rows`."""
     n, stages = lin_positions.shape[0], lin_positions.shape[1]
@@ -308,7 +316,7 @@ def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: floa
     chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
     for i, j in chunks:
         d = lin[i] - lin[j]
-        u = (_interval_directions_all(d, separation) if continuous
+        u = (_interval_directions_all(d, separation, moving) if continuous
              else _step_directions_all(d, separation))
         values = row_values(lin_positions, lin_velocities, dt, scale, i, j, u, continuous)
         out.append(values.min(axis=1))
@@ -327,7 +335,7 @@ def displacements(lin: tuple[FloatArray, FloatArray], current: tuple[FloatArray,
 def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: FloatArray,
                   dt: float, scale: FloatArray, separation: float, tolerance: float,
                   continuous: bool, pairs: tuple[IntArray, IntArray] | None = None,
-                  ) -> tuple[PairSteps, FloatArray]:
+                  moving: bool = False) -> tuple[PairSteps, FloatArray]:
     """Every pair-step (or pair-interval) whose linearised rows about `lin` the iterate
     violates by more than `tolerance`, with the smallest row value.
 
@@ -342,7 +350,7 @@ def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: 
     chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
     for i, j in chunks:
         d = lin[i] - lin[j]
-        u = (_interval_directions_all(d, separation) if continuous
+        u = (_interval_directions_all(d, separation, moving) if continuous
              else _step_directions_all(d, separation))
         value = row_values(positions, velocities, dt, scale, i, j, u, continuous)
         pi, kk = np.nonzero(value < separation - tolerance)

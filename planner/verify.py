@@ -15,7 +15,7 @@ import numpy as np
 
 from planner.clearance import closest_obstacle
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.result import Verification
+from planner.result import Plan, Verification
 from planner.scenario import Scenario
 from planner.separation import (
     NEAR_MIN_VEHICLES,
@@ -26,7 +26,7 @@ from planner.separation import (
 )
 from planner.types import FloatArray
 
-__all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "verify"]
+__all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "refusal", "verify"]
 
 
 #: A plan is separated when its continuous-time minimum is at least R minus this (m).
@@ -108,7 +108,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         else:
             step_min, cont_min, i, j, when = math.nan, math.nan, -1, -1, 0.0
         lo, hi = _position_extremes(p, v, a, dt)
-        jerk = jerk_from_accelerations(a, dt)
+        jerk = jerk_from_accelerations(a, dt, scenario.start_accelerations)
         f = thrust(a)
         rates = body_rates(a, jerk)
         violation = {
@@ -120,7 +120,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         }
         boundary = {
             "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
-            "start_velocity": float(np.max(np.abs(v[:, 0]))),
+            "start_velocity": float(np.max(np.abs(v[:, 0] - scenario.initial_velocities))),
             # each vehicle's own goal: the assigned one under free assignment
             "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
             "goal_velocity": float(np.max(np.abs(v[:, -1]))),
@@ -177,3 +177,20 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         bound_tolerance=BOUND_TOLERANCE,
         **obstacle,
     )
+
+
+def refusal(plan: Plan) -> str | None:
+    """Why `plan` must not be flown or handed to a show tool, checked anew on its
+    trajectories (a plan file's own verification block is only a claim: it may have been
+    edited, or written by another tool); None when it converged and verifies."""
+    if plan.status != "converged":
+        return f"its status is {plan.status!r}" + (f": {plan.message}" if plan.message else "")
+    check = verify(plan.scenario, plan.positions(), plan.velocities(), plan.accelerations())
+    if not check.verified:
+        return "it fails verification: " + "; ".join(check.failures())
+    moving = plan.scenario.start_velocities
+    if moving is not None and np.any(moving != 0.0):
+        n = int(np.flatnonzero(np.any(moving != 0.0, axis=1))[0])
+        return (f"it starts moving (vehicles[{n}].start_velocity): a flight or show starts "
+                f"from a hover at the starts")
+    return None

@@ -6,6 +6,8 @@ Imports only run downward (DESIGN.md, README "Architecture"):
 - `gcs/sim/` (the stand-in for PX4) never imports `gcs.flight`, so a wire-level mistake in our
   link is not repeated by the mock that should catch it;
 - `gcs/service/` never imports `gcs.api`, `gcs.cli` or FastAPI/Starlette;
+- `gcs/export/` (plans written in other tools' formats) imports neither the vehicle side
+  (`gcs.flight`, `gcs.sim`) nor the service, the API or the CLI, which call it;
 - the shared bottom layer (`gcs/frames.py`, `gcs/px4.py`, `gcs/wire.py`, `gcs/errors.py`)
   imports no other part of `gcs`.
 
@@ -31,6 +33,8 @@ RULES: dict[str, tuple[str, ...]] = {
     "gcs/flight": ("gcs.service", "gcs.api", "gcs.cli", "gcs.sim"),
     "gcs/sim": ("gcs.flight", "gcs.service", "gcs.api", "gcs.cli"),
     "gcs/service": ("gcs.api", "gcs.cli", "fastapi", "starlette"),
+    "gcs/export": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli", "fastapi",
+                   "starlette"),
     "gcs/frames.py": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
     "gcs/px4.py": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
     "gcs/wire.py": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),

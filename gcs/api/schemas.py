@@ -362,6 +362,7 @@ class MissionOut(MissionSummary):
         "links": {"self": "/api/missions/3f2a9c81d0b4",
                   "events": "/api/missions/3f2a9c81d0b4/events",
                   "trajectory": "/api/missions/3f2a9c81d0b4/trajectory?rate=20",
+                  "show_skyc": "/api/missions/3f2a9c81d0b4/show.skyc",
                   "executions": "/api/missions/3f2a9c81d0b4/executions"},
     }]})
 

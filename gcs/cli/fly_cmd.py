@@ -61,6 +61,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
     mock_timings.add_flags(parser, "mock-")
+    parser.add_argument("--mock-gcs-port", type=int, default=None,
+                        help="--mock: also give every vehicle a GCS link sending to this port, "
+                             "like PX4's, so QGroundControl or MAVProxy can watch the flight "
+                             "(they listen on 14550; default: none)")
     parser.add_argument("--mock-realism", choices=("ideal", "px4"), default="ideal",
                         help="--mock: ideal vehicles (default) or px4: PX4 SITL's estimate noise, "
                              "lag, timings and telemetry (see fleetplan mock --realism)")
@@ -78,15 +82,6 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "margin_check": "margin_check", "message_rates": "message_rates",
                  "stream_priority": "stream_priority"}
 
-def _is_scenario(document: object) -> bool:
-    """A scenario JSON (vehicles with start and goal, no plan status) given where a plan goes."""
-    if not isinstance(document, dict) or "status" in document:
-        return False
-    vehicles = document.get("vehicles")
-    return (isinstance(vehicles, list) and bool(vehicles) and isinstance(vehicles[0], dict)
-            and "start" in vehicles[0] and "goal" in vehicles[0])
-
-
 def run(args: argparse.Namespace) -> int:
     import asyncio
     import contextlib
@@ -96,25 +91,18 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gcs.cli.hints import port_in_use_hint
+    from gcs.cli.plan_file import read_plan
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
     from gcs.flight.flight_handle import FlightHandle
+    from gcs.flight.realtime import settle_heap
     from gcs.flight.vehicle_loop import VehicleLoop
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
-    from planner.errors import PlannerError
-    from planner.result import Plan
-
     try:
-        document = json.loads(Path(args.plan).read_text())
-        if _is_scenario(document):
-            print(f"error: {args.plan} is a scenario, not a plan: plan it first "
-                  f"(fleetplan plan {args.plan} -o PLAN.json), then fly PLAN.json",
-                  file=sys.stderr)
-            return 2
-        plan = Plan.from_dict(document)
-    except (OSError, json.JSONDecodeError, PlannerError) as exc:
-        print(f"error: cannot use plan {args.plan}: {exc}", file=sys.stderr)
+        plan = read_plan(args.plan, "fly")
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
 
     def write_record(record: dict | None) -> None:
@@ -126,6 +114,10 @@ def run(args: argparse.Namespace) -> int:
         timings = mock_timings.chosen(args, "mock-")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.mock_gcs_port is not None and not 1 <= args.mock_gcs_port <= 65535:
+        print(f"error: --mock-gcs-port must be a UDP port (1..65535), got {args.mock_gcs_port}",
+              file=sys.stderr)
         return 2
     if args.mock_settle is not None:
         if (reason := timing_error("settle_time", args.mock_settle)) is not None:
@@ -149,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
                 homes = homes_under(plan.scenario.starts)
                 mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                                  listen_base_port=args.listen_base_port,
-                                 config=MockConfig.preset(args.mock_realism, **timings))
+                                 config=MockConfig.preset(args.mock_realism, **timings),
+                                 gcs_link_port=args.mock_gcs_port)
                 await vehicles.call(mock.start)
                 fleet_dict = mock.fleet_dict(plan.scenario.ids)
                 if args.mock_position_error is not None:
@@ -176,13 +169,14 @@ def run(args: argparse.Namespace) -> int:
         interrupts = 0
         aborts: list[asyncio.Future] = []
 
-        def on_interrupt() -> None:
+        def on_interrupt(name: str = "Ctrl-C") -> None:
             nonlocal interrupts
             interrupts += 1
             if interrupts == 1:
-                print("\nCtrl-C: aborting, every vehicle lands (Ctrl-C again to quit now)",
+                print(f"\n{name}: aborting, every vehicle lands (Ctrl-C again to quit now)",
                       file=sys.stderr, flush=True)
-                aborts.append(asyncio.ensure_future(handle.abort("land", "interrupted (Ctrl-C)")))
+                aborts.append(asyncio.ensure_future(handle.abort("land",
+                                                                 f"interrupted ({name})")))
             else:
                 task.cancel()
 
@@ -199,8 +193,10 @@ def run(args: argparse.Namespace) -> int:
         def on_pause(resume: bool) -> None:
             aborts.append(asyncio.ensure_future(pause_or_resume(resume)))
 
+        settle_heap()  # this process's collections then skip the libraries (gcs.flight.realtime)
         task = handle.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
+        loop.add_signal_handler(signal.SIGTERM, on_interrupt, "SIGTERM")
         loop.add_signal_handler(signal.SIGUSR1, on_pause, False)
         loop.add_signal_handler(signal.SIGUSR2, on_pause, True)
         printer = None if args.quiet else asyncio.create_task(_progress(handle, events))
@@ -217,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
             record = handle.record
         finally:
-            for sig in (signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2):
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2):
                 loop.remove_signal_handler(sig)
             if printer is not None:
                 events.put_nowait(None)

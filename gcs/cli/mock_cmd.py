@@ -5,6 +5,8 @@ Vehicle i listens on UDP --listen-base-port + i and sends to --base-port + i on 
 --plan, or a row --spacing metres apart along x. --fleet-out writes the matching fleet file.
 --realism px4 makes them behave like PX4 v1.16 SIH SITL (noisy wandering estimate, attitude lag,
 late boot, arming refused for 3.5 s: `MockConfig.px4_like`); the default is ideal.
+--gcs-port PORT gives every vehicle a second, PX4-like GCS link sending to 127.0.0.1:PORT
+(QGroundControl and MAVProxy listen on 14550), so a ground station can watch them.
 """
 
 from __future__ import annotations
@@ -49,6 +51,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="fault: fraction of packets dropped each way (0..1)")
     parser.add_argument("--delay", type=float, default=0.0,
                         help="fault: seconds added to every packet")
+    parser.add_argument("--gcs-port", type=int, default=None,
+                        help="also give every vehicle a GCS link sending to this port, like "
+                             "PX4's (QGroundControl and MAVProxy listen on 14550; default: none)")
     parser.add_argument("--fleet-out", help="write the fleet file for these vehicles here")
     parser.add_argument("--position-error", type=float, default=None,
                         help="state this position_error (m) in the --fleet-out file (e.g. 0.25 "
@@ -102,6 +107,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.position_rate > 0.0:
         print("error: --position-rate must be above 0", file=sys.stderr)
         return 2
+    if args.gcs_port is not None and not 1 <= args.gcs_port <= 65535:
+        print(f"error: --gcs-port must be a UDP port (1..65535), got {args.gcs_port}",
+              file=sys.stderr)
+        return 2
     if not 1 <= count <= 254:  # MAVLink system ids 1..254 (255 is the GCS's)
         print(f"error: --vehicles must be between 1 and 254, got {count}", file=sys.stderr)
         return 2
@@ -117,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
             config.telemetry_profile = args.telemetry
         mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                          listen_base_port=args.listen_base_port,
-                         max_port_offset=args.max_port_offset, config=config)
+                         max_port_offset=args.max_port_offset, config=config,
+                         gcs_link_port=args.gcs_port)
         for vehicle in mock.vehicles:
             vehicle.faults.loss = args.loss
             vehicle.faults.delay = args.delay
@@ -136,6 +146,9 @@ def run(args: argparse.Namespace) -> int:
               f"{args.listen_base_port}..{args.listen_base_port + count - 1}, sending to "
               f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}; time_boot_ms 0 "
               f"at monotonic {mock.boot_monotonic:.6f}", flush=True)
+        if args.gcs_port is not None:
+            print(f"mock: GCS links send to 127.0.0.1:{args.gcs_port} (QGroundControl, "
+                  f"MAVProxy --master=udpin:127.0.0.1:{args.gcs_port})", flush=True)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):

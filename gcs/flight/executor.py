@@ -30,6 +30,11 @@ minimum separation. A flagged vehicle triggers the policy: ``hold_all`` / ``land
 flight (`FlightAborted`), ``land_faulty`` lands that vehicle and carries on (the flight then
 does not count as completed).
 
+An abort with land (or an error) while the plan is flown flies a verified landing plan first
+(`gcs.flight.landing`): planned from the plan's state `landing_plan_timeout` ahead, streamed
+like the plan, then PX4's Land at the touchdown points; PX4's Land straight away for vehicles
+that cannot be steered, or for all when no plan is ready in time.
+
 Safety: nothing is armed before `run()`; every error path ends in `vehicle.secure`, which disarms
 armed vehicles still on the ground, sends airborne ones to land (or Hold for an explicit hold
 abort), stops their streams, and waits for landed vehicles to disarm. A vehicle that does not
@@ -73,6 +78,7 @@ from gcs.flight.clock import FlightClock
 from gcs.flight.events import EventFanout
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.hub import LinkHub
+from gcs.flight.landing import PlannedLanding
 from gcs.flight.link import DECODED_IDS
 from gcs.flight.margin import check_margin
 from gcs.flight.monitor import PERIOD, FleetMonitor
@@ -86,7 +92,7 @@ from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
 from planner import Plan
-from planner.verify import verify
+from planner.verify import refusal
 
 __all__ = ["TRACKING_TOLERANCE_M", "FlightExecutor", "VehicleStatus"]
 
@@ -102,16 +108,9 @@ class FlightExecutor:
     """One flight of a plan on a fleet; see the module docstring."""
 
     def __init__(self, plan: Plan, fleet: FleetSpec, options: FlightOptions | None = None) -> None:
-        # Checked again here on the trajectories themselves: a plan file's own verification
-        # block is only a claim (it may have been edited, or written by another tool).
-        if plan.status != "converged":
-            raise PlanRejected(f"refusing to fly a plan with status {plan.status!r}: "
-                               f"{plan.message}")
-        check = verify(plan.scenario, plan.positions(), plan.velocities(),
-                       plan.accelerations())
-        if not check.verified:
-            raise PlanRejected("refusing to fly a plan that fails verification: "
-                               + "; ".join(check.failures()))
+        why = refusal(plan)  # verified again on the trajectories themselves
+        if why is not None:
+            raise PlanRejected(f"refusing to fly the plan: {why}")
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
@@ -148,7 +147,9 @@ class FlightExecutor:
         self._hub: LinkHub | None = None
         self._tracks: list[SetpointTrack] = []
         self._flow: asyncio.Task[None] | None = None
-        self._secure_task: asyncio.Future[list[BaseException | None]] | None = None
+        self._secure_task: asyncio.Future[Any] | None = None
+        self._landing: PlannedLanding | None = None
+        """The landing plan being flown after an abort with land (the monitor goes on)."""
         self._task: asyncio.Task[dict[str, Any]] | None = None
         self._pause_timer: asyncio.Future[None] | None = None
         self._yaw_ned = frames.world_yaw_to_ned(self.options.yaw)
@@ -304,7 +305,8 @@ class FlightExecutor:
                         await asyncio.sleep(0)  # its first step sets the priority
                         self._emit(None, EventKind.STREAM_PRIORITY, self.streamer.scheduling)
                     monitor = asyncio.create_task(
-                        self.monitor.run(lambda: self._abort is not None), name="flight-monitor")
+                        self.monitor.run(lambda: self._abort is not None
+                                         and self._landing is None), name="flight-monitor")
                     self._flow = asyncio.create_task(self._fly(), name="flight-flow")
                     try:
                         await self._flow
@@ -476,7 +478,23 @@ class FlightExecutor:
     def _stop_stream(self, vehicle_id: str) -> None:
         self._streamer().unassign(vehicle_id)
 
+    def _planned_landing(self, action: str) -> PlannedLanding | None:
+        """The landing plan's run for an abort with land (`gcs.flight.landing`), or None
+        when nothing flies the plan (or `landing` is px4): then PX4's Land as before."""
+        if action != "land" or self.options.landing != "planned" or self.streamer is None:
+            return None
+        landing = PlannedLanding(self.plan.scenario.assigned(), self.vehicles, self.streamer,
+                                 self.options, self._emit, self._secure_one, self.stalls)
+        return landing if landing.eligible() else None
+
+    def _secure_one(self, v: VehicleStatus) -> Awaitable[None]:
+        return vehicle.secure(v, "land", self.options, self._emit, self._stop_stream,
+                              self.stalls)
+
     async def _secure_all(self, action: str) -> None:
+        if self._secure_task is None and (landing := self._planned_landing(action)):
+            self._landing = landing
+            self._secure_task = asyncio.ensure_future(landing.run())
         if self._secure_task is None:
             # Freeze every stream where it is, so nothing moves on along the plan meanwhile.
             # (An abort can come before run() made the streamer: then nothing streams, and

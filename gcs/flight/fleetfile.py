@@ -68,6 +68,7 @@ MAX_LINK_TIMEOUT_S = 5.0
 
 __all__ = [
     "AT_END",
+    "LANDING",
     "MARGIN_CHECK",
     "PAUSE_EXPIRY",
     "POLICIES",
@@ -85,6 +86,8 @@ POLICIES = ("hold_all", "land_all", "land_faulty")
 AT_END = ("land", "hold")
 #: What the fleet does when a pause lasts longer than `pause_limit`.
 PAUSE_EXPIRY = ("land", "hold")
+#: How an abort with land lands the fleet (`FlightOptions.landing`).
+LANDING = ("planned", "px4")
 
 #: The key of the flight options, and the old name still read (with a `FleetFileWarning`).
 _OPTIONS_KEY = "flight"
@@ -182,6 +185,16 @@ class FlightOptions:
     goal_tolerance_k: float = 2.0
     """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
     position_error)."""
+    landing: str = "planned"
+    """How an abort with land (and land_faulty) lands the fleet: planned, a verified landing
+    plan flown as setpoints down to the touchdown points, then PX4's Land
+    (`gcs.flight.landing`); or px4, PX4's Land straight down where each vehicle is."""
+    landing_plan_timeout: float = 0.5
+    """The landing plan must be ready within this (s), the lead of its switch tick; the
+    streams follow the flying plan meanwhile. Not ready: PX4's Land."""
+    landing_height: float = 0.3
+    """Height of the touchdown points above the workspace floor (m), where PX4's Land
+    takes over."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = _OPTIONS_KEY) -> FlightOptions:
@@ -200,11 +213,12 @@ class FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
             if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight",
-                       "message_rates", "stream_priority"):
+                       "message_rates", "stream_priority", "landing"):
                 allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
                            "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT,
                            "message_rates": ("leave", "request"),
-                           "stream_priority": ("normal", "realtime")}[key]
+                           "stream_priority": ("normal", "realtime"),
+                           "landing": LANDING}[key]
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")
@@ -227,7 +241,7 @@ class FlightOptions:
                                  f"link, got {out.link_timeout:g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
                     "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
-                    "position_rate_hz"):
+                    "position_rate_hz", "landing_plan_timeout"):
             if getattr(out, key) <= 0:
                 raise FleetFileError(f"{where}.{key}", "must be positive")
         return out

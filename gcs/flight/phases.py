@@ -70,6 +70,10 @@ class EventKind(StrEnum):
     ERROR = "error"
     SEPARATION_ALARM = "separation_alarm"
     STATION_STALL = "station_stall"
+    LANDING_PLAN = "landing_plan"
+    """An abort with land: the steerable vehicles fly a verified landing plan."""
+    LANDING_FALLBACK = "landing_fallback"
+    """PX4's own Land instead of a landing plan (the fleet's or one vehicle's), and why."""
     # one vehicle
     HOME = "home"
     CONNECTED = "connected"

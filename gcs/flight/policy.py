@@ -1,7 +1,10 @@
 """The fault policy: what a vehicle's fault or a separation alarm does to the flight.
 
 ``land_faulty`` lands the faulty vehicle and the others fly on (the flight then does not count
-as completed); ``land_all`` / ``hold_all`` abort the flight (every vehicle lands / holds). Two
+as completed); with ``landing: planned`` (the default) a faulty vehicle that still follows
+setpoints (a tracking error) cannot simply descend through the others' airspace: the whole
+fleet lands by a verified landing plan (`gcs.flight.landing`) instead. ``land_all`` /
+``hold_all`` abort the flight (every vehicle lands / holds). Two
 vehicles about to meet is nobody's single fault: a separation alarm stops everyone where they
 are (PX4 Hold) rather than send anyone down through the others.
 """
@@ -12,6 +15,7 @@ import asyncio
 from collections.abc import Awaitable, Callable
 
 from gcs.flight.fleetfile import FlightOptions
+from gcs.flight.landing import STEERABLE_FAULTS
 from gcs.flight.phases import EventKind, VehiclePhase
 from gcs.flight.vehicle import Emit, VehicleStatus
 from gcs.tasks import TaskSet
@@ -46,6 +50,13 @@ class FaultPolicy:
         v.phase = VehiclePhase.FAULTY
         policy = self.options.policy
         self.emit(v.id, EventKind.FAULT, f"{kind}: {detail} -> policy {policy}")
+        if policy == "land_faulty" and self.options.landing == "planned":
+            if kind in STEERABLE_FAULTS:  # it follows setpoints: everyone lands by a plan
+                self.tasks.spawn(self.abort("land", f"{v.id} {kind} ({detail}): land_faulty "
+                                                    f"lands the fleet by a landing plan"))
+                return
+            self.emit(v.id, EventKind.LANDING_FALLBACK, f"PX4 Land: cannot be steered "
+                                                        f"(fault {kind}); the others fly on")
         if policy == "land_faulty":
             self.landings.append(self.tasks.spawn(self.land(v)))
         else:

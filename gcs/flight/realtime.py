@@ -11,10 +11,11 @@ processes anyway (sched_rt_runtime_us).
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 from dataclasses import dataclass
 
-__all__ = ["REALTIME", "Scheduling", "enter_realtime", "leave_realtime"]
+__all__ = ["REALTIME", "Scheduling", "enter_realtime", "leave_realtime", "settle_heap"]
 
 #: How a thread that got real-time scheduling reports it.
 REALTIME = "SCHED_RR 1"
@@ -51,3 +52,16 @@ def leave_realtime(scheduling: Scheduling) -> None:
     if scheduling.previous is not None:
         with contextlib.suppress(OSError):
             os.sched_setscheduler(0, *scheduling.previous)
+
+
+def settle_heap() -> None:
+    """Collect the heap once and freeze what is left, before a flight streams.
+
+    Python's oldest-generation collection walks every tracked object of the process: with the
+    imported libraries (numpy, pymavlink, the planner) that is 100-160 ms, in which no tick is
+    sent, once every few seconds of a 50 Hz flight (measured: 27-37 missed ticks in a 30 s
+    8-vehicle flight, real-time priority or not). Frozen objects are never walked again (they
+    are still freed by reference counting), so later collections see only what the flight
+    itself allocates."""
+    gc.collect()
+    gc.freeze()

@@ -40,6 +40,8 @@ __all__ = [
 
 
 DEFAULT_RATE_HZ = 20.0
+#: One 3-vector of a setpoint (x, y, z).
+Vec3 = tuple[float, float, float]
 MAX_RATE_HZ = 100.0
 
 
@@ -78,7 +80,7 @@ class Setpoint:
 class SetpointTrack:
     """One vehicle's setpoints at ticks 0..M-1 of a `rate` Hz stream (LOCAL_NED)."""
 
-    __slots__ = ("acceleration", "position", "rate", "velocity", "yaw")
+    __slots__ = ("_ticks", "acceleration", "position", "rate", "velocity", "yaw")
 
     def __init__(self, position: ArrayLike, velocity: ArrayLike, acceleration: ArrayLike,
                  yaw: float, rate: float) -> None:
@@ -91,6 +93,14 @@ class SetpointTrack:
             raise ValueError("position, velocity and acceleration must have the same shape")
         if self.position.ndim != 2 or self.position.shape[1] != 3 or len(self.position) == 0:
             raise ValueError("a track needs arrays of shape (M, 3) with M >= 1")
+        # Each tick's values as Python floats, made once: a setpoint built from them costs
+        # no numpy indexing per tick, and the flight record it lands in pickles and
+        # serialises as plain floats (numpy scalars pickle ten times slower, which the
+        # vehicle process paid holding its interpreter lock).
+        rows = zip(self.position.tolist(), self.velocity.tolist(), self.acceleration.tolist(),
+                   strict=True)
+        self._ticks: list[tuple[Vec3, Vec3, Vec3]] = [
+            ((p[0], p[1], p[2]), (v[0], v[1], v[2]), (a[0], a[1], a[2])) for p, v, a in rows]
 
     def __len__(self) -> int:
         return len(self.position)
@@ -108,10 +118,10 @@ class SetpointTrack:
         """The setpoint for `tick`; before 0 the first position at rest, past the end the final
         position at rest (as `planner.dynamics.interpolate` does outside the horizon)."""
         if tick >= len(self) or tick < 0:
-            p = self.position[-1] if tick >= 0 else self.position[0]
-            return Setpoint((p[0], p[1], p[2]), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), self.yaw)
-        p, v, a = self.position[tick], self.velocity[tick], self.acceleration[tick]
-        return Setpoint((p[0], p[1], p[2]), (v[0], v[1], v[2]), (a[0], a[1], a[2]), self.yaw)
+            p = self._ticks[-1 if tick >= 0 else 0][0]
+            return Setpoint(p, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), self.yaw)
+        p, v, a = self._ticks[tick]
+        return Setpoint(p, v, a, self.yaw)
 
 
 def plan_tracks(plan: Any, homes_world: Sequence[ArrayLike] | ArrayLike, rate: float,

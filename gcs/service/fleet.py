@@ -4,8 +4,8 @@ sent to the vehicles between flights.
 `Fleet` owns one fleet: the vehicles of a fleet file (real PX4 or SITL), or mock PX4 vehicles
 running in-process (`gcs.sim.MockFleet`), or none. Between flights it keeps a listen-only
 MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live link state;
-a flight closes the monitor and takes the connections (`gcs.service.flights`). Everything
-here but `describe` runs on the vehicle loop (`gcs.flight.vehicle_loop`). Mock vehicles
+a flight closes the monitor and takes the connections (`gcs.service.vehicle_host`). It lives
+in the vehicle process, on its vehicle loop (`gcs.flight.vehicle_process`). Mock vehicles
 are set down under a plan's starts before each flight (as ``fleetplan fly --mock`` does);
 vehicles the plan does not use are parked beside its workspace. `command` sends a fleet
 command (`gcs.flight.commands`: hold, land, rtl, disarm, terminate) over the monitor's
@@ -34,12 +34,19 @@ from gcs.sim import MockConfig, MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports
 from planner import Plan
 
-__all__ = ["Fleet", "FleetKind"]
+__all__ = ["Fleet", "FleetKind", "fleet_kind"]
 
 log = logging.getLogger(__name__)
 
 #: Where the fleet comes from: a fleet file, the in-process mocks, or nothing.
 FleetKind = Literal["file", "mock", "none"]
+def fleet_kind(settings: Settings) -> FleetKind:
+    """Where the settings' fleet comes from: a fleet file, else the mocks, else nothing."""
+    if settings.fleet_file is not None:
+        return "file"
+    return "mock" if settings.mock_vehicles > 0 else "none"
+
+
 #: A just-stopped mock fleet's sockets close on a later loop iteration: start attempts, gap.
 MOCK_START_ATTEMPTS = 20
 MOCK_START_RETRY_S = 0.05
@@ -50,13 +57,7 @@ class Fleet:
 
     def __init__(self, settings: Settings) -> None:
         self._settings = settings
-        self.kind: FleetKind
-        if settings.fleet_file is not None:
-            self.kind = "file"
-        elif settings.mock_vehicles > 0:
-            self.kind = "mock"
-        else:
-            self.kind = "none"
+        self.kind: FleetKind = fleet_kind(settings)
         self.spec: FleetSpec | None = None
         """The fleet as a fleet file describes it (the mocks' own, for a mock fleet)."""
         self.mock: MockFleet | None = None

@@ -1,16 +1,16 @@
 """The fleet's flights (executions): fly, pause, resume, abort, and the run of one flight
 from its start to its stored record.
 
-`FleetService` owns the configured fleet (`gcs.service.fleet.Fleet`) and its one active
-flight: the fleet is one set of aircraft. Everything that talks to vehicles runs apart from the
-service's event loop, on the vehicle loop (`gcs.flight.vehicle_loop.VehicleLoop`, its own
-thread): the fleet (mocks, monitor links, fleet commands) and each flight's
-`gcs.flight.executor.FlightExecutor`, driven through a `gcs.flight.flight_handle.FlightHandle`
-(start, pause, resume, abort, snapshots, events). So no request handler, export, event stream,
-planning job or store write on the service's loop can delay a setpoint tick. For a flight it
-closes the fleet's monitor and hands the connections to the executor; the flight's state
-lives in a `LiveExecution` (`gcs.service.live_flight`) and is journaled to the store while it
-flies (`gcs.service.journal`).
+`FleetService` drives the configured fleet and its one active flight: the fleet is one set of
+aircraft. Everything that talks to vehicles runs in a process of its own, the vehicle process
+(`gcs.flight.vehicle_process.VehicleProcess`): the fleet (mocks, monitor links, fleet
+commands) and each flight's `gcs.flight.executor.FlightExecutor`, hosted there by
+`gcs.service.vehicle_host.FleetHost` and reached through its methods (start, pause, resume,
+abort, snapshots, events, the record). So no request handler, export, event stream, planning
+job or store write of the service can delay a setpoint tick, not even by holding the
+interpreter's lock. The flight's state lives here in a `LiveExecution`
+(`gcs.service.live_flight`), its handle is a `gcs.service.remote_flight.RemoteFlight`, and it
+is journaled to the store while it flies (`gcs.service.journal`).
 
 Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions), which first
 applies the pre-flight gate (`gcs.flight.health`) and the fleet's separation margin
@@ -23,23 +23,25 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
-from collections.abc import Awaitable, Callable
 from datetime import UTC, datetime
 from typing import Any
 
 from gcs.errors import GcsError, MissionAborted, StateConflict
 from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.flight_handle import FlightHandle
 from gcs.flight.phases import EventKind
-from gcs.flight.vehicle_loop import VehicleLoop, VehicleLoopStopped
-from gcs.service.fleet import Fleet
-from gcs.service.journal import ExecutionJournal, record_snapshot, store_failure, write_final
+from gcs.flight.vehicle_loop import VehicleLoopStopped
+from gcs.flight.vehicle_process import VehicleProcess
+from gcs.service.fleet import FleetKind, fleet_kind
+from gcs.service.journal import ExecutionJournal, store_failure, write_final
 from gcs.service.live_flight import LiveExecution, execution_document
+from gcs.service.remote_flight import RemoteFlight
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.storage_faults import storage_reason
 from gcs.service.store import ExecutionRow, Store
+from gcs.service.vehicle_host import PRELOAD, FleetHost
 from gcs.tasks import TaskSet
 from planner import Plan
 
@@ -54,6 +56,8 @@ FINISHED = EXECUTION_FINISHED
 TELEMETRY_HZ = 5.0
 #: How long closing the service waits for an aborted flight to land (s).
 CLOSE_LANDING_S = 60.0
+#: How the service names its vehicle process.
+PROCESS_NAME = "fleetplan-vehicles"
 #: First and longest wait between retries of an ended flight's final write (s).
 STORE_RETRY_S = 1.0
 STORE_RETRY_MAX_S = 10.0
@@ -64,11 +68,14 @@ class FleetService:
 
     def __init__(self, settings: Settings, store: Store) -> None:
         self._store = store
-        self.vehicle_loop = VehicleLoop(realtime=settings.vehicle_thread_priority == "realtime")
-        """The thread everything that talks to vehicles runs on (fleet, mocks, flights)."""
-        self.fleet = Fleet(settings)
-        """The vehicles (file, mock or none) and their monitor links; used on the vehicle
-        loop only (`describe` excepted)."""
+        self.vehicle_process = VehicleProcess(
+            functools.partial(FleetHost, settings=settings), name=PROCESS_NAME,
+            realtime=settings.vehicle_thread_priority == "realtime",
+            on_notice=self._on_notice, preload=PRELOAD)
+        """The process everything that talks to vehicles runs in (fleet, mocks, flights)."""
+        self._kind: FleetKind = fleet_kind(settings)
+        self._described: dict[str, Any] = {"kind": self._kind, "vehicles": 0, "ids": [],
+                                           "world_origin": None}
         self._flights: dict[str, LiveExecution] = {}
         self._active: LiveExecution | None = None
         self._tasks = TaskSet()
@@ -78,17 +85,17 @@ class FleetService:
     @property
     def kind(self) -> str:
         """Where the fleet comes from: file, mock or none."""
-        return self.fleet.kind
+        return self._kind
 
     # ------------------------------------------------------------------ lifecycle
 
     async def start(self) -> None:
-        """Start the vehicle loop, load the fleet (or start the mocks there) and watch its
-        links."""
-        self.vehicle_loop.start()
-        if self.vehicle_loop.scheduling != "ordinary":
-            log.info("vehicle loop scheduling: %s", self.vehicle_loop.scheduling)
-        await self.vehicle_loop.call(self.fleet.start)
+        """Start the vehicle process, where the fleet is loaded (or the mocks started) and
+        its links watched."""
+        await self.vehicle_process.start()
+        if self.vehicle_process.scheduling != "ordinary":
+            log.info("vehicle process scheduling: %s", self.vehicle_process.scheduling)
+        self._described = await self.vehicle_process.call("describe")
 
     async def close(self) -> None:
         """Land an active flight (waiting for it up to a minute), then release everything
@@ -102,12 +109,7 @@ class FleetService:
                 await asyncio.wait_for(flight.done.wait(), CLOSE_LANDING_S)
         self._tasks.cancel_all()
         await self._tasks.wait(timeout=10.0)  # let cancelled flights store what they have
-        if self.vehicle_loop.alive:
-            try:
-                await self.vehicle_loop.call(self.fleet.close)
-            except Exception:
-                log.exception("could not close the fleet")
-        await asyncio.to_thread(self.vehicle_loop.stop)
+        await self.vehicle_process.stop()  # its host lands what still flies, then the fleet
 
     # ------------------------------------------------------------------ state
 
@@ -115,18 +117,19 @@ class FleetService:
         """kind (mock, file or none), vehicle count and ids, the flight under way, and the
         geodetic origin of the world frame when known, so a page can show coordinates and a
         scale without map tiles."""
-        described = self.fleet.describe()
+        described = self._described
         return {**described, "flying": None if self._active is None else self._active.id}
 
     async def vehicles(self) -> list[dict[str, Any]]:
         """Every vehicle's live link state: from the flight under way, else from the
         monitor (heartbeat age, mode, armed, world-frame position when the home is known),
-        read on the vehicle loop."""
+        read in the vehicle process."""
         flight = self._active
         snapshot = flight.snapshot() if flight is not None else None
         if snapshot is not None:
             return [{**v, "link": "flight"} for v in snapshot["vehicles"]]
-        return await self.vehicle_loop.run(self.fleet.monitored)
+        monitored: list[dict[str, Any]] = await self.vehicle_process.call("monitored")
+        return monitored
 
     def flight(self, execution_id: str) -> LiveExecution | None:
         """The flight while it is under way, or ended and waiting for the store to take its
@@ -150,8 +153,9 @@ class FleetService:
         [outcome...]} once every vehicle answered or timed out."""
         async with self._lock:
             self._check_not_flying("use its abort (or pause) instead of a fleet command")
-            return await self.vehicle_loop.call(lambda: self.fleet.command(
-                command, vehicles, force=force, confirm=confirm))
+            outcome: dict[str, Any] = await self.vehicle_process.call(
+                "command", command, vehicles, force=force, confirm=confirm)
+            return outcome
 
     def _check_not_flying(self, while_flying: str) -> None:
         if self.active is not None:
@@ -167,8 +171,7 @@ class FleetService:
         """
         async with self._lock:
             self._check_not_flying("abort it or wait for it to end")
-            flight_options = await self.vehicle_loop.run(
-                lambda: self.fleet.flight_options(plan, options))
+            flight_options = await self.vehicle_process.call("flight_options", plan, options)
             label = f"{self.kind}: {', '.join(plan.scenario.ids)}"
             row = await asyncio.to_thread(self._store.create_execution, mission_id, label)
             flight = LiveExecution(row.id, mission_id)
@@ -226,29 +229,25 @@ class FleetService:
     async def _run(self, flight: LiveExecution, plan: Plan, options: FlightOptions) -> None:
         record: dict[str, Any] | None = None
         ticker: asyncio.Task[None] | None = None
-        task: asyncio.Future[dict[str, Any]] | None = None
-        vehicles = self.vehicle_loop
+        flying = False
+        process = self.vehicle_process
         # State, events and the record so far are stored about every second while flying,
-        # so a crash keeps them; the record is copied on the vehicle loop that appends to it.
+        # so a crash keeps them; the record so far is mirrored from the vehicle process.
         journal = ExecutionJournal(self._store, flight.id, lambda: (
-            flight.status, flight.events, _record_copy(flight.handle)))
+            flight.status, flight.events,
+            None if flight.handle is None else flight.handle.record_so_far))
         journal.start()
         try:
-            await vehicles.call(self.fleet.close_monitor)
-            if self.kind == "mock":
-                await vehicles.call(lambda: self.fleet.rehome_mock(plan))
-            spec = await vehicles.run(self.fleet.configured)
-            handle = await FlightHandle.create(
-                vehicles, plan, spec, options, snapshot_hz=TELEMETRY_HZ,
-                on_event=lambda event: self._on_event(flight, event))
+            handle = RemoteFlight(process, flight.id)
+            self._described = await process.call("fly", flight.id, plan, options, TELEMETRY_HZ)
+            flying = True
             flight.handle = handle
             ticker = asyncio.create_task(self._telemetry(flight, handle))
-            task = handle.start()
             if flight.abort_requested is not None:  # aborted while starting
                 await handle.abort(flight.abort_requested, "operator abort")
             else:
                 flight.set_status(ExecutionStatus.RUNNING)
-            record = await task
+            record = await handle.result()
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))
             flight.status = (ExecutionStatus.COMPLETED if completed
@@ -256,9 +255,8 @@ class FleetService:
         except MissionAborted as exc:
             flight.status, flight.error = ExecutionStatus.ABORTED, str(exc)
         except VehicleLoopStopped as exc:
-            # The vehicle thread's loop ended: its cleanup cancels the flight (which sends
-            # every vehicle to land), nothing streams any more (PX4's offboard-loss failsafe
-            # lands a vehicle that missed the command); the operator must look at them.
+            # The vehicle process ended: nothing streams any more (PX4's offboard-loss
+            # failsafe lands the vehicles); the operator must look at them.
             log.critical("execution %s: %s; the setpoint stream has stopped, check the fleet",
                          flight.id, exc)
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
@@ -271,12 +269,12 @@ class FleetService:
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("execution %s failed", flight.id)
             flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
-            if task is not None and not task.done() and flight.handle is not None:
+            if flying and flight.handle is not None and flight.handle.record is None:
                 # never leave a flight going on its own: land everyone, then wait for it
                 with contextlib.suppress(Exception):
                     await flight.handle.abort("land", f"service error: {type(exc).__name__}")
                 with contextlib.suppress(BaseException):
-                    await task
+                    await flight.handle.result()
         finally:
             if ticker is not None:
                 ticker.cancel()
@@ -299,11 +297,6 @@ class FleetService:
                                     flight.events)
             else:
                 self._tasks.spawn(self._store_later(flight, record))
-            if vehicles.alive:
-                try:
-                    await vehicles.call(self.fleet.open_monitor)
-                except VehicleLoopStopped:
-                    log.error("the vehicle loop stopped: the fleet is not watched")
 
     async def _store_final(self, flight: LiveExecution, record: dict[str, Any] | None) -> bool:
         """One try at the flight's final write; on failure the reason is kept on the flight
@@ -344,8 +337,23 @@ class FleetService:
         return (f"the flight ({flight.status}) could not be stored before the service "
                 f"stopped: {flight.unstored}")[:500]
 
+    def _on_notice(self, kind: str, data: dict[str, Any]) -> None:
+        """What the vehicle process tells, on this loop: a flight's event or snapshot, or its
+        own end."""
+        if kind == "ended":
+            if not self._closing:
+                log.critical("%s: the fleet is not watched and no flight streams", data["reason"])
+            return
+        flight = self._flights.get(data["execution"])
+        if flight is None:
+            return
+        if kind == "event":
+            self._on_event(flight, data["event"])
+        elif kind == "snapshot" and flight.handle is not None:
+            flight.handle.posted(data["snapshot"])
+
     def _on_event(self, flight: LiveExecution, event: dict[str, Any]) -> None:
-        """One event of the flight (handed over from the vehicle loop, in order) into the
+        """One event of the flight (handed over from the vehicle process, in order) into the
         flight's log and stream; a pause past its limit ends the pause (the executor lands
         or holds the fleet)."""
         flight.events.append(event)
@@ -353,17 +361,11 @@ class FleetService:
         if event["kind"] == EventKind.PAUSE_LIMIT and flight.status == ExecutionStatus.PAUSED:
             flight.set_status(ExecutionStatus.ABORTING)
 
-    async def _telemetry(self, flight: LiveExecution, handle: FlightHandle) -> None:
+    async def _telemetry(self, flight: LiveExecution, handle: RemoteFlight) -> None:
         """Live snapshots on the flight's stream at TELEMETRY_HZ (the latest the vehicle
-        loop posted)."""
+        process posted)."""
         while True:
-            flight.publish("telemetry", handle.snapshot())
+            snapshot = handle.snapshot()
+            if snapshot is not None:
+                flight.publish("telemetry", snapshot)
             await asyncio.sleep(1.0 / TELEMETRY_HZ)
-
-
-def _record_copy(handle: FlightHandle | None) -> Callable[[], Awaitable[dict[str, Any]]] | None:
-    """How the journal takes the record so far: on the vehicle loop (None before the
-    flight has one)."""
-    if handle is None:
-        return None
-    return lambda: handle.with_recorder(record_snapshot)

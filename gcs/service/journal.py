@@ -9,9 +9,9 @@ of it; while the store refuses that (a full disk), the flight service keeps the 
 in memory and retries, and only a service that stops meanwhile leaves the execution `failed`
 with the reason (`store_failure`), never stored as flying.
 
-The record so far is taken as shallow list copies by the source (`record_snapshot`, run on the
-vehicle loop that appends to those lists, so they are consistent and the copy is fast); the
-JSON is made and written in a thread. A failing write is
+The record so far is the service's mirror of it (`gcs.service.record_mirror`: only what is
+new since the last beat crosses from the vehicle process); the JSON is made and written in a
+thread. A failing write is
 logged and retried on the next beat: the flight itself never waits for the store.
 """
 
@@ -21,17 +21,13 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import Awaitable, Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import orjson
 
 from gcs.service.store import Store
 
-if TYPE_CHECKING:
-    from gcs.flight.record import FlightRecorder
-
-__all__ = ["ExecutionJournal", "RecordCopy", "Source", "record_snapshot", "store_failure",
-           "write_final"]
+__all__ = ["ExecutionJournal", "RecordCopy", "Source", "store_failure", "write_final"]
 
 log = logging.getLogger(__name__)
 
@@ -41,25 +37,7 @@ STATE_PERIOD_S = 1.0
 RECORD_PERIOD_S = 5.0
 
 
-def record_snapshot(recorder: FlightRecorder) -> dict[str, Any]:
-    """The flight record so far, as shallow copies (JSON-ready with orjson), marked
-    ``"partial": true``."""
-    vehicles = []
-    for v in list(recorder.vehicles.values()):
-        vehicles.append({
-            "id": v.id, "system_id": v.system_id, "home": v.home,
-            "setpoints": {"t": list(v.sp_t), "tick": list(v.sp_tick),
-                          "position_ned": list(v.sp_pos), "velocity_ned": list(v.sp_vel),
-                          "acceleration_ned": list(v.sp_acc)},
-            "telemetry": {"t": list(v.tel_t), "position": list(v.tel_pos),
-                          "velocity": list(v.tel_vel)},
-            "modes": list(v.modes),
-        })
-    return {"format": "fleetplan-flight-record/1", "partial": True, **recorder.meta,
-            "vehicles": vehicles, "events": list(recorder.events), "summary": None}
-
-
-#: How the journal takes the record so far (`record_snapshot` where the recorder lives).
+#: How the journal takes the record so far (`RemoteFlight.record_so_far`).
 RecordCopy = Callable[[], Awaitable[dict[str, Any]]]
 #: What the journal reads each beat: (status, events so far, how to take the record so far,
 #: or None while there is none).

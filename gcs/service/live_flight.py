@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from gcs.flight.flight_handle import FlightHandle
 from gcs.service.events import Broadcast, Event
+from gcs.service.remote_flight import RemoteFlight
 from gcs.service.statuses import ExecutionStatus
 from gcs.service.store import ExecutionRow
 
@@ -25,8 +25,8 @@ class LiveExecution:
     id: str
     mission_id: str
     status: ExecutionStatus = ExecutionStatus.STARTING
-    handle: FlightHandle | None = None
-    """The flight on the vehicle loop, once it is made."""
+    handle: RemoteFlight | None = None
+    """The flight in the vehicle process, once it is made."""
     events: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
     error: str | None = None
@@ -54,7 +54,7 @@ class LiveExecution:
         self.publish("status", {"status": status})
 
     def snapshot(self) -> dict[str, Any] | None:
-        """The flight's live state (phase, vehicles) as the vehicle loop last posted it, once
+        """The flight's live state (phase, vehicles) as the vehicle process last posted it, once
         the flight exists."""
         return None if self.handle is None else self.handle.snapshot()
 

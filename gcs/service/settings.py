@@ -130,9 +130,10 @@ class Settings(BaseSettings):
         "SITL's estimate noise, tracking lag and timings)."
     )
     vehicle_thread_priority: Literal["ordinary", "realtime"] = Field(
-        "ordinary", description="Scheduling of the thread that talks to the vehicles (flights, "
-        "mock vehicles, fleet monitor): realtime asks Linux for SCHED_RR 1 (root or "
-        "CAP_SYS_NICE; refused: logged, ordinary scheduling)."
+        "realtime", description="Scheduling of the thread that talks to the vehicles "
+        "(flights, mock vehicles, fleet monitor; in the vehicle process): realtime asks Linux "
+        "for SCHED_RR 1 (root, CAP_SYS_NICE or an rtprio limit; refused: logged, ordinary "
+        "scheduling), so a busy machine never keeps a setpoint tick waiting for a core."
     )
     max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")

@@ -3,9 +3,13 @@
 Arming is TEMPORARILY_REJECTED during `settle_time` after start (with PX4's "Preflight Fail"
 and "Arming denied" texts), DENIED after a flight termination or with an injected refusal;
 disarming in the air is DENIED unless forced. OFFBOARD is refused (TEMPORARILY_REJECTED)
-unless a setpoint arrived within COM_OF_LOSS_T. DO_SET_MODE and REQUEST_MESSAGE are ACKed
-twice, like PX4 does. MAV_CMD_DO_FLIGHTTERMINATION stops the motors (it falls); arming is then
-denied. Unknown commands are UNSUPPORTED.
+unless a setpoint arrived within COM_OF_LOSS_T; Position mode unless manual control input
+(MANUAL_CONTROL) arrived within COM_RC_LOSS_T, with commander's "Switching to Position is
+currently not available". MAV_CMD_NAV_TAKEOFF enters AUTO.TAKEOFF and MAV_CMD_NAV_RETURN_TO_LAUNCH
+AUTO.RTL (`gcs.sim.automodes`). MAV_CMD_REQUEST_PROTOCOL_VERSION and REQUEST_MESSAGE 300 answer
+PROTOCOL_VERSION. DO_SET_MODE and REQUEST_MESSAGE are ACKed twice, like PX4 does.
+MAV_CMD_DO_FLIGHTTERMINATION stops the motors (it falls); arming is then denied. Unknown
+commands are UNSUPPORTED.
 """
 
 from __future__ import annotations
@@ -13,9 +17,9 @@ from __future__ import annotations
 from typing import Any
 
 from gcs import px4
-from gcs.sim import messages
+from gcs.sim import automodes, messages
 from gcs.sim.core import VehicleCore
-from gcs.wire import mavlink
+from gcs.wire import addressed_to, mavlink
 
 __all__ = ["handle_command", "requested_message"]
 
@@ -27,6 +31,7 @@ _REQUESTABLE = {
     _m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: messages.gps_global_origin,
     _m.MAVLINK_MSG_ID_HEARTBEAT: messages.heartbeat,
     _m.MAVLINK_MSG_ID_SYS_STATUS: messages.sys_status,
+    messages.PROTOCOL_VERSION_ID: messages.protocol_version,
 }
 
 
@@ -38,7 +43,7 @@ def requested_message(v: VehicleCore, message_id: int, now: float) -> Any:
 
 def handle_command(v: VehicleCore, msg: Any) -> None:
     """Carry out a COMMAND_LONG or COMMAND_INT addressed to `v` and ACK it."""
-    if msg.target_system != v.system_id or msg.target_component not in (0, v.component_id):
+    if not addressed_to(msg, v.system_id, v.component_id):
         return
     cmd = msg.command
     p1, p2, p3 = msg.param1, msg.param2, msg.param3
@@ -63,22 +68,41 @@ def handle_command(v: VehicleCore, msg: Any) -> None:
     elif cmd == _m.MAV_CMD_NAV_LAND:
         v.set_mode(px4.LAND)
         v.ack(msg, cmd, _m.MAV_RESULT_ACCEPTED)
+    elif cmd == _m.MAV_CMD_NAV_TAKEOFF:
+        v.auto.takeoff_height = automodes.takeoff_height(v, msg.z if _is_int(msg) else
+                                                         msg.param7)
+        if v.mode == px4.TAKEOFF:
+            automodes.enter(v, px4.TAKEOFF)
+        else:
+            v.set_mode(px4.TAKEOFF)
+        v.ack(msg, cmd, _m.MAV_RESULT_ACCEPTED)
+    elif cmd == _m.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+        v.set_mode(px4.RTL)
+        v.ack(msg, cmd, _m.MAV_RESULT_ACCEPTED)
+    elif cmd == _m.MAV_CMD_REQUEST_PROTOCOL_VERSION:
+        v.ack(msg, cmd, _m.MAV_RESULT_ACCEPTED)
+        v.reply(messages.protocol_version(v, now))
     elif cmd == _m.MAV_CMD_REQUEST_MESSAGE:
         reply = requested_message(v, round(p1), now)
         result = _m.MAV_RESULT_ACCEPTED if reply is not None else _m.MAV_RESULT_UNSUPPORTED
         v.ack(msg, cmd, result, times=2 if reply is not None else 1)
         if reply is not None:
-            v.send(reply)
+            v.reply(reply)
     elif cmd == _m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
         v.ack(msg, cmd, _m.MAV_RESULT_ACCEPTED)
-        v.send(messages.autopilot_version(v, now))
+        v.reply(messages.autopilot_version(v, now))
     elif cmd == _m.MAV_CMD_SET_MESSAGE_INTERVAL:
         v.ack(msg, cmd, v.set_interval(round(p1), p2))
     elif cmd == _m.MAV_CMD_GET_HOME_POSITION:
         v.ack(msg, cmd, _m.MAV_RESULT_ACCEPTED)
-        v.send(messages.home_position(v, now))
+        v.reply(messages.home_position(v, now))
     else:
         v.ack(msg, cmd, _m.MAV_RESULT_UNSUPPORTED)
+
+
+def _is_int(msg: Any) -> bool:
+    """COMMAND_INT (param7 is its field z)."""
+    return bool(msg.get_type() == "COMMAND_INT")
 
 
 def _arm(v: VehicleCore, msg: Any, now: float) -> None:
@@ -115,7 +139,12 @@ def _set_mode(v: VehicleCore, base_mode: int, main: int, sub: int, now: float) -
         # received while in OFFBOARD)
         v.model.hold(v.index, v.model.position[v.index].copy())
         return _m.MAV_RESULT_ACCEPTED
-    if wanted in (px4.HOLD, px4.LAND, px4.POSITION, px4.RTL):
+    if wanted == px4.POSITION and (now - v.last_manual_control
+                                   > v.config.manual_control_timeout):
+        v.statustext(_m.MAV_SEVERITY_CRITICAL,
+                     "Switching to Position is currently not available")
+        return _m.MAV_RESULT_TEMPORARILY_REJECTED
+    if wanted in (px4.HOLD, px4.LAND, px4.POSITION, px4.RTL, px4.TAKEOFF):
         v.set_mode(wanted)
         return _m.MAV_RESULT_ACCEPTED
     v.statustext(_m.MAV_SEVERITY_CRITICAL, f"Mode {wanted.name} not supported")

@@ -54,6 +54,15 @@ class MockConfig:
     """COM_DISARM_PRFLT (s)."""
     land_speed: float = 0.7
     """MPC_LAND_SPEED (m/s)."""
+    takeoff_altitude: float = 2.5
+    """MIS_TAKEOFF_ALT: AUTO.TAKEOFF's lowest height above home (m)."""
+    rtl_return_altitude: float = 60.0
+    """RTL_RETURN_ALT: AUTO.RTL climbs to this height above home before returning (m)."""
+    geofence_action: int = 2
+    """GF_ACTION on a geofence breach: 0 none, 1 warning, 2 Hold, 3 RTL, 4 terminate, 5 land."""
+    manual_control_timeout: float = 0.5
+    """COM_RC_LOSS_T: manual control input older than this is lost; Position mode is then
+    refused (s)."""
     physics_rate: float = 200.0
     """Integration rate of the vehicle model (Hz, >= 100)."""
     position_rate: float = 30.0

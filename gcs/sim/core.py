@@ -1,18 +1,21 @@
 """A mock vehicle's state, flight rules and output (`VehicleCore`), and what it is given by
 its fleet (`VehicleContext`).
 
-The rules, as in PX4's commander: AUTO.RTL flies back over home at its height, then lands;
-offboard loss (no setpoint for COM_OF_LOSS_T) triggers the failsafe: Position mode (hold),
-then, there being no RC, AUTO.LAND after `failsafe_land_delay`; auto-disarm 2 s after
-landing, and 10 s after arming without taking off. The output: the periodic streams
+The rules, as in PX4's commander: AUTO.TAKEOFF and AUTO.RTL as PX4's navigator flies them
+(`gcs.sim.automodes`); offboard loss (no setpoint for COM_OF_LOSS_T) triggers the failsafe:
+Position mode (hold), then, there being no RC, AUTO.LAND after `failsafe_land_delay`;
+auto-disarm COM_DISARM_LAND after landing, COM_DISARM_PRFLT after arming without taking off
+(a negative value: never). The output: the periodic streams
 (`gcs.sim.telemetry`, their intervals changed by MAV_CMD_SET_MESSAGE_INTERVAL), STATUSTEXT
 (`gcs.sim.statustext`), COMMAND_ACK, each packed with the vehicle's own pymavlink instance
-(counting sequence numbers, signed with its key) and subject to the injected faults.
+(counting sequence numbers, signed with its key) and subject to the injected faults, sent on
+every link (`gcs.sim.links`); a reply goes only to the link its request came from.
 """
 
 from __future__ import annotations
 
 import asyncio
+import copy
 import logging
 import math
 import random
@@ -24,8 +27,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import frames, px4, wire
-from gcs.sim import telemetry
+from gcs.sim import automodes, telemetry
 from gcs.sim.config import MockConfig, MockFaults
+from gcs.sim.links import UdpLink
 from gcs.sim.model import FleetModel
 from gcs.sim.statustext import StatusTextOut
 from gcs.wire import mavlink
@@ -57,6 +61,8 @@ class VehicleCore:
     def __init__(self, context: VehicleContext, index: int, home_world: ArrayLike,
                  gcs_address: tuple[str, int], listen_address: tuple[str, int]) -> None:
         self.context = context
+        self._config = copy.copy(context.config)
+        """This vehicle's own settings (PARAM_SET changes them: `gcs.sim.params`)."""
         self.index = index
         self.system_id = index + 1
         self.component_id = 1
@@ -64,7 +70,16 @@ class VehicleCore:
         self.origin = frames.enu_to_geodetic(self.home_world, context.world_origin)
         """Geodetic EKF origin (= home) reported in GPS_GLOBAL_ORIGIN and HOME_POSITION."""
         self.gcs_address = gcs_address
-        """Where telemetry goes: the configured GCS port until someone speaks to us."""
+        """The offboard link's configured remote: where it sends until it latches a partner."""
+        self.links: list[UdpLink] = []
+        """Its links: the offboard link, then the optional GCS link (`gcs.sim.links`)."""
+        self._reply_link: UdpLink | None = None
+        self.auto = automodes.AutoState()
+        """Where AUTO.TAKEOFF / AUTO.RTL are going (`gcs.sim.automodes`)."""
+        self.fence_breached = False
+        """The geofence is breached (SYS_STATUS reports the geofence unhealthy)."""
+        self.last_manual_control = -math.inf
+        """Mock time of the last MANUAL_CONTROL (manual control input) addressed to it."""
         self.gcs_port = gcs_address[1]
         self.listen_address = listen_address
         self.faults = MockFaults()
@@ -92,7 +107,6 @@ class VehicleCore:
         self._failsafe_since: float | None = None
         self._mav = mavlink.MAVLink(None, srcSystem=self.system_id,
                                     srcComponent=self.component_id)
-        self._transport: asyncio.DatagramTransport | None = None
         self._rng = random.Random(context.seed * 1000 + index)
         self._defaults = telemetry.default_rates(context.config)
         self.intervals: dict[int, float | None] = {
@@ -111,7 +125,7 @@ class VehicleCore:
 
     @property
     def config(self) -> MockConfig:
-        return self.context.config
+        return self._config
 
     @property
     def world_origin(self) -> frames.Geodetic:
@@ -166,10 +180,12 @@ class VehicleCore:
         i = self.index
         if mode == px4.LAND:
             self.model.descend(i, self.config.land_speed)
-        elif mode == px4.RTL:  # back over home at the current height, then down (tick)
-            self.model.hold(i, np.array([0.0, 0.0, self.model.position[i, 2]]))
+        elif mode in (px4.RTL, px4.TAKEOFF):
+            automodes.enter(self, mode)
         elif mode in (px4.HOLD, px4.POSITION):
             self.model.hold(i, self.model.position[i].copy())
+        if mode != px4.TAKEOFF:
+            self.auto.takeoff_height = None
         if mode != px4.POSITION:
             self._failsafe_since = None
             self.failsafe = False
@@ -181,6 +197,8 @@ class VehicleCore:
         self.model.powered[self.index] = True
         if self.mode in (px4.HOLD, px4.POSITION):
             self.model.hold(self.index, self.model.position[self.index].copy())
+        elif self.mode == px4.TAKEOFF:
+            automodes.enter(self, self.mode)
         self.event("armed")
 
     def disarm(self, why: str) -> None:
@@ -223,9 +241,8 @@ class VehicleCore:
                 self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe: no RC, landing")
                 self.set_mode(px4.LAND)
                 self.failsafe = True
-        if (self.mode == px4.RTL and self.armed and np.isfinite(self.model.position_sp[i, 2])
-                and np.linalg.norm(self.model.position[i, :2]) < 0.2):
-            self.model.descend(i, cfg.land_speed)  # RTL's landing phase
+        if self.armed:
+            automodes.tick(self, now)
         if not self.armed:
             if self.terminated and z >= -0.05:
                 self.in_air = False
@@ -236,12 +253,12 @@ class VehicleCore:
                 if self._landed_since is None:
                     self._landed_since = now
                     self.statustext(mavlink.MAV_SEVERITY_INFO, "Landing detected")
-                elif now - self._landed_since >= cfg.disarm_after_land:
+                elif 0 <= cfg.disarm_after_land <= now - self._landed_since:
                     self.in_air = False
                     self.disarm("auto disarm on land")
             else:
                 self._landed_since = None
-        elif now - self._armed_time >= cfg.disarm_preflight:
+        elif 0 <= cfg.disarm_preflight <= now - self._armed_time:
             self.disarm("auto preflight disarming")
 
     # ---------------------------------------------------------------- streams
@@ -283,15 +300,21 @@ class VehicleCore:
 
     # ---------------------------------------------------------------- output
 
-    def attach(self, transport: asyncio.DatagramTransport) -> None:
-        """Send through `transport` (the fleet's socket for this vehicle) from now on."""
-        self._transport = transport
+    def attach(self, transport: asyncio.DatagramTransport) -> UdpLink:
+        """Add a link on `transport` (the fleet's socket for this vehicle): the first is the
+        offboard link (remote `gcs_address`); use `attach_link` for another."""
+        return self.attach_link(UdpLink("offboard", transport, self.gcs_address))
+
+    def attach_link(self, link: UdpLink) -> UdpLink:
+        """Send on `link` too from now on."""
+        self.links.append(link)
+        return link
 
     def detach(self) -> None:
-        """Close the transport, if any: the vehicle falls silent."""
-        if self._transport is not None:
-            self._transport.close()
-            self._transport = None
+        """Close every link: the vehicle falls silent."""
+        for link in self.links:
+            link.close()
+        self.links = []
 
     def booting(self) -> bool:
         """Still booting (`MockConfig.boot_time`): deaf and silent, like PX4 before its first
@@ -305,7 +328,21 @@ class VehicleCore:
     def send(self, msg: Any) -> None:
         """Pack `msg` and send it to the GCS, unless silent, booting or lost (delayed by
         `MockFaults.delay`)."""
-        if self._transport is None:
+        self._send(msg, self.links)
+
+    def reply(self, msg: Any) -> None:
+        """Send `msg` only on the link the message being handled came from (every link when
+        none is being handled)."""
+        self._send(msg, self.links if self._reply_link is None else [self._reply_link])
+
+    def replier(self) -> Callable[[Any], None]:
+        """A function sending, later too, on the link of the message being handled (`reply`
+        for answers that go on after it: a parameter list, a mission upload's retries)."""
+        links = self.links if self._reply_link is None else [self._reply_link]
+        return lambda msg: self._send(msg, links)
+
+    def _send(self, msg: Any, links: list[UdpLink]) -> None:
+        if not links:
             return
         faults = self.faults
         if faults.silent or self.booting():
@@ -313,14 +350,11 @@ class VehicleCore:
         buf = wire.pack(msg, self._mav)  # packed first: a lost message leaves a sequence gap
         if self.lost():
             return
-        if faults.delay > 0.0:
-            asyncio.get_running_loop().call_later(faults.delay, self._sendto, buf)
-        else:
-            self._sendto(buf)
-
-    def _sendto(self, buf: bytes) -> None:
-        if self._transport is not None:
-            self._transport.sendto(buf, self.gcs_address)
+        for link in links:
+            if faults.delay > 0.0:
+                asyncio.get_running_loop().call_later(faults.delay, link.sendto, buf)
+            else:
+                link.sendto(buf)
 
     def statustext(self, severity: int, text: str) -> None:
         """Send `text` whole (in chunks if long), unless it was sent in the last
@@ -332,10 +366,11 @@ class VehicleCore:
         """COMMAND_ACK of `msg` `times` times; repeats `MockConfig.duplicate_ack_delay` apart."""
         ack = self._mav.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(),
                                            msg.get_srcComponent())
-        self.send(ack)
+        self.reply(ack)
+        links = self.links if self._reply_link is None else [self._reply_link]
         delay = self.config.duplicate_ack_delay
         for k in range(1, times):
             if delay > 0.0:
-                asyncio.get_running_loop().call_later(k * delay, self.send, ack)
+                asyncio.get_running_loop().call_later(k * delay, self._send, ack, links)
             else:
-                self.send(ack)
+                self._send(ack, links)

@@ -2,11 +2,14 @@
 
 Each mock vehicle follows PX4 SITL's port convention (`gcs.px4`): instance i listens on UDP
 ``listen_base_port + i`` (`OFFBOARD_VEHICLE_BASE_PORT` + i) and sends to ``gcs_base_port + i``
-(`OFFBOARD_GCS_BASE_PORT` + i) on 127.0.0.1, then to whoever last sent it a message (as PX4
-does); system id i + 1, component 1. So ``fleetplan fly`` runs unchanged against the mock or
-PX4 SITL. The vehicles' protocol and rules are in `gcs.sim.vehicle`; their motion is
-`gcs.sim.model.FleetModel`, integrated at `physics_rate` (>= 100 Hz) for the whole fleet at
-once.
+(`OFFBOARD_GCS_BASE_PORT` + i) on 127.0.0.1 until it hears its first partner, then to that
+partner (as PX4's UDP link latches it); system id i + 1, component 1. With `gcs_link_port`
+each vehicle also has a GCS link, like PX4's: its own socket on a free port, sending everything
+to ``host:gcs_link_port`` (PX4: 14550) until a ground station answers, so QGroundControl or
+MAVProxy can watch (and command) the vehicles beside the GCS that flies them. So ``fleetplan
+fly`` runs unchanged against the mock or PX4 SITL. The vehicles' protocol and rules are in
+`gcs.sim.vehicle`; their motion is `gcs.sim.model.FleetModel`, integrated at `physics_rate`
+(>= 100 Hz) for the whole fleet at once.
 
 Python API::
 
@@ -36,6 +39,7 @@ from numpy.typing import ArrayLike
 from gcs import frames, px4
 from gcs.sim.config import MockConfig
 from gcs.sim.core import VehicleContext
+from gcs.sim.links import UdpLink
 from gcs.sim.model import FleetModel
 from gcs.sim.vehicle import MockVehicle
 from gcs.wire import Datagrams
@@ -64,6 +68,8 @@ class MockFleet:
     row 2 m apart along x. Ports: vehicle i sends to ``host:gcs_base_port + min(i,
     max_port_offset)`` (`max_port_offset=9` reproduces PX4 SITL from instance 10 on, 0 puts the
     whole fleet behind one port) and listens on ``host:listen_base_port + i``.
+    `gcs_link_port`: also give each vehicle a GCS link sending to ``host:gcs_link_port``
+    (`gcs.px4.GCS_LINK_PORT` for QGroundControl; None, the default: no GCS link).
     `signing_key` (32 bytes): every vehicle starts with it, as if provisioned earlier; without
     it they accept a key by SETUP_SIGNING (`gcs.sim.vehicle`).
     Behaviour: `config`, or the preset named by the keyword `realism` ("ideal", the default, or
@@ -76,7 +82,7 @@ class MockFleet:
                  listen_base_port: int = px4.OFFBOARD_VEHICLE_BASE_PORT,
                  max_port_offset: int | None = None, config: MockConfig | None = None,
                  seed: int | None = None, signing_key: bytes | None = None,
-                 **config_overrides: Any) -> None:
+                 gcs_link_port: int | None = None, **config_overrides: Any) -> None:
         if homes is None:
             if count is None:
                 raise ValueError("give the vehicle count or their homes")
@@ -99,6 +105,7 @@ class MockFleet:
         self.host = host
         self.gcs_base_port = gcs_base_port
         self.listen_base_port = listen_base_port
+        self.gcs_link_port = gcs_link_port
         self.seed = self.config.seed if seed is None else seed
         """Seed of the fleet's random processes (`MockConfig.seed` unless given)."""
         self.model = FleetModel(len(homes), self.config.limits, self.config.estimate_noise,
@@ -159,8 +166,24 @@ class MockFleet:
             transport, _ = await loop.create_datagram_endpoint(
                 functools.partial(Datagrams, vehicle.received_datagram), sock=sock)
             vehicle.attach(transport)
+            if self.gcs_link_port is not None:
+                await self._open_gcs_link(vehicle)
         self._start = time.monotonic()
         self._task = asyncio.create_task(self._run(), name="mock-fleet")
+
+    async def _open_gcs_link(self, vehicle: MockVehicle) -> None:
+        """The vehicle's GCS link: a socket on a free port sending to `gcs_link_port`."""
+        loop = asyncio.get_running_loop()
+        links: list[UdpLink] = []
+
+        def received(data: bytes, address: tuple[str, int]) -> None:
+            vehicle.received_datagram(data, address, links[0])
+
+        transport, _ = await loop.create_datagram_endpoint(
+            functools.partial(Datagrams, received), local_addr=(self.host, 0))
+        assert self.gcs_link_port is not None
+        links.append(vehicle.attach_link(UdpLink("gcs", transport,
+                                                 (self.host, self.gcs_link_port))))
 
     async def stop(self) -> None:
         if self._task is not None:

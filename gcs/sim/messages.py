@@ -9,8 +9,9 @@ acceleration), not sensor-accurate. Which of them go out, and how often, is
 from __future__ import annotations
 
 import math
+import struct
 import time
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -20,7 +21,10 @@ from gcs.sim.model import GRAVITY, FleetModel
 from gcs.wire import mavlink, time_boot_ms
 
 __all__ = [
+    "CAPABILITIES",
     "ENCODER",
+    "PROTOCOL_VERSION_ID",
+    "ProtocolVersionMessage",
     "VehicleState",
     "altitude",
     "attitude",
@@ -40,6 +44,7 @@ __all__ = [
     "odometry",
     "position_target_global",
     "position_target_local",
+    "protocol_version",
     "scaled_pressure",
     "servo_output",
     "sys_status",
@@ -87,6 +92,8 @@ class VehicleState(Protocol):
     def world_origin(self) -> frames.Geodetic: ...
     @property
     def origin(self) -> frames.Geodetic: ...
+    @property
+    def fence_breached(self) -> bool: ...
 
 
 _m = mavlink
@@ -99,7 +106,7 @@ _SENSORS = (
     | _m.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
     | _m.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
     | _m.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | _m.MAV_SYS_STATUS_AHRS
-    | _m.MAV_SYS_STATUS_SENSOR_BATTERY
+    | _m.MAV_SYS_STATUS_SENSOR_BATTERY | _m.MAV_SYS_STATUS_GEOFENCE
 )
 _PREARM = _m.MAV_SYS_STATUS_PREARM_CHECK
 #: PX4 v1.16.0 release: major << 24 | minor << 16 | patch << 8 | FIRMWARE_VERSION_TYPE_OFFICIAL
@@ -156,10 +163,13 @@ def heartbeat(v: VehicleState, now: float) -> Any:
 
 
 def sys_status(v: VehicleState, now: float) -> Any:
-    """SYS_STATUS: sensors present and enabled, healthy unless injected; pre-arm once settled."""
+    """SYS_STATUS: sensors present and enabled, healthy unless injected; pre-arm once settled;
+    the geofence present, enabled and healthy unless breached (as PX4 reports it)."""
     settled = now >= v.config.settle_time
     present = _SENSORS | _PREARM
     health = (_SENSORS | (_PREARM if settled or v.armed else 0)) & ~v.faults.unhealthy
+    if v.fence_breached:
+        health &= ~_m.MAV_SYS_STATUS_GEOFENCE
     remaining = _remaining(v)
     voltage = round(1000 * (13.2 + 3.6 * remaining / 100.0))  # 4S: 13.2 V empty, 16.8 full
     return ENCODER.sys_status_encode(present, present, health, 250, voltage, 1200,
@@ -173,12 +183,22 @@ def extended_sys_state(v: VehicleState, now: float) -> Any:
     return ENCODER.extended_sys_state_encode(0, landed)
 
 
+#: What the mock implements, as AUTOPILOT_VERSION capability bits: MAVLink 2 (with signing),
+#: COMMAND_INT, SET_POSITION_TARGET_LOCAL_NED, the mission protocol with MISSION_ITEM_INT for
+#: missions, fences and rally points, and parameters encoded byte-wise as PX4 does. Not
+#: SET_ATTITUDE_TARGET, global setpoints, MAVFTP or terrain.
+CAPABILITIES = (_m.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                | _m.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                | _m.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+                | _m.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+                | _m.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+                | _m.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
+                | _m.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)
+
+
 def autopilot_version(v: VehicleState, now: float) -> Any:
-    caps = (_m.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-            | _m.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-            | _m.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
-            | _m.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
-            | _m.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
+    """AUTOPILOT_VERSION: PX4 v1.16.0's version, the mock's `CAPABILITIES`."""
+    caps = CAPABILITIES
     return ENCODER.autopilot_version_encode(
         caps, _PX4_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, v.system_id)
 
@@ -335,6 +355,44 @@ def battery_status(v: VehicleState, now: float) -> Any:
                                          _m.MAV_BATTERY_TYPE_LIPO, 2500,
                                          [cell] * 4 + [0xFFFF] * 6, 1200, -1, -1,
                                          round(remaining))
+
+
+#: PROTOCOL_VERSION's message id; pymavlink's common dialect does not define the message.
+PROTOCOL_VERSION_ID = 300
+
+
+_MESSAGE: Any = _m.MAVLink_message  # pymavlink's base class of every message
+
+
+class ProtocolVersionMessage(_MESSAGE):
+    """PROTOCOL_VERSION (300) from MAVLink's common.xml, which pymavlink's generated dialect
+    leaves out: version, min_version, max_version (uint16, 100 x the MAVLink version), then
+    the 8-byte hashes of the spec and the library (zeros: not known)."""
+
+    id = PROTOCOL_VERSION_ID
+    msgname = "PROTOCOL_VERSION"
+    fieldnames: ClassVar[list[str]] = ["version", "min_version", "max_version",
+                                       "spec_version_hash", "library_version_hash"]
+    ordered_fieldnames: ClassVar[list[str]] = fieldnames
+    crc_extra = 217
+    """x25 over the message's name and fields, as mavgen computes it."""
+    unpacker = struct.Struct("<HHH8s8s")
+
+    def __init__(self, version: int, min_version: int, max_version: int) -> None:
+        _MESSAGE.__init__(self, PROTOCOL_VERSION_ID, self.msgname)
+        self._fieldnames = self.fieldnames
+        self.version, self.min_version, self.max_version = version, min_version, max_version
+        self.spec_version_hash = self.library_version_hash = bytes(8)
+
+    def pack(self, mav: Any, force_mavlink1: bool = False) -> bytes:
+        payload = self.unpacker.pack(self.version, self.min_version, self.max_version,
+                                     self.spec_version_hash, self.library_version_hash)
+        return bytes(self._pack(mav, self.crc_extra, payload, force_mavlink1=force_mavlink1))
+
+
+def protocol_version(v: VehicleState, now: float) -> Any:
+    """PROTOCOL_VERSION: MAVLink 2 (200), speaking 1 (100) to 2, as PX4 answers it."""
+    return ProtocolVersionMessage(200, 100, 200)
 
 
 def vibration(v: VehicleState, now: float) -> Any:

@@ -129,6 +129,12 @@ class FleetModel:
         self.powered = np.zeros(count, dtype=bool)
         """Motors running (armed); an unpowered vehicle falls and rests on the ground."""
         lim = self.limits
+        self.velocity_xy_max = np.full(count, lim.velocity_xy_max)
+        """Each vehicle's horizontal speed limit (m/s; MPC_XY_VEL_MAX, set per vehicle)."""
+        self.velocity_up_max = np.full(count, lim.velocity_up_max)
+        """Each vehicle's climb speed limit (m/s; MPC_Z_VEL_MAX_UP)."""
+        self.velocity_down_max = np.full(count, lim.velocity_down_max)
+        """Each vehicle's descent speed limit (m/s; MPC_Z_VEL_MAX_DN)."""
         self._kp = np.array([lim.pos_gain_xy, lim.pos_gain_xy, lim.pos_gain_z])
         self._kv = np.array([lim.vel_gain_xy, lim.vel_gain_xy, lim.vel_gain_z])
         self.recovered = 0
@@ -195,9 +201,9 @@ class FleetModel:
         p_err = np.nan_to_num(self.position_sp - self.position, nan=0.0)
         v_ref = np.nan_to_num(self.velocity_sp, nan=0.0) + self._kp * p_err
         horizontal = np.linalg.norm(v_ref[:, :2], axis=1)
-        scale = np.minimum(1.0, lim.velocity_xy_max / np.maximum(horizontal, 1e-12))
+        scale = np.minimum(1.0, self.velocity_xy_max / np.maximum(horizontal, 1e-12))
         v_ref[:, :2] *= scale[:, None]
-        v_ref[:, 2] = np.clip(v_ref[:, 2], -lim.velocity_up_max, lim.velocity_down_max)
+        v_ref[:, 2] = np.clip(v_ref[:, 2], -self.velocity_up_max, self.velocity_down_max)
         a_cmd = np.nan_to_num(self.acceleration_sp, nan=0.0) + self._kv * (v_ref - self.velocity)
         horizontal = np.linalg.norm(a_cmd[:, :2], axis=1)
         scale = np.minimum(1.0, lim.acceleration_xy_max / np.maximum(horizontal, 1e-12))

@@ -7,7 +7,8 @@ or with the FORCE bit and an acceleration, is ignored. Every accepted message is
 for offboard, in any mode; only in OFFBOARD does it move the vehicle. A setpoint with a used
 field (IGNORE bit clear) that is not finite, or beyond `SETPOINT_LIMITS` (absurd for a
 quadrotor), is refused whole and counted in `setpoints_invalid`: the vehicle keeps its last
-valid setpoint and the message is no proof of life.
+valid setpoint and the message is no proof of life. An ignored frame or FORCE bit is explained
+in PX4's words (`refusal_text`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from typing import Any, Literal
 from gcs.wire import mavlink
 
 __all__ = ["SETPOINT_LIMITS", "ReceivedSetpoint", "Refusal", "read_setpoint",
-           "setpoint_problem"]
+           "refusal_text", "setpoint_problem"]
 
 # POSITION_TARGET_TYPEMASK bits (pymavlink's enum): X, Y, Z ignore are 1, 2, 4 times the
 # first bit of each triple, and so on.
@@ -76,6 +77,16 @@ def setpoint_problem(msg: Any) -> str | None:
         return "yaw not finite"
     if not mask & _IGNORE_YAW_RATE and not math.isfinite(msg.yaw_rate):
         return "yaw_rate not finite"
+    return None
+
+
+def refusal_text(msg: Any) -> str | None:
+    """PX4's STATUSTEXT (mavlink_receiver.cpp) for a setpoint ignored for its frame or for
+    FORCE with an acceleration; None for the other reasons (PX4 is silent about them)."""
+    if msg.coordinate_frame not in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_NED):
+        return f"SET_POSITION_TARGET_LOCAL_NED coordinate frame {msg.coordinate_frame} unsupported"
+    if msg.type_mask & _FORCE and (msg.type_mask & (_IGNORE_AX * 7)) != _IGNORE_AX * 7:
+        return "SET_POSITION_TARGET_LOCAL_NED force not supported"
     return None
 
 

@@ -5,21 +5,28 @@ It speaks what a PX4 quadrotor speaks for our purposes: HEARTBEAT (MAV_TYPE_QUAD
 MAV_AUTOPILOT_PX4, custom mode main << 16 | sub << 24, armed flag), SYS_STATUS (sensors present,
 enabled, healthy; the pre-arm bit healthy once settled), HOME_POSITION, GPS_GLOBAL_ORIGIN,
 EXTENDED_SYS_STATE, LOCAL_POSITION_NED, ATTITUDE, GLOBAL_POSITION_INT, AUTOPILOT_VERSION,
-STATUSTEXT and COMMAND_ACK. The parts, one module each:
+STATUSTEXT and COMMAND_ACK, and what ground stations ask of PX4: parameters, missions, fences
+and rally points, TIMESYNC, PROTOCOL_VERSION, MAVFTP (no files). The parts, one module each:
 
 - `gcs.sim.core`: state, flight rules (failsafes, RTL, auto-disarm) and output;
 - `gcs.sim.messages`: how each message is encoded; `gcs.sim.telemetry`: the periodic streams
   and their rates (``minimal``, or PX4's offboard-link set of about 410 messages/s with
   ``MockConfig.telemetry_profile = "px4"``);
-- `gcs.sim.commands`: COMMAND_LONG and COMMAND_INT (arming, modes, land, requests, ACKs);
+- `gcs.sim.commands`: COMMAND_LONG and COMMAND_INT (arming, modes, takeoff, RTL, land,
+  requests, ACKs); `gcs.sim.automodes`: AUTO.TAKEOFF and AUTO.RTL;
 - `gcs.sim.setpoints`: SET_POSITION_TARGET_LOCAL_NED (offboard);
+- `gcs.sim.protocols`: parameters (`gcs.sim.params`, the set `gcs.sim.paramdefs`), missions,
+  fences and rally points (`gcs.sim.missions`), TIMESYNC, MANUAL_CONTROL;
+- `gcs.sim.geofence`: the stored fence checked, GF_ACTION on a breach;
+- `gcs.sim.links`: its UDP links (offboard, optional GCS link) and their latched partners;
 - `gcs.sim.signing`: SETUP_SIGNING and the signing key;
 - `gcs.sim.statustext`: STATUSTEXT chunks and repeats;
 - `gcs.sim.config`: the settings (`MockConfig`) and injected faults (`MockFaults`).
 
 Each datagram is decoded by a fresh parser with the vehicle's signing state; an exception while
 handling one is counted (`errors`) and logged, never raised into asyncio (which would close the
-vehicle's socket and silence it). PX4 answers whoever last spoke to it, and so does the mock.
+vehicle's socket and silence it). Each link latches the first partner it hears and keeps
+it, as PX4's UDP links do (`gcs.sim.links`).
 
 It speaks MAVLink through pymavlink directly, never through `gcs.flight`: a wire-level mistake
 in our link must not be repeated by the stand-in that should catch it. It shares on purpose only
@@ -51,11 +58,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import px4
-from gcs.sim import signing
+from gcs.sim import geofence, protocols, signing
 from gcs.sim.commands import handle_command
 from gcs.sim.core import VehicleContext, VehicleCore
-from gcs.sim.setpoints import ReceivedSetpoint, read_setpoint
-from gcs.wire import mavlink
+from gcs.sim.links import UdpLink
+from gcs.sim.missions import VehicleMissions
+from gcs.sim.params import VehicleParams
+from gcs.sim.setpoints import ReceivedSetpoint, read_setpoint, refusal_text
+from gcs.wire import addressed_to, mavlink
 
 __all__ = ["MockVehicle"]
 
@@ -77,6 +87,24 @@ class MockVehicle(VehicleCore):
         self.rejected = 0
         """Incoming packets rejected: bad CRC, truncated, or (with a key) unsigned or badly
         signed (pymavlink's signing counters, `signing`, say which)."""
+        self.params = VehicleParams(self)
+        """Its PX4 parameters and the parameter protocol (`gcs.sim.params`)."""
+        self.missions = VehicleMissions(self)
+        """Its mission, fence and rally lists and the mission protocol (`gcs.sim.missions`)."""
+        self.geofence = geofence.Geofence(self.origin)
+        """Its fence in LOCAL_NED and breach state (`gcs.sim.geofence`)."""
+        self.missions.changed = self._mission_changed
+
+    def tick(self, now: float) -> None:
+        """The flight rules (`VehicleCore.tick`), then the protocols' own timers."""
+        super().tick(now)
+        self.params.drain()
+        self.missions.tick(now)
+        geofence.check(self, now)
+
+    def _mission_changed(self, mission_type: int) -> None:
+        if mission_type == mavlink.MAV_MISSION_TYPE_FENCE:
+            self.geofence.load(self.missions.fence)
 
     # ---------------------------------------------------------------- signing
 
@@ -92,26 +120,36 @@ class MockVehicle(VehicleCore):
 
     # ---------------------------------------------------------------- messages in
 
-    def received_datagram(self, data: bytes, address: tuple[str, int]) -> None:
-        """One datagram from `address` (the fleet's socket calls this): dropped while booting
-        or by the injected loss, delayed by the injected delay, then handled."""
+    def received_datagram(self, data: bytes, address: tuple[str, int],
+                          link: UdpLink | None = None) -> None:
+        """One datagram from `address` on `link` (default: the offboard link; the fleet's
+        socket calls this): dropped while booting or by the injected loss, delayed by the
+        injected delay, then handled."""
         if self.booting() or self.lost():
             return
+        if link is None:
+            if not self.links:
+                return
+            link = self.links[0]
         delay = self.faults.delay
         if delay > 0.0:
-            asyncio.get_running_loop().call_later(delay, self._process_guarded, data, address)
+            asyncio.get_running_loop().call_later(delay, self._process_guarded, data, address,
+                                                  link)
         else:
-            self._process_guarded(data, address)
+            self._process_guarded(data, address, link)
 
-    def _process_guarded(self, data: bytes, address: tuple[str, int]) -> None:
+    def _process_guarded(self, data: bytes, address: tuple[str, int], link: UdpLink) -> None:
         """`_process`, counting and logging any exception instead of raising it into asyncio
         (which would close this vehicle's socket: one bad packet must not silence it)."""
+        self._reply_link = link
         try:
-            self._process(data, address)
+            self._process(data, address, link)
         except Exception:
             self.record_error("handling a datagram")
+        finally:
+            self._reply_link = None
 
-    def _process(self, data: bytes, address: tuple[str, int]) -> None:
+    def _process(self, data: bytes, address: tuple[str, int], link: UdpLink) -> None:
         # A fresh parser per datagram (a packet never spans datagrams), with this vehicle's
         # signing state: pymavlink checks signatures and timestamps in `decode`.
         parser = mavlink.MAVLink(None)
@@ -127,13 +165,15 @@ class MockVehicle(VehicleCore):
             if kind == "BAD_DATA":
                 self.rejected += 1
                 continue
-            self.gcs_address = address  # PX4 answers whoever last spoke to it
+            link.heard(address)  # the first partner is kept (PX4's UDP link)
             if kind == "SET_POSITION_TARGET_LOCAL_NED":
                 self._on_setpoint(msg)
             elif kind in ("COMMAND_LONG", "COMMAND_INT"):
                 handle_command(self, msg)
             elif kind == "SETUP_SIGNING":
                 self._on_setup_signing(msg)
+            elif kind in protocols.HANDLED:
+                protocols.handle(self, msg)
 
     def _on_setpoint(self, msg: Any) -> None:
         """Take a setpoint (`gcs.sim.setpoints`): proof of life; it moves the vehicle only in
@@ -147,6 +187,9 @@ class MockVehicle(VehicleCore):
                 self.setpoints_invalid += 1
             else:
                 self.setpoints_ignored += 1
+                text = refusal_text(msg)
+                if text is not None:  # PX4 says why (repeats suppressed: `statustext`)
+                    self.statustext(mavlink.MAV_SEVERITY_CRITICAL, text)
             return
         self.last_setpoint_time = got.time
         self.setpoints_accepted += 1
@@ -162,8 +205,7 @@ class MockVehicle(VehicleCore):
 
     def _on_setup_signing(self, msg: Any) -> None:
         """Reaching here it passed pymavlink's checks: with a key set, it was signed with it."""
-        if msg.target_system != self.system_id or msg.target_component not in (
-                0, self.component_id):
+        if not addressed_to(msg, self.system_id, self.component_id):
             return
         if self.armed:
             self.statustext(mavlink.MAV_SEVERITY_WARNING, "Signing change denied: armed")

@@ -108,3 +108,29 @@ def test_service_benchmark_reports_latency_and_flight_timing():
     assert report["median"]["setpoint_rate_hz"] == run["flight"]["setpoint_rate_hz"]
     assert report["median"]["latency_max_ms"] == latency["max_ms"]
     assert report["missed_ticks_max"] == (run["flight"]["missed_ticks"] or 0)
+
+
+def test_landing_benchmark_reports_verified_landings():
+    """bench/landing.py on the paper circle's states and a small random crowd's: every
+    landing verified, R kept, each figure counted in the summary."""
+    report = _run("landing.py", "--sizes", "8", "12", "--seeds", "0", "--times", "6",
+                  "--crowd-states", "12")
+    assert report["benchmark"] == "landing" and report["cpus"] == os.cpu_count()
+    states = [c["state"] for c in report["cases"]]
+    assert states == ["paper-circle8 at t=6 s", "random crowd"]
+    for case in report["cases"]:
+        assert case["ok"] is True
+        assert case["min_separation_continuous"] >= case["separation_kept"] - 1e-4
+    assert report["summary"]["8"]["verified"] == 1 and report["summary"]["12"]["cases"] == 1
+
+
+def test_export_benchmark_reports_time_size_and_pieces():
+    report = _run("export.py", "--vehicles", "4", "--repeats", "2")
+    (row,) = report["sizes"]
+    assert row["vehicles"] == 4 and row["plan_ok"] is True
+    assert len(row["export_s_runs"]) == 2 and row["export_s"] > 0
+    # A ZIP of deflated JSON: smaller than the JSON it holds; one keyframe per step at most.
+    assert 0 < row["skyc_bytes"] < row["show_json_bytes"]
+    assert 0 < row["keyframes"] <= row["keyframes_one_per_step"] == 4 * (row["steps"] + 1)
+    assert 0 < row["largest_piece_bytes"] <= row["skyc_bytes"]
+    assert report["machine"]["cpus"] == os.cpu_count()

@@ -40,8 +40,9 @@ async def _hovering_fleet(count: int,
     Hold), then open the fleet's connections afresh and run `then(mock, links)`."""
     plan = smooth_plan(line_scenario(count))
     homes = homes_under(plan.scenario.starts)
+    # RTL_RETURN_ALT 0: RTL returns at the height it flies (PX4's default climbs to 60 m first)
     async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(count),
-                         **FAST_MOCK) as mock:
+                         rtl_return_altitude=0.0, **FAST_MOCK) as mock:
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         executor = FlightExecutor(plan, fleet, FAST)
         task = executor.start()

@@ -285,6 +285,12 @@ def test_a_plan_file_is_verified_again_before_flying() -> None:
     doc["scenario"]["limits"]["body_rate_max"] = 1e-6
     with pytest.raises(PlanRejected, match="not flyable"):
         FlightExecutor(Plan.from_dict(doc), fleet)
+    # a plan from a moving state (a landing plan's kind) cannot start a flight from a hover
+    moving = planner.plan({**short_line(2), "vehicles": [
+        {**v, "start_velocity": [0.0, 0.5, 0.0]} for v in short_line(2)["vehicles"]]})
+    assert moving.ok
+    with pytest.raises(PlanRejected, match=r"starts moving \(vehicles\[0\].start_velocity"):
+        FlightExecutor(moving, fleet)
 
 
 @pytest.mark.flight

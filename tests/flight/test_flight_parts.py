@@ -70,8 +70,26 @@ def test_each_policy_does_what_it_says(policy: str, expected: tuple[str, ...]) -
 
     v, calls, events = asyncio.run(main())
     assert calls == [expected]
-    assert events == [("uav1", EventKind.FAULT)]
+    # land_faulty cannot steer a vehicle whose link is lost down a landing plan: PX4 lands it
+    fallback = [("uav1", EventKind.LANDING_FALLBACK)] if policy == "land_faulty" else []
+    assert events == [("uav1", EventKind.FAULT), *fallback]
     assert v.fault == "link_lost" and v.phase == VehiclePhase.FAULTY and v.fault_time == 1.0
+
+
+def test_land_faulty_lands_the_fleet_by_a_plan_when_the_vehicle_can_be_steered() -> None:
+    """A vehicle off its plan (a tracking error) still follows setpoints: rather than send it
+    straight down through the others' airspace, land_faulty lands the whole fleet by a
+    landing plan (an abort with land); with `landing: px4` it lands alone, as before."""
+    async def main(landing: str) -> list[Any]:
+        p, calls, _events = _policy("land_faulty")
+        p.options = p.options.replace(landing=landing)
+        p.on_fault(fake_vehicle(0), "tracking_error", "1.2 m from the plan")
+        await asyncio.gather(*p.tasks)
+        return calls
+
+    [(what, action, reason)] = asyncio.run(main("planned"))
+    assert (what, action) == ("abort", "land") and "landing plan" in reason
+    assert asyncio.run(main("px4")) == [("land", "uav1")]
 
 
 def test_a_separation_alarm_holds_everyone_once() -> None:

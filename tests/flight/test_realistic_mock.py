@@ -82,8 +82,8 @@ def test_doubled_mode_acks_are_counted_once_and_never_answer_a_later_command() -
                 cmd = mavlink.MAV_CMD_DO_SET_MODE
                 # no setpoint stream: OFFBOARD is refused (TEMPORARILY_REJECTED, twice)
                 refused = await link.command(cmd, px4.OFFBOARD.command_params)
-                # at once: Position mode, which is accepted (once, then its own duplicate)
-                accepted = await link.command(cmd, px4.POSITION.command_params)
+                # at once: Land, which is accepted (once, then its own duplicate)
+                accepted = await link.command(cmd, px4.LAND.command_params)
                 await asyncio.sleep(1.0)  # every duplicate has arrived
                 return {"refused": refused, "accepted": accepted,
                         "duplicates": link.duplicate_acks, "mode": mock.vehicles[0].mode,
@@ -94,9 +94,9 @@ def test_doubled_mode_acks_are_counted_once_and_never_answer_a_later_command() -
     out = asyncio.run(run())
     assert out["refused"] == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
     assert out["accepted"] == mavlink.MAV_RESULT_ACCEPTED, out
-    assert out["mode"] == px4.POSITION
+    assert out["mode"] == px4.LAND
     assert out["duplicates"] == 2  # one per command, each counted once and ignored
-    assert out["events"] == ["mode AUTO.LOITER -> POSCTL"]  # one change, made once
+    assert out["events"] == ["mode AUTO.LOITER -> AUTO.LAND"]  # one change, made once
 
 
 def test_the_estimate_wanders_and_its_accuracy_is_reported() -> None:

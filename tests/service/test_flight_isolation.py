@@ -1,13 +1,18 @@
-"""The flight runs apart from the service's event loop (`gcs.flight.vehicle_loop`): a service
-loop blocked for 1.5 s while a flight streams delays no setpoint tick, loses no link."""
+"""The flight runs apart from the service, in the vehicle process (`gcs.flight.vehicle_process`):
+a service loop blocked for 1.5 s, or the service's interpreter lock held as long, while a flight
+streams delays no setpoint tick and loses no link; a vehicle process that dies fails the flight
+instead of leaving it waiting."""
 
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import itertools
 import os
 import re
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -68,7 +73,12 @@ def test_a_blocked_service_loop_delays_no_tick_of_the_flight(tmp_path: Path) -> 
             await service.close()
             store.close()
 
-    record = asyncio.run(fly())
+    _assert_streamed_through(asyncio.run(fly()))
+
+
+def _assert_streamed_through(record: dict[str, Any]) -> None:
+    """The flight completed with no lost link, no setpoint gap near BLOCK_S and no station
+    stall as long."""
     summary = record["summary"]
     assert summary["completed"] is True, summary["why"]
     assert not summary["faults"]  # no vehicle lost its link or left OFFBOARD
@@ -134,28 +144,28 @@ def test_the_vehicle_threads_scheduling_is_what_it_reports() -> None:
 
 
 @pytest.mark.flight
-def test_a_vehicle_thread_that_dies_mid_flight_fails_the_flight(tmp_path: Path) -> None:
-    """The thread's loop ending (here a SystemExit out of a callback) stops every stream; the
-    service does not wait on it for ever: the flight is stored failed, naming the cause."""
+def test_a_vehicle_process_killed_mid_flight_fails_the_flight(tmp_path: Path) -> None:
+    """The vehicle process ending (here SIGKILL) stops every stream; the service does not wait
+    on it for ever: the flight is stored failed, naming the cause."""
     plan = smooth_plan(short_line(2, steps=25))
     settings = Settings(mock_vehicles=2, mock_base_port=free_udp_base(2), mock_settle_s=0.5,
                         database_url=f"sqlite:///{tmp_path / 'fleet.db'}", **QUICK_MOCK_SETTINGS)
     store = Store(settings.database_url)
     mission = store.create_mission(plan.scenario.to_dict())
 
-    def die() -> None:
-        raise SystemExit("the vehicle thread dies")
-
     async def fly() -> str:
         service = FleetService(settings, store)
         await service.start()
         try:
             flight = await _flying(service, mission.id, plan)
-            service.vehicle_loop.post(die)
+            assert service.vehicle_process.pid is not None
+            os.kill(service.vehicle_process.pid, signal.SIGKILL)
             await asyncio.wait_for(flight.done.wait(), 60)
             assert flight.status == "failed"
-            assert flight.error is not None and "VehicleLoopStopped" in flight.error
+            assert flight.error is not None and "vehicle process ended" in flight.error
             assert service.active is None
+            with pytest.raises(VehicleLoopStopped):  # nothing pretends to answer
+                await service.vehicles()
             return flight.id
         finally:
             await service.close()
@@ -165,3 +175,34 @@ def test_a_vehicle_thread_that_dies_mid_flight_fails_the_flight(tmp_path: Path) 
     store.close()
     assert stored is not None and stored.status == "failed"
     assert "VehicleLoopStopped" in (stored.error or "")
+
+
+@pytest.mark.flight
+def test_a_service_holding_the_interpreter_lock_delays_no_tick(tmp_path: Path) -> None:
+    """A call that holds the service process's GIL for 1.5 s (a C call that never releases
+    it, as a large serialisation does) leaves the flight, in its own process, untouched: on a
+    vehicle thread of the service's interpreter it would stop every tick for as long."""
+    plan = smooth_plan(short_line(2, steps=25))
+    settings = Settings(mock_vehicles=2, mock_base_port=free_udp_base(2), mock_settle_s=0.5,
+                        database_url=f"sqlite:///{tmp_path / 'fleet.db'}", **QUICK_MOCK_SETTINGS)
+    store = Store(settings.database_url)
+    mission = store.create_mission(plan.scenario.to_dict())
+    libc = ctypes.PyDLL(None)  # a PyDLL call keeps the GIL for its whole length
+
+    async def fly() -> dict[str, Any]:
+        service = FleetService(settings, store)
+        await service.start()
+        try:
+            flight = await _flying(service, mission.id, plan)
+            holder = threading.Thread(target=libc.usleep, args=(int(BLOCK_S * 1e6),))
+            holder.start()
+            holder.join()
+            await asyncio.wait_for(flight.done.wait(), 120)
+            assert flight.status == "completed", (flight.status, flight.error, flight.summary)
+            assert flight.handle is not None and flight.handle.record is not None
+            return flight.handle.record
+        finally:
+            await service.close()
+            store.close()
+
+    _assert_streamed_through(asyncio.run(fly()))

@@ -21,8 +21,9 @@ def _mock_config(**values: object):  # type: ignore[no-untyped-def]
         service = FleetService(settings, store=None)  # type: ignore[arg-type]
         await service.start()
         try:
-            assert service.fleet.mock is not None
-            return service.fleet.mock.config
+            config = await service.vehicle_process.call("mock_config")
+            assert config is not None
+            return config
         finally:
             await service.close()
 

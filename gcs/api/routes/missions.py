@@ -1,4 +1,5 @@
-"""/api/missions: create (plan), list, read, delete missions; progress; trajectory export.
+"""/api/missions: create (plan), list, read, delete missions; progress; trajectory and show
+exports.
 
 A mission is a validated scenario plus, once its worker answers, the plan. POST waits up to
 ``wait`` seconds (default: the `plan_wait_s` setting) for the plan and answers 201 with it;
@@ -40,7 +41,8 @@ from gcs.api.schemas import (
     ref,
     shape_errors,
 )
-from gcs.errors import InvalidRequest, StateConflict
+from gcs.errors import ExportError, InvalidRequest, StateConflict
+from gcs.export.skyc import SKYC_MEDIA_TYPE, keyframe_count, parse_origin, skyc_chunks
 from gcs.service.limits import (
     WorkBounds,
     scenario_bound_errors,
@@ -69,6 +71,7 @@ def _links(mission_id: str) -> dict[str, str]:
         "plan": f"{base}/plan",
         "trajectory": f"{base}/trajectory?rate=20",
         "trajectory_csv": f"{base}/trajectory?rate=20&format=csv",
+        "show_skyc": f"{base}/show.skyc",
         "executions": f"{base}/executions",
     }
 
@@ -440,3 +443,53 @@ def _show_csv(mission_id: str, plan: Any, rate: float, vehicle: str | None,
     safe = "".join(c if c.isalnum() or c in "._-" else "_" for c in vehicle)
     return Response(text, media_type="text/csv", headers={
         "Content-Disposition": f'attachment; filename="show-{mission_id}-{safe}.csv"'})
+
+
+@router.get(
+    "/{mission_id}/show.skyc",
+    response_model=None,
+    summary="The plan as a Skybrush show file (.skyc)",
+    responses={
+        200: {"content": {SKYC_MEDIA_TYPE: {}},
+              "description": "A ZIP archive holding show.json (Skybrush's compiled show)"},
+        **error_responses(404, 409, 422, 503),
+    },
+)
+def download_show(
+    mission: MissionDep,
+    plans: PlanCacheDep,
+    settings: SettingsDep,
+    _slot: ExportSlot,
+    origin: Annotated[
+        str | None,
+        Query(max_length=100, description="LAT,LON[,AMSL]: where the world origin (0, 0, 0) "
+              "is on the Earth (degrees, metres), written as the show's location"),
+    ] = None,
+) -> Response:
+    """The verified plan as a Skybrush compiled show: one drone per vehicle (named by its id,
+    home at its start) whose trajectory is one cubic Bezier segment per step, exact to 1 um;
+    takeoff time 0 at the plan's start; the geofence and the validation limits from the
+    scenario. The show frame is the world frame (x east, y north, z up). Sent as it is
+    written, one drone at a time. 409 for a mission without a verified plan; at most
+    `max_trajectory_samples` keyframes (vehicles x (steps + 1)) and `max_concurrent_exports`
+    exports at once, like `/trajectory`."""
+    try:
+        place = None if origin is None else parse_origin(origin)
+    except ExportError as exc:
+        raise InvalidRequest(exc.field, exc.reason) from None
+    plan = plans.get(mission.id)
+    if not plan.ok:
+        raise StateConflict("mission_id", f"mission {mission.id!r}: refusing to export a plan "
+                            f"that is not verified: {'; '.join(plan.problems())}")
+    keyframes = keyframe_count(plan)
+    if keyframes > settings.max_trajectory_samples:
+        raise InvalidRequest("mission_id", f"the show has up to {keyframes} keyframes "
+                             f"({len(plan.vehicles)} vehicles x {plan.scenario.steps + 1}), "
+                             f"more than this server's limit {settings.max_trajectory_samples} "
+                             f"(setting max_trajectory_samples); use fleetplan export")
+    try:
+        chunks = skyc_chunks(plan, show_id=mission.id, origin=place)
+    except ExportError as exc:
+        raise StateConflict(f"plan.{exc.field}", exc.reason) from None
+    return StreamingResponse(chunks, media_type=SKYC_MEDIA_TYPE, headers={
+        "Content-Disposition": f'attachment; filename="show-{mission.id}.skyc"'})

@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.flight.commands import FLEET_COMMANDS
 from gcs.service.settings import Settings
+from gcs.sim import DEFAULT_WORLD_ORIGIN
 from tests.api.routes.test_executions import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING
@@ -108,8 +109,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
                 client.get("/api/vehicles").json()["vehicles"]),
             10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
         # the world frame's geodetic origin (the mock's), for a page's coordinates and scale
-        app = cast(Any, client.app)  # the FastAPI app (its state holds the in-process mock)
-        mock_origin = app.state.fleet.fleet.mock.world_origin
+        mock_origin = DEFAULT_WORLD_ORIGIN  # the mocks' own (the service's mocks keep it)
         assert client.get("/api/vehicles").json()["fleet"]["world_origin"] == {
             "lat": mock_origin.lat, "lon": mock_origin.lon, "alt": mock_origin.alt}
         for v in vehicles:
@@ -117,8 +117,10 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
             assert v["gps"]["h_acc"] == pytest.approx(0.05)
             assert v["health"]["unhealthy"] == []
             assert v["link_quality"]["received"] > 10 and v["link_quality"]["lost"] == 0
-        mock = app.state.fleet.fleet.mock  # inject a fault into the in-process mock
-        mock.vehicles[2].faults.battery = 15.0
+        # inject a fault into the service's mock vehicle 2, in its vehicle process
+        app = cast(Any, client.app)
+        client.portal.call(app.state.fleet.vehicle_process.call,  # type: ignore[union-attr]
+                           "inject_mock_fault", 2, "battery", 15.0)
         wait_for(lambda: client.get("/api/vehicles").json()["vehicles"][2]["battery"]
                  ["remaining_pct"] == 15, 5, "the low battery to be reported")
 

@@ -1,0 +1,65 @@
+"""The service's side of one flight flown in the vehicle process: pause, resume, abort, its
+latest snapshot, the record so far and, once it ended, its record.
+
+The flight itself (`gcs.flight.flight_handle.FlightHandle`) runs in the vehicle process and
+is reached through `gcs.service.vehicle_host.FleetHost`'s methods; its snapshots arrive as
+notices (`posted`), and its record so far is mirrored in pieces (`gcs.service.record_mirror`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gcs.flight.vehicle_process import VehicleProcess
+from gcs.service.record_mirror import RecordMirror
+
+__all__ = ["RemoteFlight"]
+
+
+class RemoteFlight:
+    """One flight in the vehicle process, driven from the service's loop."""
+
+    def __init__(self, process: VehicleProcess, execution: str) -> None:
+        self._process = process
+        self._execution = execution
+        self._snapshot: dict[str, Any] | None = None
+        self._mirror = RecordMirror()
+        self.record: dict[str, Any] | None = None
+        """The flight record once the flight ended (also after an error or abort)."""
+        self.scheduling = process.scheduling
+        """The vehicle thread's scheduling (`VehicleLoop.scheduling`)."""
+
+    def posted(self, snapshot: dict[str, Any]) -> None:
+        """A snapshot the vehicle process posted."""
+        self._snapshot = snapshot
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """The latest live state the vehicle process posted (`FlightExecutor.snapshot`)."""
+        return self._snapshot
+
+    async def pause(self) -> float:
+        """Stop the flight clock; the mission time it holds."""
+        return float(await self._process.call("pause", self._execution))
+
+    async def resume(self) -> float:
+        """Restart the flight clock; the mission time it restarts at."""
+        return float(await self._process.call("resume", self._execution))
+
+    async def abort(self, action: str = "land", reason: str = "operator abort") -> None:
+        """Every vehicle to `action` now; returns once the commands were answered."""
+        await self._process.call("abort", self._execution, action, reason)
+
+    async def result(self) -> dict[str, Any]:
+        """The flight record once the flight ended; the error it ended on is raised here
+        (after `record` holds what was recorded)."""
+        record, error = await self._process.call("flight_result")
+        self.record = record
+        if error is not None:
+            raise error
+        return dict(record)
+
+    async def record_so_far(self) -> dict[str, Any]:
+        """The flight record so far, ``"partial": true`` (only what is new crosses over)."""
+        self._mirror.apply(await self._process.call("record_delta", self._execution,
+                                                    self._mirror.cursor()))
+        return self._mirror.snapshot()

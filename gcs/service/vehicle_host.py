@@ -1,0 +1,200 @@
+"""The service's vehicle side, hosted in the vehicle process (`gcs.flight.vehicle_process`).
+
+`FleetHost` owns the configured fleet (`gcs.service.fleet.Fleet`: the fleet file's vehicles
+or the mocks, the monitor links, the fleet commands) and the one flight under way (a
+`gcs.flight.flight_handle.FlightHandle` on the process's vehicle loop). The service calls its
+public methods by name (`gcs.service.flights.FleetService`); everything it answers is plain
+data. It tells the service of a flight's events and live snapshots by notices tagged with the
+execution id: ``event`` ({execution, event}) in order, and ``snapshot`` ({execution, snapshot})
+`snapshot_hz` times a second.
+
+When the service goes away without asking (its process died, or SIGTERM reached this one),
+`close` lands a flight under way before the process exits: a fleet is never left streaming
+from nowhere.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from typing import Any
+
+from gcs.errors import StateConflict
+from gcs.flight.fleetfile import FlightOptions
+from gcs.flight.flight_handle import FlightHandle
+from gcs.flight.realtime import settle_heap
+from gcs.flight.vehicle_process import HostContext
+from gcs.service.fleet import Fleet
+from gcs.service.record_mirror import record_delta
+from gcs.service.settings import Settings
+from gcs.sim import MockConfig
+from planner import Plan
+
+__all__ = ["PRELOAD", "FleetHost"]
+
+log = logging.getLogger(__name__)
+
+#: Modules the vehicle process's fork server imports once (each child then starts at once).
+PRELOAD = ("gcs.service.vehicle_host",)
+#: How long `close` waits for a flight under way to land (s).
+CLOSE_LANDING_S = 60.0
+
+
+class FleetHost:
+    """The fleet and its flight, in the vehicle process; see the module."""
+
+    def __init__(self, context: HostContext, settings: Settings) -> None:
+        self._vehicles = context.vehicles
+        self._notify = context.notify
+        self.fleet = Fleet(settings)
+        self._flight: FlightHandle | None = None
+        self._execution: str | None = None
+        self._result: asyncio.Future[dict[str, Any]] | None = None
+        self._ticker: asyncio.Task[None] | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+
+    async def start(self) -> None:
+        """Load the fleet file or start the mocks, and watch the links."""
+        await self.fleet.start()
+
+    async def close(self) -> None:
+        """Land a flight under way (waiting for it up to CLOSE_LANDING_S), then release the
+        links and stop the mocks."""
+        if self._flying():
+            assert self._flight is not None and self._result is not None
+            log.warning("vehicle process closing during a flight: landing every vehicle")
+            with contextlib.suppress(Exception):
+                await self._flight.abort("land", "the service is stopping")
+            with contextlib.suppress(BaseException):
+                await asyncio.wait_for(asyncio.shield(self._result), CLOSE_LANDING_S)
+        await self.fleet.close()
+
+    # ------------------------------------------------------------------ the fleet
+
+    def describe(self) -> dict[str, Any]:
+        """`Fleet.describe`: kind, ids, world origin."""
+        return self.fleet.describe()
+
+    def monitored(self) -> list[dict[str, Any]]:
+        """`Fleet.monitored`: every vehicle's link state between flights."""
+        return self.fleet.monitored()
+
+    async def command(self, command: str, vehicles: list[str] | None, *, force: bool,
+                      confirm: bool) -> dict[str, Any]:
+        """`Fleet.command`, refused while a flight has the links."""
+        if self._flying():
+            raise StateConflict("fleet", "a flight is under way: use its abort instead")
+        return await self.fleet.command(command, vehicles, force=force, confirm=confirm)
+
+    def flight_options(self, plan: Plan, options: dict[str, Any]) -> FlightOptions:
+        """`Fleet.flight_options`: the options a flight of `plan` would fly with."""
+        return self.fleet.flight_options(plan, options)
+
+    def mock_config(self) -> MockConfig | None:
+        """The mock vehicles' configuration (None without mocks)."""
+        return None if self.fleet.mock is None else self.fleet.mock.config
+
+    def inject_mock_fault(self, index: int, fault: str, value: Any) -> None:
+        """Set `fault` of mock vehicle `index` (`gcs.sim` faults: battery, link cut, ...), as
+        a demo or a test injects a failure into the in-process mocks."""
+        mock = self.fleet.mock
+        if mock is None or not 0 <= index < len(mock.vehicles):
+            raise StateConflict("fleet", f"no mock vehicle {index}")
+        faults = mock.vehicles[index].faults
+        if not hasattr(faults, fault) or fault.startswith("_"):
+            raise StateConflict("fault", f"no mock fault {fault!r}")
+        setattr(faults, fault, value)
+
+    # ------------------------------------------------------------------ a flight
+
+    async def fly(self, execution: str, plan: Plan, options: FlightOptions,
+                  snapshot_hz: float) -> dict[str, Any]:
+        """Take the links from the monitor (set the mocks down under the plan's starts) and
+        start flying `plan`; the fleet's description as it now is. The executor's checks
+        raise here (PlanRejected), and the monitor is reopened then."""
+        if self._flying():
+            raise StateConflict("fleet", f"execution {self._execution} is flying")
+        await self.fleet.close_monitor()
+        try:
+            if self.fleet.kind == "mock":
+                await self.fleet.rehome_mock(plan)
+            spec = self.fleet.configured()
+            flight = await FlightHandle.create(
+                self._vehicles, plan, spec, options, snapshot_hz=snapshot_hz,
+                on_event=lambda event: self._notify(
+                    "event", {"execution": execution, "event": event}))
+        except BaseException:
+            await self.fleet.open_monitor()
+            raise
+        self._flight, self._execution = flight, execution
+        settle_heap()  # before the stream starts, not in the middle of it
+        self._result = flight.start()
+        self._ticker = asyncio.ensure_future(self._post_snapshots(flight, execution,
+                                                                  1.0 / snapshot_hz))
+        return self.fleet.describe()
+
+    async def flight_result(self) -> tuple[dict[str, Any] | None, BaseException | None]:
+        """Once the flight ended: (its record, None), or (the record so far, the error it
+        ended on: FlightAborted, VehicleTimeout, ...). The monitor is open again after."""
+        flight, result = self._flight, self._result
+        if flight is None or result is None:
+            raise StateConflict("fleet", "no flight")
+        try:
+            return await asyncio.shield(result), None
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:
+            return flight.record, exc
+        finally:
+            if result.done():
+                await self._ended(flight)
+
+    async def _ended(self, flight: FlightHandle) -> None:
+        if self._flight is not flight:
+            return
+        if self._ticker is not None:
+            self._ticker.cancel()
+        self._notify("snapshot", {"execution": self._execution, "snapshot": flight.snapshot()})
+        self._flight, self._result, self._ticker = None, None, None
+        await self.fleet.open_monitor()
+
+    def _flying(self) -> bool:
+        return self._result is not None and not self._result.done()
+
+    async def _post_snapshots(self, flight: FlightHandle, execution: str,
+                              period: float) -> None:
+        while True:
+            self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+            await asyncio.sleep(period)
+
+    def _current(self, execution: str) -> FlightHandle:
+        if self._flight is None or self._execution != execution:
+            raise StateConflict("execution_id", f"execution {execution!r} is not flying here")
+        return self._flight
+
+    async def pause(self, execution: str) -> float:
+        """`FlightHandle.pause` of the flight under way; its snapshot is posted before the
+        answer, so the service shows the pause once the call returns."""
+        flight = self._current(execution)
+        held = await flight.pause()
+        self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+        return held
+
+    async def resume(self, execution: str) -> float:
+        """`FlightHandle.resume` of the flight under way; its snapshot is posted before the
+        answer."""
+        flight = self._current(execution)
+        restarted = await flight.resume()
+        self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+        return restarted
+
+    async def abort(self, execution: str, action: str, reason: str) -> None:
+        """`FlightHandle.abort` of the flight under way."""
+        await self._current(execution).abort(action, reason)
+
+    async def record_delta(self, execution: str, cursor: dict[str, Any]) -> dict[str, Any]:
+        """What the flight's record holds beyond `cursor` (`gcs.service.record_mirror`)."""
+        return await self._current(execution).with_recorder(
+            lambda recorder: record_delta(recorder, cursor))

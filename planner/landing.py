@@ -1,0 +1,241 @@
+"""Landing plans: from a flying fleet's state to touchdown points, planned and verified.
+
+A way out of a flight must keep R as the plan does. `plan_landing` takes every vehicle's
+current position, velocity and acceleration (world frame ENU, e.g. the flying plan's state at
+a switch instant) and plans, with the same SCP planner, a move to a touchdown point at the
+landing height (the workspace floor plus `landing_height`) below or beside each vehicle:
+
+- touchdown points start straight below the vehicles and are pushed apart (in the
+  separation metric, horizontally) until every two are at least R (1 + `TOUCHDOWN_SLACK`)
+  apart, inside the workspace: vehicles stacked above each other land side by side;
+- the horizon is what the farthest vehicle needs under the velocity and acceleration boxes
+  (stopping from its current velocity, then its move), with room to give way;
+- the result is verified like every plan (continuous-time separation, boxes, boundary
+  conditions, flyability). The separation it keeps is R, or less where the fleet's state
+  does not allow R: vehicles already closer than R cannot be planned apart in no time, and
+  a pair passing each other near R keeps what the first step's rows allow
+  (`first_step_clearance`, a few centimetres less).
+
+Numerics only: the ground station streams the plan and hands over to PX4's Land at the
+touchdown points (`gcs.flight.landing`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
+
+from planner.errors import PlannerError
+from planner.planning import plan
+from planner.result import Plan
+from planner.scenario import Scenario, minimum_transfer_time
+from planner.scp import ScpOptions
+from planner.types import FloatArray
+
+__all__ = ["LandingError", "LandingPlan", "first_step_clearance", "plan_landing",
+           "touchdown_points"]
+
+
+#: Touchdown points keep R (1 + this) apart horizontally, so that a vehicle descending
+#: vertically onto its point (PX4 Land) stays R from one standing on its own.
+TOUCHDOWN_SLACK = 0.05
+#: Where the fleet's state holds R within this fraction of it (vehicles passing each other
+#: near R), the landing keeps R (or less, `first_step_clearance`) minus this fraction: rows
+#: linearised at the very edge of what the state allows leave its QP no room.
+START_SLACK = 0.01
+#: Rounds of pushing touchdown points apart before giving up (the floor is too crowded).
+SPREAD_ROUNDS = 200
+#: The horizon is this many times the farthest vehicle's minimum time, plus `HORIZON_EXTRA_S`:
+#: room for vehicles to give way to each other.
+HORIZON_FACTOR = 1.5
+HORIZON_EXTRA_S = 1.0
+#: Speed (m/s) a landing is timed with where the scenario bounds no velocity.
+DEFAULT_SPEED = 1.0
+#: Horizons tried, as multiples of the first, when a plan fails to converge or verify.
+RETRY_FACTORS = (1.0, 1.8)
+#: SCP iterations allowed per attempt (a landing must be quick; unconverged is retried).
+MAX_ITERATIONS = 12
+
+
+class LandingError(PlannerError):
+    """No verified landing plan: the reason in words (the caller falls back to PX4 Land)."""
+
+
+@dataclass(frozen=True)
+class LandingPlan:
+    """A verified landing plan and how it was made."""
+
+    plan: Plan
+    """Converged and verified; its goals are the touchdown points, its starts the state."""
+    separation: float
+    """The separation it keeps (m): R, or less where the state does not allow R
+    (`first_step_clearance`); its verification checks the plan against this."""
+    seconds: float
+    """Planning time, touchdown placement included (s)."""
+    attempts: int
+    """Horizons tried (1 unless the first one failed)."""
+
+
+def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float) -> FloatArray:
+    """(N, 3) touchdown points at `height` (world z), each as near below its vehicle as the
+    others allow: pushed apart until every two are R (1 + TOUCHDOWN_SLACK) apart in the
+    horizontal separation metric, inside the workspace. `LandingError` when the floor is
+    too crowded for that."""
+    p = np.asarray(positions, dtype=float)
+    lim = scenario.limits
+    scale = scenario.separation_scale[:2]
+    need = scenario.min_separation * (1.0 + TOUCHDOWN_SLACK)
+    lo, hi = lim.position_min[:2] / scale, lim.position_max[:2] / scale
+    xy = np.clip(p[:, :2] / scale, lo, hi)
+    rng = np.random.default_rng(0)  # only breaks exact coincidences, reproducibly
+    for _ in range(SPREAD_ROUNDS):
+        pairs = cKDTree(xy).query_pairs(need * (1.0 - 1e-9), output_type="ndarray")
+        if len(pairs) == 0:
+            break
+        i, j = pairs[:, 0], pairs[:, 1]
+        d = xy[j] - xy[i]
+        dist = np.linalg.norm(d, axis=1)
+        same = dist < 1e-9
+        if same.any():
+            angle = rng.uniform(0.0, 2.0 * math.pi, int(same.sum()))
+            d[same] = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+            dist[same] = 1.0
+        # each of the two moves half the shortfall (a little more, so the rounds end)
+        push = (0.5 * (need - dist) * 1.01 + 1e-6)[:, None] * d / dist[:, None]
+        moves = np.zeros_like(xy)
+        np.add.at(moves, i, -push)
+        np.add.at(moves, j, push)
+        xy = np.clip(xy + moves, lo, hi)
+    else:
+        raise LandingError(f"cannot place {len(p)} touchdown points {need:.2f} m apart on the "
+                           f"workspace floor within {SPREAD_ROUNDS} rounds (too crowded)")
+    out = np.empty_like(p)
+    out[:, :2] = xy * scale
+    out[:, 2] = height
+    return out
+
+
+def first_step_clearance(p: FloatArray, v: FloatArray, a: FloatArray, scenario: Scenario
+                         ) -> float:
+    """The separation a plan starting in this state can be held to (m, scaled metric): the
+    first step's rows are nearly fixed by the state (p0 and v0 are, a0 stays within the jerk
+    box of the acceleration before), so they hold for at most the smallest value, along the
+    direction of the closest point of the step's chord (the SCP's direction for a moving
+    start, `planner.separation.directions`), of the step's start, middle point and end with
+    a0 unchanged. From a verified plan's state this is R within a fraction of a millimetre.
+    inf when no two vehicles come within R (1 + START_SLACK) over the step."""
+    if len(p) < 2:
+        return math.inf
+    scale = scenario.separation_scale
+    dt = scenario.dt
+    scaled = p / scale
+    # pairs that can come within R over the step (each moves at most |v| dt + |a| dt^2 / 2)
+    reach = float(np.max(np.linalg.norm((v * dt + 0.5 * dt * dt * np.abs(a)) / scale,
+                                        axis=1)))
+    near = scenario.min_separation * (1.0 + START_SLACK) + 2.0 * reach + 1e-9
+    pairs = cKDTree(scaled).query_pairs(near, output_type="ndarray")
+    if len(pairs) == 0:
+        return math.inf
+    i, j = pairs[:, 0], pairs[:, 1]
+    d0 = scaled[i] - scaled[j]
+    dv = (v[i] - v[j]) / scale
+    da = (a[i] - a[j]) / scale
+    d1 = d0 + dt * dv + 0.5 * dt * dt * da
+    chord = d1 - d0
+    along = np.clip(-np.einsum("rc,rc->r", d0, chord)
+                    / np.maximum(np.einsum("rc,rc->r", chord, chord), 1e-18), 0.0, 1.0)
+    closest = d0 + along[:, None] * chord
+    u = closest / np.maximum(np.linalg.norm(closest, axis=1), 1e-12)[:, None]
+    values = [np.einsum("rc,rc->r", u, x) for x in (d0, d0 + 0.5 * dt * dv, d1)]
+    return float(np.min(np.minimum.reduce(values))) * (1.0 - 1e-9)
+
+
+def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
+             scenario: Scenario) -> float:
+    """Seconds the landing gets: the farthest vehicle's stop and move, with room to spare."""
+    lim = scenario.limits
+    move = minimum_transfer_time(goals - starts, lim.velocity_max, lim.acceleration_max)
+    speed = (DEFAULT_SPEED if lim.velocity_max is None
+             else min(DEFAULT_SPEED, float(lim.velocity_max.min())))
+    nominal = np.linalg.norm(goals - starts, axis=1) / speed
+    stop = (np.zeros(len(starts)) if lim.acceleration_max is None
+            else np.max(np.abs(velocities) / lim.acceleration_max, axis=1))
+    need = max(float(np.max(move.max(axis=1) + 2.0 * stop)), float(np.max(nominal)))
+    return HORIZON_FACTOR * need + HORIZON_EXTRA_S
+
+
+def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike,
+                 accelerations: ArrayLike, *, ids: list[str] | None = None,
+                 landing_height: float = 0.0, solver: str | None = None,
+                 deadline: float | None = None) -> LandingPlan:
+    """A verified landing plan for vehicles at `positions` (N, 3) moving with `velocities`
+    and `accelerations` (N, 3), under `scenario`'s workspace, boxes, R and step length.
+
+    ids: the vehicles' ids (default `scenario.ids`, which needs N equal to its size).
+    landing_height: touchdown height above the workspace floor (m). deadline: a
+    `time.perf_counter()` instant after which no further attempt starts. Raises
+    `LandingError` when no verified plan was found.
+    """
+    began = time.perf_counter()
+    lim = scenario.limits
+    p = np.asarray(positions, dtype=float).reshape(-1, 3)
+    v = np.asarray(velocities, dtype=float).reshape(-1, 3)
+    a = np.asarray(accelerations, dtype=float).reshape(-1, 3)
+    names = scenario.ids if ids is None else list(ids)
+    if not len(p) == len(v) == len(a) == len(names) or len(p) == 0:
+        raise LandingError("positions, velocities, accelerations and ids must agree in length")
+    if not (np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()):
+        raise LandingError("the fleet's state is not finite")
+    floor, ceiling = float(lim.position_min[2]), float(lim.position_max[2])
+    height = floor + landing_height
+    if not floor <= height <= ceiling:
+        raise LandingError(f"landing height {landing_height:g} m lies outside the workspace")
+    # A measured state may lie a hair outside the boxes; plan from the nearest state inside.
+    p = np.clip(p, lim.position_min, lim.position_max)
+    if lim.velocity_max is not None:
+        v = np.clip(v, -lim.velocity_max, lim.velocity_max)
+    if lim.acceleration_max is not None:
+        a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
+    goals = touchdown_points(p, scenario, height)
+    clearance = first_step_clearance(p, v, a, scenario)
+    separation = scenario.min_separation
+    if clearance < separation + START_SLACK * separation:
+        # rows at the very edge of what the state allows leave the QP no room: give a hair
+        separation = min(separation, clearance) - START_SLACK * separation
+    horizon = _horizon(p, v, goals, scenario)
+    failures: list[str] = []
+    for attempts, factor in enumerate(RETRY_FACTORS, start=1):
+        if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
+            break
+        steps = max(3, math.ceil(factor * horizon / scenario.dt))
+        spec = _scenario(scenario, names, p, v, a, goals, separation, steps)
+        result = plan(spec, solver=solver, options=ScpOptions())
+        if result.ok:
+            return LandingPlan(result, separation, time.perf_counter() - began, attempts)
+        failures.append(f"{steps * scenario.dt:.1f} s: {'; '.join(result.problems())}")
+    raise LandingError("no verified landing plan (" + " | ".join(failures) + ")")
+
+
+def _scenario(base: Scenario, ids: list[str], p: FloatArray, v: FloatArray, a: FloatArray,
+              goals: FloatArray, separation: float, steps: int) -> Scenario:
+    """The landing's scenario: the base's workspace, boxes and limits, from the state."""
+    return Scenario.from_dict({
+        "name": f"{base.name} landing",
+        "dt": base.dt,
+        "steps": steps,
+        "min_separation": separation,
+        "separation_scale": base.separation_scale.tolist(),
+        "cost_threshold": base.cost_threshold,
+        "max_iterations": MAX_ITERATIONS,
+        "limits": base.limits.to_dict(),
+        "vehicles": [
+            {"id": vid, "start": p[n].tolist(), "goal": goals[n].tolist(),
+             "start_velocity": v[n].tolist(), "start_acceleration": a[n].tolist()}
+            for n, vid in enumerate(ids)
+        ],
+    })

@@ -1,0 +1,66 @@
+"""`fleetplan mock --gcs-port` and `fleetplan fly --mock --mock-gcs-port`: the GCS link a
+ground station watches, and a bad port refused with the option's name."""
+
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from gcs.wire import mavlink
+from tests.flight.support import free_port_block, short_line, smooth_plan
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def test_mock_gcs_port_sends_to_a_ground_station() -> None:
+    base = free_port_block(2)
+    station = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    station.bind(("127.0.0.1", 0))
+    station.settimeout(0.5)
+    port = station.getsockname()[1]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gcs.cli.main", "mock", "--vehicles", "1", "--base-port",
+         str(base), "--listen-base-port", str(base + 1), "--gcs-port", str(port),
+         "--duration", "20"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        parser = mavlink.MAVLink(None)
+        parser.robust_parsing = True
+        heartbeat = None
+        deadline = time.monotonic() + 20.0
+        while heartbeat is None and time.monotonic() < deadline:
+            try:
+                data, _source = station.recvfrom(4096)
+            except TimeoutError:
+                continue
+            heartbeat = next((m for m in parser.parse_buffer(data) or []
+                              if m.get_type() == "HEARTBEAT"), None)
+        assert heartbeat is not None, "no HEARTBEAT on the GCS port"
+        assert heartbeat.get_srcSystem() == 1
+        assert heartbeat.autopilot == mavlink.MAV_AUTOPILOT_PX4
+    finally:
+        proc.terminate()
+        out, _ = proc.communicate(timeout=10)
+        station.close()
+    assert f"GCS links send to 127.0.0.1:{port}" in out
+
+
+@pytest.mark.parametrize("command", ["mock", "fly"])
+def test_a_bad_gcs_port_is_refused(command: str, tmp_path: Path) -> None:
+    if command == "mock":
+        args = ["mock", "--vehicles", "1", "--gcs-port", "70000"]
+        flag = "--gcs-port"
+    else:
+        plan_path = tmp_path / "plan.json"
+        plan_path.write_text(json.dumps(smooth_plan(short_line(1)).to_dict()))
+        args = ["fly", str(plan_path), "--mock", "--mock-gcs-port", "0"]
+        flag = "--mock-gcs-port"
+    proc = subprocess.run([sys.executable, "-m", "gcs.cli.main", *args],
+                          capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.startswith(f"error: {flag} must be a UDP port (1..65535)")

@@ -1,0 +1,77 @@
+"""Aborts with land fly a verified landing plan (`gcs.flight.landing`) on the ideal mock."""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+import pytest
+
+from gcs.flight.executor import FlightExecutor
+from gcs.flight.fleetfile import FleetSpec
+from gcs.flight.phases import EventKind
+from gcs.flight.record import measured_min_separation
+from gcs.sim import MockFleet
+from tests.flight.support import FAST_MOCK, QUICK, mock_ports, smooth_plan
+
+pytestmark = pytest.mark.timeout(120)
+
+#: Two vehicles stacked 0.84 m apart vertically and 0.55 m horizontally (1.004 m apart),
+#: flying side by side along y: landing each straight down brings them 0.55 m apart.
+STACKED = {
+    "name": "stacked", "dt": 0.2, "steps": 20, "min_separation": 1.0,
+    "limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [5.0, 5.0, 3.0],
+               "velocity_max": [2.0, 2.0, 2.0], "acceleration_max": [3.0, 3.0, 3.0]},
+    "vehicles": [{"id": "low", "start": [2.0, 1.0, 1.08], "goal": [2.0, 3.0, 1.08]},
+                 {"id": "high", "start": [2.55, 1.0, 1.92], "goal": [2.55, 3.0, 1.92]}],
+}
+#: Homes apart, so the climbs (vertical, then horizontal) keep R too.
+HOMES = [[0.8, 1.0, 0.0], [3.75, 1.0, 0.0]]
+
+
+async def _abort_at(plan, t_abort: float, options):
+    async with MockFleet(homes=HOMES, settle_time=0.5, **mock_ports(2), **FAST_MOCK) as mock:
+        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+        flight = FlightExecutor(plan, fleet, options)
+        task = flight.start()
+        while (flight.flight_time() or -1.0) < t_abort:
+            await asyncio.sleep(0.02)
+        aborted_at = flight.now()
+        await flight.abort("land", "test abort")
+        try:
+            outcome = await task
+        except Exception as exc:
+            outcome = exc
+        return flight, outcome, mock, aborted_at
+
+
+@pytest.mark.flight
+def test_stacked_pair_aborted_with_land_keeps_r_until_down() -> None:
+    """The issue's 0.53 m case: aborted with land while stacked, the two vehicles fly a
+    verified landing plan to touchdown points R apart and PX4 lands them from there; the
+    flown separation stays >= R - 0.05 m until both are on the ground, disarmed."""
+    plan = smooth_plan(STACKED)
+    # a bound a busy machine always meets (the plan takes milliseconds; 0.5 s by default)
+    options = QUICK.replace(landing_plan_timeout=2.0)
+    flight, outcome, mock, aborted_at = asyncio.run(_abort_at(plan, 1.0, options))
+    record = flight.record
+    assert record is not None and not isinstance(outcome, dict)
+    kinds = [e["kind"] for e in record["events"]]
+    assert EventKind.LANDING_PLAN in kinds, record["events"]
+    assert EventKind.LANDING_FALLBACK not in kinds
+    times, positions = [], []
+    for vid in plan.scenario.ids:
+        tel = next(v for v in record["vehicles"] if v["id"] == vid)["telemetry"]
+        times.append(np.asarray(tel["t"]))
+        positions.append(np.asarray(tel["position"]))
+    end = min(float(t[-1]) for t in times)
+    closest, _ = measured_min_separation(times, positions, aborted_at, end, 50.0,
+                                         np.ones(3))
+    assert closest >= 1.0 - 0.05
+    # both are down and disarmed, R apart on the ground (not one above the other)
+    for vehicle in mock.vehicles:
+        assert not vehicle.armed
+        assert vehicle.position_world[2] == pytest.approx(0.0, abs=0.05)
+    ground = [v.position_world[:2] for v in mock.vehicles]
+    assert np.linalg.norm(ground[0] - ground[1]) >= 1.0 - 0.05
+    assert all(e["kind"] != "not_disarmed" for e in record["events"])

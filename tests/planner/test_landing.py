@@ -1,0 +1,108 @@
+"""planner.landing: landing plans from a flying fleet's state, verified, R apart to the
+ground."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import planner
+from planner.landing import (
+    START_SLACK,
+    TOUCHDOWN_SLACK,
+    LandingError,
+    first_step_clearance,
+    plan_landing,
+    touchdown_points,
+)
+from planner.verify import SEPARATION_TOLERANCE
+from tests.planner.conftest import load_example
+
+STACKED = np.array([[2.0, 2.0, 1.08], [2.55, 2.0, 1.92]])
+
+
+@pytest.fixture(scope="module")
+def circle8():
+    plan = planner.plan(load_example("paper-circle8"))
+    assert plan.ok
+    return plan
+
+
+def test_touchdown_points_of_stacked_vehicles_are_side_by_side(circle8) -> None:
+    """Two vehicles 0.55 m apart horizontally land R (and the slack) apart, each near below
+    itself, at the landing height."""
+    points = touchdown_points(STACKED, circle8.scenario, 0.3)
+    gap = np.linalg.norm(points[0, :2] - points[1, :2])
+    assert gap >= 1.0 * (1.0 + TOUCHDOWN_SLACK) - 1e-9
+    assert gap < 1.2  # moved no more than needed
+    np.testing.assert_allclose(points[:, 2], 0.3)
+    assert np.all(np.linalg.norm(points[:, :2] - STACKED[:, :2], axis=1) < 0.5)
+
+
+def test_a_floor_too_small_for_the_fleet_is_refused(circle8) -> None:
+    """36 vehicles cannot stand 1.05 m apart on a 5 x 5 m floor: a LandingError says so."""
+    grid = np.stack(np.meshgrid(np.linspace(0.5, 4.5, 6), np.linspace(0.5, 4.5, 6)), -1)
+    crowd = np.concatenate([grid.reshape(-1, 2), np.full((36, 1), 2.0)], axis=1)
+    with pytest.raises(LandingError, match="too crowded"):
+        touchdown_points(crowd, circle8.scenario, 0.0)
+
+
+@pytest.mark.parametrize("t", [4.0, 12.0, 15.0, 22.0])
+def test_landing_from_the_paper_circle_mid_flight_keeps_r(circle8, t: float) -> None:
+    """From the 8-vehicle circle's state (positions, velocities, accelerations) at t, the
+    landing plan starts in that state, ends at rest on the floor R apart, and keeps R (less
+    the start slack where the fleet is within a hair of R) over continuous time, verified."""
+    state = circle8.sample(np.array([t]))
+    p, v, a = (x[:, 0] for x in state)
+    landing = plan_landing(circle8.scenario, p, v, a)
+    plan = landing.plan
+    assert plan.ok, plan.problems()
+    assert landing.separation >= 1.0 - START_SLACK - 1e-9
+    assert plan.verification.min_separation_continuous >= landing.separation - SEPARATION_TOLERANCE
+    np.testing.assert_allclose(plan.positions()[:, 0], p, atol=1e-6)
+    np.testing.assert_allclose(plan.velocities()[:, 0], v, atol=1e-6)
+    np.testing.assert_allclose(plan.positions()[:, -1, 2], 0.0, atol=1e-6)
+    assert np.abs(plan.velocities()[:, -1]).max() < 1e-6
+
+
+def test_landing_a_stacked_pair_moves_the_lower_one_aside(circle8) -> None:
+    """Landing each straight down would bring them 0.55 m apart; the plan keeps 1 m (less
+    the 1 % start slack: they start 1.004 m apart)."""
+    landing = plan_landing(circle8.scenario, STACKED, np.zeros((2, 3)), np.zeros((2, 3)),
+                           ids=["low", "high"], landing_height=0.3)
+    assert landing.plan.ok
+    assert landing.separation == pytest.approx(1.0 - START_SLACK)
+    assert landing.plan.verification.min_separation_continuous >= 0.99 - SEPARATION_TOLERANCE
+    assert landing.plan.scenario.ids == ["low", "high"]
+
+
+def test_a_fleet_already_closer_than_r_keeps_what_it_has(circle8) -> None:
+    """Vehicles measured 0.9 m apart cannot be planned apart in no time: the landing keeps
+    their 0.9 m (less the start slack, and says so) rather than fail."""
+    points = np.array([[1.0, 1.0, 2.0], [1.9, 1.0, 2.0], [4.0, 4.0, 1.0]])
+    landing = plan_landing(circle8.scenario, points, np.zeros((3, 3)), np.zeros((3, 3)),
+                           ids=["a", "b", "c"])
+    assert landing.separation == pytest.approx(0.9 - START_SLACK, abs=1e-6)
+    assert landing.plan.ok
+    assert landing.plan.verification.min_separation_continuous >= 0.89 - SEPARATION_TOLERANCE
+
+
+def test_first_step_clearance_of_a_pair_passing_at_r() -> None:
+    """Two vehicles passing each other side by side at R keep R along their first step's
+    chord (d0's own direction would cut the step's end); two closing in head-on do not."""
+    scenario = planner.Scenario.from_dict(load_example("paper-circle2"))
+    p = np.array([[2.0, 2.0, 1.5], [3.0, 2.0, 1.5]])
+    a = np.zeros((2, 3))
+    passing = np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
+    assert first_step_clearance(p, passing, a, scenario) == pytest.approx(1.0, abs=1e-6)
+    closing = np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]])
+    assert first_step_clearance(p, closing, a, scenario) == pytest.approx(
+        1.0 - scenario.dt, abs=1e-6)
+
+
+def test_bad_inputs_are_landing_errors(circle8) -> None:
+    zeros = np.zeros((2, 3))
+    with pytest.raises(LandingError, match="not finite"):
+        plan_landing(circle8.scenario, np.full((2, 3), np.nan), zeros, zeros, ids=["a", "b"])
+    with pytest.raises(LandingError, match="agree in length"):
+        plan_landing(circle8.scenario, STACKED, zeros, zeros)
