@@ -16,9 +16,6 @@ from planner.types import FloatArray
 
 __all__ = ["forest", "pillar_circle", "sealed_wall", "shelving", "window_wall"]
 
-#: Least distance (m) between two forest lanes at one height.
-LANE = 2.0
-
 
 def _box(oid: str, low: FloatArray | list[float], high: FloatArray | list[float]
          ) -> dict[str, Any]:
@@ -127,8 +124,8 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
            steps: int | None = None) -> dict[str, Any]:
     """Vehicles cross a size x size m forest of `pillars` trees (radius 0.2-0.5 m, floor to
     ceiling, 2.5 m apart at least), each in its own lane: half from the west edge to the
-    east low (1.0 or 1.8 m), half from the east to the west high (2.8 or 3.6 m); lanes of
-    one height LANE m apart at least, in columns 2 m deep where the edge is too short."""
+    east low (1.0 or 1.8 m), half from the east to the west high (2.8 or 3.6 m), spread
+    evenly along the edges, alternating heights."""
     rng = np.random.default_rng(seed)
     height = 4.0
     trees: list[FloatArray] = []
@@ -148,21 +145,14 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
     east_count = vehicles // 2
     west_count = vehicles - east_count
     # Each vehicle keeps its lane: westerners fly east low (1.0 or 1.8 m, alternating
-    # along the edge), easterners west high (2.8 or 3.6 m). Lanes of one height are at least
-    # LANE m apart; a side with more vehicles than lanes stands in columns 2 m deep.
-    def edge(count: int, x: float, inward: float, levels: tuple[float, float]) -> FloatArray:
-        lanes = 2 * (int((size - 2.0) // LANE) + 1)
-        columns = -(-count // lanes)
-        out: list[FloatArray] = []
-        for column in range(columns):
-            n = min(-(-count // columns), count - len(out))
-            y = np.linspace(1.0, size - 1.0, n) + rng.uniform(-0.05, 0.05, n)
-            z = np.where(np.arange(n) % 2 == 0, levels[0], levels[1])
-            out += list(np.stack([np.full(n, x + inward * 2.0 * column), y, z], axis=1))
-        return np.array(out)
+    # along the edge), easterners west high (2.8 or 3.6 m).
+    def edge(count: int, x: float, levels: tuple[float, float]) -> FloatArray:
+        y = np.linspace(1.0, size - 1.0, count) + rng.uniform(-0.05, 0.05, count)
+        z = np.where(np.arange(count) % 2 == 0, levels[0], levels[1])
+        return np.stack([np.full(count, x), y, z], axis=1)
 
-    starts = np.vstack([edge(west_count, 1.0, 1.0, (1.0, 1.8)),
-                        edge(east_count, size - 1.0, -1.0, (2.8, 3.6))])
+    starts = np.vstack([edge(west_count, 1.0, (1.0, 1.8)),
+                        edge(east_count, size - 1.0, (2.8, 3.6))])
     goals = starts.copy()
     goals[:, 0] = size - starts[:, 0]
     # Cross at up to 2 m/s with room for detours.
