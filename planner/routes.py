@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
+from planner.first_qp import unit_profile
 from planner.obstacle_rows import ObstacleRows, chord_nearest
 from planner.obstacles import describe
 from planner.scenario import Scenario
@@ -230,9 +231,10 @@ def _toward_line(grid: Grid, free: BoolArray, points: FloatArray) -> FloatArray:
 
 def _along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectories:
     """A trajectory along the polyline `points` that waits `delay` steps at the start, then
-    moves rest to rest on the minimum-jerk profile 10u^3 - 15u^4 + 6u^5 of the remaining
-    steps (a linearisation point only: SCP makes it dynamically exact)."""
-    phi_p, phi_v, phi_a = _min_jerk(scenario.steps - delay, scenario.dt)
+    moves rest to rest on the minimum-thrust unit profile of the remaining steps (the
+    separation-free QP's own timing, so the first QP's solution stays near the routes in
+    time: measured 1.5-2x faster than a minimum-jerk timing on the forest family)."""
+    phi_p, phi_v, phi_a = unit_profile(scenario.steps - delay, scenario.dt)
     seg = np.diff(points, axis=0)
     seg_len = np.linalg.norm(seg, axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg_len)])
@@ -251,18 +253,6 @@ def _along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectori
         v = np.vstack([np.zeros((delay, 3)), v])
         a = np.vstack([np.zeros((delay, 3)), a])
     return p, v, a
-
-
-def _min_jerk(steps: int, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(position (K+1,), velocity (K+1,), acceleration (K,)) of the minimum-jerk move from 0
-    to 1 over `steps` steps (accelerations at the middle of each step)."""
-    horizon = steps * dt
-    u = np.linspace(0.0, 1.0, steps + 1)
-    mid = (np.arange(steps) + 0.5) / steps
-    position = u**3 * (10 - 15 * u + 6 * u * u)
-    velocity = 30 * u * u * (1 - u) ** 2 / horizon
-    acceleration = 60 * mid * (1 - mid) * (1 - 2 * mid) / horizon**2
-    return position, velocity, acceleration
 
 
 def _stagger(scenario: Scenario, guess: Trajectories, routes: dict[int, FloatArray]
