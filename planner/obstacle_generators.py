@@ -23,6 +23,15 @@ def _box(oid: str, low: FloatArray | list[float], high: FloatArray | list[float]
                                "max": [round(float(x), 6) for x in high]}}
 
 
+def _scenario(name: str, dt: float, steps: int, separation: float, clearance: float,
+              limits: dict[str, Any], starts: FloatArray, goals: FloatArray,
+              obstacles: list[dict[str, Any]]) -> dict[str, Any]:
+    """A scenario dict with obstacles and their clearance."""
+    return {"name": name, "dt": dt, "steps": steps, "min_separation": separation,
+            "obstacle_clearance": clearance, "limits": limits,
+            "vehicles": _vehicles(starts, goals), "obstacles": obstacles}
+
+
 def pillar_circle(vehicles: int = 8, *, seed: int = 0, radius: float = 0.3) -> dict[str, Any]:
     """The paper's circle swap (`planner.generators.circle_swap`) around a central pillar
     from floor to ceiling; the seed moves the pillar by up to 0.2 m and its radius by up to
@@ -75,15 +84,10 @@ def window_wall(vehicles: int = 8, *, seed: int = 0, window: tuple[float, float]
     east = np.stack([np.full(per_side, size[0] - 1.5), ys, 4.0 - zs], axis=1)
     starts = np.vstack([west, east])
     goals = np.vstack([east, west])
-    return {
-        "name": f"{'sealed' if sealed else 'window'}{vehicles}-seed{seed}",
-        "dt": dt, "steps": steps, "min_separation": separation,
-        "obstacle_clearance": clearance,
-        "limits": _limits(np.zeros(3), size, 2.0, 3.0, 6.0),
-        "vehicles": _vehicles(starts, goals),
-        "obstacles": _wall_boxes(size[0] / 2, 0.2, float(size[1]), float(size[2]),
-                                 None if sealed else opening),
-    }
+    return _scenario(f"{'sealed' if sealed else 'window'}{vehicles}-seed{seed}", dt, steps,
+                     separation, clearance, _limits(np.zeros(3), size, 2.0, 3.0, 6.0),
+                     starts, goals, _wall_boxes(size[0] / 2, 0.2, float(size[1]),
+                                                float(size[2]), None if sealed else opening))
 
 
 def sealed_wall(vehicles: int = 2, *, seed: int = 0) -> dict[str, Any]:
@@ -109,14 +113,8 @@ def shelving(vehicles: int = 16, *, seed: int = 0, rows: int = 4, separation: fl
     zs = np.where(np.arange(vehicles) % 2 == 0, 1.5, 2.2)
     starts = np.stack([xs, np.full(vehicles, 1.2), zs], axis=1)
     goals = np.stack([xs, np.full(vehicles, size[1] - 1.2), zs], axis=1)
-    return {
-        "name": f"shelving{vehicles}-seed{seed}",
-        "dt": dt, "steps": steps, "min_separation": separation,
-        "obstacle_clearance": clearance,
-        "limits": _limits(np.zeros(3), size, 3.0, 3.0, 8.0),
-        "vehicles": _vehicles(starts, goals),
-        "obstacles": obstacles,
-    }
+    return _scenario(f"shelving{vehicles}-seed{seed}", dt, steps, separation, clearance,
+                     _limits(np.zeros(3), size, 3.0, 3.0, 8.0), starts, goals, obstacles)
 
 
 def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: int = 0,
@@ -157,11 +155,6 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
     goals[:, 0] = size - starts[:, 0]
     # Cross at up to 2 m/s with room for detours.
     k = steps if steps is not None else int(np.ceil((1.6 * size / 2.0 + 4.0) / dt))
-    return {
-        "name": f"forest{vehicles}-{pillars}-seed{seed}",
-        "dt": dt, "steps": k, "min_separation": separation,
-        "obstacle_clearance": clearance,
-        "limits": _limits(np.zeros(3), np.array([size, size, height]), 3.0, 3.0, 8.0),
-        "vehicles": _vehicles(starts, goals),
-        "obstacles": obstacles,
-    }
+    return _scenario(f"forest{vehicles}-{pillars}-seed{seed}", dt, k, separation, clearance,
+                     _limits(np.zeros(3), np.array([size, size, height]), 3.0, 3.0, 8.0),
+                     starts, goals, obstacles)
