@@ -6,11 +6,16 @@
     python bench/planner.py --only --dmpc-sizes --no-solver-comparison --row-modes \
         --grid-sphere 25 64 100 256 --assignment fixed free --random-dense 256 --seeds 0 1
 
+    python bench/planner.py --only --dmpc-sizes --no-solver-comparison --row-modes \
+        --obstacles pillar-circle8 window8 shelving16 forest50 --seeds 0 1 2 --no-memory
+
 The drone-show families run only when asked: --grid-sphere N... (vertical grid ->
 sphere shell, fixed and/or free assignment), --random-dense N... (random128's density, moves
 <= 40 m), --sequence N (a grid -> sphere -> grid formation sequence), each over --seeds.
---group-qp primal solves their group QPs as the primal staged QP (before the dual, for
-comparison); --profile also takes dense<N> and grid-sphere<N>.
+--obstacles NAME... runs the obstacle families (a pillar in the paper's circle, a window in
+a wall, shelving, forests), each with its floor. --group-qp primal solves their group QPs as
+the primal staged QP (before the dual, for comparison); --profile also takes dense<N> and
+grid-sphere<N>.
 
 Timings are medians over --repeats runs of the same scenario (the machines are shared and
 noisy); peak memory comes from one extra run under tracemalloc (numpy's allocations are
@@ -44,6 +49,12 @@ from planner.generators import (  # noqa: E402
     random_dense,
     show_sequence,
 )
+from planner.obstacle_generators import (  # noqa: E402
+    forest,
+    pillar_circle,
+    shelving,
+    window_wall,
+)
 from planner.scp import ScpOptions  # noqa: E402
 from planner.sequence import plan_sequence  # noqa: E402
 from planner.verify import verify  # noqa: E402
@@ -53,6 +64,15 @@ PAPER = [f"paper-{kind}{n}" for kind in ("circle", "random") for n in (2, 4, 6, 
 SCALE = ["circle16", "random16", "random64", "random128"]
 PUBLISHED = json.loads((Path(__file__).parent / "dmpc2019-published.json").read_text())
 PAPER_TIMES = {2: (2.45, 35), 4: (4.86, 67), 6: (6.75, 94), 8: (10.85, 168)}
+#: The obstacle families by name: the generator of a seed's instance and the
+#: floor (s, median on a quiet machine).
+OBSTACLE_FAMILIES: dict[str, tuple[Any, float]] = {
+    "pillar-circle8": (lambda seed: pillar_circle(8, seed=seed), 0.5),
+    "window8": (lambda seed: window_wall(8, seed=seed), 2.0),
+    "shelving16": (lambda seed: shelving(16, seed=seed), 2.0),
+    "forest50": (lambda seed: forest(50, 40, seed=seed), 5.0),
+    "forest200": (lambda seed: forest(200, 150, size=60.0, seed=seed), 30.0),
+}
 
 
 def machine() -> dict[str, Any]:
@@ -229,6 +249,10 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
         "peak_memory_traced_mb": peak_traced,
         "peak_rss_mb": peak_rss,
     }
+    if scenario.obstacles:
+        result.update(obstacles=len(scenario.obstacles), clearance=scenario.clearance,
+                      obstacle_distance_min=None if v is None else v.obstacle_distance_min,
+                      closest_obstacle=None if v is None else v.closest_obstacle)
     log(f"{name:>24} {plan.status:>14} {result['total_s']:.3f} s "
         f"(first QP {result['first_qp_s']:.3f} s) iterations {result['scp_iterations']} "
         f"min sep {result['min_separation_continuous']}")
@@ -325,6 +349,9 @@ def main() -> None:
                         help="random transitions at random128's density of these sizes")
     parser.add_argument("--sequence", type=int, nargs="*", default=[],
                         help="grid -> sphere -> grid formation sequences of these sizes")
+    parser.add_argument("--obstacles", nargs="*", default=[],
+                        choices=list(OBSTACLE_FAMILIES),
+                        help="obstacle families to run over --seeds")
     parser.add_argument("--seeds", type=int, nargs="*", default=[0])
     parser.add_argument("--group-qp", choices=["dual", "primal"], default="dual",
                         help="how the families' and profiles' group QPs are solved "
@@ -380,6 +407,14 @@ def main() -> None:
             row = measure(f"dense{n}-seed{seed}", random_dense(n, seed=seed), args.repeats,
                           None, memory=not args.no_memory, options=options)
             families.append({"family": "random-dense", "assignment": "fixed", "seed": seed,
+                             **row})
+    for family in args.obstacles:
+        make, floor = OBSTACLE_FAMILIES[family]
+        for seed in args.seeds:
+            row = measure(f"{family}-seed{seed}", make(seed), args.repeats, None,
+                          memory=not args.no_memory, options=options)
+            families.append({"family": family, "assignment": "fixed", "seed": seed,
+                             "floor_s": floor, "within_floor": row["total_s"] <= floor,
                              **row})
     if families:
         report["families"] = families

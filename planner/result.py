@@ -92,6 +92,12 @@ class IterationRecord:
     """Vehicles in the largest group."""
 
 
+#: Field metadata of the verification's obstacle figures: the plan JSON leaves them out
+#: for a scenario without obstacles (so such plans read as before), and the published
+#: schema does not require them.
+_OBSTACLE_FIELD: dict[str, Any] = {"omitted": "without obstacles"}
+
+
 @dataclass(frozen=True)
 class Verification:
     """Checks of the final trajectories, computed independently of the solver."""
@@ -124,11 +130,30 @@ class Verification:
     """Every box and boundary condition holds within bound_tolerance."""
     separation_tolerance: float
     bound_tolerance: float
+    obstacle_distance_min: float | None = field(default=None, metadata=_OBSTACLE_FIELD)
+    """Smallest distance of any vehicle to any obstacle's solid over continuous time (m;
+    negative inside one); absent without obstacles, null when undefined."""
+    closest_obstacle: dict[str, Any] | None = field(default=None, metadata=_OBSTACLE_FIELD)
+    """Where that happens: {"id": obstacle id, "vehicle": vehicle id, "time": s}; absent
+    without obstacles."""
+    clear: bool = field(default=True, metadata=_OBSTACLE_FIELD)
+    """obstacle_distance_min >= obstacle_clearance - separation_tolerance; absent (true)
+    without obstacles, false when undefined."""
 
     @property
     def verified(self) -> bool:
-        """Separated, within bounds, and flyable (thrust and body rates within limits)."""
-        return self.separated and self.within_bounds and self.flyable
+        """Separated, clear of the obstacles, within bounds, and flyable (thrust and body
+        rates within limits)."""
+        return self.separated and self.clear and self.within_bounds and self.flyable
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form; the obstacle fields only for a scenario with obstacles."""
+        out = asdict(self)
+        if self.closest_obstacle is None and self.clear:
+            for f in fields(self):
+                if "omitted" in f.metadata:
+                    del out[f.name]
+        return out
 
     def failures(self) -> list[str]:
         """What failed, in words (empty when verified)."""
@@ -140,6 +165,13 @@ class Verification:
             else:
                 out.append(f"continuous-time separation {self.min_separation_continuous:.4f} m "
                            f"is below R")
+        if not self.clear:
+            near = self.closest_obstacle or {}
+            out.append("obstacle clearance undefined (non-finite motion)"
+                       if self.obstacle_distance_min is None else
+                       f"vehicle {near.get('vehicle')!r} comes {self.obstacle_distance_min:.4f} m "
+                       f"from obstacle {near.get('id')!r} at {near.get('time', 0.0):.2f} s, "
+                       f"under the clearance")
         if not self.within_bounds:
             errors = {**self.max_violation, **self.boundary_error}
             undefined = [key for key, x in errors.items() if x is None]
@@ -225,7 +257,7 @@ class Plan:
             "iterations": [asdict(r) for r in self.iterations],
             "timing": dict(self.timing),
             "vehicles": [v.to_dict() for v in self.vehicles],
-            "verification": None if self.verification is None else asdict(self.verification),
+            "verification": None if self.verification is None else self.verification.to_dict(),
             "assignment": {v.id: int(g) for v, g in zip(self.scenario.vehicles,
                                                         self.scenario.order, strict=True)},
             "sequence": self.sequence,

@@ -8,17 +8,27 @@ scenario with every default filled in, which is what a plan carries.
 from __future__ import annotations
 
 import dataclasses
-import math
-import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from planner.assignment import assign_goals
+from planner.checks import (
+    RANGES,
+    check_id,
+    check_keys,
+    check_number,
+    check_vector,
+)
+from planner.checks import check_integer as _integer
 from planner.errors import ScenarioError
 from planner.types import FloatArray, IntArray
+
+if TYPE_CHECKING:
+    from planner.obstacles import Obstacle, ObstacleSet
 
 __all__ = ["DEFAULTS", "RANGES", "Limits", "Scenario", "Vehicle", "check_id", "check_keys",
            "check_number", "check_vector", "minimum_transfer_time"]
@@ -44,32 +54,12 @@ ASSIGNMENTS = ("fixed", "free")
 MAX_VEHICLES = 1000
 MAX_STEPS = 5000
 MAX_ITERATIONS = 1000
-#: Longest vehicle id (characters): ids name CSV files and appear in every table.
-MAX_ID_LENGTH = 64
 
-#: Inclusive range of every number of a scenario, by field (`coordinate`: every position,
-#: workspace corners, starts, goals; m). A value outside is refused, naming the field: the
-#: ranges keep everything derived from the numbers (scaled distances and their squares,
-#: costs, horizons, jerk) finite, so no magnitude can overflow a check into passing. They are
-#: sanity bounds for a quadcopter fleet, not any vehicle's physical limits.
-RANGES: dict[str, tuple[float, float]] = {
-    "dt": (1e-3, 10.0),
-    "min_separation": (1e-2, 100.0),
-    "separation_margin": (0.0, 100.0),
-    "separation_scale": (0.1, 10.0),
-    "cost_threshold": (1e-9, 1e9),
-    "coordinate": (-1e4, 1e4),
-    "velocity_max": (1e-2, 100.0),
-    "acceleration_max": (1e-2, 100.0),
-    "jerk_max": (1e-2, 1e4),
-    "thrust_min": (0.0, 100.0),
-    "thrust_max": (0.0, 100.0),
-    "body_rate_max": (1e-6, 100.0),
-}
 
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
     "max_iterations", "limits", "vehicles", "assignment", "separation_margin",
+    "obstacles", "obstacle_clearance",
 }
 _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
@@ -169,6 +159,26 @@ class Scenario:
     """Part of `min_separation` (m) reserved for the fleet's position error in flight
     (2 x its expected error, `gcs.flight.margin`): the vehicles must keep
     min_separation - separation_margin. The planner only carries it; 0 = none stated."""
+    obstacles: tuple[Obstacle, ...] = ()
+    """Keep-out volumes (boxes, vertical cylinders, convex prisms; `planner.obstacles`);
+    ids are unique."""
+    obstacle_clearance: float | None = None
+    """Distance (m) every vehicle keeps from every obstacle's solid at every instant;
+    default (None) min_separation / 2."""
+
+    @property
+    def clearance(self) -> float:
+        """`obstacle_clearance` with its default resolved (m)."""
+        if self.obstacle_clearance is None:
+            return 0.5 * self.min_separation
+        return self.obstacle_clearance
+
+    @cached_property
+    def obstacle_set(self) -> ObstacleSet:
+        """The obstacles as arrays for vectorised geometry (built once)."""
+        from planner.obstacles import ObstacleSet
+
+        return ObstacleSet.build(self.obstacles)
     start_velocities: FloatArray | None = field(default=None, repr=False)
     """(N, 3) start velocities (m/s), when some vehicle has one; None: all start at rest."""
     start_accelerations: FloatArray | None = field(default=None, repr=False)
@@ -237,7 +247,10 @@ class Scenario:
             "limits": self.limits.to_dict(),
             "assignment": self.assignment,
             "vehicles": [_vehicle_dict(v) for v in self.vehicles],
-        } | ({"separation_margin": self.separation_margin} if self.separation_margin else {})
+        } | ({"separation_margin": self.separation_margin} if self.separation_margin else {}
+             ) | ({"obstacle_clearance": self.clearance,
+                   "obstacles": [o.to_dict() for o in self.obstacles]}
+                  if self.obstacles or self.obstacle_clearance is not None else {})
 
 
 def _vehicle_dict(v: Vehicle) -> dict[str, Any]:
@@ -251,98 +264,6 @@ def _vehicle_dict(v: Vehicle) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------- parsing helpers
-
-
-def _show(value: int | float) -> str:
-    """A number for an error message, short even for an integer of a thousand digits."""
-    if isinstance(value, int) and abs(value) >= 10**15:
-        return f"an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits"
-    return f"{value:g}"
-
-
-def check_number(value: Any, name: str, *, positive: bool = False, nonneg: bool = False,
-                 within: str | None = None) -> float:
-    """A finite float; with `within`, inside `RANGES[within]`. Raises `ScenarioError`
-    naming the field `name` and the reason (the range, for a value outside it)."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(name, f"must be a number, got {type(value).__name__}")
-    if within is not None:
-        lo, hi = RANGES[within]
-        if not lo <= value <= hi:  # exact for integers of any size, false for NaN
-            if isinstance(value, float) and not math.isfinite(value):
-                raise ScenarioError(name, "must be a finite number")
-            if positive and value <= 0:
-                raise ScenarioError(name, f"must be positive, got {_show(value)}")
-            raise ScenarioError(name, f"must be between {lo:g} and {hi:g}, "
-                                      f"got {_show(value)}")
-    try:
-        x = float(value)
-    except OverflowError:
-        raise ScenarioError(name, f"must be a finite number, got {_show(value)}") from None
-    if not math.isfinite(x):
-        raise ScenarioError(name, "must be a finite number")
-    if positive and x <= 0:
-        raise ScenarioError(name, f"must be positive, got {x:g}")
-    if nonneg and x < 0:
-        raise ScenarioError(name, f"must not be negative, got {x:g}")
-    return x + 0.0  # -0.0 is 0.0
-
-
-def _integer(value: Any, name: str, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(name, f"must be an integer, got {type(value).__name__}")
-    if isinstance(value, float) and not value.is_integer():
-        raise ScenarioError(name, f"must be an integer, got {value}")
-    if not lo <= value <= hi:
-        raise ScenarioError(name, f"must be between {lo} and {hi}, got {_show(value)}")
-    return int(value)
-
-
-def check_vector(value: Any, name: str, *, positive: bool = False,
-                 within: str = "coordinate") -> FloatArray:
-    """[x, y, z] of numbers each inside `RANGES[within]` (`check_number` per component)."""
-    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 3:
-        raise ScenarioError(name, "must be a list of 3 numbers [x, y, z]")
-    return np.array(
-        [check_number(c, f"{name}[{i}]", positive=positive, within=within)
-         for i, c in enumerate(value)], dtype=float
-    )
-
-
-#: Unicode categories refused in ids: control (C0, DEL, C1), format (bidi overrides,
-#: zero-width), surrogates, line and paragraph separators.
-_UNSAFE_CATEGORIES = frozenset({"Cc", "Cf", "Cs", "Zl", "Zp"})
-
-
-def check_id(value: Any, name: str) -> str:
-    """A vehicle id: a non-empty string of at most `MAX_ID_LENGTH` printable characters
-    (no control or invisible formatting characters: ids reach terminals, CSV files and
-    logs). Raises `ScenarioError` naming the field."""
-    if not isinstance(value, str) or not value.strip():
-        raise ScenarioError(name, "must be a non-empty string")
-    if len(value) > MAX_ID_LENGTH:
-        raise ScenarioError(name, f"must be at most {MAX_ID_LENGTH} characters, "
-                                  f"got {len(value)}")
-    for index, char in enumerate(value):
-        if unicodedata.category(char) in _UNSAFE_CATEGORIES:
-            raise ScenarioError(name, f"must not contain control characters "
-                                      f"(U+{ord(char):04X} at index {index})")
-    return value
-
-
-def check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str], *,
-               document: str = "scenario") -> None:
-    """`data` is a JSON object with only `allowed` keys and every `required` one; `name` is its
-    dotted path ("" for the whole `document`). Raises `ScenarioError` naming the key."""
-    if not isinstance(data, Mapping):
-        raise ScenarioError(name or document, "must be a JSON object")
-    prefix = f"{name}." if name else ""
-    for key in data:
-        if key not in allowed:
-            raise ScenarioError(f"{prefix}{key}", "unknown key")
-    for key in required:
-        if key not in data:
-            raise ScenarioError(f"{prefix}{key}", "is required")
 
 
 def _parse_limits(data: Any) -> Limits:
@@ -494,6 +415,12 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
                 f"closer than min_separation {separation:g} m",
             )
 
+    from planner.obstacles import check_clear, parse_obstacles
+
+    obstacles, clearance = parse_obstacles(data, separation)
+    check_clear(obstacles, clearance, starts, "start")
+    check_clear(obstacles, clearance, goals, "goal")
+
     goal_order = None
     if assignment == "free":
         goal_order = assign_goals(starts, goals, scale)
@@ -536,6 +463,8 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         separation_margin=margin,
         start_velocities=start_velocities,
         start_accelerations=start_accelerations,
+        obstacles=obstacles,
+        obstacle_clearance=clearance if "obstacle_clearance" in data or obstacles else None,
     )
 
 

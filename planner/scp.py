@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -35,8 +35,10 @@ from planner.boxes import broken_boxes, near_boxes
 from planner.dual import solve_group_dual
 from planner.first_qp import solve_first_qp
 from planner.flatness import GRAVITY
+from planner.obstacle_rows import ObstacleRows, concat_rows
 from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
+from planner.routes import seed_routes
 from planner.scenario import Scenario
 from planner.separation import (
     NEAR_MIN_VEHICLES,
@@ -149,33 +151,40 @@ class _GroupSolver:
         self.solver = solver
         self.codec = codec
         self.continuous = continuous
-        self.cache: dict[bytes, tuple[Trajectories, Keys]] = {}
+        self.cache: dict[bytes, tuple[Trajectories, Keys, Keys]] = {}
         self.solves = 0
         self.split_above = split_above
         self.block_size = block_size
         self.dual = dual
+        self.obstacles: ObstacleRows | None = None
+        """The scenario's obstacle rows (None without obstacles)."""
 
-    def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories
-              ) -> tuple[str, Trajectories | None, Keys]:
-        """Returns (status, the group's (p, v, a) or None, keys of its active rows).
+    def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories,
+              obstacle_keys: Keys | None = None
+              ) -> tuple[str, Trajectories | None, Keys, Keys]:
+        """Returns (status, the group's (p, v, a) or None, keys of its active separation
+        rows, keys of its active obstacle rows).
 
         lin: every vehicle's previous iterate, the linearisation point and the warm start
         (used by OSQP; the interior-point backends start from their own point).
+        obstacle_keys: the group's obstacle rows (`planner.obstacle_rows`).
         """
         lin_positions = lin[0]
         group_boxes = boxes.take(members)
+        okeys = np.zeros(0, dtype=np.int64) if obstacle_keys is None else obstacle_keys
         signature = b"|".join([
             members.tobytes(), keys.tobytes(), np.packbits(group_boxes.bounds).tobytes(),
             np.packbits(group_boxes.jerk).tobytes(), np.packbits(group_boxes.wall).tobytes(),
+            okeys.tobytes(),
         ])
         cached = self.cache.get(signature)
         if cached is not None:
-            return SOLVED, cached[0], cached[1]
-        if self.split_above and len(members) > self.split_above:
+            return SOLVED, cached[0], cached[1], cached[2]
+        if self.split_above and len(members) > self.split_above and okeys.size == 0:
             split = self._solve_blocks(members, keys, boxes, lin)
             if split is not None:
-                self.cache[signature] = split
-                return SOLVED, split[0], split[1]
+                self.cache[signature] = (*split, okeys)
+                return SOLVED, split[0], split[1], okeys
         scenario = self.scenario
         pairs = self.codec.decode(keys)
         u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
@@ -192,9 +201,13 @@ class _GroupSolver:
             kind=np.repeat(np.array(kinds, dtype=np.intp), count),
             coef=np.tile(coef, (len(kinds), 1)),
         )
+        pair_rows = len(rows)
+        if okeys.size and self.obstacles is not None:
+            rows = concat_rows(rows, self.obstacles.rows(lin_positions, okeys, local))
         self.solves += 1
         outcome = None
-        if self.dual and len(rows) <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
+        # Obstacle rows bind one vehicle each: they couple no vehicles in the dual's matrix.
+        if self.dual and pair_rows <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
             outcome = solve_group_dual(scenario, members, rows, group_boxes)
         if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
             solution, duals = outcome.solution, outcome.separation_duals
@@ -204,14 +217,17 @@ class _GroupSolver:
             warm = layout.pack(*(x[members] for x in lin))
             result = self.solver.solve(qp, warm_start=warm)
             if result.status != SOLVED or result.x is None:
-                return result.status, None, keys[:0]
+                return result.status, None, keys[:0], okeys[:0]
             solution, duals = layout.unpack(result.x), result.separation_duals
         active = keys
         if duals is not None and count:
-            per_key = duals.reshape(len(kinds), count).max(axis=0)
+            per_key = duals[:pair_rows].reshape(len(kinds), count).max(axis=0)
             active = keys[per_key > ACTIVE_DUAL]
-        self.cache[signature] = (solution, active)
-        return SOLVED, solution, active
+        held = okeys
+        if duals is not None and okeys.size:
+            held = okeys[duals[pair_rows:].reshape(3, okeys.size).max(axis=0) > ACTIVE_DUAL]
+        self.cache[signature] = (solution, active, held)
+        return SOLVED, solution, active, held
 
     def _solve_blocks(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories
                       ) -> tuple[Trajectories, Keys] | None:
@@ -394,6 +410,10 @@ class _IterationResult:
     groups: int
     largest_group: int
     failed: list[int]
+    obstacle_keys: Keys = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Every obstacle row used in the last round."""
+    obstacle_active: Keys = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Obstacle rows with a positive multiplier in the last round."""
 
 
 def _solve_iteration(
@@ -405,10 +425,14 @@ def _solve_iteration(
     base: Trajectories,
     keys: Keys,
     boxes: BoxMask,
+    okeys: Keys | None = None,
 ) -> _IterationResult:
-    """One SCP iteration: solve, check every row and box, add what is broken, repeat."""
+    """One SCP iteration: solve, check every row and box, add what is broken, repeat.
+    okeys: the obstacle rows it starts with (with obstacles)."""
     tolerance = options.violation_tolerance
     forced = np.zeros(0, dtype=np.intp)
+    obstacles = groups_solver.obstacles
+    okeys = np.zeros(0, dtype=np.int64) if okeys is None else okeys
     scale = scenario.separation_scale
     # Rows are only checked for pairs that can violate one: a pair whose rows all hold by
     # `margin` at `lin` stays clear while its two vehicles move less than that in total.
@@ -416,17 +440,20 @@ def _solve_iteration(
     margin = _margins(scenario, options, lin, pair_i, pair_j)
     while True:
         p, v, a = (x.copy() for x in base)
-        groups = _groups(keys, codec, forced)
-        active = []
+        owners = obstacles.vehicles_of(okeys) if obstacles is not None else forced
+        groups = _groups(keys, codec, np.union1d(forced, owners).astype(np.intp))
+        active, held = [], []
         for members, group_keys in groups:
-            status, solution, group_active = groups_solver.solve(
-                members, group_keys, boxes, lin
+            group_okeys = okeys[np.isin(owners, members)] if obstacles is not None else None
+            status, solution, group_active, group_held = groups_solver.solve(
+                members, group_keys, boxes, lin, group_okeys
             )
             if solution is None:
                 return _IterationResult(status, (p, v, a), keys, keys[:0], boxes, len(groups),
-                                        len(members), members.tolist())
+                                        len(members), members.tolist(), okeys)
             p[members], v[members], a[members] = solution
             active.append(group_active)
+            held.append(group_held)
         # Every violated row goes in at once: fewer rounds than adding the worst of each
         # run (measured on the paper and scale cases), at a similar QP size.
         moved = displacements(lin[:2], (p, v), scenario.dt, scale)
@@ -437,12 +464,16 @@ def _solve_iteration(
         )
         added = np.setdiff1d(codec.encode(violated), keys)
         new_boxes = broken_boxes(scenario, p, v, a, tolerance) - boxes
-        if added.size == 0 and not new_boxes.any():
+        o_added = (obstacles.violated(lin[0], p, v, okeys, tolerance) if obstacles is not None
+                   else okeys[:0])
+        if added.size == 0 and not new_boxes.any() and o_added.size == 0:
             all_active = np.concatenate(active) if active else keys[:0]
+            all_held = np.concatenate(held) if held else okeys[:0]
             largest = max((len(m) for m, _ in groups), default=0)
             return _IterationResult(SOLVED, (p, v, a), keys, all_active, boxes, len(groups),
-                                    largest, [])
+                                    largest, [], okeys, all_held)
         keys = np.union1d(keys, added)
+        okeys = np.union1d(okeys, o_added)
         if new_boxes.any():
             boxes = boxes | new_boxes
             touched = np.flatnonzero(
@@ -501,7 +532,20 @@ def run_scp(
     groups_solver = _GroupSolver(scenario, solver, codec, options.continuous,
                                  options.split_above, options.block_size, dual)
     current = base if guess is None else guess
+    obstacle_rows = None
+    if scenario.obstacles:  # routes around them, or the verdict on an unreachable goal
+        seeded = seed_routes(scenario, current)
+        if seeded.unreachable is not None:
+            return ScpOutcome(
+                status="infeasible", message=seeded.unreachable,
+                positions=base[0], velocities=base[1], accelerations=base[2],
+                iterations=history, first_qp_seconds=first_seconds,
+                infeasible_groups=("obstacles",),
+            )
+        current = seeded.guess
+        obstacle_rows = groups_solver.obstacles = ObstacleRows(scenario)
     carried = np.zeros(0, dtype=np.int64)
+    held = np.zeros(0, dtype=np.int64)
     retried = 0
     last: _IterationResult | None = None
     status, message = "max_iterations", ""
@@ -509,10 +553,12 @@ def run_scp(
         t0 = time.perf_counter()
         solves_before = groups_solver.solves
         keys = np.union1d(_seed_keys(current, scenario, options, codec), carried)
+        okeys = (None if obstacle_rows is None
+                 else np.union1d(obstacle_rows.seed(current), held))
         groups_solver.cache.clear()
         last = _solve_iteration(
             scenario, options, codec, groups_solver, current, base, keys,
-            near_boxes(scenario, *current, dual=dual),
+            near_boxes(scenario, *current, dual=dual), okeys,
         )
         if last.status != SOLVED:
             # Degenerate crossings (vehicles of a symmetric swap all meeting at one point)
@@ -524,9 +570,11 @@ def run_scp(
                     current[1], current[2])
             groups_solver.cache.clear()
             keys = np.union1d(_seed_keys(bent, scenario, options, codec), carried)
+            okeys = (None if obstacle_rows is None
+                     else np.union1d(obstacle_rows.seed(bent), held))
             last = _solve_iteration(
                 scenario, options, codec, groups_solver, bent, base, keys,
-                near_boxes(scenario, *current, dual=dual),
+                near_boxes(scenario, *current, dual=dual), okeys,
             )
             retried += 1
         if last.status != SOLVED:
@@ -535,11 +583,14 @@ def run_scp(
                 status="infeasible",
                 message=(
                     f"iteration {iteration}: the QP of vehicles {', '.join(ids)} has no "
-                    f"solution with the linearised separation rows (solver: {last.status})"
+                    f"solution with the linearised separation"
+                    f"{'' if obstacle_rows is None else ' and obstacle'} rows "
+                    f"(solver: {last.status})"
                 ),
                 positions=current[0], velocities=current[1], accelerations=current[2],
                 iterations=history, first_qp_seconds=first_seconds,
-                infeasible_groups=("separation",),
+                infeasible_groups=("separation",) if obstacle_rows is None
+                else ("separation", "obstacles"),
             )
         new_cost = thrust_cost(last.solution[2])
         change = abs(new_cost - cost)
@@ -550,6 +601,7 @@ def run_scp(
             last.largest_group,
         ))
         current, cost, carried = last.solution, new_cost, last.active
+        held = last.obstacle_active
         if change < scenario.cost_threshold:
             status = "converged"
             message = f"cost changed by {change:.3g} < {scenario.cost_threshold:g}"

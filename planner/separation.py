@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.golden import golden_minimum
 from planner.types import FloatArray, IntArray
 
 __all__ = [
@@ -476,22 +477,7 @@ def interval_minima(positions: FloatArray, velocities: FloatArray, accelerations
     step = dt / (samples - 1)
     lo = np.clip(grid[best] - step, 0.0, dt)
     hi = np.clip(grid[best] + step, 0.0, dt)
-    ratio = (np.sqrt(5.0) - 1.0) / 2.0
-    a = hi - ratio * (hi - lo)
-    b = lo + ratio * (hi - lo)
-    fa, fb = dist(a), dist(b)
-    for _ in range(refinements):
-        left = fa < fb  # the minimum lies in [lo, b]: drop (b, hi]
-        hi = np.where(left, b, hi)
-        lo = np.where(left, lo, a)
-        probe = np.where(left, hi - ratio * (hi - lo), lo + ratio * (hi - lo))
-        f_probe = dist(probe)
-        a, b, fa, fb = (
-            np.where(left, probe, b), np.where(left, a, probe),
-            np.where(left, f_probe, fb), np.where(left, fa, f_probe),
-        )
-    s_best = np.where(fa < fb, a, b)
-    d_best = np.minimum(fa, fb)
+    s_best, d_best = golden_minimum(dist, lo, hi, refinements)
     # The golden search is interior: keep the sampled minimum (endpoints included) if lower.
     sampled = values[np.arange(len(i)), best]
     use_sample = sampled < d_best

@@ -9,9 +9,11 @@ the flyability of thrust and body rates.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
+from planner.clearance import closest_obstacle
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Plan, Verification
 from planner.scenario import Scenario
@@ -140,6 +142,19 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
     bounded = finite and all(math.isfinite(x) for x in (*violation.values(),
                                                         *boundary.values()))
     ids = scenario.ids
+    obstacle: dict[str, Any] = {}
+    if scenario.obstacles:
+        near = closest_obstacle(scenario, p, v, a) if finite else None
+        if near is None or not math.isfinite(near.distance):
+            obstacle = {"obstacle_distance_min": None, "clear": False,
+                        "closest_obstacle": None}
+        else:
+            obstacle = {
+                "obstacle_distance_min": near.distance,
+                "closest_obstacle": {"id": scenario.obstacles[near.obstacle].id,
+                                     "vehicle": ids[near.vehicle], "time": near.time},
+                "clear": near.distance >= scenario.clearance - SEPARATION_TOLERANCE,
+            }
     return Verification(
         min_separation=step_min if pairs and measured else None,
         min_separation_continuous=cont_min if pairs and measured else None,
@@ -160,6 +175,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         ),
         separation_tolerance=SEPARATION_TOLERANCE,
         bound_tolerance=BOUND_TOLERANCE,
+        **obstacle,
     )
 
 

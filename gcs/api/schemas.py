@@ -32,6 +32,7 @@ from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema
 
 from gcs.api.errors import ErrorItem
 from gcs.service.statuses import MissionStatus
+from planner import obstacles as planner_obstacles
 from planner import result as planner_result
 from planner import scenario as planner_scenario
 
@@ -90,7 +91,14 @@ _SCENARIO_TYPES: dict[str, type] = {
     "Scenario": planner_scenario.Scenario,
     "Limits": planner_scenario.Limits,
     "Vehicle": planner_scenario.Vehicle,
+    "Obstacle": planner_obstacles.Obstacle,
+    "BoxShape": planner_obstacles.BoxShape,
+    "CylinderShape": planner_obstacles.CylinderShape,
+    "PrismShape": planner_obstacles.PrismShape,
 }
+#: The obstacle example: a pillar in the middle of the paper's workspace.
+_OBSTACLE_EXAMPLE: dict[str, Any] = {
+    "id": "pillar", "cylinder": {"center": [2.5, 2.5], "radius": 0.3, "z": [0.0, 3.0]}}
 _PLAN_TYPES: dict[str, type] = {
     "Plan": planner_result.Plan,
     "VehicleTrajectory": planner_result.VehicleTrajectory,
@@ -101,6 +109,10 @@ _EXAMPLES: dict[str, Any] = {
     "Scenario": EXAMPLE_SCENARIO,
     "Limits": EXAMPLE_SCENARIO["limits"],
     "Vehicle": EXAMPLE_SCENARIO["vehicles"][0],
+    "Obstacle": _OBSTACLE_EXAMPLE,
+    "BoxShape": {"min": [1.0, 1.0, 0.0], "max": [1.5, 2.0, 3.0]},
+    "CylinderShape": _OBSTACLE_EXAMPLE["cylinder"],
+    "PrismShape": {"polygon": [[1.0, 1.0], [2.0, 1.0], [1.5, 2.0]], "z": [0.0, 3.0]},
     "Plan": _PLAN_EXAMPLE,
     "VehicleTrajectory": _TRAJECTORY_EXAMPLE,
     "IterationRecord": _ITERATION,
@@ -178,7 +190,8 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
     """One dataclass as an object schema. Fields the planner keeps out of `repr` are derived
     arrays (starts, goals), not JSON fields. With `input_rules`, a field is required unless it
     has a default (`planner.scenario.DEFAULTS` or the dataclass's) or may be null."""
-    hints = typing.get_type_hints(cls)
+    # The scenario names the obstacle types for type checkers only (no import cycle).
+    hints = typing.get_type_hints(cls, localns=vars(planner_obstacles))
     docs = _attribute_docs(cls)
     properties: dict[str, Any] = {}
     required: list[str] = []
@@ -195,8 +208,8 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
         default = planner_scenario.DEFAULTS.get(f.name, f.default)
         if input_rules and default is not dataclasses.MISSING:
             schema["default"] = default
-        elif not (input_rules and optional):
-            required.append(f.name)
+        elif not (input_rules and optional) and "omitted" not in f.metadata:
+            required.append(f.name)  # (fields a document may omit say so in their metadata)
         properties[f.name] = schema
     description = " ".join((inspect.getdoc(cls) or "").split())
     component: dict[str, Any] = {
@@ -280,6 +293,8 @@ def _check(value: Any, schema: dict[str, Any], path: str, out: list[ErrorItem]) 
         size = schema.get("maxItems")
         if not isinstance(value, list) or (size is not None and len(value) != size):
             reason = (f"must be a list of {size} numbers [x, y, z]" if size == 3
+                      else f"must be a list of {size} numbers"
+                      if size is not None and isinstance(value, list)
                       else f"must be a list, got {_json_type(value)}")
             out.append(ErrorItem(field=path, reason=reason))
             return

@@ -36,10 +36,10 @@ MAX_SEQUENCE_LEGS = 20
 MIN_STEPS = 3
 #: The settings that bound a request, as `GET /api/status` publishes them (``limits``).
 LIMIT_NAMES: tuple[str, ...] = (
-    "max_vehicles", "max_steps", "dt_min", "dt_max", "max_horizon_s", "max_coordinate_m",
-    "max_body_bytes", "max_trajectory_rate", "max_trajectory_samples", "plan_queue_max",
-    "plan_time_limit_s", "request_timeout_s", "idle_timeout_s", "max_concurrent_exports",
-    "max_event_streams", "max_event_streams_per_resource",
+    "max_vehicles", "max_steps", "max_obstacles", "dt_min", "dt_max", "max_horizon_s",
+    "max_coordinate_m", "max_body_bytes", "max_trajectory_rate", "max_trajectory_samples",
+    "plan_queue_max", "plan_time_limit_s", "request_timeout_s", "idle_timeout_s",
+    "max_concurrent_exports", "max_event_streams", "max_event_streams_per_resource",
 )
 
 
@@ -61,6 +61,7 @@ class WorkBounds:
     dt_max: float
     max_horizon_s: float
     max_coordinate_m: float
+    max_obstacles: int = 1000
 
     @classmethod
     def from_settings(cls, settings: Settings) -> WorkBounds:
@@ -68,6 +69,7 @@ class WorkBounds:
             max_vehicles=settings.max_vehicles, max_steps=settings.max_steps,
             dt_min=settings.dt_min, dt_max=settings.dt_max,
             max_horizon_s=settings.max_horizon_s, max_coordinate_m=settings.max_coordinate_m,
+            max_obstacles=settings.max_obstacles,
         )
 
 
@@ -90,6 +92,21 @@ def _points(data: Mapping[str, Any]) -> list[tuple[str, Any]]:
             if isinstance(vehicle, Mapping):
                 out += [(f"vehicles[{index}].{key}", vehicle.get(key))
                         for key in ("start", "goal")]
+    obstacles = data.get("obstacles")
+    if isinstance(obstacles, list):
+        # At most the planner's cap (it refuses longer lists); 64 vertices a polygon likewise.
+        for index, obstacle in enumerate(obstacles[:1000]):
+            if not isinstance(obstacle, Mapping):
+                continue
+            for kind, keys in (("box", ("min", "max")), ("cylinder", ("center", "z")),
+                               ("prism", ("z",))):
+                shape = obstacle.get(kind)
+                if isinstance(shape, Mapping):
+                    out += [(f"obstacles[{index}].{kind}.{key}", shape.get(key)) for key in keys]
+                    polygon = shape.get("polygon") if kind == "prism" else None
+                    if isinstance(polygon, list):
+                        out += [(f"obstacles[{index}].prism.polygon[{n}]", vertex)
+                                for n, vertex in enumerate(polygon[:64])]
     return out
 
 
@@ -97,6 +114,11 @@ def scenario_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
     """Every bound the scenario JSON exceeds (empty when it fits)."""
     errors: list[InvalidRequest] = []
     errors += _vehicle_count_errors(data, bounds)
+    obstacles = data.get("obstacles")
+    if isinstance(obstacles, list) and len(obstacles) > bounds.max_obstacles:
+        errors.append(InvalidRequest(
+            "obstacles", f"{len(obstacles)} obstacles exceed this server's limit of "
+            f"{bounds.max_obstacles} (setting max_obstacles)"))
     steps = _real(data.get("steps"))
     if steps is not None and steps > bounds.max_steps:
         errors.append(InvalidRequest(

@@ -137,6 +137,9 @@ class Settings(BaseSettings):
     )
     max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")
+    max_obstacles: int = Field(
+        200, ge=0, le=1000, description="Most obstacles a mission's scenario may hold."
+    )
     dt_min: float = Field(0.01, gt=0, description="Shortest step `dt` a mission may use (s).")
     dt_max: float = Field(5.0, gt=0, le=60, description="Longest step `dt` a mission may use (s).")
     max_horizon_s: float = Field(

@@ -119,3 +119,14 @@ def test_status_publishes_every_limit_in_force(shared_client: TestClient) -> Non
     too_many = _scenario(steps=limits["max_steps"] + 1)
     reason = shared_client.post("/api/missions", json=too_many).json()["reason"]
     assert f"limit of {limits['max_steps']} " in reason
+
+
+def test_more_obstacles_than_the_setting_are_refused(shared_client: TestClient) -> None:
+    limit = shared_client.app.state.settings.max_obstacles  # type: ignore[attr-defined]
+    box = {"box": {"min": [0.0, 0.0, 0.0], "max": [0.1, 0.1, 0.1]}}
+    scenario = _scenario(obstacles=[{"id": f"o{n}", **box} for n in range(limit + 1)])
+    response = shared_client.post("/api/missions", json=scenario)
+    assert response.status_code == 422, response.text
+    errors = {e["field"]: e["reason"] for e in _strict_json(response.text)["errors"]}
+    assert errors["obstacles"] == (f"{limit + 1} obstacles exceed this server's limit of "
+                                   f"{limit} (setting max_obstacles)")

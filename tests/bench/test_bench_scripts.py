@@ -45,6 +45,19 @@ def test_planner_benchmark_reports_figures_and_machine():
     assert report["machine"]["packages"]["numpy"] == metadata.version("numpy")
 
 
+def test_planner_benchmark_runs_an_obstacle_family_against_its_floor():
+    report = _run("planner.py", "--only", "--dmpc-sizes", "--no-solver-comparison",
+                  "--row-modes", "--repeats", "1", "--no-memory", "--obstacles",
+                  "pillar-circle8", "--seeds", "1")
+    [row] = report["families"]
+    assert (row["family"], row["seed"], row["vehicles"], row["obstacles"]) == (
+        "pillar-circle8", 1, 8, 1)
+    assert row["status"] == "converged" and row["verified"] is True
+    assert row["obstacle_distance_min"] >= row["clearance"] - 1e-4
+    assert row["closest_obstacle"]["id"] == "pillar"
+    assert row["floor_s"] == 0.5 and row["within_floor"] == (row["total_s"] <= 0.5)
+
+
 def test_stream_benchmark_reports_rate_and_jitter():
     report = _run("stream.py", "--vehicles", "3", "--rate", "20", "--duration", "2")
     for kind in ("pack_setpoint", "receive_position"):

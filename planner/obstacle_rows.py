@@ -1,0 +1,217 @@
+"""Obstacle rows of the SCP QPs: a separating plane per vehicle, interval and nearby obstacle.
+
+For vehicle i on interval [t_k, t_k+1] and obstacle o, the row is linearised about the
+previous iterate (`lin`): q is the point of the chord [p_k, p_k+1] at `lin` nearest to o
+(the start for the first interval and the goal for the last, which are fixed and clear),
+x the obstacle's point nearest q and n the outward normal there. The plane n'x' = n'x
+supports the convex obstacle, so n'p >= n'x + c keeps p at least the clearance c from it.
+It is imposed on the three Bernstein control points of the step (p_k, p_k + dt/2 v_k,
+p_k+1): the quadratic motion lies in their convex hull, so the clearance holds over the whole
+step, exactly for a plane. The rows are one-sided `SeparationRows` (the other side is fixed),
+so the primal and the dual group QPs take them unchanged.
+
+Only nearby obstacles get rows: a broad phase (`ObstacleSet.near`, a k-d tree over the
+steps' control-point boxes) finds the (vehicle, interval, obstacle) triples that can come
+within the clearance; a row is added when the iterate breaks it, like the separation rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.golden import golden_minimum
+from planner.obstacles import ObstacleSet
+from planner.qp import SeparationRows
+from planner.scenario import Scenario
+from planner.types import FloatArray, IntArray
+
+__all__ = ["ObstacleRows", "Triples", "chord_nearest", "concat_rows", "control_points"]
+
+Keys = NDArray[np.int64]
+
+#: Triples whose row at the linearisation point is within this of binding (in units of the
+#: clearance, at least SEED_MIN m) start an iteration's QP.
+SEED_FRACTION = 0.5
+SEED_MIN = 0.2
+#: Golden-section steps locating a chord's point nearest an obstacle (interval shrinks to
+#: 0.618^N of the chord).
+CHORD_STEPS = 20
+
+
+@dataclass(frozen=True)
+class Triples:
+    """(vehicle, obstacle, interval) index arrays."""
+
+    vehicle: IntArray
+    obstacle: IntArray
+    k: IntArray
+
+    def __len__(self) -> int:
+        return len(self.vehicle)
+
+
+def control_points(p: FloatArray, v: FloatArray, dt: float) -> FloatArray:
+    """(N, K, 3, 3): per vehicle and interval the Bernstein control points p_k,
+    p_k + dt/2 v_k, p_k+1 of the step's quadratic motion."""
+    return np.stack([p[:, :-1], p[:, :-1] + 0.5 * dt * v[:, :-1], p[:, 1:]], axis=2)
+
+
+def chord_nearest(geometry: ObstacleSet, a: FloatArray, b: FloatArray, o: IntArray
+                  ) -> FloatArray:
+    """The point of each segment [a, b] ((Q, 3) each) nearest obstacle o (Q,): the signed
+    distance to a convex set is convex along a segment, so a golden-section search finds it."""
+    d = b - a
+
+    def dist(t: FloatArray) -> FloatArray:
+        return geometry.signed_distance(a + t[:, None] * d, o)
+
+    t, best_inner = golden_minimum(dist, np.zeros(len(a)), np.ones(len(a)), CHORD_STEPS)
+    # The ends can be nearer than the interior search's best (the minimum sits at an end).
+    ends = np.stack([np.zeros(len(a)), t, np.ones(len(a))], axis=1)
+    values = np.stack([dist(ends[:, 0]), best_inner, dist(ends[:, 2])], axis=1)
+    best = ends[np.arange(len(a)), np.argmin(values, axis=1)]
+    return a + best[:, None] * d
+
+
+class ObstacleRows:
+    """The obstacle rows of one scenario: keys, planes, the broad phase and the lazy check."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.geometry = scenario.obstacle_set
+        self.clearance = scenario.clearance
+        self.separation = scenario.min_separation
+        self.dt = scenario.dt
+        self.vehicles = len(scenario.vehicles)
+        self.obstacles = len(self.geometry)
+        self.intervals = scenario.steps
+        self._cache_lin: FloatArray | None = None
+        self._cache_keys: Keys = np.zeros(0, dtype=np.int64)
+        self._cache_normal: FloatArray = np.zeros((0, 3))
+        self._cache_rhs: FloatArray = np.zeros(0)
+
+    # ---------------------------------------------------------------- keys
+
+    def encode(self, t: Triples) -> Keys:
+        return ((t.vehicle.astype(np.int64) * self.obstacles + t.obstacle) * self.intervals
+                + t.k)
+
+    def decode(self, keys: Keys) -> Triples:
+        k = keys % self.intervals
+        vo = keys // self.intervals
+        return Triples((vo // self.obstacles).astype(np.intp),
+                       (vo % self.obstacles).astype(np.intp), k.astype(np.intp))
+
+    def vehicles_of(self, keys: Keys) -> IntArray:
+        return (keys // (self.intervals * self.obstacles)).astype(np.intp)
+
+    # ---------------------------------------------------------------- geometry
+
+    def planes(self, lin: FloatArray, t: Triples) -> tuple[FloatArray, FloatArray]:
+        """Per triple the row's unit normal (T, 3) and right-hand side (T,): n'x >= rhs at
+        every control point of the interval keeps the clearance. Linearised about the
+        positions `lin` (N, K+1, 3)."""
+        a, b = lin[t.vehicle, t.k], lin[t.vehicle, t.k + 1]
+        q = chord_nearest(self.geometry, a, b, t.obstacle)
+        first, last = t.k == 0, t.k == self.intervals - 1
+        q[first], q[last] = a[first], b[last]
+        travel = b - a
+        right = np.stack([travel[:, 1], -travel[:, 0]], axis=1)
+        norm = np.linalg.norm(right, axis=1)
+        right = np.where((norm > 1e-12)[:, None], right / np.where(norm > 1e-12, norm, 1.0)[
+            :, None], np.array([1.0, 0.0]))
+        _, point, normal = self.geometry.support(q, t.obstacle, right)
+        return normal, np.einsum("tc,tc->t", normal, point) + self.clearance
+
+    def key_planes(self, lin: FloatArray, keys: Keys) -> tuple[FloatArray, FloatArray]:
+        """`planes` of the triples of `keys`, remembered for the current `lin` (an SCP
+        iteration asks for the same rows again after each round)."""
+        if self._cache_lin is not lin:
+            self._cache_lin = lin
+            self._cache_keys = np.zeros(0, dtype=np.int64)
+            self._cache_normal, self._cache_rhs = np.zeros((0, 3)), np.zeros(0)
+        missing = np.setdiff1d(keys, self._cache_keys)
+        if missing.size:
+            normal, rhs = self.planes(lin, self.decode(missing))
+            merged = np.concatenate([self._cache_keys, missing])
+            order = np.argsort(merged, kind="stable")
+            self._cache_keys = merged[order]
+            self._cache_normal = np.concatenate([self._cache_normal, normal])[order]
+            self._cache_rhs = np.concatenate([self._cache_rhs, rhs])[order]
+        at = np.searchsorted(self._cache_keys, keys)
+        return self._cache_normal[at], self._cache_rhs[at]
+
+    def values(self, p: FloatArray, v: FloatArray, t: Triples, normal: FloatArray,
+               rhs: FloatArray) -> FloatArray:
+        """Per triple the smallest n'x - rhs over the interval's control points at (p, v)
+        (>= 0: the row holds)."""
+        cp = control_points(p[t.vehicle], v[t.vehicle], self.dt)  # (T, K, 3, 3)
+        points = cp[np.arange(len(t)), t.k]  # (T, 3 points, 3)
+        return np.einsum("tpc,tc->tp", points, normal).min(axis=1) - rhs
+
+    def near(self, p: FloatArray, v: FloatArray, reach: float) -> Triples:
+        """Triples whose interval's control points' box lies within clearance + `reach` of
+        the obstacle's box (a superset of those whose motion comes that close)."""
+        cp = control_points(p, v, self.dt)
+        lo, hi = cp.min(axis=2).reshape(-1, 3), cp.max(axis=2).reshape(-1, 3)
+        box, obstacle = self.geometry.near(lo, hi, self.clearance + reach)
+        vehicle, k = np.divmod(box, self.intervals)
+        return Triples(vehicle.astype(np.intp), obstacle, k.astype(np.intp))
+
+    # ---------------------------------------------------------------- the SCP side
+
+    def seed(self, lin: tuple[FloatArray, FloatArray, FloatArray]) -> Keys:
+        """Keys of the rows an iteration starts with: those within the seed margin of
+        binding at the linearisation point."""
+        margin = max(SEED_MIN, SEED_FRACTION * self.clearance)
+        t = self.near(lin[0], lin[1], margin)
+        if len(t) == 0:
+            return np.zeros(0, dtype=np.int64)
+        keys = self.encode(t)
+        normal, rhs = self.key_planes(lin[0], keys)
+        close = self.values(lin[0], lin[1], t, normal, rhs) < margin
+        return np.unique(keys[close])
+
+    def violated(self, lin: FloatArray, p: FloatArray, v: FloatArray, keys: Keys,
+                 tolerance: float) -> Keys:
+        """Keys not in `keys` of rows (linearised about positions `lin`) that (p, v) breaks
+        by more than `tolerance`, among the triples within the clearance at (p, v): farther
+        ones are clear whatever their row says."""
+        t = self.near(p, v, 0.0)
+        if len(t) == 0:
+            return np.zeros(0, dtype=np.int64)
+        fresh = ~np.isin(self.encode(t), keys)
+        t = Triples(t.vehicle[fresh], t.obstacle[fresh], t.k[fresh])
+        if len(t) == 0:
+            return np.zeros(0, dtype=np.int64)
+        keys_t = self.encode(t)
+        normal, rhs = self.key_planes(lin, keys_t)
+        bad = self.values(p, v, t, normal, rhs) < -tolerance
+        return np.unique(keys_t[bad])
+
+    def rows(self, lin: FloatArray, keys: Keys, local: IntArray) -> SeparationRows:
+        """The QP rows of `keys` (three per key, kinds 0, 1, 2, kind-major like the
+        separation rows), one-sided: n'x >= R + offset with offset = rhs - R. `local` maps
+        scenario vehicle indices to the group's."""
+        t = self.decode(keys)
+        normal, rhs = self.key_planes(lin, keys)
+        kinds = np.repeat(np.arange(3, dtype=np.intp), len(t))
+        return SeparationRows(
+            i=np.tile(local[t.vehicle], 3), j=np.full(3 * len(t), -1, dtype=np.intp),
+            k=np.tile(t.k, 3), kind=kinds, coef=np.tile(normal, (3, 1)),
+            offset=np.tile(rhs - self.separation, 3),
+        )
+
+
+def concat_rows(a: SeparationRows, b: SeparationRows) -> SeparationRows:
+    """Rows of `a` then `b` (offsets 0 where one of them has none)."""
+    def offsets(r: SeparationRows) -> FloatArray:
+        return np.zeros(len(r)) if r.offset is None else r.offset
+
+    return SeparationRows(
+        i=np.concatenate([a.i, b.i]), j=np.concatenate([a.j, b.j]),
+        k=np.concatenate([a.k, b.k]), kind=np.concatenate([a.kind, b.kind]),
+        coef=np.concatenate([a.coef, b.coef]), offset=np.concatenate([offsets(a), offsets(b)]),
+    )
