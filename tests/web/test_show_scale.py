@@ -1,0 +1,71 @@
+"""The page at show scale: a 2,000-vehicle plan is drawn within seconds, with no long stall,
+as one path trace per colour (3-D view, fly view) rather than one element per vehicle, from
+decimated trajectories. Loose bounds only (the suite runs on a busy 2-core machine); the
+figures on a quiet machine are in docs/service/index.md."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import pytest
+from playwright.sync_api import Page, expect
+
+from tests.web.showplan import ShowPlan
+
+pytestmark = pytest.mark.browser
+
+VEHICLES = 2000
+
+#: Long tasks (> 50 ms, the browser's own measure) and the longest gap between animation
+#: frames, recorded from the page's first script on.
+WATCH = """
+window.__longest = 0; window.__longTasks = [];
+new PerformanceObserver((list) => { for (const e of list.getEntries()) window.__longTasks.push(e.duration); })
+  .observe({ type: "longtask", buffered: true });
+let last = performance.now();
+const tick = (now) => { window.__longest = Math.max(window.__longest, now - last); last = now; requestAnimationFrame(tick); };
+requestAnimationFrame(tick);
+"""
+
+SHOW = "(id) => import('/planning.js').then((m) => m.showMission(id, null))"
+
+
+@pytest.fixture(scope="module")
+def show() -> ShowPlan:
+    return ShowPlan(VEHICLES)
+
+
+def test_a_2000_vehicle_plan_renders_within_seconds_without_long_stalls(
+    open_page: Callable[..., Page], show: ShowPlan
+) -> None:
+    page = open_page(before=lambda p: (show.route(p), p.add_init_script(WATCH)))
+    expect(page.locator("#plan-button")).to_be_enabled(timeout=30_000)
+    page.evaluate("() => { window.__longest = 0; window.__longTasks = []; }")
+    started = time.monotonic()
+    page.evaluate(SHOW, show.mission_id)
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    rendered = time.monotonic() - started
+    page.wait_for_timeout(500)  # frames after the drawing
+    tasks = page.evaluate("window.__longTasks")
+    longest_frame = page.evaluate("window.__longest")
+    heap = page.evaluate("performance.memory ? performance.memory.usedJSHeapSize : null")
+    print(f"\nshow scale {VEHICLES}: rendered in {rendered:.2f} s, long tasks {len(tasks)} "
+          f"(longest {max(tasks, default=0):.0f} ms), longest frame gap {longest_frame:.0f} ms, "
+          f"heap {heap and heap / 1e6:.0f} MB, trajectories {show.served}")
+    assert rendered < 20.0, rendered
+    assert max(tasks, default=0) < 2000, tasks
+    # The drawing is there: every vehicle in the 3-D view's paths, a bounded number of traces.
+    drawn = page.evaluate("""() => { const d = document.getElementById('plot3d').data;
+        const paths = d.filter((t) => t.mode === 'lines');
+        return { traces: d.length, vehicles: paths.reduce((s, t) => s + (t.meta?.vehicles ?? 1), 0),
+                 now: d.at(-2).x.length }; }""")
+    assert drawn["vehicles"] == VEHICLES and drawn["traces"] <= 12, drawn
+    assert drawn["now"] == VEHICLES, drawn  # a "planned now" marker per vehicle, one trace
+    fly = page.locator("#fly-view path.planned-paths")
+    assert 1 <= fly.count() <= 10
+    assert sum(int(n) for n in fly.evaluate_all("ps => ps.map((p) => p.dataset.vehicles)")) \
+        == VEHICLES
+    assert page.locator("#fly-view polyline").count() == 0  # no element per vehicle
+    # Decimated data: no trajectory answer bigger than a few megabytes.
+    assert show.served and max(show.served.values()) < 8_000_000, show.served
