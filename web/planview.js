@@ -101,8 +101,8 @@ function render3d(plan, traj) {
   const many = traj.vehicles.length > 16;
   const lines = lineTraces(traj.vehicles, (v) => v.position, (i) => ({
     type: "scatter3d", mode: "lines", line: { color: color(i), width: 3 },
-    hoverinfo: layered(traj.vehicles.length) ? "text" : "name",
-  }));
+    hoverinfo: "name",
+  }), false);  // in layers the "planned now" markers name the vehicles
   markers.lines = lines.length;
   const now = {
     type: "scatter3d", mode: "markers", name: "planned now", showlegend: false,

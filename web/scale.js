@@ -7,9 +7,9 @@
 /** Fleets larger than this are drawn one layer per colour, not one element per vehicle. */
 export const LAYERED_ABOVE = 32;
 /** Most points of one vehicle's path in a layered drawing. */
-export const PATH_POINTS = 24;
+export const PATH_POINTS = 16;
 /** Most vehicle-time samples the page fetches in one trajectory answer. */
-export const SAMPLE_BUDGET = 60_000;
+export const SAMPLE_BUDGET = 40_000;
 
 /** Whether a fleet of `count` vehicles is drawn in layers.
  * @param {number} count @returns {boolean} */
