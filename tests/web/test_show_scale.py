@@ -22,10 +22,15 @@ VEHICLES = 2000
 #: frames, recorded from the page's first script on.
 WATCH = """
 window.__longest = 0; window.__longTasks = [];
-new PerformanceObserver((list) => { for (const e of list.getEntries()) window.__longTasks.push(e.duration); })
-  .observe({ type: "longtask", buffered: true });
+new PerformanceObserver((list) => {
+  for (const e of list.getEntries()) window.__longTasks.push(e.duration);
+}).observe({ type: "longtask", buffered: true });
 let last = performance.now();
-const tick = (now) => { window.__longest = Math.max(window.__longest, now - last); last = now; requestAnimationFrame(tick); };
+const tick = (now) => {
+  window.__longest = Math.max(window.__longest, now - last);
+  last = now;
+  requestAnimationFrame(tick);
+};
 requestAnimationFrame(tick);
 """
 
