@@ -6,12 +6,16 @@ figures on a quiet machine are in docs/service/index.md."""
 
 from __future__ import annotations
 
+import json
+import re
 import time
 from collections.abc import Callable
 
+import httpx
 import pytest
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Page, Route, expect
 
+from tests.api.support import ServiceProcess
 from tests.web.showplan import ShowPlan
 
 pytestmark = pytest.mark.browser
@@ -78,3 +82,23 @@ def test_a_2000_vehicle_plan_renders_within_seconds_without_long_stalls(
     assert page.locator("#fly-view polyline").count() == 0  # no element per vehicle
     # Decimated data: no trajectory answer bigger than a few megabytes.
     assert show.served and max(show.served.values()) < 8_000_000, show.served
+
+
+def test_a_show_sized_fleet_table_lists_100_vehicles_and_counts_the_rest(
+    open_page: Callable[..., Page], service: ServiceProcess
+) -> None:
+    answer = httpx.get(f"{service.base_url}/api/vehicles", timeout=30).json()
+    first = answer["vehicles"][0]
+    answer["vehicles"] = [{**first, "id": f"show{i}"} for i in range(150)]
+    answer["vehicles"][140]["fault"] = "lost link"  # listed although past the first 100
+    body = json.dumps(answer)
+
+    def vehicles(route: Route) -> None:
+        route.fulfill(status=200, content_type="application/json", body=body)
+
+    page = open_page(before=lambda p: p.route(re.compile(r".*/api/vehicles$"), vehicles))
+    rows = page.locator("#vehicle-state tbody tr[data-id]")
+    expect(rows).to_have_count(100)
+    expect(page.locator("#vehicle-state tr.more-vehicles")).to_have_text(
+        "… and 50 more vehicles (150 in all)")
+    assert rows.first.get_attribute("data-id") == "show140"
