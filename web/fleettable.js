@@ -11,6 +11,9 @@ import { fleet, flight } from "./state.js";
 
 /** @type {[string, string, (value: any) => string[]][]} */
 const OPTIONAL_COLUMNS = [["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
+/** Most rows drawn: a show-sized fleet's table lists its vehicles with a fault first, then
+ * the others up to this many, and says how many are not listed. */
+export const TABLE_ROWS_MAX = 100;
 
 /** Redraw the table from the fleet and the flight under way. */
 export function showVehicleTable() {
@@ -29,7 +32,19 @@ export function showVehicleTable() {
   if (thead.innerHTML !== headHtml) thead.innerHTML = headHtml;
   const tbody = $("#vehicle-state tbody");
   tbody.innerHTML = "";
-  for (const v of rows) tbody.appendChild(vehicleRow(v, optional, health, actions));
+  const listed = rows.length > TABLE_ROWS_MAX
+    ? [...rows.filter((v) => v.fault), ...rows.filter((v) => !v.fault)].slice(0, TABLE_ROWS_MAX)
+    : rows;
+  for (const v of listed) tbody.appendChild(vehicleRow(v, optional, health, actions));
+  if (listed.length < rows.length) {
+    const tr = document.createElement("tr");
+    tr.className = "more-vehicles";
+    const td = document.createElement("td");
+    td.colSpan = heads.length;
+    td.textContent = `… and ${rows.length - listed.length} more vehicles (${rows.length} in all)`;
+    tr.appendChild(td);
+    tbody.appendChild(tr);
+  }
 }
 
 /** @param {VehicleRow} v

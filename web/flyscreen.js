@@ -62,7 +62,7 @@ export function drawFlyMoving() {
   drawMoving($("#fly-view"), views.flyTf, { planned, vehicles });
   const shown = /** @type {{id: string, color: string, position: number[]}[]} */ (
     vehicles.filter((v) => v.position));
-  showFlown(traj.vehicles.length, shown);
+  showFlown(shown);
 }
 
 /** Forget the live flight's positions and phase. */
@@ -83,7 +83,7 @@ export const horizon = () => (views.traj ? views.traj.t[views.traj.t.length - 1]
 export function setTime(k) {
   const traj = views.traj;
   if (!traj) return;
-  showPlannedNow(traj.vehicles.length, traj.vehicles.map((v) => v.position[k]));
+  showPlannedNow(traj.vehicles.map((v) => v.position[k]));
   drawFlyMoving();
   showClock();
 }

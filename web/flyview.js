@@ -4,6 +4,7 @@
 // when the fleet has a geodetic origin, latitude/longitude at the corners. No map tiles: the
 // page works offline. Pure drawing: no fetches, no page state.
 import { svgEl } from "./dom.js";
+import { PATH_POINTS, byColour, decimated, layered } from "./scale.js";
 
 /** @typedef {{lat: number, lon: number}} LatLon */
 /** @typedef {{lo: number[], hi: number[], scale: number,
@@ -79,13 +80,15 @@ export function drawStatic(svg, scene) {
   const [x0, y0] = tf.toSvg(scene.lo[0], scene.lo[1]);
   const [x1, y1] = tf.toSvg(scene.hi[0], scene.hi[1]);
   svgEl("rect", { x: x0, y: y1, width: x1 - x0, height: y0 - y1, fill: "#fff", stroke: "#9aa4af" }, stat);
-  for (const path of scene.paths) {
-    const pts = path.points.map(([x, y]) => tf.toSvg(x, y).map((v) => v.toFixed(1)).join(",")).join(" ");
-    svgEl("polyline", { points: pts, fill: "none", stroke: path.color, "stroke-width": 1.2,
-                        "stroke-opacity": 0.55, class: "planned-path", "data-id": path.id }, stat);
-    const [gx, gy] = tf.toSvg(path.points[path.points.length - 1][0], path.points[path.points.length - 1][1]);
-    svgEl("path", { d: `M${gx - 4},${gy - 4}L${gx + 4},${gy + 4}M${gx - 4},${gy + 4}L${gx + 4},${gy - 4}`,
-                    stroke: path.color, "stroke-width": 1.5 }, stat);
+  if (layered(scene.paths.length)) drawPathLayers(stat, tf, scene.paths);
+  else {
+    for (const path of scene.paths) {
+      const pts = path.points.map(([x, y]) => tf.toSvg(x, y).map((v) => v.toFixed(1)).join(",")).join(" ");
+      svgEl("polyline", { points: pts, fill: "none", stroke: path.color, "stroke-width": 1.2,
+                          "stroke-opacity": 0.55, class: "planned-path", "data-id": path.id }, stat);
+      svgEl("path", { d: cross(tf, path.points[path.points.length - 1], 4), stroke: path.color,
+                      "stroke-width": 1.5 }, stat);
+    }
   }
   // Scale bar: bottom left, about a quarter of the box.
   const metres = niceLength((scene.hi[0] - scene.lo[0]) / 4);
@@ -112,6 +115,38 @@ export function drawStatic(svg, scene) {
   return tf;
 }
 
+/** SVG path data of a cross of half-size `r` at world point p.
+ * @param {ViewTransform} tf @param {number[]} p @param {number} r @returns {string} */
+function cross(tf, p, r) {
+  const [gx, gy] = tf.toSvg(p[0], p[1]).map((v) => Math.round(v * 10) / 10);
+  return `M${gx - r},${gy - r}L${gx + r},${gy + r}M${gx - r},${gy + r}L${gx + r},${gy - r}`;
+}
+
+/** SVG path data of a circle of radius r at world point p (two arcs).
+ * @param {{toSvg: (x: number, y: number) => number[]}} tf @param {number[]} p
+ * @param {number} r @returns {string} */
+function ring(tf, p, r) {
+  const [sx, sy] = tf.toSvg(p[0], p[1]);
+  return `M${(sx + r).toFixed(1)},${sy.toFixed(1)}a${r},${r} 0 1,0 ${-2 * r},0a${r},${r} 0 1,0 ${2 * r},0`;
+}
+
+/** A show-sized fleet's paths and goals: one SVG path per colour (class planned-paths,
+ * data-vehicles its vehicle count), each vehicle's path decimated to PATH_POINTS points.
+ * @param {Element} layer @param {ViewTransform} tf
+ * @param {{id: string, color: string, points: number[][]}[]} paths */
+function drawPathLayers(layer, tf, paths) {
+  for (const group of byColour(paths)) {
+    const d = group.map((path) => decimated(path.points.length, PATH_POINTS).map((k, j) => {
+      const [x, y] = tf.toSvg(path.points[k][0], path.points[k][1]);
+      return `${j ? "L" : "M"}${x.toFixed(1)},${y.toFixed(1)}`;
+    }).join("")).join("");
+    svgEl("path", { d, fill: "none", stroke: group[0].color, "stroke-width": 1, "stroke-opacity": 0.4,
+                    class: "planned-paths", "data-vehicles": group.length }, layer);
+    const goals = group.map((path) => cross(tf, path.points[path.points.length - 1], 2)).join("");
+    svgEl("path", { d: goals, stroke: group[0].color, "stroke-width": 1, class: "goal-marks" }, layer);
+  }
+}
+
 /** Draw what moves: planned positions now (rings), trails, and the vehicles (live or
  * replayed) as filled, labelled icons.
  * @param {SVGSVGElement} svg
@@ -122,7 +157,13 @@ export function drawMoving(svg, tf, moving) {
   const layer = svg.querySelector("g.moving");
   if (!layer) return;
   layer.innerHTML = "";
-  for (const p of moving.planned) {
+  if (layered(moving.planned.length)) {  // one path of rings per colour
+    for (const group of byColour(moving.planned)) {
+      svgEl("path", { d: group.map((p) => ring(tf, p.position, 3)).join(""), fill: "none",
+                      stroke: group[0].color, "stroke-width": 1, class: "planned-icons",
+                      "data-vehicles": group.length }, layer);
+    }
+  } else for (const p of moving.planned) {
     const [sx, sy] = tf.toSvg(p.position[0], p.position[1]);
     svgEl("circle", { cx: sx, cy: sy, r: 6, fill: "none", stroke: p.color, "stroke-width": 1.5,
                       "stroke-dasharray": "2 2", class: "planned-icon", "data-id": p.id }, layer);

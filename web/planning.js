@@ -9,7 +9,8 @@ import { refreshStale } from "./flygate.js";
 import { clearFlightView, drawFlyStatic, resetSlider } from "./flyscreen.js";
 import { readScenario, sequenceKey } from "./form.js";
 import { closeReplay, loadFlights, refreshMissionList } from "./history.js";
-import { loadPlotly, renderFigures } from "./planview.js";
+import { loadPlotly, nextTask, renderFigures } from "./planview.js";
+import { trajectoryRate } from "./scale.js";
 import { flight, missionIs, planning, ready, views } from "./state.js";
 
 /** @typedef {import("./state.js").Mission} Mission */
@@ -217,10 +218,12 @@ function finishPlanning() {
 async function renderPlan(mission) {
   const plan = mission.plan;
   if (!plan || !plan.vehicles.length) return;
-  const [traj, sepTraj] = await Promise.all([
-    api("GET", `/api/missions/${mission.id}/trajectory?rate=10`),
-    api("GET", `/api/missions/${mission.id}/trajectory?rate=20`),
-  ]);
+  // Show-sized fleets: fetched at a lower rate (scale.js), once when both rates meet.
+  const horizon = plan.scenario.steps * plan.scenario.dt;
+  const [viewRate, sepRate] = [10, 20].map((r) => trajectoryRate(r, plan.vehicles.length, horizon));
+  const fetched = (/** @type {number} */ rate) => api("GET", `/api/missions/${mission.id}/trajectory?rate=${rate}`);
+  const viewAnswer = fetched(viewRate);
+  const [traj, sepTraj] = await Promise.all([viewAnswer, sepRate === viewRate ? viewAnswer : fetched(sepRate)]);
   if (!traj.ok || !sepTraj.ok) return;
   views.traj = traj.data;
   views.sepTraj = sepTraj.data;
@@ -232,6 +235,7 @@ async function renderPlan(mission) {
   $("#plan-results").hidden = false;
   await renderFigures(plan, mission.plan_ok, traj.data, sepTraj.data);
   renderSequence(mission);
+  await nextTask();
   drawFlyStatic();
   resetSlider();
 }

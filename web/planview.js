@@ -5,6 +5,7 @@
 // editor is usable.
 import { $, badge, color, fmt } from "./dom.js";
 import { views } from "./state.js";
+import { PATH_POINTS, byColour, decimated, layered } from "./scale.js";
 import { minSeparation } from "./tracks.js";
 
 /** @typedef {import("./state.js").Plan} Plan */
@@ -43,20 +44,66 @@ export async function renderFigures(plan, planOk, traj, sepTraj) {
   const Plotly = await loadPlotly().catch(() => null);
   renderSummary(plan, planOk);
   if (!Plotly) return;
-  render3d(plan, traj);
-  renderSeparation(plan, sepTraj);
-  renderSpeed(sepTraj);
-  renderThrust(plan);
+  // One figure per task: a show-sized plan's figures never hold the page for their sum.
+  for (const draw of [() => render3d(plan, traj), () => renderSeparation(plan, sepTraj),
+                      () => renderSpeed(sepTraj), () => renderThrust(plan)]) {
+    draw();
+    await nextTask();
+  }
+}
+
+/** A promise resolved in a later task, so the browser may draw and answer input between.
+ * @returns {Promise<void>} */
+export const nextTask = () => new Promise((resolve) => setTimeout(resolve, 0));
+
+/** One line trace per vehicle; above LAYERED_ABOVE vehicles one per colour, each vehicle's
+ * path decimated and separated from the next by a gap (null), its id as every point's hover
+ * text; `meta.vehicles` says how many vehicles a trace carries.
+ * @param {{id: string}[]} vehicles
+ * @param {(v: any) => number[][]} pointsOf  a vehicle's points
+ * @param {(i: number) => any} styleOf  the trace's style for vehicle i (the layer's first)
+ * @param {boolean} [labelled]  layers carry hover text (ids); without it no hover at all
+ * @returns {any[]} */
+export function lineTraces(vehicles, pointsOf, styleOf, labelled = true) {
+  if (!layered(vehicles.length)) {
+    return vehicles.map((v, i) => ({ name: v.id, meta: { vehicles: 1 }, ...columns([pointsOf(v)]), ...styleOf(i) }));
+  }
+  const indexed = vehicles.map((_, i) => ({ i, color: color(i) }));
+  return byColour(indexed).map((layer) => {
+    const members = layer.map((m) => m.i);
+    const parts = members.map((i) => {
+      const points = pointsOf(vehicles[i]);
+      return decimated(points.length, PATH_POINTS).map((k) => points[k]);
+    });
+    const hover = labelled
+      ? { text: members.flatMap((i, j) => [...parts[j].map(() => vehicles[i].id), ""]), hoverinfo: "text" }
+      : { hoverinfo: "skip" };
+    return { name: `${members.length} vehicles`, meta: { vehicles: members.length },
+             ...columns(parts), ...styleOf(members[0]), ...hover };
+  });
+}
+
+/** x, y (and z when the points have it) columns of paths, null between two paths.
+ * @param {number[][][]} paths @returns {Record<string, (number | null)[]>} */
+function columns(paths) {
+  const axes = paths[0] && paths[0][0] && paths[0][0].length > 2 ? ["x", "y", "z"] : ["x", "y"];
+  /** @type {Record<string, (number | null)[]>} */
+  const out = {};
+  axes.forEach((axis, a) => {
+    out[axis] = paths.length === 1 ? paths[0].map((p) => p[a])
+      : paths.flatMap((path) => [...path.map((p) => p[a]), null]);
+  });
+  return out;
 }
 
 /** @param {Plan} plan @param {Trajectory} traj */
 function render3d(plan, traj) {
   const many = traj.vehicles.length > 16;
-  const lines = traj.vehicles.map((v, i) => ({
-    type: "scatter3d", mode: "lines", name: v.id,
-    x: v.position.map((p) => p[0]), y: v.position.map((p) => p[1]), z: v.position.map((p) => p[2]),
-    line: { color: color(i), width: 3 }, hoverinfo: "name",
-  }));
+  const lines = lineTraces(traj.vehicles, (v) => v.position, (i) => ({
+    type: "scatter3d", mode: "lines", line: { color: color(i), width: 3 },
+    hoverinfo: "name",
+  }), false);  // in layers the "planned now" markers name the vehicles
+  markers.lines = lines.length;
   const now = {
     type: "scatter3d", mode: "markers", name: "planned now", showlegend: false,
     x: [], y: [], z: [], text: traj.vehicles.map((v) => v.id), hoverinfo: "text",
@@ -115,26 +162,22 @@ function scheduleMarkers() {
 }
 
 /** Move the 3-D view's "planned now" markers (the trace after the vehicles' lines).
- * @param {number} lines  the number of line traces
  * @param {number[][]} positions */
-export function showPlannedNow(lines, positions) {
-  const trace = scene().data?.[lines];
+export function showPlannedNow(positions) {
+  const trace = scene().data?.[markers.lines];
   if (!trace) return;
   [trace.x, trace.y, trace.z] = [0, 1, 2].map((a) => positions.map((p) => p[a]));
-  markers.lines = lines;
   scheduleMarkers();
 }
 
 /** Move the 3-D view's "flown" markers (the last trace), labelled with the vehicles' ids.
- * @param {number} lines
  * @param {{id: string, color: string, position: number[]}[]} shown */
-export function showFlown(lines, shown) {
-  const trace = scene().data?.[lines + 1];
+export function showFlown(shown) {
+  const trace = scene().data?.[markers.lines + 1];
   if (!trace) return;
   [trace.x, trace.y, trace.z] = [0, 1, 2].map((a) => shown.map((v) => v.position[a]));
   trace.text = shown.map((v) => v.id);
   trace.marker.color = shown.map((v) => v.color);
-  markers.lines = lines;
   scheduleMarkers();
 }
 
@@ -213,10 +256,10 @@ export function renderSeparation(plan, traj) {
 
 /** @param {Trajectory} traj */
 function renderSpeed(traj) {
-  plotly().react("speed-plot", traj.vehicles.map((v, i) => ({
-    x: traj.t, y: v.velocity.map((u) => Math.hypot(u[0], u[1], u[2])), mode: "lines", name: v.id,
-    line: { color: color(i), width: 1 },
-  })), {
+  const speeds = lineTraces(traj.vehicles,
+    (v) => v.velocity.map((u, k) => [traj.t[k], Math.hypot(u[0], u[1], u[2])]),
+    (i) => ({ mode: "lines", line: { color: color(i), width: 1 } }), false);
+  plotly().react("speed-plot", speeds, {
     title: { text: "speed per vehicle", font: { size: 13 } }, showlegend: false,
     margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s" } },
   }, PLOT_CONFIG);
@@ -227,9 +270,8 @@ function renderThrust(plan) {
   const lim = plan.scenario.limits;
   const end = plan.scenario.steps * plan.scenario.dt;
   /** @type {any[]} */
-  const traces = plan.vehicles.map((v, i) => ({
-    x: v.t.slice(0, -1), y: v.thrust, mode: "lines", name: v.id, line: { color: color(i), width: 1, shape: "hv" },
-  }));
+  const traces = lineTraces(plan.vehicles, (v) => v.thrust.map((f, k) => [v.t[k], f]),
+    (i) => ({ mode: "lines", line: { color: color(i), width: 1, shape: "hv" } }), false);
   for (const [key, label] of [["thrust_min", "min"], ["thrust_max", "max"]]) {
     if (lim[key] !== undefined) traces.push({ x: [0, end], y: [lim[key], lim[key]], mode: "lines", name: `thrust ${label}`, line: { color: "#c62828", dash: "dot" } });
   }

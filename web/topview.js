@@ -3,6 +3,7 @@
 // line between, and the world point under a click.
 import { $, $$, color, svgEl } from "./dom.js";
 import { readNumber, vehicleRows, workspace } from "./form.js";
+import { byColour, layered } from "./scale.js";
 import { editor } from "./state.js";
 
 const SIZE = 400, PAD = 20;
@@ -31,7 +32,9 @@ export function drawTopView() {
     `(${tf.lo[0]}, ${tf.lo[1]})`;
   svgEl("text", { x: x1, y: y1 - 4, "font-size": 10, fill: "#6b7480", "text-anchor": "end" }, view)
     .textContent = `(${tf.hi[0]}, ${tf.hi[1]}) m`;
-  vehicleRows().forEach((tr, i) => {
+  const rows = vehicleRows();
+  if (layered(rows.length)) { drawLayers(view, tf, rows); return; }
+  rows.forEach((tr, i) => {
     const v = $$("input", tr).slice(1).map(readNumber).map(Number);  // empty reads 0
     const [sx, sy] = tf.toSvg(v[0], v[1]);
     const [gx, gy] = tf.toSvg(v[3], v[4]);
@@ -42,6 +45,25 @@ export function drawTopView() {
     svgEl("path", { d: `M${gx - 5},${gy - 5}L${gx + 5},${gy + 5}M${gx - 5},${gy + 5}L${gx + 5},${gy - 5}`, stroke: c, "stroke-width": selected ? 3 : 2 }, view);
     svgEl("text", { x: sx + 6, y: sy - 6, "font-size": 10, fill: c }, view).textContent = $("input", tr).value;
   });
+}
+
+/** A show-sized form: per colour one path of start-goal lines and one of start dots, no
+ * labels; the selected vehicle drawn on top as in a small fleet.
+ * @param {Element} view @param {ReturnType<typeof transform>} tf
+ * @param {HTMLTableRowElement[]} rows */
+function drawLayers(view, tf, rows) {
+  const moves = rows.map((tr, i) => {
+    const v = $$("input", tr).slice(1).map(readNumber).map(Number);
+    const [sx, sy] = tf.toSvg(v[0], v[1]).map((c) => Math.round(c * 10) / 10);
+    const [gx, gy] = tf.toSvg(v[3], v[4]).map((c) => Math.round(c * 10) / 10);
+    return { color: color(i), ok: [sx, sy, gx, gy].every(Number.isFinite), sx, sy, gx, gy };
+  }).filter((m) => m.ok);
+  for (const group of byColour(moves)) {
+    svgEl("path", { d: group.map((m) => `M${m.sx},${m.sy}L${m.gx},${m.gy}`).join(""), stroke: group[0].color,
+                    "stroke-width": 0.5, "stroke-opacity": 0.5, class: "move-lines" }, view);
+    svgEl("path", { d: group.map((m) => `M${m.sx - 1.5},${m.sy}h3`).join(""), stroke: group[0].color,
+                    "stroke-width": 3, class: "start-dots" }, view);
+  }
 }
 
 /** The world point (x, y; m) under a click on the top view.

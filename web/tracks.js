@@ -14,14 +14,26 @@ export function sampleAt(times, points, t) {
   return points[lo].map((p, a) => p + w * (points[hi][a] - p));
 }
 
-/** The smallest scaled distance between any two of `points` ([[x, y, z]...]).
+/** The smallest scaled distance between any two of `points` ([[x, y, z]...]): a sweep
+ * along the axis the points spread most on, so a show-sized fleet costs about n log n
+ * rather than n² (pairs farther apart on that axis than the best so far are skipped).
  * @param {number[][]} points @param {number[]} scale @returns {number} */
 export function closestPair(points, scale) {
+  const n = points.length;
+  let axis = 0, widest = -1;
+  for (let a = 0; a < 3; a++) {
+    let lo = Infinity, hi = -Infinity;
+    for (const p of points) { const c = p[a] / scale[a]; if (c < lo) lo = c; if (c > hi) hi = c; }
+    if (hi - lo > widest) { widest = hi - lo; axis = a; }
+  }
+  const key = points.map((p) => p[axis] / scale[axis]);
+  const order = Array.from({ length: n }, (_, i) => i).sort((i, j) => key[i] - key[j]);
   let best = Infinity;
-  for (let i = 0; i < points.length; i++) {
-    const p = points[i];
-    for (let j = i + 1; j < points.length; j++) {
-      const q = points[j];
+  for (let a = 0; a < n; a++) {
+    const p = points[order[a]];
+    for (let b = a + 1; b < n; b++) {
+      if (key[order[b]] - key[order[a]] >= best) break;
+      const q = points[order[b]];
       const d = Math.hypot((p[0] - q[0]) / scale[0], (p[1] - q[1]) / scale[1], (p[2] - q[2]) / scale[2]);
       if (d < best) best = d;
     }
