@@ -14,7 +14,7 @@ import numpy as np
 from planner.errors import ScenarioError
 from planner.types import FloatArray
 
-__all__ = ["MAX_ID_LENGTH", "RANGES", "check_id", "check_integer", "check_keys",
+__all__ = ["MAX_ID_LENGTH", "RANGES", "check_id", "check_integer", "check_keys", "check_list",
            "check_number", "check_vector", "show_number"]
 
 #: Inclusive range of every number of a scenario, by field (`coordinate`: every position,
@@ -131,3 +131,12 @@ def check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str],
     for key in required:
         if key not in data:
             raise ScenarioError(f"{prefix}{key}", "is required")
+
+
+def check_list(value: Any, name: str, what: str, at_most: int) -> Sequence[Any]:
+    """`value` as a list of at most `at_most` `what`; ScenarioError naming `name` otherwise."""
+    if not isinstance(value, Sequence) or isinstance(value, str):
+        raise ScenarioError(name, f"must be a list of {what}")
+    if len(value) > at_most:
+        raise ScenarioError(name, f"at most {at_most} {what}, got {len(value)}")
+    return value

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.checks import check_id, check_keys, check_number, check_vector
+from planner.checks import check_id, check_keys, check_list, check_number, check_vector
 from planner.errors import ScenarioError
 from planner.types import FloatArray, IntArray
 
@@ -200,11 +200,7 @@ def parse_obstacles(data: Mapping[str, Any], min_separation: float
     if not CLEARANCE_RANGE[0] <= clearance <= CLEARANCE_RANGE[1]:
         raise ScenarioError("obstacle_clearance", f"must be between {CLEARANCE_RANGE[0]:g} and "
                                                   f"{CLEARANCE_RANGE[1]:g} m, got {clearance:g}")
-    raw = data.get("obstacles", [])
-    if not isinstance(raw, Sequence) or isinstance(raw, str):
-        raise ScenarioError("obstacles", "must be a list of obstacles")
-    if len(raw) > MAX_OBSTACLES:
-        raise ScenarioError("obstacles", f"at most {MAX_OBSTACLES} obstacles, got {len(raw)}")
+    raw = check_list(data.get("obstacles", []), "obstacles", "obstacles", MAX_OBSTACLES)
     out: list[Obstacle] = []
     seen: dict[str, int] = {}
     for index, item in enumerate(raw):

@@ -8,7 +8,7 @@ scenario with every default filled in, which is what a plan carries.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -20,6 +20,7 @@ from planner.checks import (
     RANGES,
     check_id,
     check_keys,
+    check_list,
     check_number,
     check_vector,
 )
@@ -367,13 +368,9 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     if assignment not in ASSIGNMENTS:
         raise ScenarioError("assignment", f"must be 'fixed' or 'free', got {assignment!r}")
 
-    raw_vehicles = data["vehicles"]
-    if not isinstance(raw_vehicles, Sequence) or isinstance(raw_vehicles, str):
-        raise ScenarioError("vehicles", "must be a list of vehicles")
+    raw_vehicles = check_list(data["vehicles"], "vehicles", "vehicles", MAX_VEHICLES)
     if not raw_vehicles:
         raise ScenarioError("vehicles", "must contain at least one vehicle")
-    if len(raw_vehicles) > MAX_VEHICLES:
-        raise ScenarioError("vehicles", f"at most {MAX_VEHICLES} vehicles, got {len(raw_vehicles)}")
 
     vehicles: list[Vehicle] = []
     seen: dict[str, int] = {}
