@@ -51,8 +51,10 @@ DEFAULTS: dict[str, Any] = {
 #: take any goal; see `planner.assignment`).
 ASSIGNMENTS = ("fixed", "free")
 
-#: Hard caps that keep one scenario from exhausting memory (not physical limits).
-MAX_VEHICLES = 1000
+#: Hard caps that keep one scenario from exhausting memory (not physical limits). A record
+#: drone show is about 16,000 vehicles; a service sets its own, lower fleet limit
+#: (`max_vehicles`, `gcs.service.limits`).
+MAX_VEHICLES = 20_000
 MAX_STEPS = 5000
 MAX_ITERATIONS = 1000
 

@@ -135,7 +135,8 @@ class Settings(BaseSettings):
         "for SCHED_RR 1 (root, CAP_SYS_NICE or an rtprio limit; refused: logged, ordinary "
         "scheduling), so a busy machine never keeps a setpoint tick waiting for a core."
     )
-    max_vehicles: int = Field(128, ge=1, le=1000, description="Largest fleet a mission may plan.")
+    max_vehicles: int = Field(128, ge=1, le=20_000, description="Largest fleet a mission may "
+                              "plan (the planner's own bound is 20,000).")
     max_steps: int = Field(1000, ge=3, le=5000, description="Largest `steps` a mission may use.")
     max_obstacles: int = Field(
         200, ge=0, le=1000, description="Most obstacles a mission's scenario may hold."

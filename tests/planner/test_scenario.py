@@ -193,3 +193,22 @@ def test_vehicle_ids_with_control_characters_are_refused(path, value, field):
 def test_printable_ids_are_kept_as_given():
     data = _mutate(["vehicles", 0, "id"], "=uav 1 ü")
     assert Scenario.from_dict(data).ids[0] == "=uav 1 ü"
+
+
+def test_the_planner_takes_a_record_sized_fleet_and_refuses_one_beyond_its_bound() -> None:
+    """A record drone show is ~16,000 vehicles: the planner's own bound is 20,000 (a service
+    sets a lower one, `max_vehicles`)."""
+    def fleet(count: int) -> dict[str, Any]:
+        data = _base()
+        side = math.ceil(math.sqrt(count))
+        data["limits"] = {**data["limits"], "position_min": [-1.0, -1.0, 0.0],
+                          "position_max": [2.0 * side + 1, 2.0 * side + 1, 10.0]}
+        data["steps"], data["dt"] = 60, 0.5
+        data["vehicles"] = [{"id": f"v{i}", "start": [2.0 * (i % side), 2.0 * (i // side), 1.0],
+                             "goal": [2.0 * (i % side), 2.0 * (i // side), 3.0]}
+                            for i in range(count)]
+        return data
+
+    assert len(Scenario.from_dict(fleet(1_500)).vehicles) == 1_500  # beyond the old 1,000
+    error = _error(fleet(20_001))
+    assert error.field == "vehicles" and error.reason == "at most 20000 vehicles, got 20001"
