@@ -110,22 +110,36 @@ class PlannedLanding:
 
     async def run(self) -> None:
         """Land every vehicle: the steerable ones by a landing plan if one is ready in time,
-        the rest (or all, when none is) by PX4's Land. Never raises."""
+        the rest (or all, when none is) by PX4's Land. Never raises; whatever happens (even
+        cancellation), every vehicle is handed to `secure` once."""
         streamer = self.streamer
         rate = streamer.rate
-        steer = self.eligible()
-        others = [v for v in self.vehicles if v not in steer]
         downs: list[asyncio.Future[None]] = []
-        for v in others:
-            if v.phase in AIRBORNE and v.phase != VehiclePhase.LANDING:
-                self.emit(v.id, EventKind.LANDING_FALLBACK,
-                          f"PX4 Land: cannot be steered ({self.steerable(v)})")
+        handed: set[str] = set()
+
+        def down(v: VehicleStatus) -> None:
+            handed.add(v.id)
             downs.append(asyncio.ensure_future(self.secure(v)))
-        if steer:
-            ok = await self._fly(steer, rate)
-            downs += [asyncio.ensure_future(self.secure(v))
-                      for v in (self.steered if ok else steer)]
-        await asyncio.gather(*downs, return_exceptions=True)
+
+        try:
+            steer = self.eligible()
+            for v in self.vehicles:
+                if v in steer:
+                    continue
+                if v.phase in AIRBORNE and v.phase != VehiclePhase.LANDING:
+                    self.emit(v.id, EventKind.LANDING_FALLBACK,
+                              f"PX4 Land: cannot be steered ({self.steerable(v)})")
+                down(v)
+            if steer:
+                ok = await self._fly(steer, rate)
+                for v in (self.steered if ok else steer):
+                    down(v)
+                handed.update(v.id for v in steer)  # the rest were sent down meanwhile
+        finally:
+            for v in self.vehicles:
+                if v.id not in handed:
+                    down(v)
+            await asyncio.gather(*downs, return_exceptions=True)
 
     async def _fly(self, steer: list[VehicleStatus], rate: float) -> bool:
         """Plan, switch, fly the landing plan; False (after freezing the streams) when no
@@ -149,6 +163,9 @@ class PlannedLanding:
             return self._fallback(steer, f"no landing plan within {bound:g} s")
         except LandingError as exc:
             return self._fallback(steer, str(exc))
+        except Exception as exc:  # any planning failure: PX4 Land, never stuck
+            return self._fallback(steer, f"landing planning failed: "
+                                         f"{type(exc).__name__}: {exc}")
         if time.monotonic() > switch_at - 0.5 / rate or streamer.tick >= switch:
             return self._fallback(steer, f"the landing plan came after its switch tick "
                                          f"({time.perf_counter() - began:.2f} s)")
@@ -159,7 +176,7 @@ class PlannedLanding:
             link = streamer.assignments[v.id].link if v.id in streamer.assignments else None
             if link is None:
                 continue  # sent down meanwhile (a fault policy)
-            streamer.assign(v.id, link, track, switch)
+            streamer.switch(v.id, link, track, switch)  # the flying plan streams until then
             v.phase = VehiclePhase.LANDING
             self.steered.append(v)
         horizon = result.plan.scenario.horizon
