@@ -65,6 +65,12 @@ from planner.types import FloatArray
 MIN_RATE_HZ = 2.0
 #: A link may be silent this long at most before it must count as lost (s).
 MAX_LINK_TIMEOUT_S = 5.0
+#: A landing plan may take this long at most (s): the fleet flies on meanwhile, so a longer
+#: bound only delays the landing.
+MAX_LANDING_PLAN_TIMEOUT_S = 30.0
+#: Touchdown points at most this high above the workspace floor (m): PX4's Land takes over
+#: there, so a higher one is no planned landing at all.
+MAX_LANDING_HEIGHT_M = 10.0
 
 __all__ = [
     "AT_END",
@@ -191,11 +197,13 @@ class FlightOptions:
     plan flown as setpoints down to the touchdown points, then PX4's Land
     (`gcs.flight.landing`); or px4, PX4's Land straight down where each vehicle is."""
     landing_plan_timeout: float = 0.5
-    """The landing plan must be ready within this (s), the lead of its switch tick; the
-    streams follow the flying plan meanwhile. Not ready: PX4's Land."""
+    """The landing plan must be ready within this (s, in (0, `MAX_LANDING_PLAN_TIMEOUT_S`]),
+    the lead of its switch tick; the streams follow the flying plan meanwhile. Not ready:
+    PX4's Land."""
     landing_height: float = 0.3
-    """Height of the touchdown points above the workspace floor (m), where PX4's Land
-    takes over."""
+    """Height of the touchdown points above the workspace floor (m, in [0,
+    `MAX_LANDING_HEIGHT_M`]), where PX4's Land takes over; one above the workspace's ceiling
+    is a fallback to PX4's Land, which the event says."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = _OPTIONS_KEY) -> FlightOptions:
@@ -240,6 +248,14 @@ class FlightOptions:
             raise FleetFileError(f"{where}.link_timeout",
                                  f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
                                  f"link, got {out.link_timeout:g}")
+        if out.landing_plan_timeout > MAX_LANDING_PLAN_TIMEOUT_S:
+            raise FleetFileError(f"{where}.landing_plan_timeout",
+                                 f"at most {MAX_LANDING_PLAN_TIMEOUT_S:g} s: the fleet flies on "
+                                 f"until the plan is ready, got {out.landing_plan_timeout:g}")
+        if out.landing_height > MAX_LANDING_HEIGHT_M:
+            raise FleetFileError(f"{where}.landing_height",
+                                 f"at most {MAX_LANDING_HEIGHT_M:g} m above the workspace floor "
+                                 f"(PX4's Land takes over there), got {out.landing_height:g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
                     "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
                     "position_rate_hz", "landing_plan_timeout"):
