@@ -10,15 +10,17 @@ stacked above each other closer than R. `PlannedLanding.run` instead:
    where it is measured;
 2. plans the landing (`planner.landing.plan_landing`, verified) in a worker thread while
    the streams go on along the flying plan, which keeps R until the switch;
-3. at the switch tick streams the landing plan as setpoints, like a plan; once the landing
+3. at the switch tick streams the landing plan as setpoints, like a plan (queued with
+   `Streamer.switch`, so every setpoint before it is still the flying plan's); once the landing
    horizon has passed, every vehicle stands at its touchdown point `landing_height` above
    the workspace floor, and PX4's Land takes it down vertically (touchdown points are R
    apart, so no descent crosses another vehicle).
 
 Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate
 invalid, already landing) get PX4's Land at once, and so does everyone when no verified
-plan is ready before the switch tick: the events say which (`landing_plan`,
-`landing_fallback`).
+plan is ready before the switch tick (the planner failed for whatever reason, or was late):
+the events say which (`landing_plan`, `landing_fallback`). Whatever happens, every vehicle
+is handed to `secure` in the end.
 """
 
 from __future__ import annotations
