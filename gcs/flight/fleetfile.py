@@ -72,6 +72,15 @@ MAX_LANDING_PLAN_TIMEOUT_S = 30.0
 #: there, so a higher one is no planned landing at all.
 MAX_LANDING_HEIGHT_M = 10.0
 
+#: Options with an upper bound: (the bound, its unit and why, for the error).
+_MAXIMA: dict[str, tuple[float, str]] = {
+    "link_timeout": (MAX_LINK_TIMEOUT_S, "s: a longer one hides a lost link"),
+    "landing_plan_timeout": (MAX_LANDING_PLAN_TIMEOUT_S,
+                             "s: the fleet flies on until the plan is ready"),
+    "landing_height": (MAX_LANDING_HEIGHT_M,
+                       "m above the workspace floor (PX4's Land takes over there)"),
+}
+
 __all__ = [
     "AT_END",
     "LANDING",
@@ -244,18 +253,10 @@ class FlightOptions:
             raise FleetFileError(f"{where}.rate_hz",
                                  f"must be in ({MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz (PX4 needs "
                                  f"offboard setpoints faster than 2 Hz), got {out.rate_hz:g}")
-        if out.link_timeout > MAX_LINK_TIMEOUT_S:
-            raise FleetFileError(f"{where}.link_timeout",
-                                 f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
-                                 f"link, got {out.link_timeout:g}")
-        if out.landing_plan_timeout > MAX_LANDING_PLAN_TIMEOUT_S:
-            raise FleetFileError(f"{where}.landing_plan_timeout",
-                                 f"at most {MAX_LANDING_PLAN_TIMEOUT_S:g} s: the fleet flies on "
-                                 f"until the plan is ready, got {out.landing_plan_timeout:g}")
-        if out.landing_height > MAX_LANDING_HEIGHT_M:
-            raise FleetFileError(f"{where}.landing_height",
-                                 f"at most {MAX_LANDING_HEIGHT_M:g} m above the workspace floor "
-                                 f"(PX4's Land takes over there), got {out.landing_height:g}")
+        for key, (most, why) in _MAXIMA.items():
+            if getattr(out, key) > most:
+                raise FleetFileError(f"{where}.{key}",
+                                     f"at most {most:g} {why}, got {getattr(out, key):g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
                     "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
                     "position_rate_hz", "landing_plan_timeout"):

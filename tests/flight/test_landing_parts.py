@@ -58,6 +58,15 @@ def _landing(vehicles, streamer, events, secured, **options) -> PlannedLanding:
                           secure, StationStalls())
 
 
+def _slow(seconds: float):
+    """A planner that takes `seconds` and then fails."""
+    def slow(*args, **kwargs):
+        time.sleep(seconds)
+        raise LandingError("too late to matter")
+
+    return slow
+
+
 def test_a_vehicle_out_of_reach_gets_px4_land_the_other_flies_the_plan() -> None:
     """A vehicle whose link went silent cannot fly setpoints: PX4's Land at once, said by a
     landing_fallback event; the other flies a verified landing plan from its state at the
@@ -83,11 +92,7 @@ def test_a_vehicle_out_of_reach_gets_px4_land_the_other_flies_the_plan() -> None
 def test_no_plan_within_the_bound_falls_back_to_px4_land(monkeypatch) -> None:
     """A landing plan not ready before its switch tick is not used: the streams freeze and
     every vehicle gets PX4's Land, which a landing_fallback event says."""
-    def slow(*args, **kwargs):
-        time.sleep(0.6)
-        raise AssertionError("too late to matter")
-
-    monkeypatch.setattr(landing_module, "plan_landing", slow)
+    monkeypatch.setattr(landing_module, "plan_landing", _slow(0.6))
     vehicles, streamer, events, secured = _setup()
     landing = _landing(vehicles, streamer, events, secured, landing_plan_timeout=0.1)
     asyncio.run(landing.run())
@@ -151,39 +156,33 @@ def test_the_flying_plan_streams_until_the_switch_tick_then_the_landing_plan() -
 TOUCHING = [(2.0, 2.0, 1.5), (2.004, 2.0, 1.5)]
 
 
-def test_vehicles_nearly_touching_fall_back_to_px4_land() -> None:
-    """Vehicles too close for any landing plan: a landing_fallback naming why, both landed by
-    PX4's Land (the planner's refusal does not escape and strand them streaming)."""
-    vehicles, streamer, events, secured = _setup(TOUCHING)
+def _broken(*args, **kwargs):
+    raise RuntimeError("solver crashed")
+
+
+@pytest.mark.parametrize(("points", "planner", "reason"), [
+    (TOUCHING, None, "too close to plan a landing"),
+    (POINTS, _broken, "RuntimeError: solver crashed"),
+])
+def test_any_planning_failure_falls_back_naming_it(monkeypatch, points, planner,
+                                                   reason: str) -> None:
+    """Vehicles too close for any landing plan, or an unexpected error of the planner: a
+    landing_fallback naming why, both landed by PX4's Land (the error does not escape and
+    strand them streaming)."""
+    if planner is not None:
+        monkeypatch.setattr(landing_module, "plan_landing", planner)
+    vehicles, streamer, events, secured = _setup(points)
     landing = _landing(vehicles, streamer, events, secured)
     asyncio.run(landing.run())
     fallbacks = [detail for _, kind, detail in events if kind == EventKind.LANDING_FALLBACK]
-    assert len(fallbacks) == 1 and "too close to plan a landing" in fallbacks[0]
-    assert sorted(secured) == ["uav1", "uav2"]
-
-
-def test_any_planning_failure_falls_back_naming_it(monkeypatch) -> None:
-    """An unexpected error of the planner is a fallback to PX4's Land that names it."""
-    def broken(*args, **kwargs):
-        raise RuntimeError("solver crashed")
-
-    monkeypatch.setattr(landing_module, "plan_landing", broken)
-    vehicles, streamer, events, secured = _setup()
-    landing = _landing(vehicles, streamer, events, secured)
-    asyncio.run(landing.run())
-    fallbacks = [detail for _, kind, detail in events if kind == EventKind.LANDING_FALLBACK]
-    assert len(fallbacks) == 1 and "RuntimeError: solver crashed" in fallbacks[0]
+    assert len(fallbacks) == 1 and reason in fallbacks[0]
     assert sorted(secured) == ["uav1", "uav2"]
 
 
 def test_a_cancelled_landing_still_lands_everyone(monkeypatch) -> None:
     """Cancelled while planning (the service stopping), the landing still hands every
     vehicle to PX4's Land."""
-    def slow(*args, **kwargs):
-        time.sleep(0.3)
-        raise LandingError("too late to matter")
-
-    monkeypatch.setattr(landing_module, "plan_landing", slow)
+    monkeypatch.setattr(landing_module, "plan_landing", _slow(0.3))
     vehicles, streamer, events, secured = _setup()
     landing = _landing(vehicles, streamer, events, secured, landing_plan_timeout=1.0)
 
