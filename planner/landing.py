@@ -33,7 +33,7 @@ from scipy.spatial import cKDTree
 from planner.errors import PlannerError
 from planner.planning import plan
 from planner.result import Plan
-from planner.scenario import Scenario, minimum_transfer_time
+from planner.scenario import RANGES, Scenario, minimum_transfer_time
 from planner.scp import ScpOptions
 from planner.types import FloatArray
 
@@ -179,7 +179,8 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     ids: the vehicles' ids (default `scenario.ids`, which needs N equal to its size).
     landing_height: touchdown height above the workspace floor (m). deadline: a
     `time.perf_counter()` instant after which no further attempt starts. Raises
-    `LandingError` when no verified plan was found.
+    `LandingError` when no verified plan was found, for whatever reason (vehicles too close
+    to hold any separation, a state the scenario refuses, a solver failure).
     """
     began = time.perf_counter()
     lim = scenario.limits
@@ -207,14 +208,22 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     if clearance < separation + START_SLACK * separation:
         # rows at the very edge of what the state allows leave the QP no room: give a hair
         separation = min(separation, clearance) - START_SLACK * separation
+    least = RANGES["min_separation"][0]
+    if not separation >= least:  # vehicles (nearly) touching: no scenario can hold them
+        raise LandingError(f"two vehicles are too close to plan a landing: the first step "
+                           f"keeps {max(clearance, 0.0):.3f} m, a plan needs at least "
+                           f"{least:g} m")
     horizon = _horizon(p, v, goals, scenario)
     failures: list[str] = []
     for attempts, factor in enumerate(RETRY_FACTORS, start=1):
         if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
             break
         steps = max(3, math.ceil(factor * horizon / scenario.dt))
-        spec = _scenario(scenario, names, p, v, a, goals, separation, steps)
-        result = plan(spec, solver=solver, options=ScpOptions())
+        try:
+            spec = _scenario(scenario, names, p, v, a, goals, separation, steps)
+            result = plan(spec, solver=solver, options=ScpOptions())
+        except (PlannerError, ValueError, ArithmeticError) as exc:  # the caller falls back
+            raise LandingError(f"cannot plan the landing: {exc}") from exc
         if result.ok:
             return LandingPlan(result, separation, time.perf_counter() - began, attempts)
         failures.append(f"{steps * scenario.dt:.1f} s: {'; '.join(result.problems())}")

@@ -188,9 +188,10 @@ def refusal(plan: Plan) -> str | None:
     check = verify(plan.scenario, plan.positions(), plan.velocities(), plan.accelerations())
     if not check.verified:
         return "it fails verification: " + "; ".join(check.failures())
-    moving = plan.scenario.start_velocities
-    if moving is not None and np.any(moving != 0.0):
-        n = int(np.flatnonzero(np.any(moving != 0.0, axis=1))[0])
-        return (f"it starts moving (vehicles[{n}].start_velocity): a flight or show starts "
-                f"from a hover at the starts")
+    for key, moving in (("start_velocity", plan.scenario.start_velocities),
+                        ("start_acceleration", plan.scenario.start_accelerations)):
+        if moving is not None and np.any(moving != 0.0):
+            n = int(np.flatnonzero(np.any(moving != 0.0, axis=1))[0])
+            return (f"it starts moving (vehicles[{n}].{key}): a flight or show starts "
+                    f"from a hover at the starts")
     return None

@@ -65,6 +65,21 @@ from planner.types import FloatArray
 MIN_RATE_HZ = 2.0
 #: A link may be silent this long at most before it must count as lost (s).
 MAX_LINK_TIMEOUT_S = 5.0
+#: A landing plan may take this long at most (s): the fleet flies on meanwhile, so a longer
+#: bound only delays the landing.
+MAX_LANDING_PLAN_TIMEOUT_S = 30.0
+#: Touchdown points at most this high above the workspace floor (m): PX4's Land takes over
+#: there, so a higher one is no planned landing at all.
+MAX_LANDING_HEIGHT_M = 10.0
+
+#: Options with an upper bound: (the bound, its unit and why, for the error).
+_MAXIMA: dict[str, tuple[float, str]] = {
+    "link_timeout": (MAX_LINK_TIMEOUT_S, "s: a longer one hides a lost link"),
+    "landing_plan_timeout": (MAX_LANDING_PLAN_TIMEOUT_S,
+                             "s: the fleet flies on until the plan is ready"),
+    "landing_height": (MAX_LANDING_HEIGHT_M,
+                       "m above the workspace floor (PX4's Land takes over there)"),
+}
 
 __all__ = [
     "AT_END",
@@ -191,11 +206,13 @@ class FlightOptions:
     plan flown as setpoints down to the touchdown points, then PX4's Land
     (`gcs.flight.landing`); or px4, PX4's Land straight down where each vehicle is."""
     landing_plan_timeout: float = 0.5
-    """The landing plan must be ready within this (s), the lead of its switch tick; the
-    streams follow the flying plan meanwhile. Not ready: PX4's Land."""
+    """The landing plan must be ready within this (s, in (0, `MAX_LANDING_PLAN_TIMEOUT_S`]),
+    the lead of its switch tick; the streams follow the flying plan meanwhile. Not ready:
+    PX4's Land."""
     landing_height: float = 0.3
-    """Height of the touchdown points above the workspace floor (m), where PX4's Land
-    takes over."""
+    """Height of the touchdown points above the workspace floor (m, in [0,
+    `MAX_LANDING_HEIGHT_M`]), where PX4's Land takes over; one above the workspace's ceiling
+    is a fallback to PX4's Land, which the event says."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = _OPTIONS_KEY) -> FlightOptions:
@@ -236,10 +253,10 @@ class FlightOptions:
             raise FleetFileError(f"{where}.rate_hz",
                                  f"must be in ({MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz (PX4 needs "
                                  f"offboard setpoints faster than 2 Hz), got {out.rate_hz:g}")
-        if out.link_timeout > MAX_LINK_TIMEOUT_S:
-            raise FleetFileError(f"{where}.link_timeout",
-                                 f"at most {MAX_LINK_TIMEOUT_S:g} s: a longer one hides a lost "
-                                 f"link, got {out.link_timeout:g}")
+        for key, (most, why) in _MAXIMA.items():
+            if getattr(out, key) > most:
+                raise FleetFileError(f"{where}.{key}",
+                                     f"at most {most:g} {why}, got {getattr(out, key):g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
                     "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
                     "position_rate_hz", "landing_plan_timeout"):

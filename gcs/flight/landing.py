@@ -10,15 +10,17 @@ stacked above each other closer than R. `PlannedLanding.run` instead:
    where it is measured;
 2. plans the landing (`planner.landing.plan_landing`, verified) in a worker thread while
    the streams go on along the flying plan, which keeps R until the switch;
-3. at the switch tick streams the landing plan as setpoints, like a plan; once the landing
+3. at the switch tick streams the landing plan as setpoints, like a plan (queued with
+   `Streamer.switch`, so every setpoint before it is still the flying plan's); once the landing
    horizon has passed, every vehicle stands at its touchdown point `landing_height` above
    the workspace floor, and PX4's Land takes it down vertically (touchdown points are R
    apart, so no descent crosses another vehicle).
 
 Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate
 invalid, already landing) get PX4's Land at once, and so does everyone when no verified
-plan is ready before the switch tick: the events say which (`landing_plan`,
-`landing_fallback`).
+plan is ready before the switch tick (the planner failed for whatever reason, or was late):
+the events say which (`landing_plan`, `landing_fallback`). Whatever happens, every vehicle
+is handed to `secure` in the end.
 """
 
 from __future__ import annotations
@@ -110,22 +112,36 @@ class PlannedLanding:
 
     async def run(self) -> None:
         """Land every vehicle: the steerable ones by a landing plan if one is ready in time,
-        the rest (or all, when none is) by PX4's Land. Never raises."""
+        the rest (or all, when none is) by PX4's Land. Never raises; whatever happens (even
+        cancellation), every vehicle is handed to `secure` once."""
         streamer = self.streamer
         rate = streamer.rate
-        steer = self.eligible()
-        others = [v for v in self.vehicles if v not in steer]
         downs: list[asyncio.Future[None]] = []
-        for v in others:
-            if v.phase in AIRBORNE and v.phase != VehiclePhase.LANDING:
-                self.emit(v.id, EventKind.LANDING_FALLBACK,
-                          f"PX4 Land: cannot be steered ({self.steerable(v)})")
+        handed: set[str] = set()
+
+        def down(v: VehicleStatus) -> None:
+            handed.add(v.id)
             downs.append(asyncio.ensure_future(self.secure(v)))
-        if steer:
-            ok = await self._fly(steer, rate)
-            downs += [asyncio.ensure_future(self.secure(v))
-                      for v in (self.steered if ok else steer)]
-        await asyncio.gather(*downs, return_exceptions=True)
+
+        try:
+            steer = self.eligible()
+            for v in self.vehicles:
+                if v in steer:
+                    continue
+                if v.phase in AIRBORNE and v.phase != VehiclePhase.LANDING:
+                    self.emit(v.id, EventKind.LANDING_FALLBACK,
+                              f"PX4 Land: cannot be steered ({self.steerable(v)})")
+                down(v)
+            if steer:
+                ok = await self._fly(steer, rate)
+                for v in (self.steered if ok else steer):
+                    down(v)
+                handed.update(v.id for v in steer)  # the rest were sent down meanwhile
+        finally:
+            for v in self.vehicles:
+                if v.id not in handed:
+                    down(v)
+            await asyncio.gather(*downs, return_exceptions=True)
 
     async def _fly(self, steer: list[VehicleStatus], rate: float) -> bool:
         """Plan, switch, fly the landing plan; False (after freezing the streams) when no
@@ -149,6 +165,9 @@ class PlannedLanding:
             return self._fallback(steer, f"no landing plan within {bound:g} s")
         except LandingError as exc:
             return self._fallback(steer, str(exc))
+        except Exception as exc:  # any planning failure: PX4 Land, never stuck
+            return self._fallback(steer, f"landing planning failed: "
+                                         f"{type(exc).__name__}: {exc}")
         if time.monotonic() > switch_at - 0.5 / rate or streamer.tick >= switch:
             return self._fallback(steer, f"the landing plan came after its switch tick "
                                          f"({time.perf_counter() - began:.2f} s)")
@@ -159,7 +178,7 @@ class PlannedLanding:
             link = streamer.assignments[v.id].link if v.id in streamer.assignments else None
             if link is None:
                 continue  # sent down meanwhile (a fault policy)
-            streamer.assign(v.id, link, track, switch)
+            streamer.switch(v.id, link, track, switch)  # the flying plan streams until then
             v.phase = VehiclePhase.LANDING
             self.steered.append(v)
         horizon = result.plan.scenario.horizon

@@ -88,6 +88,9 @@ class Streamer:
         self.boot_epoch = self.epoch if boot_epoch is None else boot_epoch
         """The GCS clock's zero, from which `time_boot_ms` counts."""
         self.assignments: dict[str, Assignment] = {}
+        self.pending: dict[str, Assignment] = {}
+        """Tracks waiting for their start tick (`switch`): the current assignment streams
+        until then."""
         self.listeners: list[SendCallback] = []
         self.tick = -1
         """The last tick sent."""
@@ -118,12 +121,24 @@ class Streamer:
                start_tick: int | None = None) -> int:
         """Stream `track` to `link` from `start_tick` (default: the next tick); returns it."""
         tick = self.next_tick() if start_tick is None else start_tick
+        self.pending.pop(vehicle_id, None)  # an assignment now overrides a later switch
         self.assignments[vehicle_id] = Assignment(link, track, tick)
         return tick
 
+    def switch(self, vehicle_id: str, link: VehicleLink, track: SetpointTrack,
+               at_tick: int) -> None:
+        """Stream `track` to `link` from `at_tick` on, its tick 0 then; until that tick the
+        vehicle's current assignment goes on (unlike `assign`, which replaces it at once and
+        sends the new track's first position at rest before its start tick)."""
+        if vehicle_id not in self.assignments or at_tick <= self.next_tick():
+            self.assign(vehicle_id, link, track, at_tick)
+            return
+        self.pending[vehicle_id] = Assignment(link, track, at_tick)
+
     def unassign(self, vehicle_id: str) -> None:
-        """Stop streaming to a vehicle."""
+        """Stop streaming to a vehicle (and drop any switch waiting for it)."""
         self.assignments.pop(vehicle_id, None)
+        self.pending.pop(vehicle_id, None)
 
     def start(self) -> None:
         if self._task is None:
@@ -139,6 +154,10 @@ class Streamer:
     def _prepare_tick(self, tick: int) -> list[tuple[str, Assignment, Setpoint, bytes]]:
         """Every vehicle's setpoint for `tick`, encoded, ready to send."""
         boot_ms = time_boot_ms(self.tick_time(tick) - self.boot_epoch)
+        for vehicle_id, waiting in list(self.pending.items()):
+            if waiting.start_tick <= tick:  # its switch tick: it takes over
+                del self.pending[vehicle_id]
+                self.assignments[vehicle_id] = waiting
         ready = []
         for vehicle_id, assignment in list(self.assignments.items()):
             setpoint = assignment.track.at(tick - assignment.start_tick)

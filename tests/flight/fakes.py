@@ -73,6 +73,13 @@ class FakeLink:
             await asyncio.sleep(0.01)
         return True
 
+    def pack_setpoint(self, setpoint: Any, boot_ms: int) -> bytes:
+        """Nothing to encode: the streamer's listeners see the setpoints."""
+        return b""
+
+    def send_packed(self, buf: bytes) -> None:
+        """Nowhere to send."""
+
     def link_age(self, now: float | None = None) -> float:
         t = self.telemetry.message_time
         return float("inf") if t is None else (now or time.monotonic()) - t

@@ -44,12 +44,24 @@ def test_valid_fleet_with_shared_connection() -> None:
     (_fleet() | {"flight": {"rate_hz": 2}}, "flight.rate_hz"),  # PX4 needs > 2 Hz
     (_fleet() | {"flight": {"link_timeout": 60}}, "flight.link_timeout"),
     (_fleet() | {"flight": {"separation_alarm": -1}}, "flight.separation_alarm"),
+    (_fleet() | {"flight": {"landing_plan_timeout": 0}}, "flight.landing_plan_timeout"),
+    (_fleet() | {"flight": {"landing_plan_timeout": 31}}, "flight.landing_plan_timeout"),
+    (_fleet() | {"flight": {"landing_plan_timeout": 1e300}}, "flight.landing_plan_timeout"),
+    (_fleet() | {"flight": {"landing_height": -0.1}}, "flight.landing_height"),
+    (_fleet() | {"flight": {"landing_height": 10.5}}, "flight.landing_height"),
     (_fleet() | {"world_origin": {"lat": 95, "lon": 0, "alt": 0}}, "world_origin.lat"),
 ])
 def test_errors_name_the_field(data, field: str) -> None:
     with pytest.raises(FleetFileError) as info:
         FleetSpec.from_dict(data)
     assert info.value.field == field
+
+
+def test_landing_options_take_their_whole_range() -> None:
+    """The landing options' bounds are inclusive where they say so: 30 s, 0 and 10 m."""
+    options = FlightOptions().replace(landing_plan_timeout=30, landing_height=10)
+    assert (options.landing_plan_timeout, options.landing_height) == (30, 10)
+    assert FlightOptions().replace(landing_height=0).landing_height == 0
 
 
 def test_same_system_id_twice_on_one_connection() -> None:

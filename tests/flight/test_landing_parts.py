@@ -13,10 +13,11 @@ import gcs.flight.landing as landing_module
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.landing import PlannedLanding
 from gcs.flight.phases import EventKind, VehiclePhase
-from gcs.flight.setpoints import hold_track
+from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.station import StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
+from planner.landing import LandingError
 from planner.scenario import Scenario
 from tests.flight.fakes import fake_vehicle
 
@@ -33,12 +34,12 @@ SCENARIO = Scenario.from_dict({
 })
 
 
-def _setup() -> tuple[list[VehicleStatus], Streamer, list[tuple[str | None, str, str]],
-                      list[str]]:
-    """Two fake vehicles (homes at the origin) streaming holds at the stacked points."""
+def _setup(points=POINTS) -> tuple[list[VehicleStatus], Streamer,
+                                    list[tuple[str | None, str, str]], list[str]]:
+    """Two fake vehicles (homes at the origin) streaming holds at `points` (world)."""
     streamer = Streamer(20.0)
     vehicles = []
-    for i, point in enumerate(POINTS):
+    for i, point in enumerate(points):
         v = fake_vehicle(i)
         v.phase = VehiclePhase.FLYING
         ned = (point[1], point[0], -point[2])  # ENU -> NED about a home at the origin
@@ -55,6 +56,15 @@ def _landing(vehicles, streamer, events, secured, **options) -> PlannedLanding:
     return PlannedLanding(SCENARIO, vehicles, streamer, FlightOptions(**options),
                           lambda vid, kind, detail: events.append((vid, kind, detail)),
                           secure, StationStalls())
+
+
+def _slow(seconds: float):
+    """A planner that takes `seconds` and then fails."""
+    def slow(*args, **kwargs):
+        time.sleep(seconds)
+        raise LandingError("too late to matter")
+
+    return slow
 
 
 def test_a_vehicle_out_of_reach_gets_px4_land_the_other_flies_the_plan() -> None:
@@ -82,11 +92,7 @@ def test_a_vehicle_out_of_reach_gets_px4_land_the_other_flies_the_plan() -> None
 def test_no_plan_within_the_bound_falls_back_to_px4_land(monkeypatch) -> None:
     """A landing plan not ready before its switch tick is not used: the streams freeze and
     every vehicle gets PX4's Land, which a landing_fallback event says."""
-    def slow(*args, **kwargs):
-        time.sleep(0.6)
-        raise AssertionError("too late to matter")
-
-    monkeypatch.setattr(landing_module, "plan_landing", slow)
+    monkeypatch.setattr(landing_module, "plan_landing", _slow(0.6))
     vehicles, streamer, events, secured = _setup()
     landing = _landing(vehicles, streamer, events, secured, landing_plan_timeout=0.1)
     asyncio.run(landing.run())
@@ -105,4 +111,87 @@ def test_an_unplannable_landing_falls_back_naming_why() -> None:
     asyncio.run(landing.run())
     fallbacks = [detail for _, kind, detail in events if kind == EventKind.LANDING_FALLBACK]
     assert len(fallbacks) == 1 and "outside the workspace" in fallbacks[0]
+    assert sorted(secured) == ["uav1", "uav2"]
+
+
+def test_the_flying_plan_streams_until_the_switch_tick_then_the_landing_plan() -> None:
+    """While the landing plan waits for its switch tick the vehicle flies on along its
+    flying plan (here 1 m/s north), setpoint for setpoint; the first one after is the landing
+    plan's first, moving on at the same velocity (not its switch point at rest, early)."""
+    vehicles, streamer, events, secured = _setup()
+    rate = streamer.rate
+    ticks = np.arange(int(10 * rate))[:, None] / rate
+    start = np.array([POINTS[0][1], POINTS[0][0], -POINTS[0][2]])  # NED
+    north = np.array([[1.0, 0.0, 0.0]])
+    flying = SetpointTrack(start + ticks * north, np.repeat(north, len(ticks), axis=0),
+                           np.zeros((len(ticks), 3)), 0.0, rate)
+    sent: list[tuple[int, tuple]] = []
+    streamer.listeners.append(
+        lambda vid, tick, sp, _: sent.append((tick, sp)) if vid == "uav1" else None)
+    landing = _landing(vehicles, streamer, events, secured, landing_plan_timeout=1.0)
+
+    async def fly() -> int:
+        streamer.start()
+        began = streamer.assign("uav1", vehicles[0].linked, flying)
+        await asyncio.sleep(0.2)
+        await landing.run()
+        await streamer.stop()
+        return began
+
+    began = asyncio.run(fly())
+    assert landing.result is not None, events
+    landing_track = plan_tracks(landing.result.plan, [v.placed for v in vehicles], rate)[0]
+    first = landing_track.at(0)
+    assert first.velocity[0] == pytest.approx(1.0, abs=1e-6)
+    aborted = next(t for t, sp in sent if t - began >= 0.2 * rate)
+    switch = next(t for t, sp in sent if sp != flying.at(t - began))
+    assert switch - aborted >= rate  # the whole landing_plan_timeout on the flying plan
+    assert all(sp == flying.at(t - began) for t, sp in sent if t < switch)
+    after = dict(sent)[switch]
+    np.testing.assert_allclose(after.position, first.position, atol=1e-9)
+    np.testing.assert_allclose(after.velocity, first.velocity, atol=1e-9)
+
+
+#: Two vehicles 4 mm apart: no landing separation (R less what they have) is possible.
+TOUCHING = [(2.0, 2.0, 1.5), (2.004, 2.0, 1.5)]
+
+
+def _broken(*args, **kwargs):
+    raise RuntimeError("solver crashed")
+
+
+@pytest.mark.parametrize(("points", "planner", "reason"), [
+    (TOUCHING, None, "too close to plan a landing"),
+    (POINTS, _broken, "RuntimeError: solver crashed"),
+])
+def test_any_planning_failure_falls_back_naming_it(monkeypatch, points, planner,
+                                                   reason: str) -> None:
+    """Vehicles too close for any landing plan, or an unexpected error of the planner: a
+    landing_fallback naming why, both landed by PX4's Land (the error does not escape and
+    strand them streaming)."""
+    if planner is not None:
+        monkeypatch.setattr(landing_module, "plan_landing", planner)
+    vehicles, streamer, events, secured = _setup(points)
+    landing = _landing(vehicles, streamer, events, secured)
+    asyncio.run(landing.run())
+    fallbacks = [detail for _, kind, detail in events if kind == EventKind.LANDING_FALLBACK]
+    assert len(fallbacks) == 1 and reason in fallbacks[0]
+    assert sorted(secured) == ["uav1", "uav2"]
+
+
+def test_a_cancelled_landing_still_lands_everyone(monkeypatch) -> None:
+    """Cancelled while planning (the service stopping), the landing still hands every
+    vehicle to PX4's Land."""
+    monkeypatch.setattr(landing_module, "plan_landing", _slow(0.3))
+    vehicles, streamer, events, secured = _setup()
+    landing = _landing(vehicles, streamer, events, secured, landing_plan_timeout=1.0)
+
+    async def cancel() -> None:
+        task = asyncio.create_task(landing.run())
+        await asyncio.sleep(0.1)
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+
+    asyncio.run(cancel())
     assert sorted(secured) == ["uav1", "uav2"]

@@ -106,3 +106,12 @@ def test_bad_inputs_are_landing_errors(circle8) -> None:
         plan_landing(circle8.scenario, np.full((2, 3), np.nan), zeros, zeros, ids=["a", "b"])
     with pytest.raises(LandingError, match="agree in length"):
         plan_landing(circle8.scenario, STACKED, zeros, zeros)
+
+
+def test_vehicles_nearly_touching_are_a_landing_error(circle8) -> None:
+    """Two vehicles 4 mm apart leave no separation a scenario can hold (it would be
+    negative): a LandingError saying so, for the caller's fallback, not a ScenarioError."""
+    points = np.array([[1.0, 1.0, 2.0], [1.004, 1.0, 2.0]])
+    zeros = np.zeros((2, 3))
+    with pytest.raises(LandingError, match="too close to plan a landing"):
+        plan_landing(circle8.scenario, points, zeros, zeros, ids=["a", "b"])

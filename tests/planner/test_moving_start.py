@@ -12,7 +12,7 @@ import pytest
 import planner
 from planner.errors import ScenarioError
 from planner.scp import ScpOptions
-from planner.verify import verify
+from planner.verify import refusal, verify
 from tests.planner.conftest import load_example
 
 
@@ -110,3 +110,16 @@ def test_bad_start_states_name_the_field(paper4, key: str, value, reason: str) -
         planner.Scenario.from_dict(data)
     assert info.value.field.startswith(f"vehicles[2].{key}")
     assert reason in info.value.reason
+
+
+def test_a_plan_starting_moving_is_refused_for_flying_and_export(paper4) -> None:
+    """A flight or show starts from a hover: `refusal` names a non-zero start_velocity and,
+    at zero velocity, a non-zero start_acceleration; a plan at rest passes."""
+    still = [0.0, 0.0, 0.0]
+    accelerating = planner.plan(_moving(paper4, [still], [still, [0.0, 0.5, 0.0]]))
+    assert accelerating.ok, accelerating.problems()
+    assert refusal(accelerating) is not None
+    assert "vehicles[1].start_acceleration" in (refusal(accelerating) or "")
+    moving = planner.plan(_moving(paper4, [[0.0, 0.3, 0.0]]))
+    assert "vehicles[0].start_velocity" in (refusal(moving) or "")
+    assert refusal(planner.plan(_moving(paper4, [still], [still]))) is None

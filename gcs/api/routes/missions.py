@@ -58,6 +58,7 @@ from gcs.service.store import MissionRow, Store
 from planner import Scenario
 from planner.sequence import FormationSequence, parse_sequence, timeline_scenario
 from planner.sequence import trajectory_csv as show_csv
+from planner.verify import refusal
 
 __all__ = ["mission_document", "router"]
 
@@ -470,7 +471,9 @@ def download_show(
     home at its start) whose trajectory is one cubic Bezier segment per step, exact to 1 um;
     takeoff time 0 at the plan's start; the geofence and the validation limits from the
     scenario. The show frame is the world frame (x east, y north, z up). Sent as it is
-    written, one drone at a time. 409 for a mission without a verified plan; at most
+    written, one drone at a time. 409 for a mission whose plan must not be flown
+    (`planner.verify.refusal`: not converged, failing verification anew, or starting
+    moving); at most
     `max_trajectory_samples` keyframes (vehicles x (steps + 1)) and `max_concurrent_exports`
     exports at once, like `/trajectory`."""
     try:
@@ -478,9 +481,10 @@ def download_show(
     except ExportError as exc:
         raise InvalidRequest(exc.field, exc.reason) from None
     plan = plans.get(mission.id)
-    if not plan.ok:
-        raise StateConflict("mission_id", f"mission {mission.id!r}: refusing to export a plan "
-                            f"that is not verified: {'; '.join(plan.problems())}")
+    why = refusal(plan)  # the verdict `fleetplan fly` and `fleetplan export` give
+    if why is not None:
+        raise StateConflict("mission_id", f"mission {mission.id!r}: refusing to export the "
+                            f"plan: {why}")
     keyframes = keyframe_count(plan)
     if keyframes > settings.max_trajectory_samples:
         raise InvalidRequest("mission_id", f"the show has up to {keyframes} keyframes "

@@ -62,15 +62,29 @@ def test_a_mission_without_a_verified_plan_is_409(shared_client: TestClient) -> 
     scenario = example("paper-circle4")
     scenario["steps"] = 40
     scenario["limits"]["jerk_max"] = [0.05, 0.05, 0.05]
-    response = shared_client.post("/api/missions?wait=60", json=scenario)
+    reason = _refused(shared_client, scenario, plan_ok=False)
+    assert "refusing to export the plan: its status is 'infeasible'" in reason
+
+
+def _refused(client: TestClient, scenario: dict[str, Any], *, plan_ok: bool) -> str:
+    """Plan `scenario` as a mission; its show is 409 naming the mission: the reason."""
+    response = client.post("/api/missions?wait=60", json=scenario)
     assert response.status_code == 201, response.text
     mission = response.json()
-    assert mission["plan_ok"] is False
-    refused = shared_client.get(_url(mission["id"]))
+    assert mission["plan_ok"] is plan_ok
+    refused = client.get(_url(mission["id"]))
     assert refused.status_code == 409
-    body = refused.json()
-    assert body["field"] == "mission_id"
-    assert "refusing to export a plan that is not verified: status infeasible" in body["reason"]
+    assert refused.json()["field"] == "mission_id"
+    return str(refused.json()["reason"])
+
+
+def test_a_plan_starting_moving_is_409_like_flying_it(shared_client: TestClient) -> None:
+    """A verified plan from a moving start (a landing plan's kind) is no show: a show starts
+    from a hover, the same verdict as `fleetplan fly` and `fleetplan export`."""
+    scenario = example("paper-circle4")
+    scenario["vehicles"][0]["start_velocity"] = [0.0, 0.3, 0.0]
+    reason = _refused(shared_client, scenario, plan_ok=True)
+    assert "starts moving (vehicles[0].start_velocity)" in reason
 
 
 def test_a_mission_that_failed_has_no_plan_and_is_409(shared_client: TestClient) -> None:
