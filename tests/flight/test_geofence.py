@@ -100,7 +100,7 @@ def test_without_an_origin_the_default_skips_and_says_why_and_an_explicit_upload
     events = _fence_fleet(vehicles, FlightOptions(), None)
     assert [(vid, kind) for vid, kind, _ in events] == [(None, EventKind.GEOFENCE_SKIPPED)]
     assert "no geodetic origin for uav1, uav2" in events[0][2]
-    with pytest.raises(GeofenceFailed, match="uav1: geofence: .*upload asked"):
+    with pytest.raises(GeofenceFailed, match=r"uav1: geofence: .*upload asked"):
         _fence_fleet(vehicles, FlightOptions(geofence="upload"), None)
     skipped = _fence_fleet(vehicles, FlightOptions(geofence="skip"), DEFAULT_WORLD_ORIGIN)
     assert skipped == [(None, EventKind.GEOFENCE_SKIPPED, "fleet option geofence: skip")]
@@ -153,7 +153,7 @@ def test_the_fence_round_trips_on_the_mock(monkeypatch: pytest.MonkeyPatch) -> N
     obstacles = [{"id": "pillar", "cylinder": {"center": [5.5, 3.0], "radius": 0.4,
                                                "z": [0.0, 5.0]}},
                  {"id": "net", "box": {"min": [2.0, 2.0, 3.0], "max": [3.0, 3.0, 3.2]}}]
-    flight, record, mock = asyncio.run(_fly(plan, QUICK, obstacles, monkeypatch))
+    _flight, record, mock = asyncio.run(_fly(plan, QUICK, obstacles, monkeypatch))
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True
     kinds = [(e["vehicle"], e["kind"]) for e in record["events"]]
@@ -169,7 +169,7 @@ def test_the_fence_round_trips_on_the_mock(monkeypatch: pytest.MonkeyPatch) -> N
         local = frames.world_to_ned(pillar, vehicle.home_world)
         fence = vehicle.geofence
         assert not fence.inside(local, 0, 0)  # in the pillar
-        assert fence.inside(local + [0.5, 0.0, 0.0], 0, 0)  # 0.5 m north of its centre
+        assert fence.inside(local + np.array([0.5, 0.0, 0.0]), 0, 0)  # 0.5 m north of its centre
         outside = frames.world_to_ned([-0.2, 1.0, 1.0], vehicle.home_world)
         assert not fence.inside(outside, 0, 0)  # west of the workspace
 
@@ -198,7 +198,7 @@ def test_a_vehicle_pushed_out_of_its_fence_holds_and_is_a_geofence_breach_fault(
     one)."""
     plan = smooth_plan(short_line(2))
     options = QUICK.replace(tracking_error_max=10.0, policy="land_faulty")
-    flight, record, mock = asyncio.run(_fly(plan, options, [], monkeypatch,
+    flight, record, _mock = asyncio.run(_fly(plan, options, [], monkeypatch,
                                             push=(0.0, 6.0, 0.0)))
     if not isinstance(record, dict):
         assert flight.record is not None, record
