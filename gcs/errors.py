@@ -13,6 +13,8 @@
     - `ModeRefused`: MAV_CMD_DO_SET_MODE was refused.
   - `PreflightFailed`: the pre-flight gate found a vehicle unfit to fly (battery, unhealthy
     sensors, link loss, missing); carries `vehicle` and `problems`.
+  - `GeofenceFailed`: a vehicle's geofence could not be uploaded, or read back different
+    (`gcs.flight.fence_upload`), or no origin places it; carries `vehicle`.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
   - `ExportError` (also a `FieldError`): a plan cannot be written in the asked format (a step
     the format cannot time), or an export option is invalid; `field` names which.
@@ -40,6 +42,7 @@ __all__ = [
     "FleetFileError",
     "FlightAborted",
     "GcsError",
+    "GeofenceFailed",
     "InvalidRequest",
     "LinkError",
     "MissionAborted",
@@ -106,6 +109,15 @@ class PreflightFailed(GcsError):
         super().__init__(f"{vehicle}: pre-flight check failed: {'; '.join(problems)}")
         self.vehicle = vehicle
         self.problems = problems
+
+
+class GeofenceFailed(GcsError):
+    """A vehicle's geofence was not uploaded as built: the flight is refused before arming."""
+
+    def __init__(self, vehicle: str, detail: str) -> None:
+        super().__init__(f"{vehicle}: geofence: {detail}")
+        self.vehicle = vehicle
+        self.detail = detail
 
 
 class ArmingRefused(CommandError):

@@ -9,9 +9,10 @@ origin, which is where it started (its home), so it differs from vehicle to vehi
 
 R_ENU_TO_NED swaps x and y and negates z; it is symmetric and its own inverse. This module is
 the only place in `gcs` where frames are converted, including headings (ENU yaw is measured
-from +x east counter-clockwise, NED yaw from north clockwise) and geodetic coordinates (WGS84),
-which place a vehicle's home in the world frame from the origin it reports, and the show
-frame that a Skybrush show file (`gcs.export.skyc`) is written in.
+from +x east counter-clockwise, NED yaw from north clockwise) and geodetic coordinates (WGS84,
+by pymap3d), which place a vehicle's home in the world frame from the origin it reports and
+the geofence on the Earth (`world_to_geodetic`), and the show frame that a Skybrush show
+file (`gcs.export.skyc`) is written in.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pymap3d
 from numpy.typing import ArrayLike
 
 from planner.types import FloatArray
@@ -33,6 +35,7 @@ __all__ = [
     "ned_to_world",
     "ned_vector_to_world",
     "ned_yaw_to_world",
+    "world_to_geodetic",
     "world_to_ned",
     "world_to_show",
     "world_vector_to_ned",
@@ -83,11 +86,6 @@ def _wrap(angle: float) -> float:
 
 # ------------------------------------------------------------------------------ geodetic
 
-_WGS84_A = 6378137.0
-_WGS84_F = 1.0 / 298.257223563
-_WGS84_E2 = _WGS84_F * (2.0 - _WGS84_F)
-
-
 class Geodetic(tuple):
     """(lat, lon, alt): WGS84 latitude and longitude in degrees, altitude in metres (AMSL as
     PX4 reports it; only differences of altitude matter here)."""
@@ -110,47 +108,30 @@ class Geodetic(tuple):
         return self[2]
 
 
-def _to_ecef(point: Geodetic) -> FloatArray:
-    lat, lon = math.radians(point.lat), math.radians(point.lon)
-    n = _WGS84_A / math.sqrt(1.0 - _WGS84_E2 * math.sin(lat) ** 2)
-    return np.array(
-        [
-            (n + point.alt) * math.cos(lat) * math.cos(lon),
-            (n + point.alt) * math.cos(lat) * math.sin(lon),
-            (n * (1.0 - _WGS84_E2) + point.alt) * math.sin(lat),
-        ]
-    )
-
-
-def _from_ecef(xyz: FloatArray) -> Geodetic:
-    x, y, z = (float(c) for c in xyz)
-    lon = math.atan2(y, x)
-    r = math.hypot(x, y)
-    lat = math.atan2(z, r * (1.0 - _WGS84_E2))
-    alt = 0.0
-    for _ in range(10):  # fixed-point iteration; converges to < 1e-9 m well within this
-        n = _WGS84_A / math.sqrt(1.0 - _WGS84_E2 * math.sin(lat) ** 2)
-        alt = r / math.cos(lat) - n
-        lat = math.atan2(z, r * (1.0 - _WGS84_E2 * n / (n + alt)))
-    return Geodetic(math.degrees(lat), math.degrees(lon), alt)
-
-
-def _ecef_to_enu_matrix(origin: Geodetic) -> FloatArray:
-    lat, lon = math.radians(origin.lat), math.radians(origin.lon)
-    sl, cl = math.sin(lat), math.cos(lat)
-    so, co = math.sin(lon), math.cos(lon)
-    return np.array([[-so, co, 0.0], [-sl * co, -sl * so, cl], [cl * co, cl * so, sl]])
-
-
 def geodetic_to_enu(point: Geodetic, origin: Geodetic) -> FloatArray:
-    """`point` in the local ENU tangent frame at `origin` (exact WGS84, metres)."""
-    return _ecef_to_enu_matrix(origin) @ (_to_ecef(point) - _to_ecef(origin))
+    """`point` in the local ENU tangent frame at `origin` (exact WGS84, metres; pymap3d)."""
+    return np.array(pymap3d.geodetic2enu(point.lat, point.lon, point.alt,
+                                         origin.lat, origin.lon, origin.alt), dtype=float)
 
 
 def enu_to_geodetic(p_enu: ArrayLike, origin: Geodetic) -> Geodetic:
     """Inverse of `geodetic_to_enu`."""
-    ecef = _to_ecef(origin) + _ecef_to_enu_matrix(origin).T @ np.asarray(p_enu, dtype=float)
-    return _from_ecef(ecef)
+    e, n, u = (float(c) for c in np.asarray(p_enu, dtype=float))
+    lat, lon, alt = pymap3d.enu2geodetic(e, n, u, origin.lat, origin.lon, origin.alt)
+    return Geodetic(float(lat), float(lon), float(alt))
+
+
+def world_to_geodetic(p_world: ArrayLike, home_world: ArrayLike,
+                      origin: Geodetic) -> FloatArray:
+    """World (ENU) points placed on the Earth by a vehicle whose LOCAL_NED origin (home, in
+    the world frame) is at `origin`: (..., 3) -> (..., 3) latitude, longitude (degrees) and
+    altitude (m). With `home_world` 0 and `origin` the fleet's world_origin it places world
+    points directly."""
+    rel = np.asarray(p_world, dtype=float) - np.asarray(home_world, dtype=float)
+    lat, lon, alt = pymap3d.enu2geodetic(rel[..., 0], rel[..., 1], rel[..., 2],
+                                         origin.lat, origin.lon, origin.alt)
+    return np.stack([np.asarray(lat, float), np.asarray(lon, float), np.asarray(alt, float)],
+                    axis=-1)
 
 
 # ------------------------------------------------------------------------ show frame

@@ -1,20 +1,24 @@
 """One vehicle's way into the air in a flight: connect, home, the pre-flight gate, message
-rates, then prestream, OFFBOARD, arm and the climb to its start.
+rates, its geofence, then prestream, OFFBOARD, arm and the climb to its start.
 
 The executor (`gcs.flight.executor`) runs `connect_vehicle` for every vehicle, then
-`prepare_vehicle` for every vehicle, concurrently; the PX4 commands themselves are the
+`fence_fleet` (`fence_vehicle` for every vehicle), then `prepare_vehicle` for every vehicle,
+concurrently; the PX4 commands themselves are the
 primitives of `gcs.flight.vehicle`. Every deadline is on the flight's `StationStalls` clock.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
+from collections.abc import Sequence
 
 import numpy as np
 
 from gcs import frames, px4
-from gcs.errors import PreflightFailed
+from gcs.errors import CommandError, GeofenceFailed, PreflightFailed
 from gcs.flight import vehicle
+from gcs.flight.fence_upload import send_fence
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.health import PreflightThresholds, preflight_problems
 from gcs.flight.phases import EventKind, VehiclePhase
@@ -23,8 +27,11 @@ from gcs.flight.setpoints import hold_track, transfer_track
 from gcs.flight.station import StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import Emit, VehicleStatus
+from gcs.geofence import WorldFence, fence_items
+from gcs.wire import mavlink
 
-__all__ = ["connect_vehicle", "preflight", "prepare_vehicle"]
+__all__ = ["connect_vehicle", "fence_fleet", "fence_origin", "fence_vehicle", "preflight",
+           "prepare_vehicle"]
 
 
 async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
@@ -67,6 +74,78 @@ async def preflight(v: VehicleStatus, options: FlightOptions, emit: Emit,
     if options.preflight == "check":
         raise PreflightFailed(v.id, problems)
     emit(v.id, EventKind.PREFLIGHT_OVERRIDE, "; ".join(problems))
+
+
+def fence_origin(v: VehicleStatus, world_origin: frames.Geodetic | None
+                 ) -> tuple[np.ndarray, frames.Geodetic] | None:
+    """Where `v`'s fence is placed on the Earth from: (its home in the world frame, the
+    geodetic point of that home) by its GPS_GLOBAL_ORIGIN, else (0, the fleet's
+    world_origin); None when neither is known."""
+    gps = v.linked.telemetry.gps_origin
+    if gps is not None and v.home is not None:
+        return v.placed, frames.Geodetic(*gps)
+    if world_origin is not None:
+        return np.zeros(3), world_origin
+    return None
+
+
+async def _ask_origin(v: VehicleStatus, stalls: StationStalls) -> None:
+    """Ask once for GPS_GLOBAL_ORIGIN when the vehicle has not reported it (a fleet file
+    that gives the home asks nothing else of it)."""
+    link = v.linked
+    if link.telemetry.gps_origin is not None:
+        return
+    with contextlib.suppress(CommandError):
+        await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, clock=stalls.clock)
+    await link.wait_for(lambda t: t.gps_origin is not None, 1.0, clock=stalls.clock)
+
+
+async def fence_fleet(vehicles: Sequence[VehicleStatus], fence: WorldFence,
+                      options: FlightOptions, world_origin: frames.Geodetic | None,
+                      emit: Emit, stalls: StationStalls) -> None:
+    """The fleet option `geofence` applied: upload `fence` to every vehicle, or say why not
+    (`GeofenceFailed` when an explicit upload has no origin or fails)."""
+    if options.geofence == "skip":
+        emit(None, EventKind.GEOFENCE_SKIPPED, "fleet option geofence: skip")
+        return
+    await asyncio.gather(*(_ask_origin(v, stalls) for v in vehicles))
+    missing = [v.id for v in vehicles if fence_origin(v, world_origin) is None]
+    if missing:
+        why = (f"no geodetic origin for {', '.join(missing)}: no GPS_GLOBAL_ORIGIN reported "
+               f"and no world_origin in the fleet file")
+        if options.geofence == "upload":
+            raise GeofenceFailed(missing[0], f"geofence: upload asked, but {why}")
+        emit(None, EventKind.GEOFENCE_SKIPPED, f"not uploaded: {why}")
+        return
+    if fence.not_fenced:
+        emit(None, EventKind.GEOFENCE_NOT_FENCED,
+             f"obstacles not reaching the ground cannot be a PX4 fence (only the plan keeps "
+             f"clear of them): {', '.join(fence.not_fenced)}")
+    tasks = [asyncio.ensure_future(fence_vehicle(v, fence, world_origin, emit))
+             for v in vehicles]
+    try:
+        await asyncio.gather(*tasks)
+    finally:
+        for task in tasks:
+            task.cancel()
+
+
+async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
+                        world_origin: frames.Geodetic | None, emit: Emit) -> None:
+    """Upload `fence` to `v` in its own frame, read it back and compare (`GeofenceFailed`
+    naming it otherwise, also when its home lies outside the fence: armed there, PX4 would
+    act on a breach at once)."""
+    placed = fence_origin(v, world_origin)
+    assert placed is not None
+    home, origin = placed
+    outside = fence.breaches(v.placed[:2])
+    if outside:
+        raise GeofenceFailed(v.id, f"its home {np.round(v.placed, 3).tolist()} lies outside "
+                                   f"the fence ({', '.join(outside)})")
+    items = fence_items(fence, home, origin)
+    await send_fence(v.linked, items)
+    emit(v.id, EventKind.GEOFENCE, f"{len(fence.shapes)} shape(s), {len(items)} items "
+                                   f"uploaded and read back")
 
 
 async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightOptions,

@@ -73,7 +73,7 @@ from gcs.errors import (
     VehicleTimeout,
 )
 from gcs.flight import vehicle
-from gcs.flight.boarding import connect_vehicle, prepare_vehicle
+from gcs.flight.boarding import connect_vehicle, fence_fleet, prepare_vehicle
 from gcs.flight.clock import FlightClock
 from gcs.flight.descent import DescentConflict, descent_conflicts
 from gcs.flight.events import EventFanout
@@ -92,6 +92,7 @@ from gcs.flight.snapshot import flight_snapshot
 from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import VehicleStatus
+from gcs.geofence import build_fence
 from planner import Plan
 from planner.verify import refusal
 
@@ -353,6 +354,8 @@ class FlightExecutor:
         self.phase = FlightPhase.CONNECTING
         await _all(connect_vehicle(v, opts, self.fleet.world_origin, self.recorder,
                                    self._emit, self.stalls) for v in self.vehicles)
+        await fence_fleet(self.vehicles, build_fence(self.plan.scenario.to_dict()), opts,
+                          self.fleet.world_origin, self._emit, self.stalls)
         homes = [v.placed for v in self.vehicles]
         self._tracks = plan_tracks(self.plan, homes, opts.rate_hz, opts.yaw,
                                    extra_s=opts.hold_at_goal)

@@ -114,6 +114,8 @@ _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home", "signi
 MARGIN_CHECK = ("refuse", "warn")
 #: The pre-flight gate: refuse an unfit vehicle, or fly anyway (recorded).
 PREFLIGHT = ("check", "override")
+#: The geofence before arming (`gcs.geofence`): upload it to every vehicle, or skip it.
+GEOFENCE = ("upload", "skip")
 
 
 class FleetFileWarning(UserWarning):
@@ -213,6 +215,12 @@ class FlightOptions:
     """Height of the touchdown points above the workspace floor (m, in [0,
     `MAX_LANDING_HEIGHT_M`]), where PX4's Land takes over; one above the workspace's ceiling
     is a fallback to PX4's Land, which the event says."""
+    geofence: str | None = None
+    """upload: before arming, give every vehicle the plan's fence (the workspace rectangle,
+    obstacles on the ground; `gcs.geofence`), read it back and refuse the flight when it
+    differs; refused when no geodetic origin places it. skip: no fence (a lab without GPS).
+    None (not given): upload when an origin is known (the vehicle reports GPS_GLOBAL_ORIGIN
+    or the fleet has `world_origin`), else skip with an event saying why."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = _OPTIONS_KEY) -> FlightOptions:
@@ -231,12 +239,14 @@ class FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
             if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight",
-                       "message_rates", "stream_priority", "landing"):
+                       "message_rates", "stream_priority", "landing", "geofence"):
                 allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
                            "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT,
                            "message_rates": ("leave", "request"),
                            "stream_priority": ("normal", "realtime"),
-                           "landing": LANDING}[key]
+                           "landing": LANDING, "geofence": GEOFENCE}[key]
+                if key == "geofence" and value is None:
+                    continue  # upload when an origin is known
                 if value not in allowed:
                     raise FleetFileError(f"{where}.{key}",
                                          f"must be one of {', '.join(allowed)}, got {value!r}")

@@ -47,6 +47,10 @@ DECODED_IDS = frozenset({
     _m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, _m.MAVLINK_MSG_ID_HOME_POSITION,
     _m.MAVLINK_MSG_ID_STATUSTEXT, _m.MAVLINK_MSG_ID_SYS_STATUS,
     _m.MAVLINK_MSG_ID_BATTERY_STATUS, _m.MAVLINK_MSG_ID_GPS_RAW_INT,
+    # the mission protocol, for the geofence upload and read-back (`gcs.flight.fence_upload`)
+    _m.MAVLINK_MSG_ID_MISSION_REQUEST_INT, _m.MAVLINK_MSG_ID_MISSION_REQUEST,
+    _m.MAVLINK_MSG_ID_MISSION_ACK, _m.MAVLINK_MSG_ID_MISSION_COUNT,
+    _m.MAVLINK_MSG_ID_MISSION_ITEM_INT,
 })
 
 #: How many other claimants of one vehicle are remembered (enough to name them; bounded).

@@ -9,8 +9,10 @@ is meant to be in OFFBOARD, in this order (the first failing check flags it):
    estimate, handled by the policy like any fault;
 3. ``heartbeat_lost``: HEARTBEAT older than `heartbeat_timeout` (5 s: mode and armed state
    unknown);
-4. ``left_offboard``: HEARTBEAT shows another mode;
-5. ``tracking_error``: farther than `tracking_error_max` from the plan at the flight time
+4. ``geofence_breach``: the vehicle reports its geofence breached (SYS_STATUS's geofence
+   bit unhealthy, or a STATUSTEXT naming it; PX4's GF_ACTION then switches it to Hold);
+5. ``left_offboard``: HEARTBEAT shows another mode;
+6. ``tracking_error``: farther than `tracking_error_max` from the plan at the flight time
    (written so that a NaN distance never passes).
 
 Then the live minimum separation over every vehicle in the air (the plan's metric), with an
@@ -80,6 +82,9 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
         return "estimate_invalid", f"{tel.invalid_estimates} non-finite LOCAL_POSITION_NED"
     if age > options.heartbeat_timeout:
         return "heartbeat_lost", f"no HEARTBEAT for {age:.2f} s"
+    if tel.geofence_breach is not None:  # before the mode: PX4's GF_ACTION switches it
+        name = tel.mode.name if tel.mode is not None else "?"
+        return "geofence_breach", f"{tel.geofence_breach}, mode {name}"
     if tel.mode != px4.OFFBOARD:
         name = tel.mode.name if tel.mode is not None else "?"
         return "left_offboard", f"mode is now {name}"

@@ -80,10 +80,16 @@ class EventKind(StrEnum):
     DESCENT_CONFLICT = "descent_conflict"
     """land_faulty: that descent would come within R of others' plans (named): the others
     hold where they are instead of flying on."""
+    GEOFENCE_SKIPPED = "geofence_skipped"
+    """No geofence is uploaded, and why (fleet option `geofence: skip`, no origin known)."""
+    GEOFENCE_NOT_FENCED = "geofence_not_fenced"
+    """Obstacles that do not reach the ground, named: no PX4 fence can hold them."""
     # one vehicle
     HOME = "home"
     CONNECTED = "connected"
     MESSAGE_RATES = "message_rates"
+    GEOFENCE = "geofence"
+    """The vehicle's geofence was uploaded and read back the same."""
     PREFLIGHT_OVERRIDE = "preflight_override"
     MODE = "mode"
     MODE_CHANGE = "mode_change"

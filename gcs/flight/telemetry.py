@@ -76,6 +76,9 @@ class Telemetry:
     """Reception of the latest LOCAL_POSITION_NED with a NaN or infinite position or velocity
     (never stored as the position): a fault for the monitor."""
     invalid_estimates: int = 0
+    geofence_breach: str | None = None
+    """How the vehicle said its geofence is breached (SYS_STATUS's geofence bit unhealthy, or
+    a STATUSTEXT naming the geofence) since it last armed; None: no breach reported."""
     security: SecurityCounters = field(default_factory=SecurityCounters)
 
     # --- health (read by gcs.flight.health) ---
@@ -161,6 +164,7 @@ class Telemetry:
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
         if armed and not self.armed:
             self.warnings.clear()  # the pre-arm checks passed: their warnings are over
+            self.geofence_breach = None
         self.armed = armed
         self.system_status = msg.system_status
 
@@ -172,6 +176,8 @@ class Telemetry:
         self.statustexts.append(text)
         if msg.severity <= mavlink.MAV_SEVERITY_WARNING:
             self.warnings.append(text)
+            if "geofence" in text.lower():  # PX4: "Approaching on Geofence", "Geofence ..."
+                self.geofence_breach = f"STATUSTEXT {text!r}"
         return True
 
     def _health(self, kind: str, msg: Any) -> None:
@@ -180,6 +186,10 @@ class Telemetry:
             self.sensors_present = msg.onboard_control_sensors_present
             self.sensors_enabled = msg.onboard_control_sensors_enabled
             self.sensors_health = msg.onboard_control_sensors_health
+            fence = mavlink.MAV_SYS_STATUS_GEOFENCE
+            if (msg.onboard_control_sensors_enabled & fence
+                    and not msg.onboard_control_sensors_health & fence):
+                self.geofence_breach = "SYS_STATUS geofence unhealthy"
             if msg.battery_remaining >= 0:
                 self.battery_remaining = int(msg.battery_remaining)
             if msg.voltage_battery not in (0, 0xFFFF):

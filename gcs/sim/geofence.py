@@ -20,6 +20,7 @@ from typing import Protocol
 import numpy as np
 
 from gcs import frames, px4
+from gcs.geofence import shape_contains
 from gcs.sim.config import MockConfig
 from gcs.sim.missions import FenceShape
 from gcs.sim.model import FleetModel
@@ -43,15 +44,7 @@ class LocalShape:
 
     def contains(self, xy: np.ndarray) -> bool:
         """Whether the horizontal point `xy` is inside (even-odd rule for polygons)."""
-        if self.radius is not None:
-            return bool(np.hypot(*(xy - self.points[0])) <= self.radius)
-        x, y = xy
-        inside = False
-        pts = self.points
-        for (x1, y1), (x2, y2) in zip(pts, np.roll(pts, -1, axis=0), strict=True):
-            if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
-                inside = not inside
-        return inside
+        return shape_contains(self.points, self.radius, xy)
 
 
 class Geofence:

@@ -135,3 +135,11 @@ def test_export_benchmark_reports_time_size_and_pieces():
     assert 0 < row["keyframes"] <= row["keyframes_one_per_step"] == 4 * (row["steps"] + 1)
     assert 0 < row["largest_piece_bytes"] <= row["skyc_bytes"]
     assert report["machine"]["cpus"] == os.cpu_count()
+
+
+def test_geofence_benchmark_uploads_every_vehicles_fence():
+    """bench/geofence.py: every vehicle's fence (workspace + pillars) uploaded, read back the
+    same (send_fence raises otherwise) and timed."""
+    report = _run("geofence.py", "--vehicles", "2", "--pillars", "3", "--repeat", "1")
+    assert report["vehicles"] == 2 and report["items_per_vehicle"] == 4 + 3
+    assert report["fleet_upload_s_max"] >= report["fleet_upload_s_median"] > 0

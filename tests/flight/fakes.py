@@ -64,6 +64,11 @@ class FakeLink:
         self.alive()
         return mavlink.MAV_RESULT_ACCEPTED
 
+    async def request_message(self, message_id: int, timeout: float = 1.0, *,
+                              clock: Any = None) -> int:
+        """MAV_CMD_REQUEST_MESSAGE, answered like any command (nothing is sent back)."""
+        return await self.command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(message_id),))
+
     async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float,
                        clock: Any = None) -> bool:
         deadline = time.monotonic() + timeout

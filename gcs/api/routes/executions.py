@@ -83,6 +83,11 @@ class FlyRequest(BaseModel):
         "way), which keeps a large fleet's stream on time on a busy computer; normal: never "
         "ask."
     )
+    geofence: Literal["upload", "skip"] | None = Field(
+        None, description="upload: give every vehicle the plan's geofence before arming and "
+        "read it back (the flight fails naming a vehicle that refuses it, or when no "
+        "geodetic origin places it); skip: no fence. Default: upload when an origin is known."
+    )
     margin_check: Literal["refuse", "warn"] | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "
         "position_error: refuse (default, 409) or fly it with a warning in the record."

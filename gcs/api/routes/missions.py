@@ -1,5 +1,5 @@
 """/api/missions: create (plan), list, read, delete missions; progress; trajectory and show
-exports.
+exports; the geofence as a QGroundControl .plan file.
 
 A mission is a validated scenario plus, once its worker answers, the plan. POST waits up to
 ``wait`` seconds (default: the `plan_wait_s` setting) for the plan and answers 201 with it;
@@ -23,6 +23,7 @@ from starlette.concurrency import run_in_threadpool
 from gcs.api.deps import (
     EventStreamSlot,
     ExportSlot,
+    FleetDep,
     JsonBody,
     LastEventId,
     MissionDep,
@@ -42,7 +43,10 @@ from gcs.api.schemas import (
     shape_errors,
 )
 from gcs.errors import ExportError, InvalidRequest, StateConflict
+from gcs.export.qgc_plan import QGC_PLAN_MEDIA_TYPE, qgc_plan
 from gcs.export.skyc import SKYC_MEDIA_TYPE, keyframe_count, parse_origin, skyc_chunks
+from gcs.frames import Geodetic
+from gcs.geofence import build_fence
 from gcs.service.limits import (
     WorkBounds,
     scenario_bound_errors,
@@ -497,3 +501,45 @@ def download_show(
         raise StateConflict(f"plan.{exc.field}", exc.reason) from None
     return StreamingResponse(chunks, media_type=SKYC_MEDIA_TYPE, headers={
         "Content-Disposition": f'attachment; filename="show-{mission.id}.skyc"'})
+
+
+@router.get(
+    "/{mission_id}/geofence",
+    response_model=None,
+    summary="The geofence the vehicles are given, as a QGroundControl .plan file",
+    responses={200: {"content": {QGC_PLAN_MEDIA_TYPE: {}},
+                     "description": "A QGroundControl plan file: fileType Plan, an empty "
+                                    "mission, the geoFence section, no rally points"},
+               **error_responses(404, 409, 422)},
+)
+def download_geofence(
+    mission: MissionDep,
+    plans: PlanCacheDep,
+    fleet: FleetDep,
+    format: Annotated[
+        Literal["qgc-plan"], Query(description="qgc-plan: a QGroundControl .plan file")
+    ] = "qgc-plan",
+    origin: Annotated[
+        str | None,
+        Query(max_length=100, description="LAT,LON[,AMSL]: where the world origin (0, 0, 0) "
+              "is on the Earth (degrees, metres); default: the fleet's world_origin"),
+    ] = None,
+) -> Response:
+    """The fence `fleetplan fly` uploads before arming (the workspace's horizontal rectangle
+    as an inclusion polygon, each obstacle standing on the ground as an exclusion polygon or
+    circle; `gcs.geofence`), placed on the Earth from `origin` or else the fleet's
+    `world_origin` (the fleet file's, or the mock's): 409 when neither is known."""
+    try:
+        place = None if origin is None else parse_origin(origin)
+    except ExportError as exc:
+        raise InvalidRequest(exc.field, exc.reason) from None
+    if place is None:
+        known = fleet.describe().get("world_origin")
+        if known is None:
+            raise StateConflict("origin", "no world origin is known (the service's fleet has "
+                                "no world_origin): give ?origin=LAT,LON[,AMSL]")
+        place = Geodetic(known["lat"], known["lon"], known["alt"])
+    plan = plans.get(mission.id)
+    document = qgc_plan(build_fence(plan.scenario.to_dict()), place)
+    return _json(json.dumps(document), headers={
+        "Content-Disposition": f'attachment; filename="geofence-{mission.id}.plan"'})

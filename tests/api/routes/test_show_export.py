@@ -16,13 +16,6 @@ from tests.api.support import example
 from tests.export.reader import evaluate, read_show
 
 
-@pytest.fixture(scope="module")
-def planned(shared_client: TestClient) -> dict[str, Any]:
-    response = shared_client.post("/api/missions?wait=60", json=example("paper-circle4"))
-    assert response.status_code == 201, response.text
-    return response.json()
-
-
 def _url(mission_id: str) -> str:
     return f"/api/missions/{mission_id}/show.skyc"
 
