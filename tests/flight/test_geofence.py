@@ -214,3 +214,16 @@ def test_a_vehicle_pushed_out_of_its_fence_holds_and_is_a_geofence_breach_fault(
     assert "Approaching on Geofence" in said
     assert not any(e["kind"] == EventKind.FAULT and e["vehicle"] == "uav1"
                    for e in record["events"])
+
+
+def test_a_planned_scenarios_obstacles_become_its_fence() -> None:
+    """The window example as the planner echoes it (`Scenario.to_dict`): the walls standing
+    on the ground are exclusions, the wall above the window is named as not fenceable."""
+    from planner import Scenario
+    from tests.planner.conftest import load_example
+
+    fence = build_fence(Scenario.from_dict(load_example("window8")).to_dict())
+    assert [(s.source, s.inclusion) for s in fence.shapes] == [
+        ("workspace", True), ("wall-left", False), ("wall-right", False),
+        ("wall-below", False)]
+    assert fence.not_fenced == ("wall-above",)
