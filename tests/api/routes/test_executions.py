@@ -92,7 +92,8 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
     assert flown.idle["fleet"] == {"kind": "mock", "vehicles": 4, "flying": None,
                                    "ids": ["uav1", "uav2", "uav3", "uav4"],
                                    "world_origin": {"lat": 47.397742, "lon": 8.545594,
-                                                    "alt": 488.0}}
+                                                    "alt": 488.0},
+                                   "vehicle_process": "running"}
     for v in flown.idle_vehicles:
         assert v["link"] == "monitor" and v["armed"] is False and v["mode"]
         np.testing.assert_allclose(v["position"], v["home"], atol=0.05)
@@ -215,7 +216,7 @@ def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> Non
     with TestClient(create_app(make_settings(mock_vehicles=0))) as client:
         assert client.get("/api/vehicles").json() == {
             "fleet": {"kind": "none", "vehicles": 0, "ids": [], "flying": None,
-                      "world_origin": None}, "vehicles": []}
+                      "world_origin": None, "vehicle_process": "running"}, "vehicles": []}
         mission = plan_mission(client, SHORT_CROSSING)
         response = client.post(f"/api/missions/{mission['id']}/executions")
         assert response.status_code == 409
