@@ -330,11 +330,24 @@ def minimum_transfer_time(distance: FloatArray, v_max: FloatArray | None, a_max:
     return np.where(d <= v_max * v_max / a_max, bang_bang, cruise)
 
 
-def _scaled_distances(points: FloatArray, scale: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Upper-triangle pair indices' distances in the separation metric: (dist, (i, j))."""
-    i, j = np.triu_indices(len(points), k=1)
-    d = np.linalg.norm((points[i] - points[j]) / scale, axis=1)
-    return d, np.stack([i, j])
+def _closest_pair_within(points: FloatArray, scale: FloatArray, limit: float
+                         ) -> tuple[float, int, int] | None:
+    """The closest two points closer than `limit` in the separation metric, as (distance,
+    i, j) with i < j (the first such pair in (i, j) order on ties), or None. A k-d tree finds
+    the candidates: all pairs of 16,000 points would be 128 million distances."""
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(points / scale).query_pairs(limit, output_type="ndarray")
+    if len(pairs) == 0:
+        return None
+    pairs = np.sort(pairs, axis=1)
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    d = np.linalg.norm((points[pairs[:, 0]] - points[pairs[:, 1]]) / scale, axis=1)
+    closer = d < limit
+    if not closer.any():
+        return None
+    k = int(np.flatnonzero(closer)[np.argmin(d[closer])])
+    return float(d[k]), int(pairs[k, 0]), int(pairs[k, 1])
 
 
 def _parse(data: Mapping[str, Any]) -> Scenario:
@@ -404,13 +417,12 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     for label, points in (("start", starts), ("goal", goals)):
         if len(points) < 2:
             continue
-        dist, pairs = _scaled_distances(points, scale)
-        worst = int(np.argmin(dist))
-        if dist[worst] < separation:
-            i, j = pairs[:, worst]
+        closest = _closest_pair_within(points, scale, separation)
+        if closest is not None:
+            dist, i, j = closest
             raise ScenarioError(
                 f"vehicles[{j}].{label}",
-                f"is {dist[worst]:.3f} m from vehicles[{i}].{label} in the separation metric, "
+                f"is {dist:.3f} m from vehicles[{i}].{label} in the separation metric, "
                 f"closer than min_separation {separation:g} m",
             )
 

@@ -197,7 +197,8 @@ def test_printable_ids_are_kept_as_given():
 
 def test_the_planner_takes_a_record_sized_fleet_and_refuses_one_beyond_its_bound() -> None:
     """A record drone show is ~16,000 vehicles: the planner's own bound is 20,000 (a service
-    sets a lower one, `max_vehicles`)."""
+    sets a lower one, `max_vehicles`). Its starts and goals are checked for separation in
+    about a second (a k-d tree; all pairs would be 128 million distances)."""
     def fleet(count: int) -> dict[str, Any]:
         data = _base()
         side = math.ceil(math.sqrt(count))
@@ -209,6 +210,12 @@ def test_the_planner_takes_a_record_sized_fleet_and_refuses_one_beyond_its_bound
                             for i in range(count)]
         return data
 
-    assert len(Scenario.from_dict(fleet(1_500)).vehicles) == 1_500  # beyond the old 1,000
+    assert len(Scenario.from_dict(fleet(16_000)).vehicles) == 16_000
     error = _error(fleet(20_001))
     assert error.field == "vehicles" and error.reason == "at most 20000 vehicles, got 20001"
+    crowded = fleet(16_000)
+    crowded["vehicles"][9_000]["goal"] = [crowded["vehicles"][12_345]["goal"][0] + 0.3,
+                                          *crowded["vehicles"][12_345]["goal"][1:]]
+    error = _error(crowded)  # the pair closer than R is still found, and named
+    assert error.field == "vehicles[12345].goal"
+    assert error.reason.startswith("is 0.300 m from vehicles[9000].goal")
