@@ -64,8 +64,10 @@ function inputsFor(path) {
 export function clearErrorsFor(input) {
   const field = input.dataset && input.dataset.field;
   if (!field) return;
+  // An obstacle edited: the errors naming it (a vehicle inside it, say) no longer hold.
+  const ob = /^obstacles\[(\d+)\]/.exec(field);
   for (const item of $$(".error-item")) {
-    if (inputsFor(item.dataset.path).includes(input)) {
+    if (inputsFor(item.dataset.path).includes(input) || (ob && item.dataset.obstacle === ob[1])) {
       for (const marked of inputsFor(item.dataset.path)) { marked.classList.remove("invalid"); marked.title = ""; }
       const row = item.closest("tr.error-row");
       item.remove();
