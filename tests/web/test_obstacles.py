@@ -15,6 +15,9 @@ from tests.web.support import plan
 
 pytestmark = pytest.mark.browser
 
+#: Every vehicle input's value, in the table's order.
+VEHICLE_VALUES = "[...document.querySelectorAll('#vehicle-table input')].map(i => i.value)"
+
 
 def _set_box(page: Page, index: int, lo: list[float], hi: list[float]) -> None:
     """Type a box's min and max into its fields."""
@@ -44,7 +47,7 @@ def test_obstacles_are_drawn_edited_sent_and_marked_when_refused(
     min_x = page.locator('input[data-field="obstacles[1].box.min[0]"]')
     before = float(min_x.input_value())
     # Dragged to the right: its x fields follow, the vehicles stay.
-    starts = page.evaluate("[...document.querySelectorAll('#vehicle-table input')].map(i => i.value)")
+    starts = page.evaluate(VEHICLE_VALUES)
     bb = box.bounding_box()
     assert bb is not None
     page.mouse.move(bb["x"] + bb["width"] / 2, bb["y"] + bb["height"] / 2)
@@ -52,7 +55,7 @@ def test_obstacles_are_drawn_edited_sent_and_marked_when_refused(
     page.mouse.move(bb["x"] + bb["width"] / 2 + 30, bb["y"] + bb["height"] / 2, steps=4)
     page.mouse.up()
     assert float(min_x.input_value()) > before + 0.1
-    assert page.evaluate("[...document.querySelectorAll('#vehicle-table input')].map(i => i.value)") == starts
+    assert page.evaluate(VEHICLE_VALUES) == starts
 
     # Sized in its fields, in a corner clear of every path; planned, the mission carries it.
     _set_box(page, 1, [0.0, 0.0, 0.0], [0.4, 0.4, 0.6])
@@ -70,7 +73,8 @@ def test_obstacles_are_drawn_edited_sent_and_marked_when_refused(
     goal = [float(page.input_value(f'input[data-field="vehicles[0].goal[{a}]"]')) for a in range(3)]
     _set_box(page, 1, [goal[0] - 0.2, goal[1] - 0.2, 0.0], [goal[0] + 0.2, goal[1] + 0.2, 3.0])
     page.click("#plan-button")
-    expect(page.locator("#obstacle-table tr.obstacle").nth(1)).to_have_class(re.compile(r"\bhas-error\b"))
+    box_row = page.locator("#obstacle-table tr.obstacle").nth(1)
+    expect(box_row).to_have_class(re.compile(r"\bhas-error\b"))
     expect(page.locator('#top-view g.obstacle.invalid[data-id="box2"]')).to_have_count(1)
     expect(page.locator('#top-view g.obstacle.invalid[data-id="pillar"]')).to_have_count(0)
     expect(page.locator("#vehicle-table td.vehicle-error")).to_contain_text("box2")
