@@ -31,6 +31,33 @@ export function buildLimitRows() {
   }
 }
 
+/** A table cell with a row's id input.
+ * @param {string} field @param {string} id @returns {HTMLTableCellElement} */
+function idCell(field, id) {
+  const cell = document.createElement("td");
+  const input = document.createElement("input");
+  input.dataset.field = field;
+  input.value = id;
+  input.size = 6;
+  cell.appendChild(input);
+  return cell;
+}
+
+/** A table cell with a "✕" button removing its row (the click does not select the row).
+ * @param {string} what "vehicle" or "obstacle" @param {() => void} onRemove
+ * @returns {HTMLTableCellElement} */
+function removeCell(what, onRemove) {
+  const rm = document.createElement("td");
+  const button = document.createElement("button");
+  button.type = "button";
+  button.textContent = "✕";
+  button.title = `remove this ${what}`;
+  button.className = `remove-${what}`;
+  button.addEventListener("click", (ev) => { ev.stopPropagation(); onRemove(); });
+  rm.appendChild(button);
+  return rm;
+}
+
 /** @returns {HTMLTableRowElement[]} */
 export function vehicleRows() { return $$("#vehicle-table tbody tr.vehicle"); }
 
@@ -42,13 +69,7 @@ export function addVehicleRow(vehicle, on) {
   const index = vehicleRows().length;
   const tr = document.createElement("tr");
   tr.className = "vehicle";
-  const idCell = document.createElement("td");
-  const idInput = document.createElement("input");
-  idInput.dataset.field = `vehicles[${index}].id`;
-  idInput.value = vehicle.id;
-  idInput.size = 6;
-  idCell.appendChild(idInput);
-  tr.appendChild(idCell);
+  tr.appendChild(idCell(`vehicles[${index}].id`, vehicle.id));
   for (const which of /** @type {const} */ (["start", "goal"])) {
     for (let a = 0; a < 3; a++) {
       const td = document.createElement("td");
@@ -56,15 +77,7 @@ export function addVehicleRow(vehicle, on) {
       tr.appendChild(td);
     }
   }
-  const rm = document.createElement("td");
-  const button = document.createElement("button");
-  button.type = "button";
-  button.textContent = "✕";
-  button.title = "remove this vehicle";
-  button.className = "remove-vehicle";
-  button.addEventListener("click", (ev) => { ev.stopPropagation(); on.onRemove(tr); });
-  rm.appendChild(button);
-  tr.appendChild(rm);
+  tr.appendChild(removeCell("vehicle", () => on.onRemove(tr)));
   tr.addEventListener("click", () => on.onSelect(vehicleRows().indexOf(tr)));
   tbody.appendChild(tr);
 }
@@ -99,12 +112,6 @@ export function addObstacleRow(ob, on) {
   tr.className = "obstacle";
   tr.dataset.kind = kind;
   if (kind === "prism") tr.dataset.polygon = JSON.stringify(shape.polygon);
-  const idCell = document.createElement("td");
-  const idInput = document.createElement("input");
-  idInput.dataset.field = `obstacles[${index}].id`;
-  idInput.value = ob.id;
-  idInput.size = 6;
-  idCell.appendChild(idInput);
   const kindCell = document.createElement("td");
   kindCell.textContent = kind;
   const geo = document.createElement("td");
@@ -117,15 +124,7 @@ export function addObstacleRow(ob, on) {
     l.appendChild(input);
     geo.appendChild(l);
   }
-  const rm = document.createElement("td");
-  const button = document.createElement("button");
-  button.type = "button";
-  button.textContent = "✕";
-  button.title = "remove this obstacle";
-  button.className = "remove-obstacle";
-  button.addEventListener("click", (ev) => { ev.stopPropagation(); on.onRemove(tr); });
-  rm.appendChild(button);
-  tr.append(idCell, kindCell, geo, rm);
+  tr.append(idCell(`obstacles[${index}].id`, ob.id), kindCell, geo, removeCell("obstacle", () => on.onRemove(tr)));
   tr.addEventListener("click", () => on.onSelect(obstacleRows().indexOf(tr)));
   $("#obstacle-table tbody").appendChild(tr);
 }
