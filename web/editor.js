@@ -1,18 +1,99 @@
 // @ts-check
-// The editor: vehicles added, removed, selected and placed on the top view; every edit
+// The editor: vehicles added, removed, selected and placed on the top view; obstacles added,
+// selected, dragged and removed; every edit
 // clears the errors it answers and marks the plan shown stale; presets fill the form.
 import { api } from "./api.js";
 import { $, clamp } from "./dom.js";
 import { clearErrors, clearErrorsFor, hasErrors } from "./fielderrors.js";
 import { refreshStale } from "./flygate.js";
-import { addVehicleRow, renumberVehicles, vehicleRows, workspace, writeScenario } from "./form.js";
+import { addObstacleRow, addVehicleRow, obstacleRows, renumberVehicles, vehicleRows, workspace,
+         writeScenario } from "./form.js";
 import { circleScenario, randomScenario, round2 } from "./presets.js";
 import { editor, planning } from "./state.js";
 import { drawTopView, worldAt } from "./topview.js";
 
 /** @typedef {import("./state.js").Scenario} Scenario */
 
-const rowEvents = { onRemove: removeVehicle, onSelect: selectVehicle };
+const obstacleEvents = { onRemove: removeObstacle, onSelect: selectObstacle };
+const rowEvents = { onRemove: removeVehicle, onSelect: selectVehicle, obstacle: obstacleEvents };
+
+/** @param {HTMLTableRowElement} tr */
+function removeObstacle(tr) {
+  const next = tr.nextElementSibling;
+  if (next && next.classList.contains("error-row")) next.remove();
+  tr.remove();
+  renumberVehicles();
+  editor.obstacle = -1;
+  formEdited();
+}
+
+/** The obstacle drawn bold, its row highlighted.
+ * @param {number} index */
+function selectObstacle(index) {
+  editor.obstacle = index;
+  obstacleRows().forEach((tr, i) => tr.classList.toggle("selected", i === index));
+  drawTopView();
+}
+
+/** "Add box" / "Add cylinder": a new obstacle (1 m across, the workspace's height) in the
+ * middle of the workspace, selected.
+ * @param {"box" | "cylinder"} kind */
+export function addObstacle(kind) {
+  const { lo, hi } = workspace();
+  const [mx, my] = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2].map(round2);
+  const top = round2(hi[2] ?? 3);
+  const ids = new Set(obstacleRows().map((tr) => /** @type {HTMLInputElement} */ ($("input", tr)).value));
+  let n = obstacleRows().length + 1;
+  while (ids.has(`${kind}${n}`)) n++;
+  addObstacleRow(kind === "box"
+    ? { id: `${kind}${n}`, box: { min: [mx - 0.5, my - 0.5, 0], max: [mx + 0.5, my + 0.5, top] } }
+    : { id: `${kind}${n}`, cylinder: { center: [mx, my], radius: 0.5, z: [0, top] } }, obstacleEvents);
+  selectObstacle(obstacleRows().length - 1);
+  formEdited();
+}
+
+/** A drag of an obstacle on the top view: where it began and the inputs it moves. */
+const drag = { active: false, moved: false, suppressClick: false, start: [0, 0], inputs: /** @type {{input: HTMLInputElement, axis: number, at: number}[]} */ ([]) };
+
+/** Pointer down on an obstacle drawing: select it and start moving it.
+ * @param {PointerEvent} ev */
+export function onTopViewPointerDown(ev) {
+  const g = /** @type {Element} */ (ev.target).closest("g.obstacle");
+  if (!g) return;
+  const index = Number(g.getAttribute("data-index"));
+  const tr = obstacleRows()[index];
+  if (!tr) return;
+  ev.preventDefault();
+  selectObstacle(index);
+  drag.active = true;
+  drag.moved = false;
+  drag.start = worldAt(ev);
+  // x fields end in "[0]", y fields in "[1]" (min, max, center; z is "z[...]" or "[2]").
+  drag.inputs = Array.from(tr.querySelectorAll("input[data-path]")).flatMap((input) => {
+    const m = /^(min|max|center)\[([01])\]$/.exec(input.dataset.path || "");
+    return m ? [{ input, axis: Number(m[2]), at: Number(input.value) }] : [];
+  });
+  $("#top-view").setPointerCapture?.(ev.pointerId);
+}
+
+/** Pointer moves while dragging: the obstacle follows by the world distance moved.
+ * @param {PointerEvent} ev */
+export function onTopViewPointerMove(ev) {
+  if (!drag.active) return;
+  const at = worldAt(ev);
+  const d = [at[0] - drag.start[0], at[1] - drag.start[1]];
+  for (const f of drag.inputs) f.input.value = String(round2(f.at + d[f.axis]));
+  drag.moved = true;
+  for (const f of drag.inputs) clearErrorsFor(f.input);
+  formEdited();
+}
+
+/** Pointer up: the drag ends (the click that follows places no vehicle point). */
+export function onTopViewPointerUp() {
+  if (!drag.active) return;
+  drag.active = false;
+  drag.suppressClick = true;
+}
 
 /** @param {HTMLTableRowElement} tr */
 function removeVehicle(tr) {
@@ -52,6 +133,7 @@ export function addVehicle() {
 /** A click on the top view places the selected vehicle's start, then its goal.
  * @param {MouseEvent} ev */
 export function onTopViewClick(ev) {
+  if (drag.suppressClick) { drag.suppressClick = false; return; }
   const [x, y] = worldAt(ev).map(round2);
   if (vehicleRows().length === 0) {
     addVehicleRow({ id: nextVehicleId(), start: [x, y, 1], goal: [x, y, 1] }, rowEvents);
@@ -95,6 +177,7 @@ export function formEdited(ev) {
 export function fillForm(scenario) {
   writeScenario(scenario, rowEvents);
   clearErrors();
+  editor.obstacle = -1;
   selectVehicle(0);
 }
 

@@ -24,10 +24,12 @@ export const origin = () => (fleet.fleet && fleet.fleet.world_origin) || null;
 export function drawFlyStatic() {
   const mission = planning.mission;
   if (!views.traj || !mission || !mission.plan) return;
-  const lim = mission.plan.scenario.limits;
+  const scenario = mission.plan.scenario;
+  const lim = scenario.limits;
   const o = origin();
   views.flyTf = drawStatic($("#fly-view"), {
     lo: lim.position_min, hi: lim.position_max, origin: o,
+    obstacles: scenario.obstacles ?? [], clearance: scenario.obstacle_clearance ?? scenario.min_separation / 2,
     paths: views.traj.vehicles.map((v, i) => ({ id: v.id, color: color(i), points: v.position.map((p) => [p[0], p[1]]) })),
   });
   $("#geo-label").textContent = o

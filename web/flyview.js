@@ -4,6 +4,7 @@
 // when the fleet has a geodetic origin, latitude/longitude at the corners. No map tiles: the
 // page works offline. Pure drawing: no fetches, no page state.
 import { svgEl } from "./dom.js";
+import { drawObstacles } from "./obstacles.js";
 import { PATH_POINTS, byColour, decimated, layered } from "./scale.js";
 
 /** @typedef {{lat: number, lon: number}} LatLon */
@@ -67,11 +68,12 @@ const fmtDeg = (d, pos, neg) => `${Math.abs(d).toFixed(6)}° ${d >= 0 ? pos : ne
  * @returns {string} */
 export const latLonText = (g) => `${fmtDeg(g.lat, "N", "S")} ${fmtDeg(g.lon, "E", "W")}`;
 
-/** Draw what does not move: workspace, planned paths, starts and goals, scale bar, geodetic
+/** Draw what does not move: workspace, obstacles and their clearance, planned paths, starts and goals, scale bar, geodetic
  * corners. Returns the transform for `drawMoving`.
  * @param {SVGSVGElement} svg
  * @param {{lo: number[], hi: number[], origin: LatLon | null,
- *   paths: {id: string, color: string, points: number[][]}[]}} scene
+ *   paths: {id: string, color: string, points: number[][]}[],
+ *   obstacles?: import("./obstacles.js").Obstacle[], clearance?: number}} scene
  * @returns {ViewTransform} */
 export function drawStatic(svg, scene) {
   svg.innerHTML = "";
@@ -80,6 +82,7 @@ export function drawStatic(svg, scene) {
   const [x0, y0] = tf.toSvg(scene.lo[0], scene.lo[1]);
   const [x1, y1] = tf.toSvg(scene.hi[0], scene.hi[1]);
   svgEl("rect", { x: x0, y: y1, width: x1 - x0, height: y0 - y1, fill: "#fff", stroke: "#9aa4af" }, stat);
+  drawObstacles(svgEl("g", { class: "obstacles" }, stat), tf, scene.obstacles ?? [], scene.clearance ?? 0);
   if (layered(scene.paths.length)) drawPathLayers(stat, tf, scene.paths);
   else {
     for (const path of scene.paths) {

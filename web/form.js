@@ -31,6 +31,33 @@ export function buildLimitRows() {
   }
 }
 
+/** A table cell with a row's id input.
+ * @param {string} field @param {string} id @returns {HTMLTableCellElement} */
+function idCell(field, id) {
+  const cell = document.createElement("td");
+  const input = document.createElement("input");
+  input.dataset.field = field;
+  input.value = id;
+  input.size = 6;
+  cell.appendChild(input);
+  return cell;
+}
+
+/** A table cell with a "✕" button removing its row (the click does not select the row).
+ * @param {string} what "vehicle" or "obstacle" @param {() => void} onRemove
+ * @returns {HTMLTableCellElement} */
+function removeCell(what, onRemove) {
+  const rm = document.createElement("td");
+  const button = document.createElement("button");
+  button.type = "button";
+  button.textContent = "✕";
+  button.title = `remove this ${what}`;
+  button.className = `remove-${what}`;
+  button.addEventListener("click", (ev) => { ev.stopPropagation(); onRemove(); });
+  rm.appendChild(button);
+  return rm;
+}
+
 /** @returns {HTMLTableRowElement[]} */
 export function vehicleRows() { return $$("#vehicle-table tbody tr.vehicle"); }
 
@@ -42,13 +69,7 @@ export function addVehicleRow(vehicle, on) {
   const index = vehicleRows().length;
   const tr = document.createElement("tr");
   tr.className = "vehicle";
-  const idCell = document.createElement("td");
-  const idInput = document.createElement("input");
-  idInput.dataset.field = `vehicles[${index}].id`;
-  idInput.value = vehicle.id;
-  idInput.size = 6;
-  idCell.appendChild(idInput);
-  tr.appendChild(idCell);
+  tr.appendChild(idCell(`vehicles[${index}].id`, vehicle.id));
   for (const which of /** @type {const} */ (["start", "goal"])) {
     for (let a = 0; a < 3; a++) {
       const td = document.createElement("td");
@@ -56,17 +77,72 @@ export function addVehicleRow(vehicle, on) {
       tr.appendChild(td);
     }
   }
-  const rm = document.createElement("td");
-  const button = document.createElement("button");
-  button.type = "button";
-  button.textContent = "✕";
-  button.title = "remove this vehicle";
-  button.className = "remove-vehicle";
-  button.addEventListener("click", (ev) => { ev.stopPropagation(); on.onRemove(tr); });
-  rm.appendChild(button);
-  tr.appendChild(rm);
+  tr.appendChild(removeCell("vehicle", () => on.onRemove(tr)));
   tr.addEventListener("click", () => on.onSelect(vehicleRows().indexOf(tr)));
   tbody.appendChild(tr);
+}
+
+/** @returns {HTMLTableRowElement[]} */
+export function obstacleRows() { return $$("#obstacle-table tbody tr.obstacle"); }
+
+/** The numeric fields of each obstacle kind: [label, field path after the kind].
+ * @type {Record<string, [string, string][]>} */
+const OBSTACLE_FIELDS = {
+  box: [["min x", "min[0]"], ["y", "min[1]"], ["z", "min[2]"], ["max x", "max[0]"], ["y", "max[1]"], ["z", "max[2]"]],
+  cylinder: [["centre x", "center[0]"], ["y", "center[1]"], ["radius", "radius"], ["z from", "z[0]"], ["to", "z[1]"]],
+  prism: [["z from", "z[0]"], ["to", "z[1]"]],
+};
+
+/** @param {any} obj @param {string} path "min[0]" or "radius" */
+const fieldValue = (obj, path) => {
+  const m = /^(\w+)(?:\[(\d)\])?$/.exec(path);
+  if (!m || !obj) return undefined;
+  return m[2] === undefined ? obj[m[1]] : (obj[m[1]] || [])[Number(m[2])];
+};
+
+/** A row of the obstacle table: id, kind and that kind's numeric fields (a prism's polygon
+ * is kept as loaded, its heights editable); `on` is the editor's.
+ * @param {import("./obstacles.js").Obstacle} ob
+ * @param {{onRemove: (tr: HTMLTableRowElement) => void, onSelect: (index: number) => void}} on */
+export function addObstacleRow(ob, on) {
+  const kind = ob.box ? "box" : ob.cylinder ? "cylinder" : "prism";
+  const shape = /** @type {any} */ (ob)[kind];
+  const index = obstacleRows().length;
+  const tr = document.createElement("tr");
+  tr.className = "obstacle";
+  tr.dataset.kind = kind;
+  if (kind === "prism") tr.dataset.polygon = JSON.stringify(shape.polygon);
+  const kindCell = document.createElement("td");
+  kindCell.textContent = kind;
+  const geo = document.createElement("td");
+  geo.className = "obstacle-geometry";
+  for (const [label, path] of OBSTACLE_FIELDS[kind]) {
+    const l = document.createElement("label");
+    l.textContent = `${label} `;
+    const input = numberInput(`obstacles[${index}].${kind}.${path}`, fieldValue(shape, path));
+    input.dataset.path = path;
+    l.appendChild(input);
+    geo.appendChild(l);
+  }
+  tr.append(idCell(`obstacles[${index}].id`, ob.id), kindCell, geo, removeCell("obstacle", () => on.onRemove(tr)));
+  tr.addEventListener("click", () => on.onSelect(obstacleRows().indexOf(tr)));
+  $("#obstacle-table tbody").appendChild(tr);
+}
+
+/** The obstacles the table says, in the contract's shape (null: a field left empty).
+ * @returns {import("./obstacles.js").Obstacle[]} */
+export function readObstacles() {
+  return obstacleRows().map((tr) => {
+    const kind = /** @type {string} */ (tr.dataset.kind);
+    /** @type {Record<string, any>} */
+    const shape = kind === "prism" ? { polygon: JSON.parse(tr.dataset.polygon || "[]") } : {};
+    for (const input of $$("input[data-path]", tr)) {
+      const m = /** @type {RegExpExecArray} */ (/^(\w+)(?:\[(\d)\])?$/.exec(/** @type {string} */ (input.dataset.path)));
+      if (m[2] === undefined) shape[m[1]] = readNumber(input);
+      else (shape[m[1]] ??= [])[Number(m[2])] = readNumber(input);
+    }
+    return { id: /** @type {HTMLInputElement} */ ($("input", tr)).value, [kind]: shape };
+  });
 }
 
 /** Field names follow the rows' order after one is removed. */
@@ -74,6 +150,11 @@ export function renumberVehicles() {
   vehicleRows().forEach((tr, i) => {
     for (const input of $$("input", tr)) {
       input.dataset.field = input.dataset.field.replace(/^vehicles\[\d+\]/, `vehicles[${i}]`);
+    }
+  });
+  obstacleRows().forEach((tr, i) => {
+    for (const input of $$("input", tr)) {
+      input.dataset.field = input.dataset.field.replace(/^obstacles\[\d+\]/, `obstacles[${i}]`);
     }
   });
 }
@@ -107,6 +188,10 @@ export function readScenario() {
     limits,
     vehicles,
   };
+  const obstacles = readObstacles();
+  if (obstacles.length) scenario.obstacles = obstacles;
+  const clearance = readNumber($("#f-obstacle_clearance"));
+  if (clearance !== null) scenario.obstacle_clearance = clearance;
   Object.assign(scenario, editor.extra);
   Object.assign(scenario.limits, editor.limitExtras);
   return scenario;
@@ -114,7 +199,8 @@ export function readScenario() {
 
 /** Write a scenario into the form (the vehicle rows through `on`).
  * @param {Scenario} scenario
- * @param {{onRemove: (tr: HTMLTableRowElement) => void, onSelect: (index: number) => void}} on */
+ * @param {{onRemove: (tr: HTMLTableRowElement) => void, onSelect: (index: number) => void,
+ *   obstacle: {onRemove: (tr: HTMLTableRowElement) => void, onSelect: (index: number) => void}}} on */
 export function writeScenario(scenario, on) {
   $("#f-name").value = scenario.name ?? "scenario";
   $("#f-dt").value = scenario.dt;
@@ -135,6 +221,18 @@ export function writeScenario(scenario, on) {
   }
   $("#vehicle-table tbody").innerHTML = "";
   for (const vehicle of scenario.vehicles) addVehicleRow(vehicle, on);
+  $("#f-obstacle_clearance").value = scenario.obstacle_clearance ?? "";
+  $("#obstacle-table tbody").innerHTML = "";
+  for (const ob of scenario.obstacles ?? []) addObstacleRow(ob, on.obstacle);
+}
+
+/** The clearance kept from obstacles (m): the form's, else the planner's default R / 2.
+ * @returns {number} */
+export function obstacleClearance() {
+  const c = readNumber($("#f-obstacle_clearance"));
+  if (c !== null && Number.isFinite(c)) return c;
+  const r = readNumber($("#f-min_separation"));
+  return r !== null && Number.isFinite(r) ? r / 2 : 0;
 }
 
 /** The workspace box the form's position limits give (a default box while they are unset).

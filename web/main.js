@@ -5,7 +5,8 @@
 // controls to the views and loads the page's state; Plan waits for that state.
 import { fleetCommand, loadCapabilities, pauseOrResume } from "./commands.js";
 import { $, $$ } from "./dom.js";
-import { addVehicle, formEdited, loadExampleList, loadPreset, onTopViewClick, presetChosen } from "./editor.js";
+import { addObstacle, addVehicle, formEdited, loadExampleList, loadPreset, onTopViewClick, onTopViewPointerDown,
+         onTopViewPointerMove, onTopViewPointerUp, presetChosen } from "./editor.js";
 import { refreshStale } from "./flygate.js";
 import { abortAll, drawTelemetry, fly } from "./flight.js";
 import { setTime, togglePlay } from "./flyscreen.js";
@@ -28,6 +29,11 @@ function wire() {
   $("#preset-load").addEventListener("click", () => loadPreset());
   $("#add-vehicle").addEventListener("click", addVehicle);
   $("#top-view").addEventListener("click", onTopViewClick);
+  $("#top-view").addEventListener("pointerdown", onTopViewPointerDown);
+  $("#top-view").addEventListener("pointermove", onTopViewPointerMove);
+  $("#top-view").addEventListener("pointerup", onTopViewPointerUp);
+  $("#add-box").addEventListener("click", () => addObstacle("box"));
+  $("#add-cylinder").addEventListener("click", () => addObstacle("cylinder"));
   $("#time-slider").addEventListener("input", (/** @type {Event} */ ev) => {
     $("#follow").checked = false;  // the operator looks elsewhere in time; "follow" brings it back
     setTime(Number(/** @type {HTMLInputElement} */ (ev.target).value));

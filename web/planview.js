@@ -4,6 +4,7 @@
 // plots. plotly.js (3.5 MB) is loaded only when a plan is first shown, never before the
 // editor is usable.
 import { $, badge, color, fmt } from "./dom.js";
+import { obstacleMesh } from "./obstacles.js";
 import { views } from "./state.js";
 import { PATH_POINTS, byColour, decimated, layered } from "./scale.js";
 import { minSeparation } from "./tracks.js";
@@ -126,7 +127,8 @@ function render3d(plan, traj) {
     },
     uirevision: "keep",
   };
-  plotly().react("plot3d", [...lines, now, flown], layout, PLOT_CONFIG);
+  const solids = obstacleMesh(plan.scenario.obstacles ?? []);  // after the markers: their indexes hold
+  plotly().react("plot3d", [...lines, now, flown, ...(solids ? [solids] : [])], layout, PLOT_CONFIG);
 }
 
 /** The 3-D view's moving markers: their data changes at once, the WebGL scene is redrawn

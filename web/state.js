@@ -34,13 +34,14 @@
 export const service = { statuses: null };
 
 /** The editor: what the form holds beyond its inputs.
- * @type {{presetName: string | null, touched: boolean, selected: number,
+ * @type {{presetName: string | null, touched: boolean, selected: number, obstacle: number,
  *   extra: Record<string, unknown>, limitExtras: Record<string, unknown>,
  *   presetSettled: boolean}} */
 export const editor = {
   presetName: null,     // name of the preset loaded, until the operator edits the form
   touched: false,       // the operator has typed in the form: nothing loads over it by itself
   selected: 0,          // vehicle row the top view places points for
+  obstacle: -1,         // obstacle row selected (drawn bold), -1: none
   extra: {},            // scenario keys without inputs (separation_scale, ...), kept as loaded
   limitExtras: {},      // limits without inputs (thrust_min, thrust_max, body_rate_max)
   presetSettled: false, // the first preset has loaded (or could not be): the form is the page's

@@ -1,8 +1,9 @@
 // @ts-check
-// The editor's top view: the workspace, every vehicle's start (dot), goal (cross) and the
-// line between, and the world point under a click.
+// The editor's top view: the workspace, its obstacles with their clearance, every vehicle's
+// start (dot), goal (cross) and the line between, and the world point under a click.
 import { $, $$, color, svgEl } from "./dom.js";
-import { readNumber, vehicleRows, workspace } from "./form.js";
+import { obstacleClearance, obstacleRows, readNumber, readObstacles, vehicleRows, workspace } from "./form.js";
+import { drawObstacles } from "./obstacles.js";
 import { byColour, layered } from "./scale.js";
 import { editor } from "./state.js";
 
@@ -12,7 +13,7 @@ function transform() {
   const { lo, hi } = workspace();
   const scale = (SIZE - 2 * PAD) / Math.max(hi[0] - lo[0], hi[1] - lo[1]);
   return {
-    lo, hi,
+    lo, hi, scale,
     /** @param {number} x @param {number} y */
     toSvg: (x, y) => [PAD + (x - lo[0]) * scale, SIZE - PAD - (y - lo[1]) * scale],
     /** @param {number} sx @param {number} sy */
@@ -32,6 +33,14 @@ export function drawTopView() {
     `(${tf.lo[0]}, ${tf.lo[1]})`;
   svgEl("text", { x: x1, y: y1 - 4, "font-size": 10, fill: "#6b7480", "text-anchor": "end" }, view)
     .textContent = `(${tf.hi[0]}, ${tf.hi[1]}) m`;
+  const obstacles = readObstacles().map((ob, i) => ({ ob, i })).filter(({ ob }) => drawable(ob));
+  const marked = new Set(obstacleRows().flatMap((tr, i) => (tr.classList.contains("has-error") ? [i] : [])));
+  const layer = svgEl("g", { class: "obstacles" }, view);
+  drawObstacles(layer, tf, obstacles.map(({ ob }) => ob), obstacleClearance(),
+                { selected: obstacles.findIndex(({ i }) => i === editor.obstacle),
+                  marked: new Set(obstacles.flatMap(({ i }, k) => (marked.has(i) ? [k] : []))) });
+  // Drawn indexes are the table's rows (some rows may be half typed and skipped).
+  $$("g.obstacle", layer).forEach((g, k) => { g.setAttribute("data-index", String(obstacles[k].i)); });
   const rows = vehicleRows();
   if (layered(rows.length)) { drawLayers(view, tf, rows); return; }
   rows.forEach((tr, i) => {
@@ -45,6 +54,15 @@ export function drawTopView() {
     svgEl("path", { d: `M${gx - 5},${gy - 5}L${gx + 5},${gy + 5}M${gx - 5},${gy + 5}L${gx + 5},${gy - 5}`, stroke: c, "stroke-width": selected ? 3 : 2 }, view);
     svgEl("text", { x: sx + 6, y: sy - 6, "font-size": 10, fill: c }, view).textContent = $("input", tr).value;
   });
+}
+
+/** Whether every number an obstacle's drawing needs is there and finite.
+ * @param {import("./obstacles.js").Obstacle} ob */
+function drawable(ob) {
+  const shape = /** @type {any} */ (ob.box ?? ob.cylinder ?? ob.prism);
+  /** @param {any} v @returns {boolean} */
+  const finite = (v) => (Array.isArray(v) ? v.every(finite) : v === undefined || (v !== null && Number.isFinite(v)));
+  return Boolean(shape) && finite(Object.values(shape));
 }
 
 /** A show-sized form: per colour one path of start-goal lines and one of start dots, no
