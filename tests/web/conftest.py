@@ -23,6 +23,7 @@ from playwright.sync_api import (
     Page,
     Route,
     ViewportSize,
+    expect,
     sync_playwright,
 )
 
@@ -30,6 +31,11 @@ from tests.api.support import ServiceProcess, free_udp_base
 from tests.web.support import ServiceStarting
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
+#: How long a page expectation waits by default (ms): a loose bound, not a timing check. On a
+#: machine busy beside the suite (two CPU hogs) the page took over Playwright's 5 s default to
+#: enable Plan; a passing expectation returns as soon as it holds, whatever the bound.
+EXPECT_TIMEOUT_MS = 30_000
+expect.set_options(timeout=EXPECT_TIMEOUT_MS)
 
 
 def _chromium() -> str:
