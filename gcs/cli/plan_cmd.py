@@ -106,6 +106,12 @@ def _summary_rows(plan: Any) -> list[tuple[str, str]]:
             ]
         elif len(plan.vehicles) > 1:
             rows.append(("min separation", f"undefined (R = {sep:g} m)"))
+        if plan.scenario.obstacles:
+            near = v.closest_obstacle or {}
+            rows.append(("obstacle clearance (continuous)",
+                         f"{_number(v.obstacle_distance_min, '{:.4f}')} m (clearance "
+                         f"{plan.scenario.clearance:g} m), {near.get('vehicle')} from "
+                         f"'{near.get('id')}' at t = {_number(near.get('time'), '{:.2f}')} s"))
         worst = max(v.max_violation.items(), key=lambda kv: -1.0 if kv[1] is None else kv[1])
         boundary = [x for x in v.boundary_error.values() if x is not None]
         rows += [

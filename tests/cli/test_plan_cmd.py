@@ -22,6 +22,18 @@ def test_plans_an_example_and_writes_the_plan(tmp_path, capsys):
     doc = json.loads(out.read_text())
     assert doc["status"] == "converged"
     assert len(doc["vehicles"]) == 4
+    assert "obstacle clearance" not in printed  # no obstacles, no row
+
+
+def test_the_summary_gives_the_clearance_kept_from_the_obstacles(tmp_path, capsys):
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(EXAMPLES / "pillar-circle8.json"), "-o", str(out), "-q"]) == 0
+    printed = " ".join(capsys.readouterr().out.split())  # the table may wrap a cell
+    verification = json.loads(out.read_text())["verification"]
+    kept = verification["obstacle_distance_min"]
+    assert kept >= 0.5 - 1e-4 and verification["closest_obstacle"]["id"] == "pillar"
+    assert f"obstacle clearance (continuous) │ {kept:.4f} m (clearance 0.5 m)" in printed
+    assert "'pillar'" in printed
 
 
 @pytest.mark.parametrize(
