@@ -1,4 +1,4 @@
-"""A signed flight while a local process sends every vehicle 40 rejected commands/s (issue 17).
+"""A signed flight while a local process sends every vehicle 40 rejected commands/s.
 
 Plans the 4-vehicle crossing for a fleet with position_error 0.25 m (R 1 m planned at 1.5 m,
 the margin procedure of the issue), then flies it, signed, on 4 px4-like mock vehicles in a
@@ -17,7 +17,7 @@ process of their own (as PX4 SITL runs beside the GCS), once per case and repeat
   the first datagram each vehicle hears (PX4 latches its partner on it).
 
 Except in ``raw_first``, the attacker starts once the GCS has connected (the vehicles' replies
-are latched to it), as in the issue's flights.
+are latched to it), as in the flights flown against PX4 SITL.
 
 Per flight it prints the GCS's setpoint rate, tick jitter, missed ticks, tracking error,
 separation flown and required, what the GCS dropped, what each vehicle accepted and rejected
@@ -65,7 +65,7 @@ from tests.api.support import SHORT_CROSSING
 ROOT = Path(__file__).resolve().parents[1]
 CASES = ("quiet", "raw", "mavsdk", "both_ends", "hogs", "raw_hogs", "raw_first")
 RATE = 40.0
-"""Rejected commands per second per vehicle (the issue's test)."""
+"""Rejected commands per second per vehicle (the test's figure)."""
 POSITION_ERROR = 0.25
 HOG = "while True: pass"
 
@@ -230,8 +230,8 @@ def main() -> None:
     parser.add_argument("--cases", default=",".join(CASES), help="comma-separated, of "
                         + ", ".join(CASES))
     parser.add_argument("--priority", choices=("normal", "realtime"), default="normal",
-                        help="the stream's priority (default normal: the issue's station; "
-                             "realtime needs CAP_SYS_NICE)")
+                        help="the stream's priority (default normal, as the station of the "
+                             "SITL flights; realtime needs CAP_SYS_NICE)")
     parser.add_argument("--mock-child", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.mock_child:

@@ -93,8 +93,8 @@ class IterationRecord:
 
 
 #: Field metadata of the verification's obstacle figures: the plan JSON leaves them out
-#: for a scenario without obstacles (so such plans read as before), and the published
-#: schema does not require them.
+#: for a scenario without obstacles (such plans carry no obstacle keys at all), and the
+#: published schema does not require them.
 _OBSTACLE_FIELD: dict[str, Any] = {"omitted": "without obstacles"}
 
 

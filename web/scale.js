@@ -2,8 +2,8 @@
 // The page at show scale: above LAYERED_ABOVE vehicles every view draws one element (plot
 // trace or SVG path) per colour, carrying all that colour's vehicles as separate segments,
 // from paths decimated to at most PATH_POINTS points, and trajectories are fetched at a rate
-// that keeps vehicles x samples within SAMPLE_BUDGET. Smaller fleets are drawn per vehicle
-// from the full samples, as before.
+// that keeps vehicles x samples within SAMPLE_BUDGET. Smaller fleets are drawn one element
+// per vehicle from the full samples.
 /** Fleets larger than this are drawn one layer per colour, not one element per vehicle. */
 export const LAYERED_ABOVE = 32;
 /** Most points of one vehicle's path in a layered drawing. */

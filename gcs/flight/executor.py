@@ -500,7 +500,8 @@ class FlightExecutor:
 
     def _planned_landing(self, action: str) -> PlannedLanding | None:
         """The landing plan's run for an abort with land (`gcs.flight.landing`), or None
-        when nothing flies the plan (or `landing` is px4): then PX4's Land as before."""
+        when nothing flies the plan (or `landing` is px4): then every vehicle gets PX4's Land
+        where it is."""
         if action != "land" or self.options.landing != "planned" or self.streamer is None:
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), self.vehicles, self.streamer,

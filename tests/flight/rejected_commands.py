@@ -1,5 +1,5 @@
 """A hostile local process that sends unsigned LAND and force-DISARM commands to every
-vehicle's port: what a signed fleet rejects (issue 17's attacker, reproduced).
+vehicle's port: what a signed fleet rejects (the attacker of the flights against PX4 SITL).
 
     python -m tests.flight.rejected_commands --vehicles 127.0.0.1:24580=1,127.0.0.1:24581=2 \
         --rate 40 --duration 30 [--style mavsdk] [--gcs-ports 24540,24541]

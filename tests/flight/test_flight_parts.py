@@ -125,7 +125,7 @@ def test_a_descent_column_is_checked_against_the_others_plan() -> None:
 def test_land_faulty_lands_the_fleet_by_a_plan_when_the_vehicle_can_be_steered() -> None:
     """A vehicle off its plan (a tracking error) still follows setpoints: rather than send it
     straight down through the others' airspace, land_faulty lands the whole fleet by a
-    landing plan (an abort with land); with `landing: px4` it lands alone, as before."""
+    landing plan (an abort with land); with `landing: px4` it lands alone."""
     async def main(landing: str) -> list[Any]:
         p, calls, _events = _policy("land_faulty")
         p.options = p.options.replace(landing=landing)

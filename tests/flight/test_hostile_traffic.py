@@ -1,4 +1,4 @@
-"""Issue 17's hostile traffic on the px4-like mock: a signed fleet flying with its margin while
+"""Hostile traffic on the px4-like mock: a signed fleet flying with its margin while
 another local process sends every vehicle 40 unsigned LAND / force-DISARM commands per second
 (`tests/flight/rejected_commands.py`, MAVSDK's way), and spoofs the vehicles' ACKs to the
 GCS.
@@ -32,7 +32,7 @@ from tests.flight.test_attacks import Attacker
 
 pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 
-#: Rejected commands per second, per vehicle (the issue's figure).
+#: Rejected commands per second, per vehicle (what the floor asks the flight to withstand).
 RATE = 40.0
 POSITION_ERROR = 0.25
 
@@ -72,7 +72,7 @@ async def _fly(tmp_path: Path) -> tuple[dict[str, Any], MockFleet, dict[str, Any
                                                              climb_speed=2.0))
         task = executor.start()
         # the GCS speaks to the vehicles first (their replies are latched to it), as in
-        # the issue's flights; then the attack starts, before the vehicles take off
+        # the SITL flights; then the attack starts, before the vehicles take off
         while executor.phase in ("created", "connecting") and not task.done():
             await asyncio.sleep(0.02)
         attacker = CommandAttacker(

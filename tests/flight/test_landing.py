@@ -47,7 +47,7 @@ async def _abort_at(plan, t_abort: float, options):
 
 @pytest.mark.flight
 def test_stacked_pair_aborted_with_land_keeps_r_until_down() -> None:
-    """The issue's 0.53 m case: aborted with land while stacked, the two vehicles fly a
+    """The 0.53 m case: aborted with land while stacked, the two vehicles fly a
     verified landing plan to touchdown points R apart and PX4 lands them from there; the
     flown separation stays >= R - 0.05 m until both are on the ground, disarmed."""
     plan = smooth_plan(STACKED)
