@@ -154,10 +154,11 @@ class Streamer:
     def _prepare_tick(self, tick: int) -> list[tuple[str, Assignment, Setpoint, bytes]]:
         """Every vehicle's setpoint for `tick`, encoded, ready to send."""
         boot_ms = time_boot_ms(self.tick_time(tick) - self.boot_epoch)
-        for vehicle_id, waiting in list(self.pending.items()):
-            if waiting.start_tick <= tick:  # its switch tick: it takes over
-                del self.pending[vehicle_id]
-                self.assignments[vehicle_id] = waiting
+        if self.pending:  # almost always empty: no copy of it on every tick
+            for vehicle_id, waiting in list(self.pending.items()):
+                if waiting.start_tick <= tick:  # its switch tick: it takes over
+                    del self.pending[vehicle_id]
+                    self.assignments[vehicle_id] = waiting
         ready = []
         for vehicle_id, assignment in list(self.assignments.items()):
             setpoint = assignment.track.at(tick - assignment.start_tick)
