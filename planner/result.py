@@ -96,6 +96,8 @@ class IterationRecord:
 #: for a scenario without obstacles (such plans carry no obstacle keys at all), and the
 #: published schema does not require them.
 _OBSTACLE_FIELD: dict[str, Any] = {"omitted": "without obstacles"}
+#: The same for the figures of fixed trajectories (`planner.fixed`).
+_FIXED_FIELD: dict[str, Any] = {"omitted": "without fixed trajectories"}
 
 
 @dataclass(frozen=True)
@@ -139,6 +141,13 @@ class Verification:
     clear: bool = field(default=True, metadata=_OBSTACLE_FIELD)
     """obstacle_distance_min >= obstacle_clearance - separation_tolerance; absent (true)
     without obstacles, false when undefined."""
+    fixed_distance_min: float | None = field(default=None, metadata=_FIXED_FIELD)
+    """Smallest distance (separation metric, m) of a planned vehicle from a fixed one
+    (`planner.fixed`) over continuous time, the pair with the least slack against R plus
+    the fixed one's margin; absent without fixed trajectories, null when undefined."""
+    closest_fixed: dict[str, Any] | None = field(default=None, metadata=_FIXED_FIELD)
+    """Where: {"id": fixed id, "vehicle": planned id, "time": s, "required": R + margin};
+    empty when undefined; absent without fixed trajectories."""
 
     @property
     def verified(self) -> bool:
@@ -149,16 +158,30 @@ class Verification:
     def to_dict(self) -> dict[str, Any]:
         """The JSON form; the obstacle fields only for a scenario with obstacles."""
         out = asdict(self)
-        if self.closest_obstacle is None and self.clear:
-            for f in fields(self):
-                if "omitted" in f.metadata:
-                    del out[f.name]
+        for f in fields(self):
+            omitted = f.metadata.get("omitted")
+            obstacle_unused = (omitted == _OBSTACLE_FIELD["omitted"]
+                               and self.closest_obstacle is None and self.clear)
+            fixed_unused = omitted == _FIXED_FIELD["omitted"] and self.closest_fixed is None
+            if obstacle_unused or fixed_unused:
+                del out[f.name]
         return out
 
     def failures(self) -> list[str]:
         """What failed, in words (empty when verified)."""
         out = []
-        if not self.separated:
+        near = self.closest_fixed
+        fixed_failed = near is not None and (
+            self.fixed_distance_min is None or not near
+            or self.fixed_distance_min < near["required"] - self.separation_tolerance)
+        if fixed_failed:
+            assert near is not None
+            out.append("distance from the fixed trajectories is undefined (non-finite motion)"
+                       if not near or self.fixed_distance_min is None else
+                       f"vehicle {near['vehicle']!r} comes {self.fixed_distance_min:.4f} m "
+                       f"from fixed vehicle {near['id']!r} at {near['time']:.2f} s, under "
+                       f"{near['required']:g} m")
+        if not self.separated and not fixed_failed:
             if self.min_separation_continuous is None:
                 out.append("continuous-time separation is undefined (non-finite motion or "
                            "an overflowing separation metric)")

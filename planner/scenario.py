@@ -29,6 +29,7 @@ from planner.errors import ScenarioError
 from planner.types import FloatArray, IntArray
 
 if TYPE_CHECKING:
+    from planner.fixed import FixedSet, FixedTrajectory
     from planner.obstacles import Obstacle, ObstacleSet
 
 __all__ = ["DEFAULTS", "RANGES", "Limits", "Scenario", "Vehicle", "check_id", "check_keys",
@@ -62,7 +63,7 @@ MAX_ITERATIONS = 1000
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
     "max_iterations", "limits", "vehicles", "assignment", "separation_margin",
-    "obstacles", "obstacle_clearance",
+    "obstacles", "obstacle_clearance", "fixed",
 }
 _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
@@ -182,6 +183,16 @@ class Scenario:
         from planner.obstacles import ObstacleSet
 
         return ObstacleSet.build(self.obstacles)
+    fixed: tuple[FixedTrajectory, ...] = ()
+    """Vehicles whose motion is known and not planned (`planner.fixed`): the planned ones
+    keep R + each one's margin from it at every instant."""
+
+    @cached_property
+    def fixed_set(self) -> FixedSet:
+        """The fixed trajectories as arrays on the step grid (built once)."""
+        from planner.fixed import FixedSet
+
+        return FixedSet.build(self.fixed, self.dt, self.steps)
     start_velocities: FloatArray | None = field(default=None, repr=False)
     """(N, 3) start velocities (m/s), when some vehicle has one; None: all start at rest."""
     start_accelerations: FloatArray | None = field(default=None, repr=False)
@@ -253,7 +264,8 @@ class Scenario:
         } | ({"separation_margin": self.separation_margin} if self.separation_margin else {}
              ) | ({"obstacle_clearance": self.clearance,
                    "obstacles": [o.to_dict() for o in self.obstacles]}
-                  if self.obstacles or self.obstacle_clearance is not None else {})
+                  if self.obstacles or self.obstacle_clearance is not None else {}
+             ) | ({"fixed": [f.to_dict() for f in self.fixed]} if self.fixed else {})
 
 
 def _vehicle_dict(v: Vehicle) -> dict[str, Any]:
@@ -432,6 +444,11 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     check_clear(obstacles, clearance, starts, "start")
     check_clear(obstacles, clearance, goals, "goal")
 
+    from planner.fixed import check_fixed_clear, parse_fixed
+
+    fixed = parse_fixed(data, [v.id for v in vehicles], steps)
+    check_fixed_clear(fixed, separation, scale, starts, goals)
+
     goal_order = None
     if assignment == "free":
         goal_order = assign_goals(starts, goals, scale)
@@ -476,6 +493,7 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         start_accelerations=start_accelerations,
         obstacles=obstacles,
         obstacle_clearance=clearance if "obstacle_clearance" in data or obstacles else None,
+        fixed=fixed,
     )
 
 

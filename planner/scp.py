@@ -35,7 +35,8 @@ from planner.boxes import broken_boxes, near_boxes
 from planner.dual import solve_group_dual
 from planner.first_qp import solve_first_qp
 from planner.flatness import GRAVITY
-from planner.obstacle_rows import ObstacleRows, concat_rows
+from planner.obstacle_rows import concat_rows
+from planner.one_sided import OneSidedRows
 from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
 from planner.routes import seed_routes
@@ -156,8 +157,9 @@ class _GroupSolver:
         self.split_above = split_above
         self.block_size = block_size
         self.dual = dual
-        self.obstacles: ObstacleRows | None = None
-        """The scenario's obstacle rows (None without obstacles)."""
+        self.obstacles: OneSidedRows | None = None
+        """The scenario's one-sided rows: obstacles and fixed trajectories (None without
+        either)."""
 
     def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories,
               obstacle_keys: Keys | None = None
@@ -543,7 +545,8 @@ def run_scp(
                 infeasible_groups=("obstacles",),
             )
         current = seeded.guess
-        obstacle_rows = groups_solver.obstacles = ObstacleRows(scenario)
+    if scenario.obstacles or scenario.fixed:
+        obstacle_rows = groups_solver.obstacles = OneSidedRows(scenario)
     carried = np.zeros(0, dtype=np.int64)
     held = np.zeros(0, dtype=np.int64)
     retried = 0

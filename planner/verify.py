@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from planner.clearance import closest_obstacle
+from planner.fixed_clearance import closest_fixed
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Plan, Verification
 from planner.scenario import Scenario
@@ -155,6 +156,21 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
                                      "vehicle": ids[near.vehicle], "time": near.time},
                 "clear": near.distance >= scenario.clearance - SEPARATION_TOLERANCE,
             }
+    fixed: dict[str, Any] = {}
+    fixed_ok = True
+    if scenario.fixed:
+        nearest = closest_fixed(scenario, p, v, a) if measurable else None
+        if nearest is None or not math.isfinite(nearest.distance):
+            fixed = {"fixed_distance_min": None, "closest_fixed": {}}
+            fixed_ok = False
+        else:
+            fixed = {
+                "fixed_distance_min": nearest.distance,
+                "closest_fixed": {"id": scenario.fixed[nearest.fixed].id,
+                                  "vehicle": ids[nearest.vehicle], "time": nearest.time,
+                                  "required": nearest.required},
+            }
+            fixed_ok = nearest.distance >= nearest.required - SEPARATION_TOLERANCE
     return Verification(
         min_separation=step_min if pairs and measured else None,
         min_separation_continuous=cont_min if pairs and measured else None,
@@ -165,9 +181,9 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         thrust_range=[_finite(x) for x in thrust_range],
         body_rate_peak=_finite(rate_peak),
         flyable=bool(flyable),
-        separated=bool(not pairs or (measured
-                                     and cont_min >= scenario.min_separation
-                                     - SEPARATION_TOLERANCE)),
+        separated=bool(fixed_ok and (not pairs or (measured
+                                                   and cont_min >= scenario.min_separation
+                                                   - SEPARATION_TOLERANCE))),
         within_bounds=bool(
             bounded
             and max(violation.values()) <= BOUND_TOLERANCE
@@ -176,6 +192,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
         separation_tolerance=SEPARATION_TOLERANCE,
         bound_tolerance=BOUND_TOLERANCE,
         **obstacle,
+        **fixed,
     )
 
 

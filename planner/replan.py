@@ -1,0 +1,206 @@
+"""Replanning a flying fleet: from its state at a switch instant to new goals, verified.
+
+`plan_replan` takes every steered vehicle's position, velocity and acceleration at the
+switch instant (world frame ENU: the flying plan's exact state there) and its goal (new or
+kept), plus the vehicles whose motion is known and not planned (`planner.fixed`: a dropped
+vehicle braking to a hold or landing, a faulty one on its failsafe), and plans with the same
+SCP planner under the base scenario's workspace, boxes, R, obstacles and step length. The
+result is verified like every plan: continuous-time separation among the planned vehicles
+and from the fixed ones (R + margin), boxes, obstacles, boundary conditions, flyability.
+
+From a verified plan's state, pairs passing each other near R can be held to a hair less
+than R on the first step (`planner.landing.first_step_clearance`); the replan then keeps
+that (it says which in `Replan.separation`). `check_goals` refuses goals a replan could
+never reach, naming `goals.<id>`.
+
+Numerics only: the ground station picks the switch instant, streams the plan from it and
+flies the dropped vehicles' motions (`gcs.flight.replan`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from planner.checks import check_vector
+from planner.errors import PlannerError, ScenarioError
+from planner.fixed import FixedTrajectory
+from planner.landing import START_SLACK, first_step_clearance
+from planner.planning import plan
+from planner.result import Plan
+from planner.scenario import MAX_STEPS, RANGES, Scenario, minimum_transfer_time
+from planner.scp import ScpOptions
+from planner.types import FloatArray
+
+__all__ = ["Replan", "ReplanError", "check_goals", "plan_replan", "replan_horizon"]
+
+#: The horizon is this many times what the farthest vehicle needs (stop, then move), plus
+#: `HORIZON_EXTRA_S`: room to give way to each other and to the fixed vehicles.
+HORIZON_FACTOR = 1.3
+HORIZON_EXTRA_S = 1.0
+#: Share of the velocity bound a move is timed with (a cruise, not a sprint).
+CRUISE_SHARE = 0.6
+#: Horizons tried, as multiples of the first, when a plan fails to converge or verify.
+RETRY_FACTORS = (1.0, 1.6)
+
+
+class ReplanError(PlannerError):
+    """No verified replan: the reason in words (the flight goes on with its plan)."""
+
+
+@dataclass(frozen=True)
+class Replan:
+    """A verified replan and how it was made."""
+
+    plan: Plan
+    """Converged and verified; vehicles in the order given, starting from the given state."""
+    separation: float
+    """The separation it keeps among the planned vehicles (m): R, or a hair less where the
+    state does not allow R on the first step."""
+    seconds: float
+    attempts: int
+
+
+def replan_horizon(base: Scenario, starts: FloatArray, velocities: FloatArray,
+                   goals: FloatArray) -> float:
+    """Seconds a replan gets: the farthest vehicle's stop and move under the boxes, timed at
+    a cruise, with room to spare."""
+    lim = base.limits
+    move = minimum_transfer_time(goals - starts, lim.velocity_max, lim.acceleration_max)
+    cruise = (1.0 if lim.velocity_max is None
+              else CRUISE_SHARE * float(lim.velocity_max.min()))
+    nominal = np.linalg.norm(goals - starts, axis=1) / cruise
+    stop = (np.zeros(len(starts)) if lim.acceleration_max is None
+            else np.max(np.abs(velocities) / lim.acceleration_max, axis=1))
+    need = max(float(np.max(move.max(axis=1) + 2.0 * stop)), float(np.max(nominal)))
+    return HORIZON_FACTOR * need + HORIZON_EXTRA_S
+
+
+def check_goals(base: Scenario, goals: Mapping[str, ArrayLike],
+                others: Mapping[str, ArrayLike]) -> dict[str, FloatArray]:
+    """The new `goals` {id: [x, y, z]} as arrays, each inside the workspace, clear of the
+    obstacles, and at least R (separation metric) from every other goal (new ones and the
+    kept goals `others`). Raises `ScenarioError` naming ``goals.<id>``."""
+    lim = base.limits
+    out: dict[str, FloatArray] = {}
+    for vid, raw in goals.items():
+        where = f"goals.{vid}"
+        point = check_vector(list(raw) if isinstance(raw, np.ndarray) else raw, where)
+        outside = (point < lim.position_min) | (point > lim.position_max)
+        if outside.any():
+            axis = int(np.argmax(outside))
+            raise ScenarioError(where, f"{point.tolist()} lies outside the workspace on axis "
+                                       f"{'xyz'[axis]} [{lim.position_min[axis]:g}, "
+                                       f"{lim.position_max[axis]:g}]")
+        if base.obstacles:
+            geometry = base.obstacle_set
+            distance = geometry.signed_distance(np.repeat(point[None], len(base.obstacles), 0),
+                                                np.arange(len(base.obstacles)))
+            o = int(np.argmin(distance))
+            if distance[o] < base.clearance:
+                raise ScenarioError(where, f"{point.tolist()} lies inside obstacle "
+                                           f"{base.obstacles[o].id!r} (clearance "
+                                           f"{base.clearance:g} m)")
+        out[vid] = point
+    everyone = {**{k: np.asarray(v, dtype=float) for k, v in others.items()
+                   if k not in out}, **out}
+    names = list(everyone)
+    if len(names) >= 2:
+        points = np.array([everyone[k] for k in names]) / base.separation_scale
+        for vid, point in out.items():
+            d = np.linalg.norm(points - point / base.separation_scale, axis=1)
+            d[names.index(vid)] = math.inf
+            j = int(np.argmin(d))
+            if d[j] < base.min_separation:
+                raise ScenarioError(f"goals.{vid}",
+                                    f"is {d[j]:.3f} m from the goal of {names[j]!r}, closer "
+                                    f"than min_separation {base.min_separation:g} m")
+    return out
+
+
+def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
+                velocities: ArrayLike, accelerations: ArrayLike, goals: ArrayLike, *,
+                fixed: Sequence[FixedTrajectory] = (), min_horizon: float = 0.0,
+                deadline: float | None = None, solver: str | None = None) -> Replan:
+    """A verified plan for vehicles `ids` from their state (N, 3 each) to `goals` (N, 3),
+    keeping R from each other and R + margin from `fixed`, under `base`'s workspace, boxes,
+    obstacles and step length (see the module).
+
+    min_horizon: the plan lasts at least this long (s), e.g. what the flying plan had left.
+    deadline: a `time.perf_counter()` instant after which no further attempt starts.
+    Raises `ReplanError` when no verified plan was found, for whatever reason.
+    """
+    began = time.perf_counter()
+    lim = base.limits
+    p = np.asarray(positions, dtype=float).reshape(-1, 3)
+    v = np.asarray(velocities, dtype=float).reshape(-1, 3)
+    a = np.asarray(accelerations, dtype=float).reshape(-1, 3)
+    g = np.asarray(goals, dtype=float).reshape(-1, 3)
+    names = list(ids)
+    if not len(p) == len(v) == len(a) == len(g) == len(names) or len(p) == 0:
+        raise ReplanError("positions, velocities, accelerations, goals and ids must agree "
+                          "in length")
+    if not all(np.isfinite(x).all() for x in (p, v, a, g)):
+        raise ReplanError("the fleet's state or goals are not finite")
+    # A state a hair outside the boxes (rounding) is planned from the nearest one inside.
+    p = np.clip(p, lim.position_min, lim.position_max)
+    if lim.velocity_max is not None:
+        v = np.clip(v, -lim.velocity_max, lim.velocity_max)
+    if lim.acceleration_max is not None:
+        a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
+    clearance = first_step_clearance(p, v, a, base)
+    separation = base.min_separation
+    if clearance < separation * (1.0 + START_SLACK):
+        separation = min(separation, clearance) - START_SLACK * separation
+    if not separation >= RANGES["min_separation"][0]:
+        raise ReplanError(f"two vehicles are too close to replan: the first step keeps "
+                          f"{max(clearance, 0.0):.3f} m")
+    horizon = max(min_horizon, replan_horizon(base, p, v, g),
+                  max(((len(f) - 1) * base.dt for f in fixed), default=0.0))
+    failures: list[str] = []
+    for attempts, factor in enumerate(RETRY_FACTORS, start=1):
+        if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
+            break
+        steps = min(MAX_STEPS, max(3, math.ceil(factor * horizon / base.dt)))
+        try:
+            spec = _scenario(base, names, p, v, a, g, fixed, separation, steps)
+            result = plan(spec, solver=solver, options=ScpOptions())
+        except ScenarioError as exc:  # a goal or start the scenario refuses: no retry helps
+            raise ReplanError(f"cannot replan: {exc}") from exc
+        except (PlannerError, ValueError, ArithmeticError) as exc:
+            raise ReplanError(f"cannot replan: {exc}") from exc
+        if result.ok:
+            return Replan(result, separation, time.perf_counter() - began, attempts)
+        failures.append(f"{steps * base.dt:.1f} s: {'; '.join(result.problems())}")
+    raise ReplanError("no verified replan (" + " | ".join(failures) + ")")
+
+
+def _scenario(base: Scenario, ids: list[str], p: FloatArray, v: FloatArray, a: FloatArray,
+              goals: FloatArray, fixed: Sequence[FixedTrajectory], separation: float,
+              steps: int) -> Scenario:
+    """The replan's scenario: the base's workspace, boxes, obstacles, from the state."""
+    data = {
+        "name": f"{base.name} replan",
+        "dt": base.dt,
+        "steps": steps,
+        "min_separation": separation,
+        "separation_scale": base.separation_scale.tolist(),
+        "cost_threshold": base.cost_threshold,
+        "max_iterations": base.max_iterations,
+        "limits": base.limits.to_dict(),
+        "vehicles": [
+            {"id": vid, "start": p[n].tolist(), "goal": goals[n].tolist(),
+             "start_velocity": v[n].tolist(), "start_acceleration": a[n].tolist()}
+            for n, vid in enumerate(ids)
+        ],
+        "fixed": [f.to_dict() for f in fixed],
+    }
+    if base.obstacles:
+        data["obstacles"] = [o.to_dict() for o in base.obstacles]
+        data["obstacle_clearance"] = base.clearance
+    return Scenario.from_dict(data)

@@ -1,0 +1,110 @@
+"""Fixed trajectories (`planner.fixed`) and replans (`planner.replan`): planned vehicles keep
+R + margin from known motions over continuous time, and the verifier measures it exactly."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from planner import Plan, plan
+from planner.errors import ScenarioError
+from planner.fixed import braking_motion, landing_motion
+from planner.replan import ReplanError, check_goals, plan_replan
+from planner.scenario import Scenario
+
+LIMITS = {"position_min": [0, 0, 0], "position_max": [5, 5, 3], "velocity_max": [2, 2, 2],
+          "acceleration_max": [3, 3, 3]}
+
+
+def _crossing(fixed: list[dict]) -> dict:
+    return {"name": "t", "dt": 0.2, "steps": 40, "min_separation": 1.0, "limits": LIMITS,
+            "vehicles": [{"id": "a", "start": [0.5, 2.5, 1.5], "goal": [4.5, 2.5, 1.5]},
+                         {"id": "b", "start": [4.5, 2.0, 1.0], "goal": [0.5, 2.0, 1.0]}],
+            "fixed": fixed}
+
+
+def test_a_plan_keeps_r_plus_margin_from_a_landing_vehicle_measured_exactly() -> None:
+    descent = landing_motion("down", [2.5, 2.5, 2.0], [0.5, 0.0, 0.0], 0.2, 2.0, 0.5, 0.2,
+                             margin=0.2)
+    result = plan(Scenario.from_dict(_crossing([descent.to_dict()])))
+    assert result.ok, result.message
+    check = result.verification
+    t = np.arange(0.0, 8.0, 0.001)
+    planned = result.sample(t).position
+    predicted, _, _ = descent.state(t, 0.2)
+    dense = float(np.linalg.norm(planned - predicted[None], axis=2).min())
+    assert check.fixed_distance_min == pytest.approx(dense, abs=1e-4)
+    assert dense >= 1.2 - 1e-3  # R + the full margin, once it has grown
+    assert check.closest_fixed["id"] == "down"
+    back = Plan.from_dict(json.loads(json.dumps(result.to_dict())))
+    assert back.scenario.fixed[0].margin == 0.2
+    assert back.verification.closest_fixed == check.closest_fixed
+
+
+def test_without_the_fixed_vehicle_the_same_crossing_passes_through_its_column() -> None:
+    descent = landing_motion("down", [2.5, 2.5, 2.0], [0.0, 0.0, 0.0], 0.2, 2.0, 0.5, 0.2)
+    free = plan(Scenario.from_dict(_crossing([])))
+    assert "fixed_distance_min" not in free.verification.to_dict()
+    t = np.arange(0.0, 8.0, 0.001)
+    predicted, _, _ = descent.state(t, 0.2)
+    assert np.linalg.norm(free.sample(t).position - predicted[None], axis=2).min() < 1.0
+
+
+@pytest.mark.parametrize(("fixed", "field"), [
+    ([{"id": "a", "positions": [[2.5, 4.5, 1.0]]}], "fixed[0].id"),
+    ([{"id": "x", "positions": [[2.5, 4.5, 1.0]]}, {"id": "x", "positions": [[1, 4.5, 1]]}],
+     "fixed[1].id"),
+    ([{"id": "x", "positions": [[2.5, 4.5, 1.0]] * 42}], "fixed[0].positions"),
+    ([{"id": "x", "positions": [[2.5, 4.5, float("nan")]]}], "fixed[0].positions[0][2]"),
+    ([{"id": "x", "positions": [[1.0, 2.5, 1.5]]}], "vehicles[0].start"),
+    ([{"id": "x", "positions": [[4.5, 2.5, 2.0]], "margin": 0.5}], "vehicles[0].goal"),
+    ([{"id": "x", "positions": [[2.5, 4.5, 1.0]], "velocities": []}], "fixed[0].velocities"),
+])
+def test_bad_fixed_trajectories_are_refused_naming_the_field(fixed, field) -> None:
+    with pytest.raises(ScenarioError) as error:
+        Scenario.from_dict(_crossing(fixed))
+    assert error.value.field == field
+
+
+def test_braking_motion_stops_within_its_deceleration_and_rests() -> None:
+    hold = braking_motion("h", [1.0, 1.0, 1.0], [2.0, 0.0, 0.0], 0.1, 2.0)
+    p, v, a = hold.state(np.arange(0.0, 3.0, 0.01), 0.1)
+    assert p[-1, 0] == pytest.approx(2.0)  # v^2 / 2d = 1 m on
+    assert np.abs(a).max() <= 2.0 + 1e-9
+    assert np.all(np.diff(p[:, 0]) >= -1e-12)
+    assert np.allclose(v[-50:], 0.0)
+
+
+def test_a_replan_from_a_moving_state_avoids_a_dropped_vehicle_and_is_verified() -> None:
+    scenario = Scenario.from_dict(_crossing([]))
+    base = plan(scenario)
+    state = base.sample(np.array([2.0]))
+    p, v, a = state.position[:, 0], state.velocity[:, 0], state.acceleration[:, 0]
+    dropped = braking_motion("c", [2.5, 4.2, 2.5], [0.0, 0.0, 0.0], 0.2, 2.0, margin=0.1)
+    goals = np.array([[4.5, 4.0, 1.0], [0.5, 2.0, 1.0]])
+    replan = plan_replan(scenario, ["a", "b"], p, v, a, goals, fixed=[dropped],
+                         min_horizon=6.0)
+    result = replan.plan
+    assert result.ok
+    assert np.allclose(result.positions()[:, 0], p, atol=1e-6)
+    assert np.allclose(result.velocities()[:, 0], v, atol=1e-6)
+    assert np.allclose(result.positions()[:, -1], goals, atol=1e-5)
+    assert result.verification.fixed_distance_min >= 1.1 - 1e-4
+    assert result.scenario.horizon >= 6.0
+
+
+def test_a_replan_onto_a_fixed_vehicle_is_refused_and_goals_are_checked() -> None:
+    scenario = Scenario.from_dict(_crossing([]))
+    resting = braking_motion("c", [4.5, 2.5, 1.5], [0.0, 0.0, 0.0], 0.2, 2.0)
+    with pytest.raises(ReplanError):
+        plan_replan(scenario, ["a"], [[0.5, 2.5, 1.5]], [[0, 0, 0]], [[0, 0, 0]],
+                    [[4.5, 2.5, 1.5]], fixed=[resting])
+    with pytest.raises(ScenarioError) as outside:
+        check_goals(scenario, {"a": [9.0, 1.0, 1.0]}, {})
+    assert outside.value.field == "goals.a"
+    with pytest.raises(ScenarioError) as close:
+        check_goals(scenario, {"a": [1.0, 1.0, 1.0]}, {"b": [1.5, 1.0, 1.0]})
+    assert close.value.field == "goals.a" and "'b'" in close.value.reason
+    assert check_goals(scenario, {"a": [1.0, 1.0, 1.0]}, {"b": [3.0, 1.0, 1.0]})["a"][0] == 1.0
