@@ -171,19 +171,22 @@ def measured_min_separation(times: list[np.ndarray], positions: list[np.ndarray]
         return math.inf, math.nan
     grid = np.arange(t0, t1, 1.0 / rate)
     tracks = []
+    known = []
     for t, p in zip(times, positions, strict=True):
         if t.size < 2:
             return math.inf, math.nan
-        track = np.stack([np.interp(grid, t, p[:, k]) for k in range(3)], axis=1)
-        if stale_after is not None:
-            track[grid > t[-1] + stale_after] = np.nan
-        tracks.append(track)
+        tracks.append(np.stack([np.interp(grid, t, p[:, k]) for k in range(3)], axis=1))
+        known.append(grid <= t[-1] + stale_after if stale_after is not None
+                     else np.ones(len(grid), dtype=bool))
     stacked = np.stack(tracks) / scale  # (N, G, 3)
     i, j = np.triu_indices(len(tracks), k=1)
     d = np.linalg.norm(stacked[i] - stacked[j], axis=2)  # (pairs, G)
-    if np.isnan(d).all():
+    valid = np.stack(known)
+    # a stale pair does not count; a NaN report makes the answer NaN (unknown)
+    d = np.where(valid[i] & valid[j], d, math.inf)
+    pair, instant = np.unravel_index(int(np.argmin(d)), d.shape)
+    if math.isinf(d[pair, instant]):
         return math.inf, math.nan
-    pair, instant = np.unravel_index(int(np.nanargmin(d)), d.shape)
     return float(d[pair, instant]), float(grid[instant])
 
 
@@ -265,7 +268,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,
         "missed_ticks": missed_ticks,
         "faults": {v.id: v.fault for v in vehicles if v.fault is not None},
-        "dropped": {v.id: {"action": v.dropped, "reason": v.drop_reason, "phase": v.phase}
+        "dropped": {v.id: {"action": v.dropped, "reason": v.drop_reason, "phase": str(v.phase)}
                     for v in vehicles if v.dropped is not None},
         # packets dropped per vehicle (pinning, signing), non-finite reports, garbage per link
         "security": {v.id: {**v.link.telemetry.security.to_dict(),
