@@ -219,17 +219,26 @@ def test_replan_refusals(monkeypatch: pytest.MonkeyPatch) -> None:
         with pytest.raises(StateConflict):
             await flight.replan({"uav1": [1.0, 2.0, 2.0]})
         flight.resume()
-        await flight.replan({"uav1": [1.0, 2.0, 2.0]})
+        obj = await flight.replan({"uav1": [1.0, 2.0, 2.0]})
         with pytest.raises(StateConflict):
             await flight.replan({"uav2": [4.0, 2.0, 2.0]})
+        # paused and resumed after the switch, the fleet holds and goes on on the new plan
+        await _until(flight, obj["switch_time"] + 0.3)
+        assert flight.replans[-1]["status"] == ReplanStatus.SWITCHED
+        flight.pause()
+        await asyncio.sleep(0.3)
+        flight.resume()
         return fields
 
-    _flight, record, _mock, fields = asyncio.run(_fly(plan, options, during))
+    _flight, record, mock, fields = asyncio.run(_fly(plan, options, during))
     assert fields == ["goals.nope", "drop[0]", "drop_action", "goals.uav1", "goals.uav1",
                       "goals.uav2", "drop"]
     assert isinstance(record, dict), record
     assert [r["status"] for r in record["replans"]] == [ReplanStatus.SWITCHED]
     assert record["summary"]["completed"] is True, record["summary"]["why"]
+    # judged against (and flown to) its last goal, not the first plan's [1, 3, 1]
+    np.testing.assert_allclose(mock.vehicles[0].position_world[:2], [1.0, 2.0], atol=0.2)
+    _setpoint_steps_ok(record, 1.05 * float(np.max(plan.scenario.limits.velocity_max)))
 
 
 @pytest.mark.flight
