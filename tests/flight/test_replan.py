@@ -274,3 +274,33 @@ def test_policy_replan_flies_the_others_around_a_vehicle_whose_link_is_cut() -> 
             np.testing.assert_allclose(vehicle.position_world[:2], goal[:2], atol=0.2)
     r = plan.scenario.min_separation
     assert _closest(truth, np.asarray(plan.scenario.separation_scale)) >= r - 0.05
+
+
+@pytest.mark.flight
+def test_policy_replan_that_misses_falls_back_to_land_faulty(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """No replan in time around the faulty vehicle: it lands as under land_faulty, the
+    events say so, the others fly on their plan (its descent checked clear of them), and
+    the flight does not count as completed."""
+    _slow_planner(monkeypatch, 1.0)
+    plan = smooth_plan(short_line(3, steps=40))
+    options = OPTIONS.replace(policy="replan", replan_lead_s=0.1)
+
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
+        await _until(flight, 1.0)
+        mock.vehicles[1].faults.silent = True
+
+    _flight, record, mock, _ = asyncio.run(_fly(plan, options, during))
+    assert isinstance(record, dict), record
+    [missed] = record["replans"]
+    assert missed["status"] == ReplanStatus.MISSED and missed["faulty"] == ["uav2"]
+    told = [(e["vehicle"], e["kind"]) for e in record["events"]]
+    assert ("uav2", EventKind.REPLAN_MISSED) in told
+    assert ("uav2", EventKind.DESCENT_CLEAR) in told  # land_faulty's check, then fly on
+    summary = record["summary"]
+    assert summary["completed"] is False and "uav2: fault link_lost" in summary["why"]
+    assert summary["dropped"] == {}
+    for n in (0, 2):
+        np.testing.assert_allclose(mock.vehicles[n].position_world[:2],
+                                   plan.scenario.goals[n][:2], atol=0.2)
+        assert not mock.vehicles[n].armed
