@@ -593,7 +593,7 @@ class FlightExecutor:
         streamer = self.streamer
         assignment = streamer.assignments.get(v.id) if streamer is not None else None
         motion = None
-        if streamer is not None and v.dropped is None:
+        if streamer is not None:
             scenario = self.plan.scenario
             last = assignment.last if assignment is not None else None
             measured = kind == "tracking_error"  # it is not where it was told to be
@@ -610,8 +610,6 @@ class FlightExecutor:
                 streamer.assign(v.id, assignment.link, motion_track(
                     motion, v.placed, streamer.rate, self.options.yaw), start)
         self.policy.landings.append(self.policy.tasks.spawn(self._land(v)))
-        if v.dropped is not None:
-            return  # already off the plan on a known motion
         why = "its motion cannot be predicted (no position)" if motion is None else None
         if why is None:
             try:
