@@ -304,3 +304,60 @@ def test_policy_replan_that_misses_falls_back_to_land_faulty(
         np.testing.assert_allclose(mock.vehicles[n].position_world[:2],
                                    plan.scenario.goals[n][:2], atol=0.2)
         assert not mock.vehicles[n].armed
+
+
+#: uav2 hovers 1.5 m above uav1's path and 0.6 m beside it; uav1 passes under it halfway.
+#: When uav2 goes down, its descent (and where it lands) is in uav1's way.
+UNDER = {
+    "name": "under", "dt": 0.2, "steps": 50, "min_separation": 1.0,
+    "limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [10.0, 6.0, 4.0],
+               "velocity_max": [3.0, 3.0, 3.0], "acceleration_max": [4.0, 4.0, 4.0]},
+    "vehicles": [{"id": "uav1", "start": [1.0, 3.0, 1.0], "goal": [9.0, 3.0, 1.0]},
+                 {"id": "uav2", "start": [5.0, 3.6, 2.5], "goal": [5.5, 3.6, 2.5]},
+                 {"id": "uav3", "start": [1.0, 1.0, 1.0], "goal": [9.0, 1.0, 1.0]}],
+}
+
+
+@pytest.mark.flight
+@pytest.mark.parametrize("policy", ["replan", "land_faulty"])
+def test_a_faulty_vehicle_landing_in_the_others_way(policy: str) -> None:
+    """uav2's link is cut above uav1's path. land_faulty finds its descent across uav1's plan
+    and stops the fleet in Hold (aborted, uav1 short of its goal); replan flies uav1 around
+    the predicted descent to its goal (completed), keeping R from uav2 in truth."""
+    plan = smooth_plan(UNDER)
+
+    async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
+        await _until(flight, 1.0)
+        truth: list[tuple[float, np.ndarray]] = []
+        sampler = asyncio.create_task(_sample_truth(mock, truth))
+        mock.vehicles[1].faults.silent = True
+        while flight._task is not None and not flight._task.done():
+            await asyncio.sleep(0.05)
+        sampler.cancel()
+        return truth
+
+    flight, outcome, mock, truth = asyncio.run(_fly(plan, OPTIONS.replace(policy=policy),
+                                                    during))
+    record = flight.record
+    assert record is not None
+    told = [(e["vehicle"], e["kind"]) for e in record["events"]]
+    faulty = np.array([p[1] for _, p in truth])
+    others = np.array([p[[0, 2]] for _, p in truth])
+    closest = float(np.min(np.linalg.norm(others - faulty[:, None, :], axis=2)))
+    r = plan.scenario.min_separation
+    assert closest >= r - 0.05
+    if policy == "land_faulty":
+        assert ("uav2", EventKind.DESCENT_CONFLICT) in told
+        assert not isinstance(outcome, dict) and record["summary"]["completed"] is False
+        assert mock.vehicles[0].position_world[0] < 5.0  # held short of uav2
+        return
+    assert isinstance(outcome, dict), outcome
+    assert outcome["summary"]["completed"] is True, outcome["summary"]["why"]
+    [replanned] = outcome["replans"]
+    assert replanned["status"] == ReplanStatus.SWITCHED and replanned["fixed"] == ["uav2"]
+    for n in (0, 2):
+        np.testing.assert_allclose(mock.vehicles[n].position_world[:2],
+                                   plan.scenario.goals[n][:2], atol=0.2)
+    # uav2 came down where it was (its prediction), out of the way of the detour
+    assert mock.vehicles[1].position_world[2] == pytest.approx(0.0, abs=0.05)
+    assert closest >= r  # the others kept R + the prediction's margin, in truth at least R
