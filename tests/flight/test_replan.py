@@ -361,3 +361,43 @@ def test_a_faulty_vehicle_landing_in_the_others_way(policy: str) -> None:
     # uav2 came down where it was (its prediction), out of the way of the detour
     assert mock.vehicles[1].position_world[2] == pytest.approx(0.0, abs=0.05)
     assert closest >= r  # the others kept R + the prediction's margin, in truth at least R
+
+
+@pytest.mark.flight
+def test_a_replan_through_the_flight_handle_from_another_loop() -> None:
+    """`FlightHandle.replan` (how the CLI and the vehicle process reach a flight on its
+    vehicle loop): the replan object comes back, refusals cross as raised, and the posted
+    snapshot shows the replan."""
+    from gcs.flight.flight_handle import FlightHandle
+    from gcs.flight.vehicle_loop import VehicleLoop
+
+    plan = smooth_plan(short_line(2, steps=25))
+
+    async def main() -> tuple[dict[str, Any], Any, dict[str, Any]]:
+        vehicles = VehicleLoop(name="fleetplan-test-replan")
+        vehicles.start()
+        mock = MockFleet(homes=homes_under(plan.scenario.starts), settle_time=0.5,
+                         **mock_ports(2), **FAST_MOCK)
+        try:
+            await vehicles.call(mock.start)
+            fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+            handle = await FlightHandle.create(vehicles, plan, fleet, OPTIONS)
+            task = handle.start()
+            while (handle.snapshot()["flight_time"] or -1.0) < 0.5:
+                await asyncio.sleep(0.05)
+            with pytest.raises(FieldError) as refused:
+                await handle.replan({"uav7": [1.0, 2.0, 1.0]})
+            obj = await handle.replan({"uav1": [1.0, 2.0, 2.0]}, reason="handle")
+            shown = handle.snapshot()["replan"]
+            record = await task
+            return obj, refused.value.field, {"shown": shown, "record": record}
+        finally:
+            await vehicles.call(mock.stop)
+            await asyncio.to_thread(vehicles.stop)
+
+    obj, field, out = asyncio.run(main())
+    assert field == "goals.uav7"
+    assert obj["status"] == ReplanStatus.PLANNING and obj["reason"] == "handle"
+    assert out["shown"]["id"] == obj["id"]
+    assert [r["status"] for r in out["record"]["replans"]] == [ReplanStatus.SWITCHED]
+    assert out["record"]["summary"]["completed"] is True
