@@ -6,7 +6,8 @@ PX4 procedure primitives of `gcs.flight.vehicle`), fault detection `gcs.flight.m
 a fault does `gcs.flight.policy`, the flight clock and its pauses `gcs.flight.clock`, the live
 state `gcs.flight.snapshot`, the event fan-out `gcs.flight.events`, the station's own stalls
 `gcs.flight.station`, what the links and the streamer put in the record
-`gcs.flight.recording`, the record and its summary `gcs.flight.record`. A setpoint goes
+`gcs.flight.recording`, the record and its summary `gcs.flight.record`, in-flight replans
+`gcs.flight.replan` (the plans flown, in flight time: `gcs.flight.flown`). A setpoint goes
 executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
 
 1. connect: open the fleet's links, send the GCS HEARTBEAT at 1 Hz, wait for every vehicle's
@@ -20,15 +21,18 @@ executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
    below the start);
 3. when every vehicle is within `start_tolerance` of its start, start the shared flight
    clock: every vehicle's setpoint for tick k leaves in tick k (`gcs.flight.stream.Streamer`);
-4. after the horizon, hold at the goals for `hold_at_goal`, measure the goal errors, then land
-   (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch to Hold (`at_end`).
+4. after the horizon (of the last plan switched in by a replan), hold at the goals for
+   `hold_at_goal`, measure the goal errors (each vehicle against its last goal; a dropped
+   one is not judged), then land (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch
+   to Hold (`at_end`).
 
 Monitors (20 Hz, `gcs.flight.monitor`): no message at all for `link_timeout` (1.5 s of
 station-running time: a lost link), HEARTBEAT older than `heartbeat_timeout` (5 s: mode and
 armed state unknown), leaving OFFBOARD, tracking error over `tracking_error_max`, and the live
 minimum separation. A flagged vehicle triggers the policy: ``hold_all`` / ``land_all`` stop the
 flight (`FlightAborted`), ``land_faulty`` lands that vehicle and carries on (the flight then
-does not count as completed).
+does not count as completed), ``replan`` lands it on its predicted motion and replans the
+others around it (`gcs.flight.replan`).
 
 An abort with land (or an error) while the plan is flown flies a verified landing plan first
 (`gcs.flight.landing`): planned from the plan's state `landing_plan_timeout` ahead, streamed
@@ -47,6 +51,7 @@ Python API (for the CLI and the REST API)::
     flight.snapshot()                      # JSON-ready live state (positions in world frame)
     async for event in flight.events():    # every event until the flight ends
         ...
+    await flight.replan({"uav2": [x, y, z]}, drop=["uav3"])  # a new plan from a tick ahead
     await flight.abort("land")             # or "hold": all vehicles at once
     record = await task                    # the flight record (dict); also flight.record
 
@@ -89,7 +94,7 @@ from gcs.flight.phases import EventKind, FlightPhase, VehiclePhase
 from gcs.flight.policy import FaultPolicy
 from gcs.flight.record import FlightRecorder, goal_tolerance
 from gcs.flight.recording import FlightRecording, finish_record
-from gcs.flight.replan import Replanner, motion_track, predicted_landing
+from gcs.flight.replan import Replanner
 from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.snapshot import flight_snapshot
 from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
@@ -590,28 +595,11 @@ class FlightExecutor:
         """Policy replan: `v` lands on its own (PX4's Land; streamed its predicted motion
         meanwhile, in case it still listens) and the others replan around that motion; when
         they cannot, land_faulty's way (`FaultPolicy.give_way`)."""
-        streamer = self.streamer
-        assignment = streamer.assignments.get(v.id) if streamer is not None else None
-        motion = None
-        if streamer is not None:
-            scenario = self.plan.scenario
-            last = assignment.last if assignment is not None else None
-            measured = kind == "tracking_error"  # it is not where it was told to be
-            motion = predicted_landing(v, scenario, self.options, self.clock,
-                                       measured=measured, setpoint=last,
-                                       setpoint_tick=streamer.tick)
-            if motion is None and not measured:
-                motion = predicted_landing(v, scenario, self.options, self.clock,
-                                           measured=True)
-        if motion is not None and streamer is not None:
-            self.flown.motions[v.id] = motion
-            if assignment is not None:
-                start = self.clock.start_tick + round(motion.start * streamer.rate)
-                streamer.assign(v.id, assignment.link, motion_track(
-                    motion, v.placed, streamer.rate, self.options.yaw), start)
+        replanner = self._replanner
+        predicted = replanner is not None and replanner.predict_landing(v, kind)
         self.policy.landings.append(self.policy.tasks.spawn(self._land(v)))
-        why = "its motion cannot be predicted (no position)" if motion is None else None
-        if why is None:
+        why = "its motion cannot be predicted (no position)"
+        if predicted:
             try:
                 self._replanner_now().request(None, (), "land", f"{v.id} {kind}",
                                               faulty=[v])

@@ -325,6 +325,29 @@ class Replanner:
             out.append(v)
         return out
 
+    def predict_landing(self, v: VehicleStatus, kind: str) -> bool:
+        """A faulty vehicle (policy replan) lands on its own: its predicted motion becomes
+        its motion off the plans, and it is streamed that motion from now on (it follows
+        it while it still listens), until PX4's Land takes it. From its last setpoint (what
+        it was told), or where it is measured after a tracking error (it is not where it
+        was told to be). False when neither is known."""
+        streamer = self.streamer
+        assignment = streamer.assignments.get(v.id)
+        last = assignment.last if assignment is not None else None
+        measured = kind == "tracking_error"
+        motion = predicted_landing(v, self.base, self.options, self.clock, measured=measured,
+                                   setpoint=last, setpoint_tick=streamer.tick)
+        if motion is None and not measured:
+            motion = predicted_landing(v, self.base, self.options, self.clock, measured=True)
+        if motion is None:
+            return False
+        self.flown.motions[v.id] = motion
+        if assignment is not None:
+            streamer.assign(v.id, assignment.link, motion_track(
+                motion, v.placed, streamer.rate, self.options.yaw),
+                self.clock.start_tick + round(motion.start * streamer.rate))
+        return True
+
     # ------------------------------------------------------------------ planning
 
     def _planned(self, obj: dict[str, Any], fut: asyncio.Future[Replan], began: float
