@@ -401,3 +401,33 @@ def test_a_replan_through_the_flight_handle_from_another_loop() -> None:
     assert out["shown"]["id"] == obj["id"]
     assert [r["status"] for r in out["record"]["replans"]] == [ReplanStatus.SWITCHED]
     assert out["record"]["summary"]["completed"] is True
+
+
+@pytest.mark.flight
+def test_a_replan_while_holding_at_the_goals_moves_the_end_and_a_hold_drop_lands_at_the_end(
+) -> None:
+    """Asked while the fleet holds at its goals: the flight goes on to the new plan's end
+    (a second horizon), uav1 to its new goal; uav2, dropped with hold, holds where it stood
+    and lands with the others at the end, named as dropped, not judged."""
+    plan = smooth_plan(short_line(3, steps=15))  # 3 s
+    options = OPTIONS.replace(hold_at_goal=3.0)
+
+    async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
+        await _until(flight, plan.scenario.horizon + 0.5)
+        obj = await flight.replan({"uav1": [1.0, 1.5, 1.5]}, ["uav2"], "hold")
+        return obj
+
+    _flight, record, mock, obj = asyncio.run(_fly(plan, options, during))
+    assert isinstance(record, dict), record
+    assert [r["status"] for r in record["replans"]] == [ReplanStatus.SWITCHED]
+    assert record["horizon"] == pytest.approx(obj["switch_time"] + record["replans"][0]["horizon"],
+                                              abs=1e-3)
+    assert [e["kind"] for e in record["events"]].count(EventKind.HORIZON) == 2
+    summary = record["summary"]
+    assert summary["completed"] is True, summary["why"]
+    assert summary["dropped"] == {"uav2": {"action": "hold", "reason": "operator",
+                                           "phase": VehiclePhase.LANDED}}
+    np.testing.assert_allclose(mock.vehicles[0].position_world[:2], [1.0, 1.5], atol=0.2)
+    np.testing.assert_allclose(mock.vehicles[1].position_world[:2],
+                               plan.scenario.goals[1][:2], atol=0.2)
+    assert not any(v.armed for v in mock.vehicles)
