@@ -595,18 +595,18 @@ class FlightExecutor:
         """Policy replan: `v` lands on its own (PX4's Land; streamed its predicted motion
         meanwhile, in case it still listens) and the others replan around that motion; when
         they cannot, land_faulty's way (`FaultPolicy.give_way`)."""
-        replanner = self._replanner
-        predicted = replanner is not None and replanner.predict_landing(v, kind)
+        try:
+            replanner = self._replanner_now()
+        except GcsError as exc:
+            replanner, why = None, exc.reason if isinstance(exc, StateConflict) else str(exc)
+        if replanner is not None and not replanner.predict_landing(v, kind):
+            replanner, why = None, "its motion cannot be predicted (no position)"
         self.policy.landings.append(self.policy.tasks.spawn(self._land(v)))
-        why = "its motion cannot be predicted (no position)"
-        if predicted:
-            try:
-                self._replanner_now().request(None, (), "land", f"{v.id} {kind}",
-                                              faulty=[v])
-                return
-            except GcsError as exc:
-                why = str(exc)
-        self._replan_missed([v], why)
+        if replanner is None:
+            self._replan_missed([v], why)
+            return
+        with contextlib.suppress(Exception):  # on failure it fell back (`_replan_missed`)
+            replanner.request(None, (), "land", f"{v.id} {kind}", faulty=[v])
 
     def _replan_missed(self, faulty: list[VehicleStatus], why: str) -> None:
         """Policy replan could not fly the others around `faulty`: land_faulty's way."""

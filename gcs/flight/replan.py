@@ -193,9 +193,21 @@ class Replanner:
             self.cancel(f"{', '.join(v.id for v in faulty)} faulted while it was planned",
                         fallback=False)
             faulty = [*(v for v in carried if v.dropped is None and v not in faulty), *faulty]
-        elif self.busy:
+            try:
+                return self._start(goals, drop, drop_action, reason, faulty)
+            except Exception as exc:  # nothing to fly them around: land_faulty's way
+                self.on_missed(list(faulty), f"cannot replan: {exc}")
+                raise
+        if self.busy:
             raise StateConflict("replan", "a replan is already running (refused, not "
                                           "queued): wait for it to switch or miss")
+        return self._start(goals, drop, drop_action, reason, ())
+
+    def _start(self, goals: Mapping[str, Sequence[float]] | None, drop: Sequence[str],
+               drop_action: str, reason: str | None, faulty: Sequence[VehicleStatus]
+               ) -> dict[str, Any]:
+        """`request` once it may start: check the fields, pick the switch tick and the
+        states there, start planning."""
         if drop_action not in DROP_ACTIONS:
             raise InvalidRequest("drop_action", f"must be one of {', '.join(DROP_ACTIONS)}, "
                                                 f"got {drop_action!r}")
