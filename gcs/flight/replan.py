@@ -4,7 +4,8 @@
 policy ``replan``) and returns its replan object at once (status ``planning``):
 
 1. it picks a switch tick ahead: the lead is the larger of `replan_lead_s` and 1.5 x the
-   flight's last replan's planning time, quantised to a stream tick; the state of every
+   flight's last replan's planning time, and the switch tick the last stream tick within
+   it (at least two ticks ahead); the state of every
    steered vehicle at that tick is its stream's setpoint then (the flying plan's exact
    state), in the world frame, so the setpoints stay continuous across the switch;
 2. from that tick each dropped vehicle is streamed its own predicted motion
@@ -98,6 +99,8 @@ class Job:
     """Vehicles whose switch waits in the streamer."""
     result: Replan | None = None
     tracks: dict[str, SetpointTrack] = field(default_factory=dict)
+    requested: float = field(default_factory=time.monotonic)
+    """When it was asked for (`time.monotonic`)."""
 
 
 class Replanner:
@@ -222,7 +225,10 @@ class Replanner:
         streamer = self.streamer
         rate = streamer.rate
         lead = self.lead()
-        tick = streamer.next_tick() + SWITCH_MARGIN_TICKS + math.ceil(lead * rate - 1e-9)
+        # the last tick within the lead (the switch never comes later than asked), and
+        # never so soon that no tick is left to build the tracks
+        tick = max(streamer.next_tick() + SWITCH_MARGIN_TICKS,
+                   math.floor((time.monotonic() + lead - streamer.epoch) * rate + 1e-9))
         plan_tick = tick - self.clock.start_tick
         t_switch = plan_tick / rate
         positions, velocities, accelerations = (np.array(x) for x in zip(
@@ -459,6 +465,8 @@ class Replanner:
         verification = plan.verification
         job.obj.update(
             status=ReplanStatus.SWITCHED.value, horizon=round(plan.scenario.horizon, 3),
+            request_to_switch_s=round(self.clock.tick_time(job.tick) + self.clock.t0
+                                      - job.requested, 3),
             min_separation_planned=None if verification is None
             else verification.min_separation_continuous,
             separation_kept=round(result.separation, 4))
