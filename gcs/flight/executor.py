@@ -6,7 +6,8 @@ PX4 procedure primitives of `gcs.flight.vehicle`), fault detection `gcs.flight.m
 a fault does `gcs.flight.policy`, the flight clock and its pauses `gcs.flight.clock`, the live
 state `gcs.flight.snapshot`, the event fan-out `gcs.flight.events`, the station's own stalls
 `gcs.flight.station`, what the links and the streamer put in the record
-`gcs.flight.recording`, the record and its summary `gcs.flight.record`. A setpoint goes
+`gcs.flight.recording`, the record and its summary `gcs.flight.record`, in-flight replans
+`gcs.flight.replan` (the plans flown, in flight time: `gcs.flight.flown`). A setpoint goes
 executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
 
 1. connect: open the fleet's links, send the GCS HEARTBEAT at 1 Hz, wait for every vehicle's
@@ -20,15 +21,18 @@ executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
    below the start);
 3. when every vehicle is within `start_tolerance` of its start, start the shared flight
    clock: every vehicle's setpoint for tick k leaves in tick k (`gcs.flight.stream.Streamer`);
-4. after the horizon, hold at the goals for `hold_at_goal`, measure the goal errors, then land
-   (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch to Hold (`at_end`).
+4. after the horizon (of the last plan switched in by a replan), hold at the goals for
+   `hold_at_goal`, measure the goal errors (each vehicle against its last goal; a dropped
+   one is not judged), then land (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch
+   to Hold (`at_end`).
 
 Monitors (20 Hz, `gcs.flight.monitor`): no message at all for `link_timeout` (1.5 s of
 station-running time: a lost link), HEARTBEAT older than `heartbeat_timeout` (5 s: mode and
 armed state unknown), leaving OFFBOARD, tracking error over `tracking_error_max`, and the live
 minimum separation. A flagged vehicle triggers the policy: ``hold_all`` / ``land_all`` stop the
 flight (`FlightAborted`), ``land_faulty`` lands that vehicle and carries on (the flight then
-does not count as completed).
+does not count as completed), ``replan`` lands it on its predicted motion and replans the
+others around it (`gcs.flight.replan`).
 
 An abort with land (or an error) while the plan is flown flies a verified landing plan first
 (`gcs.flight.landing`): planned from the plan's state `landing_plan_timeout` ahead, streamed
@@ -47,6 +51,7 @@ Python API (for the CLI and the REST API)::
     flight.snapshot()                      # JSON-ready live state (positions in world frame)
     async for event in flight.events():    # every event until the flight ends
         ...
+    await flight.replan({"uav2": [x, y, z]}, drop=["uav3"])  # a new plan from a tick ahead
     await flight.abort("land")             # or "hold": all vehicles at once
     record = await task                    # the flight record (dict); also flight.record
 
@@ -60,7 +65,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import AsyncIterator, Awaitable, Iterable
+from collections.abc import AsyncIterator, Awaitable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -68,6 +73,7 @@ import numpy as np
 from gcs import frames
 from gcs.errors import (
     FlightAborted,
+    GcsError,
     PlanRejected,
     StateConflict,
     VehicleTimeout,
@@ -78,6 +84,7 @@ from gcs.flight.clock import FlightClock
 from gcs.flight.descent import DescentConflict, descent_conflicts
 from gcs.flight.events import EventFanout
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.flown import FlownPlans
 from gcs.flight.hub import LinkHub
 from gcs.flight.landing import PlannedLanding
 from gcs.flight.link import DECODED_IDS
@@ -87,6 +94,7 @@ from gcs.flight.phases import EventKind, FlightPhase, VehiclePhase
 from gcs.flight.policy import FaultPolicy
 from gcs.flight.record import FlightRecorder, goal_tolerance
 from gcs.flight.recording import FlightRecording, finish_record
+from gcs.flight.replan import Replanner
 from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.snapshot import flight_snapshot
 from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
@@ -136,12 +144,22 @@ class FlightExecutor:
         self.stalls.listeners.append(self._on_stall)
         self._stall_report = StallReport()
         self._abort: tuple[str, str] | None = None
+        self.flown = FlownPlans.of(plan)
+        """The plans the flight flies in flight time, and the motions off them
+        (`gcs.flight.flown`): the first plan, then each switched replan's."""
+        self._replanner: Replanner | None = None
+        """The flight's in-flight replans (`gcs.flight.replan`), once the plan is flown."""
+        self._plan_changed = asyncio.Event()
+        """Set when a replan switched: the end of the flight's plan moved."""
         self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land,
                                   abort=self.abort, aborting=lambda: self._abort is not None,
-                                  descent=self._descent_conflicts)
+                                  descent=self._descent_conflicts,
+                                  replan=self._replan_fault)
         self.monitor = FleetMonitor(self.vehicles, plan, self.options,
                                     flight_time=self.flight_time,
-                                    on_fault=self.policy.on_fault,
+                                    on_fault=self._on_fault,
+                                    planned=lambda v, times: self.flown.position(v.id, times),
+                                    predicted=lambda v, t: self.flown.predicted(v.id, t),
                                     on_separation=self.policy.on_separation,
                                     stalls=self.stalls,
                                     on_drops=lambda v, detail: self._emit(
@@ -203,6 +221,8 @@ class FlightExecutor:
                 or self.clock.start is None):
             raise StateConflict("status", f"only a flying flight can be paused (phase "
                                           f"{self.phase})")
+        if self._replanner is not None:
+            self._replanner.cancel("the flight was paused before the switch")
         streamer = self._streamer()
         tick = streamer.next_tick()
         pause = self.clock.stop(tick)
@@ -265,6 +285,8 @@ class FlightExecutor:
             raise ValueError("action must be 'land' or 'hold'")
         if self._abort is None:
             self._abort = (action, reason)
+            if self._replanner is not None:
+                self._replanner.cancel("the flight is aborting")
             self._end_pause()
             self._emit(None, EventKind.ABORT, f"{reason}: {action} all")
             if self._flow is not None and not self._flow.done():
@@ -275,9 +297,44 @@ class FlightExecutor:
         """JSON-ready live state (`gcs.flight.snapshot`): phase, flight time, per vehicle
         position (world frame), mode, armed, heartbeat age, tracking error, fault; live
         minimum separation."""
-        return flight_snapshot(self.phase, self.flight_time(), self.plan.scenario.horizon,
+        return flight_snapshot(self.phase, self.flight_time(), self.flown.horizon,
                                self.monitor.min_separation, self.vehicles,
-                               len(self.recorder.events))
+                               len(self.recorder.events),
+                               replan=None if self._replanner is None
+                               else self._replanner.current)
+
+    @property
+    def replans(self) -> list[dict[str, Any]]:
+        """Every replan object of the flight, in order (also the record's ``replans``)."""
+        return [] if self._replanner is None else self._replanner.records
+
+    @property
+    def current_plan(self) -> Plan:
+        """The plan the fleet flies now: the first, or the last switched replan's (its
+        time 0 is ``flown.current.start`` in flight time)."""
+        return self.flown.current.plan
+
+    async def replan(self, goals: Mapping[str, Sequence[float]] | None = None,
+                     drop: Sequence[str] = (), drop_action: str = "land",
+                     reason: str | None = "operator") -> dict[str, Any]:
+        """Start an in-flight replan (`gcs.flight.replan`): the vehicles named in `goals`
+        fly to their new goal, the ones in `drop` land or hold (`drop_action`) on their own
+        motion, the rest go on to their goals, all by one verified plan switched in at a
+        stream tick ahead. Returns the replan object at once (status planning); the events
+        say when it switched or why it missed. `StateConflict` unless the plan is flown (not
+        paused, not aborting) and no other replan runs; `FieldError`s name ``goals.<id>``,
+        ``drop[n]`` or ``drop_action``."""
+        replanner = self._replanner_now()
+        return replanner.request(goals, drop, drop_action, reason)
+
+    def _replanner_now(self) -> Replanner:
+        """The replanner, when a replan may start now; `StateConflict` otherwise."""
+        if (self._replanner is None or self.phase != FlightPhase.FLYING
+                or self._abort is not None or self.clock.pause is not None):
+            why = ("the flight is aborting" if self._abort is not None
+                   else f"phase {self.phase}")
+            raise StateConflict("status", f"only a flying flight can be replanned ({why})")
+        return self._replanner
 
     def events(self) -> AsyncIterator[dict[str, Any]]:
         """Every event from now until the flight ends ({"t", "vehicle", "kind", "detail"})."""
@@ -411,29 +468,61 @@ class FlightExecutor:
             v.phase = VehiclePhase.FLYING
         self.clock.begin(start_tick)
         streamer.measuring = True
+        replanner = self._replanner = Replanner(
+            self.plan.scenario.assigned(), self.vehicles, streamer, self.clock, self.options,
+            self._emit, self.flown, self._tracks, land=self._land,
+            active=lambda: self._abort is None, on_switch=self._plan_changed.set,
+            on_missed=self._replan_missed)
         self._emit(None, EventKind.FLIGHT_START, f"tick {start_tick}, horizon "
                                                  f"{self.plan.scenario.horizon:g} s")
-        horizon = self.plan.scenario.horizon
-        await self._sleep_until_flight_time(horizon)
-        for v in self.vehicles:
-            if v.phase == VehiclePhase.FLYING:
-                v.phase = VehiclePhase.HOLDING
-        self._emit(None, EventKind.HORIZON, "plan ended, holding at the goals")
-        since = time.monotonic()
-        await self._sleep_until_flight_time(horizon + self.options.hold_at_goal)
-        # the hold lasts `hold_at_goal` of station-running time: a vehicle that got no
-        # setpoints during a stall of the station is still catching up
-        while (lost := self.stalls.overlap(since, checked := time.monotonic())) > 0:
-            since = checked
-            await asyncio.sleep(lost)
+        while True:  # until the flight's plan (the last switched replan's) has ended
+            if not await self._sleep_until_plan_end(0.0):
+                continue
+            for v in self.vehicles:
+                if v.phase == VehiclePhase.FLYING:
+                    v.phase = VehiclePhase.HOLDING
+            self._emit(None, EventKind.HORIZON, "plan ended, holding at the goals")
+            since = time.monotonic()
+            if not await self._sleep_until_plan_end(self.options.hold_at_goal):
+                continue
+            # the hold lasts `hold_at_goal` of station-running time: a vehicle that got no
+            # setpoints during a stall of the station is still catching up
+            while (lost := self.stalls.overlap(since, checked := time.monotonic())) > 0:
+                since = checked
+                await asyncio.sleep(lost)
+            segments = len(self.flown.segments)
+            while replanner.job is not None:  # a replan on its way switches or misses
+                await asyncio.sleep(PERIOD)
+            if len(self.flown.segments) == segments:
+                break
         await self._settle_at_goals()
         streamer.measuring = False
-        for v in self.vehicles:
-            if v.fault is None:
-                v.goal_error = v.distance_ned(v.goal_ned)
-                v.goal_tolerance = self._goal_tolerance(v)
+        judged = [v for v in self.vehicles if v.fault is None and v.dropped is None]
+        for v in judged:
+            v.goal_error = v.distance_ned(v.goal_ned)
+            v.goal_tolerance = self._goal_tolerance(v)
         self._emit(None, EventKind.GOAL_ERRORS, ", ".join(
-            f"{v.id} {v.goal_error:.3f} m" for v in self.vehicles if v.fault is None))
+            f"{v.id} {v.goal_error:.3f} m" for v in judged))
+
+    async def _sleep_until_plan_end(self, extra: float) -> bool:
+        """Sleep until `extra` s of flight time after the flight's plan ends; False as soon
+        as a replan switched meanwhile (the end moved). A late wake-up is noted as a stall
+        of the station (see `_sleep_until_flight_time`)."""
+        segments = len(self.flown.segments)
+        while len(self.flown.segments) == segments:
+            now = self.flight_time()
+            assert now is not None
+            end = self.flown.horizon + extra
+            if now >= end:
+                return True
+            self._plan_changed.clear()
+            due = time.monotonic() + (end - now)
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._plan_changed.wait(), end - now)
+            woke = time.monotonic()
+            if woke - due > STALL_NOTE_S:
+                self.stalls.note(due, woke)
+        return False
 
     def _goal_tolerance(self, v: VehicleStatus) -> float:
         """How close to its goal `v` must end, with the accuracy it reports now."""
@@ -446,7 +535,7 @@ class FlightExecutor:
         started = time.monotonic()
 
         def arriving() -> list[VehicleStatus]:
-            return [v for v in self.vehicles if v.fault is None
+            return [v for v in self.vehicles if v.fault is None and v.dropped is None
                     and not v.distance_ned(v.goal_ned) <= self._goal_tolerance(v)]
 
         waited = 0.0
@@ -456,7 +545,8 @@ class FlightExecutor:
         self.recorder.goal_settle_s = waited
 
     async def _finish(self) -> None:
-        live = [v for v in self.vehicles if v.fault is None]
+        # (a vehicle a replan dropped with land is handed to PX4's Land by the replanner)
+        live = [v for v in self.vehicles if v.fault is None and v.dropped != "land"]
         if self.options.at_end == "hold":
             await _all(self._hold(v) for v in live)
             for v in live:
@@ -466,6 +556,8 @@ class FlightExecutor:
         # and the ones a land_faulty policy sent down, once their landing command has an
         # outcome (an unanswered one is given up on after its retries: land_failed)
         await asyncio.gather(*self.policy.landings, return_exceptions=True)
+        if self._replanner is not None:
+            await asyncio.gather(*self._replanner.landings, return_exceptions=True)
         await vehicle.wait_disarmed([v for v in self.vehicles
                                      if v.phase == VehiclePhase.LANDING],
                                     self.options, self._emit, self.stalls)
@@ -487,9 +579,42 @@ class FlightExecutor:
         position = frames.ned_to_world(tel.position_ned, v.home)
         if not np.all(np.isfinite(position)):
             return None
-        return descent_conflicts(self.plan, self.plan.scenario.ids[v.index], position, now,
+        flying = self.flown.current  # the plan in force: the first, or a switched replan's
+        return descent_conflicts(flying.plan, v.id, position, now - flying.start,
                                  required_separation(self.plan.scenario),
                                  ground=float(v.home[2]))
+
+    def _on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
+        """The monitor flagged `v`: a replan planned without knowing it is called off (under
+        policy replan the new one is), then the policy acts."""
+        if self._replanner is not None and self.options.policy != "replan":
+            self._replanner.cancel(f"{v.id} faulted ({kind}) while it was planned")
+        self.policy.on_fault(v, kind, detail)
+
+    def _replan_fault(self, v: VehicleStatus, kind: str) -> None:
+        """Policy replan: `v` lands on its own (PX4's Land; streamed its predicted motion
+        meanwhile, in case it still listens) and the others replan around that motion; when
+        they cannot, land_faulty's way (`FaultPolicy.give_way`)."""
+        try:
+            replanner = self._replanner_now()
+        except GcsError as exc:
+            replanner, why = None, exc.reason if isinstance(exc, StateConflict) else str(exc)
+        if replanner is not None and not replanner.predict_landing(v, kind):
+            replanner, why = None, "its motion cannot be predicted (no position)"
+        self.policy.landings.append(self.policy.tasks.spawn(self._land(v)))
+        if replanner is None:
+            self._replan_missed([v], why)
+            return
+        with contextlib.suppress(Exception):  # on failure it fell back (`_replan_missed`)
+            replanner.request(None, (), "land", f"{v.id} {kind}", faulty=[v])
+
+    def _replan_missed(self, faulty: list[VehicleStatus], why: str) -> None:
+        """Policy replan could not fly the others around `faulty`: land_faulty's way."""
+        for v in faulty:
+            self._emit(v.id, EventKind.REPLAN_MISSED,
+                       f"policy replan: no replan around it ({why}); land_faulty's way: the "
+                       f"others fly on only where its descent is clear")
+            self.policy.give_way(v)
 
     def _hold(self, v: VehicleStatus) -> Awaitable[None]:
         return vehicle.hold_vehicle(v, self.options, self._emit, self._stop_stream,
@@ -563,7 +688,9 @@ class FlightExecutor:
         self.record = finish_record(
             self.recorder, self.plan, self.fleet, self.options, self.vehicles,
             flight_start=self.flight_start, pauses=self.pauses, now=self.now(),
-            margin=self.margin, streamer=self.streamer, error=error)
+            margin=self.margin, streamer=self.streamer, error=error, flown=self.flown,
+            replans=self.replans,
+            flown_plans={} if self._replanner is None else self._replanner.flown_plans)
 
     # ================================================================ helpers
 

@@ -71,6 +71,11 @@ MAX_LANDING_PLAN_TIMEOUT_S = 30.0
 #: Touchdown points at most this high above the workspace floor (m): PX4's Land takes over
 #: there, so a higher one is no planned landing at all.
 MAX_LANDING_HEIGHT_M = 10.0
+#: An in-flight replan's switch instant at most this far ahead (s): the fleet flies its old
+#: plan until then, so a longer lead only delays the change.
+MAX_REPLAN_LEAD_S = 10.0
+#: A landing descent at most this fast (m/s; PX4 allows MPC_LAND_SPEED up to 2 m/s).
+MAX_LAND_SPEED = 3.0
 
 #: Options with an upper bound: (the bound, its unit and why, for the error).
 _MAXIMA: dict[str, tuple[float, str]] = {
@@ -79,6 +84,8 @@ _MAXIMA: dict[str, tuple[float, str]] = {
                              "s: the fleet flies on until the plan is ready"),
     "landing_height": (MAX_LANDING_HEIGHT_M,
                        "m above the workspace floor (PX4's Land takes over there)"),
+    "replan_lead_s": (MAX_REPLAN_LEAD_S, "s: the fleet flies its old plan until the switch"),
+    "land_speed": (MAX_LAND_SPEED, "m/s"),
 }
 
 __all__ = [
@@ -96,7 +103,7 @@ __all__ = [
 ]
 
 #: Fleet policies applied when a vehicle is flagged (heartbeat lost, left OFFBOARD, tracking).
-POLICIES = ("hold_all", "land_all", "land_faulty")
+POLICIES = ("hold_all", "land_all", "land_faulty", "replan")
 #: What the fleet does once the plan has ended and it has held at the goals.
 AT_END = ("land", "hold")
 #: What the fleet does when a pause lasts longer than `pause_limit`.
@@ -131,7 +138,8 @@ class FlightOptions:
     rate_hz: float = 20.0
     """Setpoint stream rate (Hz), up to 100."""
     policy: str = "land_all"
-    """What to do when a vehicle is flagged: hold_all, land_all or land_faulty."""
+    """What to do when a vehicle is flagged: hold_all, land_all, land_faulty or replan (it
+    lands on its own predicted motion, the others replan around it: `gcs.flight.replan`)."""
     at_end: str = "land"
     """After the plan and the hold at the goals: land, or hold (PX4 Hold mode)."""
     link_timeout: float = 1.5
@@ -215,6 +223,15 @@ class FlightOptions:
     """Height of the touchdown points above the workspace floor (m, in [0,
     `MAX_LANDING_HEIGHT_M`]), where PX4's Land takes over; one above the workspace's ceiling
     is a fallback to PX4's Land, which the event says."""
+    replan_lead_s: float = 1.0
+    """An in-flight replan switches at least this far ahead of its request (s, in (0,
+    `MAX_REPLAN_LEAD_S`]), and at least 1.5 x the flight's last replan's planning time: the
+    new plan must be ready and verified by then, or it is not flown (`gcs.flight.replan`)."""
+    land_speed: float = 0.7
+    """The fleet's landing descent speed (m/s, PX4's MPC_LAND_SPEED, in (0,
+    `MAX_LAND_SPEED`]): a vehicle a replan drops with ``land`` is streamed down at it to
+    `landing_height`, and the others' replanned paths expect a faulty vehicle that PX4
+    lands to descend at it."""
     geofence: str | None = None
     """upload: before arming, give every vehicle the plan's fence (the workspace rectangle,
     obstacles on the ground; `gcs.geofence`), read it back and refuse the flight when it
@@ -269,7 +286,8 @@ class FlightOptions:
                                      f"at most {most:g} {why}, got {getattr(out, key):g}")
         for key in ("link_timeout", "heartbeat_timeout", "tracking_error_max",
                     "start_tolerance", "goal_tolerance", "climb_speed", "pause_limit",
-                    "position_rate_hz", "landing_plan_timeout"):
+                    "position_rate_hz", "landing_plan_timeout", "replan_lead_s",
+                    "land_speed"):
             if getattr(out, key) <= 0:
                 raise FleetFileError(f"{where}.{key}", "must be positive")
         return out

@@ -1,5 +1,5 @@
 """The narrow interface to one flight running on a `VehicleLoop`: start, pause, resume,
-abort, the latest snapshot, its events, and the record.
+replan, abort, the latest snapshot, its events, and the record.
 
 `FlightHandle` is used from another thread's loop (the REST service's, the CLI's main loop);
 the `FlightExecutor` it drives lives and runs on the vehicle loop only, and nothing here reads
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
 
 from gcs.flight.executor import FlightExecutor
@@ -110,6 +110,19 @@ class FlightHandle:
         """Restart the flight clock; the mission time it restarts at (StateConflict across).
         The snapshot shows it running once this returns."""
         return await self._vehicles.run(lambda: self._posting(self._executor.resume))
+
+    async def replan(self, goals: Mapping[str, Sequence[float]] | None = None,
+                     drop: Sequence[str] = (), drop_action: str = "land",
+                     reason: str | None = "operator") -> dict[str, Any]:
+        """`FlightExecutor.replan` on the vehicle loop: the replan object (status planning;
+        StateConflict and FieldErrors across). The snapshot shows it once this returns."""
+        async def replan() -> dict[str, Any]:
+            try:
+                return await self._executor.replan(goals, drop, drop_action, reason)
+            finally:
+                self._snapshot = self._executor.snapshot()
+
+        return await self._vehicles.call(replan)
 
     def _posting(self, change: Callable[[], T]) -> T:
         """On the vehicle loop: `change()`, then post the snapshot it leaves."""

@@ -95,6 +95,10 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
 DROPS_NOTE_S = 5.0
 
 DropsCallback = Callable[[VehicleStatus, str], None]
+#: (vehicle, flight times) -> its planned world positions there, (T, 3).
+PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.ndarray]
+#: (vehicle, flight time) -> its predicted world position, or None.
+PredictedCallback = Callable[[VehicleStatus, float], "np.ndarray | None"]
 
 
 def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
@@ -119,8 +123,17 @@ class FleetMonitor:
                  *, flight_time: Callable[[], float | None], on_fault: FaultCallback,
                  on_separation: SeparationCallback,
                  stalls: StationStalls | None = None,
-                 on_drops: DropsCallback | None = None) -> None:
+                 on_drops: DropsCallback | None = None,
+                 planned: PlannedCallback | None = None,
+                 predicted: PredictedCallback | None = None) -> None:
         self.vehicles = vehicles
+        self.planned = planned
+        """Where a vehicle is meant to be at flight times (the flight's plans, replans
+        included: `gcs.flight.flown`); None: `plan`."""
+        self.predicted = predicted
+        """Where a vehicle off the plans is predicted at a flight time (None when not
+        known): stands in for its position once its reports are older than
+        `link_timeout` (a faulty vehicle landing on its own)."""
         self.on_drops = on_drops
         self._drops_told: dict[str, tuple[dict[str, int], float]] = {}
         """Per vehicle: the counters last told and when."""
@@ -157,10 +170,18 @@ class FleetMonitor:
     def positions(self, now: float) -> dict[str, np.ndarray]:
         """Every vehicle's world position at `now`, extrapolated from its last report."""
         out = {}
+        t_flight = self.flight_time() if self.predicted is not None else None
         for v in self.vehicles:
             if v.link is None or v.home is None:
                 continue
             tel = v.link.telemetry
+            if (self.predicted is not None and t_flight is not None
+                    and tel.position_time is not None
+                    and self.stalls.age(tel.position_time, now) > self.options.link_timeout):
+                guess = self.predicted(v, t_flight)
+                if guess is not None:
+                    out[v.id] = guess
+                    continue
             if tel.position_ned is not None and tel.position_time is not None:
                 p = np.asarray(tel.position_ned) + np.asarray(tel.velocity_ned) * (
                     now - tel.position_time)
@@ -218,7 +239,10 @@ class FleetMonitor:
         plan = self.plan
         times = [t] if trail <= 0 else np.linspace(max(0.0, t - trail), t, min(
             64, 2 + math.ceil(4 * trail / plan.scenario.dt)))
-        planned = plan.vehicles[v.index].sample(plan.scenario.dt, times).position
+        if self.planned is not None:
+            planned = self.planned(v, times)
+        else:
+            planned = plan.vehicles[v.index].sample(plan.scenario.dt, times).position
         return float(np.min(np.linalg.norm(planned - position, axis=1)))
 
     def _separation(self, positions: dict[str, np.ndarray]) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from enum import StrEnum
 
-__all__ = ["AIRBORNE", "EventKind", "FlightPhase", "VehiclePhase", "vocabulary"]
+__all__ = ["AIRBORNE", "EventKind", "FlightPhase", "ReplanStatus", "VehiclePhase", "vocabulary"]
 
 
 class FlightPhase(StrEnum):
@@ -53,6 +53,16 @@ AIRBORNE: tuple[VehiclePhase, ...] = (
 )
 
 
+class ReplanStatus(StrEnum):
+    """Where one in-flight replan is (`gcs.flight.replan`): planning (until its switch tick),
+    then switched (the fleet flies the new plan from that tick) or missed (no verified plan
+    in time, or the flight changed meanwhile: the fleet goes on with its plan)."""
+
+    PLANNING = "planning"
+    SWITCHED = "switched"
+    MISSED = "missed"
+
+
 class EventKind(StrEnum):
     """The kind of one flight event (``{"t", "vehicle", "kind", "detail"}``)."""
 
@@ -80,6 +90,13 @@ class EventKind(StrEnum):
     DESCENT_CONFLICT = "descent_conflict"
     """land_faulty: that descent would come within R of others' plans (named): the others
     hold where they are instead of flying on."""
+    REPLAN_STARTED = "replan_started"
+    """An in-flight replan started: its switch time, vehicles, goals changed, dropped."""
+    REPLAN_SWITCHED = "replan_switched"
+    """The fleet flies the replanned plan from its switch tick (verified, planning time)."""
+    REPLAN_MISSED = "replan_missed"
+    """No replanned plan flown: why (late, not verified, the flight changed meanwhile); the
+    fleet goes on with its plan (policy replan: the faulty vehicle as under land_faulty)."""
     GEOFENCE_SKIPPED = "geofence_skipped"
     """No geofence is uploaded, and why (fleet option `geofence: skip`, no origin known)."""
     GEOFENCE_NOT_FENCED = "geofence_not_fenced"
@@ -112,11 +129,12 @@ class EventKind(StrEnum):
 
 
 def vocabulary() -> dict[str, list[str]]:
-    """Every phase set and the event kinds, as served by `GET /api/status` (``phases``,
-    ``event_kinds``)."""
+    """Every phase set, the replan statuses and the event kinds, as served by
+    `GET /api/status` (``phases``, ``event_kinds``)."""
     return {
         "flight": [p.value for p in FlightPhase],
         "vehicle": [p.value for p in VehiclePhase],
         "airborne": [p.value for p in AIRBORNE],
+        "replan": [s.value for s in ReplanStatus],
         "event_kinds": [k.value for k in EventKind],
     }

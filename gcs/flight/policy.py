@@ -6,6 +6,9 @@ setpoints (a tracking error) cannot simply descend through the others' airspace:
 fleet lands by a verified landing plan (`gcs.flight.landing`) instead. One that cannot be
 steered goes straight down with PX4's Land; the others fly on only where that descent was
 checked clear of their plans (`gcs.flight.descent`), and otherwise hold where they are.
+``replan`` lands the faulty vehicle on its own predicted motion and replans the others
+around it to their goals (`gcs.flight.replan`); when no replan is flown, land_faulty's way
+(PX4's Land for it, the others fly on only where its descent is clear).
 ``land_all`` / ``hold_all`` abort the flight (every vehicle lands / holds). Two vehicles
 about to meet is nobody's single fault: a separation alarm stops everyone where they
 are (PX4 Hold) rather than send anyone down through the others.
@@ -34,7 +37,8 @@ class FaultPolicy:
                  abort: Callable[[str, str], Awaitable[None]],
                  aborting: Callable[[], bool],
                  descent: Callable[[VehicleStatus], list[DescentConflict] | None]
-                 = lambda v: None) -> None:
+                 = lambda v: None,
+                 replan: Callable[[VehicleStatus, str], None] | None = None) -> None:
         self.options = options
         self.emit = emit
         self.now = now
@@ -46,6 +50,9 @@ class FaultPolicy:
         self.descent = descent
         """The others whose plan a vehicle's straight descent would come too close to
         (`gcs.flight.descent`), or None when it cannot be checked."""
+        self.replan = replan
+        """Policy replan: lands the faulty vehicle on its own motion and replans the others
+        around it (`FlightExecutor`, `gcs.flight.replan`); None: land_faulty's way."""
         self.tasks = TaskSet()
         """The landings and aborts started here."""
         self.landings: list[asyncio.Future[None]] = []
@@ -58,7 +65,13 @@ class FaultPolicy:
         v.phase = VehiclePhase.FAULTY
         policy = self.options.policy
         self.emit(v.id, EventKind.FAULT, f"{kind}: {detail} -> policy {policy}")
-        if policy == "land_faulty" and self.options.landing == "planned":
+        if policy == "replan":
+            if self.replan is not None:
+                self.replan(v, kind)
+                return
+            policy = "land_faulty"
+        if policy == "land_faulty" and self.options.landing == "planned" \
+                and self.options.policy != "replan":
             if kind in STEERABLE_FAULTS:  # it follows setpoints: everyone lands by a plan
                 self.tasks.spawn(self.abort("land", f"{v.id} {kind} ({detail}): land_faulty "
                                                     f"lands the fleet by a landing plan"))
@@ -67,12 +80,12 @@ class FaultPolicy:
                                                         f"(fault {kind})")
         if policy == "land_faulty":
             self.landings.append(self.tasks.spawn(self.land(v)))
-            self._give_way(v)
+            self.give_way(v)
         else:
             action = "hold" if policy == "hold_all" else "land"
             self.tasks.spawn(self.abort(action, f"{v.id} {kind} ({detail})"))
 
-    def _give_way(self, v: VehicleStatus) -> None:
+    def give_way(self, v: VehicleStatus) -> None:
         """`v` goes straight down: the others fly on only where its descent was checked
         clear of their plans; otherwise they hold where they are."""
         conflicts = self.descent(v)

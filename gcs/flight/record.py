@@ -6,7 +6,7 @@ the same value for consumers of that key), so flight time = t - flight_start, le
 spent in ``pauses`` ([start, end] each, GCS clock) before t (`plan_times`). Positions are
 in the world frame (ENU, m) unless the key says ``_ned``. JSON layout::
 
-    {"format": "fleetplan-flight-record/1", "plan": {...scenario echo...},
+    {"format": "fleetplan-flight-record/2", "plan": {...scenario echo...},
      "fleet": {...}, "options": {...}, "flight_start": 12.3, "mission_start": 12.3,
      "pauses": [[20.1, 25.3]],
      "horizon": 30.0,
@@ -17,8 +17,17 @@ in the world frame (ENU, m) unless the key says ``_ned``. JSON layout::
                    "telemetry": {"t": [...], "position": [...], "velocity": [...]},
                    "modes": [{"t", "mode", "armed"}...]}...],
      "events": [{"t", "vehicle", "kind", "detail"}...],
+     "replans": [{"id", "status", "requested_at", "switch_time", "switch_tick", "lead_s",
+                  "planning_s", "goals", "drop", "drop_action", "reason", "why", ...,
+                  "plan": {...plan document...} | null,
+                  "separation_across_switch": {"min", "at", "window"} | null}...],
      "summary": {"completed", "goal_error_max", "tracking_error_max",
-                 "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms", ...}}
+                 "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms",
+                 "dropped", ...}}
+
+Format 2 adds ``replans`` (every in-flight replan, `gcs.flight.replan`; a switched one with
+the plan flown from its switch tick and the separation measured across it) and the
+summary's ``dropped``; ``horizon`` is the end of the last plan flown, in flight time.
 
 `summarise` computes the summary from the recorded data: tracking errors of every position
 report during the flight against the plan at its receive time; the measured minimum
@@ -29,7 +38,7 @@ interpolated onto common instants at the stream rate.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -47,7 +56,7 @@ if TYPE_CHECKING:
     from gcs.flight.vehicle import VehicleStatus
 
 __all__ = ["COLUMNS", "RECORD_FORMAT", "Column", "FlightRecorder", "VehicleRecord",
-           "finite_or_none", "goal_tolerance",
+           "finite_or_none", "gcs_time", "goal_tolerance",
            "measured_min_separation", "plan_times", "summarise"]
 
 
@@ -57,7 +66,7 @@ def finite_or_none(x: float | None) -> float | None:
 
 
 #: The flight record's format name (its ``format`` key).
-RECORD_FORMAT = "fleetplan-flight-record/1"
+RECORD_FORMAT = "fleetplan-flight-record/2"
 
 
 @dataclass(frozen=True)
@@ -151,23 +160,49 @@ class FlightRecorder:
 
 def measured_min_separation(times: list[np.ndarray], positions: list[np.ndarray],
                             t0: float, t1: float, rate: float,
-                            scale: np.ndarray) -> tuple[float, float]:
+                            scale: np.ndarray, *,
+                            stale_after: float | None = None) -> tuple[float, float]:
     """Smallest pair distance in the metric ||diag(1/scale) d|| over [t0, t1]: each vehicle's
-    reports are linearly interpolated onto common instants `rate` Hz apart. Returns
-    (distance, instant); (inf, nan) with fewer than two vehicles or no overlap."""
+    reports are linearly interpolated onto common instants `rate` Hz apart. `stale_after`:
+    a vehicle counts only up to this long after its last report (a lost link's last
+    position is not where it is later). Returns (distance, instant); (inf, nan) with fewer
+    than two vehicles or no overlap."""
     if len(times) < 2 or t1 <= t0:
         return math.inf, math.nan
     grid = np.arange(t0, t1, 1.0 / rate)
     tracks = []
+    known = []
     for t, p in zip(times, positions, strict=True):
         if t.size < 2:
             return math.inf, math.nan
         tracks.append(np.stack([np.interp(grid, t, p[:, k]) for k in range(3)], axis=1))
+        known.append(grid <= t[-1] + stale_after if stale_after is not None
+                     else np.ones(len(grid), dtype=bool))
     stacked = np.stack(tracks) / scale  # (N, G, 3)
     i, j = np.triu_indices(len(tracks), k=1)
     d = np.linalg.norm(stacked[i] - stacked[j], axis=2)  # (pairs, G)
+    valid = np.stack(known)
+    # a stale pair does not count; a NaN report makes the answer NaN (unknown)
+    d = np.where(valid[i] & valid[j], d, math.inf)
     pair, instant = np.unravel_index(int(np.argmin(d)), d.shape)
+    if math.isinf(d[pair, instant]):
+        return math.inf, math.nan
     return float(d[pair, instant]), float(grid[instant])
+
+
+#: A vehicle's reports count this long after its last one in the measured separation (s).
+STALE_REPORT_S = 1.0
+
+
+def gcs_time(flight_time: float, flight_start: float,
+             pauses: Sequence[Sequence[float | None]]) -> float:
+    """The GCS-clock instant of `flight_time` (the inverse of `plan_times`)."""
+    t = flight_start + flight_time
+    for start, end in pauses:
+        assert start is not None
+        if t > start:
+            t += (math.inf if end is None else end) - start
+    return t
 
 
 def goal_tolerance(options: FlightOptions, position_error: float | None,
@@ -197,12 +232,25 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
               pauses: Sequence[Sequence[float | None]] = (), now: float,
               missed_ticks: int, lateness: Sequence[float] | None,
               error: BaseException | None, margin: MarginCheck | None = None,
-              position_error: float | None = None) -> dict[str, Any]:
+              position_error: float | None = None,
+              planned: Callable[[str, np.ndarray], np.ndarray] | None = None,
+              horizon: float | None = None,
+              off_plan: Mapping[str, float] | None = None) -> dict[str, Any]:
     """The flight record's summary (see the module docstring) from what `recorder` holds and
     the executor's final view of each vehicle (fault, goal error, phase). `now` is the GCS-clock
     time at the end; `lateness` is None when nothing was streamed. `why` says in words why the
-    flight is or is not complete."""
+    flight is or is not complete.
+
+    With in-flight replans: `planned(id, flight times)` is where a vehicle was meant to be
+    (the flight's plans, `gcs.flight.flown`; default `plan`), `horizon` the end of the last
+    plan flown (flight time; default the plan's), `off_plan` the flight time from which a
+    vehicle flew off the plans (dropped: its tracking is judged up to there). A dropped
+    vehicle is not judged against a goal; a faulty one the others were replanned around
+    does not stop the flight from counting as completed for those that arrived."""
     scenario = plan.scenario
+    horizon = scenario.horizon if horizon is None else horizon
+    off_plan = off_plan or {}
+    judged = [v for v in vehicles if v.dropped is None]
     tolerance = goal_tolerance(options, position_error)
     # each vehicle's own: with the accuracy it reported when its goal error was measured
     tolerances = {v.id: v.goal_tolerance if math.isfinite(v.goal_tolerance) else tolerance
@@ -220,6 +268,8 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         "setpoint_rate_hz": None, "jitter_p50_ms": None, "jitter_p99_ms": None,
         "missed_ticks": missed_ticks,
         "faults": {v.id: v.fault for v in vehicles if v.fault is not None},
+        "dropped": {v.id: {"action": v.dropped, "reason": v.drop_reason, "phase": str(v.phase)}
+                    for v in vehicles if v.dropped is not None},
         # packets dropped per vehicle (pinning, signing), non-finite reports, garbage per link
         "security": {v.id: {**v.link.telemetry.security.to_dict(),
                             "invalid_estimates": v.link.telemetry.invalid_estimates,
@@ -239,7 +289,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     for a, b in pauses:
         assert a is not None
         paused += (now if b is None else b) - a
-    end = t0 + scenario.horizon + options.hold_at_goal + recorder.goal_settle_s + paused
+    end = t0 + horizon + options.hold_at_goal + recorder.goal_settle_s + paused
     first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
                       default=math.inf)
     t1 = min(end, first_fault, now)
@@ -249,11 +299,14 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         rec = recorder.vehicles[v.id]
         t, p = rec.telemetry_arrays()
         stop = min(t1, v.fault_time if v.fault_time is not None else math.inf)
+        if v.id in off_plan:
+            stop = min(stop, gcs_time(off_plan[v.id], t0, pauses))
         window = (t >= t0) & (t <= stop)
         if np.any(window):
-            planned = plan.vehicles[v.index].sample(scenario.dt,
-                                                    plan_times(t[window], t0, pauses))
-            tracking.append(float(np.max(np.linalg.norm(p[window] - planned.position, axis=1))))
+            tau = plan_times(t[window], t0, pauses)
+            meant = (plan.vehicles[v.index].sample(scenario.dt, tau).position
+                     if planned is None else planned(v.id, tau))
+            tracking.append(float(np.max(np.linalg.norm(p[window] - meant, axis=1))))
         times.append(t)
         positions.append(p)
     if tracking:
@@ -262,7 +315,8 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     # down by land_faulty still passes the others.
     scale = np.asarray(scenario.separation_scale, dtype=float)
     separation, _ = measured_min_separation(times, positions, t0, min(end, now),
-                                            options.rate_hz, scale)
+                                            options.rate_hz, scale,
+                                            stale_after=STALE_REPORT_S)
     out["min_separation_measured"] = finite_or_none(separation)
     required = out["min_separation_required"]
     # judged as the planner verifies a plan: within its one SEPARATION_TOLERANCE
@@ -275,7 +329,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     elif unknown:
         why.append("separation unknown: too few or non-finite position reports to measure "
                    "how close the vehicles came")
-    goal_errors = [v.goal_error for v in vehicles if not math.isnan(v.goal_error)]
+    goal_errors = [v.goal_error for v in judged if not math.isnan(v.goal_error)]
     if goal_errors:
         out["goal_error_max"] = max(goal_errors)
     if lateness is not None:
@@ -286,27 +340,40 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         stats = jitter_stats(lateness)
         out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
         out["jitter_p99_ms"] = finite_or_none(stats["jitter_p99_ms"])
-    landed_ok = options.at_end != "land" or all(v.phase == VehiclePhase.LANDED for v in vehicles)
+    # a faulty vehicle the others were replanned around lands on its own (its link may be
+    # gone): named, not waited for; every other one must be down
+    must_land = [v for v in vehicles if not (v.dropped is not None and v.fault is not None)]
+    landed_ok = options.at_end != "land" or all(v.phase == VehiclePhase.LANDED
+                                                for v in must_land)
+    blocking = {v.id: v.fault for v in judged if v.fault is not None}
     # With a stated margin the clearance is a promise: breaking it is a failure. Without
     # one (margin 0), the plan's R is only reported against (the mock flies a few cm inside).
     promised = scenario.separation_margin > 0
     out["completed"] = bool(
-        vehicles and error is None and not out["faults"] and len(goal_errors) == len(vehicles)
-        and all(v.goal_error <= tolerances[v.id] for v in vehicles) and landed_ok
+        judged and error is None and not blocking and len(goal_errors) == len(judged)
+        and all(v.goal_error <= tolerances[v.id] for v in judged) and landed_ok
         and not (promised and (out["separation_held"] is False or unknown)))
-    why += [f"{vid}: fault {kind}" for vid, kind in out["faults"].items()]
+    why += [f"{vid}: fault {kind}" for vid, kind in blocking.items()]
+    why += [f"{v.id}: fault {v.fault}, landed on its own motion; the others were replanned "
+            f"around it" for v in vehicles if v.dropped is not None and v.fault is not None]
+    why += [f"{v.id}: dropped ({v.dropped}) by a replan ({v.drop_reason}), not judged "
+            f"against a goal" for v in vehicles if v.dropped is not None and v.fault is None]
     why += [f"{v.id}: {v.goal_error:.2f} m from its goal (tolerance {tolerances[v.id]:.2f} m)"
-            for v in vehicles
+            for v in judged
             if not math.isnan(v.goal_error) and v.goal_error > tolerances[v.id]]
     if not vehicles:
         why.append("no vehicle flew")
-    if error is None and not out["faults"] and len(goal_errors) < len(vehicles):
+    elif not judged:
+        why.append("every vehicle was dropped")
+    if error is None and not blocking and len(goal_errors) < len(judged):
         why.append("not every vehicle's goal error was measured")
     why += [f"{v.id}: not confirmed landed and disarmed ({v.phase})"
-            for v in vehicles if options.at_end == "land"
+            for v in must_land if options.at_end == "land"
             and v.phase != VehiclePhase.LANDED]
     if out["completed"]:
-        why.insert(0, f"complete: every vehicle within {max(tolerances.values()):.2f} m of "
+        named = ("every vehicle" if len(judged) == len(vehicles)
+                 else f"every vehicle flying to a goal ({len(judged)} of {len(vehicles)})")
+        why.insert(0, f"complete: {named} within {max(tolerances.values()):.2f} m of "
                       f"its goal"
                       + (", landed and disarmed" if options.at_end == "land" else ", holding")
                       + ("; separation unknown" if unknown else ""))

@@ -7,19 +7,29 @@ and armed changes, STATUSTEXT) and of the streamer (each setpoint sent, with its
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
+
+import numpy as np
 
 from gcs import frames
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.flown import FlownPlans
 from gcs.flight.link import VehicleLink
 from gcs.flight.margin import MarginCheck
 from gcs.flight.phases import EventKind
-from gcs.flight.record import FlightRecorder, summarise
+from gcs.flight.record import (
+    STALE_REPORT_S,
+    FlightRecorder,
+    finite_or_none,
+    measured_min_separation,
+    summarise,
+)
 from gcs.flight.setpoints import Setpoint
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import Emit, VehicleStatus
 from planner import Plan
+from planner.scenario import Scenario
 
 __all__ = ["FlightRecording", "finish_record"]
 
@@ -66,9 +76,15 @@ def finish_record(recorder: FlightRecorder, plan: Plan, fleet: FleetSpec,
                   options: FlightOptions, vehicles: list[VehicleStatus], *,
                   flight_start: float | None, pauses: list[list[float | None]], now: float,
                   margin: MarginCheck, streamer: Streamer | None,
-                  error: BaseException | None) -> dict[str, Any]:
-    """Fill the record's meta block and summary; returns the record document."""
+                  error: BaseException | None, flown: FlownPlans | None = None,
+                  replans: Sequence[dict[str, Any]] = (),
+                  flown_plans: Mapping[int, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Fill the record's meta block and summary; returns the record document. `flown`: the
+    flight's plans and the motions off them (`gcs.flight.flown`), `replans` its replan
+    objects, `flown_plans` each switched one's plan document and switch instant (GCS
+    clock)."""
     scenario = plan.scenario
+    flown = flown or FlownPlans.of(plan)
     recorder.meta = {
         "plan": scenario.to_dict(),
         "fleet": fleet.to_dict(),
@@ -76,7 +92,7 @@ def finish_record(recorder: FlightRecorder, plan: Plan, fleet: FleetSpec,
         "flight_start": flight_start,
         "mission_start": flight_start,  # the same, for consumers of that key
         "pauses": pauses,
-        "horizon": scenario.horizon,
+        "horizon": flown.horizon,
         "error": None if error is None else {
             "type": type(error).__name__, "message": str(error) or type(error).__name__},
     }
@@ -85,5 +101,38 @@ def finish_record(recorder: FlightRecorder, plan: Plan, fleet: FleetSpec,
         flight_start=flight_start, pauses=pauses, now=now,
         margin=margin, position_error=fleet.position_error,
         missed_ticks=streamer.missed_ticks if streamer is not None else 0,
-        lateness=streamer.lateness if streamer is not None else None, error=error)
+        lateness=streamer.lateness if streamer is not None else None, error=error,
+        planned=flown.position, horizon=flown.horizon,
+        off_plan={vid: m.start for vid, m in flown.motions.items()})
+    recorder.meta["replans"] = [
+        replan_entry(recorder, obj, (flown_plans or {}).get(obj["id"]), scenario, options)
+        for obj in replans]
     return recorder.to_dict()
+
+
+#: The separation across a switch is measured this long before and after it (s).
+SWITCH_WINDOW_S = 2.0
+
+
+def replan_entry(recorder: FlightRecorder, obj: Mapping[str, Any],
+                 flown: Mapping[str, Any] | None, scenario: Scenario, options: FlightOptions
+                 ) -> dict[str, Any]:
+    """One replan for the record: its object; a switched one's plan document and the
+    minimum separation measured within `SWITCH_WINDOW_S` of its switch (the plan's
+    metric, every vehicle in the record)."""
+    entry: dict[str, Any] = {**obj, "plan": None, "separation_across_switch": None}
+    if flown is None:
+        return entry
+    entry["plan"] = flown["plan"]
+    at = float(flown["switch_gcs"])
+    times, positions = zip(*(rec.telemetry_arrays() for rec in recorder.vehicles.values()),
+                           strict=True)
+    scale = np.asarray(scenario.separation_scale, dtype=float)
+    window = (at - SWITCH_WINDOW_S, at + SWITCH_WINDOW_S)
+    closest, instant = measured_min_separation(list(times), list(positions), window[0],
+                                               window[1], options.rate_hz, scale,
+                                               stale_after=STALE_REPORT_S)
+    entry["separation_across_switch"] = {
+        "min": finite_or_none(closest), "at": finite_or_none(instant),
+        "switch_at": round(at, 4), "window": [round(w, 4) for w in window]}
+    return entry

@@ -35,6 +35,7 @@ __all__ = [
     "SetpointTrack",
     "hold_track",
     "plan_tracks",
+    "spliced",
     "transfer_track",
 ]
 
@@ -154,6 +155,20 @@ def hold_track(position_ned: ArrayLike, yaw_ned: float, rate: float) -> Setpoint
     """A single setpoint holding `position_ned` at rest."""
     p = np.asarray(position_ned, dtype=float).reshape(1, 3)
     return SetpointTrack(p, np.zeros((1, 3)), np.zeros((1, 3)), yaw_ned, rate)
+
+
+def spliced(head: SetpointTrack, tick: int, tail: SetpointTrack) -> SetpointTrack:
+    """`head`'s ticks before `tick`, then `tail` from its tick 0 on: a replan's track, whose
+    setpoints before the switch tick are the flying plan's (`gcs.flight.replan`)."""
+    keep = max(0, min(tick, len(head)))
+    pad = max(0, tick - len(head))  # switching after head's end: its final state at rest
+    parts = [head.position[:keep], np.repeat(head.final_position[None, :], pad, axis=0),
+             tail.position]
+    zeros = np.zeros((pad, 3))
+    return SetpointTrack(np.concatenate(parts),
+                         np.concatenate([head.velocity[:keep], zeros, tail.velocity]),
+                         np.concatenate([head.acceleration[:keep], zeros, tail.acceleration]),
+                         tail.yaw, tail.rate)
 
 
 def _quintic(distance: float, duration: float, t: FloatArray) -> tuple[FloatArray, ...]:

@@ -40,15 +40,17 @@ def vehicle_snapshot(v: VehicleStatus, now: float) -> dict[str, Any]:
         "link_age": None if math.isinf(silent) else round(silent, 3),
         "position": position, "velocity": velocity,
         "tracking_error": finite_or_none(v.tracking_error),
+        "dropped": v.dropped,
         **(health_report(tel) if tel is not None else {}),
     }
 
 
 def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
                     min_separation: float, vehicles: Sequence[VehicleStatus],
-                    events: int) -> dict[str, Any]:
-    """The whole flight: phase, flight time, horizon, live minimum separation, vehicles,
-    number of events so far."""
+                    events: int, replan: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The whole flight: phase, flight time, horizon (the end of the plan flown now, a
+    switched replan's), live minimum separation, vehicles, number of events so far, and the
+    replan under way or the last one (`gcs.flight.replan`; None before any)."""
     now = time.monotonic()
     return {
         "phase": phase,
@@ -58,4 +60,5 @@ def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
         "min_separation_live": finite_or_none(min_separation),
         "vehicles": [vehicle_snapshot(v, now) for v in vehicles],
         "events": events,
+        "replan": None if replan is None else dict(replan),
     }

@@ -89,8 +89,11 @@ class Streamer:
         """The GCS clock's zero, from which `time_boot_ms` counts."""
         self.assignments: dict[str, Assignment] = {}
         self.pending: dict[str, Assignment] = {}
-        """Tracks waiting for their start tick (`switch`): the current assignment streams
+        """Tracks waiting for their switch tick (`switch`): the current assignment streams
         until then."""
+        self._switch_at: dict[str, int] = {}
+        """The switch tick of a pending track whose tick 0 falls elsewhere (`switch`'s
+        `origin`); absent: its start tick."""
         self.listeners: list[SendCallback] = []
         self.tick = -1
         """The last tick sent."""
@@ -122,23 +125,34 @@ class Streamer:
         """Stream `track` to `link` from `start_tick` (default: the next tick); returns it."""
         tick = self.next_tick() if start_tick is None else start_tick
         self.pending.pop(vehicle_id, None)  # an assignment now overrides a later switch
+        self._switch_at.pop(vehicle_id, None)
         self.assignments[vehicle_id] = Assignment(link, track, tick)
         return tick
 
     def switch(self, vehicle_id: str, link: VehicleLink, track: SetpointTrack,
-               at_tick: int) -> None:
-        """Stream `track` to `link` from `at_tick` on, its tick 0 then; until that tick the
-        vehicle's current assignment goes on (unlike `assign`, which replaces it at once and
-        sends the new track's first position at rest before its start tick)."""
+               at_tick: int, origin: int | None = None) -> None:
+        """Stream `track` to `link` from `at_tick` on, its tick 0 at `origin` (default
+        `at_tick`: tick 0 then); until that tick the vehicle's current assignment goes on
+        (unlike `assign`, which replaces it at once and sends the new track's first position
+        at rest before its start tick)."""
+        start = at_tick if origin is None else origin
         if vehicle_id not in self.assignments or at_tick <= self.next_tick():
-            self.assign(vehicle_id, link, track, at_tick)
+            self.assign(vehicle_id, link, track, start)
             return
-        self.pending[vehicle_id] = Assignment(link, track, at_tick)
+        self.pending[vehicle_id] = Assignment(link, track, start)
+        self._switch_at[vehicle_id] = at_tick
+
+    def cancel_switch(self, vehicle_id: str) -> bool:
+        """Drop the switch waiting for a vehicle (its current assignment goes on); False
+        when none waited (it may have taken over already)."""
+        self._switch_at.pop(vehicle_id, None)
+        return self.pending.pop(vehicle_id, None) is not None
 
     def unassign(self, vehicle_id: str) -> None:
         """Stop streaming to a vehicle (and drop any switch waiting for it)."""
         self.assignments.pop(vehicle_id, None)
         self.pending.pop(vehicle_id, None)
+        self._switch_at.pop(vehicle_id, None)
 
     def start(self) -> None:
         if self._task is None:
@@ -156,8 +170,9 @@ class Streamer:
         boot_ms = time_boot_ms(self.tick_time(tick) - self.boot_epoch)
         if self.pending:  # almost always empty: no copy of it on every tick
             for vehicle_id, waiting in list(self.pending.items()):
-                if waiting.start_tick <= tick:  # its switch tick: it takes over
-                    del self.pending[vehicle_id]
+                if self._switch_at.get(vehicle_id, waiting.start_tick) <= tick:
+                    del self.pending[vehicle_id]  # its switch tick: it takes over
+                    self._switch_at.pop(vehicle_id, None)
                     self.assignments[vehicle_id] = waiting
         ready = []
         for vehicle_id, assignment in list(self.assignments.items()):

@@ -101,6 +101,11 @@ class VehicleStatus:
     """The tolerance its goal error is judged with (from its reported accuracy then)."""
     last_mode: str | None = None
     last_armed: bool | None = None
+    dropped: str | None = None
+    """Taken off the plan by a switched replan (`gcs.flight.replan`): ``land`` or ``hold``
+    on its own motion; it is no longer judged against a goal."""
+    drop_reason: str | None = None
+    """Why it was dropped (the replan's reason: an operator's, or its fault)."""
 
     @property
     def id(self) -> str:

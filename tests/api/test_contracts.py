@@ -78,7 +78,7 @@ def test_status_publishes_every_status_set(client: TestClient) -> None:
 def test_status_publishes_the_phases_and_event_kinds(shared_client: TestClient) -> None:
     phases = shared_client.get("/api/status").json()["phases"]
     assert phases == vocabulary()
-    assert set(phases) == {"flight", "vehicle", "airborne", "event_kinds"}
+    assert set(phases) == {"flight", "vehicle", "airborne", "replan", "event_kinds"}
     assert EventKind.PAUSE_LIMIT.value in phases["event_kinds"]
     assert set(phases["airborne"]) <= set(phases["vehicle"])
 

@@ -49,6 +49,10 @@ def test_valid_fleet_with_shared_connection() -> None:
     (_fleet() | {"flight": {"landing_plan_timeout": 1e300}}, "flight.landing_plan_timeout"),
     (_fleet() | {"flight": {"landing_height": -0.1}}, "flight.landing_height"),
     (_fleet() | {"flight": {"landing_height": 10.5}}, "flight.landing_height"),
+    (_fleet() | {"flight": {"replan_lead_s": 0}}, "flight.replan_lead_s"),
+    (_fleet() | {"flight": {"replan_lead_s": 10.5}}, "flight.replan_lead_s"),
+    (_fleet() | {"flight": {"land_speed": 0}}, "flight.land_speed"),
+    (_fleet() | {"flight": {"land_speed": 4}}, "flight.land_speed"),
     (_fleet() | {"world_origin": {"lat": 95, "lon": 0, "alt": 0}}, "world_origin.lat"),
 ])
 def test_errors_name_the_field(data, field: str) -> None:
@@ -62,6 +66,14 @@ def test_landing_options_take_their_whole_range() -> None:
     options = FlightOptions().replace(landing_plan_timeout=30, landing_height=10)
     assert (options.landing_plan_timeout, options.landing_height) == (30, 10)
     assert FlightOptions().replace(landing_height=0).landing_height == 0
+
+
+def test_replan_options() -> None:
+    """Policy replan is a policy; the replan lead defaults to 1 s and takes up to 10 s."""
+    spec = FleetSpec.from_dict(_fleet() | {"flight": {"policy": "replan",
+                                                      "replan_lead_s": 10}})
+    assert (spec.options.policy, spec.options.replan_lead_s) == ("replan", 10)
+    assert FlightOptions().replan_lead_s == 1.0
 
 
 def test_same_system_id_twice_on_one_connection() -> None:

@@ -36,7 +36,7 @@ def _summary(gap: float, *, reports: int = 80, margin: float = 0.0,
             rec.tel_pos[3] = [math.nan, 1.0, 1.5]
     vehicles = [SimpleNamespace(id=vid, index=n, fault=None, fault_time=None,
                                 goal_error=0.05, goal_tolerance=math.nan, phase="landed",
-                                link=None)
+                                link=None, dropped=None, drop_reason=None)
                 for n, vid in enumerate(["uav1", "uav2"])]
     return summarise(recorder, plan, FlightOptions(), vehicles, flight_start=0.0,
                      now=horizon + 3.0, missed_ticks=0, lateness=None, error=None)
