@@ -100,6 +100,7 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
         "abort": f"/api/executions/{row.id}/abort",
         "pause": f"/api/executions/{row.id}/pause",
         "resume": f"/api/executions/{row.id}/resume",
+        "replan": f"/api/executions/{row.id}/replan",
         "record": f"/api/executions/{row.id}/record",
         "mission": f"/api/missions/{row.mission_id}",
     }

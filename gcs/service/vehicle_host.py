@@ -191,6 +191,16 @@ class FleetHost:
         self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
         return restarted
 
+    async def replan(self, execution: str, goals: dict[str, list[float]] | None,
+                     drop: list[str], drop_action: str, reason: str) -> dict[str, Any]:
+        """`FlightHandle.replan` of the flight under way: the replan object (status
+        planning) at once; StateConflict / FieldError cross as raised. Its snapshot is
+        posted before the answer, so the service shows the replan once the call returns."""
+        flight = self._current(execution)
+        replan = await flight.replan(goals, drop, drop_action, reason)
+        self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+        return replan
+
     async def abort(self, execution: str, action: str, reason: str) -> None:
         """`FlightHandle.abort` of the flight under way."""
         await self._current(execution).abort(action, reason)

@@ -1,7 +1,8 @@
 """Flights: POST /api/missions/{id}/executions flies a mission on the configured fleet;
 /api/executions/{id} is its status and summary, /events its live telemetry and events
 (server-sent events), /abort lands (or holds) every vehicle at once, /pause and /resume stop
-and restart its mission clock, /record the flight record.
+and restart its mission clock, /replan changes goals or drops vehicles in flight, /record the
+flight record.
 """
 
 from __future__ import annotations
@@ -22,15 +23,17 @@ from gcs.api.deps import (
     LastEventId,
     MissionDep,
     PlanCacheDep,
+    SettingsDep,
     SharedJsonDep,
     StoreDep,
 )
 from gcs.api.errors import error_responses
-from gcs.errors import StateConflict
+from gcs.errors import InvalidRequest, StateConflict
 from gcs.flight.phases import EventKind
 from gcs.service.flights import LiveExecution, execution_document
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.store import ExecutionRow
+from planner.scenario import MAX_VEHICLES
 
 __all__ = ["mission_router", "router"]
 
@@ -103,6 +106,71 @@ class AbortRequest(BaseModel):
     action: Literal["land", "hold"] = Field(
         "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."
     )
+
+
+#: A vehicle id in a replan body (as long as a fleet command's).
+VehicleId = Annotated[str, Field(min_length=1, max_length=64)]
+#: A goal in a replan body: x, y, z in the world frame (ENU, m), finite.
+GoalPoint = Annotated[list[Annotated[float, Field(allow_inf_nan=False)]],
+                      Field(min_length=3, max_length=3)]
+
+
+class ReplanRequest(BaseModel):
+    """An in-flight replan: new goals for some vehicles, some vehicles dropped. `goals`,
+    `drop` or both; a vehicle is either given a goal or dropped."""
+
+    model_config = ConfigDict(
+        extra="forbid", strict=True,
+        json_schema_extra={"examples": [
+            {"goals": {"uav2": [4.0, 1.5, 2.0]}},
+            {"drop": ["uav3"], "drop_action": "land"},
+            {"goals": {"uav1": [1.0, 4.0, 2.5]}, "drop": ["uav3"], "drop_action": "hold"}]},
+    )
+
+    goals: dict[VehicleId, GoalPoint] | None = Field(
+        None, max_length=MAX_VEHICLES,
+        description="Vehicle id -> its new goal [x, y, z] (world frame ENU, m): inside the "
+        "workspace, clear of the obstacles, at least R from every other goal. The vehicles "
+        "not named keep their goals.")
+    drop: list[VehicleId] | None = Field(
+        None, max_length=MAX_VEHICLES,
+        description="Vehicles that leave the plan: each lands (or holds) on its own motion, "
+        "which the others' new plan keeps R from.")
+    drop_action: Literal["land", "hold"] = Field(
+        "land", description="What a dropped vehicle does: land, or brake and hold where it "
+        "stops.")
+
+
+class ReplanObject(BaseModel):
+    """One in-flight replan, as the flight keeps it (times are flight time, s)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    id: int = Field(description="The replan's number in this flight, from 1.")
+    status: str = Field(
+        description="planning (the new plan is being made), switched (the stream flies it "
+        "since `switch_time`) or missed (no verified plan by `switch_time`: the flight goes "
+        "on with its plan; the `replan_missed` event says why).")
+    requested_at: float = Field(description="Flight time of the request (s).")
+    switch_time: float = Field(description="Flight time the new plan starts at (s).")
+    lead_s: float = Field(description="switch_time - requested_at (s).")
+    planning_s: float | None = Field(description="Planning time once planned (s).")
+    goals: dict[str, list[float]] = Field(description="The new goals asked for.")
+    drop: list[str] = Field(description="The vehicles dropped.")
+    drop_action: str = Field(description="land or hold.")
+    reason: str | None = Field(description="Who asked, or which fault caused it.")
+
+
+class ReplanOut(BaseModel):
+    """The replan started (202): its outcome follows on the flight's event stream as
+    `replan_started`, then `replan_switched` or `replan_missed`."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"replan": {
+        "id": 1, "status": "planning", "requested_at": 3.2, "switch_time": 4.2, "lead_s": 1.0,
+        "planning_s": None, "goals": {"uav2": [4.0, 1.5, 2.0]}, "drop": ["uav3"],
+        "drop_action": "land", "reason": "operator"}}]})
+
+    replan: ReplanObject
 
 
 _EXECUTION_EXAMPLE: dict[str, Any] = {
@@ -342,6 +410,52 @@ async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str
     409 unless paused."""
     flight = await fleet.resume(execution.id, stored_status=execution.status)
     return _document(execution, flight)
+
+
+@router.post(
+    "/{execution_id}/replan",
+    status_code=202,
+    response_model=ReplanOut,
+    summary="Replan a flight in the air: change goals, drop vehicles",
+    responses=error_responses(400, 404, 409, 413, 422),
+)
+async def replan_execution(
+    execution: ExecutionDep, fleet: FleetDep, settings: SettingsDep, request: ReplanRequest,
+) -> dict[str, Any]:
+    """The flight plans anew from where its plan will be a moment ahead (the switch time)
+    and switches its setpoint stream there if the new plan is verified in time; otherwise it
+    flies on with its plan. 202 at once with the replan (status `planning`); the events
+    `replan_started`, then `replan_switched` or `replan_missed` follow on `links.events`, and
+    the live state carries the replan. 409 unless the flight is running its plan, or while
+    another replan is under way (one at a time: a second is refused, not queued); 422 naming
+    `goals.<id>` or `drop[n]` for an unknown vehicle, a goal outside the workspace, inside an
+    obstacle's clearance or closer than R to another goal."""
+    goals, drop = _replan_body(request, settings.max_vehicles)
+    replan = await fleet.replan(execution.id, goals, drop, request.drop_action,
+                                stored_status=execution.status)
+    return {"replan": replan}
+
+
+def _replan_body(request: ReplanRequest,
+                 max_vehicles: int) -> tuple[dict[str, list[float]] | None, list[str]]:
+    """The body's goals and drop, checked against each other and the fleet limit
+    (InvalidRequest naming the field)."""
+    goals, drop = request.goals, list(request.drop or ())
+    if not goals and not drop:
+        raise InvalidRequest("goals", "give new goals, vehicles to drop, or both")
+    for name, count in (("goals", len(goals or ())), ("drop", len(drop))):
+        if count > max_vehicles:
+            raise InvalidRequest(name, f"{count} entries exceed this server's fleet limit of "
+                                       f"{max_vehicles} (setting max_vehicles)")
+    seen: set[str] = set()
+    for n, vehicle in enumerate(drop):
+        if vehicle in seen:
+            raise InvalidRequest(f"drop[{n}]", f"{vehicle!r} is listed twice")
+        if goals and vehicle in goals:
+            raise InvalidRequest(f"goals.{vehicle}", f"{vehicle!r} is dropped: it cannot be "
+                                                     "given a goal too")
+        seen.add(vehicle)
+    return (dict(goals) if goals else None), drop
 
 
 @router.get(
