@@ -28,12 +28,12 @@ from gcs.api.deps import (
     StoreDep,
 )
 from gcs.api.errors import error_responses
-from gcs.errors import InvalidRequest, StateConflict
+from gcs.errors import StateConflict
 from gcs.flight.phases import EventKind
+from gcs.replan_request import ReplanRequest, checked
 from gcs.service.flights import LiveExecution, execution_document
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.store import ExecutionRow
-from planner.scenario import MAX_VEHICLES
 
 __all__ = ["mission_router", "router"]
 
@@ -106,39 +106,6 @@ class AbortRequest(BaseModel):
     action: Literal["land", "hold"] = Field(
         "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."
     )
-
-
-#: A vehicle id in a replan body (as long as a fleet command's).
-VehicleId = Annotated[str, Field(min_length=1, max_length=64)]
-#: A goal in a replan body: x, y, z in the world frame (ENU, m), finite.
-GoalPoint = Annotated[list[Annotated[float, Field(allow_inf_nan=False)]],
-                      Field(min_length=3, max_length=3)]
-
-
-class ReplanRequest(BaseModel):
-    """An in-flight replan: new goals for some vehicles, some vehicles dropped. `goals`,
-    `drop` or both; a vehicle is either given a goal or dropped."""
-
-    model_config = ConfigDict(
-        extra="forbid", strict=True,
-        json_schema_extra={"examples": [
-            {"goals": {"uav2": [4.0, 1.5, 2.0]}},
-            {"drop": ["uav3"], "drop_action": "land"},
-            {"goals": {"uav1": [1.0, 4.0, 2.5]}, "drop": ["uav3"], "drop_action": "hold"}]},
-    )
-
-    goals: dict[VehicleId, GoalPoint] | None = Field(
-        None, max_length=MAX_VEHICLES,
-        description="Vehicle id -> its new goal [x, y, z] (world frame ENU, m): inside the "
-        "workspace, clear of the obstacles, at least R from every other goal. The vehicles "
-        "not named keep their goals.")
-    drop: list[VehicleId] | None = Field(
-        None, max_length=MAX_VEHICLES,
-        description="Vehicles that leave the plan: each lands (or holds) on its own motion, "
-        "which the others' new plan keeps R from.")
-    drop_action: Literal["land", "hold"] = Field(
-        "land", description="What a dropped vehicle does: land, or brake and hold where it "
-        "stops.")
 
 
 class ReplanObject(BaseModel):
@@ -430,32 +397,10 @@ async def replan_execution(
     another replan is under way (one at a time: a second is refused, not queued); 422 naming
     `goals.<id>` or `drop[n]` for an unknown vehicle, a goal outside the workspace, inside an
     obstacle's clearance or closer than R to another goal."""
-    goals, drop = _replan_body(request, settings.max_vehicles)
+    goals, drop = checked(request, settings.max_vehicles)
     replan = await fleet.replan(execution.id, goals, drop, request.drop_action,
                                 stored_status=execution.status)
     return {"replan": replan}
-
-
-def _replan_body(request: ReplanRequest,
-                 max_vehicles: int) -> tuple[dict[str, list[float]] | None, list[str]]:
-    """The body's goals and drop, checked against each other and the fleet limit
-    (InvalidRequest naming the field)."""
-    goals, drop = request.goals, list(request.drop or ())
-    if not goals and not drop:
-        raise InvalidRequest("goals", "give new goals, vehicles to drop, or both")
-    for name, count in (("goals", len(goals or ())), ("drop", len(drop))):
-        if count > max_vehicles:
-            raise InvalidRequest(name, f"{count} entries exceed this server's fleet limit of "
-                                       f"{max_vehicles} (setting max_vehicles)")
-    seen: set[str] = set()
-    for n, vehicle in enumerate(drop):
-        if vehicle in seen:
-            raise InvalidRequest(f"drop[{n}]", f"{vehicle!r} is listed twice")
-        if goals and vehicle in goals:
-            raise InvalidRequest(f"goals.{vehicle}", f"{vehicle!r} is dropped: it cannot be "
-                                                     "given a goal too")
-        seen.add(vehicle)
-    return (dict(goals) if goals else None), drop
 
 
 @router.get(
