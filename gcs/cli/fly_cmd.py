@@ -6,9 +6,10 @@ the command waits for them to disarm (a second Ctrl-C exits at once). SIGUSR1 pa
 mission (the clock stops, every vehicle holds the plan's setpoint of the same plan time),
 SIGUSR2 resumes it: ``kill -USR1 PID``. With ``--control PATH`` the flight also takes commands
 on a unix socket (`gcs.cli.control`): `fleetplan replan PATH ...` changes goals or drops
-vehicles in flight. The flight and the mock vehicles run on their own
-thread (`gcs.flight.vehicle_loop`), driven through a `gcs.flight.flight_handle.FlightHandle`
-as the REST service drives them; the signals are handled on the main thread's loop.
+vehicles in flight. The flight and the mock vehicles run on their own thread
+(`gcs.flight.vehicle_loop`), driven through a `gcs.service.replan_handle.ReplanHandle` (a
+`FlightHandle` that also replans) as the REST service drives them; the signals are handled
+on the main thread's loop.
 """
 
 from __future__ import annotations
@@ -101,9 +102,9 @@ def run(args: argparse.Namespace) -> int:
     from gcs.cli.plan_file import read_plan
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
-    from gcs.flight.flight_handle import FlightHandle
     from gcs.flight.realtime import settle_heap
     from gcs.flight.vehicle_loop import VehicleLoop
+    from gcs.service.replan_handle import ReplanHandle
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
     try:
@@ -159,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
             changes = {field: getattr(args, flag) for flag, field in _OPTION_FLAGS.items()
                        if getattr(args, flag) is not None}
             options = fleet.options.replace(where="option", **changes)
-            handle = await FlightHandle.create(vehicles, plan, fleet, options,
+            handle = await ReplanHandle.create(vehicles, plan, fleet, options,
                                                on_event=events.put_nowait)
         except (GcsError, OSError) as exc:
             if mock is not None:

@@ -30,15 +30,19 @@ import time
 from datetime import UTC, datetime
 from typing import Any
 
+import orjson
+
 from gcs.errors import GcsError, MissionAborted, StateConflict
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.phases import EventKind
 from gcs.flight.vehicle_loop import VehicleLoopStopped
 from gcs.flight.vehicle_process import VehicleProcess
 from gcs.service.fleet import FleetKind, fleet_kind
+from gcs.service.flown_trajectory import replanned_in
 from gcs.service.journal import ExecutionJournal, store_failure, write_final
 from gcs.service.live_flight import LiveExecution, execution_document
 from gcs.service.remote_flight import RemoteFlight
+from gcs.service.replan_handle import Segment
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.storage_faults import storage_reason
@@ -263,6 +267,23 @@ class FleetService:
             raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
                                                 f"replanned (status {flight.status})")
         return await flight.handle.replan(goals, drop, drop_action, reason)
+
+    async def replanned(self, execution_id: str) -> list[Segment]:
+        """The switched replans' plans of a flight, with their switch times: live from the
+        vehicle process while it flies, from its record once it ended (none without)."""
+        flight = self._flights.get(execution_id)
+        if flight is not None and flight.handle is not None:
+            if flight.active:
+                return await flight.handle.replanned()
+            if flight.handle.record is not None:
+                return replanned_in(flight.handle.record)
+        elif flight is not None:
+            return []  # starting: nothing flown yet
+        row = await asyncio.to_thread(self._store.get_execution, execution_id,
+                                      with_record=True)
+        if row is None or row.record_json is None:
+            return []
+        return await asyncio.to_thread(replanned_in, orjson.loads(row.record_json))
 
     def _flying(self, execution_id: str, stored_status: str) -> LiveExecution:
         """The flight under way with this id; StateConflict naming its status otherwise."""

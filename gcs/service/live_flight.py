@@ -101,6 +101,7 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
         "pause": f"/api/executions/{row.id}/pause",
         "resume": f"/api/executions/{row.id}/resume",
         "replan": f"/api/executions/{row.id}/replan",
+        "trajectory": f"/api/executions/{row.id}/trajectory",
         "record": f"/api/executions/{row.id}/record",
         "mission": f"/api/missions/{row.mission_id}",
     }

@@ -13,6 +13,7 @@ from typing import Any
 
 from gcs.flight.vehicle_process import VehicleProcess
 from gcs.service.record_mirror import RecordMirror
+from gcs.service.replan_handle import Segment
 
 __all__ = ["RemoteFlight"]
 
@@ -54,6 +55,11 @@ class RemoteFlight:
         replan: dict[str, Any] = await self._process.call(
             "replan", self._execution, goals, drop, drop_action, reason)
         return replan
+
+    async def replanned(self) -> list[Segment]:
+        """The switched replans' plans and switch times, in order."""
+        segments: list[Segment] = await self._process.call("replanned", self._execution)
+        return segments
 
     async def abort(self, action: str = "land", reason: str = "operator abort") -> None:
         """Every vehicle to `action` now; returns once the commands were answered."""

@@ -1,8 +1,8 @@
 """Flights: POST /api/missions/{id}/executions flies a mission on the configured fleet;
 /api/executions/{id} is its status and summary, /events its live telemetry and events
 (server-sent events), /abort lands (or holds) every vehicle at once, /pause and /resume stop
-and restart its mission clock, /replan changes goals or drops vehicles in flight, /record the
-flight record.
+and restart its mission clock, /replan changes goals or drops vehicles in flight, /trajectory
+the plans it flies (the first, then each switched replan's), /record the flight record.
 """
 
 from __future__ import annotations
@@ -28,10 +28,12 @@ from gcs.api.deps import (
     StoreDep,
 )
 from gcs.api.errors import error_responses
-from gcs.errors import StateConflict
+from gcs.errors import InvalidRequest, StateConflict
 from gcs.flight.phases import EventKind
 from gcs.replan_request import ReplanRequest, checked
 from gcs.service.flights import LiveExecution, execution_document
+from gcs.service.flown_trajectory import flown_trajectory
+from gcs.service.replan_handle import Segment
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.store import ExecutionRow
 
@@ -401,6 +403,69 @@ async def replan_execution(
     replan = await fleet.replan(execution.id, goals, drop, request.drop_action,
                                 stored_status=execution.status)
     return {"replan": replan}
+
+
+class FlownTrajectoryVehicle(BaseModel):
+    """One vehicle's setpoints over the flight's plans."""
+
+    id: str
+    position: list[list[float]] = Field(description="(M, 3) positions (m), world frame ENU.")
+    velocity: list[list[float]] = Field(description="(M, 3) velocities (m/s).")
+
+
+class FlownSwitch(BaseModel):
+    replan: int | None = Field(description="The replan's id.")
+    t: float = Field(description="Its switch time (flight time, s).")
+
+
+class FlownTrajectoryOut(BaseModel):
+    """The plans a flight flies, on one time grid: the mission's plan from flight time 0,
+    each switched replan's from its switch time."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "execution_id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "rate": 10.0,
+        "frame": "world_enu", "t": [0.0, 0.1],
+        "vehicles": [{"id": "uav1", "position": [[4.5, 2.5, 1.1], [4.49, 2.5, 1.1]],
+                      "velocity": [[0.0, 0.0, 0.0], [-0.1, 0.0, 0.0]]}],
+        "switches": [{"replan": 1, "t": 4.2}], "dropped": {"uav3": 4.2}}]})
+
+    execution_id: str
+    mission_id: str
+    rate: float
+    frame: Literal["world_enu"]
+    t: list[float] = Field(description="M sample times (flight time, s), 0 to the end of the "
+                           "last plan.")
+    vehicles: list[FlownTrajectoryVehicle] = Field(
+        description="Every vehicle of the mission's plan, in its order, on the plan in force "
+        "at each time.")
+    switches: list[FlownSwitch] = Field(description="The switched replans, in order.")
+    dropped: dict[str, float] = Field(
+        description="Vehicles a replan dropped -> its switch time; from then on shown at "
+        "rest where their plan left them (each lands or holds on its own motion).")
+
+
+@router.get(
+    "/{execution_id}/trajectory",
+    response_model=FlownTrajectoryOut,
+    summary="The plans a flight flies, sampled (replans included)",
+    responses=error_responses(404, 409, 422),
+)
+async def execution_trajectory(
+    execution: ExecutionDep, plans: PlanCacheDep, fleet: FleetDep, settings: SettingsDep,
+    rate: Annotated[float, Query(gt=0, description="Samples per second (Hz).")] = 10.0,
+) -> dict[str, Any]:
+    """Every vehicle's setpoints at `rate` Hz in flight time: the mission's plan, then each
+    switched replan's plan from its switch time (live while the flight flies, from its record
+    once it ended). Without replans it is the mission's trajectory."""
+    if rate > settings.max_trajectory_rate:
+        raise InvalidRequest(
+            "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}")
+    plan = await run_in_threadpool(plans.get, execution.mission_id)
+    replanned = await fleet.replanned(execution.id)
+    document = await run_in_threadpool(
+        flown_trajectory, [Segment(0.0, plan), *replanned], rate,
+        settings.max_trajectory_samples)
+    return {"execution_id": execution.id, "mission_id": execution.mission_id, **document}
 
 
 @router.get(

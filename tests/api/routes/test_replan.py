@@ -1,6 +1,7 @@
 """POST /api/executions/{id}/replan: its body's checks (422 naming the field), its refusals
 (404, 409 when nothing flies the plan), the same access rules as the other flight commands,
-and its documentation in the OpenAPI description."""
+and its documentation in the OpenAPI description; GET /api/executions/{id}/trajectory of a
+flight that was not replanned. Replans flown on the mock fleet: test_replan_flight.py."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import json
 from collections.abc import Callable, Iterator
 from typing import Any
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from httpx import Response
@@ -15,6 +17,7 @@ from httpx import Response
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.statuses import ExecutionStatus
+from tests.api.routes.test_missions import plan_mission
 from tests.api.support import example
 
 OPERATOR = "operator-token-0123456789"
@@ -135,3 +138,24 @@ def test_the_route_is_documented(client: TestClient) -> None:
     answer = schema["components"]["schemas"]["ReplanObject"]
     assert {"id", "status", "switch_time", "planning_s", "goals", "drop"} <= \
         set(answer["properties"])
+
+
+def test_a_flight_without_replans_flies_its_missions_trajectory(client: TestClient) -> None:
+    mission = plan_mission(client, example("paper-circle2"))
+    store = client.app.state.store  # type: ignore[attr-defined]
+    row = store.create_execution(mission["id"], "mock: a, b")
+    store.update_execution(row.id, status=ExecutionStatus.COMPLETED, finished=True)
+    url = f"/api/executions/{row.id}/trajectory"
+    flown = client.get(url, params={"rate": 5})
+    assert flown.status_code == 200, flown.text
+    doc = flown.json()
+    planned = client.get(f"/api/missions/{mission['id']}/trajectory", params={"rate": 5}).json()
+    assert (doc["execution_id"], doc["mission_id"]) == (row.id, mission["id"])
+    assert doc["t"] == pytest.approx(planned["t"])
+    assert [v["id"] for v in doc["vehicles"]] == [v["id"] for v in planned["vehicles"]]
+    for got, want in zip(doc["vehicles"], planned["vehicles"], strict=True):
+        assert np.allclose(got["position"], want["position"])
+    assert doc["switches"] == [] and doc["dropped"] == {}
+    refused(client.get(url, params={"rate": 10_000}), 422, "rate", "must be at most")
+    refused(client.get(url, params={"rate": 0}), 422, "rate", "greater than 0")
+    refused(client.get("/api/executions/nope/trajectory"), 404, "execution_id", "")
