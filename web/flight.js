@@ -12,7 +12,7 @@ import { clearFlightView, drawFlyMoving, moveSlider, showClock } from "./flyscre
 import { formKey } from "./form.js";
 import { closeReplay, loadFlights, refreshMissionList } from "./history.js";
 import { showMission } from "./planning.js";
-import { drawGoalMarkers, replanTelemetry, showReplanPanel } from "./replan.js";
+import { replanTelemetry, updateReplanControls } from "./replan.js";
 import { editor, fleet, flight, planning, views } from "./state.js";
 
 /** @typedef {import("./state.js").Telemetry} Telemetry */
@@ -55,7 +55,7 @@ export function followExecution(execution) {
   flight.paused = Boolean(flight.pausedStatus) && execution.status === flight.pausedStatus;
   setExecutionStatus(execution.status);
   updateFlyButton();
-  showReplanPanel();
+  updateReplanControls();
   if (!planning.mission || planning.mission.id !== execution.mission_id) {
     showFlownMission(execution.mission_id);  // flown from elsewhere: show its plan
   }
@@ -95,8 +95,7 @@ function flightEnded(status, done) {
   showFlightSummary(done);
   showClock();
   showVehicleTable();
-  showReplanPanel();
-  drawGoalMarkers();
+  updateReplanControls();
   updateFlyButton();
   refreshMissionList();
   if (planning.mission) loadFlights(planning.mission.id);

@@ -108,6 +108,12 @@ export function onGoalPointerUp() {
 
 // ------------------------------------------------------------------ the replan panel
 
+/** The panel and the goal markers as the flight shown allows (a flight started or ended). */
+export function updateReplanControls() {
+  showReplanPanel();
+  drawGoalMarkers();
+}
+
 /** The replan controls: shown while a flight can be replanned, the goals being edited in
  * their rows. */
 export function showReplanPanel() {
@@ -235,10 +241,7 @@ export function showReplanStatus(obj) {
 /** A telemetry snapshot: its replan shown; once the flight's replans change, the plans
  * flown are fetched and drawn. @param {import("./state.js").Telemetry} t */
 export function replanTelemetry(t) {
-  if ($("#replan-panel").hidden === replanOffered()) {  // offered now, or no longer
-    showReplanPanel();
-    drawGoalMarkers();
-  }
+  if ($("#replan-panel").hidden === replanOffered()) updateReplanControls();  // offered now, or no longer
   const obj = t.replan;
   if (!obj) return;
   const key = `${obj.id}:${obj.status}`;
