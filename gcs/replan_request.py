@@ -14,11 +14,13 @@ from typing import Annotated, Any, Literal, get_args
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from gcs.errors import InvalidRequest, field_path
-from planner.scenario import MAX_VEHICLES
 
-__all__ = ["DROP_ACTIONS", "SERVICE_LIMIT", "DropAction", "GoalPoint", "ReplanRequest",
-           "VehicleId", "checked", "parse"]
+__all__ = ["DROP_ACTIONS", "MAX_ENTRIES", "SERVICE_LIMIT", "DropAction", "GoalPoint",
+           "ReplanRequest", "VehicleId", "checked", "parse"]
 
+#: Most vehicles one replan names in `goals`, and in `drop`: a replan of more could not be
+#: planned within any lead (100 vehicles take about 2 s), and the body stays small.
+MAX_ENTRIES = 512
 #: What a dropped vehicle does: land, or brake and hold where it stops.
 DropAction = Literal["land", "hold"]
 DROP_ACTIONS: tuple[str, ...] = get_args(DropAction)
@@ -42,12 +44,12 @@ class ReplanRequest(BaseModel):
     )
 
     goals: dict[VehicleId, GoalPoint] | None = Field(
-        None, max_length=MAX_VEHICLES,
+        None, max_length=MAX_ENTRIES,
         description="Vehicle id -> its new goal [x, y, z] (world frame ENU, m): inside the "
         "workspace, clear of the obstacles, at least R from every other goal. The vehicles "
         "not named keep their goals.")
     drop: list[VehicleId] | None = Field(
-        None, max_length=MAX_VEHICLES,
+        None, max_length=MAX_ENTRIES,
         description="Vehicles that leave the plan: each lands (or holds) on its own motion, "
         "which the others' new plan keeps R from.")
     drop_action: DropAction = Field(

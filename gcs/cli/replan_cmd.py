@@ -84,13 +84,12 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from gcs.cli.control import request
-    from gcs.replan_request import parse
-    from planner.scenario import MAX_VEHICLES
+    from gcs.replan_request import MAX_ENTRIES, parse
 
     try:
         document = body(args)
         # The shape is checked here too, so a mistake is named before anything is sent.
-        parse({k: v for k, v in document.items() if k != "command"}, MAX_VEHICLES,
+        parse({k: v for k, v in document.items() if k != "command"}, MAX_ENTRIES,
               "{max} entries")
     except ValueError as exc:  # InvalidRequest too (a FieldError): "field: reason"
         print(f"error: {exc}", file=sys.stderr)

@@ -15,6 +15,7 @@ from fastapi.testclient import TestClient
 from httpx import Response
 
 from gcs.api import create_app
+from gcs.replan_request import MAX_ENTRIES
 from gcs.service.settings import Settings
 from gcs.service.statuses import ExecutionStatus
 from tests.api.routes.test_missions import plan_mission
@@ -159,3 +160,11 @@ def test_a_flight_without_replans_flies_its_missions_trajectory(client: TestClie
     refused(client.get(url, params={"rate": 10_000}), 422, "rate", "must be at most")
     refused(client.get(url, params={"rate": 0}), 422, "rate", "greater than 0")
     refused(client.get("/api/executions/nope/trajectory"), 404, "execution_id", "")
+
+
+def test_a_replan_names_at_most_max_entries(ended: tuple[TestClient, str]) -> None:
+    client, url = ended
+    many = [f"v{n}" for n in range(MAX_ENTRIES + 1)]
+    refused(client.post(url, json={"drop": many}), 422, "drop", f"at most {MAX_ENTRIES} items")
+    refused(client.post(url, json={"goals": {v: [0, 0, 1] for v in many}}), 422, "goals",
+            f"at most {MAX_ENTRIES} items")
