@@ -3,9 +3,9 @@
 A flight flies its mission's plan from flight time 0 and each switched replan's plan from
 its switch time (`FlightExecutor.replan`). The page draws the flight's paths and follows it
 with one time slider, so it needs one document on one time grid: `flown_trajectory` samples
-at `rate` Hz, from 0 to the end of the last plan, each vehicle on the plan in force at each
-time (`Plan.sample`, the planner's one definition of the motion between steps). A vehicle a
-replan dropped is on no plan after its switch: it is shown where its last plan had it then,
+at `rate` Hz, from 0 to the end of the plan flown last (which may end before an earlier
+one would have), each vehicle on the plan in force at each time (`Plan.sample`, the
+planner's one definition of the motion between steps). A vehicle a replan dropped is on no plan after its switch: it is shown where its last plan had it then,
 at rest (it lands or holds on its own motion, which the flight's live state shows).
 """
 
@@ -40,7 +40,7 @@ def flown_trajectory(segments: Sequence[Segment], rate: float,
     when the samples would exceed `max_rows`."""
     ordered = sorted(segments, key=lambda s: s.start)
     ids = list(ordered[0].plan.scenario.ids)
-    end = max(s.start + s.plan.scenario.horizon for s in ordered)
+    end = ordered[-1].start + ordered[-1].plan.scenario.horizon  # the plan flown last
     rows = trajectory_sample_count(end, rate, len(ids))
     if rows > max_rows:
         raise InvalidRequest("rate", f"{rate:g} Hz gives {rows} samples, more than the limit "

@@ -51,6 +51,13 @@ def test_each_vehicle_follows_the_plan_in_force(plans: tuple[Plan, Plan]) -> Non
     assert doc["switches"] == [{"replan": 1, "t": SWITCH}]
 
 
+def test_the_flight_ends_with_the_plan_flown_last(plans: tuple[Plan, Plan]) -> None:
+    first, _ = plans
+    short = smooth_plan(line_scenario(3, steps=10))
+    doc = flown_trajectory([Segment(0.0, first), Segment(SWITCH, short, 1)], 10.0, 10_000)
+    assert doc["t"][-1] == pytest.approx(SWITCH + 2.0)  # not the first plan's 6 s
+
+
 def test_a_dropped_vehicle_rests_where_its_plan_left_it(plans: tuple[Plan, Plan]) -> None:
     first, second = plans
     doc = flown_trajectory([Segment(0.0, first), Segment(SWITCH, second, 1)], 10.0, 10_000)
