@@ -26,8 +26,9 @@ def _with_lead(route: Route) -> None:
     if route.request.method != "POST":
         route.fallback()
         return
-    route.fallback(post_data=json.dumps({**FLY_OPTIONS, "replan_lead_s": 3.0}),
-                   headers={**route.request.headers, "content-type": "application/json"})
+    assert route.request.post_data is None  # the page sends no options
+    route.continue_(post_data=json.dumps({**FLY_OPTIONS, "replan_lead_s": 3.0}),
+                    headers={**route.request.headers, "content-type": "application/json"})
 
 
 def _last_point(page: Page, vid: str) -> tuple[float, float]:
