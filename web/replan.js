@@ -248,14 +248,15 @@ export function replanTelemetry(t) {
   if (key === replan.seen) return;
   replan.seen = key;
   showReplanStatus(obj);
-  loadFlownPlans();
+  if (flight.execution) showFlownPlans(flight.execution);
 }
 
-/** GET the plans flown so far; the views show them when they differ from what is drawn. */
-async function loadFlownPlans() {
-  const id = flight.execution;
+/** GET the plans flight `id` flew (so far); the views show them when they differ from what
+ * is drawn (a replanned flight followed live, or replayed).
+ * @param {string} id */
+export async function showFlownPlans(id) {
   const shown = replan.planTraj || views.traj;
-  if (!id || !shown) { replan.seen = ""; return; }  // no plan on screen yet: the next snapshot
+  if (!shown) { replan.seen = ""; return; }  // no plan on screen yet: the next snapshot
   const r = await api("GET", `/api/executions/${id}/trajectory?rate=${shown.rate}`);
   if (!r.ok || id !== flight.execution) { replan.seen = ""; return; }
   const switches = (r.data.switches || []).map((/** @type {{replan: number}} */ s) => s.replan).join(",");

@@ -1,7 +1,7 @@
 """A replan flown from the page on the service's mock fleet: a goal dragged on the fly view
 and sent, a vehicle dropped from the fleet table; the page shows each replan switched, the
 new plan drawn (the path and the goal marker at the new goal, the dropped vehicle's row),
-and the flight completes."""
+the flight completes, and reopened later it is replayed against the plans it flew."""
 
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ def test_a_goal_dragged_and_a_vehicle_dropped_are_flown(
 ) -> None:
     page = open_page(before=lambda p: p.route(FLY_REQUEST, _with_lead))
     fill_scenario(page, "replan-flown", 100, CROSSING)  # 20 s
-    plan(page)
+    mission_id = plan(page)
     page.click("#fly-button")
     expect(page.locator("#time-label")).to_contain_text(re.compile(r"flying · t = \d"),
                                                         timeout=120_000)
@@ -80,3 +80,15 @@ def test_a_goal_dragged_and_a_vehicle_dropped_are_flown(
     expect(page.locator("#execution-status")).to_have_attribute("data-status", "completed",
                                                                 timeout=180_000)
     expect(page.locator("#replan-panel")).to_be_hidden()
+    flight_id = page.locator("#flight-list li[data-id]").first.get_attribute("data-id")
+
+    # Reopened later, the flight is replayed against the plans it flew (from its record).
+    page.reload()
+    page.locator(f'#mission-list li[data-id="{mission_id}"]').click()
+    expect(page.locator("#fly-view polyline.planned-path")).to_have_count(4)
+    x, y = _last_point(page, "b")
+    assert abs(x - want[0]) > 5 or abs(y - want[1]) > 5  # the mission's own plan
+    page.locator(f'#flight-list li[data-id="{flight_id}"]').click()
+    expect(page.locator("#time-label")).to_contain_text(f"replay of flight {flight_id}")
+    expect(page.locator('#fly-view polyline.planned-path[data-id="b"]')).to_have_attribute(
+        "points", re.compile(rf" {int(want[0])}\.\d,{int(want[1])}\.\d$"))
