@@ -91,3 +91,17 @@ def test_fly_takes_a_replan_on_its_control_socket(tmp_path: Path) -> None:
     assert flown["status"] == "switched" and flown["goals"] == {"uav1": [1.0, 2.0, 2.0]}
     assert record["summary"]["completed"] is True and "uav3" in record["summary"]["dropped"]
     assert {e["vehicle"] for e in record["events"] if e["kind"] == "landed"} >= {"uav3"}
+
+
+@pytest.mark.parametrize(("flags", "message"), [
+    (["--policy", "nope"], "option.policy: must be one of hold_all, land_all, land_faulty, "
+                           "replan, got 'nope'"),
+    (["--replan-lead", "50"], "option.replan_lead_s: at most 10 s"),
+    (["--replan-lead", "0"], "option.replan_lead_s: must be positive"),
+])
+def test_fly_checks_its_replan_options(tmp_path: Path, flags: list[str], message: str) -> None:
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(line_scenario(2)).to_dict()))
+    done = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path),
+                           "--mock", *flags], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and message in done.stderr, done.stderr

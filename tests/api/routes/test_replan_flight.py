@@ -18,7 +18,7 @@ from gcs.flight.phases import EventKind, ReplanStatus
 from gcs.service.settings import Settings
 from tests.api.routes.test_executions import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import SHORT_CROSSING
+from tests.api.support import SHORT_CROSSING, example
 
 #: The crossing's b to a new goal, d dropped: the rest fly on to theirs.
 NEW_GOAL = [1.0, 1.4, 1.5]
@@ -112,3 +112,18 @@ def test_nothing_flying_yet_is_409(mock_settings: Callable[..., Settings]) -> No
         client.post(execution["links"]["abort"], json={"action": "land"})
         events: list[tuple[str, dict[str, Any]]] = sse_events(client, execution["links"]["events"])
         assert events[-1][1]["status"] == "aborted"
+
+
+@pytest.mark.parametrize(("options", "field", "reason"), [
+    ({"replan_lead_s": 50.0}, "replan_lead_s", "less than or equal to 10"),
+    ({"replan_lead_s": 0.0}, "replan_lead_s", "greater than 0"),
+    ({"policy": "replan_all"}, "policy", "'replan'"),
+])
+def test_the_replan_fly_options_are_checked(
+    client: TestClient, options: dict[str, Any], field: str, reason: str
+) -> None:
+    store = client.app.state.store  # type: ignore[attr-defined]
+    mission = store.create_mission(example("paper-circle2"))
+    answer = client.post(f"/api/missions/{mission.id}/executions", json=options)
+    assert answer.status_code == 422 and answer.json()["field"] == field, answer.text
+    assert reason in answer.json()["reason"], answer.text
