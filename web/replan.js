@@ -9,6 +9,7 @@ import { showVehicleTable } from "./fleettable.js";
 import { $, clamp, color, fmt, svgEl } from "./dom.js";
 import { drawFlyStatic, setTime } from "./flyscreen.js";
 import { VIEW } from "./flyview.js";
+import { layered } from "./scale.js";
 import { fleet, flight, planning, replan, views } from "./state.js";
 
 /** @typedef {import("./state.js").ReplanObject} ReplanObject */
@@ -37,7 +38,7 @@ function workspace() {
 // ------------------------------------------------------------------ the goal markers
 
 /** Draw (or clear) the draggable goal markers and the goals being edited, on top of the
- * fly view. */
+ * fly view; a show-sized fleet's view has none (its goals are changed through the API). */
 export function drawGoalMarkers() {
   const svg = $("#fly-view");
   let layer = svg.querySelector("g.goal-markers");
@@ -45,7 +46,7 @@ export function drawGoalMarkers() {
   else svg.appendChild(layer);  // above what moves
   layer.innerHTML = "";
   const tf = views.flyTf;
-  if (!replanOffered() || !tf || !views.traj) return;
+  if (!replanOffered() || !tf || !views.traj || layered(views.traj.vehicles.length)) return;
   views.traj.vehicles.forEach((v, i) => {
     const goal = goalOf(v.id);
     if (!goal || isDropped(v.id)) return;
