@@ -14,6 +14,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
+from gcs.api.routes.executions import FlyRequest
+from gcs.flight.fleetfile import POLICIES
 from gcs.flight.phases import EventKind, ReplanStatus
 from gcs.service.settings import Settings
 from tests.api.routes.test_executions import QUICK, wait_for
@@ -127,3 +129,9 @@ def test_the_replan_fly_options_are_checked(
     answer = client.post(f"/api/missions/{mission.id}/executions", json=options)
     assert answer.status_code == 422 and answer.json()["field"] == field, answer.text
     assert reason in answer.json()["reason"], answer.text
+
+
+def test_the_fly_body_offers_every_policy() -> None:
+    """One definition: the Fly body's policies are the fleet file's (`POLICIES`)."""
+    policy = FlyRequest.model_json_schema()["properties"]["policy"]["anyOf"][0]
+    assert policy["enum"] == list(POLICIES)
