@@ -5,8 +5,9 @@ its switch time (`FlightExecutor.replan`). The page draws the flight's paths and
 with one time slider, so it needs one document on one time grid: `flown_trajectory` samples
 at `rate` Hz, from 0 to the end of the plan flown last (which may end before an earlier
 one would have), each vehicle on the plan in force at each time (`Plan.sample`, the
-planner's one definition of the motion between steps). A vehicle a replan dropped is on no plan after its switch: it is shown where its last plan had it then,
-at rest (it lands or holds on its own motion, which the flight's live state shows).
+planner's one definition of the motion between steps). A vehicle a replan dropped is on
+no plan after its switch: it is shown where its last plan had it then, at rest (it lands
+or holds on its own motion, which the flight's live state shows).
 """
 
 from __future__ import annotations

@@ -53,7 +53,7 @@ class ReplanHandle(FlightHandle):
                      drop_action: str, reason: str) -> dict[str, Any]:
         """Start an in-flight replan: its replan object (status planning), raised across as
         `StateConflict` / `FieldError`. The snapshot shows it once this returns."""
-        executor = self._executor
+        executor: Any = self._executor  # FlightExecutor.replan (helper flight's branch)
 
         async def start() -> dict[str, Any]:
             try:
@@ -65,7 +65,7 @@ class ReplanHandle(FlightHandle):
 
     async def replanned(self) -> list[Segment]:
         """Every switched replan's plan and switch time (flight time), in order."""
-        executor = self._executor
+        executor: Any = self._executor  # .replans and .flown (helper flight's branch)
 
         def read() -> list[Segment]:
             switched = [r["id"] for r in executor.replans if r["status"] == SWITCHED]

@@ -9,13 +9,17 @@ import json
 import re
 from collections.abc import Callable
 
+import pytest
 from playwright.sync_api import Page, Route, expect
 
+from gcs.flight import phases
 from tests.api.support import ServiceProcess
 from tests.web.conftest import FLY_OPTIONS, FLY_REQUEST
 from tests.web.support import CROSSING, fill_scenario, plan
 from tests.web.test_replan_controls import PAD, SCALE, VIEW, client_point
 
+pytestmark = pytest.mark.skipif(not hasattr(phases, "ReplanStatus"),
+                                reason="needs FlightExecutor.replan (wt/flight)")
 #: Where b's goal is dragged to (x, y; its height is kept).
 NEW_GOAL = (1.0, 1.4)
 
