@@ -22,8 +22,9 @@ pytestmark = [pytest.mark.timeout(150),
                                  reason="needs FlightExecutor.replan (wt/flight)")]
 
 
-def _lines(proc: subprocess.Popen[str]) -> queue.Queue[str]:
-    """The process's output lines, read on a thread (so a wait can time out)."""
+def _lines(proc: subprocess.Popen[str]) -> tuple[queue.Queue[str], threading.Thread]:
+    """The process's output lines, read on a thread (so a wait can time out), until it
+    closes its output; the thread."""
     lines: queue.Queue[str] = queue.Queue()
 
     def read() -> None:
@@ -31,8 +32,9 @@ def _lines(proc: subprocess.Popen[str]) -> queue.Queue[str]:
         for line in proc.stdout:
             lines.put(line)
 
-    threading.Thread(target=read, daemon=True).start()
-    return lines
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    return lines, reader
 
 
 def _wait_for(lines: queue.Queue[str], text: str, seen: list[str], timeout: float) -> None:
@@ -70,7 +72,7 @@ def test_fly_takes_a_replan_on_its_control_socket(tmp_path: Path) -> None:
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     seen: list[str] = []
     try:
-        lines = _lines(proc)
+        lines, reader = _lines(proc)
         _wait_for(lines, f"control socket: {sock}", seen, 60)
         _wait_for(lines, "mission_start", seen, 60)
         done = _replan(str(sock), "--goal", "uav1=1,2,2", "--drop", "uav3")
@@ -80,12 +82,15 @@ def test_fly_takes_a_replan_on_its_control_socket(tmp_path: Path) -> None:
         # One at a time: refused while the first waits for its switch.
         again = _replan(str(sock), "--drop", "uav2")
         assert again.returncode == 1 and "refused (StateConflict)" in again.stderr
-        out, _ = proc.communicate(timeout=90)
+        proc.wait(timeout=90)
+        reader.join(timeout=10)  # the rest of its output
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    out = "".join(seen) + out
+    while not lines.empty():
+        seen.append(lines.get())
+    out = "".join(seen)
     assert proc.returncode == 0, out
     assert "replan_switched" in out and "replan_missed" not in out
     assert not sock.exists()  # removed at the end
