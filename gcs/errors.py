@@ -27,10 +27,13 @@
     - `StateConflict`: the resource is in the wrong state (still planning, already flying).
     - `InvalidRequest`: the request is well-formed but invalid, or exceeds a server limit.
     - `ServiceBusy`: the service cannot take the work now (a full queue); retry later.
+
+`field_path` writes a validation error's location (pydantic's) as such a dotted path.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 from planner.errors import FieldError
@@ -54,7 +57,20 @@ __all__ = [
     "ServiceBusy",
     "StateConflict",
     "VehicleTimeout",
+    "field_path",
 ]
+
+
+def field_path(loc: Sequence[Any]) -> str:
+    """A location (pydantic's ``("vehicles", 2, "goal")``) as the dotted path the errors
+    name: ``vehicles[2].goal``."""
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
 
 
 class GcsError(Exception):

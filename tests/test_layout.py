@@ -10,7 +10,8 @@ Imports only run downward (DESIGN.md, README "Architecture"):
   (`gcs.flight`, `gcs.sim`) nor the service, the API or the CLI, which call it;
 - the shared bottom layer (`gcs/frames.py`, `gcs/px4.py`, `gcs/wire.py`, `gcs/errors.py`)
   imports no other part of `gcs`; `gcs/geofence.py` (the fence's numbers, shared by the
-  flight and the API) imports only that layer.
+  flight and the API) and `gcs/replan_request.py` (a replan request's body, shared by the
+  API and the CLI) import only that layer.
 
 And no module of `planner` or `gcs` imports, directly or through others, a module that imports
 it back: the module import graph (imports under ``if TYPE_CHECKING:`` and inside functions
@@ -41,6 +42,7 @@ RULES: dict[str, tuple[str, ...]] = {
     "gcs/wire.py": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
     "gcs/errors.py": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
     "gcs/geofence.py": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
+    "gcs/replan_request.py": ("gcs.flight", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
 }
 
 

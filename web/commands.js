@@ -16,6 +16,7 @@ export async function loadCapabilities() {
   fleet.caps = {
     pause: posts.has("/api/executions/{}/pause"),
     resume: posts.has("/api/executions/{}/resume"),
+    replan: posts.has("/api/executions/{}/replan"),
     fleetCommands: posts.has("/api/fleet/commands"),
     vehicleCommands: posts.has("/api/vehicles/{}/commands"),
   };

@@ -5,6 +5,7 @@ import { vehicleCommand } from "./commands.js";
 import { $ } from "./dom.js";
 import { colorOf } from "./flyscreen.js";
 import { batteryCell, gpsCell, healthCell, linkLevel } from "./health.js";
+import { dropVehicle, isDropped, replanOffered } from "./replan.js";
 import { fleet, flight } from "./state.js";
 
 /** @typedef {import("./state.js").VehicleRow} VehicleRow */
@@ -25,8 +26,10 @@ export function showVehicleTable() {
   const optional = OPTIONAL_COLUMNS.filter(([key]) => rows.some((v) => v[key] !== undefined && v[key] !== null));
   const health = rows.some((v) => v.health !== undefined && v.health !== null);
   const actions = fleet.caps.vehicleCommands;
+  const drops = replanOffered();
   const heads = ["vehicle", "link", "mode", "armed", "alt", ...optional.map((c) => c[1]),
-                 ...(health ? ["health"] : []), "phase", ...(actions ? [""] : [])];
+                 ...(health ? ["health"] : []), "phase", ...(drops ? ["replan"] : []),
+                 ...(actions ? [""] : [])];
   const thead = $("#vehicle-state thead");
   const headHtml = `<tr>${heads.map((h) => `<th>${h}</th>`).join("")}</tr>`;
   if (thead.innerHTML !== headHtml) thead.innerHTML = headHtml;
@@ -35,7 +38,7 @@ export function showVehicleTable() {
   const listed = rows.length > TABLE_ROWS_MAX
     ? [...rows.filter((v) => v.fault), ...rows.filter((v) => !v.fault)].slice(0, TABLE_ROWS_MAX)
     : rows;
-  for (const v of listed) tbody.appendChild(vehicleRow(v, optional, health, actions));
+  for (const v of listed) tbody.appendChild(vehicleRow(v, optional, health, drops, actions));
   if (listed.length < rows.length) {
     const tr = document.createElement("tr");
     tr.className = "more-vehicles";
@@ -50,9 +53,10 @@ export function showVehicleTable() {
 /** @param {VehicleRow} v
  * @param {[string, string, (value: any) => string[]][]} optional
  * @param {boolean} health
+ * @param {boolean} drops  a Drop button (replan the flight without this vehicle)
  * @param {boolean} actions
  * @returns {HTMLTableRowElement} */
-function vehicleRow(v, optional, health, actions) {
+function vehicleRow(v, optional, health, drops, actions) {
   const tr = document.createElement("tr");
   tr.dataset.id = v.id;
   /** @param {string} text @param {string} [level] @param {string} [key] */
@@ -86,6 +90,20 @@ function vehicleRow(v, optional, health, actions) {
   }
   if (health) { const [text, level] = healthCell(v.health, v.fault); cell(text, level, "health"); }
   cell(v.phase ?? "idle", v.fault ? "bad" : "", "phase").title = v.fault || "";
+  if (drops) {
+    const td = cell("", "", "replan");
+    if (isDropped(v.id) || v.dropped) td.textContent = "dropped";
+    else {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.className = "mini";
+      b.textContent = "drop";
+      b.title = `replan without ${v.id}: it lands (or holds, as chosen above) on its own path`;
+      b.dataset.drop = v.id;
+      b.addEventListener("click", () => dropVehicle(v.id));
+      td.appendChild(b);
+    }
+  }
   if (actions) {
     const td = cell("", "", "actions");
     for (const [command, label] of [["hold", "H"], ["land", "L"], ["rtl", "R"]]) {

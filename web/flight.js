@@ -12,6 +12,7 @@ import { clearFlightView, drawFlyMoving, moveSlider, showClock } from "./flyscre
 import { formKey } from "./form.js";
 import { closeReplay, loadFlights, refreshMissionList } from "./history.js";
 import { showMission } from "./planning.js";
+import { replanTelemetry, updateReplanControls } from "./replan.js";
 import { editor, fleet, flight, planning, views } from "./state.js";
 
 /** @typedef {import("./state.js").Telemetry} Telemetry */
@@ -54,6 +55,7 @@ export function followExecution(execution) {
   flight.paused = Boolean(flight.pausedStatus) && execution.status === flight.pausedStatus;
   setExecutionStatus(execution.status);
   updateFlyButton();
+  updateReplanControls();
   if (!planning.mission || planning.mission.id !== execution.mission_id) {
     showFlownMission(execution.mission_id);  // flown from elsewhere: show its plan
   }
@@ -93,6 +95,7 @@ function flightEnded(status, done) {
   showFlightSummary(done);
   showClock();
   showVehicleTable();
+  updateReplanControls();
   updateFlyButton();
   refreshMissionList();
   if (planning.mission) loadFlights(planning.mission.id);
@@ -137,6 +140,7 @@ export function setExecutionStatus(status, good) {
  * @param {Telemetry} t */
 function showTelemetry(t) {
   flight.live = t;
+  replanTelemetry(t);
   for (const v of t.vehicles) {
     if (!v.position) continue;
     const trail = flight.trails[v.id] || (flight.trails[v.id] = []);

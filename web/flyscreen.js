@@ -6,6 +6,7 @@ import { $, clamp, color, fmt } from "./dom.js";
 import { drawMoving, drawStatic, latLonText } from "./flyview.js";
 import { linkLevel } from "./health.js";
 import { showFlown, showPlannedNow } from "./planview.js";
+import { drawGoalMarkers, resetReplan } from "./replan.js";
 import { fleet, flight, planning, views } from "./state.js";
 import { sampleAt } from "./tracks.js";
 
@@ -36,6 +37,7 @@ export function drawFlyStatic() {
     ? `world origin ${latLonText(o)}, ${fmt(o.alt, 1)} m AMSL · x east, y north`
     : "x east, y north (m); no geodetic origin in the fleet file";
   drawFlyMoving();
+  drawGoalMarkers();
 }
 
 /** Where each vehicle is: the flight under way, or the replayed one at the slider's time. */
@@ -67,12 +69,14 @@ export function drawFlyMoving() {
   showFlown(shown);
 }
 
-/** Forget the live flight's positions and phase. */
+/** Forget the live flight's positions, phase and replans (the mission's own plan shown
+ * again, if the views showed a replanned flight's). */
 export function clearFlightView() {
   flight.live = null;
   flight.trails = {};
   $("#flight-phase").textContent = "";
   $("#flight-progress").value = 0;
+  if (resetReplan()) { drawFlyStatic(); resetSlider(); }
 }
 
 /** The plan time (s) the slider is at. */

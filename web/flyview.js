@@ -9,7 +9,8 @@ import { PATH_POINTS, byColour, decimated, layered } from "./scale.js";
 
 /** @typedef {{lat: number, lon: number}} LatLon */
 /** @typedef {{lo: number[], hi: number[], scale: number,
- *   toSvg: (x: number, y: number) => number[]}} ViewTransform */
+ *   toSvg: (x: number, y: number) => number[],
+ *   toWorld: (sx: number, sy: number) => number[]}} ViewTransform */
 /** @typedef {{id: string, color: string, position?: number[] | null, velocity?: number[],
  *   trail?: number[][], alert?: boolean}} MovingVehicle */
 
@@ -29,6 +30,7 @@ export function viewTransform(lo, hi, pad = 28) {
   return {
     lo, hi, scale,
     toSvg: (x, y) => [ox + (x - lo[0]) * scale, VIEW - oy - (y - lo[1]) * scale],
+    toWorld: (sx, sy) => [lo[0] + (sx - ox) / scale, lo[1] + (VIEW - oy - sy) / scale],
   };
 }
 

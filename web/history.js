@@ -10,6 +10,7 @@ import { clearFlightView, horizon, moveSlider, stopPlay } from "./flyscreen.js";
 import { formKey } from "./form.js";
 import { closePlanStream, showMission } from "./planning.js";
 import { renderSeparation } from "./planview.js";
+import { showFlownPlans } from "./replan.js";
 import { editor, flight, planning, views } from "./state.js";
 import { measuredSeparation } from "./tracks.js";
 
@@ -74,7 +75,10 @@ async function openFlight(id) {
   if (!events && record) events = record.events;
   $("#event-log").innerHTML = "";
   for (const e of events || []) logEvent(e);
-  if (record) startReplay(id, record);
+  if (!record) return;
+  // A replanned flight is replayed against the plans it flew.
+  if ((record.replans || []).some((/** @type {any} */ r) => r.plan)) await showFlownPlans(id);
+  startReplay(id, record);
 }
 
 /** Replay: recorded positions against the plan, on mission time (record t - mission_start).

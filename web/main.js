@@ -13,6 +13,7 @@ import { setTime, togglePlay } from "./flyscreen.js";
 import { buildLimitRows } from "./form.js";
 import { refreshMissionList } from "./history.js";
 import { loadSequenceFile, submitPlan, submitSequence, updatePlanButtons } from "./planning.js";
+import { cancelGoals, onGoalPointerDown, onGoalPointerMove, onGoalPointerUp, sendGoals } from "./replan.js";
 import { editor, flight } from "./state.js";
 import { refreshStatus, refreshVehicles } from "./status.js";
 
@@ -45,6 +46,12 @@ function wire() {
   $("#resume-button").addEventListener("click", () => pauseOrResume("resume"));
   for (const b of $$(".fleet-commands button")) b.addEventListener("click", () => fleetCommand(b.dataset.command));
   $("#abort-button").addEventListener("click", abortAll);
+  $("#fly-view").addEventListener("pointerdown", onGoalPointerDown);
+  $("#fly-view").addEventListener("pointermove", onGoalPointerMove);
+  $("#fly-view").addEventListener("pointerup", onGoalPointerUp);
+  $("#fly-view").addEventListener("pointercancel", onGoalPointerUp);
+  $("#replan-send").addEventListener("click", sendGoals);
+  $("#replan-cancel").addEventListener("click", cancelGoals);
 }
 
 function start() {

@@ -10,6 +10,7 @@ import { clearFlightView, drawFlyStatic, resetSlider } from "./flyscreen.js";
 import { readScenario, sequenceKey } from "./form.js";
 import { closeReplay, loadFlights, refreshMissionList } from "./history.js";
 import { loadPlotly, nextTask, renderFigures } from "./planview.js";
+import { missionPlanShown } from "./replan.js";
 import { trajectoryRate } from "./scale.js";
 import { flight, missionIs, planning, ready, views } from "./state.js";
 
@@ -227,6 +228,7 @@ async function renderPlan(mission) {
   if (!traj.ok || !sepTraj.ok) return;
   views.traj = traj.data;
   views.sepTraj = sepTraj.data;
+  missionPlanShown();
   $("#empty-note").hidden = true;
   $("#fly-map").hidden = false;
   $("#flights").hidden = false;

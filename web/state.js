@@ -20,12 +20,17 @@
 /** @typedef {{t: number[], d: number[], label?: string}} SeparationSeries */
 /** @typedef {{id: string, position?: number[], velocity?: number[], fault?: string,
  *   phase?: string, heartbeat_age?: number | null, [key: string]: any}} VehicleRow */
+/** @typedef {{id: number, status: string, requested_at: number, switch_time: number,
+ *   planning_s: number | null, goals: Record<string, number[]>, drop: string[],
+ *   drop_action: string, reason: string | null, why?: string}} ReplanObject
+ *   an in-flight replan (POST /api/executions/{id}/replan, the live state's `replan`) */
 /** @typedef {{mission_time?: number | null, phase: string, min_separation_live: number | null,
- *   vehicles: VehicleRow[]}} Telemetry  one `telemetry` event of a flight */
+ *   vehicles: VehicleRow[], replan?: ReplanObject | null}} Telemetry  one `telemetry` event
+ *   of a flight */
 /** @typedef {{id: string, vehicles: {id: string, t: number[], position: number[][]}[]}} Replay */
 /** @typedef {{kind?: string, vehicles?: number, ids?: string[], flying?: string | null,
  *   world_origin?: {lat: number, lon: number, alt: number}}} Fleet */
-/** @typedef {{pause: boolean, resume: boolean, fleetCommands: boolean,
+/** @typedef {{pause: boolean, resume: boolean, replan: boolean, fleetCommands: boolean,
  *   vehicleCommands: boolean}} Capabilities */
 /** @typedef {Record<string, Record<string, string[]>>} StatusSets  GET /api/status `statuses` */
 
@@ -64,7 +69,7 @@ export const planning = {
 /** The plan's views: trajectories sampled for the plots, the slider and the fly view.
  * @type {{traj: Trajectory | null, sepTraj: Trajectory | null,
  *   sep: SeparationSeries | null, measured: SeparationSeries | null,
- *   flyTf: {toSvg: (x: number, y: number) => number[]} | null,
+ *   flyTf: import("./flyview.js").ViewTransform | null,
  *   playTimer: ReturnType<typeof setInterval> | null}} */
 export const views = {
   traj: null,      // /trajectory?rate=10 for the views and the slider
@@ -98,7 +103,22 @@ export const flight = {
 export const fleet = {
   vehicles: [],
   fleet: null,
-  caps: { pause: false, resume: false, fleetCommands: false, vehicleCommands: false },
+  caps: { pause: false, resume: false, replan: false, fleetCommands: false, vehicleCommands: false },
+};
+
+/** The flight's replans (`replan.js`): goals being edited, and the plans flown on screen.
+ * @type {{pending: Record<string, number[]>, drag: string | null, sending: boolean,
+ *   current: ReplanObject | null, seen: string, drawn: string,
+ *   dropped: Record<string, number>, planTraj: Trajectory | null}} */
+export const replan = {
+  pending: {},      // id -> [x, y, z]: goals dragged or typed, not sent yet
+  drag: null,       // the vehicle whose goal marker is being dragged
+  sending: false,   // a replan request is on its way
+  current: null,    // the last replan object shown
+  seen: "",         // "id:status" of the last replan object the snapshots carried
+  drawn: "",        // the switched replans whose plans the views show ("1,2"; "" none)
+  dropped: {},      // id -> flight time it was dropped at, in the plans shown
+  planTraj: null,   // the mission's own trajectory while the views show the plans flown
 };
 
 /** The page holds its state: the service's status sets and the first preset (or the

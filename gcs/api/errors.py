@@ -38,7 +38,14 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match, Mount
 from starlette.types import Send
 
-from gcs.errors import InvalidRequest, NotFound, RequestError, ServiceBusy, StateConflict
+from gcs.errors import (
+    InvalidRequest,
+    NotFound,
+    RequestError,
+    ServiceBusy,
+    StateConflict,
+    field_path,
+)
 from gcs.flight.vehicle_loop import VehicleLoopStopped
 from gcs.service.storage_faults import is_disk_full, storage_reason
 from planner.errors import FieldError
@@ -216,13 +223,7 @@ def _dotted(loc: Sequence[Any]) -> str | None:
     parts = list(loc)
     if parts and parts[0] in ("body", "query", "path", "header", "cookie"):
         parts = parts[1:]
-    out = ""
-    for part in parts:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += f".{part}" if out else str(part)
-    return out or None
+    return field_path(parts) or None
 
 
 def _validation_items(exc: RequestValidationError) -> list[ErrorItem]:

@@ -4,9 +4,12 @@ Live progress per vehicle once a second and every event as it happens; a summary
 exit status 0 only when the flight completed. Ctrl-C aborts safely: every vehicle lands and
 the command waits for them to disarm (a second Ctrl-C exits at once). SIGUSR1 pauses the
 mission (the clock stops, every vehicle holds the plan's setpoint of the same plan time),
-SIGUSR2 resumes it: ``kill -USR1 PID``. The flight and the mock vehicles run on their own
-thread (`gcs.flight.vehicle_loop`), driven through a `gcs.flight.flight_handle.FlightHandle`
-as the REST service drives them; the signals are handled on the main thread's loop.
+SIGUSR2 resumes it: ``kill -USR1 PID``. With ``--control PATH`` the flight also takes commands
+on a unix socket (`gcs.cli.control`): `fleetplan replan PATH ...` changes goals or drops
+vehicles in flight. The flight and the mock vehicles run on their own thread
+(`gcs.flight.vehicle_loop`), driven through a `gcs.service.replan_handle.ReplanHandle` (a
+`FlightHandle` that also replans) as the REST service drives them; the signals are handled
+on the main thread's loop.
 """
 
 from __future__ import annotations
@@ -72,6 +75,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="--mock: the fleet's position_error (m) for the margin check and "
                              "the goal tolerance, as a fleet file states it (e.g. 0.25 with "
                              "--mock-realism px4)")
+    parser.add_argument("--control", metavar="PATH",
+                        help="take commands on a unix socket at PATH while flying (mode 0600, "
+                             "removed at the end): `fleetplan replan PATH ...` changes goals or "
+                             "drops vehicles in flight")
     parser.add_argument("--quiet", "-q", action="store_true", help="no live progress")
 
 
@@ -90,13 +97,14 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
+    from gcs.cli.control import ControlServer
     from gcs.cli.hints import port_error, port_in_use_hint
     from gcs.cli.plan_file import read_plan
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
-    from gcs.flight.flight_handle import FlightHandle
     from gcs.flight.realtime import settle_heap
     from gcs.flight.vehicle_loop import VehicleLoop
+    from gcs.service.replan_handle import ReplanHandle
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
     try:
@@ -152,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
             changes = {field: getattr(args, flag) for flag, field in _OPTION_FLAGS.items()
                        if getattr(args, flag) is not None}
             options = fleet.options.replace(where="option", **changes)
-            handle = await FlightHandle.create(vehicles, plan, fleet, options,
+            handle = await ReplanHandle.create(vehicles, plan, fleet, options,
                                                on_event=events.put_nowait)
         except (GcsError, OSError) as exc:
             if mock is not None:
@@ -163,6 +171,19 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}"
                   f"{port_in_use_hint(exc, ports)}", file=sys.stderr)
             return 2
+
+        control = None
+        if args.control:
+            control = ControlServer(args.control, handle, len(plan.scenario.ids))
+            try:
+                await control.start()
+            except OSError as exc:
+                if mock is not None:
+                    await vehicles.call(mock.stop)
+                print(f"error: --control: {exc}", file=sys.stderr)
+                return 2
+            print(f"control socket: {args.control} (fleetplan replan {args.control} ...)",
+                  flush=True)
 
         loop = asyncio.get_running_loop()
         interrupts = 0
@@ -212,6 +233,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
             record = handle.record
         finally:
+            if control is not None:
+                await control.close()
             for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2):
                 loop.remove_signal_handler(sig)
             if printer is not None:

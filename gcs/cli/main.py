@@ -18,6 +18,8 @@ __all__ = ["build_parser", "main"]
 COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("plan", "gcs.cli.plan_cmd", "plan collision-free trajectories for a scenario"),
     ("fly", "gcs.cli.fly_cmd", "fly a plan on PX4 vehicles (or mock ones) and record it"),
+    ("replan", "gcs.cli.replan_cmd", "change goals or drop vehicles of a running `fleetplan fly "
+     "--control`"),
     ("export", "gcs.cli.export_cmd", "write a plan as a show file (Skybrush .skyc)"),
     ("fleet", "gcs.cli.fleet_cmd", "command vehicles between flights: hold, land, rtl, disarm, "
      "terminate"),

@@ -1,13 +1,13 @@
-"""The fleet's flights (executions): fly, pause, resume, abort, and the run of one flight
-from its start to its stored record.
+"""The fleet's flights (executions): fly, pause, resume, replan, abort, and the run of one
+flight from its start to its stored record.
 
 `FleetService` drives the configured fleet and its one active flight: the fleet is one set of
 aircraft. Everything that talks to vehicles runs in a process of its own, the vehicle process
 (`gcs.flight.vehicle_process.VehicleProcess`): the fleet (mocks, monitor links, fleet
 commands) and each flight's `gcs.flight.executor.FlightExecutor`, hosted there by
 `gcs.service.vehicle_host.FleetHost` and reached through its methods (start, pause, resume,
-abort, snapshots, events, the record). So no request handler, export, event stream, planning
-job or store write of the service can delay a setpoint tick, not even by holding the
+replan, abort, snapshots, events, the record). So no request handler, export, event stream,
+planning job or store write of the service can delay a setpoint tick, not even by holding the
 interpreter's lock. The flight's state lives here in a `LiveExecution`
 (`gcs.service.live_flight`), its handle is a `gcs.service.remote_flight.RemoteFlight`, and it
 is journaled to the store while it flies (`gcs.service.journal`).
@@ -15,8 +15,9 @@ is journaled to the store while it flies (`gcs.service.journal`).
 Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions), which first
 applies the pre-flight gate (`gcs.flight.health`) and the fleet's separation margin
 (`gcs.flight.margin`); `abort` sends every vehicle of the active flight to land (or hold) at
-once; `pause` / `resume` stop and restart its flight clock. Between flights `command` sends a
-fleet command over the monitor's connections.
+once; `pause` / `resume` stop and restart its flight clock; `replan` changes goals or drops
+vehicles in flight (`FlightExecutor.replan`). Between flights `command` sends a fleet
+command over the monitor's connections.
 """
 
 from __future__ import annotations
@@ -29,15 +30,19 @@ import time
 from datetime import UTC, datetime
 from typing import Any
 
+import orjson
+
 from gcs.errors import GcsError, MissionAborted, StateConflict
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.phases import EventKind
 from gcs.flight.vehicle_loop import VehicleLoopStopped
 from gcs.flight.vehicle_process import VehicleProcess
 from gcs.service.fleet import FleetKind, fleet_kind
+from gcs.service.flown_trajectory import replanned_in
 from gcs.service.journal import ExecutionJournal, store_failure, write_final
 from gcs.service.live_flight import LiveExecution, execution_document
 from gcs.service.remote_flight import RemoteFlight
+from gcs.service.replan_handle import Segment
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.storage_faults import storage_reason
@@ -248,6 +253,37 @@ class FleetService:
         if flight.status == ExecutionStatus.PAUSED:  # not aborted meanwhile
             flight.set_status(ExecutionStatus.RUNNING)
         return flight
+
+    async def replan(self, execution_id: str, goals: dict[str, list[float]] | None,
+                     drop: list[str], drop_action: str, reason: str = "operator",
+                     stored_status: str = "finished") -> dict[str, Any]:
+        """Start an in-flight replan of a running flight (new goals for some vehicles, some
+        dropped to land or hold on their own motion); the replan object at once (status
+        planning), its outcome follows as events. StateConflict unless the flight runs its
+        plan (not starting, paused or aborting) or while another replan is under way;
+        FieldError naming `goals.<id>` / `drop[n]` for an unknown vehicle or a bad goal."""
+        flight = self._flying(execution_id, stored_status)
+        if flight.status != ExecutionStatus.RUNNING or flight.handle is None:
+            raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
+                                                f"replanned (status {flight.status})")
+        return await flight.handle.replan(goals, drop, drop_action, reason)
+
+    async def replanned(self, execution_id: str) -> list[Segment]:
+        """The switched replans' plans of a flight, with their switch times: live from the
+        vehicle process while it flies, from its record once it ended (none without)."""
+        flight = self._flights.get(execution_id)
+        if flight is not None and flight.handle is not None:
+            if flight.active:
+                return await flight.handle.replanned()
+            if flight.handle.record is not None:
+                return replanned_in(flight.handle.record)
+        elif flight is not None:
+            return []  # starting: nothing flown yet
+        row = await asyncio.to_thread(self._store.get_execution, execution_id,
+                                      with_record=True)
+        if row is None or row.record_json is None:
+            return []
+        return await asyncio.to_thread(replanned_in, orjson.loads(row.record_json))
 
     def _flying(self, execution_id: str, stored_status: str) -> LiveExecution:
         """The flight under way with this id; StateConflict naming its status otherwise."""

@@ -100,6 +100,8 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
         "abort": f"/api/executions/{row.id}/abort",
         "pause": f"/api/executions/{row.id}/pause",
         "resume": f"/api/executions/{row.id}/resume",
+        "replan": f"/api/executions/{row.id}/replan",
+        "trajectory": f"/api/executions/{row.id}/trajectory",
         "record": f"/api/executions/{row.id}/record",
         "mission": f"/api/missions/{row.mission_id}",
     }

@@ -1,5 +1,5 @@
-"""The service's side of one flight flown in the vehicle process: pause, resume, abort, its
-latest snapshot, the record so far and, once it ended, its record.
+"""The service's side of one flight flown in the vehicle process: pause, resume, replan,
+abort, its latest snapshot, the record so far and, once it ended, its record.
 
 The flight itself (`gcs.flight.flight_handle.FlightHandle`) runs in the vehicle process and
 is reached through `gcs.service.vehicle_host.FleetHost`'s methods; its snapshots arrive as
@@ -13,6 +13,7 @@ from typing import Any
 
 from gcs.flight.vehicle_process import VehicleProcess
 from gcs.service.record_mirror import RecordMirror
+from gcs.service.replan_handle import Segment
 
 __all__ = ["RemoteFlight"]
 
@@ -46,6 +47,19 @@ class RemoteFlight:
     async def resume(self) -> float:
         """Restart the flight clock; the mission time it restarts at."""
         return float(await self._process.call("resume", self._execution))
+
+    async def replan(self, goals: dict[str, list[float]] | None, drop: list[str],
+                     drop_action: str, reason: str) -> dict[str, Any]:
+        """Start an in-flight replan (`FlightExecutor.replan`); the replan object at once
+        (status planning). StateConflict / FieldError as the flight raised them."""
+        replan: dict[str, Any] = await self._process.call(
+            "replan", self._execution, goals, drop, drop_action, reason)
+        return replan
+
+    async def replanned(self) -> list[Segment]:
+        """The switched replans' plans and switch times, in order."""
+        segments: list[Segment] = await self._process.call("replanned", self._execution)
+        return segments
 
     async def abort(self, action: str = "land", reason: str = "operator abort") -> None:
         """Every vehicle to `action` now; returns once the commands were answered."""

@@ -2,7 +2,8 @@
 
 `FleetHost` owns the configured fleet (`gcs.service.fleet.Fleet`: the fleet file's vehicles
 or the mocks, the monitor links, the fleet commands) and the one flight under way (a
-`gcs.flight.flight_handle.FlightHandle` on the process's vehicle loop). The service calls its
+`gcs.service.replan_handle.ReplanHandle`, a `FlightHandle` that also replans, on the
+process's vehicle loop). The service calls its
 public methods by name (`gcs.service.flights.FleetService`); everything it answers is plain
 data. It tells the service of a flight's events and live snapshots by notices tagged with the
 execution id: ``event`` ({execution, event}) in order, and ``snapshot`` ({execution, snapshot})
@@ -22,11 +23,11 @@ from typing import Any
 
 from gcs.errors import StateConflict
 from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.flight_handle import FlightHandle
 from gcs.flight.realtime import settle_heap
 from gcs.flight.vehicle_process import HostContext
 from gcs.service.fleet import Fleet
 from gcs.service.record_mirror import record_delta
+from gcs.service.replan_handle import ReplanHandle, Segment
 from gcs.service.settings import Settings
 from gcs.sim import MockConfig
 from planner import Plan
@@ -48,7 +49,7 @@ class FleetHost:
         self._vehicles = context.vehicles
         self._notify = context.notify
         self.fleet = Fleet(settings)
-        self._flight: FlightHandle | None = None
+        self._flight: ReplanHandle | None = None
         self._execution: str | None = None
         self._result: asyncio.Future[dict[str, Any]] | None = None
         self._ticker: asyncio.Task[None] | None = None
@@ -121,7 +122,7 @@ class FleetHost:
             if self.fleet.kind == "mock":
                 await self.fleet.rehome_mock(plan)
             spec = self.fleet.configured()
-            flight = await FlightHandle.create(
+            flight = await ReplanHandle.create(
                 self._vehicles, plan, spec, options, snapshot_hz=snapshot_hz,
                 on_event=lambda event: self._notify(
                     "event", {"execution": execution, "event": event}))
@@ -151,7 +152,7 @@ class FleetHost:
             if result.done():
                 await self._ended(flight)
 
-    async def _ended(self, flight: FlightHandle) -> None:
+    async def _ended(self, flight: ReplanHandle) -> None:
         if self._flight is not flight:
             return
         if self._ticker is not None:
@@ -164,13 +165,13 @@ class FleetHost:
     def _flying(self) -> bool:
         return self._result is not None and not self._result.done()
 
-    async def _post_snapshots(self, flight: FlightHandle, execution: str,
+    async def _post_snapshots(self, flight: ReplanHandle, execution: str,
                               period: float) -> None:
         while True:
             self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
             await asyncio.sleep(period)
 
-    def _current(self, execution: str) -> FlightHandle:
+    def _current(self, execution: str) -> ReplanHandle:
         if self._flight is None or self._execution != execution:
             raise StateConflict("execution_id", f"execution {execution!r} is not flying here")
         return self._flight
@@ -190,6 +191,20 @@ class FleetHost:
         restarted = await flight.resume()
         self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
         return restarted
+
+    async def replan(self, execution: str, goals: dict[str, list[float]] | None,
+                     drop: list[str], drop_action: str, reason: str) -> dict[str, Any]:
+        """`ReplanHandle.replan` of the flight under way: the replan object (status
+        planning) at once; StateConflict / FieldError cross as raised. Its snapshot is
+        posted before the answer, so the service shows the replan once the call returns."""
+        flight = self._current(execution)
+        replan = await flight.replan(goals, drop, drop_action, reason)
+        self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+        return replan
+
+    async def replanned(self, execution: str) -> list[Segment]:
+        """The switched replans' plans of the flight under way (`ReplanHandle.replanned`)."""
+        return await self._current(execution).replanned()
 
     async def abort(self, execution: str, action: str, reason: str) -> None:
         """`FlightHandle.abort` of the flight under way."""

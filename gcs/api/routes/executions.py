@@ -1,7 +1,8 @@
 """Flights: POST /api/missions/{id}/executions flies a mission on the configured fleet;
 /api/executions/{id} is its status and summary, /events its live telemetry and events
 (server-sent events), /abort lands (or holds) every vehicle at once, /pause and /resume stop
-and restart its mission clock, /record the flight record.
+and restart its mission clock, /replan changes goals or drops vehicles in flight, /trajectory
+the plans it flies (the first, then each switched replan's), /record the flight record.
 """
 
 from __future__ import annotations
@@ -22,13 +23,17 @@ from gcs.api.deps import (
     LastEventId,
     MissionDep,
     PlanCacheDep,
+    SettingsDep,
     SharedJsonDep,
     StoreDep,
 )
 from gcs.api.errors import error_responses
-from gcs.errors import StateConflict
+from gcs.errors import InvalidRequest, StateConflict
 from gcs.flight.phases import EventKind
+from gcs.replan_request import ReplanRequest, checked
 from gcs.service.flights import LiveExecution, execution_document
+from gcs.service.flown_trajectory import flown_trajectory
+from gcs.service.replan_handle import Segment
 from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
 from gcs.service.store import ExecutionRow
 
@@ -103,6 +108,38 @@ class AbortRequest(BaseModel):
     action: Literal["land", "hold"] = Field(
         "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."
     )
+
+
+class ReplanObject(BaseModel):
+    """One in-flight replan, as the flight keeps it (times are flight time, s)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    id: int = Field(description="The replan's number in this flight, from 1.")
+    status: str = Field(
+        description="planning (the new plan is being made), switched (the stream flies it "
+        "since `switch_time`) or missed (no verified plan by `switch_time`: the flight goes "
+        "on with its plan; the `replan_missed` event says why).")
+    requested_at: float = Field(description="Flight time of the request (s).")
+    switch_time: float = Field(description="Flight time the new plan starts at (s).")
+    lead_s: float = Field(description="switch_time - requested_at (s).")
+    planning_s: float | None = Field(description="Planning time once planned (s).")
+    goals: dict[str, list[float]] = Field(description="The new goals asked for.")
+    drop: list[str] = Field(description="The vehicles dropped.")
+    drop_action: str = Field(description="land or hold.")
+    reason: str | None = Field(description="Who asked, or which fault caused it.")
+
+
+class ReplanOut(BaseModel):
+    """The replan started (202): its outcome follows on the flight's event stream as
+    `replan_started`, then `replan_switched` or `replan_missed`."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"replan": {
+        "id": 1, "status": "planning", "requested_at": 3.2, "switch_time": 4.2, "lead_s": 1.0,
+        "planning_s": None, "goals": {"uav2": [4.0, 1.5, 2.0]}, "drop": ["uav3"],
+        "drop_action": "land", "reason": "operator"}}]})
+
+    replan: ReplanObject
 
 
 _EXECUTION_EXAMPLE: dict[str, Any] = {
@@ -342,6 +379,93 @@ async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str
     409 unless paused."""
     flight = await fleet.resume(execution.id, stored_status=execution.status)
     return _document(execution, flight)
+
+
+@router.post(
+    "/{execution_id}/replan",
+    status_code=202,
+    response_model=ReplanOut,
+    summary="Replan a flight in the air: change goals, drop vehicles",
+    responses=error_responses(400, 404, 409, 413, 422),
+)
+async def replan_execution(
+    execution: ExecutionDep, fleet: FleetDep, settings: SettingsDep, request: ReplanRequest,
+) -> dict[str, Any]:
+    """The flight plans anew from where its plan will be a moment ahead (the switch time)
+    and switches its setpoint stream there if the new plan is verified in time; otherwise it
+    flies on with its plan. 202 at once with the replan (status `planning`); the events
+    `replan_started`, then `replan_switched` or `replan_missed` follow on `links.events`, and
+    the live state carries the replan. 409 unless the flight is running its plan, or while
+    another replan is under way (one at a time: a second is refused, not queued); 422 naming
+    `goals.<id>` or `drop[n]` for an unknown vehicle, a goal outside the workspace, inside an
+    obstacle's clearance or closer than R to another goal."""
+    goals, drop = checked(request, settings.max_vehicles)
+    replan = await fleet.replan(execution.id, goals, drop, request.drop_action,
+                                stored_status=execution.status)
+    return {"replan": replan}
+
+
+class FlownTrajectoryVehicle(BaseModel):
+    """One vehicle's setpoints over the flight's plans."""
+
+    id: str
+    position: list[list[float]] = Field(description="(M, 3) positions (m), world frame ENU.")
+    velocity: list[list[float]] = Field(description="(M, 3) velocities (m/s).")
+
+
+class FlownSwitch(BaseModel):
+    replan: int | None = Field(description="The replan's id.")
+    t: float = Field(description="Its switch time (flight time, s).")
+
+
+class FlownTrajectoryOut(BaseModel):
+    """The plans a flight flies, on one time grid: the mission's plan from flight time 0,
+    each switched replan's from its switch time."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "execution_id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "rate": 10.0,
+        "frame": "world_enu", "t": [0.0, 0.1],
+        "vehicles": [{"id": "uav1", "position": [[4.5, 2.5, 1.1], [4.49, 2.5, 1.1]],
+                      "velocity": [[0.0, 0.0, 0.0], [-0.1, 0.0, 0.0]]}],
+        "switches": [{"replan": 1, "t": 4.2}], "dropped": {"uav3": 4.2}}]})
+
+    execution_id: str
+    mission_id: str
+    rate: float
+    frame: Literal["world_enu"]
+    t: list[float] = Field(description="M sample times (flight time, s), 0 to the end of the "
+                           "last plan.")
+    vehicles: list[FlownTrajectoryVehicle] = Field(
+        description="Every vehicle of the mission's plan, in its order, on the plan in force "
+        "at each time.")
+    switches: list[FlownSwitch] = Field(description="The switched replans, in order.")
+    dropped: dict[str, float] = Field(
+        description="Vehicles a replan dropped -> its switch time; from then on shown at "
+        "rest where their plan left them (each lands or holds on its own motion).")
+
+
+@router.get(
+    "/{execution_id}/trajectory",
+    response_model=FlownTrajectoryOut,
+    summary="The plans a flight flies, sampled (replans included)",
+    responses=error_responses(404, 409, 422),
+)
+async def execution_trajectory(
+    execution: ExecutionDep, plans: PlanCacheDep, fleet: FleetDep, settings: SettingsDep,
+    rate: Annotated[float, Query(gt=0, description="Samples per second (Hz).")] = 10.0,
+) -> dict[str, Any]:
+    """Every vehicle's setpoints at `rate` Hz in flight time: the mission's plan, then each
+    switched replan's plan from its switch time (live while the flight flies, from its record
+    once it ended). Without replans it is the mission's trajectory."""
+    if rate > settings.max_trajectory_rate:
+        raise InvalidRequest(
+            "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}")
+    plan = await run_in_threadpool(plans.get, execution.mission_id)
+    replanned = await fleet.replanned(execution.id)
+    document = await run_in_threadpool(
+        flown_trajectory, [Segment(0.0, plan), *replanned], rate,
+        settings.max_trajectory_samples)
+    return {"execution_id": execution.id, "mission_id": execution.mission_id, **document}
 
 
 @router.get(

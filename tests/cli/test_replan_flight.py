@@ -1,0 +1,115 @@
+"""`fleetplan fly --mock --control PATH` replanned by `fleetplan replan PATH` mid-flight, as a
+user runs them: the replan is flown (new goal, a vehicle dropped to land), the flight
+completes, and the socket is gone after."""
+
+from __future__ import annotations
+
+import json
+import queue
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from gcs.flight import phases
+from tests.flight.support import free_port_block, line_scenario, smooth_plan
+
+pytestmark = [pytest.mark.timeout(150),
+              pytest.mark.skipif(not hasattr(phases, "ReplanStatus"),
+                                 reason="needs FlightExecutor.replan (wt/flight)")]
+
+
+def _lines(proc: subprocess.Popen[str]) -> tuple[queue.Queue[str], threading.Thread]:
+    """The process's output lines, read on a thread (so a wait can time out), until it
+    closes its output; the thread."""
+    lines: queue.Queue[str] = queue.Queue()
+
+    def read() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.put(line)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    return lines, reader
+
+
+def _wait_for(lines: queue.Queue[str], text: str, seen: list[str], timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=0.5)
+        except queue.Empty:
+            continue
+        seen.append(line)
+        if text in line:
+            return
+    raise AssertionError(f"no {text!r} within {timeout} s:\n{''.join(seen)}")
+
+
+def _replan(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "gcs.cli.main", "replan", *args],
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.flight
+def test_fly_takes_a_replan_on_its_control_socket(tmp_path: Path) -> None:
+    # Three vehicles 3 m apart flying 2 m along y in 10 s at 1.5 m.
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(line_scenario(3, steps=50)).to_dict()))
+    sock = tmp_path / "fly.sock"
+    base = free_port_block(6)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path), "--mock",
+         "--mock-settle", "0.5", "--mock-status-rate", "5", "--mock-land-speed", "1",
+         "--mock-disarm-after-land", "0.5", "--hold-at-goal", "0.5", "--climb-speed", "2",
+         "--prestream", "0.3", "--base-port", str(base), "--listen-base-port", str(base + 3),
+         "--record", str(tmp_path / "record.json"), "--control", str(sock),
+         "--replan-lead", "3"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    seen: list[str] = []
+    try:
+        lines, reader = _lines(proc)
+        _wait_for(lines, f"control socket: {sock}", seen, 60)
+        _wait_for(lines, "mission_start", seen, 60)
+        done = _replan(str(sock), "--goal", "uav1=1,2,2", "--drop", "uav3")
+        assert done.returncode == 0, done.stderr
+        replan = json.loads(done.stdout)
+        assert replan["status"] == "planning" and replan["drop"] == ["uav3"]
+        # One at a time: refused while the first waits for its switch.
+        again = _replan(str(sock), "--drop", "uav2")
+        assert again.returncode == 1 and "refused (StateConflict)" in again.stderr
+        proc.wait(timeout=90)
+        reader.join(timeout=10)  # the rest of its output
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    while not lines.empty():
+        seen.append(lines.get())
+    out = "".join(seen)
+    assert proc.returncode == 0, out
+    assert "replan_switched" in out and "replan_missed" not in out
+    assert not sock.exists()  # removed at the end
+    record = json.loads((tmp_path / "record.json").read_text())
+    [flown] = record["replans"]
+    assert flown["status"] == "switched" and flown["goals"] == {"uav1": [1.0, 2.0, 2.0]}
+    assert record["summary"]["completed"] is True and "uav3" in record["summary"]["dropped"]
+    assert {e["vehicle"] for e in record["events"] if e["kind"] == "landed"} >= {"uav3"}
+
+
+@pytest.mark.parametrize(("flags", "message"), [
+    (["--policy", "nope"], "option.policy: must be one of hold_all, land_all, land_faulty, "
+                           "replan, got 'nope'"),
+    (["--replan-lead", "50"], "option.replan_lead_s: at most 10 s"),
+    (["--replan-lead", "0"], "option.replan_lead_s: must be positive"),
+])
+def test_fly_checks_its_replan_options(tmp_path: Path, flags: list[str], message: str) -> None:
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(line_scenario(2)).to_dict()))
+    done = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path),
+                           "--mock", *flags], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and message in done.stderr, done.stderr
