@@ -32,6 +32,7 @@ from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema
 
 from gcs.api.errors import ErrorItem
 from gcs.service.statuses import MissionStatus
+from planner import fixed as planner_fixed
 from planner import obstacles as planner_obstacles
 from planner import result as planner_result
 from planner import scenario as planner_scenario
@@ -95,6 +96,7 @@ _SCENARIO_TYPES: dict[str, type] = {
     "BoxShape": planner_obstacles.BoxShape,
     "CylinderShape": planner_obstacles.CylinderShape,
     "PrismShape": planner_obstacles.PrismShape,
+    "FixedTrajectory": planner_fixed.FixedTrajectory,
 }
 #: The obstacle example: a pillar in the middle of the paper's workspace.
 _OBSTACLE_EXAMPLE: dict[str, Any] = {
@@ -113,6 +115,8 @@ _EXAMPLES: dict[str, Any] = {
     "BoxShape": {"min": [1.0, 1.0, 0.0], "max": [1.5, 2.0, 3.0]},
     "CylinderShape": _OBSTACLE_EXAMPLE["cylinder"],
     "PrismShape": {"polygon": [[1.0, 1.0], [2.0, 1.0], [1.5, 2.0]], "z": [0.0, 3.0]},
+    "FixedTrajectory": {"id": "uav9", "positions": [[2.5, 2.5, 1.0], [2.5, 2.5, 0.9]],
+                        "margin": 0.5},
     "Plan": _PLAN_EXAMPLE,
     "VehicleTrajectory": _TRAJECTORY_EXAMPLE,
     "IterationRecord": _ITERATION,
@@ -190,8 +194,10 @@ def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
     """One dataclass as an object schema. Fields the planner keeps out of `repr` are derived
     arrays (starts, goals), not JSON fields. With `input_rules`, a field is required unless it
     has a default (`planner.scenario.DEFAULTS` or the dataclass's) or may be null."""
-    # The scenario names the obstacle types for type checkers only (no import cycle).
-    hints = typing.get_type_hints(cls, localns=vars(planner_obstacles))
+    # The scenario names the obstacle and fixed types for type checkers only (no import
+    # cycle).
+    hints = typing.get_type_hints(cls, localns={**vars(planner_obstacles),
+                                                **vars(planner_fixed)})
     docs = _attribute_docs(cls)
     properties: dict[str, Any] = {}
     required: list[str] = []

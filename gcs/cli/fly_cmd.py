@@ -30,8 +30,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="start mock vehicles in this run, homes under the plan's starts")
     parser.add_argument("--record", help="write the flight record (JSON) here")
     parser.add_argument("--rate", type=float, help="setpoint rate (Hz, default 20, max 100)")
-    parser.add_argument("--policy", choices=("hold_all", "land_all", "land_faulty"),
-                        help="what to do when a vehicle is flagged (default land_all)")
+    parser.add_argument("--policy",
+                        help="what to do when a vehicle is flagged: hold_all, land_all "
+                             "(default), land_faulty, or replan (it lands on its own, the "
+                             "others are replanned around it); checked as the fleet file's")
+    parser.add_argument("--replan-lead", type=float,
+                        help="an in-flight replan switches this far ahead (s, default 1)")
     parser.add_argument("--at-end", choices=("land", "hold"),
                         help="after the plan: land (default) or hold in PX4 Hold mode")
     parser.add_argument("--hold-at-goal", type=float, help="seconds at the goals (default 2)")
@@ -87,7 +91,7 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "prestream": "prestream", "tracking_error_max": "tracking_error_max",
                  "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
                  "margin_check": "margin_check", "message_rates": "message_rates",
-                 "stream_priority": "stream_priority"}
+                 "stream_priority": "stream_priority", "replan_lead": "replan_lead_s"}
 
 def run(args: argparse.Namespace) -> int:
     import asyncio

@@ -29,7 +29,8 @@ from gcs.api.deps import (
 )
 from gcs.api.errors import error_responses
 from gcs.errors import InvalidRequest, StateConflict
-from gcs.flight.phases import EventKind
+from gcs.flight.fleetfile import MAX_REPLAN_LEAD_S
+from gcs.flight.phases import EventKind, ReplanStatus
 from gcs.replan_request import ReplanRequest, checked
 from gcs.service.flights import LiveExecution, execution_document
 from gcs.service.flown_trajectory import flown_trajectory
@@ -51,10 +52,16 @@ class FlyRequest(BaseModel):
         json_schema_extra={"examples": [{"policy": "land_all", "at_end": "land"}]},
     )
 
-    policy: Literal["hold_all", "land_all", "land_faulty"] | None = Field(
+    policy: Literal["hold_all", "land_all", "land_faulty", "replan"] | None = Field(
         None, description="What to do when a vehicle is flagged (lost heartbeat, left "
-        "OFFBOARD, tracking error): hold or land everyone, or land the faulty one."
+        "OFFBOARD, tracking error): hold or land everyone, land the faulty one, or replan: "
+        "the faulty one lands on its own and the others are replanned around it to their "
+        "goals."
     )
+    replan_lead_s: float | None = Field(
+        None, gt=0, le=MAX_REPLAN_LEAD_S,
+        description="An in-flight replan switches at least this far ahead of its request "
+        "(s, default 1); a new plan not verified by then is not flown.")
     at_end: Literal["land", "hold"] | None = Field(
         None, description="After the plan and the hold at the goals: land, or PX4 Hold."
     )
@@ -116,10 +123,10 @@ class ReplanObject(BaseModel):
     model_config = ConfigDict(extra="allow")
 
     id: int = Field(description="The replan's number in this flight, from 1.")
-    status: str = Field(
+    status: ReplanStatus = Field(
         description="planning (the new plan is being made), switched (the stream flies it "
         "since `switch_time`) or missed (no verified plan by `switch_time`: the flight goes "
-        "on with its plan; the `replan_missed` event says why).")
+        "on with its plan; `why` and the `replan_missed` event say why).")
     requested_at: float = Field(description="Flight time of the request (s).")
     switch_time: float = Field(description="Flight time the new plan starts at (s).")
     lead_s: float = Field(description="switch_time - requested_at (s).")
@@ -128,6 +135,13 @@ class ReplanObject(BaseModel):
     drop: list[str] = Field(description="The vehicles dropped.")
     drop_action: str = Field(description="land or hold.")
     reason: str | None = Field(description="Who asked, or which fault caused it.")
+    why: str | None = Field(None, description="Why it was missed.")
+    vehicles: list[str] | None = Field(None, description="The vehicles planned.")
+    fixed: list[str] | None = Field(
+        None, description="The vehicles the others avoid on a known motion (the dropped "
+        "ones, any vehicle in the air off the plan).")
+    horizon: float | None = Field(None, description="Once switched: the new plan's length "
+                                  "(s) from `switch_time`.")
 
 
 class ReplanOut(BaseModel):
