@@ -142,10 +142,13 @@ def _sparse(a0: FloatArray, b0: FloatArray, k: int) -> Assignment:
 
 @dataclasses.dataclass(frozen=True)
 class _Solved:
-    """A sparse solve in the coordinates it was given: its order, the gap between its cost
-    and the dual bound, whether every edge passed the check, rounds and candidate edges."""
+    """A sparse solve in the coordinates it was given: its order, dual potentials, the gap
+    between its cost and the dual bound, whether every edge passed the check, rounds and
+    candidate edges."""
 
     order: IntArray
+    u: FloatArray
+    v: FloatArray
     gap: float
     proven: bool
     rounds: int
@@ -217,64 +220,81 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
     _, near_starts = cKDTree(a).query(b, kk)
     keys += [everyone * n + np.asarray(near_goals).reshape(-1),
              np.asarray(near_starts).reshape(-1) * n + everyone]
+    u, v = np.zeros(n), np.zeros(n)
+    if n >= COARSE_BELOW:
+        # warm start: the coarse start potentials' c-transform prices the goals, whose
+        # c-transform prices the starts; such (u, v) are feasible on all N^2 edges
+        v = _lifted_best(b, ca, coarse.u, 1)[0][:, 0]
+        u_cost, u_goal = _lifted_best(a, b, v, 1)
+        u = u_cost[:, 0]
+        keys.append(np.arange(n) * n + u_goal[:, 0])
     edges = np.unique(np.concatenate(keys))
     rounds = 0
     while rounds < MAX_ROUNDS:
         rounds += 1
         rows, cols = np.divmod(edges, n)
         cost = np.sum((a[rows] - b[cols]) ** 2, axis=1)
-        graph = csr_matrix((cost + 1.0, (rows, cols)), shape=(n, n))  # +1: no explicit zeros
+        # the last round's reduced costs have the same optimum (every full matching's cost
+        # shifts by sum u + sum v) and make its matching all but optimal: a warm start;
+        # shifted to >= 1, as explicit zeros would be dropped
+        reduced_cost = cost - u[rows] - v[cols]
+        graph = csr_matrix((reduced_cost + (1.0 - min(0.0, float(reduced_cost.min()))),
+                            (rows, cols)), shape=(n, n))
         _, matched = min_weight_full_bipartite_matching(graph)
         order = np.asarray(matched, dtype=np.intp)
         own = np.sum((a - b[order]) ** 2, axis=1)
-        u = _potentials(order, rows, cols, cost, own)
+        u = _potentials(order, rows, cols, cost, own, u)
         v = np.empty(n)
         v[order] = own - u
-        best_cost, best = _lifted_best(a, b, v, kk)
-        reduced = best_cost - u[:, None]
+        best_cost, _ = _lifted_best(a, b, v, 1)
         # any v gives the dual bound sum_i min_j (cost[i, j] - v[j]) + sum_j v[j]
         gap = float(np.sum(own)) - float(np.sum(best_cost[:, 0]) + np.sum(v))
-        improving = reduced < -TOLERANCE
-        if not improving.any():
+        failing = np.flatnonzero(best_cost[:, 0] - u < -TOLERANCE)
+        if not len(failing):
             break
-        grown = np.union1d(edges, np.nonzero(improving)[0] * n + best[improving])
-        if len(grown) == len(edges):
+        # the failing starts' best goals at these prices join the graph
+        best_cost, best = _lifted_best(a[failing], b, v, kk)
+        improving = best_cost - u[failing, None] < -TOLERANCE
+        added = np.unique(np.repeat(failing, best.shape[1])[improving.reshape(-1)] * n
+                          + best[improving])
+        new = added[edges[np.minimum(np.searchsorted(edges, added), len(edges) - 1)] != added]
+        if not len(new):
             break
-        edges = grown
-    return _Solved(order, max(gap, 0.0), not improving.any(), rounds, len(edges))
+        edges = np.sort(np.concatenate([edges, new]))
+    return _Solved(order, u, v, max(gap, 0.0), not len(failing), rounds, len(edges))
 
 
 def _potentials(order: IntArray, rows: IntArray, cols: IntArray, cost: FloatArray,
-                own: FloatArray) -> FloatArray:
+                own: FloatArray, start: FloatArray) -> FloatArray:
     """Start potentials u of an optimal matching over the candidate edges: u[i] + v[j] <=
     cost on every edge with v[order[i]] = own[i] - u[i]. Those are difference constraints
     u[i] <= u[i'] + cost[i, order[i']] - own[i'], solved as shortest paths from a virtual
     source (Bellman-Ford, vectorised over the edges leaving the starts that moved last round;
-    an optimal matching leaves no negative cycle)."""
+    an optimal matching leaves no negative cycle). Relaxing from `start` (the last round's
+    potentials) gives the largest solution below it, in few passes when little changed."""
     n = len(order)
     owner = np.empty(n, dtype=np.intp)
     owner[order] = np.arange(n)
     tail = owner[cols]
     keep = tail != rows
     tail, head, weight = tail[keep], rows[keep], cost[keep] - own[tail[keep]]
-    by_head = np.argsort(head, kind="stable")
-    tail, head, weight = tail[by_head], head[by_head], weight[by_head]
-    u = np.zeros(n)
-    moved = np.ones(n, dtype=bool)
+    by_tail = np.argsort(tail, kind="stable")
+    tail, head, weight = tail[by_tail], head[by_tail], weight[by_tail]
+    first = np.searchsorted(tail, np.arange(n + 1))
+    u = start.copy()
+    frontier = np.arange(n)
     slack = TOLERANCE * 1e-3
     for _ in range(n + 1):
-        live = moved[tail]
-        if not live.any():
+        counts = first[frontier + 1] - first[frontier]
+        total = int(counts.sum())
+        if total == 0:
             break
-        t, h = tail[live], head[live]
-        offer = u[t] + weight[live]
-        first = np.flatnonzero(np.r_[True, h[1:] != h[:-1]])
-        best = np.minimum.reduceat(offer, first)
-        targets = h[first]
-        better = best < u[targets] - slack
-        moved[:] = False
-        moved[targets[better]] = True
-        u[targets[better]] = best[better]
+        # the edges leaving the frontier, gathered from their CSR rows
+        edge = np.repeat(first[frontier] - np.cumsum(counts) + counts, counts) + np.arange(total)
+        best = np.full(n, np.inf)
+        np.minimum.at(best, head[edge], u[tail[edge]] + weight[edge])
+        frontier = np.flatnonzero(best < u - slack)
+        u[frontier] = best[frontier]
     return u
 
 
