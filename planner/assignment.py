@@ -300,13 +300,13 @@ def _potentials(order: IntArray, rows: IntArray, cols: IntArray, cost: FloatArra
 
 def capt_spacing_holds(starts: FloatArray, goals: FloatArray, separation: float,
                        scale: FloatArray | None = None) -> bool:
-    """Are starts and goals each at least sqrt(2) R apart (separation metric)?"""
+    """Are starts and goals each at least sqrt(2) R apart (separation metric)? Each point's
+    nearest other point comes from a k-d tree: no all-pairs array at show scale."""
+    from scipy.spatial import cKDTree
+
     s = np.ones(3) if scale is None else np.asarray(scale, dtype=float)
     need = CAPT_SPACING * separation
     for points in (starts / s, goals / s):
-        for lo in range(0, len(points), 256):
-            d = np.linalg.norm(points[lo:lo + 256, None, :] - points[None, :, :], axis=2)
-            d[np.arange(d.shape[0]), lo + np.arange(d.shape[0])] = np.inf
-            if d.min(initial=np.inf) < need:
-                return False
+        if len(points) > 1 and float(cKDTree(points).query(points, 2)[0][:, 1].min()) < need:
+            return False
     return True
