@@ -29,6 +29,7 @@ so `solve_assignment` always reports how far from optimal the order can be. An u
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 
@@ -77,8 +78,14 @@ class Assignment:
 def assign_goals(starts: FloatArray, goals: FloatArray, scale: FloatArray | None = None,
                  *, dense_below: int = DENSE_BELOW) -> IntArray:
     """order[n]: the index of the goal vehicle n flies to, minimising the total squared
-    (scaled) distance. Deterministic for given inputs; see `solve_assignment`."""
-    return solve_assignment(starts, goals, scale, dense_below=dense_below).order
+    (scaled) distance. Deterministic for given inputs; see `solve_assignment`. A result not
+    proven optimal (none so far) comes with a RuntimeWarning giving its gap bound."""
+    solved = solve_assignment(starts, goals, scale, dense_below=dense_below)
+    if not solved.proven:
+        warnings.warn(f"free assignment of {len(solved.order)} vehicles not proven optimal: "
+                      f"it may exceed the optimum by {solved.gap:.3g} (total squared "
+                      f"distance {solved.cost:.6g})", RuntimeWarning, stacklevel=2)
+    return solved.order
 
 
 def solve_assignment(starts: FloatArray, goals: FloatArray, scale: FloatArray | None = None,

@@ -272,3 +272,12 @@ def test_assign_goals_keeps_its_signature_and_uses_dense_for_small_fleets():
                                   solve_assignment(starts, goals).order)
     with pytest.raises(ValueError, match="differ in shape"):
         solve_assignment(starts, goals[:-1])
+
+
+def test_assign_goals_warns_when_a_result_is_not_proven(monkeypatch):
+    starts, goals = _clusters(np.random.default_rng(5))
+    monkeypatch.setattr(assignment, "MAX_ROUNDS", 1)
+    monkeypatch.setattr(assignment, "DENSE_FALLBACK", 0)  # no dense rescue at this size
+    with pytest.warns(RuntimeWarning, match="not proven optimal: it may exceed the optimum by"):
+        order = assign_goals(starts, goals, dense_below=2)
+    assert sorted(order.tolist()) == list(range(len(starts)))
