@@ -162,8 +162,8 @@ class _Solved:
     edges: int
 
 
-#: The sparse loop first solves a random quarter of the points (recursively, down to this
-#: size) and seeds its candidates with the goals that are best under the coarse potentials.
+#: From this size the sparse loop first solves a random quarter of the points (recursively),
+#: adds the goals its moves predict to the candidates and starts from its potentials.
 COARSE_BELOW = 2000
 #: Coarse starts (goals) whose moves predict where a start's goal (a goal's start) lies.
 PREDICTIONS = 3
