@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import planner
-from planner import PlanFormatError, Scenario, ScenarioError
-from planner.assignment import CAPT_SPACING, assign_goals, capt_spacing_holds
+from planner import PlanFormatError, Scenario, ScenarioError, assignment
+from planner.assignment import CAPT_SPACING, assign_goals, capt_spacing_holds, solve_assignment
 from planner.first_qp import straight_moves
-from planner.generators import grid_to_sphere
+from planner.generators import grid_to_sphere, sphere_shell, vertical_grid
 from planner.verify import continuous_minimum
 
 
@@ -146,3 +146,138 @@ def test_horizon_check_uses_the_assigned_goals():
     assert info.value.field.endswith(".goal")
     scenario = Scenario.from_dict({**data, "assignment": "free"})
     assert scenario.order.tolist() == [1, 0]
+
+
+# --------------------------------------------------------------------------- the sparse path
+
+def _dense_optimum(starts, goals, scale=None):
+    return solve_assignment(starts, goals, scale, dense_below=10**9)
+
+
+def _sparse(starts, goals, scale=None, **options):
+    return solve_assignment(starts, goals, scale, dense_below=2, **options)
+
+
+def _clusters(rng, big=200, small=100):
+    """`big` starts and `small` goals around the origin, `small` starts and `big` goals 60 m
+    away: the nearest-k graph matches the crowded starts only to the few goals beside them."""
+    near = rng.normal(size=(big + small, 3))
+    far = rng.normal(size=(big + small, 3)) + np.array([60.0, 0.0, 0.0])
+    starts = np.concatenate([near[:big], far[:small]])
+    goals = np.concatenate([near[big:], far[small:]])
+    return starts, goals
+
+
+def _structured(name, n):
+    if name == "grid-sphere":
+        data = grid_to_sphere(n, seed=1)
+        return (np.array([v["start"] for v in data["vehicles"]]),
+                np.array([v["goal"] for v in data["vehicles"]]))
+    shell = sphere_shell(n)
+    radius = float(np.linalg.norm(shell[0]))
+    grid = vertical_grid(n)
+    return grid, shell + np.array([grid[:, 0].max() + radius + 4.0, 0.0, radius + 2.0])
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("scale", [None, (1.0, 1.0, 2.0)])
+def test_sparse_matches_dense_on_random_points(seed, scale):
+    rng = np.random.default_rng(seed)
+    starts, goals = rng.random((400, 3)) * 30, rng.random((400, 3)) * 30
+    sparse, dense = _sparse(starts, goals, scale), _dense_optimum(starts, goals, scale)
+    assert sparse.method == "sparse" and dense.method == "dense"
+    assert sorted(sparse.order.tolist()) == list(range(400))
+    assert sparse.proven
+    assert sparse.cost == pytest.approx(dense.cost, rel=1e-9)
+    assert sparse.lower_bound <= dense.cost * (1 + 1e-9)
+    assert sparse.gap <= 1e-6 * dense.cost
+
+
+@pytest.mark.parametrize("name", ["grid-sphere", "sideways"])
+def test_sparse_matches_dense_on_show_formations(name):
+    starts, goals = _structured(name, 300)
+    sparse, dense = _sparse(starts, goals), _dense_optimum(starts, goals)
+    assert sparse.proven
+    assert sparse.cost == pytest.approx(dense.cost, rel=1e-9)
+    # CAPT's property holds for the sparse optimum too: r0'r1 >= 0 for every pair
+    r0 = starts[:, None, :] - starts[None, :, :]
+    moved = goals[sparse.order]
+    r1 = moved[:, None, :] - moved[None, :, :]
+    assert np.einsum("ijk,ijk->ij", r0, r1).min() >= -1e-6
+
+
+def test_a_graph_without_a_full_matching_still_gives_the_optimum():
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+    from scipy.spatial import cKDTree
+
+    starts, goals = _clusters(np.random.default_rng(5))
+    n, k = len(starts), 4
+    _, near_goals = cKDTree(goals).query(starts, k)
+    _, near_starts = cKDTree(starts).query(goals, k)
+    rows = np.concatenate([np.repeat(np.arange(n), k), near_starts.reshape(-1)])
+    cols = np.concatenate([near_goals.reshape(-1), np.repeat(np.arange(n), k)])
+    with pytest.raises(ValueError, match="no full matching"):
+        min_weight_full_bipartite_matching(
+            csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n)))
+    sparse = _sparse(starts, goals, neighbours=k)
+    assert sparse.proven
+    assert sparse.rounds > 1  # the first graph's optimum was not the true one
+    assert sparse.cost == pytest.approx(_dense_optimum(starts, goals).cost, rel=1e-9)
+
+
+def test_an_unfinished_certificate_is_not_reported_proven(monkeypatch):
+    # One round only: the candidate graph's optimum misses edges the true optimum needs.
+    starts, goals = _clusters(np.random.default_rng(5))
+    best = _dense_optimum(starts, goals).cost
+    monkeypatch.setattr(assignment, "MAX_ROUNDS", 1)
+    cut = assignment._sparse(starts, goals, 4)
+    assert cut.cost > best * (1 + 1e-6)  # the crafted case really needs more edges
+    assert not cut.proven
+    assert cut.lower_bound <= best * (1 + 1e-9)  # the reported bound stays a true bound
+    assert cut.gap >= cut.cost - best - 1e-6 * best
+    # solve_assignment does not hand back the unproven order: it falls back to dense
+    fallback = _sparse(starts, goals, neighbours=4)
+    assert fallback.method == "dense" and fallback.cost == pytest.approx(best, rel=1e-12)
+
+
+def test_sparse_assignment_is_deterministic():
+    starts, goals = _structured("grid-sphere", 256)
+    first = _sparse(starts, goals)
+    again = _sparse(starts.copy(), goals.copy())
+    np.testing.assert_array_equal(first.order, again.order)
+    assert (first.cost, first.rounds, first.edges) == (again.cost, again.rounds, again.edges)
+
+
+def test_sparse_assignment_builds_nothing_n_by_n():
+    import tracemalloc
+
+    rng = np.random.default_rng(9)
+    n = 2500
+    starts, goals = rng.random((n, 3)) * 60, rng.random((n, 3)) * 60
+    tracemalloc.start()
+    try:
+        result = _sparse(starts, goals)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert result.proven
+    assert peak < n * n * 8 / 4  # a dense cost matrix alone would be n * n * 8 bytes
+
+
+def test_assign_goals_keeps_its_signature_and_uses_dense_for_small_fleets():
+    starts, goals = _structured("sideways", 50)
+    assert solve_assignment(starts, goals).method == "dense"
+    np.testing.assert_array_equal(assign_goals(starts, goals),
+                                  solve_assignment(starts, goals).order)
+    with pytest.raises(ValueError, match="differ in shape"):
+        solve_assignment(starts, goals[:-1])
+
+
+def test_assign_goals_warns_when_a_result_is_not_proven(monkeypatch):
+    starts, goals = _clusters(np.random.default_rng(5))
+    monkeypatch.setattr(assignment, "MAX_ROUNDS", 1)
+    monkeypatch.setattr(assignment, "DENSE_FALLBACK", 0)  # no dense rescue at this size
+    with pytest.warns(RuntimeWarning, match="not proven optimal: it may exceed the optimum by"):
+        order = assign_goals(starts, goals, dense_below=2)
+    assert sorted(order.tolist()) == list(range(len(starts)))
