@@ -88,12 +88,9 @@ class Streamer:
         self.boot_epoch = self.epoch if boot_epoch is None else boot_epoch
         """The GCS clock's zero, from which `time_boot_ms` counts."""
         self.assignments: dict[str, Assignment] = {}
-        self.pending: dict[str, Assignment] = {}
-        """Tracks waiting for their switch tick (`switch`): the current assignment streams
-        until then."""
-        self._switch_at: dict[str, int] = {}
-        """The switch tick of a pending track whose tick 0 falls elsewhere (`switch`'s
-        `origin`); absent: its start tick."""
+        self.pending: dict[str, tuple[int, Assignment]] = {}
+        """Tracks waiting for their switch tick (`switch`), as (switch tick, assignment): the
+        current assignment streams until then."""
         self.listeners: list[SendCallback] = []
         self.tick = -1
         """The last tick sent."""
@@ -125,7 +122,6 @@ class Streamer:
         """Stream `track` to `link` from `start_tick` (default: the next tick); returns it."""
         tick = self.next_tick() if start_tick is None else start_tick
         self.pending.pop(vehicle_id, None)  # an assignment now overrides a later switch
-        self._switch_at.pop(vehicle_id, None)
         self.assignments[vehicle_id] = Assignment(link, track, tick)
         return tick
 
@@ -139,20 +135,17 @@ class Streamer:
         if vehicle_id not in self.assignments or at_tick <= self.next_tick():
             self.assign(vehicle_id, link, track, start)
             return
-        self.pending[vehicle_id] = Assignment(link, track, start)
-        self._switch_at[vehicle_id] = at_tick
+        self.pending[vehicle_id] = (at_tick, Assignment(link, track, start))
 
     def cancel_switch(self, vehicle_id: str) -> bool:
         """Drop the switch waiting for a vehicle (its current assignment goes on); False
         when none waited (it may have taken over already)."""
-        self._switch_at.pop(vehicle_id, None)
         return self.pending.pop(vehicle_id, None) is not None
 
     def unassign(self, vehicle_id: str) -> None:
         """Stop streaming to a vehicle (and drop any switch waiting for it)."""
         self.assignments.pop(vehicle_id, None)
         self.pending.pop(vehicle_id, None)
-        self._switch_at.pop(vehicle_id, None)
 
     def start(self) -> None:
         if self._task is None:
@@ -169,10 +162,9 @@ class Streamer:
         """Every vehicle's setpoint for `tick`, encoded, ready to send."""
         boot_ms = time_boot_ms(self.tick_time(tick) - self.boot_epoch)
         if self.pending:  # almost always empty: no copy of it on every tick
-            for vehicle_id, waiting in list(self.pending.items()):
-                if self._switch_at.get(vehicle_id, waiting.start_tick) <= tick:
-                    del self.pending[vehicle_id]  # its switch tick: it takes over
-                    self._switch_at.pop(vehicle_id, None)
+            for vehicle_id, (switch_tick, waiting) in list(self.pending.items()):
+                if switch_tick <= tick:  # its switch tick: it takes over
+                    del self.pending[vehicle_id]
                     self.assignments[vehicle_id] = waiting
         ready = []
         for vehicle_id, assignment in list(self.assignments.items()):
