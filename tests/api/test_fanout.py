@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+import planner
 from gcs.api.fanout import SharedJson, Slots, StreamSlots
 from gcs.errors import ServiceBusy
 from gcs.service import plans
@@ -111,6 +112,20 @@ def test_a_streamed_json_export_is_the_plan_sampled_one_vehicle_at_a_time(
         for key, want in (("position", expected.position), ("velocity", expected.velocity),
                           ("acceleration", expected.acceleration)):
             np.testing.assert_allclose(np.asarray(vehicle[key]), want[i], atol=1e-12)
+
+
+def test_a_json_export_never_holds_more_than_one_vehicle_at_once() -> None:
+    """40 concurrent JSON exports of a long mission once held 40 whole documents (3.7 GB):
+    the document is made one vehicle at a time, so no piece is much more than one
+    vehicle's share of it, and the pieces join into the whole strict-JSON document."""
+    plan = planner.plan(example("paper-circle8"))
+    vehicles = len(plan.vehicles)
+    pieces = list(plans.trajectory_json_chunks("m", plan, 100.0, 10**7))
+    whole = b"".join(pieces)
+    assert len(pieces) == vehicles + 2  # the times, each vehicle, the closing brackets
+    assert max(len(p) for p in pieces) < 1.5 * len(whole) / vehicles
+    document = json.loads(whole)
+    assert [v["id"] for v in document["vehicles"]] == list(plan.scenario.ids)
 
 
 def test_event_streams_are_bounded_per_resource_and_in_total(
