@@ -4,6 +4,7 @@ event is serialised once for every stream that sends it."""
 
 from __future__ import annotations
 
+import asyncio
 import csv
 import io
 import json
@@ -175,6 +176,35 @@ def test_slots_are_counted_across_threads() -> None:
     assert slots.held == 0
     with slots.hold():
         assert slots.held == 1
+
+
+def test_an_event_published_to_many_streams_is_serialised_once(
+    monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A broadcast hands every follower the same object, so 50 streams of one flight cost
+    one serialisation per event, not 50."""
+    from gcs.api import fanout
+    from gcs.service.events import Broadcast
+
+    dumps = []
+    real = fanout.json.dumps
+    monkeypatch.setattr(fanout.json, "dumps", lambda *a, **k: dumps.append(1) or real(*a, **k))
+    shared, broadcast = SharedJson(), Broadcast()
+
+    async def main() -> list[list[str]]:
+        async def follow() -> list[str]:
+            return [shared.text(data) async for _, data in broadcast.follow([], None)]
+
+        followers = [asyncio.ensure_future(follow()) for _ in range(50)]
+        await asyncio.sleep(0)  # every follower subscribed
+        broadcast.publish("event", {"t": 1.0, "kind": "flight_start"})
+        broadcast.publish("done", {"status": "completed"})
+        return await asyncio.gather(*followers)
+
+    texts = asyncio.run(main())
+    assert all(t == ['{"t": 1.0, "kind": "flight_start"}', '{"status": "completed"}']
+               for t in texts)
+    assert len(dumps) == 2
 
 
 def test_one_serialisation_per_event_object_and_never_nan() -> None:
