@@ -2,7 +2,8 @@
 
 Starts `fleetplan serve` with 8 mock vehicles on free ports, plans paper-circle8 (the flight)
 and circle16 (what is exported), flies paper-circle8 at 50 Hz and, once the fleet is flying,
-at the same time: `--exports` concurrent CSV exports of circle16 at 100 Hz, `--streams` event
+at the same time: `--exports` concurrent exports of circle16 at 100 Hz (CSV, or the JSON
+document with `--export-format json`), `--streams` event
 streams (SSE) on the flight, `--plans` plan submissions (paper-circle4, wait=0), while one
 client polls GET /api/status. Prints one JSON document: the flight's status, link losses,
 setpoint rate, tick jitter p99 and missed ticks; the answers of each crowd by status code;
@@ -12,6 +13,7 @@ losses and p99 jitter <= 5 ms, RSS <= 1 GB, every refused request a 503.
 
     python bench/fanout.py
     python bench/fanout.py --exports 40 --streams 200 --plans 20 --repeat 3 --priority ordinary
+    python bench/fanout.py --export-format json
 """
 
 from __future__ import annotations
@@ -142,7 +144,8 @@ async def one_run(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
                     await asyncio.sleep(0.2)
 
             poller = asyncio.create_task(poll_status())
-            export_url = f"/api/missions/{exported['id']}/trajectory?rate=100&format=csv"
+            export_url = (f"/api/missions/{exported['id']}/trajectory?rate=100"
+                          f"&format={args.export_format}")
             crowds = await asyncio.gather(
                 _answers([_export(client, export_url) for _ in range(args.exports)]),
                 _answers([_stream(client, flight_url + "/events")
@@ -182,6 +185,8 @@ def main() -> None:
     parser.add_argument("--streams", type=int, default=200)
     parser.add_argument("--plans", type=int, default=20)
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--export-format", choices=("csv", "json"), default="csv",
+                        help="what the exports ask for: the CSV table or the JSON document")
     parser.add_argument("--priority", choices=("ordinary", "realtime"), default="realtime",
                         help="the service's vehicle_thread_priority (realtime: SCHED_RR 1 "
                              "for the vehicle process's thread, where allowed)")
@@ -200,7 +205,8 @@ def main() -> None:
     print(json.dumps({
         "benchmark": "fanout",
         "scenario": {"vehicles": VEHICLES, "rate_hz": 50, "flight": "paper-circle8",
-                     "exports": args.exports, "export": "circle16 CSV at 100 Hz",
+                     "exports": args.exports,
+                     "export": f"circle16 {args.export_format.upper()} at 100 Hz",
                      "streams": args.streams, "plans": args.plans, "repeat": args.repeat,
                      "vehicle_thread_priority": args.priority},
         "median": median,

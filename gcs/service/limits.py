@@ -17,9 +17,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from gcs.errors import InvalidRequest
+from gcs.replan_request import MAX_ENTRIES as MAX_REPLAN_ENTRIES
 from gcs.service.settings import Settings
 
 __all__ = [
+    "FIXED_LIMITS",
     "LIMIT_NAMES",
     "MAX_SEQUENCE_LEGS",
     "MIN_STEPS",
@@ -43,11 +45,18 @@ LIMIT_NAMES: tuple[str, ...] = (
 )
 
 
+#: The fixed limits (not settings) `GET /api/status` publishes beside `LIMIT_NAMES`.
+FIXED_LIMITS: dict[str, int] = {
+    "max_sequence_legs": MAX_SEQUENCE_LEGS,
+    "max_replan_entries": MAX_REPLAN_ENTRIES,  # vehicles one replan names in goals, in drop
+}
+
+
 def limits_in_force(settings: Settings) -> dict[str, int | float]:
     """Every limit a request is checked against, by name: the settings of `LIMIT_NAMES` and
-    `max_sequence_legs`."""
+    the `FIXED_LIMITS`."""
     limits: dict[str, int | float] = {name: getattr(settings, name) for name in LIMIT_NAMES}
-    limits["max_sequence_legs"] = MAX_SEQUENCE_LEGS
+    limits.update(FIXED_LIMITS)
     return limits
 
 

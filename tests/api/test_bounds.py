@@ -10,7 +10,13 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from gcs.service.limits import LIMIT_NAMES, MAX_SEQUENCE_LEGS, trajectory_sample_count
+from gcs.replan_request import MAX_ENTRIES
+from gcs.service.limits import (
+    FIXED_LIMITS,
+    LIMIT_NAMES,
+    MAX_SEQUENCE_LEGS,
+    trajectory_sample_count,
+)
 from gcs.service.plans import sample_times
 from tests.api.support import example
 
@@ -108,11 +114,16 @@ def test_the_export_size_is_counted_without_allocating(horizon: float, rate: flo
 
 def test_status_publishes_every_limit_in_force(shared_client: TestClient) -> None:
     limits = shared_client.get("/api/status").json()["limits"]
-    assert set(limits) == {*LIMIT_NAMES, "max_sequence_legs"}
+    assert set(limits) == {*LIMIT_NAMES, *FIXED_LIMITS}
+    # among them the bounds on work and fan-out a client must know before it asks
+    assert {"max_trajectory_samples", "plan_queue_max", "dt_min", "dt_max", "max_horizon_s",
+            "max_coordinate_m", "max_concurrent_exports", "max_event_streams",
+            "max_event_streams_per_resource", "request_timeout_s"} <= set(limits)
     settings = shared_client.app.state.settings  # type: ignore[attr-defined]
     for name in LIMIT_NAMES:
         assert limits[name] == getattr(settings, name), name
     assert limits["max_sequence_legs"] == MAX_SEQUENCE_LEGS
+    assert limits["max_replan_entries"] == MAX_ENTRIES  # what a replan body is checked against
     # The values are the shared app's own (not the defaults) ...
     assert (limits["max_steps"], limits["max_vehicles"]) == (400, 16)
     # ... and the ones its answers quote.

@@ -4,6 +4,7 @@ event is serialised once for every stream that sends it."""
 
 from __future__ import annotations
 
+import asyncio
 import csv
 import io
 import json
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+import planner
 from gcs.api.fanout import SharedJson, Slots, StreamSlots
 from gcs.errors import ServiceBusy
 from gcs.service import plans
@@ -113,6 +115,20 @@ def test_a_streamed_json_export_is_the_plan_sampled_one_vehicle_at_a_time(
             np.testing.assert_allclose(np.asarray(vehicle[key]), want[i], atol=1e-12)
 
 
+def test_a_json_export_never_holds_more_than_one_vehicle_at_once() -> None:
+    """40 concurrent JSON exports of a long mission once held 40 whole documents (3.7 GB):
+    the document is made one vehicle at a time, so no piece is much more than one
+    vehicle's share of it, and the pieces join into the whole strict-JSON document."""
+    plan = planner.plan(example("paper-circle8"))
+    vehicles = len(plan.vehicles)
+    pieces = list(plans.trajectory_json_chunks("m", plan, 100.0, 10**7))
+    whole = b"".join(pieces)
+    assert len(pieces) == vehicles + 2  # the times, each vehicle, the closing brackets
+    assert max(len(p) for p in pieces) < 1.5 * len(whole) / vehicles
+    document = json.loads(whole)
+    assert [v["id"] for v in document["vehicles"]] == list(plan.scenario.ids)
+
+
 def test_event_streams_are_bounded_per_resource_and_in_total(
     shared_client: TestClient, planned: str
 ) -> None:
@@ -160,6 +176,35 @@ def test_slots_are_counted_across_threads() -> None:
     assert slots.held == 0
     with slots.hold():
         assert slots.held == 1
+
+
+def test_an_event_published_to_many_streams_is_serialised_once(
+    monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A broadcast hands every follower the same object, so 50 streams of one flight cost
+    one serialisation per event, not 50."""
+    from gcs.api import fanout
+    from gcs.service.events import Broadcast
+
+    dumps = []
+    real = fanout.json.dumps
+    monkeypatch.setattr(fanout.json, "dumps", lambda *a, **k: dumps.append(1) or real(*a, **k))
+    shared, broadcast = SharedJson(), Broadcast()
+
+    async def main() -> list[list[str]]:
+        async def follow() -> list[str]:
+            return [shared.text(data) async for _, data in broadcast.follow([], None)]
+
+        followers = [asyncio.ensure_future(follow()) for _ in range(50)]
+        await asyncio.sleep(0)  # every follower subscribed
+        broadcast.publish("event", {"t": 1.0, "kind": "flight_start"})
+        broadcast.publish("done", {"status": "completed"})
+        return await asyncio.gather(*followers)
+
+    texts = asyncio.run(main())
+    assert all(t == ['{"t": 1.0, "kind": "flight_start"}', '{"status": "completed"}']
+               for t in texts)
+    assert len(dumps) == 2
 
 
 def test_one_serialisation_per_event_object_and_never_nan() -> None:

@@ -79,8 +79,7 @@ async def _fly(plan: Any, options: FlightOptions, *, key: Path | None = None,
             await attacker.start()
         task = flight.start()
         if not before_connect:
-            # Without a key, the peer pinned at first contact is whoever spoke first: the
-            # attacker joins once the vehicles are connected (README threat model).
+            # The attacker joins once the vehicles are connected.
             while flight.phase in ("created", "connecting"):
                 await asyncio.sleep(0.02)
             await attacker.start()
@@ -100,9 +99,13 @@ def _json_clean(record: dict) -> None:
 
 @pytest.mark.parametrize("signed", [False, True], ids=["pinned", "signed"])
 def test_flight_completes_under_every_attack(signed: bool, tmp_path: Path) -> None:
+    """The attacker speaks first, from before the connect: an unsigned vehicle whose first
+    contact pinned its peer was pinned to the attacker (its own packets then dropped as
+    foreign, the flight failed); the mocks' fleet file names each one's `peer`, as the
+    service's does, and a signed link refuses the attacker's unsigned packets."""
     plan = smooth_plan(line_scenario(3))
     key = new_key_file(tmp_path / "fleet.key").path if signed else None
-    record, mock, report = asyncio.run(_fly(plan, FAST, key=key, before_connect=signed))
+    record, mock, report = asyncio.run(_fly(plan, FAST, key=key, before_connect=True))
     assert isinstance(record, dict), record
     summary = record["summary"]
     assert summary["completed"] is True, summary

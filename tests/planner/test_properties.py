@@ -175,6 +175,84 @@ def test_extreme_magnitudes_are_refused_by_name_or_planned_soundly(path, value):
     assert plan.ok == (plan.status == "converged" and check.verified)
 
 
+#: The numeric fields of a moving start, the obstacles and the fixed trajectories, as paths
+#: into `_base_with_parts` (a box, a cylinder, a prism and a parked fixed vehicle).
+PART_FIELDS = [
+    *[("vehicles", 0, key, i) for key in ("start_velocity", "start_acceleration")
+      for i in range(3)],
+    ("obstacle_clearance",),
+    *[("obstacles", 0, "box", end, i) for end in ("min", "max") for i in range(3)],
+    *[("obstacles", 1, "cylinder", "center", i) for i in range(2)],
+    ("obstacles", 1, "cylinder", "radius"),
+    *[("obstacles", 1, "cylinder", "z", i) for i in range(2)],
+    *[("obstacles", 2, "prism", "polygon", n, i) for n in range(3) for i in range(2)],
+    *[("obstacles", 2, "prism", "z", i) for i in range(2)],
+    *[("fixed", 0, key, 0, i) for key in ("positions", "velocities") for i in range(3)],
+    ("fixed", 0, "margin"),
+]
+
+
+def _base_with_parts() -> dict[str, Any]:
+    """`_base_scenario` with a resting start state, three obstacles in the corners and a
+    parked fixed vehicle, all out of the crossing's way."""
+    data = _base_scenario()
+    data["vehicles"][0].update(start_velocity=[0.0, 0.0, 0.0],
+                               start_acceleration=[0.0, 0.0, 0.0])
+    data["obstacle_clearance"] = 0.3
+    data["obstacles"] = [
+        {"id": "box", "box": {"min": [0.0, 0.0, 0.0], "max": [0.5, 0.5, 1.0]}},
+        {"id": "post", "cylinder": {"center": [4.6, 0.4], "radius": 0.2, "z": [0.0, 2.0]}},
+        {"id": "wedge", "prism": {"polygon": [[0.0, 4.4], [0.6, 4.4], [0.0, 5.0]],
+                                  "z": [0.0, 1.5]}},
+    ]
+    data["fixed"] = [{"id": "parked", "positions": [[4.5, 4.5, 2.5]],
+                      "velocities": [[0.0, 0.0, 0.0]], "margin": 0.1}]
+    return data
+
+
+def test_the_base_with_parts_plans():
+    plan = planner.plan(_base_with_parts())
+    assert plan.ok, plan.message
+    assert len(plan.scenario.obstacles) == 3 and len(plan.scenario.fixed) == 1
+
+
+@settings(max_examples=100, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(st.sampled_from(PART_FIELDS),
+       st.one_of(st.sampled_from(EXTREMES), st.floats(), st.integers(),
+                 st.floats(-6.0, 6.0)))
+def test_extreme_magnitudes_on_start_states_obstacles_and_fixed_vehicles(path, value):
+    """The same magnitudes on the numbers of a moving start, an obstacle or a fixed
+    trajectory: refused naming the field (or the item it belongs to, or the vehicle it now
+    overlaps), or planned with a finite verification that agrees with itself."""
+    data = _base_with_parts()
+    node = data
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    try:
+        # no overflow or NaN in validation; a tiny vertex may underflow to zero in the
+        # polygon's edge lengths, which changes nothing
+        with np.errstate(all="raise", under="ignore"):
+            scenario = planner.Scenario.from_dict(data)
+    except ScenarioError as error:
+        assert error.field and error.reason
+        assert len(error.reason) < 300
+        item = _dotted(path[:2]) if path[0] in ("obstacles", "fixed") else _dotted(path)
+        assert error.field.startswith(item) or error.field.startswith("vehicles["), (
+            error.field, error.reason)
+        return
+    plan = planner.plan(scenario)
+    json.dumps(plan.to_dict(), allow_nan=False)
+    if plan.verification is None:
+        assert plan.status == "infeasible"
+        return
+    check = verify(scenario, plan.positions(), plan.velocities(), plan.accelerations())
+    assert check == plan.verification
+    assert _finite_figures(plan.to_dict()["verification"])
+    assert plan.ok == (plan.status == "converged" and check.verified)
+
+
 #: Every numeric field of a formation sequence that is not a leg scenario's own setting.
 SEQUENCE_FIELDS = [
     ("dt",), ("formations", 1, "duration"), ("formations", 1, "hold"),

@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.deps import PlanningDep, SettingsDep
 from gcs.flight.phases import vocabulary
-from gcs.service.limits import LIMIT_NAMES, limits_in_force
+from gcs.service.limits import FIXED_LIMITS, LIMIT_NAMES, limits_in_force
 from gcs.service.settings import Settings
 from gcs.service.statuses import status_sets
 
@@ -51,7 +51,8 @@ class StatusOut(BaseModel):
     )
     limits: dict[str, int | float] = Field(
         description="Every limit a request is checked against: "
-        f"{', '.join(LIMIT_NAMES)} (the settings of the same names) and max_sequence_legs."
+        f"{', '.join(LIMIT_NAMES)} (the settings of the same names), and "
+        f"{', '.join(FIXED_LIMITS)} (fixed)."
     )
     statuses: dict[str, dict[str, list[str]]] = Field(
         description="Every status set, defined once in the service: mission.all, "
