@@ -18,6 +18,7 @@ from typing import Any
 
 from gcs.errors import InvalidRequest
 from gcs.replan_request import MAX_ENTRIES as MAX_REPLAN_ENTRIES
+from gcs.service.events import MAX_BACKLOG
 from gcs.service.settings import Settings
 
 __all__ = [
@@ -49,6 +50,7 @@ LIMIT_NAMES: tuple[str, ...] = (
 FIXED_LIMITS: dict[str, int] = {
     "max_sequence_legs": MAX_SEQUENCE_LEGS,
     "max_replan_entries": MAX_REPLAN_ENTRIES,  # vehicles one replan names in goals, in drop
+    "max_event_backlog": MAX_BACKLOG,  # events an event stream may fall behind before it ends
 }
 
 

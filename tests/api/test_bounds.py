@@ -11,6 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.replan_request import MAX_ENTRIES
+from gcs.service.events import MAX_BACKLOG
 from gcs.service.limits import (
     FIXED_LIMITS,
     LIMIT_NAMES,
@@ -124,6 +125,7 @@ def test_status_publishes_every_limit_in_force(shared_client: TestClient) -> Non
         assert limits[name] == getattr(settings, name), name
     assert limits["max_sequence_legs"] == MAX_SEQUENCE_LEGS
     assert limits["max_replan_entries"] == MAX_ENTRIES  # what a replan body is checked against
+    assert limits["max_event_backlog"] == MAX_BACKLOG  # where a stalled event stream ends
     # The values are the shared app's own (not the defaults) ...
     assert (limits["max_steps"], limits["max_vehicles"]) == (400, 16)
     # ... and the ones its answers quote.

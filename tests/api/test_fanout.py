@@ -216,3 +216,42 @@ def test_one_serialisation_per_event_object_and_never_nan() -> None:
     assert shared.text(dict(event)) == text  # an equal object: the same text
     for n in range(5):  # bounded: old entries go, and a new object never gets a stale text
         assert shared.text({"n": n}) == f'{{"n": {n}}}'
+
+
+def test_a_follower_that_stops_reading_is_ended_not_buffered_without_bound() -> None:
+    """A client that stops reading its event stream is ended once it falls MAX_BACKLOG
+    events behind; a reading follower of the same broadcast gets every event."""
+    from gcs.service.events import MAX_BACKLOG, Broadcast
+
+    broadcast = Broadcast()
+    published = range(1, MAX_BACKLOG + 50)
+
+    async def main() -> tuple[list[int], list[int], int]:
+        stalled = broadcast.follow([("event", {"n": 0})], None)
+        first = await anext(stalled)  # subscribed (its history taken), then it stops reading
+        got: list[int] = []
+
+        async def read() -> None:
+            async for kind, data in broadcast.follow([], None):
+                if kind == "done":
+                    return
+                got.append(data["n"])
+
+        reading = asyncio.ensure_future(read())
+        await asyncio.sleep(0)
+        for n in published:
+            broadcast.publish("event", {"n": n})
+            if n % 100 == 0:
+                await asyncio.sleep(0)  # the reader keeps up
+        during = broadcast.listening
+        broadcast.publish("done", {})
+        await reading
+        rest = [data["n"] async for _, data in stalled]
+        return [first[1]["n"], *rest], got, during
+
+    stalled, read, listening = asyncio.run(main())
+    assert read == list(published)
+    assert listening == 2
+    # the stalled one got its history, then was ended: nothing kept for it past the bound
+    assert stalled == [0]
+    assert broadcast.listening == 0
