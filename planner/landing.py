@@ -31,11 +31,12 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from planner.errors import PlannerError
+from planner.from_state import scenario_from_state
 from planner.planning import plan
 from planner.result import Plan
 from planner.scenario import RANGES, Scenario, minimum_transfer_time
 from planner.scp import ScpOptions
-from planner.types import FloatArray
+from planner.types import FloatArray, IntArray
 
 __all__ = ["LandingError", "LandingPlan", "first_step_clearance", "plan_landing",
            "touchdown_points"]
@@ -83,41 +84,87 @@ class LandingPlan:
 
 def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float) -> FloatArray:
     """(N, 3) touchdown points at `height` (world z), each as near below its vehicle as the
-    others allow: pushed apart until every two are R (1 + TOUCHDOWN_SLACK) apart in the
-    horizontal separation metric, inside the workspace. `LandingError` when the floor is
-    too crowded for that."""
+    others and the obstacles allow: pushed apart until every two are R (1 + TOUCHDOWN_SLACK)
+    apart in the horizontal separation metric, and out of every obstacle standing at that
+    height until each is the obstacle clearance (1 + TOUCHDOWN_SLACK) from its footprint
+    (the column below it is free: PX4's Land descends there), inside the workspace.
+    `LandingError` when the floor is too crowded for that."""
     p = np.asarray(positions, dtype=float)
     lim = scenario.limits
     scale = scenario.separation_scale[:2]
     need = scenario.min_separation * (1.0 + TOUCHDOWN_SLACK)
     lo, hi = lim.position_min[:2] / scale, lim.position_max[:2] / scale
     xy = np.clip(p[:, :2] / scale, lo, hi)
+    standing = _standing_at(scenario, height)
     rng = np.random.default_rng(0)  # only breaks exact coincidences, reproducibly
     for _ in range(SPREAD_ROUNDS):
         pairs = cKDTree(xy).query_pairs(need * (1.0 - 1e-9), output_type="ndarray")
-        if len(pairs) == 0:
+        blocked = _obstacle_push(xy * scale, scenario, standing) / scale
+        if len(pairs) == 0 and not blocked.any():
             break
-        i, j = pairs[:, 0], pairs[:, 1]
-        d = xy[j] - xy[i]
-        dist = np.linalg.norm(d, axis=1)
-        same = dist < 1e-9
-        if same.any():
-            angle = rng.uniform(0.0, 2.0 * math.pi, int(same.sum()))
-            d[same] = np.stack([np.cos(angle), np.sin(angle)], axis=1)
-            dist[same] = 1.0
-        # each of the two moves half the shortfall (a little more, so the rounds end)
-        push = (0.5 * (need - dist) * 1.01 + 1e-6)[:, None] * d / dist[:, None]
-        moves = np.zeros_like(xy)
-        np.add.at(moves, i, -push)
-        np.add.at(moves, j, push)
+        moves = blocked
+        if len(pairs):
+            i, j = pairs[:, 0], pairs[:, 1]
+            d = xy[j] - xy[i]
+            dist = np.linalg.norm(d, axis=1)
+            same = dist < 1e-9
+            if same.any():
+                angle = rng.uniform(0.0, 2.0 * math.pi, int(same.sum()))
+                d[same] = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+                dist[same] = 1.0
+            # each of the two moves half the shortfall (a little more, so the rounds end)
+            push = (0.5 * (need - dist) * 1.01 + 1e-6)[:, None] * d / dist[:, None]
+            np.add.at(moves, i, -push)
+            np.add.at(moves, j, push)
         xy = np.clip(xy + moves, lo, hi)
     else:
-        raise LandingError(f"cannot place {len(p)} touchdown points {need:.2f} m apart on the "
-                           f"workspace floor within {SPREAD_ROUNDS} rounds (too crowded)")
+        raise LandingError(f"cannot place {len(p)} touchdown points {need:.2f} m apart and "
+                           f"clear of the obstacles on the workspace floor within "
+                           f"{SPREAD_ROUNDS} rounds (too crowded)")
     out = np.empty_like(p)
     out[:, :2] = xy * scale
     out[:, 2] = height
     return out
+
+
+def _stopping(v: FloatArray, scenario: Scenario) -> FloatArray:
+    """(N, 3) horizontal displacement of each vehicle braking at the acceleration bound
+    from velocity `v` (zero without one): where it comes to a stop if it brakes now, so its
+    touchdown point lies ahead of it rather than behind (no turning back)."""
+    out = np.zeros_like(v)
+    a_max = scenario.limits.acceleration_max
+    if a_max is not None:
+        out[:, :2] = v[:, :2] * np.abs(v[:, :2]) / (2.0 * a_max[:2])
+    return out
+
+
+def _standing_at(scenario: Scenario, height: float) -> IntArray:
+    """Indices of the obstacles whose solid comes within the clearance of `height`: a
+    touchdown point (and the descent below it) must stay clear of their footprints."""
+    if not scenario.obstacles:
+        return np.zeros(0, dtype=np.intp)
+    z = scenario.obstacle_set.z
+    reach = scenario.clearance
+    return np.flatnonzero((z[:, 0] - reach <= height) & (height <= z[:, 1] + reach))
+
+
+def _obstacle_push(xy: FloatArray, scenario: Scenario, standing: IntArray) -> FloatArray:
+    """(N, 2) horizontal moves (m) that take each point out of the clearance of the
+    obstacles in `standing` (zero for points already clear): along the footprint's outward
+    normal, by the shortfall (a little more, so the rounds end)."""
+    moves = np.zeros_like(xy)
+    if len(standing) == 0 or len(xy) == 0:
+        return moves
+    geometry = scenario.obstacle_set
+    need = scenario.clearance * (1.0 + TOUCHDOWN_SLACK)
+    point = np.repeat(np.arange(len(xy)), len(standing))
+    obstacle = np.tile(standing, len(xy))
+    dh, _, normal = geometry.horizontal(xy[point], obstacle)
+    short = dh < need * (1.0 - 1e-9)
+    if short.any():
+        push = ((need - dh[short]) * 1.01 + 1e-6)[:, None] * normal[short]
+        np.add.at(moves, point[short], push)
+    return moves
 
 
 def first_step_clearance(p: FloatArray, v: FloatArray, a: FloatArray, scenario: Scenario
@@ -202,7 +249,7 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
         v = np.clip(v, -lim.velocity_max, lim.velocity_max)
     if lim.acceleration_max is not None:
         a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
-    goals = touchdown_points(p, scenario, height)
+    goals = touchdown_points(p + _stopping(v, scenario), scenario, height)
     clearance = first_step_clearance(p, v, a, scenario)
     separation = scenario.min_separation
     if clearance < separation + START_SLACK * separation:
@@ -220,7 +267,9 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
             break
         steps = max(3, math.ceil(factor * horizon / scenario.dt))
         try:
-            spec = _scenario(scenario, names, p, v, a, goals, separation, steps)
+            spec = scenario_from_state(scenario, "landing", names, p, v, a, goals,
+                                       separation=separation, steps=steps,
+                                       max_iterations=MAX_ITERATIONS)
             result = plan(spec, solver=solver, options=ScpOptions())
         except (PlannerError, ValueError, ArithmeticError) as exc:  # the caller falls back
             raise LandingError(f"cannot plan the landing: {exc}") from exc
@@ -228,23 +277,3 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
             return LandingPlan(result, separation, time.perf_counter() - began, attempts)
         failures.append(f"{steps * scenario.dt:.1f} s: {'; '.join(result.problems())}")
     raise LandingError("no verified landing plan (" + " | ".join(failures) + ")")
-
-
-def _scenario(base: Scenario, ids: list[str], p: FloatArray, v: FloatArray, a: FloatArray,
-              goals: FloatArray, separation: float, steps: int) -> Scenario:
-    """The landing's scenario: the base's workspace, boxes and limits, from the state."""
-    return Scenario.from_dict({
-        "name": f"{base.name} landing",
-        "dt": base.dt,
-        "steps": steps,
-        "min_separation": separation,
-        "separation_scale": base.separation_scale.tolist(),
-        "cost_threshold": base.cost_threshold,
-        "max_iterations": MAX_ITERATIONS,
-        "limits": base.limits.to_dict(),
-        "vehicles": [
-            {"id": vid, "start": p[n].tolist(), "goal": goals[n].tolist(),
-             "start_velocity": v[n].tolist(), "start_acceleration": a[n].tolist()}
-            for n, vid in enumerate(ids)
-        ],
-    })

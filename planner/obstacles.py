@@ -304,10 +304,13 @@ class ObstacleSet:
         return ObstacleSet(tuple(o.id for o in obstacles), circle, center, radius, vertex,
                            normal, offset, z, lo, hi)
 
-    def _horizontal(self, q: FloatArray, o: IntArray, fallback: FloatArray
-                    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def horizontal(self, q: FloatArray, o: IntArray, fallback: FloatArray | None = None
+                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Signed horizontal distance of points q (Q, 2) to footprints o (Q,), the nearest
-        footprint boundary point and the outward unit normal there."""
+        footprint boundary point and the outward unit normal there. fallback (Q, 2): the
+        direction to use where a point lies on a cylinder's axis (default +x)."""
+        if fallback is None:
+            fallback = np.broadcast_to(np.array([1.0, 0.0]), (len(q), 2))
         dh = np.empty(len(q))
         point, normal = np.empty((len(q), 2)), np.empty((len(q), 2))
         circ = self.circle[o].astype(bool)
@@ -354,7 +357,7 @@ class ObstacleSet:
         o = np.asarray(o, dtype=np.intp)
         if fallback is None:
             fallback = np.broadcast_to(np.array([1.0, 0.0]), (len(q), 2))
-        dh, hpoint, hnormal = self._horizontal(q[:, :2], o, fallback)
+        dh, hpoint, hnormal = self.horizontal(q[:, :2], o, fallback)
         z0, z1 = self.z[o, 0], self.z[o, 1]
         zq = q[:, 2]
         below, above = z0 - zq, zq - z1

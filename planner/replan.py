@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike
 from planner.checks import check_vector
 from planner.errors import PlannerError, ScenarioError
 from planner.fixed import FixedTrajectory
+from planner.from_state import scenario_from_state
 from planner.landing import START_SLACK, first_step_clearance
 from planner.planning import plan
 from planner.result import Plan
@@ -168,7 +169,8 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
             break
         steps = min(MAX_STEPS, max(3, math.ceil(factor * horizon / base.dt)))
         try:
-            spec = _scenario(base, names, p, v, a, g, fixed, separation, steps)
+            spec = scenario_from_state(base, "replan", names, p, v, a, g,
+                                       separation=separation, steps=steps, fixed=fixed)
             result = plan(spec, solver=solver, options=ScpOptions())
         except ScenarioError as exc:  # a goal or start the scenario refuses: no retry helps
             raise ReplanError(f"cannot replan: {exc}") from exc
@@ -178,29 +180,3 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
             return Replan(result, separation, time.perf_counter() - began, attempts)
         failures.append(f"{steps * base.dt:.1f} s: {'; '.join(result.problems())}")
     raise ReplanError("no verified replan (" + " | ".join(failures) + ")")
-
-
-def _scenario(base: Scenario, ids: list[str], p: FloatArray, v: FloatArray, a: FloatArray,
-              goals: FloatArray, fixed: Sequence[FixedTrajectory], separation: float,
-              steps: int) -> Scenario:
-    """The replan's scenario: the base's workspace, boxes, obstacles, from the state."""
-    data = {
-        "name": f"{base.name} replan",
-        "dt": base.dt,
-        "steps": steps,
-        "min_separation": separation,
-        "separation_scale": base.separation_scale.tolist(),
-        "cost_threshold": base.cost_threshold,
-        "max_iterations": base.max_iterations,
-        "limits": base.limits.to_dict(),
-        "vehicles": [
-            {"id": vid, "start": p[n].tolist(), "goal": goals[n].tolist(),
-             "start_velocity": v[n].tolist(), "start_acceleration": a[n].tolist()}
-            for n, vid in enumerate(ids)
-        ],
-        "fixed": [f.to_dict() for f in fixed],
-    }
-    if base.obstacles:
-        data["obstacles"] = [o.to_dict() for o in base.obstacles]
-        data["obstacle_clearance"] = base.clearance
-    return Scenario.from_dict(data)

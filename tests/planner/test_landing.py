@@ -115,3 +115,51 @@ def test_vehicles_nearly_touching_are_a_landing_error(circle8) -> None:
     zeros = np.zeros((2, 3))
     with pytest.raises(LandingError, match="too close to plan a landing"):
         plan_landing(circle8.scenario, points, zeros, zeros, ids=["a", "b"])
+
+
+@pytest.fixture(scope="module")
+def shelving16():
+    from planner.obstacle_generators import shelving
+
+    plan = planner.plan(planner.Scenario.from_dict(shelving(16, seed=0)))
+    assert plan.ok
+    return plan
+
+
+@pytest.mark.parametrize("t", [4.0, 10.0, 14.0])
+def test_a_landing_among_shelving_keeps_its_clearance_and_lands_beside_them(
+    shelving16, t: float
+) -> None:
+    """The warehouse's shelves are in the landing's scenario too: from the fleet's state at t
+    (at 14 s five vehicles fly over the shelves' tops) the landing keeps the flight's own
+    obstacle clearance over continuous time, and every touchdown point's column is clear of
+    the shelves' footprints (PX4's Land descends there), while R is kept as before."""
+    scenario = shelving16.scenario
+    p, v, a = (x[:, 0] for x in shelving16.sample(np.array([t])))
+    landing = plan_landing(scenario, p, v, a)
+    plan = landing.plan
+    assert plan.ok, plan.problems()
+    assert [o.id for o in plan.scenario.obstacles] == [o.id for o in scenario.obstacles]
+    assert plan.scenario.clearance == scenario.clearance
+    assert plan.verification.obstacle_distance_min >= scenario.clearance - 1e-4
+    assert plan.verification.min_separation_continuous >= landing.separation - SEPARATION_TOLERANCE
+    touchdown = plan.positions()[:, -1]
+    geometry = scenario.obstacle_set
+    n, m = len(touchdown), len(geometry)
+    footprint, _, _ = geometry.horizontal(np.repeat(touchdown[:, :2], m, axis=0),
+                                          np.tile(np.arange(m), n))
+    assert footprint.min() >= scenario.clearance - 1e-9
+
+
+def test_touchdown_points_leave_an_obstacle_they_fall_in(shelving16) -> None:
+    """A vehicle hovering over a shelf gets a touchdown point beside it, the clearance (and
+    its slack) from the shelf's footprint; one in the aisle keeps the point below it."""
+    scenario = shelving16.scenario
+    shelf = scenario.obstacle_set
+    over = np.array([[10.0, 0.5 * (shelf.lo[1, 1] + shelf.hi[1, 1]) + 0.1, 3.5],
+                     [10.0, 0.5 * (shelf.hi[1, 1] + shelf.lo[2, 1]), 1.5]])
+    points = touchdown_points(over, scenario, 0.0)
+    gap = max(points[0, 1] - shelf.hi[1, 1], shelf.lo[1, 1] - points[0, 1])
+    assert gap == pytest.approx(scenario.clearance * (1.0 + TOUCHDOWN_SLACK), rel=0.02)
+    assert points[0, 1] > shelf.hi[1, 1]  # out by the nearer side (it was past the middle)
+    np.testing.assert_allclose(points[1], [*over[1, :2], 0.0])
