@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gcs.cli.control import ControlServer
-    from gcs.cli.hints import port_error, port_in_use_hint
+    from gcs.cli.hints import live_warning, port_error, port_in_use_hint
     from gcs.cli.plan_file import read_plan
     from gcs.errors import FleetFileError, GcsError
     from gcs.flight.fleetfile import FleetSpec, load_fleet
@@ -144,9 +144,19 @@ def run(args: argparse.Namespace) -> int:
         finally:
             await asyncio.to_thread(vehicles.stop)
 
+    ports = ("--base-port (the GCS side) and --listen-base-port (the mock vehicles)"
+             if args.mock else "the connection URLs in the fleet file")
+
     async def fly(vehicles: VehicleLoop) -> int:
         mock = None
         events: asyncio.Queue[dict | None] = asyncio.Queue()
+
+        def on_event(event: dict) -> None:
+            """Warnings to stderr at once (even with --quiet), every event to the printer."""
+            warning = live_warning(event, ports)
+            if warning is not None:
+                print(warning, file=sys.stderr, flush=True)
+            events.put_nowait(event)
         try:
             if args.mock:
                 homes = homes_under(plan.scenario.starts)
@@ -165,13 +175,11 @@ def run(args: argparse.Namespace) -> int:
                        if getattr(args, flag) is not None}
             options = fleet.options.replace(where="option", **changes)
             handle = await ReplanHandle.create(vehicles, plan, fleet, options,
-                                               on_event=events.put_nowait)
+                                               on_event=on_event)
         except (GcsError, OSError) as exc:
             if mock is not None:
                 await vehicles.call(mock.stop)
             where = f"{exc.field}: " if isinstance(exc, FleetFileError) else ""
-            ports = ("--base-port (the GCS side) and --listen-base-port (the mock vehicles)"
-                     if args.mock else "the connection URLs in the fleet file")
             print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}"
                   f"{port_in_use_hint(exc, ports)}", file=sys.stderr)
             return 2
@@ -266,6 +274,7 @@ async def _progress(handle, events) -> None:
     from rich.live import Live
 
     from gcs.cli.fly_status import status_table
+    from gcs.cli.hints import live_warning
 
     console = Console(highlight=False)
 
@@ -273,6 +282,8 @@ async def _progress(handle, events) -> None:
         while (event := await events.get()) is not None:
             if event["kind"] in ("statustext", "mode_change") and event["vehicle"]:
                 continue
+            if live_warning(event, "") is not None:
+                continue  # already printed as a warning (stderr)
             who = event["vehicle"] or "fleet"
             console.print(f"  [{event['t']:7.2f}] {who}: {event['kind']} {event['detail']}",
                           markup=False)

@@ -4,8 +4,11 @@ commands that meet the same error)."""
 from __future__ import annotations
 
 import errno
+from typing import Any
 
-__all__ = ["port_error", "port_in_use_hint"]
+from gcs.flight.phases import EventKind
+
+__all__ = ["live_warning", "port_error", "port_in_use_hint"]
 
 
 def port_in_use_hint(exc: BaseException, options: str) -> str:
@@ -23,3 +26,15 @@ def port_error(flag: str, port: int | None) -> str | None:
     if port is None or 1 <= port <= 65535:
         return None
     return f"{flag} must be a UDP port (1..65535), got {port}"
+
+
+def live_warning(event: dict[str, Any], options: str) -> str | None:
+    """The warning line `fleetplan fly` prints at once for a flight event the operator must
+    see (packets from someone else arriving as a vehicle), naming what to change
+    (`options`); None for any other event."""
+    if event.get("kind") != EventKind.DROPPED_PACKETS:
+        return None
+    who = event.get("vehicle") or "fleet"
+    return (f"warning: {who}: {event.get('detail')}: something else is sending to this "
+            f"vehicle's port (another fleetplan fly or mock on the same ports? choose free "
+            f"ports with {options})")

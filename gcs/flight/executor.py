@@ -24,7 +24,8 @@ executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
 4. after the horizon (of the last plan switched in by a replan), hold at the goals for
    `hold_at_goal`, measure the goal errors (each vehicle against its last goal; a dropped
    one is not judged), then land (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch
-   to Hold (`at_end`).
+   to Hold (`at_end`). Goals stacked closer than R horizontally are left by a landing plan
+   first (`gcs.flight.landing`), as an abort is: straight down, one would land under another.
 
 Monitors (20 Hz, `gcs.flight.monitor`): no message at all for `link_timeout` (1.5 s of
 station-running time: a lost link), HEARTBEAT older than `heartbeat_timeout` (5 s: mode and
@@ -551,6 +552,9 @@ class FlightExecutor:
             await _all(self._hold(v) for v in live)
             for v in live:
                 v.phase = VehiclePhase.HOVERING
+        elif (landing := self._end_landing(live)) is not None:
+            self._landing = landing
+            await landing.run()
         else:
             await _all(self._land(v) for v in live)
         # and the ones a land_faulty policy sent down, once their landing command has an
@@ -631,6 +635,18 @@ class FlightExecutor:
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), self.vehicles, self.streamer,
                                  self.options, self._emit, self._secure_one, self.stalls)
+        return landing if landing.eligible() else None
+
+    def _end_landing(self, live: list[VehicleStatus]) -> PlannedLanding | None:
+        """The landing plan for `at_end: land` when a vehicle's straight descent from its
+        goal would come closer than R to another's goal (goals stacked above each other), or
+        None: then PX4's Land takes each straight down, which keeps R."""
+        if self.options.landing != "planned" or self.streamer is None:
+            return None
+        if all(self._descent_conflicts(v) == [] for v in live):
+            return None
+        landing = PlannedLanding(self.plan.scenario.assigned(), live, self.streamer,
+                                 self.options, self._emit, self._land, self.stalls)
         return landing if landing.eligible() else None
 
     def _secure_one(self, v: VehicleStatus) -> Awaitable[None]:

@@ -153,6 +153,50 @@ def test_fly_with_nothing_listening_names_the_port_and_the_mock(tmp_path: Path) 
 
 
 @pytest.mark.flight
+def test_packets_from_a_foreign_source_are_warned_live(tmp_path: Path) -> None:
+    """Another process sending as uav1 to its GCS port during the flight (a second fly on
+    the same ports) is warned on stderr as it happens, even with --quiet, naming the options
+    that choose other ports; the record counts the drops too."""
+    import socket
+    import threading
+
+    from pymavlink.dialects.v20 import common as mavlink
+
+    proc = _fly(tmp_path, "--quiet")
+    assert proc.stdout is not None
+    base = int(proc.args[proc.args.index("--base-port") + 1])  # uav1's GCS port
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    packet = mav.heartbeat_encode(2, 12, 0, 0, 0).pack(mav)
+    stop = threading.Event()
+
+    def intrude() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other:
+            while not stop.wait(0.2):
+                other.sendto(packet, ("127.0.0.1", base))
+
+    intruder = threading.Thread(target=intrude, daemon=True)
+    intruder.start()
+    lines = []
+    try:
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith("warning: uav1:"):
+                break
+    finally:
+        stop.set()
+        intruder.join(5)
+    out, _ = proc.communicate(timeout=60)
+    warned = [line for line in lines if line.startswith("warning: uav1:")]
+    assert warned, "".join(lines) + out
+    assert "foreign_source" in warned[0] and "the latest from 127.0.0.1:" in warned[0]
+    assert "another fleetplan fly or mock" in warned[0]
+    assert "--base-port (the GCS side) and --listen-base-port" in warned[0]
+    record = json.loads((tmp_path / "record.json").read_text())
+    assert any(e["kind"] == "dropped_packets" and e["vehicle"] == "uav1"
+               for e in record["events"])
+
+
+@pytest.mark.flight
 def test_sigusr1_pauses_and_sigusr2_resumes(tmp_path: Path) -> None:
     proc = _fly(tmp_path)
     assert proc.stdout is not None

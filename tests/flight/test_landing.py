@@ -79,3 +79,36 @@ def test_stacked_pair_aborted_with_land_keeps_r_until_down() -> None:
     ground = [v.position_world[:2] for v in mock.vehicles]
     assert np.linalg.norm(ground[0] - ground[1]) >= 1.0 - 0.05
     assert all(e["kind"] != "not_disarmed" for e in record["events"])
+
+
+async def _fly_to_the_end(plan, options):
+    async with MockFleet(homes=HOMES, settle_time=0.5, **mock_ports(2), **FAST_MOCK) as mock:
+        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+        flight = FlightExecutor(plan, fleet, options)
+        task = flight.start()
+        while (flight.flight_time() or -1.0) < plan.scenario.horizon:
+            await asyncio.sleep(0.02)
+        truth: list[float] = []
+        sampler = asyncio.create_task(_sample_truth(mock, truth))
+        record = await task
+        sampler.cancel()
+        return record, mock, truth
+
+
+@pytest.mark.flight
+def test_goals_stacked_above_each_other_land_by_a_plan_at_the_end() -> None:
+    """The plan ends with the pair stacked (0.55 m apart horizontally): at_end land sends
+    them down by a verified landing plan, not straight down onto each other, and the
+    completed flight keeps R - 0.05 m until both are down and disarmed."""
+    plan = smooth_plan(STACKED)
+    options = QUICK.replace(landing_plan_timeout=2.0)
+    record, mock, truth = asyncio.run(_fly_to_the_end(plan, options))
+    assert record["summary"]["completed"] is True, record["summary"]
+    kinds = [e["kind"] for e in record["events"]]
+    assert EventKind.LANDING_PLAN in kinds, record["events"]
+    assert EventKind.LANDING_FALLBACK not in kinds
+    assert len(truth) > 100 and min(truth) >= 1.0 - 0.05
+    for vehicle in mock.vehicles:
+        assert not vehicle.armed
+    ground = [v.position_world[:2] for v in mock.vehicles]
+    assert np.linalg.norm(ground[0] - ground[1]) >= 1.0 - 0.05
