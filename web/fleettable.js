@@ -34,11 +34,20 @@ export function showVehicleTable() {
   const headHtml = `<tr>${heads.map((h) => `<th>${h}</th>`).join("")}</tr>`;
   if (thead.innerHTML !== headHtml) thead.innerHTML = headHtml;
   const tbody = $("#vehicle-state tbody");
-  tbody.innerHTML = "";
   const listed = rows.length > TABLE_ROWS_MAX
     ? [...rows.filter((v) => v.fault), ...rows.filter((v) => !v.fault)].slice(0, TABLE_ROWS_MAX)
     : rows;
-  for (const v of listed) tbody.appendChild(vehicleRow(v, optional, health, drops, actions));
+  /** @type {Map<string, HTMLTableRowElement>} */
+  const shown = new Map();
+  for (const tr of /** @type {HTMLTableRowElement[]} */ (Array.from(tbody.querySelectorAll("tr[data-id]")))) {
+    shown.set(tr.dataset.id ?? "", tr);
+  }
+  /** @type {HTMLTableRowElement[]} */
+  const wanted = listed.map((v) => {
+    const fresh = vehicleRow(v, optional, health, drops, actions);
+    const old = shown.get(v.id);
+    return old ? patchRow(old, fresh) : fresh;
+  });
   if (listed.length < rows.length) {
     const tr = document.createElement("tr");
     tr.className = "more-vehicles";
@@ -46,8 +55,29 @@ export function showVehicleTable() {
     td.colSpan = heads.length;
     td.textContent = `… and ${rows.length - listed.length} more vehicles (${rows.length} in all)`;
     tr.appendChild(td);
-    tbody.appendChild(tr);
+    const old = /** @type {HTMLTableRowElement | null} */ (tbody.querySelector("tr.more-vehicles"));
+    wanted.push(old && old.outerHTML === tr.outerHTML ? old : tr);
   }
+  const current = Array.from(tbody.children);
+  if (current.length !== wanted.length || current.some((tr, i) => tr !== wanted[i])) {
+    tbody.replaceChildren(...wanted);
+  }
+}
+
+/** `old` made to show what `fresh` (the same vehicle's row, just built) shows, cell by cell:
+ * a cell that did not change is kept, so a button under the operator's pointer is the same
+ * element from press to release and a click on it is never lost to a telemetry redraw
+ * (5 a second). `fresh` itself when the columns changed.
+ * @param {HTMLTableRowElement} old @param {HTMLTableRowElement} fresh
+ * @returns {HTMLTableRowElement} */
+function patchRow(old, fresh) {
+  if (old.children.length !== fresh.children.length) return fresh;
+  if (old.className !== fresh.className) old.className = fresh.className;
+  for (const [i, cell] of Array.from(fresh.children).entries()) {
+    const was = old.children[i];
+    if (was.outerHTML !== cell.outerHTML) was.replaceWith(cell);
+  }
+  return old;
 }
 
 /** @param {VehicleRow} v

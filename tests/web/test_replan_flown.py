@@ -57,7 +57,15 @@ def test_a_goal_dragged_and_a_vehicle_dropped_are_flown(
     # Drop d (to land) from its row first, while the fleet is still far apart: a landing
     # dropped in the crossing's middle (flight time ~9-11 s) has no verified replan and is
     # rightly missed, and on a busy machine a later drop could fall right then.
-    page.locator('#vehicle-state tr[data-id="d"] td[data-key="replan"] button').click()
+    # The row's button is the same element across the table's telemetry redraws (a press and
+    # its release on one element: a click is never lost to a redraw between them).
+    row = '#vehicle-state tr[data-id="d"]'
+    page.evaluate(f"""() => {{ window.dropButton = document.querySelector('{row} button');
+        window.altCell = document.querySelector('{row} td[data-key="alt"]'); }}""")
+    page.wait_for_function(f"""document.querySelector('{row} td[data-key="alt"]')
+                               !== window.altCell""", timeout=30_000)  # the row redrawn
+    assert page.evaluate(f"document.querySelector('{row} button') === window.dropButton")
+    page.locator(f'{row} td[data-key="replan"] button').click()
     status = page.locator("#replan-status")
     expect(status).to_have_attribute("data-status", "switched", timeout=60_000)
     expect(status).to_contain_text("replan 1: switched")
