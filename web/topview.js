@@ -37,6 +37,12 @@ export function drawTopView() {
   const obstacles = readObstacles().map((ob, i) => ({ ob, i })).filter(({ ob }) => drawable(ob));
   const marked = new Set(obstacleRows().flatMap((tr, i) => (tr.classList.contains("has-error") ? [i] : [])));
   const layer = svgEl("g", { class: "obstacles" }, view);
+  // A finger on an obstacle drags it, not the page: Chromium gives SVG shapes no touch-action
+  // of their own, so the touch's default (scrolling) is cancelled. On this layer, not the view:
+  // the press redraws the view, and the touch goes on at the shape first pressed, detached.
+  for (const kind of ["touchstart", "touchmove"]) {
+    layer.addEventListener(kind, (ev) => { if (ev.cancelable) ev.preventDefault(); }, { passive: false });
+  }
   drawObstacles(layer, tf, obstacles.map(({ ob }) => ob), obstacleClearance(),
                 { selected: obstacles.findIndex(({ i }) => i === editor.obstacle),
                   marked: new Set(obstacles.flatMap(({ i }, k) => (marked.has(i) ? [k] : []))),
