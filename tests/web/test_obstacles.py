@@ -4,13 +4,16 @@ a box on a vehicle's goal refused with that box marked in its row and on the map
 
 from __future__ import annotations
 
+import json
 import re
+from collections.abc import Callable
 
 import httpx
 import pytest
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Page, Route, expect
 
 from tests.api.support import ServiceProcess
+from tests.web.conftest import PHONE
 from tests.web.support import plan
 
 pytestmark = pytest.mark.browser
@@ -169,3 +172,72 @@ def test_handles_resize_the_selected_box_and_cylinder_within_bounds(page: Page) 
     _drag(page, f'{box} g.handle[data-handle="min,min"]', -400, 400)
     assert [_field(page, f"obstacles[1].box.min[{a}]") for a in range(2)] == [0.0, 0.0]
     assert _field(page, "obstacles[1].box.max[0]") == pytest.approx(lo[0] + 0.1)
+
+
+#: A triangular prism added to the pillar example the page loads (tests only: no example
+#: ships one), in a corner of its 5 x 5 m workspace.
+HUT_POLYGON = [[0.2, 0.2], [0.8, 0.2], [0.5, 0.7]]
+HUT = {"id": "hut", "prism": {"polygon": HUT_POLYGON, "z": [0.0, 1.0]}}
+
+
+def _with_hut(page: Page) -> None:
+    def answer(route: Route) -> None:
+        scenario = httpx.get(route.request.url).json()
+        scenario["obstacles"].append(HUT)
+        route.fulfill(status=200, content_type="application/json", body=json.dumps(scenario))
+
+    page.route("**/api/examples/pillar-circle8", answer)
+
+
+def _px_per_m(page: Page) -> float:
+    """Screen pixels per metre on the top view of a 5 m workspace (360 of its 400 units)."""
+    view = page.locator("#top-view").bounding_box()
+    assert view is not None
+    return view["width"] * 360 / 400 / 5
+
+
+def test_a_prism_moves_by_dragging_and_has_no_handles(open_page: Callable[..., Page]) -> None:
+    page = open_page(before=_with_hut)
+    page.select_option("#preset", "example:pillar-circle8")
+    page.click("#preset-load")
+    expect(page.locator("#obstacle-table tr.obstacle")).to_have_count(2)
+    hut = '#top-view g.obstacle[data-id="hut"]'
+    row = page.locator("#obstacle-table tr.obstacle").nth(1)
+    points = page.locator(f"{hut} polygon.solid").get_attribute("points")
+    px = _px_per_m(page)
+    _drag(page, f"{hut} polygon.solid", 0.5 * px, -0.25 * px)  # 0.5 m east, 0.25 m north
+    expect(page.locator(f"{hut}.selected")).to_have_count(1)
+    expect(page.locator(f"{hut} g.handle")).to_have_count(0)  # moved only, not resized
+    moved = json.loads(row.get_attribute("data-polygon") or "[]")
+    for (x, y), (x0, y0) in zip(moved, HUT_POLYGON, strict=True):
+        assert (x - x0, y - y0) == (pytest.approx(0.5, abs=0.03), pytest.approx(0.25, abs=0.03))
+    assert page.locator(f"{hut} polygon.solid").get_attribute("points") != points
+    assert _field(page, "obstacles[1].prism.z[1]") == 1.0  # heights stay
+
+
+def test_a_finger_resizes_a_box_on_a_phone_without_scrolling(
+    open_page: Callable[..., Page]
+) -> None:
+    page = open_page(PHONE, has_touch=True)
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)  # first preset loaded
+    page.click("#add-box")  # 1 m wide, selected
+    box = '#top-view g.obstacle[data-id="box1"]'
+    corner = page.locator(f'{box} g.handle[data-handle="max,max"]')
+    corner.scroll_into_view_if_needed()
+    solid = page.locator(f"{box} rect.solid").bounding_box()
+    bb = corner.bounding_box()
+    assert solid is not None and bb is not None
+    high = _field(page, "obstacles[0].box.max[1]")
+    x, y = bb["x"] + bb["width"] / 2, bb["y"] + bb["height"] / 2
+    scrolled = page.evaluate("window.scrollY")
+    # A finger on the corner moving 40 px up (which elsewhere scrolls the page): touch events
+    # as a phone sends them, through the DevTools protocol.
+    cdp = page.context.new_cdp_session(page)
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": [{"x": x, "y": y}]})
+    for k in range(1, 6):
+        cdp.send("Input.dispatchTouchEvent",
+                 {"type": "touchMove", "touchPoints": [{"x": x, "y": y - 8 * k}]})
+    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+    assert _field(page, "obstacles[0].box.max[1]") == pytest.approx(
+        high + 40 / solid["width"], abs=0.03)  # the box grew north by the 40 px
+    assert page.evaluate("window.scrollY") == scrolled  # and the page stayed put
