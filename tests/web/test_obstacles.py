@@ -1,6 +1,8 @@
 """The page's obstacles in a real browser: a preset's pillar drawn on the top view and in the
 3-D plan, a box added by its button, dragged and sized in its fields, sent with the plan, and
-a box on a vehicle's goal refused with that box marked in its row and on the map."""
+a box on a vehicle's goal refused with that box marked in its row and on the map; boxes and
+cylinders resized by their handles within bounds, by mouse and by a finger on a phone; a
+prism moved."""
 
 from __future__ import annotations
 
