@@ -8,9 +8,9 @@ import { clearErrors, clearErrorsFor, hasErrors } from "./fielderrors.js";
 import { refreshStale } from "./flygate.js";
 import { addObstacleRow, addVehicleRow, obstacleRows, renumberVehicles, vehicleRows, workspace,
          writeScenario } from "./form.js";
+import { grabHandle, grabMove, polygonAt, valueAt } from "./grab.js";
 import { circleScenario, randomScenario, round2 } from "./presets.js";
 import { editor, planning } from "./state.js";
-import { grabHandle, grabMove, polygonAt, valueAt } from "./grab.js";
 import { drawTopView, worldAt } from "./topview.js";
 
 /** @typedef {import("./state.js").Scenario} Scenario */
