@@ -1,6 +1,6 @@
 // @ts-check
 // The editor: vehicles added, removed, selected and placed on the top view; obstacles added,
-// selected, dragged and removed; every edit
+// selected, moved and resized by dragging, and removed; every edit
 // clears the errors it answers and marks the plan shown stale; presets fill the form.
 import { api } from "./api.js";
 import { $, clamp } from "./dom.js";
@@ -8,6 +8,7 @@ import { clearErrors, clearErrorsFor, hasErrors } from "./fielderrors.js";
 import { refreshStale } from "./flygate.js";
 import { addObstacleRow, addVehicleRow, obstacleRows, renumberVehicles, vehicleRows, workspace,
          writeScenario } from "./form.js";
+import { grabHandle, grabMove, polygonAt, valueAt } from "./grab.js";
 import { circleScenario, randomScenario, round2 } from "./presets.js";
 import { editor, planning } from "./state.js";
 import { drawTopView, worldAt } from "./topview.js";
@@ -52,43 +53,52 @@ export function addObstacle(kind) {
   formEdited();
 }
 
-/** A drag of an obstacle on the top view: where it began and the inputs it moves. */
-const drag = { active: false, moved: false, suppressClick: false, start: [0, 0], inputs: /** @type {{input: HTMLInputElement, axis: number, at: number}[]} */ ([]) };
+/** A drag of an obstacle on the top view, moving it or resizing it by a handle: where it
+ * began, the fields it drives (grab.js) and a prism's polygon when one moves. */
+const drag = {
+  active: false, moved: false, suppressClick: false, start: [0, 0],
+  fields: /** @type {import("./grab.js").Grabbed[]} */ ([]),
+  polygon: /** @type {import("./grab.js").GrabbedPolygon | null} */ (null),
+};
 
-/** Pointer down on an obstacle drawing: select it and start moving it.
+/** Pointer down on an obstacle drawing: select it and start moving it, or, on one of the
+ * selected obstacle's handles, resizing it.
  * @param {PointerEvent} ev */
 export function onTopViewPointerDown(ev) {
-  const g = /** @type {Element} */ (ev.target).closest("g.obstacle");
+  const target = /** @type {Element} */ (ev.target);
+  const g = target.closest("g.obstacle");
   if (!g) return;
   const index = Number(g.getAttribute("data-index"));
   const tr = obstacleRows()[index];
   if (!tr) return;
   ev.preventDefault();
+  const handle = target.closest("g.handle")?.getAttribute("data-handle");
   selectObstacle(index);
+  drag.start = worldAt(ev);
+  const grab = handle ? { fields: grabHandle(tr, handle, workspace()), polygon: null } : grabMove(tr);
+  drag.fields = grab.fields;
+  drag.polygon = grab.polygon;
   drag.active = true;
   drag.moved = false;
-  drag.start = worldAt(ev);
-  // x fields end in "[0]", y fields in "[1]" (min, max, center; z is "z[...]" or "[2]").
-  drag.inputs = Array.from(tr.querySelectorAll("input[data-path]")).flatMap((input) => {
-    const m = /^(min|max|center)\[([01])\]$/.exec(input.dataset.path || "");
-    return m ? [{ input, axis: Number(m[2]), at: Number(input.value) }] : [];
-  });
   $("#top-view").setPointerCapture?.(ev.pointerId);
 }
 
-/** Pointer moves while dragging: the obstacle follows by the world distance moved.
+/** Pointer moves while dragging: the fields grabbed follow the pointer, within their bounds;
+ * the table row and the drawing (solid, clearance, handles) with them.
  * @param {PointerEvent} ev */
 export function onTopViewPointerMove(ev) {
   if (!drag.active) return;
   const at = worldAt(ev);
-  const d = [at[0] - drag.start[0], at[1] - drag.start[1]];
-  for (const f of drag.inputs) f.input.value = String(round2(f.at + d[f.axis]));
+  for (const f of drag.fields) f.input.value = String(valueAt(f, drag.start, at));
+  if (drag.polygon) drag.polygon.tr.dataset.polygon = JSON.stringify(polygonAt(drag.polygon, drag.start, at));
   drag.moved = true;
-  for (const f of drag.inputs) clearErrorsFor(f.input);
+  // A prism has no x, y fields: its first field (a height) names the obstacle edited.
+  const edited = drag.polygon ? [$("input[data-path]", drag.polygon.tr)] : drag.fields.map((f) => f.input);
+  for (const input of edited) if (input) clearErrorsFor(input);
   formEdited();
 }
 
-/** Pointer up: the drag ends (the click that follows places no vehicle point). */
+/** Pointer up (or cancelled): the drag ends (the click that follows places no vehicle point). */
 export function onTopViewPointerUp() {
   if (!drag.active) return;
   drag.active = false;

@@ -33,6 +33,7 @@ function wire() {
   $("#top-view").addEventListener("pointerdown", onTopViewPointerDown);
   $("#top-view").addEventListener("pointermove", onTopViewPointerMove);
   $("#top-view").addEventListener("pointerup", onTopViewPointerUp);
+  $("#top-view").addEventListener("pointercancel", onTopViewPointerUp);
   $("#add-box").addEventListener("click", () => addObstacle("box"));
   $("#add-cylinder").addEventListener("click", () => addObstacle("cylinder"));
   $("#time-slider").addEventListener("input", (/** @type {Event} */ ev) => {

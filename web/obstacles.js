@@ -50,9 +50,10 @@ const points = (tf, poly) => poly.map(([x, y]) => tf.toSvg(x, y).map((v) => v.to
 
 /** Draw obstacles on a top-down view: the solid filled grey, its clearance a dashed outline.
  * Each drawing is a `g.obstacle` with `data-index` and `data-id`; `marked` indexes are drawn
- * red (an error names them), `selected` bold.
+ * red (an error names them), `selected` bold and, with `handles`, with its resize handles.
  * @param {Element} parent @param {Transform} tf @param {Obstacle[]} obstacles
- * @param {number} clearance @param {{selected?: number, marked?: Set<number>}} [opts] */
+ * @param {number} clearance
+ * @param {{selected?: number, marked?: Set<number>, handles?: boolean}} [opts] */
 export function drawObstacles(parent, tf, obstacles, clearance, opts = {}) {
   obstacles.forEach((ob, i) => {
     const marked = opts.marked ? opts.marked.has(i) : false;
@@ -78,8 +79,38 @@ export function drawObstacles(parent, tf, obstacles, clearance, opts = {}) {
       svgEl("polygon", { points: points(tf, poly), ...solid }, g);
       svgEl("polygon", { points: points(tf, offsetPolygon(poly, clearance)), ...dashed }, g);
     }
+    if (opts.handles && i === opts.selected) drawHandles(g, tf, ob);
     svgEl("title", {}, g).textContent = `obstacle ${ob.id}`;
   });
+}
+
+/** A box's handles on its four corners (`data-handle` "min,max": the corner at min x, max y)
+ * and a cylinder's on its rim, east of its centre ("radius"); a prism has none. Each is a
+ * `g.handle`: a small square inside a wider transparent disc a finger can hit, the disc kept
+ * small enough on a small obstacle to leave its middle free for moving it.
+ * @param {Element} g @param {Transform} tf @param {Obstacle} ob */
+function drawHandles(g, tf, ob) {
+  /** @type {[string, number[], string][]} handle, world point, cursor */
+  const handles = [];
+  let size = 0;  // svg units from a handle to the obstacle's middle, about
+  if (ob.box) {
+    const { min, max } = ob.box;
+    for (const [xe, ye, cursor] of [["min", "min", "nesw"], ["max", "min", "nwse"], ["max", "max", "nesw"], ["min", "max", "nwse"]]) {
+      handles.push([`${xe},${ye}`, [(xe === "min" ? min : max)[0], (ye === "min" ? min : max)[1]], `${cursor}-resize`]);
+    }
+    size = Math.min(Math.abs(max[0] - min[0]), Math.abs(max[1] - min[1])) * tf.scale / 2;
+  } else if (ob.cylinder) {
+    const { center: c, radius: r } = ob.cylinder;
+    handles.push(["radius", [c[0] + r, c[1]], "ew-resize"]);
+    size = Math.abs(r) * tf.scale;
+  }
+  const hit = Math.min(12, Math.max(5, size / 2));
+  for (const [name, [x, y], cursor] of handles) {
+    const [sx, sy] = tf.toSvg(x, y);
+    const h = svgEl("g", { class: "handle", "data-handle": name, style: `cursor: ${cursor}` }, g);
+    svgEl("circle", { cx: sx, cy: sy, r: hit, fill: "transparent" }, h);
+    svgEl("rect", { x: sx - 4, y: sy - 4, width: 8, height: 8, fill: "#fff", stroke: "#1f6feb", "stroke-width": 1.5 }, h);
+  }
 }
 
 /** All obstacles as one Plotly mesh3d trace (boxes and prisms as their polygons extruded,

@@ -1,6 +1,7 @@
 // @ts-check
-// The editor's top view: the workspace, its obstacles with their clearance, every vehicle's
-// start (dot), goal (cross) and the line between, and the world point under a click.
+// The editor's top view: the workspace, its obstacles with their clearance (the selected one
+// with its resize handles), every vehicle's start (dot), goal (cross) and the line between,
+// and the world point under a click.
 import { $, $$, color, svgEl } from "./dom.js";
 import { obstacleClearance, obstacleRows, readNumber, readObstacles, vehicleRows, workspace } from "./form.js";
 import { drawObstacles } from "./obstacles.js";
@@ -36,23 +37,32 @@ export function drawTopView() {
   const obstacles = readObstacles().map((ob, i) => ({ ob, i })).filter(({ ob }) => drawable(ob));
   const marked = new Set(obstacleRows().flatMap((tr, i) => (tr.classList.contains("has-error") ? [i] : [])));
   const layer = svgEl("g", { class: "obstacles" }, view);
+  // A finger on an obstacle drags it, not the page: Chromium gives SVG shapes no touch-action
+  // of their own, so the touch's default (scrolling) is cancelled. On this layer, not the view:
+  // the press redraws the view, and the touch goes on at the shape first pressed, detached.
+  for (const kind of ["touchstart", "touchmove"]) {
+    layer.addEventListener(kind, (ev) => { if (ev.cancelable) ev.preventDefault(); }, { passive: false });
+  }
   drawObstacles(layer, tf, obstacles.map(({ ob }) => ob), obstacleClearance(),
                 { selected: obstacles.findIndex(({ i }) => i === editor.obstacle),
-                  marked: new Set(obstacles.flatMap(({ i }, k) => (marked.has(i) ? [k] : []))) });
+                  marked: new Set(obstacles.flatMap(({ i }, k) => (marked.has(i) ? [k] : []))),
+                  handles: true });
   // Drawn indexes are the table's rows (some rows may be half typed and skipped).
   $$("g.obstacle", layer).forEach((g, k) => { g.setAttribute("data-index", String(obstacles[k].i)); });
+  // Vehicles over the obstacles, not in the way of a press on them (see style.css).
+  const marks = svgEl("g", { class: "vehicles" }, view);
   const rows = vehicleRows();
-  if (layered(rows.length)) { drawLayers(view, tf, rows); return; }
+  if (layered(rows.length)) { drawLayers(marks, tf, rows); return; }
   rows.forEach((tr, i) => {
     const v = $$("input", tr).slice(1).map(readNumber).map(Number);  // empty reads 0
     const [sx, sy] = tf.toSvg(v[0], v[1]);
     const [gx, gy] = tf.toSvg(v[3], v[4]);
     if (![sx, sy, gx, gy].every(Number.isFinite)) return;
     const c = color(i), selected = i === editor.selected;
-    svgEl("line", { x1: sx, y1: sy, x2: gx, y2: gy, stroke: c, "stroke-dasharray": "4 3", "stroke-width": selected ? 2 : 1 }, view);
-    svgEl("circle", { cx: sx, cy: sy, r: selected ? 6 : 4, fill: c }, view);
-    svgEl("path", { d: `M${gx - 5},${gy - 5}L${gx + 5},${gy + 5}M${gx - 5},${gy + 5}L${gx + 5},${gy - 5}`, stroke: c, "stroke-width": selected ? 3 : 2 }, view);
-    svgEl("text", { x: sx + 6, y: sy - 6, "font-size": 10, fill: c }, view).textContent = $("input", tr).value;
+    svgEl("line", { x1: sx, y1: sy, x2: gx, y2: gy, stroke: c, "stroke-dasharray": "4 3", "stroke-width": selected ? 2 : 1 }, marks);
+    svgEl("circle", { cx: sx, cy: sy, r: selected ? 6 : 4, fill: c }, marks);
+    svgEl("path", { d: `M${gx - 5},${gy - 5}L${gx + 5},${gy + 5}M${gx - 5},${gy + 5}L${gx + 5},${gy - 5}`, stroke: c, "stroke-width": selected ? 3 : 2 }, marks);
+    svgEl("text", { x: sx + 6, y: sy - 6, "font-size": 10, fill: c }, marks).textContent = $("input", tr).value;
   });
 }
 

@@ -131,14 +131,15 @@ PHONE: ViewportSize = {"width": 390, "height": 844}
 
 @pytest.fixture
 def open_page(browser: Browser, service: ServiceProcess) -> Iterator[Callable[..., Page]]:
-    """open_page(viewport, before=None): a fresh page on the service; `before(page)` runs
-    before it loads (to install routes; they take precedence over the FLY_OPTIONS route).
-    Every page must end without JavaScript errors."""
+    """open_page(viewport, before=None, has_touch=False): a fresh page on the service;
+    `before(page)` runs before it loads (to install routes; they take precedence over the
+    FLY_OPTIONS route); `has_touch` gives it touch events, as a phone has. Every page must end
+    without JavaScript errors."""
     contexts: list[tuple[BrowserContext, list[str]]] = []
 
     def opener(viewport: ViewportSize = DESKTOP,
-               before: Callable[[Page], None] | None = None) -> Page:
-        context = browser.new_context(viewport=viewport)
+               before: Callable[[Page], None] | None = None, has_touch: bool = False) -> Page:
+        context = browser.new_context(viewport=viewport, has_touch=has_touch)
         opened = context.new_page()
         errors: list[str] = []
         opened.on("pageerror", lambda exc: errors.append(str(exc)))
