@@ -94,7 +94,7 @@ class ServiceProcess:
                     **(QUICK_MOCK_ENV if quick_mocks else {}), **(env or {})}
         self.process: subprocess.Popen[bytes] | None = None
 
-    def start(self, timeout: float = 60.0) -> ServiceProcess:
+    def start(self, timeout: float = 120.0) -> ServiceProcess:
         log = self.log_path.open("wb")
         self.process = subprocess.Popen(
             self.command, cwd=self.workdir, env=self.env, stdout=log, stderr=subprocess.STDOUT
