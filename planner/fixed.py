@@ -10,7 +10,8 @@ and a fixed vehicle is exact between steps. After its last sample it rests there
 
 The planned vehicles keep R + `margin` from it over continuous time (`planner.fixed_rows`
 for the SCP rows, `planner.verify` for the check): `margin` covers an uncertain prediction.
-`braking_motion` and `landing_motion` predict the motion of a vehicle told to hold or land.
+`braking_motion` and `landing_motion` predict the motion of a vehicle told to hold or land;
+one dropped from a flying plan first coasts `DROP_COAST_STEPS` on its state's acceleration.
 """
 
 from __future__ import annotations
@@ -27,14 +28,17 @@ from planner.checks import RANGES, check_id, check_keys, check_list, check_numbe
 from planner.errors import ScenarioError
 from planner.types import FloatArray
 
-__all__ = ["MARGIN_RAMP_S", "MAX_FIXED", "FixedSet", "FixedTrajectory", "braking_motion",
-           "check_fixed_clear", "landing_motion", "margin_at", "parse_fixed"]
+__all__ = ["DROP_COAST_STEPS", "MARGIN_RAMP_S", "MAX_FIXED", "FixedSet", "FixedTrajectory",
+           "braking_motion", "check_fixed_clear", "landing_motion", "margin_at", "parse_fixed"]
 
 #: At most this many fixed trajectories per scenario (a cap on work, not a physical limit).
 MAX_FIXED = 256
 #: A fixed vehicle's margin grows linearly from 0 after the first step to its full value
 #: over this long (s): the prediction starts where the vehicle is, and drifts with time.
 MARGIN_RAMP_S = 1.0
+#: Steps a vehicle dropped from a flying plan coasts on its state's acceleration before it
+#: brakes (`braking_motion`): the first step of everyone else is all but fixed by their state.
+DROP_COAST_STEPS = 1
 #: Largest speed a fixed trajectory may state (m/s), as the scenario's velocity bounds.
 SPEED_MAX = RANGES["velocity_max"][1]
 _KEYS = {"id", "positions", "velocities", "margin"}
@@ -233,28 +237,59 @@ def _stop(position: FloatArray, velocity: FloatArray, dt: float, deceleration: f
     return positions, velocities
 
 
+def _coast(position: FloatArray, velocity: FloatArray, acceleration: ArrayLike | None,
+           dt: float, steps: int) -> tuple[FloatArray, FloatArray]:
+    """Samples of `steps` steps flown at the state's constant `acceleration` (none: at its
+    velocity), the last one included: where a braking that starts after them begins."""
+    a = np.zeros(3) if acceleration is None else np.asarray(acceleration,
+                                                              dtype=float).reshape(3)
+    t = dt * np.arange(steps + 1)[:, None]
+    return position + t * velocity + 0.5 * t * t * a, velocity + t * a
+
+
+def _braking(position: ArrayLike, velocity: ArrayLike, acceleration: ArrayLike | None,
+             dt: float, deceleration: float, coast_steps: int
+             ) -> tuple[FloatArray, FloatArray]:
+    """Samples of coasting `coast_steps` steps, then braking to rest (`_stop`)."""
+    if coast_steps < 0:
+        raise ValueError("coast_steps must not be negative")
+    p = np.asarray(position, dtype=float).reshape(3)
+    v = np.asarray(velocity, dtype=float).reshape(3)
+    ahead_p, ahead_v = _coast(p, v, acceleration, dt, coast_steps)
+    positions, velocities = _stop(ahead_p[-1], ahead_v[-1], dt, deceleration)
+    return (np.concatenate([ahead_p[:-1], positions]),
+            np.concatenate([ahead_v[:-1], velocities]))
+
+
 def braking_motion(vehicle_id: str, position: ArrayLike, velocity: ArrayLike, dt: float,
-                   deceleration: float, *, margin: float = 0.0) -> FixedTrajectory:
+                   deceleration: float, *, margin: float = 0.0,
+                   acceleration: ArrayLike | None = None, coast_steps: int = 0
+                   ) -> FixedTrajectory:
     """A vehicle told to hold: it brakes along its velocity at `deceleration` (m/s^2) and
-    rests where it stopped."""
+    rests where it stopped.
+
+    coast_steps: steps it first flies on at its state's `acceleration` (a vehicle taken off
+    a plan at a switch instant: over the first step the others' motion is all but fixed by
+    their state too, and only a dropped vehicle that goes on as the plan had it keeps the
+    separation that plan proved; braking at once can leave a neighbour passing at R no way
+    to clear it)."""
     if not deceleration > 0.0:
         raise ValueError("deceleration must be positive")
-    p = np.asarray(position, dtype=float).reshape(3)
-    positions, velocities = _stop(p, np.asarray(velocity, dtype=float).reshape(3), dt,
-                                  deceleration)
+    positions, velocities = _braking(position, velocity, acceleration, dt, deceleration,
+                                     coast_steps)
     return FixedTrajectory(vehicle_id, positions, velocities, margin)
 
 
 def landing_motion(vehicle_id: str, position: ArrayLike, velocity: ArrayLike, dt: float,
                    deceleration: float, descent_speed: float, floor: float, *,
-                   margin: float = 0.0) -> FixedTrajectory:
-    """A vehicle told to land: it brakes as in `braking_motion`, then goes straight down at
-    `descent_speed` (m/s) to height `floor` (m), and rests there."""
+                   margin: float = 0.0, acceleration: ArrayLike | None = None,
+                   coast_steps: int = 0) -> FixedTrajectory:
+    """A vehicle told to land: it coasts and brakes as in `braking_motion`, then goes
+    straight down at `descent_speed` (m/s) to height `floor` (m), and rests there."""
     if not (deceleration > 0.0 and descent_speed > 0.0):
         raise ValueError("deceleration and descent_speed must be positive")
-    p = np.asarray(position, dtype=float).reshape(3)
-    positions, velocities = _stop(p, np.asarray(velocity, dtype=float).reshape(3), dt,
-                                  deceleration)
+    positions, velocities = _braking(position, velocity, acceleration, dt, deceleration,
+                                     coast_steps)
     top = positions[-1]
     drop = max(0.0, float(top[2]) - floor)
     if drop > 0.0:

@@ -46,8 +46,10 @@ HORIZON_FACTOR = 1.3
 HORIZON_EXTRA_S = 1.0
 #: Share of the velocity bound a move is timed with (a cruise, not a sprint).
 CRUISE_SHARE = 0.6
-#: Horizons tried, as multiples of the first, when a plan fails to converge or verify.
-RETRY_FACTORS = (1.0, 1.6)
+#: Horizons tried, as multiples of the first, when a plan fails to converge or verify (the
+#: last gives room to wait for a fixed vehicle descending through someone's path; a flight
+#: starts no attempt after its deadline).
+RETRY_FACTORS = (1.0, 1.6, 2.6)
 
 
 class ReplanError(PlannerError):

@@ -48,7 +48,7 @@ from gcs.flight.setpoints import SetpointTrack, plan_tracks, spliced
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import Emit, VehicleStatus
 from gcs.tasks import TaskSet
-from planner.fixed import FixedTrajectory, braking_motion, landing_motion
+from planner.fixed import DROP_COAST_STEPS, FixedTrajectory, braking_motion, landing_motion
 from planner.replan import Replan, ReplanError, check_goals, plan_replan
 from planner.scenario import Scenario
 from planner.types import FloatArray
@@ -318,12 +318,15 @@ class Replanner:
                                                            float(np.min(lim[:2])))
 
     def _drop_motion(self, v: VehicleStatus, plan_tick: int, action: str) -> FixedTrajectory:
-        p, vel, _ = self._setpoint_state(v, plan_tick)
+        # it coasts on its setpoint's acceleration for a step first (`DROP_COAST_STEPS`)
+        p, vel, acc = self._setpoint_state(v, plan_tick)
         if action == "hold":
-            return braking_motion(v.id, p, vel, self.base.dt, self._deceleration())
+            return braking_motion(v.id, p, vel, self.base.dt, self._deceleration(),
+                                  acceleration=acc, coast_steps=DROP_COAST_STEPS)
         floor = float(self.base.limits.position_min[2]) + self.options.landing_height
         return landing_motion(v.id, p, vel, self.base.dt, self._deceleration(),
-                              self.options.land_speed, min(floor, float(p[2])))
+                              self.options.land_speed, min(floor, float(p[2])),
+                              acceleration=acc, coast_steps=DROP_COAST_STEPS)
 
     def _off_plan(self, steer: list[VehicleStatus]) -> list[VehicleStatus]:
         """The vehicles in the air that no plan steers, each with a known motion (one

@@ -125,6 +125,25 @@ def test_landing_benchmark_reports_verified_landings():
     assert report["summary"]["8"]["verified"] == 1 and report["summary"]["12"]["cases"] == 1
 
 
+def test_replan_benchmark_reports_verified_replans_from_mid_crossing():
+    """bench/replan.py on a 16-vehicle circle swap at its centre (everyone crossing, the
+    drop in the others' way): both variants verified, R (or a hair less) kept, also from the
+    dropped vehicle's landing, and the summary counts them."""
+    report = _run("replan.py", "--families", "circle", "--sizes", "16", "--seeds", "0",
+                  "--at", "0.5")
+    assert report["benchmark"] == "replan" and report["machine"]["cpus"] == os.cpu_count()
+    runs = report["runs"]
+    assert [r["variant"] for r in runs] == ["goals+drop", "goals"]
+    for run in runs:
+        assert run["ok"] is True and run["verified"] is True, run
+        assert run["goals_changed"] == 4
+        assert run["min_separation_continuous"] >= run["separation_kept"] - 1e-4
+    assert runs[0]["dropped"] and runs[0]["fixed_distance_min"] >= runs[0]["separation_kept"] - 1e-4
+    assert runs[1]["dropped"] is None and runs[1]["fixed_distance_min"] is None
+    assert report["summary"]["circle/16/goals+drop"]["verified"] == 1
+    assert report["by_size"]["16"]["floor_s"] == 0.3
+
+
 def test_export_benchmark_reports_time_size_and_pieces():
     report = _run("export.py", "--vehicles", "4", "--repeats", "2")
     (row,) = report["sizes"]

@@ -10,9 +10,11 @@ import pytest
 
 from planner import Plan, plan
 from planner.errors import ScenarioError
-from planner.fixed import braking_motion, landing_motion
+from planner.fixed import DROP_COAST_STEPS, braking_motion, landing_motion
+from planner.generators import circle_swap
 from planner.replan import ReplanError, check_goals, plan_replan
 from planner.scenario import Scenario
+from tests.api.support import SHORT_CROSSING
 
 LIMITS = {"position_min": [0, 0, 0], "position_max": [5, 5, 3], "velocity_max": [2, 2, 2],
           "acceleration_max": [3, 3, 3]}
@@ -75,6 +77,59 @@ def test_braking_motion_stops_within_its_deceleration_and_rests() -> None:
     assert np.abs(a).max() <= 2.0 + 1e-9
     assert np.all(np.diff(p[:, 0]) >= -1e-12)
     assert np.allclose(v[-50:], 0.0)
+
+
+def test_a_dropped_vehicle_coasts_on_its_acceleration_then_brakes_and_lands() -> None:
+    p0, v0, a0 = np.array([2.0, 2.0, 1.5]), np.array([0.5, -0.2, 0.0]), np.array([1.0, 0.5, 0.2])
+    drop = landing_motion("d", p0, v0, 0.2, 2.0, 0.7, 0.3, acceleration=a0, coast_steps=2)
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.39])
+    p, v, a = drop.state(t, 0.2)
+    assert np.allclose(p, p0 + t[:, None] * v0 + 0.5 * t[:, None] ** 2 * a0)
+    assert np.allclose(v, v0 + t[:, None] * a0)
+    assert np.allclose(a, a0)
+    # then it brakes along its velocity, at most at the deceleration, and goes down
+    late = drop.state(np.arange(0.4, 8.0, 0.01), 0.2)
+    assert np.linalg.norm(late[2][:, :2], axis=1).max() <= 2.0 + 1e-9
+    assert late[0][-1, 2] == pytest.approx(0.3)
+    assert np.allclose(late[1][-1], 0.0)
+    # without coasting it brakes at once, from where it is
+    at_once = landing_motion("d", p0, v0, 0.2, 2.0, 0.7, 0.3)
+    assert np.allclose(at_once.state(np.array([0.1]), 0.2)[2][0, :2],
+                       -2.0 * v0[:2] / np.linalg.norm(v0))
+
+
+def _drop_mid_flight(source: dict, t: float, vid: str | None) -> tuple[Plan, object]:
+    """Replan the others of `source` at flight time `t` with `vid` (None: the vehicle nearest
+    the fleet's centre) dropped to land, its motion as the ground station flies it."""
+    base = plan(Scenario.from_dict(source))
+    assert base.ok
+    ids = list(base.scenario.ids)
+    state = base.sample(np.array([t]))
+    p, v, a = state.position[:, 0], state.velocity[:, 0], state.acceleration[:, 0]
+    d = ids.index(vid) if vid else int(np.argmin(np.linalg.norm(p - p.mean(0), axis=1)))
+    keep = [n for n in range(len(ids)) if n != d]
+    drop = landing_motion(ids[d], p[d], v[d], base.scenario.dt, 2.0, 0.7, 0.3,
+                          acceleration=a[d], coast_steps=DROP_COAST_STEPS)
+    replan = plan_replan(base.scenario, [ids[n] for n in keep], p[keep], v[keep], a[keep],
+                         base.scenario.goals[keep], fixed=[drop])
+    return base, replan
+
+
+@pytest.mark.parametrize(("source", "t", "vid"), [
+    ({**SHORT_CROSSING, "steps": 100}, 10.0, "d"),   # d passes a and c at R
+    ({**SHORT_CROSSING, "steps": 100}, 10.5, "d"),
+    (circle_swap(16), 15.0, None),                  # everyone at the centre
+])
+def test_dropping_a_vehicle_at_the_worst_instant_of_a_crossing_gives_a_verified_replan(
+        source, t, vid) -> None:
+    """Braking at once there leaves a neighbour passing at R no way to clear it on its first
+    step; coasting one step on the plan's acceleration keeps what the flying plan proved."""
+    _, replan = _drop_mid_flight(source, t, vid)
+    check = replan.plan.verification
+    assert replan.plan.ok and check.separated and check.flyable
+    assert check.fixed_distance_min >= replan.separation - 1e-6
+    assert replan.separation >= 0.99 - 1e-9  # R, or a hair less from a state passing at R
+    assert check.min_separation_continuous >= replan.separation - 1e-6
 
 
 def test_a_replan_from_a_moving_state_avoids_a_dropped_vehicle_and_is_verified() -> None:
