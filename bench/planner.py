@@ -11,7 +11,7 @@
 
 The drone-show families run only when asked: --grid-sphere N... (vertical grid ->
 sphere shell, fixed and/or free assignment), --sideways N... (the grid onto a shell beside
-it, lattice order, each --sideways-layouts SPACING:OFFSET), --random-dense N...
+it, lattice order, over --sideways-layouts and --sideways-seeds), --random-dense N...
 (random128's density, moves <= 40 m), --sequence N (a grid -> sphere -> grid formation
 sequence), each over --seeds.
 --obstacles NAME... runs the obstacle families (a pillar in the paper's circle, a window in
@@ -355,6 +355,9 @@ def main() -> None:
                              "(fixed), of these sizes")
     parser.add_argument("--sideways-layouts", nargs="*", default=["2:4"],
                         help="SPACING:OFFSET pairs (m) for --sideways")
+    parser.add_argument("--sideways-seeds", nargs="*", default=["none"],
+                        help="shell rotations for --sideways: 'none' (the lattice as built, "
+                             "upside down against the grid) or integer seeds")
     parser.add_argument("--sequence", type=int, nargs="*", default=[],
                         help="grid -> sphere -> grid formation sequences of these sizes")
     parser.add_argument("--obstacles", nargs="*", default=[],
@@ -413,7 +416,8 @@ def main() -> None:
     for n in args.sideways:
         for layout in args.sideways_layouts:
             spacing, offset = (float(x) for x in layout.split(":"))
-            for seed in args.seeds:
+            for text in args.sideways_seeds:
+                seed = None if text == "none" else int(text)
                 data = sideways(n, seed=seed, spacing=spacing, offset=offset)
                 row = measure(data["name"], data, args.repeats, None,
                               memory=not args.no_memory, options=options)
