@@ -176,11 +176,8 @@ def build_group_qp(
     members: IntArray,
     separation: SeparationRows,
     boxes: BoxMask | None = None,
-    proximal: tuple[float, FloatArray] | None = None,
 ) -> QuadraticProgram:
     """The QP of the vehicles `members` (scenario indices) with the given separation rows.
-
-    proximal: (w, positions (m, K+1, 3)): adds w ||p - positions||^2 to the cost.
 
     boxes: which variable bounds and jerk rows to include, for the group's vehicles; None:
     all of them. The SCP loop passes only those that can bind and checks the rest.
@@ -326,17 +323,10 @@ def build_group_qp(
     a_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)
     a_mask[:, :, A, :] = True
     diag = np.where(a_mask.reshape(-1), 2.0, 0.0)
+    P_mat = sp.diags(diag, format="csc")
     q = np.zeros((steps + 1, m, 3, 3))
     q[:steps, :, A, 2] = 2.0 * GRAVITY
     constant = steps * m * GRAVITY * GRAVITY
-    if proximal is not None:
-        weight, target = proximal
-        p_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)
-        p_mask[:, :, P, :] = True
-        diag = diag + np.where(p_mask.reshape(-1), 2.0 * weight, 0.0)
-        q[:, :, P, :] -= 2.0 * weight * np.transpose(target, (1, 0, 2))
-        constant += weight * float(np.sum(target * target))
-    P_mat = sp.diags(diag, format="csc")
 
     return QuadraticProgram(
         P=P_mat,

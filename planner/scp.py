@@ -108,8 +108,6 @@ class ScpOptions:
     the PIQP backend; other backends always solve the primal, and so does a plan of more
     than DUAL_MAX_STEPS steps, or a group whose dual is too dense (DUAL_MAX_ROWS_PER_VEHICLE)
     or did not solve (infeasible, ...)."""
-    proximal_first: float = 0.0
-    """> 0 (with a guess): the first iteration's QPs add this * ||p - guess||^2."""
     dodge: bool = False
     """With fixed goals and at least `planner.dodge.DODGE_MIN_VEHICLES` vehicles, linearise
     the first SCP iteration about the synchronised moves pushed apart by smooth dodges
@@ -166,8 +164,6 @@ class _GroupSolver:
         self.split_above = split_above
         self.block_size = block_size
         self.dual = dual
-        self.proximal: float = 0.0
-        """> 0: every QP adds proximal * ||p - lin positions||^2 (primal only)."""
         self.obstacles: OneSidedRows | None = None
         """The scenario's one-sided rows: obstacles and fixed trajectories (None without
         either)."""
@@ -186,8 +182,7 @@ class _GroupSolver:
         group_boxes = boxes.take(members)
         okeys = np.zeros(0, dtype=np.int64) if obstacle_keys is None else obstacle_keys
         signature = b"|".join([
-            str(self.proximal).encode(), members.tobytes(), keys.tobytes(),
-            np.packbits(group_boxes.bounds).tobytes(),
+            members.tobytes(), keys.tobytes(), np.packbits(group_boxes.bounds).tobytes(),
             np.packbits(group_boxes.jerk).tobytes(), np.packbits(group_boxes.wall).tobytes(),
             okeys.tobytes(),
         ])
@@ -221,14 +216,12 @@ class _GroupSolver:
         self.solves += 1
         outcome = None
         # Obstacle rows bind one vehicle each: they couple no vehicles in the dual's matrix.
-        prox = (self.proximal, lin_positions[members]) if self.proximal > 0 else None
-        if (self.dual and prox is None
-                and pair_rows <= DUAL_MAX_ROWS_PER_VEHICLE * len(members)):
+        if self.dual and pair_rows <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
             outcome = solve_group_dual(scenario, members, rows, group_boxes)
         if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
             solution, duals = outcome.solution, outcome.separation_duals
         else:  # the primal QP; also the judge when the dual did not solve (infeasible, ...)
-            qp = build_group_qp(scenario, members, rows, group_boxes, prox)
+            qp = build_group_qp(scenario, members, rows, group_boxes)
             layout = StageLayout(scenario.steps, len(members))
             warm = layout.pack(*(x[members] for x in lin))
             result = self.solver.solve(qp, warm_start=warm)
@@ -308,18 +301,6 @@ class _GroupSolver:
                 hit = np.flatnonzero(take)[result.separation_duals > ACTIVE_DUAL] % count
                 active[hit] = True
         return (p, v, a), keys[active]
-
-
-def _proximal_base(scenario: Scenario, solver: QPSolver, lin: Trajectories, weight: float,
-                   base: Trajectories) -> Trajectories:
-    """Every vehicle's separation-free optimum with the proximal term about `lin`."""
-    n = len(scenario.vehicles)
-    members = np.arange(n)
-    qp = build_group_qp(scenario, members, SeparationRows.empty(), None, (weight, lin[0]))
-    result = solver.solve(qp)
-    if result.status != SOLVED or result.x is None:
-        return base
-    return StageLayout(scenario.steps, n).unpack(result.x)
 
 
 def _moving(scenario: Scenario) -> bool:
@@ -585,19 +566,10 @@ def run_scp(
         okeys = (None if obstacle_rows is None
                  else np.union1d(obstacle_rows.seed(current), held))
         groups_solver.cache.clear()
-        iteration_base = base
-        groups_solver.proximal = 0.0
-        import os
-        if (iteration <= int(os.environ.get("PROX_ITERS", "1")) and options.proximal_first > 0
-                and guess is not None):
-            groups_solver.proximal = options.proximal_first
-            iteration_base = _proximal_base(scenario, solver, current, options.proximal_first,
-                                            base)
         last = _solve_iteration(
-            scenario, options, codec, groups_solver, current, iteration_base, keys,
+            scenario, options, codec, groups_solver, current, base, keys,
             near_boxes(scenario, *current, dual=dual), okeys,
         )
-        groups_solver.proximal = 0.0
         if last.status != SOLVED:
             # Degenerate crossings (vehicles of a symmetric swap all meeting at one point)
             # can leave the linearised QP empty. Linearise once more about paths bent to
