@@ -10,8 +10,10 @@
         --obstacles pillar-circle8 window8 shelving16 forest50 --seeds 0 1 2 --no-memory
 
 The drone-show families run only when asked: --grid-sphere N... (vertical grid ->
-sphere shell, fixed and/or free assignment), --random-dense N... (random128's density, moves
-<= 40 m), --sequence N (a grid -> sphere -> grid formation sequence), each over --seeds.
+sphere shell, fixed and/or free assignment), --sideways N... (the grid onto a shell beside
+it, lattice order, over --sideways-layouts and --sideways-seeds), --random-dense N...
+(random128's density, moves <= 40 m), --sequence N (a grid -> sphere -> grid formation
+sequence), each over --seeds.
 --obstacles NAME... runs the obstacle families (a pillar in the paper's circle, a window in
 a wall, shelving, forests), each with its floor. --group-qp primal solves their group QPs as
 the primal staged QP (before the dual, for comparison); --profile also takes dense<N> and
@@ -48,6 +50,7 @@ from planner.generators import (  # noqa: E402
     grid_to_sphere,
     random_dense,
     show_sequence,
+    sideways,
 )
 from planner.obstacle_generators import (  # noqa: E402
     forest,
@@ -347,6 +350,14 @@ def main() -> None:
                         choices=["fixed", "free"], help="assignments for --grid-sphere")
     parser.add_argument("--random-dense", type=int, nargs="*", default=[],
                         help="random transitions at random128's density of these sizes")
+    parser.add_argument("--sideways", type=int, nargs="*", default=[],
+                        help="grid -> a sphere shell beside it, goals in lattice order "
+                             "(fixed), of these sizes")
+    parser.add_argument("--sideways-layouts", nargs="*", default=["2:4"],
+                        help="SPACING:OFFSET pairs (m) for --sideways")
+    parser.add_argument("--sideways-seeds", nargs="*", default=["none"],
+                        help="shell rotations for --sideways: 'none' (the lattice as built, "
+                             "upside down against the grid) or integer seeds")
     parser.add_argument("--sequence", type=int, nargs="*", default=[],
                         help="grid -> sphere -> grid formation sequences of these sizes")
     parser.add_argument("--obstacles", nargs="*", default=[],
@@ -402,6 +413,17 @@ def main() -> None:
                               memory=not args.no_memory, options=options)
                 families.append({"family": "grid-sphere", "assignment": assignment,
                                  "seed": seed, **row})
+    for n in args.sideways:
+        for layout in args.sideways_layouts:
+            spacing, offset = (float(x) for x in layout.split(":"))
+            for text in args.sideways_seeds:
+                seed = None if text == "none" else int(text)
+                data = sideways(n, seed=seed, spacing=spacing, offset=offset)
+                row = measure(data["name"], data, args.repeats, None,
+                              memory=not args.no_memory, options=options)
+                families.append({"family": f"sideways s{spacing:g} o{offset:g}",
+                                 "assignment": "fixed", "seed": seed,
+                                 "spacing": spacing, "offset": offset, **row})
     for n in args.random_dense:
         for seed in args.seeds:
             row = measure(f"dense{n}-seed{seed}", random_dense(n, seed=seed), args.repeats,

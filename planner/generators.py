@@ -22,6 +22,7 @@ __all__ = [
     "random_dense",
     "random_transitions",
     "show_sequence",
+    "sideways",
     "sphere_shell",
     "vertical_grid",
 ]
@@ -220,6 +221,53 @@ def grid_to_sphere(vehicles: int, *, seed: int | None = 0, grid_spacing: float =
     high = points.max(axis=0) + 2.0
     low[2] = 0.0
     name = f"grid-sphere{vehicles}" + ("" if seed is None else f"-seed{seed}")
+    return {
+        "name": name,
+        "dt": dt,
+        "steps": steps,
+        "min_separation": separation,
+        "limits": _limits(low, high, 3.0, 3.0, 5.0),
+        "vehicles": _vehicles(grid, goals),
+    }
+
+
+def _rotation(rng: np.random.Generator) -> FloatArray:
+    """A uniformly random 3-D rotation matrix (QR of a Gaussian matrix, signs fixed)."""
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))[None, :]
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    return np.asarray(q)
+
+
+def sideways(vehicles: int, *, seed: int | None = None, spacing: float = 2.0,
+             sphere_spacing: float | None = None, offset: float = 4.0,
+             separation: float = SHOW_SEPARATION, dt: float = SHOW_DT,
+             steps: int = SHOW_STEPS) -> dict[str, Any]:
+    """A show transition flown sideways: a vertical grid (`spacing` apart, in the x-z plane)
+    onto a sphere shell beside it (closest goals `sphere_spacing` apart, default 1.05 x
+    `spacing`), the shell's nearest point `offset` m beyond the grid's last column, its
+    lowest point 2 m up. Goals in lattice order (grid bottom to top, shell top to bottom):
+    a fixed assignment under which the whole fleet moves as one crowd, side by side and
+    partly through each other. 30 s, v and a <= 3, jerk <= 5, R = 1 m.
+
+    seed: None keeps the shell's Fibonacci lattice as built; an integer turns the shell by
+    a seeded random rotation about its centre (same points relative to each other, same
+    order, other pairings in space).
+    """
+    grid = vertical_grid(vehicles, spacing)
+    shell = sphere_shell(vehicles, 1.05 * spacing if sphere_spacing is None else sphere_spacing)
+    if seed is not None:
+        shell = shell @ _rotation(np.random.default_rng(seed)).T
+    radius = float(np.linalg.norm(shell[0])) if vehicles else 0.0
+    centre = np.array([float(grid[:, 0].max()) + radius + offset, 0.0, radius + 2.0])
+    goals = shell + centre
+    points = np.concatenate([grid, goals])
+    low = points.min(axis=0) - 2.0
+    high = points.max(axis=0) + 2.0
+    low[2] = 0.0
+    name = f"sideways{vehicles}-s{spacing:g}-o{offset:g}" + (
+        "" if seed is None else f"-seed{seed}")
     return {
         "name": name,
         "dt": dt,

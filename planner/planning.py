@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
 from planner.first_qp import straight_moves
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import IterationRecord, Plan, VehicleTrajectory
@@ -26,6 +27,14 @@ from planner.types import FloatArray
 from planner.verify import verify
 
 __all__ = ["plan"]
+
+
+def _dodges(work: Scenario, options: ScpOptions | None) -> bool:
+    """Is the first linearisation point the dodged moves (`planner.dodge`)? Fixed goals,
+    large fleets of straight rest-to-rest moves in free space only (routes seed obstacle
+    scenarios; fixed trajectories and start velocities are not straight moves' business)."""
+    return (options is not None and options.dodge and len(work.vehicles) >= DODGE_MIN_VEHICLES
+            and not work.obstacles and not work.fixed and work.start_velocities is None)
 
 
 def plan(
@@ -43,15 +52,31 @@ def plan(
 
     With `"assignment": "free"` the vehicles fly to the goals of the scenario's assignment
     (`Scenario.goal_order`), and the first SCP iteration is linearised about CAPT's
-    synchronised straight moves to them; the plan echoes the scenario as given.
+    synchronised straight moves to them; the plan echoes the scenario as given. With fixed
+    goals and `ScpOptions(dodge=True)` a large fleet's first iteration is linearised about
+    those moves pushed apart where they crowd (`planner.dodge`); if that plan does not
+    converge and verify, it is planned again from the synchronised moves (`progress` then
+    sees both runs).
     """
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
     backend = make_solver(solver)
     work = spec.assigned()
     guess = straight_moves(work) if spec.assignment == "free" else None
+    dodged = guess is None and _dodges(work, options)
+    if dodged:
+        found = dodged_moves(work, straight_moves(work))
+        dodged = found is not None
+        guess = None if found is None else found[0]
     outcome = run_scp(work, backend, options, progress, guess)
     p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
+    verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
+    if dodged and (outcome.status != "converged" or verification is None
+                   or not verification.verified):
+        # Never a worse plan for having tried: plan again from the synchronised moves.
+        outcome = run_scp(work, backend, options, progress, None)
+        p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
+        verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
     jerk = jerk_from_accelerations(a, spec.dt, spec.start_accelerations)
     f = thrust(a)
     rates = body_rates(a, jerk)
@@ -63,7 +88,6 @@ def plan(
         )
         for n, vehicle in enumerate(spec.vehicles)
     )
-    verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
     status, message = outcome.status, outcome.message
     if verification is not None and not verification.verified:
         if status == "converged":

@@ -108,6 +108,13 @@ class ScpOptions:
     the PIQP backend; other backends always solve the primal, and so does a plan of more
     than DUAL_MAX_STEPS steps, or a group whose dual is too dense (DUAL_MAX_ROWS_PER_VEHICLE)
     or did not solve (infeasible, ...)."""
+    dodge: bool = False
+    """With fixed goals and at least `planner.dodge.DODGE_MIN_VEHICLES` vehicles, linearise
+    the first SCP iteration about the synchronised moves pushed apart by smooth dodges
+    (`planner.dodge`) where they crowd; `planner.plan` falls back to the synchronised moves
+    when that plan does not converge and verify. Off by default: measured faster on some
+    crowds (sideways 100: 1.8x) and slower on others (random 256: 1.6x), see
+    docs/benchmarks/planner.md."""
 
 
 @dataclass

@@ -16,6 +16,7 @@ from planner.generators import (
     grid_to_sphere,
     random_dense,
     random_transitions,
+    sideways,
 )
 
 PUBLISHED = Path(__file__).resolve().parents[2] / "bench" / "dmpc2019-published.json"
@@ -92,4 +93,42 @@ def test_small_grid_to_sphere_transitions_plan_verified(seed):
     assert plan.ok, plan.message
     assert plan.verification.min_separation_continuous >= 1.0 - 1e-4
     # Shuffled goals make paths cross: the separation rows were needed.
+    assert max(r.separation_rows for r in plan.iterations) > 0
+
+
+@pytest.mark.parametrize(("n", "spacing", "offset"), [(25, 2.0, 4.0), (64, 2.5, 8.0)])
+def test_sideways_puts_the_shell_beside_the_grid(n, spacing, offset):
+    scenario = planner.Scenario.from_dict(sideways(n, spacing=spacing, offset=offset))
+    starts, goals = scenario.starts, scenario.goals
+    assert np.all(starts[:, 1] == 0.0)  # the same vertical grid as grid -> sphere
+    assert _min_distance(starts) == pytest.approx(spacing)
+    assert _min_distance(goals) == pytest.approx(1.05 * spacing, abs=1e-5)
+    centre = goals.mean(axis=0)
+    radius = np.linalg.norm(goals - centre, axis=1)
+    assert np.ptp(radius) < 0.05 * radius.mean()  # a shell
+    # beside the grid: its nearest point `offset` beyond the last column, lowest 2 m up
+    assert goals[:, 0].min() - starts[:, 0].max() == pytest.approx(offset, abs=0.2)
+    assert goals[:, 2].min() == pytest.approx(2.0, abs=0.2)
+    assert np.all(scenario.starts >= scenario.limits.position_min)
+    assert np.all(scenario.goals <= scenario.limits.position_max)
+    # lattice order: the grid bottom to top, the shell top to bottom
+    assert np.all(np.diff(starts[:, 2]) >= 0) and np.all(np.diff(goals[:, 2]) <= 1e-9)
+    assert scenario.horizon == pytest.approx(30.0) and scenario.min_separation == 1.0
+
+
+def test_sideways_seeds_turn_the_shell_not_its_order():
+    plain = planner.Scenario.from_dict(sideways(36)).goals
+    turned = planner.Scenario.from_dict(sideways(36, seed=3)).goals
+    assert not np.allclose(plain, turned)
+    # the same shell turned rigidly: its points the same distances apart
+    d_plain = np.linalg.norm(plain[:, None] - plain[None], axis=2)
+    d_turned = np.linalg.norm(turned[:, None] - turned[None], axis=2)
+    np.testing.assert_allclose(d_plain, d_turned, atol=1e-5)
+
+
+def test_a_small_sideways_transition_plans_verified():
+    plan = planner.plan(sideways(16))
+    assert plan.ok, plan.message
+    assert plan.verification.min_separation_continuous >= 1.0 - 1e-4
+    # lattice order turns the formation upside down on the way: the rows were needed
     assert max(r.separation_rows for r in plan.iterations) > 0
