@@ -216,18 +216,25 @@ def grid_to_sphere(vehicles: int, *, seed: int | None = 0, grid_spacing: float =
     goals = shell + centre
     if seed is not None:
         goals = goals[np.random.default_rng(seed).permutation(vehicles)]
-    points = np.concatenate([grid, goals])
+    name = f"grid-sphere{vehicles}" + ("" if seed is None else f"-seed{seed}")
+    return _show_change(name, grid, goals, separation, dt, steps)
+
+
+def _show_change(name: str, starts: FloatArray, goals: FloatArray, separation: float,
+                 dt: float, steps: int) -> dict[str, Any]:
+    """A show transition's scenario: the workspace 2 m around every start and goal (from the
+    ground up), v and a <= 3, jerk <= 5."""
+    points = np.concatenate([starts, goals])
     low = points.min(axis=0) - 2.0
     high = points.max(axis=0) + 2.0
     low[2] = 0.0
-    name = f"grid-sphere{vehicles}" + ("" if seed is None else f"-seed{seed}")
     return {
         "name": name,
         "dt": dt,
         "steps": steps,
         "min_separation": separation,
         "limits": _limits(low, high, 3.0, 3.0, 5.0),
-        "vehicles": _vehicles(grid, goals),
+        "vehicles": _vehicles(starts, goals),
     }
 
 
@@ -262,20 +269,9 @@ def sideways(vehicles: int, *, seed: int | None = None, spacing: float = 2.0,
     radius = float(np.linalg.norm(shell[0])) if vehicles else 0.0
     centre = np.array([float(grid[:, 0].max()) + radius + offset, 0.0, radius + 2.0])
     goals = shell + centre
-    points = np.concatenate([grid, goals])
-    low = points.min(axis=0) - 2.0
-    high = points.max(axis=0) + 2.0
-    low[2] = 0.0
     name = f"sideways{vehicles}-s{spacing:g}-o{offset:g}" + (
         "" if seed is None else f"-seed{seed}")
-    return {
-        "name": name,
-        "dt": dt,
-        "steps": steps,
-        "min_separation": separation,
-        "limits": _limits(low, high, 3.0, 3.0, 5.0),
-        "vehicles": _vehicles(grid, goals),
-    }
+    return _show_change(name, grid, goals, separation, dt, steps)
 
 
 def _spread_vectorised(rng: np.random.Generator, count: int, low: FloatArray, high: FloatArray,
