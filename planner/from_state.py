@@ -11,11 +11,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 from planner.fixed import FixedTrajectory
+from planner.obstacles import CLEARANCE_RANGE
 from planner.scenario import Scenario
 from planner.types import FloatArray
 
-__all__ = ["scenario_from_state"]
+__all__ = ["START_SLACK", "scenario_from_state", "start_clearance"]
+
+#: Where a vehicle starts within this fraction of the clearance of an obstacle, the plan
+#: keeps what it has less this fraction (as `planner.landing.START_SLACK` for R).
+START_SLACK = 0.01
 
 
 def scenario_from_state(base: Scenario, label: str, ids: Sequence[str], p: FloatArray,
@@ -44,5 +51,24 @@ def scenario_from_state(base: Scenario, label: str, ids: Sequence[str], p: Float
         data["fixed"] = [f.to_dict() for f in fixed]
     if base.obstacles:
         data["obstacles"] = [o.to_dict() for o in base.obstacles]
-        data["obstacle_clearance"] = base.clearance
+        data["obstacle_clearance"] = start_clearance(base, p)
     return Scenario.from_dict(data)
+
+
+def start_clearance(base: Scenario, p: FloatArray) -> float:
+    """The obstacle clearance a plan from positions `p` (N, 3) keeps: `base`'s, or, where a
+    vehicle is nearer an obstacle than that (a plan's own state at its closest, within the
+    verification's tolerance, or a vehicle measured off its plan), what it has less
+    `START_SLACK` of the clearance: a flying vehicle cannot be put back outside in no time.
+    (A state inside an obstacle keeps the base's clearance, which the scenario refuses.)"""
+    clearance = base.clearance
+    geometry = base.obstacle_set
+    n, m = len(p), len(geometry)
+    if n == 0 or m == 0:
+        return clearance
+    nearest = float(geometry.signed_distance(np.repeat(p, m, axis=0),
+                                             np.tile(np.arange(m), n)).min())
+    if nearest >= clearance * (1.0 + START_SLACK):
+        return clearance
+    reduced = min(clearance, nearest) - START_SLACK * clearance
+    return reduced if reduced >= CLEARANCE_RANGE[0] else clearance

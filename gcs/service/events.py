@@ -22,7 +22,7 @@ from typing import Any
 __all__ = ["MAX_BACKLOG", "Broadcast", "Event", "end_streams", "streams_ended"]
 
 #: Events a listener may fall behind before its stream is ended.
-MAX_BACKLOG = 1024
+MAX_BACKLOG = 4096
 
 #: (kind, data): kind "done" ends a stream.
 Event = tuple[str, dict[str, Any]]

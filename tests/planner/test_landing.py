@@ -163,3 +163,24 @@ def test_touchdown_points_leave_an_obstacle_they_fall_in(shelving16) -> None:
     assert gap == pytest.approx(scenario.clearance * (1.0 + TOUCHDOWN_SLACK), rel=0.02)
     assert points[0, 1] > shelf.hi[1, 1]  # out by the nearer side (it was past the middle)
     np.testing.assert_allclose(points[1], [*over[1, :2], 0.0])
+
+
+def test_a_vehicle_nearer_a_shelf_than_the_clearance_still_gets_a_landing(shelving16) -> None:
+    """A vehicle measured a little inside the clearance (off its plan, or a plan at its
+    closest within the verification's tolerance) cannot be put back outside in no time: the
+    landing keeps what it has less 1 % of the clearance, instead of the whole fleet falling
+    back to PX4's Land, and that smaller clearance is verified."""
+    scenario = shelving16.scenario
+    p, v, a = (x[:, 0] for x in shelving16.sample(np.array([4.0])))
+    shelf = scenario.obstacle_set
+    # uav1 moved 2 cm into the clearance of the first shelf's near face, at rest
+    p = p.copy()
+    p[0, :2] = [10.0, shelf.lo[0, 1] - scenario.clearance + 0.02]
+    p[0, 2] = 1.5
+    v, a = v.copy(), a.copy()
+    v[0] = a[0] = 0.0
+    landing = plan_landing(scenario, p, v, a)
+    kept = landing.plan.scenario.clearance
+    assert kept == pytest.approx(scenario.clearance - 0.02 - 0.01 * scenario.clearance)
+    assert landing.plan.ok, landing.plan.problems()
+    assert landing.plan.verification.obstacle_distance_min >= kept - 1e-4
