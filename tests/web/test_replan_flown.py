@@ -1,5 +1,5 @@
-"""A replan flown from the page on the service's mock fleet: a vehicle dropped from the
-fleet table, a goal dragged on the fly view and sent; the page shows each replan switched, the
+"""A replan flown from the page on the service's mock fleet: a goal dragged on the fly view,
+a vehicle dropped from the fleet table, then the goal sent; the page shows each replan switched, the
 new plan drawn (the path and the goal marker at the new goal, the dropped vehicle's row),
 the flight completes, and reopened later it is replayed against the plans it flew."""
 
@@ -54,26 +54,7 @@ def test_a_goal_dragged_and_a_vehicle_dropped_are_flown(
     expect(page.locator("#time-label")).to_contain_text(re.compile(r"flying · t = \d"),
                                                         timeout=120_000)
 
-    # Drop d (to land) from its row first, while the fleet is still far apart: a landing
-    # dropped in the crossing's middle (flight time ~9-11 s) has no verified replan and is
-    # rightly missed, and on a busy machine a later drop could fall right then.
-    # The row's button is the same element across the table's telemetry redraws (a press and
-    # its release on one element: a click is never lost to a redraw between them).
-    row = '#vehicle-state tr[data-id="d"]'
-    page.evaluate(f"""() => {{ window.dropButton = document.querySelector('{row} button');
-        window.altCell = document.querySelector('{row} td[data-key="alt"]'); }}""")
-    page.wait_for_function(f"""document.querySelector('{row} td[data-key="alt"]')
-                               !== window.altCell""", timeout=30_000)  # the row redrawn
-    assert page.evaluate(f"document.querySelector('{row} button') === window.dropButton")
-    page.locator(f'{row} td[data-key="replan"] button').click()
-    status = page.locator("#replan-status")
-    expect(status).to_have_attribute("data-status", "switched", timeout=60_000)
-    expect(status).to_contain_text("replan 1: switched")
-    expect(page.locator('#vehicle-state tr[data-id="d"] td[data-key="replan"]')).to_have_text(
-        "dropped")
-    expect(page.locator('#fly-view circle.goal-marker[data-id="d"]')).to_have_count(0)
-
-    # Drag b's goal, then send it.
+    # b's goal dragged (and its x, y typed), kept in the panel while d is dropped.
     marker = page.locator('#fly-view circle.goal-marker[data-id="b"]')
     box = marker.bounding_box()
     assert box is not None
@@ -83,16 +64,40 @@ def test_a_goal_dragged_and_a_vehicle_dropped_are_flown(
     page.mouse.up()
     page.fill('#replan-goals input[data-field="goals.b[0]"]', str(NEW_GOAL[0]))
     page.fill('#replan-goals input[data-field="goals.b[1]"]', str(NEW_GOAL[1]))
-    page.click("#replan-send")
+    expect(page.locator("#replan-send")).to_be_enabled()
+    # The page sends the goals the moment the drop has switched (a replan runs one at a
+    # time; a busy machine could otherwise let the replanned, shorter flight end first).
+    page.evaluate("""() => { const status = document.getElementById('replan-status');
+        const watch = new MutationObserver(() => {
+            if (!status.textContent.startsWith('replan 1: switched')) return;
+            watch.disconnect();
+            document.getElementById('replan-send').click();
+        });
+        watch.observe(status, {childList: true, characterData: true, subtree: true}); }""")
+
+    # Drop d (to land) from its row. The row's button is the same element across the table's
+    # telemetry redraws (a press and its release on one element: a click is never lost to a
+    # redraw between them).
+    row = '#vehicle-state tr[data-id="d"]'
+    page.evaluate(f"""() => {{ window.dropButton = document.querySelector('{row} button');
+        window.altCell = document.querySelector('{row} td[data-key="alt"]'); }}""")
+    page.wait_for_function(f"""document.querySelector('{row} td[data-key="alt"]')
+                               !== window.altCell""", timeout=30_000)  # the row redrawn
+    assert page.evaluate(f"document.querySelector('{row} button') === window.dropButton")
+    page.locator(f'{row} td[data-key="replan"] button').click()
+    status = page.locator("#replan-status")
+    expect(page.locator('#vehicle-state tr[data-id="d"] td[data-key="replan"]')).to_have_text(
+        "dropped", timeout=60_000)
     answered = ("document.querySelector('#replan-status').textContent.startsWith('replan 2')"
                 " || document.querySelector('#replan-error').textContent !== ''")
     try:
         page.wait_for_function(answered, timeout=60_000)
     except PlaywrightTimeout:
-        pytest.fail(f"the goal replan was never answered; status {status.inner_text()!r}, "
-                    f"send button disabled: {page.locator('#replan-send').is_disabled()}")
+        pytest.fail(f"the goal replan was never sent or answered; status "
+                    f"{status.inner_text()!r}")
     assert page.locator("#replan-error").inner_text() == ""
     expect(status).to_contain_text("replan 2: switched", timeout=60_000)
+    expect(page.locator('#fly-view circle.goal-marker[data-id="d"]')).to_have_count(0)
     # The new plan drawn: b's path ends at its new goal, and so does its marker.
     want = (PAD + NEW_GOAL[0] * SCALE, VIEW - PAD - NEW_GOAL[1] * SCALE)
     expect(page.locator('#fly-view circle.goal-marker[data-id="b"]')).to_have_attribute(
