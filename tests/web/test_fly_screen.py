@@ -156,6 +156,10 @@ def test_fly_screen_follows_the_flight_then_abort(
     page.mouse.move(200, 600)
     page.mouse.wheel(0, 5000)  # the editor scrolled away: the header (and Abort) stays
     expect(page.locator("#abort-button")).to_be_in_viewport()
+    # nothing covers it: a pointer at its centre lands on the button itself
+    assert page.evaluate("""() => { const b = document.getElementById('abort-button');
+        const r = b.getBoundingClientRect();
+        return document.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2) === b; }""")
     expect(status).to_have_attribute("data-status", "aborted", timeout=60_000)
     expect(page.locator("#event-log")).to_contain_text("abort")
     expect(page.locator("#flight-banner")).to_have_text("")
