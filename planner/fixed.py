@@ -29,7 +29,8 @@ from planner.errors import ScenarioError
 from planner.types import FloatArray
 
 __all__ = ["DROP_COAST_STEPS", "MARGIN_RAMP_S", "MAX_FIXED", "FixedSet", "FixedTrajectory",
-           "braking_motion", "check_fixed_clear", "landing_motion", "margin_at", "parse_fixed"]
+           "braking_motion", "check_fixed_clear", "dropped_motion", "landing_motion",
+           "margin_at", "parse_fixed"]
 
 #: At most this many fixed trajectories per scenario (a cap on work, not a physical limit).
 MAX_FIXED = 256
@@ -305,6 +306,28 @@ def landing_motion(vehicle_id: str, position: ArrayLike, velocity: ArrayLike, dt
         positions = np.concatenate([positions, down])
         velocities = np.concatenate([velocities, vz])
     return FixedTrajectory(vehicle_id, positions, velocities, margin)
+
+
+def dropped_motion(vehicle_id: str, position: ArrayLike, velocity: ArrayLike,
+                   acceleration: ArrayLike, dt: float, action: str, *, deceleration: float,
+                   hardest: float, low: FloatArray, high: FloatArray, descent_speed: float,
+                   floor: float) -> FixedTrajectory:
+    """What a vehicle dropped from a flying plan at a switch instant does: it coasts
+    `DROP_COAST_STEPS` on its state's acceleration, then brakes at `deceleration` and rests
+    ("hold") or descends at `descent_speed` to `floor` ("land"). Where that would carry it
+    out of the workspace [low, high] (a plan braking hard towards a wall, followed by a
+    gentler braking), it brakes at once at `hardest` (the boxes' bound) instead."""
+    def motion(coast_steps: int, rate: float) -> FixedTrajectory:
+        if action == "hold":
+            return braking_motion(vehicle_id, position, velocity, dt, rate,
+                                  acceleration=acceleration, coast_steps=coast_steps)
+        return landing_motion(vehicle_id, position, velocity, dt, rate, descent_speed, floor,
+                              acceleration=acceleration, coast_steps=coast_steps)
+
+    first = motion(DROP_COAST_STEPS, deceleration)
+    if ((first.positions >= low - 1e-9) & (first.positions <= high + 1e-9)).all():
+        return first
+    return motion(0, max(deceleration, hardest))
 
 
 def check_fixed_clear(fixed: Sequence[FixedTrajectory], separation: float, scale: FloatArray,

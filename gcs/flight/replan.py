@@ -9,8 +9,8 @@ policy ``replan``) and returns its replan object at once (status ``planning``):
    steered vehicle at that tick is its stream's setpoint then (the flying plan's exact
    state), in the world frame, so the setpoints stay continuous across the switch;
 2. from that tick each dropped vehicle is streamed its own predicted motion
-   (`planner.fixed.braking_motion` for ``hold``; `landing_motion` for ``land``, down to
-   `landing_height` above the workspace floor at `land_speed`, then PX4's Land); every
+   (`planner.fixed.dropped_motion`: it coasts a step, then brakes and holds, or lands down
+   to `landing_height` above the workspace floor at `land_speed`, then PX4's Land); every
    vehicle off the plans still in the air (a dropped one, a faulty one that PX4 lands, with
    a margin for the uncertain prediction) is given to the planner as fixed, so the others
    keep R from it and the verification covers it;
@@ -48,7 +48,7 @@ from gcs.flight.setpoints import SetpointTrack, plan_tracks, spliced
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import Emit, VehicleStatus
 from gcs.tasks import TaskSet
-from planner.fixed import DROP_COAST_STEPS, FixedTrajectory, braking_motion, landing_motion
+from planner.fixed import FixedTrajectory, dropped_motion, landing_motion
 from planner.replan import Replan, ReplanError, check_goals, plan_replan
 from planner.scenario import Scenario
 from planner.types import FloatArray
@@ -318,15 +318,16 @@ class Replanner:
                                                            float(np.min(lim[:2])))
 
     def _drop_motion(self, v: VehicleStatus, plan_tick: int, action: str) -> FixedTrajectory:
-        # it coasts on its setpoint's acceleration for a step first (`DROP_COAST_STEPS`)
         p, vel, acc = self._setpoint_state(v, plan_tick)
-        if action == "hold":
-            return braking_motion(v.id, p, vel, self.base.dt, self._deceleration(),
-                                  acceleration=acc, coast_steps=DROP_COAST_STEPS)
-        floor = float(self.base.limits.position_min[2]) + self.options.landing_height
-        return landing_motion(v.id, p, vel, self.base.dt, self._deceleration(),
-                              self.options.land_speed, min(floor, float(p[2])),
-                              acceleration=acc, coast_steps=DROP_COAST_STEPS)
+        lim = self.base.limits
+        floor = float(lim.position_min[2]) + self.options.landing_height
+        return dropped_motion(v.id, p, vel, acc, self.base.dt, action,
+                              deceleration=self._deceleration(),
+                              hardest=(BRAKING_DECELERATION if lim.acceleration_max is None
+                                       else float(np.min(lim.acceleration_max[:2]))),
+                              low=lim.position_min, high=lim.position_max,
+                              descent_speed=self.options.land_speed,
+                              floor=min(floor, float(p[2])))
 
     def _off_plan(self, steer: list[VehicleStatus]) -> list[VehicleStatus]:
         """The vehicles in the air that no plan steers, each with a known motion (one

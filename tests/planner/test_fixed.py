@@ -163,3 +163,24 @@ def test_a_replan_onto_a_fixed_vehicle_is_refused_and_goals_are_checked() -> Non
         check_goals(scenario, {"a": [1.0, 1.0, 1.0]}, {"b": [1.5, 1.0, 1.0]})
     assert close.value.field == "goals.a" and "'b'" in close.value.reason
     assert check_goals(scenario, {"a": [1.0, 1.0, 1.0]}, {"b": [3.0, 1.0, 1.0]})["a"][0] == 1.0
+
+
+def test_a_dropped_vehicle_braking_towards_a_wall_stays_inside_the_workspace() -> None:
+    """A plan braking hard (3 m/s^2) towards the wall at x = 10 m: coasting a step and then
+    braking at 2 m/s^2 would carry the dropped vehicle 8 cm through the wall, so it brakes at
+    once at the boxes' bound instead and stops inside; in open space it coasts first."""
+    from planner.fixed import dropped_motion
+
+    low, high = np.zeros(3), np.array([10.0, 10.0, 4.0])
+    state = ([9.5, 5.0, 2.0], [1.7, 0.0, 0.0], [-3.0, 0.0, 0.0])
+    common = {"deceleration": 2.0, "hardest": 3.0, "low": low, "high": high,
+              "descent_speed": 0.7, "floor": 0.3}
+    for action in ("hold", "land"):
+        near = dropped_motion("d", *state, 0.2, action, **common)
+        assert near.positions[:, 0].max() <= 10.0
+        coasted = braking_motion("d", *state[:2], 0.2, 2.0, acceleration=state[2],
+                                 coast_steps=1)
+        assert coasted.positions[:, 0].max() > 10.05  # what it would have done
+        # far from the wall the same state coasts its step as the plan had it
+        open_space = dropped_motion("d", [5.0, 5.0, 2.0], *state[1:], 0.2, action, **common)
+        np.testing.assert_allclose(open_space.positions[1], [5.0 + 0.34 - 0.06, 5.0, 2.0])
