@@ -13,12 +13,25 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+from httpx import Response
 
 from gcs.sim import ports
 from tests.paths import EXAMPLES
 
-__all__ = ["EXAMPLES", "QUICK_CROSSING", "QUICK_PAIR", "SHORT_CROSSING",
-           "ServiceProcess", "example", "free_port", "free_udp_base"]
+__all__ = ["EXAMPLES", "OPERATOR", "QUICK_CROSSING", "QUICK_PAIR", "READER", "SHORT_CROSSING",
+           "ServiceProcess", "example", "free_port", "free_udp_base", "refused"]
+
+#: Tokens the access tests configure: one that may operate, one that may only read.
+OPERATOR = "operator-token-0123456789"
+READER = "read-only-token-0123456789"
+
+
+def refused(response: Response, status: int, field: str, reason: str) -> None:
+    """`response` is the error `status` naming `field`, its reason containing `reason`."""
+    assert response.status_code == status, response.text
+    body = response.json()
+    assert body["status"] == status and body["field"] == field, body
+    assert reason in body["reason"], body
 
 
 def example(name: str) -> dict[str, Any]:

@@ -12,24 +12,13 @@ from typing import Any
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from httpx import Response
 
 from gcs.api import create_app
 from gcs.replan_request import MAX_ENTRIES
 from gcs.service.settings import Settings
 from gcs.service.statuses import ExecutionStatus
 from tests.api.routes.test_missions import plan_mission
-from tests.api.support import example
-
-OPERATOR = "operator-token-0123456789"
-READER = "read-only-token-0123456789"
-
-
-def refused(response: Response, status: int, field: str, reason: str) -> None:
-    assert response.status_code == status, response.text
-    body = response.json()
-    assert body["status"] == status and body["field"] == field, body
-    assert reason in body["reason"], body
+from tests.api.support import OPERATOR, READER, example, refused
 
 
 @pytest.fixture
