@@ -16,8 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from planner.plane_cache import Keys, PlaneCache
 from planner.qp import SeparationRows
 from planner.scenario import Scenario
 from planner.separation import _chord_closest, _unit
@@ -25,7 +25,6 @@ from planner.types import FloatArray, IntArray
 
 __all__ = ["FixedRows", "FixedTriples"]
 
-Keys = NDArray[np.int64]
 
 #: Triples within this of binding (m, at least) at the linearisation point start an
 #: iteration's QP.
@@ -63,10 +62,7 @@ class FixedRows:
                                 fs.positions[:, 1:]], axis=2)
         scaled = self.points / self.scale
         self._lo, self._hi = scaled.min(axis=2), scaled.max(axis=2)  # (F, K, 3)
-        self._cache_lin: FloatArray | None = None
-        self._cache_keys: Keys = np.zeros(0, dtype=np.int64)
-        self._cache_coef: FloatArray = np.zeros((0, 3))
-        self._cache_offset: FloatArray = np.zeros((0, 3))
+        self._planes = PlaneCache(lambda lin, keys: self.planes(lin, self.decode(keys)))
 
     # ---------------------------------------------------------------- keys
 
@@ -101,21 +97,9 @@ class FixedRows:
         return coef, offset
 
     def key_planes(self, lin: FloatArray, keys: Keys) -> tuple[FloatArray, FloatArray]:
-        """`planes` of `keys`, remembered for the current `lin`."""
-        if self._cache_lin is not lin:
-            self._cache_lin = lin
-            self._cache_keys = np.zeros(0, dtype=np.int64)
-            self._cache_coef, self._cache_offset = np.zeros((0, 3)), np.zeros((0, 3))
-        missing = np.setdiff1d(keys, self._cache_keys)
-        if missing.size:
-            coef, offset = self.planes(lin, self.decode(missing))
-            merged = np.concatenate([self._cache_keys, missing])
-            order = np.argsort(merged, kind="stable")
-            self._cache_keys = merged[order]
-            self._cache_coef = np.concatenate([self._cache_coef, coef])[order]
-            self._cache_offset = np.concatenate([self._cache_offset, offset])[order]
-        at = np.searchsorted(self._cache_keys, keys)
-        return self._cache_coef[at], self._cache_offset[at]
+        """`planes` of the rows of `keys`, remembered for the current `lin`
+        (`planner.plane_cache`)."""
+        return self._planes.planes(lin, keys)
 
     def values(self, p: FloatArray, v: FloatArray, t: FixedTriples, coef: FloatArray,
                offset: FloatArray) -> FloatArray:

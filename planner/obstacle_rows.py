@@ -20,17 +20,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from planner.golden import golden_minimum
 from planner.obstacles import ObstacleSet
+from planner.plane_cache import Keys, PlaneCache
 from planner.qp import SeparationRows
 from planner.scenario import Scenario
 from planner.types import FloatArray, IntArray
 
 __all__ = ["ObstacleRows", "Triples", "chord_nearest", "concat_rows", "control_points"]
 
-Keys = NDArray[np.int64]
 
 #: Triples whose row at the linearisation point is within this of binding (in units of the
 #: clearance, at least SEED_MIN m) start an iteration's QP.
@@ -87,10 +86,7 @@ class ObstacleRows:
         self.vehicles = len(scenario.vehicles)
         self.obstacles = len(self.geometry)
         self.intervals = scenario.steps
-        self._cache_lin: FloatArray | None = None
-        self._cache_keys: Keys = np.zeros(0, dtype=np.int64)
-        self._cache_normal: FloatArray = np.zeros((0, 3))
-        self._cache_rhs: FloatArray = np.zeros(0)
+        self._planes = PlaneCache(lambda lin, keys: self.planes(lin, self.decode(keys)))
 
     # ---------------------------------------------------------------- keys
 
@@ -126,22 +122,9 @@ class ObstacleRows:
         return normal, np.einsum("tc,tc->t", normal, point) + self.clearance
 
     def key_planes(self, lin: FloatArray, keys: Keys) -> tuple[FloatArray, FloatArray]:
-        """`planes` of the triples of `keys`, remembered for the current `lin` (an SCP
-        iteration asks for the same rows again after each round)."""
-        if self._cache_lin is not lin:
-            self._cache_lin = lin
-            self._cache_keys = np.zeros(0, dtype=np.int64)
-            self._cache_normal, self._cache_rhs = np.zeros((0, 3)), np.zeros(0)
-        missing = np.setdiff1d(keys, self._cache_keys)
-        if missing.size:
-            normal, rhs = self.planes(lin, self.decode(missing))
-            merged = np.concatenate([self._cache_keys, missing])
-            order = np.argsort(merged, kind="stable")
-            self._cache_keys = merged[order]
-            self._cache_normal = np.concatenate([self._cache_normal, normal])[order]
-            self._cache_rhs = np.concatenate([self._cache_rhs, rhs])[order]
-        at = np.searchsorted(self._cache_keys, keys)
-        return self._cache_normal[at], self._cache_rhs[at]
+        """`planes` of the rows of `keys`, remembered for the current `lin`
+        (`planner.plane_cache`)."""
+        return self._planes.planes(lin, keys)
 
     def values(self, p: FloatArray, v: FloatArray, t: Triples, normal: FloatArray,
                rhs: FloatArray) -> FloatArray:
