@@ -28,17 +28,19 @@ START_SLACK = 0.01
 def scenario_from_state(base: Scenario, label: str, ids: Sequence[str], p: FloatArray,
                         v: FloatArray, a: FloatArray, goals: FloatArray, *,
                         separation: float, steps: int, max_iterations: int | None = None,
+                        cost_threshold: float | None = None,
                         fixed: Sequence[FixedTrajectory] = ()) -> Scenario:
     """`base`'s workspace, boxes, metric and obstacles (at `base`'s clearance, whatever
     `separation` is) for vehicles `ids` starting at positions `p`, velocities `v` and
-    accelerations `a` (N, 3 each, world ENU) bound for `goals`; named "<base> <label>"."""
+    accelerations `a` (N, 3 each, world ENU) bound for `goals`; named "<base> <label>".
+    max_iterations, cost_threshold: the SCP's stopping rule when not `base`'s."""
     data: dict[str, Any] = {
         "name": f"{base.name} {label}",
         "dt": base.dt,
         "steps": steps,
         "min_separation": separation,
         "separation_scale": base.separation_scale.tolist(),
-        "cost_threshold": base.cost_threshold,
+        "cost_threshold": base.cost_threshold if cost_threshold is None else cost_threshold,
         "max_iterations": base.max_iterations if max_iterations is None else max_iterations,
         "limits": base.limits.to_dict(),
         "vehicles": [

@@ -38,7 +38,8 @@ from planner.scenario import MAX_STEPS, RANGES, Scenario, minimum_transfer_time
 from planner.scp import ScpOptions
 from planner.types import FloatArray
 
-__all__ = ["Replan", "ReplanError", "check_goals", "plan_replan", "replan_horizon"]
+__all__ = ["Replan", "ReplanError", "check_goals", "plan_replan", "replan_horizon",
+           "stop_threshold"]
 
 #: The horizon is this many times what the farthest vehicle needs (stop, then move), plus
 #: `HORIZON_EXTRA_S`: room to give way to each other and to the fixed vehicles.
@@ -50,6 +51,13 @@ CRUISE_SHARE = 0.6
 #: last gives room to wait for a fixed vehicle descending through someone's path; a flight
 #: starts no attempt after its deadline).
 RETRY_FACTORS = (1.0, 1.6, 2.6)
+#: A replan's SCP stops once an iteration changes the thrust cost by less than this much per
+#: vehicle and step ((m/s^2)^2), or the base's threshold if looser. Every iterate already
+#: keeps R (its rows are inner approximations) and the plan is verified whatever the rule;
+#: what a replan needs is a verified plan soon, not the last crumbs of thrust. The first
+#: iteration's change bounds its distance from the optimum (iteration 0, the
+#: separation-free QP, is a relaxation), so a replan stopped there is within that of it.
+STOP_COST_PER_STEP = 0.01
 
 
 class ReplanError(PlannerError):
@@ -82,6 +90,12 @@ def replan_horizon(base: Scenario, starts: FloatArray, velocities: FloatArray,
             else np.max(np.abs(velocities) / lim.acceleration_max, axis=1))
     need = max(float(np.max(move.max(axis=1) + 2.0 * stop)), float(np.max(nominal)))
     return HORIZON_FACTOR * need + HORIZON_EXTRA_S
+
+
+def stop_threshold(base: Scenario, vehicles: int, steps: int) -> float:
+    """The cost threshold a replan of `vehicles` over `steps` stops at (see
+    `STOP_COST_PER_STEP`): never tighter than `base`'s."""
+    return max(base.cost_threshold, STOP_COST_PER_STEP * vehicles * steps)
 
 
 def check_goals(base: Scenario, goals: Mapping[str, ArrayLike],
@@ -172,7 +186,8 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
         steps = min(MAX_STEPS, max(3, math.ceil(factor * horizon / base.dt)))
         try:
             spec = scenario_from_state(base, "replan", names, p, v, a, g,
-                                       separation=separation, steps=steps, fixed=fixed)
+                                       separation=separation, steps=steps, fixed=fixed,
+                                       cost_threshold=stop_threshold(base, len(names), steps))
             result = plan(spec, solver=solver, options=ScpOptions())
         except ScenarioError as exc:  # a goal or start the scenario refuses: no retry helps
             raise ReplanError(f"cannot replan: {exc}") from exc

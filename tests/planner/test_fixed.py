@@ -12,7 +12,7 @@ from planner import Plan, plan
 from planner.errors import ScenarioError
 from planner.fixed import DROP_COAST_STEPS, braking_motion, landing_motion
 from planner.generators import circle_swap
-from planner.replan import ReplanError, check_goals, plan_replan
+from planner.replan import ReplanError, check_goals, plan_replan, stop_threshold
 from planner.scenario import Scenario
 from tests.api.support import SHORT_CROSSING
 
@@ -184,3 +184,22 @@ def test_a_dropped_vehicle_braking_towards_a_wall_stays_inside_the_workspace() -
         # far from the wall the same state coasts its step as the plan had it
         open_space = dropped_motion("d", [5.0, 5.0, 2.0], *state[1:], 0.2, action, **common)
         np.testing.assert_allclose(open_space.positions[1], [5.0 + 0.34 - 0.06, 5.0, 2.0])
+
+
+def test_a_replan_stops_at_a_verified_iterate_within_its_threshold_of_the_optimum() -> None:
+    """The replan's looser stop (`stop_threshold`) still gives a verified plan, in fewer
+    iterations, and its cost is within that threshold of the same scenario planned to the
+    base's tight threshold."""
+    base, replan = _drop_mid_flight(circle_swap(16), 12.0, None)
+    result = replan.plan
+    check = result.verification
+    assert result.ok and check.separated and check.clear and check.flyable
+    assert check.fixed_distance_min >= replan.separation - 1e-6
+    threshold = stop_threshold(base.scenario, len(result.vehicles), result.scenario.steps)
+    assert threshold > base.scenario.cost_threshold
+    assert result.scenario.cost_threshold == threshold
+    assert result.iterations[-1].cost_change < threshold
+    tight = plan({**result.scenario.to_dict(), "cost_threshold": base.scenario.cost_threshold})
+    assert tight.ok
+    assert len(tight.iterations) >= len(result.iterations)
+    assert result.iterations[-1].cost <= tight.iterations[-1].cost + threshold
