@@ -70,7 +70,7 @@ STOP_COST_PER_STEP = 0.01
 #: vehicles to the centre together (one QP of 100 vehicles, 5 s), timed to 1.4 they meet
 #: in groups of at most 11 (1 s). Only a crowd of more than `CROWD_SMALL` vehicles at the
 #: first candidate looks further (each look is one closed-form first QP, about 0.03 s for
-#: 100 vehicles).
+#: 100 vehicles); a fleet of at most that many never looks.
 CROWD_FACTORS = (1.0, 1.2, 1.4)
 CROWD_TOLERANCE = 1.25
 CROWD_SMALL = 16
@@ -246,6 +246,8 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
 def _least_crowded(scenario: Callable[[float], Scenario], horizon: float,
                    solver: str | None) -> float:
     """The factor of `CROWD_FACTORS` the first attempt takes (see there)."""
+    if len(scenario(horizon).vehicles) <= CROWD_SMALL:  # no crowd can be larger
+        return CROWD_FACTORS[0]
     first = crowd(scenario(horizon), solver)
     if first <= CROWD_SMALL:
         return CROWD_FACTORS[0]

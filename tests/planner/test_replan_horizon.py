@@ -13,7 +13,6 @@ from planner import plan
 from planner.fixed import braking_motion
 from planner.replan import (
     CROWD_FACTORS,
-    CROWD_SMALL,
     crowd,
     plan_replan,
     replan_horizon,
@@ -59,6 +58,7 @@ def test_a_crowded_first_horizon_gives_way_to_the_shortest_least_crowded_one(
     """Crowds 40, 12, 10 at the three candidates: 12 is within the tolerance of 10, so the
     middle one is taken, and the replan from the moving state there is verified."""
     base, p, v, a, goals = _moving_pair()
+    monkeypatch.setattr(replan_module, "CROWD_SMALL", 1)  # a pair counts as a fleet here
     first = replan_horizon(base, p, v, goals)
     steps = [math.ceil(f * first / base.dt) for f in CROWD_FACTORS]
     seen: list[int] = []
@@ -86,12 +86,16 @@ def test_a_small_crowd_keeps_the_first_horizon_without_looking_further(
 
     def fake(spec: Scenario, solver: str | None = None) -> int:
         seen.append(spec.steps)
-        return CROWD_SMALL
+        return 1
 
     monkeypatch.setattr(replan_module, "crowd", fake)
     replan = plan_replan(base, ["a", "b"], p, v, a, goals)
     assert replan.plan.ok
-    assert seen == [replan.plan.scenario.steps]
+    assert seen == []  # a fleet no larger than CROWD_SMALL never looks
+    monkeypatch.setattr(replan_module, "CROWD_SMALL", 1)
+    replan = plan_replan(base, ["a", "b"], p, v, a, goals)
+    assert replan.plan.ok
+    assert seen == [replan.plan.scenario.steps]  # a crowd of 1: no further look
     assert replan.plan.scenario.steps == math.ceil(replan_horizon(base, p, v, goals) / base.dt)
 
 
