@@ -52,7 +52,8 @@ from gcs.flight.station import STALL_NOTE_S, StationStalls
 from gcs.flight.vehicle import VehicleStatus, address_text
 from planner import Plan
 
-__all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "vehicle_fault"]
+__all__ = ["CATCH_UP_S", "PERIOD", "REPEATED_TIMESTAMPS", "FleetMonitor", "drops_text",
+           "vehicle_fault"]
 
 #: Seconds between two checks.
 PERIOD = 0.05
@@ -101,11 +102,20 @@ PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.n
 PredictedCallback = Callable[[VehicleStatus, float], "np.ndarray | None"]
 
 
+REPEATED_TIMESTAMPS = ("from the vehicle's own address: PX4 signs from more than one thread "
+                       "and now and then sends two packets with one signing timestamp, which "
+                       "MAVLink drops as a replay")
+"""What `drops_text` adds when every drop is a replay: those can only come from the pinned
+peer's address (another address is refused first), and PX4 repeats a timestamp a few times a
+minute on its own; a steady rate would be recorded traffic played back."""
+
+
 def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
                window: float = 0.0) -> str:
     """"40 more packets dropped in 5.0 s, 8.0/s (40 unsigned), the latest from
     127.0.0.1:5555 (component 1)": the rate over `window` s (left out when 0) is the health
-    signal, hostile traffic arriving as the vehicle's."""
+    signal, hostile traffic arriving as the vehicle's. Replays alone say where they come
+    from (`REPEATED_TIMESTAMPS`)."""
     reasons = ", ".join(f"{n} {reason}" for reason, n in delta.items() if n)
     total = sum(delta.values())
     over = f" in {window:.1f} s, {total / window:.1f}/s" if window > 0.0 else ""
@@ -113,6 +123,8 @@ def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
     if latest is not None:
         address, component = latest
         where = f", the latest from {address_text(address)} (component {component})"
+    if {reason for reason, n in delta.items() if n} == {"replayed"}:
+        where += f": {REPEATED_TIMESTAMPS}"
     return f"{total} more packets dropped{over} ({reasons}){where}"
 
 
