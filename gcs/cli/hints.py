@@ -37,8 +37,9 @@ def live_warning(event: dict[str, Any], options: str) -> str | None:
         return None
     who = event.get("vehicle") or "fleet"
     if REPEATED_TIMESTAMPS in str(event.get("detail")):
-        return (f"warning: {who}: {event.get('detail')} (harmless at a few a minute; a "
-                f"steady rate is recorded traffic played back to the GCS)")
+        return (f"warning: {who}: {event.get('detail')} (harmless right after a vehicle "
+                f"boots and at a few a minute later; a steady rate in flight is recorded "
+                f"traffic played back to the GCS)")
     return (f"warning: {who}: {event.get('detail')}: something else is sending to this "
             f"vehicle's port (another fleetplan fly or mock on the same ports? choose free "
             f"ports with {options})")

@@ -102,12 +102,15 @@ PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.n
 PredictedCallback = Callable[[VehicleStatus, float], "np.ndarray | None"]
 
 
-REPEATED_TIMESTAMPS = ("from the vehicle's own address: PX4 signs from more than one thread "
-                       "and now and then sends two packets with one signing timestamp, which "
-                       "MAVLink drops as a replay")
-"""What `drops_text` adds when every drop is a replay: those can only come from the pinned
-peer's address (another address is refused first), and PX4 repeats a timestamp a few times a
-minute on its own; a steady rate would be recorded traffic played back."""
+REPEATED_TIMESTAMPS = ("from the vehicle's own address: PX4 signs with old timestamps for "
+                       "a few seconds after it boots and now and then repeats one later, "
+                       "which MAVLink drops as replays")
+"""What `drops_text` adds when every drop is a replay. Those can only come from the pinned
+peer's address (another address is refused first), and PX4 sends them on its own: after a
+boot it signs from the timestamp stored with its key until it has heard the GCS (about 400
+packets a vehicle on SIH SITL), and as it signs from more than one thread it repeats a
+timestamp about once a vehicle every half minute. A steady rate later in a flight would be
+recorded traffic played back."""
 
 
 def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,

@@ -220,10 +220,10 @@ def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() ->
 
 
 def test_replays_alone_are_told_as_the_vehicles_own_repeated_timestamps() -> None:
-    """PX4 signs from more than one thread and now and then repeats a signing timestamp
-    (about one packet per vehicle every half minute on SITL): drops that are all replays
-    come from the pinned peer's own address and are told as that, and the CLI does not
-    blame another process on the vehicle's port; any other drop keeps that warning."""
+    """PX4 signs with old timestamps for a few seconds after it boots and now and then
+    repeats one (about one packet a vehicle every half minute on SITL): drops that are all
+    replays come from the pinned peer's own address and are told as that, and the CLI does
+    not blame another process on the vehicle's port; any other drop keeps that warning."""
     from gcs.cli.hints import live_warning
     from gcs.flight.monitor import REPEATED_TIMESTAMPS, drops_text
 
