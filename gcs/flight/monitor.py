@@ -88,8 +88,20 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
         return "geofence_breach", f"{tel.geofence_breach}, mode {name}"
     if tel.mode != px4.OFFBOARD:
         name = tel.mode.name if tel.mode is not None else "?"
-        return "left_offboard", f"mode is now {name}"
+        return "left_offboard", f"mode is now {name}{_warnings_text(tel.warnings)}"
     return None
+
+
+#: How many of PX4's latest warnings a fault's detail quotes.
+WARNINGS_QUOTED = 3
+
+
+def _warnings_text(warnings: Sequence[str]) -> str:
+    """"; PX4 warned: 'Preflight Fail: No valid data from Baro 0', 'Failsafe activated'":
+    why PX4 took a vehicle out of OFFBOARD is in its warnings since arming (a failsafe names
+    the stale sensor or the lost link), or "" without any."""
+    latest = list(warnings)[-WARNINGS_QUOTED:]
+    return "; PX4 warned: " + ", ".join(repr(w) for w in latest) if latest else ""
 
 
 #: A vehicle's newly dropped packets are told at most this often (s).
