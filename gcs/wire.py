@@ -114,18 +114,19 @@ class StatusTexts:
         self._parts: dict[int, list[str]] = {}
 
     def add(self, msg: Any) -> str | None:
-        """The whole text once `msg` completes it, else None."""
+        """The whole text once `msg` completes it, else None; without the tab PX4 ends a text
+        with when it also reports it as an event (a mark for ground stations, not text)."""
         text = str(msg.text).rstrip("\x00")
         ident = getattr(msg, "id", 0) or 0
         if not ident:
-            return text
+            return text.removesuffix("\t")
         parts = self._parts.setdefault(ident, [])
         if getattr(msg, "chunk_seq", 0) == 0:
             parts.clear()
         parts.append(text)
         if len(text.encode()) < STATUSTEXT_LEN or len(parts) >= self.max_chunks:
             del self._parts[ident]
-            return "".join(parts)
+            return "".join(parts).removesuffix("\t")
         return None
 
 

@@ -304,6 +304,18 @@ async def _progress(handle, events) -> None:
         watcher.cancel()
 
 
+def _tolerance_text(summary: dict) -> str:
+    """The goal tolerance the flight applied: each vehicle's (`goal_tolerances`: the fleet's
+    `goal_tolerance`, or larger from the position error or the GPS accuracy a vehicle reports,
+    1.8 m on PX4 SIH), not only the fleet-wide base."""
+    applied = [t for t in (summary.get("goal_tolerances") or {}).values() if t is not None]
+    if not applied:
+        base = summary.get("goal_tolerance")
+        return "tolerance n/a" if base is None else f"tolerance {base:.3f} m"
+    lo, hi = min(applied), max(applied)
+    return f"tolerance {hi:.3f} m" if lo == hi else f"tolerances {lo:.3f}-{hi:.3f} m"
+
+
 def _print_summary(record: dict) -> None:
     s = record["summary"]
 
@@ -315,7 +327,7 @@ def _print_summary(record: dict) -> None:
     for reason in s.get("why", []):
         print(f"    {reason}")
     print(f"  goal_error_max          {fmt(s['goal_error_max'], ' m')}"
-          f" (tolerance {fmt(s.get('goal_tolerance'), ' m')})")
+          f" ({_tolerance_text(s)})")
     print(f"  tracking_error_max      {fmt(s['tracking_error_max'], ' m')}")
     print(f"  min_separation_measured {fmt(s['min_separation_measured'], ' m')}"
           f" (planned {fmt(s['min_separation_planned'], ' m')}, must keep "

@@ -52,7 +52,8 @@ from gcs.flight.station import STALL_NOTE_S, StationStalls
 from gcs.flight.vehicle import VehicleStatus, address_text
 from planner import Plan
 
-__all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "vehicle_fault"]
+__all__ = ["CATCH_UP_S", "PERIOD", "REPEATED_TIMESTAMPS", "FleetMonitor", "drops_text",
+           "vehicle_fault"]
 
 #: Seconds between two checks.
 PERIOD = 0.05
@@ -87,8 +88,20 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
         return "geofence_breach", f"{tel.geofence_breach}, mode {name}"
     if tel.mode != px4.OFFBOARD:
         name = tel.mode.name if tel.mode is not None else "?"
-        return "left_offboard", f"mode is now {name}"
+        return "left_offboard", f"mode is now {name}{_warnings_text(tel.warnings)}"
     return None
+
+
+#: How many of PX4's latest warnings a fault's detail quotes.
+WARNINGS_QUOTED = 3
+
+
+def _warnings_text(warnings: Sequence[str]) -> str:
+    """"; PX4 warned: 'Preflight Fail: No valid data from Baro 0', 'Failsafe activated'":
+    why PX4 took a vehicle out of OFFBOARD is in its warnings since arming (a failsafe names
+    the stale sensor or the lost link), or "" without any."""
+    latest = list(warnings)[-WARNINGS_QUOTED:]
+    return "; PX4 warned: " + ", ".join(repr(w) for w in latest) if latest else ""
 
 
 #: A vehicle's newly dropped packets are told at most this often (s).
@@ -101,11 +114,23 @@ PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.n
 PredictedCallback = Callable[[VehicleStatus, float], "np.ndarray | None"]
 
 
+REPEATED_TIMESTAMPS = ("from the vehicle's own address: PX4 signs with old timestamps for "
+                       "a few seconds after it boots and now and then repeats one later, "
+                       "which MAVLink drops as replays")
+"""What `drops_text` adds when every drop is a replay. Those can only come from the pinned
+peer's address (another address is refused first), and PX4 sends them on its own: after a
+boot it signs from the timestamp stored with its key until it has heard the GCS (about 400
+packets a vehicle on SIH SITL), and as it signs from more than one thread it repeats a
+timestamp about once a vehicle every half minute. A steady rate later in a flight would be
+recorded traffic played back."""
+
+
 def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
                window: float = 0.0) -> str:
     """"40 more packets dropped in 5.0 s, 8.0/s (40 unsigned), the latest from
     127.0.0.1:5555 (component 1)": the rate over `window` s (left out when 0) is the health
-    signal, hostile traffic arriving as the vehicle's."""
+    signal, hostile traffic arriving as the vehicle's. Replays alone say where they come
+    from (`REPEATED_TIMESTAMPS`)."""
     reasons = ", ".join(f"{n} {reason}" for reason, n in delta.items() if n)
     total = sum(delta.values())
     over = f" in {window:.1f} s, {total / window:.1f}/s" if window > 0.0 else ""
@@ -113,6 +138,8 @@ def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
     if latest is not None:
         address, component = latest
         where = f", the latest from {address_text(address)} (component {component})"
+    if {reason for reason, n in delta.items() if n} == {"replayed"}:
+        where += f": {REPEATED_TIMESTAMPS}"
     return f"{total} more packets dropped{over} ({reasons}){where}"
 
 

@@ -200,11 +200,12 @@ _PARTNER_HINT = ("PX4 sends its replies to the first address it hears after boot
 _DROP_CAUSES: dict[str, tuple[str, str]] = {
     "unsigned": ("unsigned packets",
                  "the fleet file gives this vehicle a signing_key but the key is not "
-                 "provisioned on the vehicle (SETUP_SIGNING, see the docs' Security, "
-                 "Provisioning) or signing is off there"),
+                 "provisioned on the vehicle (fleetplan keys provision --fleet FLEET.json) "
+                 "or signing is off there"),
     "bad_signature": ("wrongly signed packets",
                       "signed with another key than the fleet file's signing_key: provision "
-                      "this key on the vehicle, or give the fleet file the vehicle's key"),
+                      "this key on the vehicle (fleetplan keys provision --fleet FLEET.json "
+                      "--old-key ITS_KEY), or give the fleet file the vehicle's key"),
     "replayed": ("replayed packets",
                  "signed with this key but with old timestamps: a replay, or a vehicle whose "
                  "clock went back (restart it)"),

@@ -217,3 +217,27 @@ def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() ->
                                 "the latest from 127.0.0.1:5555 (component 1)")
     monitor._drops(200.0)  # no new drops
     assert len(told) == 2
+
+
+def test_replays_alone_are_told_as_the_vehicles_own_repeated_timestamps() -> None:
+    """PX4 signs with old timestamps for a few seconds after it boots and now and then
+    repeats one (about one packet a vehicle every half minute on SITL): drops that are all
+    replays come from the pinned peer's own address and are told as that, and the CLI does
+    not blame another process on the vehicle's port; any other drop keeps that warning."""
+    from gcs.cli.hints import live_warning
+    from gcs.flight.monitor import REPEATED_TIMESTAMPS, drops_text
+
+    peer = (("127.0.0.1", 14581), 1)
+    replays = drops_text({"replayed": 1, "unsigned": 0}, peer, 24.6)
+    assert replays.startswith("1 more packets dropped in 24.6 s, 0.0/s (1 replayed), the "
+                              "latest from 127.0.0.1:14581 (component 1): ")
+    assert replays.endswith(REPEATED_TIMESTAMPS)
+    warning = live_warning({"kind": EventKind.DROPPED_PACKETS, "vehicle": "b",
+                            "detail": replays}, "--base-port")
+    assert warning is not None and "something else is sending" not in warning
+    assert "recorded traffic played back" in warning
+    mixed = drops_text({"replayed": 1, "unsigned": 40}, peer, 5.0)
+    assert REPEATED_TIMESTAMPS not in mixed
+    warning = live_warning({"kind": EventKind.DROPPED_PACKETS, "vehicle": "b",
+                            "detail": mixed}, "--base-port")
+    assert warning is not None and "something else is sending" in warning

@@ -354,6 +354,7 @@ def test_a_key_not_on_the_vehicle_fails_connect_naming_the_cause(tmp_path: Path)
             address = f"{unkeyed.address[0]}:{unkeyed.address[1]}"
             assert f"6 unsigned packets from {address}" in text
             assert "not provisioned on the vehicle" in text
+            assert "(fleetplan keys provision --fleet FLEET.json)" in text  # what to do
             assert "no HEARTBEAT" not in text
         finally:
             unkeyed.close()

@@ -185,3 +185,27 @@ def test_eight_vehicles_complete_with_two_cpu_hogs_running() -> None:
     assert record["summary"]["completed"] is True, record["summary"]["why"]
     phases = {v["phase"] for v in _flight.snapshot()["vehicles"]}
     assert phases == {VehiclePhase.LANDED}
+
+
+def test_leaving_offboard_quotes_what_px4_warned_since_arming() -> None:
+    """PX4 SITL on a loaded machine: its simulated barometer and compass went stale, PX4's
+    failsafe took the vehicle to Altitude mode, and the fault said only "mode is now
+    ALTCTL". The detail quotes PX4's latest warnings since arming (those before arming were
+    cleared when it armed), and nothing when there were none."""
+    from gcs import px4
+    from gcs.flight.monitor import WARNINGS_QUOTED
+
+    options = FlightOptions()
+    v = fake_vehicle(0)
+    fake_link(v).alive(100.0)
+    tel = v.linked.telemetry
+    tel.mode = px4.decode_custom_mode(2 << 16)  # PX4's ALTCTL
+    assert vehicle_fault(v.linked, options, 100.1) == ("left_offboard", "mode is now ALTCTL")
+    for text in ("Preflight Fail: No valid data from Baro 0",
+                 "Preflight Fail: No valid data from Compass 0",
+                 "Preflight Fail: Battery unhealthy", "Failsafe activated"):
+        tel.warnings.append(text)
+    kind, detail = vehicle_fault(v.linked, options, 100.1) or ("", "")
+    assert kind == "left_offboard" and detail.startswith("mode is now ALTCTL; PX4 warned: ")
+    assert "'Failsafe activated'" in detail and "No valid data from Compass 0" in detail
+    assert "Baro 0" not in detail and WARNINGS_QUOTED == 3  # the latest three only

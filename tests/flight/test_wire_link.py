@@ -66,3 +66,23 @@ def test_chunked_statustexts_are_joined_before_anyone_sees_them() -> None:
     assert list(link.telemetry.statustexts) == [whole, "Takeoff detected"]
     assert seen == ["STATUSTEXT", "STATUSTEXT"]  # the first chunk alone reached nobody
     assert list(link.telemetry.warnings) == [whole]
+
+
+def test_px4s_trailing_tab_is_not_part_of_the_text() -> None:
+    """PX4 ends a status text it also reports as an event with a tab (so that a ground
+    station showing events can hide the duplicate): "Connection to ground station lost\\t",
+    and a long one's tab comes in its last chunk. The GCS shows and matches the text without
+    it."""
+    texts = wire.StatusTexts()
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+
+    def statustext(text: str, ident: int = 0, seq: int = 0) -> object:
+        return parse_datagram(wire.pack(mav.statustext_encode(4, text.encode(), ident, seq),
+                                        mav)).messages[0]
+
+    assert texts.add(statustext("Connection to ground station lost\t")) == \
+        "Connection to ground station lost"
+    whole = "Arming denied: Resolve system health failures first"
+    assert texts.add(statustext(whole[:50], 9, 0)) is None
+    assert texts.add(statustext(whole[50:] + "\t", 9, 1)) == whole
+    assert texts.add(statustext("Takeoff detected")) == "Takeoff detected"
