@@ -97,6 +97,9 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     earlier vehicles that come closest to its first linearisation point (MERGE_ROUNDS
     times, MERGE_GROWTH more each time); None if it still does not."""
     n, steps = len(work.vehicles), work.steps
+    # a batch's QPs are small and mostly one-sided rows, dense in the dual (one vehicle's
+    # rows against many fixed ones all couple): the primal measured about twice as fast
+    options = dataclasses.replace(options or ScpOptions(), dual=False)
     order = order_vehicles(work) if order is None else order
     batches = [order[s:s + batch] for s in range(0, n, batch)]
     state = _State(work, np.repeat(work.starts[:, None, :], steps + 1, axis=1),

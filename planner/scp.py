@@ -115,6 +115,13 @@ class ScpOptions:
     when that plan does not converge and verify. Off by default: measured faster on some
     crowds (sideways 100: 1.8x) and slower on others (random 256: 1.6x), see
     docs/benchmarks/planner.md."""
+    decompose: str = "none"
+    """"prioritized": `planner.plan` plans the fleet in batches of `batch_size` vehicles,
+    each against the earlier ones as fixed trajectories (`planner.prioritized`), verifies
+    the joined plan and plans the whole fleet instead if a batch fails or the check does;
+    "none" (the default): the whole fleet at once."""
+    batch_size: int = 2
+    """Vehicles per batch with decompose="prioritized"."""
 
 
 @dataclass
