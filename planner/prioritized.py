@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.first_qp import unit_profile
-from planner.fixed import FixedTrajectory
+from planner.fixed import FixedSet, FixedTrajectory
 from planner.result import IterationRecord
 from planner.routes import _along
 from planner.scenario import Scenario
@@ -176,16 +176,25 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
                                    - work.goals[group][None, :, :]) / scale, axis=2)
         later = later[goal_gap.min(axis=1) >= work.min_separation * 1.05]
     fixed: list[FixedTrajectory] = []
-    for j in earlier[_near_fixed(work, group, state.p[earlier], reach)]:
+    moving = earlier[_near_fixed(work, group, state.p[earlier], reach)]
+    for j in moving:
         fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", state.p[j], state.v[j]))
+    resting = np.zeros(0, dtype=np.intp)
     if len(later):
-        for j in later[_near_fixed(work, group, work.starts[later][:, None, :], reach)]:
+        resting = later[_near_fixed(work, group, work.starts[later][:, None, :], reach)]
+        for j in resting:
             fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", work.starts[j][None, :]))
     sub = dataclasses.replace(
         work, name=f"{work.name}{suffix}", vehicles=tuple(work.vehicles[j] for j in group),
         starts=work.starts[group], goals=work.goals[group], fixed=tuple(fixed))
-    others = (np.stack([f.motion(work.dt, steps + 1)[0] for f in fixed]) if fixed
-              else np.zeros((0, steps + 1, 3)))
+    others = np.concatenate([state.p[moving],
+                             np.repeat(work.starts[resting][:, None, :], steps + 1, axis=1)])
+    # the fixed trajectories' arrays are the plans themselves: no need to resample them
+    sub.__dict__["fixed_set"] = FixedSet(
+        [f.id for f in fixed], others,
+        np.concatenate([state.v[moving], np.zeros((len(resting), steps + 1, 3))]),
+        np.concatenate([state.a[moving], np.zeros((len(resting), steps, 3))]),
+        np.zeros(len(fixed)), np.zeros((len(fixed), steps)))
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
     guess = clear_guess(sub, others, preset)
     return run_scp(sub, solver, options, progress, guess), guess
@@ -282,14 +291,15 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         chosen = (lines[0], 0)
         if len(against):
             best = -np.inf
-            for delay in (int(d * scenario.steps) for d in DELAYS):
-                trial = _positions(lines, scenario, delay) / scale  # (C, K+1, 3)
+            tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
+            for subset, delay in tries:  # the straight move alone first: most often clear
+                trial = _positions(subset, scenario, delay) / scale  # (C, K+1, 3)
                 diff = trial[:, None] - against[None]  # (C, F, K+1, 3)
                 gap = np.sqrt(np.einsum("cfkx,cfkx->cfk", diff, diff).min(axis=(1, 2)))
                 clear = np.flatnonzero(gap >= need)
                 pick = int(clear[0]) if clear.size else int(np.argmax(gap))
                 if clear.size or gap[pick] > best:
-                    chosen, best = (lines[pick], delay), float(gap[pick])
+                    chosen, best = (subset[pick], delay), float(gap[pick])
                 if clear.size:
                     break
         p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
