@@ -20,7 +20,7 @@ from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
 from planner.first_qp import straight_moves
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.prioritized import plan_batches
-from planner.result import IterationRecord, Plan, VehicleTrajectory
+from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp
 from planner.solvers import make_solver
@@ -82,6 +82,7 @@ def plan(
     batches = (plan_batches(work, backend, options, progress,
                             options.batch_size if options is not None else 2)
                if decomposed else None)
+    verification: Verification | None = None
     if batches is not None:
         outcome = batches.outcome
         p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
