@@ -66,7 +66,9 @@ def plan(
     goals and `ScpOptions(dodge=True)` a large fleet's first iteration is linearised about
     those moves pushed apart where they crowd (`planner.dodge`); if that plan does not
     converge and verify, it is planned again from the synchronised moves (`progress` then
-    sees both runs).
+    sees both runs). With `ScpOptions(decompose="prioritized")` the fleet is planned in
+    batches (`planner.prioritized`), and as a whole if a batch fails or the joined plan does
+    not verify; the message says which.
     """
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
@@ -79,9 +81,8 @@ def plan(
         dodged = found is not None
         guess = None if found is None else found[0]
     decomposed = guess is None and not dodged and _decomposes(work, options)
-    batches = (plan_batches(work, backend, options, progress,
-                            options.batch_size if options is not None else 2)
-               if decomposed else None)
+    batches = (plan_batches(work, backend, options, progress, options.batch_size)
+               if decomposed and options is not None else None)
     verification: Verification | None = None
     if batches is not None:
         outcome = batches.outcome
