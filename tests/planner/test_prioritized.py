@@ -118,3 +118,10 @@ def test_plan_falls_back_to_the_whole_fleet_when_the_batches_fail(
     assert result.status == "converged", result.message
     assert result.verification is not None and result.verification.verified
     assert "planned as a whole fleet" in result.message
+
+
+@pytest.mark.parametrize(("field", "value"), [("decompose", "greedy"), ("batch_size", 0),
+                                              ("batch_size", 2.5)])
+def test_bad_decomposition_options_are_refused_naming_the_field(field: str, value: Any) -> None:
+    with pytest.raises(ValueError, match=f"^{field}: "):
+        ScpOptions(**{field: value})
