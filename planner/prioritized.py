@@ -23,10 +23,10 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.first_qp import unit_profile
+from planner.first_qp import straight_moves, unit_profile
 from planner.fixed import FixedSet, FixedTrajectory
 from planner.result import IterationRecord
-from planner.routes import _along
+from planner.routes import _along, seed_routes
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
@@ -199,8 +199,26 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
         np.concatenate([state.a[moving], np.zeros((len(resting), steps, 3))]),
         np.zeros(len(fixed)), np.zeros((len(fixed), steps)))
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
-    guess = clear_guess(sub, others, preset)
+    guess = clear_guess(sub, others, preset, _routes(sub, len(members)))
     return run_scp(sub, solver, options, progress, guess), guess
+
+
+def _routes(sub: Scenario, fresh: int) -> dict[int, FloatArray]:
+    """With obstacles, the route (`planner.routes`) of each of the first `fresh` vehicles
+    whose straight move comes within the clearance of one, as a polyline: the batch's
+    guess departs along it when clear of the fixed vehicles (the SCP loop's own route
+    seeding knows nothing of them)."""
+    if not sub.obstacles:
+        return {}
+    seeded = seed_routes(sub, straight_moves(sub))
+    out = {}
+    for i in seeded.routed:
+        if i < fresh:
+            points = seeded.guess[0][i]
+            keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1)
+                                   > 1e-9])
+            out[int(i)] = points[keep]
+    return out
 
 
 def _blockers(state: _State, members: IntArray, reopened: IntArray,
@@ -269,14 +287,16 @@ def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
 
 
 def clear_guess(scenario: Scenario, others: FloatArray,
-                preset: tuple[FloatArray, FloatArray, FloatArray] | None = None
+                preset: tuple[FloatArray, FloatArray, FloatArray] | None = None,
+                routes: dict[int, FloatArray] | None = None
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """A first linearisation point for a batch: per vehicle the cheapest candidate (a
     straight or detoured polyline, departing at once or later) that keeps GUESS_GAP R at
     every step from `others` (F, K+1, 3) and from the batch's vehicles placed before it,
     else the one that keeps farthest; the last vehicles keep `preset` (p, v, a) if given
-    (earlier vehicles planned again). Rows linearised about a separated point ask the QP for
-    no jump past a fixed vehicle."""
+    (earlier vehicles planned again); a vehicle with a polyline in `routes` (around
+    obstacles) only tries it, departing at once or later. Rows linearised about a separated
+    point ask the QP for no jump past a fixed vehicle."""
     n, stages = len(scenario.vehicles), scenario.steps + 1
     scale = scenario.separation_scale
     p = np.zeros((n, stages, 3))
@@ -292,7 +312,9 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         against = np.concatenate(placed)
         lines = _polylines(scenario, i)
         chosen = (lines[0], 0)
-        if len(against):
+        if routes and i in routes:
+            chosen = _route_departure(scenario, routes[i], against, need)
+        elif len(against):
             best = -np.inf
             tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
             for subset, delay in tries:  # the straight move alone first: most often clear
@@ -308,3 +330,21 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
         placed.append(p[i][None] / scale)
     return p, v, a
+
+
+def _route_departure(scenario: Scenario, route: FloatArray, against: FloatArray,
+                     need: float) -> tuple[FloatArray, int]:
+    """(route, delay): the first of DELAYS at which the route keeps `need` from `against`
+    (scaled positions, (F, K+1, 3)) at every step, else the one that keeps farthest."""
+    best, chosen = -np.inf, (route, 0)
+    for delay in (int(d * scenario.steps) for d in DELAYS):
+        if len(against) == 0:
+            return route, delay
+        trial = _along(route, scenario, delay)[0] / scenario.separation_scale
+        gap = float(np.sqrt(np.einsum("fkx,fkx->fk", against - trial[None],
+                                      against - trial[None]).min()))
+        if gap >= need:
+            return route, delay
+        if gap > best:
+            best, chosen = gap, (route, delay)
+    return chosen

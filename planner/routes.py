@@ -21,7 +21,7 @@ Two occupancy grids are built from the cells' signed distance to the nearest obs
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -68,6 +68,9 @@ class Grid:
     """(cells,) signed distance of each centre to the nearest obstacle (flat, C order)."""
     nearest: IntArray
     """(cells,) that obstacle's index."""
+    graphs: dict[bytes, sp.csr_matrix] = field(default_factory=dict, compare=False,
+                                                repr=False)
+    """`graph` per free mask already built (a reused grid is asked for the same ones)."""
 
     @property
     def centres(self) -> FloatArray:
@@ -85,7 +88,15 @@ class Grid:
         return np.asarray(np.ravel_multi_index(tuple(idx.T), self.shape), dtype=np.intp)
 
     def graph(self, free: BoolArray) -> sp.csr_matrix:
-        """The 26-neighbour graph of the free cells, edges weighted by length."""
+        """The 26-neighbour graph of the free cells, edges weighted by length (built once
+        per mask)."""
+        key = np.packbits(free).tobytes()
+        built = self.graphs.get(key)
+        if built is None:
+            built = self.graphs[key] = self._graph(free)
+        return built
+
+    def _graph(self, free: BoolArray) -> sp.csr_matrix:
         shape = np.array(self.shape)
         grid_free = free.reshape(self.shape)
         rows, cols, weights = [], [], []
