@@ -125,3 +125,17 @@ def test_plan_falls_back_to_the_whole_fleet_when_the_batches_fail(
 def test_bad_decomposition_options_are_refused_naming_the_field(field: str, value: Any) -> None:
     with pytest.raises(ValueError, match=f"^{field}: "):
         ScpOptions(**{field: value})
+
+
+def test_a_joined_plan_that_fails_verification_is_never_returned(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    def colliding(work: Scenario, *args: Any, **kwargs: Any) -> prioritized.PrioritizedOutcome:
+        p, v, a = _straight(work)  # the crowd's straight moves: vehicles meet
+        joined = ScpOutcome("converged", "planned in 1 prioritized batches", p, v, a, [], 0.0)
+        return prioritized.PrioritizedOutcome(joined, [np.arange(len(p))], [0.0])
+
+    monkeypatch.setattr(planning, "plan_batches", colliding)
+    result = plan(sideways(16), options=PRIORITIZED)
+    assert result.status == "converged", result.message
+    assert result.verification is not None and result.verification.verified
+    assert "planned as a whole fleet" in result.message
