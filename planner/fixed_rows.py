@@ -29,6 +29,9 @@ __all__ = ["FixedRows", "FixedTriples"]
 #: Triples within this of binding (m, at least) at the linearisation point start an
 #: iteration's QP.
 SEED_MARGIN = 0.3
+#: Boxes compared at once by the broad phase (bounds its memory: 4 arrays of this many
+#: 3-vectors).
+CHUNK = 1 << 18
 
 
 @dataclass(frozen=True)
@@ -114,17 +117,21 @@ class FixedRows:
         cp = np.stack([p[:, :-1], p[:, :-1] + 0.5 * self.dt * v[:, :-1], p[:, 1:]],
                       axis=2) / self.scale  # (N, K, 3, 3)
         lo, hi = cp.min(axis=2), cp.max(axis=2)
-        found: list[FixedTriples] = []
-        for f in range(self.count):
-            gap = np.maximum(0.0, np.maximum(lo - self._hi[f], self._lo[f] - hi))
-            close = np.einsum("nkc,nkc->nk", gap, gap) <= (
-                self.separation + self.margins[f][None, :] + reach) ** 2
-            vehicle, k = np.nonzero(close)
-            found.append(FixedTriples(vehicle.astype(np.intp),
-                                      np.full(len(k), f, dtype=np.intp), k.astype(np.intp)))
-        if not found:
+        n, k = lo.shape[0], lo.shape[1]
+        if self.count == 0 or n == 0:
             z = np.zeros(0, dtype=np.intp)
             return FixedTriples(z, z, z)
+        found: list[FixedTriples] = []
+        # fixed vehicles in chunks of about CHUNK (planned, fixed, interval) boxes at once
+        per = max(1, CHUNK // max(1, n * k))
+        for first in range(0, self.count, per):
+            f_hi, f_lo = self._hi[first:first + per], self._lo[first:first + per]  # (C, K, 3)
+            gap = np.maximum(0.0, np.maximum(lo[:, None] - f_hi[None], f_lo[None] - hi[:, None]))
+            need = self.separation + self.margins[first:first + per] + reach  # (C, K)
+            close = np.einsum("nfkc,nfkc->nfk", gap, gap) <= need[None] ** 2
+            vehicle, fixed, step = np.nonzero(close)
+            found.append(FixedTriples(vehicle.astype(np.intp), (fixed + first).astype(np.intp),
+                                      step.astype(np.intp)))
         return FixedTriples(*(np.concatenate([getattr(x, name) for x in found])
                               for name in ("vehicle", "fixed", "k")))
 

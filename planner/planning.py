@@ -19,7 +19,8 @@ import numpy as np
 from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
 from planner.first_qp import straight_moves
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.result import IterationRecord, Plan, VehicleTrajectory
+from planner.prioritized import plan_batches
+from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp
 from planner.solvers import make_solver
@@ -35,6 +36,15 @@ def _dodges(work: Scenario, options: ScpOptions | None) -> bool:
     scenarios; fixed trajectories and start velocities are not straight moves' business)."""
     return (options is not None and options.dodge and len(work.vehicles) >= DODGE_MIN_VEHICLES
             and not work.obstacles and not work.fixed and work.start_velocities is None)
+
+
+def _decomposes(work: Scenario, options: ScpOptions | None) -> bool:
+    """Is the fleet planned in prioritized batches (`planner.prioritized`)? Only when asked,
+    for more vehicles than one batch, without fixed trajectories or start velocities of
+    its own (the batches' fixed trajectories are the earlier vehicles)."""
+    return (options is not None and options.decompose == "prioritized"
+            and len(work.vehicles) > options.batch_size and not work.fixed
+            and work.start_velocities is None)
 
 
 def plan(
@@ -56,7 +66,9 @@ def plan(
     goals and `ScpOptions(dodge=True)` a large fleet's first iteration is linearised about
     those moves pushed apart where they crowd (`planner.dodge`); if that plan does not
     converge and verify, it is planned again from the synchronised moves (`progress` then
-    sees both runs).
+    sees both runs). With `ScpOptions(decompose="prioritized")` the fleet is planned in
+    batches (`planner.prioritized`), and as a whole if a batch fails or the joined plan does
+    not verify; the message says which.
     """
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
@@ -68,9 +80,22 @@ def plan(
         found = dodged_moves(work, straight_moves(work))
         dodged = found is not None
         guess = None if found is None else found[0]
-    outcome = run_scp(work, backend, options, progress, guess)
-    p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
-    verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
+    decomposed = guess is None and not dodged and _decomposes(work, options)
+    batches = (plan_batches(work, backend, options, progress, options.batch_size)
+               if decomposed and options is not None else None)
+    verification: Verification | None = None
+    if batches is not None:
+        outcome = batches.outcome
+        p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
+        verification = verify(work, p, v, a)
+        if not verification.verified:
+            batches = None
+    if batches is None:
+        outcome = run_scp(work, backend, options, progress, guess)
+        if decomposed:
+            outcome.message += "; planned as a whole fleet: the prioritized batches did not"
+        p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
+        verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
     if dodged and (outcome.status != "converged" or verification is None
                    or not verification.verified):
         # Never a worse plan for having tried: plan again from the synchronised moves.

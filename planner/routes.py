@@ -21,7 +21,8 @@ Two occupancy grids are built from the cells' signed distance to the nearest obs
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -67,6 +68,9 @@ class Grid:
     """(cells,) signed distance of each centre to the nearest obstacle (flat, C order)."""
     nearest: IntArray
     """(cells,) that obstacle's index."""
+    graphs: dict[bytes, sp.csr_matrix] = field(default_factory=dict, compare=False,
+                                                repr=False)
+    """`graph` per free mask already built (a reused grid is asked for the same ones)."""
 
     @property
     def centres(self) -> FloatArray:
@@ -84,7 +88,15 @@ class Grid:
         return np.asarray(np.ravel_multi_index(tuple(idx.T), self.shape), dtype=np.intp)
 
     def graph(self, free: BoolArray) -> sp.csr_matrix:
-        """The 26-neighbour graph of the free cells, edges weighted by length."""
+        """The 26-neighbour graph of the free cells, edges weighted by length (built once
+        per mask)."""
+        key = np.packbits(free).tobytes()
+        built = self.graphs.get(key)
+        if built is None:
+            built = self.graphs[key] = self._graph(free)
+        return built
+
+    def _graph(self, free: BoolArray) -> sp.csr_matrix:
         shape = np.array(self.shape)
         grid_free = free.reshape(self.shape)
         rows, cols, weights = [], [], []
@@ -109,8 +121,26 @@ class Grid:
                                                        np.concatenate([c, r]))), shape=(n, n))
 
 
+#: The last grid built and what it was built from (the obstacles tuple itself, held so its
+#: identity stays meaningful): the batches of a prioritized plan share one workspace.
+_last_grid: list[tuple[Any, float, bytes, Grid]] = []
+
+
 def build_grid(scenario: Scenario) -> Grid:
-    """The grid over the workspace and every cell centre's distance to the obstacles."""
+    """The grid over the workspace and every cell centre's distance to the obstacles (the
+    last one again for the same obstacles, clearance and workspace)."""
+    lim = scenario.limits
+    bounds = lim.position_min.tobytes() + lim.position_max.tobytes()
+    last = _last_grid[0] if _last_grid else None  # read once: safe beside other threads
+    if last is not None and last[0] is scenario.obstacles and last[1] == scenario.clearance \
+            and last[2] == bounds:
+        return last[3]
+    grid = _build_grid(scenario)
+    _last_grid[:] = [(scenario.obstacles, scenario.clearance, bounds, grid)]
+    return grid
+
+
+def _build_grid(scenario: Scenario) -> Grid:
     lim = scenario.limits
     size = lim.position_max - lim.position_min
     cell = max(MIN_CELL, CELL_PER_CLEARANCE * scenario.clearance,

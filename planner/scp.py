@@ -76,6 +76,8 @@ DUAL_MAX_ROWS_PER_VEHICLE = 25
 #: steps (5K x 5K doubles: 32 MB at 400 steps, 5 GB at the 5,000 allowed) and the primal is
 #: faster there anyway (2 vehicles crossing: 0.02 s against 0.29 s at 600 steps).
 DUAL_MAX_STEPS = 400
+#: `ScpOptions.decompose` values: the whole fleet at once, or prioritized batches.
+DECOMPOSITIONS = ("none", "prioritized")
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
 BEND_AMPLITUDE = 0.2
@@ -115,6 +117,23 @@ class ScpOptions:
     when that plan does not converge and verify. Off by default: measured faster on some
     crowds (sideways 100: 1.8x) and slower on others (random 256: 1.6x), see
     docs/benchmarks/planner.md."""
+    decompose: str = "none"
+    """"prioritized": `planner.plan` plans the fleet in batches of `batch_size` vehicles,
+    each against the earlier ones as fixed trajectories (`planner.prioritized`), verifies
+    the joined plan and plans the whole fleet instead if a batch fails or the check does;
+    "none" (the default): the whole fleet at once."""
+    batch_size: int = 2
+    """Vehicles per batch with decompose="prioritized" (`planner.prioritized.DEFAULT_BATCH`,
+    measured fastest)."""
+
+    def __post_init__(self) -> None:
+        if self.decompose not in DECOMPOSITIONS:
+            raise ValueError(f"decompose: must be one of {', '.join(DECOMPOSITIONS)}, "
+                             f"got {self.decompose!r}")
+        if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) \
+                or self.batch_size < 1:
+            raise ValueError(f"batch_size: must be a whole number of vehicles >= 1, "
+                             f"got {self.batch_size!r}")
 
 
 @dataclass

@@ -1,0 +1,350 @@
+"""Prioritized batches: plan a large fleet a batch of vehicles at a time.
+
+The vehicles are ordered (`order_vehicles`) and cut into batches. Batch k is planned by the
+ordinary SCP loop with every vehicle of batches 0..k-1 as a fixed trajectory
+(`planner.fixed`): its rows keep R from their planned motion over continuous time. The
+vehicles of later batches are reserved at their starts (a fixed trajectory resting there for
+the whole horizon), so that an earlier vehicle never flies through a start a later one still
+occupies (revised prioritized planning, Čáp et al. 2015); a reservation that a batch
+vehicle's goal lies on is left out. Each batch is first linearised about moves clear of
+everything placed before it (`clear_guess`), and its QPs are small and mostly one-sided. A
+batch whose SCP does not converge is planned again with the earlier vehicles nearest to it;
+if that fails too the decomposition ends (`None`). The joined plan is verified as a whole
+by the caller (`planner.plan`, with `planner.verify`), which plans the whole fleet instead
+when the decomposition ends or the check fails: the guarantee is the verifier's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.first_qp import straight_moves, unit_profile
+from planner.fixed import FixedSet, FixedTrajectory
+from planner.result import IterationRecord
+from planner.routes import _along, seed_routes
+from planner.scenario import Scenario
+from planner.scp import ScpOptions, ScpOutcome, run_scp
+from planner.solvers import QPSolver
+from planner.types import FloatArray, IntArray
+
+__all__ = ["DEFAULT_BATCH", "PrioritizedOutcome", "order_vehicles", "plan_batches"]
+
+#: Vehicles per batch (`ScpOptions.batch_size` defaults to the same): measured fastest on
+#: the sideways crowds against 1, 4, 8 and 32.
+DEFAULT_BATCH = 2
+#: A fixed trajectory joins a batch's scenario only if it comes within this many R (scaled)
+#: of a batch vehicle's straight move at some instant of the horizon (any time: the batch's
+#: paths bend). Farther ones get no rows; the joined plan's verification judges them.
+REACH = 4.0
+
+
+@dataclasses.dataclass
+class PrioritizedOutcome:
+    """The joined trajectories of every batch and what each batch's SCP did."""
+
+    outcome: ScpOutcome
+    batches: list[IntArray]
+    batch_seconds: list[float]
+
+
+def order_vehicles(scenario: Scenario) -> IntArray:
+    """Planning order: a sweep along the fleet's dominant motion, the vehicles whose goals
+    lie farthest along it first (they fill the far side before the others arrive and leave
+    the near side free); without a dominant motion (crowds crossing a centre, random moves)
+    the longest moves first."""
+    move = scenario.goals - scenario.starts
+    mean = move.mean(axis=0)
+    length = np.linalg.norm(move, axis=1)
+    if float(np.linalg.norm(mean)) > 0.5 * float(length.mean()):
+        direction = mean / np.linalg.norm(mean)
+        return np.argsort(-(scenario.goals @ direction), kind="stable").astype(np.intp)
+    return np.argsort(-length, kind="stable").astype(np.intp)
+
+
+def _segment_distance(points: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """(P, S) distances from points (P, 3) to segments a[s]-b[s] (S, 3)."""
+    d = b - a
+    dd = np.maximum(np.einsum("sc,sc->s", d, d), 1e-12)
+    rel = points[:, None, :] - a[None, :, :]
+    t = np.clip(np.einsum("psc,sc->ps", rel, d) / dd[None, :], 0.0, 1.0)
+    return np.linalg.norm(rel - t[..., None] * d[None, :, :], axis=2)
+
+
+def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach: float
+                ) -> IntArray:
+    """Indices of the trajectories `paths` (F, K+1, 3) whose samples come within `reach`
+    (scaled) of a straight move of `members`."""
+    if len(paths) == 0:
+        return np.zeros(0, dtype=np.intp)
+    scale = scenario.separation_scale
+    a, b = scenario.starts[members] / scale, scenario.goals[members] / scale
+    f, k = paths.shape[0], paths.shape[1]
+    stride = max(1, k // 30)
+    samples = paths[:, ::stride] / scale
+    flat = samples.reshape(-1, 3)
+    near = (_segment_distance(flat, a, b) <= reach).any(axis=1).reshape(f, -1).any(axis=1)
+    return np.flatnonzero(near).astype(np.intp)
+
+
+def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = None,
+                 progress: Callable[[IterationRecord], None] | None = None,
+                 batch: int = DEFAULT_BATCH, order: IntArray | None = None
+                 ) -> PrioritizedOutcome | None:
+    """Plan `work` (goals assigned, no fixed trajectories or start velocities of its own)
+    batch by batch. A batch whose SCP does not converge is planned again together with the
+    earlier vehicles that come closest to its first linearisation point (MERGE_ROUNDS
+    times, MERGE_GROWTH more each time); None if it still does not."""
+    n, steps = len(work.vehicles), work.steps
+    # a batch's QPs are small and mostly one-sided rows, dense in the dual (one vehicle's
+    # rows against many fixed ones all couple): the primal measured about twice as fast
+    options = dataclasses.replace(options or ScpOptions(), dual=False)
+    order = order_vehicles(work) if order is None else order
+    batches = [order[s:s + batch] for s in range(0, n, batch)]
+    state = _State(work, np.repeat(work.starts[:, None, :], steps + 1, axis=1),
+                   np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3)), np.zeros(n, bool))
+    iterations: list[IterationRecord] = []
+    seconds: list[float] = []
+    first_qp = 0.0
+    merges = 0
+    for number, members in enumerate(batches):
+        began = time.perf_counter()
+        later = (np.concatenate(batches[number + 1:]) if number + 1 < len(batches)
+                 else np.zeros(0, dtype=np.intp))
+        reopened = np.zeros(0, dtype=np.intp)
+        for attempt in range(MERGE_ROUNDS + 1):
+            outcome, guess = _plan_batch(state, members, reopened, later, solver, options,
+                                         progress, f"#batch{number}" + "+" * attempt)
+            iterations.extend(outcome.iterations)
+            first_qp += outcome.first_qp_seconds
+            if outcome.status == "converged" or attempt == MERGE_ROUNDS:
+                break
+            reopened = _blockers(state, members, reopened, guess,
+                                 MERGE_GROWTH * (attempt + 1))
+            if reopened.size == 0:
+                break
+            merges += 1
+        seconds.append(time.perf_counter() - began)
+        if outcome.status != "converged":
+            return None
+        group = np.concatenate([members, reopened])
+        state.p[group], state.v[group], state.a[group] = (
+            outcome.positions, outcome.velocities, outcome.accelerations)
+        state.planned[group] = True
+    message = (f"planned in {len(batches)} prioritized batches of up to {batch} vehicles"
+               + (f" ({merges} replanned with earlier vehicles)" if merges else "")
+               + ", each converged")
+    joined = ScpOutcome("converged", message, state.p, state.v, state.a, iterations,
+                        first_qp)
+    return PrioritizedOutcome(joined, batches, seconds)
+
+
+#: Rounds of replanning a failed batch with the earlier vehicles nearest to it.
+MERGE_ROUNDS = 2
+#: Earlier vehicles reopened per round (the second round reopens twice as many).
+MERGE_GROWTH = 4
+
+
+@dataclasses.dataclass
+class _State:
+    """The fleet's trajectories so far; `planned` marks the vehicles already planned."""
+
+    work: Scenario
+    p: FloatArray
+    v: FloatArray
+    a: FloatArray
+    planned: NDArray[np.bool_]
+
+
+def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: IntArray,
+                solver: QPSolver, options: ScpOptions | None,
+                progress: Callable[[IterationRecord], None] | None, suffix: str
+                ) -> tuple[ScpOutcome, tuple[FloatArray, FloatArray, FloatArray]]:
+    """One batch's SCP: `members` and the `reopened` earlier vehicles planned, the other
+    planned vehicles near them fixed, the `later` vehicles' starts reserved. Returns the
+    outcome (rows of `members` then `reopened`) and the first linearisation point."""
+    work = state.work
+    steps, scale = work.steps, work.separation_scale
+    reach = REACH * work.min_separation
+    group = np.concatenate([members, reopened]).astype(np.intp)
+    earlier = np.flatnonzero(state.planned)
+    earlier = earlier[~np.isin(earlier, reopened)]
+    # a later vehicle's start that some goal of this batch lies on cannot be reserved
+    if len(later):
+        goal_gap = np.linalg.norm((work.starts[later][:, None, :]
+                                   - work.goals[group][None, :, :]) / scale, axis=2)
+        later = later[goal_gap.min(axis=1) >= work.min_separation * 1.05]
+    fixed: list[FixedTrajectory] = []
+    moving = earlier[_near_fixed(work, group, state.p[earlier], reach)]
+    for j in moving:
+        fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", state.p[j], state.v[j]))
+    resting = np.zeros(0, dtype=np.intp)
+    if len(later):
+        resting = later[_near_fixed(work, group, work.starts[later][:, None, :], reach)]
+        for j in resting:
+            fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", work.starts[j][None, :]))
+    sub = dataclasses.replace(
+        work, name=f"{work.name}{suffix}", vehicles=tuple(work.vehicles[j] for j in group),
+        starts=work.starts[group], goals=work.goals[group], fixed=tuple(fixed))
+    others = np.concatenate([state.p[moving],
+                             np.repeat(work.starts[resting][:, None, :], steps + 1, axis=1)])
+    # the fixed trajectories' arrays are the plans themselves: no need to resample them
+    sub.__dict__["fixed_set"] = FixedSet(
+        [f.id for f in fixed], others,
+        np.concatenate([state.v[moving], np.zeros((len(resting), steps + 1, 3))]),
+        np.concatenate([state.a[moving], np.zeros((len(resting), steps, 3))]),
+        np.zeros(len(fixed)), np.zeros((len(fixed), steps)))
+    preset = (state.p[reopened], state.v[reopened], state.a[reopened])
+    guess = clear_guess(sub, others, preset, _routes(sub, len(members)))
+    return run_scp(sub, solver, options, progress, guess), guess
+
+
+def _routes(sub: Scenario, fresh: int) -> dict[int, FloatArray]:
+    """With obstacles, the route (`planner.routes`) of each of the first `fresh` vehicles
+    whose straight move comes within the clearance of one, as a polyline: the batch's
+    guess departs along it when clear of the fixed vehicles (the SCP loop's own route
+    seeding knows nothing of them)."""
+    if not sub.obstacles:
+        return {}
+    seeded = seed_routes(sub, straight_moves(sub))
+    out = {}
+    for i in seeded.routed:
+        if i < fresh:
+            points = seeded.guess[0][i]
+            keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1)
+                                   > 1e-9])
+            out[int(i)] = points[keep]
+    return out
+
+
+def _blockers(state: _State, members: IntArray, reopened: IntArray,
+              guess: tuple[FloatArray, FloatArray, FloatArray], count: int) -> IntArray:
+    """`reopened` plus the `count` planned vehicles (not yet reopened) that come closest to
+    the batch's first linearisation point at the same instants."""
+    scale = state.work.separation_scale
+    candidates = np.flatnonzero(state.planned)
+    candidates = candidates[~np.isin(candidates, reopened)]
+    if candidates.size == 0:
+        return reopened
+    ours = guess[0][:len(members)] / scale  # (M, K+1, 3)
+    theirs = state.p[candidates] / scale  # (C, K+1, 3)
+    gap = np.full(len(candidates), np.inf)
+    for m in ours:
+        gap = np.minimum(gap, np.linalg.norm(theirs - m[None], axis=2).min(axis=1))
+    take = candidates[np.argsort(gap, kind="stable")[:count]]
+    return np.concatenate([reopened, take]).astype(np.intp)
+
+
+#: A guess is taken as soon as it keeps this many R from everything placed before it.
+GUESS_GAP = 1.3
+#: Departure delays tried, as fractions of the horizon.
+DELAYS = (0.0, 0.1, 0.2, 0.3)
+#: Sideways detours through the move's midpoint tried, in units of R.
+DETOURS = (0.0, 1.5, 3.0)
+
+
+def _polylines(scenario: Scenario, vehicle: int) -> FloatArray:
+    """(C, 3, 3) polylines start -> midpoint -> goal to try, cheapest first: the straight
+    move, then its midpoint pushed sideways by each of DETOURS in four directions."""
+    s, g = scenario.starts[vehicle], scenario.goals[vehicle]
+    move = g - s
+    length = float(np.linalg.norm(move))
+    axis = move / length if length > 1e-9 else np.array([1.0, 0.0, 0.0])
+    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    side = np.cross(axis, helper)
+    side /= np.linalg.norm(side)
+    up = np.cross(side, axis)
+    low, high = scenario.limits.position_min, scenario.limits.position_max
+    out = [np.stack([s, 0.5 * (s + g), g])]
+    for detour in DETOURS[1:]:
+        for d in (side, -side, up, -up):
+            mid = np.clip(0.5 * (s + g) + detour * scenario.min_separation * d, low, high)
+            out.append(np.stack([s, mid, g]))
+    return np.stack(out)
+
+
+def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
+    """(C, K+1, 3) positions along each polyline of `lines` (C, 3, 3), waiting `delay`
+    steps, then on the unit profile (as `planner.routes._along`)."""
+    phi = np.clip(unit_profile(scenario.steps - delay, scenario.dt)[0], 0.0, 1.0)
+    seg = np.diff(lines, axis=1)  # (C, 2, 3)
+    seg_len = np.maximum(np.linalg.norm(seg, axis=2), 1e-12)  # (C, 2)
+    total = seg_len.sum(axis=1)  # (C,)
+    along = phi[None, :] * total[:, None]  # (C, T)
+    second = along > seg_len[:, :1]
+    frac = np.where(second, (along - seg_len[:, :1]) / seg_len[:, 1:], along / seg_len[:, :1])
+    frac = np.clip(frac, 0.0, 1.0)
+    base = np.where(second[..., None], lines[:, 1:2], lines[:, 0:1])
+    step = np.where(second[..., None], seg[:, 1:2], seg[:, 0:1])
+    p = base + frac[..., None] * step
+    if delay:
+        p = np.concatenate([np.repeat(lines[:, :1], delay, axis=1), p], axis=1)
+    return p
+
+
+def clear_guess(scenario: Scenario, others: FloatArray,
+                preset: tuple[FloatArray, FloatArray, FloatArray] | None = None,
+                routes: dict[int, FloatArray] | None = None
+                ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """A first linearisation point for a batch: per vehicle the cheapest candidate (a
+    straight or detoured polyline, departing at once or later) that keeps GUESS_GAP R at
+    every step from `others` (F, K+1, 3) and from the batch's vehicles placed before it,
+    else the one that keeps farthest; the last vehicles keep `preset` (p, v, a) if given
+    (earlier vehicles planned again); a vehicle with a polyline in `routes` (around
+    obstacles) only tries it, departing at once or later. Rows linearised about a separated
+    point ask the QP for no jump past a fixed vehicle."""
+    n, stages = len(scenario.vehicles), scenario.steps + 1
+    scale = scenario.separation_scale
+    p = np.zeros((n, stages, 3))
+    v = np.zeros((n, stages, 3))
+    a = np.zeros((n, stages - 1, 3))
+    fresh = n
+    if preset is not None and len(preset[0]):
+        fresh = n - len(preset[0])
+        p[fresh:], v[fresh:], a[fresh:] = preset
+    placed = [others / scale, p[fresh:] / scale]
+    need = GUESS_GAP * scenario.min_separation
+    for i in range(fresh):
+        against = np.concatenate(placed)
+        lines = _polylines(scenario, i)
+        chosen = (lines[0], 0)
+        if routes and i in routes:
+            chosen = _route_departure(scenario, routes[i], against, need)
+        elif len(against):
+            best = -np.inf
+            tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
+            for subset, delay in tries:  # the straight move alone first: most often clear
+                trial = _positions(subset, scenario, delay) / scale  # (C, K+1, 3)
+                diff = trial[:, None] - against[None]  # (C, F, K+1, 3)
+                gap = np.sqrt(np.einsum("cfkx,cfkx->cfk", diff, diff).min(axis=(1, 2)))
+                clear = np.flatnonzero(gap >= need)
+                pick = int(clear[0]) if clear.size else int(np.argmax(gap))
+                if clear.size or gap[pick] > best:
+                    chosen, best = (subset[pick], delay), float(gap[pick])
+                if clear.size:
+                    break
+        p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
+        placed.append(p[i][None] / scale)
+    return p, v, a
+
+
+def _route_departure(scenario: Scenario, route: FloatArray, against: FloatArray,
+                     need: float) -> tuple[FloatArray, int]:
+    """(route, delay): the first of DELAYS at which the route keeps `need` from `against`
+    (scaled positions, (F, K+1, 3)) at every step, else the one that keeps farthest."""
+    best, chosen = -np.inf, (route, 0)
+    for delay in (int(d * scenario.steps) for d in DELAYS):
+        if len(against) == 0:
+            return route, delay
+        trial = _along(route, scenario, delay)[0] / scenario.separation_scale
+        gap = float(np.sqrt(np.einsum("fkx,fkx->fk", against - trial[None],
+                                      against - trial[None]).min()))
+        if gap >= need:
+            return route, delay
+        if gap > best:
+            best, chosen = gap, (route, delay)
+    return chosen

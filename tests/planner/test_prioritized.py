@@ -1,0 +1,141 @@
+"""Prioritized batches (`planner.prioritized`, `ScpOptions(decompose="prioritized")`): the
+joined plan is verified as a whole, each batch keeps R from the earlier ones over continuous
+time, and a batch that fails is replanned with earlier vehicles or the fleet planned whole."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import pytest
+
+import planner.planning as planning
+import planner.prioritized as prioritized
+from planner import plan
+from planner.generators import circle_swap, sideways
+from planner.scenario import Scenario
+from planner.scp import ScpOptions, ScpOutcome
+from planner.solvers import make_solver
+from planner.verify import verify
+
+PRIORITIZED = ScpOptions(decompose="prioritized", batch_size=2)
+
+
+def _small_sideways() -> Scenario:
+    return Scenario.from_dict(sideways(16)).assigned()
+
+
+def test_a_decomposed_plan_is_converged_verified_and_says_how_it_was_planned() -> None:
+    result = plan(sideways(16), options=PRIORITIZED)
+    assert result.status == "converged", result.message
+    assert result.verification is not None and result.verification.verified
+    assert result.verification.min_separation_continuous >= 1.0 - 1e-4
+    assert "prioritized batches" in result.message
+    assert plan(sideways(16)).message.find("prioritized") == -1  # off by default
+
+
+def test_each_batch_keeps_r_from_the_earlier_batches_over_continuous_time() -> None:
+    work = _small_sideways()
+    found = prioritized.plan_batches(work, make_solver(None), batch=2)
+    assert found is not None
+    out = found.outcome
+    # every batch against everything planned before it, measured by the verifier alone
+    for k in range(1, len(found.batches)):
+        sel = np.concatenate(found.batches[:k + 1])
+        sub = dataclasses.replace(work, vehicles=tuple(work.vehicles[j] for j in sel),
+                                  starts=work.starts[sel], goals=work.goals[sel])
+        check = verify(sub, out.positions[sel], out.velocities[sel], out.accelerations[sel])
+        assert check.separated, (k, check.min_separation_continuous)
+    # and the batches did meet: without the earlier ones the straight moves would collide
+    straight = verify(work, *_straight(work))
+    assert not straight.separated
+
+
+def _straight(work: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from planner.first_qp import straight_moves
+    return straight_moves(work)
+
+
+def test_the_order_sweeps_along_the_motion_far_goals_first() -> None:
+    work = _small_sideways()
+    order = prioritized.order_vehicles(work)
+    motion = (work.goals - work.starts).mean(axis=0)
+    assert motion[0] > 0.9 * np.linalg.norm(motion)  # sideways: mostly along +x
+    along = work.goals[order] @ motion
+    assert (np.diff(along) <= 1e-9).all()
+    swap = Scenario.from_dict(circle_swap(6))  # no dominant motion: longest moves first
+    lengths = np.linalg.norm(swap.goals - swap.starts, axis=1)[prioritized.order_vehicles(swap)]
+    assert (np.diff(lengths) <= 1e-9).all()
+
+
+def test_a_failed_batch_is_replanned_with_the_earlier_vehicles_nearest_to_it(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    work = _small_sideways()
+    real = prioritized.run_scp
+    seen: list[tuple[str, int]] = []
+
+    def first_try_of_batch_3_fails(sub: Scenario, *args: Any, **kwargs: Any) -> ScpOutcome:
+        seen.append((sub.name, len(sub.vehicles)))
+        out = real(sub, *args, **kwargs)
+        if sub.name.endswith("#batch3"):
+            return dataclasses.replace(out, status="infeasible")
+        return out
+
+    monkeypatch.setattr(prioritized, "run_scp", first_try_of_batch_3_fails)
+    found = prioritized.plan_batches(work, make_solver(None), batch=2)
+    assert found is not None
+    names = dict(seen)
+    assert names[f"{work.name}#batch3"] == 2
+    assert names[f"{work.name}#batch3+"] == 2 + prioritized.MERGE_GROWTH
+    assert "replanned with earlier vehicles" in found.outcome.message
+    out = found.outcome
+    assert verify(work, out.positions, out.velocities, out.accelerations).verified
+
+
+def test_a_vehicle_boxed_in_by_a_reserved_start_ends_the_decomposition() -> None:
+    # a tube too narrow to pass in: planned first, `a` would have to fly through the start
+    # of `b`, which is reserved for it; nothing earlier can be reopened
+    tube = {"name": "tube", "dt": 0.2, "steps": 60, "min_separation": 1.0,
+            "limits": {"position_min": [0, 0, 0], "position_max": [10, 1.2, 1.2],
+                       "velocity_max": [3, 3, 3], "acceleration_max": [3, 3, 3]},
+            "vehicles": [{"id": "a", "start": [1, 0.6, 0.6], "goal": [6, 0.6, 0.6]},
+                         {"id": "b", "start": [3, 0.6, 0.6], "goal": [8, 0.6, 0.6]}]}
+    work = Scenario.from_dict(tube)
+    assert prioritized.plan_batches(work, make_solver(None), batch=1,
+                                    order=np.array([0, 1])) is None
+    # in the sweep's order (b, whose goal is farther along, first) it plans and verifies
+    found = prioritized.plan_batches(work, make_solver(None), batch=1)
+    assert found is not None
+    out = found.outcome
+    assert verify(work, out.positions, out.velocities, out.accelerations).verified
+
+
+def test_plan_falls_back_to_the_whole_fleet_when_the_batches_fail(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(planning, "plan_batches", lambda *args, **kwargs: None)
+    result = plan(sideways(16), options=PRIORITIZED)
+    assert result.status == "converged", result.message
+    assert result.verification is not None and result.verification.verified
+    assert "planned as a whole fleet" in result.message
+
+
+@pytest.mark.parametrize(("field", "value"), [("decompose", "greedy"), ("batch_size", 0),
+                                              ("batch_size", 2.5)])
+def test_bad_decomposition_options_are_refused_naming_the_field(field: str, value: Any) -> None:
+    with pytest.raises(ValueError, match=f"^{field}: "):
+        ScpOptions(**{field: value})
+
+
+def test_a_joined_plan_that_fails_verification_is_never_returned(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    def colliding(work: Scenario, *args: Any, **kwargs: Any) -> prioritized.PrioritizedOutcome:
+        p, v, a = _straight(work)  # the crowd's straight moves: vehicles meet
+        joined = ScpOutcome("converged", "planned in 1 prioritized batches", p, v, a, [], 0.0)
+        return prioritized.PrioritizedOutcome(joined, [np.arange(len(p))], [0.0])
+
+    monkeypatch.setattr(planning, "plan_batches", colliding)
+    result = plan(sideways(16), options=PRIORITIZED)
+    assert result.status == "converged", result.message
+    assert result.verification is not None and result.verification.verified
+    assert "planned as a whole fleet" in result.message
