@@ -22,6 +22,7 @@ from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import IterationRecord, Plan, VehicleTrajectory
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp
+from planner.separated_first import separated_first
 from planner.solvers import make_solver
 from planner.types import FloatArray
 from planner.verify import verify
@@ -56,21 +57,29 @@ def plan(
     goals and `ScpOptions(dodge=True)` a large fleet's first iteration is linearised about
     those moves pushed apart where they crowd (`planner.dodge`); if that plan does not
     converge and verify, it is planned again from the synchronised moves (`progress` then
-    sees both runs).
+    sees both runs). Under free assignment a separation-free optimum that is already
+    separated is the plan, without the loop (`planner.separated_first`).
     """
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
     backend = make_solver(solver)
     work = spec.assigned()
-    guess = straight_moves(work) if spec.assignment == "free" else None
-    dodged = guess is None and _dodges(work, options)
+    direct = separated_first(work, backend) if spec.assignment == "free" else None
+    guess = straight_moves(work) if spec.assignment == "free" and direct is None else None
+    dodged = guess is None and direct is None and _dodges(work, options)
     if dodged:
         found = dodged_moves(work, straight_moves(work))
         dodged = found is not None
         guess = None if found is None else found[0]
-    outcome = run_scp(work, backend, options, progress, guess)
+    if direct is not None:
+        outcome, verification = direct
+        if progress is not None:
+            progress(outcome.iterations[0])
+    else:
+        outcome = run_scp(work, backend, options, progress, guess)
     p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
-    verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
+    if direct is None:
+        verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
     if dodged and (outcome.status != "converged" or verification is None
                    or not verification.verified):
         # Never a worse plan for having tried: plan again from the synchronised moves.
