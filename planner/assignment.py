@@ -36,7 +36,7 @@ import numpy as np
 from planner.types import FloatArray, IntArray
 
 __all__ = ["CAPT_SPACING", "DENSE_BELOW", "NEIGHBOURS", "TOLERANCE", "Assignment",
-           "assign_goals", "capt_spacing_holds", "solve_assignment"]
+           "assign_goals", "capt_spacing_holds", "certify", "matcher", "solve_assignment"]
 
 
 #: Starts and goals this many R apart (separation metric) make CAPT moves collision-free.
@@ -331,6 +331,52 @@ def _potentials(order: IntArray, rows: IntArray, cols: IntArray, cost: FloatArra
         frontier = np.flatnonzero(best < u - slack)
         u[frontier] = best[frontier]
     return u
+
+
+def certify(starts: FloatArray, goals: FloatArray, order: IntArray,
+            scale: FloatArray | None = None, neighbours: int = NEIGHBOURS) -> bool:
+    """Is `order` (order[n]: the goal of start n) proven optimal? Potentials tight on its
+    edges are derived over its edges and each point's nearest others (`_potentials`) and
+    checked against all N^2 edges (`_lifted_best`, nothing N x N); edges that fail join and
+    the potentials are redone. Such potentials exist only for an optimal order
+    (complementary slackness), so a worse order is always rejected; an optimal one is
+    accepted unless `MAX_ROUNDS` rounds do not settle it."""
+    from scipy.spatial import cKDTree
+
+    s = np.ones(np.shape(starts)[1]) if scale is None else np.asarray(scale, dtype=float)
+    a, _ = _normalised(np.asarray(starts, dtype=float) / s)
+    b, _ = _normalised(np.asarray(goals, dtype=float) / s)
+    order = np.asarray(order, dtype=np.intp)
+    n = len(a)
+    if sorted(order.tolist()) != list(range(n)):
+        raise ValueError("order must be a permutation of the goals")
+    if n < 2:
+        return True
+    kk = min(neighbours, n)
+    _, near_goals = cKDTree(b).query(a, kk)
+    _, near_starts = cKDTree(a).query(b, kk)
+    everyone = np.repeat(np.arange(n), kk)
+    edges = np.unique(np.concatenate([np.arange(n) * n + order,
+                                      everyone * n + np.asarray(near_goals).reshape(-1),
+                                      np.asarray(near_starts).reshape(-1) * n + everyone]))
+    own = np.sum((a - b[order]) ** 2, axis=1)
+    u = np.zeros(n)
+    for _ in range(MAX_ROUNDS):
+        rows, cols = np.divmod(edges, n)
+        cost = np.sum((a[rows] - b[cols]) ** 2, axis=1)
+        u = _potentials(order, rows, cols, cost, own, u)
+        v = np.empty(n)
+        v[order] = own - u
+        if np.any(cost - u[rows] - v[cols] < -TOLERANCE):
+            return False  # no tight potentials even on these edges: an improving cycle
+        best_cost, best = _lifted_best(a, b, v, kk)
+        failing = best_cost - u[:, None] < -TOLERANCE
+        if not failing.any():
+            return True
+        # an edge cheaper than the potentials allow joins, and the potentials are redone
+        added = np.repeat(np.arange(n), best.shape[1])[failing.reshape(-1)] * n + best[failing]
+        edges = np.union1d(edges, added)
+    return False
 
 
 def capt_spacing_holds(starts: FloatArray, goals: FloatArray, separation: float,

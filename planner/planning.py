@@ -19,7 +19,7 @@ import numpy as np
 from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
 from planner.first_qp import straight_moves
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.result import IterationRecord, Plan, VehicleTrajectory
+from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp
 from planner.separated_first import separated_first
@@ -71,6 +71,7 @@ def plan(
         found = dodged_moves(work, straight_moves(work))
         dodged = found is not None
         guess = None if found is None else found[0]
+    verification: Verification | None
     if direct is not None:
         outcome, verification = direct
         if progress is not None:
