@@ -243,11 +243,12 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         rows, cols = np.divmod(edges, n)
         cost = np.sum((a[rows] - b[cols]) ** 2, axis=1)
         # the last round's reduced costs have the same optimum (every full matching's cost
-        # shifts by sum u + sum v) and make its matching all but optimal: a warm start;
-        # shifted to >= 1, as explicit zeros would be dropped
+        # shifts by sum u + sum v) and make its matching all but optimal: a warm start
+        # (lapmod on the plain costs takes as long in every round as in the first); shifted
+        # to >= 1, as explicit zeros would be dropped
         reduced_cost = cost - u[rows] - v[cols]
-        order = _match(rows, cols, reduced_cost + (1.0 - min(0.0, float(reduced_cost.min()))),
-                       n)
+        weight = reduced_cost + (1.0 - min(0.0, float(reduced_cost.min())))
+        order = _match(rows, cols, weight, n)
         own = np.sum((a - b[order]) ** 2, axis=1)
         u = _potentials(order, rows, cols, cost, own, u)
         v = np.empty(n)
@@ -270,6 +271,10 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
     return _Solved(order, u, v, max(gap, 0.0), not len(failing), rounds, len(edges))
 
 
+#: lapmod refuses costs from 1e6 on; graphs with larger weights go to scipy.
+LAPMOD_MAX_COST = 1e5
+
+
 def matcher() -> str:
     """The exact sparse matcher `_match` uses: "lapmod" (the `lap` package's sparse
     Jonker-Volgenant, 2-3x faster on these graphs) when installed, else "scipy"."""
@@ -284,7 +289,7 @@ def _match(rows: IntArray, cols: IntArray, weight: FloatArray, n: int) -> IntArr
     """order[i]: row i's column in a minimum-weight full matching over the edges (rows,
     cols) with positive weights (sorted by row then column, one per pair; a full matching
     exists). Exact either way; the certificate does not trust it (`_certified`)."""
-    if matcher() == "lapmod":
+    if matcher() == "lapmod" and float(weight.max()) < LAPMOD_MAX_COST:
         import lap
 
         first = np.searchsorted(rows, np.arange(n + 1)).astype(np.int32)
