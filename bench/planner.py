@@ -239,18 +239,21 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
             ) -> dict[str, Any]:
     """Plan `repeats` times; figures of the last run, medians of the timings. total_s is
     the wall time of `planner.plan(dict)`: validation (and goal assignment, parse_s of it),
-    planning and verification; peak_rss_timed_mb the process's high-water mark over each
-    timed run. export: also time writing the plan JSON (streamed) to a temporary file."""
+    planning and verification, cpu_s the process's CPU time over it (on a shared machine the
+    closer figure to a quiet run's wall time); peak_rss_timed_mb the process's high-water
+    mark over each timed run. export: also time writing the plan JSON (streamed) to a
+    temporary file."""
     scenario = planner.Scenario.from_dict(data)
-    totals, firsts, parses, rss_runs = [], [], [], []
+    totals, firsts, parses, rss_runs, cpus = [], [], [], [], []
     plan = None
     for _ in range(repeats):
         reset_peak_rss()
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         parsed = planner.Scenario.from_dict(data)  # what plan(dict) does first
         parses.append(time.perf_counter() - t0)
         plan = planner.plan(parsed, solver=solver, options=options)
         totals.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
         firsts.append(plan.timing["first_qp_s"])
         rss_runs.append(peak_rss_mb())
     assert plan is not None
@@ -278,6 +281,7 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
         "total_s": statistics.median(totals),
         "total_s_runs": [round(t, 4) for t in totals],
         "parse_s": statistics.median(parses),
+        "cpu_s": statistics.median(cpus),
         "peak_rss_timed_mb": max(rss_runs) if None not in rss_runs else None,
         "first_qp_s": statistics.median(firsts),
         "scp_iterations": len(plan.iterations) - 1,
