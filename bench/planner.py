@@ -304,7 +304,9 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
                       closest_obstacle=None if v is None else v.closest_obstacle)
     log(f"{name:>24} {plan.status:>14} {result['total_s']:.3f} s "
         f"(first QP {result['first_qp_s']:.3f} s) iterations {result['scp_iterations']} "
-        f"min sep {result['min_separation_continuous']}")
+        f"min sep {result['min_separation_continuous']} cpu {result['cpu_s']:.1f} s "
+        f"parse {result['parse_s']:.1f} s peak RSS {result['peak_rss_timed_mb']} MB "
+        f"load {[round(x, 1) for x in os.getloadavg()]}")
     return result
 
 
