@@ -10,7 +10,8 @@ goals, 100 m^3 per vehicle). Every case runs in its own process; its peak RSS (V
 reset once the points exist, so peak_rss_mb is the solve's peak and base_rss_mb the process
 before solving (Python, numpy, scipy imported, the points).
 The dense method runs up to --dense-max vehicles (--dense-max-random for random) and gives
-the optimum the sparse cost is compared with. Progress goes to stderr.
+the optimum the sparse cost is compared with. The sparse graphs are matched by `lap`'s lapmod
+when it is installed, else by scipy (each case's `matcher`). Progress goes to stderr.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from planner.assignment import solve_assignment  # noqa: E402
+from planner.assignment import matcher, solve_assignment  # noqa: E402
 from planner.generators import grid_to_sphere, sphere_shell, vertical_grid  # noqa: E402
 
 FAMILIES = ("grid-sphere", "sideways", "random")
@@ -77,6 +78,8 @@ def run_case(family: str, n: int, seed: int, method: str) -> dict[str, Any]:
     seconds = time.perf_counter() - begin
     return {
         "family": family, "vehicles": n, "seed": seed, "method": result.method,
+        "matcher": matcher() if result.method == "sparse" else None,
+        "load_average_at_start": list(__import__("os").getloadavg()),
         "time_s": round(seconds, 3),
         "peak_rss_mb": round(_peak_rss_mb(), 1),
         "base_rss_mb": round(base, 1),

@@ -33,6 +33,7 @@ import os
 import platform
 import statistics
 import sys
+import tempfile
 import time
 import tracemalloc
 from importlib import metadata
@@ -46,6 +47,7 @@ import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
 from planner.generators import (  # noqa: E402
+    SHOW_STEPS,
     dmpc2019_scenario,
     grid_to_sphere,
     random_dense,
@@ -66,6 +68,8 @@ EXAMPLES = ROOT / "planner" / "examples"
 PAPER = [f"paper-{kind}{n}" for kind in ("circle", "random") for n in (2, 4, 6, 8)]
 SCALE = ["circle16", "random16", "random64", "random128"]
 PUBLISHED = json.loads((Path(__file__).parent / "dmpc2019-published.json").read_text())
+#: The record-scale sizes (--record): grid -> sphere with free assignment.
+RECORD_SIZES = [4000, 8000, 16000]
 PAPER_TIMES = {2: (2.45, 35), 4: (4.86, 67), 6: (6.75, 94), 8: (10.85, 168)}
 #: The obstacle families by name: the generator of a seed's instance and the
 #: floor (s, median on a quiet machine).
@@ -105,6 +109,27 @@ def machine() -> dict[str, Any]:
 
 def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
+
+
+def reset_peak_rss() -> bool:
+    """Reset the process's RSS high-water mark (Linux); False where that is not possible."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+    except OSError:
+        return False
+    return True
+
+
+def peak_rss_mb() -> float | None:
+    """The process's RSS high-water mark (MB) since the last reset, None off Linux."""
+    try:
+        status = Path("/proc/self/status").read_text()
+    except OSError:
+        return None
+    for line in status.splitlines():
+        if line.startswith("VmHWM:"):
+            return round(int(line.split()[1]) / 1024, 1)
+    return None
 
 
 def memory_peaks(run: Any) -> tuple[float, float | None]:
@@ -210,19 +235,36 @@ def row_modes(name: str, data: dict[str, Any], repeats: int) -> list[dict[str, A
 
 
 def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
-            memory: bool = True, options: ScpOptions | None = None) -> dict[str, Any]:
+            memory: bool = True, options: ScpOptions | None = None, export: bool = False
+            ) -> dict[str, Any]:
     """Plan `repeats` times; figures of the last run, medians of the timings. total_s is
-    the wall time of `planner.plan(dict)`: validation (and goal assignment), planning and
-    verification."""
+    the wall time of `planner.plan(dict)`: validation (and goal assignment, parse_s of it),
+    planning and verification, cpu_s the process's CPU time over it (on a shared machine the
+    closer figure to a quiet run's wall time); peak_rss_timed_mb the process's high-water
+    mark over each timed run. export: also time writing the plan JSON (streamed) to a
+    temporary file."""
     scenario = planner.Scenario.from_dict(data)
-    totals, firsts = [], []
+    totals, firsts, parses, rss_runs, cpus = [], [], [], [], []
     plan = None
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        plan = planner.plan(data, solver=solver, options=options)
+        reset_peak_rss()
+        t0, c0 = time.perf_counter(), time.process_time()
+        parsed = planner.Scenario.from_dict(data)  # what plan(dict) does first
+        parses.append(time.perf_counter() - t0)
+        plan = planner.plan(parsed, solver=solver, options=options)
         totals.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
         firsts.append(plan.timing["first_qp_s"])
+        rss_runs.append(peak_rss_mb())
     assert plan is not None
+    exported = None
+    if export:
+        t0 = time.perf_counter()
+        with tempfile.TemporaryFile("w") as stream:
+            plan.write_json(stream)
+            size = stream.tell()
+        exported = {"export_s": round(time.perf_counter() - t0, 3),
+                    "export_mb": round(size / 2**20, 1), "peak_rss_with_export_mb": peak_rss_mb()}
     peak_traced = peak_rss = None
     if memory:
         peak_traced, peak_rss = memory_peaks(
@@ -238,6 +280,9 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
         "verified": plan.ok,
         "total_s": statistics.median(totals),
         "total_s_runs": [round(t, 4) for t in totals],
+        "parse_s": statistics.median(parses),
+        "cpu_s": statistics.median(cpus),
+        "peak_rss_timed_mb": max(rss_runs) if None not in rss_runs else None,
         "first_qp_s": statistics.median(firsts),
         "scp_iterations": len(plan.iterations) - 1,
         "qp_solves": sum(r.qp_solves for r in plan.iterations),
@@ -251,6 +296,7 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
         "R": scenario.min_separation,
         "peak_memory_traced_mb": peak_traced,
         "peak_rss_mb": peak_rss,
+        **(exported or {}),
     }
     if scenario.obstacles:
         result.update(obstacles=len(scenario.obstacles), clearance=scenario.clearance,
@@ -258,7 +304,9 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
                       closest_obstacle=None if v is None else v.closest_obstacle)
     log(f"{name:>24} {plan.status:>14} {result['total_s']:.3f} s "
         f"(first QP {result['first_qp_s']:.3f} s) iterations {result['scp_iterations']} "
-        f"min sep {result['min_separation_continuous']}")
+        f"min sep {result['min_separation_continuous']} cpu {result['cpu_s']:.1f} s "
+        f"parse {result['parse_s']:.1f} s peak RSS {result['peak_rss_timed_mb']} MB "
+        f"load {[round(x, 1) for x in os.getloadavg()]}")
     return result
 
 
@@ -367,6 +415,14 @@ def main() -> None:
     parser.add_argument("--group-qp", choices=["dual", "primal"], default="dual",
                         help="how the families' and profiles' group QPs are solved "
                              "(ScpOptions.dual)")
+    parser.add_argument("--sized-horizon", action="store_true",
+                        help="free --grid-sphere runs get the horizon their assigned moves "
+                        "need (grid_to_sphere(steps=None)) instead of 30 s")
+    parser.add_argument("--record", action="store_true",
+                        help="the record sizes: --grid-sphere 4000 8000 16000 --assignment "
+                        "free --sized-horizon")
+    parser.add_argument("--export", action="store_true",
+                        help="also time writing each family plan's JSON (streamed)")
     parser.add_argument("--no-memory", action="store_true",
                         help="skip the extra run that measures peak memory")
     args = parser.parse_args()
@@ -405,14 +461,22 @@ def main() -> None:
     if args.profile:
         report["profiles"] = {name: profile(name, options) for name in args.profile}
     families = []
+    if args.record:
+        args.grid_sphere, args.assignment, args.sized_horizon = RECORD_SIZES, ["free"], True
     for n in args.grid_sphere:
         for assignment in args.assignment:
             for seed in args.seeds:
-                data = {**grid_to_sphere(n, seed=seed), "assignment": assignment}
+                sized = args.sized_horizon and assignment == "free"
+                t0 = time.perf_counter()
+                data = {**grid_to_sphere(n, seed=seed, steps=None if sized else SHOW_STEPS),
+                        "assignment": assignment}
+                made = time.perf_counter() - t0
                 row = measure(f"{data['name']}-{assignment}", data, args.repeats, None,
-                              memory=not args.no_memory, options=options)
+                              memory=not args.no_memory, options=options, export=args.export)
                 families.append({"family": "grid-sphere", "assignment": assignment,
-                                 "seed": seed, **row})
+                                 "seed": seed, "sized_horizon": sized,
+                                 "horizon_s": data["steps"] * data["dt"],
+                                 "generator_s": round(made, 2), **row})
     for n in args.sideways:
         for layout in args.sideways_layouts:
             spacing, offset = (float(x) for x in layout.split(":"))

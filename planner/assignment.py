@@ -36,7 +36,7 @@ import numpy as np
 from planner.types import FloatArray, IntArray
 
 __all__ = ["CAPT_SPACING", "DENSE_BELOW", "NEIGHBOURS", "TOLERANCE", "Assignment",
-           "assign_goals", "capt_spacing_holds", "solve_assignment"]
+           "assign_goals", "capt_spacing_holds", "certify", "matcher", "solve_assignment"]
 
 
 #: Starts and goals this many R apart (separation metric) make CAPT moves collision-free.
@@ -169,6 +169,8 @@ COARSE_BELOW = 2000
 PREDICTIONS = 3
 #: Candidate-graph rounds before the sparse loop gives up proving (it has never needed 15).
 MAX_ROUNDS = 60
+#: Threads of the k-d tree queries (-1: every core; the queries are independent per point).
+WORKERS = -1
 #: An unproven sparse result below this many vehicles is replaced by the dense method.
 DENSE_FALLBACK = 3000
 
@@ -181,7 +183,8 @@ def _lifted_best(a: FloatArray, b: FloatArray, v: FloatArray, k: int
 
     top = float(v.max())
     tree = cKDTree(np.column_stack([b, np.sqrt(np.maximum(top - v, 0.0))]))
-    dist, best = tree.query(np.column_stack([a, np.zeros(len(a))]), min(k, len(b)))
+    dist, best = tree.query(np.column_stack([a, np.zeros(len(a))]), min(k, len(b)),
+                            workers=WORKERS)
     dist = np.asarray(dist).reshape(len(a), -1)
     return dist * dist - top, np.asarray(best, dtype=np.intp).reshape(len(a), -1)
 
@@ -189,8 +192,6 @@ def _lifted_best(a: FloatArray, b: FloatArray, v: FloatArray, k: int
 def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
     """Exact matching over a candidate graph grown until the dual check over all N^2 edges
     passes (module docstring); a round cap or float trouble ends it unproven."""
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import min_weight_full_bipartite_matching
     from scipy.spatial import cKDTree
 
     n = len(a)
@@ -214,17 +215,17 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         goal_tree, start_tree = cKDTree(b), cKDTree(a)
         _, near = cKDTree(ca).query(a, PREDICTIONS)
         _, hits = goal_tree.query((a[:, None, :] + move[near]).reshape(-1, a.shape[1]),
-                                  spread)
+                                  spread, workers=WORKERS)
         keys.append(np.repeat(np.arange(n), PREDICTIONS * spread) * n
                     + np.asarray(hits).reshape(-1))
         _, near = cKDTree(cb).query(b, PREDICTIONS)
         _, hits = start_tree.query((b[:, None, :] - back[near]).reshape(-1, b.shape[1]),
-                                   spread)
+                                   spread, workers=WORKERS)
         keys.append(np.asarray(hits).reshape(-1) * n
                     + np.repeat(np.arange(n), PREDICTIONS * spread))
     # nearest goals of each start and nearest starts of each goal
-    _, near_goals = cKDTree(b).query(a, kk)
-    _, near_starts = cKDTree(a).query(b, kk)
+    _, near_goals = cKDTree(b).query(a, kk, workers=WORKERS)
+    _, near_starts = cKDTree(a).query(b, kk, workers=WORKERS)
     keys += [everyone * n + np.asarray(near_goals).reshape(-1),
              np.asarray(near_starts).reshape(-1) * n + everyone]
     u, v = np.zeros(n), np.zeros(n)
@@ -242,13 +243,12 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         rows, cols = np.divmod(edges, n)
         cost = np.sum((a[rows] - b[cols]) ** 2, axis=1)
         # the last round's reduced costs have the same optimum (every full matching's cost
-        # shifts by sum u + sum v) and make its matching all but optimal: a warm start;
-        # shifted to >= 1, as explicit zeros would be dropped
+        # shifts by sum u + sum v) and make its matching all but optimal: a warm start
+        # (lapmod on the plain costs takes as long in every round as in the first); shifted
+        # to >= 1, as explicit zeros would be dropped
         reduced_cost = cost - u[rows] - v[cols]
-        graph = csr_matrix((reduced_cost + (1.0 - min(0.0, float(reduced_cost.min()))),
-                            (rows, cols)), shape=(n, n))
-        _, matched = min_weight_full_bipartite_matching(graph)
-        order = np.asarray(matched, dtype=np.intp)
+        weight = reduced_cost + (1.0 - min(0.0, float(reduced_cost.min())))
+        order = _match(rows, cols, weight, n)
         own = np.sum((a - b[order]) ** 2, axis=1)
         u = _potentials(order, rows, cols, cost, own, u)
         v = np.empty(n)
@@ -269,6 +269,39 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
             break
         edges = np.sort(np.concatenate([edges, new]))
     return _Solved(order, u, v, max(gap, 0.0), not len(failing), rounds, len(edges))
+
+
+#: lapmod refuses costs from 1e6 on; graphs with larger weights go to scipy.
+LAPMOD_MAX_COST = 1e5
+
+
+def matcher() -> str:
+    """The exact sparse matcher `_match` uses: "lapmod" (the `lap` package's sparse
+    Jonker-Volgenant, 2-3x faster on these graphs) when installed, else "scipy"."""
+    try:
+        import lap  # noqa: F401
+    except ImportError:
+        return "scipy"
+    return "lapmod"
+
+
+def _match(rows: IntArray, cols: IntArray, weight: FloatArray, n: int) -> IntArray:
+    """order[i]: row i's column in a minimum-weight full matching over the edges (rows,
+    cols) with positive weights (sorted by row then column, one per pair; a full matching
+    exists). Exact either way; the certificate does not trust it (`_certified`)."""
+    if matcher() == "lapmod" and float(weight.max()) < LAPMOD_MAX_COST:
+        import lap
+
+        first = np.searchsorted(rows, np.arange(n + 1)).astype(np.int32)
+        _, order, _ = lap.lapmod(n, np.ascontiguousarray(weight, dtype=np.float64), first,
+                                 cols.astype(np.int32))
+        return np.asarray(order, dtype=np.intp)
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+
+    graph = csr_matrix((weight, (rows, cols)), shape=(n, n))
+    _, matched = min_weight_full_bipartite_matching(graph)
+    return np.asarray(matched, dtype=np.intp)
 
 
 def _potentials(order: IntArray, rows: IntArray, cols: IntArray, cost: FloatArray,
@@ -303,6 +336,52 @@ def _potentials(order: IntArray, rows: IntArray, cols: IntArray, cost: FloatArra
         frontier = np.flatnonzero(best < u - slack)
         u[frontier] = best[frontier]
     return u
+
+
+def certify(starts: FloatArray, goals: FloatArray, order: IntArray,
+            scale: FloatArray | None = None, neighbours: int = NEIGHBOURS) -> bool:
+    """Is `order` (order[n]: the goal of start n) proven optimal? Potentials tight on its
+    edges are derived over its edges and each point's nearest others (`_potentials`) and
+    checked against all N^2 edges (`_lifted_best`, nothing N x N); edges that fail join and
+    the potentials are redone. Such potentials exist only for an optimal order
+    (complementary slackness), so a worse order is always rejected; an optimal one is
+    accepted unless `MAX_ROUNDS` rounds do not settle it."""
+    from scipy.spatial import cKDTree
+
+    s = np.ones(np.shape(starts)[1]) if scale is None else np.asarray(scale, dtype=float)
+    a, _ = _normalised(np.asarray(starts, dtype=float) / s)
+    b, _ = _normalised(np.asarray(goals, dtype=float) / s)
+    order = np.asarray(order, dtype=np.intp)
+    n = len(a)
+    if sorted(order.tolist()) != list(range(n)):
+        raise ValueError("order must be a permutation of the goals")
+    if n < 2:
+        return True
+    kk = min(neighbours, n)
+    _, near_goals = cKDTree(b).query(a, kk)
+    _, near_starts = cKDTree(a).query(b, kk)
+    everyone = np.repeat(np.arange(n), kk)
+    edges = np.unique(np.concatenate([np.arange(n) * n + order,
+                                      everyone * n + np.asarray(near_goals).reshape(-1),
+                                      np.asarray(near_starts).reshape(-1) * n + everyone]))
+    own = np.sum((a - b[order]) ** 2, axis=1)
+    u = np.zeros(n)
+    for _ in range(MAX_ROUNDS):
+        rows, cols = np.divmod(edges, n)
+        cost = np.sum((a[rows] - b[cols]) ** 2, axis=1)
+        u = _potentials(order, rows, cols, cost, own, u)
+        v = np.empty(n)
+        v[order] = own - u
+        if np.any(cost - u[rows] - v[cols] < -TOLERANCE):
+            return False  # no tight potentials even on these edges: an improving cycle
+        best_cost, best = _lifted_best(a, b, v, kk)
+        failing = best_cost - u[:, None] < -TOLERANCE
+        if not failing.any():
+            return True
+        # an edge cheaper than the potentials allow joins, and the potentials are redone
+        added = np.repeat(np.arange(n), best.shape[1])[failing.reshape(-1)] * n + best[failing]
+        edges = np.union1d(edges, added)
+    return False
 
 
 def capt_spacing_holds(starts: FloatArray, goals: FloatArray, separation: float,

@@ -43,21 +43,32 @@ THRUST_FLOOR = 1e-6
 
 
 def body_rates(accelerations: FloatArray, jerk: FloatArray) -> FloatArray:
-    """(..., K, 3) body rates (w1, w2, 0) in rad/s for yaw 0, paper eq. 20."""
+    """(..., K, 3) body rates (w1, w2, 0) in rad/s for yaw 0, paper eq. 20. Written out per
+    component (the cross products with the world x axis have two zero terms): a show-scale
+    plan has millions of samples."""
     force = np.asarray(accelerations, dtype=float) + _UP
-    f = np.maximum(np.linalg.norm(force, axis=-1, keepdims=True), THRUST_FLOOR)
+    fx, fy, fz = force[..., 0], force[..., 1], force[..., 2]
+    norm = np.sqrt(fx * fx + fy * fy + fz * fz)
+    f = np.maximum(norm, THRUST_FLOOR)
     # at zero thrust, any body z axis; "up" keeps the rates finite
-    z_body = np.where(np.linalg.norm(force, axis=-1, keepdims=True) < THRUST_FLOOR,
-                      np.array([0.0, 0.0, 1.0]), force / f)
-    # Yaw 0: the body x axis is the world x axis tilted into the plane normal to z_body;
-    # with z_body along x (thrust exactly sideways), the world y axis stands in for it.
-    heading = np.broadcast_to(np.array([1.0, 0.0, 0.0]), z_body.shape)
-    y_body = np.cross(z_body, heading)
-    sideways = np.linalg.norm(y_body, axis=-1, keepdims=True) < 1e-12
-    y_body = np.where(sideways, np.array([0.0, 1.0, 0.0]), y_body)
-    y_body /= np.linalg.norm(y_body, axis=-1, keepdims=True)
-    x_body = np.cross(y_body, z_body)
+    free_fall = norm < THRUST_FLOOR
+    zx = np.where(free_fall, 0.0, fx / f)
+    zy = np.where(free_fall, 0.0, fy / f)
+    zz = np.where(free_fall, 1.0, fz / f)
+    # Yaw 0: the body y axis is z_body x (1, 0, 0) = (0, zz, -zy), normalised; with z_body
+    # along x (thrust exactly sideways) the world y axis stands in for it.
+    length = np.sqrt(zz * zz + zy * zy)
+    sideways = length < 1e-12
+    safe = np.where(sideways, 1.0, length)
+    yx = np.zeros_like(zx)
+    yy = np.where(sideways, 1.0, zz / safe)
+    yz = np.where(sideways, 0.0, -zy / safe)
+    # x_body = y_body x z_body
+    xx = yy * zz - yz * zy
+    xy = yz * zx - yx * zz
+    xz = yx * zy - yy * zx
     j = np.asarray(jerk, dtype=float)
-    w1 = -np.sum(y_body * j, axis=-1) / f[..., 0]
-    w2 = np.sum(x_body * j, axis=-1) / f[..., 0]
+    jx, jy, jz = j[..., 0], j[..., 1], j[..., 2]
+    w1 = -(yx * jx + yy * jy + yz * jz) / f
+    w2 = (xx * jx + xy * jy + xz * jz) / f
     return np.stack([w1, w2, np.zeros_like(w1)], axis=-1)

@@ -18,6 +18,7 @@ __all__ = [
     "circle_swap",
     "dmpc2019_points",
     "dmpc2019_scenario",
+    "free_steps",
     "grid_to_sphere",
     "random_dense",
     "random_transitions",
@@ -189,17 +190,15 @@ def sphere_shell(count: int, spacing: float = 2.1) -> FloatArray:
                      np.cos(polar)], axis=1)
     if count < 2:
         return unit * spacing
-    closest = np.inf
-    for lo in range(0, count, 256):  # chunked: (256, count) distances at a time
-        d = np.linalg.norm(unit[lo:lo + 256, None, :] - unit[None, :, :], axis=2)
-        d[np.arange(d.shape[0]), lo + np.arange(d.shape[0])] = np.inf
-        closest = min(closest, float(d.min()))
+    from scipy.spatial import cKDTree
+
+    closest = float(cKDTree(unit).query(unit, 2)[0][:, 1].min())  # no all-pairs array
     return unit * (spacing / closest)
 
 
 def grid_to_sphere(vehicles: int, *, seed: int | None = 0, grid_spacing: float = 2.0,
                    sphere_spacing: float = 2.1, separation: float = SHOW_SEPARATION,
-                   dt: float = SHOW_DT, steps: int = SHOW_STEPS) -> dict[str, Any]:
+                   dt: float = SHOW_DT, steps: int | None = SHOW_STEPS) -> dict[str, Any]:
     """A show transition: a vertical grid (`grid_spacing` apart) converging onto a sphere shell
     (closest goals `sphere_spacing` apart) centred on the grid's centre, 30 s, v and a <= 3,
     jerk <= 5, R = 1 m.
@@ -207,6 +206,9 @@ def grid_to_sphere(vehicles: int, *, seed: int | None = 0, grid_spacing: float =
     seed: the goals are a seeded random permutation of the shell's points (a crowded fixed
     assignment, every path crossing the middle); None keeps the lattice order, both sorted
     bottom to top. With `"assignment": "free"` the order does not matter.
+    steps: None sizes the horizon to the free assignment's moves: the fewest steps at which
+    every assigned move's straight profile respects the boxes (`planner.horizon`), which
+    solves the assignment once here (30 s is too short from about 4,000 vehicles on).
     """
     grid = vertical_grid(vehicles, grid_spacing)
     shell = sphere_shell(vehicles, sphere_spacing)
@@ -217,7 +219,22 @@ def grid_to_sphere(vehicles: int, *, seed: int | None = 0, grid_spacing: float =
     if seed is not None:
         goals = goals[np.random.default_rng(seed).permutation(vehicles)]
     name = f"grid-sphere{vehicles}" + ("" if seed is None else f"-seed{seed}")
+    if steps is None:
+        steps = free_steps(grid, goals, dt)
     return _show_change(name, grid, goals, separation, dt, steps)
+
+
+def free_steps(starts: FloatArray, goals: FloatArray, dt: float = SHOW_DT,
+               velocity: float = 3.0, acceleration: float = 3.0, jerk: float = 5.0) -> int:
+    """The fewest steps of `dt` in which the free assignment's moves from `starts` to `goals`
+    fit the show families' boxes (v, a <= 3, jerk <= 5 by default) as straight
+    rest-to-rest profiles: the horizon a show change of these formations needs."""
+    from planner.assignment import solve_assignment
+    from planner.horizon import shortest_steps
+
+    order = solve_assignment(starts, goals).order
+    return shortest_steps(goals[order] - starts, dt, np.full(3, velocity),
+                          np.full(3, acceleration), np.full(3, jerk))
 
 
 def _show_change(name: str, starts: FloatArray, goals: FloatArray, separation: float,

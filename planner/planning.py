@@ -23,6 +23,7 @@ from planner.prioritized import plan_batches
 from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp
+from planner.separated_first import separated_first
 from planner.solvers import make_solver
 from planner.types import FloatArray
 from planner.verify import verify
@@ -68,34 +69,43 @@ def plan(
     converge and verify, it is planned again from the synchronised moves (`progress` then
     sees both runs). With `ScpOptions(decompose="prioritized")` the fleet is planned in
     batches (`planner.prioritized`), and as a whole if a batch fails or the joined plan does
-    not verify; the message says which.
+    not verify; the message says which. Under free assignment a separation-free optimum
+    that is already separated is the plan, without the loop (`planner.separated_first`).
     """
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
     backend = make_solver(solver)
     work = spec.assigned()
-    guess = straight_moves(work) if spec.assignment == "free" else None
-    dodged = guess is None and _dodges(work, options)
+    direct = separated_first(work, backend) if spec.assignment == "free" else None
+    guess = straight_moves(work) if spec.assignment == "free" and direct is None else None
+    dodged = guess is None and direct is None and _dodges(work, options)
     if dodged:
         found = dodged_moves(work, straight_moves(work))
         dodged = found is not None
         guess = None if found is None else found[0]
-    decomposed = guess is None and not dodged and _decomposes(work, options)
+    decomposed = (direct is None and guess is None and not dodged
+                  and _decomposes(work, options))
     batches = (plan_batches(work, backend, options, progress, options.batch_size)
                if decomposed and options is not None else None)
     verification: Verification | None = None
-    if batches is not None:
+    if direct is not None:
+        outcome, verification = direct
+        if progress is not None:
+            progress(outcome.iterations[0])
+    elif batches is not None:
         outcome = batches.outcome
-        p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
-        verification = verify(work, p, v, a)
+        verification = verify(work, outcome.positions, outcome.velocities,
+                              outcome.accelerations)
         if not verification.verified:
             batches = None
-    if batches is None:
+    if direct is None and batches is None:
         outcome = run_scp(work, backend, options, progress, guess)
         if decomposed:
             outcome.message += "; planned as a whole fleet: the prioritized batches did not"
-        p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
-        verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
+        verification = (verify(work, outcome.positions, outcome.velocities,
+                               outcome.accelerations)
+                        if outcome.status != "infeasible" else None)
+    p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
     if dodged and (outcome.status != "converged" or verification is None
                    or not verification.verified):
         # Never a worse plan for having tried: plan again from the synchronised moves.

@@ -8,11 +8,13 @@ naming the field.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
+import orjson
 from numpy.typing import NDArray
 
 from planner.dynamics import MotionSample, interpolate
@@ -59,6 +61,14 @@ class VehicleTrajectory:
         """The exact motion at arbitrary times (see `planner.dynamics.interpolate`)."""
         return interpolate(self.position, self.velocity, self.acceleration, dt, times)
 
+    def json_text(self) -> str:
+        """JSON text of `to_dict()`, the arrays serialised from numpy by orjson (the same
+        numbers; a non-finite one becomes null, which a plan reader refuses)."""
+        return orjson.dumps(
+            {"id": self.id, **{key: np.ascontiguousarray(getattr(self, key), dtype=np.float64)
+                               for key in _TRAJECTORY_ARRAYS}},
+            option=orjson.OPT_SERIALIZE_NUMPY).decode()
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "id": self.id,
@@ -70,6 +80,11 @@ class VehicleTrajectory:
             "thrust": self.thrust.tolist(),
             "body_rates": self.body_rates.tolist(),
         }
+
+
+#: A vehicle trajectory's arrays, in the order of its JSON document.
+_TRAJECTORY_ARRAYS = ("t", "position", "velocity", "acceleration", "jerk", "thrust",
+                      "body_rates")
 
 
 @dataclass(frozen=True)
@@ -271,6 +286,27 @@ class Plan:
         )
 
     def to_dict(self) -> dict[str, Any]:
+        return self._document([v.to_dict() for v in self.vehicles])
+
+    def write_json(self, stream: TextIO) -> None:
+        """Write the document of `to_dict()` as JSON text to `stream`, one vehicle at a time
+        and its arrays straight from numpy (`VehicleTrajectory.json_text`): a show-scale plan
+        (16,000 vehicles) never holds all its numbers as Python objects, which would take
+        gigabytes and most of a minute."""
+        stream.write("{")
+        for n, (key, value) in enumerate(self._document([]).items()):
+            stream.write((", " if n else "") + json.dumps(key) + ": ")
+            if key != "vehicles":
+                stream.write(json.dumps(value))
+                continue
+            stream.write("[")
+            for m, vehicle in enumerate(self.vehicles):
+                stream.write((", " if m else "") + vehicle.json_text())
+            stream.write("]")
+        stream.write("}")
+
+    def _document(self, vehicles: list[dict[str, Any]]) -> dict[str, Any]:
+        """The plan's JSON document with `vehicles` as its vehicle list."""
         return {
             "status": self.status,
             "message": self.message,
@@ -279,7 +315,7 @@ class Plan:
             "scenario": self.scenario.to_dict(),
             "iterations": [asdict(r) for r in self.iterations],
             "timing": dict(self.timing),
-            "vehicles": [v.to_dict() for v in self.vehicles],
+            "vehicles": vehicles,
             "verification": None if self.verification is None else self.verification.to_dict(),
             "assignment": {v.id: int(g) for v, g in zip(self.scenario.vehicles,
                                                         self.scenario.order, strict=True)},

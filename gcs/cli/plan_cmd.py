@@ -345,7 +345,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(exc))
     output = args.output or Path(f"{scenario.name}.plan.json")
     try:
-        output.write_text(json.dumps(plan.to_dict()))
+        with output.open("w") as stream:  # streamed: a 16,000-vehicle plan is ~1 GB of text
+            plan.write_json(stream)
     except OSError as exc:
         return _fail(f"cannot write {output}: {exc.strerror or exc}")
     _print_summary(plan)

@@ -1,0 +1,44 @@
+"""The separation-free optimum as the plan, when it is already separated.
+
+The first QP (`planner.first_qp`) minimises the thrust cost under the boxes and boundary
+conditions only: a relaxation of the planning problem. When its solution also keeps every
+pair at least R apart over continuous time, no separated plan can cost less, so it is the
+optimum and the SCP loop has nothing to do. Under free assignment with CAPT's spacing this is
+the usual case (`planner.assignment`): the loop would only spend time and all-pairs memory
+confirming it, which at show scale (16,000 vehicles, 128 million pairs) is most of the work.
+"""
+
+from __future__ import annotations
+
+import time
+
+from planner.first_qp import solve_first_qp
+from planner.result import IterationRecord, Verification
+from planner.scenario import Scenario
+from planner.scp import ScpOutcome, thrust_cost
+from planner.solvers import SOLVED, QPSolver
+from planner.verify import verify
+
+__all__ = ["separated_first"]
+
+
+def separated_first(scenario: Scenario, solver: QPSolver
+                    ) -> tuple[ScpOutcome, Verification] | None:
+    """The first QP's solution as a converged outcome with its verification, when it solves
+    and verifies (separation over continuous time, boxes, goals); else None (plan with the
+    SCP loop). Obstacles and fixed trajectories are the loop's business: None for them."""
+    if scenario.obstacles or scenario.fixed:
+        return None
+    began = time.perf_counter()
+    first = solve_first_qp(scenario, solver)
+    seconds = time.perf_counter() - began
+    if first.status != SOLVED:
+        return None
+    p, v, a = first.positions, first.velocities, first.accelerations
+    verification = verify(scenario, p, v, a)
+    if not verification.verified:
+        return None
+    record = IterationRecord(0, thrust_cost(a), None, 0, first.qp_solves, 0, seconds)
+    message = ("the separation-free optimum is separated over continuous time: it is the "
+               "optimum")
+    return ScpOutcome("converged", message, p, v, a, [record], seconds), verification
