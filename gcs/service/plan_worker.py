@@ -120,11 +120,13 @@ def run_plan(
     time_limit_s: float | None = None,
     cancel_event: str | None = None,
     leg: int | None = None,
+    options: Any = None,
 ) -> PlanOutcome:
     """Plan `scenario`; returns the plan's JSON text and status, or the error.
 
     `leg`: the scenario is leg `leg` of a formation sequence; every progress message and
     iteration record says so (``"leg": k``), and the plan is returned as JSON all the same.
+    `options`: the `planner.scp.ScpOptions` to plan with (None: the defaults).
 
     A leg's outcome carries the `planner.Plan` itself (`plan`) rather than its JSON text.
     With `topic`, progress goes out as Dask events (see the module docstring). With
@@ -156,7 +158,7 @@ def run_plan(
             raise PlanStopped("planning was cancelled")
 
     try:
-        result = plan(scenario, solver=solver, progress=progress)
+        result = plan(scenario, solver=solver, progress=progress, options=options)
     except PlanStopped as exc:
         return PlanOutcome.failed(str(exc), stopped=True)
     except FieldError as exc:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -135,3 +136,38 @@ def test_a_scale_that_would_overflow_the_metric_is_bad_input(tmp_path, capsys):
     assert main(["plan", str(path), "-o", str(tmp_path / "p.json"), "-q"]) == 2
     assert "separation_scale[0]: must be between 0.1 and 10" in capsys.readouterr().err
     assert not (tmp_path / "p.json").exists()
+
+
+def test_prioritized_batches_plan_a_crowd_and_the_plan_says_so(tmp_path, capsys):
+    from planner.generators import sideways
+
+    scenario = tmp_path / "sideways.json"
+    scenario.write_text(json.dumps(sideways(16)))
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(scenario), "-o", str(out), "-q", "--decompose", "prioritized",
+                 "--batch-size", "4"]) == 0
+    doc = json.loads(out.read_text())
+    check = doc["verification"]
+    assert doc["status"] == "converged" and check["separated"] and check["within_bounds"]
+    assert check["min_separation_continuous"] >= 1.0 - check["separation_tolerance"]
+    assert "prioritized batches of up to 4 vehicles" in doc["message"]
+    assert "whole fleet" not in doc["message"]
+    assert re.search(r"verified\s+.\s+yes", capsys.readouterr().out)
+
+
+@pytest.mark.parametrize(("flags", "message"), [
+    (["--decompose", "fancy"], "--decompose: must be one of none, prioritized, got 'fancy'"),
+    (["--decompose", "prioritized", "--batch-size", "0"], "--batch-size: must be a whole"),
+])
+def test_bad_decomposition_flags_exit_2_naming_the_flag(tmp_path, capsys, flags, message):
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(EXAMPLES / "paper-circle4.json"), "-o", str(out), *flags]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_sequence_refuses_the_decomposition_flags(tmp_path, capsys):
+    sequence = tmp_path / "show.json"
+    sequence.write_text(json.dumps({"formations": []}))
+    assert main(["plan", str(sequence), "--decompose", "prioritized"]) == 2
+    assert "--decompose, --batch-size: apply to a scenario" in capsys.readouterr().err
