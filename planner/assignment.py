@@ -171,6 +171,12 @@ PREDICTIONS = 3
 MAX_ROUNDS = 60
 #: An unproven sparse result below this many vehicles is replaced by the dense method.
 DENSE_FALLBACK = 3000
+#: Resolution of the sparse matcher's weights, in the centred and scaled costs. scipy's sparse
+#: Jonker-Volgenant stalls on float weights full of near-ties (lattice formations such as a
+#: grid onto a torus or a cube at 2,000 vehicles: its augmenting row reduction then lowers
+#: prices a few ulps at a time) and solves whole multiples of this in about a second. The
+#: certificate still judges the matching on the exact costs (to `TOLERANCE`).
+WEIGHT_QUANTUM = 1e-6
 
 
 def _lifted_best(a: FloatArray, b: FloatArray, v: FloatArray, k: int
@@ -243,10 +249,12 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         cost = np.sum((a[rows] - b[cols]) ** 2, axis=1)
         # the last round's reduced costs have the same optimum (every full matching's cost
         # shifts by sum u + sum v) and make its matching all but optimal: a warm start;
-        # shifted to >= 1, as explicit zeros would be dropped
+        # in whole quanta (`WEIGHT_QUANTUM`), shifted to >= 1, as explicit zeros would be
+        # dropped
         reduced_cost = cost - u[rows] - v[cols]
-        graph = csr_matrix((reduced_cost + (1.0 - min(0.0, float(reduced_cost.min()))),
-                            (rows, cols)), shape=(n, n))
+        weight = np.rint((reduced_cost - min(0.0, float(reduced_cost.min()))) / WEIGHT_QUANTUM)
+        weight += 1.0
+        graph = csr_matrix((weight, (rows, cols)), shape=(n, n))
         _, matched = min_weight_full_bipartite_matching(graph)
         order = np.asarray(matched, dtype=np.intp)
         own = np.sum((a - b[order]) ** 2, axis=1)
