@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanOutcome", "PlanStopped", "finite_json", "run_plan", "stitch_sequence", "stop_check",
-           "warm"]
+__all__ = ["PlanOutcome", "PlanStopped", "finite_json", "plan_json", "run_plan", "stitch_sequence",
+           "stop_check", "warm"]
 
 
 class PlanStopped(Exception):
@@ -177,8 +177,6 @@ def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
     """Stitch the planned legs of `sequence` (a `planner.sequence.FormationSequence`; `legs`:
     `run_plan` results in leg order) and verify the whole timeline; returns the flyable plan
     like `run_plan`, or the first leg's error (a stopped leg stops the whole sequence)."""
-    import orjson
-
     from planner import PlannerError
     from planner.sequence import plan_sequence
 
@@ -199,7 +197,23 @@ def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
     except PlannerError as exc:
         field = getattr(exc, "field", None)
         return PlanOutcome.failed(getattr(exc, "reason", str(exc)), field)
-    # orjson writes a non-finite float as null (strict JSON), ten times faster than the
-    # finite_json walk + json.dumps on a plan of megabytes.
-    text = orjson.dumps(flyable.to_dict()).decode()
-    return PlanOutcome(plan_json=text, status=flyable.status, ok=bool(flyable.ok))
+    return PlanOutcome(plan_json=plan_json(flyable), status=flyable.status,
+                       ok=bool(flyable.ok))
+
+
+def plan_json(plan: Any) -> str:
+    """`plan.to_dict()` as JSON text, its trajectories written by orjson straight from the
+    arrays (no `tolist`: 7 s of a 2,000-vehicle, five-formation show). orjson writes a
+    non-finite float as null (strict JSON), and the same digits for a float either way."""
+    import dataclasses
+
+    import orjson
+
+    head = dataclasses.replace(plan, vehicles=()).to_dict()
+    head["vehicles"] = [
+        {f.name: (value if isinstance(value := getattr(vehicle, f.name), str)
+                  else np.ascontiguousarray(value, dtype=np.float64))
+         for f in dataclasses.fields(vehicle)}
+        for vehicle in plan.vehicles
+    ]
+    return orjson.dumps(head, option=orjson.OPT_SERIALIZE_NUMPY).decode()

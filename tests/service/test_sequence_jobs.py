@@ -181,3 +181,23 @@ def test_the_time_limit_stops_a_sequence(store, cluster) -> None:
             await service.close()
 
     asyncio.run(scenario_run())
+
+
+def test_the_stitched_plan_json_is_to_dict_written_from_the_arrays() -> None:
+    """The stitch task's JSON (orjson from the arrays) is byte for byte that of
+    `Plan.to_dict()`, and a non-finite value still becomes null."""
+    import dataclasses
+
+    import numpy as np
+    import orjson
+
+    from planner.sequence import plan_sequence
+
+    flyable = plan_sequence(show_formations(12, seed=3, hold=1.0)).to_plan()
+    assert plan_worker.plan_json(flyable) == orjson.dumps(flyable.to_dict()).decode()
+    first = flyable.vehicles[0]
+    thrust = first.thrust.copy()
+    thrust[1] = np.nan
+    broken = dataclasses.replace(flyable, vehicles=(dataclasses.replace(first, thrust=thrust),
+                                                    *flyable.vehicles[1:]))
+    assert json.loads(plan_worker.plan_json(broken))["vehicles"][0]["thrust"][1] is None
