@@ -127,7 +127,7 @@ def peak_rss() -> Iterator[dict]:
 def in_process(sequence, serial: list[float]) -> dict:
     """The show planned here, one part after the other: each leg, the stitch with the
     whole-timeline verification, the flyable plan, its JSON (as the stitch task makes it)."""
-    import orjson
+    from gcs.service.plan_worker import plan_json
 
     t = time.perf_counter()
     legs = [plan_leg(leg) for leg in sequence.legs]
@@ -139,7 +139,7 @@ def in_process(sequence, serial: list[float]) -> dict:
     flyable = show.to_plan()
     to_plan_s = time.perf_counter() - t
     t = time.perf_counter()
-    size = len(orjson.dumps(flyable.to_dict()))
+    size = len(plan_json(flyable))
     json_s = time.perf_counter() - t
     serial.append(legs_s + stitch_s + to_plan_s + json_s)
     return {"status": show.status, "leg_s": [round(leg.timing["total_s"], 3) for leg in legs],

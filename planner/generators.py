@@ -365,7 +365,7 @@ def _closest(points: FloatArray) -> float:
 def _near_square(count: int) -> tuple[FloatArray, FloatArray]:
     """Column and row coordinates (unit spacing, centred) of a near-square grid, row by row."""
     columns = int(np.ceil(np.sqrt(count)))
-    n = np.arange(count)
+    n = np.arange(count, dtype=np.float64)
     rows = int(np.ceil(count / columns))
     return n % columns - (columns - 1) / 2.0, n // columns - (rows - 1) / 2.0
 
