@@ -13,7 +13,8 @@ The drone-show families run only when asked: --grid-sphere N... (vertical grid -
 sphere shell, fixed and/or free assignment), --sideways N... (the grid onto a shell beside
 it, lattice order, over --sideways-layouts and --sideways-seeds), --random-dense N...
 (random128's density, moves <= 40 m), --sequence N (a grid -> sphere -> grid formation
-sequence), each over --seeds.
+sequence; with --formations F a long show of F formations, `show_formations`), each over
+--seeds. The long show's legs through Dask workers: bench/dask_engine.py --formations.
 --obstacles NAME... runs the obstacle families (a pillar in the paper's circle, a window in
 a wall, shelving, forests), each with its floor. --group-qp primal solves their group QPs as
 the primal staged QP (before the dual, for comparison); --profile also takes dense<N> and
@@ -47,10 +48,12 @@ import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
 from planner.generators import (  # noqa: E402
+    SHOW_SHAPES,
     SHOW_STEPS,
     dmpc2019_scenario,
     grid_to_sphere,
     random_dense,
+    show_formations,
     show_sequence,
     sideways,
 )
@@ -310,10 +313,15 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
     return result
 
 
-def sequence_case(n: int, repeats: int) -> dict[str, Any]:
-    """A grid -> sphere -> grid sequence (free assignment): legs planned one after the other
-    here (the service maps them over workers), stitched and verified as a whole."""
-    data = show_sequence(n)
+def sequence_case(n: int, repeats: int, formations: int = 0, seed: int = 0) -> dict[str, Any]:
+    """A grid -> sphere -> grid sequence, or a long show of `formations` formations (free
+    assignment): legs planned one after the other here (the service maps them over
+    workers), stitched and verified as a whole."""
+    if formations:
+        shapes = [SHOW_SHAPES[f % 5] for f in range(formations)]
+        data = show_formations(n, shapes, seed=seed)
+    else:
+        data = show_sequence(n)
     times, result = [], None
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -408,6 +416,8 @@ def main() -> None:
                              "upside down against the grid) or integer seeds")
     parser.add_argument("--sequence", type=int, nargs="*", default=[],
                         help="grid -> sphere -> grid formation sequences of these sizes")
+    parser.add_argument("--formations", type=int, default=0,
+                        help="--sequence as long shows of this many formations (over --seeds)")
     parser.add_argument("--obstacles", nargs="*", default=[],
                         choices=list(OBSTACLE_FAMILIES),
                         help="obstacle families to run over --seeds")
@@ -506,7 +516,9 @@ def main() -> None:
         report["families"] = families
         report["families_summary"] = summarise(families)
     if args.sequence:
-        report["sequences"] = [sequence_case(n, args.repeats) for n in args.sequence]
+        seeds = args.seeds if args.formations else [0]
+        report["sequences"] = [sequence_case(n, args.repeats, args.formations, seed)
+                               for n in args.sequence for seed in seeds]
     report["wall_time_s"] = time.perf_counter() - began
     print(json.dumps(report, indent=1))
 

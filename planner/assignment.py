@@ -173,6 +173,15 @@ MAX_ROUNDS = 60
 WORKERS = -1
 #: An unproven sparse result below this many vehicles is replaced by the dense method.
 DENSE_FALLBACK = 3000
+#: Resolution of the sparse matcher's weights, in the centred and scaled costs. scipy's sparse
+#: Jonker-Volgenant stalls on float weights full of near-ties (lattice formations such as a
+#: grid onto a torus or a cube at 2,000 vehicles: its augmenting row reduction then lowers
+#: prices a few ulps at a time) and solves whole multiples of this in about a second. The
+#: certificate still judges the matching on the exact costs (to `TOLERANCE`).
+WEIGHT_QUANTUM = 1e-6
+#: A round whose matching is optimal only to the quantum (some edge of its own graph has a
+#: negative exact reduced cost) is solved again on a quantum 1,000 times finer, down to this.
+FINEST_QUANTUM = 1e-12
 
 
 def _lifted_best(a: FloatArray, b: FloatArray, v: FloatArray, k: int
@@ -238,6 +247,8 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         keys.append(np.arange(n) * n + u_goal[:, 0])
     edges = np.unique(np.concatenate(keys))
     rounds = 0
+    quantum = WEIGHT_QUANTUM
+    failing, gap = np.arange(n), np.inf
     while rounds < MAX_ROUNDS:
         rounds += 1
         rows, cols = np.divmod(edges, n)
@@ -245,14 +256,18 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         # the last round's reduced costs have the same optimum (every full matching's cost
         # shifts by sum u + sum v) and make its matching all but optimal: a warm start
         # (lapmod on the plain costs takes as long in every round as in the first); shifted
-        # to >= 1, as explicit zeros would be dropped
+        # to >= 0, and to >= 1 in the matcher, as explicit zeros would be dropped
         reduced_cost = cost - u[rows] - v[cols]
-        weight = reduced_cost + (1.0 - min(0.0, float(reduced_cost.min())))
-        order = _match(rows, cols, weight, n)
+        order = _match(rows, cols, reduced_cost - min(0.0, float(reduced_cost.min())),
+                       quantum, n)
         own = np.sum((a - b[order]) ** 2, axis=1)
         u = _potentials(order, rows, cols, cost, own, u)
         v = np.empty(n)
         v[order] = own - u
+        if quantum > FINEST_QUANTUM and float(np.min(cost - u[rows] - v[cols])) < -TOLERANCE:
+            # optimal to the quantum but not on the exact costs of its own graph: finer
+            quantum *= 1e-3
+            continue
         best_cost, _ = _lifted_best(a, b, v, 1)
         # any v gives the dual bound sum_i min_j (cost[i, j] - v[j]) + sum_j v[j]
         gap = float(np.sum(own)) - float(np.sum(best_cost[:, 0]) + np.sum(v))
@@ -285,21 +300,24 @@ def matcher() -> str:
     return "lapmod"
 
 
-def _match(rows: IntArray, cols: IntArray, weight: FloatArray, n: int) -> IntArray:
+def _match(rows: IntArray, cols: IntArray, weight: FloatArray, quantum: float,
+           n: int) -> IntArray:
     """order[i]: row i's column in a minimum-weight full matching over the edges (rows,
-    cols) with positive weights (sorted by row then column, one per pair; a full matching
-    exists). Exact either way; the certificate does not trust it (`_certified`)."""
-    if matcher() == "lapmod" and float(weight.max()) < LAPMOD_MAX_COST:
+    cols) with weights >= 0 (sorted by row then column, one per pair; a full matching
+    exists): lapmod on the weights themselves where it takes them, else scipy on them in
+    whole `quantum`s (`WEIGHT_QUANTUM`: scipy stalls on float near-ties). Exact either way
+    (to the quantum for scipy); the certificate does not trust it (`_certified`)."""
+    if matcher() == "lapmod" and float(weight.max()) + 1.0 < LAPMOD_MAX_COST:
         import lap
 
         first = np.searchsorted(rows, np.arange(n + 1)).astype(np.int32)
-        _, order, _ = lap.lapmod(n, np.ascontiguousarray(weight, dtype=np.float64), first,
-                                 cols.astype(np.int32))
+        _, order, _ = lap.lapmod(n, np.ascontiguousarray(weight + 1.0, dtype=np.float64),
+                                 first, cols.astype(np.int32))
         return np.asarray(order, dtype=np.intp)
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import min_weight_full_bipartite_matching
 
-    graph = csr_matrix((weight, (rows, cols)), shape=(n, n))
+    graph = csr_matrix((np.rint(weight / quantum) + 1.0, (rows, cols)), shape=(n, n))
     _, matched = min_weight_full_bipartite_matching(graph)
     return np.asarray(matched, dtype=np.intp)
 

@@ -15,13 +15,16 @@ from planner.types import FloatArray
 
 __all__ = [
     "DMPC2019_BOX",
+    "SHOW_SHAPES",
     "circle_swap",
     "dmpc2019_points",
     "dmpc2019_scenario",
+    "formation",
     "free_steps",
     "grid_to_sphere",
     "random_dense",
     "random_transitions",
+    "show_formations",
     "show_sequence",
     "sideways",
     "sphere_shell",
@@ -357,4 +360,155 @@ def show_sequence(vehicles: int, *, seed: int = 0, hold: float = 2.0,
             {"name": "sphere", "positions": sphere, "duration": duration, "hold": hold},
             {"name": "grid", "positions": grid, "duration": duration, "hold": hold},
         ],
+    }
+
+
+# --------------------------------------------------------------------------- long shows
+
+#: The formation shapes of `formation`, in the default order of `show_formations`: a vertical
+#: grid, a sphere shell, a horizontal torus, a filled cubic lattice, a horizontal grid, and a
+#: vertical cylinder. Surfaces, a volume, planes of either orientation.
+SHOW_SHAPES = ("grid", "sphere", "torus", "cube", "carpet", "cylinder")
+
+
+def _closest(points: FloatArray) -> float:
+    """The smallest distance between two of `points` (k-d tree, no N x N array)."""
+    from scipy.spatial import cKDTree
+
+    distance, _ = cKDTree(points).query(points, k=2)
+    return float(distance[:, 1].min())
+
+
+def _near_square(count: int) -> tuple[FloatArray, FloatArray]:
+    """Column and row coordinates (unit spacing, centred) of a near-square grid, row by row."""
+    columns = int(np.ceil(np.sqrt(count)))
+    n = np.arange(count, dtype=np.float64)
+    rows = int(np.ceil(count / columns))
+    return n % columns - (columns - 1) / 2.0, n // columns - (rows - 1) / 2.0
+
+
+def _torus(count: int) -> FloatArray:
+    """Rings of points around a horizontal torus (major radius 3 x minor), alternate rings
+    turned by half a step: as many rings as fit twice the points per ring."""
+    per_ring = max(3, int(np.ceil(np.sqrt(count / 2.0))))
+    rings = int(np.ceil(count / per_ring))
+    n = np.arange(count)
+    ring, slot = n // per_ring, n % per_ring
+    u = 2.0 * np.pi * ring / rings
+    w = 2.0 * np.pi * (slot + 0.5 * (ring % 2)) / per_ring
+    major = 3.0 + np.cos(w)
+    return np.stack([major * np.cos(u), major * np.sin(u), np.sin(w)], axis=1)
+
+
+def _cylinder(count: int) -> FloatArray:
+    """Horizontal rings stacked into a vertical cylinder as tall as it is wide, alternate
+    rings turned by half a step."""
+    per_ring = max(3, int(np.ceil(np.sqrt(np.pi * count))))
+    n = np.arange(count)
+    ring, slot = n // per_ring, n % per_ring
+    w = 2.0 * np.pi * (slot + 0.5 * (ring % 2)) / per_ring
+    radius = 1.0 / (2.0 * np.sin(np.pi / per_ring))  # neighbours on a ring 1 apart
+    return np.stack([radius * np.cos(w), radius * np.sin(w), ring - ring.max() / 2.0], axis=1)
+
+
+def formation(shape: str, count: int, spacing: float = 2.0) -> FloatArray:
+    """`count` points of a show formation centred on the origin, the closest two exactly
+    `spacing` apart: one of `SHOW_SHAPES`. Raises ValueError for another shape."""
+    if shape == "grid":
+        x, z = _near_square(count)
+        unit = np.stack([x, np.zeros(count), z], axis=1)
+    elif shape == "carpet":
+        x, y = _near_square(count)
+        unit = np.stack([x, y, np.zeros(count)], axis=1)
+    elif shape == "sphere":
+        return sphere_shell(count, spacing)
+    elif shape == "torus":
+        unit = _torus(count)
+    elif shape == "cube":
+        side = int(np.ceil(count ** (1.0 / 3.0) - 1e-9))
+        n = np.arange(count)
+        unit = np.stack([n % side, (n // side) % side, n // (side * side)], axis=1).astype(float)
+        unit -= 0.5 * (unit.min(axis=0) + unit.max(axis=0))
+    elif shape == "cylinder":
+        unit = _cylinder(count)
+    else:
+        raise ValueError(f"unknown formation shape {shape!r}: one of {', '.join(SHOW_SHAPES)}")
+    if count < 2:
+        return unit * spacing
+    return unit * (spacing / _closest(unit))
+
+
+def _leg_seconds(moves: FloatArray, limits: dict[str, Any], dt: float) -> float:
+    """The shortest whole number of seconds in which synchronised straight moves (the
+    planner's unit profile scaled by each move) keep 95 % of the velocity, acceleration and
+    jerk bounds on every axis, for the largest move per axis."""
+    from planner.first_qp import unit_profile
+
+    largest = np.abs(moves).max(axis=0)
+    bounds = [np.asarray(limits[key], dtype=float) * 0.95
+              for key in ("velocity_max", "acceleration_max", "jerk_max")]
+    for seconds in range(2, 600):
+        steps = round(seconds / dt)
+        _, v, a = unit_profile(steps, dt)
+        jerk = np.diff(np.concatenate([[0.0], a])) / dt
+        peaks = [float(np.abs(x).max()) for x in (v, a, jerk)]
+        if all(np.all(largest * peak <= bound) for peak, bound in zip(peaks, bounds,
+                                                                        strict=True)):
+            return float(seconds)
+    raise ValueError("moves too long for a leg of ten minutes")
+
+
+def show_formations(vehicles: int, shapes: tuple[str, ...] | list[str] = SHOW_SHAPES[:5], *,
+                    seed: int | None = 0, spacing: float = 2.0, hold: float = 2.0,
+                    separation: float = SHOW_SEPARATION, dt: float = SHOW_DT
+                    ) -> dict[str, Any]:
+    """A long show (the `planner.sequence` JSON): one formation per entry of `shapes` (see
+    `formation`, neighbours `spacing` apart, >= sqrt(2) R keeps CAPT's straight moves
+    separated), all centred on one point with their lowest at least 2 m up, free assignment,
+    `hold` s on every formation. v and a <= 3, jerk <= 5, R = 1 m; the workspace 2 m around
+    every formation. Each leg lasts the whole seconds its assigned moves need (sized here
+    from the optimal assignment, which the planner finds again).
+
+    seed: None keeps every shape as built; an integer turns each formation by a seeded
+    random angle about the vertical (other pairings, same shapes).
+    """
+    from planner.assignment import assign_goals
+
+    if len(shapes) < 2:
+        raise ValueError("a show needs at least two formations")
+    if spacing < separation:
+        raise ValueError(f"spacing {spacing:g} m is under the separation R = {separation:g} m")
+    rng = np.random.default_rng(seed)
+    points = []
+    for shape in shapes:
+        shape_points = formation(shape, vehicles, spacing)
+        if seed is not None:
+            angle = rng.uniform(0.0, 2.0 * np.pi)
+            c, s = np.cos(angle), np.sin(angle)
+            shape_points = shape_points @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+        points.append(shape_points)
+    centre_height = 2.0 + max(-float(p[:, 2].min()) for p in points)
+    points = [p + np.array([0.0, 0.0, centre_height]) for p in points]
+    everything = np.concatenate(points)
+    low, high = everything.min(axis=0) - 2.0, everything.max(axis=0) + 2.0
+    low[2] = 0.0
+    limits = _limits(low, high, 3.0, 3.0, 5.0)
+    rounded = [np.round(p, 6) for p in points]
+    formations: list[dict[str, Any]] = [
+        {"name": shapes[0], "positions": rounded[0].tolist(), "hold": hold}]
+    where = rounded[0]
+    for shape, goals in zip(shapes[1:], rounded[1:], strict=True):
+        order = assign_goals(where, goals)
+        seconds = _leg_seconds(goals[order] - where, limits, dt)
+        formations.append({"name": shape, "positions": goals.tolist(), "duration": seconds,
+                           "hold": hold})
+        where = goals[order]
+    return {
+        "name": f"show{vehicles}-{'-'.join(shapes)}" + ("" if seed is None else f"-seed{seed}"),
+        "dt": dt,
+        "min_separation": separation,
+        "limits": limits,
+        "assignment": "free",
+        "vehicles": [f"uav{n + 1}" for n in range(vehicles)],
+        "formations": formations,
     }

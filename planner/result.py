@@ -296,8 +296,8 @@ class Plan:
         stream.write("{")
         for n, (key, value) in enumerate(self._document([]).items()):
             stream.write((", " if n else "") + json.dumps(key) + ": ")
-            if key != "vehicles":
-                stream.write(json.dumps(value))
+            if key != "vehicles":  # orjson: a non-finite number becomes null (strict JSON)
+                stream.write(orjson.dumps(value).decode())
                 continue
             stream.write("[")
             for m, vehicle in enumerate(self.vehicles):

@@ -62,11 +62,16 @@ def continuous_minimum(scenario: Scenario, p: FloatArray, v: FloatArray, a: Floa
     pairs = None
     if len(p) >= NEAR_MIN_VEHICLES:
         # Broad phase: pairs left out stay farther than `reach` at every instant; if some
-        # pair comes closer, the minimum is among the near ones.
+        # pair comes closer, the minimum is among the near ones. A fleet that keeps every
+        # pair farther (widely spaced formations) widens the reach until one comes closer,
+        # never falling back to all pairs over the whole timeline unless the reach spans the
+        # fleet.
         reach = 2.0 * scenario.min_separation
-        pairs = near_pairs(p, v, a, scenario.dt, scale, reach)
-        if min_step_distance(p, scale, pairs)[0] >= reach:
-            pairs = None
+        while True:
+            pairs = near_pairs(p, v, a, scenario.dt, scale, reach)
+            if min_step_distance(p, scale, pairs)[0] < reach:
+                break
+            reach *= 2.0
     step_min, i, j, k = min_step_distance(p, scale, pairs)
     if i < 0:
         return float("inf"), float("inf"), -1, -1, 0.0

@@ -16,6 +16,7 @@ serialised here so the service never spends event-loop time on a multi-megabyte 
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import math
@@ -26,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanOutcome", "PlanStopped", "finite_json", "run_plan", "stitch_sequence", "stop_check",
-           "warm"]
+__all__ = ["PlanOutcome", "PlanStopped", "finite_json", "plan_json", "run_plan", "stitch_sequence",
+           "stop_check", "warm"]
 
 
 class PlanStopped(Exception):
@@ -179,8 +180,6 @@ def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
     """Stitch the planned legs of `sequence` (a `planner.sequence.FormationSequence`; `legs`:
     `run_plan` results in leg order) and verify the whole timeline; returns the flyable plan
     like `run_plan`, or the first leg's error (a stopped leg stops the whole sequence)."""
-    import orjson
-
     from planner import PlannerError
     from planner.sequence import plan_sequence
 
@@ -201,7 +200,14 @@ def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
     except PlannerError as exc:
         field = getattr(exc, "field", None)
         return PlanOutcome.failed(getattr(exc, "reason", str(exc)), field)
-    # orjson writes a non-finite float as null (strict JSON), ten times faster than the
-    # finite_json walk + json.dumps on a plan of megabytes.
-    text = orjson.dumps(flyable.to_dict()).decode()
-    return PlanOutcome(plan_json=text, status=flyable.status, ok=bool(flyable.ok))
+    return PlanOutcome(plan_json=plan_json(flyable), status=flyable.status,
+                       ok=bool(flyable.ok))
+
+
+def plan_json(plan: Any) -> str:
+    """`plan.to_dict()` as strict JSON text, written by `Plan.write_json` straight from the
+    arrays (no `tolist`: 7 s of a 2,000-vehicle, five-formation show; a non-finite number
+    becomes null)."""
+    out = io.StringIO()
+    plan.write_json(out)
+    return out.getvalue()

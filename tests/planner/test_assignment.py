@@ -281,3 +281,39 @@ def test_assign_goals_warns_when_a_result_is_not_proven(monkeypatch):
     with pytest.warns(RuntimeWarning, match="not proven optimal: it may exceed the optimum by"):
         order = assign_goals(starts, goals, dense_below=2)
     assert sorted(order.tolist()) == list(range(len(starts)))
+
+
+@pytest.mark.parametrize(("start", "goal"), [("grid", "torus"), ("grid", "cube"),
+                                             ("torus", "cylinder"), ("carpet", "sphere")])
+def test_sparse_matches_dense_between_lattice_formations(start, goal):
+    """Lattices full of near-equal costs (at 2,000 vehicles grid -> torus used to stall
+    scipy's sparse matcher on float weights)."""
+    from planner.generators import formation
+
+    starts, goals = formation(start, 300), formation(goal, 300) + np.array([0.0, 0.0, 0.5])
+    sparse, dense = _sparse(starts, goals), _dense_optimum(starts, goals)
+    assert sparse.proven
+    assert sparse.cost == pytest.approx(dense.cost, rel=1e-9)
+
+
+def test_the_sparse_matcher_gets_whole_quanta(monkeypatch):
+    """scipy's weights are whole multiples of WEIGHT_QUANTUM, at least one; the certificate
+    still judges the result on the exact costs."""
+    from scipy.sparse import csgraph
+
+    seen = []
+    real = csgraph.min_weight_full_bipartite_matching
+
+    def spy(graph, *args, **kwargs):
+        seen.append(graph.data.copy())
+        return real(graph, *args, **kwargs)
+
+    monkeypatch.setattr(csgraph, "min_weight_full_bipartite_matching", spy)
+    monkeypatch.setattr(assignment, "matcher", lambda: "scipy")  # lapmod takes floats
+    starts, goals = _structured("grid-sphere", 200)
+    sparse = _sparse(starts, goals)
+    assert seen and sparse.proven
+    for weights in seen:
+        assert np.all(weights >= 1.0)
+        np.testing.assert_array_equal(weights, np.rint(weights))
+    assert sparse.cost == pytest.approx(_dense_optimum(starts, goals).cost, rel=1e-9)

@@ -118,3 +118,37 @@ def test_one_vehicle_is_separated_by_definition():
         load_example("paper-circle2") | {"vehicles": load_example("paper-circle2")["vehicles"][:1]})
     check = verify(scenario, *(x[:1] for x in _hovering_pair(0.0)))
     assert check.separated and check.min_separation is None and check.closest_pair == []
+
+
+def test_a_widely_spaced_fleet_is_measured_without_all_pairs(monkeypatch):
+    """100 vehicles 5 m apart (every pair beyond the broad phase's first reach of 2 R):
+    the reach widens instead of checking all pairs over the whole timeline, and the
+    minimum is still exact (one vehicle flies towards its neighbour)."""
+    from planner import separation
+    from planner.verify import continuous_minimum
+
+    def no_all_pairs(*_args):
+        raise AssertionError("all pairs examined")
+
+    monkeypatch.setattr(separation, "_pair_chunks", no_all_pairs)
+    x, y = np.meshgrid(np.arange(10) * 5.0, np.arange(10) * 5.0)
+    points = np.stack([x.ravel(), y.ravel(), np.full(100, 3.0)], axis=1)
+    steps, dt = 6, 0.5
+    p = np.repeat(points[:, None, :], steps + 1, axis=1)
+    v = np.zeros_like(p)
+    a = np.zeros((100, steps, 3))
+    # vehicle 0 moves +x towards vehicle 1 (5 m away): it ends 1.5 m on, still moving
+    a[0, :, 0] = [1.0, 1.0, -1.0, -1.0, 1.0, 1.0]
+    for k in range(steps):
+        v[0, k + 1] = v[0, k] + dt * a[0, k]
+        p[0, k + 1] = p[0, k] + dt * v[0, k] + 0.5 * dt * dt * a[0, k]
+    scenario = dataclasses.replace(_two_vehicle_scenario(), steps=steps, dt=dt)
+    step_min, cont_min, i, j, _ = continuous_minimum(scenario, p, v, a)
+    # dense sampling of the exact motion of the only pair that comes closer than 5 m
+    s = np.linspace(0.0, steps * dt, 2001)
+    k = np.minimum((s // dt).astype(int), steps - 1)
+    tau = s - k * dt
+    x0 = p[0, k, 0] + tau * v[0, k, 0] + 0.5 * tau * tau * a[0, k, 0]
+    assert cont_min == pytest.approx(float(np.min(5.0 - x0)), abs=1e-6)
+    assert {i, j} == {0, 1} and cont_min < 5.0 - 0.4
+    assert step_min == pytest.approx(float(np.min(5.0 - p[0, :, 0])))

@@ -13,7 +13,7 @@ import pytest
 from gcs.service import plan_worker
 from gcs.service.planning import PlanJob
 from planner import Plan
-from planner.generators import show_sequence
+from planner.generators import show_formations, show_sequence
 from planner.sequence import parse_sequence, timeline_scenario
 from tests.service.test_planning import (
     assert_idle,
@@ -59,6 +59,37 @@ def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(st
             assert mine == list(range(leg["iterations"] + 1)), (k, mine)
         assert {r["leg"] for r in job.progress} == {0, 1}
         assert job.ends_seen == 2
+
+    asyncio.run(scenario_run())
+
+
+def test_a_five_formation_show_plans_its_legs_in_parallel_and_verifies_stitched(
+        store, cluster) -> None:
+    """Grid, sphere, torus, cube, carpet (free assignment): four legs as tasks on the two
+    workers, then the stitch; the stored plan verifies again from its trajectories."""
+    from planner.verify import refusal
+
+    data = show_formations(16, seed=1, hold=1.0)
+
+    async def scenario_run() -> None:
+        service = await started_service(store, cluster)
+        try:
+            job = submit_sequence(service, store, data)
+            outcome = await done(job)
+        finally:
+            await service.close()
+        assert outcome["status"] == "planned" and outcome["plan_ok"] is True, outcome
+        assert job.ends_seen == 4 and {r["leg"] for r in job.progress} == {0, 1, 2, 3}
+        row = store.get_mission(job.mission_id, with_plan=True)
+        assert row is not None and row.plan_json is not None
+        plan = Plan.from_dict(json.loads(row.plan_json))
+        assert [f["name"] for f in plan.sequence["formations"]] == [
+            "grid", "sphere", "torus", "cube", "carpet"]
+        assert [leg["status"] for leg in plan.sequence["legs"]] == ["converged"] * 4
+        legs = sum(f["duration"] for f in data["formations"][1:])
+        assert plan.scenario.horizon == pytest.approx(5 * 1.0 + legs)
+        assert plan.verification is not None and plan.verification.verified
+        assert refusal(plan) is None  # checked anew on the stitched trajectories
 
     asyncio.run(scenario_run())
 
@@ -150,3 +181,24 @@ def test_the_time_limit_stops_a_sequence(store, cluster) -> None:
             await service.close()
 
     asyncio.run(scenario_run())
+
+
+def test_the_stitched_plan_json_is_to_dict_written_from_the_arrays() -> None:
+    """The stitch task's JSON (written from the arrays) is the document of `Plan.to_dict()`,
+    number for number, and a non-finite value still becomes null."""
+    import dataclasses
+
+    import numpy as np
+    import orjson
+
+    from planner.sequence import plan_sequence
+
+    flyable = plan_sequence(show_formations(12, seed=3, hold=1.0)).to_plan()
+    assert json.loads(plan_worker.plan_json(flyable)) == json.loads(
+        orjson.dumps(flyable.to_dict()))
+    first = flyable.vehicles[0]
+    thrust = first.thrust.copy()
+    thrust[1] = np.nan
+    broken = dataclasses.replace(flyable, vehicles=(dataclasses.replace(first, thrust=thrust),
+                                                    *flyable.vehicles[1:]))
+    assert json.loads(plan_worker.plan_json(broken))["vehicles"][0]["thrust"][1] is None
