@@ -17,18 +17,20 @@ centred and scaled (the optimum does not change), and a sparse candidate graph i
 start's nearest goals and each goal's nearest starts, three sort-order matchings (so a full
 matching always exists) and, from N >= `COARSE_BELOW`, the goals near where the moves of a
 solved random quarter of the points predict each start to go. The graph is solved exactly
-(`min_weight_full_bipartite_matching`), dual potentials u, v are computed for that optimum,
-and all N^2 edges are checked against them: min_j (c_ij - v_j) is a nearest-neighbour query
-among goals lifted to (g_j, sqrt(max v - v_j)). Edges with negative reduced cost join the graph
-and the loop repeats; when none is left, the assignment is optimal over all N^2 edges (LP
-duality, up to `TOLERANCE` per edge). Any v gives the bound sum_i min_j (c_ij - v_j) + sum v,
-so `solve_assignment` always reports how far from optimal the order can be. An unproven result
-(round cap, float trouble) falls back to the dense method below `DENSE_FALLBACK` vehicles.
+(`_match`: lapmod, or scipy on whole quanta where lapmod refuses the weights), dual potentials
+u, v are computed for that optimum, and all N^2 edges are checked against them: min_j (c_ij -
+v_j) is a nearest-neighbour query among goals lifted to (g_j, sqrt(max v - v_j)). Edges with
+negative reduced cost join the graph and the loop repeats; when none is left, the assignment is
+optimal over all N^2 edges (LP duality, up to `TOLERANCE` per edge). Any v gives the bound
+sum_i min_j (c_ij - v_j) + sum v, so `solve_assignment` always reports how far from optimal the
+order can be. An unproven result (round cap, float trouble) falls back to the dense method
+below `DENSE_FALLBACK` vehicles.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import warnings
 
 import numpy as np
@@ -258,13 +260,14 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         # (lapmod on the plain costs takes as long in every round as in the first); shifted
         # to >= 0, and to >= 1 in the matcher, as explicit zeros would be dropped
         reduced_cost = cost - u[rows] - v[cols]
-        order = _match(rows, cols, reduced_cost - min(0.0, float(reduced_cost.min())),
-                       quantum, n)
+        order, quantised = _match(rows, cols,
+                                  reduced_cost - min(0.0, float(reduced_cost.min())), quantum, n)
         own = np.sum((a - b[order]) ** 2, axis=1)
         u = _potentials(order, rows, cols, cost, own, u)
         v = np.empty(n)
         v[order] = own - u
-        if quantum > FINEST_QUANTUM and float(np.min(cost - u[rows] - v[cols])) < -TOLERANCE:
+        if quantised and quantum > FINEST_QUANTUM \
+                and float(np.min(cost - u[rows] - v[cols])) < -TOLERANCE:
             # optimal to the quantum but not on the exact costs of its own graph: finer
             quantum *= 1e-3
             continue
@@ -290,6 +293,7 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
 LAPMOD_MAX_COST = 1e5
 
 
+@functools.cache
 def matcher() -> str:
     """The exact sparse matcher `_match` uses: "lapmod" (the `lap` package's sparse
     Jonker-Volgenant, 2-3x faster on these graphs) when installed, else "scipy"."""
@@ -301,25 +305,26 @@ def matcher() -> str:
 
 
 def _match(rows: IntArray, cols: IntArray, weight: FloatArray, quantum: float,
-           n: int) -> IntArray:
+           n: int) -> tuple[IntArray, bool]:
     """order[i]: row i's column in a minimum-weight full matching over the edges (rows,
     cols) with weights >= 0 (sorted by row then column, one per pair; a full matching
     exists): lapmod on the weights themselves where it takes them, else scipy on them in
     whole `quantum`s (`WEIGHT_QUANTUM`: scipy stalls on float near-ties). Exact either way
-    (to the quantum for scipy); the certificate does not trust it (`_certified`)."""
+    (to the quantum for scipy, which the second value says); the certificate does not trust
+    it (`_certified`)."""
     if matcher() == "lapmod" and float(weight.max()) + 1.0 < LAPMOD_MAX_COST:
         import lap
 
         first = np.searchsorted(rows, np.arange(n + 1)).astype(np.int32)
         _, order, _ = lap.lapmod(n, np.ascontiguousarray(weight + 1.0, dtype=np.float64),
                                  first, cols.astype(np.int32))
-        return np.asarray(order, dtype=np.intp)
+        return np.asarray(order, dtype=np.intp), False
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import min_weight_full_bipartite_matching
 
     graph = csr_matrix((np.rint(weight / quantum) + 1.0, (rows, cols)), shape=(n, n))
     _, matched = min_weight_full_bipartite_matching(graph)
-    return np.asarray(matched, dtype=np.intp)
+    return np.asarray(matched, dtype=np.intp), True
 
 
 def _potentials(order: IntArray, rows: IntArray, cols: IntArray, cost: FloatArray,

@@ -39,13 +39,21 @@ def _dodges(work: Scenario, options: ScpOptions | None) -> bool:
             and not work.obstacles and not work.fixed and work.start_velocities is None)
 
 
-def _decomposes(work: Scenario, options: ScpOptions | None) -> bool:
-    """Is the fleet planned in prioritized batches (`planner.prioritized`)? Only when asked,
-    for more vehicles than one batch, without fixed trajectories or start velocities of
-    its own (the batches' fixed trajectories are the earlier vehicles)."""
-    return (options is not None and options.decompose == "prioritized"
-            and len(work.vehicles) > options.batch_size and not work.fixed
-            and work.start_velocities is None)
+def _whole_because(work: Scenario, options: ScpOptions, free: bool, dodged: bool) -> str | None:
+    """Why a fleet asked to be planned in prioritized batches (`planner.prioritized`) is
+    planned whole, or None when it is not: the batches plan rest-to-rest moves of a fleet of
+    more than one batch, whose only fixed trajectories are their earlier vehicles."""
+    if len(work.vehicles) <= options.batch_size:
+        return f"{len(work.vehicles)} vehicles fit in one batch of {options.batch_size}"
+    if work.fixed:
+        return "the scenario has fixed trajectories of its own"
+    if work.start_velocities is not None or work.start_accelerations is not None:
+        return "the vehicles start moving (start_velocity or start_acceleration)"
+    if free:
+        return "free assignment plans from CAPT's straight moves"
+    if dodged:
+        return "the dodged first linearisation point was asked for too"
+    return None
 
 
 def plan(
@@ -83,10 +91,15 @@ def plan(
         found = dodged_moves(work, straight_moves(work))
         dodged = found is not None
         guess = None if found is None else found[0]
-    decomposed = (direct is None and guess is None and not dodged
-                  and _decomposes(work, options))
+    whole_because = (_whole_because(work, options, guess is not None, dodged)
+                     if options is not None and options.decompose == "prioritized"
+                     and direct is None else None)
+    decomposed = (options is not None and options.decompose == "prioritized"
+                  and direct is None and whole_because is None)
     batches = (plan_batches(work, backend, options, progress, options.batch_size)
                if decomposed and options is not None else None)
+    if decomposed and batches is None:
+        whole_because = "a batch did not converge, even with its nearest earlier vehicles"
     verification: Verification | None = None
     if direct is not None:
         outcome, verification = direct
@@ -97,11 +110,14 @@ def plan(
         verification = verify(work, outcome.positions, outcome.velocities,
                               outcome.accelerations)
         if not verification.verified:
+            whole_because = ("the joined batches failed verification: "
+                             + "; ".join(verification.failures()))
             batches = None
     if direct is None and batches is None:
         outcome = run_scp(work, backend, options, progress, guess)
-        if decomposed:
-            outcome.message += "; planned as a whole fleet: the prioritized batches did not"
+        if whole_because is not None:
+            outcome.message += f"; planned as a whole fleet, not in prioritized batches: " \
+                               f"{whole_because}"
         verification = (verify(work, outcome.positions, outcome.velocities,
                                outcome.accelerations)
                         if outcome.status != "infeasible" else None)

@@ -28,15 +28,12 @@ from planner.fixed import FixedSet, FixedTrajectory
 from planner.result import IterationRecord
 from planner.routes import _along, seed_routes
 from planner.scenario import Scenario
-from planner.scp import ScpOptions, ScpOutcome, run_scp
+from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
 from planner.types import FloatArray, IntArray
 
-__all__ = ["DEFAULT_BATCH", "PrioritizedOutcome", "order_vehicles", "plan_batches"]
+__all__ = ["PrioritizedOutcome", "order_vehicles", "plan_batches"]
 
-#: Vehicles per batch (`ScpOptions.batch_size` defaults to the same): measured fastest on
-#: the sideways crowds against 1, 4, 8 and 32.
-DEFAULT_BATCH = 2
 #: A fixed trajectory joins a batch's scenario only if it comes within this many R (scaled)
 #: of a batch vehicle's straight move at some instant of the horizon (any time: the batch's
 #: paths bend). Farther ones get no rows; the joined plan's verification judges them.

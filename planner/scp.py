@@ -78,6 +78,9 @@ DUAL_MAX_ROWS_PER_VEHICLE = 25
 DUAL_MAX_STEPS = 400
 #: `ScpOptions.decompose` values: the whole fleet at once, or prioritized batches.
 DECOMPOSITIONS = ("none", "prioritized")
+#: Vehicles per prioritized batch by default: measured fastest on the sideways family (see
+#: docs/benchmarks/planner.md, Prioritized batches).
+DEFAULT_BATCH = 2
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
 BEND_AMPLITUDE = 0.2
@@ -122,9 +125,8 @@ class ScpOptions:
     each against the earlier ones as fixed trajectories (`planner.prioritized`), verifies
     the joined plan and plans the whole fleet instead if a batch fails or the check does;
     "none" (the default): the whole fleet at once."""
-    batch_size: int = 2
-    """Vehicles per batch with decompose="prioritized" (`planner.prioritized.DEFAULT_BATCH`,
-    measured fastest)."""
+    batch_size: int = DEFAULT_BATCH
+    """Vehicles per batch with decompose="prioritized"."""
 
     def __post_init__(self) -> None:
         if self.decompose not in DECOMPOSITIONS:

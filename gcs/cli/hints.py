@@ -6,8 +6,8 @@ from __future__ import annotations
 import errno
 from typing import Any
 
-from gcs.flight.monitor import REPEATED_TIMESTAMPS
 from gcs.flight.phases import EventKind
+from gcs.flight.signing import REPEATED_TIMESTAMPS
 
 __all__ = ["live_warning", "port_error", "port_in_use_hint"]
 
@@ -37,9 +37,9 @@ def live_warning(event: dict[str, Any], options: str) -> str | None:
         return None
     who = event.get("vehicle") or "fleet"
     if REPEATED_TIMESTAMPS in str(event.get("detail")):
-        return (f"warning: {who}: {event.get('detail')} (harmless right after a vehicle "
+        return (f"warning: {who}: {event.get('detail')} (expected right after a vehicle "
                 f"boots and at a few a minute later; a steady rate in flight is recorded "
-                f"traffic played back to the GCS)")
+                f"traffic played back to the GCS, perhaps from a forged address)")
     return (f"warning: {who}: {event.get('detail')}: something else is sending to this "
             f"vehicle's port (another fleetplan fly or mock on the same ports? choose free "
             f"ports with {options})")

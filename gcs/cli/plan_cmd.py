@@ -57,7 +57,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--batch-size", type=int, default=None, metavar="N",
-        help="vehicles per batch with --decompose prioritized (default: the planner's, 2)",
+        help="vehicles per batch with --decompose prioritized (default: the planner's, "
+             "planner.scp.DEFAULT_BATCH)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
     parser.add_argument(
@@ -170,14 +171,17 @@ def _options(args: argparse.Namespace) -> Any:
     ValueError naming the flag when the planner refuses them."""
     from planner.scp import ScpOptions
 
-    if args.decompose == "none" and args.batch_size is None:
+    if args.decompose == "none":
+        if args.batch_size is not None:
+            raise ValueError("--batch-size: applies with --decompose prioritized")
         return None
     given = {"decompose": args.decompose} | (
         {} if args.batch_size is None else {"batch_size": args.batch_size})
     try:
         return ScpOptions(**given)
-    except ValueError as exc:  # "decompose: must be one of ..." -> "--decompose: ..."
-        raise ValueError(f"--{str(exc).replace('_', '-')}") from None
+    except ValueError as exc:  # "batch_size: must be ..." -> "--batch-size: must be ..."
+        field, _, reason = str(exc).partition(": ")
+        raise ValueError(f"--{field.replace('_', '-')}: {reason}") from None
 
 
 def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
@@ -380,7 +384,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(exc))
     output = args.output or Path(f"{scenario.name}.plan.json")
     try:
-        with output.open("w") as stream:  # streamed: a 16,000-vehicle plan is ~1 GB of text
+        # streamed: a 16,000-vehicle plan is ~1 GB of text
+        with output.open("w", encoding="utf-8") as stream:
             plan.write_json(stream)
     except OSError as exc:
         return _fail(f"cannot write {output}: {exc.strerror or exc}")

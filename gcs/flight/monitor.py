@@ -48,11 +48,12 @@ from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.link import VehicleLink
 from gcs.flight.margin import separation_alarm_at
 from gcs.flight.phases import AIRBORNE, VehiclePhase
+from gcs.flight.signing import REPEATED_TIMESTAMPS
 from gcs.flight.station import STALL_NOTE_S, StationStalls
 from gcs.flight.vehicle import VehicleStatus, address_text
 from planner import Plan
 
-__all__ = ["CATCH_UP_S", "PERIOD", "REPEATED_TIMESTAMPS", "FleetMonitor", "drops_text",
+__all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "drops_text",
            "vehicle_fault"]
 
 #: Seconds between two checks.
@@ -114,15 +115,6 @@ PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.n
 PredictedCallback = Callable[[VehicleStatus, float], "np.ndarray | None"]
 
 
-REPEATED_TIMESTAMPS = ("from the vehicle's own address: PX4 signs with old timestamps for "
-                       "a few seconds after it boots and now and then repeats one later, "
-                       "which MAVLink drops as replays")
-"""What `drops_text` adds when every drop is a replay. Those can only come from the pinned
-peer's address (another address is refused first), and PX4 sends them on its own: after a
-boot it signs from the timestamp stored with its key until it has heard the GCS (about 400
-packets a vehicle on SIH SITL), and as it signs from more than one thread it repeats a
-timestamp about once a vehicle every half minute. A steady rate later in a flight would be
-recorded traffic played back."""
 
 
 def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,

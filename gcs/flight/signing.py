@@ -27,7 +27,18 @@ from pymavlink.dialects.v20.common import MAVLinkSigning
 from gcs import wire
 from gcs.wire import SigningKey, signature_of, signing_timestamp
 
-__all__ = ["NEW_STREAM_WINDOW", "RESERVE", "LinkSigning", "timestamp_path"]
+__all__ = ["NEW_STREAM_WINDOW", "REPEATED_TIMESTAMPS", "RESERVE", "LinkSigning",
+           "timestamp_path"]
+
+REPEATED_TIMESTAMPS = ("from the vehicle's address (as the packets claim): PX4 signs with old "
+                       "timestamps for a few seconds after it boots and now and then repeats "
+                       "one later, which MAVLink drops as replays")
+"""What a drops note adds when every drop is a replay (`gcs.flight.monitor.drops_text`). A
+replay from another address is refused as such first, and PX4 sends them on its own: after a
+boot it signs from the timestamp stored with its key until it has heard the GCS (about 400
+packets a vehicle on SIH SITL), and as it signs from more than one thread it repeats a
+timestamp about once a vehicle every half minute. A steady rate later in a flight is recorded
+traffic played back, from the vehicle's address or one forged to look like it."""
 
 #: Timestamps reserved (persisted ahead) at a time: 10 s.
 RESERVE = 10 * 100_000

@@ -158,6 +158,7 @@ def test_prioritized_batches_plan_a_crowd_and_the_plan_says_so(tmp_path, capsys)
 @pytest.mark.parametrize(("flags", "message"), [
     (["--decompose", "fancy"], "--decompose: must be one of none, prioritized, got 'fancy'"),
     (["--decompose", "prioritized", "--batch-size", "0"], "--batch-size: must be a whole"),
+    (["--batch-size", "4"], "--batch-size: applies with --decompose prioritized"),
 ])
 def test_bad_decomposition_flags_exit_2_naming_the_flag(tmp_path, capsys, flags, message):
     out = tmp_path / "plan.json"

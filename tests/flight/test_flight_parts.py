@@ -225,7 +225,8 @@ def test_replays_alone_are_told_as_the_vehicles_own_repeated_timestamps() -> Non
     replays come from the pinned peer's own address and are told as that, and the CLI does
     not blame another process on the vehicle's port; any other drop keeps that warning."""
     from gcs.cli.hints import live_warning
-    from gcs.flight.monitor import REPEATED_TIMESTAMPS, drops_text
+    from gcs.flight.monitor import drops_text
+    from gcs.flight.signing import REPEATED_TIMESTAMPS
 
     peer = (("127.0.0.1", 14581), 1)
     replays = drops_text({"replayed": 1, "unsigned": 0}, peer, 24.6)

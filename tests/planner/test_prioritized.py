@@ -139,3 +139,19 @@ def test_a_joined_plan_that_fails_verification_is_never_returned(
     assert result.status == "converged", result.message
     assert result.verification is not None and result.verification.verified
     assert "planned as a whole fleet" in result.message
+
+
+@pytest.mark.parametrize(("change", "why"), [
+    (lambda d: d["vehicles"][0].update(start_acceleration=[0.5, 0.0, 0.0]),
+     "the vehicles start moving"),
+    (lambda d: d["vehicles"][0].update(start_velocity=[0.2, 0.0, 0.0]),
+     "the vehicles start moving"),
+])
+def test_a_fleet_the_batches_do_not_apply_to_is_planned_whole_saying_why(change, why) -> None:
+    """A start state (not rest) is outside what the batches plan: the whole fleet is
+    planned, verified, and the message says why, instead of failing."""
+    data = circle_swap(8)
+    change(data)
+    result = plan(data, options=PRIORITIZED)
+    assert result.status == "converged", result.message
+    assert f"planned as a whole fleet, not in prioritized batches: {why}" in result.message
