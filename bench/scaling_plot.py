@@ -15,18 +15,20 @@ import math
 from pathlib import Path
 from typing import Any
 
-#: The drone-show floors (family, assignment, vehicles, seconds).
+#: The drone-show and record-scale floors (family, assignment, vehicles, seconds).
 FLOORS = [
     ("grid-sphere", "fixed", 100, 10.0),
     ("grid-sphere", "free", 100, 2.0),
-    ("grid-sphere", "fixed", 256, 60.0),
+    ("grid-sphere", "fixed", 256, 5.0),
+    ("grid-sphere", "fixed", 1000, 60.0),
     ("grid-sphere", "free", 1000, 120.0),
-    ("random-dense", "fixed", 1000, 60.0),
+    ("random-dense", "fixed", 1000, 5.0),
+    ("grid-sphere", "free", 16000, 60.0),
 ]
 COLOURS = ["#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf", "#7f7f7f"]
 WIDTH, HEIGHT = 760, 480
 LEFT, RIGHT, TOP, BOTTOM = 70, 250, 30, 55
-X_RANGE = (16.0, 1500.0)
+X_RANGE = (16.0, 20000.0)
 Y_RANGE = (0.01, 300.0)
 
 
@@ -47,12 +49,14 @@ def _label(family: str, assignment: str, method: str) -> str:
 
 
 def series(reports: list[dict[str, Any]]) -> dict[tuple[str, str, str], list[tuple[int, float]]]:
-    out: dict[tuple[str, str, str], list[tuple[int, float]]] = {}
+    """One line per (family, assignment, group QP method): its medians by size. A size
+    measured in several reports takes the last report's figure (a later, quieter run)."""
+    out: dict[tuple[str, str, str], dict[int, float]] = {}
     for report in reports:
         for row in report.get("families_summary", []):
             key = (row["family"], row["assignment"], row.get("group_qp", "primal"))
-            out.setdefault(key, []).append((row["vehicles"], row["total_s_median"]))
-    return {k: sorted(v) for k, v in sorted(out.items())}
+            out.setdefault(key, {})[row["vehicles"]] = row["total_s_median"]
+    return {k: sorted(v.items()) for k, v in sorted(out.items())}
 
 
 def render(lines: dict[tuple[str, str, str], list[tuple[int, float]]], note: str) -> str:
@@ -63,7 +67,7 @@ def render(lines: dict[tuple[str, str, str], list[tuple[int, float]]], note: str
     ]
     x0, x1 = _x(X_RANGE[0]), _x(X_RANGE[1])
     y0, y1 = _y(Y_RANGE[0]), _y(Y_RANGE[1])
-    for n in (16, 25, 64, 100, 256, 512, 1000):
+    for n in (16, 64, 256, 1000, 4000, 16000):
         x = _x(n)
         parts.append(f'<line x1="{x:.1f}" y1="{y0}" x2="{x:.1f}" y2="{y1}" stroke="#ddd"/>')
         parts.append(f'<text x="{x:.1f}" y="{y0 + 16}" text-anchor="middle">{n}</text>')
