@@ -34,12 +34,11 @@ def submit_sequence(service: Any, db: Any, data: dict[str, Any], **options: Any
     return service.submit_sequence(row.id, sequence, **options)
 
 
-def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(store, cluster
-                                                                             ) -> None:
-    data = show_sequence(9, seed=4, hold=1.0)
-    data["assignment"] = "fixed"  # crossing lines: a few SCP iterations per leg
+def _planned(store, cluster, data: dict) -> tuple[Any, Plan]:
+    """Plan the sequence `data` through the engine; its job, and the stored plan read back
+    (asserted planned and ok)."""
 
-    async def scenario_run() -> None:
+    async def scenario_run() -> Any:
         service = await started_service(store, cluster)
         try:
             job = submit_sequence(service, store, data)
@@ -47,20 +46,28 @@ def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(st
         finally:
             await service.close()
         assert outcome["status"] == "planned" and outcome["plan_ok"] is True, outcome
-        row = store.get_mission(job.mission_id, with_plan=True)
-        assert row is not None and row.plan_json is not None
-        plan = Plan.from_dict(json.loads(row.plan_json))
-        assert plan.ok and plan.sequence is not None
-        assert plan.scenario.horizon == pytest.approx(3 * 1.0 + 2 * 30.0)
-        # Every leg reported its iterations, tagged with the leg, in order within the leg.
-        legs = plan.sequence["legs"]
-        for k, leg in enumerate(legs):
-            mine = [r["iteration"] for r in job.progress if r.get("leg") == k]
-            assert mine == list(range(leg["iterations"] + 1)), (k, mine)
-        assert {r["leg"] for r in job.progress} == {0, 1}
-        assert job.ends_seen == 2
+        return job
 
-    asyncio.run(scenario_run())
+    job = asyncio.run(scenario_run())
+    row = store.get_mission(job.mission_id, with_plan=True)
+    assert row is not None and row.plan_json is not None
+    return job, Plan.from_dict(json.loads(row.plan_json))
+
+
+def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(store, cluster
+                                                                             ) -> None:
+    data = show_sequence(9, seed=4, hold=1.0)
+    data["assignment"] = "fixed"  # crossing lines: a few SCP iterations per leg
+    job, plan = _planned(store, cluster, data)
+    assert plan.ok and plan.sequence is not None
+    assert plan.scenario.horizon == pytest.approx(3 * 1.0 + 2 * 30.0)
+    # Every leg reported its iterations, tagged with the leg, in order within the leg.
+    legs = plan.sequence["legs"]
+    for k, leg in enumerate(legs):
+        mine = [r["iteration"] for r in job.progress if r.get("leg") == k]
+        assert mine == list(range(leg["iterations"] + 1)), (k, mine)
+    assert {r["leg"] for r in job.progress} == {0, 1}
+    assert job.ends_seen == 2
 
 
 def test_a_five_formation_show_plans_its_legs_in_parallel_and_verifies_stitched(
@@ -70,28 +77,16 @@ def test_a_five_formation_show_plans_its_legs_in_parallel_and_verifies_stitched(
     from planner.verify import refusal
 
     data = show_formations(16, seed=1, hold=1.0)
-
-    async def scenario_run() -> None:
-        service = await started_service(store, cluster)
-        try:
-            job = submit_sequence(service, store, data)
-            outcome = await done(job)
-        finally:
-            await service.close()
-        assert outcome["status"] == "planned" and outcome["plan_ok"] is True, outcome
-        assert job.ends_seen == 4 and {r["leg"] for r in job.progress} == {0, 1, 2, 3}
-        row = store.get_mission(job.mission_id, with_plan=True)
-        assert row is not None and row.plan_json is not None
-        plan = Plan.from_dict(json.loads(row.plan_json))
-        assert [f["name"] for f in plan.sequence["formations"]] == [
-            "grid", "sphere", "torus", "cube", "carpet"]
-        assert [leg["status"] for leg in plan.sequence["legs"]] == ["converged"] * 4
-        legs = sum(f["duration"] for f in data["formations"][1:])
-        assert plan.scenario.horizon == pytest.approx(5 * 1.0 + legs)
-        assert plan.verification is not None and plan.verification.verified
-        assert refusal(plan) is None  # checked anew on the stitched trajectories
-
-    asyncio.run(scenario_run())
+    job, plan = _planned(store, cluster, data)
+    assert job.ends_seen == 4 and {r["leg"] for r in job.progress} == {0, 1, 2, 3}
+    assert plan.sequence is not None
+    assert [f["name"] for f in plan.sequence["formations"]] == [
+        "grid", "sphere", "torus", "cube", "carpet"]
+    assert [leg["status"] for leg in plan.sequence["legs"]] == ["converged"] * 4
+    legs = sum(f["duration"] for f in data["formations"][1:])
+    assert plan.scenario.horizon == pytest.approx(5 * 1.0 + legs)
+    assert plan.verification is not None and plan.verification.verified
+    assert refusal(plan) is None  # checked anew on the stitched trajectories
 
 
 def test_cancel_stops_every_leg_and_frees_the_workers(store, cluster) -> None:
