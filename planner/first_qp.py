@@ -11,6 +11,7 @@ whose profile breaks a box (long moves, tight limits) go to one batched, block-d
 from __future__ import annotations
 
 import dataclasses
+import time
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -25,8 +26,15 @@ from planner.scenario import Scenario
 from planner.solvers import SOLVED, QPSolver
 from planner.types import FloatArray
 
-__all__ = ["FirstSolution", "solve_first_qp", "straight_moves", "straight_moves_of",
-           "unit_profile", "velocity_profile"]
+__all__ = [
+    "FirstSolution",
+    "solve_first_qp",
+    "straight_moves",
+    "straight_moves_of",
+    "timed_first_qp",
+    "unit_profile",
+    "velocity_profile",
+]
 
 
 #: Slack allowed when deciding that the closed-form profile respects a box.
@@ -160,6 +168,13 @@ def straight_moves_of(scenario: Scenario, members: NDArray[np.intp]
         p, v, a = p + v0 * psi_p[None, :, None], v + v0 * psi_v[None, :, None], \
             a + v0 * psi_a[None, :, None]
     return p, v, a
+
+
+def timed_first_qp(scenario: Scenario, solver: QPSolver) -> tuple[FirstSolution, float]:
+    """`solve_first_qp` and the seconds it took (the plan's `first_qp_s`)."""
+    began = time.perf_counter()
+    first = solve_first_qp(scenario, solver)
+    return first, time.perf_counter() - began
 
 
 def solve_first_qp(scenario: Scenario, solver: QPSolver) -> FirstSolution:

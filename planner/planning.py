@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
-from planner.first_qp import straight_moves
+from planner.first_qp import straight_moves, timed_first_qp
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.prioritized import plan_batches
 from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
@@ -84,7 +84,9 @@ def plan(
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
     backend = make_solver(solver)
     work = spec.assigned()
-    direct = separated_first(work, backend) if spec.assignment == "free" else None
+    # iteration 0, solved once: the plan when already separated, else the loop's start
+    first_qp = timed_first_qp(work, backend) if spec.assignment == "free" else None
+    direct = separated_first(work, *first_qp) if first_qp is not None else None
     guess = straight_moves(work) if spec.assignment == "free" and direct is None else None
     dodged = guess is None and direct is None and _dodges(work, options)
     if dodged:
@@ -114,7 +116,7 @@ def plan(
                              + "; ".join(verification.failures()))
             batches = None
     if direct is None and batches is None:
-        outcome = run_scp(work, backend, options, progress, guess)
+        outcome = run_scp(work, backend, options, progress, guess, first_qp)
         if whole_because is not None:
             outcome.message += f"; planned as a whole fleet, not in prioritized batches: " \
                                f"{whole_because}"

@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components
 
 from planner.boxes import broken_boxes, near_boxes
 from planner.dual import solve_group_dual
-from planner.first_qp import solve_first_qp
+from planner.first_qp import FirstSolution, timed_first_qp
 from planner.flatness import GRAVITY
 from planner.obstacle_rows import concat_rows
 from planner.one_sided import OneSidedRows
@@ -519,17 +519,18 @@ def run_scp(
     options: ScpOptions | None = None,
     progress: Callable[[IterationRecord], None] | None = None,
     guess: Trajectories | None = None,
+    first_qp: tuple[FirstSolution, float] | None = None,
 ) -> ScpOutcome:
     """Run the SCP loop on a validated scenario (goals as the vehicles fly to them).
 
     guess: (p, v, a) to linearise the first SCP iteration about instead of the
     separation-free optimum (e.g. CAPT's synchronised straight moves); any point gives
     valid rows, a separated one gives rows that the guess itself satisfies.
+    first_qp: iteration 0 already solved for this scenario, and its seconds
+    (`timed_first_qp`), so that it is not solved again.
     """
     options = options or ScpOptions()
-    began = time.perf_counter()
-    first = solve_first_qp(scenario, solver)
-    first_seconds = time.perf_counter() - began
+    first, first_seconds = first_qp or timed_first_qp(scenario, solver)
     base = (first.positions, first.velocities, first.accelerations)
     if first.status != SOLVED:
         message = f"the separation-free QP has no solution (solver: {first.status})"

@@ -10,28 +10,24 @@ confirming it, which at show scale (16,000 vehicles, 128 million pairs) is most 
 
 from __future__ import annotations
 
-import time
-
-from planner.first_qp import solve_first_qp
+from planner.first_qp import FirstSolution
 from planner.result import IterationRecord, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOutcome, thrust_cost
-from planner.solvers import SOLVED, QPSolver
+from planner.solvers import SOLVED
 from planner.verify import verify
 
 __all__ = ["separated_first"]
 
 
-def separated_first(scenario: Scenario, solver: QPSolver
+def separated_first(scenario: Scenario, first: FirstSolution, seconds: float
                     ) -> tuple[ScpOutcome, Verification] | None:
-    """The first QP's solution as a converged outcome with its verification, when it solves
-    and verifies (separation over continuous time, boxes, goals); else None (plan with the
-    SCP loop). Obstacles and fixed trajectories are the loop's business: None for them."""
+    """The first QP's solution `first` (solved in `seconds`) as a converged outcome with its
+    verification, when it solved and verifies (separation over continuous time, boxes,
+    goals); else None (plan with the SCP loop, handing it `first`). Obstacles and fixed
+    trajectories are the loop's business: None for them."""
     if scenario.obstacles or scenario.fixed:
         return None
-    began = time.perf_counter()
-    first = solve_first_qp(scenario, solver)
-    seconds = time.perf_counter() - began
     if first.status != SOLVED:
         return None
     p, v, a = first.positions, first.velocities, first.accelerations

@@ -63,9 +63,10 @@ def test_a_dodged_start_that_fails_falls_back_to_the_synchronised_moves(monkeypa
     monkeypatch.setattr(planning, "DODGE_MIN_VEHICLES", 2)
     guesses = []
 
-    def failing_first(scenario, solver, options=None, progress=None, guess=None):
+    def failing_first(scenario, solver, options=None, progress=None, guess=None,
+                      first_qp=None):
         guesses.append(guess)
-        outcome = run_scp(scenario, solver, options, progress, guess)
+        outcome = run_scp(scenario, solver, options, progress, guess, first_qp)
         if len(guesses) == 1:  # the dodged start "fails"
             outcome.status = "max_iterations"
         return outcome
