@@ -7,6 +7,7 @@ All return scenario dicts (the JSON contract), ready for `Scenario.from_dict` or
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -439,23 +440,13 @@ def formation(shape: str, count: int, spacing: float = 2.0) -> FloatArray:
 
 
 def _leg_seconds(moves: FloatArray, limits: dict[str, Any], dt: float) -> float:
-    """The shortest whole number of seconds in which synchronised straight moves (the
-    planner's unit profile scaled by each move) keep 95 % of the velocity, acceleration and
-    jerk bounds on every axis, for the largest move per axis."""
-    from planner.first_qp import unit_profile
+    """The shortest whole number of seconds (at least 2) in which synchronised straight
+    moves keep 95 % of the velocity, acceleration and jerk bounds (`planner.horizon`)."""
+    from planner.horizon import shortest_steps
 
-    largest = np.abs(moves).max(axis=0)
-    bounds = [np.asarray(limits[key], dtype=float) * 0.95
-              for key in ("velocity_max", "acceleration_max", "jerk_max")]
-    for seconds in range(2, 600):
-        steps = round(seconds / dt)
-        _, v, a = unit_profile(steps, dt)
-        jerk = np.diff(np.concatenate([[0.0], a])) / dt
-        peaks = [float(np.abs(x).max()) for x in (v, a, jerk)]
-        if all(np.all(largest * peak <= bound) for peak, bound in zip(peaks, bounds,
-                                                                        strict=True)):
-            return float(seconds)
-    raise ValueError("moves too long for a leg of ten minutes")
+    v, a, j = (np.asarray(limits[key], dtype=float) * 0.95
+               for key in ("velocity_max", "acceleration_max", "jerk_max"))
+    return float(max(2, math.ceil(shortest_steps(moves, dt, v, a, j) * dt - 1e-9)))
 
 
 def show_formations(vehicles: int, shapes: tuple[str, ...] | list[str] = SHOW_SHAPES[:5], *,
