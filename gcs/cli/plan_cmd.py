@@ -166,6 +166,13 @@ def _print_summary(plan: Any) -> None:
     Console().print(table)
 
 
+def _write_plan(plan: Any, output: Path) -> None:
+    """Write the plan JSON to `output`, streamed (`Plan.write_json`: a 16,000-vehicle plan is
+    ~1 GB of text); OSError when it cannot."""
+    with output.open("w", encoding="utf-8") as stream:
+        plan.write_json(stream)
+
+
 def _options(args: argparse.Namespace) -> Any:
     """The SCP options `--decompose` / `--batch-size` ask for (None: the planner's defaults);
     ValueError naming the flag when the planner refuses them."""
@@ -323,7 +330,7 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
                   f"{leg['seconds']:.2f} s", flush=True)
     output = args.output or Path(f"{sequence.name}.plan.json")
     try:
-        output.write_text(json.dumps(plan.to_dict()))
+        _write_plan(plan, output)
         if args.csv_dir is not None:
             _write_csvs(show, args.csv_dir, rate)
     except OSError as exc:
@@ -384,9 +391,7 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(exc))
     output = args.output or Path(f"{scenario.name}.plan.json")
     try:
-        # streamed: a 16,000-vehicle plan is ~1 GB of text
-        with output.open("w", encoding="utf-8") as stream:
-            plan.write_json(stream)
+        _write_plan(plan, output)
     except OSError as exc:
         return _fail(f"cannot write {output}: {exc.strerror or exc}")
     _print_summary(plan)

@@ -17,7 +17,6 @@ serialised here so the service never spends event-loop time on a multi-megabyte 
 from __future__ import annotations
 
 import io
-import json
 import logging
 import math
 import time
@@ -172,7 +171,7 @@ def run_plan(
         send("end")
     if leg is not None:  # for `stitch_sequence`: the Plan itself (pickled: arrays, no JSON)
         return PlanOutcome(plan=result, status=result.status, ok=bool(result.ok))
-    text = json.dumps(finite_json(result.to_dict()), allow_nan=False, separators=(",", ":"))
+    text = plan_json(result)
     return PlanOutcome(plan_json=text, status=result.status, ok=bool(result.ok))
 
 
