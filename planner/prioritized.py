@@ -23,13 +23,14 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.first_qp import straight_moves, unit_profile
+from planner.first_qp import unit_profile
 from planner.fixed import FixedSet, FixedTrajectory
 from planner.result import IterationRecord
-from planner.routes import _along, seed_routes
+from planner.routes import _along
 from planner.scenario import Scenario
 from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
+from planner.spacetime import depart, fleet_routes
 from planner.types import FloatArray, IntArray
 
 __all__ = ["PrioritizedOutcome", "order_vehicles", "plan_batches"]
@@ -102,8 +103,15 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     options = dataclasses.replace(options or ScpOptions(), dual=False)
     order = order_vehicles(work) if order is None else order
     batches = [order[s:s + batch] for s in range(0, n, batch)]
+    routes: dict[int, FloatArray] = {}
+    if work.obstacles:  # every route once for the fleet; an unreachable goal: plan whole
+        found = fleet_routes(work)
+        if found.unreachable is not None:
+            return None
+        routes = found.routes
     state = _State(work, np.repeat(work.starts[:, None, :], steps + 1, axis=1),
-                   np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3)), np.zeros(n, bool))
+                   np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3)), np.zeros(n, bool),
+                   routes)
     iterations: list[IterationRecord] = []
     seconds: list[float] = []
     first_qp = 0.0
@@ -155,6 +163,8 @@ class _State:
     v: FloatArray
     a: FloatArray
     planned: NDArray[np.bool_]
+    routes: dict[int, FloatArray] = dataclasses.field(default_factory=dict)
+    """With obstacles, every vehicle's route polyline (`planner.spacetime.fleet_routes`)."""
 
 
 def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: IntArray,
@@ -196,26 +206,11 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
         np.concatenate([state.a[moving], np.zeros((len(resting), steps, 3))]),
         np.zeros(len(fixed)), np.zeros((len(fixed), steps)))
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
-    guess = clear_guess(sub, others, preset, _routes(sub, len(members)))
-    return run_scp(sub, solver, options, progress, guess), guess
-
-
-def _routes(sub: Scenario, fresh: int) -> dict[int, FloatArray]:
-    """With obstacles, the route (`planner.routes`) of each of the first `fresh` vehicles
-    whose straight move comes within the clearance of one, as a polyline: the batch's
-    guess departs along it when clear of the fixed vehicles (the SCP loop's own route
-    seeding knows nothing of them)."""
-    if not sub.obstacles:
-        return {}
-    seeded = seed_routes(sub, straight_moves(sub))
-    out = {}
-    for i in seeded.routed:
-        if i < fresh:
-            points = seeded.guess[0][i]
-            keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1)
-                                   > 1e-9])
-            out[int(i)] = points[keep]
-    return out
+    guess = clear_guess(sub, others, preset,
+                        {i: state.routes[int(j)] for i, j in enumerate(members)
+                         if int(j) in state.routes})
+    return (run_scp(sub, solver, options, progress, guess, routed=bool(state.routes)),
+            guess)
 
 
 def _blockers(state: _State, members: IntArray, reopened: IntArray,
@@ -310,8 +305,10 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         lines = _polylines(scenario, i)
         chosen = (lines[0], 0)
         if routes and i in routes:
-            chosen = _route_departure(scenario, routes[i], against, need)
-        elif len(against):
+            p[i], v[i], a[i] = depart(scenario, routes[i], against)
+            placed.append(p[i][None] / scale)
+            continue
+        if len(against):
             best = -np.inf
             tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
             for subset, delay in tries:  # the straight move alone first: most often clear
@@ -327,21 +324,3 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
         placed.append(p[i][None] / scale)
     return p, v, a
-
-
-def _route_departure(scenario: Scenario, route: FloatArray, against: FloatArray,
-                     need: float) -> tuple[FloatArray, int]:
-    """(route, delay): the first of DELAYS at which the route keeps `need` from `against`
-    (scaled positions, (F, K+1, 3)) at every step, else the one that keeps farthest."""
-    best, chosen = -np.inf, (route, 0)
-    for delay in (int(d * scenario.steps) for d in DELAYS):
-        if len(against) == 0:
-            return route, delay
-        trial = _along(route, scenario, delay)[0] / scenario.separation_scale
-        gap = float(np.sqrt(np.einsum("fkx,fkx->fk", against - trial[None],
-                                      against - trial[None]).min()))
-        if gap >= need:
-            return route, delay
-        if gap > best:
-            best, chosen = gap, (route, delay)
-    return chosen

@@ -36,7 +36,7 @@ from planner.obstacles import describe
 from planner.scenario import Scenario
 from planner.types import FloatArray, IntArray
 
-__all__ = ["Grid", "RouteSeed", "build_grid", "seed_routes"]
+__all__ = ["Grid", "Polylines", "RouteSeed", "build_grid", "route_polylines", "seed_routes"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 BoolArray = NDArray[np.bool_]
@@ -316,12 +316,22 @@ def _stagger(scenario: Scenario, guess: Trajectories, routes: dict[int, FloatArr
     return p, v, a
 
 
-def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
-    """Routes around the obstacles for every vehicle whose `lin` comes within the clearance
-    of one (the others keep `lin`), or the first vehicle whose goal is cut off."""
-    blocked = blocked_vehicles(scenario, lin)
+@dataclass(frozen=True)
+class Polylines:
+    """Route polylines (start, waypoints, goal) per routed vehicle, or why a goal cannot be
+    reached."""
+
+    routes: dict[int, FloatArray]
+    unreachable: str | None = None
+    vehicle: int = -1
+
+
+def route_polylines(scenario: Scenario, blocked: IntArray) -> Polylines:
+    """A shortened grid route around the obstacles for each vehicle of `blocked`, or the
+    first of them whose goal is cut off. One connectivity check, one search tree and one
+    Dijkstra call per DIJKSTRA_BATCH vehicles, however many are routed."""
     if blocked.size == 0:
-        return RouteSeed(lin, ())
+        return Polylines({})
     grid = build_grid(scenario)
     c = scenario.clearance
     starts, goals = scenario.starts[blocked], scenario.goals[blocked]
@@ -337,7 +347,7 @@ def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
         message = (f"vehicles[{index}] ({scenario.vehicles[index].id!r}) cannot reach its goal: "
                    f"no free path from its start keeps the clearance {c:g} m; obstacles "
                    f"{names} cut it off")
-        return RouteSeed(lin, (), message, index)
+        return Polylines({}, message, index)
 
     free = grid.distance >= c + 0.25 * float(grid.spacing.min())
     routes: dict[int, FloatArray] = {}
@@ -366,4 +376,16 @@ def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
                     grid, route_free, _shortcut(grid, route_free, waypoints))
         if not pending:
             break
-    return RouteSeed(_stagger(scenario, lin, routes), tuple(sorted(routes)))
+    return Polylines(routes)
+
+
+def seed_routes(scenario: Scenario, lin: Trajectories) -> RouteSeed:
+    """Routes around the obstacles for every vehicle whose `lin` comes within the clearance
+    of one (the others keep `lin`), or the first vehicle whose goal is cut off."""
+    blocked = blocked_vehicles(scenario, lin)
+    if blocked.size == 0:
+        return RouteSeed(lin, ())
+    found = route_polylines(scenario, blocked)
+    if found.unreachable is not None:
+        return RouteSeed(lin, (), found.unreachable, found.vehicle)
+    return RouteSeed(_stagger(scenario, lin, found.routes), tuple(sorted(found.routes)))

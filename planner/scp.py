@@ -520,6 +520,7 @@ def run_scp(
     progress: Callable[[IterationRecord], None] | None = None,
     guess: Trajectories | None = None,
     first_qp: tuple[FirstSolution, float] | None = None,
+    routed: bool = False,
 ) -> ScpOutcome:
     """Run the SCP loop on a validated scenario (goals as the vehicles fly to them).
 
@@ -528,6 +529,8 @@ def run_scp(
     valid rows, a separated one gives rows that the guess itself satisfies.
     first_qp: iteration 0 already solved for this scenario, and its seconds
     (`timed_first_qp`), so that it is not solved again.
+    routed: the guess already follows routes around the obstacles and every goal is known
+    reachable (`planner.spacetime`): no route seeding of its own.
     """
     options = options or ScpOptions()
     first, first_seconds = first_qp or timed_first_qp(scenario, solver)
@@ -564,7 +567,7 @@ def run_scp(
                                  options.split_above, options.block_size, dual)
     current = base if guess is None else guess
     obstacle_rows = None
-    if scenario.obstacles:  # routes around them, or the verdict on an unreachable goal
+    if scenario.obstacles and not routed:  # routes, or the verdict on an unreachable goal
         seeded = seed_routes(scenario, current)
         if seeded.unreachable is not None:
             return ScpOutcome(

@@ -1,0 +1,100 @@
+"""Space-time seeding of prioritized batches among obstacles: routes searched once for the
+fleet, departures that wait until the earlier vehicles' motion leaves the route free, and
+the verdict on an unreachable goal before any batch is planned."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+import pytest
+
+import planner
+import planner.routes as routes
+import planner.spacetime as spacetime
+from planner import obstacle_generators as families
+from planner.first_qp import straight_moves
+from planner.routes import _along, blocked_vehicles
+from planner.scp import ScpOptions
+from planner.spacetime import depart, fleet_routes
+from planner.types import IntArray
+
+
+def test_fleet_routes_give_every_vehicle_a_polyline_from_its_start_to_its_goal() -> None:
+    scenario = planner.Scenario.from_dict(families.forest(12, 10, size=20.0, seed=0))
+    found = fleet_routes(scenario)
+    assert found.unreachable is None
+    assert sorted(found.routes) == list(range(12))
+    blocked = set(blocked_vehicles(scenario, straight_moves(scenario)).tolist())
+    assert blocked  # the forest is in the way of some lanes
+    for i, points in found.routes.items():
+        assert np.allclose(points[0], scenario.starts[i])
+        assert np.allclose(points[-1], scenario.goals[i])
+        assert (len(points) > 2) == (i in blocked)  # a clear lane stays straight
+    # the routes themselves keep clear of the obstacles (up to the grid's half cell)
+    moves = [_along(found.routes[i], scenario) for i in range(12)]
+    lin = (np.stack([m[0] for m in moves]), np.stack([m[1] for m in moves]),
+           np.stack([m[2] for m in moves]))
+    half = dataclasses.replace(scenario, obstacle_clearance=0.5 * scenario.clearance)
+    assert blocked_vehicles(half, lin).size == 0
+
+
+def test_a_departure_waits_until_the_earlier_vehicle_has_passed_at_every_step() -> None:
+    scenario = planner.Scenario.from_dict(families.forest(2, 1, size=20.0, seed=0))
+    route = np.stack([scenario.starts[0], scenario.goals[0]])
+    scale = scenario.separation_scale
+    # an earlier vehicle crosses the route's middle at the very time the route gets there
+    mine = _along(route, scenario)[0]
+    k = scenario.steps // 2
+    across = np.array([0.0, 6.0, 0.0])
+    other = mine[k] + np.linspace(-1.0, 1.0, scenario.steps + 1)[:, None] * across
+    need = spacetime.ROUTE_GAP * scenario.min_separation
+    gap0 = np.linalg.norm((mine - other) / scale, axis=1).min()
+    assert gap0 < need  # departing at once would meet it
+    p, v, a = depart(scenario, route, (other / scale)[None])
+    assert np.linalg.norm((p - other) / scale, axis=1).min() >= need
+    assert np.allclose(p[0], route[0]) and np.allclose(p[-1], route[-1])
+    assert np.allclose(v[0], 0.0) and np.allclose(v[-1], 0.0)
+    assert a.shape == (scenario.steps, 3)
+    # it waits at its start, then moves along the route (here a straight line)
+    waited = int(np.argmax(np.linalg.norm(p - p[0], axis=1) > 1e-9))
+    assert waited > 0
+    off_line = np.cross(p - route[0], route[1] - route[0])
+    assert np.allclose(off_line, 0.0, atol=1e-9)
+    # with nothing placed before it, it departs at once
+    assert np.allclose(depart(scenario, route, np.zeros((0, 1, 3)))[0], mine)
+
+
+def test_batches_among_obstacles_route_once_for_the_fleet_and_plan_verified(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    data = families.forest(12, 10, size=20.0, seed=0)
+    searched: list[int] = []
+    original = routes.route_polylines
+
+    def counting(scenario: planner.Scenario, blocked: IntArray) -> routes.Polylines:
+        searched.append(len(blocked))
+        return original(scenario, blocked)
+
+    monkeypatch.setattr(routes, "route_polylines", counting)  # inside the SCP's seeding
+    monkeypatch.setattr(spacetime, "route_polylines", counting)
+    result = planner.plan(data, options=ScpOptions(decompose="prioritized"))
+    assert result.ok, result.problems()
+    assert "prioritized batches" in result.message
+    assert len(searched) == 1  # once for the fleet, not per batch nor inside the SCP
+    check = result.verification
+    assert check is not None and check.clear and check.obstacle_distance_min is not None
+    assert check.obstacle_distance_min >= result.scenario.clearance - check.separation_tolerance
+
+
+def test_an_unreachable_goal_is_still_infeasible_at_once_in_batches() -> None:
+    data = families.sealed_wall(2)
+    began = time.perf_counter()
+    result = planner.plan(data, options=ScpOptions(decompose="prioritized"))
+    assert time.perf_counter() - began < 10.0  # loose: no SCP iteration ran
+    assert result.status == "infeasible" and result.infeasible_groups == ("obstacles",)
+    assert "vehicles[0] ('uav1') cannot reach its goal" in result.message
+    scenario = planner.Scenario.from_dict(data)
+    found = fleet_routes(scenario)
+    assert found.routes == {} and found.vehicle == 0
+    assert found.unreachable is not None and "'wall' cut it off" in found.unreachable
