@@ -103,8 +103,9 @@ def row_point(geometry: ObstacleSet, a: FloatArray, b: FloatArray, o: IntArray
 class ObstacleRows:
     """The obstacle rows of one scenario: keys, planes, the broad phase and the lazy check."""
 
-    def __init__(self, scenario: Scenario) -> None:
+    def __init__(self, scenario: Scenario, seed_fraction: float = SEED_FRACTION) -> None:
         self.geometry = scenario.obstacle_set
+        self.seed_fraction = seed_fraction
         self.clearance = scenario.clearance
         self.separation = scenario.min_separation
         self.dt = scenario.dt
@@ -171,9 +172,10 @@ class ObstacleRows:
     # ---------------------------------------------------------------- the SCP side
 
     def seed(self, lin: tuple[FloatArray, FloatArray, FloatArray]) -> Keys:
-        """Keys of the rows an iteration starts with: those within the seed margin of
-        binding at the linearisation point."""
-        margin = max(SEED_MIN, SEED_FRACTION * self.clearance)
+        """Keys of the rows an iteration starts with: those within the seed margin
+        (`seed_fraction` clearances, at least SEED_MIN) of binding at the linearisation
+        point."""
+        margin = max(SEED_MIN, self.seed_fraction * self.clearance)
         t = self.near(lin[0], lin[1], margin)
         if len(t) == 0:
             return np.zeros(0, dtype=np.int64)

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.fixed_rows import FixedRows
-from planner.obstacle_rows import ObstacleRows
+from planner.obstacle_rows import SEED_FRACTION, ObstacleRows
 from planner.qp import SeparationRows
 from planner.scenario import Scenario
 from planner.types import FloatArray, IntArray
@@ -36,13 +36,13 @@ class _Source(Protocol):
 class OneSidedRows:
     """The scenario's obstacle and fixed-trajectory rows in one key space."""
 
-    def __init__(self, scenario: Scenario) -> None:
+    def __init__(self, scenario: Scenario, obstacle_seed: float = SEED_FRACTION) -> None:
         n, k = len(scenario.vehicles), scenario.steps
         self.sources: list[_Source] = []
         self.bases: list[int] = []
         base = 0
         if scenario.obstacles:
-            self.sources.append(ObstacleRows(scenario))
+            self.sources.append(ObstacleRows(scenario, obstacle_seed))
             self.bases.append(base)
             base += n * len(scenario.obstacles) * k
         if scenario.fixed:

@@ -30,7 +30,7 @@ from planner.routes import _along
 from planner.scenario import Scenario
 from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
-from planner.spacetime import depart, fleet_routes
+from planner.spacetime import BATCH_OBSTACLE_SEED, depart, fleet_routes
 from planner.types import FloatArray, IntArray
 
 __all__ = ["PrioritizedOutcome", "order_vehicles", "plan_batches"]
@@ -101,6 +101,8 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     # a batch's QPs are small and mostly one-sided rows, dense in the dual (one vehicle's
     # rows against many fixed ones all couple): the primal measured about twice as fast
     options = dataclasses.replace(options or ScpOptions(), dual=False)
+    if work.obstacles:
+        options = dataclasses.replace(options, obstacle_seed=BATCH_OBSTACLE_SEED)
     order = order_vehicles(work) if order is None else order
     batches = [order[s:s + batch] for s in range(0, n, batch)]
     routes: dict[int, FloatArray] = {}

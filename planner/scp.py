@@ -35,7 +35,7 @@ from planner.boxes import broken_boxes, near_boxes
 from planner.dual import solve_group_dual
 from planner.first_qp import FirstSolution, timed_first_qp
 from planner.flatness import GRAVITY
-from planner.obstacle_rows import concat_rows
+from planner.obstacle_rows import SEED_FRACTION, concat_rows
 from planner.one_sided import OneSidedRows
 from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.result import IterationRecord
@@ -127,11 +127,18 @@ class ScpOptions:
     "none" (the default): the whole fleet at once."""
     batch_size: int = DEFAULT_BATCH
     """Vehicles per batch with decompose="prioritized"."""
+    obstacle_seed: float = SEED_FRACTION
+    """Obstacle rows within this many clearances of binding at the linearisation point
+    start an iteration's QP (the rest are added when broken). More suits small QPs (the
+    prioritized batches), where a re-solve costs more than the extra rows."""
 
     def __post_init__(self) -> None:
         if self.decompose not in DECOMPOSITIONS:
             raise ValueError(f"decompose: must be one of {', '.join(DECOMPOSITIONS)}, "
                              f"got {self.decompose!r}")
+        if not 0.0 < self.obstacle_seed < float("inf"):
+            raise ValueError(f"obstacle_seed: must be a positive number of clearances, "
+                             f"got {self.obstacle_seed!r}")
         if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) \
                 or self.batch_size < 1:
             raise ValueError(f"batch_size: must be a whole number of vehicles >= 1, "
@@ -578,7 +585,7 @@ def run_scp(
             )
         current = seeded.guess
     if scenario.obstacles or scenario.fixed:
-        obstacle_rows = groups_solver.obstacles = OneSidedRows(scenario)
+        obstacle_rows = groups_solver.obstacles = OneSidedRows(scenario, options.obstacle_seed)
     carried = np.zeros(0, dtype=np.int64)
     held = np.zeros(0, dtype=np.int64)
     retried = 0

@@ -15,6 +15,7 @@ import planner.routes as routes
 import planner.spacetime as spacetime
 from planner import obstacle_generators as families
 from planner.first_qp import straight_moves
+from planner.obstacle_rows import ObstacleRows
 from planner.routes import _along, blocked_vehicles
 from planner.scp import ScpOptions
 from planner.spacetime import depart, fleet_routes
@@ -98,3 +99,13 @@ def test_an_unreachable_goal_is_still_infeasible_at_once_in_batches() -> None:
     found = fleet_routes(scenario)
     assert found.routes == {} and found.vehicle == 0
     assert found.unreachable is not None and "'wall' cut it off" in found.unreachable
+
+
+def test_batches_seed_more_obstacle_rows_and_the_option_is_checked() -> None:
+    scenario = planner.Scenario.from_dict(families.forest(12, 10, size=20.0, seed=0))
+    lin = straight_moves(scenario)
+    narrow = ObstacleRows(scenario).seed(lin)
+    wide = ObstacleRows(scenario, spacetime.BATCH_OBSTACLE_SEED).seed(lin)
+    assert set(narrow.tolist()) < set(wide.tolist())
+    with pytest.raises(ValueError, match="obstacle_seed"):
+        ScpOptions(obstacle_seed=0.0)
