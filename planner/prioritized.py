@@ -30,7 +30,7 @@ from planner.routes import _along
 from planner.scenario import Scenario
 from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
-from planner.spacetime import BATCH_OBSTACLE_SEED, depart, fleet_routes
+from planner.spacetime import BATCH_OBSTACLE_SEED, depart, fleet_routes, route_segments
 from planner.types import FloatArray, IntArray
 
 __all__ = ["PrioritizedOutcome", "order_vehicles", "plan_batches"]
@@ -73,14 +73,17 @@ def _segment_distance(points: FloatArray, a: FloatArray, b: FloatArray) -> Float
     return np.linalg.norm(rel - t[..., None] * d[None, :, :], axis=2)
 
 
-def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach: float
-                ) -> IntArray:
+def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach: float,
+                routes: dict[int, FloatArray] | None = None) -> IntArray:
     """Indices of the trajectories `paths` (F, K+1, 3) whose samples come within `reach`
-    (scaled) of a straight move of `members`."""
+    (scaled) of a straight move of `members`, or of its polyline in `routes` (keyed by
+    vehicle) where it has one: a route can bend farther than `reach` from the straight
+    move."""
     if len(paths) == 0:
         return np.zeros(0, dtype=np.intp)
     scale = scenario.separation_scale
-    a, b = scenario.starts[members] / scale, scenario.goals[members] / scale
+    a, b = route_segments(scenario, members, routes or {})
+    a, b = a / scale, b / scale
     f, k = paths.shape[0], paths.shape[1]
     stride = max(1, k // 30)
     samples = paths[:, ::stride] / scale
@@ -188,12 +191,13 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
                                    - work.goals[group][None, :, :]) / scale, axis=2)
         later = later[goal_gap.min(axis=1) >= work.min_separation * 1.05]
     fixed: list[FixedTrajectory] = []
-    moving = earlier[_near_fixed(work, group, state.p[earlier], reach)]
+    moving = earlier[_near_fixed(work, group, state.p[earlier], reach, state.routes)]
     for j in moving:
         fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", state.p[j], state.v[j]))
     resting = np.zeros(0, dtype=np.intp)
     if len(later):
-        resting = later[_near_fixed(work, group, work.starts[later][:, None, :], reach)]
+        resting = later[_near_fixed(work, group, work.starts[later][:, None, :], reach,
+                                    state.routes)]
         for j in resting:
             fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", work.starts[j][None, :]))
     sub = dataclasses.replace(

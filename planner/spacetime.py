@@ -17,9 +17,10 @@ import numpy as np
 from planner.first_qp import straight_moves
 from planner.routes import Polylines, Trajectories, _along, blocked_vehicles, route_polylines
 from planner.scenario import Scenario
-from planner.types import FloatArray
+from planner.types import FloatArray, IntArray
 
-__all__ = ["BATCH_OBSTACLE_SEED", "DELAY_STEPS", "ROUTE_GAP", "depart", "fleet_routes"]
+__all__ = ["BATCH_OBSTACLE_SEED", "DELAY_STEPS", "ROUTE_GAP", "depart", "fleet_routes",
+           "route_segments"]
 
 #: Departure delays tried, evenly from none to a third of the horizon.
 DELAY_STEPS = 24
@@ -76,3 +77,19 @@ def depart(scenario: Scenario, route: FloatArray, against: FloatArray) -> Trajec
             best, best_gap = trial, gap
     assert best is not None
     return best
+
+
+def route_segments(scenario: Scenario, members: IntArray, routes: dict[int, FloatArray]
+                   ) -> tuple[FloatArray, FloatArray]:
+    """The segments (a, b), (S, 3) each, of every member's polyline in `routes`, or of its
+    straight move where it has none: what a batch's broad phase measures reach from."""
+    a, b = [], []
+    for j in members.tolist():
+        line = routes.get(j)
+        if line is None:
+            line = np.stack([scenario.starts[j], scenario.goals[j]])
+        a.append(line[:-1])
+        b.append(line[1:])
+    if not a:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    return np.concatenate(a), np.concatenate(b)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import planner
+import planner.prioritized as prioritized
 import planner.routes as routes
 import planner.spacetime as spacetime
 from planner import obstacle_generators as families
@@ -18,7 +19,7 @@ from planner.first_qp import straight_moves
 from planner.obstacle_rows import ObstacleRows
 from planner.routes import _along, blocked_vehicles
 from planner.scp import ScpOptions
-from planner.spacetime import depart, fleet_routes
+from planner.spacetime import depart, fleet_routes, route_segments
 from planner.types import IntArray
 
 
@@ -109,3 +110,20 @@ def test_batches_seed_more_obstacle_rows_and_the_option_is_checked() -> None:
     assert set(narrow.tolist()) < set(wide.tolist())
     with pytest.raises(ValueError, match="obstacle_seed"):
         ScpOptions(obstacle_seed=0.0)
+
+
+def test_a_batch_fixes_the_earlier_vehicles_near_its_route_not_only_its_straight_move(
+        ) -> None:
+    scenario = planner.Scenario.from_dict(families.forest(2, 1, size=20.0, seed=0))
+    start, goal = scenario.starts[0], scenario.goals[0]
+    bend = 0.5 * (start + goal) + np.array([0.0, 6.0, 0.0])  # 6 m off the straight move
+    route = {0: np.stack([start, bend, goal])}
+    a, b = route_segments(scenario, np.array([0]), route)
+    assert np.allclose(a, [start, bend]) and np.allclose(b, [bend, goal])
+    # an earlier vehicle resting by the bend: out of reach of the straight move only
+    resting = np.repeat((bend + np.array([0.0, 0.5, 0.0]))[None, None, :],
+                        scenario.steps + 1, axis=1)
+    reach = prioritized.REACH * scenario.min_separation
+    members = np.array([0])
+    assert prioritized._near_fixed(scenario, members, resting, reach).size == 0
+    assert prioritized._near_fixed(scenario, members, resting, reach, route).tolist() == [0]
