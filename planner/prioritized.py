@@ -30,7 +30,13 @@ from planner.routes import _along
 from planner.scenario import Scenario
 from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
-from planner.spacetime import BATCH_OBSTACLE_SEED, depart, fleet_routes, route_segments
+from planner.spacetime import (
+    BATCH_OBSTACLE_SEED,
+    continued_scp,
+    depart,
+    fleet_routes,
+    route_segments,
+)
 from planner.types import FloatArray, IntArray
 
 __all__ = ["PrioritizedOutcome", "order_vehicles", "plan_batches"]
@@ -215,8 +221,9 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
     guess = clear_guess(sub, others, preset,
                         {i: state.routes[int(j)] for i, j in enumerate(members)
                          if int(j) in state.routes})
-    return (run_scp(sub, solver, options, progress, guess, routed=bool(state.routes)),
-            guess)
+    if not state.routes:
+        return run_scp(sub, solver, options, progress, guess), guess
+    return continued_scp(sub, solver, options, progress, guess), guess
 
 
 def _blockers(state: _State, members: IntArray, reopened: IntArray,

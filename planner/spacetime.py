@@ -12,15 +12,20 @@ without routing again (`run_scp(..., routed=True)`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from planner.first_qp import straight_moves
+from planner.result import IterationRecord
 from planner.routes import Polylines, Trajectories, _along, blocked_vehicles, route_polylines
 from planner.scenario import Scenario
+from planner.scp import ScpOptions, ScpOutcome, run_scp
+from planner.solvers import QPSolver
 from planner.types import FloatArray, IntArray
 
-__all__ = ["BATCH_OBSTACLE_SEED", "DELAY_STEPS", "ROUTE_GAP", "depart", "fleet_routes",
-           "route_segments"]
+__all__ = ["BATCH_OBSTACLE_SEED", "DELAY_STEPS", "ROUTE_GAP", "continued_scp", "depart",
+           "fleet_routes", "route_segments"]
 
 #: Departure delays tried, evenly from none to a third of the horizon.
 DELAY_STEPS = 24
@@ -93,3 +98,22 @@ def route_segments(scenario: Scenario, members: IntArray, routes: dict[int, Floa
     if not a:
         return np.zeros((0, 3)), np.zeros((0, 3))
     return np.concatenate(a), np.concatenate(b)
+
+
+def continued_scp(sub: Scenario, solver: QPSolver, options: ScpOptions | None,
+                  progress: Callable[[IterationRecord], None] | None, guess: Trajectories
+                  ) -> ScpOutcome:
+    """A routed batch's SCP from `guess` (`run_scp(..., routed=True)`); if it stops at its
+    iteration cap still creeping (a departure delay being pulled forward a little per
+    iteration), once more from where it stopped, which is nearly converged: far cheaper than
+    replanning the batch with earlier vehicles reopened, which creeps the same way. The
+    stopping rule is the SCP's own; the two runs' iterations are joined."""
+    outcome = run_scp(sub, solver, options, progress, guess, routed=True)
+    if outcome.status != "max_iterations":
+        return outcome
+    again = run_scp(sub, solver, options, progress,
+                    (outcome.positions, outcome.velocities, outcome.accelerations),
+                    routed=True)
+    again.iterations[:0] = outcome.iterations
+    again.first_qp_seconds += outcome.first_qp_seconds
+    return again

@@ -17,8 +17,10 @@ import planner.spacetime as spacetime
 from planner import obstacle_generators as families
 from planner.first_qp import straight_moves
 from planner.obstacle_rows import ObstacleRows
+from planner.result import IterationRecord
 from planner.routes import _along, blocked_vehicles
-from planner.scp import ScpOptions
+from planner.scp import ScpOptions, ScpOutcome
+from planner.solvers import make_solver
 from planner.spacetime import depart, fleet_routes, route_segments
 from planner.types import IntArray
 
@@ -127,3 +129,49 @@ def test_a_batch_fixes_the_earlier_vehicles_near_its_route_not_only_its_straight
     members = np.array([0])
     assert prioritized._near_fixed(scenario, members, resting, reach).size == 0
     assert prioritized._near_fixed(scenario, members, resting, reach, route).tolist() == [0]
+
+
+def test_full_height_obstacles_are_routed_in_the_plane_at_the_lanes_own_heights() -> None:
+    scenario = planner.Scenario.from_dict(families.forest(12, 10, size=20.0, seed=0))
+    grid = routes.build_grid(scenario)
+    assert grid.planar and grid.shape[2] == 1  # trees floor to ceiling: one layer
+    assert not routes.build_grid(
+        planner.Scenario.from_dict(families.window_wall(8, seed=1))).planar
+    found = fleet_routes(scenario)
+    for i, points in found.routes.items():  # each lane keeps its height (start = goal z)
+        assert np.allclose(points[:, 2], scenario.starts[i, 2])
+
+
+def test_a_full_height_wall_still_cuts_the_goals_off_at_once() -> None:
+    data = families.forest(2, 1, size=20.0, seed=0)
+    data["obstacles"].append({"id": "wall", "box": {"min": [9.8, 0.0, 0.0],
+                                                    "max": [10.2, 20.0, 4.0]}})
+    scenario = planner.Scenario.from_dict(data)
+    assert routes.build_grid(scenario).planar
+    result = planner.plan(data, options=ScpOptions(decompose="prioritized"))
+    assert result.status == "infeasible" and result.infeasible_groups == ("obstacles",)
+    assert "cannot reach its goal" in result.message and "'wall'" in result.message
+
+
+def test_a_batch_stopped_at_its_iteration_cap_continues_from_where_it_stopped(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    data = families.forest(6, 6, size=20.0, seed=0)
+    data["max_iterations"] = 1  # stops while its first iteration still moved the cost
+    scenario = planner.Scenario.from_dict(data).assigned()
+    runs: list[tuple[np.ndarray, ScpOutcome, list[IterationRecord]]] = []
+    real = spacetime.run_scp
+
+    def recording(sub, solver, options, progress, start, routed):
+        outcome = real(sub, solver, options, progress, start, routed=routed)
+        runs.append((start[0], outcome, list(outcome.iterations)))
+        return outcome
+
+    monkeypatch.setattr(spacetime, "run_scp", recording)
+    found = fleet_routes(scenario)
+    routed = tuple(np.stack(x) for x in zip(*(_along(found.routes[i], scenario)
+                                               for i in range(6)), strict=True))
+    outcome = spacetime.continued_scp(scenario, make_solver(None), None, None,
+                                      (routed[0], routed[1], routed[2]))
+    assert len(runs) == 2 and runs[0][1].status == "max_iterations"
+    assert np.array_equal(runs[1][0], runs[0][1].positions)  # from where it stopped
+    assert outcome.iterations == runs[0][2] + runs[1][2]  # both runs' iterations
