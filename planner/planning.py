@@ -41,14 +41,10 @@ def _dodges(work: Scenario, options: ScpOptions | None) -> bool:
 
 def _whole_because(work: Scenario, options: ScpOptions, free: bool, dodged: bool) -> str | None:
     """Why a fleet asked to be planned in prioritized batches (`planner.prioritized`) is
-    planned whole, or None when it is not: the batches plan rest-to-rest moves of a fleet of
-    more than one batch, whose only fixed trajectories are their earlier vehicles."""
+    planned whole, or None when it is not: the batches plan fixed-goal moves of a fleet of
+    more than one batch (from rest or a moving state, around its fixed trajectories)."""
     if len(work.vehicles) <= options.batch_size:
         return f"{len(work.vehicles)} vehicles fit in one batch of {options.batch_size}"
-    if work.fixed:
-        return "the scenario has fixed trajectories of its own"
-    if work.start_velocities is not None or work.start_accelerations is not None:
-        return "the vehicles start moving (start_velocity or start_acceleration)"
     if free:
         return "free assignment plans from CAPT's straight moves"
     if dodged:

@@ -74,6 +74,13 @@ STOP_COST_PER_STEP = 0.01
 CROWD_FACTORS = (1.0, 1.2, 1.4)
 CROWD_TOLERANCE = 1.25
 CROWD_SMALL = 16
+#: A replan whose first horizon's crowd (`crowd`) is larger than this is planned in
+#: prioritized batches of 2 (`planner.prioritized`, from the moving state, each batch
+#: stopping at its share of the replan's threshold), the whole fleet if a batch fails or
+#: the joined plan does not verify. One crowd's QP grows much faster than its vehicles
+#: (random 100 a quarter of the way in, crowds of 85-91: 2.3-9 s of CPU), batches with the
+#: fleet (about 1 s for 100 vehicles); at a crowd of 60 the whole fleet took half as long.
+CROWD_BATCHES = 70
 
 
 class ReplanError(PlannerError):
@@ -227,12 +234,15 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
 
     failures: list[str] = []
     try:
-        horizon *= _least_crowded(scenario, horizon, solver)
+        factor, crowded = _least_crowded(scenario, horizon, solver)
+        horizon *= factor
         for attempts, factor in enumerate(RETRY_FACTORS, start=1):
             if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
                 break
             spec = scenario(factor * horizon)
-            result = plan(spec, solver=solver, options=ScpOptions())
+            options = (ScpOptions(decompose="prioritized", batch_cost_share=True)
+                       if crowded > CROWD_BATCHES else ScpOptions())
+            result = plan(spec, solver=solver, options=options)
             if result.ok:
                 return Replan(result, separation, time.perf_counter() - began, attempts)
             failures.append(f"{spec.horizon:.1f} s: {'; '.join(result.problems())}")
@@ -244,14 +254,15 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
 
 
 def _least_crowded(scenario: Callable[[float], Scenario], horizon: float,
-                   solver: str | None) -> float:
-    """The factor of `CROWD_FACTORS` the first attempt takes (see there)."""
+                   solver: str | None) -> tuple[float, int]:
+    """The factor of `CROWD_FACTORS` the first attempt takes (see there), and the crowd
+    there (`crowd`; 0 when it was not measured: at most `CROWD_SMALL`)."""
     if len(scenario(horizon).vehicles) <= CROWD_SMALL:  # no crowd can be larger
-        return CROWD_FACTORS[0]
+        return CROWD_FACTORS[0], 0
     first = crowd(scenario(horizon), solver)
     if first <= CROWD_SMALL:
-        return CROWD_FACTORS[0]
+        return CROWD_FACTORS[0], first
     crowds = [first] + [crowd(scenario(f * horizon), solver) for f in CROWD_FACTORS[1:]]
     least = min(crowds)
-    return next(f for f, c in zip(CROWD_FACTORS, crowds, strict=True)
+    return next((f, c) for f, c in zip(CROWD_FACTORS, crowds, strict=True)
                 if c <= CROWD_TOLERANCE * least)

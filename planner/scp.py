@@ -127,6 +127,10 @@ class ScpOptions:
     "none" (the default): the whole fleet at once."""
     batch_size: int = DEFAULT_BATCH
     """Vehicles per batch with decompose="prioritized"."""
+    batch_cost_share: bool = False
+    """With decompose="prioritized", each batch stops at its share of the scenario's
+    `cost_threshold` (its vehicles over the fleet's: the batches' thresholds add up to the
+    fleet's, for a threshold set per vehicle); False: each batch at the whole of it."""
 
     def __post_init__(self) -> None:
         if self.decompose not in DECOMPOSITIONS:
