@@ -129,8 +129,11 @@ class ScpOptions:
     """Vehicles per batch with decompose="prioritized"."""
     batch_cost_share: bool = False
     """With decompose="prioritized", each batch stops at its share of the scenario's
-    `cost_threshold` (its vehicles over the fleet's: the batches' thresholds add up to the
-    fleet's, for a threshold set per vehicle); False: each batch at the whole of it."""
+    `cost_threshold` (its vehicles over the fleet's), and the joined plan is taken only if
+    its thrust cost exceeds the separation-free optimum by less than `cost_threshold`: then
+    it is within that of the fleet's optimum, as a whole-fleet SCP stopped after an
+    iteration that changed the cost by less (a replan's rule). False: each batch stops at
+    the whole `cost_threshold`, and the joined plan's cost is not bounded."""
 
     def __post_init__(self) -> None:
         if self.decompose not in DECOMPOSITIONS:

@@ -218,3 +218,17 @@ def test_plan_decomposes_a_moving_fleet_and_verifies_the_joined_plan() -> None:
     assert result.verification is not None and result.verification.verified
     np.testing.assert_allclose(result.positions()[:, 0], work.starts, atol=1e-6)
     np.testing.assert_allclose(result.velocities()[:, 0], work.start_velocities, atol=1e-6)
+
+
+def test_batches_costing_more_than_the_threshold_above_the_free_optimum_are_not_taken() -> None:
+    """With `batch_cost_share` the joined plan is taken only within `cost_threshold` of the
+    separation-free optimum (so of the fleet's optimum): above it, the fleet is planned
+    whole, saying why."""
+    work, _ = _from_state(2.0, 0.2)  # the free moves cross the dropped vehicle's column
+    options = dataclasses.replace(PRIORITIZED, batch_cost_share=True)
+    loose = plan(dataclasses.replace(work, cost_threshold=1e3), options=options)
+    assert loose.ok and "prioritized batches" in loose.message
+    tight = plan(dataclasses.replace(work, cost_threshold=1e-3), options=options)
+    assert tight.ok, tight.message
+    assert "planned as a whole fleet" in tight.message
+    assert "above the separation-free optimum, not less than cost_threshold" in tight.message
