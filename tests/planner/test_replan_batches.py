@@ -1,4 +1,4 @@
-"""A crowded replan (`planner.replan.CROWD_BATCHES`) is planned in prioritized batches from the
+"""A crowded replan (`planner.replan.CROWD_BATCH_ROWS`) is planned in prioritized batches from the
 fleet's moving state, around its dropped vehicles, and as a whole fleet when the batches
 fail; a small crowd is planned whole as before."""
 
@@ -14,7 +14,7 @@ import planner.replan as replan_module
 from planner import plan
 from planner.first_qp import solve_first_qp
 from planner.fixed import landing_motion
-from planner.replan import CROWD_BATCHES, plan_replan
+from planner.replan import CROWD_BATCH_ROWS, Crowd, plan_replan
 from planner.scenario import Scenario
 from planner.scp import thrust_cost
 from planner.solvers import make_solver
@@ -36,12 +36,12 @@ def _flying_swap() -> tuple[Scenario, np.ndarray, np.ndarray, np.ndarray]:
     return flying.scenario, state.position[:, 0], state.velocity[:, 0], state.acceleration[:, 0]
 
 
-def _replan(monkeypatch: pytest.MonkeyPatch, crowd: int) -> replan_module.Replan:
+def _replan(monkeypatch: pytest.MonkeyPatch, rows: int) -> replan_module.Replan:
     """The swap's first five vehicles replanned to their goals with the sixth dropped to land,
-    its free moves measured as a crowd of `crowd`."""
+    its free moves measured as a crowd of five whose QP starts with `rows` rows."""
     base, p, v, a = _flying_swap()
     monkeypatch.setattr(replan_module, "CROWD_SMALL", 1)  # six vehicles count as a fleet
-    monkeypatch.setattr(replan_module, "crowd", lambda *args, **kwargs: crowd)
+    monkeypatch.setattr(replan_module, "crowd", lambda *args, **kwargs: Crowd(5, rows))
     dropped = landing_motion("v5", p[5], v[5], base.dt, 2.0, 0.7, 0.3, margin=0.1,
                              acceleration=a[5], coast_steps=1)
     return plan_replan(base, base.ids[:5], p[:5], v[:5], a[:5], base.goals[:5],
@@ -61,7 +61,7 @@ def _check(replan: replan_module.Replan, p: np.ndarray, v: np.ndarray) -> None:
 def test_a_crowded_replan_is_planned_in_batches_from_the_moving_state(
         monkeypatch: pytest.MonkeyPatch) -> None:
     _, p, v, _ = _flying_swap()
-    replan = _replan(monkeypatch, CROWD_BATCHES + 1)
+    replan = _replan(monkeypatch, CROWD_BATCH_ROWS + 1)
     assert "prioritized batches" in replan.plan.message
     _check(replan, p[:5], v[:5])
     # within the replan's threshold of the optimum: of the separation-free one, a bound
@@ -73,7 +73,7 @@ def test_a_crowded_replan_is_planned_in_batches_from_the_moving_state(
 
 def test_a_small_crowd_is_replanned_whole(monkeypatch: pytest.MonkeyPatch) -> None:
     _, p, v, _ = _flying_swap()
-    replan = _replan(monkeypatch, CROWD_BATCHES)
+    replan = _replan(monkeypatch, CROWD_BATCH_ROWS)
     assert "prioritized" not in replan.plan.message
     _check(replan, p[:5], v[:5])
 
@@ -88,7 +88,7 @@ def test_a_crowded_replan_whose_batches_fail_is_planned_whole_in_the_same_attemp
         return None
 
     monkeypatch.setattr(planning, "plan_batches", failing)
-    replan = _replan(monkeypatch, CROWD_BATCHES + 1)
+    replan = _replan(monkeypatch, CROWD_BATCH_ROWS + 1)
     assert calls == [5] and replan.attempts == 1
     assert "planned as a whole fleet" in replan.plan.message
     _check(replan, p[:5], v[:5])
