@@ -79,9 +79,10 @@ CROWD_SMALL = 16
 #: planned in prioritized batches of 2 (`planner.prioritized`, from the moving state, each
 #: batch stopping at its share of the replan's threshold, the joined plan within the
 #: threshold of the separation-free optimum), the whole fleet if a batch fails or the joined
-#: plan does not verify. One crowd's QP grows much faster than its rows (random 100 a
-#: quarter of the way in, 2,200-2,800 rows: 2.3-9 s of CPU), the batches with the fleet
-#: (about 1 s for 100 vehicles); crowds of up to 840 rows took 0.3-0.7 s whole.
+#: plan does not verify. A crowd's QP time grows much faster than its rows (random 100 a
+#: quarter of the way in, 2,200-2,800 rows: 2.3-9 s of CPU), the batches' with the fleet
+#: (about 1 s for 100 vehicles); crowds of up to 840 rows took 0.3-1.2 s whole, 0.55-1.0 s
+#: in batches.
 CROWD_BATCH_ROWS = 900
 
 
