@@ -6,8 +6,13 @@ ordinary SCP loop with every vehicle of batches 0..k-1 as a fixed trajectory
 vehicles of later batches are reserved at their starts (a fixed trajectory resting there for
 the whole horizon), so that an earlier vehicle never flies through a start a later one still
 occupies (revised prioritized planning, Čáp et al. 2015); a reservation that a batch
-vehicle's goal lies on is left out. Each batch is first linearised about moves clear of
-everything placed before it (`clear_guess`), and its QPs are small and mostly one-sided. A
+vehicle's goal lies on is left out. A fleet that starts in motion (a replan from a flying
+state) reserves nothing: a moving vehicle cannot wait where it is, and the braking holds
+it could be given block the earlier batches' moves (measured: a random replan of 100
+from a quarter of the way in had no feasible first batch). The scenario's own fixed
+trajectories (a dropped vehicle) are fixed in every batch. Each batch is first linearised
+about moves clear of everything placed before it (`clear_guess`; a moving vehicle's moves
+carry its start velocity's drift), and its QPs are small and mostly one-sided. A
 batch whose SCP does not converge is planned again with the earlier vehicles nearest to it;
 if that fails too the decomposition ends (`None`). The joined plan is verified as a whole
 by the caller (`planner.plan`, with `planner.verify`), which plans the whole fleet instead
@@ -23,7 +28,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.first_qp import straight_moves, unit_profile
+from planner.first_qp import straight_moves, unit_profile, velocity_profile
 from planner.fixed import FixedSet, FixedTrajectory
 from planner.result import IterationRecord
 from planner.routes import _along, seed_routes
@@ -92,11 +97,13 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
                  progress: Callable[[IterationRecord], None] | None = None,
                  batch: int = DEFAULT_BATCH, order: IntArray | None = None
                  ) -> PrioritizedOutcome | None:
-    """Plan `work` (goals assigned, no fixed trajectories or start velocities of its own)
-    batch by batch. A batch whose SCP does not converge is planned again together with the
-    earlier vehicles that come closest to its first linearisation point (MERGE_ROUNDS
-    times, MERGE_GROWTH more each time); None if it still does not."""
+    """Plan `work` (goals assigned; its own fixed trajectories, start velocities and
+    accelerations are kept) batch by batch. A batch whose SCP does not converge is planned
+    again together with the earlier vehicles that come closest to its first linearisation
+    point (MERGE_ROUNDS times, MERGE_GROWTH more each time); None if it still does not."""
     n, steps = len(work.vehicles), work.steps
+    # a vehicle in motion cannot wait where it is: starts are reserved from rest only
+    reserve = not (np.any(work.initial_velocities) or np.any(work.initial_accelerations))
     # a batch's QPs are small and mostly one-sided rows, dense in the dual (one vehicle's
     # rows against many fixed ones all couple): the primal measured about twice as fast
     options = dataclasses.replace(options or ScpOptions(), dual=False)
@@ -110,7 +117,7 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     merges = 0
     for number, members in enumerate(batches):
         began = time.perf_counter()
-        later = (np.concatenate(batches[number + 1:]) if number + 1 < len(batches)
+        later = (np.concatenate(batches[number + 1:]) if reserve and number + 1 < len(batches)
                  else np.zeros(0, dtype=np.intp))
         reopened = np.zeros(0, dtype=np.intp)
         for attempt in range(MERGE_ROUNDS + 1):
@@ -162,8 +169,9 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
                 progress: Callable[[IterationRecord], None] | None, suffix: str
                 ) -> tuple[ScpOutcome, tuple[FloatArray, FloatArray, FloatArray]]:
     """One batch's SCP: `members` and the `reopened` earlier vehicles planned, the other
-    planned vehicles near them fixed, the `later` vehicles' starts reserved. Returns the
-    outcome (rows of `members` then `reopened`) and the first linearisation point."""
+    planned vehicles near them and the scenario's own fixed trajectories fixed, the `later`
+    vehicles' starts reserved. Returns the outcome (rows of `members` then `reopened`) and
+    the first linearisation point."""
     work = state.work
     steps, scale = work.steps, work.separation_scale
     reach = REACH * work.min_separation
@@ -175,7 +183,8 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
         goal_gap = np.linalg.norm((work.starts[later][:, None, :]
                                    - work.goals[group][None, :, :]) / scale, axis=2)
         later = later[goal_gap.min(axis=1) >= work.min_separation * 1.05]
-    fixed: list[FixedTrajectory] = []
+    own = work.fixed_set
+    fixed: list[FixedTrajectory] = list(work.fixed)
     moving = earlier[_near_fixed(work, group, state.p[earlier], reach)]
     for j in moving:
         fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", state.p[j], state.v[j]))
@@ -184,20 +193,32 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
         resting = later[_near_fixed(work, group, work.starts[later][:, None, :], reach)]
         for j in resting:
             fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", work.starts[j][None, :]))
+    share = len(group) / len(work.vehicles) if options is not None and options.batch_cost_share \
+        else 1.0
     sub = dataclasses.replace(
         work, name=f"{work.name}{suffix}", vehicles=tuple(work.vehicles[j] for j in group),
-        starts=work.starts[group], goals=work.goals[group], fixed=tuple(fixed))
-    others = np.concatenate([state.p[moving],
+        starts=work.starts[group], goals=work.goals[group], fixed=tuple(fixed),
+        start_velocities=_rows(work.start_velocities, group),
+        start_accelerations=_rows(work.start_accelerations, group),
+        cost_threshold=share * work.cost_threshold)
+    others = np.concatenate([own.positions, state.p[moving],
                              np.repeat(work.starts[resting][:, None, :], steps + 1, axis=1)])
     # the fixed trajectories' arrays are the plans themselves: no need to resample them
+    planned = len(moving) + len(resting)
     sub.__dict__["fixed_set"] = FixedSet(
         [f.id for f in fixed], others,
-        np.concatenate([state.v[moving], np.zeros((len(resting), steps + 1, 3))]),
-        np.concatenate([state.a[moving], np.zeros((len(resting), steps, 3))]),
-        np.zeros(len(fixed)), np.zeros((len(fixed), steps)))
+        np.concatenate([own.velocities, state.v[moving], np.zeros((len(resting), steps + 1, 3))]),
+        np.concatenate([own.accelerations, state.a[moving], np.zeros((len(resting), steps, 3))]),
+        np.concatenate([own.margins, np.zeros(planned)]),
+        np.concatenate([own.interval_margins, np.zeros((planned, steps))]))
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
     guess = clear_guess(sub, others, preset, _routes(sub, len(members)))
     return run_scp(sub, solver, options, progress, guess), guess
+
+
+def _rows(values: FloatArray | None, group: IntArray) -> FloatArray | None:
+    """`values[group]`, or None (a scenario's optional per-vehicle arrays)."""
+    return None if values is None else values[group]
 
 
 def _routes(sub: Scenario, fresh: int) -> dict[int, FloatArray]:
@@ -305,17 +326,18 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         p[fresh:], v[fresh:], a[fresh:] = preset
     placed = [others / scale, p[fresh:] / scale]
     need = GUESS_GAP * scenario.min_separation
+    drift = _drift(scenario)
     for i in range(fresh):
         against = np.concatenate(placed)
         lines = _polylines(scenario, i)
         chosen = (lines[0], 0)
         if routes and i in routes:
-            chosen = _route_departure(scenario, routes[i], against, need)
+            chosen = _route_departure(scenario, routes[i], against, need, drift[0][i])
         elif len(against):
             best = -np.inf
             tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
             for subset, delay in tries:  # the straight move alone first: most often clear
-                trial = _positions(subset, scenario, delay) / scale  # (C, K+1, 3)
+                trial = (_positions(subset, scenario, delay) + drift[0][i]) / scale
                 diff = trial[:, None] - against[None]  # (C, F, K+1, 3)
                 gap = np.sqrt(np.einsum("cfkx,cfkx->cfk", diff, diff).min(axis=(1, 2)))
                 clear = np.flatnonzero(gap >= need)
@@ -325,19 +347,35 @@ def clear_guess(scenario: Scenario, others: FloatArray,
                 if clear.size:
                     break
         p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
+        p[i] += drift[0][i]
+        v[i] += drift[1][i]
+        a[i] += drift[2][i]
         placed.append(p[i][None] / scale)
     return p, v, a
 
 
+def _drift(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(p, v, a) per vehicle that its start velocity adds to a rest-to-rest move (the
+    velocity profile scaled by it, as in `straight_moves`: out along it and back, braking):
+    zeros for vehicles at rest."""
+    n, steps = len(scenario.vehicles), scenario.steps
+    if scenario.start_velocities is None:
+        return np.zeros((n, steps + 1, 3)), np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3))
+    v0 = scenario.start_velocities[:, None, :]
+    psi_p, psi_v, psi_a = velocity_profile(steps, scenario.dt)
+    return v0 * psi_p[None, :, None], v0 * psi_v[None, :, None], v0 * psi_a[None, :, None]
+
+
 def _route_departure(scenario: Scenario, route: FloatArray, against: FloatArray,
-                     need: float) -> tuple[FloatArray, int]:
-    """(route, delay): the first of DELAYS at which the route keeps `need` from `against`
-    (scaled positions, (F, K+1, 3)) at every step, else the one that keeps farthest."""
+                     need: float, drift: FloatArray) -> tuple[FloatArray, int]:
+    """(route, delay): the first of DELAYS at which the route (plus the vehicle's `drift`,
+    (K+1, 3)) keeps `need` from `against` (scaled positions, (F, K+1, 3)) at every step,
+    else the one that keeps farthest."""
     best, chosen = -np.inf, (route, 0)
     for delay in (int(d * scenario.steps) for d in DELAYS):
         if len(against) == 0:
             return route, delay
-        trial = _along(route, scenario, delay)[0] / scenario.separation_scale
+        trial = (_along(route, scenario, delay)[0] + drift) / scenario.separation_scale
         gap = float(np.sqrt(np.einsum("fkx,fkx->fk", against - trial[None],
                                       against - trial[None]).min()))
         if gap >= need:

@@ -127,6 +127,13 @@ class ScpOptions:
     "none" (the default): the whole fleet at once."""
     batch_size: int = DEFAULT_BATCH
     """Vehicles per batch with decompose="prioritized"."""
+    batch_cost_share: bool = False
+    """With decompose="prioritized", each batch stops at its share of the scenario's
+    `cost_threshold` (its vehicles over the fleet's), and the joined plan is taken only if
+    its thrust cost exceeds the separation-free optimum by less than `cost_threshold`: then
+    it is within that of the fleet's optimum, as a whole-fleet SCP stopped after a first
+    iteration that changed the cost by less is (a replan's rule). False: each batch stops
+    at the whole `cost_threshold`, and the joined plan's cost is not bounded."""
 
     def __post_init__(self) -> None:
         if self.decompose not in DECOMPOSITIONS:
