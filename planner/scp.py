@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from planner.boxes import broken_boxes, near_boxes
-from planner.dual import solve_group_dual
+from planner.dual import ActiveRows, solve_group_dual
 from planner.first_qp import FirstSolution, timed_first_qp
 from planner.flatness import GRAVITY
 from planner.obstacle_rows import concat_rows
@@ -188,6 +188,9 @@ class _GroupSolver:
         self.obstacles: OneSidedRows | None = None
         """The scenario's one-sided rows: obstacles and fixed trajectories (None without
         either)."""
+        self.memory = ActiveRows()
+        """Rows found active by earlier dual solves (kept across iterations): the warm
+        start of the next solve that holds them."""
 
     def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories,
               obstacle_keys: Keys | None = None
@@ -238,7 +241,14 @@ class _GroupSolver:
         outcome = None
         # Obstacle rows bind one vehicle each: they couple no vehicles in the dual's matrix.
         if self.dual and pair_rows <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
-            outcome = solve_group_dual(scenario, members, rows, group_boxes)
+            # Row names: 3 key + kind for pair rows, negative for one-sided rows.
+            kind_of = np.arange(len(kinds), dtype=np.int64)
+            row_ids = np.concatenate([(3 * keys[None, :] + kind_of[:, None]).reshape(-1),
+                                      (-1 - 3 * okeys[None, :] - np.arange(3)[:, None]).reshape(-1)
+                                      if okeys.size and self.obstacles is not None
+                                      else keys[:0]])
+            outcome = solve_group_dual(scenario, members, rows, group_boxes,
+                                       row_ids=row_ids, memory=self.memory)
         if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
             solution, duals = outcome.solution, outcome.separation_duals
         else:  # the primal QP; also the judge when the dual did not solve (infeasible, ...)
