@@ -238,10 +238,8 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
 
     row_ids, memory: names of the separation rows (unique, stable across solves) and what
     earlier solves found active; with both, a solve whose rows include remembered active
-    ones starts the active-set method there (`_active_set`) and falls back to PIQP, and
-    the memory learns this solve's active rows."""
-    import piqp
-
+    ones solves over a working set started there (`_working_set`), and the memory learns
+    this solve's active rows."""
     dt, steps = scenario.dt, scenario.steps
     fn = functionals(steps, dt)
     m = len(members)
