@@ -194,39 +194,103 @@ def _solve_bounded(Q: sp.csc_matrix, c: FloatArray, tolerance: float
     return SOLVED, np.maximum(np.array(solver.result.x), 0.0), iterations
 
 
-def _working_set(Q: sp.csc_matrix, c: FloatArray, start: NDArray[np.bool_], tolerance: float
-                 ) -> tuple[str, FloatArray | None, int]:
-    """The dual solved over a working set of rows, from `start` (rows believed active): the
-    multipliers of the other rows held at 0, which is optimal for the whole dual exactly
-    when every other row's gradient (Ql + c: its slack in the group's QP) is >= -tolerance;
-    the rows that break that join the set and it is solved again. Same optimum as one solve
-    of every row, in smaller solves (about a tenth of the rows are active), and the set
-    that starts from the rows active in an earlier, similar QP usually needs one or two.
-    Falls back to the whole dual after WORKING_SET_ROUNDS rounds or once the set holds
-    WORKING_SET_FRACTION of the rows."""
-    n = len(c)
-    diagonal = Q.diagonal()
-    Q_csr = Q.tocsr()
-    Q_t = Q.T.tocsr()
-    work = start.copy()
-    iterations = 0
-    for _ in range(WORKING_SET_ROUNDS):
-        if work.sum() > WORKING_SET_FRACTION * n:
-            break
-        idx = np.flatnonzero(work)
-        status, sub, its = _solve_bounded(Q[idx][:, idx], c[idx], tolerance)
-        iterations += its
-        if sub is None:
-            return status, None, iterations
-        lam = np.zeros(n)
-        lam[idx] = sub
-        gradient = Q_csr @ lam + Q_t @ lam - diagonal * lam + c
-        broken = ~work & (gradient < -tolerance)
-        if not broken.any():
-            return SOLVED, lam, iterations
-        work |= broken
-    status, lam_all, its = _solve_bounded(Q, c, tolerance)
-    return status, lam_all, iterations + its
+class _Dual:
+    """One group's dual: its rows as entries (row, vehicle, functional, coefficient vector;
+    a separation row has one entry per vehicle it moves, a box row one) and the linear term
+    c = C x* - h. Blocks of Q = C M C' are built for the rows a solve needs, and the
+    gradient Q l + c (every row's slack at the trajectories l gives) through the forces on
+    the functionals, so that a solve over a few rows never builds all of Q."""
+
+    def __init__(self, fn: Functionals, vehicles: int, e_row: IntArray, e_veh: IntArray,
+                 e_func: IntArray, e_coef: FloatArray, c: FloatArray) -> None:
+        self.fn, self.m = fn, vehicles
+        self.e_row, self.e_veh, self.e_func, self.e_coef = e_row, e_veh, e_func, e_coef
+        self.c = c
+        order = np.argsort(e_row, kind="stable")
+        self._by_row = order
+        self._row_start = np.searchsorted(e_row[order], np.arange(len(c) + 1))
+
+    def block(self, rows: IntArray) -> sp.csc_matrix:
+        """Q restricted to `rows` (sorted), upper triangle, in their order: every pair of
+        their entries on the same vehicle."""
+        take = self._entries_of(rows)
+        local = np.searchsorted(rows, self.e_row[take])
+        veh = self.e_veh[take]
+        count = np.bincount(veh, minlength=self.m)
+        order = np.argsort(veh, kind="stable")
+        first = np.concatenate([[0], np.cumsum(count)[:-1]])
+        reps = count[veh[order]]
+        left = np.repeat(np.arange(len(order)), reps)
+        block_start = np.repeat(np.cumsum(reps) - reps, reps)
+        right = first[veh[order][left]] + (np.arange(len(left)) - block_start)
+        left, right = order[left], order[right]
+        keep = local[left] <= local[right]
+        left, right = left[keep], right[keep]
+        el, er = take[left], take[right]
+        values = (np.einsum("ec,ec->e", self.e_coef[el], self.e_coef[er])
+                  * self.fn.compliance[self.e_func[el], self.e_func[er]])
+        return sp.csc_matrix((values, (local[left], local[right])),
+                             shape=(len(rows), len(rows)))
+
+    def _entries_of(self, rows: IntArray) -> IntArray:
+        """Indices of the entries of `rows`."""
+        lo, hi = self._row_start[rows], self._row_start[rows + 1]
+        size = hi - lo
+        offset = np.repeat(lo - np.cumsum(size) + size, size)
+        return self._by_row[np.arange(int(size.sum())) + offset]
+
+    def moves(self, lam: FloatArray) -> FloatArray:
+        """(m, 3, F): every functional's change from x* under the multipliers `lam`,
+        M C' lam read through the functionals (only rows with a multiplier push)."""
+        fn, m = self.fn, self.m
+        count = fn.compliance.shape[0]
+        pushing = np.flatnonzero(lam[self.e_row] > 0.0)
+        push = lam[self.e_row[pushing], None] * self.e_coef[pushing]
+        force = sp.csr_matrix(
+            (push.reshape(-1), ((self.e_veh[pushing, None] * 3 + np.arange(3)).reshape(-1),
+                                np.repeat(self.e_func[pushing], 3))),
+            shape=(3 * m, count))
+        return np.asarray(force @ fn.compliance).reshape(m, 3, count)
+
+    def gradient(self, moves: FloatArray) -> FloatArray:
+        """Q l + c from `moves(l)`: each row's slack at the trajectories of l."""
+        along = np.einsum("ec,ec->e", self.e_coef, moves[self.e_veh, :, self.e_func])
+        return self.c + np.bincount(self.e_row, along, minlength=len(self.c))
+
+    def solve(self, start: NDArray[np.bool_], tolerance: float
+              ) -> tuple[str, FloatArray | None, FloatArray | None, int]:
+        """min 1/2 l'Ql + c'l, l >= 0, over a working set of rows from `start` (rows
+        believed active): the multipliers of the other rows held at 0, which is optimal for
+        the whole dual exactly when every other row's gradient (its slack in the group's
+        QP) is >= -tolerance; the rows that break that join the set and it is solved again.
+        The same optimum as one solve of every row, in smaller solves (about a tenth of the
+        rows are active), and a set started from the rows active in an earlier, similar QP
+        usually needs one or two. Every row at once after WORKING_SET_ROUNDS rounds or once
+        the set holds WORKING_SET_FRACTION of the rows. Returns (status, l, `moves(l)`,
+        PIQP iterations)."""
+        n = len(self.c)
+        work = start.copy()
+        iterations = 0
+        for _ in range(WORKING_SET_ROUNDS):
+            if work.sum() > WORKING_SET_FRACTION * n:
+                break
+            idx = np.flatnonzero(work)
+            lam = np.zeros(n)
+            if idx.size:
+                status, sub, its = _solve_bounded(self.block(idx), self.c[idx], tolerance)
+                iterations += its
+                if sub is None:
+                    return status, None, None, iterations
+                lam[idx] = sub
+            moves = self.moves(lam)
+            broken = ~work & (self.gradient(moves) < -tolerance)
+            if not broken.any():
+                return SOLVED, lam, moves, iterations
+            work |= broken
+        status, lam_all, its = _solve_bounded(self.block(np.arange(n)), self.c, tolerance)
+        if lam_all is None:
+            return status, None, None, iterations + its
+        return status, lam_all, self.moves(lam_all), iterations + its
 
 
 def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows,
@@ -236,10 +300,10 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     its dual. Returns the group's (p, v, a) and the separation rows' multipliers, or None
     when the dual's matrix would exceed `MAX_PAIRS` entries (the caller solves the primal).
 
-    row_ids, memory: names of the separation rows (unique, stable across solves) and what
-    earlier solves found active; with both, a solve whose rows include remembered active
-    ones solves over a working set started there (`_working_set`), and the memory learns
-    this solve's active rows."""
+    The dual is solved over a working set of rows (`_Dual.solve`) that starts from the rows
+    the straight moves break or, with row_ids and memory (names of the separation rows,
+    unique and stable across solves, and what earlier solves found active), from the
+    remembered active rows; the memory learns this solve's active rows."""
     dt, steps = scenario.dt, scenario.steps
     fn = functionals(steps, dt)
     m = len(members)
@@ -276,52 +340,29 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     c = np.bincount(e_row, np.einsum("ec,ec->e", e_coef, g_star[e_veh, e_func]),
                     minlength=n_rows) - rhs
 
-    # Q: every pair of entries on the same vehicle (upper triangle only).
-    order = np.argsort(e_veh, kind="stable")
-    veh_sorted = e_veh[order]
-    first = np.concatenate([[0], np.cumsum(per_vehicle)[:-1]])
-    reps = per_vehicle[veh_sorted]
-    left = np.repeat(np.arange(len(order)), reps)
-    block_start = np.repeat(np.cumsum(reps) - reps, reps)
-    right = first[veh_sorted[left]] + (np.arange(len(left)) - block_start)
-    left, right = order[left], order[right]
-    keep = e_row[left] <= e_row[right]
-    left, right = left[keep], right[keep]
-    values = (np.einsum("ec,ec->e", e_coef[left], e_coef[right])
-              * fn.compliance[e_func[left], e_func[right]])
-    Q = sp.csc_matrix((values, (e_row[left], e_row[right])), shape=(n_rows, n_rows))
-
+    dual = _Dual(fn, m, e_row, e_veh, e_func, e_coef, c)
     box_ids = np.zeros(0, dtype=np.int64)
-    start = np.zeros(n_rows, dtype=bool)
+    # Start from the rows remembered active, else from those the straight moves break.
+    start = c < -tolerance
     if memory is not None and row_ids is not None:
         side = (b_sign > 0).astype(np.int64)
         box_ids = ((members[b_veh].astype(np.int64) * fn.compliance.shape[0] + b_func) * 3
                    + b_axis) * 2 + side
-        start = np.concatenate([np.isin(row_ids, memory.separation),
+        known = np.concatenate([np.isin(row_ids, memory.separation),
                                 np.isin(box_ids, memory.boxes)])
-    if start.any():
-        status, lam, iterations = _working_set(Q, c, start, tolerance)
-    else:
-        status, lam, iterations = _solve_bounded(Q, c, tolerance)
-    if lam is None:
+        if known.any():
+            start = known
+    status, lam, moves, iterations = dual.solve(start, tolerance)
+    if lam is None or moves is None:
         return DualOutcome(status, None, None, iterations)
     if memory is not None and row_ids is not None:
         memory.update(row_ids, lam[:n_sep] > ACTIVE, box_ids, lam[n_sep:] > ACTIVE)
 
-    # x = x* + M C' lambda: each vehicle's forces on its functionals (a sparse (vehicle,
-    # axis) x functional matrix; only rows with a multiplier push), through W.
-    functionals_count = fn.compliance.shape[0]
-    pushing = np.flatnonzero(lam[e_row] > 0.0)
-    push = lam[e_row[pushing], None] * e_coef[pushing]
-    force = sp.csr_matrix(
-        (push.reshape(-1), ((e_veh[pushing, None] * 3 + np.arange(3)).reshape(-1),
-                            np.repeat(e_func[pushing], 3))),
-        shape=(3 * m, functionals_count))
+    # x = x* + M C' lambda, read at the functionals p, v, a.
     P_rows = np.arange(steps + 1)
     want = np.concatenate([fn.position(P_rows), fn.velocity(P_rows),
                            fn.acceleration(np.arange(steps))])
-    response = np.ascontiguousarray(fn.compliance[want].T)  # (F, want): W is symmetric
-    delta = np.asarray(force @ response).reshape(m, 3, len(want)).transpose(0, 2, 1)
+    delta = moves[:, :, want].transpose(0, 2, 1)
     p = base[0] + delta[:, :steps + 1]
     v = base[1] + delta[:, steps + 1:2 * (steps + 1)]
     a = base[2] + delta[:, 2 * (steps + 1):]
