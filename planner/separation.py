@@ -77,7 +77,7 @@ class PairSteps:
     def __len__(self) -> int:
         return len(self.i)
 
-    def select(self, mask: NDArray[np.bool_] | IntArray) -> PairSteps:
+    def select(self, mask: NDArray[np.bool_] | IntArray | slice) -> PairSteps:
         return PairSteps(self.i[mask], self.j[mask], self.k[mask])
 
     def keys(self, vehicles: int, stages: int) -> NDArray[np.int64]:
