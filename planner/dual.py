@@ -36,7 +36,8 @@ from planner.scenario import Scenario
 from planner.solvers import FAILED, INFEASIBLE, MAX_ITER, SOLVED
 from planner.types import FloatArray, IntArray
 
-__all__ = ["ActiveRows", "DualOutcome", "Functionals", "functionals", "solve_group_dual"]
+__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "Functionals", "functionals",
+           "solve_group_dual"]
 
 Keys = NDArray[np.int64]
 
@@ -293,9 +294,26 @@ class _Dual:
         return status, lam_all, self.moves(lam_all), iterations + its
 
 
+class FleetMoves:
+    """Every vehicle's straight move (`planner.first_qp.straight_moves`) and the values of
+    its functionals, computed once for the many group solves of one scenario."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        fn = functionals(scenario.steps, scenario.dt)
+        self.moves = straight_moves_of(scenario, np.arange(len(scenario.vehicles)))
+        self.values = fn.values(*self.moves, scenario.dt)
+
+    def of(self, members: IntArray) -> tuple[tuple[FloatArray, FloatArray, FloatArray],
+                                             FloatArray]:
+        """((p, v, a), functional values) of the vehicles `members`."""
+        p, v, a = self.moves
+        return (p[members], v[members], a[members]), self.values[members]
+
+
 def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows,
                      boxes: BoxMask, tolerance: float = 1e-8, row_ids: Keys | None = None,
-                     memory: ActiveRows | None = None) -> DualOutcome | None:
+                     memory: ActiveRows | None = None, fleet: FleetMoves | None = None
+                     ) -> DualOutcome | None:
     """The group QP of `build_group_qp(scenario, members, rows, boxes)`, solved through
     its dual. Returns the group's (p, v, a) and the separation rows' multipliers, or None
     when the dual's matrix would exceed `MAX_PAIRS` entries (the caller solves the primal).
@@ -303,12 +321,16 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     The dual is solved over a working set of rows (`_Dual.solve`) that starts from the rows
     the straight moves break or, with row_ids and memory (names of the separation rows,
     unique and stable across solves, and what earlier solves found active), from the
-    remembered active rows; the memory learns this solve's active rows."""
+    remembered active rows; the memory learns this solve's active rows. fleet: the
+    scenario's straight moves, computed once (else this group's are computed here)."""
     dt, steps = scenario.dt, scenario.steps
     fn = functionals(steps, dt)
     m = len(members)
-    base = straight_moves_of(scenario, members)
-    g_star = fn.values(*base, dt)
+    if fleet is None:
+        base = straight_moves_of(scenario, members)
+        g_star = fn.values(*base, dt)
+    else:
+        base, g_star = fleet.of(members)
 
     # Entries: (row, vehicle, functional, coefficient vector); a row has one or two.
     n_sep = len(rows)

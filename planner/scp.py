@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from planner.boxes import broken_boxes, near_boxes
-from planner.dual import ActiveRows, solve_group_dual
+from planner.dual import ActiveRows, FleetMoves, solve_group_dual
 from planner.first_qp import FirstSolution, timed_first_qp
 from planner.flatness import GRAVITY
 from planner.obstacle_rows import concat_rows
@@ -198,6 +198,8 @@ class _GroupSolver:
         self.memory = ActiveRows()
         """Rows found active by earlier dual solves (kept across iterations): the warm
         start of the next solve that holds them."""
+        self.fleet: FleetMoves | None = None
+        """Every vehicle's straight move, for the dual solves (computed at the first)."""
 
     def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories,
               obstacle_keys: Keys | None = None
@@ -254,8 +256,10 @@ class _GroupSolver:
                                       (-1 - 3 * okeys[None, :] - np.arange(3)[:, None]).reshape(-1)
                                       if okeys.size and self.obstacles is not None
                                       else keys[:0]])
+            if self.fleet is None:
+                self.fleet = FleetMoves(scenario)
             outcome = solve_group_dual(scenario, members, rows, group_boxes,
-                                       row_ids=row_ids, memory=self.memory)
+                                       row_ids=row_ids, memory=self.memory, fleet=self.fleet)
         if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
             solution, duals = outcome.solution, outcome.separation_duals
         else:  # the primal QP; also the judge when the dual did not solve (infeasible, ...)
