@@ -299,10 +299,15 @@ def directions(lin_positions: FloatArray, scale: FloatArray, rows: PairSteps,
     if not continuous:  # the same motion as `_step_motion`: the neighbouring steps
         motion = diff(np.minimum(rows.k + 1, last)) - diff(np.maximum(rows.k - 1, 0))
         return _unit(here, motion, separation)
-    after = diff(rows.k + 1)
+    return _interval_units(here, diff(rows.k + 1), rows.k, last, separation, moving)
+
+
+def _interval_units(here: FloatArray, after: FloatArray, k: IntArray, last: int,
+                    separation: float, moving: bool) -> FloatArray:
+    """`directions` of intervals k from their scaled pair differences at k and k + 1."""
     chord = after - here
     u = _unit(_chord_closest(here, after), chord, separation)
-    first, final = (rows.k == 0) & (not moving), rows.k == last - 1
+    first, final = (k == 0) & (not moving), k == last - 1
     u[first] = _unit(here[first], chord[first], separation)
     u[final] = _unit(after[final], chord[final], separation)
     return u
@@ -423,14 +428,22 @@ def values_among(lin_positions: FloatArray, positions: FloatArray, velocities: F
     """The smallest value of each of `rows`' linearised rows about `lin` (`directions`) at
     (positions, velocities): `row_values` for given pair-steps (pair-intervals)."""
     out = []
+    at_lin = positions is lin_positions  # the margins: the differences are read once
+    last = lin_positions.shape[1] - 1
     for lo in range(0, len(rows), CHUNK):
         part = rows.select(slice(lo, lo + CHUNK))
         i, j, k = part.i, part.j, part.k
-        u = directions(lin_positions, scale, part, continuous, separation, moving)
-        here = (positions[i, k] - positions[j, k]) / scale
+        if continuous and at_lin:
+            here = (positions[i, k] - positions[j, k]) / scale
+            after = (positions[i, k + 1] - positions[j, k + 1]) / scale
+            u = _interval_units(here, after, k, last, separation, moving)
+        else:
+            u = directions(lin_positions, scale, part, continuous, separation, moving)
+            here = (positions[i, k] - positions[j, k]) / scale
         value = np.einsum("rc,rc->r", u, here)
         if continuous:
-            after = (positions[i, k + 1] - positions[j, k + 1]) / scale
+            if not at_lin:
+                after = (positions[i, k + 1] - positions[j, k + 1]) / scale
             middle = here + 0.5 * dt * (velocities[i, k] - velocities[j, k]) / scale
             value = np.minimum(np.minimum(value, np.einsum("rc,rc->r", u, middle)),
                                np.einsum("rc,rc->r", u, after))
