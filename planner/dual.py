@@ -153,15 +153,28 @@ class ActiveRows:
     (vehicle, functional, axis, side), computed here."""
 
     def __init__(self) -> None:
-        self.separation = np.zeros(0, dtype=np.int64)
-        self.boxes = np.zeros(0, dtype=np.int64)
+        # Sets: a group's lookups and updates cost its own rows, not everything remembered.
+        self._separation: set[int] = set()
+        self._boxes: set[int] = set()
+
+    @property
+    def separation(self) -> Keys:
+        """The remembered active separation rows, sorted."""
+        return np.array(sorted(self._separation), dtype=np.int64)
+
+    def known(self, sep_ids: Keys, box_ids: Keys) -> NDArray[np.bool_]:
+        """Per row (separation rows, then box rows): remembered active?"""
+        sep, box = self._separation, self._boxes
+        return np.array([x in sep for x in sep_ids.tolist()]
+                        + [x in box for x in box_ids.tolist()], dtype=bool)
 
     def update(self, sep_ids: Keys, sep_active: NDArray[np.bool_], box_ids: Keys,
                box_active: NDArray[np.bool_]) -> None:
         """Forget what was known of these rows and remember which of them are active."""
-        self.separation = np.union1d(np.setdiff1d(self.separation, sep_ids),
-                                     sep_ids[sep_active])
-        self.boxes = np.union1d(np.setdiff1d(self.boxes, box_ids), box_ids[box_active])
+        self._separation.difference_update(sep_ids.tolist())
+        self._separation.update(sep_ids[sep_active].tolist())
+        self._boxes.difference_update(box_ids.tolist())
+        self._boxes.update(box_ids[box_active].tolist())
 
 
 #: Multipliers above this count as active for `ActiveRows` (interior-point solutions leave
@@ -370,8 +383,7 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
         side = (b_sign > 0).astype(np.int64)
         box_ids = ((members[b_veh].astype(np.int64) * fn.compliance.shape[0] + b_func) * 3
                    + b_axis) * 2 + side
-        known = np.concatenate([np.isin(row_ids, memory.separation),
-                                np.isin(box_ids, memory.boxes)])
+        known = memory.known(row_ids, box_ids)
         if known.any():
             start = known
     status, lam, moves, iterations = dual.solve(start, tolerance)
