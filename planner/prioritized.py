@@ -303,21 +303,18 @@ def clear_guess(scenario: Scenario, others: FloatArray,
     if preset is not None and len(preset[0]):
         fresh = n - len(preset[0])
         p[fresh:], v[fresh:], a[fresh:] = preset
-    placed = [others / scale, p[fresh:] / scale]
+    placed = _Placed(np.concatenate([others / scale, p[fresh:] / scale]))
     need = GUESS_GAP * scenario.min_separation
     for i in range(fresh):
-        against = np.concatenate(placed)
         lines = _polylines(scenario, i)
         chosen = (lines[0], 0)
         if routes and i in routes:
-            chosen = _route_departure(scenario, routes[i], against, need)
-        elif len(against):
+            chosen = _route_departure(scenario, routes[i], placed.points, need)
+        elif len(placed.points):
             best = -np.inf
             tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
             for subset, delay in tries:  # the straight move alone first: most often clear
-                trial = _positions(subset, scenario, delay) / scale  # (C, K+1, 3)
-                diff = trial[:, None] - against[None]  # (C, F, K+1, 3)
-                gap = np.sqrt(np.einsum("cfkx,cfkx->cfk", diff, diff).min(axis=(1, 2)))
+                gap = placed.gaps(_positions(subset, scenario, delay) / scale, need)
                 clear = np.flatnonzero(gap >= need)
                 pick = int(clear[0]) if clear.size else int(np.argmax(gap))
                 if clear.size or gap[pick] > best:
@@ -325,8 +322,52 @@ def clear_guess(scenario: Scenario, others: FloatArray,
                 if clear.size:
                     break
         p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
-        placed.append(p[i][None] / scale)
+        placed.add(p[i] / scale)
     return p, v, a
+
+
+#: Steps per coarse box of `_Placed.gaps`.
+GAP_BLOCK = 10
+
+
+class _Placed:
+    """Trajectories placed so far (scaled positions, (F, K+1, 3)) with the boxes of their
+    positions over blocks of GAP_BLOCK steps, so that a candidate is compared step by step
+    only with those whose box comes near its own in the same block."""
+
+    def __init__(self, points: FloatArray) -> None:
+        self.points = points
+        self.firsts = np.arange(0, points.shape[1], GAP_BLOCK)
+        self.lo, self.hi = self._boxes(points)
+
+    def _boxes(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+        if len(points) == 0:
+            return np.zeros((0, len(self.firsts), 3)), np.zeros((0, len(self.firsts), 3))
+        return (np.minimum.reduceat(points, self.firsts, axis=1),
+                np.maximum.reduceat(points, self.firsts, axis=1))
+
+    def add(self, trajectory: FloatArray) -> None:
+        lo, hi = self._boxes(trajectory[None])
+        self.points = np.concatenate([self.points, trajectory[None]])
+        self.lo, self.hi = np.concatenate([self.lo, lo]), np.concatenate([self.hi, hi])
+
+    def gaps(self, trial: FloatArray, need: float) -> FloatArray:
+        """Per candidate of `trial` (C, K+1, 3) its smallest distance at the same step to
+        a placed trajectory; inf when no box comes within `need` (it then keeps at least
+        that)."""
+        lo, hi = self._boxes(trial)  # (C, B, 3)
+        gap = np.maximum(0.0, np.maximum(lo[:, None] - self.hi[None], self.lo[None] - hi[:, None]))
+        cand, other, block = np.nonzero(np.einsum("cfbx,cfbx->cfb", gap, gap) < need * need)
+        out = np.full(len(trial), np.inf)
+        if cand.size == 0:
+            return out
+        k = (self.firsts[block][:, None] + np.arange(GAP_BLOCK)[None, :]).reshape(-1)
+        cand, other = np.repeat(cand, GAP_BLOCK), np.repeat(other, GAP_BLOCK)
+        inside = k < trial.shape[1]
+        cand, other, k = cand[inside], other[inside], k[inside]
+        diff = trial[cand, k] - self.points[other, k]
+        np.minimum.at(out, cand, np.sqrt(np.einsum("rx,rx->r", diff, diff)))
+        return out
 
 
 def _route_departure(scenario: Scenario, route: FloatArray, against: FloatArray,
