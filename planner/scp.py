@@ -217,9 +217,11 @@ class _GroupSolver:
                 return SOLVED, split[0], split[1], okeys
         scenario = self.scenario
         pairs = self.codec.decode(keys)
-        u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
-                       scenario.min_separation, _moving(scenario))
-        coef = u / scenario.separation_scale
+        coef = np.zeros((0, 3))
+        if len(pairs):
+            u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
+                           scenario.min_separation, _moving(scenario))
+            coef = u / scenario.separation_scale
         local = np.full(self.codec.n, -1, dtype=np.intp)
         local[members] = np.arange(len(members))
         kinds = (0, 1, 2) if self.continuous else (0,)
@@ -360,6 +362,8 @@ def _keep_right_bend(positions: FloatArray, scenario: Scenario, amplitude: float
 def _groups(keys: Keys, codec: _Codec, forced: IntArray) -> list[tuple[IntArray, Keys]]:
     """Connected components of the vehicles linked by rows, each with its sorted keys, plus
     a group of its own for every `forced` vehicle (a box broke) that has no rows."""
+    if keys.size == 0:  # no links (often so in prioritized batches): each vehicle alone
+        return [(np.array([f], dtype=np.intp), keys) for f in np.unique(forced)]
     pairs = codec.decode(keys)
     n = codec.n
     graph = sp.coo_matrix((np.ones(len(pairs)), (pairs.i, pairs.j)), shape=(n, n))
