@@ -19,7 +19,7 @@ import numpy as np
 from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
 from planner.first_qp import straight_moves, timed_first_qp
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.prioritized import plan_batches
+from planner.prioritized import batch_size, plan_batches
 from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp
@@ -43,8 +43,9 @@ def _whole_because(work: Scenario, options: ScpOptions, free: bool, dodged: bool
     """Why a fleet asked to be planned in prioritized batches (`planner.prioritized`) is
     planned whole, or None when it is not: the batches plan rest-to-rest moves of a fleet of
     more than one batch, whose only fixed trajectories are their earlier vehicles."""
-    if len(work.vehicles) <= options.batch_size:
-        return f"{len(work.vehicles)} vehicles fit in one batch of {options.batch_size}"
+    size = batch_size(work, options.batch_size)
+    if len(work.vehicles) <= size:
+        return f"{len(work.vehicles)} vehicles fit in one batch of {size}"
     if work.fixed:
         return "the scenario has fixed trajectories of its own"
     if work.start_velocities is not None or work.start_accelerations is not None:

@@ -1,6 +1,7 @@
 """Prioritized batches: plan a large fleet a batch of vehicles at a time.
 
-The vehicles are ordered (`order_vehicles`) and cut into batches. Batch k is planned by the
+The vehicles are ordered (`order_vehicles`) and cut into batches (`batch_size`: pairs
+along a dominant motion, single vehicles in a crowd without one). Batch k is planned by the
 ordinary SCP loop with every vehicle of batches 0..k-1 as a fixed trajectory
 (`planner.fixed`): its rows keep R from their planned motion over continuous time. The
 vehicles of later batches are reserved at their starts (a fixed trajectory resting there for
@@ -32,7 +33,7 @@ from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
 from planner.types import FloatArray, IntArray
 
-__all__ = ["PrioritizedOutcome", "order_vehicles", "plan_batches"]
+__all__ = ["PrioritizedOutcome", "batch_size", "order_vehicles", "plan_batches"]
 
 #: A fixed trajectory joins a batch's scenario only if it comes within this many R (scaled)
 #: of a batch vehicle's straight move at some instant of the horizon (any time: the batch's
@@ -49,18 +50,36 @@ class PrioritizedOutcome:
     batch_seconds: list[float]
 
 
+def _dominant_motion(scenario: Scenario) -> FloatArray | None:
+    """The unit direction of the fleet's mean move when it is over half the mean move's
+    length (a fleet moving as one), else None (crowds crossing a centre, random moves)."""
+    move = scenario.goals - scenario.starts
+    mean = move.mean(axis=0)
+    if float(np.linalg.norm(mean)) > 0.5 * float(np.linalg.norm(move, axis=1).mean()):
+        return mean / np.linalg.norm(mean)
+    return None
+
+
 def order_vehicles(scenario: Scenario) -> IntArray:
     """Planning order: a sweep along the fleet's dominant motion, the vehicles whose goals
     lie farthest along it first (they fill the far side before the others arrive and leave
     the near side free); without a dominant motion (crowds crossing a centre, random moves)
     the longest moves first."""
-    move = scenario.goals - scenario.starts
-    mean = move.mean(axis=0)
-    length = np.linalg.norm(move, axis=1)
-    if float(np.linalg.norm(mean)) > 0.5 * float(length.mean()):
-        direction = mean / np.linalg.norm(mean)
+    direction = _dominant_motion(scenario)
+    if direction is not None:
         return np.argsort(-(scenario.goals @ direction), kind="stable").astype(np.intp)
+    length = np.linalg.norm(scenario.goals - scenario.starts, axis=1)
     return np.argsort(-length, kind="stable").astype(np.intp)
+
+
+def batch_size(scenario: Scenario, asked: int | None = None) -> int:
+    """Vehicles per batch: `asked`, else DEFAULT_BATCH for a fleet with a dominant motion
+    (neighbours in the sweep move alike and converge together) and 1 without one (in a
+    crowd crossing a centre a pair's SCP iterates until the slower of two unrelated
+    vehicles converges: grid -> sphere 256 1.2-1.3x less CPU a vehicle at a time)."""
+    if asked is not None:
+        return asked
+    return DEFAULT_BATCH if _dominant_motion(scenario) is not None else 1
 
 
 def _segment_distance(points: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
@@ -90,7 +109,7 @@ def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach:
 
 def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = None,
                  progress: Callable[[IterationRecord], None] | None = None,
-                 batch: int = DEFAULT_BATCH, order: IntArray | None = None
+                 batch: int | None = None, order: IntArray | None = None
                  ) -> PrioritizedOutcome | None:
     """Plan `work` (goals assigned, no fixed trajectories or start velocities of its own)
     batch by batch. A batch whose SCP does not converge is planned again together with the
@@ -101,6 +120,7 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     # rows against many fixed ones all couple): the primal measured about twice as fast
     options = dataclasses.replace(options or ScpOptions(), dual=False)
     order = order_vehicles(work) if order is None else order
+    batch = batch_size(work, batch)
     batches = [order[s:s + batch] for s in range(0, n, batch)]
     state = _State(work, np.repeat(work.starts[:, None, :], steps + 1, axis=1),
                    np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3)), np.zeros(n, bool))

@@ -78,8 +78,9 @@ DUAL_MAX_ROWS_PER_VEHICLE = 25
 DUAL_MAX_STEPS = 400
 #: `ScpOptions.decompose` values: the whole fleet at once, or prioritized batches.
 DECOMPOSITIONS = ("none", "prioritized")
-#: Vehicles per prioritized batch by default: measured fastest on the sideways family (see
-#: docs/benchmarks/planner.md, Prioritized batches).
+#: Vehicles per prioritized batch by default for a fleet with a dominant motion: measured
+#: fastest on the sideways family (see docs/benchmarks/planner.md, Prioritized batches);
+#: a crowd without one is planned a vehicle at a time (`planner.prioritized.batch_size`).
 DEFAULT_BATCH = 2
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
@@ -125,15 +126,17 @@ class ScpOptions:
     each against the earlier ones as fixed trajectories (`planner.prioritized`), verifies
     the joined plan and plans the whole fleet instead if a batch fails or the check does;
     "none" (the default): the whole fleet at once."""
-    batch_size: int = DEFAULT_BATCH
-    """Vehicles per batch with decompose="prioritized"."""
+    batch_size: int | None = None
+    """Vehicles per batch with decompose="prioritized"; None: by the fleet's motion
+    (`planner.prioritized.batch_size`: DEFAULT_BATCH along a dominant motion, 1 without)."""
 
     def __post_init__(self) -> None:
         if self.decompose not in DECOMPOSITIONS:
             raise ValueError(f"decompose: must be one of {', '.join(DECOMPOSITIONS)}, "
                              f"got {self.decompose!r}")
-        if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) \
-                or self.batch_size < 1:
+        if self.batch_size is not None and (
+                isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int)
+                or self.batch_size < 1):
             raise ValueError(f"batch_size: must be a whole number of vehicles >= 1, "
                              f"got {self.batch_size!r}")
 

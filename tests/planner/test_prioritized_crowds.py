@@ -1,0 +1,79 @@
+"""Prioritized batches on crowds crossing a centre (grid -> sphere with fixed goals): a
+vehicle at a time by default, every vehicle keeping R from the earlier ones over continuous
+time, and the first guesses' blocked gap test (`planner.prioritized._Placed`) agreeing with
+the step-by-step distances."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+import planner.prioritized as prioritized
+from planner import plan
+from planner.generators import grid_to_sphere, sideways
+from planner.scenario import Scenario
+from planner.scp import DEFAULT_BATCH, ScpOptions
+from planner.solvers import make_solver
+from planner.verify import verify
+
+
+def _crowd(vehicles: int = 24) -> Scenario:
+    return Scenario.from_dict(grid_to_sphere(vehicles, seed=0)).assigned()
+
+
+def test_a_crowd_goes_a_vehicle_at_a_time_a_fleet_moving_as_one_in_pairs() -> None:
+    assert prioritized.batch_size(_crowd()) == 1
+    assert prioritized.batch_size(Scenario.from_dict(sideways(16)).assigned()) == DEFAULT_BATCH
+    assert prioritized.batch_size(_crowd(), 3) == 3  # asked for: as asked
+
+
+def test_a_crowd_plans_one_vehicle_per_batch_each_clear_of_the_earlier_ones() -> None:
+    work = _crowd()
+    found = prioritized.plan_batches(work, make_solver(None))
+    assert found is not None
+    assert [len(b) for b in found.batches] == [1] * len(work.vehicles)
+    out = found.outcome
+    for k in range(1, len(found.batches)):
+        sel = np.concatenate(found.batches[:k + 1])
+        sub = dataclasses.replace(work, vehicles=tuple(work.vehicles[j] for j in sel),
+                                  starts=work.starts[sel], goals=work.goals[sel])
+        check = verify(sub, out.positions[sel], out.velocities[sel], out.accelerations[sel])
+        assert check.separated, (k, check.min_separation_continuous)
+    straight = verify(work, *_straight(work))
+    assert not straight.separated  # the crowd does meet
+
+
+def _straight(work: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from planner.first_qp import straight_moves
+    return straight_moves(work)
+
+
+def test_plan_with_default_batches_on_a_crowd_is_converged_and_verified() -> None:
+    result = plan(grid_to_sphere(24, seed=1), options=ScpOptions(decompose="prioritized"))
+    assert result.status == "converged", result.message
+    assert result.verification is not None and result.verification.verified
+    assert result.verification.min_separation_continuous >= 1.0 - 1e-4
+    assert "batches of up to 1 vehicles" in result.message
+
+
+def test_the_blocked_gaps_are_the_step_distances_where_they_matter() -> None:
+    rng = np.random.default_rng(7)
+    stages = 151
+    def walks(count: int) -> np.ndarray:
+        return (np.cumsum(rng.normal(0.0, 0.3, (count, stages, 3)), axis=1)
+                + rng.uniform(-12.0, 12.0, (count, 1, 3)))
+
+    placed_points = walks(12)
+    placed = prioritized._Placed(placed_points)
+    trial = walks(40)
+    exact = np.linalg.norm(trial[:, None] - placed_points[None], axis=3).min(axis=(1, 2))
+    for need in np.quantile(exact, [0.2, 0.5, 0.8]):  # some candidates fail, some clear
+        gaps = placed.gaps(trial, need)
+        near = exact < need
+        assert near.any() and (~near).any(), need  # both kinds of candidate
+        assert np.allclose(gaps[near], exact[near])  # exact wherever the candidate fails
+        assert (gaps[~near] >= need).all()  # and at least `need` wherever it is clear
+    # a trajectory added later is compared too
+    placed.add(trial[0])
+    assert placed.gaps(trial[:1], 1.0)[0] == 0.0
