@@ -276,12 +276,13 @@ def _polylines(scenario: Scenario, vehicle: int) -> FloatArray:
     side /= np.linalg.norm(side)
     up = np.cross(side, axis)
     low, high = scenario.limits.position_min, scenario.limits.position_max
-    out = [np.stack([s, 0.5 * (s + g), g])]
-    for detour in DETOURS[1:]:
-        for d in (side, -side, up, -up):
-            mid = np.clip(0.5 * (s + g) + detour * scenario.min_separation * d, low, high)
-            out.append(np.stack([s, mid, g]))
-    return np.stack(out)
+    pushes = (np.asarray(DETOURS[1:])[:, None, None] * scenario.min_separation
+              * np.stack([side, -side, up, -up])[None]).reshape(-1, 3)  # detour-major
+    out = np.empty((1 + len(pushes), 3, 3))
+    out[:, 0], out[:, 2] = s, g
+    out[0, 1] = 0.5 * (s + g)
+    out[1:, 1] = np.clip(0.5 * (s + g) + pushes, low, high)
+    return out
 
 
 def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
