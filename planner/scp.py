@@ -80,7 +80,8 @@ DUAL_MAX_STEPS = 400
 DECOMPOSITIONS = ("none", "prioritized")
 #: Vehicles per prioritized batch by default for a fleet with a dominant motion: measured
 #: fastest on the sideways family (see docs/benchmarks/planner.md, Prioritized batches);
-#: a crowd without one is planned a vehicle at a time (`planner.prioritized.batch_size`).
+#: an obstacle-free crowd without one goes a vehicle at a time
+#: (`planner.prioritized.batch_size`).
 DEFAULT_BATCH = 2
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
@@ -128,7 +129,8 @@ class ScpOptions:
     "none" (the default): the whole fleet at once."""
     batch_size: int | None = None
     """Vehicles per batch with decompose="prioritized"; None: by the fleet's motion
-    (`planner.prioritized.batch_size`: DEFAULT_BATCH along a dominant motion, 1 without)."""
+    (`planner.prioritized.batch_size`: 1 in an obstacle-free crowd without a dominant
+    motion, else DEFAULT_BATCH)."""
 
     def __post_init__(self) -> None:
         if self.decompose not in DECOMPOSITIONS:

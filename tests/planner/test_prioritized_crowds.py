@@ -12,6 +12,7 @@ import numpy as np
 import planner.prioritized as prioritized
 from planner import plan
 from planner.generators import grid_to_sphere, sideways
+from planner.obstacle_generators import forest
 from planner.scenario import Scenario
 from planner.scp import DEFAULT_BATCH, ScpOptions
 from planner.solvers import make_solver
@@ -25,6 +26,10 @@ def _crowd(vehicles: int = 24) -> Scenario:
 def test_a_crowd_goes_a_vehicle_at_a_time_a_fleet_moving_as_one_in_pairs() -> None:
     assert prioritized.batch_size(_crowd()) == 1
     assert prioritized.batch_size(Scenario.from_dict(sideways(16)).assigned()) == DEFAULT_BATCH
+    # a crowd among obstacles stays in pairs (measured no faster alone)
+    woods = Scenario.from_dict(forest(8, 6, size=20.0, seed=0)).assigned()
+    assert prioritized._dominant_motion(woods) is None and woods.obstacles
+    assert prioritized.batch_size(woods) == DEFAULT_BATCH
     assert prioritized.batch_size(_crowd(), 3) == 3  # asked for: as asked
 
 
