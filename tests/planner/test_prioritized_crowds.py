@@ -82,3 +82,49 @@ def test_the_blocked_gaps_are_the_step_distances_where_they_matter() -> None:
     # a trajectory added later is compared too
     placed.add(trial[0])
     assert placed.gaps(trial[:1], 1.0)[0] == 0.0
+
+
+def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
+    """clear_guess's choice computed the plain way: every candidate against every placed
+    trajectory at every step, try by try (the straight move, then each delay)."""
+    from planner.routes import _along
+    scale = scenario.separation_scale
+    need = prioritized.GUESS_GAP * scenario.min_separation
+    placed = [others / scale]
+    out = []
+    for i in range(len(scenario.vehicles)):
+        lines = prioritized._polylines(scenario, i)
+        against = np.concatenate(placed)
+        chosen, best = (lines[0], 0), -np.inf
+        tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps))
+                                    for d in prioritized.DELAYS]
+        for subset, delay in tries:
+            trial = prioritized._positions(subset, scenario, delay) / scale
+            gap = np.linalg.norm(trial[:, None] - against[None], axis=3).min(axis=(1, 2))
+            clear = np.flatnonzero(gap >= need)
+            pick = int(clear[0]) if clear.size else int(np.argmax(gap))
+            if clear.size or gap[pick] > best:
+                chosen, best = (subset[pick], delay), float(gap[pick])
+            if clear.size:
+                break
+        p = _along(chosen[0], scenario, chosen[1])[0]
+        out.append(p)
+        placed.append(p[None] / scale)
+    return np.stack(out)
+
+
+def test_the_first_guess_is_the_plain_try_by_try_choice() -> None:
+    from planner.first_qp import straight_moves
+    work = _crowd(64)
+    straight = straight_moves(work)[0]
+    rng = np.random.default_rng(2)
+    order = rng.permutation(len(work.vehicles))
+    waited = 0
+    for split in (8, 30, 56):
+        mine = order[split:split + 4]
+        sub = dataclasses.replace(work, vehicles=tuple(work.vehicles[j] for j in mine),
+                                  starts=work.starts[mine], goals=work.goals[mine])
+        guess = prioritized.clear_guess(sub, straight[order[:split]])[0]
+        np.testing.assert_array_equal(guess, _reference_guess(sub, straight[order[:split]]))
+        waited += int((np.linalg.norm(guess[:, 1] - sub.starts, axis=1) < 1e-12).sum())
+    assert waited > 0  # some vehicle had to wait: the delayed candidates were exercised
