@@ -336,30 +336,19 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         if routes and i in routes:
             chosen = _route_departure(scenario, routes[i], placed.points, need)
         elif len(placed.points):
-            chosen = _first_clear(scenario, placed, lines, need)
+            best = -np.inf
+            tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
+            for subset, delay in tries:  # the straight move alone first: most often clear
+                gap = placed.gaps(_positions(subset, scenario, delay) / scale, need)
+                clear = np.flatnonzero(gap >= need)
+                pick = int(clear[0]) if clear.size else int(np.argmax(gap))
+                if clear.size or gap[pick] > best:
+                    chosen, best = (subset[pick], delay), float(gap[pick])
+                if clear.size:
+                    break
         p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
         placed.add(p[i] / scale)
     return p, v, a
-
-
-def _first_clear(scenario: Scenario, placed: _Placed, lines: FloatArray, need: float
-                 ) -> tuple[FloatArray, int]:
-    """(polyline, delay): the straight move at once if it keeps `need` from `placed` at every
-    step (most often so), else the first of `lines` departing after the first of DELAYS
-    that does, else the one that keeps farthest (the earliest of equals, the straight move
-    at once first). Every candidate after the straight move is compared in one pass."""
-    scale = scenario.separation_scale
-    straight = float(placed.gaps(_positions(lines[:1], scenario, 0) / scale, need)[0])
-    if straight >= need:
-        return lines[0], 0
-    delays = [int(d * scenario.steps) for d in DELAYS]
-    gap = placed.gaps(np.concatenate([_positions(lines, scenario, d) for d in delays]) / scale,
-                      need)  # delay-major
-    clear = np.flatnonzero(gap >= need)
-    pick = int(clear[0]) if clear.size else int(np.argmax(gap))
-    if not clear.size and straight >= gap[pick]:
-        return lines[0], 0
-    return lines[pick % len(lines)], delays[pick // len(lines)]
 
 
 #: Steps per coarse box of `_Placed.gaps`.
