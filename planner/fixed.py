@@ -190,10 +190,6 @@ class FixedSet:
     """(F,) full margins."""
     interval_margins: FloatArray
     """(F, K) the margin over each step: `margin_at` its end (the largest over it)."""
-    scaled_boxes: tuple[FloatArray, FloatArray] | None = None
-    """`planner.fixed_rows.interval_boxes` of these trajectories at the scenario's
-    separation scale, when the caller has them (prioritized batches keep them per vehicle);
-    None: computed from the arrays."""
 
     def step_margins(self) -> FloatArray:
         """(F, K+1) the margin at each step's instant (0 at the start)."""

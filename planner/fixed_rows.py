@@ -81,9 +81,8 @@ class FixedRows:
         self.intervals = scenario.steps
         self.margins = fs.interval_margins  # (F, K)
         self._positions, self._velocities = fs.positions, fs.velocities
-        self._lo, self._hi = (fs.scaled_boxes if fs.scaled_boxes is not None
-                              else interval_boxes(fs.positions, fs.velocities, self.dt,
-                                                  self.scale))  # (F, K, 3)
+        self._lo, self._hi = interval_boxes(fs.positions, fs.velocities, self.dt,
+                                            self.scale)  # (F, K, 3)
         # the same over blocks of BLOCK intervals: the broad phase's first, coarse test
         self._firsts = np.arange(0, self.intervals, BLOCK)
         self._block_lo = np.minimum.reduceat(self._lo, self._firsts, axis=1) \

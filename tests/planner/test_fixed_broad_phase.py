@@ -64,21 +64,6 @@ def test_the_blocked_broad_phase_finds_every_triple_the_interval_test_finds(step
             assert got == want
 
 
-def test_the_broad_phase_uses_the_boxes_a_caller_hands_it() -> None:
-    scenario = _scenario(150)
-    rng = np.random.default_rng(4)
-    rows = _rows(scenario, rng, 5)
-    lo, hi = interval_boxes(rows._positions, rows._velocities, rows.dt, rows.scale)
-    # boxes pushed far away: the broad phase trusts them, so it finds nothing
-    far = dataclasses.replace(scenario)
-    far.__dict__["fixed_set"] = FixedSet(
-        [f"f{i}" for i in range(5)], rows._positions, rows._velocities,
-        np.zeros((5, 150, 3)), np.zeros(5), np.zeros((5, 150)), (lo + 1e3, hi + 1e3))
-    p, v = rows._positions[:2], rows._velocities[:2]
-    assert len(rows.near(p, v, 0.0)) > 0
-    assert len(FixedRows(far).near(p, v, 0.0)) == 0
-
-
 def test_small_groups_share_their_equality_and_cost_matrices_unchanged() -> None:
     scenario = Scenario.from_dict(grid_to_sphere(8, seed=0)).assigned()
     one = build_group_qp(scenario, np.array([0, 1]), SeparationRows.empty())
