@@ -74,7 +74,8 @@ def run(case: str, options: ScpOptions, method: str) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", required=True)
-    parser.add_argument("--batch", type=int, default=2)
+    parser.add_argument("--batch", type=int, default=None,
+                        help="vehicles per batch (default: the planner's, by the fleet's motion)")
     parser.add_argument("--no-whole", action="store_true",
                         help="skip the whole-fleet SCP (for cases it takes minutes on)")
     parser.add_argument("--no-batches", action="store_true",
@@ -86,7 +87,7 @@ def main() -> None:
     for case in args.cases:
         if not args.no_batches:
             runs.append(run(case, ScpOptions(decompose="prioritized", batch_size=args.batch),
-                            f"prioritized-{args.batch}"))
+                            f"prioritized-{args.batch or 'auto'}"))
             print(json.dumps(runs[-1]), file=sys.stderr, flush=True)
         if not args.no_whole:
             runs.append(run(case, ScpOptions(), "whole"))

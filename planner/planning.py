@@ -19,7 +19,7 @@ import numpy as np
 from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
 from planner.first_qp import solve_first_qp, straight_moves, timed_first_qp
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.prioritized import plan_batches
+from planner.prioritized import batch_size, plan_batches
 from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp, thrust_cost
@@ -43,8 +43,9 @@ def _whole_because(work: Scenario, options: ScpOptions, free: bool, dodged: bool
     """Why a fleet asked to be planned in prioritized batches (`planner.prioritized`) is
     planned whole, or None when it is not: the batches plan fixed-goal moves of a fleet of
     more than one batch (from rest or a moving state, around its fixed trajectories)."""
-    if len(work.vehicles) <= options.batch_size:
-        return f"{len(work.vehicles)} vehicles fit in one batch of {options.batch_size}"
+    size = batch_size(work, options.batch_size)
+    if len(work.vehicles) <= size:
+        return f"{len(work.vehicles)} vehicles fit in one batch of {size}"
     if free:
         return "free assignment plans from CAPT's straight moves"
     if dodged:

@@ -82,8 +82,10 @@ DUAL_MAX_ROWS_PER_VEHICLE = 25
 DUAL_MAX_STEPS = 400
 #: `ScpOptions.decompose` values: the whole fleet at once, or prioritized batches.
 DECOMPOSITIONS = ("none", "prioritized")
-#: Vehicles per prioritized batch by default: measured fastest on the sideways family (see
-#: docs/benchmarks/planner.md, Prioritized batches).
+#: Vehicles per prioritized batch by default for a fleet with a dominant motion: measured
+#: fastest on the sideways family (see docs/benchmarks/planner.md, Prioritized batches);
+#: an obstacle-free crowd without one goes a vehicle at a time
+#: (`planner.prioritized.batch_size`).
 DEFAULT_BATCH = 2
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
@@ -132,8 +134,10 @@ class ScpOptions:
     each against the earlier ones as fixed trajectories (`planner.prioritized`), verifies
     the joined plan and plans the whole fleet instead if a batch fails or the check does;
     "none" (the default): the whole fleet at once."""
-    batch_size: int = DEFAULT_BATCH
-    """Vehicles per batch with decompose="prioritized"."""
+    batch_size: int | None = None
+    """Vehicles per batch with decompose="prioritized"; None: by the fleet's motion
+    (`planner.prioritized.batch_size`: 1 in an obstacle-free crowd without a dominant
+    motion, else DEFAULT_BATCH)."""
     batch_cost_share: bool = False
     """With decompose="prioritized", each batch stops at its share of the scenario's
     `cost_threshold` (its vehicles over the fleet's), and the joined plan is taken only if
@@ -146,8 +150,9 @@ class ScpOptions:
         if self.decompose not in DECOMPOSITIONS:
             raise ValueError(f"decompose: must be one of {', '.join(DECOMPOSITIONS)}, "
                              f"got {self.decompose!r}")
-        if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) \
-                or self.batch_size < 1:
+        if self.batch_size is not None and (
+                isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int)
+                or self.batch_size < 1):
             raise ValueError(f"batch_size: must be a whole number of vehicles >= 1, "
                              f"got {self.batch_size!r}")
 
@@ -236,9 +241,11 @@ class _GroupSolver:
                 return SOLVED, split[0], split[1], okeys
         scenario = self.scenario
         pairs = self.codec.decode(keys)
-        u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
-                       scenario.min_separation, _moving(scenario))
-        coef = u / scenario.separation_scale
+        coef = np.zeros((0, 3))
+        if len(pairs):
+            u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
+                           scenario.min_separation, _moving(scenario))
+            coef = u / scenario.separation_scale
         local = np.full(self.codec.n, -1, dtype=np.intp)
         local[members] = np.arange(len(members))
         kinds = (0, 1, 2) if self.continuous else (0,)
@@ -388,6 +395,8 @@ def _keep_right_bend(positions: FloatArray, scenario: Scenario, amplitude: float
 def _groups(keys: Keys, codec: _Codec, forced: IntArray) -> list[tuple[IntArray, Keys]]:
     """Connected components of the vehicles linked by rows, each with its sorted keys, plus
     a group of its own for every `forced` vehicle (a box broke) that has no rows."""
+    if keys.size == 0:  # no links (often so in prioritized batches): each vehicle alone
+        return [(np.array([f], dtype=np.intp), keys) for f in np.unique(forced)]
     pairs = codec.decode(keys)
     n = codec.n
     graph = sp.coo_matrix((np.ones(len(pairs)), (pairs.i, pairs.j)), shape=(n, n))
