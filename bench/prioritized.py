@@ -1,9 +1,9 @@
 """Prioritized batches against the whole-fleet SCP on the crowded families (JSON on stdout).
 
-Each case is planned by `planner.plan` with `ScpOptions(decompose="prioritized")` and,
-unless --no-whole, with the default options (the whole fleet at once), one after the other
-in this process; wall and CPU time, status, verification, cost and the load average are
-recorded per run.
+Each case is planned by `planner.plan` with `ScpOptions(decompose="prioritized")` (unless
+--no-batches) and, unless --no-whole, with the default options (the whole fleet at once), one
+after the other in this process; wall and CPU time, status, verification, cost and the load
+average are recorded per run.
 
     nice -n 10 python bench/prioritized.py --cases sideways:100:none gs:256:0 > out.json
 """
@@ -74,15 +74,21 @@ def run(case: str, options: ScpOptions, method: str) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", required=True)
-    parser.add_argument("--batch", type=int, default=2)
+    parser.add_argument("--batch", type=int, default=None,
+                        help="vehicles per batch (default: the planner's, by the fleet's motion)")
     parser.add_argument("--no-whole", action="store_true",
                         help="skip the whole-fleet SCP (for cases it takes minutes on)")
+    parser.add_argument("--no-batches", action="store_true",
+                        help="skip the prioritized batches (time the whole-fleet SCP alone)")
     args = parser.parse_args()
+    if args.no_whole and args.no_batches:
+        parser.error("--no-whole and --no-batches together leave nothing to run")
     runs = []
     for case in args.cases:
-        runs.append(run(case, ScpOptions(decompose="prioritized", batch_size=args.batch),
-                        f"prioritized-{args.batch}"))
-        print(json.dumps(runs[-1]), file=sys.stderr, flush=True)
+        if not args.no_batches:
+            runs.append(run(case, ScpOptions(decompose="prioritized", batch_size=args.batch),
+                            f"prioritized-{args.batch or 'auto'}"))
+            print(json.dumps(runs[-1]), file=sys.stderr, flush=True)
         if not args.no_whole:
             runs.append(run(case, ScpOptions(), "whole"))
             print(json.dumps(runs[-1]), file=sys.stderr, flush=True)

@@ -28,6 +28,7 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
 from planner.first_qp import straight_moves_of
 from planner.qp import A, BoxMask, P, SeparationRows, V
@@ -35,7 +36,10 @@ from planner.scenario import Scenario
 from planner.solvers import FAILED, INFEASIBLE, MAX_ITER, SOLVED
 from planner.types import FloatArray, IntArray
 
-__all__ = ["DualOutcome", "Functionals", "functionals", "solve_group_dual"]
+__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "Functionals", "functionals",
+           "solve_group_dual"]
+
+Keys = NDArray[np.int64]
 
 
 #: Largest dual matrix (entries of Q before fill-in) worth building; beyond it (a vehicle
@@ -140,18 +144,206 @@ def _box_rows(scenario: Scenario, fn: Functionals, boxes: BoxMask, members: IntA
             np.concatenate([lo[low_ok], -hi[high_ok]]))
 
 
-def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows,
-                     boxes: BoxMask, tolerance: float = 1e-8) -> DualOutcome | None:
-    """The group QP of `build_group_qp(scenario, members, rows, boxes)`, solved through
-    its dual. Returns the group's (p, v, a) and the separation rows' multipliers, or None
-    when the dual's matrix would exceed `MAX_PAIRS` entries (the caller solves the primal)."""
+class ActiveRows:
+    """Ids of the rows that had a positive multiplier in the latest solve that held them: the
+    warm start of the next solve of a group that holds them again (the same group with a few
+    rows added, or the next SCP iteration's group, whose active set changes little).
+
+    Separation rows are named by the caller (`solve_group_dual`'s `row_ids`); box rows by
+    (vehicle, functional, axis, side), computed here."""
+
+    def __init__(self) -> None:
+        # Sets: a group's lookups and updates cost its own rows, not everything remembered.
+        self._separation: set[int] = set()
+        self._boxes: set[int] = set()
+
+    @property
+    def separation(self) -> Keys:
+        """The remembered active separation rows, sorted."""
+        return np.array(sorted(self._separation), dtype=np.int64)
+
+    def known(self, sep_ids: Keys, box_ids: Keys) -> NDArray[np.bool_]:
+        """Per row (separation rows, then box rows): remembered active?"""
+        sep, box = self._separation, self._boxes
+        return np.array([x in sep for x in sep_ids.tolist()]
+                        + [x in box for x in box_ids.tolist()], dtype=bool)
+
+    def update(self, sep_ids: Keys, sep_active: NDArray[np.bool_], box_ids: Keys,
+               box_active: NDArray[np.bool_]) -> None:
+        """Forget what was known of these rows and remember which of them are active."""
+        self._separation.difference_update(sep_ids.tolist())
+        self._separation.update(sep_ids[sep_active].tolist())
+        self._boxes.difference_update(box_ids.tolist())
+        self._boxes.update(box_ids[box_active].tolist())
+
+
+#: Multipliers above this count as active for `ActiveRows` (interior-point solutions leave
+#: tiny positive values on inactive rows).
+ACTIVE = 1e-7
+#: Rounds of the working-set method before it solves every row at once.
+WORKING_SET_ROUNDS = 8
+#: A working set of more than this fraction of the rows is solved as the whole dual.
+WORKING_SET_FRACTION = 0.5
+
+
+def _solve_bounded(Q: sp.csc_matrix, c: FloatArray, tolerance: float
+                   ) -> tuple[str, FloatArray | None, int]:
+    """min 1/2 l'Ql + c'l, l >= 0 (Q: upper triangle) with PIQP: (status, l, iterations)."""
     import piqp
 
+    n = len(c)
+    solver = piqp.SparseSolver()
+    s = solver.settings
+    s.eps_abs = tolerance
+    s.eps_rel = tolerance * 1e-1
+    s.max_iter = 200
+    solver.setup(Q, c, None, None, None, None, None, np.zeros(n), np.full(n, np.inf))
+    status = solver.solve()
+    iterations = int(solver.result.info.iter)
+    if status != piqp.PIQP_SOLVED:
+        # The dual (bounds only) is always feasible; unbounded: the QP is infeasible.
+        name = (INFEASIBLE if status in (piqp.PIQP_PRIMAL_INFEASIBLE, piqp.PIQP_DUAL_INFEASIBLE)
+                else MAX_ITER if status == piqp.PIQP_MAX_ITER_REACHED else FAILED)
+        return name, None, iterations
+    return SOLVED, np.maximum(np.array(solver.result.x), 0.0), iterations
+
+
+class _Dual:
+    """One group's dual: its rows as entries (row, vehicle, functional, coefficient vector;
+    a separation row has one entry per vehicle it moves, a box row one) and the linear term
+    c = C x* - h. Blocks of Q = C M C' are built for the rows a solve needs, and the
+    gradient Q l + c (every row's slack at the trajectories l gives) through the forces on
+    the functionals, so that a solve over a few rows never builds all of Q."""
+
+    def __init__(self, fn: Functionals, vehicles: int, e_row: IntArray, e_veh: IntArray,
+                 e_func: IntArray, e_coef: FloatArray, c: FloatArray) -> None:
+        self.fn, self.m = fn, vehicles
+        self.e_row, self.e_veh, self.e_func, self.e_coef = e_row, e_veh, e_func, e_coef
+        self.c = c
+        order = np.argsort(e_row, kind="stable")
+        self._by_row = order
+        self._row_start = np.searchsorted(e_row[order], np.arange(len(c) + 1))
+
+    def block(self, rows: IntArray) -> sp.csc_matrix:
+        """Q restricted to `rows` (sorted), upper triangle, in their order: every pair of
+        their entries on the same vehicle."""
+        take = self._entries_of(rows)
+        local = np.searchsorted(rows, self.e_row[take])
+        veh = self.e_veh[take]
+        count = np.bincount(veh, minlength=self.m)
+        order = np.argsort(veh, kind="stable")
+        first = np.concatenate([[0], np.cumsum(count)[:-1]])
+        reps = count[veh[order]]
+        left = np.repeat(np.arange(len(order)), reps)
+        block_start = np.repeat(np.cumsum(reps) - reps, reps)
+        right = first[veh[order][left]] + (np.arange(len(left)) - block_start)
+        left, right = order[left], order[right]
+        keep = local[left] <= local[right]
+        left, right = left[keep], right[keep]
+        el, er = take[left], take[right]
+        values = (np.einsum("ec,ec->e", self.e_coef[el], self.e_coef[er])
+                  * self.fn.compliance[self.e_func[el], self.e_func[er]])
+        return sp.csc_matrix((values, (local[left], local[right])),
+                             shape=(len(rows), len(rows)))
+
+    def _entries_of(self, rows: IntArray) -> IntArray:
+        """Indices of the entries of `rows`."""
+        lo, hi = self._row_start[rows], self._row_start[rows + 1]
+        size = hi - lo
+        offset = np.repeat(lo - np.cumsum(size) + size, size)
+        return self._by_row[np.arange(int(size.sum())) + offset]
+
+    def moves(self, lam: FloatArray) -> FloatArray:
+        """(m, 3, F): every functional's change from x* under the multipliers `lam`,
+        M C' lam read through the functionals (only rows with a multiplier push)."""
+        fn, m = self.fn, self.m
+        count = fn.compliance.shape[0]
+        pushing = np.flatnonzero(lam[self.e_row] > 0.0)
+        push = lam[self.e_row[pushing], None] * self.e_coef[pushing]
+        force = sp.csr_matrix(
+            (push.reshape(-1), ((self.e_veh[pushing, None] * 3 + np.arange(3)).reshape(-1),
+                                np.repeat(self.e_func[pushing], 3))),
+            shape=(3 * m, count))
+        return np.asarray(force @ fn.compliance).reshape(m, 3, count)
+
+    def gradient(self, moves: FloatArray) -> FloatArray:
+        """Q l + c from `moves(l)`: each row's slack at the trajectories of l."""
+        along = np.einsum("ec,ec->e", self.e_coef, moves[self.e_veh, :, self.e_func])
+        return self.c + np.bincount(self.e_row, along, minlength=len(self.c))
+
+    def solve(self, start: NDArray[np.bool_], tolerance: float
+              ) -> tuple[str, FloatArray | None, FloatArray | None, int]:
+        """min 1/2 l'Ql + c'l, l >= 0, over a working set of rows from `start` (rows
+        believed active): the multipliers of the other rows held at 0, which is optimal for
+        the whole dual exactly when every other row's gradient (its slack in the group's
+        QP) is >= -tolerance; the rows that break that join the set and it is solved again.
+        The same optimum as one solve of every row, in smaller solves (about a tenth of the
+        rows are active), and a set started from the rows active in an earlier, similar QP
+        usually needs one or two. Every row at once after WORKING_SET_ROUNDS rounds or once
+        the set holds WORKING_SET_FRACTION of the rows. Returns (status, l, `moves(l)`,
+        PIQP iterations)."""
+        n = len(self.c)
+        work = start.copy()
+        iterations = 0
+        for _ in range(WORKING_SET_ROUNDS):
+            if work.sum() > WORKING_SET_FRACTION * n:
+                break
+            idx = np.flatnonzero(work)
+            lam = np.zeros(n)
+            if idx.size:
+                status, sub, its = _solve_bounded(self.block(idx), self.c[idx], tolerance)
+                iterations += its
+                if sub is None:
+                    return status, None, None, iterations
+                lam[idx] = sub
+            moves = self.moves(lam)
+            broken = ~work & (self.gradient(moves) < -tolerance)
+            if not broken.any():
+                return SOLVED, lam, moves, iterations
+            work |= broken
+        status, lam_all, its = _solve_bounded(self.block(np.arange(n)), self.c, tolerance)
+        if lam_all is None:
+            return status, None, None, iterations + its
+        return status, lam_all, self.moves(lam_all), iterations + its
+
+
+class FleetMoves:
+    """Every vehicle's straight move (`planner.first_qp.straight_moves`) and the values of
+    its functionals, computed once for the many group solves of one scenario."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        fn = functionals(scenario.steps, scenario.dt)
+        self.moves = straight_moves_of(scenario, np.arange(len(scenario.vehicles)))
+        self.values = fn.values(*self.moves, scenario.dt)
+
+    def of(self, members: IntArray) -> tuple[tuple[FloatArray, FloatArray, FloatArray],
+                                             FloatArray]:
+        """((p, v, a), functional values) of the vehicles `members`."""
+        p, v, a = self.moves
+        return (p[members], v[members], a[members]), self.values[members]
+
+
+def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows,
+                     boxes: BoxMask, tolerance: float = 1e-8, row_ids: Keys | None = None,
+                     memory: ActiveRows | None = None, fleet: FleetMoves | None = None
+                     ) -> DualOutcome | None:
+    """The group QP of `build_group_qp(scenario, members, rows, boxes)`, solved through
+    its dual. Returns the group's (p, v, a) and the separation rows' multipliers, or None
+    when the dual's matrix would exceed `MAX_PAIRS` entries (the caller solves the primal).
+
+    The dual is solved over a working set of rows (`_Dual.solve`) that starts from the rows
+    the straight moves break or, with row_ids and memory (names of the separation rows,
+    unique and stable across solves, and what earlier solves found active), from the
+    remembered active rows; the memory learns this solve's active rows. fleet: the
+    scenario's straight moves, computed once (else this group's are computed here)."""
     dt, steps = scenario.dt, scenario.steps
     fn = functionals(steps, dt)
     m = len(members)
-    base = straight_moves_of(scenario, members)
-    g_star = fn.values(*base, dt)
+    if fleet is None:
+        base = straight_moves_of(scenario, members)
+        g_star = fn.values(*base, dt)
+    else:
+        base, g_star = fleet.of(members)
 
     # Entries: (row, vehicle, functional, coefficient vector); a row has one or two.
     n_sep = len(rows)
@@ -183,49 +375,28 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     c = np.bincount(e_row, np.einsum("ec,ec->e", e_coef, g_star[e_veh, e_func]),
                     minlength=n_rows) - rhs
 
-    # Q: every pair of entries on the same vehicle (upper triangle only).
-    order = np.argsort(e_veh, kind="stable")
-    veh_sorted = e_veh[order]
-    first = np.concatenate([[0], np.cumsum(per_vehicle)[:-1]])
-    reps = per_vehicle[veh_sorted]
-    left = np.repeat(np.arange(len(order)), reps)
-    block_start = np.repeat(np.cumsum(reps) - reps, reps)
-    right = first[veh_sorted[left]] + (np.arange(len(left)) - block_start)
-    left, right = order[left], order[right]
-    keep = e_row[left] <= e_row[right]
-    left, right = left[keep], right[keep]
-    values = (np.einsum("ec,ec->e", e_coef[left], e_coef[right])
-              * fn.compliance[e_func[left], e_func[right]])
-    Q = sp.csc_matrix((values, (e_row[left], e_row[right])), shape=(n_rows, n_rows))
+    dual = _Dual(fn, m, e_row, e_veh, e_func, e_coef, c)
+    box_ids = np.zeros(0, dtype=np.int64)
+    # Start from the rows remembered active, else from those the straight moves break.
+    start = c < -tolerance
+    if memory is not None and row_ids is not None:
+        side = (b_sign > 0).astype(np.int64)
+        box_ids = ((members[b_veh].astype(np.int64) * fn.compliance.shape[0] + b_func) * 3
+                   + b_axis) * 2 + side
+        known = memory.known(row_ids, box_ids)
+        if known.any():
+            start = known
+    status, lam, moves, iterations = dual.solve(start, tolerance)
+    if lam is None or moves is None:
+        return DualOutcome(status, None, None, iterations)
+    if memory is not None and row_ids is not None:
+        memory.update(row_ids, lam[:n_sep] > ACTIVE, box_ids, lam[n_sep:] > ACTIVE)
 
-    solver = piqp.SparseSolver()
-    s = solver.settings
-    s.eps_abs = tolerance
-    s.eps_rel = tolerance * 1e-1
-    s.max_iter = 200
-    solver.setup(Q, c, None, None, None, None, None, np.zeros(n_rows),
-                 np.full(n_rows, np.inf))
-    status = solver.solve()
-    iterations = int(solver.result.info.iter)
-    if status != piqp.PIQP_SOLVED:
-        # The dual (bounds only) is always feasible; unbounded means the QP is infeasible.
-        name = (INFEASIBLE if status in (piqp.PIQP_PRIMAL_INFEASIBLE, piqp.PIQP_DUAL_INFEASIBLE)
-                else MAX_ITER if status == piqp.PIQP_MAX_ITER_REACHED else FAILED)
-        return DualOutcome(name, None, None, iterations)
-    lam = np.maximum(np.array(solver.result.x), 0.0)
-
-    # x = x* + M C' lambda: each vehicle's forces on its functionals, through W.
-    functionals_count = fn.compliance.shape[0]
-    slot = e_veh * functionals_count + e_func
-    push = lam[e_row, None] * e_coef
-    force = np.stack([np.bincount(slot, push[:, c], minlength=m * functionals_count)
-                      for c in range(3)], axis=-1).reshape(m, functionals_count, 3)
-    used = np.unique(e_func)
+    # x = x* + M C' lambda, read at the functionals p, v, a.
     P_rows = np.arange(steps + 1)
     want = np.concatenate([fn.position(P_rows), fn.velocity(P_rows),
                            fn.acceleration(np.arange(steps))])
-    W = fn.compliance[np.ix_(want, used)]
-    delta = np.einsum("fg,mgc->mfc", W, force[:, used, :], optimize=True)
+    delta = moves[:, :, want].transpose(0, 2, 1)
     p = base[0] + delta[:, :steps + 1]
     v = base[1] + delta[:, steps + 1:2 * (steps + 1)]
     a = base[2] + delta[:, 2 * (steps + 1):]

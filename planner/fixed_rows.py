@@ -23,7 +23,7 @@ from planner.scenario import Scenario
 from planner.separation import _chord_closest, _unit
 from planner.types import FloatArray, IntArray
 
-__all__ = ["FixedRows", "FixedTriples"]
+__all__ = ["FixedRows", "FixedTriples", "interval_boxes"]
 
 
 #: Triples within this of binding (m, at least) at the linearisation point start an
@@ -32,6 +32,27 @@ SEED_MARGIN = 0.3
 #: Boxes compared at once by the broad phase (bounds its memory: 4 arrays of this many
 #: 3-vectors).
 CHUNK = 1 << 18
+#: Intervals per coarse box of the broad phase (`FixedRows.near`).
+BLOCK = 10
+
+
+def interval_boxes(positions: FloatArray, velocities: FloatArray, dt: float, scale: FloatArray
+                   ) -> tuple[FloatArray, FloatArray]:
+    """(lo, hi), (N, K, 3) each: per trajectory and interval the box of its three control
+    points p_k, p_k + dt/2 v_k, p_k+1 (scaled), which holds the interval's motion."""
+    start, end = positions[:, :-1], positions[:, 1:]
+    middle = start + 0.5 * dt * velocities[:, :-1]
+    lo = np.minimum(np.minimum(start, middle), end) / scale
+    hi = np.maximum(np.maximum(start, middle), end) / scale
+    return lo, hi
+
+
+def _box_gap2(lo: FloatArray, hi: FloatArray, other_lo: FloatArray, other_hi: FloatArray
+              ) -> FloatArray:
+    """Squared distance between boxes [lo, hi] and [other_lo, other_hi] (broadcast, last
+    axis the coordinates)."""
+    gap = np.maximum(0.0, np.maximum(lo - other_hi, other_lo - hi))
+    return np.einsum("...c,...c->...", gap, gap)
 
 
 @dataclass(frozen=True)
@@ -59,12 +80,17 @@ class FixedRows:
         self.count = len(fs)
         self.intervals = scenario.steps
         self.margins = fs.interval_margins  # (F, K)
-        # the fixed vehicles' control points per interval, (F, K, 3 points, 3)
-        self.points = np.stack([fs.positions[:, :-1],
-                                fs.positions[:, :-1] + 0.5 * self.dt * fs.velocities[:, :-1],
-                                fs.positions[:, 1:]], axis=2)
-        scaled = self.points / self.scale
-        self._lo, self._hi = scaled.min(axis=2), scaled.max(axis=2)  # (F, K, 3)
+        self._positions, self._velocities = fs.positions, fs.velocities
+        self._lo, self._hi = interval_boxes(fs.positions, fs.velocities, self.dt,
+                                            self.scale)  # (F, K, 3)
+        # the same over blocks of BLOCK intervals: the broad phase's first, coarse test
+        self._firsts = np.arange(0, self.intervals, BLOCK)
+        self._block_lo = np.minimum.reduceat(self._lo, self._firsts, axis=1) \
+            if self.count else np.zeros((0, len(self._firsts), 3))
+        self._block_hi = np.maximum.reduceat(self._hi, self._firsts, axis=1) \
+            if self.count else np.zeros((0, len(self._firsts), 3))
+        self._block_margin = np.maximum.reduceat(self.margins, self._firsts, axis=1) \
+            if self.count else np.zeros((0, len(self._firsts)))
         self._planes = PlaneCache(lambda lin, keys: self.planes(lin, self.decode(keys)))
 
     # ---------------------------------------------------------------- keys
@@ -86,7 +112,9 @@ class FixedRows:
     def planes(self, lin: FloatArray, t: FixedTriples) -> tuple[FloatArray, FloatArray]:
         """Per triple the row coefficients coef = S u (T, 3) and the right-hand sides of its
         three rows minus R (T, 3 kinds), linearised about the positions `lin` (N, K+1, 3)."""
-        q = self.points[t.fixed, t.k]  # (T, 3 points, 3)
+        start = self._positions[t.fixed, t.k]
+        q = np.stack([start, start + 0.5 * self.dt * self._velocities[t.fixed, t.k],
+                      self._positions[t.fixed, t.k + 1]], axis=1)  # (T, 3 points, 3)
         here = (lin[t.vehicle, t.k] - q[:, 0]) / self.scale
         after = (lin[t.vehicle, t.k + 1] - q[:, 2]) / self.scale
         chord = after - here
@@ -113,25 +141,42 @@ class FixedRows:
 
     def near(self, p: FloatArray, v: FloatArray, reach: float) -> FixedTriples:
         """Triples whose interval's control-point boxes (scaled) come within R + margin +
-        `reach` of each other: a superset of those whose motion comes that close."""
-        cp = np.stack([p[:, :-1], p[:, :-1] + 0.5 * self.dt * v[:, :-1], p[:, 1:]],
-                      axis=2) / self.scale  # (N, K, 3, 3)
-        lo, hi = cp.min(axis=2), cp.max(axis=2)
-        n, k = lo.shape[0], lo.shape[1]
+        `reach` of each other: a superset of those whose motion comes that close. Boxes
+        over BLOCK intervals are compared first; only the intervals of blocks that come
+        that close are compared one by one."""
+        lo, hi = interval_boxes(p, v, self.dt, self.scale)  # (N, K, 3)
+        n = lo.shape[0]
         if self.count == 0 or n == 0:
             z = np.zeros(0, dtype=np.intp)
             return FixedTriples(z, z, z)
+        block_lo = np.minimum.reduceat(lo, self._firsts, axis=1)  # (N, B, 3)
+        block_hi = np.maximum.reduceat(hi, self._firsts, axis=1)
+        blocks = len(self._firsts)
         found: list[FixedTriples] = []
         # fixed vehicles in chunks of about CHUNK (planned, fixed, interval) boxes at once
-        per = max(1, CHUNK // max(1, n * k))
+        per = max(1, CHUNK // max(1, n * blocks * BLOCK))
         for first in range(0, self.count, per):
-            f_hi, f_lo = self._hi[first:first + per], self._lo[first:first + per]  # (C, K, 3)
-            gap = np.maximum(0.0, np.maximum(lo[:, None] - f_hi[None], f_lo[None] - hi[:, None]))
-            need = self.separation + self.margins[first:first + per] + reach  # (C, K)
-            close = np.einsum("nfkc,nfkc->nfk", gap, gap) <= need[None] ** 2
-            vehicle, fixed, step = np.nonzero(close)
-            found.append(FixedTriples(vehicle.astype(np.intp), (fixed + first).astype(np.intp),
-                                      step.astype(np.intp)))
+            f_hi, f_lo = self._block_hi[first:first + per], self._block_lo[first:first + per]
+            need = self.separation + self._block_margin[first:first + per] + reach  # (C, B)
+            vehicle, fixed, block = np.nonzero(
+                _box_gap2(block_lo[:, None], block_hi[:, None], f_lo[None], f_hi[None])
+                <= need[None] ** 2)
+            if vehicle.size == 0:
+                continue
+            # every interval of the close blocks
+            k = (block[:, None] * BLOCK + np.arange(BLOCK)[None, :]).reshape(-1)
+            vehicle = np.repeat(vehicle, BLOCK)
+            fixed = np.repeat(fixed + first, BLOCK)
+            inside = k < self.intervals
+            vehicle, fixed, k = vehicle[inside], fixed[inside], k[inside]
+            close = (_box_gap2(lo[vehicle, k], hi[vehicle, k], self._lo[fixed, k],
+                               self._hi[fixed, k])
+                     <= (self.separation + self.margins[fixed, k] + reach) ** 2)
+            found.append(FixedTriples(vehicle[close].astype(np.intp),
+                                      fixed[close].astype(np.intp), k[close].astype(np.intp)))
+        if not found:
+            z = np.zeros(0, dtype=np.intp)
+            return FixedTriples(z, z, z)
         return FixedTriples(*(np.concatenate([getattr(x, name) for x in found])
                               for name in ("vehicle", "fixed", "k")))
 

@@ -17,14 +17,14 @@ from typing import Any
 import numpy as np
 
 from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
-from planner.first_qp import straight_moves, timed_first_qp
+from planner.first_qp import solve_first_qp, straight_moves, timed_first_qp
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.prioritized import plan_batches
+from planner.prioritized import batch_size, plan_batches
 from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
-from planner.scp import ScpOptions, run_scp
+from planner.scp import ScpOptions, run_scp, thrust_cost
 from planner.separated_first import separated_first
-from planner.solvers import make_solver
+from planner.solvers import SOLVED, QPSolver, make_solver
 from planner.types import FloatArray
 from planner.verify import verify
 
@@ -41,19 +41,25 @@ def _dodges(work: Scenario, options: ScpOptions | None) -> bool:
 
 def _whole_because(work: Scenario, options: ScpOptions, free: bool, dodged: bool) -> str | None:
     """Why a fleet asked to be planned in prioritized batches (`planner.prioritized`) is
-    planned whole, or None when it is not: the batches plan rest-to-rest moves of a fleet of
-    more than one batch, whose only fixed trajectories are their earlier vehicles."""
-    if len(work.vehicles) <= options.batch_size:
-        return f"{len(work.vehicles)} vehicles fit in one batch of {options.batch_size}"
-    if work.fixed:
-        return "the scenario has fixed trajectories of its own"
-    if work.start_velocities is not None or work.start_accelerations is not None:
-        return "the vehicles start moving (start_velocity or start_acceleration)"
+    planned whole, or None when it is not: the batches plan fixed-goal moves of a fleet of
+    more than one batch (from rest or a moving state, around its fixed trajectories)."""
+    size = batch_size(work, options.batch_size)
+    if len(work.vehicles) <= size:
+        return f"{len(work.vehicles)} vehicles fit in one batch of {size}"
     if free:
         return "free assignment plans from CAPT's straight moves"
     if dodged:
         return "the dodged first linearisation point was asked for too"
     return None
+
+
+def _above_free(work: Scenario, backend: QPSolver, accelerations: FloatArray) -> float:
+    """How much more thrust cost `accelerations` take than `work`'s separation-free optimum
+    (a lower bound on every plan's cost): at most that far from the optimum."""
+    free = solve_first_qp(work, backend)
+    if free.status != SOLVED:
+        return float("inf")
+    return thrust_cost(accelerations) - thrust_cost(free.accelerations)
 
 
 def plan(
@@ -115,6 +121,13 @@ def plan(
             whole_because = ("the joined batches failed verification: "
                              + "; ".join(verification.failures()))
             batches = None
+        elif options is not None and options.batch_cost_share:
+            above = _above_free(work, backend, outcome.accelerations)
+            if not above < work.cost_threshold:
+                whole_because = (f"the joined batches cost {above:.3g} above the "
+                                 f"separation-free optimum, not less than cost_threshold "
+                                 f"{work.cost_threshold:g}")
+                batches = None
     if direct is None and batches is None:
         outcome = run_scp(work, backend, options, progress, guess, first_qp)
         if whole_because is not None:

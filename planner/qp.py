@@ -17,6 +17,7 @@ arithmetic from one per-vehicle template, never with a Python loop over steps or
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -171,25 +172,23 @@ def _coo(rows: list[IntArray], cols: list[IntArray], vals: list[FloatArray], sha
     return sp.csc_matrix((v, (r, c)), shape=shape)
 
 
-def build_group_qp(
-    scenario: Scenario,
-    members: IntArray,
-    separation: SeparationRows,
-    boxes: BoxMask | None = None,
-) -> QuadraticProgram:
-    """The QP of the vehicles `members` (scenario indices) with the given separation rows.
+#: Groups of at most this many vehicles share their equality and cost matrices between QPs
+#: (`_structure`): prioritized batches build thousands of small QPs of the same shape.
+STRUCTURE_CACHE_VEHICLES = 16
 
-    boxes: which variable bounds and jerk rows to include, for the group's vehicles; None:
-    all of them. The SCP loop passes only those that can bind and checks the rest.
-    """
-    dt, steps = scenario.dt, scenario.steps
-    m = len(members)
+
+def _structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """(A_eq, P) of a group of `m` vehicles: the dynamics and boundary-condition rows and
+    the cost's Hessian depend only on the shape and dt, so small groups' are built once
+    (the solvers only read them)."""
+    if m <= STRUCTURE_CACHE_VEHICLES:
+        return _cached_structure(steps, m, dt)
+    return _build_structure(steps, m, dt)
+
+
+def _build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
     lay = StageLayout(steps, m)
     n = lay.size
-    limits = scenario.limits
-    if boxes is None:
-        boxes = BoxMask.full(m, steps)
-
     # Grids over (vehicle, axis) and (stage, vehicle, axis): flat index arrays.
     veh = np.repeat(np.arange(m), 3)
     axis = np.tile(np.arange(3), m)
@@ -219,10 +218,6 @@ def build_group_qp(
         lay.index(steps, cv, V, ca),
         lay.index(steps - 1, cv, A, ca),
     ]
-    starts = scenario.starts[members].reshape(-1)  # chain order: vehicle-major, axis
-    goals = scenario.goals[members].reshape(-1)
-    start_v = scenario.initial_velocities[members].reshape(-1)
-    bc_rhs = [starts, start_v, goals, np.zeros(3 * m), np.zeros(3 * m)]
     base = 2 * n_dyn
     for idx, col in enumerate(bc_cols):
         rows.append(base + idx * 3 * m + chains)
@@ -230,6 +225,44 @@ def build_group_qp(
         vals.append(np.ones(3 * m))
     n_eq = base + 5 * 3 * m
     A_eq = _coo(rows, cols, vals, (n_eq, n))
+
+    # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
+    a_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)
+    a_mask[:, :, A, :] = True
+    diag = np.where(a_mask.reshape(-1), 2.0, 0.0)
+    return A_eq, sp.diags(diag, format="csc")
+
+
+_cached_structure = functools.lru_cache(maxsize=32)(_build_structure)
+
+
+def build_group_qp(
+    scenario: Scenario,
+    members: IntArray,
+    separation: SeparationRows,
+    boxes: BoxMask | None = None,
+) -> QuadraticProgram:
+    """The QP of the vehicles `members` (scenario indices) with the given separation rows.
+
+    boxes: which variable bounds and jerk rows to include, for the group's vehicles; None:
+    all of them. The SCP loop passes only those that can bind and checks the rest.
+    """
+    dt, steps = scenario.dt, scenario.steps
+    m = len(members)
+    lay = StageLayout(steps, m)
+    n = lay.size
+    limits = scenario.limits
+    if boxes is None:
+        boxes = BoxMask.full(m, steps)
+
+    veh = np.repeat(np.arange(m), 3)
+    axis = np.tile(np.arange(3), m)
+    A_eq, P_mat = _structure(steps, m, dt)
+    starts = scenario.starts[members].reshape(-1)  # chain order: vehicle-major, axis
+    goals = scenario.goals[members].reshape(-1)
+    start_v = scenario.initial_velocities[members].reshape(-1)
+    bc_rhs = [starts, start_v, goals, np.zeros(3 * m), np.zeros(3 * m)]
+    n_dyn = steps * 3 * m
     b = np.concatenate([np.zeros(2 * n_dyn), *bc_rhs])
 
     # --- inequality rows: jerk (a_k - a_{k-1} within +-jmax dt, a_{-1} the acceleration
@@ -320,10 +353,6 @@ def build_group_qp(
     x_u[off] = np.inf
 
     # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
-    a_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)
-    a_mask[:, :, A, :] = True
-    diag = np.where(a_mask.reshape(-1), 2.0, 0.0)
-    P_mat = sp.diags(diag, format="csc")
     q = np.zeros((steps + 1, m, 3, 3))
     q[:steps, :, A, 2] = 2.0 * GRAVITY
     constant = steps * m * GRAVITY * GRAVITY

@@ -23,6 +23,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,8 +44,8 @@ from planner.separation import NEAR_MIN_VEHICLES, close_rows, near_pairs
 from planner.solvers import SOLVED, make_solver
 from planner.types import FloatArray
 
-__all__ = ["Replan", "ReplanError", "check_goals", "crowd", "plan_replan", "replan_horizon",
-           "stop_threshold"]
+__all__ = ["Crowd", "Replan", "ReplanError", "check_goals", "crowd", "plan_replan",
+           "replan_horizon", "stop_threshold"]
 
 #: The horizon is this many times what the farthest vehicle needs (stop, then move), plus
 #: `HORIZON_EXTRA_S`: room to give way to each other and to the fixed vehicles.
@@ -74,6 +75,15 @@ STOP_COST_PER_STEP = 0.01
 CROWD_FACTORS = (1.0, 1.2, 1.4)
 CROWD_TOLERANCE = 1.25
 CROWD_SMALL = 16
+#: A replan whose first horizon's crowd (`crowd`) starts its QP with more rows than this is
+#: planned in prioritized batches of 2 (`planner.prioritized`, from the moving state, each
+#: batch stopping at its share of the replan's threshold, the joined plan within the
+#: threshold of the separation-free optimum), the whole fleet if a batch fails or the joined
+#: plan does not verify. A crowd's QP time grows much faster than its rows (random 100 a
+#: quarter of the way in, 2,200-2,800 rows: 2.3-9 s of CPU), the batches' with the fleet
+#: (about 1 s for 100 vehicles); crowds of up to 840 rows took 0.3-1.2 s whole, 0.55-1.0 s
+#: in batches.
+CROWD_BATCH_ROWS = 900
 
 
 class ReplanError(PlannerError):
@@ -114,24 +124,36 @@ def stop_threshold(base: Scenario, vehicles: int, steps: int) -> float:
     return max(base.cost_threshold, STOP_COST_PER_STEP * vehicles * steps)
 
 
-def crowd(spec: Scenario, solver: str | None = None) -> int:
-    """Vehicles in the largest group linked by close approaches (closer than R over a step)
-    along `spec`'s separation-free moves (its first QP): the largest QP the first SCP
-    iteration starts with. All of them when that QP has no solution."""
+class Crowd(NamedTuple):
+    """The largest group of vehicles linked by close approaches along a scenario's
+    separation-free moves: the largest QP the first SCP iteration starts with."""
+
+    vehicles: int
+    """Its vehicles (all of them when the separation-free QP has no solution)."""
+    rows: int
+    """Its close approaches (pair and step or interval, closer than R): the rows its QP
+    starts with (0 when the separation-free QP has no solution)."""
+
+
+def crowd(spec: Scenario, solver: str | None = None) -> Crowd:
+    """The largest group linked by close approaches (closer than R over a step) along
+    `spec`'s separation-free moves (its first QP), see `Crowd`."""
     first = solve_first_qp(spec, make_solver(solver))
     n = len(spec.vehicles)
     if first.status != SOLVED:
-        return n
+        return Crowd(n, 0)
     lin = (first.positions, first.velocities, first.accelerations)
     scale, separation = spec.separation_scale, spec.min_separation
     near = near_pairs(*lin, spec.dt, scale, separation) if n >= NEAR_MIN_VEHICLES else None
     pairs, _ = close_rows(first.positions, scale, separation, True, near)
     if len(pairs) == 0:
-        return 0
+        return Crowd(0, 0)
     graph = sp.coo_matrix((np.ones(len(pairs)), (pairs.i, pairs.j)), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     involved = np.unique(np.concatenate([pairs.i, pairs.j]))
-    return int(np.bincount(label[involved]).max())
+    sizes = np.bincount(label[involved])
+    largest = int(np.argmax(sizes))
+    return Crowd(int(sizes[largest]), int(np.count_nonzero(label[pairs.i] == largest)))
 
 
 def check_goals(base: Scenario, goals: Mapping[str, ArrayLike],
@@ -227,12 +249,15 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
 
     failures: list[str] = []
     try:
-        horizon *= _least_crowded(scenario, horizon, solver)
+        factor, crowded = _least_crowded(scenario, horizon, solver)
+        horizon *= factor
         for attempts, factor in enumerate(RETRY_FACTORS, start=1):
             if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
                 break
             spec = scenario(factor * horizon)
-            result = plan(spec, solver=solver, options=ScpOptions())
+            options = (ScpOptions(decompose="prioritized", batch_cost_share=True)
+                       if crowded.rows > CROWD_BATCH_ROWS else ScpOptions())
+            result = plan(spec, solver=solver, options=options)
             if result.ok:
                 return Replan(result, separation, time.perf_counter() - began, attempts)
             failures.append(f"{spec.horizon:.1f} s: {'; '.join(result.problems())}")
@@ -244,14 +269,15 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
 
 
 def _least_crowded(scenario: Callable[[float], Scenario], horizon: float,
-                   solver: str | None) -> float:
-    """The factor of `CROWD_FACTORS` the first attempt takes (see there)."""
+                   solver: str | None) -> tuple[float, Crowd]:
+    """The factor of `CROWD_FACTORS` the first attempt takes (see there), and the crowd
+    there (`crowd`; none when it was not measured, a fleet of at most `CROWD_SMALL`)."""
     if len(scenario(horizon).vehicles) <= CROWD_SMALL:  # no crowd can be larger
-        return CROWD_FACTORS[0]
+        return CROWD_FACTORS[0], Crowd(0, 0)
     first = crowd(scenario(horizon), solver)
-    if first <= CROWD_SMALL:
-        return CROWD_FACTORS[0]
+    if first.vehicles <= CROWD_SMALL:
+        return CROWD_FACTORS[0], first
     crowds = [first] + [crowd(scenario(f * horizon), solver) for f in CROWD_FACTORS[1:]]
-    least = min(crowds)
-    return next(f for f, c in zip(CROWD_FACTORS, crowds, strict=True)
-                if c <= CROWD_TOLERANCE * least)
+    least = min(c.vehicles for c in crowds)
+    return next((f, c) for f, c in zip(CROWD_FACTORS, crowds, strict=True)
+                if c.vehicles <= CROWD_TOLERANCE * least)

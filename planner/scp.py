@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from planner.boxes import broken_boxes, near_boxes
-from planner.dual import solve_group_dual
+from planner.dual import ActiveRows, FleetMoves, solve_group_dual
 from planner.first_qp import FirstSolution, timed_first_qp
 from planner.flatness import GRAVITY
 from planner.obstacle_rows import SEED_FRACTION, concat_rows
@@ -42,17 +42,21 @@ from planner.result import IterationRecord
 from planner.routes import seed_routes
 from planner.scenario import Scenario
 from planner.separation import (
+    CHUNK,
     NEAR_MIN_VEHICLES,
     PairSteps,
     all_pairs,
+    close_among,
     close_rows,
     directions,
-    displacements,
     far_margin_bound,
-    near_pairs,
+    interval_margins,
+    near_windows,
     pair_index,
-    pair_margins,
-    violated_rows,
+    row_displacements,
+    values_among,
+    violated_among,
+    window_rows,
     worst_per_run,
 )
 from planner.solvers import SOLVED, QPSolver
@@ -78,8 +82,10 @@ DUAL_MAX_ROWS_PER_VEHICLE = 25
 DUAL_MAX_STEPS = 400
 #: `ScpOptions.decompose` values: the whole fleet at once, or prioritized batches.
 DECOMPOSITIONS = ("none", "prioritized")
-#: Vehicles per prioritized batch by default: measured fastest on the sideways family (see
-#: docs/benchmarks/planner.md, Prioritized batches).
+#: Vehicles per prioritized batch by default for a fleet with a dominant motion: measured
+#: fastest on the sideways family (see docs/benchmarks/planner.md, Prioritized batches);
+#: an obstacle-free crowd without one goes a vehicle at a time
+#: (`planner.prioritized.batch_size`).
 DEFAULT_BATCH = 2
 #: Sideways bend of the paths (in units of R) used to linearise again when an iteration's QP
 #: came out infeasible.
@@ -87,6 +93,9 @@ BEND_AMPLITUDE = 0.2
 #: The broad phase's reach beyond R and the vehicles' own step terms, in units of R (see
 #: `_margins`).
 FAR_SLACK = 1.0
+#: Steps per time window of the margins' broad phase (`_margins`): exact margins are
+#: computed only in the windows where a pair is near.
+MARGIN_WINDOW = 4
 
 
 @dataclass(frozen=True)
@@ -125,8 +134,17 @@ class ScpOptions:
     each against the earlier ones as fixed trajectories (`planner.prioritized`), verifies
     the joined plan and plans the whole fleet instead if a batch fails or the check does;
     "none" (the default): the whole fleet at once."""
-    batch_size: int = DEFAULT_BATCH
-    """Vehicles per batch with decompose="prioritized"."""
+    batch_size: int | None = None
+    """Vehicles per batch with decompose="prioritized"; None: by the fleet's motion
+    (`planner.prioritized.batch_size`: 1 in an obstacle-free crowd without a dominant
+    motion, else DEFAULT_BATCH)."""
+    batch_cost_share: bool = False
+    """With decompose="prioritized", each batch stops at its share of the scenario's
+    `cost_threshold` (its vehicles over the fleet's), and the joined plan is taken only if
+    its thrust cost exceeds the separation-free optimum by less than `cost_threshold`: then
+    it is within that of the fleet's optimum, as a whole-fleet SCP stopped after a first
+    iteration that changed the cost by less is (a replan's rule). False: each batch stops
+    at the whole `cost_threshold`, and the joined plan's cost is not bounded."""
     obstacle_seed: float = SEED_FRACTION
     """Obstacle rows within this many clearances of binding at the linearisation point
     start an iteration's QP (the rest are added when broken). More suits small QPs (the
@@ -139,8 +157,9 @@ class ScpOptions:
         if not 0.0 < self.obstacle_seed < float("inf"):
             raise ValueError(f"obstacle_seed: must be a positive number of clearances, "
                              f"got {self.obstacle_seed!r}")
-        if isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int) \
-                or self.batch_size < 1:
+        if self.batch_size is not None and (
+                isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int)
+                or self.batch_size < 1):
             raise ValueError(f"batch_size: must be a whole number of vehicles >= 1, "
                              f"got {self.batch_size!r}")
 
@@ -195,6 +214,11 @@ class _GroupSolver:
         self.obstacles: OneSidedRows | None = None
         """The scenario's one-sided rows: obstacles and fixed trajectories (None without
         either)."""
+        self.memory = ActiveRows()
+        """Rows found active by earlier dual solves (kept across iterations): the warm
+        start of the next solve that holds them."""
+        self.fleet: FleetMoves | None = None
+        """Every vehicle's straight move, for the dual solves (computed at the first)."""
 
     def solve(self, members: IntArray, keys: Keys, boxes: BoxMask, lin: Trajectories,
               obstacle_keys: Keys | None = None
@@ -224,9 +248,11 @@ class _GroupSolver:
                 return SOLVED, split[0], split[1], okeys
         scenario = self.scenario
         pairs = self.codec.decode(keys)
-        u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
-                       scenario.min_separation, _moving(scenario))
-        coef = u / scenario.separation_scale
+        coef = np.zeros((0, 3))
+        if len(pairs):
+            u = directions(lin_positions, scenario.separation_scale, pairs, self.continuous,
+                           scenario.min_separation, _moving(scenario))
+            coef = u / scenario.separation_scale
         local = np.full(self.codec.n, -1, dtype=np.intp)
         local[members] = np.arange(len(members))
         kinds = (0, 1, 2) if self.continuous else (0,)
@@ -245,7 +271,16 @@ class _GroupSolver:
         outcome = None
         # Obstacle rows bind one vehicle each: they couple no vehicles in the dual's matrix.
         if self.dual and pair_rows <= DUAL_MAX_ROWS_PER_VEHICLE * len(members):
-            outcome = solve_group_dual(scenario, members, rows, group_boxes)
+            # Row names: 3 key + kind for pair rows, negative for one-sided rows.
+            kind_of = np.arange(len(kinds), dtype=np.int64)
+            row_ids = np.concatenate([(3 * keys[None, :] + kind_of[:, None]).reshape(-1),
+                                      (-1 - 3 * okeys[None, :] - np.arange(3)[:, None]).reshape(-1)
+                                      if okeys.size and self.obstacles is not None
+                                      else keys[:0]])
+            if self.fleet is None:
+                self.fleet = FleetMoves(scenario)
+            outcome = solve_group_dual(scenario, members, rows, group_boxes,
+                                       row_ids=row_ids, memory=self.memory, fleet=self.fleet)
         if outcome is not None and outcome.status == SOLVED and outcome.solution is not None:
             solution, duals = outcome.solution, outcome.separation_duals
         else:  # the primal QP; also the judge when the dual did not solve (infeasible, ...)
@@ -367,6 +402,8 @@ def _keep_right_bend(positions: FloatArray, scenario: Scenario, amplitude: float
 def _groups(keys: Keys, codec: _Codec, forced: IntArray) -> list[tuple[IntArray, Keys]]:
     """Connected components of the vehicles linked by rows, each with its sorted keys, plus
     a group of its own for every `forced` vehicle (a box broke) that has no rows."""
+    if keys.size == 0:  # no links (often so in prioritized batches): each vehicle alone
+        return [(np.array([f], dtype=np.intp), keys) for f in np.unique(forced)]
     pairs = codec.decode(keys)
     n = codec.n
     graph = sp.coo_matrix((np.ones(len(pairs)), (pairs.i, pairs.j)), shape=(n, n))
@@ -405,34 +442,73 @@ def _seed_keys(lin: Trajectories, scenario: Scenario, options: ScpOptions,
         k = np.tile(np.arange(count, dtype=np.intp), len(i))
         return codec.encode(PairSteps(np.repeat(i, count), np.repeat(j, count), k))
     below = scenario.min_separation * (1.0 + options.candidate_margin)
-    near = None
-    if n >= NEAR_MIN_VEHICLES:
-        near = near_pairs(*lin, scenario.dt, scenario.separation_scale, below)
-    pairs, distance = close_rows(lin_positions, scenario.separation_scale, below,
-                                 options.continuous, near)
+    if n >= NEAR_MIN_VEHICLES:  # only the intervals of the windows where a pair is near
+        near = near_windows(*lin, scenario.dt, scenario.separation_scale, below, MARGIN_WINDOW)
+        pairs, distance = close_among(
+            lin_positions, scenario.separation_scale, below, options.continuous,
+            window_rows(near, MARGIN_WINDOW, options.continuous, stages - 1))
+    else:
+        pairs, distance = close_rows(lin_positions, scenario.separation_scale, below,
+                                     options.continuous)
     return np.unique(codec.encode(_expand(worst_per_run(pairs, distance), count - 1)))
 
 
-def _margins(scenario: Scenario, options: ScpOptions, lin: Trajectories, pair_i: IntArray,
-             pair_j: IntArray) -> FloatArray:
-    """Per pair (all_pairs order), a lower bound on (smallest row value at `lin`) - R: exact
-    for pairs the broad phase finds near, `far_margin_bound` for the others (large fleets)."""
+@dataclass(frozen=True)
+class _Pruning:
+    """What the all-pairs row check knows at `lin` (see `_margins`): a row set can be broken
+    only where its value at `lin` exceeds R by less than its two vehicles have moved."""
+
+    near_i: IntArray
+    near_j: IntArray
+    near: FloatArray
+    """(near pairs, K or K+1): each interval's (step's) smallest row value at `lin` - R
+    (or (near pairs, 1): one bound for all of a pair's intervals)."""
+    far: FloatArray | None
+    """Per pair (all_pairs order), a lower bound on its smallest row value at `lin` - R,
+    +inf for the near pairs; None when every pair is near."""
+
+
+def _margins(scenario: Scenario, options: ScpOptions, lin: Trajectories) -> _Pruning:
+    """Exact interval margins for every pair in small fleets; in large ones, for the pairs
+    and time windows the broad phase finds near, and `far_margin_bound` elsewhere."""
     n, scale, separation = len(lin[0]), scenario.separation_scale, scenario.min_separation
     if n < NEAR_MIN_VEHICLES:
-        return pair_margins(lin[0], lin[1], scenario.dt, scale, options.continuous,
-                            separation, moving=_moving(scenario)) - separation
+        pair_i, pair_j = all_pairs(n)
+        return _Pruning(pair_i, pair_j, interval_margins(
+            lin[0], lin[1], scenario.dt, scale, options.continuous, separation,
+            moving=_moving(scenario)) - separation, None)
+    pair_i, pair_j = all_pairs(n)
     half_speed, step = far_margin_bound(lin[0], lin[1], scenario.dt, scale)
     own = half_speed + step
     # Far pairs get a margin of at least FAR_SLACK * R: they are checked only once their
     # vehicles have moved that far from `lin` in total.
     reach = separation * (1.0 + FAR_SLACK) + 2.0 * float(own.max())
-    near_i, near_j = near_pairs(*lin, scenario.dt, scale, reach)
-    margin = reach - separation - own[pair_i] - own[pair_j]
-    if len(near_i):
-        margin[pair_index(near_i, near_j, n)] = pair_margins(
-            lin[0], lin[1], scenario.dt, scale, options.continuous, separation,
-            (near_i, near_j), _moving(scenario)) - separation
-    return margin
+    near = near_windows(*lin, scenario.dt, scale, reach, MARGIN_WINDOW)
+    keys = np.unique(near.i.astype(np.int64) * n + near.j)
+    near_i, near_j = (keys // n).astype(np.intp), (keys % n).astype(np.intp)
+    far = reach - separation - own[pair_i] - own[pair_j]
+    far[pair_index(near_i, near_j, n)] = np.inf
+    # A near pair's intervals outside its near windows keep the far bound.
+    count = lin[0].shape[1] - 1 if options.continuous else lin[0].shape[1]
+    margin = np.repeat((reach - separation - own[near_i] - own[near_j])[:, None], count, axis=1)
+    rows = window_rows(near, MARGIN_WINDOW, options.continuous, lin[0].shape[1] - 1)
+    at = np.searchsorted(keys, rows.i.astype(np.int64) * n + rows.j)
+    margin[at, rows.k] = values_among(
+        lin[0], lin[0], lin[1], scenario.dt, scale, separation, options.continuous, rows,
+        _moving(scenario)) - separation
+    return _Pruning(near_i, near_j, margin, far)
+
+
+def _suspects(pruning: _Pruning, moved: FloatArray, tolerance: float) -> PairSteps:
+    """The near pairs' intervals (steps) that may be broken after the vehicles moved by
+    `moved` (`row_displacements`) from `lin`, in pair chunks that bound memory."""
+    per = max(1, CHUNK // moved.shape[1])
+    parts = []
+    for lo in range(0, len(pruning.near_i), per):
+        i, j = pruning.near_i[lo:lo + per], pruning.near_j[lo:lo + per]
+        pi, kk = np.nonzero(pruning.near[lo:lo + per] - moved[i] - moved[j] < tolerance)
+        parts.append(PairSteps(i[pi], j[pi], kk.astype(np.intp)))
+    return PairSteps.concat(parts)
 
 
 @dataclass
@@ -471,10 +547,10 @@ def _solve_iteration(
     obstacles = groups_solver.obstacles
     okeys = np.zeros(0, dtype=np.int64) if okeys is None else okeys
     scale = scenario.separation_scale
-    # Rows are only checked for pairs that can violate one: a pair whose rows all hold by
+    # Rows are only checked where they can be violated: an interval whose rows all hold by
     # `margin` at `lin` stays clear while its two vehicles move less than that in total.
     pair_i, pair_j = all_pairs(codec.n)
-    margin = _margins(scenario, options, lin, pair_i, pair_j)
+    pruning = _margins(scenario, options, lin)
     while True:
         p, v, a = (x.copy() for x in base)
         owners = obstacles.vehicles_of(okeys) if obstacles is not None else forced
@@ -493,12 +569,22 @@ def _solve_iteration(
             held.append(group_held)
         # Every violated row goes in at once: fewer rounds than adding the worst of each
         # run (measured on the paper and scale cases), at a similar QP size.
-        moved = displacements(lin[:2], (p, v), scenario.dt, scale)
-        suspect = margin - moved[pair_i] - moved[pair_j] < tolerance
-        violated, _ = violated_rows(
+        moved = row_displacements(lin[:2], (p, v), scenario.dt, scale, options.continuous)
+        violated, _ = violated_among(
             lin[0], p, v, scenario.dt, scale, scenario.min_separation, tolerance,
-            options.continuous, (pair_i[suspect], pair_j[suspect]), _moving(scenario),
+            options.continuous, _suspects(pruning, moved, tolerance), _moving(scenario),
         )
+        if pruning.far is not None:
+            most = moved.max(axis=1)
+            far = np.flatnonzero(pruning.far - most[pair_i] - most[pair_j] < tolerance)
+            if far.size:  # pairs the broad phase left out, whose vehicles moved far
+                beyond, _ = violated_among(
+                    lin[0], p, v, scenario.dt, scale, scenario.min_separation, tolerance,
+                    options.continuous, _suspects(_Pruning(
+                        pair_i[far], pair_j[far], pruning.far[far, None], None), moved,
+                        tolerance), _moving(scenario),
+                )
+                violated = PairSteps.concat([violated, beyond])
         added = np.setdiff1d(codec.encode(violated), keys)
         new_boxes = broken_boxes(scenario, p, v, a, tolerance) - boxes
         o_added = (obstacles.violated(lin[0], p, v, okeys, tolerance) if obstacles is not None

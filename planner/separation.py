@@ -31,18 +31,25 @@ from planner.types import FloatArray, IntArray
 __all__ = [
     "PairSteps",
     "all_pairs",
+    "close_among",
     "close_rows",
     "directions",
     "displacements",
     "far_margin_bound",
     "interval_lower_bounds",
+    "interval_margins",
     "interval_minima",
     "min_step_distance",
     "near_pairs",
+    "near_windows",
     "pair_index",
     "pair_margins",
+    "row_displacements",
     "row_values",
+    "values_among",
+    "violated_among",
     "violated_rows",
+    "window_rows",
     "worst_per_run",
 ]
 
@@ -70,7 +77,7 @@ class PairSteps:
     def __len__(self) -> int:
         return len(self.i)
 
-    def select(self, mask: NDArray[np.bool_] | IntArray) -> PairSteps:
+    def select(self, mask: NDArray[np.bool_] | IntArray | slice) -> PairSteps:
         return PairSteps(self.i[mask], self.j[mask], self.k[mask])
 
     def keys(self, vehicles: int, stages: int) -> NDArray[np.int64]:
@@ -108,30 +115,44 @@ def near_pairs(positions: FloatArray, velocities: FloatArray, accelerations: Flo
                dt: float, scale: FloatArray, reach: float, window: int = NEAR_WINDOW
                ) -> tuple[IntArray, IntArray]:
     """Broad phase: every pair (i < j) that may come within `reach` (separation metric) at
-    some instant, a superset found with a k-d tree per time window.
+    some instant, a superset found with a k-d tree per time window (`near_windows`).
+    Exact as a filter: pairs left out are provably far."""
+    near = near_windows(positions, velocities, accelerations, dt, scale, reach, window)
+    n = positions.shape[0]
+    keys = np.unique(near.i.astype(np.int64) * n + near.j)
+    return (keys // n).astype(np.intp), (keys % n).astype(np.intp)
+
+
+def near_windows(positions: FloatArray, velocities: FloatArray, accelerations: FloatArray,
+                 dt: float, scale: FloatArray, reach: float, window: int = NEAR_WINDOW
+                 ) -> PairSteps:
+    """Broad phase by time window: every (i < j, w) such that pair (i, j) may come within
+    `reach` (separation metric) during window w (steps w * window .. (w + 1) * window).
 
     Over a window each vehicle's motion, and every row point (p_k, p_k + dt/2 v_k and the
     end of step k p_k + dt v_k + dt^2/2 a_k, the Bernstein control points of the step),
     lies in the box around its control points; a pair whose two boxes' bounding spheres are
-    farther apart than `reach` in every window is farther than `reach` at every instant and
-    at every row point. Exact as a filter: pairs left out are provably far.
+    farther apart than `reach` is farther than `reach` at every instant, every row point and
+    every point of the chords between its steps in that window.
     """
     n, stages = positions.shape[0], positions.shape[1]
-    if n < 2:
-        z = np.zeros(0, dtype=np.intp)
-        return z, z
+    if n < 2 or stages < 2:
+        return PairSteps.concat([])
     from scipy.spatial import cKDTree
 
     p = positions / scale
     mid = (positions[:, :-1] + 0.5 * dt * velocities[:, :-1]) / scale
     end = (positions[:, :-1] + dt * velocities[:, :-1] + 0.5 * dt * dt * accelerations) / scale
+    # Every row point of step k (p_k, its middle point, its end, p_k+1), per window: the
+    # boxes of all windows in one reduction per side.
+    starts = np.arange(0, stages - 1, window)
+    lows = np.minimum.reduceat(np.minimum(np.minimum(p[:, :-1], p[:, 1:]), np.minimum(mid, end)),
+                               starts, axis=1)  # (n, windows, 3)
+    highs = np.maximum.reduceat(np.maximum(np.maximum(p[:, :-1], p[:, 1:]),
+                                           np.maximum(mid, end)), starts, axis=1)
     found = []
-    for k0 in range(0, stages - 1, window):
-        k1 = min(k0 + window, stages - 1)
-        lo = np.minimum(np.minimum(p[:, k0:k1 + 1].min(axis=1), mid[:, k0:k1].min(axis=1)),
-                        end[:, k0:k1].min(axis=1))
-        hi = np.maximum(np.maximum(p[:, k0:k1 + 1].max(axis=1), mid[:, k0:k1].max(axis=1)),
-                        end[:, k0:k1].max(axis=1))
+    for w in range(len(starts)):
+        lo, hi = lows[:, w], highs[:, w]
         centre = 0.5 * (lo + hi)
         radius = 0.5 * np.linalg.norm(hi - lo, axis=1)
         pairs = cKDTree(centre).query_pairs(reach + 2.0 * float(radius.max()),
@@ -141,10 +162,10 @@ def near_pairs(positions: FloatArray, velocities: FloatArray, accelerations: Flo
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (np.linalg.norm(centre[i] - centre[j], axis=1)
                 <= reach + radius[i] + radius[j])
-        found.append(np.minimum(i[keep], j[keep]).astype(np.int64) * n
-                     + np.maximum(i[keep], j[keep]))
-    keys = np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
-    return (keys // n).astype(np.intp), (keys % n).astype(np.intp)
+        i, j = i[keep], j[keep]
+        found.append(PairSteps(np.minimum(i, j).astype(np.intp), np.maximum(i, j).astype(np.intp),
+                               np.full(len(i), w, dtype=np.intp)))
+    return PairSteps.concat(found)
 
 
 def pair_index(i: IntArray, j: IntArray, vehicles: int) -> IntArray:
@@ -205,16 +226,21 @@ def _unit(d: FloatArray, motion: FloatArray, separation: float = 0.0) -> FloatAr
     plain direction of a head-on pair flips from -x to +x in one step and asks the pair to
     jump 2R (found on symmetric swaps, which came back infeasible).
     """
+    norm = _norm(d)
     if separation > 0.0:
-        norm = _norm(d)[..., None]
-        right = _keep_right(motion)
-        side = np.where(np.einsum("...c,...c->...", d, right)[..., None] < 0.0, -1.0, 1.0)
-        moving = _norm(motion)[..., None] >= 1e-12
-        weight = PASSING_BIAS * np.maximum(0.0, separation - norm)
-        d = d + np.where(moving, weight * side, 0.0) * right
-    norm = _norm(d)[..., None]
-    tiny = norm[..., 0] < 1e-12
-    out = d / np.where(norm < 1e-12, 1.0, norm)
+        close = norm < separation  # the bias is zero elsewhere: only these are touched
+        if close.any():
+            near, along = d[close], motion[close]
+            right = _keep_right(along)
+            side = np.where(np.einsum("...c,...c->...", near, right) < 0.0, -1.0, 1.0)
+            moving = _norm(along) >= 1e-12
+            weight = PASSING_BIAS * (separation - norm[close])
+            near = near + np.where(moving, weight * side, 0.0)[:, None] * right
+            d = d.copy()
+            d[close] = near
+            norm[close] = _norm(near)
+    tiny = norm < 1e-12
+    out = d / np.where(tiny, 1.0, norm)[..., None]
     if tiny.any():
         moving = _norm(motion[tiny]) >= 1e-12
         fallback = np.broadcast_to(_FALLBACK, (int(tiny.sum()), 3)).copy()
@@ -273,10 +299,15 @@ def directions(lin_positions: FloatArray, scale: FloatArray, rows: PairSteps,
     if not continuous:  # the same motion as `_step_motion`: the neighbouring steps
         motion = diff(np.minimum(rows.k + 1, last)) - diff(np.maximum(rows.k - 1, 0))
         return _unit(here, motion, separation)
-    after = diff(rows.k + 1)
+    return _interval_units(here, diff(rows.k + 1), rows.k, last, separation, moving)
+
+
+def _interval_units(here: FloatArray, after: FloatArray, k: IntArray, last: int,
+                    separation: float, moving: bool) -> FloatArray:
+    """`directions` of intervals k from their scaled pair differences at k and k + 1."""
     chord = after - here
     u = _unit(_chord_closest(here, after), chord, separation)
-    first, final = (rows.k == 0) & (not moving), rows.k == last - 1
+    first, final = (k == 0) & (not moving), k == last - 1
     u[first] = _unit(here[first], chord[first], separation)
     u[final] = _unit(after[final], chord[final], separation)
     return u
@@ -305,12 +336,13 @@ def _chunks_of(i: IntArray, j: IntArray, stages: int) -> Iterator[tuple[IntArray
         yield i[lo:lo + per_chunk], j[lo:lo + per_chunk]
 
 
-def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
-                 scale: FloatArray, continuous: bool, separation: float,
-                 pairs: tuple[IntArray, IntArray] | None = None,
-                 moving: bool = False) -> FloatArray:
-    """Per pair (in `all_pairs` order, or of `pairs`), the smallest value of its linearised
-    rows at `lin` itself: the starting point of the pruning bound of `violated_rows`."""
+def interval_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
+                     scale: FloatArray, continuous: bool, separation: float,
+                     pairs: tuple[IntArray, IntArray] | None = None,
+                     moving: bool = False) -> FloatArray:
+    """(pairs, K) or (pairs, K+1): per pair (in `all_pairs` order, or of `pairs`) and
+    interval (or step), the smallest value of its linearised rows at `lin` itself: where
+    the row check can stop looking (see `row_displacements`)."""
     n, stages = lin_positions.shape[0], lin_positions.shape[1]
     lin = lin_positions / scale
     out = []
@@ -319,8 +351,21 @@ def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: floa
         d = lin[i] - lin[j]
         u = (_interval_directions_all(d, separation, moving) if continuous
              else _step_directions_all(d, separation))
-        values = row_values(lin_positions, lin_velocities, dt, scale, i, j, u, continuous)
-        out.append(values.min(axis=1))
+        out.append(row_values(lin_positions, lin_velocities, dt, scale, i, j, u, continuous))
+    return (np.concatenate(out) if out
+            else np.zeros((0, stages - 1 if continuous else stages)))
+
+
+def pair_margins(lin_positions: FloatArray, lin_velocities: FloatArray, dt: float,
+                 scale: FloatArray, continuous: bool, separation: float,
+                 pairs: tuple[IntArray, IntArray] | None = None,
+                 moving: bool = False) -> FloatArray:
+    """Per pair (in `all_pairs` order, or of `pairs`), the smallest value of its linearised
+    rows at `lin` itself: the starting point of the pruning bound of `violated_rows`."""
+    n, stages = lin_positions.shape[0], lin_positions.shape[1]
+    chunks = _pair_chunks(n, stages) if pairs is None else _chunks_of(*pairs, stages)
+    out = [interval_margins(lin_positions, lin_velocities, dt, scale, continuous, separation,
+                            (i, j), moving).min(axis=1) for i, j in chunks]
     return np.concatenate(out) if out else np.zeros(0)
 
 
@@ -331,6 +376,21 @@ def displacements(lin: tuple[FloatArray, FloatArray], current: tuple[FloatArray,
     dp = (current[0] - lin[0]) / scale
     dm = dp + 0.5 * dt * (current[1] - lin[1]) / scale
     return np.maximum(_norm(dp).max(axis=1), _norm(dm).max(axis=1))
+
+
+def row_displacements(lin: tuple[FloatArray, FloatArray],
+                      current: tuple[FloatArray, FloatArray], dt: float, scale: FloatArray,
+                      continuous: bool) -> FloatArray:
+    """(vehicles, K) or (vehicles, K+1): per vehicle and interval (or step), the largest
+    scaled move from `lin` to `current` of the points its rows read (p_k, p_k + dt/2 v_k,
+    p_k+1; or p_k). A row set's value moves by at most the sum of its two vehicles' at the
+    same interval, so it can be broken only where `interval_margins` is below that sum."""
+    dp = (current[0] - lin[0]) / scale
+    moved = _norm(dp)
+    if not continuous:
+        return moved
+    middle = _norm(dp[:, :-1] + 0.5 * dt * (current[1] - lin[1])[:, :-1] / scale)
+    return np.maximum(np.maximum(moved[:, :-1], moved[:, 1:]), middle)
 
 
 def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: FloatArray,
@@ -360,6 +420,48 @@ def violated_rows(lin_positions: FloatArray, positions: FloatArray, velocities: 
     if not found:
         return PairSteps.concat([]), np.zeros(0)
     return PairSteps.concat(found), np.concatenate(found_v)
+
+
+def values_among(lin_positions: FloatArray, positions: FloatArray, velocities: FloatArray,
+                 dt: float, scale: FloatArray, separation: float, continuous: bool,
+                 rows: PairSteps, moving: bool = False) -> FloatArray:
+    """The smallest value of each of `rows`' linearised rows about `lin` (`directions`) at
+    (positions, velocities): `row_values` for given pair-steps (pair-intervals)."""
+    out = []
+    at_lin = positions is lin_positions  # the margins: the differences are read once
+    last = lin_positions.shape[1] - 1
+    for lo in range(0, len(rows), CHUNK):
+        part = rows.select(slice(lo, lo + CHUNK))
+        i, j, k = part.i, part.j, part.k
+        if continuous and at_lin:
+            here = (positions[i, k] - positions[j, k]) / scale
+            after = (positions[i, k + 1] - positions[j, k + 1]) / scale
+            u = _interval_units(here, after, k, last, separation, moving)
+        else:
+            u = directions(lin_positions, scale, part, continuous, separation, moving)
+            here = (positions[i, k] - positions[j, k]) / scale
+        value = np.einsum("rc,rc->r", u, here)
+        if continuous:
+            if not at_lin:
+                after = (positions[i, k + 1] - positions[j, k + 1]) / scale
+            middle = here + 0.5 * dt * (velocities[i, k] - velocities[j, k]) / scale
+            value = np.minimum(np.minimum(value, np.einsum("rc,rc->r", u, middle)),
+                               np.einsum("rc,rc->r", u, after))
+        out.append(value)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def violated_among(lin_positions: FloatArray, positions: FloatArray, velocities: FloatArray,
+                   dt: float, scale: FloatArray, separation: float, tolerance: float,
+                   continuous: bool, rows: PairSteps, moving: bool = False
+                   ) -> tuple[PairSteps, FloatArray]:
+    """The pair-steps (or pair-intervals) among `rows` whose linearised rows about `lin` the
+    iterate violates by more than `tolerance`, with the smallest row value: `violated_rows`
+    for given pair-intervals instead of whole pairs."""
+    value = values_among(lin_positions, positions, velocities, dt, scale, separation,
+                         continuous, rows, moving)
+    bad = value < separation - tolerance
+    return rows.select(bad), value[bad]
 
 
 def worst_per_run(pairs: PairSteps, values: FloatArray) -> PairSteps:
@@ -401,6 +503,39 @@ def close_rows(positions: FloatArray, scale: FloatArray, below: float, continuou
     if not found:
         return PairSteps.concat([]), np.zeros(0)
     return PairSteps.concat(found), np.concatenate(found_d)
+
+
+def close_among(positions: FloatArray, scale: FloatArray, below: float, continuous: bool,
+                rows: PairSteps) -> tuple[PairSteps, FloatArray]:
+    """The pair-steps (or pair-intervals, by chord distance) among `rows` closer than
+    `below`, with distance: `close_rows` for given pair-steps."""
+    found: list[PairSteps] = []
+    found_d: list[FloatArray] = []
+    for lo in range(0, len(rows), CHUNK):
+        part = rows.select(slice(lo, lo + CHUNK))
+        i, j, k = part.i, part.j, part.k
+        here = (positions[i, k] - positions[j, k]) / scale
+        if continuous:
+            here = _chord_closest(here, (positions[i, k + 1] - positions[j, k + 1]) / scale)
+        dist = _norm(here)
+        close = dist < below
+        found.append(part.select(close))
+        found_d.append(dist[close])
+    if not found:
+        return PairSteps.concat([]), np.zeros(0)
+    return PairSteps.concat(found), np.concatenate(found_d)
+
+
+def window_rows(near: PairSteps, window: int, continuous: bool, steps: int) -> PairSteps:
+    """The pair-intervals (or pair-steps) of `near_windows`' (pair, window)s, each once."""
+    span = window if continuous else window + 1
+    k = (near.k[:, None] * window + np.arange(span)).reshape(-1)
+    rows = PairSteps(np.repeat(near.i, span), np.repeat(near.j, span), k)
+    rows = rows.select(k < (steps if continuous else steps + 1))
+    if continuous:  # windows do not overlap in intervals
+        return rows
+    keys = np.unique(rows.keys(int(near.j.max(initial=0)) + 1, steps + 1))
+    return PairSteps.from_keys(keys, int(near.j.max(initial=0)) + 1, steps + 1)
 
 
 def min_step_distance(positions: FloatArray, scale: FloatArray,

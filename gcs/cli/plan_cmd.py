@@ -58,7 +58,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--batch-size", type=int, default=None, metavar="N",
         help="vehicles per batch with --decompose prioritized (default: the planner's, "
-             "planner.scp.DEFAULT_BATCH)",
+             "by the fleet's motion: planner.prioritized.batch_size)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
     parser.add_argument(

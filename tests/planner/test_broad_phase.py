@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import planner
+import planner.first_qp
 import planner.scp
 import planner.verify
 from planner.generators import grid_to_sphere, random_dense
@@ -14,10 +15,13 @@ from planner.separation import (
     PairSteps,
     all_pairs,
     far_margin_bound,
+    interval_margins,
     interval_minima,
     near_pairs,
+    near_windows,
     pair_index,
     pair_margins,
+    window_rows,
 )
 from planner.verify import continuous_minimum
 
@@ -93,3 +97,48 @@ def test_plans_are_the_same_with_and_without_the_broad_phase(monkeypatch):
     np.testing.assert_allclose(pruned.positions(), full.positions(), atol=1e-7)
     assert (pruned.verification.min_separation_continuous
             == pytest.approx(full.verification.min_separation_continuous, abs=1e-9))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_near_windows_keep_every_interval_that_comes_close(seed):
+    # Every pair-interval whose continuous-time distance falls below `reach` lies in a
+    # (pair, window) the windowed broad phase keeps, and `window_rows` lists it.
+    p, v, a, dt = _wiggly(40, 30, seed)
+    scale = np.array([1.0, 1.0, 2.0])
+    reach, window = 1.5, 4
+    i, j = all_pairs(40)
+    every = PairSteps(np.repeat(i, 30), np.repeat(j, 30), np.tile(np.arange(30), len(i)))
+    minima, _ = interval_minima(p, v, a, dt, scale, every)
+    close = every.select(minima < reach).keys(40, 31)
+    near = near_windows(p, v, a, dt, scale, reach, window)
+    assert np.all(near.i < near.j)
+    rows = window_rows(near, window, True, 30)
+    assert len(close) > 0
+    assert np.isin(close, rows.keys(40, 31)).all()
+    assert len(rows) < len(every)  # it did prune
+    # The pairs of the windows are what near_pairs finds.
+    near_i, near_j = near_pairs(p, v, a, dt, scale, reach, window)
+    assert np.array_equal(np.unique(pair_index(near.i, near.j, 40)),
+                          pair_index(near_i, near_j, 40))
+
+
+@pytest.mark.parametrize("continuous", [False, True])
+def test_windowed_margins_are_below_the_exact_interval_margins(continuous):
+    # The SCP loop's pruning for large fleets: exact margins in the near windows, the far
+    # bound elsewhere; never above the exact margin of any interval of any pair.
+    scenario = planner.Scenario.from_dict(random_dense(80, seed=2)).assigned()
+    lin = planner.first_qp.straight_moves(scenario)
+    options = planner.scp.ScpOptions(continuous=continuous)
+    pruning = planner.scp._margins(scenario, options, lin)
+    exact = interval_margins(lin[0], lin[1], scenario.dt, scenario.separation_scale,
+                             continuous, scenario.min_separation) - scenario.min_separation
+    at = pair_index(pruning.near_i, pruning.near_j, 80)
+    assert np.all(pruning.near <= exact[at] + 1e-9)
+    # Exact where it matters: the pairs closer than R somewhere are near, at those intervals.
+    close = exact[at] < 0.0
+    assert close.any()
+    np.testing.assert_allclose(pruning.near[close], exact[at][close], atol=1e-9)
+    assert pruning.far is not None
+    far = np.isfinite(pruning.far)
+    assert far.any()
+    assert np.all(pruning.far[far] <= exact[far].min(axis=1) + 1e-9)

@@ -75,3 +75,43 @@ def test_pruned_row_check_finds_every_violated_row(continuous):
             zip(pruned.i, pruned.j, pruned.k, strict=True))
         if scale_of_move == 0.05:
             assert suspect.sum() < len(i)  # the bound does prune
+
+
+@pytest.mark.parametrize("continuous", [False, True])
+def test_interval_pruned_row_check_finds_every_violated_row(continuous):
+    # The per-interval bound of the SCP loop: an interval can be broken only where its
+    # margin at lin is below its two vehicles' moves there; checking those intervals alone
+    # (violated_among) finds exactly the rows the all-pairs check finds.
+    from planner.separation import (
+        PairSteps,
+        all_pairs,
+        interval_margins,
+        row_displacements,
+        violated_among,
+        violated_rows,
+    )
+
+    data = random_transitions(14, size=(8.0, 8.0, 3.0), seed=11, steps=60)
+    scenario = planner.Scenario.from_dict(data)
+    lin = planner.plan(scenario)
+    rng = np.random.default_rng(1)
+    p0, v0 = lin.positions(), lin.velocities()
+    scale, dt, r = scenario.separation_scale, scenario.dt, scenario.min_separation
+    i, j = all_pairs(14)
+    margin = interval_margins(p0, v0, dt, scale, continuous, r) - r
+    for scale_of_move in (0.05, 0.3, 1.0):
+        p = p0 + rng.normal(scale=scale_of_move, size=p0.shape)
+        v = v0 + rng.normal(scale=scale_of_move, size=v0.shape)
+        everything, values = violated_rows(p0, p, v, dt, scale, r, 1e-6, continuous)
+        moved = row_displacements((p0, v0), (p, v), dt, scale, continuous)
+        pi, kk = np.nonzero(margin - moved[i] - moved[j] < 1e-6)
+        suspects = PairSteps(i[pi], j[pi], kk)
+        pruned, pruned_values = violated_among(p0, p, v, dt, scale, r, 1e-6, continuous,
+                                               suspects)
+        assert len(everything) > 0
+        key = everything.keys(14, 61)
+        assert np.array_equal(np.sort(key), np.sort(pruned.keys(14, 61)))
+        np.testing.assert_allclose(pruned_values[np.argsort(pruned.keys(14, 61))],
+                                   values[np.argsort(key)], atol=1e-9)
+        if scale_of_move == 0.05:
+            assert len(suspects) < margin.size / 4  # the bound does prune

@@ -197,3 +197,94 @@ def test_a_long_horizon_keeps_the_primal(monkeypatch):
     assert plan.ok, plan.message
     assert plan.iterations[-1].separation_rows > 0  # the crossing did meet separation rows
     assert calls == []
+
+
+def _random16_rows(within: float):
+    """random16's interval rows where pairs come within `within` of each other at the
+    straight moves, and every box over part of the move (velocity, acceleration, jerk, wall)."""
+    scenario = Scenario.from_dict(load_example("random16"))
+    lin = straight_moves(scenario)
+    pairs, _ = close_rows(lin[0], scenario.separation_scale,
+                          within * scenario.min_separation, True)
+    n, steps = len(scenario.vehicles), scenario.steps
+    boxes = BoxMask(np.zeros((n, steps + 1, 3, 3), dtype=bool),
+                    np.zeros((n, steps, 3), dtype=bool), np.zeros((n, steps, 3), dtype=bool))
+    boxes.bounds[:, 60:80, 1, :2] = True
+    boxes.bounds[:, 70:80, 2, :] = True
+    boxes.jerk[:, :10, :] = True
+    boxes.wall[:, 60:90, 2] = True
+    return scenario, lin, pairs, boxes
+
+
+def test_blocks_and_slacks_of_the_dual_equal_the_matrix_built_whole():
+    # The working set's blocks of Q = C M C' and every row's slack Q l + c read through the
+    # forces equal Q built from C and M explicitly.
+    from planner.dual import _Dual
+
+    scenario, lin, pairs, _ = _random16_rows(1.2)
+    rows = _rows(scenario, lin[0], pairs)
+    fn = functionals(scenario.steps, scenario.dt)
+    n, count = len(scenario.vehicles), fn.compliance.shape[0]
+    e_row = np.concatenate([np.arange(len(rows))] * 2)
+    e_veh = np.concatenate([rows.i, rows.j])
+    f_sep = np.where(rows.kind == 0, fn.position(rows.k),
+                     np.where(rows.kind == 1, fn.middle(rows.k), fn.position(rows.k + 1)))
+    e_func = np.concatenate([f_sep, f_sep])
+    e_coef = np.concatenate([rows.coef, -rows.coef])
+    rng = np.random.default_rng(0)
+    c = rng.normal(size=len(rows))
+    dual = _Dual(fn, n, e_row, e_veh, e_func, e_coef, c)
+    # Q = sum over vehicles and axes of C_va W C_va', C_va: the rows' coefficients on that
+    # vehicle's and axis' functionals.
+    Q = np.zeros((len(rows), len(rows)))
+    for vehicle in range(n):
+        for axis in range(3):
+            C = np.zeros((len(rows), count))
+            mine = e_veh == vehicle
+            np.add.at(C, (e_row[mine], e_func[mine]), e_coef[mine, axis])
+            Q += C @ fn.compliance @ C.T
+    some = np.sort(rng.choice(len(rows), size=len(rows) // 3, replace=False))
+    for subset in (some, np.arange(len(rows))):
+        block = dual.block(subset).toarray()
+        np.testing.assert_allclose(block, np.triu(Q[np.ix_(subset, subset)]), atol=1e-12)
+    lam = np.where(rng.random(len(rows)) < 0.2, rng.random(len(rows)), 0.0)
+    np.testing.assert_allclose(dual.gradient(dual.moves(lam)), Q @ lam + c, atol=1e-10)
+
+
+def test_a_warm_started_dual_equals_the_primal_with_rows_added():
+    # The SCP loop's pattern: a group solved, a few violated rows added, solved again from
+    # the rows the first solve found active (ActiveRows); the same optimum and multipliers
+    # as the primal QP of the larger problem.
+    from planner.dual import ActiveRows
+
+    scenario, lin, pairs, boxes = _random16_rows(1.2)
+    members = np.arange(len(scenario.vehicles))
+    keys = pairs.keys(len(members), scenario.steps + 1)
+    order = np.argsort(keys)
+    pairs, keys = pairs.select(order), keys[order]
+    first = np.arange(len(keys)) % 4 != 0  # three quarters of the rows, then all of them
+
+    def ids(k):
+        return (3 * k[None, :] + np.arange(3)[:, None]).reshape(-1)
+
+    memory = ActiveRows()
+    before = solve_group_dual(scenario, members, _rows(scenario, lin[0], pairs.select(first)),
+                              boxes, row_ids=ids(keys[first]), memory=memory)
+    assert before is not None and before.status == SOLVED
+    assert memory.separation.size > 0
+    rows = _rows(scenario, lin[0], pairs)
+    (p, _, a), primal = _primal(scenario, members, rows, boxes)
+    warm = solve_group_dual(scenario, members, rows, boxes, row_ids=ids(keys), memory=memory)
+    cold = solve_group_dual(scenario, members, rows, boxes)
+    for outcome in (warm, cold):
+        assert outcome is not None and outcome.status == SOLVED
+        assert np.abs(outcome.solution[0] - p).max() < 1e-5
+        assert np.abs(outcome.solution[2] - a).max() < 1e-5
+        # The same multipliers (degenerate rows may share a few 1e-6 differently).
+        np.testing.assert_allclose(outcome.separation_duals, primal.separation_duals,
+                                   atol=1e-5)
+        clear = 1e-3 * primal.separation_duals.max()
+        assert np.array_equal(outcome.separation_duals > clear,
+                              primal.separation_duals > clear)
+    # The memory now names exactly the rows active in the last solve.
+    assert np.array_equal(memory.separation, np.sort(ids(keys)[warm.separation_duals > 1e-7]))

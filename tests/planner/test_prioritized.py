@@ -13,6 +13,8 @@ import pytest
 import planner.planning as planning
 import planner.prioritized as prioritized
 from planner import plan
+from planner.fixed import FixedTrajectory, landing_motion
+from planner.from_state import scenario_from_state
 from planner.generators import circle_swap, sideways
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, ScpOutcome
@@ -141,17 +143,92 @@ def test_a_joined_plan_that_fails_verification_is_never_returned(
     assert "planned as a whole fleet" in result.message
 
 
-@pytest.mark.parametrize(("change", "why"), [
-    (lambda d: d["vehicles"][0].update(start_acceleration=[0.5, 0.0, 0.0]),
-     "the vehicles start moving"),
-    (lambda d: d["vehicles"][0].update(start_velocity=[0.2, 0.0, 0.0]),
-     "the vehicles start moving"),
-])
-def test_a_fleet_the_batches_do_not_apply_to_is_planned_whole_saying_why(change, why) -> None:
-    """A start state (not rest) is outside what the batches plan: the whole fleet is
-    planned, verified, and the message says why, instead of failing."""
-    data = circle_swap(8)
-    change(data)
-    result = plan(data, options=PRIORITIZED)
+def _flying_state(t: float) -> tuple[Scenario, np.ndarray, np.ndarray, np.ndarray]:
+    """Six vehicles swapping across a 10 m square in 8 s (about 1.5 m/s), planned from rest,
+    and every vehicle's state at flight time t."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
+    ring = np.stack([5 + 4 * np.cos(angles), 5 + 4 * np.sin(angles),
+                     1.2 + 0.3 * (np.arange(6) % 2)], axis=1)
+    flying = plan({
+        "name": "swap6", "dt": 0.2, "steps": 40, "min_separation": 1.0,
+        "limits": {"position_min": [0, 0, 0], "position_max": [10, 10, 3],
+                   "velocity_max": [2, 2, 2], "acceleration_max": [3, 3, 3]},
+        "vehicles": [{"id": f"v{n}", "start": ring[n].tolist(),
+                      "goal": ring[(n + 3) % 6].tolist()} for n in range(6)]})
+    assert flying.ok
+    state = flying.sample(np.array([t]))
+    return flying.scenario, state.position[:, 0], state.velocity[:, 0], state.acceleration[:, 0]
+
+
+def _from_state(t: float, margin: float) -> tuple[Scenario, FixedTrajectory]:
+    """The swap replanned from its state at t to its goals, with a vehicle dropped (not
+    planned) on its way down through the middle of the square, keeping R + `margin`."""
+    base, p, v, a = _flying_state(t)
+    dropped = landing_motion("x", [5.0, 5.0, 2.9], [0.0, 0.0, 0.0], base.dt, 2.0, 0.5, 0.3,
+                             margin=margin)
+    work = scenario_from_state(base, "replan", base.ids, p, v, a, base.goals,
+                               separation=base.min_separation, steps=base.steps,
+                               fixed=[dropped])
+    return work, dropped
+
+
+def test_batches_from_a_moving_state_start_exactly_there_and_keep_r_from_a_fixed_vehicle(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """From a flying state the batches plan every vehicle from its exact position, velocity
+    and acceleration, keep R from each other and R + margin from the scenario's own fixed
+    vehicle over continuous time (every batch has it), reserve no later vehicle (a moving
+    vehicle cannot wait where it is) and stop at their share of the threshold."""
+    work, dropped = _from_state(2.0, 0.2)
+    assert np.abs(work.start_velocities).max() > 0.5  # truly in motion
+    real = prioritized.run_scp
+    subs: list[Scenario] = []
+
+    def spy(sub: Scenario, *args: Any, **kwargs: Any) -> ScpOutcome:
+        subs.append(sub)
+        return real(sub, *args, **kwargs)
+
+    monkeypatch.setattr(prioritized, "run_scp", spy)
+    options = dataclasses.replace(PRIORITIZED, batch_cost_share=True)
+    found = prioritized.plan_batches(work, make_solver(None), options, batch=2)
+    assert found is not None
+    out = found.outcome
+    np.testing.assert_allclose(out.positions[:, 0], work.starts, atol=1e-6)
+    np.testing.assert_allclose(out.velocities[:, 0], work.start_velocities, atol=1e-6)
+    check = verify(work, out.positions, out.velocities, out.accelerations)
+    assert check.verified, check.failures()
+    assert check.fixed_distance_min >= work.min_separation + 0.2 - 1e-4
+    planned_before: set[str] = set()
+    for sub in subs:
+        ids = [f.id for f in sub.fixed]
+        assert ids[0] == "x"  # the dropped vehicle, in every batch
+        assert {i[1:] for i in ids[1:]} <= planned_before  # earlier vehicles only
+        assert sub.cost_threshold == pytest.approx(
+            work.cost_threshold * len(sub.vehicles) / len(work.vehicles))
+        planned_before |= {v.id for v in sub.vehicles}
+    # the fixed vehicle mattered: the separation-free moves fly through its column
+    free = verify(dataclasses.replace(work, fixed=(dropped,)), *_straight(work))
+    assert free.fixed_distance_min < work.min_separation
+
+
+def test_plan_decomposes_a_moving_fleet_and_verifies_the_joined_plan() -> None:
+    work, _ = _from_state(3.0, 0.0)
+    result = plan(work, options=PRIORITIZED)
     assert result.status == "converged", result.message
-    assert f"planned as a whole fleet, not in prioritized batches: {why}" in result.message
+    assert "prioritized batches" in result.message
+    assert result.verification is not None and result.verification.verified
+    np.testing.assert_allclose(result.positions()[:, 0], work.starts, atol=1e-6)
+    np.testing.assert_allclose(result.velocities()[:, 0], work.start_velocities, atol=1e-6)
+
+
+def test_batches_costing_more_than_the_threshold_above_the_free_optimum_are_not_taken() -> None:
+    """With `batch_cost_share` the joined plan is taken only within `cost_threshold` of the
+    separation-free optimum (so of the fleet's optimum): above it, the fleet is planned
+    whole, saying why."""
+    work, _ = _from_state(2.0, 0.2)  # the free moves cross the dropped vehicle's column
+    options = dataclasses.replace(PRIORITIZED, batch_cost_share=True)
+    loose = plan(dataclasses.replace(work, cost_threshold=1e3), options=options)
+    assert loose.ok and "prioritized batches" in loose.message
+    tight = plan(dataclasses.replace(work, cost_threshold=1e-3), options=options)
+    assert tight.ok, tight.message
+    assert "planned as a whole fleet" in tight.message
+    assert "above the separation-free optimum, not less than cost_threshold" in tight.message

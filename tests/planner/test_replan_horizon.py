@@ -13,6 +13,7 @@ from planner import plan
 from planner.fixed import braking_motion
 from planner.replan import (
     CROWD_FACTORS,
+    Crowd,
     crowd,
     plan_replan,
     replan_horizon,
@@ -37,9 +38,14 @@ def test_crowd_is_the_largest_group_of_vehicles_whose_free_moves_meet() -> None:
         ("c", [1, 2, 1.5], [9, 2, 1.5]), ("d", [9, 2, 1.5], [1, 2, 1.5]),
         ("e", [5, 4, 1.5], [5, 0.5, 1.5]),
     ])
-    assert crowd(meeting) == 3
+    found = crowd(meeting)
+    assert found.vehicles == 3
+    # c, d and e close in on each other over several steps: a row for each, all theirs
+    assert found.rows >= 3
+    pair = _scenario([("a", [1, 8, 1.5], [9, 8, 1.5]), ("b", [9, 8, 1.5], [1, 8, 1.5])])
+    assert crowd(pair).vehicles == 2 and crowd(pair).rows < found.rows
     apart = _scenario([("a", [1, 8, 1.5], [9, 8, 1.5]), ("b", [1, 2, 1.5], [9, 2, 1.5])])
-    assert crowd(apart) == 0
+    assert crowd(apart) == Crowd(0, 0)
 
 
 def _moving_pair() -> tuple[Scenario, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -63,9 +69,9 @@ def test_a_crowded_first_horizon_gives_way_to_the_shortest_least_crowded_one(
     steps = [math.ceil(f * first / base.dt) for f in CROWD_FACTORS]
     seen: list[int] = []
 
-    def fake(spec: Scenario, solver: str | None = None) -> int:
+    def fake(spec: Scenario, solver: str | None = None) -> Crowd:
         seen.append(spec.steps)
-        return {steps[0]: 40, steps[1]: 12, steps[2]: 10}[spec.steps]
+        return Crowd({steps[0]: 40, steps[1]: 12, steps[2]: 10}[spec.steps], 50)
 
     monkeypatch.setattr(replan_module, "crowd", fake)
     dropped = braking_motion("c", [5.0, 8.5, 2.5], [0.5, 0.0, 0.0], 0.2, 2.0)
@@ -84,9 +90,9 @@ def test_a_small_crowd_keeps_the_first_horizon_without_looking_further(
     base, p, v, a, goals = _moving_pair()
     seen: list[int] = []
 
-    def fake(spec: Scenario, solver: str | None = None) -> int:
+    def fake(spec: Scenario, solver: str | None = None) -> Crowd:
         seen.append(spec.steps)
-        return 1
+        return Crowd(1, 3)
 
     monkeypatch.setattr(replan_module, "crowd", fake)
     replan = plan_replan(base, ["a", "b"], p, v, a, goals)
