@@ -1,10 +1,12 @@
-"""Scaling plot (vehicles against planning time) from `bench/planner.py` JSON, as a static SVG.
+"""Scaling plot (vehicles against planning time) from benchmark JSON, as a static SVG.
 
     python bench/scaling_plot.py A.json B.json [C.json ...] -o docs/scaling.svg
 
-Reads each report's `families_summary` (medians over seeds) and draws one line per (family,
-assignment, group QP method) on log-log axes, with the drone-show floors as red bars. Written
-by hand (no plotting dependency): the project has no matplotlib.
+Reads each `bench/planner.py` report's `families_summary` (medians over seeds) and each
+`bench/prioritized.py` report's prioritized runs of `gs:` and `random:` cases (their median
+wall time per size), and draws one line per (family, assignment, method) on log-log axes,
+with the drone-show floors as red bars. Written by hand (no plotting dependency): the
+project has no matplotlib.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import statistics
 from pathlib import Path
 from typing import Any
 
@@ -43,19 +46,44 @@ def _y(t: float) -> float:
     return HEIGHT - BOTTOM - (math.log10(t) - lo) / (hi - lo) * (HEIGHT - TOP - BOTTOM)
 
 
+#: A `bench/prioritized.py` case's prefix and the family it names.
+CASE_FAMILIES = {"gs": "grid-sphere", "random": "random-dense"}
+#: The method of a line drawn from prioritized runs.
+BATCHES = "batches"
+
+
 def _label(family: str, assignment: str, method: str) -> str:
     name = "grid → sphere" if family == "grid-sphere" else "random (random128 density)"
-    return f"{name}, {assignment}, {method} QPs"
+    how = "prioritized batches" if method == BATCHES else f"{method} QPs"
+    return f"{name}, {assignment}, {how}"
+
+
+def _batch_medians(report: dict[str, Any]) -> dict[tuple[str, str, str], dict[int, float]]:
+    """The median wall time per size of a `bench/prioritized.py` report's verified
+    prioritized runs of the families the plot draws (fixed goals)."""
+    times: dict[tuple[str, int], list[float]] = {}
+    for run in report.get("runs", []):
+        family = CASE_FAMILIES.get(str(run.get("case", "")).split(":")[0])
+        if (family is None or not str(run.get("method", "")).startswith("prioritized")
+                or not run.get("verified")):
+            continue
+        times.setdefault((family, int(run["vehicles"])), []).append(float(run["wall_s"]))
+    out: dict[tuple[str, str, str], dict[int, float]] = {}
+    for (family, n), walls in times.items():
+        out.setdefault((family, "fixed", BATCHES), {})[n] = statistics.median(walls)
+    return out
 
 
 def series(reports: list[dict[str, Any]]) -> dict[tuple[str, str, str], list[tuple[int, float]]]:
-    """One line per (family, assignment, group QP method): its medians by size. A size
-    measured in several reports takes the last report's figure (a later, quieter run)."""
+    """One line per (family, assignment, method): its medians by size. A size measured in
+    several reports takes the last report's figure (a later, quieter run)."""
     out: dict[tuple[str, str, str], dict[int, float]] = {}
     for report in reports:
         for row in report.get("families_summary", []):
             key = (row["family"], row["assignment"], row.get("group_qp", "primal"))
             out.setdefault(key, {})[row["vehicles"]] = row["total_s_median"]
+        for key, sizes in _batch_medians(report).items():
+            out.setdefault(key, {}).update(sizes)
     return {k: sorted(v.items()) for k, v in sorted(out.items())}
 
 
@@ -90,7 +118,8 @@ def render(lines: dict[tuple[str, str, str], list[tuple[int, float]]], note: str
     legend_y = TOP + 10
     for index, (key, points) in enumerate(lines.items()):
         colour = COLOURS[index % len(COLOURS)]
-        dash = ' stroke-dasharray="5,4"' if key[2] == "primal" else ""
+        dash = {"primal": ' stroke-dasharray="5,4"',
+                BATCHES: ' stroke-dasharray="1,3"'}.get(key[2], "")
         path = " ".join(f"{_x(n):.1f},{_y(t):.1f}" for n, t in points)
         parts.append(f'<polyline points="{path}" fill="none" stroke="{colour}" '
                      f'stroke-width="2"{dash}/>')
@@ -118,14 +147,16 @@ def render(lines: dict[tuple[str, str, str], list[tuple[int, float]]], note: str
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("reports", nargs="+", type=Path, help="bench/planner.py JSON files")
+    parser.add_argument("reports", nargs="+", type=Path,
+                        help="bench/planner.py or bench/prioritized.py JSON files")
     parser.add_argument("-o", "--output", type=Path, default=Path("docs/scaling.svg"))
     parser.add_argument("--note", default="", help="a line of text above the plot")
     args = parser.parse_args()
     reports = [json.loads(path.read_text()) for path in args.reports]
     lines = series(reports)
     if not lines:
-        raise SystemExit("no families_summary in the given reports")
+        raise SystemExit("no families_summary (bench/planner.py) or prioritized gs/random "
+                         "runs (bench/prioritized.py) in the given reports")
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(render(lines, args.note))
 

@@ -62,3 +62,28 @@ def test_planner_benchmark_reports_the_group_qp_method():
     assert report["families"][0]["group_qp"] == "primal"
     assert report["families_summary"][0]["group_qp"] == "primal"
     assert report["families_summary"][0]["verified"] == 1
+
+
+def test_prioritized_runs_draw_a_batches_line_of_median_wall_times(tmp_path):
+    runs = [{"case": f"gs:{n}:{seed}", "method": "prioritized-auto", "vehicles": n,
+             "verified": True, "wall_s": t} for n, seed, t in
+            ((256, 0, 3.0), (256, 1, 5.0), (1000, 0, 30.0))]
+    runs += [{"case": "gs:256:0", "method": "whole", "vehicles": 256, "verified": True,
+              "wall_s": 99.0},
+             {"case": "gs:1000:1", "method": "prioritized-auto", "vehicles": 1000,
+              "verified": False, "wall_s": 1.0},
+             {"case": "sideways:100:none", "method": "prioritized-auto", "vehicles": 100,
+              "verified": True, "wall_s": 2.0}]
+    source = tmp_path / "prioritized.json"
+    source.write_text(json.dumps({"runs": runs}))
+    out = tmp_path / "plot.svg"
+    done = subprocess.run([sys.executable, str(BENCH / "scaling_plot.py"), str(source),
+                           "-o", str(out)], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    root = ET.parse(out).getroot()
+    lines = root.findall(f"{SVG}polyline")
+    assert len(lines) == 1  # whole-fleet, unverified and sideways runs draw nothing
+    assert len(lines[0].get("points").split()) == 2
+    titles = [c.find(f"{SVG}title").text for c in root.findall(f"{SVG}circle")]
+    assert titles == ["grid → sphere, fixed, prioritized batches: 256 vehicles, 4.00 s",
+                      "grid → sphere, fixed, prioritized batches: 1000 vehicles, 30.00 s"]
