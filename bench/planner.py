@@ -17,8 +17,9 @@ sequence; with --formations F a long show of F formations, `show_formations`), e
 --seeds. The long show's legs through Dask workers: bench/dask_engine.py --formations.
 --obstacles NAME... runs the obstacle families (a pillar in the paper's circle, a window in
 a wall, shelving, forests), each with its floor. --group-qp primal solves their group QPs as
-the primal staged QP (before the dual, for comparison); --profile also takes dense<N> and
-grid-sphere<N>.
+the primal staged QP (for comparison with the dual); --decompose prioritized plans every
+family in prioritized batches (forest200's floor is met that way); --profile also takes
+dense<N> and grid-sphere<N>.
 
 Timings are medians over --repeats runs of the same scenario (the machines are shared and
 noisy); peak memory comes from one extra run under tracemalloc (numpy's allocations are
@@ -63,7 +64,7 @@ from planner.obstacle_generators import (  # noqa: E402
     shelving,
     window_wall,
 )
-from planner.scp import ScpOptions  # noqa: E402
+from planner.scp import DECOMPOSITIONS, ScpOptions  # noqa: E402
 from planner.sequence import plan_sequence  # noqa: E402
 from planner.verify import verify  # noqa: E402
 
@@ -279,7 +280,9 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
         "steps": scenario.steps,
         "solver": plan.solver,
         "group_qp": "dual" if (options or ScpOptions()).dual else "primal",
+        "decompose": (options or ScpOptions()).decompose,
         "status": plan.status,
+        "message": plan.message[:300],
         "verified": plan.ok,
         "total_s": statistics.median(totals),
         "total_s_runs": [round(t, 4) for t in totals],
@@ -350,7 +353,7 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         rss = [r["peak_rss_mb"] for r in group if r["peak_rss_mb"] is not None]
         out.append({
             "family": family, "assignment": assignment, "vehicles": n, "seeds": len(group),
-            "group_qp": group[0]["group_qp"],
+            "group_qp": group[0]["group_qp"], "decompose": group[0]["decompose"],
             "verified": sum(r["verified"] for r in group),
             "total_s_median": statistics.median(r["total_s"] for r in group),
             "total_s_max": max(r["total_s"] for r in group),
@@ -435,10 +438,13 @@ def main() -> None:
                         help="also time writing each family plan's JSON (streamed)")
     parser.add_argument("--no-memory", action="store_true",
                         help="skip the extra run that measures peak memory")
+    parser.add_argument("--decompose", choices=sorted(DECOMPOSITIONS), default="none",
+                        help="plan the families whole (none) or in prioritized batches "
+                             "(ScpOptions.decompose)")
     args = parser.parse_args()
 
     began = time.perf_counter()
-    options = ScpOptions(dual=args.group_qp == "dual")
+    options = ScpOptions(dual=args.group_qp == "dual", decompose=args.decompose)
     report: dict[str, Any] = {"benchmark": "planner", "machine": machine(),
                               "settings": vars(args)}
     names = args.only if args.only is not None else PAPER + SCALE

@@ -15,7 +15,9 @@ trajectories (a dropped vehicle) are fixed in every batch. Each batch is first l
 about moves clear of everything placed before it (`clear_guess`; a moving vehicle's moves
 carry its start velocity's drift), and its QPs are small and mostly one-sided. A
 batch whose SCP does not converge is planned again with the earlier vehicles nearest to it;
-if that fails too the decomposition ends (`None`). The joined plan is verified as a whole
+if that fails too it is deferred once to the end of the order (later vehicles waiting at
+their starts in its way are then planned, and leave, before it), and a second failure ends
+the decomposition (`None`). The joined plan is verified as a whole
 by the caller (`planner.plan`, with `planner.verify`), which plans the whole fleet instead
 when the decomposition ends or the check fails: the guarantee is the verifier's.
 """
@@ -133,7 +135,9 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     """Plan `work` (goals assigned; its own fixed trajectories, start velocities and
     accelerations are kept) batch by batch. A batch whose SCP does not converge is planned
     again together with the earlier vehicles that come closest to its first linearisation
-    point (MERGE_ROUNDS times, MERGE_GROWTH more each time); None if it still does not."""
+    point (MERGE_ROUNDS times, MERGE_GROWTH more each time); if it still does not, it is
+    deferred once to the end of the order (the later vehicles reserved at their starts may
+    be what blocks it: planned first, they leave); None if it fails again."""
     n, steps = len(work.vehicles), work.steps
     # a vehicle in motion cannot wait where it is: starts are reserved from rest only
     reserve = not (np.any(work.initial_velocities) or np.any(work.initial_accelerations))
@@ -158,10 +162,14 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     seconds: list[float] = []
     first_qp = 0.0
     merges = 0
-    for number, members in enumerate(batches):
+    queue = list(batches)
+    planned_order: list[IntArray] = []
+    deferred: set[int] = set()
+    number = 0
+    while queue:
+        members = queue.pop(0)
         began = time.perf_counter()
-        later = (np.concatenate(batches[number + 1:]) if reserve and number + 1 < len(batches)
-                 else np.zeros(0, dtype=np.intp))
+        later = (np.concatenate(queue) if reserve and queue else np.zeros(0, dtype=np.intp))
         reopened = np.zeros(0, dtype=np.intp)
         for attempt in range(MERGE_ROUNDS + 1):
             outcome, guess = _plan_batch(state, members, reopened, later, solver, options,
@@ -176,18 +184,27 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
                 break
             merges += 1
         seconds.append(time.perf_counter() - began)
+        number += 1
         if outcome.status != "converged":
-            return None
+            key = int(members[0])
+            if key in deferred or not queue:
+                return None
+            # blocked by vehicles still waiting at their starts: plan it after them
+            deferred.add(key)
+            queue.append(members)
+            continue
         group = np.concatenate([members, reopened])
         state.p[group], state.v[group], state.a[group] = (
             outcome.positions, outcome.velocities, outcome.accelerations)
         state.planned[group] = True
-    message = (f"planned in {len(batches)} prioritized batches of up to {batch} vehicles"
+        planned_order.append(members)
+    message = (f"planned in {len(planned_order)} prioritized batches of up to {batch} vehicles"
                + (f" ({merges} replanned with earlier vehicles)" if merges else "")
+               + (f" ({len(deferred)} deferred to the end of the order)" if deferred else "")
                + ", each converged")
     joined = ScpOutcome("converged", message, state.p, state.v, state.a, iterations,
                         first_qp)
-    return PrioritizedOutcome(joined, batches, seconds)
+    return PrioritizedOutcome(joined, planned_order, seconds)
 
 
 #: Rounds of replanning a failed batch with the earlier vehicles nearest to it.

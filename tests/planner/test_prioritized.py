@@ -95,22 +95,17 @@ def test_a_failed_batch_is_replanned_with_the_earlier_vehicles_nearest_to_it(
     assert verify(work, out.positions, out.velocities, out.accelerations).verified
 
 
-def test_a_vehicle_boxed_in_by_a_reserved_start_ends_the_decomposition() -> None:
-    # a tube too narrow to pass in: planned first, `a` would have to fly through the start
-    # of `b`, which is reserved for it; nothing earlier can be reopened
+def test_a_batch_that_fails_again_after_its_deferral_ends_the_decomposition() -> None:
+    # a tube too narrow to pass in, and the two swap ends: whichever is planned first has
+    # to fly through the other's reserved start, deferred or not
     tube = {"name": "tube", "dt": 0.2, "steps": 60, "min_separation": 1.0,
-            "limits": {"position_min": [0, 0, 0], "position_max": [10, 1.2, 1.2],
+            "limits": {"position_min": [0, 0, 0], "position_max": [10, 0.6, 0.6],
                        "velocity_max": [3, 3, 3], "acceleration_max": [3, 3, 3]},
-            "vehicles": [{"id": "a", "start": [1, 0.6, 0.6], "goal": [6, 0.6, 0.6]},
-                         {"id": "b", "start": [3, 0.6, 0.6], "goal": [8, 0.6, 0.6]}]}
+            "vehicles": [{"id": "a", "start": [1, 0.3, 0.3], "goal": [8, 0.3, 0.3]},
+                         {"id": "b", "start": [8.5, 0.3, 0.3], "goal": [2, 0.3, 0.3]}]}
     work = Scenario.from_dict(tube)
     assert prioritized.plan_batches(work, make_solver(None), batch=1,
                                     order=np.array([0, 1])) is None
-    # in the sweep's order (b, whose goal is farther along, first) it plans and verifies
-    found = prioritized.plan_batches(work, make_solver(None), batch=1)
-    assert found is not None
-    out = found.outcome
-    assert verify(work, out.positions, out.velocities, out.accelerations).verified
 
 
 def test_plan_falls_back_to_the_whole_fleet_when_the_batches_fail(
@@ -232,3 +227,30 @@ def test_batches_costing_more_than_the_threshold_above_the_free_optimum_are_not_
     assert tight.ok, tight.message
     assert "planned as a whole fleet" in tight.message
     assert "above the separation-free optimum, not less than cost_threshold" in tight.message
+
+
+def _corridor() -> dict[str, Any]:
+    """Two vehicles in a corridor too narrow to pass in: `back` flies through the start of
+    `front`, which moves on ahead of it."""
+    return {"name": "corridor", "dt": 0.2, "steps": 60, "min_separation": 1.0,
+            "limits": {"position_min": [0.0, 0.0, 0.5], "position_max": [16.0, 1.2, 1.7],
+                       "velocity_max": [2.0, 2.0, 2.0], "acceleration_max": [3.0, 3.0, 3.0],
+                       "jerk_max": [5.0, 5.0, 5.0]},
+            "vehicles": [{"id": "back", "start": [1.0, 0.6, 1.1], "goal": [10.0, 0.6, 1.1]},
+                         {"id": "front", "start": [4.0, 0.6, 1.1],
+                          "goal": [14.0, 0.6, 1.1]}]}
+
+
+def test_a_batch_blocked_by_a_later_vehicles_start_is_deferred_until_it_has_left() -> None:
+    work = Scenario.from_dict(_corridor()).assigned()
+    # `back` first: `front` waits at its start, in the way, so `back`'s batch cannot plan
+    found = prioritized.plan_batches(work, make_solver(None), batch=1,
+                                     order=np.array([0, 1], dtype=np.intp))
+    assert found is not None
+    assert [b.tolist() for b in found.batches] == [[1], [0]]
+    assert "1 deferred to the end of the order" in found.outcome.message
+    out = found.outcome
+    check = verify(work, out.positions, out.velocities, out.accelerations)
+    assert check.verified, check.failures()
+    # `front` is out of the way before `back` passes its start
+    assert np.all(out.positions[1, :, 0] >= out.positions[0, :, 0] + 1.0 - 1e-6)
