@@ -19,7 +19,7 @@ import numpy as np
 from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
 from planner.first_qp import solve_first_qp, straight_moves, timed_first_qp
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.prioritized import batch_size, plan_batches
+from planner.prioritized import PrioritizedOutcome, batch_size, plan_batches
 from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, run_scp, thrust_cost
@@ -104,10 +104,11 @@ def plan(
                      and direct is None else None)
     decomposed = (options is not None and options.decompose == "prioritized"
                   and direct is None and whole_because is None)
-    batches = (plan_batches(work, backend, options, progress, options.batch_size)
+    batched = (plan_batches(work, backend, options, progress, options.batch_size)
                if decomposed and options is not None else None)
-    if decomposed and batches is None:
-        whole_because = "a batch did not converge, even with its nearest earlier vehicles"
+    batches = batched if isinstance(batched, PrioritizedOutcome) else None
+    if isinstance(batched, str):
+        whole_because = batched
     verification: Verification | None = None
     if direct is not None:
         outcome, verification = direct

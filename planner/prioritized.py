@@ -17,7 +17,7 @@ carry its start velocity's drift), and its QPs are small and mostly one-sided. A
 batch whose SCP does not converge is planned again with the earlier vehicles nearest to it;
 if that fails too it is deferred once to the end of the order (later vehicles waiting at
 their starts in its way are then planned, and leave, before it), and a second failure ends
-the decomposition (`None`). The joined plan is verified as a whole
+the decomposition (`plan_batches` returns why). The joined plan is verified as a whole
 by the caller (`planner.plan`, with `planner.verify`), which plans the whole fleet instead
 when the decomposition ends or the check fails: the guarantee is the verifier's.
 """
@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from planner.first_qp import unit_profile, velocity_profile
 from planner.fixed import FixedSet, FixedTrajectory
 from planner.result import IterationRecord
-from planner.routes import _along
+from planner.routes import along
 from planner.scenario import Scenario
 from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
@@ -47,7 +47,8 @@ from planner.spacetime import (
 )
 from planner.types import FloatArray, IntArray
 
-__all__ = ["PrioritizedOutcome", "batch_size", "order_vehicles", "plan_batches"]
+__all__ = ["NOT_CONVERGED", "UNREACHABLE", "PrioritizedOutcome", "batch_size", "order_vehicles",
+           "plan_batches"]
 
 #: A fixed trajectory joins a batch's scenario only if it comes within this many R (scaled)
 #: of a batch vehicle's straight move at some instant of the horizon (any time: the batch's
@@ -61,7 +62,14 @@ class PrioritizedOutcome:
 
     outcome: ScpOutcome
     batches: list[IntArray]
+    """The batches in the order they were planned (a deferred one where it succeeded)."""
     batch_seconds: list[float]
+    """Each batch's time, its failed attempts before a deferral included."""
+
+
+#: Why `plan_batches` gave up (the caller then plans the whole fleet and says so).
+NOT_CONVERGED = "a batch did not converge, even with its nearest earlier vehicles and deferred"
+UNREACHABLE = "a goal cannot be reached around the obstacles"
 
 
 def _dominant_motion(scenario: Scenario) -> FloatArray | None:
@@ -131,13 +139,15 @@ def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach:
 def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = None,
                  progress: Callable[[IterationRecord], None] | None = None,
                  batch: int | None = None, order: IntArray | None = None
-                 ) -> PrioritizedOutcome | None:
+                 ) -> PrioritizedOutcome | str:
     """Plan `work` (goals assigned; its own fixed trajectories, start velocities and
     accelerations are kept) batch by batch. A batch whose SCP does not converge is planned
     again together with the earlier vehicles that come closest to its first linearisation
     point (MERGE_ROUNDS times, MERGE_GROWTH more each time); if it still does not, it is
     deferred once to the end of the order (the later vehicles reserved at their starts may
-    be what blocks it: planned first, they leave); None if it fails again."""
+    be what blocks it: planned first, they leave; a fleet in motion reserves nothing, so it
+    is not deferred). Returns why it gave up (NOT_CONVERGED, UNREACHABLE) instead of an
+    outcome when a batch fails again or a goal is cut off."""
     n, steps = len(work.vehicles), work.steps
     # a vehicle in motion cannot wait where it is: starts are reserved from rest only
     reserve = not (np.any(work.initial_velocities) or np.any(work.initial_accelerations))
@@ -153,7 +163,7 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     if work.obstacles:  # every route once for the fleet; an unreachable goal: plan whole
         found = fleet_routes(work)
         if found.unreachable is not None:
-            return None
+            return UNREACHABLE
         routes = found.routes
     state = _State(work, np.repeat(work.starts[:, None, :], steps + 1, axis=1),
                    np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3)), np.zeros(n, bool),
@@ -165,6 +175,7 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     queue = list(batches)
     planned_order: list[IntArray] = []
     deferred: set[int] = set()
+    spent: dict[int, float] = {}
     number = 0
     while queue:
         members = queue.pop(0)
@@ -183,16 +194,17 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
             if reopened.size == 0:
                 break
             merges += 1
-        seconds.append(time.perf_counter() - began)
+        key = int(members[0])
+        spent[key] = spent.get(key, 0.0) + time.perf_counter() - began
         number += 1
         if outcome.status != "converged":
-            key = int(members[0])
-            if key in deferred or not queue:
-                return None
-            # blocked by vehicles still waiting at their starts: plan it after them
+            if key in deferred or not queue or not reserve:
+                return NOT_CONVERGED
+            # blocked by later vehicles waiting at their starts: plan it after them
             deferred.add(key)
             queue.append(members)
             continue
+        seconds.append(spent.pop(key))
         group = np.concatenate([members, reopened])
         state.p[group], state.v[group], state.a[group] = (
             outcome.positions, outcome.velocities, outcome.accelerations)
@@ -337,14 +349,15 @@ def _polylines(scenario: Scenario, vehicle: int) -> FloatArray:
 
 def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
     """(C, K+1, 3) positions along each polyline of `lines` (C, 3, 3), waiting `delay`
-    steps, then on the unit profile (as `planner.routes._along`)."""
+    steps, then on the unit profile (as `planner.routes.along`)."""
     phi = np.clip(unit_profile(scenario.steps - delay, scenario.dt)[0], 0.0, 1.0)
     seg = np.diff(lines, axis=1)  # (C, 2, 3)
     seg_len = np.maximum(np.linalg.norm(seg, axis=2), 1e-12)  # (C, 2)
     total = seg_len.sum(axis=1)  # (C,)
-    along = phi[None, :] * total[:, None]  # (C, T)
-    second = along > seg_len[:, :1]
-    frac = np.where(second, (along - seg_len[:, :1]) / seg_len[:, 1:], along / seg_len[:, :1])
+    travelled = phi[None, :] * total[:, None]  # (C, T)
+    second = travelled > seg_len[:, :1]
+    frac = np.where(second, (travelled - seg_len[:, :1]) / seg_len[:, 1:],
+                    travelled / seg_len[:, :1])
     frac = np.clip(frac, 0.0, 1.0)
     base = np.where(second[..., None], lines[:, 1:2], lines[:, 0:1])
     step = np.where(second[..., None], seg[:, 1:2], seg[:, 0:1])
@@ -400,7 +413,7 @@ def clear_guess(scenario: Scenario, others: FloatArray,
                     chosen, best = (subset[pick], delay), float(gap[pick])
                 if clear.size:
                     break
-        p[i], v[i], a[i] = _along(chosen[0], scenario, chosen[1])
+        p[i], v[i], a[i] = along(chosen[0], scenario, chosen[1])
         p[i] += drift[0][i]
         v[i] += drift[1][i]
         a[i] += drift[2][i]
@@ -473,7 +486,7 @@ def _route_departure(scenario: Scenario, route: FloatArray, against: FloatArray,
     for delay in (int(d * scenario.steps) for d in DELAYS):
         if len(against) == 0:
             return route, delay
-        trial = (_along(route, scenario, delay)[0] + drift) / scenario.separation_scale
+        trial = (along(route, scenario, delay)[0] + drift) / scenario.separation_scale
         gap = float(np.sqrt(np.einsum("fkx,fkx->fk", against - trial[None],
                                       against - trial[None]).min()))
         if gap >= need:

@@ -76,7 +76,8 @@ CROWD_FACTORS = (1.0, 1.2, 1.4)
 CROWD_TOLERANCE = 1.25
 CROWD_SMALL = 16
 #: A replan whose first horizon's crowd (`crowd`) starts its QP with more rows than this is
-#: planned in prioritized batches of 2 (`planner.prioritized`, from the moving state, each
+#: planned in prioritized batches (`planner.prioritized`, the size by the fleet's motion:
+#: single vehicles in a random crowd; from the moving state, each
 #: batch stopping at its share of the replan's threshold, the joined plan within the
 #: threshold of the separation-free optimum), the whole fleet if a batch fails or the joined
 #: plan does not verify. A crowd's QP time grows much faster than its rows (random 100 a
@@ -131,8 +132,9 @@ class Crowd(NamedTuple):
     vehicles: int
     """Its vehicles (all of them when the separation-free QP has no solution)."""
     rows: int
-    """Its close approaches (pair and step or interval, closer than R): the rows its QP
-    starts with (0 when the separation-free QP has no solution)."""
+    """Its close approaches (pair and step interval closer than R; 0 when the
+    separation-free QP has no solution): a measure of its first QP's size, which seeds
+    rows at these intervals and around them."""
 
 
 def crowd(spec: Scenario, solver: str | None = None) -> Crowd:

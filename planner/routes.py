@@ -36,7 +36,8 @@ from planner.obstacles import describe
 from planner.scenario import Scenario
 from planner.types import FloatArray, IntArray
 
-__all__ = ["Grid", "Polylines", "RouteSeed", "build_grid", "route_polylines", "seed_routes"]
+__all__ = ["Grid", "Polylines", "RouteSeed", "along", "build_grid", "route_polylines",
+           "seed_routes"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 BoolArray = NDArray[np.bool_]
@@ -279,7 +280,7 @@ def _toward_line(grid: Grid, free: BoolArray, points: FloatArray) -> FloatArray:
     return out
 
 
-def _along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectories:
+def along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectories:
     """A trajectory along the polyline `points` that waits `delay` steps at the start, then
     moves rest to rest on the minimum-thrust unit profile of the remaining steps (the
     separation-free QP's own timing, so the first QP's solution stays near the routes in
@@ -321,7 +322,7 @@ def _stagger(scenario: Scenario, guess: Trajectories, routes: dict[int, FloatArr
         others = np.flatnonzero(placed)
         best, best_gap = None, -np.inf
         for delay in range(0, longest + 1, max(1, longest // 30)):
-            trial = _along(points, scenario, delay)
+            trial = along(points, scenario, delay)
             if len(others) == 0:
                 best = trial
                 break

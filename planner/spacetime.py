@@ -18,7 +18,7 @@ import numpy as np
 
 from planner.first_qp import straight_moves
 from planner.result import IterationRecord
-from planner.routes import Polylines, Trajectories, _along, blocked_vehicles, route_polylines
+from planner.routes import Polylines, Trajectories, along, blocked_vehicles, route_polylines
 from planner.scenario import Scenario
 from planner.scp import ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
@@ -67,13 +67,13 @@ def depart(scenario: Scenario, route: FloatArray, against: FloatArray) -> Trajec
     steps = scenario.steps
     need = ROUTE_GAP * scenario.min_separation
     if len(against) == 0:
-        return _along(route, scenario, 0)
+        return along(route, scenario, 0)
     scale = scenario.separation_scale
     longest = steps // 3
     delays = np.unique(np.linspace(0, longest, DELAY_STEPS + 1).astype(int))
     best, best_gap = None, -np.inf
     for delay in delays:
-        trial = _along(route, scenario, int(delay))
+        trial = along(route, scenario, int(delay))
         diff = against - (trial[0] / scale)[None]
         gap = float(np.sqrt(np.einsum("fkx,fkx->fk", diff, diff).min()))
         if gap >= need:

@@ -105,12 +105,13 @@ def test_a_batch_that_fails_again_after_its_deferral_ends_the_decomposition() ->
                          {"id": "b", "start": [8.5, 0.3, 0.3], "goal": [2, 0.3, 0.3]}]}
     work = Scenario.from_dict(tube)
     assert prioritized.plan_batches(work, make_solver(None), batch=1,
-                                    order=np.array([0, 1])) is None
+                                    order=np.array([0, 1])) == prioritized.NOT_CONVERGED
 
 
 def test_plan_falls_back_to_the_whole_fleet_when_the_batches_fail(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(planning, "plan_batches", lambda *args, **kwargs: None)
+    monkeypatch.setattr(planning, "plan_batches",
+                        lambda *args, **kwargs: prioritized.NOT_CONVERGED)
     result = plan(sideways(16), options=PRIORITIZED)
     assert result.status == "converged", result.message
     assert result.verification is not None and result.verification.verified

@@ -87,7 +87,7 @@ def test_the_blocked_gaps_are_the_step_distances_where_they_matter() -> None:
 def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
     """clear_guess's choice computed the plain way: every candidate against every placed
     trajectory at every step, try by try (the straight move, then each delay)."""
-    from planner.routes import _along
+    from planner.routes import along
     scale = scenario.separation_scale
     need = prioritized.GUESS_GAP * scenario.min_separation
     placed = [others / scale]
@@ -107,7 +107,7 @@ def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
                 chosen, best = (subset[pick], delay), float(gap[pick])
             if clear.size:
                 break
-        p = _along(chosen[0], scenario, chosen[1])[0]
+        p = along(chosen[0], scenario, chosen[1])[0]
         out.append(p)
         placed.append(p[None] / scale)
     return np.stack(out)

@@ -14,6 +14,7 @@ import planner.replan as replan_module
 from planner import plan
 from planner.first_qp import solve_first_qp
 from planner.fixed import landing_motion
+from planner.prioritized import NOT_CONVERGED
 from planner.replan import CROWD_BATCH_ROWS, Crowd, plan_replan
 from planner.scenario import Scenario
 from planner.scp import thrust_cost
@@ -83,9 +84,9 @@ def test_a_crowded_replan_whose_batches_fail_is_planned_whole_in_the_same_attemp
     _, p, v, _ = _flying_swap()
     calls: list[int] = []
 
-    def failing(work: Scenario, *args: Any, **kwargs: Any) -> None:
+    def failing(work: Scenario, *args: Any, **kwargs: Any) -> str:
         calls.append(len(work.vehicles))
-        return None
+        return NOT_CONVERGED
 
     monkeypatch.setattr(planning, "plan_batches", failing)
     replan = _replan(monkeypatch, CROWD_BATCH_ROWS + 1)

@@ -18,7 +18,7 @@ from planner import obstacle_generators as families
 from planner.first_qp import straight_moves
 from planner.obstacle_rows import ObstacleRows
 from planner.result import IterationRecord
-from planner.routes import _along, blocked_vehicles
+from planner.routes import along, blocked_vehicles
 from planner.scp import ScpOptions, ScpOutcome
 from planner.solvers import make_solver
 from planner.spacetime import depart, fleet_routes, route_segments
@@ -37,7 +37,7 @@ def test_fleet_routes_give_every_vehicle_a_polyline_from_its_start_to_its_goal()
         assert np.allclose(points[-1], scenario.goals[i])
         assert (len(points) > 2) == (i in blocked)  # a clear lane stays straight
     # the routes themselves keep clear of the obstacles (up to the grid's half cell)
-    moves = [_along(found.routes[i], scenario) for i in range(12)]
+    moves = [along(found.routes[i], scenario) for i in range(12)]
     lin = (np.stack([m[0] for m in moves]), np.stack([m[1] for m in moves]),
            np.stack([m[2] for m in moves]))
     half = dataclasses.replace(scenario, obstacle_clearance=0.5 * scenario.clearance)
@@ -49,7 +49,7 @@ def test_a_departure_waits_until_the_earlier_vehicle_has_passed_at_every_step() 
     route = np.stack([scenario.starts[0], scenario.goals[0]])
     scale = scenario.separation_scale
     # an earlier vehicle crosses the route's middle at the very time the route gets there
-    mine = _along(route, scenario)[0]
+    mine = along(route, scenario)[0]
     k = scenario.steps // 2
     across = np.array([0.0, 6.0, 0.0])
     other = mine[k] + np.linspace(-1.0, 1.0, scenario.steps + 1)[:, None] * across
@@ -92,12 +92,14 @@ def test_batches_among_obstacles_route_once_for_the_fleet_and_plan_verified(
 
 
 def test_an_unreachable_goal_is_still_infeasible_at_once_in_batches() -> None:
-    data = families.sealed_wall(2)
+    data = families.sealed_wall(4)  # more than one batch: the batches look first
     began = time.perf_counter()
     result = planner.plan(data, options=ScpOptions(decompose="prioritized"))
     assert time.perf_counter() - began < 10.0  # loose: no SCP iteration ran
     assert result.status == "infeasible" and result.infeasible_groups == ("obstacles",)
     assert "vehicles[0] ('uav1') cannot reach its goal" in result.message
+    assert "not in prioritized batches: a goal cannot be reached around the obstacles" \
+        in result.message
     scenario = planner.Scenario.from_dict(data)
     found = fleet_routes(scenario)
     assert found.routes == {} and found.vehicle == 0
@@ -168,7 +170,7 @@ def test_a_batch_stopped_at_its_iteration_cap_continues_from_where_it_stopped(
 
     monkeypatch.setattr(spacetime, "run_scp", recording)
     found = fleet_routes(scenario)
-    routed = tuple(np.stack(x) for x in zip(*(_along(found.routes[i], scenario)
+    routed = tuple(np.stack(x) for x in zip(*(along(found.routes[i], scenario)
                                                for i in range(6)), strict=True))
     outcome = spacetime.continued_scp(scenario, make_solver(None), None, None,
                                       (routed[0], routed[1], routed[2]))
