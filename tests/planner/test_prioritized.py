@@ -20,6 +20,7 @@ from planner.scenario import Scenario
 from planner.scp import ScpOptions, ScpOutcome
 from planner.solvers import make_solver
 from planner.verify import verify
+from tests.planner.batches_support import assert_each_batch_clear, flying_swap
 
 PRIORITIZED = ScpOptions(decompose="prioritized", batch_size=2)
 
@@ -40,15 +41,7 @@ def test_a_decomposed_plan_is_converged_verified_and_says_how_it_was_planned() -
 def test_each_batch_keeps_r_from_the_earlier_batches_over_continuous_time() -> None:
     work = _small_sideways()
     found = prioritized.plan_batches(work, make_solver(None), batch=2)
-    assert found is not None
-    out = found.outcome
-    # every batch against everything planned before it, measured by the verifier alone
-    for k in range(1, len(found.batches)):
-        sel = np.concatenate(found.batches[:k + 1])
-        sub = dataclasses.replace(work, vehicles=tuple(work.vehicles[j] for j in sel),
-                                  starts=work.starts[sel], goals=work.goals[sel])
-        check = verify(sub, out.positions[sel], out.velocities[sel], out.accelerations[sel])
-        assert check.separated, (k, check.min_separation_continuous)
+    assert_each_batch_clear(work, found)
     # and the batches did meet: without the earlier ones the straight moves would collide
     straight = verify(work, *_straight(work))
     assert not straight.separated
@@ -86,7 +79,7 @@ def test_a_failed_batch_is_replanned_with_the_earlier_vehicles_nearest_to_it(
 
     monkeypatch.setattr(prioritized, "run_scp", first_try_of_batch_3_fails)
     found = prioritized.plan_batches(work, make_solver(None), batch=2)
-    assert found is not None
+    assert isinstance(found, prioritized.PrioritizedOutcome), found
     names = dict(seen)
     assert names[f"{work.name}#batch3"] == 2
     assert names[f"{work.name}#batch3+"] == 2 + prioritized.MERGE_GROWTH
@@ -139,27 +132,10 @@ def test_a_joined_plan_that_fails_verification_is_never_returned(
     assert "planned as a whole fleet" in result.message
 
 
-def _flying_state(t: float) -> tuple[Scenario, np.ndarray, np.ndarray, np.ndarray]:
-    """Six vehicles swapping across a 10 m square in 8 s (about 1.5 m/s), planned from rest,
-    and every vehicle's state at flight time t."""
-    angles = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
-    ring = np.stack([5 + 4 * np.cos(angles), 5 + 4 * np.sin(angles),
-                     1.2 + 0.3 * (np.arange(6) % 2)], axis=1)
-    flying = plan({
-        "name": "swap6", "dt": 0.2, "steps": 40, "min_separation": 1.0,
-        "limits": {"position_min": [0, 0, 0], "position_max": [10, 10, 3],
-                   "velocity_max": [2, 2, 2], "acceleration_max": [3, 3, 3]},
-        "vehicles": [{"id": f"v{n}", "start": ring[n].tolist(),
-                      "goal": ring[(n + 3) % 6].tolist()} for n in range(6)]})
-    assert flying.ok
-    state = flying.sample(np.array([t]))
-    return flying.scenario, state.position[:, 0], state.velocity[:, 0], state.acceleration[:, 0]
-
-
 def _from_state(t: float, margin: float) -> tuple[Scenario, FixedTrajectory]:
     """The swap replanned from its state at t to its goals, with a vehicle dropped (not
     planned) on its way down through the middle of the square, keeping R + `margin`."""
-    base, p, v, a = _flying_state(t)
+    base, p, v, a = flying_swap(t)
     dropped = landing_motion("x", [5.0, 5.0, 2.9], [0.0, 0.0, 0.0], base.dt, 2.0, 0.5, 0.3,
                              margin=margin)
     work = scenario_from_state(base, "replan", base.ids, p, v, a, base.goals,
@@ -186,7 +162,7 @@ def test_batches_from_a_moving_state_start_exactly_there_and_keep_r_from_a_fixed
     monkeypatch.setattr(prioritized, "run_scp", spy)
     options = dataclasses.replace(PRIORITIZED, batch_cost_share=True)
     found = prioritized.plan_batches(work, make_solver(None), options, batch=2)
-    assert found is not None
+    assert isinstance(found, prioritized.PrioritizedOutcome), found
     out = found.outcome
     np.testing.assert_allclose(out.positions[:, 0], work.starts, atol=1e-6)
     np.testing.assert_allclose(out.velocities[:, 0], work.start_velocities, atol=1e-6)
@@ -247,7 +223,7 @@ def test_a_batch_blocked_by_a_later_vehicles_start_is_deferred_until_it_has_left
     # `back` first: `front` waits at its start, in the way, so `back`'s batch cannot plan
     found = prioritized.plan_batches(work, make_solver(None), batch=1,
                                      order=np.array([0, 1], dtype=np.intp))
-    assert found is not None
+    assert isinstance(found, prioritized.PrioritizedOutcome), found
     assert [b.tolist() for b in found.batches] == [[1], [0]]
     assert "1 deferred to the end of the order" in found.outcome.message
     out = found.outcome

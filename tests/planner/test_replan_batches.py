@@ -11,7 +11,6 @@ import pytest
 
 import planner.planning as planning
 import planner.replan as replan_module
-from planner import plan
 from planner.first_qp import solve_first_qp
 from planner.fixed import landing_motion
 from planner.prioritized import NOT_CONVERGED
@@ -19,28 +18,13 @@ from planner.replan import CROWD_BATCH_ROWS, Crowd, plan_replan
 from planner.scenario import Scenario
 from planner.scp import thrust_cost
 from planner.solvers import make_solver
-
-
-def _flying_swap() -> tuple[Scenario, np.ndarray, np.ndarray, np.ndarray]:
-    """Six vehicles swapping across a 10 m square in 8 s, and their state 2 s in."""
-    angles = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
-    ring = np.stack([5 + 4 * np.cos(angles), 5 + 4 * np.sin(angles),
-                     1.2 + 0.3 * (np.arange(6) % 2)], axis=1)
-    flying = plan({
-        "name": "swap6", "dt": 0.2, "steps": 40, "min_separation": 1.0,
-        "limits": {"position_min": [0, 0, 0], "position_max": [10, 10, 3],
-                   "velocity_max": [2, 2, 2], "acceleration_max": [3, 3, 3]},
-        "vehicles": [{"id": f"v{n}", "start": ring[n].tolist(),
-                      "goal": ring[(n + 3) % 6].tolist()} for n in range(6)]})
-    assert flying.ok
-    state = flying.sample(np.array([2.0]))
-    return flying.scenario, state.position[:, 0], state.velocity[:, 0], state.acceleration[:, 0]
+from tests.planner.batches_support import flying_swap
 
 
 def _replan(monkeypatch: pytest.MonkeyPatch, rows: int) -> replan_module.Replan:
     """The swap's first five vehicles replanned to their goals with the sixth dropped to land,
     its free moves measured as a crowd of five whose QP starts with `rows` rows."""
-    base, p, v, a = _flying_swap()
+    base, p, v, a = flying_swap(2.0)
     monkeypatch.setattr(replan_module, "CROWD_SMALL", 1)  # six vehicles count as a fleet
     monkeypatch.setattr(replan_module, "crowd", lambda *args, **kwargs: Crowd(5, rows))
     dropped = landing_motion("v5", p[5], v[5], base.dt, 2.0, 0.7, 0.3, margin=0.1,
@@ -61,7 +45,7 @@ def _check(replan: replan_module.Replan, p: np.ndarray, v: np.ndarray) -> None:
 
 def test_a_crowded_replan_is_planned_in_batches_from_the_moving_state(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    _, p, v, _ = _flying_swap()
+    _, p, v, _ = flying_swap(2.0)
     replan = _replan(monkeypatch, CROWD_BATCH_ROWS + 1)
     assert "prioritized batches" in replan.plan.message
     _check(replan, p[:5], v[:5])
@@ -73,7 +57,7 @@ def test_a_crowded_replan_is_planned_in_batches_from_the_moving_state(
 
 
 def test_a_small_crowd_is_replanned_whole(monkeypatch: pytest.MonkeyPatch) -> None:
-    _, p, v, _ = _flying_swap()
+    _, p, v, _ = flying_swap(2.0)
     replan = _replan(monkeypatch, CROWD_BATCH_ROWS)
     assert "prioritized" not in replan.plan.message
     _check(replan, p[:5], v[:5])
@@ -81,7 +65,7 @@ def test_a_small_crowd_is_replanned_whole(monkeypatch: pytest.MonkeyPatch) -> No
 
 def test_a_crowded_replan_whose_batches_fail_is_planned_whole_in_the_same_attempt(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    _, p, v, _ = _flying_swap()
+    _, p, v, _ = flying_swap(2.0)
     calls: list[int] = []
 
     def failing(work: Scenario, *args: Any, **kwargs: Any) -> str:
