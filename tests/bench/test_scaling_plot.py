@@ -14,6 +14,17 @@ BENCH = Path(__file__).resolve().parents[2] / "bench"
 SVG = "{http://www.w3.org/2000/svg}"
 
 
+def _plot(tmp_path: Path, report: dict) -> ET.Element:
+    """The SVG root that scaling_plot.py draws from `report` (its exit checked)."""
+    source = tmp_path / "report.json"
+    source.write_text(json.dumps(report))
+    out = tmp_path / "plot.svg"
+    done = subprocess.run([sys.executable, str(BENCH / "scaling_plot.py"), str(source),
+                           "-o", str(out)], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    return ET.parse(out).getroot()
+
+
 def test_plot_has_a_line_per_series_and_a_point_per_size(tmp_path):
     report = {"families_summary": [
         {"family": "grid-sphere", "assignment": "fixed", "group_qp": "dual", "vehicles": n,
@@ -22,13 +33,7 @@ def test_plot_has_a_line_per_series_and_a_point_per_size(tmp_path):
         {"family": "random-dense", "assignment": "fixed", "group_qp": "primal",
          "vehicles": 256, "total_s_median": 20.0},
     ]}
-    source = tmp_path / "report.json"
-    source.write_text(json.dumps(report))
-    out = tmp_path / "plot.svg"
-    done = subprocess.run([sys.executable, str(BENCH / "scaling_plot.py"), str(source),
-                           "-o", str(out)], capture_output=True, text=True, timeout=60)
-    assert done.returncode == 0, done.stderr
-    root = ET.parse(out).getroot()
+    root = _plot(tmp_path, report)
     lines = root.findall(f"{SVG}polyline")
     assert len(lines) == 2
     assert len(lines[0].get("points").split()) == 3
@@ -74,13 +79,7 @@ def test_prioritized_runs_draw_a_batches_line_of_median_wall_times(tmp_path):
               "verified": False, "wall_s": 1.0},
              {"case": "sideways:100:none", "method": "prioritized-auto", "vehicles": 100,
               "verified": True, "wall_s": 2.0}]
-    source = tmp_path / "prioritized.json"
-    source.write_text(json.dumps({"runs": runs}))
-    out = tmp_path / "plot.svg"
-    done = subprocess.run([sys.executable, str(BENCH / "scaling_plot.py"), str(source),
-                           "-o", str(out)], capture_output=True, text=True, timeout=60)
-    assert done.returncode == 0, done.stderr
-    root = ET.parse(out).getroot()
+    root = _plot(tmp_path, {"runs": runs})
     lines = root.findall(f"{SVG}polyline")
     assert len(lines) == 1  # whole-fleet, unverified and sideways runs draw nothing
     assert len(lines[0].get("points").split()) == 2
