@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import resource
 import statistics
@@ -79,7 +80,7 @@ def run_case(family: str, n: int, seed: int, method: str) -> dict[str, Any]:
     return {
         "family": family, "vehicles": n, "seed": seed, "method": result.method,
         "matcher": matcher() if result.method == "sparse" else None,
-        "load_average_at_start": list(__import__("os").getloadavg()),
+        "load_average_at_start": list(os.getloadavg()),
         "time_s": round(seconds, 3),
         "peak_rss_mb": round(_peak_rss_mb(), 1),
         "base_rss_mb": round(base, 1),
@@ -146,7 +147,7 @@ def main() -> None:
                 cases += found.values()
     print(json.dumps({
         "benchmark": "assignment",
-        "machine": {"cpus": __import__("os").cpu_count(), "python": platform.python_version(),
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                     "platform": platform.platform()},
         "cases": cases,
         "summary": summarise(cases),

@@ -82,7 +82,7 @@ class Truth(threading.Thread):
             s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             s.bind(("127.0.0.1", port))
-            s.settimeout(0.2)
+            s.setblocking(False)  # run() drains each socket without waiting
             self.socks.append(s)
         self.samples: list[list[tuple[float, float, float, float]]] = [[] for _ in ports]
         self.clock: list[list[tuple[float, float]]] = [[] for _ in ports]
@@ -94,7 +94,6 @@ class Truth(threading.Thread):
             p.robust_parsing = True
         while not self.stop.is_set():
             for i, s in enumerate(self.socks):
-                s.setblocking(False)
                 while True:
                     try:
                         data = s.recv(65536)

@@ -85,12 +85,9 @@ class FixedRows:
                                             self.scale)  # (F, K, 3)
         # the same over blocks of BLOCK intervals: the broad phase's first, coarse test
         self._firsts = np.arange(0, self.intervals, BLOCK)
-        self._block_lo = np.minimum.reduceat(self._lo, self._firsts, axis=1) \
-            if self.count else np.zeros((0, len(self._firsts), 3))
-        self._block_hi = np.maximum.reduceat(self._hi, self._firsts, axis=1) \
-            if self.count else np.zeros((0, len(self._firsts), 3))
-        self._block_margin = np.maximum.reduceat(self.margins, self._firsts, axis=1) \
-            if self.count else np.zeros((0, len(self._firsts)))
+        self._block_lo = np.minimum.reduceat(self._lo, self._firsts, axis=1)
+        self._block_hi = np.maximum.reduceat(self._hi, self._firsts, axis=1)
+        self._block_margin = np.maximum.reduceat(self.margins, self._firsts, axis=1)
         self._planes = PlaneCache(lambda lin, keys: self.planes(lin, self.decode(keys)))
 
     # ---------------------------------------------------------------- keys
@@ -144,11 +141,11 @@ class FixedRows:
         `reach` of each other: a superset of those whose motion comes that close. Boxes
         over BLOCK intervals are compared first; only the intervals of blocks that come
         that close are compared one by one."""
-        lo, hi = interval_boxes(p, v, self.dt, self.scale)  # (N, K, 3)
-        n = lo.shape[0]
+        n = p.shape[0]
         if self.count == 0 or n == 0:
             z = np.zeros(0, dtype=np.intp)
             return FixedTriples(z, z, z)
+        lo, hi = interval_boxes(p, v, self.dt, self.scale)  # (N, K, 3)
         block_lo = np.minimum.reduceat(lo, self._firsts, axis=1)  # (N, B, 3)
         block_hi = np.maximum.reduceat(hi, self._firsts, axis=1)
         blocks = len(self._firsts)

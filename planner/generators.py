@@ -194,10 +194,7 @@ def sphere_shell(count: int, spacing: float = 2.1) -> FloatArray:
                      np.cos(polar)], axis=1)
     if count < 2:
         return unit * spacing
-    from scipy.spatial import cKDTree
-
-    closest = float(cKDTree(unit).query(unit, 2)[0][:, 1].min())  # no all-pairs array
-    return unit * (spacing / closest)
+    return unit * (spacing / _closest(unit))
 
 
 def grid_to_sphere(vehicles: int, *, seed: int | None = 0, grid_spacing: float = 2.0,

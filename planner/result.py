@@ -70,16 +70,7 @@ class VehicleTrajectory:
             option=orjson.OPT_SERIALIZE_NUMPY).decode()
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "id": self.id,
-            "t": self.t.tolist(),
-            "position": self.position.tolist(),
-            "velocity": self.velocity.tolist(),
-            "acceleration": self.acceleration.tolist(),
-            "jerk": self.jerk.tolist(),
-            "thrust": self.thrust.tolist(),
-            "body_rates": self.body_rates.tolist(),
-        }
+        return {"id": self.id, **{key: getattr(self, key).tolist() for key in _TRAJECTORY_ARRAYS}}
 
 
 #: A vehicle trajectory's arrays, in the order of its JSON document.

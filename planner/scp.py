@@ -472,12 +472,11 @@ def _margins(scenario: Scenario, options: ScpOptions, lin: Trajectories) -> _Pru
     """Exact interval margins for every pair in small fleets; in large ones, for the pairs
     and time windows the broad phase finds near, and `far_margin_bound` elsewhere."""
     n, scale, separation = len(lin[0]), scenario.separation_scale, scenario.min_separation
+    pair_i, pair_j = all_pairs(n)
     if n < NEAR_MIN_VEHICLES:
-        pair_i, pair_j = all_pairs(n)
         return _Pruning(pair_i, pair_j, interval_margins(
             lin[0], lin[1], scenario.dt, scale, options.continuous, separation,
             moving=_moving(scenario)) - separation, None)
-    pair_i, pair_j = all_pairs(n)
     half_speed, step = far_margin_bound(lin[0], lin[1], scenario.dt, scale)
     own = half_speed + step
     # Far pairs get a margin of at least FAR_SLACK * R: they are checked only once their

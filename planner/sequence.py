@@ -252,7 +252,7 @@ class SequencePlan:
     def summary(self) -> dict[str, Any]:
         """The sequence details a flyable plan carries as its `sequence` block: formations
         and slots, the timeline, and one line per leg (status, iterations, time)."""
-        full = self._header()
+        full = {**self._header(), "dynamics_error": self.dynamics_error}
         full["legs"] = [
             {"name": leg.scenario.name, "status": leg.status, "message": leg.message,
              "iterations": max(len(leg.iterations) - 1, 0),
@@ -297,14 +297,14 @@ class SequencePlan:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        out = self._header()
-        residual = out.pop("dynamics_error")  # the documented key order
-        return {**out, "verification": asdict(self.verification), "dynamics_error": residual,
+        return {**self._header(), "verification": asdict(self.verification),
+                "dynamics_error": self.dynamics_error,
                 "legs": [leg.to_dict() for leg in self.legs]}
 
     def _header(self) -> dict[str, Any]:
-        """Everything of `to_dict` but the verification and the legs' plans (which hold
-        every leg's trajectories: megabytes at show scale, not wanted in `summary`)."""
+        """Everything of `to_dict` before its verification: not the dynamics residual and
+        the legs' plans (which hold every leg's trajectories: megabytes at show scale, not
+        wanted in `summary`)."""
         seq = self.sequence
         return {
             "status": self.status,
@@ -320,7 +320,6 @@ class SequencePlan:
                                              strict=True)
             ],
             "timeline": [dict(s) for s in self.segments],
-            "dynamics_error": self.dynamics_error,
         }
 
 

@@ -69,10 +69,13 @@ def continuous_minimum(scenario: Scenario, p: FloatArray, v: FloatArray, a: Floa
         reach = 2.0 * scenario.min_separation
         while True:
             pairs = near_pairs(p, v, a, scenario.dt, scale, reach)
-            if min_step_distance(p, scale, pairs)[0] < reach:
+            found = min_step_distance(p, scale, pairs)
+            if found[0] < reach:
                 break
             reach *= 2.0
-    step_min, i, j, k = min_step_distance(p, scale, pairs)
+    else:
+        found = min_step_distance(p, scale, pairs)
+    step_min, i, j, k = found
     if i < 0:
         return float("inf"), float("inf"), -1, -1, 0.0
     best = (step_min, i, j, k * scenario.dt)

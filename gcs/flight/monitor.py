@@ -115,22 +115,21 @@ PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.n
 PredictedCallback = Callable[[VehicleStatus, float], "np.ndarray | None"]
 
 
-
-
 def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
                window: float = 0.0) -> str:
     """"40 more packets dropped in 5.0 s, 8.0/s (40 unsigned), the latest from
     127.0.0.1:5555 (component 1)": the rate over `window` s (left out when 0) is the health
     signal, hostile traffic arriving as the vehicle's. Replays alone say where they come
     from (`REPEATED_TIMESTAMPS`)."""
-    reasons = ", ".join(f"{n} {reason}" for reason, n in delta.items() if n)
+    dropped = [reason for reason, n in delta.items() if n]
+    reasons = ", ".join(f"{delta[reason]} {reason}" for reason in dropped)
     total = sum(delta.values())
     over = f" in {window:.1f} s, {total / window:.1f}/s" if window > 0.0 else ""
     where = ""
     if latest is not None:
         address, component = latest
         where = f", the latest from {address_text(address)} (component {component})"
-    if {reason for reason, n in delta.items() if n} == {"replayed"}:
+    if dropped == ["replayed"]:
         where += f": {REPEATED_TIMESTAMPS}"
     return f"{total} more packets dropped{over} ({reasons}){where}"
 
