@@ -89,6 +89,11 @@ def plan(
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
     backend = make_solver(solver)
+    if spec.steps_auto:  # the planner chooses the horizon, planning fixed ones
+        from planner.horizon_search import search_horizon
+
+        return search_horizon(spec, backend, lambda fixed: plan(
+            fixed, solver=solver, progress=progress, options=options))
     work = spec.assigned()
     # iteration 0, solved once: the plan when already separated, else the loop's start
     first_qp = timed_first_qp(work, backend) if spec.assignment == "free" else None

@@ -238,6 +238,9 @@ class Plan:
     sequence: dict[str, Any] | None = None
     """For a stitched formation sequence: its formations, slots, timeline and legs summary
     (`planner.sequence`); None (JSON null) for a single scenario's plan."""
+    horizon: dict[str, Any] | None = None
+    """For `steps: "auto"`: how the horizon was chosen (`planner.horizon_search`: the
+    candidates tried, the chosen steps); None (the JSON leaves it out) for fixed steps."""
 
     @property
     def ok(self) -> bool:
@@ -311,7 +314,7 @@ class Plan:
             "assignment": {v.id: int(g) for v, g in zip(self.scenario.vehicles,
                                                         self.scenario.order, strict=True)},
             "sequence": self.sequence,
-        }
+        } | ({} if self.horizon is None else {"horizon": self.horizon})
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Plan:
@@ -438,6 +441,7 @@ def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
         solver=str(data.get("solver", "")),
         infeasible_groups=tuple(data.get("infeasible_groups", ())),
         sequence=_sequence_block(data.get("sequence")),
+        horizon=_horizon_block(data.get("horizon")),
     )
 
 
@@ -448,3 +452,10 @@ def _sequence_block(value: Any) -> dict[str, Any] | None:
     if not isinstance(value, Mapping):
         raise PlanFormatError("sequence", "must be a JSON object")
     return dict(value)
+
+
+def _horizon_block(value: Any) -> dict[str, Any] | None:
+    """The optional `horizon` block of a plan whose horizon was searched, kept as given."""
+    if value is not None and not isinstance(value, Mapping):
+        raise PlanFormatError("horizon", "must be a JSON object")
+    return None if value is None else dict(value)

@@ -8,6 +8,7 @@ scenario with every default filled in, which is what a plan carries.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -32,8 +33,9 @@ if TYPE_CHECKING:
     from planner.fixed import FixedSet, FixedTrajectory
     from planner.obstacles import Obstacle, ObstacleSet
 
-__all__ = ["DEFAULTS", "RANGES", "Limits", "Scenario", "Vehicle", "check_id", "check_keys",
-           "check_number", "check_vector", "minimum_transfer_time"]
+__all__ = ["AUTO_STEPS", "DEFAULTS", "DEFAULT_MAX_HORIZON", "RANGES", "Limits", "Scenario",
+           "Vehicle", "check_id", "check_keys", "check_number", "check_vector",
+           "minimum_transfer_time"]
 
 
 #: Defaults filled in when a scenario omits a key (documented in the README).
@@ -59,11 +61,19 @@ MAX_VEHICLES = 20_000
 MAX_STEPS = 5000
 MAX_ITERATIONS = 1000
 
+#: `steps` value that asks the planner to choose the horizon (`planner.horizon_search`).
+AUTO_STEPS = "auto"
+#: Longest horizon (s) a `steps: "auto"` search tries when the scenario gives no
+#: `max_horizon`; the search never goes past `MAX_STEPS` steps either.
+DEFAULT_MAX_HORIZON = 300.0
+#: Largest `max_horizon` a scenario may give (s): a sanity bound, an hour of flight.
+MAX_HORIZON_LIMIT = 3600.0
+
 
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
     "max_iterations", "limits", "vehicles", "assignment", "separation_margin",
-    "obstacles", "obstacle_clearance", "fixed",
+    "obstacles", "obstacle_clearance", "fixed", "max_horizon",
 }
 _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
@@ -137,7 +147,8 @@ class Scenario:
     dt: float
     """Step length (s)."""
     steps: int
-    """Number of steps K; the horizon is K * dt."""
+    """Number of steps K; the horizon is K * dt. With `steps_auto`, the shortest K the
+    velocity and acceleration boxes allow (a lower bound the search starts from)."""
     min_separation: float
     """R (m): ||diag(1/scale) (p_i - p_j)|| >= R for every pair at every instant."""
     separation_scale: FloatArray
@@ -197,6 +208,24 @@ class Scenario:
     """(N, 3) start velocities (m/s), when some vehicle has one; None: all start at rest."""
     start_accelerations: FloatArray | None = field(default=None, repr=False)
     """(N, 3) accelerations before the start (m/s^2), when some vehicle has one; None: 0."""
+    steps_auto: bool = False
+    """`steps: "auto"`: `planner.plan` searches for the shortest horizon with a verified
+    plan (`planner.horizon_search`), up to `max_horizon`."""
+    max_horizon: float | None = None
+    """With `steps_auto`: the longest horizon the search tries (s); None otherwise."""
+
+    @property
+    def max_steps(self) -> int:
+        """With `steps_auto`: the most steps the search tries (`max_horizon` / dt, at most
+        `MAX_STEPS`); otherwise `steps`."""
+        if self.max_horizon is None:
+            return self.steps
+        return _steps_within(self.max_horizon, self.dt)
+
+    def with_steps(self, steps: int) -> Scenario:
+        """The same problem over a fixed number of steps (what a search candidate plans);
+        the assignment is kept, not solved again."""
+        return dataclasses.replace(self, steps=steps, steps_auto=False, max_horizon=None)
 
     @property
     def initial_velocities(self) -> FloatArray:
@@ -253,7 +282,7 @@ class Scenario:
         return {
             "name": self.name,
             "dt": self.dt,
-            "steps": self.steps,
+            "steps": AUTO_STEPS if self.steps_auto else self.steps,
             "min_separation": self.min_separation,
             "separation_scale": self.separation_scale.tolist(),
             "cost_threshold": self.cost_threshold,
@@ -265,7 +294,8 @@ class Scenario:
              ) | ({"obstacle_clearance": self.clearance,
                    "obstacles": [o.to_dict() for o in self.obstacles]}
                   if self.obstacles or self.obstacle_clearance is not None else {}
-             ) | ({"fixed": [f.to_dict() for f in self.fixed]} if self.fixed else {})
+             ) | ({"fixed": [f.to_dict() for f in self.fixed]} if self.fixed else {}
+             ) | ({"max_horizon": self.max_horizon} if self.max_horizon is not None else {})
 
 
 def _vehicle_dict(v: Vehicle) -> dict[str, Any]:
@@ -368,7 +398,7 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     if not isinstance(name, str) or not name.strip():
         raise ScenarioError("name", "must be a non-empty string")
     dt = check_number(data["dt"], "dt", positive=True, within="dt")
-    steps = _integer(data["steps"], "steps", 3, MAX_STEPS)
+    steps, steps_auto, max_horizon = _steps_setting(data, dt)
     separation = check_number(data["min_separation"], "min_separation", positive=True,
                          within="min_separation")
     margin = check_number(data.get("separation_margin", 0.0), "separation_margin", nonneg=True,
@@ -462,16 +492,27 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         # a rest-to-rest bound says nothing about a vehicle already moving: the QP judges it
         need[np.any(start_velocities != 0.0, axis=1)] = 0.0
     worst_vehicle, worst_axis = np.unravel_index(int(np.argmax(need)), need.shape)
-    if need[worst_vehicle, worst_axis] > usable + 1e-9:
-        culprit = worst_vehicle if goal_order is None else int(goal_order[worst_vehicle])
-        assigned = "" if goal_order is None else f" (assigned to vehicles[{worst_vehicle}])"
+    culprit = worst_vehicle if goal_order is None else int(goal_order[worst_vehicle])
+    assigned = "" if goal_order is None else f" (assigned to vehicles[{worst_vehicle}])"
+    distance = abs(targets[worst_vehicle, worst_axis] - starts[worst_vehicle, worst_axis])
+    why = (f"moving {distance:.3f} m along {'xyz'[worst_axis]} needs at least "
+           f"{need[worst_vehicle, worst_axis]:.2f} s under the velocity/acceleration limits")
+    if steps_auto:
+        # the search starts from the fewest steps the boxes allow (and every fixed sample)
+        least = max(3, math.ceil(need[worst_vehicle, worst_axis] / dt - 1e-9) + 1,
+                    max((len(f) - 1 for f in fixed), default=0))
+        if least > steps:
+            raise ScenarioError(
+                "max_horizon",
+                f"{steps * dt:g} s ({steps} steps of dt) is too short: vehicles[{culprit}]"
+                f"{assigned} {why}, so the horizon needs at least {least} steps "
+                f"({least * dt:g} s); raise max_horizon (at most {MAX_STEPS} steps)")
+        steps = least
+    elif need[worst_vehicle, worst_axis] > usable + 1e-9:
         raise ScenarioError(
             f"vehicles[{culprit}].goal",
-            f"cannot be reached within the horizon{assigned}: moving "
-            f"{abs(targets[worst_vehicle, worst_axis] - starts[worst_vehicle, worst_axis]):.3f} m "
-            f"along {'xyz'[worst_axis]} needs at least {need[worst_vehicle, worst_axis]:.2f} s "
-            f"under the velocity/acceleration limits; the horizon is {horizon:.2f} s "
-            f"(steps * dt)",
+            f"cannot be reached within the horizon{assigned}: {why}; the horizon is "
+            f"{horizon:.2f} s (steps * dt)",
         )
 
     return Scenario(
@@ -494,7 +535,39 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         obstacles=obstacles,
         obstacle_clearance=clearance if "obstacle_clearance" in data or obstacles else None,
         fixed=fixed,
+        steps_auto=steps_auto,
+        max_horizon=max_horizon,
     )
+
+
+def _steps_within(seconds: float, dt: float) -> int:
+    """The most whole steps of `dt` in `seconds`, at most `MAX_STEPS`."""
+    return min(MAX_STEPS, math.floor(seconds / dt + 1e-9))
+
+
+def _steps_setting(data: Mapping[str, Any], dt: float) -> tuple[int, bool, float | None]:
+    """(steps, steps_auto, max_horizon) from `steps` and `max_horizon`: an integer K, or
+    "auto" with the most steps the search may try (`max_horizon` / dt, default
+    `DEFAULT_MAX_HORIZON`)."""
+    raw = data["steps"]
+    if not isinstance(raw, str):
+        if "max_horizon" in data:
+            raise ScenarioError("max_horizon", f'applies only with steps "{AUTO_STEPS}": '
+                                               f'remove it, or set steps to "{AUTO_STEPS}"')
+        return _integer(raw, "steps", 3, MAX_STEPS), False, None
+    if raw != AUTO_STEPS:
+        shown = raw if len(raw) <= 20 else raw[:20] + "..."
+        raise ScenarioError("steps", f'must be an integer from 3 to {MAX_STEPS} or '
+                                     f'"{AUTO_STEPS}" (the planner chooses), got {shown!r}')
+    max_horizon = check_number(data.get("max_horizon", DEFAULT_MAX_HORIZON), "max_horizon",
+                               positive=True)
+    if max_horizon > MAX_HORIZON_LIMIT:
+        raise ScenarioError("max_horizon", f"must be at most {MAX_HORIZON_LIMIT:g} s, got "
+                                           f"{max_horizon:g}")
+    if max_horizon < 3 * dt - 1e-9:
+        raise ScenarioError("max_horizon", f"must be at least 3 steps of dt = {dt:g} s "
+                                           f"({3 * dt:g} s), got {max_horizon:g}")
+    return _steps_within(max_horizon, dt), True, max_horizon
 
 
 def _start_state(raw: Mapping[str, Any], where: str, limits: Limits

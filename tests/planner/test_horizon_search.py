@@ -1,0 +1,159 @@
+"""`steps: "auto"`: the planner chooses the shortest horizon (within 10 %) with a verified
+plan, reports how, and says so when none exists under `max_horizon`."""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import pytest
+
+import planner
+from planner import Plan, Scenario, ScenarioError
+from planner.generators import circle_swap
+from planner.horizon_search import MAX_PLANS, TOLERANCE, relaxed_steps
+from planner.scenario import DEFAULT_MAX_HORIZON, MAX_STEPS
+from planner.solvers import make_solver
+from tests.planner.conftest import load_example
+
+
+def _auto(data: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    return {**copy.deepcopy(data), "steps": "auto", **extra}
+
+
+def _crowded() -> dict[str, Any]:
+    """12 vehicles swapping across a small flat circle: the fewest steps the boxes allow
+    are too few to pass each other (the search must grow, then bisect)."""
+    return circle_swap(12, height_step=0.0, rotation=0.0, radius=2.5)
+
+
+def _shortest_by_scan(data: dict[str, Any], start: int) -> int:
+    """The fewest steps from `start` at which a fixed-steps plan verifies (brute force)."""
+    for steps in range(start, start + 40):
+        if planner.plan({**data, "steps": steps}).ok:
+            return steps
+    raise AssertionError("no verified plan within 40 steps of the bound")
+
+
+@pytest.fixture(scope="module")
+def crowded_plan() -> Plan:
+    return planner.plan(_auto(_crowded()))
+
+
+def test_auto_is_within_ten_percent_of_the_shortest_verified_horizon(crowded_plan):
+    plan = crowded_plan
+    block = plan.horizon
+    assert plan.ok
+    assert block is not None and block["auto"] is True
+    chosen = block["chosen_steps"]
+    assert plan.scenario.steps == chosen and not plan.scenario.steps_auto
+    shortest = _shortest_by_scan(_crowded(), block["lower_bound_steps"])
+    assert shortest <= chosen <= (1 + TOLERANCE) * shortest
+    assert block["within_tolerance"] is True
+    # the bound itself failed here, so the search grew and bisected, within its budget
+    tried = block["tried"]
+    assert tried[0]["steps"] == block["lower_bound_steps"] < shortest
+    assert tried[0]["status"] != "converged"
+    assert 2 <= len(tried) <= MAX_PLANS
+    assert {"steps": chosen, "status": "converged"}.items() <= next(
+        t for t in tried if t["steps"] == chosen).items()
+    assert all(t["status"] != "converged" for t in tried if t["steps"] < chosen)
+
+
+def test_the_plan_json_carries_the_horizon_and_the_chosen_steps(crowded_plan):
+    document = crowded_plan.to_dict()
+    assert document["scenario"]["steps"] == crowded_plan.horizon["chosen_steps"]
+    assert "max_horizon" not in document["scenario"]
+    assert document["horizon"]["max_horizon"] == DEFAULT_MAX_HORIZON
+    assert f"horizon {document['scenario']['steps']} steps" in document["message"]
+    again = Plan.from_dict(document)
+    assert again.horizon == crowded_plan.horizon
+    assert again.scenario.steps == crowded_plan.scenario.steps
+    assert len(again.vehicles[0].t) == again.scenario.steps + 1
+
+
+def test_a_fixed_steps_plan_has_no_horizon_block():
+    plan = planner.plan(load_example("paper-circle2"))
+    assert plan.horizon is None
+    assert "horizon" not in plan.to_dict()
+
+
+def test_a_free_fleet_plans_at_its_kinematic_bound_in_one_plan():
+    plan = planner.plan(_auto(load_example("paper-circle4")))
+    assert plan.ok
+    block = plan.horizon
+    assert [t["steps"] for t in block["tried"]] == [block["chosen_steps"]]
+    assert block["chosen_steps"] == block["lower_bound_steps"]
+    # one step fewer fails: the bound is the shortest horizon there is
+    assert not planner.plan({**load_example("paper-circle4"),
+                             "steps": block["chosen_steps"] - 1}).ok
+
+
+def test_the_bound_is_where_the_boxes_first_allow_the_farthest_moves():
+    spec = Scenario.from_dict(_auto(load_example("paper-circle4")))
+    bound = relaxed_steps(spec.assigned(), make_solver(None))
+    assert bound is not None and spec.steps <= bound
+    first = planner.plan({**load_example("paper-circle4"), "steps": bound - 1})
+    assert first.status == "infeasible" and "cannot reach its goal" in first.message
+
+
+def test_no_verified_plan_under_max_horizon_says_so():
+    data = _crowded()
+    shortest = _shortest_by_scan(data, Scenario.from_dict(_auto(data)).steps)
+    too_short = (shortest - 1) * data["dt"]
+    plan = planner.plan(_auto(data, max_horizon=too_short))
+    assert not plan.ok and plan.status != "converged"
+    assert plan.horizon["chosen_steps"] is None
+    assert plan.horizon["within_tolerance"] is False
+    assert max(t["steps"] for t in plan.horizon["tried"]) == shortest - 1
+    assert f"no horizon up to max_horizon {too_short:g} s" in plan.message
+
+
+def test_max_horizon_under_the_kinematic_bound_names_the_field():
+    data = _auto(load_example("paper-circle4"), max_horizon=1.0)
+    with pytest.raises(ScenarioError) as info:
+        Scenario.from_dict(data)
+    assert info.value.field == "max_horizon"
+    assert "raise max_horizon" in info.value.reason and "vehicles[" in info.value.reason
+
+
+def test_an_auto_scenario_echoes_auto_and_its_max_horizon():
+    spec = Scenario.from_dict(_auto(load_example("paper-circle4"), max_horizon=12))
+    echoed = spec.to_dict()
+    assert echoed["steps"] == "auto" and echoed["max_horizon"] == 12
+    assert spec.max_steps == round(12 / spec.dt)
+    assert Scenario.from_dict(echoed).to_dict() == echoed
+    default = Scenario.from_dict(_auto(load_example("paper-circle4")))
+    assert default.max_horizon == DEFAULT_MAX_HORIZON
+    assert default.max_steps == min(MAX_STEPS, math.floor(DEFAULT_MAX_HORIZON / spec.dt))
+
+
+@pytest.mark.parametrize(
+    ("changes", "field", "reason"),
+    [
+        ({"steps": "fast"}, "steps", '"auto"'),
+        ({"steps": "x" * 100}, "steps", "..."),
+        ({"steps": 10.5}, "steps", "must be an integer, got 10.5"),
+        ({"max_horizon": 20}, "max_horizon", 'applies only with steps "auto"'),
+        ({"steps": "auto", "max_horizon": "long"}, "max_horizon", "must be a number"),
+        ({"steps": "auto", "max_horizon": -5}, "max_horizon", "must be positive"),
+        ({"steps": "auto", "max_horizon": math.inf}, "max_horizon", "finite"),
+        ({"steps": "auto", "max_horizon": 1e6}, "max_horizon", "at most 3600 s"),
+        ({"steps": "auto", "max_horizon": 0.3}, "max_horizon", "at least 3 steps"),
+    ],
+)
+def test_bad_steps_and_max_horizon_name_the_field(changes, field, reason):
+    with pytest.raises(ScenarioError) as info:
+        Scenario.from_dict({**load_example("paper-circle4"), **changes})
+    assert info.value.field == field
+    assert reason in info.value.reason
+
+
+def test_the_bound_covers_every_fixed_trajectory_sample():
+    data = _auto(load_example("paper-circle2"))
+    data["fixed"] = [{"id": "guest", "positions": [[4.5, 4.5, 2.5]] * 40}]
+    spec = Scenario.from_dict(data)
+    assert spec.steps == 39
+    plan = planner.plan(data)
+    assert plan.ok and plan.scenario.steps >= 39
