@@ -23,6 +23,7 @@ from planner.errors import ScenarioError
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.result import Plan, VehicleTrajectory, Verification
 from planner.scenario import (
+    AUTO_STEPS,
     DEFAULTS,
     MAX_STEPS,
     Scenario,
@@ -42,13 +43,14 @@ __all__ = [
     "plan_leg",
     "plan_sequence",
     "timeline_scenario",
+    "timeline_steps",
     "trajectory_csv",
 ]
 
 
 _TOP_KEYS = {
     "name", "dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",
-    "limits", "assignment", "vehicles", "formations",
+    "limits", "assignment", "vehicles", "formations", "max_horizon",
 }
 _FORMATION_KEYS = {"name", "positions", "duration", "hold", "assignment"}
 #: Leg settings copied from the sequence into every leg scenario.
@@ -77,6 +79,9 @@ class FormationSequence:
     """Each formation's positions in vehicle order (after assignment)."""
     shared: dict[str, Any]
     """The settings every leg shares (dt, separation, limits, ...), as in the input."""
+    least_steps: tuple[int, ...] = ()
+    """Each leg's steps; for a leg of `duration: "auto"` (`steps: "auto"`, its horizon
+    searched when it is planned) the fewest its moves allow under the boxes."""
 
 
 def _field_error(field: str, reason: str) -> ScenarioError:
@@ -141,6 +146,7 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     points: list[FloatArray] = []
     slots: list[tuple[int, ...]] = []
     legs: list[dict[str, Any]] = []
+    least_steps: list[int] = []
     total = 0
     for f, raw in enumerate(formations):
         where = f"formations[{f}]"
@@ -160,9 +166,7 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
         if f == 0:
             order = np.arange(count)
         else:
-            steps = _steps(_seconds(raw["duration"], f"{where}.duration", positive=True), dt,
-                           f"{where}.duration")
-            total += steps
+            steps = _duration(raw["duration"], dt, f"{where}.duration")
             assignment = raw.get("assignment", default_assignment)
             if assignment not in ("fixed", "free"):
                 raise _field_error(f"{where}.assignment",
@@ -174,22 +178,40 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
                 "name": f"{name}: {names[-1]} -> {label}", **shared, "steps": steps,
                 "vehicles": [{"id": vid, "start": s.tolist(), "goal": g.tolist()}
                              for vid, s, g in zip(ids, points[-1], given[order], strict=True)],
-            }
+            } | ({"max_horizon": data["max_horizon"]}
+                 if steps == AUTO_STEPS and "max_horizon" in data else {})
             try:
-                Scenario.from_dict(leg)
+                least = Scenario.from_dict(leg).steps
             except ScenarioError as exc:
                 raise _leg_error(exc, f, slots[-1], order) from None
+            total += least
             legs.append(leg)
+            least_steps.append(least)
         if total > MAX_STEPS * 10:
             raise _field_error(where, f"the sequence is longer than {MAX_STEPS * 10} steps")
         names.append(label)
         holds.append(hold)
         points.append(given[order])
         slots.append(tuple(int(x) for x in order))
+    if "max_horizon" in data and not any(leg["steps"] == AUTO_STEPS for leg in legs):
+        raise _field_error("max_horizon", f'applies only with a formation of duration '
+                                          f'"{AUTO_STEPS}": remove it, or set a duration to '
+                                          f'"{AUTO_STEPS}"')
     return FormationSequence(
         name=name, dt=dt, ids=tuple(ids), formation_names=tuple(names), holds=tuple(holds),
         legs=tuple(legs), slots=tuple(slots), points=tuple(points), shared=shared,
+        least_steps=tuple(least_steps),
     )
+
+
+def _duration(value: Any, dt: float, field: str) -> int | str:
+    """A leg's `duration` as steps, or "auto" (the planner chooses its horizon)."""
+    if value == AUTO_STEPS:
+        return AUTO_STEPS
+    if isinstance(value, str):
+        raise _field_error(field, f'must be a number of seconds or "{AUTO_STEPS}" (the '
+                                  f"planner chooses), got {value[:20]!r}")
+    return _steps(_seconds(value, field, positive=True), dt, field)
 
 
 def _leg_error(exc: ScenarioError, f: int, previous: tuple[int, ...], order: NDArray[np.intp]
@@ -209,6 +231,8 @@ def _leg_error(exc: ScenarioError, f: int, previous: tuple[int, ...], order: NDA
     if field in ("dt", "min_separation", "separation_scale", "cost_threshold",
                  "max_iterations") or field.startswith("limits"):
         return _field_error(field, exc.reason)
+    if field == "max_horizon":
+        return _field_error(field, f"formations[{f}] (an auto duration): {exc.reason}")
     return _field_error(f"formations[{f}]", f"{field}: {exc.reason}")
 
 
@@ -255,10 +279,11 @@ class SequencePlan:
         full = {**self._header(), "dynamics_error": self.dynamics_error}
         full["legs"] = [
             {"name": leg.scenario.name, "status": leg.status, "message": leg.message,
-             "iterations": max(len(leg.iterations) - 1, 0),
+             "iterations": max(len(leg.iterations) - 1, 0), "steps": leg.scenario.steps,
              "seconds": float(leg.timing.get("total_s", 0.0)),
              "min_separation_continuous": (None if leg.verification is None else
                                            leg.verification.min_separation_continuous)}
+            | ({} if leg.horizon is None else {"horizon": leg.horizon})
             for leg in self.legs
         ]
         return full
@@ -381,8 +406,12 @@ def _whole_scenario(sequence: FormationSequence, steps: int) -> Scenario:
 def timeline_scenario(sequence: FormationSequence) -> Scenario:
     """The whole timeline of a parsed sequence as one scenario (F0 to the last formation,
     fixed assignment, steps = holds + legs): the scenario its stitched plan carries."""
-    steps = sum(sequence.holds) + sum(int(leg["steps"]) for leg in sequence.legs)
-    return _whole_scenario(sequence, steps)
+    return _whole_scenario(sequence, timeline_steps(sequence))
+
+
+def timeline_steps(sequence: FormationSequence) -> int:
+    """Steps of the whole timeline: holds and legs (an auto leg at its fewest steps)."""
+    return sum(sequence.holds) + sum(sequence.least_steps)
 
 
 def dynamics_residual(p: FloatArray, v: FloatArray, a: FloatArray, dt: float) -> float:

@@ -44,8 +44,9 @@ def job_work(scenario: dict[str, Any]) -> int:
 
 def sequence_work(sequence: Any) -> int:
     """A formation sequence's estimated work: vehicles squared times its whole timeline."""
-    steps = sum(sequence.holds) + sum(int(leg["steps"]) for leg in sequence.legs)
-    return len(sequence.ids) ** 2 * steps
+    from planner.sequence import timeline_steps
+
+    return len(sequence.ids) ** 2 * timeline_steps(sequence)
 
 
 def failed_outcome(reason: str, field_name: str | None = None) -> dict[str, Any]:

@@ -11,9 +11,10 @@ import pytest
 
 import planner
 from planner import Plan, Scenario, ScenarioError
-from planner.generators import circle_swap
+from planner.generators import circle_swap, show_sequence
 from planner.horizon_search import MAX_PLANS, TOLERANCE, relaxed_steps
 from planner.scenario import DEFAULT_MAX_HORIZON, MAX_STEPS
+from planner.sequence import parse_sequence, plan_sequence, timeline_steps
 from planner.solvers import make_solver
 from tests.planner.conftest import load_example
 
@@ -157,3 +158,66 @@ def test_the_bound_covers_every_fixed_trajectory_sample():
     assert spec.steps == 39
     plan = planner.plan(data)
     assert plan.ok and plan.scenario.steps >= 39
+
+
+# ------------------------------------------------------------------------ formation sequences
+
+
+def _auto_sequence(**extra: Any) -> dict[str, Any]:
+    """show_sequence(9) with its second leg's duration left to the planner."""
+    data = copy.deepcopy(show_sequence(9, seed=2, hold=1.0))
+    data["formations"][2]["duration"] = "auto"
+    return {**data, **extra}
+
+
+def test_a_sequence_leg_of_auto_duration_is_planned_at_its_searched_horizon():
+    data = _auto_sequence()
+    sequence = parse_sequence(data)
+    assert sequence.legs[1]["steps"] == "auto" and "max_horizon" not in sequence.legs[1]
+    assert sequence.least_steps[0] == sequence.legs[0]["steps"]
+    assert timeline_steps(sequence) == sum(sequence.holds) + sum(sequence.least_steps)
+    show = plan_sequence(sequence)
+    assert show.ok, show.message
+    fixed_leg, auto_leg = show.legs
+    assert fixed_leg.horizon is None and fixed_leg.scenario.steps == sequence.legs[0]["steps"]
+    chosen = auto_leg.horizon["chosen_steps"]
+    assert auto_leg.scenario.steps == chosen >= sequence.least_steps[1]
+    # the auto leg is shorter than the 30 s the show gave it, and the timeline follows it
+    assert chosen * data["dt"] < 30.0
+    assert show.accelerations.shape[1] == sum(sequence.holds) + fixed_leg.scenario.steps + chosen
+    summary = show.to_plan().sequence
+    assert [leg["steps"] for leg in summary["legs"]] == [fixed_leg.scenario.steps, chosen]
+    assert "horizon" not in summary["legs"][0]
+    assert summary["legs"][1]["horizon"]["chosen_steps"] == chosen
+
+
+def test_a_sequence_passes_max_horizon_to_its_auto_legs_only():
+    sequence = parse_sequence(_auto_sequence(max_horizon=60))
+    assert "max_horizon" not in sequence.legs[0]
+    assert sequence.legs[1]["max_horizon"] == 60
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "reason"),
+    [
+        ({"max_horizon": 1.0}, "max_horizon", "formations[2] (an auto duration)"),
+        ({"duration": "soon"}, "formations[2].duration", '"auto"'),
+    ],
+)
+def test_bad_auto_legs_name_the_field(change, field, reason):
+    data = _auto_sequence()
+    if "max_horizon" in change:
+        data.update(change)
+    else:
+        data["formations"][2].update(change)
+    with pytest.raises(ScenarioError) as info:
+        parse_sequence(data)
+    assert info.value.field == field
+    assert reason in info.value.reason
+
+
+def test_max_horizon_without_an_auto_leg_names_the_field():
+    data = {**copy.deepcopy(show_sequence(9, seed=2, hold=1.0)), "max_horizon": 60}
+    with pytest.raises(ScenarioError) as info:
+        parse_sequence(data)
+    assert info.value.field == "max_horizon" and "duration" in info.value.reason
