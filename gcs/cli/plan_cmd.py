@@ -102,6 +102,7 @@ def _summary_rows(plan: Any) -> list[tuple[str, str]]:
         ("vehicles", str(len(plan.vehicles))),
         ("SCP iterations", str(max(len(plan.iterations) - 1, 0)) if plan.sequence is None
          else " + ".join(str(leg["iterations"]) for leg in plan.sequence["legs"])),
+        ("horizon", _horizon_text(plan)),
         ("cost (sum ||a+g||^2)", _number(plan.cost, "{:.4f}")),
         ("time total / first QP", f"{plan.timing['total_s']:.3f} s / "
                                   f"{plan.timing['first_qp_s']:.3f} s"),
@@ -139,6 +140,20 @@ def _summary_rows(plan: Any) -> list[tuple[str, str]]:
     problems = plan.problems()
     rows.append(("verified", "yes" if not problems else "NO: " + "; ".join(problems)))
     return rows
+
+
+def _horizon_text(plan: Any) -> str:
+    """The plan's horizon, and for `steps: "auto"` the candidates the search tried."""
+    scenario = plan.scenario
+    text = f"{scenario.horizon:g} s ({scenario.steps} steps of {scenario.dt:g} s)"
+    search = plan.horizon
+    if search is None:
+        return text
+    tried = ", ".join(f"{c['steps']} {c['status']}" for c in search["tried"])
+    if search["chosen_steps"] is None:
+        return (f"none verified up to max_horizon {search['max_horizon']:g} s "
+                f"(steps tried: {tried})")
+    return f"{text}, chosen (steps tried: {tried})"
 
 
 def _verdict(plan: Any) -> int:
@@ -326,8 +341,9 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
         return _fail(str(exc))
     if not args.quiet and plan.sequence is not None:
         for leg in plan.sequence["legs"]:
-            print(f"leg {leg['name']}: {leg['status']}, {leg['iterations']} SCP iterations, "
-                  f"{leg['seconds']:.2f} s", flush=True)
+            chosen = " (chosen)" if "horizon" in leg else ""
+            print(f"leg {leg['name']}: {leg['status']}, {leg['steps']} steps{chosen}, "
+                  f"{leg['iterations']} SCP iterations, {leg['seconds']:.2f} s", flush=True)
     output = args.output or Path(f"{sequence.name}.plan.json")
     try:
         _write_plan(plan, output)
