@@ -240,7 +240,7 @@ class Plan:
     (`planner.sequence`); None (JSON null) for a single scenario's plan."""
     horizon: dict[str, Any] | None = None
     """For `steps: "auto"`: how the horizon was chosen (`planner.horizon_search`: the
-    candidates tried, the chosen steps); None (the JSON leaves it out) for fixed steps."""
+    candidates tried, the chosen steps); None (JSON null) for a fixed number of steps."""
 
     @property
     def ok(self) -> bool:
@@ -314,7 +314,8 @@ class Plan:
             "assignment": {v.id: int(g) for v, g in zip(self.scenario.vehicles,
                                                         self.scenario.order, strict=True)},
             "sequence": self.sequence,
-        } | ({} if self.horizon is None else {"horizon": self.horizon})
+            "horizon": self.horizon,
+        }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Plan:

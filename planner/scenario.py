@@ -147,8 +147,9 @@ class Scenario:
     dt: float
     """Step length (s)."""
     steps: int
-    """Number of steps K; the horizon is K * dt. With `steps_auto`, the shortest K the
-    velocity and acceleration boxes allow (a lower bound the search starts from)."""
+    """Number of steps K; the horizon is K * dt. The JSON may say "auto": the planner
+    chooses the shortest horizon with a verified plan (`planner.horizon_search`); parsed,
+    K is then the fewest steps the velocity and acceleration boxes allow (`steps_auto`)."""
     min_separation: float
     """R (m): ||diag(1/scale) (p_i - p_j)|| >= R for every pair at every instant."""
     separation_scale: FloatArray
@@ -208,11 +209,12 @@ class Scenario:
     """(N, 3) start velocities (m/s), when some vehicle has one; None: all start at rest."""
     start_accelerations: FloatArray | None = field(default=None, repr=False)
     """(N, 3) accelerations before the start (m/s^2), when some vehicle has one; None: 0."""
-    steps_auto: bool = False
+    steps_auto: bool = field(default=False, repr=False)
     """`steps: "auto"`: `planner.plan` searches for the shortest horizon with a verified
     plan (`planner.horizon_search`), up to `max_horizon`."""
     max_horizon: float | None = None
-    """With `steps_auto`: the longest horizon the search tries (s); None otherwise."""
+    """With steps "auto": the longest horizon the search tries (s; default 300, never more
+    than 5000 steps); None (absent) with a fixed number of steps."""
 
     @property
     def max_steps(self) -> int:

@@ -77,6 +77,7 @@ _PLAN_EXAMPLE: dict[str, Any] = {
                      "flyable": True, "separated": True, "within_bounds": True,
                      "separation_tolerance": 0.001, "bound_tolerance": 1e-4},
     "sequence": None,
+    "horizon": None,
 }
 _SUMMARY_EXAMPLE: dict[str, Any] = {
     "id": "3f2a9c81d0b4", "name": "paper-circle4", "status": "planned",
@@ -247,6 +248,9 @@ def _planner_schemas() -> dict[str, dict[str, Any]]:
         {name: _component(name, cls, input_rules=False) for name, cls in _PLAN_TYPES.items()}
     )
     out["Plan"]["properties"]["status"]["enum"] = list(planner_result.STATUSES)
+    steps = out["Scenario"]["properties"]["steps"]
+    steps["anyOf"] = [{"type": steps.pop("type")},
+                      {"type": "string", "enum": [planner_scenario.AUTO_STEPS]}]
     # Plan.to_dict writes these with every default filled in, so they are always present.
     return out
 
@@ -278,7 +282,11 @@ def _check(value: Any, schema: dict[str, Any], path: str, out: list[ErrorItem]) 
         options = schema["anyOf"]
         if value is None and {"type": "null"} in options:
             return
-        schema = _resolve(next(o for o in options if o != {"type": "null"}))
+        # the option of the value's JSON type (the first, for an error of type)
+        typed = [_resolve(o) for o in options if o != {"type": "null"}]
+        schema = next((o for o in typed if _json_type(value) == o.get("type")
+                       or (o.get("type") == "integer" and _json_type(value) == "number")),
+                      typed[0])
     kind = schema.get("type")
     if kind == "object":
         if not isinstance(value, dict):

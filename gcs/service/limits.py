@@ -20,6 +20,7 @@ from gcs.errors import InvalidRequest
 from gcs.replan_request import MAX_ENTRIES as MAX_REPLAN_ENTRIES
 from gcs.service.events import MAX_BACKLOG
 from gcs.service.settings import Settings
+from planner.scenario import AUTO_STEPS, DEFAULT_MAX_HORIZON
 
 __all__ = [
     "FIXED_LIMITS",
@@ -31,6 +32,7 @@ __all__ = [
     "scenario_bound_errors",
     "sequence_bound_errors",
     "trajectory_sample_count",
+    "with_server_horizon",
 ]
 
 #: Most legs (formations after the first) one sequence request may ask for.
@@ -142,6 +144,8 @@ def scenario_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
     dt = _real(data.get("dt"))
     dt_errors = _dt_errors(dt, bounds)
     errors += dt_errors
+    if data.get("steps") == AUTO_STEPS and not dt_errors:
+        errors += _max_horizon_errors(_real(data.get("max_horizon")), 1, 0.0, dt, bounds)
     if not dt_errors and dt is not None and dt > 0 and steps is not None and steps > 0:
         horizon = dt * steps
         if horizon > bounds.max_horizon_s:
@@ -198,7 +202,10 @@ def sequence_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
             f"{MAX_SEQUENCE_LEGS}"))
     dt = _real(data.get("dt"))
     errors += _dt_errors(dt, bounds)
-    seconds = 0.0
+    autos, seconds = _timeline(formations)
+    if autos:
+        errors += _max_horizon_errors(_real(data.get("max_horizon")), autos, seconds, dt,
+                                      bounds)
     points: list[tuple[str, Any]] = []
     limits = data.get("limits")
     if isinstance(limits, Mapping):
@@ -206,10 +213,6 @@ def sequence_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
     for f, formation in enumerate(formations):
         if not isinstance(formation, Mapping):
             continue
-        for key in ("duration", "hold"):
-            value = _real(formation.get(key))
-            if value is not None and math.isfinite(value) and value > 0:
-                seconds += value
         positions = formation.get("positions")
         if isinstance(positions, list):
             points += [(f"formations[{f}].positions[{n}]", p) for n, p in enumerate(positions)]
@@ -222,6 +225,57 @@ def sequence_bound_errors(data: Mapping[str, Any], bounds: WorkBounds) -> list[I
             "formations", f"the sequence lasts {seconds / dt:.0f} steps of dt, more than this "
             f"server's limit of {bounds.max_steps} (setting max_steps)"))
     return errors + _coordinate_errors(points, bounds)
+
+
+def _timeline(formations: list[Any]) -> tuple[int, float]:
+    """(formations of duration "auto", seconds of the other durations and every hold)."""
+    autos, seconds = 0, 0.0
+    for formation in formations:
+        if not isinstance(formation, Mapping):
+            continue
+        autos += formation.get("duration") == AUTO_STEPS
+        for key in ("duration", "hold"):
+            value = _real(formation.get(key))
+            if value is not None and math.isfinite(value) and value > 0:
+                seconds += value
+    return autos, seconds
+
+
+def _budget(dt: float, bounds: WorkBounds) -> float:
+    """The longest timeline this server plans at step `dt` (s)."""
+    return min(bounds.max_horizon_s, bounds.max_steps * dt)
+
+
+def _max_horizon_errors(given: float | None, autos: int, seconds: float, dt: float | None,
+                        bounds: WorkBounds) -> list[InvalidRequest]:
+    """A `max_horizon` whose `autos` searched horizons, after `seconds` of fixed timeline,
+    could exceed this server's horizon or steps (none given: `with_server_horizon` sets it)."""
+    if given is None or not math.isfinite(given) or dt is None or dt <= 0:
+        return []
+    if seconds + autos * given <= _budget(dt, bounds) + 1e-9:
+        return []
+    room = max(0.0, (_budget(dt, bounds) - seconds) / autos)
+    return [InvalidRequest(
+        "max_horizon", f"{given:g} s could take the plan past this server's limit of "
+        f"{bounds.max_horizon_s:g} s and {bounds.max_steps} steps of dt (settings "
+        f"max_horizon_s, max_steps); give at most {room:g} s")]
+
+
+def with_server_horizon(data: Mapping[str, Any], bounds: WorkBounds) -> Mapping[str, Any]:
+    """The request with the `max_horizon` this server allows when a horizon is "auto" (a
+    scenario's steps, formations' durations) and it gives none: the planner's default, or
+    less, so that the plan fits the horizon and steps limits (shared by a sequence's auto
+    legs after its fixed durations and holds)."""
+    dt = _real(data.get("dt"))
+    if "max_horizon" in data or dt is None or dt <= 0:
+        return data
+    formations = data.get("formations")
+    autos, seconds = (_timeline(formations) if isinstance(formations, list)
+                      else (int(data.get("steps") == AUTO_STEPS), 0.0))
+    if not autos:
+        return data
+    share = (_budget(dt, bounds) - seconds) / autos
+    return {**data, "max_horizon": min(DEFAULT_MAX_HORIZON, share)}
 
 
 def trajectory_sample_count(horizon: float, rate: float, vehicles: int) -> int:

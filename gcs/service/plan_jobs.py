@@ -37,9 +37,13 @@ LARGE_JOB_WORK = 16 * 16 * 250
 
 
 def job_work(scenario: dict[str, Any]) -> int:
-    """The job's estimated work: vehicles squared times steps."""
+    """The job's estimated work: vehicles squared times steps (for `steps: "auto"`, the
+    most the search may try: `max_horizon` / dt)."""
     vehicles = len(scenario.get("vehicles", ()))
-    return vehicles * vehicles * int(scenario.get("steps", 0))
+    steps = scenario.get("steps", 0)
+    if not isinstance(steps, int):
+        steps = round(float(scenario.get("max_horizon", 0.0)) / float(scenario["dt"]))
+    return vehicles * vehicles * steps
 
 
 def sequence_work(sequence: Any) -> int:

@@ -197,7 +197,7 @@ class JobRunner:
         try:
             await asyncio.to_thread(
                 self._store.finish_planning, job.mission_id, plan_json=result.plan_json,
-                plan_status=result.status, plan_ok=result.ok,
+                plan_status=result.status, plan_ok=result.ok, steps=result.steps,
             )
         except Exception as exc:
             log.error("could not store the plan of mission %s: %s", job.mission_id, exc)

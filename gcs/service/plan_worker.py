@@ -50,6 +50,8 @@ class PlanOutcome:
     """{"field", "reason"} when there is no plan."""
     stopped: bool = False
     """The error is a cancel or a time limit, not a verdict on the scenario."""
+    steps: int | None = None
+    """The plan's steps (the planner chooses them for `steps: "auto"` and sequences)."""
 
     @classmethod
     def failed(cls, reason: str, field: str | None = None, *, stopped: bool = False
@@ -172,7 +174,8 @@ def run_plan(
     if leg is not None:  # for `stitch_sequence`: the Plan itself (pickled: arrays, no JSON)
         return PlanOutcome(plan=result, status=result.status, ok=bool(result.ok))
     text = plan_json(result)
-    return PlanOutcome(plan_json=text, status=result.status, ok=bool(result.ok))
+    return PlanOutcome(plan_json=text, status=result.status, ok=bool(result.ok),
+                       steps=result.scenario.steps)
 
 
 def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
@@ -200,7 +203,7 @@ def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
         field = getattr(exc, "field", None)
         return PlanOutcome.failed(getattr(exc, "reason", str(exc)), field)
     return PlanOutcome(plan_json=plan_json(flyable), status=flyable.status,
-                       ok=bool(flyable.ok))
+                       ok=bool(flyable.ok), steps=flyable.scenario.steps)
 
 
 def plan_json(plan: Any) -> str:

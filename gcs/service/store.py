@@ -275,7 +275,7 @@ class Store:
             created_at=now,
             updated_at=now,
             vehicle_count=len(scenario["vehicles"]),
-            steps=int(scenario["steps"]),
+            steps=scenario["steps"] if isinstance(scenario["steps"], int) else 0,
             dt=repr(float(scenario["dt"])),
             scenario_json=json.dumps(scenario),
         )
@@ -304,15 +304,18 @@ class Store:
         return missions, int(total)
 
     def finish_planning(
-        self, mission_id: str, *, plan_json: str, plan_status: str, plan_ok: bool
+        self, mission_id: str, *, plan_json: str, plan_status: str, plan_ok: bool,
+        steps: int | None = None,
     ) -> bool:
-        """Record a plan; False if the mission was deleted meanwhile."""
+        """Record a plan, and its `steps` when the planner chose them (`steps: "auto"`, a
+        stored 0); False if the mission was deleted meanwhile."""
         return self._update_mission(
             mission_id,
             status=MissionStatus.PLANNED,
             plan_json=plan_json,
             plan_status=plan_status,
             plan_ok=int(plan_ok),
+            **({} if steps is None else {"steps": steps}),
         )
 
     def fail_planning(self, mission_id: str, error: dict[str, Any]) -> bool:

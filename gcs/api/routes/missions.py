@@ -52,6 +52,7 @@ from gcs.service.limits import (
     scenario_bound_errors,
     sequence_bound_errors,
     trajectory_sample_count,
+    with_server_horizon,
 )
 from gcs.service.plan_worker import finite_json
 from gcs.service.planning import PlanJob, PlanningService
@@ -138,10 +139,11 @@ def _validated(body: Any, settings: Settings) -> Scenario:
     shape = shape_errors(body)
     if shape:
         raise Unprocessable.of(shape)
-    bounds = scenario_bound_errors(body, WorkBounds.from_settings(settings))
+    work = WorkBounds.from_settings(settings)
+    bounds = scenario_bound_errors(body, work)
     if bounds:
         raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds])
-    return Scenario.from_dict(body)
+    return Scenario.from_dict(with_server_horizon(body, work))
 
 
 def is_sequence(body: Any) -> bool:
@@ -152,10 +154,11 @@ def is_sequence(body: Any) -> bool:
 def _validated_sequence(body: Any, settings: Settings) -> FormationSequence:
     """A sequence request: every work bound exceeded at once (before anything is parsed or
     allocated), then the sequence's own validation (the first problem, by field)."""
-    bounds = sequence_bound_errors(body, WorkBounds.from_settings(settings))
+    work = WorkBounds.from_settings(settings)
+    bounds = sequence_bound_errors(body, work)
     if bounds:
         raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds])
-    return parse_sequence(body)
+    return parse_sequence(with_server_horizon(body, work))
 
 
 @router.post(
