@@ -162,6 +162,14 @@ export function renumberVehicles() {
 /** @param {HTMLInputElement} input @returns {number | null} */
 export const readNumber = (input) => (input.value.trim() === "" ? null : Number(input.value));
 
+/** `steps`: a whole number, or "auto" (the planner chooses the horizon); any other text goes
+ * to the service as typed, which names the field and what it takes.
+ * @returns {number | string} */
+function readSteps() {
+  const text = $("#f-steps").value.trim();
+  return text !== "" && text !== "auto" && Number.isFinite(Number(text)) ? Number(text) : text;
+}
+
 /** The scenario the form says, with the keys it has no inputs for.
  * @returns {Scenario} */
 export function readScenario() {
@@ -183,7 +191,7 @@ export function readScenario() {
   const scenario = {
     name: value("name"),
     dt: /** @type {number} */ (readNumber($("#f-dt"))),
-    steps: /** @type {number} */ (readNumber($("#f-steps"))),
+    steps: readSteps(),
     min_separation: /** @type {number} */ (readNumber($("#f-min_separation"))),
     limits,
     vehicles,
@@ -204,7 +212,7 @@ export function readScenario() {
 export function writeScenario(scenario, on) {
   $("#f-name").value = scenario.name ?? "scenario";
   $("#f-dt").value = scenario.dt;
-  $("#f-steps").value = scenario.steps;
+  $("#f-steps").value = String(scenario.steps);
   $("#f-min_separation").value = scenario.min_separation;
   for (const key of LIMIT_KEYS) {
     const v = scenario.limits[key];
@@ -212,7 +220,7 @@ export function writeScenario(scenario, on) {
   }
   // Keys the form has no inputs for travel along unchanged.
   editor.extra = {};
-  for (const key of ["separation_scale", "cost_threshold", "max_iterations"]) {
+  for (const key of ["separation_scale", "cost_threshold", "max_iterations", "max_horizon"]) {
     if (scenario[key] !== undefined) editor.extra[key] = scenario[key];
   }
   editor.limitExtras = {};

@@ -224,7 +224,8 @@ function renderSummary(plan, planOk) {
   row(sol, "separation rows (last)", its.length ? String(its[its.length - 1].separation_rows) : "–");
   row(sol, "planning time", `${fmt(plan.timing.total_s, 3)} s`);
   row(sol, "first QP", `${fmt(plan.timing.first_qp_s, 3)} s`);
-  row(sol, "vehicles × steps", `${plan.vehicles.length} × ${plan.scenario.steps} (dt ${plan.scenario.dt} s)`);
+  row(sol, "vehicles × steps", `${plan.vehicles.length} × ${plan.scenario.steps} (dt ${plan.scenario.dt} s)`
+    + (plan.horizon ? ", steps chosen by the planner" : ""));
 }
 
 /** The separation plot: the plan's minimum pairwise distance against R, and the measured

@@ -6,13 +6,13 @@
 /** @typedef {[number, number, number]} Vec3 */
 /** @typedef {{id: string, start: (number | null)[], goal: (number | null)[]}} ScenarioVehicle
  *  (null: an input left empty) */
-/** @typedef {{name?: string, dt: number, steps: number, min_separation: number,
+/** @typedef {{name?: string, dt: number, steps: number | string, min_separation: number,
  *   limits: Record<string, any>, vehicles: ScenarioVehicle[], separation_scale?: number[],
  *   [key: string]: any}} Scenario */
 /** @typedef {{id: string, t: number[], thrust: number[]}} PlanVehicle */
 /** @typedef {{status: string, message?: string, solver?: string, scenario: Scenario,
  *   vehicles: PlanVehicle[], verification?: any, iterations?: any[], timing: any,
- *   sequence?: any}} Plan */
+ *   sequence?: any, horizon?: any}} Plan */
 /** @typedef {{id: string, name: string, status: string, plan: Plan | null, plan_ok: boolean,
  *   plan_status?: string, scenario: Scenario, error?: {field?: string, reason: string}}} Mission */
 /** @typedef {{rate: number, t: number[], vehicles: {id: string, position: number[][],
