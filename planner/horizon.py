@@ -8,13 +8,15 @@ batched QP), so free-assignment moves stay CAPT's synchronised straight lines.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from planner.first_qp import BOX_TOLERANCE, unit_profile
 from planner.scenario import minimum_transfer_time
 from planner.types import FloatArray
 
-__all__ = ["MAX_SEARCH_STEPS", "profile_fits", "shortest_steps"]
+__all__ = ["MAX_SEARCH_STEPS", "fewest_steps", "profile_fits", "shortest_steps"]
 
 #: Largest K `shortest_steps` tries before giving up (ValueError).
 MAX_SEARCH_STEPS = 20_000
@@ -52,12 +54,21 @@ def shortest_steps(moves: FloatArray, dt: float, velocity_max: FloatArray | None
     def fits(k: int) -> bool:
         return profile_fits(k, dt, reach, velocity_max, acceleration_max, jerk_max)
 
-    low, high = least - 1, max(least, 3)
+    found = fewest_steps(fits, max(least, 3), MAX_SEARCH_STEPS)
+    if found is None:
+        raise ValueError(f"no horizon up to {MAX_SEARCH_STEPS} steps of {dt:g} s fits "
+                         f"moves of {reach.tolist()} m within the boxes")
+    return found
+
+
+def fewest_steps(fits: Callable[[int], bool], least: int, most: int) -> int | None:
+    """The fewest steps K in [least, most] with `fits(K)`, for a test that only ever turns
+    true as K grows: doubling from `least`, then bisection. None when `fits(most)` fails."""
+    low, high = least - 1, least
     while not fits(high):
-        low, high = high, high * 2
-        if high > MAX_SEARCH_STEPS:
-            raise ValueError(f"no horizon up to {MAX_SEARCH_STEPS} steps of {dt:g} s fits "
-                             f"moves of {reach.tolist()} m within the boxes")
+        if high >= most:
+            return None
+        low, high = high, min(most, 2 * high)
     while high - low > 1:  # fits(high) holds, fits(low) does not (or low < least)
         middle = (low + high) // 2
         if fits(middle):

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.horizon import fewest_steps
 from planner.qp import SeparationRows, build_group_qp
 from planner.result import Plan
 from planner.scenario import Scenario
@@ -70,26 +71,15 @@ def _extremes(work: Scenario) -> IntArray:
 def relaxed_steps(work: Scenario, solver: QPSolver) -> int | None:
     """The fewest steps, from `work.steps` (the velocity/acceleration bound) up to
     `work.max_steps`, at which the separation-free problem of the bounding vehicles
-    (`_extremes`) is feasible under every box; None when there is none. Doubling, then
-    bisection: feasibility only grows with the horizon from rest."""
+    (`_extremes`) is feasible under every box; None when there is none (feasibility only
+    grows with the horizon from rest: `fewest_steps`)."""
     members = _extremes(work)
 
     def feasible(steps: int) -> bool:
         qp = build_group_qp(work.with_steps(steps), members, SeparationRows.empty())
         return solver.solve(qp).status == SOLVED
 
-    low, high, cap = work.steps - 1, work.steps, work.max_steps
-    while not feasible(high):
-        if high >= cap:
-            return None
-        low, high = high, min(cap, 2 * high)
-    while high - low > 1:  # feasible(high) holds, feasible(low) does not (or low < the bound)
-        middle = (low + high) // 2
-        if feasible(middle):
-            high = middle
-        else:
-            low = middle
-    return high
+    return fewest_steps(feasible, work.steps, work.max_steps)
 
 
 def _settled(failed: int, succeeded: int) -> bool:
