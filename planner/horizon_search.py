@@ -95,7 +95,8 @@ def search_horizon(spec: Scenario, solver: QPSolver,
     returned carries `horizon` (the candidates tried, the bound, the choice); its scenario
     has the chosen `steps`. When no candidate up to `max_horizon` (or within `MAX_PLANS`)
     verifies, the longest candidate's plan is returned with `horizon.chosen_steps` null and
-    a message saying so."""
+    a message saying so; without a bound (the boxes allow no horizon up to `max_horizon`)
+    the longest horizon is planned once, for the solver's diagnosis."""
     began = time.perf_counter()
     work = spec.assigned()
     cap = spec.max_steps
@@ -131,7 +132,7 @@ def search_horizon(spec: Scenario, solver: QPSolver,
     horizon: dict[str, Any] = {
         "auto": True,
         "chosen_steps": steps if best is not None else None,
-        "lower_bound_steps": bound if bound is not None else cap,
+        "lower_bound_steps": bound,  # None: the boxes allow no horizon up to max_horizon
         "max_horizon": spec.max_horizon,
         "within_tolerance": best is not None and _settled(failed, steps),
         "tried": [c.to_dict() for c in tried],

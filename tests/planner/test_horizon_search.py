@@ -221,3 +221,13 @@ def test_max_horizon_without_an_auto_leg_names_the_field():
     with pytest.raises(ScenarioError) as info:
         parse_sequence(data)
     assert info.value.field == "max_horizon" and "duration" in info.value.reason
+
+
+def test_boxes_that_allow_no_horizon_plan_the_longest_once_and_say_why():
+    data = _auto(load_example("paper-circle4"), max_horizon=8.0)
+    data["limits"]["jerk_max"] = [0.05, 0.05, 0.05]  # far too tight for 8 s
+    plan = planner.plan(data)
+    assert plan.status == "infeasible" and plan.horizon["lower_bound_steps"] is None
+    assert [t["steps"] for t in plan.horizon["tried"]] == [40]
+    assert "no horizon up to max_horizon 8 s (40 steps of 0.2 s)" in plan.message
+    assert "under the jerk bounds" in plan.message
