@@ -5,10 +5,11 @@ The search starts from a lower bound no plan can beat: the fewest steps at which
 vehicles' own separation-free problems are feasible under the velocity, acceleration and jerk
 boxes (`relaxed_steps`; tiny QPs of the vehicles with the farthest moves). It then plans
 (`planner.plan` with fixed steps, passed in as `plan_fixed`) at horizons growing by
-`GROWTH` until one plan converges and verifies, and bisects between the longest failure and
-the shortest success until the success is within `TOLERANCE` of the failure's next step.
-At most `MAX_PLANS` plans are made. A too-short candidate usually fails fast (its first
-linearised QP is infeasible), so most of the cost is the successes.
+`GROWTH` until one plan converges and verifies. Then, while that success is more than
+`TOLERANCE` longer than the step after the longest failure, it plans at the longest horizon
+that would be close enough: a success there ends the search, a failure raises the bound by
+`TOLERANCE` (after a `GROWTH` step, at most two such plans). At most `MAX_PLANS` plans are
+made. A too-short candidate usually fails fast (its first linearised QP is infeasible).
 
 Bisection assumes a longer horizon never makes a fleet harder to plan, which holds for
 the separation-free problem (a vehicle can wait at its start) and in practice for the SCP.
@@ -82,10 +83,15 @@ def relaxed_steps(work: Scenario, solver: QPSolver) -> int | None:
     return fewest_steps(feasible, work.steps, work.max_steps)
 
 
+def _longest_settled(failed: int) -> int:
+    """The longest horizon within `TOLERANCE` of the shortest that can verify, which is
+    longer than `failed`."""
+    return math.floor((1.0 + TOLERANCE) * (failed + 1) + 1e-9)
+
+
 def _settled(failed: int, succeeded: int) -> bool:
-    """Is `succeeded` within `TOLERANCE` of the shortest horizon that can verify, which is
-    longer than `failed`?"""
-    return succeeded <= math.floor((1.0 + TOLERANCE) * (failed + 1) + 1e-9)
+    """Is `succeeded` within `TOLERANCE` of the shortest horizon that can verify?"""
+    return succeeded <= _longest_settled(failed)
 
 
 def search_horizon(spec: Scenario, solver: QPSolver,
@@ -121,12 +127,13 @@ def search_horizon(spec: Scenario, solver: QPSolver,
     if last.ok:
         best = last
         while not _settled(failed, steps) and len(tried) < MAX_PLANS:
-            middle = (failed + steps) // 2
-            found = attempt(middle)
+            # the longest horizon that would settle it: a success there ends the search
+            probe = _longest_settled(failed)
+            found = attempt(probe)
             if found.ok:
-                best, steps = found, middle
+                best, steps = found, probe
             else:
-                failed = middle
+                failed = probe
     else:
         failed = steps
     horizon: dict[str, Any] = {
