@@ -3,9 +3,12 @@
 
 The search starts from a lower bound no plan can beat: the fewest steps at which the
 vehicles' own separation-free problems are feasible under the velocity, acceleration and jerk
-boxes (`relaxed_steps`; tiny QPs of the vehicles with the farthest moves). It then plans
-(`planner.plan` with fixed steps, passed in as `plan_fixed`) at horizons growing by
-`GROWTH` until one plan converges and verifies. Then, while that success is more than
+boxes (`relaxed_steps`; tiny QPs of the vehicles with the farthest moves). It plans
+(`planner.plan` with fixed steps, passed in as `plan_fixed`) first at the longest horizon
+within `TOLERANCE` of that bound, where a verified plan is the answer at once (a crowd may
+not plan at the bound itself, and a failing plan can cost more than a converging one: its
+solver has to prove the QP infeasible), then at horizons growing by `GROWTH` until one
+plan converges and verifies. Then, while that success is more than
 `TOLERANCE` longer than the step after the longest failure, it plans at the longest horizon
 that would be close enough: a success there ends the search, a failure raises the bound by
 `TOLERANCE` (after a `GROWTH` step, at most two such plans). At most `MAX_PLANS` plans are
@@ -116,8 +119,9 @@ def search_horizon(spec: Scenario, solver: QPSolver,
         tried.append(Candidate(steps, status, float(result.timing.get("total_s", 0.0))))
         return result
 
-    steps = cap if bound is None else bound
-    failed = steps - 1  # every horizon under the bound fails
+    failed = (cap if bound is None else bound) - 1  # every horizon under the bound fails
+    # the longest horizon within TOLERANCE of the bound: a success there is the answer
+    steps = min(cap, _longest_settled(failed))
     best: Plan | None = None
     last = attempt(steps)
     while not last.ok and steps < cap and len(tried) < MAX_PLANS:

@@ -60,7 +60,7 @@ def test_max_horizon_under_the_kinematic_bound_exits_2(tmp_path, capsys):
 
 
 def test_no_horizon_found_exits_1_and_says_so(tmp_path, capsys):
-    # the crowded circle's bound (19 steps) fails, and max_horizon stops the search at 20
+    # the crowded circle fails at 20 steps (10 % over its bound), where max_horizon ends it
     data = {**circle_swap(12, height_step=0.0, rotation=0.0, radius=2.5), "steps": "auto",
             "max_horizon": 4.0}
     out = tmp_path / "plan.json"
