@@ -173,7 +173,7 @@ class FleetHost:
 
     def _current(self, execution: str) -> ReplanHandle:
         if self._flight is None or self._execution != execution:
-            raise StateConflict("execution_id", f"execution {execution!r} is not flying here")
+            raise StateConflict("flight_id", f"execution {execution!r} is not flying here")
         return self._flight
 
     async def pause(self, execution: str) -> float:
