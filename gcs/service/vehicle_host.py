@@ -1,4 +1,4 @@
-"""The service's vehicle side, hosted in the vehicle process (`gcs.flight.vehicle_process`).
+"""The service's vehicle side, hosted in the vehicle process (`gcs.flight.host.vehicle_process`).
 
 `FleetHost` owns the configured fleet (`gcs.service.fleet.Fleet`: the fleet file's vehicles
 or the mocks, the monitor links, the fleet commands) and the one flight under way (a
@@ -22,9 +22,9 @@ import logging
 from typing import Any
 
 from gcs.errors import StateConflict
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.realtime import settle_heap
-from gcs.flight.vehicle_process import HostContext
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.host.vehicle_process import HostContext
+from gcs.flight.run.realtime import settle_heap
 from gcs.service.fleet import Fleet
 from gcs.service.record_mirror import record_delta
 from gcs.service.replan_handle import ReplanHandle, Segment
@@ -116,7 +116,7 @@ class FleetHost:
         start flying `plan`; the fleet's description as it now is. The executor's checks
         raise here (PlanRejected), and the monitor is reopened then."""
         if self._flying():
-            raise StateConflict("fleet", f"execution {self._execution} is flying")
+            raise StateConflict("fleet", f"flight {self._execution} is flying")
         await self.fleet.close_monitor()
         try:
             if self.fleet.kind == "mock":
@@ -173,7 +173,7 @@ class FleetHost:
 
     def _current(self, execution: str) -> ReplanHandle:
         if self._flight is None or self._execution != execution:
-            raise StateConflict("execution_id", f"execution {execution!r} is not flying here")
+            raise StateConflict("flight_id", f"execution {execution!r} is not flying here")
         return self._flight
 
     async def pause(self, execution: str) -> float:

@@ -1,4 +1,5 @@
-"""gcs.flight.executor: whole flights on mock vehicles over UDP loopback, and the fault cases."""
+"""gcs.flight.run.executor: whole flights on mock vehicles over UDP loopback, and the fault
+cases."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ import pytest
 import planner
 from gcs import px4
 from gcs.errors import ArmingRefused, FlightAborted
-from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.phases import EventKind
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.run.executor import TRACKING_TOLERANCE_M, FlightExecutor
+from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 from tests.paths import EXAMPLES
@@ -142,7 +143,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
         assert not mock.vehicles[i].armed
     # sent down where it was when flagged (on a busy machine that comes later in plan time,
     # the station's stalls not counting in the gap), not flown on to its goal
-    t_fault = flagged[0]["t"] - record["mission_start"]
+    t_fault = flagged[0]["t"] - record["flight_start"]
     where = plan.sample([t_fault]).position[1, 0]
     assert where[1] < plan.scenario.goals[1][1] - 0.05
     assert mock.vehicles[1].position_world[1] < where[1] + 0.3

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from gcs.errors import FlightAborted, StateConflict
-from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.phases import EventKind
-from gcs.flight.record import plan_times
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.run.executor import TRACKING_TOLERANCE_M, FlightExecutor
+from gcs.flight.run.record import plan_times
+from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
 
@@ -117,7 +117,7 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     assert kinds.index("pause") < kinds.index("resume") < kinds.index("horizon")
     # the horizon came pause-length later than without the pause
     horizon = next(e["t"] for e in record["events"] if e["kind"] == "horizon")
-    assert horizon - record["mission_start"] >= plan.scenario.horizon + (end - start) - 0.1
+    assert horizon - record["flight_start"] >= plan.scenario.horizon + (end - start) - 0.1
 
 
 @pytest.mark.flight

@@ -43,9 +43,9 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         planned = httpx.post(f"{url}/api/missions?wait=120", json=QUICK_PAIR,
                              timeout=130).json()
         assert planned["status"] == "planned", planned
-        execution = httpx.post(f"{url}/api/missions/{planned['id']}/executions",
+        execution = httpx.post(f"{url}/api/missions/{planned['id']}/flights",
                                json={"hold_at_goal": 60}, timeout=HTTP_S).json()
-        exec_url = f"{url}/api/executions/{execution['id']}"
+        exec_url = f"{url}/api/flights/{execution['id']}"
         # Plans computing concurrently with the flight (large ones that outlast the test).
         created: list[str] = []
 
@@ -101,13 +101,13 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
                 assert mission["status"] == "failed"
                 assert mission["error"]["reason"] == \
                     "the service stopped before this plan finished"
-        stored = httpx.get(f"{url}/api/executions/{execution['id']}", timeout=HTTP_S).json()
+        stored = httpx.get(f"{url}/api/flights/{execution['id']}", timeout=HTTP_S).json()
         assert stored["status"] == "interrupted"
         assert stored["error"] == "the service stopped during this flight"
         # Every event shown before the crash was stored (as the same records, in order).
         assert stored["events"][: len(seen)] == seen
         assert stored["has_record"] is True
-        record = httpx.get(f"{url}/api/executions/{execution['id']}/record",
+        record = httpx.get(f"{url}/api/flights/{execution['id']}/record",
                            timeout=HTTP_S).json()
         assert record["partial"] is True
         setpoints = [len(v["setpoints"]["t"]) for v in record["vehicles"]]

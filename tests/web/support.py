@@ -74,7 +74,8 @@ def shown_mission_id(page: Page) -> str:
 
 
 ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}
-HEALTH = {  # per vehicle: battery, gps, health in GET /api/vehicles' shapes (gcs.flight.health)
+# per vehicle: battery, gps, health in GET /api/vehicles' shapes (gcs.flight.safety.health)
+HEALTH = {
     0: ({"remaining_pct": 82, "voltage": 16.1},
         {"fix_type": 3, "satellites": 14, "h_acc": 0.4, "v_acc": 0.6},
         {"unhealthy": [], "prearm_ok": True, "warnings": []}),
@@ -84,7 +85,7 @@ HEALTH = {  # per vehicle: battery, gps, health in GET /api/vehicles' shapes (gc
 }
 
 
-FLIGHT_CONTROL = re.compile(r".*/api/executions/[^/]+/(pause|resume)$")
+FLIGHT_CONTROL = re.compile(r".*/api/flights/[^/]+/(pause|resume)$")
 
 
 def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]) -> None:
@@ -92,7 +93,7 @@ def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]
     origin; fleet and vehicle commands answered here); requests to them land in `sent`, and
     so do pause and resume, which go to the service and really pause the flight."""
     spec = httpx.get(f"{service.base_url}/openapi.json").json()
-    for path in ("/api/executions/{execution_id}/pause", "/api/executions/{execution_id}/resume",
+    for path in ("/api/flights/{flight_id}/pause", "/api/flights/{flight_id}/resume",
                  "/api/fleet/commands", "/api/vehicles/{vehicle_id}/commands"):
         spec["paths"][path] = {"post": {"responses": {"202": {"description": "accepted"}}}}
 

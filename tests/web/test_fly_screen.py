@@ -58,7 +58,7 @@ def test_fly_screen_follows_the_flight_then_abort(
             pause.click();
         }).observe(label, {childList: true, characterData: true, subtree: true}); }""")
     page.click("#fly-button")
-    status = page.locator("#execution-status")
+    status = page.locator("#flight-status")
     # Running, or already paused by the page's own mid-plan click.
     expect(status).to_have_attribute("data-status", re.compile("^(running|paused)$"),
                                      timeout=30_000)
@@ -72,16 +72,16 @@ def test_fly_screen_follows_the_flight_then_abort(
     table = page.locator("#vehicle-state").bounding_box()
     assert view and table and table["x"] >= view["x"] + view["width"]  # docked beside it
 
-    # Mid-plan: the slider follows mission time and the bar fills with it (the page's one
+    # Mid-plan: the slider follows flight time and the bar fills with it (the page's one
     # reading, taken as it clicked Pause).
     now = page.wait_for_function("window.midPlan", timeout=90_000).json_value()
     reading = re.search(rf"t = (\d+\.\d) s of {re.escape(HORIZON)} s", now["label"])
     assert reading, now["label"]
-    mission_time = float(reading.group(1))
-    assert now["slider"] == round(mission_time * 10)  # trajectory sampled at 10 Hz
+    flight_time = float(reading.group(1))
+    assert now["slider"] == round(flight_time * 10)  # trajectory sampled at 10 Hz
     # the clock shows tenths of a second: the bar may differ by what half a tenth is of the
     # horizon, plus its own rounding to a whole per mille
-    assert abs(now["progress"] - 1000 * mission_time / CROSSING_HORIZON_S) <= \
+    assert abs(now["progress"] - 1000 * flight_time / CROSSING_HORIZON_S) <= \
         1000 * 0.05 / CROSSING_HORIZON_S + 1
     # Live icons: one per vehicle, labelled with id and altitude.
     parsed = [ICON_LABEL.match(text) for text in now["icons"]]
@@ -107,7 +107,7 @@ def test_fly_screen_follows_the_flight_then_abort(
     page.wait_for_function("""() => { const drawn = document.getElementById('plot3d')._fullData;
         return drawn && [...drawn.at(-1).text].sort().join() === 'a,b,c,d'; }""")
     # Pause and resume go to this flight; per-vehicle commands from the vehicle's row.
-    execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
+    flight_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
     # The service's answers may be slow on a busy machine: awaited, not timed.
     expect(page.locator("#command-result")).to_have_text("paused", timeout=30_000)
     expect(page.locator("#resume-button")).to_be_enabled()
@@ -121,8 +121,8 @@ def test_fly_screen_follows_the_flight_then_abort(
     page.locator('#vehicle-state tr[data-id="c"] button[data-vehicle-command="land"]').click()
     # answered once the vehicle acknowledged LAND: awaited like pause and resume
     expect(page.locator("#command-result")).to_have_text("land sent to c", timeout=30_000)
-    assert sent == [(f"/api/executions/{execution_id}/pause", None),
-                    (f"/api/executions/{execution_id}/resume", None),
+    assert sent == [(f"/api/flights/{flight_id}/pause", None),
+                    (f"/api/flights/{flight_id}/resume", None),
                     ("/api/vehicles/c/commands", {"command": "land", "confirm": True})]
 
     expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
@@ -134,12 +134,12 @@ def test_fly_screen_follows_the_flight_then_abort(
         assert all(float(t) <= CROSSING_HORIZON_S for t in re.findall(r"t = (\d+\.\d)", c)), c
     assert page.evaluate("document.getElementById('flight-progress').value") == 1000
     expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
-    expect(page.locator("#event-log")).to_contain_text("mission_start")
+    expect(page.locator("#event-log")).to_contain_text("flight_start")
     clock = page.locator("#time-label").inner_text()
     assert all(float(t) <= CROSSING_HORIZON_S for t in re.findall(r"t = (\d+\.\d)", clock)), clock
     expect(page.locator("#flight-list .status-badge.good")).to_have_text("completed")
     expect(page.locator("#fly-button")).to_be_enabled()
-    record = httpx.get(f"{service.base_url}/api/executions/{execution_id}").json()
+    record = httpx.get(f"{service.base_url}/api/flights/{flight_id}").json()
     assert record["status"] == "completed" and record["mission_id"] == mission_id
 
     # Fly again and abort from the always-visible button while the fleet is in the air: the

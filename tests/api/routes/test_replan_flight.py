@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from gcs import phases
 from gcs.api import create_app
-from gcs.api.routes.executions import FlyRequest
-from gcs.flight import phases
-from gcs.flight.fleetfile import POLICIES
-from gcs.flight.phases import EventKind
+from gcs.api.routes.flights import FlyRequest
+from gcs.fleet.fleetfile import POLICIES
+from gcs.phases import EventKind
 from gcs.service.settings import Settings
-from tests.api.routes.test_executions import QUICK, wait_for
+from tests.api.routes.test_flights import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import SHORT_CROSSING, example
 
@@ -34,21 +34,21 @@ NEW_GOAL = [1.0, 1.4, 1.5]
 LEAD_S = 3.0
 
 
-def mission_time(client: TestClient, url: str) -> float:
-    return float((client.get(url).json()["live"] or {}).get("mission_time") or 0.0)
+def flight_time(client: TestClient, url: str) -> float:
+    return float((client.get(url).json()["live"] or {}).get("flight_time") or 0.0)
 
 
 @pytest.mark.flight
 def test_a_replan_through_the_api(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
-        flown = client.post(f"/api/missions/{mission['id']}/executions",
+        flown = client.post(f"/api/missions/{mission['id']}/flights",
                             json={**QUICK, "replan_lead_s": LEAD_S})
         assert flown.status_code == 201, flown.text
         execution = flown.json()
         url, links = execution["links"]["self"], execution["links"]
         assert links["replan"].endswith("/replan")
-        wait_for(lambda: mission_time(client, url) > 1.0, 60, "the mission clock to pass 1 s")
+        wait_for(lambda: flight_time(client, url) > 1.0, 60, "the flight clock to pass 1 s")
 
         # What only the flight can judge crosses from the vehicle process by its field.
         unknown = client.post(links["replan"], json={"goals": {"zz": [1.0, 1.0, 1.0]}})
@@ -112,7 +112,7 @@ def test_nothing_flying_yet_is_409(mock_settings: Callable[..., Settings]) -> No
     """A flight still starting (links opening, arming) has no plan flown to replan."""
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, copy.deepcopy(SHORT_CROSSING))
-        execution = client.post(f"/api/missions/{mission['id']}/executions",
+        execution = client.post(f"/api/missions/{mission['id']}/flights",
                                 json=QUICK).json()
         answer = client.post(execution["links"]["replan"], json={"drop": ["d"]})
         assert answer.status_code == 409, answer.text
@@ -131,7 +131,7 @@ def test_the_replan_fly_options_are_checked(
 ) -> None:
     store = client.app.state.store  # type: ignore[attr-defined]
     mission = store.create_mission(example("paper-circle2"))
-    answer = client.post(f"/api/missions/{mission.id}/executions", json=options)
+    answer = client.post(f"/api/missions/{mission.id}/flights", json=options)
     assert answer.status_code == 422 and answer.json()["field"] == field, answer.text
     assert reason in answer.json()["reason"], answer.text
 
