@@ -3,8 +3,8 @@
 // OpenAPI description; buttons for the others stay hidden), pause and resume of the flight
 // shown, fleet and per-vehicle commands, and what each answered.
 import { api, unavailable } from "./api.js";
+import { FLEET_CHANGED, emit } from "./bus.js";
 import { $, $$ } from "./dom.js";
-import { showVehicleTable } from "./fleettable.js";
 import { fleet, flight } from "./state.js";
 
 /** Read the service's control endpoints; show the buttons it has. */
@@ -22,7 +22,7 @@ export async function loadCapabilities() {
   };
   for (const el of $$("[data-cap]")) el.hidden = !fleet.caps[/** @type {keyof import("./state.js").Capabilities} */ (el.dataset.cap)];
   updateCommandButtons();
-  showVehicleTable();
+  emit(FLEET_CHANGED);
 }
 
 /** Pause while the flight shown runs, Resume while it is paused, neither while one of
@@ -82,6 +82,6 @@ export async function fleetCommand(command) {
  * @param {string} command */
 export async function vehicleCommand(id, command) {
   const r = await api("POST", `/api/vehicles/${encodeURIComponent(id)}/commands`, { command, confirm: true });
-  if (unavailable(r)) { fleet.caps.vehicleCommands = false; showVehicleTable(); commandResult(`${command}: not available on this service`, false); return; }
+  if (unavailable(r)) { fleet.caps.vehicleCommands = false; emit(FLEET_CHANGED); commandResult(`${command}: not available on this service`, false); return; }
   commandResult(r.ok ? `${command} sent to ${id}` : `${command} ${id} refused (${r.status}): ${r.data.reason ?? ""}`, r.ok);
 }

@@ -22,6 +22,16 @@ const COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"
  * @returns {string} */
 export const color = (i) => COLORS[i % COLORS.length];
 
+/** The colour of a plan vehicle by id, as `color` gives it by its place in `plan` (dark for
+ * ids not in the plan, or with no plan).
+ * @param {string} id
+ * @param {{vehicles: {id: string}[]} | null} plan
+ * @returns {string} */
+export const colorOf = (id, plan) => {
+  const i = plan ? plan.vehicles.findIndex((v) => v.id === id) : -1;
+  return i >= 0 ? color(i) : "#1d232b";
+};
+
 /** A number with at most `digits` decimals; "–" for missing values.
  * @param {unknown} x
  * @param {number} [digits]

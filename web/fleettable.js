@@ -1,12 +1,12 @@
 // @ts-check
 // The fleet table: one row per vehicle, the flight's telemetry (5 per second) merged with
 // GET /api/vehicles (link, mode, battery, GPS, health), and per-vehicle command buttons.
+import { FLEET_CHANGED, REPLAN_CHANGED, on } from "./bus.js";
 import { vehicleCommand } from "./commands.js";
-import { $ } from "./dom.js";
-import { colorOf } from "./flyscreen.js";
+import { $, colorOf } from "./dom.js";
 import { batteryCell, gpsCell, healthCell, linkLevel } from "./health.js";
 import { dropVehicle, isDropped, replanOffered } from "./replan.js";
-import { fleet, flight } from "./state.js";
+import { fleet, flight, views } from "./state.js";
 
 /** @typedef {import("./state.js").VehicleRow} VehicleRow */
 
@@ -64,6 +64,10 @@ export function showVehicleTable() {
   }
 }
 
+// The fleet changed, or the vehicles a replan dropped: the table shows them.
+on(FLEET_CHANGED, showVehicleTable);
+on(REPLAN_CHANGED, showVehicleTable);
+
 /** `old` made to show what `fresh` (the same vehicle's row, just built) shows, cell by cell:
  * a cell that did not change is kept, so a button under the operator's pointer is the same
  * element from press to release and a click on it is never lost to a telemetry redraw
@@ -101,7 +105,7 @@ function vehicleRow(v, optional, health, drops, actions) {
   const name = cell("", "", "id");
   const dot = document.createElement("span");
   dot.className = "swatch";
-  dot.style.background = colorOf(v.id);
+  dot.style.background = colorOf(v.id, views.traj);
   name.append(dot, v.id);
   const age = v.heartbeat_age;
   const link = cell(age === null || age === undefined ? "no link" : `${age.toFixed(1)} s`, linkLevel(v), "link");

@@ -3,6 +3,7 @@
 // polling when the stream is lost), its status in the header, its summary once it ends, and
 // Abort for every flight in the air.
 import { api, rowsOf } from "./api.js";
+import { FLIGHT_CHANGED, FLIGHT_ENDED, FLIGHT_STARTED, emit } from "./bus.js";
 import { updateCommandButtons } from "./commands.js";
 import { $, appendScrolled, badge, fmt } from "./dom.js";
 import { fillForm } from "./editor.js";
@@ -10,9 +11,9 @@ import { showVehicleTable } from "./fleettable.js";
 import { flyBlocker, updateFlyButton } from "./flygate.js";
 import { clearFlightView, drawFlyMoving, moveSlider, showClock } from "./flyscreen.js";
 import { formKey } from "./form.js";
-import { closeReplay, loadFlights, refreshMissionList } from "./history.js";
 import { showMission } from "./planning.js";
 import { replanTelemetry, updateReplanControls } from "./replan.js";
+import { closeReplay } from "./replay.js";
 import { editor, fleet, flight, planning, views } from "./state.js";
 
 /** @typedef {import("./state.js").Telemetry} Telemetry */
@@ -39,8 +40,7 @@ export async function fly() {
   }
   $("#follow").checked = true;
   followFlight(data);
-  loadFlights(mission.id);
-  refreshMissionList();
+  emit(FLIGHT_STARTED, data);
   $("#fly-screen").scrollIntoView({ block: "nearest" });
 }
 
@@ -69,8 +69,7 @@ export function followFlight(doc) {
     // Paused or not as the flight says (once a pause answer named the paused status): a
     // flight paused elsewhere, resumed, or aborting while paused sets the buttons right.
     if (flight.pausedStatus) { flight.paused = status === flight.pausedStatus; updateCommandButtons(); }
-    if (planning.mission) loadFlights(planning.mission.id);  // its badges follow
-    refreshMissionList();
+    emit(FLIGHT_CHANGED, status);  // the lists' badges follow
   });
   source.addEventListener("done", (ev) => {
     source.close();
@@ -97,8 +96,7 @@ function flightEnded(status, done) {
   showVehicleTable();
   updateReplanControls();
   updateFlyButton();
-  refreshMissionList();
-  if (planning.mission) loadFlights(planning.mission.id);
+  emit(FLIGHT_ENDED, done);
 }
 
 /** Show the plan of a flight started elsewhere. A page with nothing planned yet takes that

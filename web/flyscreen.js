@@ -2,21 +2,14 @@
 // The fly screen's view of time: the top-down view (planned paths, where each vehicle should
 // be at the slider's time, where it is live or replayed), the time slider with its clock
 // and progress bar, and ▶ to play the plan.
-import { $, clamp, color, fmt } from "./dom.js";
+import { REPLAN_CHANGED, on } from "./bus.js";
+import { $, clamp, color, colorOf, fmt } from "./dom.js";
 import { drawMoving, drawStatic, latLonText } from "./flyview.js";
 import { linkLevel } from "./health.js";
 import { showFlown, showPlannedNow } from "./planview.js";
 import { drawGoalMarkers, resetReplan } from "./replan.js";
 import { fleet, flight, planning, views } from "./state.js";
 import { sampleAt } from "./tracks.js";
-
-/** The colour of a plan vehicle by id (dark for ids not in the plan).
- * @param {string} id
- * @returns {string} */
-export const colorOf = (id) => {
-  const i = views.traj ? views.traj.vehicles.findIndex((v) => v.id === id) : -1;
-  return i >= 0 ? color(i) : "#1d232b";
-};
 
 /** The fleet's geodetic origin, if its fleet file gives one. */
 export const origin = () => (fleet.fleet && fleet.fleet.world_origin) || null;
@@ -45,13 +38,13 @@ function actualVehicles() {
   if (flight.replay) {
     const t = sliderTime();
     return flight.replay.vehicles.map((v) => ({
-      id: v.id, color: colorOf(v.id), position: sampleAt(v.t, v.position, t),
+      id: v.id, color: colorOf(v.id, views.traj), position: sampleAt(v.t, v.position, t),
       trail: v.position.filter((_, i) => v.t[i] <= t).map((p) => [p[0], p[1]]),
     }));
   }
   if (!flight.live) return [];
   return flight.live.vehicles.map((v) => ({
-    id: v.id, color: colorOf(v.id), position: v.position, velocity: v.velocity,
+    id: v.id, color: colorOf(v.id, views.traj), position: v.position, velocity: v.velocity,
     trail: flight.trails[v.id], alert: Boolean(v.fault) || linkLevel(v) === "bad",
   }));
 }
@@ -157,6 +150,12 @@ export function togglePlay() {
     setTime(k);
   }, 1000 / traj.rate);
 }
+
+// The flight's plans changed (a replan switched in): the fly view draws them, at the slider's time.
+on(REPLAN_CHANGED, () => {
+  drawFlyStatic();
+  setTime(Number($("#time-slider").value));
+});
 
 export function stopPlay() {
   if (views.playTimer) clearInterval(views.playTimer);

@@ -1,18 +1,18 @@
 // @ts-check
 // History: the missions list (with their flights' badges), a mission's flights, and a
-// finished flight reopened: its summary, events, and a replay of the recorded positions
-// against the plan, driven by the time slider.
+// finished flight reopened: its summary, events, and its replay (replay.js). Both lists
+// redraw when a flight starts, changes status or ends, and when a mission is shown.
 import { api, rowsOf } from "./api.js";
+import { FLIGHT_CHANGED, FLIGHT_ENDED, FLIGHT_STARTED, MISSIONS_CHANGED, MISSION_SHOWN, on } from "./bus.js";
 import { $, $$, fmt } from "./dom.js";
 import { fillForm } from "./editor.js";
 import { followFlight, isLive, logEvent, setFlightStatus, showFlightSummary } from "./flight.js";
-import { clearFlightView, horizon, moveSlider, stopPlay } from "./flyscreen.js";
+import { clearFlightView, stopPlay } from "./flyscreen.js";
 import { formKey } from "./form.js";
 import { closePlanStream, showMission } from "./planning.js";
-import { renderSeparation } from "./planview.js";
 import { showFlownPlans } from "./replan.js";
-import { editor, flight, planning, views } from "./state.js";
-import { measuredSeparation } from "./tracks.js";
+import { startReplay } from "./replay.js";
+import { editor, flight, planning } from "./state.js";
 
 /** A status badge for a flight: green completed, neutral while flying, red otherwise.
  * @param {any} doc
@@ -81,34 +81,17 @@ async function openFlight(id) {
   startReplay(id, record);
 }
 
-/** Replay: recorded positions against the plan, on flight time (record t - flight_start).
- * @param {string} id
- * @param {any} record  GET /api/flights/{id}/record */
-function startReplay(id, record) {
-  const t0 = record.flight_start ?? record.mission_start ?? 0;  // mission_start: older records
-  flight.replay = {
-    id,
-    vehicles: record.vehicles.map((/** @type {any} */ v) => ({
-      id: v.id, t: v.telemetry.t.map((/** @type {number} */ t) => t - t0), position: v.telemetry.position,
-    })).filter((/** @type {{t: number[]}} */ v) => v.t.length),
-  };
-  const plan = planning.mission && planning.mission.plan;
-  const scale = (plan && plan.scenario.separation_scale) || [1, 1, 1];
-  views.measured = measuredSeparation(flight.replay.vehicles, scale, horizon());
-  if (views.measured) views.measured.label = `measured (flight ${id})`;
-  if (views.sepTraj && plan) renderSeparation(plan, views.sepTraj);
-  $("#follow").checked = false;
-  moveSlider(Number($("#time-slider").max));  // the end: where everyone went; ▶ replays it
+/** The missions list and the flights of the mission shown (their badges follow a flight). */
+function refreshLists() {
+  refreshMissionList();
+  if (planning.mission) loadFlights(planning.mission.id);
 }
 
-/** Leave the replay shown, if any. */
-export function closeReplay() {
-  if (!flight.replay) return;
-  flight.replay = null;
-  views.measured = null;
-  const plan = planning.mission && planning.mission.plan;
-  if (views.sepTraj && plan) renderSeparation(plan, views.sepTraj);
-}
+on(FLIGHT_STARTED, refreshLists);
+on(FLIGHT_CHANGED, refreshLists);
+on(FLIGHT_ENDED, refreshLists);
+on(MISSIONS_CHANGED, refreshMissionList);
+on(MISSION_SHOWN, loadFlights);
 
 /** The missions list: name, size, plan status, flights (the latest one's badge). */
 export async function refreshMissionList() {

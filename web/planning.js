@@ -3,14 +3,15 @@
 // followed, and the mission's plan shown, tables, figures and fly view, once it is done.
 // Plan stays disabled until the page holds its state and while a plan is being computed.
 import { api, errorsOf } from "./api.js";
+import { MISSIONS_CHANGED, MISSION_SHOWN, emit } from "./bus.js";
 import { $, appendScrolled, badge, fmt } from "./dom.js";
 import { clearErrors, errorItem, showError } from "./fielderrors.js";
 import { refreshStale } from "./flygate.js";
 import { clearFlightView, drawFlyStatic, resetSlider } from "./flyscreen.js";
 import { readScenario, sequenceKey } from "./form.js";
-import { closeReplay, loadFlights, refreshMissionList } from "./history.js";
 import { loadPlotly, nextTask, renderFigures } from "./planview.js";
 import { missionPlanShown } from "./replan.js";
+import { closeReplay } from "./replay.js";
 import { trajectoryRate } from "./scale.js";
 import { flight, missionIs, planning, ready, views } from "./state.js";
 
@@ -180,7 +181,7 @@ export async function showMission(id, key) {
   if (!ok) { $("#plan-state").textContent = data.reason; finishPlanning(); return; }
   if (missionIs(data.status, "active")) { followPlanning(data, key); return; }
   finishPlanning();
-  refreshMissionList();
+  emit(MISSIONS_CHANGED);
   if (missionIs(data.status, "failed") || !data.plan) {
     planning.rejected = true;
     $("#plan-state").innerHTML = "";
@@ -205,7 +206,7 @@ export async function showMission(id, key) {
   completeProgressLog(data.plan);
   $("#progress-log").hidden = true;  // the solver figures below sum it up
   refreshStale();
-  loadFlights(data.id);
+  emit(MISSION_SHOWN, data.id);
 }
 
 function finishPlanning() {

@@ -5,9 +5,8 @@
 // state (its `replan` object); once the flight's plans change, the views show the plans
 // flown (GET /api/flights/{id}/trajectory: the first plan, then each switched replan's).
 import { api, errorsOf } from "./api.js";
-import { showVehicleTable } from "./fleettable.js";
+import { REPLAN_CHANGED, emit } from "./bus.js";
 import { $, clamp, color, fmt, svgEl } from "./dom.js";
-import { drawFlyStatic, setTime } from "./flyscreen.js";
 import { VIEW } from "./flyview.js";
 import { layered } from "./scale.js";
 import { fleet, flight, planning, replan, views } from "./state.js";
@@ -266,11 +265,8 @@ export async function showFlownPlans(id) {
   replan.dropped = r.data.dropped || {};
   if (!replan.planTraj) replan.planTraj = views.traj;
   views.traj = r.data;
-  const slider = $("#time-slider");
-  slider.max = r.data.t.length - 1;
-  drawFlyStatic();
-  setTime(Number(slider.value));
-  showVehicleTable();
+  $("#time-slider").max = r.data.t.length - 1;
+  emit(REPLAN_CHANGED);
 }
 
 /** The mission's plan has just been drawn (`planning.renderPlan`): the plans flown are

@@ -3,9 +3,9 @@
 // sets, fleet, planning jobs) and GET /api/vehicles, polled; a flight started elsewhere is
 // picked up from the fleet's `flying`.
 import { api } from "./api.js";
+import { FLEET_CHANGED, emit } from "./bus.js";
 import { $ } from "./dom.js";
 import { pollFlight } from "./flight.js";
-import { showVehicleTable } from "./fleettable.js";
 import { updateFlyButton } from "./flygate.js";
 import { drawFlyStatic, origin } from "./flyscreen.js";
 import { updatePlanButtons } from "./planning.js";
@@ -19,7 +19,7 @@ export async function refreshVehicles() {
   const hadOrigin = Boolean(origin());
   fleet.fleet = { ...(fleet.fleet || {}), ...data.fleet };
   if (Boolean(origin()) !== hadOrigin) drawFlyStatic();
-  showVehicleTable();
+  emit(FLEET_CHANGED);
   updateFlyButton();
   if (data.fleet.flying && data.fleet.flying !== flight.id && !flight.active) {
     pollFlight(data.fleet.flying);  // a flight started elsewhere: show it (and its Abort)
