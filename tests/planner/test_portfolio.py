@@ -290,3 +290,17 @@ def test_an_old_plan_without_method_or_attempts_still_loads() -> None:
     assert old.method is None and old.attempts == () and old.iterations[0].method is None
     again = Plan.from_dict(plan(sideways(4), method="whole").to_dict())
     assert again.method == "whole" and again.attempts[-1].outcome == "won"
+
+
+def test_a_sequence_passes_its_method_to_every_leg() -> None:
+    from planner.sequence import parse_sequence
+
+    data = {"name": "s", "dt": 0.2, "min_separation": 1.0, "method": "prioritized",
+            "limits": {"position_min": [0, 0, 0], "position_max": [10, 10, 3]},
+            "vehicles": ["a", "b"],
+            "formations": [{"positions": [[1, 1, 1], [3, 1, 1]]},
+                           {"positions": [[1, 5, 1], [3, 5, 1]], "duration": 6.0}]}
+    assert [leg["method"] for leg in parse_sequence(data).legs] == ["prioritized"]
+    with pytest.raises(ScenarioError) as caught:
+        parse_sequence(data | {"method": "fastest"})
+    assert caught.value.field == "method"
