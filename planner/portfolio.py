@@ -6,8 +6,8 @@ in batches; random moves and some formations faster whole), and no cheap signal 
 apart, so where both apply `auto` runs both, each in a forked process on its own core
 (`planner.race`): its time is the faster method's plus the fork and the hand-over of the
 plan, and it plans whatever either method plans. The batches arm has no whole-fleet
-fallback (the other arm is the whole fleet); the whole arm is `dodge` then `whole`, as
-in process. Where batches decline (a fleet that fits one batch, free assignment, ...) there is
+fallback (the other arm is the whole fleet); the whole arm is `dodge` then `whole`, as in
+process. Where batches decline (a fleet that fits one batch, free assignment, ...) there is
 nothing to race: the table goes on in process with no overhead (`planner.stages`). A small
 obstacle-free fleet first gets a head start: the whole fleet in process for up to
 HEAD_START_S, which plans the paper's cases in milliseconds without paying for the forks
@@ -33,6 +33,7 @@ from planner.stages import (
     Run,
     Stage,
     TableResult,
+    labelled,
     prioritized_declines,
     run_table,
 )
@@ -74,8 +75,7 @@ def _race(ctx: Context) -> Run:
     def forward(message: tuple[str, Any]) -> None:
         name, record = message
         if given is not None and isinstance(record, IterationRecord):
-            given(record if record.method is not None
-                  else dataclasses.replace(record, method=name))
+            labelled(given, name)(record)
 
     results = race([(name, _arm(table, ctx)) for name, table in ARMS], _won, forward)
     return _merged(results)

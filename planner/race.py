@@ -18,7 +18,7 @@ from __future__ import annotations
 import contextlib
 import os
 import pickle
-import select
+import selectors
 import signal
 import struct
 import threading
@@ -65,13 +65,15 @@ def race(arms: Sequence[Arm], accept: Callable[[Any], bool],
     results = [ArmResult(name) for name, _ in arms]
     children: dict[int, _Child] = {}
     pools = _thread_pools()
+    waiting = selectors.DefaultSelector()  # epoll: any fd number (select stops at 1024)
     try:
         for index, (name, fn) in enumerate(arms):
             child = _spawn(name, fn, index, pools)
             children[child.fd] = child
+            waiting.register(child.fd, selectors.EVENT_READ)
         while children:
-            ready, _, _ = select.select(list(children), [], [])
-            for fd in ready:
+            for key, _ in waiting.select():
+                fd = int(key.fd)
                 child = children[fd]
                 chunk = os.read(fd, _READ_CHUNK)
                 if chunk:
@@ -94,10 +96,12 @@ def race(arms: Sequence[Arm], accept: Callable[[Any], bool],
                         result.error = payload
                         child.done = True
                 if not chunk:  # the arm's pipe closed: it ended
+                    waiting.unregister(fd)
                     _reap(child, results[child.index], began)
                     del children[fd]
         return results
     finally:
+        waiting.close()
         _end(children.values(), results, began, cancel=False)
 
 

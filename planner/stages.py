@@ -29,7 +29,7 @@ from planner.types import FloatArray
 from planner.verify import verify
 
 __all__ = ["DODGE", "PRIORITIZED", "SEPARATED_FIRST", "WHOLE", "Context", "Run", "Stage",
-           "TableResult", "run_table", "table_for"]
+           "TableResult", "labelled", "run_table", "table_for"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 Progress = Callable[[IterationRecord], None]
@@ -110,7 +110,7 @@ def run_table(table: Sequence[Stage], ctx: Context) -> TableResult:
                 attempts.append(Attempt(stage.name, Outcome.DECLINED, why,
                                         time.perf_counter() - began))
                 continue
-            ctx.progress = None if given is None else _labelled(given,
+            ctx.progress = None if given is None else labelled(given,
                                                                 stage.method or stage.name)
             run = stage.run(ctx)
             ctx.progress = given
@@ -131,8 +131,8 @@ def run_table(table: Sequence[Stage], ctx: Context) -> TableResult:
     return TableResult(None, None, attempts)
 
 
-def _labelled(progress: Progress, method: str) -> Progress:
-    """`progress` with every record labelled as `method`'s."""
+def labelled(progress: Progress, method: str) -> Progress:
+    """`progress` with every record not yet labelled labelled as `method`'s."""
     def forward(record: IterationRecord) -> None:
         progress(record if record.method is not None
                  else dataclasses.replace(record, method=method))

@@ -228,9 +228,9 @@ def test_when_the_whole_fleet_is_slow_the_batches_win_and_it_is_cancelled(
     assert reaped()
 
 
-@pytest.mark.usefixtures("race_at_once")
-def test_when_the_whole_fleet_fails_the_batches_plan_it(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.fixture
+def whole_fails(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The whole fleet's SCP ends without converging (the batches' loop is untouched)."""
     real = stages.run_scp
 
     def fails(*args: Any, **kwargs: Any) -> ScpOutcome:
@@ -239,23 +239,19 @@ def test_when_the_whole_fleet_fails_the_batches_plan_it(
         return outcome
 
     monkeypatch.setattr(stages, "run_scp", fails)
+
+
+@pytest.mark.usefixtures("race_at_once", "whole_fails")
+def test_when_the_whole_fleet_fails_the_batches_plan_it() -> None:
     result = plan(sideways(8))
     assert result.ok and result.method == "prioritized"
     assert _outcomes(result)["prioritized"] == "won"
     assert _outcomes(result)["whole"] in ("failed", "cancelled")
 
 
-@pytest.mark.usefixtures("race_at_once")
+@pytest.mark.usefixtures("race_at_once", "whole_fails")
 def test_when_both_fail_the_whole_fleets_plan_is_returned_and_says_so(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    real = stages.run_scp
-
-    def fails(*args: Any, **kwargs: Any) -> ScpOutcome:
-        outcome = real(*args, **kwargs)
-        outcome.status = PlanStatus.MAX_ITERATIONS
-        return outcome
-
-    monkeypatch.setattr(stages, "run_scp", fails)
     monkeypatch.setattr(stages, "plan_batches", lambda *a, **k: prioritized.NOT_CONVERGED)
     result = plan(sideways(8))
     assert not result.ok and result.status == "max_iterations" and result.method == "whole"
