@@ -212,3 +212,19 @@ def test_a_sequence_refuses_the_decomposition_flags(tmp_path, capsys):
     assert main(["plan", str(sequence), "--decompose", "prioritized"]) == 2
     assert "--method, --decompose, --batch-size: apply to a scenario" in capsys.readouterr().err
     assert main(["plan", str(sequence), "--method", "whole"]) == 2
+
+
+def test_auto_labels_each_iteration_line_with_its_method_and_names_the_winner(
+        tmp_path, capsys):
+    """With obstacles auto races both methods at once: every iteration line says which
+    method computed it, and the summary names the one that planned."""
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(EXAMPLES / "pillar-circle8.json"), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    lines = [line for line in printed.splitlines() if line.startswith("iteration")]
+    assert lines and all(re.search(r"\[(whole|prioritized)\]$", line) for line in lines)
+    doc = json.loads(out.read_text())
+    assert doc["method"] in ("whole", "prioritized")
+    outcomes = {a["method"]: a["outcome"] for a in doc["attempts"]}
+    assert outcomes[doc["method"]] == "won"
+    assert re.search(rf"method\s+.\s+{doc['method']}", printed)
