@@ -147,7 +147,8 @@ function iterationItem(r) {
 function completeProgressLog(plan) {
   const log = $("#progress-log");
   const iterations = Array.isArray(plan.iterations) ? plan.iterations : [];
-  if (log.children.length === iterations.length) return;
+  // (a stitched sequence's plan records no iterations of its own: its legs' lines stay)
+  if (!iterations.length || log.children.length === iterations.length) return;
   log.innerHTML = "";
   for (const r of iterations) log.append(iterationItem(r));
 }
