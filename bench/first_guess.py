@@ -1,5 +1,5 @@
 """First linearisation point for crowded fixed-goal fleets: the synchronised straight moves
-(the default) against the dodged moves (`ScpOptions(dodge=True)`, `planner.dodge`), each case
+(the default) against the dodged moves (`PlanningOptions(dodge=True)`, `planner.dodge`), each case
 planned back to back with both so that they share the machine's load. Prints one JSON
 document to stdout.
 
@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
 from planner.generators import grid_to_sphere, random_dense, sideways  # noqa: E402
-from planner.scp import ScpOptions  # noqa: E402
+from planner.options import PlanningOptions  # noqa: E402
 
 DEFAULT_CASES = ["sideways:64", "sideways:64:1", "sideways:64:none:2.5:8", "sideways:100",
                  "grid-sphere:100:0", "grid-sphere:256:0", "dense:256:0"]
@@ -43,10 +43,10 @@ def scenario(case: str) -> dict[str, Any]:
 
 
 def run(data: dict[str, Any], method: str) -> dict[str, Any]:
-    options = ScpOptions(dodge=method == "dodge")
+    options = PlanningOptions(dodge=method == "dodge")
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
-    plan = planner.plan(data, options=options)
+    plan = planner.plan(data, options=options, method="whole")
     total = time.perf_counter() - t0
     its = plan.iterations
     v = plan.verification

@@ -17,8 +17,9 @@ sequence; with --formations F a long show of F formations, `show_formations`), e
 --seeds. The long show's legs through Dask workers: bench/dask_engine.py --formations.
 --obstacles NAME... runs the obstacle families (a pillar in the paper's circle, a window in
 a wall, shelving, forests), each with its floor. --group-qp primal solves their group QPs as
-the primal staged QP (for comparison with the dual); --decompose prioritized plans every
-family in prioritized batches (forest200's floor is met that way); --profile also takes
+the primal staged QP (for comparison with the dual); --method whole or prioritized plans
+every family that way (--decompose prioritized: the same; the default is the planner's,
+auto); --profile also takes
 dense<N> and grid-sphere<N>.
 
 Timings are medians over --repeats runs of the same scenario (the machines are shared and
@@ -64,7 +65,9 @@ from planner.obstacle_generators import (  # noqa: E402
     shelving,
     window_wall,
 )
-from planner.scp import DECOMPOSITIONS, ScpOptions  # noqa: E402
+from planner.options import PlanningOptions  # noqa: E402
+from planner.scenario import METHODS  # noqa: E402
+from planner.scp import ScpOptions  # noqa: E402
 from planner.sequence import plan_sequence  # noqa: E402
 from planner.verify import verify  # noqa: E402
 
@@ -170,14 +173,15 @@ def scenario_by_name(name: str) -> dict[str, Any]:
     return json.loads((EXAMPLES / f"{name}.json").read_text())
 
 
-def profile(name: str, options: ScpOptions, top: int = 20) -> list[dict[str, Any]]:
+def profile(name: str, options: PlanningOptions, top: int = 20, method: str | None = None
+            ) -> list[dict[str, Any]]:
     """Where the time goes for one scenario: cProfile's top functions by own time."""
     import cProfile
     import pstats
 
     data = scenario_by_name(name)
     profiler = cProfile.Profile()
-    profiler.runcall(planner.plan, data, options=options)
+    profiler.runcall(planner.plan, data, options=options, method=method)
     stats = pstats.Stats(profiler)
     rows = []
     for (file, line, function), (_, calls, own, cumulative, _) in stats.stats.items():
@@ -219,7 +223,7 @@ def row_modes(name: str, data: dict[str, Any], repeats: int) -> list[dict[str, A
         times = []
         for _ in range(repeats):
             try:
-                plan = planner.plan(variant, options=options)
+                plan = planner.plan(variant, options=options, method="whole")
             except planner.ScenarioError as exc:  # R' too large for the starts/goals
                 out.append({"scenario": name, "mode": label, "error": str(exc)})
                 break
@@ -239,8 +243,8 @@ def row_modes(name: str, data: dict[str, Any], repeats: int) -> list[dict[str, A
 
 
 def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
-            memory: bool = True, options: ScpOptions | None = None, export: bool = False
-            ) -> dict[str, Any]:
+            memory: bool = True, options: PlanningOptions | None = None, export: bool = False,
+            method: str | None = None) -> dict[str, Any]:
     """Plan `repeats` times; figures of the last run, medians of the timings. total_s is
     the wall time of `planner.plan(dict)`: validation (and goal assignment, parse_s of it),
     planning and verification, cpu_s the process's CPU time over it (on a shared machine the
@@ -255,7 +259,7 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
         t0, c0 = time.perf_counter(), time.process_time()
         parsed = planner.Scenario.from_dict(data)  # what plan(dict) does first
         parses.append(time.perf_counter() - t0)
-        plan = planner.plan(parsed, solver=solver, options=options)
+        plan = planner.plan(parsed, solver=solver, options=options, method=method)
         totals.append(time.perf_counter() - t0)
         cpus.append(time.process_time() - c0)
         firsts.append(plan.timing["first_qp_s"])
@@ -272,15 +276,17 @@ def measure(name: str, data: dict[str, Any], repeats: int, solver: str | None,
     peak_traced = peak_rss = None
     if memory:
         peak_traced, peak_rss = memory_peaks(
-            lambda: planner.plan(scenario, solver=solver, options=options))
+            lambda: planner.plan(scenario, solver=solver, options=options, method=method))
     v = plan.verification
     result = {
         "scenario": name,
         "vehicles": len(scenario.vehicles),
         "steps": scenario.steps,
         "solver": plan.solver,
-        "group_qp": "dual" if (options or ScpOptions()).dual else "primal",
-        "decompose": (options or ScpOptions()).decompose,
+        "group_qp": "dual" if (options or PlanningOptions()).scp.dual else "primal",
+        "method": scenario.method if method is None else method,
+        "planned_by": plan.method,
+        "attempts": [dataclasses.asdict(a) for a in plan.attempts],
         "status": plan.status,
         "message": plan.message[:300],
         "verified": plan.ok,
@@ -353,7 +359,7 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         rss = [r["peak_rss_mb"] for r in group if r["peak_rss_mb"] is not None]
         out.append({
             "family": family, "assignment": assignment, "vehicles": n, "seeds": len(group),
-            "group_qp": group[0]["group_qp"], "decompose": group[0]["decompose"],
+            "group_qp": group[0]["group_qp"], "method": group[0]["method"],
             "verified": sum(r["verified"] for r in group),
             "total_s_median": statistics.median(r["total_s"] for r in group),
             "total_s_max": max(r["total_s"] for r in group),
@@ -438,13 +444,16 @@ def main() -> None:
                         help="also time writing each family plan's JSON (streamed)")
     parser.add_argument("--no-memory", action="store_true",
                         help="skip the extra run that measures peak memory")
-    parser.add_argument("--decompose", choices=sorted(DECOMPOSITIONS), default="none",
-                        help="plan the families whole (none) or in prioritized batches "
-                             "(ScpOptions.decompose)")
+    parser.add_argument("--method", choices=METHODS, default=None,
+                        help="how every case is planned (default: the scenario's, auto)")
+    parser.add_argument("--decompose", choices=("none", "prioritized"), default=None,
+                        help="the same as --method: none is whole")
     args = parser.parse_args()
 
     began = time.perf_counter()
-    options = ScpOptions(dual=args.group_qp == "dual", decompose=args.decompose)
+    options = PlanningOptions(scp=ScpOptions(dual=args.group_qp == "dual"))
+    method = args.method or {"none": "whole", "prioritized": "prioritized", None: None}[
+        args.decompose]
     report: dict[str, Any] = {"benchmark": "planner", "machine": machine(),
                               "settings": vars(args)}
     names = args.only if args.only is not None else PAPER + SCALE
@@ -475,7 +484,8 @@ def main() -> None:
                                  args.repeats)
         ]
     if args.profile:
-        report["profiles"] = {name: profile(name, options) for name in args.profile}
+        report["profiles"] = {name: profile(name, options, method=method)
+                              for name in args.profile}
     families = []
     if args.record:
         args.grid_sphere, args.assignment, args.sized_horizon = RECORD_SIZES, ["free"], True
@@ -488,7 +498,8 @@ def main() -> None:
                         "assignment": assignment}
                 made = time.perf_counter() - t0
                 row = measure(f"{data['name']}-{assignment}", data, args.repeats, None,
-                              memory=not args.no_memory, options=options, export=args.export)
+                              memory=not args.no_memory, options=options, export=args.export,
+                              method=method)
                 families.append({"family": "grid-sphere", "assignment": assignment,
                                  "seed": seed, "sized_horizon": sized,
                                  "horizon_s": data["steps"] * data["dt"],
@@ -500,21 +511,24 @@ def main() -> None:
                 seed = None if text == "none" else int(text)
                 data = sideways(n, seed=seed, spacing=spacing, offset=offset)
                 row = measure(data["name"], data, args.repeats, None,
-                              memory=not args.no_memory, options=options)
+                              memory=not args.no_memory, options=options,
+                              method=method)
                 families.append({"family": f"sideways s{spacing:g} o{offset:g}",
                                  "assignment": "fixed", "seed": seed,
                                  "spacing": spacing, "offset": offset, **row})
     for n in args.random_dense:
         for seed in args.seeds:
             row = measure(f"dense{n}-seed{seed}", random_dense(n, seed=seed), args.repeats,
-                          None, memory=not args.no_memory, options=options)
+                          None, memory=not args.no_memory, options=options,
+                              method=method)
             families.append({"family": "random-dense", "assignment": "fixed", "seed": seed,
                              **row})
     for family in args.obstacles:
         make, floor = OBSTACLE_FAMILIES[family]
         for seed in args.seeds:
             row = measure(f"{family}-seed{seed}", make(seed), args.repeats, None,
-                          memory=not args.no_memory, options=options)
+                          memory=not args.no_memory, options=options,
+                              method=method)
             families.append({"family": family, "assignment": "fixed", "seed": seed,
                              "floor_s": floor, "within_floor": row["total_s"] <= floor,
                              **row})

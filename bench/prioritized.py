@@ -1,9 +1,11 @@
-"""Prioritized batches against the whole-fleet SCP on the crowded families (JSON on stdout).
+"""The planning methods compared on the crowded families (JSON on stdout): prioritized
+batches, the whole fleet, and auto (both raced on two cores, the first verified plan wins).
 
-Each case is planned by `planner.plan` with `ScpOptions(decompose="prioritized")` (unless
---no-batches) and, unless --no-whole, with the default options (the whole fleet at once), one
-after the other in this process; wall and CPU time, status, verification, cost and the load
-average are recorded per run.
+Each case is planned by `planner.plan` with method prioritized (unless --no-batches), whole
+(unless --no-whole) and auto (unless --no-auto), one after the other in this process; wall
+and CPU time (auto's arms run in child processes: their CPU is counted as the children's),
+status, verification, cost, the method that planned, and the load average are recorded per
+run.
 
     nice -n 10 python bench/prioritized.py --cases sideways:100:none gs:256:0 > out.json
 """
@@ -11,6 +13,7 @@ average are recorded per run.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -27,8 +30,9 @@ from planner import plan  # noqa: E402
 from planner.first_qp import solve_first_qp  # noqa: E402
 from planner.generators import grid_to_sphere, random_dense, sideways  # noqa: E402
 from planner.obstacle_generators import forest  # noqa: E402
+from planner.options import PlanningOptions  # noqa: E402
 from planner.scenario import Scenario  # noqa: E402
-from planner.scp import ScpOptions, thrust_cost  # noqa: E402
+from planner.scp import thrust_cost  # noqa: E402
 from planner.solvers import make_solver  # noqa: E402
 
 
@@ -51,17 +55,25 @@ def build(case: str) -> dict[str, Any]:
     raise SystemExit(f"error: unknown family in case {case!r}")
 
 
-def run(case: str, options: ScpOptions, method: str) -> dict[str, Any]:
+def _cpu() -> float:
+    """CPU time of this process and its reaped children (auto's arms) so far (s)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def run(case: str, options: PlanningOptions, method: str, label: str) -> dict[str, Any]:
     scenario = build(case)
     load = os.getloadavg()[0]
-    wall, cpu = time.perf_counter(), time.process_time()
-    result = plan(scenario, options=options)
-    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    wall, cpu = time.perf_counter(), _cpu()
+    result = plan(scenario, options=options, method=method)
+    wall, cpu = time.perf_counter() - wall, _cpu() - cpu
     v = result.verification
     accelerations = np.stack([x.acceleration for x in result.vehicles])
     free = solve_first_qp(Scenario.from_dict(scenario).assigned(), make_solver(None))
     return {
-        "case": case, "method": method, "vehicles": len(scenario["vehicles"]),
+        "case": case, "method": label, "planned_by": result.method,
+        "attempts": [dataclasses.asdict(a) for a in result.attempts],
+        "vehicles": len(scenario["vehicles"]),
         "status": result.status, "verified": bool(v is not None and v.verified),
         "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
         "cost": thrust_cost(accelerations),
@@ -80,20 +92,41 @@ def main() -> None:
                         help="skip the whole-fleet SCP (for cases it takes minutes on)")
     parser.add_argument("--no-batches", action="store_true",
                         help="skip the prioritized batches (time the whole-fleet SCP alone)")
+    parser.add_argument("--no-auto", action="store_true", help="skip auto")
     args = parser.parse_args()
-    if args.no_whole and args.no_batches:
-        parser.error("--no-whole and --no-batches together leave nothing to run")
+    if args.no_whole and args.no_batches and args.no_auto:
+        parser.error("--no-whole, --no-batches and --no-auto together leave nothing to run")
+    options = PlanningOptions(batch_size=args.batch)
+    methods = [(method, label) for method, label, skip in (
+        ("prioritized", f"prioritized-{args.batch or 'auto'}", args.no_batches),
+        ("whole", "whole", args.no_whole), ("auto", "auto", args.no_auto)) if not skip]
     runs = []
     for case in args.cases:
-        if not args.no_batches:
-            runs.append(run(case, ScpOptions(decompose="prioritized", batch_size=args.batch),
-                            f"prioritized-{args.batch or 'auto'}"))
+        for method, label in methods:
+            runs.append(run(case, options, method, label))
             print(json.dumps(runs[-1]), file=sys.stderr, flush=True)
-        if not args.no_whole:
-            runs.append(run(case, ScpOptions(), "whole"))
-            print(json.dumps(runs[-1]), file=sys.stderr, flush=True)
-    json.dump({"benchmark": "prioritized batches vs whole-fleet SCP", "cpus": os.cpu_count(),
-               "runs": runs}, sys.stdout, indent=1)
+    json.dump({"benchmark": "planning methods: prioritized, whole, auto",
+               "cpus": os.cpu_count(), "runs": runs, "auto_ratios": _ratios(runs)},
+              sys.stdout, indent=1)
+
+
+def _ratios(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per case: auto's wall time over the faster method's, and against the bound
+    1.25 x faster + 0.5 s; whether auto planned whenever either method did."""
+    out = []
+    for case in dict.fromkeys(r["case"] for r in runs):
+        mine = {r["method"].split("-")[0]: r for r in runs if r["case"] == case}
+        if {"auto", "whole", "prioritized"} - set(mine):
+            continue
+        rivals = [mine["whole"], mine["prioritized"]]
+        planned = [r for r in rivals if r["verified"]]
+        faster = min(r["wall_s"] for r in planned or rivals)
+        auto = mine["auto"]
+        out.append({"case": case, "auto_s": auto["wall_s"], "faster_s": faster,
+                    "ratio": round(auto["wall_s"] / max(faster, 1e-9), 2),
+                    "within_bound": auto["wall_s"] <= 1.25 * faster + 0.5,
+                    "plans_whatever_either_plans": auto["verified"] or not planned})
+    return out
 
 
 if __name__ == "__main__":

@@ -270,7 +270,7 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
             spec = scenario_from_state(scenario, "landing", names, p, v, a, goals,
                                        separation=separation, steps=steps,
                                        max_iterations=MAX_ITERATIONS)
-            result = plan(spec, solver=solver, options=ScpOptions())
+            result = plan(spec, solver=solver, options=ScpOptions(), method="whole")
         except (PlannerError, ValueError, ArithmeticError) as exc:  # the caller falls back
             raise LandingError(f"cannot plan the landing: {exc}") from exc
         if result.ok:

@@ -1,7 +1,8 @@
 """`plan(scenario) -> Plan`: the planner's one entry point.
 
-Parses the scenario if given as a mapping, runs the SCP loop, derives jerk, thrust and body
-rates, verifies the result independently and packs it into a `Plan`. A plan is never
+Parses the scenario if given as a mapping, runs its method's table of stages
+(`planner.stages`; each stage's plan verified independently), derives jerk, thrust and body
+rates and packs the result into a `Plan`. A plan is never
 reported `converged` unless its verification passed; if the checks fail (which the loop is
 built to prevent) the status becomes `unverified`, with the reason in `message`; so it does
 when thrust or body rates exceed the scenario's flyability limits (the QP does not
@@ -10,56 +11,26 @@ constrain them).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
-from planner.dodge import DODGE_MIN_VEHICLES, dodged_moves
-from planner.first_qp import solve_first_qp, straight_moves, timed_first_qp
+from planner.errors import ScenarioError
+from planner.first_qp import straight_moves, timed_first_qp
 from planner.flatness import body_rates, jerk_from_accelerations, thrust
-from planner.prioritized import PrioritizedOutcome, batch_size, plan_batches
-from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
-from planner.scenario import Scenario
-from planner.scp import ScpOptions, run_scp, thrust_cost
-from planner.separated_first import separated_first
-from planner.solvers import SOLVED, QPSolver, make_solver
+from planner.options import PlanningOptions
+from planner.portfolio import AUTO_TABLE
+from planner.result import Attempt, IterationRecord, Outcome, Plan, PlanStatus, VehicleTrajectory
+from planner.scenario import METHODS, Scenario
+from planner.scp import ScpOptions
+from planner.solvers import make_solver
+from planner.stages import Context, TableResult, run_table, table_for
 from planner.types import FloatArray
-from planner.verify import verify
 
 __all__ = ["plan"]
-
-
-def _dodges(work: Scenario, options: ScpOptions | None) -> bool:
-    """Is the first linearisation point the dodged moves (`planner.dodge`)? Fixed goals,
-    large fleets of straight rest-to-rest moves in free space only (routes seed obstacle
-    scenarios; fixed trajectories and start velocities are not straight moves' business)."""
-    return (options is not None and options.dodge and len(work.vehicles) >= DODGE_MIN_VEHICLES
-            and not work.obstacles and not work.fixed and work.start_velocities is None)
-
-
-def _whole_because(work: Scenario, options: ScpOptions, free: bool, dodged: bool) -> str | None:
-    """Why a fleet asked to be planned in prioritized batches (`planner.prioritized`) is
-    planned whole, or None when it is not: the batches plan fixed-goal moves of a fleet of
-    more than one batch (from rest or a moving state, around its fixed trajectories)."""
-    size = batch_size(work, options.batch_size)
-    if len(work.vehicles) <= size:
-        return f"{len(work.vehicles)} vehicles fit in one batch of {size}"
-    if free:
-        return "free assignment plans from CAPT's straight moves"
-    if dodged:
-        return "the dodged first linearisation point was asked for too"
-    return None
-
-
-def _above_free(work: Scenario, backend: QPSolver, accelerations: FloatArray) -> float:
-    """How much more thrust cost `accelerations` take than `work`'s separation-free optimum
-    (a lower bound on every plan's cost): at most that far from the optimum."""
-    free = solve_first_qp(work, backend)
-    if free.status != SOLVED:
-        return float("inf")
-    return thrust_cost(accelerations) - thrust_cost(free.accelerations)
 
 
 def plan(
@@ -67,27 +38,36 @@ def plan(
     *,
     solver: str | None = None,
     progress: Callable[[IterationRecord], None] | None = None,
-    options: ScpOptions | None = None,
+    options: PlanningOptions | ScpOptions | None = None,
+    method: str | None = None,
 ) -> Plan:
     """Plan collision-free trajectories for every vehicle of `scenario`.
 
     solver: 'piqp' (default), 'clarabel' or 'osqp'. progress: called after every SCP
-    iteration with its `IterationRecord`. Raises `ScenarioError` for invalid input and
-    `SolverError` for an unknown solver; infeasibility is a plan status.
+    iteration with its `IterationRecord` (labelled with its method). options: the planning
+    settings (`PlanningOptions`), or only the SCP loop's (`ScpOptions`). method: 'auto',
+    'whole' or 'prioritized', overriding the scenario's `method`. Raises `ScenarioError` for
+    invalid input and `SolverError` for an unknown solver; infeasibility is a plan status.
 
-    With `"assignment": "free"` the vehicles fly to the goals of the scenario's assignment
-    (`Scenario.goal_order`), and the first SCP iteration is linearised about CAPT's
-    synchronised straight moves to them; the plan echoes the scenario as given. With fixed
-    goals and `ScpOptions(dodge=True)` a large fleet's first iteration is linearised about
-    those moves pushed apart where they crowd (`planner.dodge`); if that plan does not
-    converge and verify, it is planned again from the synchronised moves (`progress` then
-    sees both runs). With `ScpOptions(decompose="prioritized")` the fleet is planned in
-    batches (`planner.prioritized`), and as a whole if a batch fails or the joined plan does
-    not verify; the message says which. Under free assignment a separation-free optimum
-    that is already separated is the plan, without the loop (`planner.separated_first`).
+    The method picks a table of stages (`planner.stages`): under free assignment a
+    separation-free optimum that is already separated is the plan, without the loop; with
+    fixed goals `prioritized` plans the fleet in batches (`planner.prioritized`) and the
+    whole fleet if they fail, `whole` only the whole fleet, and `auto` both at once where
+    batches apply (`planner.portfolio`). The plan records the method that produced it and
+    every method tried or declined (`Plan.method`, `Plan.attempts`). With free assignment
+    the vehicles fly to the goals of the scenario's assignment (`Scenario.goal_order`), the
+    whole fleet linearised first about CAPT's synchronised straight moves; the plan echoes
+    the scenario as given.
     """
     began = time.perf_counter()
     spec = scenario if isinstance(scenario, Scenario) else Scenario.from_dict(scenario)
+    if method is not None:
+        if method not in METHODS:
+            raise ScenarioError("method", f"must be one of {', '.join(map(repr, METHODS))}, "
+                                          f"got {method!r}")
+        spec = dataclasses.replace(spec, method=method)
+    settings = options if isinstance(options, PlanningOptions) else PlanningOptions(
+        scp=options or ScpOptions())
     backend = make_solver(solver)
     if spec.steps_auto:  # the planner chooses the horizon, planning fixed ones
         from planner.horizon_search import search_horizon
@@ -95,60 +75,34 @@ def plan(
         return search_horizon(spec, backend, lambda fixed: plan(
             fixed, solver=solver, progress=progress, options=options))
     work = spec.assigned()
+    free = spec.assignment == "free"
     # iteration 0, solved once: the plan when already separated, else the loop's start
-    first_qp = timed_first_qp(work, backend) if spec.assignment == "free" else None
-    direct = separated_first(work, *first_qp) if first_qp is not None else None
-    guess = straight_moves(work) if spec.assignment == "free" and direct is None else None
-    dodged = guess is None and direct is None and _dodges(work, options)
-    if dodged:
-        found = dodged_moves(work, straight_moves(work))
-        dodged = found is not None
-        guess = None if found is None else found[0]
-    whole_because = (_whole_because(work, options, guess is not None, dodged)
-                     if options is not None and options.decompose == "prioritized"
-                     and direct is None else None)
-    decomposed = (options is not None and options.decompose == "prioritized"
-                  and direct is None and whole_because is None)
-    batched = (plan_batches(work, backend, options, progress, options.batch_size)
-               if decomposed and options is not None else None)
-    batches = batched if isinstance(batched, PrioritizedOutcome) else None
-    if isinstance(batched, str):
-        whole_because = batched
-    verification: Verification | None = None
-    if direct is not None:
-        outcome, verification = direct
-        if progress is not None:
-            progress(outcome.iterations[0])
-    elif batches is not None:
-        outcome = batches.outcome
-        verification = verify(work, outcome.positions, outcome.velocities,
-                              outcome.accelerations)
-        if not verification.verified:
-            whole_because = ("the joined batches failed verification: "
-                             + "; ".join(verification.failures()))
-            batches = None
-        elif options is not None and options.batch_cost_share:
-            above = _above_free(work, backend, outcome.accelerations)
-            if not above < work.cost_threshold:
-                whole_because = (f"the joined batches cost {above:.3g} above the "
-                                 f"separation-free optimum, not less than cost_threshold "
-                                 f"{work.cost_threshold:g}")
-                batches = None
-    if direct is None and batches is None:
-        outcome = run_scp(work, backend, options, progress, guess, first_qp)
-        if whole_because is not None:
-            outcome.message += f"; planned as a whole fleet, not in prioritized batches: " \
-                               f"{whole_because}"
-        verification = (verify(work, outcome.positions, outcome.velocities,
-                               outcome.accelerations)
-                        if outcome.status != "infeasible" else None)
+    ctx = Context(work, free, backend, settings, progress,
+                  first_qp=timed_first_qp(work, backend) if free else None)
+    ctx.guess = straight_moves(work) if free else None
+    table = AUTO_TABLE if spec.method == "auto" else table_for(spec.method)
+    result = run_table(table, ctx)
+    return _packed(spec, result, backend.name, began)
+
+
+def _message(spec: Scenario, result: TableResult) -> str:
+    """The plan's message: its outcome's, and why batches asked for did not plan it."""
+    assert result.run is not None and result.run.outcome is not None
+    message = result.run.outcome.message
+    if spec.method == "prioritized" and result.method not in ("prioritized", "separated_first"):
+        why = next((a.reason for a in result.attempts if a.method == "prioritized"
+                    and a.outcome in (Outcome.DECLINED, Outcome.FAILED)), None)
+        if why is not None:
+            message += f"; planned as a whole fleet, not in prioritized batches: {why}"
+    return message
+
+
+def _packed(spec: Scenario, result: TableResult, solver: str, began: float) -> Plan:
+    """The `Plan` of a table's result: derived jerk, thrust and body rates, the verdict."""
+    run = result.run
+    assert run is not None and run.outcome is not None  # a table ends with a final stage
+    outcome, verification = run.outcome, run.verification
     p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
-    if dodged and (outcome.status != "converged" or verification is None
-                   or not verification.verified):
-        # Never a worse plan for having tried: plan again from the synchronised moves.
-        outcome = run_scp(work, backend, options, progress, None)
-        p, v, a = outcome.positions, outcome.velocities, outcome.accelerations
-        verification = verify(work, p, v, a) if outcome.status != "infeasible" else None
     jerk = jerk_from_accelerations(a, spec.dt, spec.start_accelerations)
     f = thrust(a)
     rates = body_rates(a, jerk)
@@ -160,23 +114,33 @@ def plan(
         )
         for n, vehicle in enumerate(spec.vehicles)
     )
-    status, message = outcome.status, outcome.message
+    status, message = outcome.status, _message(spec, result)
     if verification is not None and not verification.verified:
-        if status == "converged":
-            status = "unverified"
+        if status == PlanStatus.CONVERGED:
+            status = PlanStatus.UNVERIFIED
         message = f"{message}; verification failed: {'; '.join(verification.failures())}"
     timing = {
         "total_s": time.perf_counter() - began,
         "first_qp_s": outcome.first_qp_seconds,
     }
+    iterations = tuple(r if r.method is not None else dataclasses.replace(r, method=result.method)
+                       for r in outcome.iterations)
     return Plan(
-        status=status,
+        status=str(status),
         message=message,
         scenario=spec,
         vehicles=vehicles,
-        iterations=tuple(outcome.iterations),
+        iterations=iterations,
         timing=timing,
         verification=verification,
-        solver=backend.name,
+        solver=solver,
         infeasible_groups=outcome.infeasible_groups,
+        method=result.method,
+        attempts=tuple(_rounded(attempt) for attempt in result.attempts),
     )
+
+
+def _rounded(attempt: Attempt) -> Attempt:
+    """An attempt with plain JSON values (its outcome as a string)."""
+    return dataclasses.replace(attempt, outcome=str(attempt.outcome),
+                               seconds=float(attempt.seconds))

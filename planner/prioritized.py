@@ -138,15 +138,17 @@ def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach:
 
 def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = None,
                  progress: Callable[[IterationRecord], None] | None = None,
-                 batch: int | None = None, order: IntArray | None = None
-                 ) -> PrioritizedOutcome | str:
+                 batch: int | None = None, order: IntArray | None = None,
+                 cost_share: bool = False) -> PrioritizedOutcome | str:
     """Plan `work` (goals assigned; its own fixed trajectories, start velocities and
     accelerations are kept) batch by batch. A batch whose SCP does not converge is planned
     again together with the earlier vehicles that come closest to its first linearisation
     point (MERGE_ROUNDS times, MERGE_GROWTH more each time); if it still does not, it is
     deferred once to the end of the order (the later vehicles reserved at their starts may
     be what blocks it: planned first, they leave; a fleet in motion reserves nothing, so it
-    is not deferred). Returns why it gave up (NOT_CONVERGED, UNREACHABLE) instead of an
+    is not deferred). With `cost_share` each batch stops at its share of `cost_threshold`
+    (`planner.options.PlanningOptions.batch_cost_share`). Returns why it gave up
+    (NOT_CONVERGED, UNREACHABLE) instead of an
     outcome when a batch fails again or a goal is cut off."""
     n, steps = len(work.vehicles), work.steps
     # a vehicle in motion cannot wait where it is: starts are reserved from rest only
@@ -184,7 +186,8 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
         reopened = np.zeros(0, dtype=np.intp)
         for attempt in range(MERGE_ROUNDS + 1):
             outcome, guess = _plan_batch(state, members, reopened, later, solver, options,
-                                         progress, f"#batch{number}" + "+" * attempt)
+                                         progress, f"#batch{number}" + "+" * attempt,
+                                         cost_share)
             iterations.extend(outcome.iterations)
             first_qp += outcome.first_qp_seconds
             if outcome.status == "converged" or attempt == MERGE_ROUNDS:
@@ -240,7 +243,8 @@ class _State:
 
 def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: IntArray,
                 solver: QPSolver, options: ScpOptions | None,
-                progress: Callable[[IterationRecord], None] | None, suffix: str
+                progress: Callable[[IterationRecord], None] | None, suffix: str,
+                cost_share: bool = False
                 ) -> tuple[ScpOutcome, tuple[FloatArray, FloatArray, FloatArray]]:
     """One batch's SCP: `members` and the `reopened` earlier vehicles planned, the other
     planned vehicles near them and the scenario's own fixed trajectories fixed, the `later`
@@ -268,8 +272,7 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
                                     state.routes)]
         for j in resting:
             fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", work.starts[j][None, :]))
-    share = len(group) / len(work.vehicles) if options is not None and options.batch_cost_share \
-        else 1.0
+    share = len(group) / len(work.vehicles) if cost_share else 1.0
     sub = dataclasses.replace(
         work, name=f"{work.name}{suffix}", vehicles=tuple(work.vehicles[j] for j in group),
         starts=work.starts[group], goals=work.goals[group], fixed=tuple(fixed),

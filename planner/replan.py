@@ -36,10 +36,10 @@ from planner.first_qp import solve_first_qp
 from planner.fixed import FixedTrajectory
 from planner.from_state import scenario_from_state
 from planner.landing import START_SLACK, first_step_clearance
+from planner.options import PlanningOptions
 from planner.planning import plan
 from planner.result import Plan
 from planner.scenario import MAX_STEPS, RANGES, Scenario, minimum_transfer_time
-from planner.scp import ScpOptions
 from planner.separation import NEAR_MIN_VEHICLES, close_rows, near_pairs
 from planner.solvers import SOLVED, make_solver
 from planner.types import FloatArray
@@ -257,9 +257,10 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
             if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
                 break
             spec = scenario(factor * horizon)
-            options = (ScpOptions(decompose="prioritized", batch_cost_share=True)
-                       if crowded.rows > CROWD_BATCH_ROWS else ScpOptions())
-            result = plan(spec, solver=solver, options=options)
+            batches = crowded.rows > CROWD_BATCH_ROWS
+            result = plan(spec, solver=solver,
+                          options=PlanningOptions(batch_cost_share=batches),
+                          method="prioritized" if batches else "whole")
             if result.ok:
                 return Replan(result, separation, time.perf_counter() - began, attempts)
             failures.append(f"{spec.horizon:.1f} s: {'; '.join(result.problems())}")

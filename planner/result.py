@@ -11,6 +11,7 @@ import dataclasses
 import json
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields
+from enum import StrEnum
 from typing import Any, TextIO
 
 import numpy as np
@@ -23,17 +24,61 @@ from planner.scenario import Scenario
 from planner.types import FloatArray
 
 __all__ = [
+    "OUTCOMES",
     "STATUSES",
+    "Attempt",
     "IterationRecord",
+    "Outcome",
     "Plan",
+    "PlanStatus",
     "VehicleTrajectory",
     "Verification",
 ]
 
 
-#: Every status a plan can carry. `unverified`: the loop stopped but the independent
-#: verification failed (never expected; reported rather than hidden).
-STATUSES = ("converged", "max_iterations", "infeasible", "unverified")
+class PlanStatus(StrEnum):
+    """Every status a plan can carry (the JSON strings are the values). `unverified`: the
+    loop stopped but the independent verification failed (reported rather than hidden)."""
+
+    CONVERGED = "converged"
+    MAX_ITERATIONS = "max_iterations"
+    INFEASIBLE = "infeasible"
+    UNVERIFIED = "unverified"
+
+
+#: The plan statuses as JSON strings, in the order of `PlanStatus`.
+STATUSES = tuple(status.value for status in PlanStatus)
+
+
+class Outcome(StrEnum):
+    """What became of one planning method (`Attempt.outcome`)."""
+
+    WON = "won"
+    """It produced the plan."""
+    DECLINED = "declined"
+    """It did not apply to the scenario and did not run."""
+    FAILED = "failed"
+    """It ran and gave no converged, verified plan."""
+    CANCELLED = "cancelled"
+    """It was stopped because another method's plan came first."""
+
+
+#: The attempt outcomes as JSON strings.
+OUTCOMES = tuple(outcome.value for outcome in Outcome)
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One planning method tried or declined on the way to a plan (`planner.stages`)."""
+
+    method: str
+    """The method (stage): separated_first, prioritized, dodge or whole."""
+    outcome: str
+    """won, declined, failed or cancelled (`Outcome`)."""
+    reason: str
+    """Why it was declined, failed or cancelled; how it won."""
+    seconds: float
+    """Wall time it took (s); 0 for a declined one that cost nothing measurable."""
 
 
 @dataclass(frozen=True)
@@ -96,6 +141,9 @@ class IterationRecord:
     seconds: float
     largest_group: int = 0
     """Vehicles in the largest group."""
+    method: str | None = None
+    """The planning method whose iteration this is (`Attempt.method`); null in plans
+    written without it."""
 
 
 #: Field metadata of the verification's obstacle figures: the plan JSON leaves them out
@@ -241,6 +289,11 @@ class Plan:
     horizon: dict[str, Any] | None = None
     """For `steps: "auto"`: how the horizon was chosen (`planner.horizon_search`: the
     candidates tried, the chosen steps); None (JSON null) for a fixed number of steps."""
+    method: str | None = None
+    """The planning method that produced the plan (`Attempt.method`); null for a stitched
+    sequence (its legs say) and in plans written without it."""
+    attempts: tuple[Attempt, ...] = ()
+    """Every method tried or declined, in order, with its outcome, reason and time."""
 
     @property
     def ok(self) -> bool:
@@ -315,6 +368,8 @@ class Plan:
                                                         self.scenario.order, strict=True)},
             "sequence": self.sequence,
             "horizon": self.horizon,
+            "method": self.method,
+            "attempts": [asdict(attempt) for attempt in self.attempts],
         }
 
     @classmethod
@@ -443,7 +498,26 @@ def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
         infeasible_groups=tuple(data.get("infeasible_groups", ())),
         sequence=_sequence_block(data.get("sequence")),
         horizon=_horizon_block(data.get("horizon")),
+        method=_method(data.get("method")),
+        attempts=tuple(_attempt(r, f"attempts[{n}]")
+                       for n, r in enumerate(_list(data.get("attempts", []), "attempts"))),
     )
+
+
+def _method(value: Any) -> str | None:
+    """The plan's optional `method`: a string or null."""
+    if value is not None and not isinstance(value, str):
+        raise PlanFormatError("method", f"must be a string or null, got {value!r}")
+    return value
+
+
+def _attempt(value: Any, where: str) -> Attempt:
+    """One `attempts` entry, its outcome checked."""
+    attempt: Attempt = _record(Attempt, value, where)
+    if attempt.outcome not in OUTCOMES:
+        raise PlanFormatError(f"{where}.outcome", f"must be one of {', '.join(OUTCOMES)}, "
+                                                  f"got {attempt.outcome!r}")
+    return attempt
 
 
 def _sequence_block(value: Any) -> dict[str, Any] | None:

@@ -33,8 +33,8 @@ if TYPE_CHECKING:
     from planner.fixed import FixedSet, FixedTrajectory
     from planner.obstacles import Obstacle, ObstacleSet
 
-__all__ = ["AUTO_STEPS", "DEFAULTS", "DEFAULT_MAX_HORIZON", "RANGES", "Limits", "Scenario",
-           "Vehicle", "check_id", "check_keys", "check_number", "check_vector",
+__all__ = ["AUTO_STEPS", "DEFAULTS", "DEFAULT_MAX_HORIZON", "METHODS", "RANGES", "Limits",
+           "Scenario", "Vehicle", "check_id", "check_keys", "check_number", "check_vector",
            "minimum_transfer_time"]
 
 
@@ -48,11 +48,17 @@ DEFAULTS: dict[str, Any] = {
     "thrust_max": 18.0,
     "body_rate_max": 6.0,
     "assignment": "fixed",
+    "method": "auto",
 }
 
 #: `assignment` values: "fixed" (vehicle n flies to its own goal) or "free" (any vehicle may
 #: take any goal; see `planner.assignment`).
 ASSIGNMENTS = ("fixed", "free")
+
+#: `method` values, how the fleet is planned (`planner.stages`): "auto" (both methods at once
+#: where both apply, the first verified plan wins), "whole" (the whole fleet's SCP) or
+#: "prioritized" (batches, each around the earlier ones; the whole fleet if they fail).
+METHODS = ("auto", "whole", "prioritized")
 
 #: Hard caps that keep one scenario from exhausting memory (not physical limits). A record
 #: drone show is about 16,000 vehicles; a service sets its own, lower fleet limit
@@ -73,7 +79,7 @@ MAX_HORIZON_LIMIT = 3600.0
 _TOP_KEYS = {
     "name", "dt", "steps", "min_separation", "separation_scale", "cost_threshold",
     "max_iterations", "limits", "vehicles", "assignment", "separation_margin",
-    "obstacles", "obstacle_clearance", "fixed", "max_horizon",
+    "obstacles", "obstacle_clearance", "fixed", "max_horizon", "method",
 }
 _LIMIT_KEYS = {
     "position_min", "position_max", "velocity_max", "acceleration_max", "jerk_max",
@@ -171,6 +177,10 @@ class Scenario:
     goal_order: IntArray | None = field(default=None, repr=False)
     """(N,) for 'free': the goal index each vehicle flies to (minimum total squared
     distance); None for 'fixed' (the identity)."""
+    method: str = "auto"
+    """How the fleet is planned: 'auto' (both methods at once where both apply, the first
+    verified plan wins), 'whole' (the whole fleet's SCP) or 'prioritized' (batches, each
+    around the earlier ones, and the whole fleet if they fail)."""
     separation_margin: float = 0.0
     """Part of `min_separation` (m) reserved for the fleet's position error in flight
     (2 x its expected error, `gcs.flight.safety.margin`): the vehicles must keep
@@ -291,6 +301,7 @@ class Scenario:
             "max_iterations": self.max_iterations,
             "limits": self.limits.to_dict(),
             "assignment": self.assignment,
+            "method": self.method,
             "vehicles": [_vehicle_dict(v) for v in self.vehicles],
         } | ({"separation_margin": self.separation_margin} if self.separation_margin else {}
              ) | ({"obstacle_clearance": self.clearance,
@@ -426,6 +437,10 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     assignment = data.get("assignment", DEFAULTS["assignment"])
     if assignment not in ASSIGNMENTS:
         raise ScenarioError("assignment", f"must be 'fixed' or 'free', got {assignment!r}")
+    method = data.get("method", DEFAULTS["method"])
+    if not isinstance(method, str) or method not in METHODS:
+        raise ScenarioError("method", f"must be one of {', '.join(map(repr, METHODS))}, "
+                                      f"got {method!r}")
 
     raw_vehicles = check_list(data["vehicles"], "vehicles", "vehicles", MAX_VEHICLES)
     if not raw_vehicles:
@@ -531,6 +546,7 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
         goals=goals,
         assignment=assignment,
         goal_order=goal_order,
+        method=method,
         separation_margin=margin,
         start_velocities=start_velocities,
         start_accelerations=start_accelerations,

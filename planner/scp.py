@@ -38,7 +38,7 @@ from planner.flatness import GRAVITY
 from planner.obstacle_rows import SEED_FRACTION, concat_rows
 from planner.one_sided import OneSidedRows
 from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
-from planner.result import IterationRecord
+from planner.result import IterationRecord, PlanStatus
 from planner.routes import seed_routes
 from planner.scenario import Scenario
 from planner.separation import (
@@ -80,8 +80,6 @@ DUAL_MAX_ROWS_PER_VEHICLE = 25
 #: steps (5K x 5K doubles: 32 MB at 400 steps, 5 GB at the 5,000 allowed) and the primal is
 #: faster there anyway (2 vehicles crossing: 0.02 s against 0.29 s at 600 steps).
 DUAL_MAX_STEPS = 400
-#: `ScpOptions.decompose` values: the whole fleet at once, or prioritized batches.
-DECOMPOSITIONS = ("none", "prioritized")
 #: Vehicles per prioritized batch by default for a fleet with a dominant motion: measured
 #: fastest on the sideways family (see docs/benchmarks/planner.md, Prioritized batches);
 #: an obstacle-free crowd without one goes a vehicle at a time
@@ -100,7 +98,8 @@ MARGIN_WINDOW = 4
 
 @dataclass(frozen=True)
 class ScpOptions:
-    """Knobs of the SCP loop; the defaults are what `planner.plan` uses."""
+    """Knobs of the SCP loop itself; the defaults are what `planner.plan` uses (the choice of
+    planning method is `planner.options.PlanningOptions`)."""
 
     continuous: bool = True
     """Interval rows (separation over continuous time) instead of the paper's step rows."""
@@ -122,46 +121,15 @@ class ScpOptions:
     the PIQP backend; other backends always solve the primal, and so does a plan of more
     than DUAL_MAX_STEPS steps, or a group whose dual is too dense (DUAL_MAX_ROWS_PER_VEHICLE)
     or did not solve (infeasible, ...)."""
-    dodge: bool = False
-    """With fixed goals and at least `planner.dodge.DODGE_MIN_VEHICLES` vehicles, linearise
-    the first SCP iteration about the synchronised moves pushed apart by smooth dodges
-    (`planner.dodge`) where they crowd; `planner.plan` falls back to the synchronised moves
-    when that plan does not converge and verify. Off by default: measured faster on some
-    crowds (sideways 100: 1.8x) and slower on others (random 256: 1.6x), see
-    docs/benchmarks/planner.md."""
-    decompose: str = "none"
-    """"prioritized": `planner.plan` plans the fleet in batches of `batch_size` vehicles,
-    each against the earlier ones as fixed trajectories (`planner.prioritized`), verifies
-    the joined plan and plans the whole fleet instead if a batch fails or the check does;
-    "none" (the default): the whole fleet at once."""
-    batch_size: int | None = None
-    """Vehicles per batch with decompose="prioritized"; None: by the fleet's motion
-    (`planner.prioritized.batch_size`: 1 in an obstacle-free crowd without a dominant
-    motion, else DEFAULT_BATCH)."""
-    batch_cost_share: bool = False
-    """With decompose="prioritized", each batch stops at its share of the scenario's
-    `cost_threshold` (its vehicles over the fleet's), and the joined plan is taken only if
-    its thrust cost exceeds the separation-free optimum by less than `cost_threshold`: then
-    it is within that of the fleet's optimum, as a whole-fleet SCP stopped after a first
-    iteration that changed the cost by less is (a replan's rule). False: each batch stops
-    at the whole `cost_threshold`, and the joined plan's cost is not bounded."""
     obstacle_seed: float = SEED_FRACTION
     """Obstacle rows within this many clearances of binding at the linearisation point
     start an iteration's QP (the rest are added when broken). More suits small QPs (the
     prioritized batches), where a re-solve costs more than the extra rows."""
 
     def __post_init__(self) -> None:
-        if self.decompose not in DECOMPOSITIONS:
-            raise ValueError(f"decompose: must be one of {', '.join(DECOMPOSITIONS)}, "
-                             f"got {self.decompose!r}")
         if not 0.0 < self.obstacle_seed < float("inf"):
             raise ValueError(f"obstacle_seed: must be a positive number of clearances, "
                              f"got {self.obstacle_seed!r}")
-        if self.batch_size is not None and (
-                isinstance(self.batch_size, bool) or not isinstance(self.batch_size, int)
-                or self.batch_size < 1):
-            raise ValueError(f"batch_size: must be a whole number of vehicles >= 1, "
-                             f"got {self.batch_size!r}")
 
 
 @dataclass
@@ -637,7 +605,7 @@ def run_scp(
             message = (f"vehicles[{index}] ({scenario.vehicles[index].id!r}) cannot reach its "
                        f"goal in the horizon {why}")
         return ScpOutcome(
-            status="infeasible", message=message,
+            status=PlanStatus.INFEASIBLE, message=message,
             positions=base[0], velocities=base[1], accelerations=base[2],
             iterations=[], first_qp_seconds=first_seconds,
             infeasible_groups=(group,),
@@ -663,7 +631,7 @@ def run_scp(
         seeded = seed_routes(scenario, current)
         if seeded.unreachable is not None:
             return ScpOutcome(
-                status="infeasible", message=seeded.unreachable,
+                status=PlanStatus.INFEASIBLE, message=seeded.unreachable,
                 positions=base[0], velocities=base[1], accelerations=base[2],
                 iterations=history, first_qp_seconds=first_seconds,
                 infeasible_groups=("obstacles",),
@@ -675,7 +643,7 @@ def run_scp(
     held = np.zeros(0, dtype=np.int64)
     retried = 0
     last: _IterationResult | None = None
-    status, message = "max_iterations", ""
+    status, message = PlanStatus.MAX_ITERATIONS, ""
     for iteration in range(1, scenario.max_iterations + 1):
         t0 = time.perf_counter()
         solves_before = groups_solver.solves
@@ -707,7 +675,7 @@ def run_scp(
         if last.status != SOLVED:
             ids = [scenario.vehicles[i].id for i in last.failed]
             return ScpOutcome(
-                status="infeasible",
+                status=PlanStatus.INFEASIBLE,
                 message=(
                     f"iteration {iteration}: the QP of vehicles {', '.join(ids)} has no "
                     f"solution with the linearised separation"
@@ -730,7 +698,7 @@ def run_scp(
         current, cost, carried = last.solution, new_cost, last.active
         held = last.obstacle_active
         if change < scenario.cost_threshold:
-            status = "converged"
+            status = PlanStatus.CONVERGED
             message = f"cost changed by {change:.3g} < {scenario.cost_threshold:g}"
             break
     else:

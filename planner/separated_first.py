@@ -11,7 +11,7 @@ confirming it, which at show scale (16,000 vehicles, 128 million pairs) is most 
 from __future__ import annotations
 
 from planner.first_qp import FirstSolution
-from planner.result import IterationRecord, Verification
+from planner.result import IterationRecord, PlanStatus, Verification
 from planner.scenario import Scenario
 from planner.scp import ScpOutcome, thrust_cost
 from planner.solvers import SOLVED
@@ -37,4 +37,4 @@ def separated_first(scenario: Scenario, first: FirstSolution, seconds: float
     record = IterationRecord(0, thrust_cost(a), None, 0, first.qp_solves, 0, seconds)
     message = ("the separation-free optimum is separated over continuous time: it is the "
                "optimum")
-    return ScpOutcome("converged", message, p, v, a, [record], seconds), verification
+    return ScpOutcome(PlanStatus.CONVERGED, message, p, v, a, [record], seconds), verification

@@ -50,12 +50,12 @@ __all__ = [
 
 _TOP_KEYS = {
     "name", "dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",
-    "limits", "assignment", "vehicles", "formations", "max_horizon",
+    "limits", "assignment", "vehicles", "formations", "max_horizon", "method",
 }
 _FORMATION_KEYS = {"name", "positions", "duration", "hold", "assignment"}
 #: Leg settings copied from the sequence into every leg scenario.
 _SHARED = ("dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",
-           "limits")
+           "limits", "method")
 #: Most formations in one sequence (bounds the work one request can ask for).
 MAX_FORMATIONS = 100
 
@@ -229,7 +229,7 @@ def _leg_error(exc: ScenarioError, f: int, previous: tuple[int, ...], order: NDA
             slot = int(order[n]) if part == "goal" else previous[n]
             return _field_error(f"formations[{g}].positions[{slot}]", exc.reason)
     if field in ("dt", "min_separation", "separation_scale", "cost_threshold",
-                 "max_iterations") or field.startswith("limits"):
+                 "max_iterations", "method") or field.startswith("limits"):
         return _field_error(field, exc.reason)
     if field == "max_horizon":
         return _field_error(field, f"formations[{f}] (an auto duration): {exc.reason}")

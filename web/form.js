@@ -193,6 +193,7 @@ export function readScenario() {
     dt: /** @type {number} */ (readNumber($("#f-dt"))),
     steps: readSteps(),
     min_separation: /** @type {number} */ (readNumber($("#f-min_separation"))),
+    method: /** @type {HTMLSelectElement} */ ($("#f-method")).value,
     limits,
     vehicles,
   };
@@ -214,6 +215,7 @@ export function writeScenario(scenario, on) {
   $("#f-dt").value = scenario.dt;
   $("#f-steps").value = String(scenario.steps);
   $("#f-min_separation").value = scenario.min_separation;
+  /** @type {HTMLSelectElement} */ ($("#f-method")).value = scenario.method ?? "auto";
   for (const key of LIMIT_KEYS) {
     const v = scenario.limits[key];
     $$(`tr[data-limit="${key}"] input`).forEach((input, a) => { input.value = v ? v[a] : ""; });

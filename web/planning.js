@@ -136,17 +136,20 @@ function iterationItem(r) {
   const leg = (r.leg === undefined || r.leg === null) ? "" : `leg ${r.leg}, `;
   li.textContent = `${leg}iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
     (r.cost_change === null ? "" : ` (Δ ${fmt(r.cost_change, 3)})`) +
-    `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s`;
+    `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s` +
+    (r.method ? ` · ${r.method}` : "");
   return li;
 }
 
 /** The progress log holds every iteration of the plan shown: a plan that finished before its
- * stream was followed (a quick plan, a busy browser) is listed from the plan's own record.
+ * stream was followed (a quick plan, a busy browser) is listed from the plan's own record, and
+ * so is one whose method raced another (the stream carried the other's iterations too).
  * @param {any} plan */
 function completeProgressLog(plan) {
   const log = $("#progress-log");
   const iterations = Array.isArray(plan.iterations) ? plan.iterations : [];
-  if (log.children.length >= iterations.length) return;
+  // (a stitched sequence's plan records no iterations of its own: its legs' lines stay)
+  if (!iterations.length || log.children.length === iterations.length) return;
   log.innerHTML = "";
   for (const r of iterations) log.append(iterationItem(r));
 }

@@ -195,6 +195,15 @@ function row(table, label, value, good) {
   return b;
 }
 
+/** The method that planned, and what became of the others that ran (auto races two).
+ * @param {Plan} plan
+ * @returns {string} */
+function methodText(plan) {
+  const others = (plan.attempts || []).filter((a) => a.outcome === "failed" || a.outcome === "cancelled")
+    .map((a) => `${a.method} ${a.outcome} after ${fmt(a.seconds, 2)} s`);
+  return String(plan.method) + (others.length ? ` (${others.join("; ")})` : "");
+}
+
 /** @param {Plan} plan @param {boolean} planOk */
 function renderSummary(plan, planOk) {
   const v = plan.verification || {};
@@ -217,6 +226,8 @@ function renderSummary(plan, planOk) {
   const sol = $("#solver-figures");
   sol.innerHTML = "<caption>solver</caption>";
   const its = plan.iterations || [];
+  const method = row(sol, "method", plan.method ? methodText(plan) : "–");
+  method.id = "plan-method";
   row(sol, "solver", String(plan.solver));
   row(sol, "SCP iterations", its.length ? String(its[its.length - 1].iteration) : "–");
   row(sol, "final cost", its.length ? fmt(its[its.length - 1].cost, 2) : "–");

@@ -10,9 +10,12 @@
  *   limits: Record<string, any>, vehicles: ScenarioVehicle[], separation_scale?: number[],
  *   [key: string]: any}} Scenario */
 /** @typedef {{id: string, t: number[], thrust: number[]}} PlanVehicle */
+/** @typedef {{method: string, outcome: string, reason: string, seconds: number}} Attempt
+ *  one planning method tried or declined */
 /** @typedef {{status: string, message?: string, solver?: string, scenario: Scenario,
  *   vehicles: PlanVehicle[], verification?: any, iterations?: any[], timing: any,
- *   sequence?: any, horizon?: any}} Plan */
+ *   sequence?: any, horizon?: any,
+ *   method?: string | null, attempts?: Attempt[]}} Plan */
 /** @typedef {{id: string, name: string, status: string, plan: Plan | null, plan_ok: boolean,
  *   plan_status?: string, scenario: Scenario, error?: {field?: string, reason: string}}} Mission */
 /** @typedef {{rate: number, t: number[], vehicles: {id: string, position: number[][],

@@ -59,7 +59,7 @@ EXAMPLE_SCENARIO: dict[str, Any] = _example_scenario()
 
 _ITERATION: dict[str, Any] = {
     "iteration": 1, "cost": 14433.1, "cost_change": 0.115, "separation_rows": 96,
-    "qp_solves": 1, "groups": 2, "seconds": 0.02, "largest_group": 2,
+    "qp_solves": 1, "groups": 2, "seconds": 0.02, "largest_group": 2, "method": "whole",
 }
 _TRAJECTORY_EXAMPLE: dict[str, Any] = {
     "id": "uav1", "t": [0.0, 0.2], "position": [[4.5, 2.5, 1.1], [4.4976, 2.5, 1.1]],
@@ -78,6 +78,9 @@ _PLAN_EXAMPLE: dict[str, Any] = {
                      "separation_tolerance": 0.001, "bound_tolerance": 1e-4},
     "sequence": None,
     "horizon": None,
+    "method": "whole",
+    "attempts": [{"method": "whole", "outcome": "won",
+                  "reason": "cost changed by 0.0396 < 0.05", "seconds": 0.2}],
 }
 _SUMMARY_EXAMPLE: dict[str, Any] = {
     "id": "3f2a9c81d0b4", "name": "paper-circle4", "status": "planned",
@@ -107,6 +110,7 @@ _PLAN_TYPES: dict[str, type] = {
     "VehicleTrajectory": planner_result.VehicleTrajectory,
     "IterationRecord": planner_result.IterationRecord,
     "Verification": planner_result.Verification,
+    "Attempt": planner_result.Attempt,
 }
 _EXAMPLES: dict[str, Any] = {
     "Scenario": EXAMPLE_SCENARIO,
@@ -122,6 +126,7 @@ _EXAMPLES: dict[str, Any] = {
     "VehicleTrajectory": _TRAJECTORY_EXAMPLE,
     "IterationRecord": _ITERATION,
     "Verification": _PLAN_EXAMPLE["verification"],
+    "Attempt": _PLAN_EXAMPLE["attempts"][0],
 }
 _COMPONENT_OF = {cls: name for name, cls in {**_SCENARIO_TYPES, **_PLAN_TYPES}.items()}
 
@@ -251,6 +256,8 @@ def _planner_schemas() -> dict[str, dict[str, Any]]:
     steps = out["Scenario"]["properties"]["steps"]
     steps["anyOf"] = [{"type": steps.pop("type")},
                       {"type": "string", "enum": [planner_scenario.AUTO_STEPS]}]
+    out["Attempt"]["properties"]["outcome"]["enum"] = list(planner_result.OUTCOMES)
+    out["Scenario"]["properties"]["method"]["enum"] = list(planner_scenario.METHODS)
     # Plan.to_dict writes these with every default filled in, so they are always present.
     return out
 

@@ -13,6 +13,7 @@ input (unreadable file, invalid JSON, an invalid scenario: the message names the
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -49,16 +50,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="sequences: CSV sample rate (default: one row per planner step)",
     )
     parser.add_argument(
-        "--decompose", default="none", metavar="{none,prioritized}",
-        help="prioritized: plan the fleet in batches, each around the earlier ones, then "
-             "verify the whole (a crowd moving as one, e.g. a formation flown sideways onto "
-             "another, plans many times faster; thrust a little higher); the whole fleet "
-             "is planned if a batch or the check fails (default: none, the whole fleet)",
+        "--method", default=None, metavar="{auto,whole,prioritized}",
+        help="how to plan (default: the scenario's method, else auto): auto races "
+             "prioritized batches against the whole fleet on two cores where both apply and "
+             "takes the first verified plan; whole plans the whole fleet at once; "
+             "prioritized plans in batches, each around the earlier ones, and the whole "
+             "fleet if they fail",
+    )
+    parser.add_argument(
+        "--decompose", default=None, metavar="{none,prioritized}",
+        help="the same as --method: none is whole, prioritized is prioritized",
     )
     parser.add_argument(
         "--batch-size", type=int, default=None, metavar="N",
-        help="vehicles per batch with --decompose prioritized (default: the planner's, "
-             "by the fleet's motion: planner.prioritized.batch_size)",
+        help="vehicles per prioritized batch (methods auto and prioritized; default: the "
+             "planner's, by the fleet's motion: planner.prioritized.batch_size)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
     parser.add_argument(
@@ -108,6 +114,8 @@ def _summary_rows(plan: Any) -> list[tuple[str, str]]:
                                   f"{plan.timing['first_qp_s']:.3f} s"),
         ("solver", plan.solver),
     ]
+    if plan.method is not None:
+        rows.append(("method", _method_summary(plan)))
     if v is not None:
         sep = plan.scenario.min_separation
         if v.min_separation is not None:
@@ -154,6 +162,11 @@ def _horizon_text(plan: Any) -> str:
         return (f"none verified up to max_horizon {search['max_horizon']:g} s "
                 f"(steps tried: {tried})")
     return f"{text}, chosen (steps tried: {tried})"
+def _method_summary(plan: Any) -> str:
+    """The method that planned, and what became of the others that ran."""
+    others = [f"{a.method} {a.outcome} after {a.seconds:.2f} s" for a in plan.attempts
+              if a.outcome in ("failed", "cancelled")]
+    return plan.method + (f" ({'; '.join(others)})" if others else "")
 
 
 def _verdict(plan: Any) -> int:
@@ -188,19 +201,40 @@ def _write_plan(plan: Any, output: Path) -> None:
         plan.write_json(stream)
 
 
-def _options(args: argparse.Namespace) -> Any:
-    """The SCP options `--decompose` / `--batch-size` ask for (None: the planner's defaults);
-    ValueError naming the flag when the planner refuses them."""
-    from planner.scp import ScpOptions
+#: `--decompose` values and the methods they stand for.
+_DECOMPOSE = {"none": "whole", "prioritized": "prioritized"}
 
-    if args.decompose == "none":
-        if args.batch_size is not None:
-            raise ValueError("--batch-size: applies with --decompose prioritized")
+
+def _method(args: argparse.Namespace) -> str | None:
+    """The method `--method` or `--decompose` asks for (None: the scenario's); ValueError
+    naming the flag for a value the planner does not know or two that disagree."""
+    from planner.scenario import METHODS
+
+    if args.method is not None and args.method not in METHODS:
+        raise ValueError(f"--method: must be one of {', '.join(METHODS)}, got {args.method!r}")
+    if args.decompose is None:
+        return args.method
+    if args.decompose not in _DECOMPOSE:
+        raise ValueError(f"--decompose: must be one of {', '.join(_DECOMPOSE)}, "
+                         f"got {args.decompose!r}")
+    method = _DECOMPOSE[args.decompose]
+    if args.method is not None and args.method != method:
+        raise ValueError(f"--decompose {args.decompose} asks for method {method}, "
+                         f"--method for {args.method}: give one of them")
+    return method
+
+
+def _options(args: argparse.Namespace, method: str) -> Any:
+    """The planning options `--batch-size` asks for (None: the planner's defaults);
+    ValueError naming the flag when the planner refuses them."""
+    from planner.options import PlanningOptions
+
+    if args.batch_size is None:
         return None
-    given = {"decompose": args.decompose} | (
-        {} if args.batch_size is None else {"batch_size": args.batch_size})
+    if method == "whole":
+        raise ValueError("--batch-size: applies with --method auto or prioritized")
     try:
-        return ScpOptions(**given)
+        return PlanningOptions(batch_size=args.batch_size)
     except ValueError as exc:  # "batch_size: must be ..." -> "--batch-size: must be ..."
         field, _, reason = str(exc).partition(": ")
         raise ValueError(f"--{field.replace('_', '-')}: {reason}") from None
@@ -365,9 +399,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         data = load_json(args.scenario)
         if isinstance(data, dict) and "formations" in data:
-            if args.decompose != "none" or args.batch_size is not None:
-                return _fail("--decompose, --batch-size: apply to a scenario; a formation "
-                             "sequence's legs are planned as whole fleets")
+            if (args.method, args.decompose, args.batch_size) != (None, None, None):
+                return _fail("--method, --decompose, --batch-size: apply to a scenario; a "
+                             "formation sequence's legs choose their own")
             if getattr(args, "fleet", None) is not None:
                 return _fail("--fleet: a fleet's margin is not applied to formation sequences "
                              "yet; add it to the sequence's min_separation")
@@ -375,6 +409,10 @@ def run(args: argparse.Namespace) -> int:
         if getattr(args, "fleet", None) is not None:
             data = _for_fleet(data, args.fleet)
         scenario = planner.Scenario.from_dict(data)
+        method = _method(args)
+        if method is not None:
+            scenario = dataclasses.replace(scenario, method=method)
+        options = _options(args, scenario.method)
     except ValueError as exc:
         return _fail(str(exc))
     except FieldError as exc:  # pragma: no cover - FieldError is a ValueError
@@ -388,14 +426,11 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"iteration {record.iteration:>2}: cost {_number(record.cost, '{:.4f}')}{change}  "
             f"rows {record.separation_rows}  groups {record.groups}  "
-            f"QPs {record.qp_solves}  {record.seconds:.3f} s",
+            f"QPs {record.qp_solves}  {record.seconds:.3f} s"
+            + ("" if record.method is None else f"  [{record.method}]"),
             flush=True,
         )
 
-    try:
-        options = _options(args)
-    except ValueError as exc:
-        return _fail(str(exc))
     try:
         if args.scheduler:
             plan = _plan_on_cluster(args.scheduler, scenario.to_dict(), args.solver, progress,

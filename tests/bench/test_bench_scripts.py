@@ -56,7 +56,8 @@ def test_planner_benchmark_runs_an_obstacle_family_against_its_floor():
     assert row["obstacle_distance_min"] >= row["clearance"] - 1e-4
     assert row["closest_obstacle"]["id"] == "pillar"
     assert row["floor_s"] == 0.5 and row["within_floor"] == (row["total_s"] <= 0.5)
-    assert row["decompose"] == "none" and "prioritized" not in row["message"]
+    assert row["method"] == "auto" and row["planned_by"] in ("whole", "prioritized")
+    assert {a["method"]: a["outcome"] for a in row["attempts"]}[row["planned_by"]] == "won"
 
 
 def test_planner_benchmark_plans_a_family_in_prioritized_batches_when_asked():
@@ -64,11 +65,11 @@ def test_planner_benchmark_plans_a_family_in_prioritized_batches_when_asked():
                   "--row-modes", "--repeats", "1", "--no-memory", "--obstacles",
                   "window8", "--seeds", "0", "--decompose", "prioritized")
     [row] = report["families"]
-    assert row["decompose"] == "prioritized"
+    assert row["method"] == "prioritized" and row["planned_by"] == "prioritized"
     assert row["message"].startswith("planned in 4 prioritized batches")
     assert row["status"] == "converged" and row["verified"] is True
     assert row["obstacle_distance_min"] >= row["clearance"] - 1e-4
-    assert report["families_summary"][0]["decompose"] == "prioritized"
+    assert report["families_summary"][0]["method"] == "prioritized"
 
 
 def test_stream_benchmark_reports_rate_and_jitter():

@@ -107,9 +107,11 @@ def _table_row(printed: str, label: str) -> str:
 
 def test_the_table_and_the_exit_verdict_are_one_verification(tmp_path, capsys):
     """max_iterations 1 stops an 8-vehicle circle before it converges: its checks pass, but
-    the plan is not verified, and the table says the same as the error line."""
+    the plan is not verified, and the table says the same as the error line. (The whole
+    fleet: batches of one vehicle converge in one iteration.)"""
     data = json.loads((EXAMPLES / "paper-circle8.json").read_text())
     data["max_iterations"] = 1
+    data["method"] = "whole"
     path = tmp_path / "short.json"
     path.write_text(json.dumps(data))
     assert main(["plan", str(path), "-o", str(tmp_path / "p.json"), "-q"]) == 1
@@ -152,13 +154,50 @@ def test_prioritized_batches_plan_a_crowd_and_the_plan_says_so(tmp_path, capsys)
     assert check["min_separation_continuous"] >= 1.0 - check["separation_tolerance"]
     assert "prioritized batches of up to 4 vehicles" in doc["message"]
     assert "whole fleet" not in doc["message"]
+    assert doc["method"] == "prioritized" and doc["scenario"]["method"] == "prioritized"
     assert re.search(r"verified\s+.\s+yes", capsys.readouterr().out)
+
+
+@pytest.mark.parametrize(("flags", "method"), [
+    (["--method", "whole"], "whole"), (["--decompose", "none"], "whole"),
+    (["--method", "prioritized"], "prioritized"), (["--decompose", "prioritized"], "prioritized"),
+])
+def test_the_method_flags_choose_the_method_and_the_summary_and_lines_name_it(
+        tmp_path, capsys, flags, method):
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(EXAMPLES / "paper-circle4.json"), "-o", str(out), *flags]) == 0
+    printed = capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    assert doc["method"] == method and doc["scenario"]["method"] == method
+    assert {a["method"]: a["outcome"] for a in doc["attempts"]}[method] == "won"
+    assert re.search(rf"method\s+.\s+{method}", printed)
+    lines = [line for line in printed.splitlines() if line.startswith("iteration")]
+    assert lines and all(line.endswith(f"[{method}]") for line in lines)
+
+
+def test_the_default_method_is_the_scenarios_then_auto(tmp_path, capsys):
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(EXAMPLES / "paper-circle4.json"), "-o", str(out), "-q"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["scenario"]["method"] == "auto"
+    assert doc["method"] in ("whole", "prioritized") and doc["attempts"]
+    data = json.loads((EXAMPLES / "paper-circle4.json").read_text()) | {"method": "prioritized"}
+    scenario = tmp_path / "batches.json"
+    scenario.write_text(json.dumps(data))
+    assert main(["plan", str(scenario), "-o", str(out), "-q"]) == 0
+    assert json.loads(out.read_text())["method"] == "prioritized"
 
 
 @pytest.mark.parametrize(("flags", "message"), [
     (["--decompose", "fancy"], "--decompose: must be one of none, prioritized, got 'fancy'"),
+    (["--method", "fancy"], "--method: must be one of auto, whole, prioritized, got 'fancy'"),
+    (["--method", "whole", "--decompose", "prioritized"],
+     "--decompose prioritized asks for method prioritized, --method for whole"),
     (["--decompose", "prioritized", "--batch-size", "0"], "--batch-size: must be a whole"),
-    (["--batch-size", "4"], "--batch-size: applies with --decompose prioritized"),
+    (["--method", "whole", "--batch-size", "4"],
+     "--batch-size: applies with --method auto or prioritized"),
+    (["--decompose", "none", "--batch-size", "4"],
+     "--batch-size: applies with --method auto or prioritized"),
 ])
 def test_bad_decomposition_flags_exit_2_naming_the_flag(tmp_path, capsys, flags, message):
     out = tmp_path / "plan.json"
@@ -171,4 +210,21 @@ def test_a_sequence_refuses_the_decomposition_flags(tmp_path, capsys):
     sequence = tmp_path / "show.json"
     sequence.write_text(json.dumps({"formations": []}))
     assert main(["plan", str(sequence), "--decompose", "prioritized"]) == 2
-    assert "--decompose, --batch-size: apply to a scenario" in capsys.readouterr().err
+    assert "--method, --decompose, --batch-size: apply to a scenario" in capsys.readouterr().err
+    assert main(["plan", str(sequence), "--method", "whole"]) == 2
+
+
+def test_auto_labels_each_iteration_line_with_its_method_and_names_the_winner(
+        tmp_path, capsys):
+    """With obstacles auto races both methods at once: every iteration line says which
+    method computed it, and the summary names the one that planned."""
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(EXAMPLES / "pillar-circle8.json"), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    lines = [line for line in printed.splitlines() if line.startswith("iteration")]
+    assert lines and all(re.search(r"\[(whole|prioritized)\]$", line) for line in lines)
+    doc = json.loads(out.read_text())
+    assert doc["method"] in ("whole", "prioritized")
+    outcomes = {a["method"]: a["outcome"] for a in doc["attempts"]}
+    assert outcomes[doc["method"]] == "won"
+    assert re.search(rf"method\s+.\s+{doc['method']}", printed)

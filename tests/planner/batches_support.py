@@ -24,7 +24,7 @@ def flying_swap(t: float) -> tuple[Scenario, np.ndarray, np.ndarray, np.ndarray]
         "limits": {"position_min": [0, 0, 0], "position_max": [10, 10, 3],
                    "velocity_max": [2, 2, 2], "acceleration_max": [3, 3, 3]},
         "vehicles": [{"id": f"v{n}", "start": ring[n].tolist(),
-                      "goal": ring[(n + 3) % 6].tolist()} for n in range(6)]})
+                      "goal": ring[(n + 3) % 6].tolist()} for n in range(6)]}, method="whole")
     assert flying.ok
     state = flying.sample(np.array([t]))
     return flying.scenario, state.position[:, 0], state.velocity[:, 0], state.acceleration[:, 0]

@@ -6,11 +6,14 @@ import numpy as np
 import pytest
 
 import planner
-import planner.planning as planning
+import planner.stages as stages
 from planner.dodge import GAP, dodged_moves
 from planner.first_qp import straight_moves
 from planner.generators import sideways
-from planner.scp import ScpOptions, run_scp
+from planner.options import PlanningOptions
+from planner.scp import run_scp
+
+DODGE = PlanningOptions(dodge=True)
 
 
 def _step_min(p: np.ndarray, scale: np.ndarray) -> float:
@@ -49,10 +52,10 @@ def test_nothing_to_dodge_gives_none():
 
 
 def test_a_dodged_start_plans_a_verified_crowd_as_good_as_the_synchronised_one(monkeypatch):
-    monkeypatch.setattr(planning, "DODGE_MIN_VEHICLES", 2)
+    monkeypatch.setattr(stages, "DODGE_MIN_VEHICLES", 2)
     data = sideways(25)
-    dodged = planner.plan(data, options=ScpOptions(dodge=True))
-    plain = planner.plan(data)
+    dodged = planner.plan(data, options=DODGE, method="whole")
+    plain = planner.plan(data, method="whole")
     assert dodged.ok, dodged.message
     assert dodged.verification.min_separation_continuous >= 1.0 - 1e-4
     # a different start, a plan of the same quality (both local optima of the same problem)
@@ -60,7 +63,7 @@ def test_a_dodged_start_plans_a_verified_crowd_as_good_as_the_synchronised_one(m
 
 
 def test_a_dodged_start_that_fails_falls_back_to_the_synchronised_moves(monkeypatch):
-    monkeypatch.setattr(planning, "DODGE_MIN_VEHICLES", 2)
+    monkeypatch.setattr(stages, "DODGE_MIN_VEHICLES", 2)
     guesses = []
 
     def failing_first(scenario, solver, options=None, progress=None, guess=None,
@@ -71,8 +74,8 @@ def test_a_dodged_start_that_fails_falls_back_to_the_synchronised_moves(monkeypa
             outcome.status = "max_iterations"
         return outcome
 
-    monkeypatch.setattr(planning, "run_scp", failing_first)
-    plan = planner.plan(sideways(16), options=ScpOptions(dodge=True))
+    monkeypatch.setattr(stages, "run_scp", failing_first)
+    plan = planner.plan(sideways(16), options=DODGE, method="whole")
     assert len(guesses) == 2
     assert guesses[0] is not None and guesses[1] is None
     assert plan.ok and plan.status == "converged", plan.message
@@ -80,8 +83,8 @@ def test_a_dodged_start_that_fails_falls_back_to_the_synchronised_moves(monkeypa
 
 def test_small_fleets_and_the_default_keep_the_synchronised_start(monkeypatch):
     calls = []
-    monkeypatch.setattr(planning, "dodged_moves", lambda *args: calls.append(1))
-    assert planner.plan(sideways(16), options=ScpOptions(dodge=True)).ok  # under 64
-    monkeypatch.setattr(planning, "DODGE_MIN_VEHICLES", 2)
-    assert planner.plan(sideways(16)).ok  # off by default
+    monkeypatch.setattr(stages, "dodged_moves", lambda *args: calls.append(1))
+    assert planner.plan(sideways(16), options=DODGE, method="whole").ok  # under 64
+    monkeypatch.setattr(stages, "DODGE_MIN_VEHICLES", 2)
+    assert planner.plan(sideways(16), method="whole").ok  # off by default
     assert not calls

@@ -141,8 +141,8 @@ def test_a_row_on_the_fixed_start_is_reported_infeasible():
     random_dense(48, seed=3),
 ], ids=["random64", "grid-sphere25", "dense48"])
 def test_plans_with_dual_groups_are_verified_at_the_primal_cost(data):
-    dual = planner.plan(data)
-    primal = planner.plan(data, options=ScpOptions(dual=False))
+    dual = planner.plan(data, method="whole")
+    primal = planner.plan(data, options=ScpOptions(dual=False), method="whole")
     assert dual.ok, dual.message
     assert primal.ok, primal.message
     assert dual.verification.min_separation_continuous >= 1.0 - 1e-4
@@ -152,8 +152,8 @@ def test_plans_with_dual_groups_are_verified_at_the_primal_cost(data):
 
 def test_other_backends_keep_the_primal_and_agree():
     data = load_example("paper-random8")
-    assert (planner.plan(data, solver="clarabel").cost
-            == pytest.approx(planner.plan(data).cost, rel=1e-6))
+    assert (planner.plan(data, solver="clarabel", method="whole").cost
+            == pytest.approx(planner.plan(data, method="whole").cost, rel=1e-6))
 
 
 def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
@@ -167,9 +167,9 @@ def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
         return DualOutcome("failed", None, None, 0)
 
     data = load_example("random64")
-    reference = planner.plan(data)
+    reference = planner.plan(data, method="whole")
     monkeypatch.setattr(scp, "solve_group_dual", broken)
-    fallback = planner.plan(data)
+    fallback = planner.plan(data, method="whole")
     assert calls
     assert fallback.ok, fallback.message
     assert fallback.cost == pytest.approx(reference.cost, rel=1e-6)
@@ -190,10 +190,10 @@ def test_a_long_horizon_keeps_the_primal(monkeypatch):
     monkeypatch.setattr(scp, "solve_group_dual", counting)
     data = load_example("paper-circle2")
     data["steps"] = scp.DUAL_MAX_STEPS
-    assert planner.plan(data).ok and calls  # at the bound the dual is still tried
+    assert planner.plan(data, method="whole").ok and calls  # at the bound: tried
     calls.clear()
     data["steps"] = scp.DUAL_MAX_STEPS + 1
-    plan = planner.plan(data)
+    plan = planner.plan(data, method="whole")
     assert plan.ok, plan.message
     assert plan.iterations[-1].separation_rows > 0  # the crossing did meet separation rows
     assert calls == []

@@ -89,7 +89,7 @@ def test_random_dense_density_and_moves():
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_small_grid_to_sphere_transitions_plan_verified(seed):
-    plan = planner.plan(grid_to_sphere(16, seed=seed))
+    plan = planner.plan(grid_to_sphere(16, seed=seed), method="whole")
     assert plan.ok, plan.message
     assert plan.verification.min_separation_continuous >= 1.0 - 1e-4
     # Shuffled goals make paths cross: the separation rows were needed.

@@ -276,6 +276,7 @@ def test_a_plan_that_grazes_the_clearance_is_never_converged(monkeypatch) -> Non
     """`plan` reports a plan whose verification finds an obstacle too close as unverified,
     whatever the loop said."""
     import planner.planning as planning
+    import planner.stages as stages
     from planner.scp import ScpOutcome
 
     data = _with([PILLAR])
@@ -286,7 +287,7 @@ def test_a_plan_that_grazes_the_clearance_is_never_converged(monkeypatch) -> Non
     def fake(*args: Any, **kwargs: Any) -> ScpOutcome:
         return ScpOutcome("converged", "cost changed by 0", p, v, a, [], 0.0)
 
-    monkeypatch.setattr(planning, "run_scp", fake)
+    monkeypatch.setattr(stages, "run_scp", fake)
     result = planning.plan(scenario)
     assert result.status == "unverified" and "obstacle 'pillar'" in result.message
 

@@ -17,7 +17,7 @@ BOX_TOLERANCE = 1e-4
 @pytest.fixture(scope="module", params=PAPER_CASES)
 def case(request):
     scenario = planner.Scenario.from_dict(load_example(request.param))
-    return scenario, planner.plan(scenario)
+    return scenario, planner.plan(scenario, method="whole")  # the paper's method
 
 
 def test_converged_and_verified(case):

@@ -1,6 +1,6 @@
-"""Prioritized batches (`planner.prioritized`, `ScpOptions(decompose="prioritized")`): the
-joined plan is verified as a whole, each batch keeps R from the earlier ones over continuous
-time, and a batch that fails is replanned with earlier vehicles or the fleet planned whole."""
+"""Prioritized batches (`planner.prioritized`, method "prioritized"): the joined plan is
+verified as a whole, each batch keeps R from the earlier ones over continuous time, and a batch
+that fails is replanned with earlier vehicles or the fleet planned whole."""
 
 from __future__ import annotations
 
@@ -10,19 +10,35 @@ from typing import Any
 import numpy as np
 import pytest
 
-import planner.planning as planning
 import planner.prioritized as prioritized
-from planner import plan
+import planner.stages as stages
+from planner import Plan, plan
+from planner.errors import ScenarioError
 from planner.fixed import FixedTrajectory, landing_motion
 from planner.from_state import scenario_from_state
 from planner.generators import circle_swap, sideways
+from planner.options import PlanningOptions
 from planner.scenario import Scenario
-from planner.scp import ScpOptions, ScpOutcome
+from planner.scp import ScpOutcome
 from planner.solvers import make_solver
 from planner.verify import verify
 from tests.planner.batches_support import assert_each_batch_clear, flying_swap
 
-PRIORITIZED = ScpOptions(decompose="prioritized", batch_size=2)
+PRIORITIZED = PlanningOptions(batch_size=2)
+
+
+def _batched(data: Any, options: PlanningOptions = PRIORITIZED) -> Plan:
+    """`data` planned with method prioritized."""
+    return plan(data, options=options, method="prioritized")
+
+
+def _outcomes(result: Plan) -> dict[str, str]:
+    """Each method's outcome in the plan's attempts."""
+    return {a.method: a.outcome for a in result.attempts}
+
+
+def _reason(result: Plan, method: str) -> str:
+    return next(a.reason for a in result.attempts if a.method == method)
 
 
 def _small_sideways() -> Scenario:
@@ -30,12 +46,15 @@ def _small_sideways() -> Scenario:
 
 
 def test_a_decomposed_plan_is_converged_verified_and_says_how_it_was_planned() -> None:
-    result = plan(sideways(16), options=PRIORITIZED)
+    result = _batched(sideways(16))
     assert result.status == "converged", result.message
     assert result.verification is not None and result.verification.verified
     assert result.verification.min_separation_continuous >= 1.0 - 1e-4
     assert "prioritized batches" in result.message
-    assert plan(sideways(16)).message.find("prioritized") == -1  # off by default
+    assert result.method == "prioritized" and _outcomes(result)["prioritized"] == "won"
+    assert all(r.method == "prioritized" for r in result.iterations)
+    whole = plan(sideways(16), method="whole")
+    assert whole.method == "whole" and "prioritized" not in _outcomes(whole)
 
 
 def test_each_batch_keeps_r_from_the_earlier_batches_over_continuous_time() -> None:
@@ -103,19 +122,27 @@ def test_a_batch_that_fails_again_after_its_deferral_ends_the_decomposition() ->
 
 def test_plan_falls_back_to_the_whole_fleet_when_the_batches_fail(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(planning, "plan_batches",
+    monkeypatch.setattr(stages, "plan_batches",
                         lambda *args, **kwargs: prioritized.NOT_CONVERGED)
-    result = plan(sideways(16), options=PRIORITIZED)
+    result = _batched(sideways(16))
     assert result.status == "converged", result.message
     assert result.verification is not None and result.verification.verified
-    assert "planned as a whole fleet" in result.message
+    assert result.method == "whole"
+    assert _outcomes(result) == {"separated_first": "declined", "prioritized": "failed",
+                                 "dodge": "declined", "whole": "won"}
+    assert _reason(result, "prioritized") == prioritized.NOT_CONVERGED
 
 
-@pytest.mark.parametrize(("field", "value"), [("decompose", "greedy"), ("batch_size", 0),
-                                              ("batch_size", 2.5)])
-def test_bad_decomposition_options_are_refused_naming_the_field(field: str, value: Any) -> None:
-    with pytest.raises(ValueError, match=f"^{field}: "):
-        ScpOptions(**{field: value})
+@pytest.mark.parametrize("value", [0, 2.5])
+def test_bad_batch_sizes_are_refused_naming_the_field(value: Any) -> None:
+    with pytest.raises(ValueError, match=r"^batch_size: "):
+        PlanningOptions(batch_size=value)
+
+
+def test_an_unknown_method_is_refused_naming_the_field() -> None:
+    with pytest.raises(ScenarioError) as caught:
+        plan(sideways(4), method="greedy")
+    assert caught.value.field == "method" and "'auto', 'whole', 'prioritized'" in str(caught.value)
 
 
 def test_a_joined_plan_that_fails_verification_is_never_returned(
@@ -125,11 +152,12 @@ def test_a_joined_plan_that_fails_verification_is_never_returned(
         joined = ScpOutcome("converged", "planned in 1 prioritized batches", p, v, a, [], 0.0)
         return prioritized.PrioritizedOutcome(joined, [np.arange(len(p))], [0.0])
 
-    monkeypatch.setattr(planning, "plan_batches", colliding)
-    result = plan(sideways(16), options=PRIORITIZED)
+    monkeypatch.setattr(stages, "plan_batches", colliding)
+    result = _batched(sideways(16))
     assert result.status == "converged", result.message
     assert result.verification is not None and result.verification.verified
-    assert "planned as a whole fleet" in result.message
+    assert result.method == "whole" and _outcomes(result)["prioritized"] == "failed"
+    assert _reason(result, "prioritized").startswith("the joined batches failed verification")
 
 
 def _from_state(t: float, margin: float) -> tuple[Scenario, FixedTrajectory]:
@@ -160,8 +188,7 @@ def test_batches_from_a_moving_state_start_exactly_there_and_keep_r_from_a_fixed
         return real(sub, *args, **kwargs)
 
     monkeypatch.setattr(prioritized, "run_scp", spy)
-    options = dataclasses.replace(PRIORITIZED, batch_cost_share=True)
-    found = prioritized.plan_batches(work, make_solver(None), options, batch=2)
+    found = prioritized.plan_batches(work, make_solver(None), batch=2, cost_share=True)
     assert isinstance(found, prioritized.PrioritizedOutcome), found
     out = found.outcome
     np.testing.assert_allclose(out.positions[:, 0], work.starts, atol=1e-6)
@@ -184,9 +211,9 @@ def test_batches_from_a_moving_state_start_exactly_there_and_keep_r_from_a_fixed
 
 def test_plan_decomposes_a_moving_fleet_and_verifies_the_joined_plan() -> None:
     work, _ = _from_state(3.0, 0.0)
-    result = plan(work, options=PRIORITIZED)
+    result = _batched(work)
     assert result.status == "converged", result.message
-    assert "prioritized batches" in result.message
+    assert result.method == "prioritized"
     assert result.verification is not None and result.verification.verified
     np.testing.assert_allclose(result.positions()[:, 0], work.starts, atol=1e-6)
     np.testing.assert_allclose(result.velocities()[:, 0], work.start_velocities, atol=1e-6)
@@ -198,12 +225,13 @@ def test_batches_costing_more_than_the_threshold_above_the_free_optimum_are_not_
     whole, saying why."""
     work, _ = _from_state(2.0, 0.2)  # the free moves cross the dropped vehicle's column
     options = dataclasses.replace(PRIORITIZED, batch_cost_share=True)
-    loose = plan(dataclasses.replace(work, cost_threshold=1e3), options=options)
-    assert loose.ok and "prioritized batches" in loose.message
-    tight = plan(dataclasses.replace(work, cost_threshold=1e-3), options=options)
+    loose = _batched(dataclasses.replace(work, cost_threshold=1e3), options)
+    assert loose.ok and loose.method == "prioritized"
+    tight = _batched(dataclasses.replace(work, cost_threshold=1e-3), options)
     assert tight.ok, tight.message
-    assert "planned as a whole fleet" in tight.message
-    assert "above the separation-free optimum, not less than cost_threshold" in tight.message
+    assert tight.method == "whole" and _outcomes(tight)["prioritized"] == "failed"
+    assert "above the separation-free optimum, not less than cost_threshold" in _reason(
+        tight, "prioritized")
 
 
 def _corridor() -> dict[str, Any]:

@@ -14,7 +14,7 @@ from planner import plan
 from planner.generators import grid_to_sphere, sideways
 from planner.obstacle_generators import forest
 from planner.scenario import Scenario
-from planner.scp import DEFAULT_BATCH, ScpOptions
+from planner.scp import DEFAULT_BATCH
 from planner.solvers import make_solver
 from planner.verify import verify
 from tests.planner.batches_support import assert_each_batch_clear
@@ -50,7 +50,7 @@ def _straight(work: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def test_plan_with_default_batches_on_a_crowd_is_converged_and_verified() -> None:
-    result = plan(grid_to_sphere(24, seed=1), options=ScpOptions(decompose="prioritized"))
+    result = plan(grid_to_sphere(24, seed=1), method="prioritized")
     assert result.status == "converged", result.message
     assert result.verification is not None and result.verification.verified
     assert result.verification.min_separation_continuous >= 1.0 - 1e-4

@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-import planner.planning as planning
 import planner.replan as replan_module
+import planner.stages as stages
 from planner.first_qp import solve_first_qp
 from planner.fixed import landing_motion
 from planner.prioritized import NOT_CONVERGED
@@ -72,7 +72,7 @@ def test_a_crowded_replan_whose_batches_fail_is_planned_whole_in_the_same_attemp
         calls.append(len(work.vehicles))
         return NOT_CONVERGED
 
-    monkeypatch.setattr(planning, "plan_batches", failing)
+    monkeypatch.setattr(stages, "plan_batches", failing)
     replan = _replan(monkeypatch, CROWD_BATCH_ROWS + 1)
     assert calls == [5] and replan.attempts == 1
     assert "planned as a whole fleet" in replan.plan.message

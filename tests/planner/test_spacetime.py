@@ -82,7 +82,7 @@ def test_batches_among_obstacles_route_once_for_the_fleet_and_plan_verified(
 
     monkeypatch.setattr(routes, "route_polylines", counting)  # inside the SCP's seeding
     monkeypatch.setattr(spacetime, "route_polylines", counting)
-    result = planner.plan(data, options=ScpOptions(decompose="prioritized"))
+    result = planner.plan(data, method="prioritized")
     assert result.ok, result.problems()
     assert "prioritized batches" in result.message
     assert len(searched) == 1  # once for the fleet, not per batch nor inside the SCP
@@ -94,7 +94,7 @@ def test_batches_among_obstacles_route_once_for_the_fleet_and_plan_verified(
 def test_an_unreachable_goal_is_still_infeasible_at_once_in_batches() -> None:
     data = families.sealed_wall(4)  # more than one batch: the batches look first
     began = time.perf_counter()
-    result = planner.plan(data, options=ScpOptions(decompose="prioritized"))
+    result = planner.plan(data, method="prioritized")
     assert time.perf_counter() - began < 10.0  # loose: no SCP iteration ran
     assert result.status == "infeasible" and result.infeasible_groups == ("obstacles",)
     assert "vehicles[0] ('uav1') cannot reach its goal" in result.message
@@ -150,7 +150,7 @@ def test_a_full_height_wall_still_cuts_the_goals_off_at_once() -> None:
                                                     "max": [10.2, 20.0, 4.0]}})
     scenario = planner.Scenario.from_dict(data)
     assert routes.build_grid(scenario).planar
-    result = planner.plan(data, options=ScpOptions(decompose="prioritized"))
+    result = planner.plan(data, method="prioritized")
     assert result.status == "infeasible" and result.infeasible_groups == ("obstacles",)
     assert "cannot reach its goal" in result.message and "'wall'" in result.message
 

@@ -24,8 +24,8 @@ def test_spatial_blocks_partition_the_points():
 @pytest.mark.parametrize("seed", [0, 1])
 def test_split_groups_give_verified_plans_near_the_whole_group_optimum(seed):
     data = grid_to_sphere(25, seed=seed)
-    whole = planner.plan(data)
-    split = planner.plan(data, options=ScpOptions(split_above=6, block_size=4))
+    whole = planner.plan(data, method="whole")
+    split = planner.plan(data, options=ScpOptions(split_above=6, block_size=4), method="whole")
     assert whole.ok and split.ok, split.message
     assert split.verification.min_separation_continuous >= 1.0 - 1e-4
     # The sweeps did run (more, smaller QPs) and ended within a hair of the optimum.

@@ -58,7 +58,9 @@ def test_legs_run_as_tasks_with_progress_per_leg_and_the_stitched_plan_stored(st
                                                                              ) -> None:
     data = show_sequence(9, seed=4, hold=1.0)
     data["assignment"] = "fixed"  # crossing lines: a few SCP iterations per leg
+    data["method"] = "whole"  # one method per leg: auto's race streams the loser's too
     job, plan = _planned(store, cluster, data)
+    assert all(leg["method"] == "whole" for leg in parse_sequence(data).legs)
     assert plan.ok and plan.sequence is not None
     assert plan.scenario.horizon == pytest.approx(3 * 1.0 + 2 * 30.0)
     # Every leg reported its iterations, tagged with the leg, in order within the leg.

@@ -7,7 +7,7 @@ import httpx
 from playwright.sync_api import Page, expect
 
 from tests.api.support import ServiceProcess, example
-from tests.web.support import CROSSING, fill_scenario
+from tests.web.support import CROSSING, fill_scenario, shown_mission_id
 
 
 def test_plan_from_the_form_shows_plots_and_separation(
@@ -131,3 +131,30 @@ def test_the_page_keeps_no_copy_of_the_status_sets() -> None:
     found = [(p.name, m.group(0)) for p in sorted(web.glob("*.js"))
              for m in literals.finditer(p.read_text())]
     assert found == []
+
+
+def test_the_method_selector_defaults_to_auto_and_the_plan_panel_names_the_method(
+    page: Page, service: ServiceProcess
+) -> None:
+    """The form's method selector starts at auto and writes the scenario's `method`; the
+    plan panel says which method planned (and what became of a raced one)."""
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
+    selector = page.locator("#f-method")
+    expect(selector).to_have_value("auto")
+    assert page.locator("#f-method option").all_inner_texts() == [
+        "auto", "whole fleet", "prioritized batches"]
+    fill_scenario(page, "browser-method", 50, CROSSING)
+    page.click("#plan-button")
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    first = shown_mission_id(page)
+    mission = httpx.get(f"{service.base_url}/api/missions/{first}").json()
+    assert mission["scenario"]["method"] == "auto"
+    expect(page.locator("#plan-method")).to_contain_text(mission["plan"]["method"])
+    selector.select_option("prioritized")
+    page.click("#plan-button")
+    expect(page.locator("#mission-title")).not_to_contain_text(first, timeout=60_000)
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    mission = httpx.get(f"{service.base_url}/api/missions/"
+                        f"{shown_mission_id(page)}").json()
+    assert mission["scenario"]["method"] == "prioritized"
+    assert mission["plan"]["method"] == "prioritized"
