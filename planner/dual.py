@@ -17,8 +17,9 @@ sign_r sign_s W[f_r, f_s], W = T M T' the "compliance" between two functionals (
 (F x F) matrix per (K, dt), F ~ 5K). Q has one row per constraint and couples only rows
 that share a vehicle, so it is small and sparse where the primal KKT system has ~15 rows per
 vehicle and step (measured in the README, Drone-show scale). Where every vehicle meets
-dozens of others the rows sharing vehicles couple nearly all of Q and the primal wins
-(`planner.scp.DUAL_MAX_ROWS_PER_VEHICLE`).
+dozens of others the rows sharing vehicles couple nearly all of Q; the working set keeps
+each solve to about one row per close approach (`_Dual.worst_per_link`), so Q's blocks stay
+small there too.
 """
 
 from __future__ import annotations
@@ -184,6 +185,13 @@ ACTIVE = 1e-7
 WORKING_SET_ROUNDS = 8
 #: A working set of more than this fraction of the rows is solved as the whole dual.
 WORKING_SET_FRACTION = 0.5
+#: The working set's solves ask PIQP for this fraction of the check's tolerance: a working
+#: set of one row per link holds nearly parallel rows (neighbouring intervals of one close
+#: approach), whose multipliers the dual's optimum fixes only loosely; at a tenth of the
+#: tolerance their split drifted 2e-6 from the primal's (random16,
+#: `tests/planner/test_dual.py`), at a thousandth it agrees, for about one more PIQP
+#: iteration per solve.
+SOLVE_TOLERANCE = 1e-3
 
 
 def _solve_bounded(Q: sp.csc_matrix, c: FloatArray, tolerance: float
@@ -223,6 +231,12 @@ class _Dual:
         order = np.argsort(e_row, kind="stable")
         self._by_row = order
         self._row_start = np.searchsorted(e_row[order], np.arange(len(c) + 1))
+        # Per row its link: (lowest vehicle, highest vehicle) of its entries.
+        low = np.full(len(c), vehicles, dtype=np.int64)
+        high = np.full(len(c), -1, dtype=np.int64)
+        np.minimum.at(low, e_row, e_veh)
+        np.maximum.at(high, e_row, e_veh)
+        self._links = low * (vehicles + 1) + high
 
     def block(self, rows: IntArray) -> sp.csc_matrix:
         """Q restricted to `rows` (sorted), upper triangle, in their order: every pair of
@@ -271,12 +285,27 @@ class _Dual:
         along = np.einsum("ec,ec->e", self.e_coef, moves[self.e_veh, :, self.e_func])
         return self.c + np.bincount(self.e_row, along, minlength=len(self.c))
 
+    def worst_per_link(self, broken: NDArray[np.bool_], gradient: FloatArray
+                        ) -> NDArray[np.bool_]:
+        """Of the `broken` rows, the most broken of each link (the rows that move the same
+        vehicle or pair of vehicles): a close approach breaks a run of neighbouring rows of
+        which one or two end up active, and the rest then hold."""
+        link = self._links
+        rows = np.flatnonzero(broken)
+        order = rows[np.lexsort((gradient[rows], link[rows]))]
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = link[order][1:] != link[order][:-1]
+        out = np.zeros_like(broken)
+        out[order[first]] = True
+        return out
+
     def solve(self, start: NDArray[np.bool_], tolerance: float
               ) -> tuple[str, FloatArray | None, FloatArray | None, int]:
         """min 1/2 l'Ql + c'l, l >= 0, over a working set of rows from `start` (rows
         believed active): the multipliers of the other rows held at 0, which is optimal for
         the whole dual exactly when every other row's gradient (its slack in the group's
-        QP) is >= -tolerance; the rows that break that join the set and it is solved again.
+        QP) is >= -tolerance; of the rows that break that, the most broken of each link
+        joins the set (`worst_per_link`) and it is solved again.
         The same optimum as one solve of every row, in smaller solves (about a tenth of the
         rows are active), and a set started from the rows active in an earlier, similar QP
         usually needs one or two. Every row at once after WORKING_SET_ROUNDS rounds or once
@@ -291,17 +320,20 @@ class _Dual:
             idx = np.flatnonzero(work)
             lam = np.zeros(n)
             if idx.size:
-                status, sub, its = _solve_bounded(self.block(idx), self.c[idx], tolerance)
+                status, sub, its = _solve_bounded(self.block(idx), self.c[idx],
+                                                  SOLVE_TOLERANCE * tolerance)
                 iterations += its
                 if sub is None:
                     return status, None, None, iterations
                 lam[idx] = sub
             moves = self.moves(lam)
-            broken = ~work & (self.gradient(moves) < -tolerance)
+            gradient = self.gradient(moves)
+            broken = ~work & (gradient < -tolerance)
             if not broken.any():
                 return SOLVED, lam, moves, iterations
-            work |= broken
-        status, lam_all, its = _solve_bounded(self.block(np.arange(n)), self.c, tolerance)
+            work |= self.worst_per_link(broken, gradient)
+        status, lam_all, its = _solve_bounded(self.block(np.arange(n)), self.c,
+                                              SOLVE_TOLERANCE * tolerance)
         if lam_all is None:
             return status, None, None, iterations + its
         return status, lam_all, self.moves(lam_all), iterations + its
@@ -378,7 +410,7 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     dual = _Dual(fn, m, e_row, e_veh, e_func, e_coef, c)
     box_ids = np.zeros(0, dtype=np.int64)
     # Start from the rows remembered active, else from those the straight moves break.
-    start = c < -tolerance
+    start = dual.worst_per_link(c < -tolerance, c)
     if memory is not None and row_ids is not None:
         side = (b_sign > 0).astype(np.int64)
         box_ids = ((members[b_veh].astype(np.int64) * fn.compliance.shape[0] + b_func) * 3

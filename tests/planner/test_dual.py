@@ -157,7 +157,7 @@ def test_other_backends_keep_the_primal_and_agree():
 
 
 def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
-    import planner.scp as scp
+    import planner.group_solver as group_solver
     from planner.dual import DualOutcome
 
     calls = []
@@ -168,7 +168,7 @@ def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
 
     data = load_example("random64")
     reference = planner.plan(data)
-    monkeypatch.setattr(scp, "solve_group_dual", broken)
+    monkeypatch.setattr(group_solver, "solve_group_dual", broken)
     fallback = planner.plan(data)
     assert calls
     assert fallback.ok, fallback.message
@@ -178,6 +178,7 @@ def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
 def test_a_long_horizon_keeps_the_primal(monkeypatch):
     """Above DUAL_MAX_STEPS the dual's dense functional matrix (5K x 5K) is never built: a
     2-vehicle crossing over 5,000 steps would need 5 GB for it."""
+    import planner.group_solver as group_solver
     import planner.scp as scp
     from planner.dual import DualOutcome
 
@@ -187,7 +188,7 @@ def test_a_long_horizon_keeps_the_primal(monkeypatch):
         calls.append(1)
         return DualOutcome("failed", None, None, 0)
 
-    monkeypatch.setattr(scp, "solve_group_dual", counting)
+    monkeypatch.setattr(group_solver, "solve_group_dual", counting)
     data = load_example("paper-circle2")
     data["steps"] = scp.DUAL_MAX_STEPS
     assert planner.plan(data).ok and calls  # at the bound the dual is still tried
