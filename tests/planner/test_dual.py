@@ -80,9 +80,14 @@ def test_dual_group_equals_primal():
                        rtol=1e-3, atol=1e-6)
 
 
-def test_dual_declines_a_group_whose_matrix_would_be_huge():
+def test_dual_declines_a_group_whose_matrix_would_be_huge(monkeypatch):
     # Every pair at every interval and every box of every vehicle: thousands of rows per
-    # vehicle, all coupled to each other; the caller solves the primal instead.
+    # vehicle, all coupled to each other. Its working sets fit the real MAX_PAIRS (they
+    # hold about one row per pair and vehicle); lowered below the first set's block, the
+    # dual declines and the caller solves the primal instead.
+    import planner.dual
+
+    monkeypatch.setattr(planner.dual, "MAX_PAIRS", 100)
     scenario = Scenario.from_dict(load_example("paper-circle8"))
     lin = straight_moves(scenario)[0]
     n, steps = len(scenario.vehicles), scenario.steps
@@ -91,6 +96,30 @@ def test_dual_declines_a_group_whose_matrix_would_be_huge():
                       np.tile(np.arange(steps), len(i)))
     rows = _rows(scenario, lin, pairs)
     assert solve_group_dual(scenario, np.arange(n), rows, BoxMask.full(n, steps)) is None
+
+
+def test_a_group_whose_whole_matrix_is_huge_solves_over_its_working_sets():
+    # The same group at the real MAX_PAIRS: its whole Q exceeds it, its working sets do
+    # not, and the dual's optimum is the primal's.
+    from planner.dual import MAX_PAIRS
+
+    data = load_example("paper-circle8")
+    data["dt"], data["steps"] = data["dt"] * data["steps"] / 40, 40  # a primal of seconds
+    scenario = Scenario.from_dict(data)
+    lin = straight_moves(scenario)[0]
+    n, steps = len(scenario.vehicles), scenario.steps
+    i, j = all_pairs(n)
+    pairs = PairSteps(np.repeat(i, steps), np.repeat(j, steps),
+                      np.tile(np.arange(steps), len(i)))
+    rows = _rows(scenario, lin, pairs)
+    boxes = BoxMask.full(n, steps)
+    entries = np.bincount(np.concatenate([rows.i, rows.j]), minlength=n).astype(np.int64)
+    assert np.sum(entries ** 2) > MAX_PAIRS  # the separation rows alone
+    dual = solve_group_dual(scenario, np.arange(n), rows, boxes)
+    assert dual is not None and dual.status == SOLVED
+    (p, _, a), _ = _primal(scenario, np.arange(n), rows, boxes)
+    assert np.abs(dual.solution[0] - p).max() < 1e-5
+    assert np.abs(dual.solution[2] - a).max() < 1e-5
 
 
 def test_one_sided_rows_hold_the_other_vehicle_fixed():
