@@ -80,6 +80,16 @@ def test_dual_group_equals_primal():
                        rtol=1e-3, atol=1e-6)
 
 
+def _every_row(scenario: Scenario) -> SeparationRows:
+    """The interval rows of every pair at every interval, about the straight moves."""
+    lin = straight_moves(scenario)[0]
+    n, steps = len(scenario.vehicles), scenario.steps
+    i, j = all_pairs(n)
+    pairs = PairSteps(np.repeat(i, steps), np.repeat(j, steps),
+                      np.tile(np.arange(steps), len(i)))
+    return _rows(scenario, lin, pairs)
+
+
 def test_dual_declines_a_group_whose_matrix_would_be_huge(monkeypatch):
     # Every pair at every interval and every box of every vehicle: thousands of rows per
     # vehicle, all coupled to each other. Its working sets fit the real MAX_PAIRS (they
@@ -89,12 +99,8 @@ def test_dual_declines_a_group_whose_matrix_would_be_huge(monkeypatch):
 
     monkeypatch.setattr(planner.dual, "MAX_PAIRS", 100)
     scenario = Scenario.from_dict(load_example("paper-circle8"))
-    lin = straight_moves(scenario)[0]
     n, steps = len(scenario.vehicles), scenario.steps
-    i, j = all_pairs(n)
-    pairs = PairSteps(np.repeat(i, steps), np.repeat(j, steps),
-                      np.tile(np.arange(steps), len(i)))
-    rows = _rows(scenario, lin, pairs)
+    rows = _every_row(scenario)
     assert solve_group_dual(scenario, np.arange(n), rows, BoxMask.full(n, steps)) is None
 
 
@@ -106,12 +112,8 @@ def test_a_group_whose_whole_matrix_is_huge_solves_over_its_working_sets():
     data = load_example("paper-circle8")
     data["dt"], data["steps"] = data["dt"] * data["steps"] / 40, 40  # a primal of seconds
     scenario = Scenario.from_dict(data)
-    lin = straight_moves(scenario)[0]
     n, steps = len(scenario.vehicles), scenario.steps
-    i, j = all_pairs(n)
-    pairs = PairSteps(np.repeat(i, steps), np.repeat(j, steps),
-                      np.tile(np.arange(steps), len(i)))
-    rows = _rows(scenario, lin, pairs)
+    rows = _every_row(scenario)
     boxes = BoxMask.full(n, steps)
     entries = np.bincount(np.concatenate([rows.i, rows.j]), minlength=n).astype(np.int64)
     assert np.sum(entries ** 2) > MAX_PAIRS  # the separation rows alone
