@@ -62,7 +62,7 @@ def _expand(pairs: PairSteps, last: int) -> PairSteps:
 
 
 def seed_keys(lin: Trajectories, scenario: Scenario, options: ScpOptions,
-               codec: Codec) -> Keys:
+              codec: Codec) -> Keys:
     """Rows an iteration starts with (besides those carried over as active): the deepest
     point of every close approach and its neighbours; every row with culling off."""
     lin_positions = lin[0]
@@ -86,7 +86,7 @@ def seed_keys(lin: Trajectories, scenario: Scenario, options: ScpOptions,
 
 @dataclass(frozen=True)
 class Pruning:
-    """What the all-pairs row check knows at `lin` (see `_margins`): a row set can be broken
+    """What the all-pairs row check knows at `lin` (see `margins`): a row set can be broken
     only where its value at `lin` exceeds R by less than its two vehicles have moved."""
 
     near_i: IntArray

@@ -11,13 +11,13 @@ constraints are slack at the optimum, so it is solved as a sequence of smaller Q
 
 - Rows only where needed, like an active-set method. A QP starts with the rows that were
   active (positive multiplier) in the previous iteration, the deepest point of every close
-  approach at the linearisation point, and the boxes that nearly bind. After each solve
-  every row of every pair and every box is checked; the violated ones are added and the
-  affected groups solved again. When nothing is violated, the solution is optimal for the
-  QP with every row (it is feasible for it and optimal for a relaxation of it).
-- Independent groups. Vehicles linked by rows form groups (connected components); each is
-  its own QP. A vehicle in no group keeps its separation-free optimum, which is exactly its
-  QP's solution. A group whose members and constraints did not change is not solved again.
+  approach at the linearisation point (`planner.pruning`), and the boxes that nearly bind.
+  After each solve every row of every pair and every box is checked; the violated ones are
+  added and the affected groups solved again. When nothing is violated, the solution is
+  optimal for the QP with every row (feasible for it, optimal for a relaxation of it).
+- Independent groups (`planner.group_solver`). Vehicles linked by rows form groups, each
+  its own QP; a vehicle in no group keeps its separation-free optimum (its QP's solution).
+  A group whose members and constraints did not change is not solved again.
 """
 
 from __future__ import annotations
