@@ -17,8 +17,9 @@ sign_r sign_s W[f_r, f_s], W = T M T' the "compliance" between two functionals (
 (F x F) matrix per (K, dt), F ~ 5K). Q has one row per constraint and couples only rows
 that share a vehicle, so it is small and sparse where the primal KKT system has ~15 rows per
 vehicle and step (measured in the README, Drone-show scale). Where every vehicle meets
-dozens of others the rows sharing vehicles couple nearly all of Q and the primal wins
-(`planner.scp.DUAL_MAX_ROWS_PER_VEHICLE`).
+dozens of others the rows sharing vehicles couple nearly all of Q; the working set keeps
+each solve to about one row per close approach (`_Dual.worst_per_link`), so Q's blocks stay
+small there too.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from planner.active_rows import ActiveRows
 from planner.first_qp import straight_moves_of
 from planner.qp import A, BoxMask, P, SeparationRows, V
 from planner.scenario import Scenario
@@ -42,9 +44,12 @@ __all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "Functionals", "functional
 Keys = NDArray[np.int64]
 
 
-#: Largest dual matrix (entries of Q before fill-in) worth building; beyond it (a vehicle
-#: with thousands of box rows, every row of every box) the primal QP is the better tool.
+#: Largest block of the dual matrix (entries of Q before fill-in) worth building; beyond it
+#: (a vehicle with thousands of box rows, a giant crowd's every row) the primal QP is the
+#: better tool. Working sets below it still solve a group whose whole Q is larger.
 MAX_PAIRS = 2_000_000
+#: `_Dual.solve`'s status when the rows it would need exceed MAX_PAIRS.
+TOO_LARGE = "too_large"
 
 
 @dataclass(frozen=True)
@@ -144,39 +149,6 @@ def _box_rows(scenario: Scenario, fn: Functionals, boxes: BoxMask, members: IntA
             np.concatenate([lo[low_ok], -hi[high_ok]]))
 
 
-class ActiveRows:
-    """Ids of the rows that had a positive multiplier in the latest solve that held them: the
-    warm start of the next solve of a group that holds them again (the same group with a few
-    rows added, or the next SCP iteration's group, whose active set changes little).
-
-    Separation rows are named by the caller (`solve_group_dual`'s `row_ids`); box rows by
-    (vehicle, functional, axis, side), computed here."""
-
-    def __init__(self) -> None:
-        # Sets: a group's lookups and updates cost its own rows, not everything remembered.
-        self._separation: set[int] = set()
-        self._boxes: set[int] = set()
-
-    @property
-    def separation(self) -> Keys:
-        """The remembered active separation rows, sorted."""
-        return np.array(sorted(self._separation), dtype=np.int64)
-
-    def known(self, sep_ids: Keys, box_ids: Keys) -> NDArray[np.bool_]:
-        """Per row (separation rows, then box rows): remembered active?"""
-        sep, box = self._separation, self._boxes
-        return np.array([x in sep for x in sep_ids.tolist()]
-                        + [x in box for x in box_ids.tolist()], dtype=bool)
-
-    def update(self, sep_ids: Keys, sep_active: NDArray[np.bool_], box_ids: Keys,
-               box_active: NDArray[np.bool_]) -> None:
-        """Forget what was known of these rows and remember which of them are active."""
-        self._separation.difference_update(sep_ids.tolist())
-        self._separation.update(sep_ids[sep_active].tolist())
-        self._boxes.difference_update(box_ids.tolist())
-        self._boxes.update(box_ids[box_active].tolist())
-
-
 #: Multipliers above this count as active for `ActiveRows` (interior-point solutions leave
 #: tiny positive values on inactive rows).
 ACTIVE = 1e-7
@@ -184,6 +156,10 @@ ACTIVE = 1e-7
 WORKING_SET_ROUNDS = 8
 #: A working set of more than this fraction of the rows is solved as the whole dual.
 WORKING_SET_FRACTION = 0.5
+#: The working set's solves ask PIQP for this fraction of the check's tolerance: the nearly
+#: parallel rows of one close approach split their multipliers as the primal does at a
+#: thousandth (random16, `tests/planner/test_dual.py`; 2e-6 apart at a tenth).
+SOLVE_TOLERANCE = 1e-3
 
 
 def _solve_bounded(Q: sp.csc_matrix, c: FloatArray, tolerance: float
@@ -223,6 +199,12 @@ class _Dual:
         order = np.argsort(e_row, kind="stable")
         self._by_row = order
         self._row_start = np.searchsorted(e_row[order], np.arange(len(c) + 1))
+        # Per row its link: (lowest vehicle, highest vehicle) of its entries.
+        low = np.full(len(c), vehicles, dtype=np.int64)
+        high = np.full(len(c), -1, dtype=np.int64)
+        np.minimum.at(low, e_row, e_veh)
+        np.maximum.at(high, e_row, e_veh)
+        self._links = low * (vehicles + 1) + high
 
     def block(self, rows: IntArray) -> sp.csc_matrix:
         """Q restricted to `rows` (sorted), upper triangle, in their order: every pair of
@@ -271,37 +253,66 @@ class _Dual:
         along = np.einsum("ec,ec->e", self.e_coef, moves[self.e_veh, :, self.e_func])
         return self.c + np.bincount(self.e_row, along, minlength=len(self.c))
 
+    def worst_per_link(self, broken: NDArray[np.bool_], gradient: FloatArray
+                        ) -> NDArray[np.bool_]:
+        """Of the `broken` rows, the most broken of each link (the rows that move the same
+        vehicle or pair of vehicles): a close approach breaks a run of neighbouring rows of
+        which one or two end up active, and the rest then hold."""
+        link = self._links
+        rows = np.flatnonzero(broken)
+        order = rows[np.lexsort((gradient[rows], link[rows]))]
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = link[order][1:] != link[order][:-1]
+        out = np.zeros_like(broken)
+        out[order[first]] = True
+        return out
+
+    def pairs(self, rows: IntArray) -> int:
+        """Entries of Q's block of `rows`: per vehicle, the square of its entries."""
+        per_vehicle = np.bincount(self.e_veh[self._entries_of(rows)], minlength=self.m)
+        return int(np.sum(per_vehicle.astype(np.int64) ** 2))
+
     def solve(self, start: NDArray[np.bool_], tolerance: float
               ) -> tuple[str, FloatArray | None, FloatArray | None, int]:
         """min 1/2 l'Ql + c'l, l >= 0, over a working set of rows from `start` (rows
         believed active): the multipliers of the other rows held at 0, which is optimal for
         the whole dual exactly when every other row's gradient (its slack in the group's
-        QP) is >= -tolerance; the rows that break that join the set and it is solved again.
+        QP) is >= -tolerance; of the rows that break that, the most broken of each link
+        joins the set (`worst_per_link`) and it is solved again.
         The same optimum as one solve of every row, in smaller solves (about a tenth of the
         rows are active), and a set started from the rows active in an earlier, similar QP
         usually needs one or two. Every row at once after WORKING_SET_ROUNDS rounds or once
-        the set holds WORKING_SET_FRACTION of the rows. Returns (status, l, `moves(l)`,
-        PIQP iterations)."""
+        the set holds WORKING_SET_FRACTION of the rows. Status TOO_LARGE when a block to
+        solve exceeds MAX_PAIRS entries. Returns (status, l, `moves(l)`, PIQP iterations)."""
         n = len(self.c)
+        whole = np.arange(n)
+        fits = self.pairs(whole) <= MAX_PAIRS
         work = start.copy()
         iterations = 0
         for _ in range(WORKING_SET_ROUNDS):
-            if work.sum() > WORKING_SET_FRACTION * n:
+            if fits and work.sum() > WORKING_SET_FRACTION * n:
                 break
             idx = np.flatnonzero(work)
+            if not fits and self.pairs(idx) > MAX_PAIRS:
+                return TOO_LARGE, None, None, iterations
             lam = np.zeros(n)
             if idx.size:
-                status, sub, its = _solve_bounded(self.block(idx), self.c[idx], tolerance)
+                status, sub, its = _solve_bounded(self.block(idx), self.c[idx],
+                                                  SOLVE_TOLERANCE * tolerance)
                 iterations += its
                 if sub is None:
                     return status, None, None, iterations
                 lam[idx] = sub
             moves = self.moves(lam)
-            broken = ~work & (self.gradient(moves) < -tolerance)
+            gradient = self.gradient(moves)
+            broken = ~work & (gradient < -tolerance)
             if not broken.any():
                 return SOLVED, lam, moves, iterations
-            work |= broken
-        status, lam_all, its = _solve_bounded(self.block(np.arange(n)), self.c, tolerance)
+            work |= self.worst_per_link(broken, gradient)
+        if not fits:
+            return TOO_LARGE, None, None, iterations
+        status, lam_all, its = _solve_bounded(self.block(whole), self.c,
+                                              SOLVE_TOLERANCE * tolerance)
         if lam_all is None:
             return status, None, None, iterations + its
         return status, lam_all, self.moves(lam_all), iterations + its
@@ -329,7 +340,8 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
                      ) -> DualOutcome | None:
     """The group QP of `build_group_qp(scenario, members, rows, boxes)`, solved through
     its dual. Returns the group's (p, v, a) and the separation rows' multipliers, or None
-    when the dual's matrix would exceed `MAX_PAIRS` entries (the caller solves the primal).
+    when a block of the dual's matrix to solve would exceed `MAX_PAIRS` entries (the caller
+    solves the primal).
 
     The dual is solved over a working set of rows (`_Dual.solve`) that starts from the rows
     the straight moves break or, with row_ids and memory (names of the separation rows,
@@ -367,10 +379,6 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
 
     if n_rows == 0:  # nothing couples or bounds the group: the straight moves
         return DualOutcome(SOLVED, base, np.zeros(0), 0)
-    per_vehicle = np.bincount(e_veh, minlength=m)
-    if int(np.sum(per_vehicle.astype(np.int64) ** 2)) > MAX_PAIRS:
-        return None
-
     # Linear term: C x* - h (each row's slack at the straight moves).
     c = np.bincount(e_row, np.einsum("ec,ec->e", e_coef, g_star[e_veh, e_func]),
                     minlength=n_rows) - rhs
@@ -378,7 +386,7 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     dual = _Dual(fn, m, e_row, e_veh, e_func, e_coef, c)
     box_ids = np.zeros(0, dtype=np.int64)
     # Start from the rows remembered active, else from those the straight moves break.
-    start = c < -tolerance
+    start = dual.worst_per_link(c < -tolerance, c)
     if memory is not None and row_ids is not None:
         side = (b_sign > 0).astype(np.int64)
         box_ids = ((members[b_veh].astype(np.int64) * fn.compliance.shape[0] + b_func) * 3
@@ -387,6 +395,8 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
         if known.any():
             start = known
     status, lam, moves, iterations = dual.solve(start, tolerance)
+    if status == TOO_LARGE:
+        return None
     if lam is None or moves is None:
         return DualOutcome(status, None, None, iterations)
     if memory is not None and row_ids is not None:

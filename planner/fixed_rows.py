@@ -8,22 +8,19 @@ and three rows u' S (x_i - x_f) >= R + margin at the control points keep the pai
 the whole interval (the margin grows with time, `planner.fixed.margin_at`: the rows of an
 interval ask for its largest). q is fixed, so each row is one-sided (`SeparationRows`,
 j = -1): coef' x_i >= R + offset, offset = coef' x_f + margin, coef = S u. The broad phase and the
-lazy check follow `planner.obstacle_rows`.
+lazy check follow `planner.obstacle_rows` (`planner.lazy_rows`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from planner.plane_cache import Keys, PlaneCache
-from planner.qp import SeparationRows
+from planner.lazy_rows import LazyRows, Triples, interval_points
 from planner.scenario import Scenario
 from planner.separation import _chord_closest, _unit
-from planner.types import FloatArray, IntArray
+from planner.types import FloatArray
 
-__all__ = ["FixedRows", "FixedTriples", "interval_boxes"]
+__all__ = ["FixedRows", "interval_boxes"]
 
 
 #: Triples within this of binding (m, at least) at the linearisation point start an
@@ -55,20 +52,9 @@ def _box_gap2(lo: FloatArray, hi: FloatArray, other_lo: FloatArray, other_hi: Fl
     return np.einsum("...c,...c->...", gap, gap)
 
 
-@dataclass(frozen=True)
-class FixedTriples:
-    """(planned vehicle, fixed vehicle, interval) index arrays."""
-
-    vehicle: IntArray
-    fixed: IntArray
-    k: IntArray
-
-    def __len__(self) -> int:
-        return len(self.vehicle)
-
-
-class FixedRows:
-    """The fixed-trajectory rows of one scenario: keys, directions, broad phase, lazy check."""
+class FixedRows(LazyRows):
+    """The fixed-trajectory rows of one scenario: directions and the broad phase
+    (`planner.lazy_rows` seeds them and checks them lazily)."""
 
     def __init__(self, scenario: Scenario) -> None:
         fs = scenario.fixed_set
@@ -77,7 +63,7 @@ class FixedRows:
         self.dt = scenario.dt
         self.moving = scenario.start_velocities is not None
         self.vehicles = len(scenario.vehicles)
-        self.count = len(fs)
+        self.count = self.others = len(fs)
         self.intervals = scenario.steps
         self.margins = fs.interval_margins  # (F, K)
         self._positions, self._velocities = fs.positions, fs.velocities
@@ -88,25 +74,13 @@ class FixedRows:
         self._block_lo = np.minimum.reduceat(self._lo, self._firsts, axis=1)
         self._block_hi = np.maximum.reduceat(self._hi, self._firsts, axis=1)
         self._block_margin = np.maximum.reduceat(self.margins, self._firsts, axis=1)
-        self._planes = PlaneCache(lambda lin, keys: self.planes(lin, self.decode(keys)))
+        super().__init__()
 
-    # ---------------------------------------------------------------- keys
+    @property
+    def seed_margin(self) -> float:
+        return SEED_MARGIN
 
-    def encode(self, t: FixedTriples) -> Keys:
-        return ((t.vehicle.astype(np.int64) * self.count + t.fixed) * self.intervals + t.k)
-
-    def decode(self, keys: Keys) -> FixedTriples:
-        k = keys % self.intervals
-        vf = keys // self.intervals
-        return FixedTriples((vf // self.count).astype(np.intp),
-                            (vf % self.count).astype(np.intp), k.astype(np.intp))
-
-    def vehicles_of(self, keys: Keys) -> IntArray:
-        return (keys // (self.intervals * self.count)).astype(np.intp)
-
-    # ---------------------------------------------------------------- geometry
-
-    def planes(self, lin: FloatArray, t: FixedTriples) -> tuple[FloatArray, FloatArray]:
+    def planes(self, lin: FloatArray, t: Triples) -> tuple[FloatArray, FloatArray]:
         """Per triple the row coefficients coef = S u (T, 3) and the right-hand sides of its
         three rows minus R (T, 3 kinds), linearised about the positions `lin` (N, K+1, 3)."""
         start = self._positions[t.fixed, t.k]
@@ -124,32 +98,29 @@ class FixedRows:
         offset = np.einsum("tc,tpc->tp", coef, q) + self.margins[t.fixed, t.k][:, None]
         return coef, offset
 
-    def key_planes(self, lin: FloatArray, keys: Keys) -> tuple[FloatArray, FloatArray]:
-        """`planes` of the rows of `keys`, remembered for the current `lin`
-        (`planner.plane_cache`)."""
-        return self._planes.planes(lin, keys)
-
-    def values(self, p: FloatArray, v: FloatArray, t: FixedTriples, coef: FloatArray,
+    def values(self, p: FloatArray, v: FloatArray, t: Triples, coef: FloatArray,
                offset: FloatArray) -> FloatArray:
         """Per triple the smallest coef' x - R - offset over its three rows at (p, v)."""
-        x = np.stack([p[t.vehicle, t.k], p[t.vehicle, t.k] + 0.5 * self.dt * v[t.vehicle, t.k],
-                      p[t.vehicle, t.k + 1]], axis=1)  # (T, 3 points, 3)
+        x = interval_points(p, v, t, self.dt)  # (T, 3 points, 3)
         return (np.einsum("tpc,tc->tp", x, coef) - self.separation - offset).min(axis=1)
 
-    def near(self, p: FloatArray, v: FloatArray, reach: float) -> FixedTriples:
+    def offsets(self, offset: FloatArray) -> FloatArray:
+        """coef' x_i >= R + offset, one offset per control point."""
+        return offset.T.reshape(-1)
+
+    def near(self, p: FloatArray, v: FloatArray, reach: float) -> Triples:
         """Triples whose interval's control-point boxes (scaled) come within R + margin +
         `reach` of each other: a superset of those whose motion comes that close. Boxes
         over BLOCK intervals are compared first; only the intervals of blocks that come
         that close are compared one by one."""
         n = p.shape[0]
         if self.count == 0 or n == 0:
-            z = np.zeros(0, dtype=np.intp)
-            return FixedTriples(z, z, z)
+            return Triples.empty()
         lo, hi = interval_boxes(p, v, self.dt, self.scale)  # (N, K, 3)
         block_lo = np.minimum.reduceat(lo, self._firsts, axis=1)  # (N, B, 3)
         block_hi = np.maximum.reduceat(hi, self._firsts, axis=1)
         blocks = len(self._firsts)
-        found: list[FixedTriples] = []
+        found: list[Triples] = []
         # fixed vehicles in chunks of about CHUNK (planned, fixed, interval) boxes at once
         per = max(1, CHUNK // max(1, n * blocks * BLOCK))
         for first in range(0, self.count, per):
@@ -169,48 +140,9 @@ class FixedRows:
             close = (_box_gap2(lo[vehicle, k], hi[vehicle, k], self._lo[fixed, k],
                                self._hi[fixed, k])
                      <= (self.separation + self.margins[fixed, k] + reach) ** 2)
-            found.append(FixedTriples(vehicle[close].astype(np.intp),
+            found.append(Triples(vehicle[close].astype(np.intp),
                                       fixed[close].astype(np.intp), k[close].astype(np.intp)))
         if not found:
-            z = np.zeros(0, dtype=np.intp)
-            return FixedTriples(z, z, z)
-        return FixedTriples(*(np.concatenate([getattr(x, name) for x in found])
-                              for name in ("vehicle", "fixed", "k")))
-
-    # ---------------------------------------------------------------- the SCP side
-
-    def seed(self, lin: tuple[FloatArray, FloatArray, FloatArray]) -> Keys:
-        """Keys of the rows an iteration starts with: within `SEED_MARGIN` of binding."""
-        t = self.near(lin[0], lin[1], SEED_MARGIN)
-        if len(t) == 0:
-            return np.zeros(0, dtype=np.int64)
-        keys = self.encode(t)
-        coef, offset = self.key_planes(lin[0], keys)
-        close = self.values(lin[0], lin[1], t, coef, offset) < SEED_MARGIN
-        return np.unique(keys[close])
-
-    def violated(self, lin: FloatArray, p: FloatArray, v: FloatArray, keys: Keys,
-                 tolerance: float) -> Keys:
-        """Keys not in `keys` of rows (linearised about `lin`) that (p, v) breaks by more
-        than `tolerance`, among the triples that come within R + margin at (p, v)."""
-        t = self.near(p, v, 0.0)
-        if len(t) == 0:
-            return np.zeros(0, dtype=np.int64)
-        fresh = ~np.isin(self.encode(t), keys)
-        t = FixedTriples(t.vehicle[fresh], t.fixed[fresh], t.k[fresh])
-        if len(t) == 0:
-            return np.zeros(0, dtype=np.int64)
-        keys_t = self.encode(t)
-        coef, offset = self.key_planes(lin, keys_t)
-        bad = self.values(p, v, t, coef, offset) < -tolerance
-        return np.unique(keys_t[bad])
-
-    def rows(self, lin: FloatArray, keys: Keys, local: IntArray) -> SeparationRows:
-        """The QP rows of `keys`, three per key, kind-major, one-sided."""
-        t = self.decode(keys)
-        coef, offset = self.key_planes(lin, keys)
-        return SeparationRows(
-            i=np.tile(local[t.vehicle], 3), j=np.full(3 * len(t), -1, dtype=np.intp),
-            k=np.tile(t.k, 3), kind=np.repeat(np.arange(3, dtype=np.intp), len(t)),
-            coef=np.tile(coef, (3, 1)), offset=offset.T.reshape(-1),
-        )
+            return Triples.empty()
+        return Triples(*(np.concatenate([getattr(x, name) for x in found])
+                         for name in ("vehicle", "other", "k")))

@@ -12,18 +12,17 @@ so the primal and the dual group QPs take them unchanged.
 
 Only nearby obstacles get rows: a broad phase (`ObstacleSet.near`, a k-d tree over the
 steps' control-point boxes) finds the (vehicle, interval, obstacle) triples that can come
-within the clearance; a row is added when the iterate breaks it, like the separation rows.
+within the clearance; a row is added when the iterate breaks it, like the separation rows
+(`planner.lazy_rows`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from planner.golden import golden_minimum
+from planner.lazy_rows import LazyRows, Triples, interval_points
 from planner.obstacles import ObstacleSet
-from planner.plane_cache import Keys, PlaneCache
 from planner.qp import SeparationRows
 from planner.scenario import Scenario
 from planner.types import FloatArray, IntArray
@@ -39,18 +38,6 @@ SEED_MIN = 0.2
 #: Golden-section steps locating a chord's point nearest an obstacle (interval shrinks to
 #: 0.618^N of the chord).
 CHORD_STEPS = 20
-
-
-@dataclass(frozen=True)
-class Triples:
-    """(vehicle, obstacle, interval) index arrays."""
-
-    vehicle: IntArray
-    obstacle: IntArray
-    k: IntArray
-
-    def __len__(self) -> int:
-        return len(self.vehicle)
 
 
 def control_points(p: FloatArray, v: FloatArray, dt: float) -> FloatArray:
@@ -100,8 +87,9 @@ def row_point(geometry: ObstacleSet, a: FloatArray, b: FloatArray, o: IntArray
     return out
 
 
-class ObstacleRows:
-    """The obstacle rows of one scenario: keys, planes, the broad phase and the lazy check."""
+class ObstacleRows(LazyRows):
+    """The obstacle rows of one scenario: planes and the broad phase (`planner.lazy_rows`
+    seeds them and checks them lazily)."""
 
     def __init__(self, scenario: Scenario, seed_fraction: float = SEED_FRACTION) -> None:
         self.geometry = scenario.obstacle_set
@@ -110,26 +98,14 @@ class ObstacleRows:
         self.separation = scenario.min_separation
         self.dt = scenario.dt
         self.vehicles = len(scenario.vehicles)
-        self.obstacles = len(self.geometry)
+        self.obstacles = self.others = len(self.geometry)
         self.intervals = scenario.steps
-        self._planes = PlaneCache(lambda lin, keys: self.planes(lin, self.decode(keys)))
+        super().__init__()
 
-    # ---------------------------------------------------------------- keys
-
-    def encode(self, t: Triples) -> Keys:
-        return ((t.vehicle.astype(np.int64) * self.obstacles + t.obstacle) * self.intervals
-                + t.k)
-
-    def decode(self, keys: Keys) -> Triples:
-        k = keys % self.intervals
-        vo = keys // self.intervals
-        return Triples((vo // self.obstacles).astype(np.intp),
-                       (vo % self.obstacles).astype(np.intp), k.astype(np.intp))
-
-    def vehicles_of(self, keys: Keys) -> IntArray:
-        return (keys // (self.intervals * self.obstacles)).astype(np.intp)
-
-    # ---------------------------------------------------------------- geometry
+    @property
+    def seed_margin(self) -> float:
+        """`seed_fraction` clearances, at least SEED_MIN."""
+        return max(SEED_MIN, self.seed_fraction * self.clearance)
 
     def planes(self, lin: FloatArray, t: Triples) -> tuple[FloatArray, FloatArray]:
         """Per triple the row's unit normal (T, 3) and right-hand side (T,): n'x >= rhs at
@@ -147,18 +123,16 @@ class ObstacleRows:
         _, point, normal = self.geometry.support(q, t.obstacle, right)
         return normal, np.einsum("tc,tc->t", normal, point) + self.clearance
 
-    def key_planes(self, lin: FloatArray, keys: Keys) -> tuple[FloatArray, FloatArray]:
-        """`planes` of the rows of `keys`, remembered for the current `lin`
-        (`planner.plane_cache`)."""
-        return self._planes.planes(lin, keys)
-
     def values(self, p: FloatArray, v: FloatArray, t: Triples, normal: FloatArray,
                rhs: FloatArray) -> FloatArray:
         """Per triple the smallest n'x - rhs over the interval's control points at (p, v)
         (>= 0: the row holds)."""
-        cp = control_points(p[t.vehicle], v[t.vehicle], self.dt)  # (T, K, 3, 3)
-        points = cp[np.arange(len(t)), t.k]  # (T, 3 points, 3)
+        points = interval_points(p, v, t, self.dt)  # (T, 3 points, 3)
         return np.einsum("tpc,tc->tp", points, normal).min(axis=1) - rhs
+
+    def offsets(self, rhs: FloatArray) -> FloatArray:
+        """n'x >= R + offset with offset = rhs - R, the same for the three points."""
+        return np.tile(rhs - self.separation, 3)
 
     def near(self, p: FloatArray, v: FloatArray, reach: float) -> Triples:
         """Triples whose interval's control points' box lies within clearance + `reach` of
@@ -168,51 +142,6 @@ class ObstacleRows:
         box, obstacle = self.geometry.near(lo, hi, self.clearance + reach)
         vehicle, k = np.divmod(box, self.intervals)
         return Triples(vehicle.astype(np.intp), obstacle, k.astype(np.intp))
-
-    # ---------------------------------------------------------------- the SCP side
-
-    def seed(self, lin: tuple[FloatArray, FloatArray, FloatArray]) -> Keys:
-        """Keys of the rows an iteration starts with: those within the seed margin
-        (`seed_fraction` clearances, at least SEED_MIN) of binding at the linearisation
-        point."""
-        margin = max(SEED_MIN, self.seed_fraction * self.clearance)
-        t = self.near(lin[0], lin[1], margin)
-        if len(t) == 0:
-            return np.zeros(0, dtype=np.int64)
-        keys = self.encode(t)
-        normal, rhs = self.key_planes(lin[0], keys)
-        close = self.values(lin[0], lin[1], t, normal, rhs) < margin
-        return np.unique(keys[close])
-
-    def violated(self, lin: FloatArray, p: FloatArray, v: FloatArray, keys: Keys,
-                 tolerance: float) -> Keys:
-        """Keys not in `keys` of rows (linearised about positions `lin`) that (p, v) breaks
-        by more than `tolerance`, among the triples within the clearance at (p, v): farther
-        ones are clear whatever their row says."""
-        t = self.near(p, v, 0.0)
-        if len(t) == 0:
-            return np.zeros(0, dtype=np.int64)
-        fresh = ~np.isin(self.encode(t), keys)
-        t = Triples(t.vehicle[fresh], t.obstacle[fresh], t.k[fresh])
-        if len(t) == 0:
-            return np.zeros(0, dtype=np.int64)
-        keys_t = self.encode(t)
-        normal, rhs = self.key_planes(lin, keys_t)
-        bad = self.values(p, v, t, normal, rhs) < -tolerance
-        return np.unique(keys_t[bad])
-
-    def rows(self, lin: FloatArray, keys: Keys, local: IntArray) -> SeparationRows:
-        """The QP rows of `keys` (three per key, kinds 0, 1, 2, kind-major like the
-        separation rows), one-sided: n'x >= R + offset with offset = rhs - R. `local` maps
-        scenario vehicle indices to the group's."""
-        t = self.decode(keys)
-        normal, rhs = self.key_planes(lin, keys)
-        kinds = np.repeat(np.arange(3, dtype=np.intp), len(t))
-        return SeparationRows(
-            i=np.tile(local[t.vehicle], 3), j=np.full(3 * len(t), -1, dtype=np.intp),
-            k=np.tile(t.k, 3), kind=kinds, coef=np.tile(normal, (3, 1)),
-            offset=np.tile(rhs - self.separation, 3),
-        )
 
 
 def concat_rows(a: SeparationRows, b: SeparationRows) -> SeparationRows:

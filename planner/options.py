@@ -1,13 +1,49 @@
-"""How `planner.plan` plans: the strategy settings around the SCP loop (which methods,
-batches, dodges), apart from the loop's own knobs (`planner.scp.ScpOptions`)."""
+"""How `planner.plan` plans: the SCP loop's own knobs (`ScpOptions`) and the strategy
+settings around the loop (`PlanningOptions`: which methods, batches, dodges)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from planner.scp import ScpOptions
+from planner.obstacle_rows import SEED_FRACTION
 
-__all__ = ["PlanningOptions"]
+__all__ = ["PlanningOptions", "ScpOptions"]
+
+
+@dataclass(frozen=True)
+class ScpOptions:
+    """Knobs of the SCP loop itself; the defaults are what `planner.plan` uses (the choice of
+    planning method is `planner.options.PlanningOptions`)."""
+
+    continuous: bool = True
+    """Interval rows (separation over continuous time) instead of the paper's step rows."""
+    culling: bool = True
+    """Rows only where needed (lazily completed). False: every pair at every step."""
+    candidate_margin: float = 0.0
+    """Pairs closer than R * (1 + margin) at the linearisation point seed a row."""
+    violation_tolerance: float = 1e-6
+    """A row or box broken by more than this is added to the QP (m, m/s, ...)."""
+    split_above: int = 0
+    """Groups of more vehicles are solved by block Gauss-Seidel sweeps (feasible, not
+    necessarily optimal for the group's QP); 0 (the default): every group whole. Measured
+    in the README (Performance): no clear gain at 1,000 vehicles, so off by default."""
+    block_size: int = 32
+    """Vehicles per block of a split group."""
+    dual: bool = True
+    """Solve each group's QP through its dual (`planner.dual`, one variable per row; the
+    same optimum) instead of the primal staged QP with the configured backend. Only with
+    the PIQP backend; other backends always solve the primal, and so does a plan of more
+    than `planner.scp.DUAL_MAX_STEPS` steps, or a group whose dual is too large
+    (`planner.dual.MAX_PAIRS`) or did not solve (infeasible, ...)."""
+    obstacle_seed: float = SEED_FRACTION
+    """Obstacle rows within this many clearances of binding at the linearisation point
+    start an iteration's QP (the rest are added when broken). More suits small QPs (the
+    prioritized batches), where a re-solve costs more than the extra rows."""
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.obstacle_seed < float("inf"):
+            raise ValueError(f"obstacle_seed: must be a positive number of clearances, "
+                             f"got {self.obstacle_seed!r}")
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,9 @@ Two ways to linearise it about a previous iterate (the linearisation point, `lin
   intervals use the direction of their fixed endpoint (start or goal), so the rows never
   contradict the boundary conditions.
 
-Every function is vectorised over pairs and steps, in chunks that bound memory.
+Every function is vectorised over pairs and steps, in chunks that bound memory. The module
+runs past 400 lines: its broad phases, directions, row values and distance bounds share the
+pair-step geometry (`PairSteps`, the chunking, the chord's closest point).
 """
 
 from __future__ import annotations

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import statistics
 import subprocess
 import sys
 from importlib import metadata
@@ -70,6 +71,25 @@ def test_planner_benchmark_plans_a_family_in_prioritized_batches_when_asked():
     assert row["status"] == "converged" and row["verified"] is True
     assert row["obstacle_distance_min"] >= row["clearance"] - 1e-4
     assert report["families_summary"][0]["method"] == "prioritized"
+
+
+def test_floors_benchmark_reports_verified_medians_against_each_floor():
+    report = _run("floors.py", "--only", "paper-random2", "pillar-circle8", "--repeats", "2")
+    paper, pillar = report["cases"]
+    assert (paper["case"], paper["vehicles"], paper["floor_of"]) == ("paper-random2", 2,
+                                                                     "planner")
+    assert (pillar["case"], pillar["floor_s"], pillar["floor_of"]) == ("pillar-circle8", 0.5,
+                                                                       "wall")
+    for row in (paper, pillar):
+        assert len(row["planner_s"]) == len(row["cpu_s"]) == 2
+        assert row["median_planner_s"] == pytest.approx(statistics.median(row["planner_s"]),
+                                                        abs=1e-4)
+        measured = row["median_planner_s"] if row["floor_of"] == "planner" \
+            else row["median_wall_s"]
+        assert row["meets_floor"] == (measured <= row["floor_s"])
+        assert row["method"] in ("whole", "prioritized", "separated_first")
+        assert row["iterations"] >= 1
+    assert report["cpus"] == os.cpu_count() and len(report["load_average_at_start"]) == 3
 
 
 def test_stream_benchmark_reports_rate_and_jitter():

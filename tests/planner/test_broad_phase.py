@@ -8,6 +8,7 @@ import pytest
 
 import planner
 import planner.first_qp
+import planner.pruning
 import planner.scp
 import planner.verify
 from planner.generators import grid_to_sphere, random_dense
@@ -86,10 +87,10 @@ def test_verifier_minimum_is_the_same_with_and_without_the_broad_phase(monkeypat
 
 def test_plans_are_the_same_with_and_without_the_broad_phase(monkeypatch):
     data = random_dense(24, seed=5)
-    monkeypatch.setattr(planner.scp, "NEAR_MIN_VEHICLES", 2)
+    monkeypatch.setattr(planner.pruning, "NEAR_MIN_VEHICLES", 2)
     monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 2)
     pruned = planner.plan(data)
-    monkeypatch.setattr(planner.scp, "NEAR_MIN_VEHICLES", 10**9)
+    monkeypatch.setattr(planner.pruning, "NEAR_MIN_VEHICLES", 10**9)
     monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 10**9)
     full = planner.plan(data)
     assert pruned.ok and full.ok
@@ -129,7 +130,7 @@ def test_windowed_margins_are_below_the_exact_interval_margins(continuous):
     scenario = planner.Scenario.from_dict(random_dense(80, seed=2)).assigned()
     lin = planner.first_qp.straight_moves(scenario)
     options = planner.scp.ScpOptions(continuous=continuous)
-    pruning = planner.scp._margins(scenario, options, lin)
+    pruning = planner.pruning.margins(scenario, options, lin)
     exact = interval_margins(lin[0], lin[1], scenario.dt, scenario.separation_scale,
                              continuous, scenario.min_separation) - scenario.min_separation
     at = pair_index(pruning.near_i, pruning.near_j, 80)

@@ -80,17 +80,48 @@ def test_dual_group_equals_primal():
                        rtol=1e-3, atol=1e-6)
 
 
-def test_dual_declines_a_group_whose_matrix_would_be_huge():
-    # Every pair at every interval and every box of every vehicle: thousands of rows per
-    # vehicle, all coupled to each other; the caller solves the primal instead.
-    scenario = Scenario.from_dict(load_example("paper-circle8"))
+def _every_row(scenario: Scenario) -> SeparationRows:
+    """The interval rows of every pair at every interval, about the straight moves."""
     lin = straight_moves(scenario)[0]
     n, steps = len(scenario.vehicles), scenario.steps
     i, j = all_pairs(n)
     pairs = PairSteps(np.repeat(i, steps), np.repeat(j, steps),
                       np.tile(np.arange(steps), len(i)))
-    rows = _rows(scenario, lin, pairs)
+    return _rows(scenario, lin, pairs)
+
+
+def test_dual_declines_a_group_whose_matrix_would_be_huge(monkeypatch):
+    # Every pair at every interval and every box of every vehicle: thousands of rows per
+    # vehicle, all coupled to each other. Its working sets fit the real MAX_PAIRS (they
+    # hold about one row per pair and vehicle); lowered below the first set's block, the
+    # dual declines and the caller solves the primal instead.
+    import planner.dual
+
+    monkeypatch.setattr(planner.dual, "MAX_PAIRS", 100)
+    scenario = Scenario.from_dict(load_example("paper-circle8"))
+    n, steps = len(scenario.vehicles), scenario.steps
+    rows = _every_row(scenario)
     assert solve_group_dual(scenario, np.arange(n), rows, BoxMask.full(n, steps)) is None
+
+
+def test_a_group_whose_whole_matrix_is_huge_solves_over_its_working_sets():
+    # The same group at the real MAX_PAIRS: its whole Q exceeds it, its working sets do
+    # not, and the dual's optimum is the primal's.
+    from planner.dual import MAX_PAIRS
+
+    data = load_example("paper-circle8")
+    data["dt"], data["steps"] = data["dt"] * data["steps"] / 40, 40  # a primal of seconds
+    scenario = Scenario.from_dict(data)
+    n, steps = len(scenario.vehicles), scenario.steps
+    rows = _every_row(scenario)
+    boxes = BoxMask.full(n, steps)
+    entries = np.bincount(np.concatenate([rows.i, rows.j]), minlength=n).astype(np.int64)
+    assert np.sum(entries ** 2) > MAX_PAIRS  # the separation rows alone
+    dual = solve_group_dual(scenario, np.arange(n), rows, boxes)
+    assert dual is not None and dual.status == SOLVED
+    (p, _, a), _ = _primal(scenario, np.arange(n), rows, boxes)
+    assert np.abs(dual.solution[0] - p).max() < 1e-5
+    assert np.abs(dual.solution[2] - a).max() < 1e-5
 
 
 def test_one_sided_rows_hold_the_other_vehicle_fixed():
@@ -157,7 +188,7 @@ def test_other_backends_keep_the_primal_and_agree():
 
 
 def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
-    import planner.scp as scp
+    import planner.group_solver as group_solver
     from planner.dual import DualOutcome
 
     calls = []
@@ -168,7 +199,7 @@ def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
 
     data = load_example("random64")
     reference = planner.plan(data, method="whole")
-    monkeypatch.setattr(scp, "solve_group_dual", broken)
+    monkeypatch.setattr(group_solver, "solve_group_dual", broken)
     fallback = planner.plan(data, method="whole")
     assert calls
     assert fallback.ok, fallback.message
@@ -178,6 +209,7 @@ def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
 def test_a_long_horizon_keeps_the_primal(monkeypatch):
     """Above DUAL_MAX_STEPS the dual's dense functional matrix (5K x 5K) is never built: a
     2-vehicle crossing over 5,000 steps would need 5 GB for it."""
+    import planner.group_solver as group_solver
     import planner.scp as scp
     from planner.dual import DualOutcome
 
@@ -187,7 +219,7 @@ def test_a_long_horizon_keeps_the_primal(monkeypatch):
         calls.append(1)
         return DualOutcome("failed", None, None, 0)
 
-    monkeypatch.setattr(scp, "solve_group_dual", counting)
+    monkeypatch.setattr(group_solver, "solve_group_dual", counting)
     data = load_example("paper-circle2")
     data["steps"] = scp.DUAL_MAX_STEPS
     assert planner.plan(data, method="whole").ok and calls  # at the bound: tried

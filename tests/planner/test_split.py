@@ -8,12 +8,13 @@ import pytest
 
 import planner
 from planner.generators import grid_to_sphere
-from planner.scp import ScpOptions, _spatial_blocks
+from planner.group_solver import spatial_blocks
+from planner.scp import ScpOptions
 
 
 def test_spatial_blocks_partition_the_points():
     points = np.random.default_rng(1).random((103, 3)) * [30.0, 5.0, 2.0]
-    blocks = _spatial_blocks(points, 16)
+    blocks = spatial_blocks(points, 16)
     assert all(len(b) <= 16 for b in blocks)
     assert sorted(np.concatenate(blocks).tolist()) == list(range(103))
     # Bisection along x (the widest axis): blocks are spatially compact.
