@@ -87,15 +87,15 @@ from gcs.flight.events import EventFanout
 from gcs.flight.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.flown import FlownPlans
 from gcs.flight.hub import LinkHub
-from gcs.flight.landing import PlannedLanding
+from gcs.flight.landing import SETTLE_S, PlannedLanding
 from gcs.flight.link import DECODED_IDS
 from gcs.flight.margin import check_margin, required_separation
 from gcs.flight.monitor import PERIOD, FleetMonitor
-from gcs.flight.phases import EventKind, FlightPhase, VehiclePhase
+from gcs.flight.phases import AIRBORNE, EventKind, FlightPhase, VehiclePhase
 from gcs.flight.policy import FaultPolicy
 from gcs.flight.record import FlightRecorder, goal_tolerance
 from gcs.flight.recording import FlightRecording, finish_record
-from gcs.flight.replan import Replanner
+from gcs.flight.replan import Replanner, predicted_landing, unheard_margin
 from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.snapshot import flight_snapshot
 from gcs.flight.station import STALL_NOTE_S, StallReport, StationStalls
@@ -152,7 +152,7 @@ class FlightExecutor:
         """The flight's in-flight replans (`gcs.flight.replan`), once the plan is flown."""
         self._plan_changed = asyncio.Event()
         """Set when a replan switched: the end of the flight's plan moved."""
-        self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land,
+        self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land_when_down,
                                   abort=self.abort, aborting=lambda: self._abort is not None,
                                   descent=self._descent_conflicts,
                                   replan=self._replan_fault)
@@ -161,7 +161,9 @@ class FlightExecutor:
                                     on_fault=self._on_fault,
                                     planned=lambda v, times: self.flown.position(v.id, times),
                                     predicted=lambda v, t: self.flown.predicted(v.id, t),
-                                    on_separation=self.policy.on_separation,
+                                    on_separation=lambda closest, alarm:
+                                    self.policy.on_separation(
+                                        closest, alarm, self.monitor.closest_text()),
                                     stalls=self.stalls,
                                     on_drops=lambda v, detail: self._emit(
                                         v.id, EventKind.DROPPED_PACKETS, detail))
@@ -584,15 +586,27 @@ class FlightExecutor:
         if not np.all(np.isfinite(position)):
             return None
         flying = self.flown.current  # the plan in force: the first, or a switched replan's
-        return descent_conflicts(flying.plan, v.id, position, now - flying.start,
-                                 required_separation(self.plan.scenario),
-                                 ground=float(v.home[2]))
+        clearance = required_separation(self.plan.scenario)
+        hold = 0.0
+        if v.fault == "link_lost":  # on its own failsafe: it holds first, seen from afar
+            age = self.stalls.age(tel.position_time, time.monotonic())
+            hold = v.failsafe.hold_s
+            clearance += unheard_margin(age)
+        return descent_conflicts(flying.plan, v.id, position, now - flying.start, clearance,
+                                 ground=float(v.home[2]), hold=hold)
 
     def _on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
         """The monitor flagged `v`: a replan planned without knowing it is called off (under
         policy replan the new one is), then the policy acts."""
         if self._replanner is not None and self.options.policy != "replan":
             self._replanner.cancel(f"{v.id} faulted ({kind}) while it was planned")
+        if kind == "link_lost" and v.phase in AIRBORNE and v.home is not None:
+            # a moving obstacle for every plan made from now on, and what the separation
+            # monitor counts for it while it is unheard
+            motion = predicted_landing(v, self.plan.scenario.assigned(), self.options,
+                                       self.clock, measured=True, unheard=True)
+            if motion is not None:
+                self.flown.motions[v.id] = motion
         self.policy.on_fault(v, kind, detail)
 
     def _replan_fault(self, v: VehicleStatus, kind: str) -> None:
@@ -605,12 +619,22 @@ class FlightExecutor:
             replanner, why = None, exc.reason if isinstance(exc, StateConflict) else str(exc)
         if replanner is not None and not replanner.predict_landing(v, kind):
             replanner, why = None, "its motion cannot be predicted (no position)"
-        self.policy.landings.append(self.policy.tasks.spawn(self._land(v)))
+        self.policy.landings.append(self.policy.tasks.spawn(self._land_when_down(v)))
         if replanner is None:
             self._replan_missed([v], why)
             return
         with contextlib.suppress(Exception):  # on failure it fell back (`_replan_missed`)
             replanner.request(None, (), "land", f"{v.id} {kind}", faulty=[v])
+
+    async def _land_when_down(self, v: VehicleStatus) -> None:
+        """PX4's Land for a faulty vehicle: at once, or for a lost one once its predicted
+        failsafe motion has ended (a Land arriving earlier would take it down before the
+        hold the others were planned around was over)."""
+        motion = self.flown.motions.get(v.id)
+        if v.fault == "link_lost" and motion is not None:
+            while (now := self.flight_time()) is not None and now < motion.end + SETTLE_S:
+                await asyncio.sleep(min(PERIOD, motion.end + SETTLE_S - now))
+        await self._land(v)
 
     def _replan_missed(self, faulty: list[VehicleStatus], why: str) -> None:
         """Policy replan could not fly the others around `faulty`: land_faulty's way."""
@@ -634,19 +658,23 @@ class FlightExecutor:
         if action != "land" or self.options.landing != "planned" or self.streamer is None:
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), self.vehicles, self.streamer,
-                                 self.options, self._emit, self._secure_one, self.stalls)
+                                 self.options, self._emit, self._secure_one, self.stalls,
+                                 self.flown, self.clock)
         return landing if landing.eligible() else None
 
     def _end_landing(self, live: list[VehicleStatus]) -> PlannedLanding | None:
         """The landing plan for `at_end: land` when a vehicle's straight descent from its
         goal would come closer than R to another's goal (goals stacked above each other), or
-        None: then PX4's Land takes each straight down, which keeps R."""
+        a vehicle off the plans is still in the air (it is planned around), or None: then
+        PX4's Land takes each straight down, which keeps R."""
         if self.options.landing != "planned" or self.streamer is None:
             return None
-        if all(self._descent_conflicts(v) == [] for v in live):
+        around = [v for v in self.vehicles if v not in live and v.phase in AIRBORNE]
+        if not around and all(self._descent_conflicts(v) == [] for v in live):
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), live, self.streamer,
-                                 self.options, self._emit, self._land, self.stalls)
+                                 self.options, self._emit, self._land, self.stalls,
+                                 self.flown, self.clock, around)
         return landing if landing.eligible() else None
 
     def _secure_one(self, v: VehicleStatus) -> Awaitable[None]:

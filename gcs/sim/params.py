@@ -39,6 +39,8 @@ PARAMS_PER_TICK = 5
 #: Parameters that change the mock's behaviour: name -> the `MockConfig` field it writes.
 MODELLED: dict[str, str] = {
     "COM_OF_LOSS_T": "offboard_loss_timeout",
+    "COM_FAIL_ACT_T": "failsafe_action_delay",
+    "COM_OBL_RC_ACT": "offboard_loss_action",
     "COM_DISARM_LAND": "disarm_after_land",
     "COM_DISARM_PRFLT": "disarm_preflight",
     "MPC_LAND_SPEED": "land_speed",
