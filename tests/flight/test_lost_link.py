@@ -21,9 +21,9 @@ import pytest
 
 import planner
 from gcs import px4
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec
-from gcs.flight.phases import EventKind
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.run.executor import FlightExecutor
+from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from gcs.sim.fleet import homes_under
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports
