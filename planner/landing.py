@@ -232,18 +232,6 @@ def first_step_clearance(p: FloatArray, v: FloatArray, a: FloatArray, scenario: 
     return float(np.min(np.minimum.reduce(values))) * (1.0 - 1e-9)
 
 
-def _fixed_start_clearance(p: FloatArray, fixed: Sequence[FixedTrajectory],
-                           scenario: Scenario) -> float:
-    """The smallest distance (separation metric) of a vehicle from a fixed one at the start:
-    a plan cannot keep more from it there (inf without fixed ones)."""
-    if not fixed:
-        return math.inf
-    firsts = np.array([f.positions[0] for f in fixed])
-    d = np.linalg.norm((p[:, None, :] - firsts[None, :, :]) / scenario.separation_scale,
-                       axis=2)
-    return float(d.min()) * (1.0 - 1e-9)
-
-
 def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
              scenario: Scenario) -> float:
     """Seconds the landing gets: the farthest vehicle's stop and move, with room to spare."""
@@ -296,8 +284,7 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     if lim.acceleration_max is not None:
         a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
     goals = touchdown_points(p + _stopping(v, scenario), scenario, height, fixed)
-    clearance = min(first_step_clearance(p, v, a, scenario),
-                    _fixed_start_clearance(p, fixed, scenario))
+    clearance = first_step_clearance(p, v, a, scenario)
     separation = scenario.min_separation
     if clearance < separation + START_SLACK * separation:
         # rows at the very edge of what the state allows leave the QP no room: give a hair

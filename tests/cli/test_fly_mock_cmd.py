@@ -255,3 +255,34 @@ def test_fly_rejects_bad_options(tmp_path: Path, extra: tuple[str, ...], says: s
     proc = _fly(tmp_path, *extra)
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 2 and says in out and "Traceback" not in out, out
+
+
+@pytest.mark.flight
+def test_a_killed_fly_leaves_a_readable_partial_record(tmp_path: Path) -> None:
+    """kill -9 mid-plan: no final write, yet the record file holds the record so far
+    (written about once a second as the flight goes): a whole JSON document marked
+    partial, with the events up to the plan's start and each vehicle's telemetry."""
+    proc = _fly(tmp_path)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 60
+    for line in proc.stdout:  # wait until the plan is being flown
+        if "mission_start" in line or time.monotonic() > deadline:
+            break
+    path = tmp_path / "record.json"
+    started = time.monotonic()
+    while time.monotonic() - started < 10.0:  # the next write after the plan's start
+        record = json.loads(path.read_text()) if path.exists() else {"events": []}
+        if any(e["kind"] == "mission_start" for e in record["events"]):
+            break
+        time.sleep(0.1)
+    proc.kill()
+    proc.communicate(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    record = json.loads(path.read_text())
+    assert record["partial"] is True and record["summary"] is None
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("connected") < kinds.index("armed") < kinds.index("mission_start")
+    assert [v["id"] for v in record["vehicles"]] == ["uav1", "uav2"]
+    for v in record["vehicles"]:
+        assert len(v["telemetry"]["t"]) > 10 and len(v["setpoints"]["t"]) > 10
+        assert v["modes"][0]["mode"]

@@ -119,3 +119,13 @@ def test_landing_plan_keeps_clear_of_a_lost_vehicle(circle4: planner.Plan, at: f
     flight, outcome, truth, mock = asyncio.run(_blackhole(circle4, 1, at))
     _check(flight, outcome, truth, mock, circle4, "uav2")
 
+
+
+@pytest.mark.flight
+@pytest.mark.slow
+def test_eight_vehicles_land_clear_of_a_lost_one() -> None:
+    """paper-circle8 (16 s), uav3's link blackholed at 6 s, as the circle closes in: the
+    other seven land by a plan around its failsafe, R kept in truth."""
+    plan = _plan("paper-circle8", 80)
+    flight, outcome, truth, mock = asyncio.run(_blackhole(plan, 2, 6.0))
+    _check(flight, outcome, truth, mock, plan, "uav3")

@@ -87,7 +87,12 @@ from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.procedure import vehicle
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.replan.replan import Replanner, predicted_landing, unheard_margin
+from gcs.flight.replan.replan import (
+    Replanner,
+    motion_track,
+    predicted_landing,
+    unheard_margin,
+)
 from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicle
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
@@ -167,7 +172,10 @@ class FlightExecutor:
                                         closest, alarm, self.monitor.closest_text()),
                                     stalls=self.stalls,
                                     on_drops=lambda v, detail: self._emit(
-                                        v.id, EventKind.DROPPED_PACKETS, detail))
+                                        v.id, EventKind.DROPPED_PACKETS, detail),
+                                    on_silent=self._on_silent, on_heard=self._on_heard)
+        self._silence_pause = False
+        """The flight clock was stopped because a vehicle fell silent (`_on_silent`)."""
         self.streamer: Streamer | None = None
         self._hub: LinkHub | None = None
         self._tracks: list[SetpointTrack] = []
@@ -596,18 +604,49 @@ class FlightExecutor:
         return descent_conflicts(flying.plan, v.id, position, now - flying.start, clearance,
                                  ground=float(v.home[2]), hold=hold)
 
+    def _on_silent(self, v: VehicleStatus, silent: float) -> None:
+        """`v` has been unheard for `SILENT_HOLD_S`: stop the flight clock, so that the
+        others stop on the plan at nearly the plan time at which it stops on its own if its
+        link is lost (it flies on to its last setpoint, then holds: PX4's failsafe)."""
+        if (self.phase != FlightPhase.FLYING or self._abort is not None
+                or self.clock.pause is not None or self.clock.start is None):
+            return
+        t = self.pause()
+        self._silence_pause = True
+        self._emit(v.id, EventKind.LINK_SILENT, f"no message for {silent:.2f} s: the fleet "
+                                                f"holds on the plan at t={t:.2f} s until it "
+                                                f"is heard again or declared lost")
+
+    def _on_heard(self, v: VehicleStatus) -> None:
+        """A silent vehicle is heard again: resume when nothing else keeps the fleet held."""
+        if (self._silence_pause and not self.monitor.silent and self._abort is None
+                and self.clock.pause is not None):
+            self._silence_pause = False
+            self._emit(v.id, EventKind.LINK_SILENT, "heard again: the flight goes on")
+            self.resume()
+
     def _on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
         """The monitor flagged `v`: a replan planned without knowing it is called off (under
         policy replan the new one is), then the policy acts."""
         if self._replanner is not None and self.options.policy != "replan":
             self._replanner.cancel(f"{v.id} faulted ({kind}) while it was planned")
+        if self._silence_pause and self.options.policy in ("land_faulty", "replan") \
+                and self.clock.pause is not None and self._abort is None:
+            self._silence_pause = False  # these policies fly the others on
+            self.resume()
         if kind == "link_lost" and v.phase in AIRBORNE and v.home is not None:
             # a moving obstacle for every plan made from now on, and what the separation
             # monitor counts for it while it is unheard
             motion = predicted_landing(v, self.plan.scenario.assigned(), self.options,
                                        self.clock, measured=True, unheard=True)
+            assignment = self._streamer().assignments.get(v.id)
             if motion is not None:
                 self.flown.motions[v.id] = motion
+            if motion is not None and assignment is not None:  # in case it still listens
+                rate = self._streamer().rate
+                self._streamer().assign(v.id, assignment.link, motion_track(
+                    motion, v.placed, rate, self.options.yaw),
+                    self.clock.start_tick + round(motion.start * rate))
         self.policy.on_fault(v, kind, detail)
 
     def _replan_fault(self, v: VehicleStatus, kind: str) -> None:

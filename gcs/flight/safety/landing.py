@@ -69,6 +69,9 @@ SWITCH_MARGIN_TICKS = 1
 #: in turn, while none is found (a lost vehicle caught at R from another leaves no room to
 #: open the full margin at once).
 MARGIN_SHARES = (1.0, 0.5, 0.0)
+#: While a lost vehicle comes down on its own and no landing plan was found, the others hold
+#: and a landing is planned again this often (s), from the held state.
+RETRY_S = 0.5
 #: After the landing horizon, PX4's Land takes over once the vehicles had this long to settle.
 SETTLE_S = 0.3
 
@@ -97,6 +100,8 @@ class PlannedLanding:
     result: LandingPlan | None = None
     predicted: dict[str, Motion] = field(default_factory=dict)
     """The predicted motions of the vehicles it cannot steer, by id."""
+    unheard: set[str] = field(default_factory=set)
+    """Those of them the station has lost (on their own failsafe)."""
 
     def steerable(self, v: VehicleStatus) -> str | None:
         """Why `v` cannot fly a landing plan, or None when it can."""
@@ -199,6 +204,8 @@ class PlannedLanding:
             return
         self.flown.motions[v.id] = motion
         self.predicted[v.id] = motion
+        if unheard:
+            self.unheard.add(v.id)
         assignment = self.streamer.assignments.get(v.id)
         if unheard and assignment is not None:
             rate = self.streamer.rate
@@ -214,8 +221,7 @@ class PlannedLanding:
         for v in self.around:
             if v.phase in AIRBORNE and v.id not in self.predicted:
                 self._predict(v, unheard=self._lost(v))
-        return [shifted(m, t_switch) for m in self.predicted.values()
-                if m.end > t_switch - 1e-9 or m.trajectory.positions[-1, 2] > 0.0]
+        return [shifted(m, t_switch) for m in self.predicted.values()]
 
     async def _until_flight_time(self, t: float) -> None:
         """Sleep until flight time `t` (at once without a running flight clock)."""
@@ -225,7 +231,36 @@ class PlannedLanding:
 
     async def _fly(self, steer: list[VehicleStatus], rate: float) -> bool:
         """Plan, switch, fly the landing plan; False (after freezing the streams) when no
-        plan was ready in time, which the events say."""
+        plan was ready in time, which the events say. While a lost vehicle is still coming
+        down on its own, a failed attempt freezes the streams (the others hold where they
+        are, rather than go straight down across its column) and is tried again every
+        `RETRY_S` from the held state, and once more after it is down."""
+        why = await self._attempt(steer, rate)
+        held = False
+        last = False
+        while why is not None and not last:
+            last = not self._lost_in_air()
+            if not held:
+                held = True
+                self._freeze(steer)
+                self.emit(None, EventKind.LANDING_FALLBACK, (
+                    f"{', '.join(v.id for v in steer)} hold where they are: {why}; landing "
+                    f"planned again every {RETRY_S:g} s around "
+                    f"{', '.join(self.predicted)}"))
+            await asyncio.sleep(RETRY_S)
+            why = await self._attempt(steer, rate)
+        return True if why is None else self._fallback(steer, why)
+
+    def _lost_in_air(self) -> bool:
+        """True while a lost vehicle (`predicted`, unheard) is predicted in the air."""
+        now = self.clock.flight_time() if self.clock is not None else None
+        return now is not None and any(
+            vid in self.unheard and now < motion.end + SETTLE_S
+            for vid, motion in self.predicted.items())
+
+    async def _attempt(self, steer: list[VehicleStatus], rate: float) -> str | None:
+        """One landing plan from the state `landing_plan_timeout` ahead: None once it was
+        flown to its end, or why there was none."""
         streamer = self.streamer
         bound = self.options.landing_plan_timeout
         switch = streamer.next_tick() + SWITCH_MARGIN_TICKS + math.ceil(bound * rate)
@@ -256,15 +291,14 @@ class PlannedLanding:
             result = await asyncio.wait_for(asyncio.to_thread(planned), timeout=max(
                 0.0, switch_at - time.monotonic() - SWITCH_MARGIN_TICKS / rate))
         except TimeoutError:
-            return self._fallback(steer, f"no landing plan within {bound:g} s")
+            return f"no landing plan within {bound:g} s"
         except LandingError as exc:
-            return self._fallback(steer, str(exc))
+            return str(exc)
         except Exception as exc:  # any planning failure: PX4 Land, never stuck
-            return self._fallback(steer, f"landing planning failed: "
-                                         f"{type(exc).__name__}: {exc}")
+            return f"landing planning failed: {type(exc).__name__}: {exc}"
         if time.monotonic() > switch_at - 0.5 / rate or streamer.tick >= switch:
-            return self._fallback(steer, f"the landing plan came after its switch tick "
-                                         f"({time.perf_counter() - began:.2f} s)")
+            return (f"the landing plan came after its switch tick "
+                    f"({time.perf_counter() - began:.2f} s)")
         self.result = result
         homes = [v.placed for v in steer]
         tracks = plan_tracks(result.plan, homes, rate, self.options.yaw)
@@ -290,16 +324,22 @@ class PlannedLanding:
         end = switch_at + horizon + SETTLE_S
         while (left := end - time.monotonic()) > 0:
             await asyncio.sleep(left)
-        return True
+        return None
 
-    def _fallback(self, steer: list[VehicleStatus], why: str) -> bool:
-        """Freeze the streams where they are and say that PX4's Land takes over."""
+    def _freeze(self, steer: list[VehicleStatus]) -> None:
+        """Every stream of `steer` holds its last setpoint from now on (the vehicles are
+        landing: no longer judged against the plan)."""
         streamer = self.streamer
         for v in steer:
+            v.phase = VehiclePhase.LANDING
             assignment = streamer.assignments.get(v.id)
             if assignment is not None and assignment.last is not None:
                 streamer.assign(v.id, assignment.link, hold_track(
                     assignment.last.position, assignment.last.yaw, streamer.rate))
+
+    def _fallback(self, steer: list[VehicleStatus], why: str) -> bool:
+        """Freeze the streams where they are and say that PX4's Land takes over."""
+        self._freeze(steer)
         self.emit(None, EventKind.LANDING_FALLBACK,
                   f"PX4 Land for {', '.join(v.id for v in steer)}: {why}")
         return False

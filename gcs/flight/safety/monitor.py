@@ -59,6 +59,10 @@ __all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "drops_text",
 
 #: Seconds between two checks.
 PERIOD = 0.05
+#: A vehicle unheard this long (s) is told (`on_silent`) before it is declared lost at
+#: `link_timeout`: a lost vehicle flies on to its last setpoint and stops, so the others are
+#: best stopped on the plan at nearly the same plan time.
+SILENT_HOLD_S = 0.4
 #: For this long after a station stall ends, a vehicle may trail the plan by the stall's
 #: duration (it held its last setpoint meanwhile, then catches up).
 CATCH_UP_S = 3.0
@@ -144,8 +148,16 @@ class FleetMonitor:
                  stalls: StationStalls | None = None,
                  on_drops: DropsCallback | None = None,
                  planned: PlannedCallback | None = None,
-                 predicted: PredictedCallback | None = None) -> None:
+                 predicted: PredictedCallback | None = None,
+                 on_silent: Callable[[VehicleStatus, float], None] | None = None,
+                 on_heard: Callable[[VehicleStatus], None] | None = None) -> None:
         self.vehicles = vehicles
+        self.on_silent = on_silent
+        """Called once when a vehicle meant to be in OFFBOARD has been unheard for
+        `SILENT_HOLD_S` (with how long), `on_heard` when it is heard again."""
+        self.on_heard = on_heard
+        self.silent: set[str] = set()
+        """The vehicles told silent and not heard since."""
         self.planned = planned
         """Where a vehicle is meant to be at flight times (the flight's plans, replans
         included: `gcs.flight.run.flown`); None: `plan`."""
@@ -224,6 +236,7 @@ class FleetMonitor:
         for v in self.vehicles:
             if v.link is None or not v.expect_offboard or v.fault is not None:
                 continue
+            self._silence(v, now)
             fault = vehicle_fault(v.link, opts, now, self.stalls)
             if fault is not None:
                 self.on_fault(v, *fault)
@@ -257,6 +270,19 @@ class FleetMonitor:
             self._drops_told[v.id] = (counts, now)
             window = now - (when if math.isfinite(when) else self._drops_since)
             self.on_drops(v, drops_text(delta, None if latest is None else latest[1], window))
+
+    def _silence(self, v: VehicleStatus, now: float) -> None:
+        """Tell a vehicle falling silent, and heard again."""
+        assert v.link is not None
+        silent = self.stalls.age(v.link.telemetry.message_time, now)
+        if silent > SILENT_HOLD_S and v.id not in self.silent:
+            self.silent.add(v.id)
+            if self.on_silent is not None:
+                self.on_silent(v, silent)
+        elif silent <= SILENT_HOLD_S and v.id in self.silent:
+            self.silent.discard(v.id)
+            if self.on_heard is not None:
+                self.on_heard(v)
 
     def closest_text(self) -> str:
         """"uav2 (predicted: unheard) and uav3": the pair closest at the last check."""
