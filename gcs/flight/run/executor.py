@@ -86,6 +86,7 @@ from gcs.flight.link.link import DECODED_IDS
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.procedure import vehicle
+from gcs.flight.procedure.failsafe import layer_delays, set_failsafe, stacked_columns
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.replan import (
     Replanner,
@@ -425,6 +426,7 @@ class FlightExecutor:
                                    self._emit, self.stalls) for v in self.vehicles)
         await fence_fleet(self.vehicles, build_fence(self.plan.scenario.to_dict()), opts,
                           self.fleet.world_origin, self._emit, self.stalls)
+        await self._set_failsafes()
         homes = [v.placed for v in self.vehicles]
         self._tracks = plan_tracks(self.plan, homes, opts.rate_hz, opts.yaw,
                                    extra_s=opts.hold_at_goal)
@@ -444,6 +446,22 @@ class FlightExecutor:
         self.phase = FlightPhase.FINISHING
         await self._finish()
         self.phase = FlightPhase.FINISHED
+
+    async def _set_failsafes(self) -> None:
+        """Before arming, each vehicle's own link-loss failsafe is set to hold, then land by
+        altitude layer, lowest first (`gcs.flight.procedure.failsafe`), and told; and where
+        the plan stacks two vehicles closer than R horizontally, that a station lost there
+        lands them that close."""
+        delays = layer_delays(self.plan, self.options.land_speed)
+        await asyncio.gather(*(set_failsafe(v, delays[v.index], self._emit)
+                               for v in self.vehicles))
+        stacked = stacked_columns(self.plan, required_separation(self.plan.scenario))
+        if stacked is not None:
+            lower, upper, gap, t = stacked
+            self._emit(None, EventKind.FAILSAFE, (
+                f"the plan puts {upper} over {lower} ({gap:.2f} m apart horizontally at "
+                f"t={t:.1f} s): a station lost there lands them that close; a plan with "
+                f"separation_scale [1, 1, 10] keeps the columns nearly R apart"))
 
     async def _gather(self) -> None:
         tol = self.options.start_tolerance

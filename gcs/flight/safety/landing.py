@@ -236,19 +236,17 @@ class PlannedLanding:
         are, rather than go straight down across its column) and is tried again every
         `RETRY_S` from the held state, and once more after it is down."""
         why = await self._attempt(steer, rate)
-        held = False
-        last = False
-        while why is not None and not last:
-            last = not self._lost_in_air()
-            if not held:
-                held = True
-                self._freeze(steer)
-                self.emit(None, EventKind.LANDING_FALLBACK, (
-                    f"{', '.join(v.id for v in steer)} hold where they are: {why}; landing "
-                    f"planned again every {RETRY_S:g} s around "
-                    f"{', '.join(self.predicted)}"))
-            await asyncio.sleep(RETRY_S)
-            why = await self._attempt(steer, rate)
+        if why is not None and self._lost_in_air():
+            self._freeze(steer)
+            self.emit(None, EventKind.LANDING_FALLBACK, (
+                f"{', '.join(v.id for v in steer)} hold where they are: {why}; landing "
+                f"planned again every {RETRY_S:g} s around {', '.join(sorted(self.unheard))}"))
+            while why is not None:
+                last = not self._lost_in_air()  # one more try once it is down
+                await asyncio.sleep(RETRY_S)
+                why = await self._attempt(steer, rate)
+                if last:
+                    break
         return True if why is None else self._fallback(steer, why)
 
     def _lost_in_air(self) -> bool:
