@@ -5,6 +5,7 @@ PX4's real failsafe timings; prints one JSON document to stdout.
     python bench/station_loss.py --plans paper-circle4 --at 2 4 6 8
     python bench/station_loss.py --lost 2                # vehicle 2's link lost (land_all)
     python bench/station_loss.py --default-failsafe      # PX4's own 5 s for every vehicle
+    python bench/station_loss.py --columns               # plans that keep columns apart
 
 Each plan (`planner/examples`, flown faster than the paper: `--steps`) is planned with the
 SCP planner and flown on in-process mock vehicles (PX4's COM_OF_LOSS_T 1 s, COM_FAIL_ACT_T
@@ -49,14 +50,18 @@ from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets  # 
 MOCK = {"disarm_after_land": 0.5, "status_rate": 5.0}
 OPTIONS = FlightOptions(hold_at_goal=0.5, prestream=0.3, climb_speed=2.0,
                         landing_plan_timeout=1.0)
+#: `--columns`: plans whose vertical distances count a tenth, so every two vehicles stay
+#: nearly R apart horizontally (their columns apart).
+COLUMNS = [1.0, 1.0, 10.0]
 #: The plans and their steps (0.2 s each: the paper's 30 s flown in 12-16 s).
 PLANS = {"paper-circle4": 60, "paper-circle8": 80, "circle16": 80}
 
 
-def plan_of(name: str, steps: int | None) -> planner.Plan:
+def plan_of(name: str, steps: int | None, columns: bool) -> planner.Plan:
     data = json.loads((ROOT / "planner" / "examples" / f"{name}.json").read_text())
     plan = planner.plan(planner.Scenario.from_dict(
-        {**data, **({"steps": steps} if steps else {})}))
+        {**data, **({"steps": steps} if steps else {}),
+         **({"separation_scale": COLUMNS} if columns else {})}))
     if not plan.ok:
         raise SystemExit(f"{name}: {plan.problems()}")
     return plan
@@ -108,6 +113,8 @@ def main() -> None:
     parser.add_argument("--at", nargs="+", type=float, default=[2.0, 4.0, 6.0, 8.0])
     parser.add_argument("--lost", type=int, default=None,
                         help="blackhole only this vehicle (index) under land_all")
+    parser.add_argument("--columns", action="store_true",
+                        help=f"plan with separation_scale {COLUMNS}: columns apart")
     parser.add_argument("--default-failsafe", action="store_true",
                         help="PX4's own COM_FAIL_ACT_T (5 s) on every vehicle")
     args = parser.parse_args()
@@ -115,9 +122,11 @@ def main() -> None:
         executor.layer_delays = lambda plan, speed: [5.0] * len(plan.scenario.ids)  # type: ignore[assignment]
     out: dict[str, Any] = {"case": "vehicle lost" if args.lost is not None else "station lost",
                            "failsafe": "px4 default" if args.default_failsafe
-                           else "land by layer", "plans": {}}
+                           else "land by layer",
+                           "separation_scale": COLUMNS if args.columns else "the plan's",
+                           "plans": {}}
     for name in args.plans:
-        plan = plan_of(name, PLANS[name])
+        plan = plan_of(name, PLANS[name], args.columns)
         r = plan.scenario.min_separation
         stacked = failsafe.stacked_columns(plan, required_separation(plan.scenario))
         runs = []

@@ -32,6 +32,17 @@ def _fly(tmp_path: Path, *extra: str) -> subprocess.Popen:
          *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+def _flying(tmp_path: Path) -> subprocess.Popen:
+    """`_fly`, returned once its output says the plan is being flown (or after 60 s)."""
+    proc = _fly(tmp_path)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 60
+    for line in proc.stdout:
+        if "mission_start" in line or time.monotonic() > deadline:
+            break
+    return proc
+
+
 @pytest.mark.flight
 def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
     proc = _fly(tmp_path)
@@ -51,12 +62,7 @@ def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
 def test_ctrl_c_lands_everyone(tmp_path: Path, sig: signal.Signals) -> None:
     """Ctrl-C (or SIGTERM, e.g. from a service manager) mid-plan lands every vehicle by a
     verified landing plan, then PX4's Land, and waits for them to disarm."""
-    proc = _fly(tmp_path)
-    assert proc.stdout is not None
-    deadline = time.monotonic() + 60
-    for line in proc.stdout:  # wait until the plan is being flown
-        if "mission_start" in line or time.monotonic() > deadline:
-            break
+    proc = _flying(tmp_path)
     time.sleep(0.2)  # into the 3 s plan
     proc.send_signal(sig)
     out, _ = proc.communicate(timeout=60)
@@ -262,12 +268,7 @@ def test_a_killed_fly_leaves_a_readable_partial_record(tmp_path: Path) -> None:
     """kill -9 mid-plan: no final write, yet the record file holds the record so far
     (written about once a second as the flight goes): a whole JSON document marked
     partial, with the events up to the plan's start and each vehicle's telemetry."""
-    proc = _fly(tmp_path)
-    assert proc.stdout is not None
-    deadline = time.monotonic() + 60
-    for line in proc.stdout:  # wait until the plan is being flown
-        if "mission_start" in line or time.monotonic() > deadline:
-            break
+    proc = _flying(tmp_path)
     path = tmp_path / "record.json"
     started = time.monotonic()
     while time.monotonic() - started < 10.0:  # the next write after the plan's start

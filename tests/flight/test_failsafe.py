@@ -20,18 +20,10 @@ from gcs.flight.procedure.failsafe import (
 from gcs.sim import MockFleet
 from gcs.wire import mavlink
 from tests.flight.support import FAST_MOCK, mock_ports, smooth_plan
+from tests.flight.test_landing import STACKED  # 0.55 m apart horizontally, 0.84 vertically
+from tests.sim.test_mock import _stream
 
 pytestmark = pytest.mark.timeout(60)
-
-#: Two vehicles 0.55 m apart horizontally, 0.84 m vertically, flying side by side.
-STACKED = {
-    "name": "stacked", "dt": 0.2, "steps": 20, "min_separation": 1.0,
-    "limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [5.0, 5.0, 3.0],
-               "velocity_max": [2.0, 2.0, 2.0], "acceleration_max": [3.0, 3.0, 3.0]},
-    "vehicles": [{"id": "low", "start": [2.0, 1.0, 1.08], "goal": [2.0, 3.0, 1.08]},
-                 {"id": "high", "start": [2.55, 1.0, 1.92], "goal": [2.55, 3.0, 1.92]}],
-}
-
 
 def test_layers_land_lowest_first_and_stacked_columns_are_found() -> None:
     """The lower layer keeps PX4's 5 s; the upper one waits until the lower one (1.08 m at
@@ -67,12 +59,7 @@ def test_a_failsafe_set_over_mavlink_is_what_the_vehicle_does() -> None:
             vehicle = mock.vehicles[0]
             setpoint = hold_track([0, 0, -1.5], 0.0, 20).at(0)
 
-            async def stream() -> None:
-                while True:
-                    link.send_setpoint(setpoint, 0)
-                    await asyncio.sleep(0.05)
-
-            streaming = asyncio.create_task(stream())
+            streaming = asyncio.create_task(_stream(link, setpoint))
             assert await link.wait_for(lambda _t: vehicle.setpoints_accepted > 0
                                        and mock.now() >= mock.config.settle_time, 2.0)
             assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
