@@ -95,7 +95,8 @@ class EventKind(StrEnum):
     other vehicle's plan (`gcs.flight.safety.descent`): the others fly on."""
     DESCENT_CONFLICT = "descent_conflict"
     """land_faulty: that descent would come within R of others' plans (named): the others
-    hold where they are instead of flying on."""
+    land by a plan that keeps clear of it (or, with `landing: px4`, hold where they are)
+    instead of flying on."""
     REPLAN_STARTED = "replan_started"
     """An in-flight replan started: its switch time, vehicles, goals changed, dropped."""
     REPLAN_SWITCHED = "replan_switched"

@@ -14,7 +14,8 @@ landing height (the workspace floor plus `landing_height`) below or beside each 
   conditions, flyability). The separation it keeps is R, or less where the fleet's state
   does not allow R: vehicles already closer than R cannot be planned apart in no time, and
   a pair passing each other near R keeps what the first step's rows allow
-  (`first_step_clearance`, a few centimetres less).
+  (`first_step_clearance`, a few centimetres less), and a vehicle that starts closer than R
+  to a fixed one (a lost vehicle, predicted) keeps what it starts with.
 
 Numerics only: the ground station streams the plan and hands over to PX4's Land at the
 touchdown points (`gcs.flight.safety.landing`).
@@ -232,6 +233,18 @@ def first_step_clearance(p: FloatArray, v: FloatArray, a: FloatArray, scenario: 
     return float(np.min(np.minimum.reduce(values))) * (1.0 - 1e-9)
 
 
+def _fixed_start_clearance(p: FloatArray, fixed: Sequence[FixedTrajectory],
+                           scenario: Scenario) -> float:
+    """The smallest distance (separation metric) of a vehicle from a fixed one at the start
+    (inf without fixed ones): a plan cannot keep more from it there."""
+    if not fixed:
+        return math.inf
+    firsts = np.array([f.positions[0] for f in fixed])
+    d = np.linalg.norm((p[:, None, :] - firsts[None, :, :]) / scenario.separation_scale,
+                       axis=2)
+    return float(d.min()) * (1.0 - 1e-9)
+
+
 def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
              scenario: Scenario) -> float:
     """Seconds the landing gets: the farthest vehicle's stop and move, with room to spare."""
@@ -284,7 +297,8 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     if lim.acceleration_max is not None:
         a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
     goals = touchdown_points(p + _stopping(v, scenario), scenario, height, fixed)
-    clearance = first_step_clearance(p, v, a, scenario)
+    clearance = min(first_step_clearance(p, v, a, scenario),
+                    _fixed_start_clearance(p, fixed, scenario))
     separation = scenario.min_separation
     if clearance < separation + START_SLACK * separation:
         # rows at the very edge of what the state allows leave the QP no room: give a hair

@@ -54,7 +54,8 @@ from planner.scenario import Scenario
 from planner.types import FloatArray
 
 __all__ = ["BRAKING_DECELERATION", "DROP_ACTIONS", "FAULT_MARGIN", "LEAD_FACTOR",
-           "UNHEARD_GROWTH", "UNHEARD_MARGIN", "Replanner", "predicted_landing", "unheard_margin"]
+           "UNHEARD_GROWTH", "UNHEARD_MARGIN", "Replanner", "predicted_landing", "stream_motion",
+           "unheard_margin"]
 
 #: What a dropped vehicle does: land (streamed down to the landing height, then PX4's Land)
 #: or hold (streamed to a stop and held there).
@@ -376,10 +377,7 @@ class Replanner:
         if motion is None:
             return False
         self.flown.motions[v.id] = motion
-        if assignment is not None:
-            streamer.assign(v.id, assignment.link, motion_track(
-                motion, v.placed, streamer.rate, self.options.yaw),
-                self.clock.start_tick + round(motion.start * streamer.rate))
+        stream_motion(streamer, self.clock, v, motion, self.options.yaw)
         return True
 
     # ------------------------------------------------------------------ planning
@@ -532,6 +530,17 @@ class Replanner:
         if (self.active() and v.phase == VehiclePhase.LANDING and v.fault is None
                 and v.id in self.streamer.assignments):
             await self.land(v)
+
+
+def stream_motion(streamer: Streamer, clock: FlightClock, v: VehicleStatus, motion: Motion,
+                  yaw_world: float) -> None:
+    """From now on `v` is streamed `motion` (at its flight times), in case it still
+    listens; nothing when it is not streamed."""
+    assignment = streamer.assignments.get(v.id)
+    if assignment is not None:
+        streamer.assign(v.id, assignment.link, motion_track(
+            motion, v.placed, streamer.rate, yaw_world),
+            clock.start_tick + round(motion.start * streamer.rate))
 
 
 def motion_track(motion: Motion, home: FloatArray, rate: float, yaw_world: float

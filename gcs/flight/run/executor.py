@@ -90,8 +90,8 @@ from gcs.flight.procedure.failsafe import layer_delays, set_failsafe, stacked_co
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.replan import (
     Replanner,
-    motion_track,
     predicted_landing,
+    stream_motion,
     unheard_margin,
 )
 from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicle
@@ -657,14 +657,9 @@ class FlightExecutor:
             # monitor counts for it while it is unheard
             motion = predicted_landing(v, self.plan.scenario.assigned(), self.options,
                                        self.clock, measured=True, unheard=True)
-            assignment = self._streamer().assignments.get(v.id)
             if motion is not None:
                 self.flown.motions[v.id] = motion
-            if motion is not None and assignment is not None:  # in case it still listens
-                rate = self._streamer().rate
-                self._streamer().assign(v.id, assignment.link, motion_track(
-                    motion, v.placed, rate, self.options.yaw),
-                    self.clock.start_tick + round(motion.start * rate))
+                stream_motion(self._streamer(), self.clock, v, motion, self.options.yaw)
         self.policy.on_fault(v, kind, detail)
 
     def _replan_fault(self, v: VehicleStatus, kind: str) -> None:

@@ -46,7 +46,7 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import hold_track, plan_tracks
 from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
-from gcs.flight.replan.replan import motion_track, predicted_landing
+from gcs.flight.replan.replan import predicted_landing, stream_motion
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
@@ -206,12 +206,7 @@ class PlannedLanding:
         self.predicted[v.id] = motion
         if unheard:
             self.unheard.add(v.id)
-        assignment = self.streamer.assignments.get(v.id)
-        if unheard and assignment is not None:
-            rate = self.streamer.rate
-            self.streamer.assign(v.id, assignment.link, motion_track(
-                motion, v.placed, rate, self.options.yaw),
-                self.clock.start_tick + round(motion.start * rate))
+            stream_motion(self.streamer, self.clock, v, motion, self.options.yaw)
 
     def _fixed(self, switch: int) -> list[FixedTrajectory]:
         """The motions of the vehicles the plan cannot steer, from streamer tick `switch`."""

@@ -60,9 +60,12 @@ __all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "drops_text",
 #: Seconds between two checks.
 PERIOD = 0.05
 #: A vehicle unheard this long (s) is told (`on_silent`) before it is declared lost at
-#: `link_timeout`: a lost vehicle flies on to its last setpoint and stops, so the others are
-#: best stopped on the plan at nearly the same plan time.
-SILENT_HOLD_S = 0.4
+#: `link_timeout`, and the flight holds on the plan. A lost vehicle flies on towards its last
+#: setpoint plus its feed-forward velocity over PX4's position gain (0.95/s), about a second
+#: of its plan, and stops there: the others, stopped on the plan this much later, stop at
+#: nearly the same plan time (paper-circle8 blackholed mid-crossing: 0.90 m from it with
+#: 0.4 s, 0.99 m with 0.8 s, R = 1 m).
+SILENT_HOLD_S = 0.8
 #: For this long after a station stall ends, a vehicle may trail the plan by the stall's
 #: duration (it held its last setpoint meanwhile, then catches up).
 CATCH_UP_S = 3.0

@@ -91,9 +91,11 @@ class FaultPolicy:
         """`v` goes straight down: the others fly on only where its descent was checked
         clear of their plans; otherwise they land by a plan around it (or hold, `_around`)."""
         conflicts = self.descent(v)
+        action = "land by a plan around it" if self._around() else "hold"
         if conflicts is None:
-            self.emit(v.id, EventKind.DESCENT_CONFLICT, "descent not checked (position or "
-                                                        "flight time unknown): the others hold")
+            self.emit(v.id, EventKind.DESCENT_CONFLICT, f"descent not checked (position or "
+                                                        f"flight time unknown): the others "
+                                                        f"{action}")
         elif not conflicts:
             self.emit(v.id, EventKind.DESCENT_CLEAR, "straight descent clear of every other "
                                                      "vehicle's plan: the others fly on")
@@ -101,7 +103,6 @@ class FaultPolicy:
         else:
             named = ", ".join(f"{c.vehicle} {c.distance:.2f} m at t={c.flight_time:.1f} s"
                               for c in conflicts)
-            action = "land by a plan around it" if self._around() else "hold"
             self.emit(v.id, EventKind.DESCENT_CONFLICT,
                       f"straight descent too close to {named}: the others {action}")
         if not self.aborting():
