@@ -216,3 +216,20 @@ def test_a_landing_keeps_r_plus_margin_from_a_vehicle_on_its_own_failsafe(circle
     assert len(held) * circle8.scenario.dt >= 5.0
     plain = touchdown_points(p[others], circle8.scenario, 0.0)
     assert np.linalg.norm(plain[:, :2] - rest, axis=1).min() < 1.3  # it mattered
+
+
+def test_a_vehicle_starting_near_a_lost_one_keeps_what_it_starts_with(circle8) -> None:
+    """A vehicle at rest 0.9 m from a fixed one (a lost vehicle holding there) cannot be
+    0.9 m + anything at once: the landing keeps the 0.9 m it starts with (less the start
+    slack) from it and between the others, verified, instead of refusing the start."""
+    lost = landing_motion("lost", [2.0, 2.0, 1.5], np.zeros(3), circle8.scenario.dt, 2.0,
+                          0.7, 0.0, hold_s=2.0)
+    p = np.array([[2.9, 2.0, 1.5], [4.0, 4.0, 1.5]])
+    landing = plan_landing(circle8.scenario, p, np.zeros((2, 3)), np.zeros((2, 3)),
+                           ids=["near", "far"], fixed=[lost])
+    assert landing.plan.ok, landing.plan.problems()
+    assert landing.separation == pytest.approx(0.9 - START_SLACK, abs=1e-6)
+    verification = landing.plan.verification
+    assert verification.fixed_distance_min >= landing.separation - SEPARATION_TOLERANCE
+    gaps = np.linalg.norm(landing.plan.positions()[:, -1, :2] - [2.0, 2.0], axis=1)
+    assert gaps.min() >= 1.0 * (1.0 + TOUCHDOWN_SLACK) - 1e-9  # R from where it rests
