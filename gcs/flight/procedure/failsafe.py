@@ -28,6 +28,7 @@ import time
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from gcs import px4
 from gcs.flight.link.link import VehicleLink
@@ -128,25 +129,33 @@ def layer_delays(plan: Plan, land_speed: float) -> list[float]:
     return [round(float(d), 1) for d in delays]
 
 
-def stacked_columns(plan: Plan, clearance: float, rate: float = 10.0
+def stacked_columns(plan: Plan, clearance: float, rate: float = 5.0
                     ) -> tuple[str, str, float, float] | None:
     """The pair of vehicles the plan brings closest horizontally, below `clearance` less
     `STACKED_TOLERANCE`, as (lower, upper, horizontal distance m, flight time s), or None: a
-    fleet that loses its station there lands them that close."""
+    fleet that loses its station there lands them that close. Sampled at `rate` Hz, the
+    close pairs of each sample found by a k-d tree (a large fleet is not paired whole)."""
     times = np.arange(0.0, plan.scenario.horizon + 1e-9, 1.0 / rate)
     p = plan.sample(times).position  # (N, T, 3)
-    n = len(p)
-    if n < 2:
+    if len(p) < 2:
         return None
-    i, j = np.triu_indices(n, k=1)
-    horizontal = np.linalg.norm(p[i, :, :2] - p[j, :, :2], axis=2)  # (pairs, T)
-    pair, k = np.unravel_index(int(np.argmin(horizontal)), horizontal.shape)
-    if horizontal[pair, k] >= clearance - STACKED_TOLERANCE:
+    reach = clearance - STACKED_TOLERANCE
+    best: tuple[float, int, int, int] | None = None
+    for k in range(len(times)):
+        xy = p[:, k, :2]
+        pairs = cKDTree(xy).query_pairs(reach, output_type="ndarray")
+        if len(pairs) == 0:
+            continue
+        gaps = np.linalg.norm(xy[pairs[:, 0]] - xy[pairs[:, 1]], axis=1)
+        n = int(np.argmin(gaps))
+        if best is None or gaps[n] < best[0]:
+            best = (float(gaps[n]), int(pairs[n, 0]), int(pairs[n, 1]), k)
+    if best is None:
         return None
-    a, b = int(i[pair]), int(j[pair])
+    gap, a, b, k = best
     lower, upper = (a, b) if p[a, k, 2] <= p[b, k, 2] else (b, a)
     ids = plan.scenario.ids
-    return ids[lower], ids[upper], float(horizontal[pair, k]), float(times[k])
+    return ids[lower], ids[upper], gap, float(times[k])
 
 
 async def set_failsafe(v: VehicleStatus, delay: float, emit: Emit) -> None:
