@@ -96,12 +96,19 @@ class EventKind(StrEnum):
     """An abort with land: the steerable vehicles fly a verified landing plan."""
     LANDING_FALLBACK = "landing_fallback"
     """PX4's own Land instead of a landing plan (the fleet's or one vehicle's), and why."""
+    LINK_SILENT = "link_silent"
+    """A vehicle's reports stopped for `SILENT_HOLD_S` (a lost link, maybe): the fleet holds
+    (the flight clock stops) until it is heard again or declared lost."""
+    FAILSAFE = "failsafe"
+    """A vehicle's own link-loss failsafe as read and set before arming: what it does when
+    the ground station is gone."""
     DESCENT_CLEAR = "descent_clear"
     """land_faulty: the unsteerable vehicle's straight descent was checked clear of every
     other vehicle's plan (`gcs.flight.safety.descent`): the others fly on."""
     DESCENT_CONFLICT = "descent_conflict"
     """land_faulty: that descent would come within R of others' plans (named): the others
-    hold where they are instead of flying on."""
+    land by a plan that keeps clear of it (or, with `landing: px4`, hold where they are)
+    instead of flying on."""
     REPLAN_STARTED = "replan_started"
     """An in-flight replan started: its switch time, vehicles, goals changed, dropped."""
     REPLAN_SWITCHED = "replan_switched"

@@ -21,12 +21,15 @@ __all__ = [
     "ARM_TEMPORARILY_REJECTED_RETRY_S",
     "COM_DISARM_LAND_S",
     "COM_DISARM_PRFLT_S",
+    "COM_FAIL_ACT_T_S",
     "COM_OF_LOSS_T_S",
     "DISARM_FORCE_MAGIC",
     "DUPLICATE_ACK_WINDOW_S",
     "GCS_LINK_PORT",
     "HOLD",
     "LAND",
+    "OBL_ACTIONS",
+    "OBL_LAND",
     "OFFBOARD",
     "OFFBOARD_GCS_BASE_PORT",
     "OFFBOARD_VEHICLE_BASE_PORT",
@@ -34,6 +37,7 @@ __all__ = [
     "RTL",
     "TAKEOFF",
     "MainMode",
+    "OffboardLossFailsafe",
     "Px4Mode",
     "decode_custom_mode",
     "mode_name",
@@ -48,6 +52,15 @@ OFFBOARD_VEHICLE_BASE_PORT = 14580
 GCS_LINK_PORT = 14550
 #: Offboard loss timeout (PX4 parameter COM_OF_LOSS_T, default 1 s).
 COM_OF_LOSS_T_S = 1.0
+#: Delay between a failsafe's trigger and its action (COM_FAIL_ACT_T, default 5 s): PX4 holds
+#: in Position meanwhile (failsafe framework, v1.14 and later).
+COM_FAIL_ACT_T_S = 5.0
+#: COM_OBL_RC_ACT, the offboard-loss action, by value. The first three need manual control
+#: (RC); without it PX4 falls back to Land.
+OBL_ACTIONS = {0: "Position", 1: "Altitude", 2: "Manual", 3: "Return", 4: "Land", 5: "Hold",
+               6: "Terminate", 7: "Disarm"}
+#: COM_OBL_RC_ACT = Land.
+OBL_LAND = 4
 #: Auto-disarm when armed on the ground without taking off (COM_DISARM_PRFLT, default 10 s).
 COM_DISARM_PRFLT_S = 10.0
 #: Auto-disarm after landing (COM_DISARM_LAND, default 2 s).
@@ -64,6 +77,34 @@ ACKED_TWICE = frozenset({176, 512})
 DUPLICATE_ACK_WINDOW_S = 0.25
 #: (the mock's echo follows 5 ms later; a window of seconds would take the genuine answer of a
 #: quick next command with the same id and result for an echo whose original was lost)
+
+
+@dataclass(frozen=True)
+class OffboardLossFailsafe:
+    """What a PX4 vehicle does on its own once its setpoints stop (COM_OF_LOSS_T,
+    COM_FAIL_ACT_T, COM_OBL_RC_ACT): after `loss_timeout` without a setpoint it leaves
+    OFFBOARD and holds in Position for `action_delay`, then takes `action`."""
+
+    loss_timeout: float = COM_OF_LOSS_T_S
+    action_delay: float = COM_FAIL_ACT_T_S
+    action: int = 0
+
+    @property
+    def hold_s(self) -> float:
+        """Seconds from the last setpoint it received to its action."""
+        return self.loss_timeout + self.action_delay
+
+    @property
+    def effective(self) -> str:
+        """The action it takes without RC (PX4 falls back to Land for the modes that need
+        it): Land, Return, Hold, Terminate or Disarm."""
+        name = OBL_ACTIONS.get(self.action, "Land")
+        return "Land" if name in ("Position", "Altitude", "Manual") else name
+
+    def text(self) -> str:
+        """"after 1 s without setpoints: Position hold for 5 s, then Land"."""
+        return (f"after {self.loss_timeout:g} s without setpoints: Position hold for "
+                f"{self.action_delay:g} s, then {self.effective}")
 
 
 class MainMode(IntEnum):

@@ -27,6 +27,7 @@ import hashlib
 import os
 import secrets
 import stat
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +44,7 @@ __all__ = [
     "GCS_SYSTEM_ID",
     "KEY_BYTES",
     "MAV_FRAME_LOCAL_NED",
+    "PARAM_TYPES",
     "PX4_UNSIGNED_ACCEPTED",
     "SIGNING_EPOCH_UNIX",
     "TYPE_MASK_POS_VEL_ACC_YAW",
@@ -53,6 +55,8 @@ __all__ = [
     "Signature",
     "SigningKey",
     "addressed_to",
+    "decode_param",
+    "encode_param",
     "is_udp_url",
     "load_key",
     "mavlink",
@@ -384,3 +388,22 @@ def signature_of(packet: bytes, secret: bytes) -> Signature | None:
     timestamp = int.from_bytes(block[1:7], "little")
     digest = hashlib.sha256(secret + packet[:-6]).digest()[:6]
     return Signature(link_id, timestamp, secrets.compare_digest(digest, block[7:]))
+
+
+#: PARAM_VALUE / PARAM_SET types of PX4's two parameter kinds: REAL32 ("f"), INT32 ("i").
+PARAM_TYPES = {"f": mavlink.MAV_PARAM_TYPE_REAL32, "i": mavlink.MAV_PARAM_TYPE_INT32}
+
+
+def encode_param(kind: str, value: float) -> float:
+    """The param_value field for `value` as PX4 sends and takes it: REAL32 as the float,
+    INT32 byte-wise in the float field (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)."""
+    if kind == "i":
+        return float(struct.unpack("<f", struct.pack("<i", int(value)))[0])
+    return float(value)
+
+
+def decode_param(kind: str, field: float) -> float:
+    """The value a param_value field carries for a parameter of type `kind`."""
+    if kind == "i":
+        return float(struct.unpack("<i", struct.pack("<f", field))[0])
+    return float(field)

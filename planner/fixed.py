@@ -284,13 +284,19 @@ def braking_motion(vehicle_id: str, position: ArrayLike, velocity: ArrayLike, dt
 def landing_motion(vehicle_id: str, position: ArrayLike, velocity: ArrayLike, dt: float,
                    deceleration: float, descent_speed: float, floor: float, *,
                    margin: float = 0.0, acceleration: ArrayLike | None = None,
-                   coast_steps: int = 0) -> FixedTrajectory:
-    """A vehicle told to land: it coasts and brakes as in `braking_motion`, then goes
-    straight down at `descent_speed` (m/s) to height `floor` (m), and rests there."""
-    if not (deceleration > 0.0 and descent_speed > 0.0):
-        raise ValueError("deceleration and descent_speed must be positive")
+                   coast_steps: int = 0, hold_s: float = 0.0) -> FixedTrajectory:
+    """A vehicle told to land: it coasts and brakes as in `braking_motion`, holds there for
+    `hold_s` (s: an autopilot's failsafe delay), then goes straight down at
+    `descent_speed` (m/s) to height `floor` (m), and rests there."""
+    if not (deceleration > 0.0 and descent_speed > 0.0 and hold_s >= 0.0):
+        raise ValueError("deceleration and descent_speed must be positive, hold_s not "
+                         "negative")
     positions, velocities = _braking(position, velocity, acceleration, dt, deceleration,
                                      coast_steps)
+    waits = math.ceil(hold_s / dt - 1e-9)
+    if waits:
+        positions = np.concatenate([positions, np.repeat(positions[-1:], waits, axis=0)])
+        velocities = np.concatenate([velocities, np.zeros((waits, 3))])
     top = positions[-1]
     drop = max(0.0, float(top[2]) - floor)
     if drop > 0.0:

@@ -14,7 +14,8 @@ landing height (the workspace floor plus `landing_height`) below or beside each 
   conditions, flyability). The separation it keeps is R, or less where the fleet's state
   does not allow R: vehicles already closer than R cannot be planned apart in no time, and
   a pair passing each other near R keeps what the first step's rows allow
-  (`first_step_clearance`, a few centimetres less).
+  (`first_step_clearance`, a few centimetres less), and a vehicle that starts closer than R
+  to a fixed one (a lost vehicle, predicted) keeps what it starts with.
 
 Numerics only: the ground station streams the plan and hands over to PX4's Land at the
 touchdown points (`gcs.flight.safety.landing`).
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +33,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from planner.errors import PlannerError
+from planner.fixed import FixedTrajectory
 from planner.from_state import scenario_from_state
 from planner.planning import plan
 from planner.result import Plan
@@ -82,24 +85,31 @@ class LandingPlan:
     """Horizons tried (1 unless the first one failed)."""
 
 
-def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float) -> FloatArray:
+def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float,
+                     fixed: Sequence[FixedTrajectory] = ()) -> FloatArray:
     """(N, 3) touchdown points at `height` (world z), each as near below its vehicle as the
     others and the obstacles allow: pushed apart until every two are R (1 + TOUCHDOWN_SLACK)
-    apart in the horizontal separation metric, and out of every obstacle standing at that
-    height until each is the obstacle clearance (1 + TOUCHDOWN_SLACK) from its footprint
-    (the column below it is free: PX4's Land descends there), inside the workspace.
-    `LandingError` when the floor is too crowded for that."""
+    apart in the horizontal separation metric, away from where each `fixed` vehicle comes
+    to rest until they are R + its margin (1 + TOUCHDOWN_SLACK) from it horizontally, and
+    out of every obstacle standing at that height until each is the obstacle clearance
+    (1 + TOUCHDOWN_SLACK) from its footprint (the column below it is free: PX4's Land
+    descends there), inside the workspace. `LandingError` when the floor is too crowded
+    for that."""
     p = np.asarray(positions, dtype=float)
     lim = scenario.limits
     scale = scenario.separation_scale[:2]
     need = scenario.min_separation * (1.0 + TOUCHDOWN_SLACK)
     lo, hi = lim.position_min[:2] / scale, lim.position_max[:2] / scale
     xy = np.clip(p[:, :2] / scale, lo, hi)
+    rests = np.array([f.positions[-1, :2] for f in fixed]).reshape(-1, 2) / scale
+    rest_need = np.array([scenario.min_separation + f.margin for f in fixed]) * (
+        1.0 + TOUCHDOWN_SLACK)
     standing = _standing_at(scenario, height)
     rng = np.random.default_rng(0)  # only breaks exact coincidences, reproducibly
     for _ in range(SPREAD_ROUNDS):
         pairs = cKDTree(xy).query_pairs(need * (1.0 - 1e-9), output_type="ndarray")
         blocked = _obstacle_push(xy * scale, scenario, standing) / scale
+        blocked += _away_from(xy, rests, rest_need, rng)
         if len(pairs) == 0 and not blocked.any():
             break
         moves = blocked
@@ -125,6 +135,27 @@ def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float) ->
     out[:, :2] = xy * scale
     out[:, 2] = height
     return out
+
+
+def _away_from(xy: FloatArray, points: FloatArray, need: FloatArray,
+               rng: np.random.Generator) -> FloatArray:
+    """(N, 2) moves taking each of `xy` at least `need[m]` from each of `points` (M, 2),
+    which do not move: by the whole shortfall (a little more, so the rounds end)."""
+    moves = np.zeros_like(xy)
+    for point, least in zip(points, need, strict=True):
+        d = xy - point
+        dist = np.linalg.norm(d, axis=1)
+        short = dist < least * (1.0 - 1e-9)
+        if not short.any():
+            continue
+        same = short & (dist < 1e-9)
+        if same.any():
+            angle = rng.uniform(0.0, 2.0 * math.pi, int(same.sum()))
+            d[same] = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+            dist[same] = 1.0
+        push = ((least - dist[short]) * 1.01 + 1e-6)[:, None] * d[short] / dist[short, None]
+        moves[short] += push
+    return moves
 
 
 def _stopping(v: FloatArray, scenario: Scenario) -> FloatArray:
@@ -202,6 +233,18 @@ def first_step_clearance(p: FloatArray, v: FloatArray, a: FloatArray, scenario: 
     return float(np.min(np.minimum.reduce(values))) * (1.0 - 1e-9)
 
 
+def _fixed_start_clearance(p: FloatArray, fixed: Sequence[FixedTrajectory],
+                           scenario: Scenario) -> float:
+    """The smallest distance (separation metric) of a vehicle from a fixed one at the start
+    (inf without fixed ones): a plan cannot keep more from it there."""
+    if not fixed:
+        return math.inf
+    firsts = np.array([f.positions[0] for f in fixed])
+    d = np.linalg.norm((p[:, None, :] - firsts[None, :, :]) / scenario.separation_scale,
+                       axis=2)
+    return float(d.min()) * (1.0 - 1e-9)
+
+
 def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
              scenario: Scenario) -> float:
     """Seconds the landing gets: the farthest vehicle's stop and move, with room to spare."""
@@ -219,9 +262,13 @@ def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
 def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike,
                  accelerations: ArrayLike, *, ids: list[str] | None = None,
                  landing_height: float = 0.0, solver: str | None = None,
-                 deadline: float | None = None) -> LandingPlan:
+                 deadline: float | None = None, fixed: Sequence[FixedTrajectory] = ()
+                 ) -> LandingPlan:
     """A verified landing plan for vehicles at `positions` (N, 3) moving with `velocities`
-    and `accelerations` (N, 3), under `scenario`'s workspace, boxes, R and step length.
+    and `accelerations` (N, 3), under `scenario`'s workspace, boxes, R and step length,
+    keeping R + margin from the vehicles it cannot steer (`fixed`, from the plan's start:
+    a lost vehicle on its own failsafe), whose resting points the touchdown points keep
+    clear of too; the plan lasts at least as long as the longest of them.
 
     ids: the vehicles' ids (default `scenario.ids`, which needs N equal to its size).
     landing_height: touchdown height above the workspace floor (m). deadline: a
@@ -249,8 +296,9 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
         v = np.clip(v, -lim.velocity_max, lim.velocity_max)
     if lim.acceleration_max is not None:
         a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
-    goals = touchdown_points(p + _stopping(v, scenario), scenario, height)
-    clearance = first_step_clearance(p, v, a, scenario)
+    goals = touchdown_points(p + _stopping(v, scenario), scenario, height, fixed)
+    clearance = min(first_step_clearance(p, v, a, scenario),
+                    _fixed_start_clearance(p, fixed, scenario))
     separation = scenario.min_separation
     if clearance < separation + START_SLACK * separation:
         # rows at the very edge of what the state allows leave the QP no room: give a hair
@@ -260,7 +308,8 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
         raise LandingError(f"two vehicles are too close to plan a landing: the first step "
                            f"keeps {max(clearance, 0.0):.3f} m, a plan needs at least "
                            f"{least:g} m")
-    horizon = _horizon(p, v, goals, scenario)
+    horizon = max(_horizon(p, v, goals, scenario),
+                  max(((len(f) - 1) * scenario.dt for f in fixed), default=0.0))
     failures: list[str] = []
     for attempts, factor in enumerate(RETRY_FACTORS, start=1):
         if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
@@ -269,7 +318,7 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
         try:
             spec = scenario_from_state(scenario, "landing", names, p, v, a, goals,
                                        separation=separation, steps=steps,
-                                       max_iterations=MAX_ITERATIONS)
+                                       max_iterations=MAX_ITERATIONS, fixed=fixed)
             result = plan(spec, solver=solver, options=ScpOptions(), method="whole")
         except (PlannerError, ValueError, ArithmeticError) as exc:  # the caller falls back
             raise LandingError(f"cannot plan the landing: {exc}") from exc

@@ -28,7 +28,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     source.add_argument("--fleet", help="fleet file (JSON): connections, system ids, homes")
     source.add_argument("--mock", action="store_true",
                         help="start mock vehicles in this run, homes under the plan's starts")
-    parser.add_argument("--record", help="write the flight record (JSON) here")
+    parser.add_argument("--record", help="write the flight record (JSON) here: the record so "
+                        "far (\"partial\": true) about once a second, the whole one at the end")
     parser.add_argument("--rate", type=float, help="setpoint rate (Hz, default 20, max 100)")
     parser.add_argument("--policy",
                         help="what to do when a vehicle is flagged: hold_all, land_all "
@@ -96,7 +97,6 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
 def run(args: argparse.Namespace) -> int:
     import asyncio
     import contextlib
-    import json
     import signal
     import sys
     from pathlib import Path
@@ -104,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.cli.control import ControlServer
     from gcs.cli.hints import live_warning, port_error, port_in_use_hint
     from gcs.cli.plan_file import read_plan
+    from gcs.cli.record_file import RecordFile, write_json
     from gcs.errors import FleetFileError, GcsError
     from gcs.fleet.fleetfile import FleetSpec, load_fleet
     from gcs.flight.host.vehicle_loop import VehicleLoop
@@ -119,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
 
     def write_record(record: dict | None) -> None:
         if args.record and record is not None:
-            Path(args.record).write_text(json.dumps(record))
+            write_json(Path(args.record), record)
             print(f"flight record written to {args.record}")
 
     try:
@@ -233,6 +234,9 @@ def run(args: argparse.Namespace) -> int:
         loop.add_signal_handler(signal.SIGUSR1, on_pause, False)
         loop.add_signal_handler(signal.SIGUSR2, on_pause, True)
         printer = None if args.quiet else asyncio.create_task(_progress(handle, events))
+        record_file = RecordFile(Path(args.record), handle) if args.record else None
+        if record_file is not None:
+            record_file.start()  # as the flight goes: a killed station leaves it readable
         record = None
         status = 1
         try:
@@ -246,6 +250,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
             record = handle.record
         finally:
+            if record_file is not None:
+                await record_file.close()
             if control is not None:
                 await control.close()
             for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2):

@@ -46,8 +46,12 @@ class MockConfig:
     """Arming is TEMPORARILY_REJECTED this long after start (PX4 SITL: about 4-5 s)."""
     offboard_loss_timeout: float = px4.COM_OF_LOSS_T_S
     """COM_OF_LOSS_T (s)."""
-    failsafe_land_delay: float = 1.0
-    """After the offboard-loss failsafe has held position this long, land (no RC)."""
+    failsafe_action_delay: float = px4.COM_FAIL_ACT_T_S
+    """COM_FAIL_ACT_T (s): the offboard-loss failsafe holds in Position this long, then takes
+    `offboard_loss_action`."""
+    offboard_loss_action: int = 0
+    """COM_OBL_RC_ACT (`gcs.px4.OBL_ACTIONS`): 0-2 and 4 land (no RC), 3 RTL, 5 Hold,
+    6 terminate, 7 disarm."""
     disarm_after_land: float = px4.COM_DISARM_LAND_S
     """COM_DISARM_LAND (s)."""
     disarm_preflight: float = px4.COM_DISARM_PRFLT_S

@@ -3,7 +3,8 @@ its fleet (`VehicleContext`).
 
 The rules, as in PX4's commander: AUTO.TAKEOFF and AUTO.RTL as PX4's navigator flies them
 (`gcs.sim.automodes`); offboard loss (no setpoint for COM_OF_LOSS_T) triggers the failsafe:
-Position mode (hold), then, there being no RC, AUTO.LAND after `failsafe_land_delay`;
+Position mode (hold) for COM_FAIL_ACT_T (`failsafe_action_delay`), then COM_OBL_RC_ACT
+(`offboard_loss_action`; there being no RC, the modes that need it fall back to AUTO.LAND);
 auto-disarm COM_DISARM_LAND after landing, COM_DISARM_PRFLT after arming without taking off
 (a negative value: never). The output: the periodic streams
 (`gcs.sim.telemetry`, their intervals changed by MAV_CMD_SET_MESSAGE_INTERVAL), STATUSTEXT
@@ -235,12 +236,10 @@ class VehicleCore:
             self._failsafe_since = now
             self.event("failsafe: offboard loss")
         if (self.failsafe and self._failsafe_since is not None
-                and now - self._failsafe_since >= cfg.failsafe_land_delay):
+                and now - self._failsafe_since >= cfg.failsafe_action_delay):
             self._failsafe_since = None
             if self.in_air:
-                self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe: no RC, landing")
-                self.set_mode(px4.LAND)
-                self.failsafe = True
+                self._failsafe_action()
         if self.armed:
             automodes.tick(self, now)
         if not self.armed:
@@ -260,6 +259,22 @@ class VehicleCore:
                 self._landed_since = None
         elif 0 <= cfg.disarm_preflight <= now - self._armed_time:
             self.disarm("auto preflight disarming")
+
+    def _failsafe_action(self) -> None:
+        """The offboard-loss failsafe's action once its delay is over (COM_OBL_RC_ACT)."""
+        action = px4.OffboardLossFailsafe(action=int(self.config.offboard_loss_action)).effective
+        self.event(f"failsafe: {action}")
+        if action in ("Terminate", "Disarm"):
+            self.statustext(mavlink.MAV_SEVERITY_EMERGENCY, f"Failsafe: {action.lower()}")
+            self.terminated = action == "Terminate"
+            self.disarm(f"failsafe {action.lower()}")
+            return
+        mode = {"Return": px4.RTL, "Hold": px4.HOLD}.get(action, px4.LAND)
+        self.statustext(mavlink.MAV_SEVERITY_CRITICAL,
+                        "Failsafe: no RC, landing" if mode == px4.LAND
+                        else f"Failsafe: {action}")
+        self.set_mode(mode)
+        self.failsafe = True
 
     # ---------------------------------------------------------------- streams
 

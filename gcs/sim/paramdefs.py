@@ -46,7 +46,7 @@ _TABLE: tuple[tuple[str, Kind, float, float, float], ...] = (
     ("COM_DISARM_LAND", _F, px4.COM_DISARM_LAND_S, -1.0, 20.0),
     ("COM_DISARM_PRFLT", _F, px4.COM_DISARM_PRFLT_S, -1.0, 20.0),
     ("COM_DL_LOSS_T", _I, 10, 5, 300),
-    ("COM_FAIL_ACT_T", _F, 5.0, 0.0, 25.0),
+    ("COM_FAIL_ACT_T", _F, px4.COM_FAIL_ACT_T_S, 0.0, 25.0),
     ("COM_FLTMODE1", _I, -1, -1, 13),
     ("COM_FLTMODE2", _I, -1, -1, 13),
     ("COM_FLTMODE3", _I, -1, -1, 13),

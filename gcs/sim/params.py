@@ -27,7 +27,7 @@ from typing import Any, Protocol
 from gcs.sim.config import MockConfig
 from gcs.sim.model import FleetModel
 from gcs.sim.paramdefs import PX4_PARAMS, ParamDef
-from gcs.wire import addressed_to, mavlink
+from gcs.wire import PARAM_TYPES, addressed_to, decode_param, encode_param, mavlink
 
 __all__ = ["HASH_PARAM", "MODELLED", "MODEL_LIMITS", "PARAMS_PER_TICK", "ParamHost",
            "VehicleParams", "decode_value", "encode_value"]
@@ -39,6 +39,8 @@ PARAMS_PER_TICK = 5
 #: Parameters that change the mock's behaviour: name -> the `MockConfig` field it writes.
 MODELLED: dict[str, str] = {
     "COM_OF_LOSS_T": "offboard_loss_timeout",
+    "COM_FAIL_ACT_T": "failsafe_action_delay",
+    "COM_OBL_RC_ACT": "offboard_loss_action",
     "COM_DISARM_LAND": "disarm_after_land",
     "COM_DISARM_PRFLT": "disarm_preflight",
     "MPC_LAND_SPEED": "land_speed",
@@ -55,21 +57,11 @@ MODEL_LIMITS: dict[str, str] = {
 }
 
 _m = mavlink
-_TYPES = {"f": _m.MAV_PARAM_TYPE_REAL32, "i": _m.MAV_PARAM_TYPE_INT32}
+_TYPES = PARAM_TYPES
 
 
-def encode_value(kind: str, value: float) -> float:
-    """The PARAM_VALUE.param_value field for `value` (INT32: its bytes read as a float)."""
-    if kind == "i":
-        return float(struct.unpack("<f", struct.pack("<i", int(value)))[0])
-    return float(value)
-
-
-def decode_value(kind: str, field: float) -> float:
-    """The value a PARAM_SET.param_value field carries for a parameter of type `kind`."""
-    if kind == "i":
-        return float(struct.unpack("<i", struct.pack("<f", field))[0])
-    return float(field)
+encode_value = encode_param
+decode_value = decode_param
 
 
 class ParamHost(Protocol):

@@ -196,3 +196,18 @@ def test_geofence_benchmark_uploads_every_vehicles_fence():
     report = _run("geofence.py", "--vehicles", "2", "--pillars", "3", "--repeat", "1")
     assert report["vehicles"] == 2 and report["items_per_vehicle"] == 4 + 3
     assert report["fleet_upload_s_max"] >= report["fleet_upload_s_median"] > 0
+
+
+@pytest.mark.flight
+def test_station_loss_benchmark_lands_a_fleet_whose_columns_are_apart():
+    """bench/station_loss.py: paper-circle4 planned with its columns apart, every link
+    blackholed at 4 s (a station lost): each vehicle lands on its own failsafe, and the
+    closest true approach is reported against R."""
+    report = _run("station_loss.py", "--plans", "paper-circle4", "--columns", "--at", "4")
+    assert report["case"] == "station lost" and report["failsafe"] == "land by layer"
+    row = report["plans"]["paper-circle4"]
+    assert row["vehicles"] == 4 and row["stacked_columns"] is None
+    [run] = row["runs"]
+    assert run["at"] == 4.0 and run["all_down"] is True and run["samples"] > 500
+    assert row["closest_m"] == run["closest_m"] >= row["R"] - 0.05
+    assert row["kept_r_minus_5cm"] is True

@@ -32,6 +32,17 @@ def _fly(tmp_path: Path, *extra: str) -> subprocess.Popen:
          *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+def _flying(tmp_path: Path) -> subprocess.Popen:
+    """`_fly`, returned once its output says the plan is being flown (or after 60 s)."""
+    proc = _fly(tmp_path)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 60
+    for line in proc.stdout:
+        if "flight_start" in line or time.monotonic() > deadline:
+            break
+    return proc
+
+
 @pytest.mark.flight
 def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
     proc = _fly(tmp_path)
@@ -51,12 +62,7 @@ def test_fly_mock_completes_and_records(tmp_path: Path) -> None:
 def test_ctrl_c_lands_everyone(tmp_path: Path, sig: signal.Signals) -> None:
     """Ctrl-C (or SIGTERM, e.g. from a service manager) mid-plan lands every vehicle by a
     verified landing plan, then PX4's Land, and waits for them to disarm."""
-    proc = _fly(tmp_path)
-    assert proc.stdout is not None
-    deadline = time.monotonic() + 60
-    for line in proc.stdout:  # wait until the plan is being flown
-        if "flight_start" in line or time.monotonic() > deadline:
-            break
+    proc = _flying(tmp_path)
     time.sleep(0.2)  # into the 3 s plan
     proc.send_signal(sig)
     out, _ = proc.communicate(timeout=60)
@@ -255,3 +261,29 @@ def test_fly_rejects_bad_options(tmp_path: Path, extra: tuple[str, ...], says: s
     proc = _fly(tmp_path, *extra)
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 2 and says in out and "Traceback" not in out, out
+
+
+@pytest.mark.flight
+def test_a_killed_fly_leaves_a_readable_partial_record(tmp_path: Path) -> None:
+    """kill -9 mid-plan: no final write, yet the record file holds the record so far
+    (written about once a second as the flight goes): a whole JSON document marked
+    partial, with the events up to the plan's start and each vehicle's telemetry."""
+    proc = _flying(tmp_path)
+    path = tmp_path / "record.json"
+    started = time.monotonic()
+    while time.monotonic() - started < 10.0:  # the next write after the plan's start
+        record = json.loads(path.read_text()) if path.exists() else {"events": []}
+        if any(e["kind"] == "flight_start" for e in record["events"]):
+            break
+        time.sleep(0.1)
+    proc.kill()
+    proc.communicate(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    record = json.loads(path.read_text())
+    assert record["partial"] is True and record["summary"] is None
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("connected") < kinds.index("armed") < kinds.index("flight_start")
+    assert [v["id"] for v in record["vehicles"]] == ["uav1", "uav2"]
+    for v in record["vehicles"]:
+        assert len(v["telemetry"]["t"]) > 10 and len(v["setpoints"]["t"]) > 10
+        assert v["modes"][0]["mode"]

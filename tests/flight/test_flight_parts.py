@@ -43,7 +43,8 @@ def test_a_pause_cut_short_by_the_end_of_the_flight_gets_an_end() -> None:
     assert clock.pause is None and clock.pauses[-1][1] is not None
 
 
-def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] = lambda v: []
+def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] = lambda v: [],
+            landing: str = "planned"
             ) -> tuple[FaultPolicy, list[Any], list[tuple[str | None, str]]]:
     calls: list[Any] = []
     events: list[tuple[str | None, str]] = []
@@ -54,9 +55,9 @@ def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] 
     async def abort(action: str, reason: str) -> None:
         calls.append(("abort", action, reason))
 
-    out = FaultPolicy(FlightOptions(policy=policy), lambda vid, kind, _d: events.append(
-        (vid, kind)), lambda: 1.0, land=land, abort=abort, aborting=lambda: False,
-        descent=descent)
+    out = FaultPolicy(FlightOptions(policy=policy, landing=landing),
+                      lambda vid, kind, _d: events.append((vid, kind)), lambda: 1.0,
+                      land=land, abort=abort, aborting=lambda: False, descent=descent)
     return out, calls, events
 
 
@@ -86,13 +87,16 @@ def test_each_policy_does_what_it_says(policy: str, expected: tuple[str, ...]) -
     (lambda v: [DescentConflict("uav2", 0.4, 3.2)], "uav2 0.40 m at t=3.2 s"),
     (lambda v: None, "not checked"),
 ])
-def test_land_faulty_holds_the_others_unless_the_descent_is_clear(
-        descent: Callable[[Any], list[DescentConflict] | None], why: str) -> None:
+@pytest.mark.parametrize(("landing", "action"), [("planned", "land"), ("px4", "hold")])
+def test_land_faulty_stops_the_others_unless_the_descent_is_clear(
+        descent: Callable[[Any], list[DescentConflict] | None], why: str, landing: str,
+        action: str) -> None:
     """An unsteerable vehicle goes straight down: where that descent would come within R of
-    another's plan (or cannot be checked), the others hold instead of flying on."""
+    another's plan (or cannot be checked), the others do not fly on: they land by a landing
+    plan that keeps clear of it, or (landing px4, no plan) hold where they are."""
     async def main() -> tuple[list[Any], list[str]]:
         said: list[str] = []
-        p, calls, _events = _policy("land_faulty", descent)
+        p, calls, _events = _policy("land_faulty", descent, landing)
         p.emit = lambda vid, kind, detail: said.append(f"{kind}: {detail}")
         p.on_fault(fake_vehicle(0), "link_lost", "gone")
         await asyncio.gather(*p.tasks)
@@ -100,7 +104,7 @@ def test_land_faulty_holds_the_others_unless_the_descent_is_clear(
 
     calls, said = asyncio.run(main())
     assert calls[0] == ("land", "uav1")
-    assert calls[1][:2] == ("abort", "hold") and "across the others' plans" in calls[1][2]
+    assert calls[1][:2] == ("abort", action) and "across the others' plans" in calls[1][2]
     conflict = [s for s in said if s.startswith(EventKind.DESCENT_CONFLICT)]
     assert len(conflict) == 1 and why in conflict[0]
 

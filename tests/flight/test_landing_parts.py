@@ -10,14 +10,17 @@ import numpy as np
 import pytest
 
 import gcs.flight.safety.landing as landing_module
+from gcs import px4
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure.vehicle import VehicleStatus
+from gcs.flight.run.clock import FlightClock
+from gcs.flight.run.flown import FlownPlans
 from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.landing import PlannedLanding
 from gcs.phases import EventKind, VehiclePhase
-from planner.landing import LandingError
+from planner.landing import LandingError, plan_landing
 from planner.scenario import Scenario
 from tests.flight.fakes import fake_vehicle
 
@@ -197,3 +200,61 @@ def test_a_cancelled_landing_still_lands_everyone(monkeypatch) -> None:
 
     asyncio.run(cancel())
     assert sorted(secured) == ["uav1", "uav2"]
+
+
+def test_a_lost_vehicle_is_planned_around_and_a_failed_plan_holds_and_retries(
+        monkeypatch) -> None:
+    """uav2 is lost (unheard for 2 s, on its own failsafe: 1 s on, 0.5 s hold, Land): it is
+    not sent PX4's Land but predicted, and the landing plan keeps clear of that motion. The
+    first attempt fails (the first try is refused here; uav1, 0.55 m aside under it, has
+    no room for the smaller margins either): uav1 holds where it is and the landing is
+    planned again from there; uav2 is handed to Land only once its motion has ended."""
+    calls: list[int] = []
+
+    def first_fails(*args, **kwargs):
+        calls.append(len(kwargs["fixed"]))
+        if len(calls) == 1:
+            raise LandingError("no room yet")
+        return plan_landing(*args, **kwargs)
+
+    monkeypatch.setattr(landing_module, "plan_landing", first_fails)
+    vehicles, streamer, events, secured = _setup()
+    lost = vehicles[1]
+    lost.fault, lost.phase = "link_lost", VehiclePhase.FAULTY
+    lost.failsafe = px4.OffboardLossFailsafe(1.0, 0.5, px4.OBL_LAND)
+    tel = lost.linked.telemetry
+    heard = time.monotonic() - 2.0
+    tel.position_ned, tel.velocity_ned = (POINTS[1][1], POINTS[1][0], -POINTS[1][2]), (0, 0, 0)
+    tel.position_time = tel.message_time = heard
+    clock = FlightClock(streamer.rate, streamer.epoch, streamer.epoch)
+    clock.begin(0)
+    flown = FlownPlans([])
+    landing = PlannedLanding(SCENARIO, vehicles, streamer, FlightOptions(landing_plan_timeout=0.5),
+                             lambda vid, kind, detail: events.append((vid, kind, detail)),
+                             lambda v: _secure(v, streamer, secured), StationStalls(), flown,
+                             clock)
+
+    async def fly() -> None:
+        streamer.start()
+        await landing.run()
+        await streamer.stop()
+
+    asyncio.run(fly())
+    told = [(vid, kind, detail) for vid, kind, detail in events]
+    assert ("uav2", EventKind.LANDING_FALLBACK) in [(v, k) for v, k, _ in told]
+    [held] = [d for v, k, d in told if k == EventKind.LANDING_FALLBACK and v is None]
+    assert held.startswith("uav1 hold where they are: ") and "around uav2" in held
+    [planned] = [d for _, k, d in told if k == EventKind.LANDING_PLAN]
+    assert "around uav2" in planned
+    assert calls[:2] == [1, 1]  # both tries planned around uav2's predicted motion
+    assert landing.result is not None and landing.result.plan.scenario.ids == ["uav1"]
+    assert landing.result.plan.scenario.fixed[0].id == "uav2"
+    motion = flown.motions["uav2"]  # from its last report, what the monitor reads too
+    assert motion.start == pytest.approx(heard - streamer.epoch, abs=0.05)
+    assert secured == ["uav1", "uav2"]  # the lost one last, once its motion had ended
+    assert clock.flight_time() >= motion.end
+
+
+async def _secure(v: VehicleStatus, streamer: Streamer, secured: list[str]) -> None:
+    secured.append(v.id)
+    streamer.unassign(v.id)

@@ -7,6 +7,7 @@ import asyncio
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -180,3 +181,28 @@ def test_the_live_alarm_lets_a_flight_use_its_margin_and_stops_one_below_r() -> 
     assert alarms == []
     monitor._separation({"uav1": np.zeros(3), "uav2": np.array([0.95, 0.0, 0.0])})
     assert alarms == [(pytest.approx(0.95), pytest.approx(1.0))]
+
+
+def test_an_unheard_vehicle_counts_at_its_predicted_position_named_as_predicted() -> None:
+    """uav2's last report is 3 s old: the monitor counts it where its motion off the plans
+    puts it now (here 0.5 m from uav1), not where it was last heard (3 m away), and the
+    pair is named with uav2 flagged as predicted."""
+    plan = smooth_plan(short_line(2))
+    vehicles = [fake_vehicle(0), fake_vehicle(1)]
+    now = time.monotonic()
+    for v, east in zip(vehicles, (0.0, 3.0), strict=True):
+        v.phase = VehiclePhase.FLYING
+        tel = v.linked.telemetry
+        tel.position_ned, tel.velocity_ned = (0.0, east, -1.0), (0.0, 0.0, 0.0)
+        tel.position_time = tel.message_time = now - (3.0 if v.id == "uav2" else 0.0)
+    alarms: list[tuple[float, float]] = []
+    monitor = FleetMonitor(vehicles, plan, FlightOptions(), flight_time=lambda: 5.0,
+                           on_fault=lambda *_: None,
+                           on_separation=lambda closest, at: alarms.append((closest, at)),
+                           stalls=StationStalls(),
+                           predicted=lambda v, t: np.array([0.5, 0.0, 1.0])
+                           if v.id == "uav2" else None)
+    monitor._separation(monitor.positions(now))
+    assert alarms == [(pytest.approx(0.5), pytest.approx(0.7))]
+    assert monitor.predicted_ids == {"uav2"}
+    assert monitor.closest_text() == "uav1 and uav2 (predicted: unheard)"

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import planner
+from planner.fixed import landing_motion
 from planner.landing import (
     START_SLACK,
     TOUCHDOWN_SLACK,
@@ -184,3 +185,51 @@ def test_a_vehicle_nearer_a_shelf_than_the_clearance_still_gets_a_landing(shelvi
     assert kept == pytest.approx(scenario.clearance - 0.02 - 0.01 * scenario.clearance)
     assert landing.plan.ok, landing.plan.problems()
     assert landing.plan.verification.obstacle_distance_min >= kept - 1e-4
+
+
+def test_a_landing_keeps_r_plus_margin_from_a_vehicle_on_its_own_failsafe(circle8) -> None:
+    """One vehicle of the circle is lost at t = 8 s: it holds 5 s where it is, then lands
+    straight down (a fixed trajectory with a 0.3 m margin). The other seven land by a plan
+    that keeps R + 0.3 m from it over continuous time, touch down R + 0.3 m (and the slack)
+    from where it rests, and last until it is down; without it, the plan would not."""
+    state = circle8.sample(np.array([8.0]))
+    p, v, a = (x[:, 0] for x in state)
+    lost = landing_motion("uav2", p[1], v[1], circle8.scenario.dt, 2.0, 0.7, 0.0,
+                          margin=0.3, hold_s=5.0)
+    others = [n for n in range(8) if n != 1]
+    ids = [circle8.scenario.ids[n] for n in others]
+    landing = plan_landing(circle8.scenario, p[others], v[others], a[others], ids=ids,
+                           fixed=[lost])
+    plan = landing.plan
+    assert plan.ok, plan.problems()
+    verification = plan.verification
+    assert verification.fixed_distance_min >= 1.0 - SEPARATION_TOLERANCE  # margin ramps in
+    assert verification.closest_fixed["id"] == "uav2"
+    assert plan.scenario.horizon >= (len(lost) - 1) * plan.scenario.dt - 1e-9
+    rest = lost.positions[-1, :2]
+    gaps = np.linalg.norm(plan.positions()[:, -1, :2] - rest, axis=1)
+    assert gaps.min() >= 1.3 * (1.0 + TOUCHDOWN_SLACK) - 1e-9
+    # the hold lasts 5 s at its stop point, then it goes straight down to the floor
+    stop = lost.positions[-1]
+    held = np.flatnonzero(np.all(np.abs(lost.positions - stop * [1, 1, 0]
+                                        - [0, 0, lost.positions[:, 2].max()]) < 1e-9, axis=1))
+    assert len(held) * circle8.scenario.dt >= 5.0
+    plain = touchdown_points(p[others], circle8.scenario, 0.0)
+    assert np.linalg.norm(plain[:, :2] - rest, axis=1).min() < 1.3  # it mattered
+
+
+def test_a_vehicle_starting_near_a_lost_one_keeps_what_it_starts_with(circle8) -> None:
+    """A vehicle at rest 0.9 m from a fixed one (a lost vehicle holding there) cannot be
+    0.9 m + anything at once: the landing keeps the 0.9 m it starts with (less the start
+    slack) from it and between the others, verified, instead of refusing the start."""
+    lost = landing_motion("lost", [2.0, 2.0, 1.5], np.zeros(3), circle8.scenario.dt, 2.0,
+                          0.7, 0.0, hold_s=2.0)
+    p = np.array([[2.9, 2.0, 1.5], [4.0, 4.0, 1.5]])
+    landing = plan_landing(circle8.scenario, p, np.zeros((2, 3)), np.zeros((2, 3)),
+                           ids=["near", "far"], fixed=[lost])
+    assert landing.plan.ok, landing.plan.problems()
+    assert landing.separation == pytest.approx(0.9 - START_SLACK, abs=1e-6)
+    verification = landing.plan.verification
+    assert verification.fixed_distance_min >= landing.separation - SEPARATION_TOLERANCE
+    gaps = np.linalg.norm(landing.plan.positions()[:, -1, :2] - [2.0, 2.0], axis=1)
+    assert gaps.min() >= 1.0 * (1.0 + TOUCHDOWN_SLACK) - 1e-9  # R from where it rests

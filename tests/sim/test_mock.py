@@ -136,7 +136,7 @@ def test_setpoints_stop_trigger_the_failsafe_then_land_and_disarm() -> None:
         # HEARTBEAT at 20 Hz (configured, as PX4 refuses to change it over MAVLink) so that
         # the short Position phase shows in it
         # (and the quick landing of QUICK_MOCK: the failsafe's landing is what is checked)
-        async with MockFleet(1, settle_time=0.2, failsafe_land_delay=0.5,
+        async with MockFleet(1, settle_time=0.2, failsafe_action_delay=0.5,
                              **{**FAST_MOCK, "status_rate": 20.0},
                              **mock_ports(1)) as mock, LinkHub() as hub:
             link = await _connect(mock, hub)

@@ -52,6 +52,8 @@ DECODED_IDS = frozenset({
     _m.MAVLINK_MSG_ID_MISSION_REQUEST_INT, _m.MAVLINK_MSG_ID_MISSION_REQUEST,
     _m.MAVLINK_MSG_ID_MISSION_ACK, _m.MAVLINK_MSG_ID_MISSION_COUNT,
     _m.MAVLINK_MSG_ID_MISSION_ITEM_INT,
+    # the parameter protocol, for the link-loss failsafe (`gcs.flight.procedure.failsafe`)
+    _m.MAVLINK_MSG_ID_PARAM_VALUE,
 })
 
 #: How many other claimants of one vehicle are remembered (enough to name them; bounded).

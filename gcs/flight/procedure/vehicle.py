@@ -25,7 +25,7 @@ import contextlib
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -106,6 +106,9 @@ class VehicleStatus:
     on its own motion; it is no longer judged against a goal."""
     drop_reason: str | None = None
     """Why it was dropped (the replan's reason: an operator's, or its fault)."""
+    failsafe: px4.OffboardLossFailsafe = field(default_factory=px4.OffboardLossFailsafe)
+    """What it does on its own once setpoints stop (PX4's defaults until read from it:
+    `gcs.flight.failsafe`)."""
 
     @property
     def id(self) -> str:

@@ -48,13 +48,14 @@ from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, ReplanStatus, VehiclePhase
 from gcs.tasks import TaskSet
-from planner.fixed import FixedTrajectory, dropped_motion, landing_motion
+from planner.fixed import FixedTrajectory, braking_motion, dropped_motion, landing_motion
 from planner.replan import Replan, ReplanError, check_goals, plan_replan
 from planner.scenario import Scenario
 from planner.types import FloatArray
 
 __all__ = ["BRAKING_DECELERATION", "DROP_ACTIONS", "FAULT_MARGIN", "LEAD_FACTOR",
-           "Replanner", "predicted_landing"]
+           "UNHEARD_GROWTH", "UNHEARD_MARGIN", "Replanner", "predicted_landing", "stream_motion",
+           "unheard_margin"]
 
 #: What a dropped vehicle does: land (streamed down to the landing height, then PX4's Land)
 #: or hold (streamed to a stop and held there).
@@ -68,6 +69,16 @@ BRAKING_DECELERATION = 2.0
 #: Extra distance (m) the others keep from a vehicle whose motion is predicted, not streamed
 #: (a faulty one PX4 lands): its stop, descent speed and tracking are not the GCS's.
 FAULT_MARGIN = 0.5
+#: Extra distance (m) the others keep from a lost vehicle predicted on its own failsafe
+#: from its last report (`predicted_landing`), which grows by `UNHEARD_GROWTH` per second
+#: since it was last heard: its prediction starts from a report that ages, and nothing it
+#: does is seen. (On the ideal mock the prediction ends within 0.1 m of where it lands.)
+UNHEARD_MARGIN = 0.2
+UNHEARD_GROWTH = 0.05
+#: The position controller's gain (1/s) a vehicle flies its last setpoint with once the
+#: setpoints stop (PX4's MPC_XY_P default, 0.95; MPC_Z_P is 1): it goes on towards the
+#: setpoint's position plus its feed-forward velocity over this gain.
+STALE_SETPOINT_GAIN = 0.95
 #: After its streamed descent, a dropped vehicle gets this long to settle before PX4's Land.
 SETTLE_S = 0.3
 #: A switch tick the stream has not reached this long after its instant never comes (s).
@@ -352,22 +363,21 @@ class Replanner:
         its motion off the plans, and it is streamed that motion from now on (it follows
         it while it still listens), until PX4's Land takes it. From its last setpoint (what
         it was told), or where it is measured after a tracking error (it is not where it
-        was told to be). False when neither is known."""
+        was told to be) or a lost link (from its last report, on its own failsafe). False
+        when neither is known."""
         streamer = self.streamer
         assignment = streamer.assignments.get(v.id)
         last = assignment.last if assignment is not None else None
-        measured = kind == "tracking_error"
+        measured = kind in ("tracking_error", "link_lost")
         motion = predicted_landing(v, self.base, self.options, self.clock, measured=measured,
-                                   setpoint=last, setpoint_tick=streamer.tick)
+                                   setpoint=last, setpoint_tick=streamer.tick,
+                                   unheard=kind == "link_lost")
         if motion is None and not measured:
             motion = predicted_landing(v, self.base, self.options, self.clock, measured=True)
         if motion is None:
             return False
         self.flown.motions[v.id] = motion
-        if assignment is not None:
-            streamer.assign(v.id, assignment.link, motion_track(
-                motion, v.placed, streamer.rate, self.options.yaw),
-                self.clock.start_tick + round(motion.start * streamer.rate))
+        stream_motion(streamer, self.clock, v, motion, self.options.yaw)
         return True
 
     # ------------------------------------------------------------------ planning
@@ -522,6 +532,17 @@ class Replanner:
             await self.land(v)
 
 
+def stream_motion(streamer: Streamer, clock: FlightClock, v: VehicleStatus, motion: Motion,
+                  yaw_world: float) -> None:
+    """From now on `v` is streamed `motion` (at its flight times), in case it still
+    listens; nothing when it is not streamed."""
+    assignment = streamer.assignments.get(v.id)
+    if assignment is not None:
+        streamer.assign(v.id, assignment.link, motion_track(
+            motion, v.placed, streamer.rate, yaw_world),
+            clock.start_tick + round(motion.start * streamer.rate))
+
+
 def motion_track(motion: Motion, home: FloatArray, rate: float, yaw_world: float
                  ) -> SetpointTrack:
     """A known motion as setpoints from its start (tick 0), in the vehicle's LOCAL_NED."""
@@ -534,11 +555,18 @@ def motion_track(motion: Motion, home: FloatArray, rate: float, yaw_world: float
 
 def predicted_landing(v: VehicleStatus, base: Scenario, options: FlightOptions,
                       clock: FlightClock, *, measured: bool, setpoint: Any = None,
-                      setpoint_tick: int | None = None) -> Motion | None:
+                      setpoint_tick: int | None = None, unheard: bool = False
+                      ) -> Motion | None:
     """What a faulty vehicle PX4 lands does, predicted with `FAULT_MARGIN`: it stops, then
     descends at `land_speed` to the ground, from its last measured state (`measured`) or
     from its last setpoint (`setpoint`, sent at streamer tick `setpoint_tick`: what it was
-    told, when its reports cannot be trusted). None when neither is known."""
+    told, when its reports cannot be trusted). None when neither is known.
+
+    unheard: the station has lost it (no reports, and no command may reach it): it follows
+    its own offboard-loss failsafe (`v.failsafe`: on for `loss_timeout` at the velocity it
+    had, then it brakes and holds in Position until its action, then lands straight down, or
+    stays there for a Hold), and the margin grows by `UNHEARD_GROWTH` per second since it
+    was last heard (`unheard_margin`)."""
     rate = clock.rate
     if v.home is None or clock.start is None:
         return None
@@ -560,10 +588,35 @@ def predicted_landing(v: VehicleStatus, base: Scenario, options: FlightOptions,
     deceleration = (BRAKING_DECELERATION if lim is None
                     else min(BRAKING_DECELERATION, float(np.min(lim[:2]))))
     ground = max(float(base.limits.position_min[2]), float(v.home[2]))
-    trajectory = landing_motion(v.id, position, velocity, base.dt, deceleration,
-                                options.land_speed, min(ground, float(position[2])),
-                                margin=FAULT_MARGIN)
-    return Motion(at, trajectory, base.dt, False)
+    floor = min(ground, float(position[2]))
+    if not unheard:
+        trajectory = landing_motion(v.id, position, velocity, base.dt, deceleration,
+                                    options.land_speed, floor, margin=FAULT_MARGIN)
+        return Motion(at, trajectory, base.dt, False)
+    failsafe = v.failsafe
+    dt = base.dt
+    # until its failsafe, it flies on to its last setpoint: the position controller pulls
+    # it towards the point the setpoint's feed-forward velocity leads to, exponentially
+    t = dt * np.arange(math.ceil(failsafe.loss_timeout / dt - 1e-9) + 1)[:, None]
+    decay = np.exp(-STALE_SETPOINT_GAIN * t)
+    on_p = position + velocity / STALE_SETPOINT_GAIN * (1.0 - decay)
+    on_v = velocity * decay
+    stop = float(np.linalg.norm(on_v[-1])) / deceleration
+    margin = unheard_margin(max(0.0, (clock.flight_time() or at) - at))
+    if failsafe.effective == "Hold":
+        then = braking_motion(v.id, on_p[-1], on_v[-1], dt, deceleration)
+    else:
+        then = landing_motion(v.id, on_p[-1], on_v[-1], dt, deceleration, options.land_speed,
+                              floor, hold_s=max(0.0, failsafe.action_delay - stop))
+    assert then.velocities is not None
+    trajectory = FixedTrajectory(v.id, np.concatenate([on_p[:-1], then.positions]),
+                                 np.concatenate([on_v[:-1], then.velocities]), margin)
+    return Motion(at, trajectory, dt, False)
+
+
+def unheard_margin(age: float) -> float:
+    """What the others keep beyond R from a vehicle last heard `age` s ago (m)."""
+    return UNHEARD_MARGIN + UNHEARD_GROWTH * age
 
 
 def _state(v: VehicleStatus) -> str:

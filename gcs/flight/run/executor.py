@@ -86,8 +86,14 @@ from gcs.flight.link.link import DECODED_IDS
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.procedure import vehicle
+from gcs.flight.procedure.failsafe import layer_delays, set_failsafe, stacked_columns
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.replan.replan import Replanner
+from gcs.flight.replan.replan import (
+    Replanner,
+    predicted_landing,
+    stream_motion,
+    unheard_margin,
+)
 from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicle
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
@@ -97,12 +103,12 @@ from gcs.flight.run.recording import FlightRecording, finish_record
 from gcs.flight.run.snapshot import flight_snapshot
 from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.descent import DescentConflict, descent_conflicts
-from gcs.flight.safety.landing import PlannedLanding
+from gcs.flight.safety.landing import SETTLE_S, PlannedLanding
 from gcs.flight.safety.margin import check_margin, required_separation
 from gcs.flight.safety.monitor import PERIOD, FleetMonitor
 from gcs.flight.safety.policy import FaultPolicy
 from gcs.geofence import build_fence
-from gcs.phases import EventKind, FlightPhase, VehiclePhase
+from gcs.phases import AIRBORNE, EventKind, FlightPhase, VehiclePhase
 from planner import Plan
 from planner.verify import refusal
 
@@ -153,7 +159,7 @@ class FlightExecutor:
         """The flight's in-flight replans (`gcs.flight.replan.replan`), once the plan is flown."""
         self._plan_changed = asyncio.Event()
         """Set when a replan switched: the end of the flight's plan moved."""
-        self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land,
+        self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land_when_down,
                                   abort=self.abort, aborting=lambda: self._abort is not None,
                                   descent=self._descent_conflicts,
                                   replan=self._replan_fault)
@@ -162,10 +168,15 @@ class FlightExecutor:
                                     on_fault=self._on_fault,
                                     planned=lambda v, times: self.flown.position(v.id, times),
                                     predicted=lambda v, t: self.flown.predicted(v.id, t),
-                                    on_separation=self.policy.on_separation,
+                                    on_separation=lambda closest, alarm:
+                                    self.policy.on_separation(
+                                        closest, alarm, self.monitor.closest_text()),
                                     stalls=self.stalls,
                                     on_drops=lambda v, detail: self._emit(
-                                        v.id, EventKind.DROPPED_PACKETS, detail))
+                                        v.id, EventKind.DROPPED_PACKETS, detail),
+                                    on_silent=self._on_silent, on_heard=self._on_heard)
+        self._silence_pause = False
+        """The flight clock was stopped because a vehicle fell silent (`_on_silent`)."""
         self.streamer: Streamer | None = None
         self._hub: LinkHub | None = None
         self._tracks: list[SetpointTrack] = []
@@ -406,6 +417,7 @@ class FlightExecutor:
                                    self._emit, self.stalls) for v in self.vehicles)
         await fence_fleet(self.vehicles, build_fence(self.plan.scenario.to_dict()), opts,
                           self.fleet.world_origin, self._emit, self.stalls)
+        await self._set_failsafes()
         homes = [v.placed for v in self.vehicles]
         self._tracks = plan_tracks(self.plan, homes, opts.rate_hz, opts.yaw,
                                    extra_s=opts.hold_at_goal)
@@ -425,6 +437,22 @@ class FlightExecutor:
         self.phase = FlightPhase.FINISHING
         await self._finish()
         self.phase = FlightPhase.FINISHED
+
+    async def _set_failsafes(self) -> None:
+        """Before arming, each vehicle's own link-loss failsafe is set to hold, then land by
+        altitude layer, lowest first (`gcs.flight.procedure.failsafe`), and told; and where
+        the plan stacks two vehicles closer than R horizontally, that a station lost there
+        lands them that close."""
+        delays = layer_delays(self.plan, self.options.land_speed)
+        await asyncio.gather(*(set_failsafe(v, delays[v.index], self._emit)
+                               for v in self.vehicles))
+        stacked = stacked_columns(self.plan, required_separation(self.plan.scenario))
+        if stacked is not None:
+            lower, upper, gap, t = stacked
+            self._emit(None, EventKind.FAILSAFE, (
+                f"the plan puts {upper} over {lower} ({gap:.2f} m apart horizontally at "
+                f"t={t:.1f} s): a station lost there lands them that close; a plan with "
+                f"separation_scale [1, 1, 10] keeps the columns nearly R apart"))
 
     async def _gather(self) -> None:
         tol = self.options.start_tolerance
@@ -576,15 +604,53 @@ class FlightExecutor:
         if not np.all(np.isfinite(position)):
             return None
         flying = self.flown.current  # the plan in force: the first, or a switched replan's
-        return descent_conflicts(flying.plan, v.id, position, now - flying.start,
-                                 required_separation(self.plan.scenario),
-                                 ground=float(v.home[2]))
+        clearance = required_separation(self.plan.scenario)
+        hold = 0.0
+        if v.fault == "link_lost":  # on its own failsafe: it holds first, seen from afar
+            age = self.stalls.age(tel.position_time, time.monotonic())
+            hold = v.failsafe.hold_s
+            clearance += unheard_margin(age)
+        return descent_conflicts(flying.plan, v.id, position, now - flying.start, clearance,
+                                 ground=float(v.home[2]), hold=hold)
+
+    def _on_silent(self, v: VehicleStatus, silent: float) -> None:
+        """`v` has been unheard for `SILENT_HOLD_S`: stop the flight clock, so that the
+        others stop on the plan at nearly the plan time at which it stops on its own if its
+        link is lost (it flies on to its last setpoint, then holds: PX4's failsafe)."""
+        if (self.phase != FlightPhase.FLYING or self._abort is not None
+                or self.clock.pause is not None or self.clock.start is None):
+            return
+        t = self.pause()
+        self._silence_pause = True
+        self._emit(v.id, EventKind.LINK_SILENT, f"no message for {silent:.2f} s: the fleet "
+                                                f"holds on the plan at t={t:.2f} s until it "
+                                                f"is heard again or declared lost")
+
+    def _on_heard(self, v: VehicleStatus) -> None:
+        """A silent vehicle is heard again: resume when nothing else keeps the fleet held."""
+        if (self._silence_pause and not self.monitor.silent and self._abort is None
+                and self.clock.pause is not None):
+            self._silence_pause = False
+            self._emit(v.id, EventKind.LINK_SILENT, "heard again: the flight goes on")
+            self.resume()
 
     def _on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
         """The monitor flagged `v`: a replan planned without knowing it is called off (under
         policy replan the new one is), then the policy acts."""
         if self._replanner is not None and self.options.policy != "replan":
             self._replanner.cancel(f"{v.id} faulted ({kind}) while it was planned")
+        if self._silence_pause and self.options.policy in ("land_faulty", "replan") \
+                and self.clock.pause is not None and self._abort is None:
+            self._silence_pause = False  # these policies fly the others on
+            self.resume()
+        if kind == "link_lost" and v.phase in AIRBORNE and v.home is not None:
+            # a moving obstacle for every plan made from now on, and what the separation
+            # monitor counts for it while it is unheard
+            motion = predicted_landing(v, self.plan.scenario.assigned(), self.options,
+                                       self.clock, measured=True, unheard=True)
+            if motion is not None:
+                self.flown.motions[v.id] = motion
+                stream_motion(self._streamer(), self.clock, v, motion, self.options.yaw)
         self.policy.on_fault(v, kind, detail)
 
     def _replan_fault(self, v: VehicleStatus, kind: str) -> None:
@@ -597,12 +663,22 @@ class FlightExecutor:
             replanner, why = None, exc.reason if isinstance(exc, StateConflict) else str(exc)
         if replanner is not None and not replanner.predict_landing(v, kind):
             replanner, why = None, "its motion cannot be predicted (no position)"
-        self.policy.landings.append(self.policy.tasks.spawn(self._land(v)))
+        self.policy.landings.append(self.policy.tasks.spawn(self._land_when_down(v)))
         if replanner is None:
             self._replan_missed([v], why)
             return
         with contextlib.suppress(Exception):  # on failure it fell back (`_replan_missed`)
             replanner.request(None, (), "land", f"{v.id} {kind}", faulty=[v])
+
+    async def _land_when_down(self, v: VehicleStatus) -> None:
+        """PX4's Land for a faulty vehicle: at once, or for a lost one once its predicted
+        failsafe motion has ended (a Land arriving earlier would take it down before the
+        hold the others were planned around was over)."""
+        motion = self.flown.motions.get(v.id)
+        if v.fault == "link_lost" and motion is not None:
+            while (now := self.flight_time()) is not None and now < motion.end + SETTLE_S:
+                await asyncio.sleep(min(PERIOD, motion.end + SETTLE_S - now))
+        await self._land(v)
 
     def _replan_missed(self, faulty: list[VehicleStatus], why: str) -> None:
         """Policy replan could not fly the others around `faulty`: land_faulty's way."""
@@ -626,19 +702,23 @@ class FlightExecutor:
         if action != "land" or self.options.landing != "planned" or self.streamer is None:
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), self.vehicles, self.streamer,
-                                 self.options, self._emit, self._secure_one, self.stalls)
+                                 self.options, self._emit, self._secure_one, self.stalls,
+                                 self.flown, self.clock)
         return landing if landing.eligible() else None
 
     def _end_landing(self, live: list[VehicleStatus]) -> PlannedLanding | None:
         """The landing plan for `at_end: land` when a vehicle's straight descent from its
         goal would come closer than R to another's goal (goals stacked above each other), or
-        None: then PX4's Land takes each straight down, which keeps R."""
+        a vehicle off the plans is still in the air (it is planned around), or None: then
+        PX4's Land takes each straight down, which keeps R."""
         if self.options.landing != "planned" or self.streamer is None:
             return None
-        if all(self._descent_conflicts(v) == [] for v in live):
+        around = [v for v in self.vehicles if v not in live and v.phase in AIRBORNE]
+        if not around and all(self._descent_conflicts(v) == [] for v in live):
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), live, self.streamer,
-                                 self.options, self._emit, self._land, self.stalls)
+                                 self.options, self._emit, self._land, self.stalls,
+                                 self.flown, self.clock, around)
         return landing if landing.eligible() else None
 
     def _secure_one(self, v: VehicleStatus) -> Awaitable[None]:

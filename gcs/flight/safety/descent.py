@@ -42,13 +42,15 @@ class DescentConflict:
 
 
 def descent_conflicts(plan: Plan, faulty: str, position: ArrayLike, flight_time: float,
-                      clearance: float, ground: float = 0.0) -> list[DescentConflict]:
+                      clearance: float, ground: float = 0.0, hold: float = 0.0
+                      ) -> list[DescentConflict]:
     """The other vehicles whose plan from `flight_time` on comes closer than `clearance` to
     the column under `position` (world frame, m) down to `ground`: empty when the descent is
-    clear of all of them."""
+    clear of all of them. hold: seconds before the descent starts (a lost vehicle's own
+    failsafe holds first), added to the window."""
     x, y, top = (float(c) for c in np.asarray(position, dtype=float).reshape(3))
     top = max(top, ground)
-    window = (top - ground) / DESCENT_SPEED_MIN + SETTLE_S
+    window = hold + (top - ground) / DESCENT_SPEED_MIN + SETTLE_S
     times = flight_time + np.arange(0.0, window + 1.0 / RATE_HZ, 1.0 / RATE_HZ)
     positions = plan.sample(times).position  # (vehicles, times, 3)
     horizontal = np.hypot(positions[:, :, 0] - x, positions[:, :, 1] - y)

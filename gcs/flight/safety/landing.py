@@ -17,10 +17,18 @@ stacked above each other closer than R. `PlannedLanding.run` instead:
    apart, so no descent crosses another vehicle).
 
 Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate
-invalid, already landing) get PX4's Land at once, and so does everyone when no verified
-plan is ready before the switch tick (the planner failed for whatever reason, or was late):
-the events say which (`landing_plan`, `landing_fallback`). Whatever happens, every vehicle
-is handed to `secure` in the end.
+invalid, already landing) are moving obstacles the landing plan keeps R + a margin from
+(`planner.fixed`, given to `plan_landing` from the switch on, with the `around` vehicles
+another part of the flight lands): one still heard gets PX4's Land at once and is predicted
+going straight down from where it is measured; one the station has lost is predicted on its
+own offboard-loss failsafe from its last report (`gcs.flight.replan.replan.predicted_landing`, its
+margin growing with the time since it was heard), is streamed that motion in case it still
+listens, and gets PX4's Land only once the motion has ended (a Land arriving earlier would
+take it down before its predicted hold was over). Their motions go to `FlownPlans.motions`,
+where the live separation monitor reads where a lost vehicle is predicted. Everyone gets
+PX4's Land when no verified plan is ready before the switch tick (the planner failed for
+whatever reason, or was late): the events say which (`landing_plan`, `landing_fallback`).
+Whatever happens, every vehicle is handed to `secure` in the end.
 """
 
 from __future__ import annotations
@@ -29,7 +37,7 @@ import asyncio
 import math
 import time
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,8 +46,12 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import hold_track, plan_tracks
 from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.replan.replan import predicted_landing, stream_motion
+from gcs.flight.run.clock import FlightClock
+from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
+from planner.fixed import FixedTrajectory
 from planner.landing import LandingError, LandingPlan, plan_landing
 from planner.scenario import Scenario
 from planner.types import FloatArray
@@ -53,6 +65,13 @@ STEERABLE_FAULTS = ("tracking_error",)
 FLYING_PHASES = (VehiclePhase.FLYING, VehiclePhase.HOLDING, VehiclePhase.FAULTY)
 #: Ticks kept free between the plan being ready and its switch tick (to build the tracks).
 SWITCH_MARGIN_TICKS = 1
+#: Shares of the margins around the vehicles it cannot steer a landing plan is tried with,
+#: in turn, while none is found (a lost vehicle caught at R from another leaves no room to
+#: open the full margin at once).
+MARGIN_SHARES = (1.0, 0.5, 0.0)
+#: While a lost vehicle comes down on its own and no landing plan was found, the others hold
+#: and a landing is planned again this often (s), from the held state.
+RETRY_S = 0.5
 #: After the landing horizon, PX4's Land takes over once the vehicles had this long to settle.
 SETTLE_S = 0.3
 
@@ -71,9 +90,18 @@ class PlannedLanding:
     """Leaves one vehicle safe with PX4's Land (`gcs.flight.procedure.vehicle.secure`: disarmed on
     the ground, or landing); its stream stops."""
     stalls: StationStalls
+    flown: FlownPlans | None = None
+    """The flight's plans and motions off them (None: nothing is predicted)."""
+    clock: FlightClock | None = None
+    around: list[VehicleStatus] = field(default_factory=list)
+    """Vehicles in the air that others land (not handed to `secure` here), planned around."""
     steered: list[VehicleStatus] = field(default_factory=list)
     """The vehicles flying the landing plan (once switched)."""
     result: LandingPlan | None = None
+    predicted: dict[str, Motion] = field(default_factory=dict)
+    """The predicted motions of the vehicles it cannot steer, by id."""
+    unheard: set[str] = field(default_factory=set)
+    """Those of them the station has lost (on their own failsafe)."""
 
     def steerable(self, v: VehicleStatus) -> str | None:
         """Why `v` cannot fly a landing plan, or None when it can."""
@@ -128,49 +156,142 @@ class PlannedLanding:
             for v in self.vehicles:
                 if v in steer:
                     continue
-                if v.phase in AIRBORNE and v.phase != VehiclePhase.LANDING:
+                airborne = v.phase in AIRBORNE and v.phase != VehiclePhase.LANDING
+                if v.phase in AIRBORNE and self._lost(v):
+                    self.emit(v.id, EventKind.LANDING_FALLBACK, (
+                        f"lost ({self.steerable(v)}): on its own failsafe "
+                        f"({v.failsafe.text()}), planned around"))
+                    self._predict(v, unheard=True)
+                    continue  # handed to `secure` once its predicted motion has ended
+                if airborne:
                     self.emit(v.id, EventKind.LANDING_FALLBACK,
                               f"PX4 Land: cannot be steered ({self.steerable(v)})")
                 down(v)
+                self._predict(v, unheard=False)
             if steer:
                 ok = await self._fly(steer, rate)
                 for v in (self.steered if ok else steer):
                     down(v)
                 handed.update(v.id for v in steer)  # the rest were sent down meanwhile
+            for v in self.vehicles:
+                if v.id not in handed and v.id in self.predicted:
+                    await self._until_flight_time(self.predicted[v.id].end + SETTLE_S)
+                    down(v)
         finally:
             for v in self.vehicles:
                 if v.id not in handed:
                     down(v)
             await asyncio.gather(*downs, return_exceptions=True)
 
+    def _lost(self, v: VehicleStatus) -> bool:
+        """True when the station has lost `v`: no report for `link_timeout`."""
+        if v.link is None or v.home is None:
+            return False
+        age = self.stalls.age(v.link.telemetry.position_time, time.monotonic())
+        return v.fault == "link_lost" or not age <= self.options.link_timeout
+
+    def _predict(self, v: VehicleStatus, *, unheard: bool) -> None:
+        """Predict what `v`, which the landing plan cannot steer, does: its known motion off
+        the plans, or PX4's Land from where it is measured, or (`unheard`) its own failsafe
+        from its last report, then streamed to it. Kept in `flown.motions`."""
+        if self.flown is None or self.clock is None or v.phase not in AIRBORNE:
+            return
+        motion = self.flown.motions.get(v.id) if not unheard else None
+        if motion is None:
+            motion = predicted_landing(v, self.scenario, self.options, self.clock,
+                                       measured=True, unheard=unheard)
+        if motion is None:
+            return
+        self.flown.motions[v.id] = motion
+        self.predicted[v.id] = motion
+        if unheard:
+            self.unheard.add(v.id)
+            stream_motion(self.streamer, self.clock, v, motion, self.options.yaw)
+
+    def _fixed(self, switch: int) -> list[FixedTrajectory]:
+        """The motions of the vehicles the plan cannot steer, from streamer tick `switch`."""
+        if self.flown is None or self.clock is None or self.clock.start is None:
+            return []
+        t_switch = (switch - self.clock.start_tick) / self.streamer.rate
+        for v in self.around:
+            if v.phase in AIRBORNE and v.id not in self.predicted:
+                self._predict(v, unheard=self._lost(v))
+        return [shifted(m, t_switch) for m in self.predicted.values()]
+
+    async def _until_flight_time(self, t: float) -> None:
+        """Sleep until flight time `t` (at once without a running flight clock)."""
+        while self.clock is not None and (now := self.clock.flight_time()) is not None \
+                and now < t:
+            await asyncio.sleep(min(0.1, t - now))
+
     async def _fly(self, steer: list[VehicleStatus], rate: float) -> bool:
         """Plan, switch, fly the landing plan; False (after freezing the streams) when no
-        plan was ready in time, which the events say."""
+        plan was ready in time, which the events say. While a lost vehicle is still coming
+        down on its own, a failed attempt freezes the streams (the others hold where they
+        are, rather than go straight down across its column) and is tried again every
+        `RETRY_S` from the held state, and once more after it is down."""
+        why = await self._attempt(steer, rate)
+        if why is not None and self._lost_in_air():
+            self._freeze(steer)
+            self.emit(None, EventKind.LANDING_FALLBACK, (
+                f"{', '.join(v.id for v in steer)} hold where they are: {why}; landing "
+                f"planned again every {RETRY_S:g} s around {', '.join(sorted(self.unheard))}"))
+            while why is not None:
+                last = not self._lost_in_air()  # one more try once it is down
+                await asyncio.sleep(RETRY_S)
+                why = await self._attempt(steer, rate)
+                if last:
+                    break
+        return True if why is None else self._fallback(steer, why)
+
+    def _lost_in_air(self) -> bool:
+        """True while a lost vehicle (`predicted`, unheard) is predicted in the air."""
+        now = self.clock.flight_time() if self.clock is not None else None
+        return now is not None and any(
+            vid in self.unheard and now < motion.end + SETTLE_S
+            for vid, motion in self.predicted.items())
+
+    async def _attempt(self, steer: list[VehicleStatus], rate: float) -> str | None:
+        """One landing plan from the state `landing_plan_timeout` ahead: None once it was
+        flown to its end, or why there was none."""
         streamer = self.streamer
         bound = self.options.landing_plan_timeout
         switch = streamer.next_tick() + SWITCH_MARGIN_TICKS + math.ceil(bound * rate)
         switch_at = streamer.tick_time(switch)
         states = [self._state(v, switch, switch_at) for v in steer]
+        fixed = self._fixed(switch)
         positions, velocities, accelerations = (np.array([s[k] for s in states])
                                                 for k in range(3))
         began = time.perf_counter()
         deadline = began + bound
+        def planned() -> LandingPlan:
+            """The landing plan, keeping the full margins from the vehicles it cannot steer
+            or, when no plan can, a share of them (`MARGIN_SHARES`)."""
+            for share in MARGIN_SHARES:
+                try:
+                    return plan_landing(
+                        self.scenario, positions, velocities, accelerations,
+                        ids=[v.id for v in steer], landing_height=self.options.landing_height,
+                        deadline=deadline, fixed=[replace(f, margin=share * f.margin)
+                                                  for f in fixed])
+                except LandingError:
+                    if share == MARGIN_SHARES[-1] or not fixed \
+                            or time.perf_counter() > deadline:
+                        raise
+            raise AssertionError("unreachable")
+
         try:
-            result = await asyncio.wait_for(asyncio.to_thread(
-                plan_landing, self.scenario, positions, velocities, accelerations,
-                ids=[v.id for v in steer], landing_height=self.options.landing_height,
-                deadline=deadline), timeout=max(0.0, switch_at - time.monotonic()
-                                               - SWITCH_MARGIN_TICKS / rate))
+            result = await asyncio.wait_for(asyncio.to_thread(planned), timeout=max(
+                0.0, switch_at - time.monotonic() - SWITCH_MARGIN_TICKS / rate))
         except TimeoutError:
-            return self._fallback(steer, f"no landing plan within {bound:g} s")
+            return f"no landing plan within {bound:g} s"
         except LandingError as exc:
-            return self._fallback(steer, str(exc))
+            return str(exc)
         except Exception as exc:  # any planning failure: PX4 Land, never stuck
-            return self._fallback(steer, f"landing planning failed: "
-                                         f"{type(exc).__name__}: {exc}")
+            return f"landing planning failed: {type(exc).__name__}: {exc}"
         if time.monotonic() > switch_at - 0.5 / rate or streamer.tick >= switch:
-            return self._fallback(steer, f"the landing plan came after its switch tick "
-                                         f"({time.perf_counter() - began:.2f} s)")
+            return (f"the landing plan came after its switch tick "
+                    f"({time.perf_counter() - began:.2f} s)")
         self.result = result
         homes = [v.placed for v in steer]
         tracks = plan_tracks(result.plan, homes, rate, self.options.yaw)
@@ -184,26 +305,43 @@ class PlannedLanding:
         horizon = result.plan.scenario.horizon
         verification = result.plan.verification
         kept = verification.min_separation_continuous if verification is not None else None
+        kept_from = result.plan.scenario.fixed
+        around = (f"; around {', '.join(f.id for f in kept_from)} (closest "
+                  f"{_figure(_fixed_kept(result))} m, margin "
+                  f"{', '.join(f'{f.margin:.2f}' for f in kept_from)} m beyond R)"
+                  if kept_from else "")
         self.emit(None, EventKind.LANDING_PLAN, (
             f"{len(self.steered)} vehicle(s) land by a verified plan from t+{bound:g} s: "
             f"touchdown in {horizon:.1f} s, closest {_figure(kept)} m (keeps at least "
-            f"{result.separation:.2f} m), planned in {result.seconds:.3f} s"))
+            f"{result.separation:.2f} m), planned in {result.seconds:.3f} s{around}"))
         end = switch_at + horizon + SETTLE_S
         while (left := end - time.monotonic()) > 0:
             await asyncio.sleep(left)
-        return True
+        return None
 
-    def _fallback(self, steer: list[VehicleStatus], why: str) -> bool:
-        """Freeze the streams where they are and say that PX4's Land takes over."""
+    def _freeze(self, steer: list[VehicleStatus]) -> None:
+        """Every stream of `steer` holds its last setpoint from now on (the vehicles are
+        landing: no longer judged against the plan)."""
         streamer = self.streamer
         for v in steer:
+            v.phase = VehiclePhase.LANDING
             assignment = streamer.assignments.get(v.id)
             if assignment is not None and assignment.last is not None:
                 streamer.assign(v.id, assignment.link, hold_track(
                     assignment.last.position, assignment.last.yaw, streamer.rate))
+
+    def _fallback(self, steer: list[VehicleStatus], why: str) -> bool:
+        """Freeze the streams where they are and say that PX4's Land takes over."""
+        self._freeze(steer)
         self.emit(None, EventKind.LANDING_FALLBACK,
                   f"PX4 Land for {', '.join(v.id for v in steer)}: {why}")
         return False
+
+
+def _fixed_kept(result: LandingPlan) -> float | None:
+    """The closest the landing plan comes to a vehicle it cannot steer (m)."""
+    verification = result.plan.verification
+    return None if verification is None else verification.fixed_distance_min
 
 
 def _figure(x: float | None) -> str:

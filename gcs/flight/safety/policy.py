@@ -5,7 +5,9 @@ as completed); with ``landing: planned`` (the default) a faulty vehicle that sti
 setpoints (a tracking error) cannot simply descend through the others' airspace: the whole
 fleet lands by a verified landing plan (`gcs.flight.safety.landing`) instead. One that cannot be
 steered goes straight down with PX4's Land; the others fly on only where that descent was
-checked clear of their plans (`gcs.flight.safety.descent`), and otherwise hold where they are.
+checked clear of their plans (`gcs.flight.safety.descent`), and otherwise land by a landing
+plan that keeps clear of its descent (`landing: planned`; with `landing: px4` they hold
+where they are).
 ``replan`` lands the faulty vehicle on its own predicted motion and replans the others
 around it to their goals (`gcs.flight.replan.replan`); when no replan is flown, land_faulty's way
 (PX4's Land for it, the others fly on only where its descent is clear).
@@ -87,11 +89,13 @@ class FaultPolicy:
 
     def give_way(self, v: VehicleStatus) -> None:
         """`v` goes straight down: the others fly on only where its descent was checked
-        clear of their plans; otherwise they hold where they are."""
+        clear of their plans; otherwise they land by a plan around it (or hold, `_around`)."""
         conflicts = self.descent(v)
+        action = "land by a plan around it" if self._around() else "hold"
         if conflicts is None:
-            self.emit(v.id, EventKind.DESCENT_CONFLICT, "descent not checked (position or "
-                                                        "flight time unknown): the others hold")
+            self.emit(v.id, EventKind.DESCENT_CONFLICT, f"descent not checked (position or "
+                                                        f"flight time unknown): the others "
+                                                        f"{action}")
         elif not conflicts:
             self.emit(v.id, EventKind.DESCENT_CLEAR, "straight descent clear of every other "
                                                      "vehicle's plan: the others fly on")
@@ -100,14 +104,21 @@ class FaultPolicy:
             named = ", ".join(f"{c.vehicle} {c.distance:.2f} m at t={c.flight_time:.1f} s"
                               for c in conflicts)
             self.emit(v.id, EventKind.DESCENT_CONFLICT,
-                      f"straight descent too close to {named}: the others hold")
+                      f"straight descent too close to {named}: the others {action}")
         if not self.aborting():
-            self.tasks.spawn(self.abort("hold", f"{v.id} lands across the others' plans"))
+            action = "land" if self._around() else "hold"
+            self.tasks.spawn(self.abort(action, f"{v.id} lands across the others' plans"))
 
-    def on_separation(self, closest: float, alarm: float) -> None:
-        """Two vehicles closer than `alarm`: every vehicle to Hold."""
+    def _around(self) -> bool:
+        """True when an abort with land flies a landing plan that keeps clear of a vehicle
+        landing on its own (`landing: planned`); otherwise the others hold where they are."""
+        return self.options.landing == "planned"
+
+    def on_separation(self, closest: float, alarm: float, between: str = "") -> None:
+        """Two vehicles (`between`, named) closer than `alarm`: every vehicle to Hold."""
         if self.aborting():
             return
+        named = f" ({between})" if between else ""
         self.emit(None, EventKind.SEPARATION_ALARM,
-                  f"vehicles {closest:.2f} m apart (alarm below {alarm:.2f} m)")
+                  f"vehicles{named} {closest:.2f} m apart (alarm below {alarm:.2f} m)")
         self.tasks.spawn(self.abort("hold", f"separation {closest:.2f} m"))

@@ -1,0 +1,149 @@
+"""Closest approach when the ground station dies, or loses one vehicle, on the mock with
+PX4's real failsafe timings; prints one JSON document to stdout.
+
+    python bench/station_loss.py                         # station lost, every plan, 4 instants
+    python bench/station_loss.py --plans paper-circle4 --at 2 4 6 8
+    python bench/station_loss.py --lost 2                # vehicle 2's link lost (land_all)
+    python bench/station_loss.py --default-failsafe      # PX4's own 5 s for every vehicle
+    python bench/station_loss.py --columns               # plans that keep columns apart
+
+Each plan (`planner/examples`, flown faster than the paper: `--steps`) is planned with the
+SCP planner and flown on in-process mock vehicles (PX4's COM_OF_LOSS_T 1 s, COM_FAIL_ACT_T
+5 s, MPC_LAND_SPEED 0.7 m/s; disarm 0.5 s after touchdown). Before arming the station sets
+each vehicle's failsafe (`gcs.flight.procedure.failsafe`: Land, COM_FAIL_ACT_T staggered by
+altitude layer; `--default-failsafe` puts PX4's 5 s back on every vehicle instead). At
+flight time `--at` every vehicle's link is blackholed both ways: nothing the station sends
+arrives and nothing reaches it, as when its process is killed (`--lost N`: only vehicle N's,
+under policy land_all, the station landing the others around it). The figures per run: the
+closest true pair distance (every vehicle's true position in the mock, every 10 ms, while
+any vehicle of the pair is in the air) against R, the plan's most stacked columns
+(`stacked_columns`), and whether every vehicle ended disarmed on the ground.
+
+Progress goes to stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+import planner  # noqa: E402
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
+from gcs.flight.procedure import failsafe  # noqa: E402
+from gcs.flight.run import executor  # noqa: E402
+from gcs.flight.run.executor import FlightExecutor  # noqa: E402
+from gcs.flight.safety.margin import required_separation  # noqa: E402
+from gcs.sim import MockFleet, homes_under  # noqa: E402
+from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets  # noqa: E402
+
+MOCK = {"disarm_after_land": 0.5, "status_rate": 5.0}
+OPTIONS = FlightOptions(hold_at_goal=0.5, prestream=0.3, climb_speed=2.0,
+                        landing_plan_timeout=1.0)
+#: `--columns`: plans whose vertical distances count a tenth, so every two vehicles stay
+#: nearly R apart horizontally (their columns apart).
+COLUMNS = [1.0, 1.0, 10.0]
+#: The plans and their steps (0.2 s each: the paper's 30 s flown in 12-16 s).
+PLANS = {"paper-circle4": 60, "paper-circle8": 80, "circle16": 80}
+
+
+def plan_of(name: str, steps: int | None, columns: bool) -> planner.Plan:
+    data = json.loads((ROOT / "planner" / "examples" / f"{name}.json").read_text())
+    plan = planner.plan(planner.Scenario.from_dict(
+        {**data, **({"steps": steps} if steps else {}),
+         **({"separation_scale": COLUMNS} if columns else {})}))
+    if not plan.ok:
+        raise SystemExit(f"{name}: {plan.problems()}")
+    return plan
+
+
+async def one(plan: planner.Plan, at: float, lost: int | None) -> dict[str, Any]:
+    homes = homes_under(plan.scenario.starts)
+    base = free_udp_base(mock_port_offsets(len(homes)))
+    async with MockFleet(homes=homes, settle_time=0.5, **mock_fleet_ports(base),
+                         **MOCK) as mock:
+        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+        flight = FlightExecutor(plan, fleet, OPTIONS)
+        task = flight.start()
+        while (flight.flight_time() or -1.0) < at and not task.done():
+            await asyncio.sleep(0.02)
+        cut = mock.vehicles if lost is None else [mock.vehicles[lost]]
+        for v in cut:
+            v.faults.loss = 1.0
+        truth: list[np.ndarray] = []
+        deadline = time.monotonic() + 60.0
+        while ((not task.done() or any(v.armed for v in mock.vehicles))
+               and time.monotonic() < deadline):
+            truth.append(np.array([v.true_position_world for v in mock.vehicles]))
+            await asyncio.sleep(0.01)
+        task.cancel()
+        with contextlib.suppress(BaseException):  # the flight's outcome is not the figure
+            await task
+        scale = np.asarray(plan.scenario.separation_scale)
+        i, j = np.triu_indices(len(homes), k=1)
+        closest, where = np.inf, None
+        for p in truth:
+            air = (p[i, 2] > 0.05) | (p[j, 2] > 0.05)
+            if not air.any():
+                continue
+            d = np.linalg.norm((p[i] - p[j]) / scale, axis=1)
+            d[~air] = np.inf
+            k = int(np.argmin(d))
+            if d[k] < closest:
+                closest, where = float(d[k]), (plan.scenario.ids[i[k]], plan.scenario.ids[j[k]])
+        return {"at": at, "closest_m": round(closest, 3), "pair": where,
+                "all_down": all(not v.armed and v.true_position_world[2] < 0.05
+                                for v in mock.vehicles),
+                "samples": len(truth)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--plans", nargs="+", default=list(PLANS), choices=list(PLANS))
+    parser.add_argument("--at", nargs="+", type=float, default=[2.0, 4.0, 6.0, 8.0])
+    parser.add_argument("--lost", type=int, default=None,
+                        help="blackhole only this vehicle (index) under land_all")
+    parser.add_argument("--columns", action="store_true",
+                        help=f"plan with separation_scale {COLUMNS}: columns apart")
+    parser.add_argument("--default-failsafe", action="store_true",
+                        help="PX4's own COM_FAIL_ACT_T (5 s) on every vehicle")
+    args = parser.parse_args()
+    if args.default_failsafe:
+        executor.layer_delays = lambda plan, speed: [5.0] * len(plan.scenario.ids)  # type: ignore[assignment]
+    out: dict[str, Any] = {"case": "vehicle lost" if args.lost is not None else "station lost",
+                           "failsafe": "px4 default" if args.default_failsafe
+                           else "land by layer",
+                           "separation_scale": COLUMNS if args.columns else "the plan's",
+                           "plans": {}}
+    for name in args.plans:
+        plan = plan_of(name, PLANS[name], args.columns)
+        r = plan.scenario.min_separation
+        stacked = failsafe.stacked_columns(plan, required_separation(plan.scenario))
+        runs = []
+        for at in args.at:
+            print(f"{name} at {at:g} s", file=sys.stderr, flush=True)
+            runs.append(asyncio.run(one(plan, at, args.lost)))
+        out["plans"][name] = {
+            "vehicles": len(plan.scenario.ids), "horizon_s": plan.scenario.horizon, "R": r,
+            "stacked_columns": None if stacked is None else {
+                "lower": stacked[0], "upper": stacked[1], "horizontal_m": round(stacked[2], 3),
+                "t": stacked[3]},
+            "runs": runs,
+            "closest_m": min(run["closest_m"] for run in runs),
+            "kept_r_minus_5cm": all(run["closest_m"] >= r - 0.05 for run in runs)}
+    json.dump(out, sys.stdout, indent=1)
+    print()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,135 @@
+"""A vehicle whose link is lost mid-flight is a moving obstacle for the landing plan.
+
+Its link is blackholed both ways (the mock drops every packet in and out), so the station
+neither hears it nor reaches it: it flies PX4's own offboard-loss failsafe (the mock's
+PX4 timings: 1 s without setpoints, Position hold for COM_FAIL_ACT_T = 5 s, then Land). The
+policy land_all lands the others by a verified plan that keeps R + a margin from its
+predicted failsafe motion; the true separation, read from the mocks' own state, stays
+>= R - 0.05 m until every vehicle is down.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import planner
+from gcs import px4
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.run.executor import FlightExecutor
+from gcs.phases import EventKind
+from gcs.sim import MockFleet
+from gcs.sim.fleet import homes_under
+from tests.flight.support import FAST_MOCK, QUICK, mock_ports
+
+pytestmark = pytest.mark.timeout(180)
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
+#: The station's options: land_all, the mock's landing speed (FAST_MOCK's MPC_LAND_SPEED),
+#: a landing-plan bound a busy machine meets (planned in about 0.05 s), short enough that the
+#: others do not fly on long along the plan the lost vehicle has left.
+OPTIONS = QUICK.replace(policy="land_all", land_speed=FAST_MOCK["land_speed"],
+                        landing_plan_timeout=1.0)
+
+
+def _plan(name: str, steps: int) -> planner.Plan:
+    data = json.loads((EXAMPLES / f"{name}.json").read_text())
+    plan = planner.plan(planner.Scenario.from_dict({**data, "steps": steps}))
+    assert plan.ok, plan.problems()
+    return plan
+
+
+@pytest.fixture(scope="module")
+def circle4() -> planner.Plan:
+    return _plan("paper-circle4", 60)
+
+
+async def _blackhole(plan: planner.Plan, lost: int, at: float
+                     ) -> tuple[FlightExecutor, Any, list[np.ndarray], MockFleet]:
+    """Fly `plan`, blackhole vehicle `lost` at flight time `at`; the true positions of all
+    vehicles from then until the flight has ended and every vehicle is disarmed."""
+    homes = homes_under(plan.scenario.starts)
+    async with MockFleet(homes=homes, settle_time=0.5, **mock_ports(len(homes)),
+                         **FAST_MOCK) as mock:
+        assert mock.vehicles[lost].config.failsafe_action_delay == px4.COM_FAIL_ACT_T_S
+        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+        flight = FlightExecutor(plan, fleet, OPTIONS)
+        task = flight.start()
+        while (flight.flight_time() or -1.0) < at:
+            assert not task.done(), "the flight ended before the link was cut"
+            await asyncio.sleep(0.02)
+        truth: list[np.ndarray] = []
+        mock.vehicles[lost].faults.loss = 1.0  # nothing in, nothing out
+        try:
+            outcome: Any = await _sampling(mock, task, truth)
+        except Exception as exc:
+            outcome = exc
+        deadline = time.monotonic() + 30.0  # the lost one lands on its own, later
+        while any(v.armed for v in mock.vehicles) and time.monotonic() < deadline:
+            truth.append(np.array([v.true_position_world for v in mock.vehicles]))
+            await asyncio.sleep(0.01)
+        return flight, outcome, truth, mock
+
+
+async def _sampling(mock: MockFleet, task: asyncio.Task[Any], truth: list[np.ndarray]
+                    ) -> Any:
+    """Await `task`, appending every vehicle's true position every 10 ms meanwhile (read at
+    one instant in the mock's own loop)."""
+    while not task.done():
+        truth.append(np.array([v.true_position_world for v in mock.vehicles]))
+        await asyncio.sleep(0.01)
+    return await task
+
+
+def _closest(truth: list[np.ndarray], scale: np.ndarray) -> float:
+    """Smallest true pair distance (the plan's metric) over the samples."""
+    i, j = np.triu_indices(truth[0].shape[0], k=1)
+    return min(float(np.min(np.linalg.norm((p[i] - p[j]) / scale, axis=1))) for p in truth)
+
+
+def _check(flight: FlightExecutor, outcome: Any, truth: list[np.ndarray], mock: MockFleet,
+           plan: planner.Plan, lost: str) -> None:
+    record = flight.record
+    assert record is not None and not isinstance(outcome, dict), outcome
+    told = [(e["vehicle"], e["kind"], e["detail"]) for e in record["events"]]
+    assert (lost, EventKind.FAULT) in [(v, k) for v, k, _ in told]
+    [landing] = [d for _, k, d in told if k == EventKind.LANDING_PLAN]
+    assert f"around {lost}" in landing  # planned around its predicted failsafe motion
+    # never sent straight down unplanned (a busy machine may miss the first plan's bound:
+    # the others then hold, and the next plan lands them)
+    assert not any(k == EventKind.LANDING_FALLBACK and (v not in (None, lost)
+                                                        or d.startswith("PX4 Land"))
+                   for v, k, d in told), told
+    for vehicle in mock.vehicles:  # all down, the lost one by its own failsafe
+        assert not vehicle.armed and vehicle.true_position_world[2] < 0.05
+    assert any("failsafe: Land" in what for _, what in mock.vehicles[
+        plan.scenario.ids.index(lost)].events)
+    r = plan.scenario.min_separation
+    assert len(truth) > 500
+    assert _closest(truth, np.asarray(plan.scenario.separation_scale)) >= r - 0.05
+
+
+@pytest.mark.flight
+@pytest.mark.parametrize("at", [3.0, 5.5])
+def test_landing_plan_keeps_clear_of_a_lost_vehicle(circle4: planner.Plan, at: float) -> None:
+    """paper-circle4 (12 s), uav2's link blackholed at `at` s (before and in the crossing):
+    land_all's landing plan keeps R from uav2's predicted failsafe descent."""
+    flight, outcome, truth, mock = asyncio.run(_blackhole(circle4, 1, at))
+    _check(flight, outcome, truth, mock, circle4, "uav2")
+
+
+
+@pytest.mark.flight
+@pytest.mark.slow
+def test_eight_vehicles_land_clear_of_a_lost_one() -> None:
+    """paper-circle8 (16 s), uav3's link blackholed at 6 s, as the circle closes in: the
+    other seven land by a plan around its failsafe, R kept in truth."""
+    plan = _plan("paper-circle8", 80)
+    flight, outcome, truth, mock = asyncio.run(_blackhole(plan, 2, 6.0))
+    _check(flight, outcome, truth, mock, plan, "uav3")
