@@ -33,8 +33,8 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from planner.assignment import matcher, solve_assignment  # noqa: E402
-from planner.generators import grid_to_sphere, sphere_shell, vertical_grid  # noqa: E402
+from planner.families.generators import grid_to_sphere, sphere_shell, vertical_grid  # noqa: E402
+from planner.methods.assignment import matcher, solve_assignment  # noqa: E402
 
 FAMILIES = ("grid-sphere", "sideways", "random")
 

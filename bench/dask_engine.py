@@ -16,7 +16,7 @@ its worker.
 engine (its legs as parallel Dask tasks, then the stitch task) against `plan_sequence` here,
 legs one after the other; the ratio is serial / engine.
 
---formations F: instead, a long show of F formations (`planner.generators.show_formations`,
+--formations F: instead, a long show of F formations (`planner.families.generators.show_formations`,
 free assignment) for every --orders entry (shapes joined by commas, cycled to F) and --seeds;
 each row adds the parse (the free assignments, as the API does before submitting), each
 leg's wall time on its worker, the stitch task's time, the whole (parse + engine), and the
@@ -51,8 +51,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import planner
 from gcs.service.planning import PlanningService
 from gcs.service.store import Store
-from planner.generators import SHOW_SHAPES, show_formations, show_sequence
-from planner.sequence import parse_sequence, plan_leg, plan_sequence, timeline_scenario
+from planner.families.generators import SHOW_SHAPES, show_formations, show_sequence
+from planner.methods.sequence import parse_sequence, plan_leg, plan_sequence, timeline_scenario
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "planner" / "examples"
 

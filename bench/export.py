@@ -1,6 +1,7 @@
 """Show export benchmark: how long writing a plan as a Skybrush .skyc takes, and how big it is.
 
-Plans a grid -> sphere transition with free assignment (`planner.generators.grid_to_sphere`,
+Plans a grid -> sphere transition with free assignment
+(`planner.families.generators.grid_to_sphere`,
 30 s at dt 0.2) for each --vehicles count, then writes it with `gcs.export.skyc.skyc_chunks`
 --repeats times. Prints one JSON document: per size the plan's time and status, the export's
 median seconds, the file's bytes (and show.json's uncompressed bytes), the keyframes written
@@ -29,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gcs.export.skyc import keyframe_count, skyc_chunks
 from planner import plan as make_plan
-from planner.generators import grid_to_sphere
+from planner.families.generators import grid_to_sphere
 
 
 def measure(vehicles: int, repeats: int) -> dict[str, Any]:

@@ -1,5 +1,6 @@
 """First linearisation point for crowded fixed-goal fleets: the synchronised straight moves
-(the default) against the dodged moves (`PlanningOptions(dodge=True)`, `planner.dodge`), each case
+(the default) against the dodged moves (`PlanningOptions(dodge=True)`, `planner.methods.dodge`),
+each case
 planned back to back with both so that they share the machine's load. Prints one JSON
 document to stdout.
 
@@ -21,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.generators import grid_to_sphere, random_dense, sideways  # noqa: E402
+from planner.families.generators import grid_to_sphere, random_dense, sideways  # noqa: E402
 from planner.options import PlanningOptions  # noqa: E402
 
 DEFAULT_CASES = ["sideways:64", "sideways:64:1", "sideways:64:none:2.5:8", "sideways:100",

@@ -27,8 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.generators import grid_to_sphere, random_dense  # noqa: E402
-from planner.obstacle_generators import pillar_circle  # noqa: E402
+from planner.families.generators import grid_to_sphere, random_dense  # noqa: E402
+from planner.families.obstacle_generators import pillar_circle  # noqa: E402
 
 EXAMPLES = ROOT / "planner" / "examples"
 PAPER = [f"paper-{kind}{n}" for kind in ("circle", "random") for n in (2, 4, 6, 8)]

@@ -1,4 +1,5 @@
-"""What `steps: "auto"` costs: the horizon search (`planner.horizon_search`) against one plan
+"""What `steps: "auto"` costs: the horizon search (`planner.methods.horizon_search`) against one
+plan
 at the horizon it chose, on a few families, in CPU seconds (`time.process_time`: the
 machine is shared, so wall time says little). Prints one JSON document to stdout.
 
@@ -20,8 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.generators import circle_swap, grid_to_sphere, sideways  # noqa: E402
-from planner.obstacle_generators import window_wall  # noqa: E402
+from planner.families.generators import circle_swap, grid_to_sphere, sideways  # noqa: E402
+from planner.families.obstacle_generators import window_wall  # noqa: E402
 
 DEFAULT_CASES = ["circle:8", "window:8", "circle-flat:12", "circle-flat:24", "sideways:64",
                  "grid-sphere:100"]

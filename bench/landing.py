@@ -1,4 +1,5 @@
-"""Landing-plan benchmark: how long `planner.landing.plan_landing` takes from a flying fleet's
+"""Landing-plan benchmark: how long `planner.methods.landing.plan_landing` takes from a flying
+fleet's
 state, for 8, 100 and 1,000 vehicles; prints one JSON document to stdout.
 
     python bench/landing.py                          # the default cases below
@@ -6,7 +7,7 @@ state, for 8, 100 and 1,000 vehicles; prints one JSON document to stdout.
 
 States come from real plans, sampled mid-flight (positions, velocities, accelerations):
 the paper's 8-vehicle circle swap (8), and random crowds at random128's density
-(`planner.generators.random_dense`, 100 and 1,000 vehicles, one plan per seed); for 1,000
+(`planner.families.generators.random_dense`, 100 and 1,000 vehicles, one plan per seed); for 1,000
 vehicles planning the crowd itself takes a while (see docs/benchmarks/planner.md), so
 `--crowd-states N...` samples random crowd states instead for those sizes (positions
 1.2 R apart, random horizontal velocities up to 0.5 m/s per axis). Each landing is planned
@@ -32,8 +33,8 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
-from planner.generators import random_dense  # noqa: E402
-from planner.landing import LandingError, plan_landing  # noqa: E402
+from planner.families.generators import random_dense  # noqa: E402
+from planner.methods.landing import LandingError, plan_landing  # noqa: E402
 
 EXAMPLES = ROOT / "planner" / "examples"
 #: The ground station's default bound on planning a landing (`FlightOptions`).

@@ -49,7 +49,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
-from planner.generators import (  # noqa: E402
+from planner.families.generators import (  # noqa: E402
     SHOW_SHAPES,
     SHOW_STEPS,
     dmpc2019_scenario,
@@ -59,17 +59,17 @@ from planner.generators import (  # noqa: E402
     show_sequence,
     sideways,
 )
-from planner.obstacle_generators import (  # noqa: E402
+from planner.families.obstacle_generators import (  # noqa: E402
     forest,
     pillar_circle,
     shelving,
     window_wall,
 )
+from planner.methods.sequence import plan_sequence  # noqa: E402
+from planner.model.scenario import METHODS  # noqa: E402
 from planner.options import PlanningOptions  # noqa: E402
-from planner.scenario import METHODS  # noqa: E402
-from planner.scp import ScpOptions  # noqa: E402
-from planner.sequence import plan_sequence  # noqa: E402
-from planner.verify import verify  # noqa: E402
+from planner.scp.loop import ScpOptions  # noqa: E402
+from planner.verification.verify import verify  # noqa: E402
 
 EXAMPLES = ROOT / "planner" / "examples"
 PAPER = [f"paper-{kind}{n}" for kind in ("circle", "random") for n in (2, 4, 6, 8)]

@@ -27,13 +27,13 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # the package, not bench/planner.py
 
 from planner import plan  # noqa: E402
-from planner.first_qp import solve_first_qp  # noqa: E402
-from planner.generators import grid_to_sphere, random_dense, sideways  # noqa: E402
-from planner.obstacle_generators import forest  # noqa: E402
+from planner.families.generators import grid_to_sphere, random_dense, sideways  # noqa: E402
+from planner.families.obstacle_generators import forest  # noqa: E402
+from planner.model.scenario import Scenario  # noqa: E402
 from planner.options import PlanningOptions  # noqa: E402
-from planner.scenario import Scenario  # noqa: E402
-from planner.scp import thrust_cost  # noqa: E402
-from planner.solvers import make_solver  # noqa: E402
+from planner.scp.first_qp import solve_first_qp  # noqa: E402
+from planner.scp.loop import thrust_cost  # noqa: E402
+from planner.scp.solvers import make_solver  # noqa: E402
 
 
 def build(case: str) -> dict[str, Any]:

@@ -28,9 +28,9 @@ import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 
 import planner  # noqa: E402
-from planner import solvers  # noqa: E402
-from planner.generators import grid_to_sphere, random_dense  # noqa: E402
-from planner.qp import QuadraticProgram  # noqa: E402
+from planner.families.generators import grid_to_sphere, random_dense  # noqa: E402
+from planner.scp import solvers  # noqa: E402
+from planner.scp.qp import QuadraticProgram  # noqa: E402
 
 BIG = 1e20
 

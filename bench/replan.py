@@ -1,4 +1,5 @@
-"""Replan benchmark (planner level, no flight): how long `planner.replan.plan_replan` takes to
+"""Replan benchmark (planner level, no flight): how long `planner.methods.replan.plan_replan` takes
+to
 replan a flying fleet from its exact state, for several families and sizes; prints one JSON
 document to stdout.
 
@@ -47,9 +48,9 @@ import planner  # noqa: E402
 from gcs.fleet.fleetfile import FlightOptions  # noqa: E402
 from gcs.flight.replan.replan import BRAKING_DECELERATION  # noqa: E402
 from planner.errors import ScenarioError  # noqa: E402
-from planner.fixed import DROP_COAST_STEPS, FixedTrajectory, landing_motion  # noqa: E402
-from planner.generators import circle_swap, grid_to_sphere, random_transitions  # noqa: E402
-from planner.replan import ReplanError, check_goals, plan_replan  # noqa: E402
+from planner.families.generators import circle_swap, grid_to_sphere, random_transitions  # noqa: E402
+from planner.methods.replan import ReplanError, check_goals, plan_replan  # noqa: E402
+from planner.model.fixed import DROP_COAST_STEPS, FixedTrajectory, landing_motion  # noqa: E402
 
 #: The floors asked for (s): 16 vehicles mid-crossing, and 100 vehicles.
 FLOORS = {16: 0.3, 100: 2.0}

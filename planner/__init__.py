@@ -12,7 +12,6 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from planner.dynamics import MotionSample, integrate, interpolate
     from planner.errors import (
         FieldError,
         PlanFormatError,
@@ -20,9 +19,10 @@ if TYPE_CHECKING:
         ScenarioError,
         SolverError,
     )
+    from planner.model.dynamics import MotionSample, integrate, interpolate
+    from planner.model.scenario import Limits, Scenario, Vehicle
     from planner.planning import plan
     from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
-    from planner.scenario import Limits, Scenario, Vehicle
 
 __all__ = [
     "FieldError",
@@ -45,13 +45,14 @@ __all__ = [
 
 #: The module each public name lives in.
 _HOMES: dict[str, str] = {
-    "MotionSample": "dynamics", "integrate": "dynamics", "interpolate": "dynamics",
+    "MotionSample": "model.dynamics", "integrate": "model.dynamics",
+    "interpolate": "model.dynamics",
     "FieldError": "errors", "PlanFormatError": "errors", "PlannerError": "errors",
     "ScenarioError": "errors", "SolverError": "errors",
     "plan": "planning",
     "IterationRecord": "result", "Plan": "result", "VehicleTrajectory": "result",
     "Verification": "result",
-    "Limits": "scenario", "Scenario": "scenario", "Vehicle": "scenario",
+    "Limits": "model.scenario", "Scenario": "model.scenario", "Vehicle": "model.scenario",
 }
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from planner.obstacle_rows import SEED_FRACTION
+from planner.scp.obstacle_rows import SEED_FRACTION
 
 __all__ = ["PlanningOptions", "ScpOptions"]
 
@@ -30,11 +30,11 @@ class ScpOptions:
     block_size: int = 32
     """Vehicles per block of a split group."""
     dual: bool = True
-    """Solve each group's QP through its dual (`planner.dual`, one variable per row; the
+    """Solve each group's QP through its dual (`planner.scp.dual`, one variable per row; the
     same optimum) instead of the primal staged QP with the configured backend. Only with
     the PIQP backend; other backends always solve the primal, and so does a plan of more
-    than `planner.scp.DUAL_MAX_STEPS` steps, or a group whose dual is too large
-    (`planner.dual.MAX_PAIRS`) or did not solve (infeasible, ...)."""
+    than `planner.scp.loop.DUAL_MAX_STEPS` steps, or a group whose dual is too large
+    (`planner.scp.dual.MAX_PAIRS`) or did not solve (infeasible, ...)."""
     obstacle_seed: float = SEED_FRACTION
     """Obstacle rows within this many clearances of binding at the linearisation point
     start an iteration's QP (the rest are added when broken). More suits small QPs (the
@@ -54,16 +54,16 @@ class PlanningOptions:
     scp: ScpOptions = field(default_factory=ScpOptions)
     """The SCP loop's own knobs, for every method."""
     dodge: bool = False
-    """With fixed goals and at least `planner.dodge.DODGE_MIN_VEHICLES` vehicles, the whole
+    """With fixed goals and at least `planner.methods.dodge.DODGE_MIN_VEHICLES` vehicles, the whole
     fleet's first SCP iteration is linearised about the synchronised moves pushed apart by
-    smooth dodges (`planner.dodge`) where they crowd; the whole fleet is planned again from
+    smooth dodges (`planner.methods.dodge`) where they crowd; the whole fleet is planned again from
     the synchronised moves when that plan does not converge and verify. Off by default:
     measured faster on some crowds (sideways 100: 1.8x) and slower on others (random 256:
     1.6x), see docs/benchmarks/planner.md."""
     batch_size: int | None = None
     """Vehicles per prioritized batch; None: by the fleet's motion
-    (`planner.prioritized.batch_size`: 1 in an obstacle-free crowd without a dominant
-    motion, else `planner.scp.DEFAULT_BATCH`)."""
+    (`planner.methods.prioritized.batch_size`: 1 in an obstacle-free crowd without a dominant
+    motion, else `planner.scp.loop.DEFAULT_BATCH`)."""
     batch_cost_share: bool = False
     """Each prioritized batch stops at its share of the scenario's `cost_threshold` (its
     vehicles over the fleet's), and the joined plan is taken only if its thrust cost exceeds

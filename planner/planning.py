@@ -1,7 +1,7 @@
 """`plan(scenario) -> Plan`: the planner's one entry point.
 
 Parses the scenario if given as a mapping, runs its method's table of stages
-(`planner.stages`; each stage's plan verified independently), derives jerk, thrust and body
+(`planner.methods.stages`; each stage's plan verified independently), derives jerk, thrust and body
 rates and packs the result into a `Plan`. A plan is never
 reported `converged` unless its verification passed; if the checks fail (which the loop is
 built to prevent) the status becomes `unverified`, with the reason in `message`; so it does
@@ -19,15 +19,15 @@ from typing import Any
 import numpy as np
 
 from planner.errors import ScenarioError
-from planner.first_qp import straight_moves, timed_first_qp
-from planner.flatness import body_rates, jerk_from_accelerations, thrust
+from planner.methods.portfolio import AUTO_TABLE
+from planner.methods.stages import Context, TableResult, run_table, table_for
+from planner.model.flatness import body_rates, jerk_from_accelerations, thrust
+from planner.model.scenario import METHODS, Scenario
 from planner.options import PlanningOptions
-from planner.portfolio import AUTO_TABLE
 from planner.result import Attempt, IterationRecord, Outcome, Plan, PlanStatus, VehicleTrajectory
-from planner.scenario import METHODS, Scenario
-from planner.scp import ScpOptions
-from planner.solvers import make_solver
-from planner.stages import Context, TableResult, run_table, table_for
+from planner.scp.first_qp import straight_moves, timed_first_qp
+from planner.scp.loop import ScpOptions
+from planner.scp.solvers import make_solver
 from planner.types import FloatArray
 
 __all__ = ["plan"]
@@ -49,11 +49,11 @@ def plan(
     'whole' or 'prioritized', overriding the scenario's `method`. Raises `ScenarioError` for
     invalid input and `SolverError` for an unknown solver; infeasibility is a plan status.
 
-    The method picks a table of stages (`planner.stages`): under free assignment a
+    The method picks a table of stages (`planner.methods.stages`): under free assignment a
     separation-free optimum that is already separated is the plan, without the loop; with
-    fixed goals `prioritized` plans the fleet in batches (`planner.prioritized`) and the
+    fixed goals `prioritized` plans the fleet in batches (`planner.methods.prioritized`) and the
     whole fleet if they fail, `whole` only the whole fleet, and `auto` both at once where
-    batches apply (`planner.portfolio`). The plan records the method that produced it and
+    batches apply (`planner.methods.portfolio`). The plan records the method that produced it and
     every method tried or declined (`Plan.method`, `Plan.attempts`). With free assignment
     the vehicles fly to the goals of the scenario's assignment (`Scenario.goal_order`), the
     whole fleet linearised first about CAPT's synchronised straight moves; the plan echoes
@@ -70,7 +70,7 @@ def plan(
         scp=options or ScpOptions())
     backend = make_solver(solver)
     if spec.steps_auto:  # the planner chooses the horizon, planning fixed ones
-        from planner.horizon_search import search_horizon
+        from planner.methods.horizon_search import search_horizon
 
         return search_horizon(spec, backend, lambda fixed: plan(
             fixed, solver=solver, progress=progress, options=options))

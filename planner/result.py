@@ -18,9 +18,9 @@ import numpy as np
 import orjson
 from numpy.typing import NDArray
 
-from planner.dynamics import MotionSample, interpolate
 from planner.errors import PlanFormatError, ScenarioError
-from planner.scenario import Scenario
+from planner.model.dynamics import MotionSample, interpolate
+from planner.model.scenario import Scenario
 from planner.types import FloatArray
 
 __all__ = [
@@ -69,7 +69,7 @@ OUTCOMES = tuple(outcome.value for outcome in Outcome)
 
 @dataclass(frozen=True)
 class Attempt:
-    """One planning method tried or declined on the way to a plan (`planner.stages`)."""
+    """One planning method tried or declined on the way to a plan (`planner.methods.stages`)."""
 
     method: str
     """The method (stage): separated_first, prioritized, dodge or whole."""
@@ -103,7 +103,7 @@ class VehicleTrajectory:
     """(K, 3) body rates (w1, w2, w3) from the jerk, w3 = 0 (rad/s), paper eq. 20."""
 
     def sample(self, dt: float, times: Any) -> MotionSample:
-        """The exact motion at arbitrary times (see `planner.dynamics.interpolate`)."""
+        """The exact motion at arbitrary times (see `planner.model.dynamics.interpolate`)."""
         return interpolate(self.position, self.velocity, self.acceleration, dt, times)
 
     def json_text(self) -> str:
@@ -150,7 +150,7 @@ class IterationRecord:
 #: for a scenario without obstacles (such plans carry no obstacle keys at all), and the
 #: published schema does not require them.
 _OBSTACLE_FIELD: dict[str, Any] = {"omitted": "without obstacles"}
-#: The same for the figures of fixed trajectories (`planner.fixed`).
+#: The same for the figures of fixed trajectories (`planner.model.fixed`).
 _FIXED_FIELD: dict[str, Any] = {"omitted": "without fixed trajectories"}
 
 
@@ -197,7 +197,7 @@ class Verification:
     without obstacles, false when undefined."""
     fixed_distance_min: float | None = field(default=None, metadata=_FIXED_FIELD)
     """Smallest distance (separation metric, m) of a planned vehicle from a fixed one
-    (`planner.fixed`) over continuous time, the pair with the least slack against R plus
+    (`planner.model.fixed`) over continuous time, the pair with the least slack against R plus
     the fixed one's margin; absent without fixed trajectories, null when undefined."""
     closest_fixed: dict[str, Any] | None = field(default=None, metadata=_FIXED_FIELD)
     """Where: {"id": fixed id, "vehicle": planned id, "time": s, "required": R + margin};
@@ -285,9 +285,9 @@ class Plan:
     """For `infeasible`: which constraint group(s) could not be met, as far as known."""
     sequence: dict[str, Any] | None = None
     """For a stitched formation sequence: its formations, slots, timeline and legs summary
-    (`planner.sequence`); None (JSON null) for a single scenario's plan."""
+    (`planner.methods.sequence`); None (JSON null) for a single scenario's plan."""
     horizon: dict[str, Any] | None = None
-    """For `steps: "auto"`: how the horizon was chosen (`planner.horizon_search`: the
+    """For `steps: "auto"`: how the horizon was chosen (`planner.methods.horizon_search`: the
     candidates tried, the chosen steps); None (JSON null) for a fixed number of steps."""
     method: str | None = None
     """The planning method that produced the plan (`Attempt.method`); null for a stitched

@@ -8,7 +8,7 @@ from pathlib import Path
 from gcs.phases import FORMER_EVENT_KINDS, EventKind, FlightPhase, current_events, vocabulary
 from gcs.service.statuses import FLIGHT_FINISHED, STATUS_OF_PHASE, FlightStatus
 from gcs.service.store import Store
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from tests.api.support import example
 
 

@@ -1,8 +1,8 @@
 """The API's documents, derived from the planner's types so each field is declared once.
 
-The scenario and the plan are the planner's contracts (`planner.scenario`, `planner.result`).
+The scenario and the plan are the planner's contracts (`planner.model.scenario`, `planner.result`).
 `planner_schemas` turns those dataclasses into OpenAPI/JSON Schema components by reading their
-fields, type hints, attribute docstrings and `planner.scenario.DEFAULTS`; nothing here repeats
+fields, type hints, attribute docstrings and `planner.model.scenario.DEFAULTS`; nothing here repeats
 a field. A scenario body is checked against that schema (`shape_errors`: every type, key and
 length problem at once, named by dotted path) and then by `planner.Scenario.from_dict`, the one
 definition of a valid scenario, which names the field of the first problem of meaning
@@ -32,10 +32,10 @@ from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema
 
 from gcs.api.errors import ErrorItem
 from gcs.service.statuses import MissionStatus
-from planner import fixed as planner_fixed
-from planner import obstacles as planner_obstacles
 from planner import result as planner_result
-from planner import scenario as planner_scenario
+from planner.model import fixed as planner_fixed
+from planner.model import obstacles as planner_obstacles
+from planner.model import scenario as planner_scenario
 
 __all__ = [
     "EXAMPLE_SCENARIO",
@@ -199,7 +199,7 @@ def _type_schema(hint: Any, doc: str) -> dict[str, Any]:
 def _component(name: str, cls: type, *, input_rules: bool) -> dict[str, Any]:
     """One dataclass as an object schema. Fields the planner keeps out of `repr` are derived
     arrays (starts, goals), not JSON fields. With `input_rules`, a field is required unless it
-    has a default (`planner.scenario.DEFAULTS` or the dataclass's) or may be null."""
+    has a default (`planner.model.scenario.DEFAULTS` or the dataclass's) or may be null."""
     # The scenario names the obstacle and fixed types for type checkers only (no import
     # cycle).
     hints = typing.get_type_hints(cls, localns={**vars(planner_obstacles),

@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.cli.plan_file import read_plan
     from gcs.errors import ExportError
     from gcs.export.skyc import check_exportable, parse_origin, write_skyc
-    from planner.verify import refusal
+    from planner.verification.verify import refusal
 
     try:
         origin = None if args.origin is None else parse_origin(args.origin)

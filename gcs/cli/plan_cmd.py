@@ -1,6 +1,6 @@
 """`fleetplan plan SCENARIO.json -o PLAN.json`: plan, print progress and a summary, save.
 
-A formation sequence (a document with a `formations` key, see `planner.sequence`) is planned
+A formation sequence (a document with a `formations` key, see `planner.methods.sequence`) is planned
 leg by leg (in parallel: a local process pool, or Dask tasks with --scheduler), stitched and
 verified as a whole; the stitched plan is written (flyable with `fleetplan fly`) and, with
 --csv-dir, one show-tool CSV per vehicle.
@@ -64,7 +64,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--batch-size", type=int, default=None, metavar="N",
         help="vehicles per prioritized batch (methods auto and prioritized; default: the "
-             "planner's, by the fleet's motion: planner.prioritized.batch_size)",
+             "planner's, by the fleet's motion: planner.methods.prioritized.batch_size)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
     parser.add_argument(
@@ -208,7 +208,7 @@ _DECOMPOSE = {"none": "whole", "prioritized": "prioritized"}
 def _method(args: argparse.Namespace) -> str | None:
     """The method `--method` or `--decompose` asks for (None: the scenario's); ValueError
     naming the flag for a value the planner does not know or two that disagree."""
-    from planner.scenario import METHODS
+    from planner.model.scenario import METHODS
 
     if args.method is not None and args.method not in METHODS:
         raise ValueError(f"--method: must be one of {', '.join(METHODS)}, got {args.method!r}")
@@ -334,7 +334,7 @@ def _leg_mapper(address: str | None, legs: int) -> tuple[Any, Any]:
 
 
 def _write_csvs(show: Any, directory: Path, rate: float | None) -> None:
-    from planner.sequence import trajectory_csv
+    from planner.methods.sequence import trajectory_csv
 
     files = trajectory_csv(show.positions, show.velocities, show.accelerations,
                            show.sequence.dt, show.sequence.ids, rate_hz=rate)
@@ -346,7 +346,7 @@ def _write_csvs(show: Any, directory: Path, rate: float | None) -> None:
 def _run_sequence(args: argparse.Namespace, data: Any) -> int:
     """Plan a formation sequence: legs in parallel, the stitched plan and the CSVs written."""
     from planner.errors import FieldError, SolverError
-    from planner.sequence import parse_sequence, plan_sequence
+    from planner.methods.sequence import parse_sequence, plan_sequence
 
     rate = args.csv_rate
     if rate is not None and not (math.isfinite(rate) and 0 < rate <= 1000):

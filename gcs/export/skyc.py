@@ -43,8 +43,8 @@ import orjson
 
 from gcs.errors import ExportError
 from gcs.frames import SHOW_ORIENTATION_DEG, Geodetic, world_to_show
+from planner.model.scenario import Scenario
 from planner.result import Plan
-from planner.scenario import Scenario
 from planner.types import FloatArray
 
 __all__ = [
@@ -117,7 +117,7 @@ def _milliseconds(dt: float) -> int:
 def check_exportable(plan: Plan) -> None:
     """`ExportError` naming the field when the plan cannot be written as a show: it has no
     trajectories, or its step is not a whole number of milliseconds. Whether the plan is
-    verified is the caller's decision (`planner.verify.refusal`)."""
+    verified is the caller's decision (`planner.verification.verify.refusal`)."""
     if not plan.vehicles:
         raise ExportError("vehicles", f"the plan (status {plan.status}) has no trajectories")
     _milliseconds(plan.scenario.dt)

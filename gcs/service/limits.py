@@ -20,7 +20,7 @@ from gcs.errors import InvalidRequest
 from gcs.replan_request import MAX_ENTRIES as MAX_REPLAN_ENTRIES
 from gcs.service.events import MAX_BACKLOG
 from gcs.service.settings import Settings
-from planner.scenario import AUTO_STEPS, DEFAULT_MAX_HORIZON
+from planner.model.scenario import AUTO_STEPS, DEFAULT_MAX_HORIZON
 
 __all__ = [
     "FIXED_LIMITS",

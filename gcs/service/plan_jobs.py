@@ -48,7 +48,7 @@ def job_work(scenario: dict[str, Any]) -> int:
 
 def sequence_work(sequence: Any) -> int:
     """A formation sequence's estimated work: vehicles squared times its whole timeline."""
-    from planner.sequence import timeline_steps
+    from planner.methods.sequence import timeline_steps
 
     return len(sequence.ids) ** 2 * timeline_steps(sequence)
 

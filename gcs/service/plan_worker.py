@@ -128,7 +128,7 @@ def run_plan(
 
     `leg`: the scenario is leg `leg` of a formation sequence; every progress message and
     iteration record says so (``"leg": k``), and the plan is returned as JSON all the same.
-    `options`: the `planner.scp.ScpOptions` to plan with (None: the defaults).
+    `options`: the `planner.scp.loop.ScpOptions` to plan with (None: the defaults).
 
     A leg's outcome carries the `planner.Plan` itself (`plan`) rather than its JSON text.
     With `topic`, progress goes out as Dask events (see the module docstring). With
@@ -179,11 +179,12 @@ def run_plan(
 
 
 def stitch_sequence(sequence: Any, *legs: PlanOutcome) -> PlanOutcome:
-    """Stitch the planned legs of `sequence` (a `planner.sequence.FormationSequence`; `legs`:
+    """Stitch the planned legs of `sequence` (a `planner.methods.sequence.FormationSequence`;
+    `legs`:
     `run_plan` results in leg order) and verify the whole timeline; returns the flyable plan
     like `run_plan`, or the first leg's error (a stopped leg stops the whole sequence)."""
     from planner import PlannerError
-    from planner.sequence import plan_sequence
+    from planner.methods.sequence import plan_sequence
 
     for k, result in enumerate(legs):
         if result.error is not None:

@@ -161,7 +161,7 @@ class PlanningService:
         reservation: Reservation | None = None,
     ) -> PlanJob:
         """Start planning a stored mission that is a formation sequence (a parsed
-        `planner.sequence.FormationSequence`): one Dask task per leg, all submitted at once
+        `planner.methods.sequence.FormationSequence`): one Dask task per leg, all submitted at once
         (they run in parallel on the workers), then a task stitching and verifying the whole
         timeline. Progress records carry their `leg`; cancel and the time limit stop every
         leg through the job's one cancel flag."""

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.flatness import GRAVITY  # the one gravity constant (the planner's world frame)
+from planner.model.flatness import GRAVITY  # the one gravity constant (the planner's world frame)
 from planner.types import FloatArray
 
 __all__ = ["GRAVITY", "EstimateNoise", "FleetModel", "ModelLimits"]

@@ -15,8 +15,8 @@ from gcs.phases import EventKind, vocabulary
 from gcs.service.settings import Settings
 from gcs.service.statuses import FLIGHT_ACTIVE, FlightStatus, MissionStatus, status_sets
 from planner import Plan, Scenario
+from planner.model.scenario import DEFAULTS, Limits, Vehicle
 from planner.result import STATUSES as PLAN_STATUSES
-from planner.scenario import DEFAULTS, Limits, Vehicle
 from tests.api.support import EXAMPLES, example
 
 

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from gcs.cli.main import main
-from planner.generators import circle_swap, show_sequence
+from planner.families.generators import circle_swap, show_sequence
 from tests.paths import EXAMPLES
 
 

@@ -141,7 +141,7 @@ def test_a_scale_that_would_overflow_the_metric_is_bad_input(tmp_path, capsys):
 
 
 def test_prioritized_batches_plan_a_crowd_and_the_plan_says_so(tmp_path, capsys):
-    from planner.generators import sideways
+    from planner.families.generators import sideways
 
     scenario = tmp_path / "sideways.json"
     scenario.write_text(json.dumps(sideways(16)))

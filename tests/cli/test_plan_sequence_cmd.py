@@ -10,8 +10,8 @@ import pytest
 
 from gcs.cli.main import main
 from planner import Plan
-from planner.generators import show_sequence
-from planner.verify import verify
+from planner.families.generators import show_sequence
+from planner.verification.verify import verify
 
 
 @pytest.fixture(scope="module")

@@ -26,8 +26,8 @@ from gcs.export.skyc import (
 from gcs.frames import SHOW_AXES, SHOW_ORIENTATION_DEG, world_to_show
 from planner import Plan, Scenario
 from planner import plan as make_plan
-from planner.generators import show_sequence
-from planner.sequence import plan_sequence
+from planner.families.generators import show_sequence
+from planner.methods.sequence import plan_sequence
 from tests.export.reader import evaluate, read_show, velocity
 from tests.paths import EXAMPLES
 

@@ -8,11 +8,11 @@ import numpy as np
 
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
-from planner.first_qp import unit_profile
-from planner.flatness import body_rates, jerk_from_accelerations, thrust
+from planner.model.flatness import body_rates, jerk_from_accelerations, thrust
+from planner.model.scenario import Scenario
 from planner.result import Plan, VehicleTrajectory
-from planner.scenario import Scenario
-from planner.verify import verify
+from planner.scp.first_qp import unit_profile
+from planner.verification.verify import verify
 
 __all__ = ["FAST_MOCK", "QUICK", "QUICK_MOCK", "QUICK_MOCK_ENV",
            "QUICK_MOCK_SETTINGS", "free_port_block",

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
-from planner.fixed import braking_motion, landing_motion
+from planner.model.fixed import braking_motion, landing_motion
 from tests.flight.support import short_line, smooth_plan
 
 

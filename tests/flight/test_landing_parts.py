@@ -20,8 +20,8 @@ from gcs.flight.run.flown import FlownPlans
 from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.landing import PlannedLanding
 from gcs.phases import EventKind, VehiclePhase
-from planner.landing import LandingError, plan_landing
-from planner.scenario import Scenario
+from planner.methods.landing import LandingError, plan_landing
+from planner.model.scenario import Scenario
 from tests.flight.fakes import fake_vehicle
 
 pytestmark = pytest.mark.timeout(60)

@@ -13,7 +13,7 @@ import pytest
 
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.run.record import FlightRecorder, summarise
-from planner.verify import SEPARATION_TOLERANCE
+from planner.verification.verify import SEPARATION_TOLERANCE
 from tests.flight.support import line_scenario, smooth_plan
 
 

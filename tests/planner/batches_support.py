@@ -8,9 +8,9 @@ import dataclasses
 import numpy as np
 
 from planner import plan
-from planner.prioritized import PrioritizedOutcome
-from planner.scenario import Scenario
-from planner.verify import verify
+from planner.methods.prioritized import PrioritizedOutcome
+from planner.model.scenario import Scenario
+from planner.verification.verify import verify
 
 
 def flying_swap(t: float) -> tuple[Scenario, np.ndarray, np.ndarray, np.ndarray]:

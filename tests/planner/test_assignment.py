@@ -8,11 +8,17 @@ import numpy as np
 import pytest
 
 import planner
-from planner import PlanFormatError, Scenario, ScenarioError, assignment
-from planner.assignment import CAPT_SPACING, assign_goals, capt_spacing_holds, solve_assignment
-from planner.first_qp import straight_moves
-from planner.generators import grid_to_sphere, sphere_shell, vertical_grid
-from planner.verify import continuous_minimum
+from planner import PlanFormatError, Scenario, ScenarioError
+from planner.families.generators import grid_to_sphere, sphere_shell, vertical_grid
+from planner.methods import assignment
+from planner.methods.assignment import (
+    CAPT_SPACING,
+    assign_goals,
+    capt_spacing_holds,
+    solve_assignment,
+)
+from planner.scp.first_qp import straight_moves
+from planner.verification.verify import continuous_minimum
 
 
 def _spread(rng: np.random.Generator, count: int, spacing: float, size: float) -> np.ndarray:
@@ -288,7 +294,7 @@ def test_assign_goals_warns_when_a_result_is_not_proven(monkeypatch):
 def test_sparse_matches_dense_between_lattice_formations(start, goal):
     """Lattices full of near-equal costs (at 2,000 vehicles grid -> torus used to stall
     scipy's sparse matcher on float weights)."""
-    from planner.generators import formation
+    from planner.families.generators import formation
 
     starts, goals = formation(start, 300), formation(goal, 300) + np.array([0.0, 0.0, 0.5])
     sparse, dense = _sparse(starts, goals), _dense_optimum(starts, goals)

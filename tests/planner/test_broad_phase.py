@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 import planner
-import planner.first_qp
-import planner.pruning
-import planner.scp
-import planner.verify
-from planner.generators import grid_to_sphere, random_dense
-from planner.separation import (
+import planner.scp.first_qp
+import planner.scp.loop
+import planner.scp.pruning
+import planner.verification.verify
+from planner.families.generators import grid_to_sphere, random_dense
+from planner.scp.separation import (
     PairSteps,
     all_pairs,
     far_margin_bound,
@@ -24,7 +24,7 @@ from planner.separation import (
     pair_margins,
     window_rows,
 )
-from planner.verify import continuous_minimum
+from planner.verification.verify import continuous_minimum
 
 
 def _wiggly(n: int, steps: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -81,17 +81,17 @@ def test_verifier_minimum_is_the_same_with_and_without_the_broad_phase(monkeypat
     scenario = plan.scenario.assigned()
     args = (scenario, plan.positions(), plan.velocities(), plan.accelerations())
     pruned = continuous_minimum(*args)
-    monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 10**9)
+    monkeypatch.setattr(planner.verification.verify, "NEAR_MIN_VEHICLES", 10**9)
     assert continuous_minimum(*args) == pruned
 
 
 def test_plans_are_the_same_with_and_without_the_broad_phase(monkeypatch):
     data = random_dense(24, seed=5)
-    monkeypatch.setattr(planner.pruning, "NEAR_MIN_VEHICLES", 2)
-    monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 2)
+    monkeypatch.setattr(planner.scp.pruning, "NEAR_MIN_VEHICLES", 2)
+    monkeypatch.setattr(planner.verification.verify, "NEAR_MIN_VEHICLES", 2)
     pruned = planner.plan(data)
-    monkeypatch.setattr(planner.pruning, "NEAR_MIN_VEHICLES", 10**9)
-    monkeypatch.setattr(planner.verify, "NEAR_MIN_VEHICLES", 10**9)
+    monkeypatch.setattr(planner.scp.pruning, "NEAR_MIN_VEHICLES", 10**9)
+    monkeypatch.setattr(planner.verification.verify, "NEAR_MIN_VEHICLES", 10**9)
     full = planner.plan(data)
     assert pruned.ok and full.ok
     assert max(r.separation_rows for r in full.iterations) > 0
@@ -128,9 +128,9 @@ def test_windowed_margins_are_below_the_exact_interval_margins(continuous):
     # The SCP loop's pruning for large fleets: exact margins in the near windows, the far
     # bound elsewhere; never above the exact margin of any interval of any pair.
     scenario = planner.Scenario.from_dict(random_dense(80, seed=2)).assigned()
-    lin = planner.first_qp.straight_moves(scenario)
-    options = planner.scp.ScpOptions(continuous=continuous)
-    pruning = planner.pruning.margins(scenario, options, lin)
+    lin = planner.scp.first_qp.straight_moves(scenario)
+    options = planner.scp.loop.ScpOptions(continuous=continuous)
+    pruning = planner.scp.pruning.margins(scenario, options, lin)
     exact = interval_margins(lin[0], lin[1], scenario.dt, scenario.separation_scale,
                              continuous, scenario.min_separation) - scenario.min_separation
     at = pair_index(pruning.near_i, pruning.near_j, 80)

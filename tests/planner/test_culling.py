@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import planner
-from planner.generators import dmpc2019_scenario, random_transitions
-from planner.scp import ScpOptions, run_scp
-from planner.solvers import make_solver
+from planner.families.generators import dmpc2019_scenario, random_transitions
+from planner.scp.loop import ScpOptions, run_scp
+from planner.scp.solvers import make_solver
 from tests.planner.conftest import load_example
 
 SCENARIOS = {
@@ -51,7 +51,7 @@ def test_groups_split_when_vehicles_never_meet():
 
 @pytest.mark.parametrize("continuous", [False, True])
 def test_pruned_row_check_finds_every_violated_row(continuous):
-    from planner.separation import all_pairs, displacements, pair_margins, violated_rows
+    from planner.scp.separation import all_pairs, displacements, pair_margins, violated_rows
 
     data = random_transitions(14, size=(8.0, 8.0, 3.0), seed=11, steps=60)
     scenario = planner.Scenario.from_dict(data)
@@ -82,7 +82,7 @@ def test_interval_pruned_row_check_finds_every_violated_row(continuous):
     # The per-interval bound of the SCP loop: an interval can be broken only where its
     # margin at lin is below its two vehicles' moves there; checking those intervals alone
     # (violated_among) finds exactly the rows the all-pairs check finds.
-    from planner.separation import (
+    from planner.scp.separation import (
         PairSteps,
         all_pairs,
         interval_margins,

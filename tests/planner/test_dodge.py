@@ -1,4 +1,4 @@
-"""The dodged first linearisation point for crowded fixed-goal fleets (`planner.dodge`)."""
+"""The dodged first linearisation point for crowded fixed-goal fleets (`planner.methods.dodge`)."""
 
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import planner
-import planner.stages as stages
-from planner.dodge import GAP, dodged_moves
-from planner.first_qp import straight_moves
-from planner.generators import sideways
+import planner.methods.stages as stages
+from planner.families.generators import sideways
+from planner.methods.dodge import GAP, dodged_moves
 from planner.options import PlanningOptions
-from planner.scp import run_scp
+from planner.scp.first_qp import straight_moves
+from planner.scp.loop import run_scp
 
 DODGE = PlanningOptions(dodge=True)
 

@@ -1,4 +1,4 @@
-"""Group QPs through their dual (planner.dual): the same optimum and multipliers as the primal
+"""Group QPs through their dual (planner.scp.dual): the same optimum and multipliers as the primal
 staged QP, infeasibility reported, and whole plans that stay verified with the same cost."""
 
 from __future__ import annotations
@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 import planner
-from planner.boxes import near_boxes
-from planner.dual import functionals, solve_group_dual
-from planner.first_qp import straight_moves
-from planner.generators import grid_to_sphere, random_dense
-from planner.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
-from planner.scenario import Scenario
-from planner.scp import ScpOptions
-from planner.separation import PairSteps, all_pairs, close_rows, directions
-from planner.solvers import INFEASIBLE, SOLVED, make_solver
+from planner.families.generators import grid_to_sphere, random_dense
+from planner.model.scenario import Scenario
+from planner.scp.boxes import near_boxes
+from planner.scp.dual import functionals, solve_group_dual
+from planner.scp.first_qp import straight_moves
+from planner.scp.loop import ScpOptions
+from planner.scp.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
+from planner.scp.separation import PairSteps, all_pairs, close_rows, directions
+from planner.scp.solvers import INFEASIBLE, SOLVED, make_solver
 from tests.planner.conftest import load_example
 
 
@@ -95,9 +95,9 @@ def test_dual_declines_a_group_whose_matrix_would_be_huge(monkeypatch):
     # vehicle, all coupled to each other. Its working sets fit the real MAX_PAIRS (they
     # hold about one row per pair and vehicle); lowered below the first set's block, the
     # dual declines and the caller solves the primal instead.
-    import planner.dual
+    import planner.scp.dual
 
-    monkeypatch.setattr(planner.dual, "MAX_PAIRS", 100)
+    monkeypatch.setattr(planner.scp.dual, "MAX_PAIRS", 100)
     scenario = Scenario.from_dict(load_example("paper-circle8"))
     n, steps = len(scenario.vehicles), scenario.steps
     rows = _every_row(scenario)
@@ -107,7 +107,7 @@ def test_dual_declines_a_group_whose_matrix_would_be_huge(monkeypatch):
 def test_a_group_whose_whole_matrix_is_huge_solves_over_its_working_sets():
     # The same group at the real MAX_PAIRS: its whole Q exceeds it, its working sets do
     # not, and the dual's optimum is the primal's.
-    from planner.dual import MAX_PAIRS
+    from planner.scp.dual import MAX_PAIRS
 
     data = load_example("paper-circle8")
     data["dt"], data["steps"] = data["dt"] * data["steps"] / 40, 40  # a primal of seconds
@@ -188,8 +188,8 @@ def test_other_backends_keep_the_primal_and_agree():
 
 
 def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
-    import planner.group_solver as group_solver
-    from planner.dual import DualOutcome
+    import planner.scp.group_solver as group_solver
+    from planner.scp.dual import DualOutcome
 
     calls = []
 
@@ -209,9 +209,9 @@ def test_a_dual_that_does_not_solve_falls_back_to_the_primal(monkeypatch):
 def test_a_long_horizon_keeps_the_primal(monkeypatch):
     """Above DUAL_MAX_STEPS the dual's dense functional matrix (5K x 5K) is never built: a
     2-vehicle crossing over 5,000 steps would need 5 GB for it."""
-    import planner.group_solver as group_solver
-    import planner.scp as scp
-    from planner.dual import DualOutcome
+    import planner.scp.group_solver as group_solver
+    import planner.scp.loop as scp
+    from planner.scp.dual import DualOutcome
 
     calls: list[int] = []
 
@@ -251,7 +251,7 @@ def _random16_rows(within: float):
 def test_blocks_and_slacks_of_the_dual_equal_the_matrix_built_whole():
     # The working set's blocks of Q = C M C' and every row's slack Q l + c read through the
     # forces equal Q built from C and M explicitly.
-    from planner.dual import _Dual
+    from planner.scp.dual import _Dual
 
     scenario, lin, pairs, _ = _random16_rows(1.2)
     rows = _rows(scenario, lin[0], pairs)
@@ -287,7 +287,7 @@ def test_a_warm_started_dual_equals_the_primal_with_rows_added():
     # The SCP loop's pattern: a group solved, a few violated rows added, solved again from
     # the rows the first solve found active (ActiveRows); the same optimum and multipliers
     # as the primal QP of the larger problem.
-    from planner.dual import ActiveRows
+    from planner.scp.dual import ActiveRows
 
     scenario, lin, pairs, boxes = _random16_rows(1.2)
     members = np.arange(len(scenario.vehicles))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.dynamics import integrate, interpolate
+from planner.model.dynamics import integrate, interpolate
 
 
 def _step_by_step(p0, v0, accelerations, dt, substeps):

@@ -1,4 +1,5 @@
-"""Fixed trajectories (`planner.fixed`) and replans (`planner.replan`): planned vehicles keep
+"""Fixed trajectories (`planner.model.fixed`) and replans (`planner.methods.replan`): planned
+vehicles keep
 R + margin from known motions over continuous time, and the verifier measures it exactly."""
 
 from __future__ import annotations
@@ -10,10 +11,10 @@ import pytest
 
 from planner import Plan, plan
 from planner.errors import ScenarioError
-from planner.fixed import DROP_COAST_STEPS, braking_motion, landing_motion
-from planner.generators import circle_swap
-from planner.replan import ReplanError, check_goals, plan_replan, stop_threshold
-from planner.scenario import Scenario
+from planner.families.generators import circle_swap
+from planner.methods.replan import ReplanError, check_goals, plan_replan, stop_threshold
+from planner.model.fixed import DROP_COAST_STEPS, braking_motion, landing_motion
+from planner.model.scenario import Scenario
 from tests.api.support import SHORT_CROSSING
 
 LIMITS = {"position_min": [0, 0, 0], "position_max": [5, 5, 3], "velocity_max": [2, 2, 2],
@@ -169,7 +170,7 @@ def test_a_dropped_vehicle_braking_towards_a_wall_stays_inside_the_workspace() -
     """A plan braking hard (3 m/s^2) towards the wall at x = 10 m: coasting a step and then
     braking at 2 m/s^2 would carry the dropped vehicle 8 cm through the wall, so it brakes at
     once at the boxes' bound instead and stops inside; in open space it coasts first."""
-    from planner.fixed import dropped_motion
+    from planner.model.fixed import dropped_motion
 
     low, high = np.zeros(3), np.array([10.0, 10.0, 4.0])
     state = ([9.5, 5.0, 2.0], [1.7, 0.0, 0.0], [-3.0, 0.0, 0.0])

@@ -1,7 +1,7 @@
-"""The fixed-trajectory broad phase (`planner.fixed_rows.FixedRows.near`) compares boxes over
+"""The fixed-trajectory broad phase (`planner.scp.fixed_rows.FixedRows.near`) compares boxes over
 blocks of steps before single intervals: it must find exactly the triples that the
 interval-by-interval comparison finds (never drop one within reach), and small groups' QPs
-share their equality and cost matrices (`planner.qp._structure`) without changing them."""
+share their equality and cost matrices (`planner.scp.qp._structure`) without changing them."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from planner import qp
-from planner.fixed import FixedSet
-from planner.fixed_rows import BLOCK, FixedRows, interval_boxes
-from planner.generators import grid_to_sphere
-from planner.qp import SeparationRows, build_group_qp
-from planner.scenario import Scenario
+from planner.families.generators import grid_to_sphere
+from planner.model.fixed import FixedSet
+from planner.model.scenario import Scenario
+from planner.scp import qp
+from planner.scp.fixed_rows import BLOCK, FixedRows, interval_boxes
+from planner.scp.qp import SeparationRows, build_group_qp
 
 
 def _scenario(steps: int) -> Scenario:

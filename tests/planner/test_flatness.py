@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.flatness import GRAVITY, body_rates, jerk_from_accelerations, thrust
+from planner.model.flatness import GRAVITY, body_rates, jerk_from_accelerations, thrust
 
 
 def _attitude(force: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import planner
-from planner.generators import (
+from planner.families.generators import (
     circle_swap,
     dmpc2019_points,
     dmpc2019_scenario,

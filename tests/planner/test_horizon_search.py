@@ -11,11 +11,11 @@ import pytest
 
 import planner
 from planner import Plan, Scenario, ScenarioError
-from planner.generators import circle_swap, show_sequence
-from planner.horizon_search import MAX_PLANS, TOLERANCE, relaxed_steps
-from planner.scenario import DEFAULT_MAX_HORIZON, MAX_STEPS
-from planner.sequence import parse_sequence, plan_sequence, timeline_steps
-from planner.solvers import make_solver
+from planner.families.generators import circle_swap, show_sequence
+from planner.methods.horizon_search import MAX_PLANS, TOLERANCE, relaxed_steps
+from planner.methods.sequence import parse_sequence, plan_sequence, timeline_steps
+from planner.model.scenario import DEFAULT_MAX_HORIZON, MAX_STEPS
+from planner.scp.solvers import make_solver
 from tests.planner.conftest import load_example
 
 

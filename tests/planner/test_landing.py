@@ -1,4 +1,4 @@
-"""planner.landing: landing plans from a flying fleet's state, verified, R apart to the
+"""planner.methods.landing: landing plans from a flying fleet's state, verified, R apart to the
 ground."""
 
 from __future__ import annotations
@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 import planner
-from planner.fixed import landing_motion
-from planner.landing import (
+from planner.methods.landing import (
     START_SLACK,
     TOUCHDOWN_SLACK,
     LandingError,
@@ -16,7 +15,8 @@ from planner.landing import (
     plan_landing,
     touchdown_points,
 )
-from planner.verify import SEPARATION_TOLERANCE
+from planner.model.fixed import landing_motion
+from planner.verification.verify import SEPARATION_TOLERANCE
 from tests.planner.conftest import load_example
 
 STACKED = np.array([[2.0, 2.0, 1.08], [2.55, 2.0, 1.92]])
@@ -120,7 +120,7 @@ def test_vehicles_nearly_touching_are_a_landing_error(circle8) -> None:
 
 @pytest.fixture(scope="module")
 def shelving16():
-    from planner.obstacle_generators import shelving
+    from planner.families.obstacle_generators import shelving
 
     plan = planner.plan(planner.Scenario.from_dict(shelving(16, seed=0)))
     assert plan.ok

@@ -11,8 +11,8 @@ import pytest
 
 import planner
 from planner.errors import ScenarioError
-from planner.scp import ScpOptions
-from planner.verify import refusal, verify
+from planner.scp.loop import ScpOptions
+from planner.verification.verify import refusal, verify
 from tests.planner.conftest import load_example
 
 

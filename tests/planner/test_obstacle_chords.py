@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.obstacle_rows import chord_nearest, row_point
-from planner.obstacles import ObstacleSet, parse_obstacles
+from planner.model.obstacles import ObstacleSet, parse_obstacles
+from planner.scp.obstacle_rows import chord_nearest, row_point
 
 TREES, _ = parse_obstacles({"obstacles": [
     {"id": "tree", "cylinder": {"center": [5.0, 5.0], "radius": 0.4, "z": [0.0, 4.0]}},

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 import planner
-from planner import obstacle_generators as families
-from planner.first_qp import straight_moves
-from planner.obstacle_rows import ObstacleRows, Triples, control_points
-from planner.obstacles import MAX_OBSTACLES, ObstacleSet, parse_obstacles
-from planner.routes import seed_routes
-from planner.verify import verify
+from planner.families import obstacle_generators as families
+from planner.methods.routes import seed_routes
+from planner.model.obstacles import MAX_OBSTACLES, ObstacleSet, parse_obstacles
+from planner.scp.first_qp import straight_moves
+from planner.scp.obstacle_rows import ObstacleRows, Triples, control_points
+from planner.verification.verify import verify
 from tests.planner.conftest import load_example
 
 PILLAR = {"id": "pillar", "cylinder": {"center": [2.5, 2.5], "radius": 0.3, "z": [0.0, 3.0]}}
@@ -275,9 +275,9 @@ def test_verification_catches_a_pass_through_an_obstacle_between_steps() -> None
 def test_a_plan_that_grazes_the_clearance_is_never_converged(monkeypatch) -> None:
     """`plan` reports a plan whose verification finds an obstacle too close as unverified,
     whatever the loop said."""
+    import planner.methods.stages as stages
     import planner.planning as planning
-    import planner.stages as stages
-    from planner.scp import ScpOutcome
+    from planner.scp.loop import ScpOutcome
 
     data = _with([PILLAR])
     data["vehicles"] = [{"id": "solo", "start": [0.5, 2.5, 1.5], "goal": [4.5, 2.5, 1.5]}]

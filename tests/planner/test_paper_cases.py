@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import planner
-from planner.first_qp import solve_first_qp
-from planner.scp import thrust_cost
-from planner.solvers import make_solver
+from planner.scp.first_qp import solve_first_qp
+from planner.scp.loop import thrust_cost
+from planner.scp.solvers import make_solver
 from tests.planner.conftest import PAPER_CASES, load_example
 
 BOX_TOLERANCE = 1e-4
@@ -85,7 +85,7 @@ def test_trajectories_follow_the_dynamics(case):
 def test_exactly_symmetric_swaps_are_solved(vehicles):
     """Every vehicle crosses the centre at the same instant (no rotation, one height): all
     pairs coincide in the separation-free QP, the degenerate case of the linearisation."""
-    from planner.generators import circle_swap
+    from planner.families.generators import circle_swap
 
     plan = planner.plan(circle_swap(vehicles, rotation=0.0, height_step=0.0))
     assert plan.status == "converged", plan.message

@@ -1,5 +1,5 @@
 """`auto`: the stage table, the race of prioritized batches against the whole fleet in forked
-processes (`planner.portfolio`, `planner.race`), and what the plan records of it."""
+processes (`planner.methods.portfolio`, `planner.methods.race`), and what the plan records of it."""
 
 from __future__ import annotations
 
@@ -13,17 +13,17 @@ from typing import Any
 import psutil
 import pytest
 
-import planner.portfolio as portfolio
-import planner.prioritized as prioritized
-import planner.stages as stages
+import planner.methods.portfolio as portfolio
+import planner.methods.prioritized as prioritized
+import planner.methods.stages as stages
 from planner import plan
 from planner.errors import ScenarioError
-from planner.generators import sideways
+from planner.families.generators import sideways
+from planner.methods.race import race
+from planner.model.scenario import Scenario
 from planner.options import PlanningOptions
-from planner.race import race
 from planner.result import IterationRecord, Plan, PlanStatus
-from planner.scenario import Scenario
-from planner.scp import ScpOutcome
+from planner.scp.loop import ScpOutcome
 from tests.paths import EXAMPLES
 
 
@@ -289,7 +289,7 @@ def test_an_old_plan_without_method_or_attempts_still_loads() -> None:
 
 
 def test_a_sequence_passes_its_method_to_every_leg() -> None:
-    from planner.sequence import parse_sequence
+    from planner.methods.sequence import parse_sequence
 
     data = {"name": "s", "dt": 0.2, "min_separation": 1.0, "method": "prioritized",
             "limits": {"position_min": [0, 0, 0], "position_max": [10, 10, 3]},

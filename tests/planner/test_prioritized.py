@@ -1,4 +1,4 @@
-"""Prioritized batches (`planner.prioritized`, method "prioritized"): the joined plan is
+"""Prioritized batches (`planner.methods.prioritized`, method "prioritized"): the joined plan is
 verified as a whole, each batch keeps R from the earlier ones over continuous time, and a batch
 that fails is replanned with earlier vehicles or the fleet planned whole."""
 
@@ -10,18 +10,18 @@ from typing import Any
 import numpy as np
 import pytest
 
-import planner.prioritized as prioritized
-import planner.stages as stages
+import planner.methods.prioritized as prioritized
+import planner.methods.stages as stages
 from planner import Plan, plan
 from planner.errors import ScenarioError
-from planner.fixed import FixedTrajectory, landing_motion
-from planner.from_state import scenario_from_state
-from planner.generators import circle_swap, sideways
+from planner.families.generators import circle_swap, sideways
+from planner.model.fixed import FixedTrajectory, landing_motion
+from planner.model.from_state import scenario_from_state
+from planner.model.scenario import Scenario
 from planner.options import PlanningOptions
-from planner.scenario import Scenario
-from planner.scp import ScpOutcome
-from planner.solvers import make_solver
-from planner.verify import verify
+from planner.scp.loop import ScpOutcome
+from planner.scp.solvers import make_solver
+from planner.verification.verify import verify
 from tests.planner.batches_support import assert_each_batch_clear, flying_swap
 
 PRIORITIZED = PlanningOptions(batch_size=2)
@@ -67,7 +67,7 @@ def test_each_batch_keeps_r_from_the_earlier_batches_over_continuous_time() -> N
 
 
 def _straight(work: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from planner.first_qp import straight_moves
+    from planner.scp.first_qp import straight_moves
     return straight_moves(work)
 
 

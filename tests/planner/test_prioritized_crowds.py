@@ -1,6 +1,6 @@
 """Prioritized batches on crowds crossing a centre (grid -> sphere with fixed goals): a
 vehicle at a time by default, every vehicle keeping R from the earlier ones over continuous
-time, and the first guesses' blocked gap test (`planner.prioritized._Placed`) agreeing with
+time, and the first guesses' blocked gap test (`planner.methods.prioritized._Placed`) agreeing with
 the step-by-step distances."""
 
 from __future__ import annotations
@@ -9,14 +9,14 @@ import dataclasses
 
 import numpy as np
 
-import planner.prioritized as prioritized
+import planner.methods.prioritized as prioritized
 from planner import plan
-from planner.generators import grid_to_sphere, sideways
-from planner.obstacle_generators import forest
-from planner.scenario import Scenario
-from planner.scp import DEFAULT_BATCH
-from planner.solvers import make_solver
-from planner.verify import verify
+from planner.families.generators import grid_to_sphere, sideways
+from planner.families.obstacle_generators import forest
+from planner.model.scenario import Scenario
+from planner.scp.loop import DEFAULT_BATCH
+from planner.scp.solvers import make_solver
+from planner.verification.verify import verify
 from tests.planner.batches_support import assert_each_batch_clear
 
 
@@ -45,7 +45,7 @@ def test_a_crowd_plans_one_vehicle_per_batch_each_clear_of_the_earlier_ones() ->
 
 
 def _straight(work: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from planner.first_qp import straight_moves
+    from planner.scp.first_qp import straight_moves
     return straight_moves(work)
 
 
@@ -82,7 +82,7 @@ def test_the_blocked_gaps_are_the_step_distances_where_they_matter() -> None:
 def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
     """clear_guess's choice computed the plain way: every candidate against every placed
     trajectory at every step, try by try (the straight move, then each delay)."""
-    from planner.routes import along
+    from planner.methods.routes import along
     scale = scenario.separation_scale
     need = prioritized.GUESS_GAP * scenario.min_separation
     placed = [others / scale]
@@ -109,7 +109,7 @@ def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
 
 
 def test_the_first_guess_is_the_plain_try_by_try_choice() -> None:
-    from planner.first_qp import straight_moves
+    from planner.scp.first_qp import straight_moves
     work = _crowd(64)
     straight = straight_moves(work)[0]
     rng = np.random.default_rng(2)

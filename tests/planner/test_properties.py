@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 import planner
 from planner import ScenarioError
-from planner.verify import verify
+from planner.verification.verify import verify
 from tests.planner.conftest import load_example
 
 
@@ -267,8 +267,8 @@ SEQUENCE_FIELDS = [
 def test_extreme_magnitudes_in_a_sequence_are_refused_by_name(path, value):
     """The same magnitudes on a sequence's own numbers: parsed into legs or refused naming a
     field, without overflow and without a leg longer than a scenario may be."""
-    from planner.scenario import MAX_STEPS
-    from planner.sequence import parse_sequence
+    from planner.methods.sequence import parse_sequence
+    from planner.model.scenario import MAX_STEPS
 
     data = {
         "name": "property", "dt": 0.2, "min_separation": 1.0,

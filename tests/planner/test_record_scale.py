@@ -12,11 +12,11 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 
 import planner
-from planner import assignment
-from planner.assignment import certify, solve_assignment
-from planner.first_qp import unit_profile
-from planner.generators import SHOW_STEPS, free_steps, grid_to_sphere
-from planner.horizon import profile_fits, shortest_steps
+from planner.families.generators import SHOW_STEPS, free_steps, grid_to_sphere
+from planner.methods import assignment
+from planner.methods.assignment import certify, solve_assignment
+from planner.methods.horizon import profile_fits, shortest_steps
+from planner.scp.first_qp import unit_profile
 
 BOXES = (np.full(3, 3.0), np.full(3, 3.0), np.full(3, 5.0))  # the show families' v, a, jerk
 

@@ -1,4 +1,5 @@
-"""A crowded replan (`planner.replan.CROWD_BATCH_ROWS`) is planned in prioritized batches from the
+"""A crowded replan (`planner.methods.replan.CROWD_BATCH_ROWS`) is planned in prioritized batches
+from the
 fleet's moving state, around its dropped vehicles, and as a whole fleet when the batches
 fail; a small crowd is planned whole as before."""
 
@@ -9,15 +10,15 @@ from typing import Any
 import numpy as np
 import pytest
 
-import planner.replan as replan_module
-import planner.stages as stages
-from planner.first_qp import solve_first_qp
-from planner.fixed import landing_motion
-from planner.prioritized import NOT_CONVERGED
-from planner.replan import CROWD_BATCH_ROWS, Crowd, plan_replan
-from planner.scenario import Scenario
-from planner.scp import thrust_cost
-from planner.solvers import make_solver
+import planner.methods.replan as replan_module
+import planner.methods.stages as stages
+from planner.methods.prioritized import NOT_CONVERGED
+from planner.methods.replan import CROWD_BATCH_ROWS, Crowd, plan_replan
+from planner.model.fixed import landing_motion
+from planner.model.scenario import Scenario
+from planner.scp.first_qp import solve_first_qp
+from planner.scp.loop import thrust_cost
+from planner.scp.solvers import make_solver
 from tests.planner.batches_support import flying_swap
 
 

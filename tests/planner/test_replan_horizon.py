@@ -1,5 +1,5 @@
 """A replan's first horizon: the least crowded of a few, measured on its separation-free moves
-(`planner.replan.crowd`), and the looser stop that ends its SCP at a verified iterate."""
+(`planner.methods.replan.crowd`), and the looser stop that ends its SCP at a verified iterate."""
 
 from __future__ import annotations
 
@@ -8,10 +8,9 @@ import math
 import numpy as np
 import pytest
 
-import planner.replan as replan_module
+import planner.methods.replan as replan_module
 from planner import plan
-from planner.fixed import braking_motion
-from planner.replan import (
+from planner.methods.replan import (
     CROWD_FACTORS,
     Crowd,
     crowd,
@@ -19,7 +18,8 @@ from planner.replan import (
     replan_horizon,
     stop_threshold,
 )
-from planner.scenario import Scenario
+from planner.model.fixed import braking_motion
+from planner.model.scenario import Scenario
 
 LIMITS = {"position_min": [0, 0, 0], "position_max": [10, 10, 3], "velocity_max": [2, 2, 2],
           "acceleration_max": [3, 3, 3]}

@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 
 from planner import ScenarioError
-from planner.dynamics import interpolate
-from planner.generators import show_sequence
-from planner.sequence import (
+from planner.families.generators import show_sequence
+from planner.methods.sequence import (
     dynamics_residual,
     parse_sequence,
     plan_leg,
     plan_sequence,
     trajectory_csv,
 )
+from planner.model.dynamics import interpolate
 
 
 @pytest.fixture(scope="module")
@@ -198,7 +198,7 @@ def test_stitched_plan_is_flyable_verifies_and_round_trips(planned):
     import json
 
     from planner import Plan
-    from planner.verify import verify
+    from planner.verification.verify import verify
 
     flyable = planned.to_plan()
     assert flyable.ok and flyable.status == "converged"

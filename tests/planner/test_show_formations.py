@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from planner.generators import SHOW_SHAPES, formation, show_formations
-from planner.sequence import parse_sequence, plan_sequence
+from planner.families.generators import SHOW_SHAPES, formation, show_formations
+from planner.methods.sequence import parse_sequence, plan_sequence
 
 
 def _closest(points: np.ndarray) -> float:

@@ -7,9 +7,9 @@ import pytest
 
 import planner
 from planner import SolverError
-from planner.qp import SeparationRows, build_group_qp
-from planner.separation import PairSteps, directions
-from planner.solvers import SOLVERS, make_solver
+from planner.scp.qp import SeparationRows, build_group_qp
+from planner.scp.separation import PairSteps, directions
+from planner.scp.solvers import SOLVERS, make_solver
 from tests.planner.conftest import load_example
 
 
@@ -83,7 +83,7 @@ def test_a_non_finite_solution_is_a_solver_failure_not_a_plan(monkeypatch):
     plan: the answer counts as a breakdown and the plan says so, in strict JSON."""
     import json
 
-    from planner.solvers import PiqpSolver, solved
+    from planner.scp.solvers import PiqpSolver, solved
 
     class Broken(PiqpSolver):
         name = "broken"

@@ -11,17 +11,17 @@ import numpy as np
 import pytest
 
 import planner
-import planner.prioritized as prioritized
-import planner.routes as routes
-import planner.spacetime as spacetime
-from planner import obstacle_generators as families
-from planner.first_qp import straight_moves
-from planner.obstacle_rows import ObstacleRows
+import planner.methods.prioritized as prioritized
+import planner.methods.routes as routes
+import planner.methods.spacetime as spacetime
+from planner.families import obstacle_generators as families
+from planner.methods.routes import along, blocked_vehicles
+from planner.methods.spacetime import depart, fleet_routes, route_segments
 from planner.result import IterationRecord
-from planner.routes import along, blocked_vehicles
-from planner.scp import ScpOptions, ScpOutcome
-from planner.solvers import make_solver
-from planner.spacetime import depart, fleet_routes, route_segments
+from planner.scp.first_qp import straight_moves
+from planner.scp.loop import ScpOptions, ScpOutcome
+from planner.scp.obstacle_rows import ObstacleRows
+from planner.scp.solvers import make_solver
 from planner.types import IntArray
 
 

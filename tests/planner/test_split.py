@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import planner
-from planner.generators import grid_to_sphere
-from planner.group_solver import spatial_blocks
-from planner.scp import ScpOptions
+from planner.families.generators import grid_to_sphere
+from planner.scp.group_solver import spatial_blocks
+from planner.scp.loop import ScpOptions
 
 
 def test_spatial_blocks_partition_the_points():

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import planner
-from planner.dynamics import integrate
+from planner.model.dynamics import integrate
 from planner.types import FloatArray
-from planner.verify import verify
+from planner.verification.verify import verify
 from tests.planner.conftest import load_example
 
 
@@ -124,8 +124,8 @@ def test_a_widely_spaced_fleet_is_measured_without_all_pairs(monkeypatch):
     """100 vehicles 5 m apart (every pair beyond the broad phase's first reach of 2 R):
     the reach widens instead of checking all pairs over the whole timeline, and the
     minimum is still exact (one vehicle flies towards its neighbour)."""
-    from planner import separation
-    from planner.verify import continuous_minimum
+    from planner.scp import separation
+    from planner.verification.verify import continuous_minimum
 
     def no_all_pairs(*_args):
         raise AssertionError("all pairs examined")

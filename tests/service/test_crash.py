@@ -14,7 +14,7 @@ import httpx
 import psutil
 import pytest
 
-from planner.generators import grid_to_sphere
+from planner.families.generators import grid_to_sphere
 from tests.api.support import QUICK_PAIR, ServiceProcess, example, free_udp_base
 
 pytestmark = pytest.mark.timeout(400)

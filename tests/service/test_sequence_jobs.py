@@ -13,8 +13,8 @@ import pytest
 from gcs.service import plan_worker
 from gcs.service.planning import PlanJob
 from planner import Plan
-from planner.generators import show_formations, show_sequence
-from planner.sequence import parse_sequence, timeline_scenario
+from planner.families.generators import show_formations, show_sequence
+from planner.methods.sequence import parse_sequence, timeline_scenario
 from tests.service.test_planning import (
     assert_idle,
     done,
@@ -76,7 +76,7 @@ def test_a_five_formation_show_plans_its_legs_in_parallel_and_verifies_stitched(
         store, cluster) -> None:
     """Grid, sphere, torus, cube, carpet (free assignment): four legs as tasks on the two
     workers, then the stitch; the stored plan verifies again from its trajectories."""
-    from planner.verify import refusal
+    from planner.verification.verify import refusal
 
     data = show_formations(16, seed=1, hold=1.0)
     job, plan = _planned(store, cluster, data)
@@ -188,7 +188,7 @@ def test_the_stitched_plan_json_is_to_dict_written_from_the_arrays() -> None:
     import numpy as np
     import orjson
 
-    from planner.sequence import plan_sequence
+    from planner.methods.sequence import plan_sequence
 
     flyable = plan_sequence(show_formations(12, seed=3, hold=1.0)).to_plan()
     assert json.loads(plan_worker.plan_json(flyable)) == json.loads(

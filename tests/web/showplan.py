@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from playwright.sync_api import Page, Route
 
-import planner.scenario
+import planner.model.scenario
 from gcs.service.plans import trajectory_json_chunks
 from planner import Plan
-from planner.generators import grid_to_sphere
+from planner.families.generators import grid_to_sphere
 
 __all__ = ["ShowPlan", "show_plan"]
 
@@ -72,8 +72,8 @@ class ShowPlan:
         self.vehicles = vehicles
         self.mission_id = mission_id
         with pytest.MonkeyPatch.context() as patch:  # the planner's own bound, if lower
-            patch.setattr(planner.scenario, "MAX_VEHICLES", max(vehicles,
-                                                                planner.scenario.MAX_VEHICLES))
+            patch.setattr(planner.model.scenario, "MAX_VEHICLES", max(vehicles,
+                                                                planner.model.scenario.MAX_VEHICLES))
             self.plan = Plan.from_dict(self.document)
         self.mission = json.dumps({
             "id": mission_id, "name": f"show-{vehicles}", "status": "planned",

@@ -61,9 +61,9 @@ from gcs.service.settings import Settings
 from gcs.service.statuses import FLIGHT_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
 from planner import Scenario
-from planner.sequence import FormationSequence, parse_sequence, timeline_scenario
-from planner.sequence import trajectory_csv as show_csv
-from planner.verify import refusal
+from planner.methods.sequence import FormationSequence, parse_sequence, timeline_scenario
+from planner.methods.sequence import trajectory_csv as show_csv
+from planner.verification.verify import refusal
 
 __all__ = ["mission_document", "router"]
 
@@ -148,7 +148,7 @@ def _validated(body: Any, settings: Settings) -> Scenario:
 
 
 def is_sequence(body: Any) -> bool:
-    """A formation sequence (`planner.sequence` JSON) rather than a scenario."""
+    """A formation sequence (`planner.methods.sequence` JSON) rather than a scenario."""
     return isinstance(body, dict) and "formations" in body
 
 
@@ -480,7 +480,7 @@ def download_show(
     takeoff time 0 at the plan's start; the geofence and the validation limits from the
     scenario. The show frame is the world frame (x east, y north, z up). Sent as it is
     written, one drone at a time. 409 for a mission whose plan must not be flown
-    (`planner.verify.refusal`: not converged, failing verification anew, or starting
+    (`planner.verification.verify.refusal`: not converged, failing verification anew, or starting
     moving); at most
     `max_trajectory_samples` keyframes (vehicles x (steps + 1)) and `max_concurrent_exports`
     exports at once, like `/trajectory`."""

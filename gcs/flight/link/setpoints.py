@@ -6,7 +6,7 @@ LOCAL_NED, and a fixed yaw). Tracks are computed once, before streaming, so the 
 only indexes arrays. Past its last tick a track holds its final state at rest.
 
 - `plan_tracks` samples a `planner.Plan` with its exact motion between steps
-  (`Plan.sample`, i.e. `planner.dynamics.interpolate`) and converts it with `gcs.frames`.
+  (`Plan.sample`, i.e. `planner.model.dynamics.interpolate`) and converts it with `gcs.frames`.
 - `transfer_track` is the climb from home to the plan's start: vertical first, then
   horizontal, each a smooth rest-to-rest (quintic, minimum-jerk) profile.
 - `hold_track` holds one position.
@@ -117,7 +117,7 @@ class SetpointTrack:
 
     def at(self, tick: int) -> Setpoint:
         """The setpoint for `tick`; before 0 the first position at rest, past the end the final
-        position at rest (as `planner.dynamics.interpolate` does outside the horizon)."""
+        position at rest (as `planner.model.dynamics.interpolate` does outside the horizon)."""
         if tick >= len(self) or tick < 0:
             p = self._ticks[-1 if tick >= 0 else 0][0]
             return Setpoint(p, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), self.yaw)

@@ -9,12 +9,12 @@ policy ``replan``) and returns its replan object at once (status ``planning``):
    steered vehicle at that tick is its stream's setpoint then (the flying plan's exact
    state), in the world frame, so the setpoints stay continuous across the switch;
 2. from that tick each dropped vehicle is streamed its own predicted motion
-   (`planner.fixed.dropped_motion`: it coasts a step, then brakes and holds, or lands down
+   (`planner.model.fixed.dropped_motion`: it coasts a step, then brakes and holds, or lands down
    to `landing_height` above the workspace floor at `land_speed`, then PX4's Land); every
    vehicle off the plans still in the air (a dropped one, a faulty one that PX4 lands, with
    a margin for the uncertain prediction) is given to the planner as fixed, so the others
    keep R from it and the verification covers it;
-3. it plans (`planner.replan.plan_replan`, verified) in a worker thread while the streams go
+3. it plans (`planner.methods.replan.plan_replan`, verified) in a worker thread while the streams go
    on along the flying plan; a plan ready and verified before the switch tick is queued with
    `Streamer.switch` at exactly that tick (its tracks are the flying plan's ticks up to
    there, then the new plan's); at the tick the flight's plan becomes the new plan
@@ -48,9 +48,9 @@ from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, ReplanStatus, VehiclePhase
 from gcs.tasks import TaskSet
-from planner.fixed import FixedTrajectory, braking_motion, dropped_motion, landing_motion
-from planner.replan import Replan, ReplanError, check_goals, plan_replan
-from planner.scenario import Scenario
+from planner.methods.replan import Replan, ReplanError, check_goals, plan_replan
+from planner.model.fixed import FixedTrajectory, braking_motion, dropped_motion, landing_motion
+from planner.model.scenario import Scenario
 from planner.types import FloatArray
 
 __all__ = ["BRAKING_DECELERATION", "DROP_ACTIONS", "FAULT_MARGIN", "LEAD_FACTOR",

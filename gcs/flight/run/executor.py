@@ -110,7 +110,7 @@ from gcs.flight.safety.policy import FaultPolicy
 from gcs.geofence import build_fence
 from gcs.phases import AIRBORNE, EventKind, FlightPhase, VehiclePhase
 from planner import Plan
-from planner.verify import refusal
+from planner.verification.verify import refusal
 
 __all__ = ["TRACKING_TOLERANCE_M", "FlightExecutor", "VehicleStatus"]
 

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from planner import Plan
-from planner.fixed import FixedTrajectory
+from planner.model.fixed import FixedTrajectory
 from planner.types import FloatArray
 
 __all__ = ["FlownPlans", "Motion", "Segment", "shifted"]

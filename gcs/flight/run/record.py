@@ -50,7 +50,7 @@ from gcs.flight.run.stream import jitter_stats
 from gcs.flight.safety.margin import MarginCheck, separation_alarm_at
 from gcs.phases import VehiclePhase
 from planner import Plan
-from planner.verify import SEPARATION_TOLERANCE
+from planner.verification.verify import SEPARATION_TOLERANCE
 
 if TYPE_CHECKING:
     from gcs.flight.procedure.vehicle import VehicleStatus

@@ -29,7 +29,7 @@ from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.margin import MarginCheck
 from gcs.phases import EventKind
 from planner import Plan
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 
 __all__ = ["FlightRecording", "finish_record"]
 

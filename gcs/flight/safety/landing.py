@@ -8,7 +8,7 @@ stacked above each other closer than R. `PlannedLanding.run` instead:
    that tick: the setpoint its stream would send then (the plan's exact state, or its pause
    hold), converted to the world frame; a vehicle with a tracking error is planned from
    where it is measured;
-2. plans the landing (`planner.landing.plan_landing`, verified) in a worker thread while
+2. plans the landing (`planner.methods.landing.plan_landing`, verified) in a worker thread while
    the streams go on along the flying plan, which keeps R until the switch;
 3. at the switch tick streams the landing plan as setpoints, like a plan (queued with
    `Streamer.switch`, so every setpoint before it is still the flying plan's); once the landing
@@ -18,7 +18,7 @@ stacked above each other closer than R. `PlannedLanding.run` instead:
 
 Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate
 invalid, already landing) are moving obstacles the landing plan keeps R + a margin from
-(`planner.fixed`, given to `plan_landing` from the switch on, with the `around` vehicles
+(`planner.model.fixed`, given to `plan_landing` from the switch on, with the `around` vehicles
 another part of the flight lands): one still heard gets PX4's Land at once and is predicted
 going straight down from where it is measured; one the station has lost is predicted on its
 own offboard-loss failsafe from its last report (`gcs.flight.replan.replan.predicted_landing`, its
@@ -51,9 +51,9 @@ from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
-from planner.fixed import FixedTrajectory
-from planner.landing import LandingError, LandingPlan, plan_landing
-from planner.scenario import Scenario
+from planner.methods.landing import LandingError, LandingPlan, plan_landing
+from planner.model.fixed import FixedTrajectory
+from planner.model.scenario import Scenario
 from planner.types import FloatArray
 
 __all__ = ["STEERABLE_FAULTS", "PlannedLanding"]

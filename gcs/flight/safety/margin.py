@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from planner import Plan
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 
 __all__ = ["UNMARGINED_ALARM_BAND", "MarginCheck", "alarm_band", "check_margin",
            "scenario_for_fleet", "separation_alarm_at"]

@@ -1,5 +1,5 @@
 """The planning method through the REST API: the scenario's `method` key, auto's race inside
-a Dask worker process (daemonic: `planner.race` forks without `multiprocessing`), and the
+a Dask worker process (daemonic: `planner.methods.race` forks without `multiprocessing`), and the
 plan's `method` and `attempts`."""
 
 from __future__ import annotations

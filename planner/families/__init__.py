@@ -1,0 +1,1 @@
+"""Scenario generators: the paper's cases and the benchmark families."""

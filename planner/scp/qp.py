@@ -1,0 +1,374 @@
+"""Sparse QP assembly for a group of vehicles: states and accelerations as variables.
+
+Variables are ordered by time stage so every constraint couples at most two neighbouring
+stages (dynamics, jerk, continuous-time separation) or one stage (step separation):
+stage k holds, for every vehicle of the group, [p_xyz, v_xyz, a_xyz], i.e.
+
+    index(k, vehicle, var, axis) = k * 9m + vehicle * 9 + var * 3 + axis,   var: 0 p, 1 v, 2 a.
+
+Stage K carries a phantom acceleration a_K (cost weight 1, no constraints) so stages are
+uniform; it is zero at the optimum and never reported. The problem is
+
+    min 1/2 x'Px + q'x   s.t.  A x = b,   h_l <= G x <= h_u,   x_l <= x <= x_u,
+
+PIQP's native form; other backends convert. All matrices are built with vectorised COO
+arithmetic from one per-vehicle template, never with a Python loop over steps or pairs.
+`build_group_qp` runs past 80 lines: it assembles the cost, dynamics, boxes and rows of one
+sparse matrix in index order, and its blocks share the layout's index arrays.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from planner.model.flatness import GRAVITY
+from planner.model.scenario import Scenario
+from planner.types import FloatArray, IntArray
+
+__all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
+
+
+P, V, A = 0, 1, 2
+PER_VEHICLE = 9  # p, v, a, three axes each
+
+
+@dataclass(frozen=True)
+class StageLayout:
+    """Where each (stage, vehicle, var, axis) lives in the decision vector of a group."""
+
+    steps: int
+    vehicles: int
+
+    @property
+    def stage_size(self) -> int:
+        return PER_VEHICLE * self.vehicles
+
+    @property
+    def size(self) -> int:
+        return (self.steps + 1) * self.stage_size
+
+    def index(self, k: IntArray | int, vehicle: IntArray | int, var: int, axis: IntArray | int
+              ) -> IntArray:
+        return (
+            np.asarray(k) * self.stage_size
+            + np.asarray(vehicle) * PER_VEHICLE
+            + var * 3
+            + np.asarray(axis)
+        )
+
+    def unpack(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(positions (m, K+1, 3), velocities (m, K+1, 3), accelerations (m, K, 3))."""
+        grid = x.reshape(self.steps + 1, self.vehicles, 3, 3).transpose(1, 0, 2, 3)
+        return grid[:, :, P, :], grid[:, :, V, :], grid[:, :-1, A, :]
+
+    def pack(self, p: FloatArray, v: FloatArray, a: FloatArray) -> FloatArray:
+        """Inverse of `unpack` (phantom a_K = 0); used for warm starts."""
+        m, k1 = p.shape[0], p.shape[1]
+        grid = np.zeros((k1, m, 3, 3))
+        grid[:, :, P, :] = p.transpose(1, 0, 2)
+        grid[:, :, V, :] = v.transpose(1, 0, 2)
+        grid[:-1, :, A, :] = a.transpose(1, 0, 2)
+        return grid.reshape(-1)
+
+
+@dataclass(frozen=True)
+class SeparationRows:
+    """Linearised separation half-spaces c' (x_i - x_j) >= R for a set of pair-instants.
+
+    Each row is given by the two group-local vehicle indices, the stage k, the kind
+    (0: position at step k, 1: Bernstein middle point p_k + dt/2 v_k, 2: position at step
+    k + 1 with the direction of step k), and `coef` = S n, the scaled unit direction.
+
+    A one-sided row (j = -1, the other vehicle held fixed outside the QP) reads
+    coef' x_i >= R + offset, offset = coef' x_other at the row's point.
+    """
+
+    i: IntArray
+    j: IntArray
+    k: IntArray
+    kind: IntArray
+    coef: FloatArray  # (rows, 3)
+    offset: FloatArray | None = None
+    """(rows,) right-hand side shifts of one-sided rows (0 for two-sided); None: all 0."""
+
+    def __len__(self) -> int:
+        return len(self.i)
+
+    @staticmethod
+    def empty() -> SeparationRows:
+        z = np.zeros(0, dtype=np.intp)
+        return SeparationRows(z, z, z, z, np.zeros((0, 3)))
+
+
+@dataclass(frozen=True)
+class BoxMask:
+    """Which box constraints a QP includes (the SCP loop adds the others only if broken).
+
+    bounds: (m, K+1, 3, 3) over (vehicle, stage, var p/v/a, axis): variable bounds on.
+    jerk: (m, K, 3) over (vehicle, step, axis): jerk rows on.
+    wall: (m, K, 3) over (vehicle, step, axis): rows keeping the Bernstein middle point
+      p_k + dt/2 v_k of step k inside the workspace, so that (with p_k and p_k+1 inside)
+      the position stays inside over the whole step, not only at the steps.
+    """
+
+    bounds: NDArray[np.bool_]
+    jerk: NDArray[np.bool_]
+    wall: NDArray[np.bool_]
+
+    @staticmethod
+    def full(vehicles: int, steps: int) -> BoxMask:
+        """Every box: all bounds, jerk rows and wall rows."""
+        bounds = np.ones((vehicles, steps + 1, 3, 3), dtype=bool)
+        bounds[:, steps, A, :] = False  # the phantom a_K has no bound
+        rows = np.ones((vehicles, steps, 3), dtype=bool)
+        return BoxMask(bounds, rows, rows.copy())
+
+    def take(self, members: IntArray) -> BoxMask:
+        return BoxMask(self.bounds[members], self.jerk[members], self.wall[members])
+
+    def __or__(self, other: BoxMask) -> BoxMask:
+        return BoxMask(self.bounds | other.bounds, self.jerk | other.jerk,
+                       self.wall | other.wall)
+
+    def __sub__(self, other: BoxMask) -> BoxMask:
+        return BoxMask(self.bounds & ~other.bounds, self.jerk & ~other.jerk,
+                       self.wall & ~other.wall)
+
+    def any(self) -> bool:
+        return bool(self.bounds.any() or self.jerk.any() or self.wall.any())
+
+
+@dataclass
+class QuadraticProgram:
+    """min 1/2 x'Px + q'x s.t. Ax = b, h_l <= Gx <= h_u, x_l <= x <= x_u (CSC matrices)."""
+
+    P: sp.csc_matrix
+    q: FloatArray
+    A: sp.csc_matrix
+    b: FloatArray
+    G: sp.csc_matrix
+    h_l: FloatArray
+    h_u: FloatArray
+    x_l: FloatArray
+    x_u: FloatArray
+    constant: float
+    """Cost constant so that 1/2 x'Px + q'x + constant is the total-thrust cost."""
+    separation_rows: int
+    """How many rows at the end of G are separation rows (before them: jerk, wall rows)."""
+
+    @property
+    def size(self) -> int:
+        return self.q.shape[0]
+
+
+def _coo(rows: list[IntArray], cols: list[IntArray], vals: list[FloatArray], shape: tuple[int, int]
+         ) -> sp.csc_matrix:
+    r = np.concatenate(rows) if rows else np.zeros(0, dtype=np.intp)
+    c = np.concatenate(cols) if cols else np.zeros(0, dtype=np.intp)
+    v = np.concatenate(vals) if vals else np.zeros(0)
+    return sp.csc_matrix((v, (r, c)), shape=shape)
+
+
+#: Groups of at most this many vehicles share their equality and cost matrices between QPs
+#: (`_structure`): prioritized batches build thousands of small QPs of the same shape.
+STRUCTURE_CACHE_VEHICLES = 16
+
+
+def _structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """(A_eq, P) of a group of `m` vehicles: the dynamics and boundary-condition rows and
+    the cost's Hessian depend only on the shape and dt, so small groups' are built once
+    (the solvers only read them)."""
+    if m <= STRUCTURE_CACHE_VEHICLES:
+        return _cached_structure(steps, m, dt)
+    return _build_structure(steps, m, dt)
+
+
+def _build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    lay = StageLayout(steps, m)
+    n = lay.size
+    # Grids over (vehicle, axis) and (stage, vehicle, axis): flat index arrays.
+    veh = np.repeat(np.arange(m), 3)
+    axis = np.tile(np.arange(3), m)
+    k_dyn = np.arange(steps)
+
+    # --- equality rows: dynamics (2 K per chain) then boundary conditions (5 per chain).
+    grid_k, grid_v = np.meshgrid(k_dyn, np.arange(3 * m), indexing="ij")  # (K, 3m)
+    kk, vv = grid_k.ravel(), grid_v.ravel()
+    ve, ax = veh[vv], axis[vv]
+    n_dyn = kk.size
+    row_p = np.arange(n_dyn)
+    row_v = n_dyn + np.arange(n_dyn)
+    p_k, p_k1 = lay.index(kk, ve, P, ax), lay.index(kk + 1, ve, P, ax)
+    v_k, v_k1 = lay.index(kk, ve, V, ax), lay.index(kk + 1, ve, V, ax)
+    a_k = lay.index(kk, ve, A, ax)
+    ones = np.ones(n_dyn)
+    rows = [row_p, row_p, row_p, row_p, row_v, row_v, row_v]
+    cols = [p_k1, p_k, v_k, a_k, v_k1, v_k, a_k]
+    vals = [ones, -ones, -dt * ones, -0.5 * dt * dt * ones, ones, -ones, -dt * ones]
+
+    chains = np.arange(3 * m)
+    cv, ca = veh[chains], axis[chains]
+    bc_cols = [
+        lay.index(0, cv, P, ca),
+        lay.index(0, cv, V, ca),
+        lay.index(steps, cv, P, ca),
+        lay.index(steps, cv, V, ca),
+        lay.index(steps - 1, cv, A, ca),
+    ]
+    base = 2 * n_dyn
+    for idx, col in enumerate(bc_cols):
+        rows.append(base + idx * 3 * m + chains)
+        cols.append(col)
+        vals.append(np.ones(3 * m))
+    n_eq = base + 5 * 3 * m
+    A_eq = _coo(rows, cols, vals, (n_eq, n))
+
+    # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
+    a_mask = np.zeros((steps + 1, m, 3, 3), dtype=bool)
+    a_mask[:, :, A, :] = True
+    diag = np.where(a_mask.reshape(-1), 2.0, 0.0)
+    return A_eq, sp.diags(diag, format="csc")
+
+
+_cached_structure = functools.lru_cache(maxsize=32)(_build_structure)
+
+
+def build_group_qp(
+    scenario: Scenario,
+    members: IntArray,
+    separation: SeparationRows,
+    boxes: BoxMask | None = None,
+) -> QuadraticProgram:
+    """The QP of the vehicles `members` (scenario indices) with the given separation rows.
+
+    boxes: which variable bounds and jerk rows to include, for the group's vehicles; None:
+    all of them. The SCP loop passes only those that can bind and checks the rest.
+    """
+    dt, steps = scenario.dt, scenario.steps
+    m = len(members)
+    lay = StageLayout(steps, m)
+    n = lay.size
+    limits = scenario.limits
+    if boxes is None:
+        boxes = BoxMask.full(m, steps)
+
+    veh = np.repeat(np.arange(m), 3)
+    axis = np.tile(np.arange(3), m)
+    A_eq, P_mat = _structure(steps, m, dt)
+    starts = scenario.starts[members].reshape(-1)  # chain order: vehicle-major, axis
+    goals = scenario.goals[members].reshape(-1)
+    start_v = scenario.initial_velocities[members].reshape(-1)
+    bc_rhs = [starts, start_v, goals, np.zeros(3 * m), np.zeros(3 * m)]
+    n_dyn = steps * 3 * m
+    b = np.concatenate([np.zeros(2 * n_dyn), *bc_rhs])
+
+    # --- inequality rows: jerk (a_k - a_{k-1} within +-jmax dt, a_{-1} the acceleration
+    # before the start), then separation.
+    g_rows: list[IntArray] = []
+    g_cols: list[IntArray] = []
+    g_vals: list[FloatArray] = []
+    h_l_parts: list[FloatArray] = []
+    h_u_parts: list[FloatArray] = []
+    n_jerk = 0
+    if limits.jerk_max is not None:
+        j_vehicle, jk, j_axis = np.nonzero(boxes.jerk)
+        jv = j_vehicle * 3 + j_axis
+        n_jerk = jk.size
+        jrow = np.arange(n_jerk)
+        g_rows += [jrow]
+        g_cols += [lay.index(jk, veh[jv], A, axis[jv])]
+        g_vals += [np.ones(n_jerk)]
+        later = jk > 0
+        g_rows += [jrow[later]]
+        g_cols += [lay.index(jk[later] - 1, veh[jv[later]], A, axis[jv[later]])]
+        g_vals += [-np.ones(int(later.sum()))]
+        bound = (limits.jerk_max * dt)[axis[jv]]
+        # the first step's row bounds a_0 alone: shift it by the acceleration before the start
+        before = np.where(later, 0.0,
+                          scenario.initial_accelerations[members][veh[jv], axis[jv]])
+        h_l_parts.append(before - bound)
+        h_u_parts.append(before + bound)
+
+    n_wall = 0
+    if boxes.wall.any():
+        w_vehicle, wk, w_axis = np.nonzero(boxes.wall)
+        n_wall = wk.size
+        wrow = n_jerk + np.arange(n_wall)
+        g_rows += [wrow, wrow]
+        g_cols += [lay.index(wk, w_vehicle, P, w_axis), lay.index(wk, w_vehicle, V, w_axis)]
+        g_vals += [np.ones(n_wall), np.full(n_wall, 0.5 * dt)]
+        h_l_parts.append(limits.position_min[w_axis])
+        h_u_parts.append(limits.position_max[w_axis])
+
+    n_sep = len(separation)
+    if n_sep:
+        srow = n_jerk + n_wall + np.arange(n_sep)
+        s_k = separation.k
+        kind = separation.kind
+        stage = np.where(kind == 2, s_k + 1, s_k)
+        two = separation.j >= 0
+        for c in range(3):
+            coef = separation.coef[:, c]
+            g_rows += [srow, srow[two]]
+            g_cols += [lay.index(stage, separation.i, P, c),
+                       lay.index(stage[two], separation.j[two], P, c)]
+            g_vals += [coef, -coef[two]]
+        mid = kind == 1
+        if mid.any():
+            mrow = srow[mid]
+            mid_two = two[mid]
+            for c in range(3):
+                coef = 0.5 * dt * separation.coef[mid, c]
+                g_rows += [mrow, mrow[mid_two]]
+                g_cols += [
+                    lay.index(s_k[mid], separation.i[mid], V, c),
+                    lay.index(s_k[mid][mid_two], separation.j[mid][mid_two], V, c),
+                ]
+                g_vals += [coef, -coef[mid_two]]
+        rhs = np.full(n_sep, scenario.min_separation)
+        if separation.offset is not None:
+            rhs = rhs + separation.offset
+        h_l_parts.append(rhs)
+        h_u_parts.append(np.full(n_sep, np.inf))
+    G = _coo(g_rows, g_cols, g_vals, (n_jerk + n_wall + n_sep, n))
+    h_l = np.concatenate(h_l_parts) if h_l_parts else np.zeros(0)
+    h_u = np.concatenate(h_u_parts) if h_u_parts else np.zeros(0)
+
+    # --- variable bounds: workspace box, velocity and acceleration boxes.
+    stage_lo = np.empty((m, 3, 3))
+    stage_hi = np.empty((m, 3, 3))
+    stage_lo[:, P, :], stage_hi[:, P, :] = limits.position_min, limits.position_max
+    inf3 = np.full(3, np.inf)
+    vmax = inf3 if limits.velocity_max is None else limits.velocity_max
+    amax = inf3 if limits.acceleration_max is None else limits.acceleration_max
+    stage_lo[:, V, :], stage_hi[:, V, :] = -vmax, vmax
+    stage_lo[:, A, :], stage_hi[:, A, :] = -amax, amax
+    x_l = np.tile(stage_lo.reshape(-1), steps + 1)
+    x_u = np.tile(stage_hi.reshape(-1), steps + 1)
+    off = ~boxes.bounds.transpose(1, 0, 2, 3).reshape(-1)
+    x_l[off] = -np.inf
+    x_u[off] = np.inf
+
+    # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
+    q = np.zeros((steps + 1, m, 3, 3))
+    q[:steps, :, A, 2] = 2.0 * GRAVITY
+    constant = steps * m * GRAVITY * GRAVITY
+
+    return QuadraticProgram(
+        P=P_mat,
+        q=q.reshape(-1),
+        A=A_eq,
+        b=b,
+        G=G,
+        h_l=h_l,
+        h_u=h_u,
+        x_l=x_l,
+        x_u=x_u,
+        constant=constant,
+        separation_rows=n_sep,
+    )
