@@ -77,6 +77,10 @@ class EventKind(StrEnum):
     RESUME = "resume"
     PAUSE_LIMIT = "pause_limit"
     ABORT = "abort"
+    """An abort accepted (`gcs.flight.precedence`): its reason and action, and whether it
+    overrides one under way or repeats it."""
+    COMMAND_REFUSED = "command_refused"
+    """A command that lost to one under way (`gcs.flight.precedence`), and why."""
     ERROR = "error"
     SEPARATION_ALARM = "separation_alarm"
     STATION_STALL = "station_stall"

@@ -35,6 +35,7 @@ import orjson
 from gcs.errors import GcsError, MissionAborted, StateConflict
 from gcs.flight.fleetfile import FlightOptions
 from gcs.flight.phases import EventKind
+from gcs.flight.precedence import abort_in_force, aborting_refusal
 from gcs.flight.vehicle_loop import VehicleLoopStopped
 from gcs.flight.vehicle_process import VehicleProcess
 from gcs.service.fleet import FleetKind, fleet_kind
@@ -222,19 +223,24 @@ class FleetService:
         stored_status: str = "finished",
     ) -> LiveExecution:
         """Every vehicle of the flight to `action` (land or hold) now; StateConflict if it is not
-        flying. Returns at once; the flight ends (status aborted) when the vehicles are safe."""
+        flying, or when `action` loses to the abort under way (`gcs.flight.precedence`: land
+        overrides hold). Returns once the flight accepted it; the flight ends (status
+        aborted) when the vehicles are safe."""
         flight = self._flying(execution_id, stored_status)
-        if flight.abort_requested is None:
-            flight.abort_requested = action
+        if flight.handle is None:  # starting: passed on once the flight exists
+            abort_in_force(flight.abort_requested, action)
+        else:
+            await flight.handle.request_abort(action, reason)
+        flight.aborts.append(action)
+        if flight.active:
             flight.set_status(ExecutionStatus.ABORTING)
-            if flight.handle is not None:
-                self._tasks.spawn(flight.handle.abort(action, reason))
         return flight
 
     async def pause(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
         """Stop the flight's clock, every vehicle holding the plan's setpoint of the same plan
         time (status paused). StateConflict unless it is running its plan."""
         flight = self._flying(execution_id, stored_status)
+        self._not_aborting(flight, "pause")
         if flight.status != ExecutionStatus.RUNNING or flight.handle is None:
             raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
                                                 f"paused (status {flight.status})")
@@ -246,6 +252,7 @@ class FleetService:
     async def resume(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
         """Restart a paused flight's clock where it stopped (status running)."""
         flight = self._flying(execution_id, stored_status)
+        self._not_aborting(flight, "resume")
         if flight.status != ExecutionStatus.PAUSED or flight.handle is None:
             raise StateConflict("execution_id", f"execution {execution_id!r} is not paused "
                                                 f"(status {flight.status})")
@@ -263,6 +270,7 @@ class FleetService:
         plan (not starting, paused or aborting) or while another replan is under way;
         FieldError naming `goals.<id>` / `drop[n]` for an unknown vehicle or a bad goal."""
         flight = self._flying(execution_id, stored_status)
+        self._not_aborting(flight, "replan")
         if flight.status != ExecutionStatus.RUNNING or flight.handle is None:
             raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
                                                 f"replanned (status {flight.status})")
@@ -284,6 +292,14 @@ class FleetService:
         if row is None or row.record_json is None:
             return []
         return await asyncio.to_thread(replanned_in, orjson.loads(row.record_json))
+
+    @staticmethod
+    def _not_aborting(flight: LiveExecution, command: str) -> None:
+        """StateConflict when `flight` aborts: an abort overrides `command`."""
+        if flight.abort_requested is not None:
+            conflict = aborting_refusal(command, flight.abort_requested,
+                                        f"execution {flight.id!r}")
+            raise StateConflict("execution_id", conflict.reason)
 
     def _flying(self, execution_id: str, stored_status: str) -> LiveExecution:
         """The flight under way with this id; StateConflict naming its status otherwise."""
@@ -315,8 +331,9 @@ class FleetService:
             flight.handle = handle
             ticker = asyncio.create_task(self._telemetry(flight, handle))
             mirror = asyncio.create_task(self._mirror(handle))
-            if flight.abort_requested is not None:  # aborted while starting
-                await handle.abort(flight.abort_requested, "operator abort")
+            if flight.aborts:  # aborted while starting: each abort, in order
+                for action in list(flight.aborts):
+                    await handle.request_abort(action, "operator abort")
             else:
                 flight.set_status(ExecutionStatus.RUNNING)
             record = await handle.result()

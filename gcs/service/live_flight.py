@@ -30,7 +30,9 @@ class LiveExecution:
     events: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
     error: str | None = None
-    abort_requested: str | None = None
+    aborts: list[str] = field(default_factory=list)
+    """The abort actions accepted, in order (`gcs.flight.precedence`: the last is in
+    force); those accepted before the flight existed are passed on to it in this order."""
     finished_at: datetime | None = None
     """When the flight ended (its final state is set by then)."""
     unstored: str | None = None
@@ -38,6 +40,11 @@ class LiveExecution:
     None once stored, and while flying."""
     done: asyncio.Event = field(default_factory=asyncio.Event)
     listeners: Broadcast = field(default_factory=Broadcast)
+
+    @property
+    def abort_requested(self) -> str | None:
+        """The abort action in force (None: not aborting)."""
+        return self.aborts[-1] if self.aborts else None
 
     @property
     def active(self) -> bool:

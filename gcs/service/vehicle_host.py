@@ -206,6 +206,11 @@ class FleetHost:
         """The switched replans' plans of the flight under way (`ReplanHandle.replanned`)."""
         return await self._current(execution).replanned()
 
+    async def request_abort(self, execution: str, action: str, reason: str) -> None:
+        """`FlightHandle.request_abort` of the flight under way: accepted, or refused
+        (StateConflict across) by the commands' precedence."""
+        await self._current(execution).request_abort(action, reason)
+
     async def abort(self, execution: str, action: str, reason: str) -> None:
         """`FlightHandle.abort` of the flight under way."""
         await self._current(execution).abort(action, reason)
