@@ -10,13 +10,12 @@ primitives of `gcs.flight.vehicle`. Every deadline is on the flight's `StationSt
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from collections.abc import Sequence
 
 import numpy as np
 
 from gcs import frames, px4
-from gcs.errors import CommandError, GeofenceFailed, PreflightFailed
+from gcs.errors import GeofenceFailed, PreflightFailed
 from gcs.flight import vehicle
 from gcs.flight.fence_upload import send_fence
 from gcs.flight.fleetfile import FlightOptions
@@ -28,10 +27,15 @@ from gcs.flight.station import StationStalls
 from gcs.flight.stream import Streamer
 from gcs.flight.vehicle import Emit, VehicleStatus
 from gcs.geofence import WorldFence, fence_items
-from gcs.wire import mavlink
 
-__all__ = ["connect_vehicle", "fence_fleet", "fence_origin", "fence_vehicle", "preflight",
-           "prepare_vehicle"]
+__all__ = ["FENCE_TRANSFERS", "connect_vehicle", "fence_fleet", "fence_origin", "fence_vehicle",
+           "preflight", "prepare_vehicle"]
+
+#: Whole uploads (with read-back) of a vehicle's fence before the flight is refused, and the
+#: wait before the second (s; doubled before each next): every message of one upload is
+#: already resent 5 times, so a third upload is for a link that lost a run of them.
+FENCE_TRANSFERS = 3
+FENCE_RETRY_WAIT_S = 1.0
 
 
 async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
@@ -89,17 +93,6 @@ def fence_origin(v: VehicleStatus, world_origin: frames.Geodetic | None
     return None
 
 
-async def _ask_origin(v: VehicleStatus, stalls: StationStalls) -> None:
-    """Ask once for GPS_GLOBAL_ORIGIN when the vehicle has not reported it (a fleet file
-    that gives the home asks nothing else of it)."""
-    link = v.linked
-    if link.telemetry.gps_origin is not None:
-        return
-    with contextlib.suppress(CommandError):
-        await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, clock=stalls.clock)
-    await link.wait_for(lambda t: t.gps_origin is not None, 1.0, clock=stalls.clock)
-
-
 async def fence_fleet(vehicles: Sequence[VehicleStatus], fence: WorldFence,
                       options: FlightOptions, world_origin: frames.Geodetic | None,
                       emit: Emit, stalls: StationStalls) -> None:
@@ -108,13 +101,18 @@ async def fence_fleet(vehicles: Sequence[VehicleStatus], fence: WorldFence,
     if options.geofence == "skip":
         emit(None, EventKind.GEOFENCE_SKIPPED, "fleet option geofence: skip")
         return
-    await asyncio.gather(*(_ask_origin(v, stalls) for v in vehicles))
+    await asyncio.gather(*(vehicle.ask_origin(v.linked, stalls) for v in vehicles))
     missing = [v.id for v in vehicles if fence_origin(v, world_origin) is None]
     if missing:
         why = (f"no geodetic origin for {', '.join(missing)}: no GPS_GLOBAL_ORIGIN reported "
-               f"and no world_origin in the fleet file")
+               f"after {vehicle.ORIGIN_TRIES} requests and no world_origin in the fleet file")
         if options.geofence == "upload":
             raise GeofenceFailed(missing[0], f"geofence: upload asked, but {why}")
+        if len(missing) < len(vehicles):  # the others have GPS: this one's link lost it
+            raise GeofenceFailed(missing[0], f"{why}, while the others reported theirs (a "
+                                             f"lossy link?); the flight is not flown without "
+                                             f"the fence (fleet option geofence: skip flies "
+                                             f"without one)")
         emit(None, EventKind.GEOFENCE_SKIPPED, f"not uploaded: {why}")
         return
     if fence.not_fenced:
@@ -143,9 +141,21 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
         raise GeofenceFailed(v.id, f"its home {np.round(v.placed, 3).tolist()} lies outside "
                                    f"the fence ({', '.join(outside)})")
     items = fence_items(fence, home, origin)
-    await send_fence(v.linked, items)
+    wait = FENCE_RETRY_WAIT_S
+    for transfer in range(1, FENCE_TRANSFERS + 1):
+        try:
+            await send_fence(v.linked, items)
+            break
+        except GeofenceFailed as exc:
+            if transfer == FENCE_TRANSFERS:
+                raise GeofenceFailed(v.id, f"{exc.detail} (after {transfer} uploads)") from None
+            emit(v.id, EventKind.GEOFENCE_RETRY, f"upload {transfer} failed ({exc.detail}); "
+                                                 f"again in {wait:g} s")
+            await asyncio.sleep(wait)
+            wait *= 2
     emit(v.id, EventKind.GEOFENCE, f"{len(fence.shapes)} shape(s), {len(items)} items "
-                                   f"uploaded and read back")
+                                   f"uploaded and read back"
+                                   + (f" (upload {transfer})" if transfer > 1 else ""))
 
 
 async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightOptions,

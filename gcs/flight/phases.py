@@ -111,6 +111,8 @@ class EventKind(StrEnum):
     MESSAGE_RATES = "message_rates"
     GEOFENCE = "geofence"
     """The vehicle's geofence was uploaded and read back the same."""
+    GEOFENCE_RETRY = "geofence_retry"
+    """An upload of the vehicle's geofence failed (why) and is tried again after a wait."""
     PREFLIGHT_OVERRIDE = "preflight_override"
     MODE = "mode"
     MODE_CHANGE = "mode_change"

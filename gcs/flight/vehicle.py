@@ -51,6 +51,7 @@ __all__ = [
     "Emit",
     "VehicleStatus",
     "arm",
+    "ask_origin",
     "connect",
     "disarm",
     "hold_vehicle",
@@ -75,6 +76,12 @@ StopStream = Callable[[str], None]
 #: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
 MODE_RETRY_FOR = 5.0
 _POLL_PERIOD = 0.05
+#: Requests for GPS_GLOBAL_ORIGIN before a vehicle is taken to report none (one lost
+#: datagram must not cost a flight its fence), the wait for the answer to the first (s), and
+#: how much longer each next wait is: 1, 1.5, 2.25 and 3.4 s, about 8 s at most in all.
+ORIGIN_TRIES = 4
+ORIGIN_WAIT_S = 1.0
+ORIGIN_BACKOFF = 1.5
 
 
 @dataclass
@@ -248,16 +255,34 @@ def address_text(address: object) -> str:
     return str(address)
 
 
+async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> bool:
+    """Ask for GPS_GLOBAL_ORIGIN until the vehicle reports it, up to `ORIGIN_TRIES` times
+    with a growing wait (a lossy link loses requests and answers alike); whether it did. A
+    request the vehicle refuses (no ACCEPTED) ends the asking."""
+    clock = _clock(stalls)
+    wait = ORIGIN_WAIT_S
+    for _ in range(ORIGIN_TRIES):
+        if link.telemetry.gps_origin is not None:
+            return True
+        try:
+            result = await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN,
+                                                clock=clock)
+        except CommandError:
+            result = mavlink.MAV_RESULT_ACCEPTED  # unanswered: the answer may still come
+        if await link.wait_for(lambda t: t.gps_origin is not None, wait, clock=clock):
+            return True
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            break
+        wait *= ORIGIN_BACKOFF
+    return link.telemetry.gps_origin is not None
+
+
 async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodetic,
                        stalls: StationStalls | None = None) -> tuple[np.ndarray, str]:
     """Home in the world frame from the vehicle's EKF origin and the fleet's world_origin;
     returns (home, the message it came from)."""
     clock = _clock(stalls)
-    for attempt in range(3):
-        with contextlib.suppress(CommandError):
-            await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, clock=clock)
-        if await link.wait_for(lambda t: t.gps_origin is not None, 1.0 + attempt, clock=clock):
-            break
+    await ask_origin(link, stalls)
     tel = link.telemetry
     if tel.gps_origin is not None:
         return frames.geodetic_to_enu(frames.Geodetic(*tel.gps_origin), origin), \
