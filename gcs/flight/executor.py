@@ -165,7 +165,8 @@ class FlightExecutor:
                                     on_separation=self.policy.on_separation,
                                     stalls=self.stalls,
                                     on_drops=lambda v, detail: self._emit(
-                                        v.id, EventKind.DROPPED_PACKETS, detail))
+                                        v.id, EventKind.DROPPED_PACKETS, detail),
+                                    on_link=self._emit)
         self.streamer: Streamer | None = None
         self._hub: LinkHub | None = None
         self._tracks: list[SetpointTrack] = []

@@ -42,6 +42,8 @@ class VehiclePhase(StrEnum):
     FAULTY = "faulty"
     LANDING = "landing"
     LANDED = "landed"
+    LANDED_LINK_LOST = "landed_link_lost"
+    """Landed and disarmed when last heard, out of reach since (not confirmed after)."""
     HOVERING = "hovering"
     STOPPED = "stopped"
 
@@ -122,6 +124,11 @@ class EventKind(StrEnum):
     FAULT = "fault"
     STATUSTEXT = "statustext"
     DROPPED_PACKETS = "dropped_packets"
+    LINK_DEGRADED = "link_degraded"
+    """The vehicle's link lost, delayed or jittered more than its bounds over the last
+    seconds (`gcs.flight.link_quality`), with the figures."""
+    LINK_RECOVERED = "link_recovered"
+    """A degraded link under half of every bound for a while, with the figures."""
     LAND = "land"
     LAND_FAILED = "land_failed"
     LANDED = "landed"

@@ -380,6 +380,8 @@ async def disarm(link: VehicleLink, *, force: bool = False,
 #: PX4 offboard-link streams the GCS never reads (`gcs.flight.link.DECODED_IDS` is what it
 #: reads), turned off by `message_rates`: the fast ones (ATTITUDE 100/s, HIGHRES_IMU,
 #: ATTITUDE_QUATERNION, GLOBAL_POSITION_INT 50/s, ODOMETRY 30/s on SITL) and the 0.5-10/s rest.
+#: TIMESYNC's stream is the vehicle's own requests (10/s); the link reads only the answers to
+#: the station's (`gcs.flight.link_quality`), which come whatever its stream's rate.
 UNREAD_STREAMS = tuple(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in (
     "ATTITUDE", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "GLOBAL_POSITION_INT", "ODOMETRY",
     "ALTITUDE", "ATTITUDE_TARGET", "POSITION_TARGET_LOCAL_NED", "POSITION_TARGET_GLOBAL_INT",
@@ -499,6 +501,14 @@ async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Em
         await land_vehicle(v, options, emit, stop_stream, stalls)
 
 
+def _landed_name(state: int | None) -> str:
+    """EXTENDED_SYS_STATE's landed state in words."""
+    return {mavlink.MAV_LANDED_STATE_ON_GROUND: "on the ground",
+            mavlink.MAV_LANDED_STATE_IN_AIR: "in the air",
+            mavlink.MAV_LANDED_STATE_LANDING: "landing",
+            mavlink.MAV_LANDED_STATE_TAKEOFF: "taking off"}.get(state or 0, "landed state unknown")
+
+
 async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
                         emit: Emit, stalls: StationStalls | None = None) -> None:
     """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome
@@ -512,9 +522,18 @@ async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
         for v in pending:
             link = v.linked
             tel = link.telemetry
-            if stalls.age(tel.message_time, now) > options.link_timeout:
-                emit(v.id, EventKind.DISARM_UNCONFIRMED,
-                     "link lost: cannot confirm that it landed and disarmed")
+            silent = stalls.age(tel.message_time, now)
+            if silent > options.link_timeout:
+                if not tel.armed and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+                    v.phase = VehiclePhase.LANDED_LINK_LOST
+                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
+                         f"link lost: landed and disarmed when last heard {silent:.1f} s ago, "
+                         f"out of reach since")
+                else:
+                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
+                         f"link lost: {'armed' if tel.armed else 'disarmed'} and "
+                         f"{_landed_name(tel.landed_state)} when last heard {silent:.1f} s "
+                         f"ago: cannot confirm that it landed and disarmed")
                 continue
             stale = stalls.age(tel.heartbeat_time, now) > options.heartbeat_timeout
             if stale and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
