@@ -51,7 +51,7 @@ import numpy as np
 import pymap3d
 from pymavlink.dialects.v20 import common as mavlink
 
-from gcs.flight.fleetfile import FleetSpec
+from gcs.fleet.fleetfile import FleetSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = ("quiet", "raw", "mavsdk", "hogs", "first")

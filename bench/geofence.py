@@ -1,7 +1,8 @@
 """Geofence upload benchmark: what giving every vehicle its fence adds before arming.
 
 Starts N in-process mock vehicles (`gcs.sim.MockFleet`, PX4's mission protocol), links them
-through one `gcs.flight.hub.LinkHub` as a flight does, and times `gcs.flight.fence_upload.
+through one `gcs.flight.link.hub.LinkHub` as a flight does, and times
+`gcs.flight.procedure.fence_upload.
 send_fence` (upload, read back, compare) for every vehicle at once, with a fence of the
 workspace plus P pillars (exclusion circles) placed per vehicle (`gcs.geofence`). Prints one
 JSON document: the wall time of the whole fleet's upload (median and max over --repeat), items
@@ -29,9 +30,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np
 
 from gcs import frames
-from gcs.flight.fence_upload import send_fence
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import DECODED_IDS
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import DECODED_IDS
+from gcs.flight.procedure.fence_upload import send_fence
 from gcs.geofence import build_fence, fence_items
 from gcs.sim import MockFleet
 from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets

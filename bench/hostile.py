@@ -50,12 +50,12 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gcs.errors import GcsError
-from gcs.flight.endpoints import UdpEndpoint
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.link import DECODED_IDS, VehicleLink
-from gcs.flight.margin import scenario_for_fleet
-from gcs.flight.signing import LinkSigning
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.link.endpoints import UdpEndpoint
+from gcs.flight.link.link import DECODED_IDS, VehicleLink
+from gcs.flight.link.signing import LinkSigning
+from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.safety.margin import scenario_for_fleet
 from gcs.sim import MockFleet, homes_under
 from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
 from gcs.wire import load_key, mavlink, new_key_file, parse_datagram

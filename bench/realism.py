@@ -29,9 +29,9 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gcs.errors import GcsError
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.margin import scenario_for_fleet
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.safety.margin import scenario_for_fleet
 from gcs.sim import MockFleet, homes_under
 from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
 from planner import plan as make_plan

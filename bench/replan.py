@@ -44,8 +44,8 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
-from gcs.flight.fleetfile import FlightOptions  # noqa: E402
-from gcs.flight.replan import BRAKING_DECELERATION  # noqa: E402
+from gcs.fleet.fleetfile import FlightOptions  # noqa: E402
+from gcs.flight.replan.replan import BRAKING_DECELERATION  # noqa: E402
 from planner.errors import ScenarioError  # noqa: E402
 from planner.fixed import DROP_COAST_STEPS, FixedTrajectory, landing_motion  # noqa: E402
 from planner.generators import circle_swap, grid_to_sphere, random_transitions  # noqa: E402
@@ -53,7 +53,7 @@ from planner.replan import ReplanError, check_goals, plan_replan  # noqa: E402
 
 #: The floors asked for (s): 16 vehicles mid-crossing, and 100 vehicles.
 FLOORS = {16: 0.3, 100: 2.0}
-#: The ground station's defaults (`gcs.flight.replan`, `FlightOptions`).
+#: The ground station's defaults (`gcs.flight.replan.replan`, `FlightOptions`).
 DECELERATION = BRAKING_DECELERATION
 LAND_SPEED = FlightOptions().land_speed
 LANDING_HEIGHT = FlightOptions().landing_height

@@ -38,8 +38,8 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
-from gcs.flight.executor import FlightExecutor  # noqa: E402
-from gcs.flight.fleetfile import FleetSpec, FlightOptions  # noqa: E402
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
+from gcs.flight.run.executor import FlightExecutor  # noqa: E402
 from gcs.sim import MockFleet, homes_under  # noqa: E402
 from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets  # noqa: E402
 

@@ -1,10 +1,10 @@
 """Setpoint streaming benchmark: N mock vehicles in another process, one GCS process streaming.
 
 Starts `fleetplan mock` (python -m gcs.cli.main mock) with N vehicles on free ports, connects
-one `gcs.flight.hub.LinkHub`, and streams every vehicle a moving setpoint track through the shared
-clock (`gcs.flight.stream.Streamer`) at RATE Hz for DURATION s. Prints one JSON document: scenario,
-achieved rate, send-instant jitter p50/p99/max (lateness of each send against its tick's
-scheduled instant), missed ticks, CPU of the GCS process and of the mock process, machine
+one `gcs.flight.link.hub.LinkHub`, and streams every vehicle a moving setpoint track through the
+shared clock (`gcs.flight.run.stream.Streamer`) at RATE Hz for DURATION s. Prints one JSON
+document: scenario, achieved rate, send-instant jitter p50/p99/max (lateness of each send against
+its tick's scheduled instant), missed ticks, CPU of the GCS process and of the mock process, machine
 info. With --repeat R it runs R times per mode and also reports the medians. Floor: p99 jitter
 <= 2 ms with no missed tick, at the default stream priority (realtime; --priority normal to
 compare).
@@ -16,7 +16,7 @@ GCS reconnects signed; every setpoint is signed, every telemetry packet verified
 Telemetry (--telemetry): the mocks send ``minimal`` (~65 messages/s per vehicle) or ``px4``
 (PX4's offboard link, ~410 messages/s per vehicle, `gcs.sim.telemetry`). --message-rates
 ``leave`` takes what they send; ``request`` first asks each vehicle for what the GCS reads
-(MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.vehicle.message_rates`, the rest off). The GCS
+(MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.procedure.vehicle.message_rates`, the rest off). The GCS
 decodes only the ids it reads and drops the rest before decoding (--decode needed, as the
 flight executor does; --decode all to compare). Telemetry latency is the receive instant of
 each LOCAL_POSITION_NED minus the mock's stamp (time_boot_ms, whose zero the mock prints on
@@ -57,14 +57,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
-from gcs.flight.endpoints import UdpEndpoint
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import DECODED_IDS, VehicleLink
-from gcs.flight.setpoints import Setpoint, SetpointTrack
-from gcs.flight.signing import LinkSigning
-from gcs.flight.stream import Streamer, jitter_stats
-from gcs.flight.vehicle import message_rates as needed_rates
-from gcs.flight.vehicle import request_message_rates
+from gcs.flight.link.endpoints import UdpEndpoint
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import DECODED_IDS, VehicleLink
+from gcs.flight.link.setpoints import Setpoint, SetpointTrack
+from gcs.flight.link.signing import LinkSigning
+from gcs.flight.procedure.vehicle import message_rates as needed_rates
+from gcs.flight.procedure.vehicle import request_message_rates
+from gcs.flight.run.stream import Streamer, jitter_stats
 from gcs.sim.ports import free_udp_base
 from gcs.wire import SigningKey, mavlink, new_key_file, signing_timestamp
 

@@ -14,7 +14,7 @@
   - `PreflightFailed`: the pre-flight gate found a vehicle unfit to fly (battery, unhealthy
     sensors, link loss, missing); carries `vehicle` and `problems`.
   - `GeofenceFailed`: a vehicle's geofence could not be uploaded, or read back different
-    (`gcs.flight.fence_upload`), or no origin places it; carries `vehicle`.
+    (`gcs.flight.procedure.fence_upload`), or no origin places it; carries `vehicle`.
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
   - `ExportError` (also a `FieldError`): a plan cannot be written in the asked format (a step
     the format cannot time), or an export option is invalid; `field` names which.
@@ -27,6 +27,8 @@
     - `StateConflict`: the resource is in the wrong state (still planning, already flying).
     - `InvalidRequest`: the request is well-formed but invalid, or exceeds a server limit.
     - `ServiceBusy`: the service cannot take the work now (a full queue); retry later.
+  - `VehicleLoopStopped`: the vehicle thread or process that runs flights is not running
+    (never started, stopped, or ended); `gcs.api.errors` maps it to 503.
 
 `field_path` writes a validation error's location (pydantic's) as such a dotted path.
 """
@@ -56,6 +58,7 @@ __all__ = [
     "RequestError",
     "ServiceBusy",
     "StateConflict",
+    "VehicleLoopStopped",
     "VehicleTimeout",
     "field_path",
 ]
@@ -78,7 +81,8 @@ class GcsError(Exception):
 
     def __reduce__(self) -> tuple[Any, ...]:
         """Pickled with its attributes, whatever its constructor takes: errors raised in the
-        flight's process reach the service as they were raised (`gcs.flight.vehicle_process`)."""
+        flight's process reach the service as they were raised
+        (`gcs.flight.host.vehicle_process`)."""
         return (_rebuild, (type(self), self.args, self.__dict__))
 
 
@@ -188,3 +192,7 @@ class ServiceBusy(RequestError):
     def __init__(self, field: str, reason: str, retry_after_s: float = 5.0) -> None:
         super().__init__(field, reason)
         self.retry_after_s = retry_after_s
+
+
+class VehicleLoopStopped(GcsError):
+    """The vehicle loop is not running (never started, stopped, or its thread ended)."""

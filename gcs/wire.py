@@ -14,10 +14,10 @@
 - MAVLink 2 signing: key files (`load_key`, `new_key_file`), the signing clock
   (`signing_timestamp`), `signature_of` (a packet's signature block, checked), PX4's
   unsigned exceptions (`PX4_UNSIGNED_ACCEPTED`). The GCS's stateful part (replay window,
-  persisted timestamp) is `gcs.flight.signing`; the mock uses pymavlink's own signing code.
+  persisted timestamp) is `gcs.flight.link.signing`; the mock uses pymavlink's own signing code.
 
 Everything here is a constant, a pure function or a tiny adapter, so the mock can share it
-without sharing our link code (`gcs.flight.link`).
+without sharing our link code (`gcs.flight.link.link`).
 """
 
 from __future__ import annotations
@@ -373,7 +373,7 @@ def signature_of(packet: bytes, secret: bytes) -> Signature | None:
     """The checked signature of one whole MAVLink 2 packet (None: the packet is unsigned).
 
     Only the cryptographic check: whether the timestamp is new for its stream (replay) is the
-    receiver's state (`gcs.flight.signing`). Checked before anything is remembered, so a forged
+    receiver's state (`gcs.flight.link.signing`). Checked before anything is remembered, so a forged
     packet cannot move a stream's timestamp forward.
     """
     if len(packet) < 10 + _SIGNATURE_LEN or packet[0] != mavlink.PROTOCOL_MARKER_V2 \

@@ -17,7 +17,7 @@ landing height (the workspace floor plus `landing_height`) below or beside each 
   (`first_step_clearance`, a few centimetres less).
 
 Numerics only: the ground station streams the plan and hands over to PX4's Land at the
-touchdown points (`gcs.flight.landing`).
+touchdown points (`gcs.flight.safety.landing`).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ that (it says which in `Replan.separation`). `check_goals` refuses goals a repla
 never reach, naming `goals.<id>`.
 
 Numerics only: the ground station picks the switch instant, streams the plan from it and
-flies the dropped vehicles' motions (`gcs.flight.replan`).
+flies the dropped vehicles' motions (`gcs.flight.replan.replan`).
 """
 
 from __future__ import annotations

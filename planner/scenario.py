@@ -161,7 +161,7 @@ class Scenario:
     distance); None for 'fixed' (the identity)."""
     separation_margin: float = 0.0
     """Part of `min_separation` (m) reserved for the fleet's position error in flight
-    (2 x its expected error, `gcs.flight.margin`): the vehicles must keep
+    (2 x its expected error, `gcs.flight.safety.margin`): the vehicles must keep
     min_separation - separation_margin. The planner only carries it; 0 = none stated."""
     obstacles: tuple[Obstacle, ...] = ()
     """Keep-out volumes (boxes, vertical cylinders, convex prisms; `planner.obstacles`);

@@ -16,7 +16,7 @@ export function linkLevel(v) {
   return age <= LINK_OK_S ? "ok" : (age <= LINK_WARN_S ? "warn" : "bad");
 }
 
-// Link quality, as GET /api/vehicles and the flight's telemetry report it (gcs.flight.link_quality):
+// Link quality, as GET /api/vehicles and the flight's telemetry report it (gcs.flight.link.quality):
 // {received, lost, reordered, duplicates, loss_pct, recent_loss_pct (last 5 s), latency_ms,
 // jitter_ms}. The loss of the last seconds is what the level judges (10 % and more: bad).
 /** @param {any} q @returns {string[]} [text, level, title] */

@@ -44,9 +44,9 @@ from gcs.errors import (
     RequestError,
     ServiceBusy,
     StateConflict,
+    VehicleLoopStopped,
     field_path,
 )
-from gcs.flight.vehicle_loop import VehicleLoopStopped
 from gcs.service.storage_faults import is_disk_full, storage_reason
 from planner.errors import FieldError
 

@@ -43,7 +43,7 @@ ABORT_REASON = "operator abort (control socket)"
 
 
 class Flight(Protocol):
-    """What the socket drives: `gcs.flight.flight_handle.FlightHandle`'s commands."""
+    """What the socket drives: `gcs.flight.host.flight_handle.FlightHandle`'s commands."""
 
     async def replan(self, goals: dict[str, list[float]] | None, drop: list[str],
                      drop_action: str, reason: str) -> dict[str, Any]: ...

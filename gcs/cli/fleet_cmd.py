@@ -1,6 +1,6 @@
 """`fleetplan fleet COMMAND --fleet FLEET.json [--vehicle ID]`: command vehicles between flights.
 
-COMMAND is hold, land, rtl, disarm or terminate (`gcs.flight.commands`). Opens the fleet
+COMMAND is hold, land, rtl, disarm or terminate (`gcs.fleet.commands`). Opens the fleet
 file's connections, waits for the chosen vehicles' HEARTBEAT, sends the command to all of them
 at once and prints what each confirmed. ``land`` and ``rtl`` then wait (``--wait``, default
 on) until every vehicle has landed and disarmed. ``disarm`` in the air needs ``--force``,
@@ -40,10 +40,10 @@ def run(args: argparse.Namespace) -> int:
     import time
 
     from gcs.errors import FleetFileError, GcsError, RequestError
-    from gcs.flight.commands import fleet_command
-    from gcs.flight.fleetfile import load_fleet
-    from gcs.flight.hub import LinkHub
-    from gcs.flight.link import DECODED_IDS
+    from gcs.fleet.commands import fleet_command
+    from gcs.fleet.fleetfile import load_fleet
+    from gcs.flight.link.hub import LinkHub
+    from gcs.flight.link.link import DECODED_IDS
 
     try:
         fleet = load_fleet(args.fleet)

@@ -7,7 +7,7 @@ mission (the clock stops, every vehicle holds the plan's setpoint of the same pl
 SIGUSR2 resumes it: ``kill -USR1 PID``. With ``--control PATH`` the flight also takes commands
 on a unix socket (`gcs.cli.control`): `fleetplan replan PATH ...` changes goals or drops
 vehicles in flight. The flight and the mock vehicles run on their own thread
-(`gcs.flight.vehicle_loop`), driven through a `gcs.service.replan_handle.ReplanHandle` (a
+(`gcs.flight.host.vehicle_loop`), driven through a `gcs.service.replan_handle.ReplanHandle` (a
 `FlightHandle` that also replans) as the REST service drives them; the signals are handled
 on the main thread's loop.
 """
@@ -105,9 +105,9 @@ def run(args: argparse.Namespace) -> int:
     from gcs.cli.hints import live_warning, port_error, port_in_use_hint
     from gcs.cli.plan_file import read_plan
     from gcs.errors import FleetFileError, GcsError
-    from gcs.flight.fleetfile import FleetSpec, load_fleet
-    from gcs.flight.realtime import settle_heap
-    from gcs.flight.vehicle_loop import VehicleLoop
+    from gcs.fleet.fleetfile import FleetSpec, load_fleet
+    from gcs.flight.host.vehicle_loop import VehicleLoop
+    from gcs.flight.run.realtime import settle_heap
     from gcs.service.replan_handle import ReplanHandle
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
@@ -225,7 +225,8 @@ def run(args: argparse.Namespace) -> int:
         def on_pause(resume: bool) -> None:
             aborts.append(asyncio.ensure_future(pause_or_resume(resume)))
 
-        settle_heap()  # this process's collections then skip the libraries (gcs.flight.realtime)
+        # this process's collections then skip the libraries (gcs.flight.run.realtime)
+        settle_heap()
         task = handle.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)
         loop.add_signal_handler(signal.SIGTERM, on_interrupt, "SIGTERM")

@@ -42,7 +42,7 @@ def header(snap: dict[str, Any]) -> str:
 
 def _link_quality(q: dict[str, Any]) -> tuple[Text, str]:
     """The loss over the last seconds (over the whole flight until then; red from 10 %) and
-    the latency (`gcs.flight.link_quality`)."""
+    the latency (`gcs.flight.link.quality`)."""
     loss = q.get("recent_loss_pct")
     loss = q.get("loss_pct") if loss is None else loss
     style = "" if loss is None or loss < 10 else "bold red"

@@ -6,8 +6,8 @@ from __future__ import annotations
 import errno
 from typing import Any
 
-from gcs.flight.phases import EventKind
-from gcs.flight.signing import REPEATED_TIMESTAMPS
+from gcs.flight.link.signing import REPEATED_TIMESTAMPS
+from gcs.phases import EventKind
 
 __all__ = ["live_warning", "port_error", "port_in_use_hint"]
 

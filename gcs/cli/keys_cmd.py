@@ -2,7 +2,7 @@
 `fleetplan keys provision --fleet FLEET.json`: put the fleet file's keys on its vehicles.
 
 Name a key in the fleet file (``"signing_key": "FILE"``, fleet-wide or per vehicle), then
-provision it over a link you trust while the vehicles are disarmed (`gcs.flight.provision`;
+provision it over a link you trust while the vehicles are disarmed (`gcs.fleet.provision`;
 docs: Security, Provisioning). The key itself is never printed; an existing file is never
 overwritten.
 """
@@ -59,8 +59,8 @@ def _provision(args: argparse.Namespace) -> int:
     import sys
 
     from gcs.errors import FleetFileError, GcsError
-    from gcs.flight.fleetfile import load_fleet
-    from gcs.flight.provision import provision_fleet
+    from gcs.fleet.fleetfile import load_fleet
+    from gcs.fleet.provision import provision_fleet
     from gcs.wire import KeyFileError, load_key
 
     if not (math.isfinite(args.timeout) and 0 < args.timeout <= 60):

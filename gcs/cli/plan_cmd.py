@@ -68,7 +68,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--fleet", type=Path, default=None,
         help="plan for this fleet: min_separation R + 2 x its position_error, stated in the "
-             "plan as separation_margin (gcs.flight.margin)",
+             "plan as separation_margin (gcs.flight.safety.margin)",
     )
 
 
@@ -243,8 +243,8 @@ def _for_fleet(data: Any, fleet_path: Path) -> Any:
     """The scenario planned for a fleet's position error (ValueError for a bad fleet file or
     one that states no position_error)."""
     from gcs.errors import FleetFileError
-    from gcs.flight.fleetfile import load_fleet
-    from gcs.flight.margin import scenario_for_fleet
+    from gcs.fleet.fleetfile import load_fleet
+    from gcs.flight.safety.margin import scenario_for_fleet
 
     try:
         fleet = load_fleet(fleet_path)

@@ -87,7 +87,7 @@ def _startup_problem(settings: Settings) -> str | None:
     import socket
 
     from gcs.errors import FleetFileError
-    from gcs.flight.fleetfile import load_fleet
+    from gcs.fleet.fleetfile import load_fleet
     from gcs.sim.ports import mock_port_offsets
 
     fleet_file = settings.fleet_file

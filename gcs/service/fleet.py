@@ -5,10 +5,10 @@ sent to the vehicles between flights.
 running in-process (`gcs.sim.MockFleet`), or none. Between flights it keeps a listen-only
 MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live link state;
 a flight closes the monitor and takes the connections (`gcs.service.vehicle_host`). It lives
-in the vehicle process, on its vehicle loop (`gcs.flight.vehicle_process`). Mock vehicles
+in the vehicle process, on its vehicle loop (`gcs.flight.host.vehicle_process`). Mock vehicles
 are set down under a plan's starts before each flight (as ``fleetplan fly --mock`` does);
 vehicles the plan does not use are parked beside its workspace. `command` sends a fleet
-command (`gcs.flight.commands`: hold, land, rtl, disarm, terminate) over the monitor's
+command (`gcs.fleet.commands`: hold, land, rtl, disarm, terminate) over the monitor's
 connections, so a fleet left hovering can always be landed.
 """
 
@@ -23,12 +23,12 @@ import numpy as np
 
 from gcs import frames
 from gcs.errors import FleetFileError, GcsError, InvalidRequest, StateConflict
-from gcs.flight.commands import fleet_command
-from gcs.flight.fleetfile import FleetSpec, FlightOptions, load_fleet
-from gcs.flight.health import PreflightThresholds, health_report, preflight_problems
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import DECODED_IDS, VehicleLink
-from gcs.flight.margin import check_margin
+from gcs.fleet.commands import fleet_command
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions, load_fleet
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import DECODED_IDS, VehicleLink
+from gcs.flight.safety.health import PreflightThresholds, health_report, preflight_problems
+from gcs.flight.safety.margin import check_margin
 from gcs.service.settings import Settings
 from gcs.sim import MockConfig, MockFleet, homes_under
 from gcs.sim.ports import mock_fleet_ports

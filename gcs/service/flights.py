@@ -3,8 +3,8 @@ flight from its start to its stored record.
 
 `FleetService` drives the configured fleet and its one active flight: the fleet is one set of
 aircraft. Everything that talks to vehicles runs in a process of its own, the vehicle process
-(`gcs.flight.vehicle_process.VehicleProcess`): the fleet (mocks, monitor links, fleet
-commands) and each flight's `gcs.flight.executor.FlightExecutor`, hosted there by
+(`gcs.flight.host.vehicle_process.VehicleProcess`): the fleet (mocks, monitor links, fleet
+commands) and each flight's `gcs.flight.run.executor.FlightExecutor`, hosted there by
 `gcs.service.vehicle_host.FleetHost` and reached through its methods (start, pause, resume,
 replan, abort, snapshots, events, the record). So no request handler, export, event stream,
 planning job or store write of the service can delay a setpoint tick, not even by holding the
@@ -13,8 +13,8 @@ interpreter's lock. The flight's state lives here in a `LiveExecution`
 is journaled to the store while it flies (`gcs.service.journal`).
 
 Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions), which first
-applies the pre-flight gate (`gcs.flight.health`) and the fleet's separation margin
-(`gcs.flight.margin`); `abort` sends every vehicle of the active flight to land (or hold) at
+applies the pre-flight gate (`gcs.flight.safety.health`) and the fleet's separation margin
+(`gcs.flight.safety.margin`); `abort` sends every vehicle of the active flight to land (or hold) at
 once; `pause` / `resume` stop and restart its flight clock; `replan` changes goals or drops
 vehicles in flight (`FlightExecutor.replan`). Between flights `command` sends a fleet
 command over the monitor's connections.
@@ -32,12 +32,11 @@ from typing import Any
 
 import orjson
 
-from gcs.errors import GcsError, MissionAborted, StateConflict
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.phases import EventKind
-from gcs.flight.precedence import abort_in_force, aborting_refusal
-from gcs.flight.vehicle_loop import VehicleLoopStopped
-from gcs.flight.vehicle_process import VehicleProcess
+from gcs.errors import GcsError, MissionAborted, StateConflict, VehicleLoopStopped
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.host.vehicle_process import VehicleProcess
+from gcs.flight.run.precedence import abort_in_force, aborting_refusal
+from gcs.phases import EventKind
 from gcs.service.fleet import FleetKind, fleet_kind
 from gcs.service.flown_trajectory import replanned_in
 from gcs.service.journal import ExecutionJournal, store_failure, write_final
@@ -183,7 +182,7 @@ class FleetService:
 
     async def command(self, command: str, vehicles: list[str] | None = None, *,
                       force: bool = False, confirm: bool = False) -> dict[str, Any]:
-        """A fleet command (`gcs.flight.commands`) to `vehicles` (default all) between flights.
+        """A fleet command (`gcs.fleet.commands`) to `vehicles` (default all) between flights.
 
         StateConflict while a flight is under way (abort or pause it instead), with no fleet,
         or when the fleet's connections are not open; InvalidRequest / StateConflict from
@@ -223,7 +222,7 @@ class FleetService:
         stored_status: str = "finished",
     ) -> LiveExecution:
         """Every vehicle of the flight to `action` (land or hold) now; StateConflict if it is not
-        flying, or when `action` loses to the abort under way (`gcs.flight.precedence`: land
+        flying, or when `action` loses to the abort under way (`gcs.flight.run.precedence`: land
         overrides hold). Returns once the flight accepted it; the flight ends (status
         aborted) when the vehicles are safe."""
         flight = self._flying(execution_id, stored_status)

@@ -28,7 +28,7 @@ __all__ = ["Segment", "flown_trajectory", "replanned_in"]
 
 def replanned_in(record: dict[str, Any]) -> list[Segment]:
     """The switched replans' plans in a flight record (its ``replans`` that carry a plan,
-    `gcs.flight.record`), in order."""
+    `gcs.flight.run.record`), in order."""
     return [Segment(float(r["switch_time"]), Plan.from_dict(r["plan"]), int(r["id"]))
             for r in record.get("replans") or () if r.get("plan")]
 

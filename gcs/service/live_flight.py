@@ -31,7 +31,7 @@ class LiveExecution:
     summary: dict[str, Any] | None = None
     error: str | None = None
     aborts: list[str] = field(default_factory=list)
-    """The abort actions accepted, in order (`gcs.flight.precedence`: the last is in
+    """The abort actions accepted, in order (`gcs.flight.run.precedence`: the last is in
     force); those accepted before the flight existed are passed on to it in this order."""
     finished_at: datetime | None = None
     """When the flight ended (its final state is set by then)."""

@@ -6,10 +6,10 @@ whole each time would cost the flight's process a pickle of the whole flight, wi
 interpreter lock held. So the service keeps a `RecordMirror`: about once a second it asks for
 what was added since its cursor (`record_delta`, run where the recorder lives: list slices)
 and appends it to its own copy. The entries are plain floats and ints (setpoints are made of
-Python floats, `gcs.flight.setpoints`), which pickle fast: a second of 100 vehicles at 50 Hz
+Python floats, `gcs.flight.link.setpoints`), which pickle fast: a second of 100 vehicles at 50 Hz
 takes about 2-3 ms to pickle (numpy scalars took ten times longer), so the sender thread
 holds the vehicle process's interpreter lock that long once a second. The document it gives
-is the flight record's (`FlightRecorder.to_dict`'s shape, `gcs.flight.record.COLUMNS`),
+is the flight record's (`FlightRecorder.to_dict`'s shape, `gcs.flight.run.record.COLUMNS`),
 marked ``"partial": true``.
 """
 
@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from gcs.flight.record import COLUMNS, RECORD_FORMAT
+from gcs.flight.run.record import COLUMNS, RECORD_FORMAT
 
 if TYPE_CHECKING:
-    from gcs.flight.record import FlightRecorder
+    from gcs.flight.run.record import FlightRecorder
 
 __all__ = ["RecordMirror", "record_delta"]
 

@@ -1,7 +1,7 @@
 """The service's side of one flight flown in the vehicle process: pause, resume, replan,
 abort, its latest snapshot, the record so far and, once it ended, its record.
 
-The flight itself (`gcs.flight.flight_handle.FlightHandle`) runs in the vehicle process and
+The flight itself (`gcs.flight.host.flight_handle.FlightHandle`) runs in the vehicle process and
 is reached through `gcs.service.vehicle_host.FleetHost`'s methods; its snapshots arrive as
 notices (`posted`), and its record so far is mirrored in pieces (`gcs.service.record_mirror`).
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
-from gcs.flight.vehicle_process import VehicleProcess
+from gcs.flight.host.vehicle_process import VehicleProcess
 from gcs.service.record_mirror import RecordMirror
 from gcs.service.replan_handle import Segment
 
@@ -62,7 +62,7 @@ class RemoteFlight:
         return segments
 
     async def request_abort(self, action: str, reason: str) -> None:
-        """Accept an abort by the commands' precedence (`gcs.flight.precedence`), or refuse
+        """Accept an abort by the commands' precedence (`gcs.flight.run.precedence`), or refuse
         it (StateConflict); returns before the vehicles are secured."""
         await self._process.call("request_abort", self._execution, action, reason)
 

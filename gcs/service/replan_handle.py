@@ -1,6 +1,6 @@
 """A flight handle that also tells which plans the flight flies.
 
-`ReplanHandle` is `gcs.flight.flight_handle.FlightHandle` (used the same way, from another
+`ReplanHandle` is `gcs.flight.host.flight_handle.FlightHandle` (used the same way, from another
 thread's loop; its `replan` starts `FlightExecutor.replan`) with one more request run on the
 vehicle loop: `replanned` gives the switched replans' plans with their switch times (what
 `gcs.service.flown_trajectory` samples), read from the executor's plans flown
@@ -14,10 +14,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.flight_handle import SNAPSHOT_HZ, FlightHandle
-from gcs.flight.phases import ReplanStatus
-from gcs.flight.vehicle_loop import VehicleLoop
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.host.flight_handle import SNAPSHOT_HZ, FlightHandle
+from gcs.flight.host.vehicle_loop import VehicleLoop
+from gcs.phases import ReplanStatus
 from planner import Plan
 
 __all__ = ["ReplanHandle", "Segment"]

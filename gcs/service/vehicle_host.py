@@ -1,4 +1,4 @@
-"""The service's vehicle side, hosted in the vehicle process (`gcs.flight.vehicle_process`).
+"""The service's vehicle side, hosted in the vehicle process (`gcs.flight.host.vehicle_process`).
 
 `FleetHost` owns the configured fleet (`gcs.service.fleet.Fleet`: the fleet file's vehicles
 or the mocks, the monitor links, the fleet commands) and the one flight under way (a
@@ -22,9 +22,9 @@ import logging
 from typing import Any
 
 from gcs.errors import StateConflict
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.realtime import settle_heap
-from gcs.flight.vehicle_process import HostContext
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.host.vehicle_process import HostContext
+from gcs.flight.run.realtime import settle_heap
 from gcs.service.fleet import Fleet
 from gcs.service.record_mirror import record_delta
 from gcs.service.replan_handle import ReplanHandle, Segment

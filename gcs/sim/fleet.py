@@ -15,7 +15,7 @@ Python API::
 
     async with MockFleet(4, homes=[[0, 0, 0], [2, 0, 0], ...], gcs_base_port=24540,
                          listen_base_port=24580, settle_time=1.0) as mock:
-        fleet_file = mock.fleet_dict()        # what `gcs.flight.executor` needs to fly them
+        fleet_file = mock.fleet_dict()        # what `gcs.flight.run.executor` needs to fly them
         mock.vehicles[2].faults.heartbeats = False
         print(mock.vehicles[0].position_world)
 
@@ -139,7 +139,7 @@ class MockFleet:
         return f"udpin:{self.host}:{self.vehicles[index].gcs_port}"
 
     def fleet_dict(self, ids: Sequence[str] | None = None) -> dict[str, Any]:
-        """A fleet file (`gcs.flight.fleetfile` format) for these vehicles: world-frame homes,
+        """A fleet file (`gcs.fleet.fleetfile` format) for these vehicles: world-frame homes,
         and each vehicle's source address as its `peer`."""
         ids = list(ids) if ids is not None else [f"uav{i + 1}" for i in range(len(self.vehicles))]
         return {"vehicles": [

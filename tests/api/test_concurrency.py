@@ -11,7 +11,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from gcs.flight.phases import EventKind
+from gcs.phases import EventKind
 from tests.api.support import SHORT_CROSSING, ServiceProcess, example, free_udp_base
 
 

@@ -11,7 +11,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.api.schemas import planner_schemas, shape_errors
-from gcs.flight.phases import EventKind, vocabulary
+from gcs.phases import EventKind, vocabulary
 from gcs.service.settings import Settings
 from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus, status_sets
 from planner import Plan, Scenario

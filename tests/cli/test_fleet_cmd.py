@@ -13,8 +13,8 @@ from typing import Any
 
 import pytest
 
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs.flight import phases
+from gcs import phases
 from tests.flight.support import free_port_block, line_scenario, smooth_plan
 
 pytestmark = [pytest.mark.timeout(150),

@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 import yaml  # type: ignore[import-untyped]
 
-from gcs.flight.phases import FlightPhase, VehiclePhase
+from gcs.phases import FlightPhase, VehiclePhase
 from gcs.service.statuses import ExecutionStatus, MissionStatus
 from tests.paths import ROOT
 
@@ -171,7 +171,7 @@ def test_no_page_names_an_issue_number() -> None:
 
 def test_concepts_page_names_every_status_and_phase() -> None:
     """The glossary lists the defined statuses and phases (gcs/service/statuses.py,
-    gcs/flight/phases.py); a new one must be documented."""
+    gcs/phases.py); a new one must be documented."""
     text = (ROOT / "docs" / "concepts.md").read_text()
     for value in [*MissionStatus, *ExecutionStatus, *FlightPhase, *VehiclePhase]:
         assert f"`{value}`" in text, value

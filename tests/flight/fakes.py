@@ -15,9 +15,9 @@ from typing import Any
 import numpy as np
 
 from gcs import px4
-from gcs.flight.fleetfile import VehicleSpec
-from gcs.flight.telemetry import Telemetry
-from gcs.flight.vehicle import VehicleStatus
+from gcs.fleet.fleetfile import VehicleSpec
+from gcs.flight.link.telemetry import Telemetry
+from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.wire import mavlink
 
 __all__ = ["FakeLink", "fake_link", "fake_vehicle"]

@@ -1,4 +1,4 @@
-"""A small host for `gcs.flight.vehicle_process` tests: it answers, raises, notifies, and
+"""A small host for `gcs.flight.host.vehicle_process` tests: it answers, raises, notifies, and
 writes a file when it is closed (what the service's host does there is land a flight)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 
 from gcs.errors import StateConflict
-from gcs.flight.vehicle_process import HostContext
+from gcs.flight.host.vehicle_process import HostContext
 
 
 class EchoHost:

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs.flight.fleetfile import FlightOptions
+from gcs.fleet.fleetfile import FlightOptions
 from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
 from planner.first_qp import unit_profile
 from planner.flatness import body_rates, jerk_from_accelerations, thrust

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import new_key_file
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan

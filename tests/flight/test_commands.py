@@ -1,4 +1,4 @@
-"""gcs.flight.commands: fleet commands outside a flight, on mock vehicles left hovering by an
+"""gcs.fleet.commands: fleet commands outside a flight, on mock vehicles left hovering by an
 abort with hold (nothing in a flight is left to land them)."""
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ import pytest
 
 from gcs import px4
 from gcs.errors import FlightAborted, InvalidRequest, StateConflict
-from gcs.flight.commands import fleet_command
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import VehicleLink
+from gcs.fleet.commands import fleet_command
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, QUICK, line_scenario, mock_ports, smooth_plan
 

@@ -8,13 +8,13 @@ import time
 
 import pytest
 
-from gcs.flight import vehicle
-from gcs.flight.executor import FlightExecutor, _all
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.phases import EventKind, VehiclePhase
-from gcs.flight.record import FlightRecorder, summarise
-from gcs.flight.station import StationStalls
-from gcs.flight.stream import Streamer
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure import vehicle
+from gcs.flight.run.executor import FlightExecutor, _all
+from gcs.flight.run.record import FlightRecorder, summarise
+from gcs.flight.run.stream import Streamer
+from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_vehicle
 from tests.flight.support import line_scenario, smooth_plan
 from tests.flight.test_station_stalls import _monitor

@@ -1,4 +1,5 @@
-"""gcs.flight.executor: whole flights on mock vehicles over UDP loopback, and the fault cases."""
+"""gcs.flight.run.executor: whole flights on mock vehicles over UDP loopback, and the fault
+cases."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ import pytest
 import planner
 from gcs import px4
 from gcs.errors import ArmingRefused, FlightAborted
-from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.phases import EventKind
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.run.executor import TRACKING_TOLERANCE_M, FlightExecutor
+from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 from tests.paths import EXAMPLES

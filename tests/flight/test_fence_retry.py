@@ -10,12 +10,13 @@ from typing import Any
 import pytest
 
 from gcs.errors import GeofenceFailed
-from gcs.flight import boarding, vehicle
-from gcs.flight.boarding import fence_fleet, fence_vehicle
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.phases import EventKind
-from gcs.flight.station import StationStalls
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure import vehicle
+from gcs.flight.run import boarding
+from gcs.flight.run.boarding import fence_fleet, fence_vehicle
 from gcs.geofence import build_fence
+from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from gcs.sim.fleet import DEFAULT_WORLD_ORIGIN
 from gcs.wire import mavlink

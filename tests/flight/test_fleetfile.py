@@ -1,4 +1,4 @@
-"""gcs.flight.fleetfile: fleet file validation names the offending field."""
+"""gcs.fleet.fleetfile: fleet file validation names the offending field."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from gcs.errors import FleetFileError
-from gcs.flight.fleetfile import FleetFileWarning, FleetSpec, FlightOptions
+from gcs.fleet.fleetfile import FleetFileWarning, FleetSpec, FlightOptions
 
 
 def _fleet(**vehicle_changes):

@@ -8,14 +8,14 @@ from typing import Any
 
 import pytest
 
-from gcs.flight.clock import FlightClock
-from gcs.flight.descent import DescentConflict, descent_conflicts
-from gcs.flight.events import EventFanout
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.phases import EventKind, VehiclePhase
-from gcs.flight.policy import FaultPolicy
-from gcs.flight.record import FlightRecorder
-from gcs.flight.snapshot import flight_snapshot
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.run.clock import FlightClock
+from gcs.flight.run.events import EventFanout
+from gcs.flight.run.record import FlightRecorder
+from gcs.flight.run.snapshot import flight_snapshot
+from gcs.flight.safety.descent import DescentConflict, descent_conflicts
+from gcs.flight.safety.policy import FaultPolicy
+from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_vehicle
 from tests.flight.support import short_line, smooth_plan
 
@@ -190,8 +190,8 @@ def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() ->
     """Someone else talking as a vehicle is told live (once per DROPS_NOTE_S per vehicle,
     with the counts and their rate since the last time, and the latest source), not only in
     the record."""
-    from gcs.flight.monitor import DROPS_NOTE_S, FleetMonitor
-    from gcs.flight.station import StationStalls
+    from gcs.flight.link.station import StationStalls
+    from gcs.flight.safety.monitor import DROPS_NOTE_S, FleetMonitor
     from tests.flight.fakes import fake_link
     from tests.flight.support import line_scenario, smooth_plan
 
@@ -225,8 +225,8 @@ def test_replays_alone_are_told_as_the_vehicles_own_repeated_timestamps() -> Non
     replays come from the pinned peer's own address and are told as that, and the CLI does
     not blame another process on the vehicle's port; any other drop keeps that warning."""
     from gcs.cli.hints import live_warning
-    from gcs.flight.monitor import drops_text
-    from gcs.flight.signing import REPEATED_TIMESTAMPS
+    from gcs.flight.link.signing import REPEATED_TIMESTAMPS
+    from gcs.flight.safety.monitor import drops_text
 
     peer = (("127.0.0.1", 14581), 1)
     replays = drops_text({"replayed": 1, "unsigned": 0}, peer, 24.6)

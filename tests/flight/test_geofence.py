@@ -11,14 +11,14 @@ import pytest
 
 from gcs import frames, px4
 from gcs.errors import GeofenceFailed
-from gcs.flight import executor as executor_module
-from gcs.flight import vehicle as vehicle_module
-from gcs.flight.boarding import fence_fleet, fence_vehicle
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.phases import EventKind
-from gcs.flight.station import StationStalls
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure import vehicle as vehicle_module
+from gcs.flight.run import executor as executor_module
+from gcs.flight.run.boarding import fence_fleet, fence_vehicle
+from gcs.flight.run.executor import FlightExecutor
 from gcs.geofence import FenceItem, build_fence, fence_items, item_mismatch
+from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from gcs.sim.fleet import DEFAULT_WORLD_ORIGIN
 from gcs.wire import mavlink

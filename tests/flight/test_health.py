@@ -1,5 +1,6 @@
-"""Vehicle health (gcs.flight.health, the link's SYS_STATUS / BATTERY_STATUS / GPS_RAW_INT and
-sequence-number accounting) and the pre-flight gate, on messages and on mock vehicles."""
+"""Vehicle health (gcs.flight.safety.health, the link's SYS_STATUS / BATTERY_STATUS /
+GPS_RAW_INT and sequence-number accounting) and the pre-flight gate, on messages and on mock
+vehicles."""
 
 from __future__ import annotations
 
@@ -8,12 +9,12 @@ import asyncio
 import pytest
 
 from gcs.errors import PreflightFailed
-from gcs.flight.endpoints import Endpoint
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.health import health_report, preflight_problems
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import VehicleLink
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.link.endpoints import Endpoint
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.safety.health import health_report, preflight_problems
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan

@@ -18,12 +18,12 @@ from typing import Any
 import pytest
 
 from gcs.errors import FlightAborted, VehicleTimeout
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.hub import LinkHub
-from gcs.flight.margin import scenario_for_fleet
-from gcs.flight.phases import EventKind
-from gcs.flight.vehicle import connect
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.procedure.vehicle import connect
+from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.safety.margin import scenario_for_fleet
+from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink, new_key_file, pack
 from tests.flight.attacker import drain

@@ -7,10 +7,10 @@ import asyncio
 import time
 from typing import Any
 
-from gcs.flight import vehicle
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.phases import EventKind, VehiclePhase
-from gcs.flight.station import StationStalls
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure import vehicle
+from gcs.phases import EventKind, VehiclePhase
 from gcs.wire import mavlink
 from tests.flight.fakes import fake_link, fake_vehicle
 

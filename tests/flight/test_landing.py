@@ -1,4 +1,4 @@
-"""Aborts with land fly a verified landing plan (`gcs.flight.landing`) on the ideal mock."""
+"""Aborts with land fly a verified landing plan (`gcs.flight.safety.landing`) on the ideal mock."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import asyncio
 import numpy as np
 import pytest
 
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec
-from gcs.flight.phases import EventKind
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.run.executor import FlightExecutor
+from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, smooth_plan
 

@@ -1,4 +1,4 @@
-"""gcs.flight.landing without sockets: which vehicles a landing plan steers, its switch, and
+"""gcs.flight.safety.landing without sockets: which vehicles a landing plan steers, its switch, and
 the fallbacks to PX4's Land (a vehicle out of reach, no plan in time)."""
 
 from __future__ import annotations
@@ -9,14 +9,14 @@ import time
 import numpy as np
 import pytest
 
-import gcs.flight.landing as landing_module
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.landing import PlannedLanding
-from gcs.flight.phases import EventKind, VehiclePhase
-from gcs.flight.setpoints import SetpointTrack, hold_track, plan_tracks
-from gcs.flight.station import StationStalls
-from gcs.flight.stream import Streamer
-from gcs.flight.vehicle import VehicleStatus
+import gcs.flight.safety.landing as landing_module
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
+from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure.vehicle import VehicleStatus
+from gcs.flight.run.stream import Streamer
+from gcs.flight.safety.landing import PlannedLanding
+from gcs.phases import EventKind, VehiclePhase
 from planner.landing import LandingError
 from planner.scenario import Scenario
 from tests.flight.fakes import fake_vehicle

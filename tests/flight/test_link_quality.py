@@ -1,4 +1,4 @@
-"""gcs.flight.link_quality: loss from sequence numbers with reordering and duplicates counted
+"""gcs.flight.link.quality: loss from sequence numbers with reordering and duplicates counted
 apart (wrapping at 255), latency from TIMESYNC, jitter from the vehicle's timestamps, and the
 degradation judged with hysteresis; a reboot told from the vehicle's clock."""
 
@@ -9,10 +9,10 @@ import random
 import pytest
 
 from gcs import px4
-from gcs.flight.endpoints import Endpoint
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.link import VehicleLink
-from gcs.flight.link_quality import (
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.link.endpoints import Endpoint
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.quality import (
     RECOVER_S,
     RESYNC_S,
     LinkQuality,
@@ -20,8 +20,8 @@ from gcs.flight.link_quality import (
     SequenceCounter,
     Timing,
 )
-from gcs.flight.monitor import vehicle_fault
-from gcs.flight.telemetry import Telemetry
+from gcs.flight.link.telemetry import Telemetry
+from gcs.flight.safety.monitor import vehicle_fault
 from gcs.wire import mavlink
 
 

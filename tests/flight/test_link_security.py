@@ -21,12 +21,12 @@ import pytest
 
 from gcs import px4
 from gcs.errors import LinkError, VehicleTimeout
-from gcs.flight import signing as signing_module
-from gcs.flight.fleetfile import FleetSpec, VehicleSpec
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import VehicleLink
-from gcs.flight.signing import RESERVE, LinkSigning, timestamp_path
-from gcs.flight.vehicle import connect
+from gcs.fleet.fleetfile import FleetSpec, VehicleSpec
+from gcs.flight.link import signing as signing_module
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.signing import RESERVE, LinkSigning, timestamp_path
+from gcs.flight.procedure.vehicle import connect
 from gcs.sim import MockFleet
 from gcs.wire import (
     GCS_SYSTEM_ID,
@@ -260,7 +260,7 @@ def test_non_finite_position_is_never_stored_and_is_timestamped() -> None:
 
 
 def _setpoint() -> Any:
-    from gcs.flight.setpoints import Setpoint
+    from gcs.flight.link.setpoints import Setpoint
     return Setpoint((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
 
 
@@ -408,7 +408,7 @@ def test_fleet_file_names_the_key_and_the_peer_and_never_writes_the_key(
     import json
 
     from gcs.errors import FleetFileError
-    from gcs.flight.fleetfile import FleetSpec, load_fleet
+    from gcs.fleet.fleetfile import FleetSpec, load_fleet
 
     key = new_key_file(tmp_path / "fleet.key")
     other = new_key_file(tmp_path / "uav2.key")

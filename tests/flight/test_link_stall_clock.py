@@ -18,9 +18,9 @@ import pytest
 
 from gcs import px4
 from gcs.errors import CommandError
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import VehicleLink
-from gcs.flight.station import StationStalls
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.station import StationStalls
 from gcs.wire import GCS_SYSTEM_ID, mavlink, parse_datagram
 from tests.flight.support import free_port_block
 

@@ -1,4 +1,4 @@
-"""gcs.flight.margin and the margin in flight: a fleet's position_error, plans that keep
+"""gcs.flight.safety.margin and the margin in flight: a fleet's position_error, plans that keep
 2 x it, fly refusing (or warning about) a plan short of it, and the summary's verdicts."""
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from gcs.errors import FleetFileError, PlanRejected
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.margin import check_margin, scenario_for_fleet, separation_alarm_at
-from gcs.flight.monitor import FleetMonitor
-from gcs.flight.phases import VehiclePhase
-from gcs.flight.record import goal_tolerance
-from gcs.flight.station import StationStalls
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.link.station import StationStalls
+from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.run.record import goal_tolerance
+from gcs.flight.safety.margin import check_margin, scenario_for_fleet, separation_alarm_at
+from gcs.flight.safety.monitor import FleetMonitor
+from gcs.phases import VehiclePhase
 from gcs.sim import MockFleet, homes_under
 from planner import Scenario
 from tests.flight.fakes import fake_vehicle

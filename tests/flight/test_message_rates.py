@@ -8,8 +8,8 @@ import asyncio
 import numpy as np
 import pytest
 
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
@@ -53,8 +53,8 @@ def test_requested_position_rate_is_what_arrives() -> None:
 def test_what_is_turned_off_is_never_what_the_gcs_decodes() -> None:
     """`message_rates: request` turns UNREAD_STREAMS off; none of them may be a message the
     link reads (DECODED_IDS), or the GCS would switch off its own telemetry."""
-    from gcs.flight.link import DECODED_IDS
-    from gcs.flight.vehicle import UNREAD_STREAMS, message_rates
+    from gcs.flight.link.link import DECODED_IDS
+    from gcs.flight.procedure.vehicle import UNREAD_STREAMS, message_rates
 
     # TIMESYNC's stream is the vehicle's own requests; the answers the link reads are not
     # streamed, so turning the stream off keeps them

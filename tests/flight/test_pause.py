@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from gcs.errors import FlightAborted, StateConflict
-from gcs.flight.executor import TRACKING_TOLERANCE_M, FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.phases import EventKind
-from gcs.flight.record import plan_times
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.run.executor import TRACKING_TOLERANCE_M, FlightExecutor
+from gcs.flight.run.record import plan_times
+from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
 

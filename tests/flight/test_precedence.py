@@ -1,4 +1,4 @@
-"""gcs.flight.precedence: which of two conflicting commands wins, in the table and in a flight
+"""gcs.flight.run.precedence: which of two conflicting commands wins, in the table and in a flight
 on mock vehicles (a land overrides a hold under way; a hold, pause or replan is refused while
 the fleet lands; every accepted command leaves an event, every refused one too)."""
 
@@ -10,8 +10,8 @@ import pytest
 
 from gcs import px4
 from gcs.errors import FlightAborted, StateConflict
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.precedence import abort_in_force
+from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.run.precedence import abort_in_force
 from gcs.sim import MockFleet
 from tests.flight.support import short_line, smooth_plan
 from tests.flight.test_executor import _fly

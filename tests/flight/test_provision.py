@@ -1,4 +1,4 @@
-"""Provisioning the fleet file's keys (`gcs.flight.provision`, `fleetplan keys provision`)
+"""Provisioning the fleet file's keys (`gcs.fleet.provision`, `fleetplan keys provision`)
 on mock vehicles that follow PX4's signing rules (HEARTBEAT at 5 Hz, so each step hears
 the vehicle within 0.2 s): unsigned SETUP_SIGNING only while a vehicle
 has no key, a change signed with the old key, nothing while armed, and the traffic checked
@@ -15,8 +15,8 @@ from typing import Any
 
 import pytest
 
-from gcs.flight.fleetfile import FleetSpec
-from gcs.flight.provision import provision_fleet
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.fleet.provision import provision_fleet
 from gcs.sim import MockFleet
 from gcs.wire import SigningKey, load_key, new_key_file
 from tests.flight.support import FAST_MOCK, mock_ports

@@ -13,13 +13,13 @@ import pytest
 
 from gcs import px4
 from gcs.errors import FlightAborted
-from gcs.flight import vehicle as gcs_vehicle
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import VehicleLink
-from gcs.flight.margin import scenario_for_fleet
-from gcs.flight.phases import EventKind
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.procedure import vehicle as gcs_vehicle
+from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.safety.margin import scenario_for_fleet
+from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink
 from planner import plan as make_plan

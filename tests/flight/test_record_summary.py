@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.record import FlightRecorder, summarise
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.run.record import FlightRecorder, summarise
 from planner.verify import SEPARATION_TOLERANCE
 from tests.flight.support import line_scenario, smooth_plan
 

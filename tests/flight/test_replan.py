@@ -1,4 +1,4 @@
-"""Replanning in flight (`gcs.flight.replan`) on the ideal mock: new goals and a dropped
+"""Replanning in flight (`gcs.flight.replan.replan`) on the ideal mock: new goals and a dropped
 vehicle switched in at a stream tick, a replan too late to fly, the refusals, and policy
 ``replan`` around a vehicle whose link is cut."""
 
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from gcs.errors import StateConflict
-from gcs.flight import replan as replan_module
-from gcs.flight.executor import FlightExecutor
-from gcs.flight.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.phases import EventKind, ReplanStatus, VehiclePhase
+from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.replan import replan as replan_module
+from gcs.flight.run.executor import FlightExecutor
+from gcs.phases import EventKind, ReplanStatus, VehiclePhase
 from gcs.sim import MockFleet, homes_under
 from planner.errors import FieldError
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
@@ -370,8 +370,8 @@ def test_a_replan_through_the_flight_handle_from_another_loop() -> None:
     """`FlightHandle.replan` (how the CLI and the vehicle process reach a flight on its
     vehicle loop): the replan object comes back, refusals cross as raised, and the posted
     snapshot shows the replan."""
-    from gcs.flight.flight_handle import FlightHandle
-    from gcs.flight.vehicle_loop import VehicleLoop
+    from gcs.flight.host.flight_handle import FlightHandle
+    from gcs.flight.host.vehicle_loop import VehicleLoop
 
     plan = smooth_plan(short_line(2, steps=25))
 

@@ -1,4 +1,5 @@
-"""gcs.flight.setpoints: plan sampling, message fields, what a mock vehicle actually receives."""
+"""gcs.flight.link.setpoints: plan sampling, message fields, what a mock vehicle actually
+receives."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ import numpy as np
 import pytest
 
 from gcs import frames
-from gcs.flight.hub import LinkHub
-from gcs.flight.setpoints import plan_tracks, transfer_track
-from gcs.flight.stream import Streamer
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.setpoints import plan_tracks, transfer_track
+from gcs.flight.run.stream import Streamer
 from gcs.sim import MockFleet
 from gcs.wire import MAV_FRAME_LOCAL_NED, TYPE_MASK_POS_VEL_ACC_YAW, time_boot_ms
 from tests.flight.support import mock_ports

@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from gcs.flight.endpoints import UdpEndpoint
-from gcs.flight.link import DECODED_IDS, VehicleLink
-from gcs.flight.signing import LinkSigning
+from gcs.flight.link.endpoints import UdpEndpoint
+from gcs.flight.link.link import DECODED_IDS, VehicleLink
+from gcs.flight.link.signing import LinkSigning
 from gcs.wire import mavlink, new_key_file, pack, peek_packet, signing_timestamp
 
 VEHICLE = ("127.0.0.1", 14580)
@@ -186,7 +186,7 @@ def test_refused_packets_are_never_decoded(tmp_path: Path, monkeypatch: Any) -> 
     address, another component, or unsigned while a key is set is judged on its header: the
     security counters move exactly as a full decode would make them, and nothing is decoded;
     the vehicle's own signed traffic is still decoded and admitted."""
-    import gcs.flight.endpoints as endpoints
+    import gcs.flight.link.endpoints as endpoints
 
     key = new_key_file(tmp_path / "k.key")
     endpoint, link, seen = _endpoint(LinkSigning(key))

@@ -8,11 +8,11 @@ import time
 
 import pytest
 
-from gcs.flight.fleetfile import FlightOptions
-from gcs.flight.monitor import FleetMonitor, vehicle_fault
-from gcs.flight.phases import EventKind, VehiclePhase
-from gcs.flight.station import StallReport, StationStalls
-from gcs.flight.vehicle import VehicleStatus
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.link.station import StallReport, StationStalls
+from gcs.flight.procedure.vehicle import VehicleStatus
+from gcs.flight.safety.monitor import FleetMonitor, vehicle_fault
+from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_link, fake_vehicle
 from tests.flight.support import line_scenario, smooth_plan
 from tests.flight.test_executor import FAST, _fly
@@ -193,7 +193,7 @@ def test_leaving_offboard_quotes_what_px4_warned_since_arming() -> None:
     ALTCTL". The detail quotes PX4's latest warnings since arming (those before arming were
     cleared when it armed), and nothing when there were none."""
     from gcs import px4
-    from gcs.flight.monitor import WARNINGS_QUOTED
+    from gcs.flight.safety.monitor import WARNINGS_QUOTED
 
     options = FlightOptions()
     v = fake_vehicle(0)

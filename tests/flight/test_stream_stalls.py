@@ -8,10 +8,10 @@ import time
 
 import pytest
 
-from gcs.flight.endpoints import UdpEndpoint
-from gcs.flight.link import VehicleLink
-from gcs.flight.setpoints import hold_track
-from gcs.flight.stream import STALL_S, Streamer
+from gcs.flight.link.endpoints import UdpEndpoint
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.setpoints import hold_track
+from gcs.flight.run.stream import STALL_S, Streamer
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -67,7 +67,7 @@ def test_realtime_is_asked_for_while_streaming_and_given_back() -> None:
 
 
 def test_stream_priority_is_a_checked_flight_option() -> None:
-    from gcs.flight.fleetfile import FleetFileError, FlightOptions
+    from gcs.fleet.fleetfile import FleetFileError, FlightOptions
 
     assert FlightOptions().stream_priority == "realtime"  # asked for by default
     assert FlightOptions.from_dict({"stream_priority": "realtime"}).stream_priority == \
@@ -78,8 +78,8 @@ def test_stream_priority_is_a_checked_flight_option() -> None:
 
 @pytest.mark.flight
 def test_a_flight_at_realtime_priority_completes_and_says_how_it_streamed() -> None:
-    from gcs.flight.executor import FlightExecutor
-    from gcs.flight.fleetfile import FleetSpec
+    from gcs.fleet.fleetfile import FleetSpec
+    from gcs.flight.run.executor import FlightExecutor
     from gcs.sim import MockFleet, homes_under
     from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
 

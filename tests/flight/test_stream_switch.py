@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from gcs.flight.setpoints import hold_track
-from gcs.flight.stream import Streamer
+from gcs.flight.link.setpoints import hold_track
+from gcs.flight.run.stream import Streamer
 from tests.flight.fakes import fake_vehicle
 
 
@@ -38,7 +38,7 @@ def test_a_switch_with_an_origin_indexes_its_track_from_there_and_can_be_cancell
     takes over only at the switch tick; `cancel_switch` leaves the current track on."""
     import numpy as np
 
-    from gcs.flight.setpoints import SetpointTrack
+    from gcs.flight.link.setpoints import SetpointTrack
 
     streamer = Streamer(20.0)
     link = fake_vehicle(0).linked

@@ -16,9 +16,8 @@ from typing import Any
 
 import pytest
 
-from gcs.errors import GcsError, StateConflict
-from gcs.flight.vehicle_loop import VehicleLoopStopped
-from gcs.flight.vehicle_process import VehicleProcess
+from gcs.errors import GcsError, StateConflict, VehicleLoopStopped
+from gcs.flight.host.vehicle_process import VehicleProcess
 from tests.flight.process_host import EchoHost
 from tests.paths import ROOT
 
@@ -85,7 +84,7 @@ def test_a_child_whose_caller_dies_closes_its_host(tmp_path: Path) -> None:
     (landing what flies, in the service) and exits."""
     script = (
         "import asyncio, functools, sys, time\n"
-        "from gcs.flight.vehicle_process import VehicleProcess\n"
+        "from gcs.flight.host.vehicle_process import VehicleProcess\n"
         "from tests.flight.process_host import EchoHost\n"
         "async def main():\n"
         "    p = VehicleProcess(functools.partial(EchoHost, closed_mark=sys.argv[1]))\n"

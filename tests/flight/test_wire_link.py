@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 
 from gcs import wire
-from gcs.flight.endpoints import UdpEndpoint
-from gcs.flight.link import VehicleLink
-from gcs.flight.setpoints import Setpoint
-from gcs.flight.signing import LinkSigning
+from gcs.flight.link.endpoints import UdpEndpoint
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.setpoints import Setpoint
+from gcs.flight.link.signing import LinkSigning
 from gcs.wire import mavlink, parse_datagram
 
 VEHICLE = ("127.0.0.1", 14580)

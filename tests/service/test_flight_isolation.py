@@ -1,4 +1,5 @@
-"""The flight runs apart from the service, in the vehicle process (`gcs.flight.vehicle_process`):
+"""The flight runs apart from the service, in the vehicle process
+(`gcs.flight.host.vehicle_process`):
 a service loop blocked for 1.5 s, or the service's interpreter lock held as long, while a flight
 streams delays no setpoint tick and loses no link; a vehicle process that dies fails the flight
 instead of leaving it waiting."""
@@ -20,8 +21,9 @@ from typing import Any
 
 import pytest
 
-from gcs.flight.phases import EventKind
-from gcs.flight.vehicle_loop import SWITCH_INTERVAL_S, VehicleLoop, VehicleLoopStopped
+from gcs.errors import VehicleLoopStopped
+from gcs.flight.host.vehicle_loop import SWITCH_INTERVAL_S, VehicleLoop
+from gcs.phases import EventKind
 from gcs.service.flights import FleetService, LiveExecution
 from gcs.service.settings import Settings
 from gcs.service.store import Store

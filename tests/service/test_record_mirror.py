@@ -7,8 +7,8 @@ import pickle
 
 import orjson
 
-from gcs.flight.record import COLUMNS, FlightRecorder
-from gcs.flight.setpoints import Setpoint
+from gcs.flight.link.setpoints import Setpoint
+from gcs.flight.run.record import COLUMNS, FlightRecorder
 from gcs.service.record_mirror import RecordMirror, record_delta
 
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from gcs import px4
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import VehicleLink
-from gcs.flight.setpoints import Setpoint, hold_track
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.setpoints import Setpoint, hold_track
 from gcs.sim import MockFleet
 from gcs.wire import mavlink
 from tests.flight.support import FAST_MOCK, mock_ports

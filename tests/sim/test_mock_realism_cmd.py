@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
-from gcs.flight.fleetfile import FleetSpec
-from gcs.flight.hub import LinkHub
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.link.hub import LinkHub
 from gcs.sim.model import EstimateNoise
 from tests.flight.support import free_port_block
 

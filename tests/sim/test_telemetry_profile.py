@@ -11,9 +11,9 @@ from collections import Counter
 
 import pytest
 
-from gcs.flight import vehicle
-from gcs.flight.hub import LinkHub
-from gcs.flight.link import DECODED_IDS, VehicleLink
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.link.link import DECODED_IDS, VehicleLink
+from gcs.flight.procedure import vehicle
 from gcs.sim import MockConfig, MockFleet
 from gcs.sim.telemetry import STREAMS, default_rates
 from gcs.wire import mavlink, parse_datagram

@@ -74,7 +74,8 @@ def shown_mission_id(page: Page) -> str:
 
 
 ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}
-HEALTH = {  # per vehicle: battery, gps, health in GET /api/vehicles' shapes (gcs.flight.health)
+# per vehicle: battery, gps, health in GET /api/vehicles' shapes (gcs.flight.safety.health)
+HEALTH = {
     0: ({"remaining_pct": 82, "voltage": 16.1},
         {"fix_type": 3, "satellites": 14, "h_acc": 0.4, "v_acc": 0.6},
         {"unhealthy": [], "prearm_ok": True, "warnings": []}),

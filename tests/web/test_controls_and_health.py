@@ -1,8 +1,9 @@
 """The page's side of the fleet-control API (pause/resume, fleet and vehicle commands,
 battery/GPS/health, geodetic origin). Playwright routes stand in for states the mock service
 cannot be put in on demand (a low battery, an unhealthy sensor, no GPS fix) and record what the
-page sends; the payloads have the real API's shapes (`gcs.flight.health.health_report`), whose
-own side is tested in tests/api/routes/test_fleet.py."""
+page sends; the payloads have the real API's shapes
+(`gcs.flight.safety.health.health_report`), whose own side is tested in
+tests/api/routes/test_fleet.py."""
 
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ import httpx
 import numpy as np
 from playwright.sync_api import Page, expect
 
-from gcs.flight.phases import FlightPhase
+from gcs.phases import FlightPhase
 from tests.api.support import QUICK_CROSSING, ServiceProcess
 from tests.web.conftest import FLY_OPTIONS, PHONE
 from tests.web.support import CROSSING_HORIZON_S, assert_fits

@@ -13,7 +13,7 @@ import pytest
 from playwright.sync_api import Page, Route, expect
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
-from gcs.flight import phases
+from gcs import phases
 from tests.api.support import ServiceProcess
 from tests.web.conftest import FLY_OPTIONS, FLY_REQUEST
 from tests.web.support import CROSSING, fill_scenario, plan

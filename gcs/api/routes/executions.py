@@ -29,8 +29,8 @@ from gcs.api.deps import (
 )
 from gcs.api.errors import error_responses
 from gcs.errors import InvalidRequest, StateConflict
-from gcs.flight.fleetfile import MAX_REPLAN_LEAD_S
-from gcs.flight.phases import EventKind, ReplanStatus
+from gcs.fleet.fleetfile import MAX_REPLAN_LEAD_S
+from gcs.phases import EventKind, ReplanStatus
 from gcs.replan_request import ReplanRequest, checked
 from gcs.service.flights import LiveExecution, execution_document
 from gcs.service.flown_trajectory import flown_trajectory

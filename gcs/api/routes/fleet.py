@@ -2,7 +2,7 @@
 
 The same body for one vehicle at /api/vehicles/{id}/commands (`gcs.api.routes.vehicles`).
 Each command is acknowledged by the vehicle and its effect confirmed from its HEARTBEAT before
-the vehicle counts as done (`gcs.flight.commands`): a fleet left hovering can always be landed.
+the vehicle counts as done (`gcs.fleet.commands`): a fleet left hovering can always be landed.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Request
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.deps import PlanningDep, SettingsDep
-from gcs.flight.phases import vocabulary
+from gcs.phases import vocabulary
 from gcs.service.limits import FIXED_LIMITS, LIMIT_NAMES, limits_in_force
 from gcs.service.settings import Settings
 from gcs.service.statuses import status_sets
@@ -60,7 +60,7 @@ class StatusOut(BaseModel):
         "planner's). Clients read these rather than keeping a copy."
     )
     phases: dict[str, list[str]] = Field(
-        description="The flight's vocabulary, defined once (`gcs.flight.phases`): flight "
+        description="The flight's vocabulary, defined once (`gcs.phases`): flight "
         "(phases of a whole flight), vehicle (phases of one vehicle), airborne (the vehicle "
         "phases in the air), event_kinds (the `kind` of each flight event)."
     )

@@ -168,7 +168,7 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
         stored = client.get(url).json()
         assert stored["status"] == "aborted"
         assert any(e["kind"] == "abort" for e in stored["events"])
-        # down by a landing plan (gcs.flight.landing), or PX4's Land when none was ready in
+        # down by a landing plan (gcs.flight.safety.landing), or PX4's Land when none was ready in
         # its bound on a busy machine: the events say which
         assert {"landing_plan", "landing_fallback"} & {e["kind"] for e in stored["events"]}
         # Aborting a finished flight is a conflict, and everyone is down and disarmed.

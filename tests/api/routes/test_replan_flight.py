@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from gcs import phases
 from gcs.api import create_app
 from gcs.api.routes.executions import FlyRequest
-from gcs.flight import phases
-from gcs.flight.fleetfile import POLICIES
-from gcs.flight.phases import EventKind
+from gcs.fleet.fleetfile import POLICIES
+from gcs.phases import EventKind
 from gcs.service.settings import Settings
 from tests.api.routes.test_executions import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events

@@ -1,0 +1,554 @@
+"""One PX4 vehicle: the executor's view of it (`VehicleStatus`) and the PX4 procedure on its link.
+
+The procedure steps are link-level coroutines, so a flight (`gcs.flight.run.executor`) and a fleet
+command outside a flight (`gcs.fleet.commands`) use the same code:
+
+- `connect`: first HEARTBEAT and LOCAL_POSITION_NED; refuse a vehicle that is not PX4 or is
+  already armed; `resolve_home` places its LOCAL_NED origin in the world frame;
+- `set_mode` / `arm`: MAV_CMD_DO_SET_MODE / MAV_CMD_COMPONENT_ARM_DISARM, retried while
+  TEMPORARILY_REJECTED, each confirmed by COMMAND_ACK *and* HEARTBEAT;
+- `land` (NAV_LAND, falling back to DO_SET_MODE AUTO.LAND), `disarm`;
+- `land_vehicle`, `hold_vehicle`, `secure`, `wait_disarmed`: the executor's safe endings,
+  which never raise (a failure is an event; PX4's offboard-loss failsafe is the fallback).
+
+Every timeout counts station-running time when given the flight's `StationStalls`
+(`gcs.flight.link.station`): the station's own stalls do not use it up.
+
+Streaming is not done here: the steps that must stop a vehicle's setpoints take a
+`stop_stream(vehicle_id)` callback, so this module stays below `gcs.flight.run.stream`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs import frames, px4
+from gcs.errors import (
+    ArmingRefused,
+    CommandError,
+    GcsError,
+    LinkError,
+    ModeRefused,
+    VehicleTimeout,
+)
+from gcs.fleet.fleetfile import FlightOptions, VehicleSpec
+from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.station import StationStalls
+from gcs.flight.link.telemetry import Telemetry
+from gcs.phases import EventKind, VehiclePhase
+from gcs.wire import mavlink, result_name
+
+__all__ = [
+    "MODE_RETRY_FOR",
+    "UNREAD_STREAMS",
+    "Emit",
+    "VehicleStatus",
+    "arm",
+    "ask_origin",
+    "connect",
+    "disarm",
+    "hold_vehicle",
+    "land",
+    "land_vehicle",
+    "last_text",
+    "message_rates",
+    "refuse_other_claimants",
+    "request_message_rates",
+    "resolve_home",
+    "secure",
+    "set_mode",
+    "wait_disarmed",
+    "wait_running",
+]
+
+#: Called with (vehicle id or None for the fleet, event kind, detail).
+Emit = Callable[[str | None, str, str], None]
+#: Called with a vehicle id to stop streaming setpoints to it.
+StopStream = Callable[[str], None]
+
+#: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
+MODE_RETRY_FOR = 5.0
+_POLL_PERIOD = 0.05
+#: Requests for GPS_GLOBAL_ORIGIN before a vehicle is taken to report none (one lost
+#: datagram must not cost a flight its fence), the wait for the answer to the first (s), and
+#: how much longer each next wait is: 1, 1.5, 2.25 and 3.4 s, about 8 s at most in all.
+ORIGIN_TRIES = 4
+ORIGIN_WAIT_S = 1.0
+ORIGIN_BACKOFF = 1.5
+
+
+@dataclass
+class VehicleStatus:
+    """The executor's view of one vehicle (see `FlightExecutor.snapshot`)."""
+
+    spec: VehicleSpec
+    index: int
+    link: VehicleLink | None = None
+    home: np.ndarray | None = None
+    start_ned: np.ndarray | None = None
+    goal_ned: np.ndarray | None = None
+    phase: VehiclePhase = VehiclePhase.PENDING
+    """Where it is in the flight (HOVERING: in PX4 Hold at the end)."""
+    fault: str | None = None
+    fault_time: float | None = None
+    armed_by_us: bool = False
+    arm_sent: bool = False
+    """An arming command went out (it may have armed the vehicle even if we never saw it)."""
+    expect_offboard: bool = False
+    tracking_error: float = math.nan
+    goal_error: float = math.nan
+    goal_tolerance: float = math.nan
+    """The tolerance its goal error is judged with (from its reported accuracy then)."""
+    last_mode: str | None = None
+    last_armed: bool | None = None
+    dropped: str | None = None
+    """Taken off the plan by a switched replan (`gcs.flight.replan.replan`): ``land`` or ``hold``
+    on its own motion; it is no longer judged against a goal."""
+    drop_reason: str | None = None
+    """Why it was dropped (the replan's reason: an operator's, or its fault)."""
+
+    @property
+    def id(self) -> str:
+        return self.spec.id
+
+    @property
+    def placed(self) -> np.ndarray:
+        """The vehicle's home in the world frame (only once connected)."""
+        assert self.home is not None
+        return self.home
+
+    @property
+    def linked(self) -> VehicleLink:
+        """The vehicle's link (only once the links are open)."""
+        assert self.link is not None
+        return self.link
+
+    def distance_ned(self, target: np.ndarray | None) -> float:
+        """Reported distance to `target` (LOCAL_NED), inf when either is unknown."""
+        tel = self.linked.telemetry
+        if tel.position_ned is None or target is None:
+            return math.inf
+        return float(np.linalg.norm(np.asarray(tel.position_ned) - target))
+
+
+def last_text(link: VehicleLink) -> str:
+    """The vehicle's latest STATUSTEXT, as a suffix for an error message."""
+    texts = link.telemetry.statustexts
+    return f" (vehicle says: {texts[-1]!r})" if texts else ""
+
+
+# ==================================================================== the PX4 procedure
+
+
+def _clock(stalls: StationStalls | None) -> Callable[[], float]:
+    return stalls.clock if stalls is not None else time.monotonic
+
+
+async def wait_running(link: VehicleLink, predicate: Callable[[Telemetry], bool],
+                       timeout: float, stalls: StationStalls | None = None) -> bool:
+    """`link.wait_for` with `timeout` in station-running time (see the module)."""
+    return await link.wait_for(predicate, timeout, clock=_clock(stalls))
+
+
+async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
+                  stalls: StationStalls | None = None) -> None:
+    """Wait for the first HEARTBEAT and position; refuse a non-PX4 or already armed vehicle."""
+    ok = await wait_running(
+        link, lambda t: t.heartbeat_time is not None and t.position_ned is not None, timeout,
+        stalls)
+    if not ok:
+        dropped = drop_diagnosis(link, spec)
+        if dropped and link.telemetry.heartbeat_time is None:
+            raise VehicleTimeout(spec.id, f"heard within {timeout:g} s on {spec.connection}, "
+                                          f"but nothing it could accept: {dropped}")
+        what = "HEARTBEAT" if link.telemetry.heartbeat_time is None else "LOCAL_POSITION_NED"
+        endpoint = link.endpoint
+        heard = link.telemetry.message_time is not None
+        if endpoint.messages_received == 0 and endpoint.garbage_datagrams == 0:
+            hint = ("; nothing at all arrived there: is the vehicle running and sending to "
+                    "this port? (mock vehicles: fleetplan mock; PX4 SITL sends its offboard "
+                    "link to 14540 + instance). " + _PARTNER_HINT)
+        elif endpoint.dropped_unknown and link.telemetry.heartbeat_time is None:
+            hint = (f"; {endpoint.dropped_unknown} messages arrived there from other system "
+                    f"ids: is system_id {spec.system_id} right for this vehicle?")
+        elif heard and link.telemetry.heartbeat_time is None and link.link_age() > timeout / 2:
+            hint = (f"; its first messages arrived, then nothing for {link.link_age():.0f} s. "
+                    + _PARTNER_HINT)
+        else:
+            hint = f"; also dropped: {dropped}" if dropped else ""
+        raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
+                                      f"{spec.connection} (system id {spec.system_id}){hint}")
+    tel = link.telemetry
+    if tel.autopilot != mavlink.MAV_AUTOPILOT_PX4:
+        raise LinkError(f"{spec.id}: autopilot type {tel.autopilot} is not PX4 "
+                        f"(MAV_AUTOPILOT_PX4 = {mavlink.MAV_AUTOPILOT_PX4})")
+    if tel.armed:
+        raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
+                       f"someone else armed")
+    refuse_other_claimants(link, spec)
+
+
+#: Why a PX4 vehicle that is running may send the GCS nothing (its UDP link's partner).
+_PARTNER_HINT = ("PX4 sends its replies to the first address it hears after boot, for good: "
+                 "if another process spoke to it first (even with packets it rejected), "
+                 "restart the vehicle with only the GCS talking to it, or fix its partner "
+                 "with mavlink start -t")
+
+
+#: Packets dropped from a vehicle's system id, by security counter: what they were, the
+#: likely cause and what to do.
+_DROP_CAUSES: dict[str, tuple[str, str]] = {
+    "unsigned": ("unsigned packets",
+                 "the fleet file gives this vehicle a signing_key but the key is not "
+                 "provisioned on the vehicle (fleetplan keys provision --fleet FLEET.json) "
+                 "or signing is off there"),
+    "bad_signature": ("wrongly signed packets",
+                      "signed with another key than the fleet file's signing_key: provision "
+                      "this key on the vehicle (fleetplan keys provision --fleet FLEET.json "
+                      "--old-key ITS_KEY), or give the fleet file the vehicle's key"),
+    "replayed": ("replayed packets",
+                 "signed with this key but with old timestamps: a replay, or a vehicle whose "
+                 "clock went back (restart it)"),
+    "other_component": ("packets from another component",
+                        "not the fleet file's component_id: set it to the autopilot's"),
+    "foreign_source": ("packets from another address",
+                       "not the pinned peer: a second source, or the fleet file's peer is not "
+                       "the vehicle's address"),
+}
+
+
+def drop_diagnosis(link: VehicleLink, spec: VehicleSpec) -> str:
+    """What the link dropped from this vehicle's system id and the likely cause, one clause
+    per reason ("" when it dropped nothing): a misconfigured link reads as what it is, not
+    as a silent vehicle."""
+    counts = link.telemetry.security.to_dict()
+    parts = []
+    for reason, (what, cause) in _DROP_CAUSES.items():
+        if counts.get(reason, 0) and reason in link.dropped_from:
+            address, component = link.dropped_from[reason]
+            parts.append(f"{counts[reason]} {what} from {address_text(address)} (system id "
+                         f"{spec.system_id}, component {component}): {cause}")
+    return "; ".join(parts)
+
+
+def refuse_other_claimants(link: VehicleLink, spec: VehicleSpec) -> None:
+    """Two sources claiming one vehicle while it connects: refuse it and name both, so the
+    first is never pinned silently (pin the real one with the fleet file's ``peer``)."""
+    if link.claimants:
+        others = ", ".join(address_text(a) for a in link.claimants)
+        raise LinkError(f"{spec.id}: two sources claim system id {spec.system_id}: "
+                        f"{address_text(link.peer_address)} and {others}; set the vehicle's `peer` "
+                        f"in the fleet file to the real one")
+
+
+def address_text(address: object) -> str:
+    """``HOST:PORT`` for a UDP address tuple, else the address as text."""
+    if isinstance(address, tuple) and len(address) == 2:
+        return f"{address[0]}:{address[1]}"
+    return str(address)
+
+
+async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> bool:
+    """Ask for GPS_GLOBAL_ORIGIN until the vehicle reports it, up to `ORIGIN_TRIES` times
+    with a growing wait (a lossy link loses requests and answers alike); whether it did. A
+    request the vehicle refuses (no ACCEPTED) ends the asking."""
+    clock = _clock(stalls)
+    wait = ORIGIN_WAIT_S
+    for _ in range(ORIGIN_TRIES):
+        if link.telemetry.gps_origin is not None:
+            return True
+        try:
+            result = await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN,
+                                                clock=clock)
+        except CommandError:
+            result = mavlink.MAV_RESULT_ACCEPTED  # unanswered: the answer may still come
+        if await link.wait_for(lambda t: t.gps_origin is not None, wait, clock=clock):
+            return True
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            break
+        wait *= ORIGIN_BACKOFF
+    return link.telemetry.gps_origin is not None
+
+
+async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodetic,
+                       stalls: StationStalls | None = None) -> tuple[np.ndarray, str]:
+    """Home in the world frame from the vehicle's EKF origin and the fleet's world_origin;
+    returns (home, the message it came from)."""
+    clock = _clock(stalls)
+    await ask_origin(link, stalls)
+    tel = link.telemetry
+    if tel.gps_origin is not None:
+        return frames.geodetic_to_enu(frames.Geodetic(*tel.gps_origin), origin), \
+            "GPS_GLOBAL_ORIGIN"
+    with contextlib.suppress(CommandError):
+        await link.request_message(mavlink.MAVLINK_MSG_ID_HOME_POSITION, clock=clock)
+    if not await link.wait_for(lambda t: t.home is not None, 3.0, clock=clock):
+        raise VehicleTimeout(vehicle_id, "reported neither GPS_GLOBAL_ORIGIN nor HOME_POSITION "
+                                         "(needed to place it with world_origin)")
+    assert tel.home is not None
+    geodetic, local = tel.home
+    # LOCAL_NED origin = home's position minus home's local offset
+    home = (frames.geodetic_to_enu(frames.Geodetic(*geodetic), origin)
+            - frames.ned_vector_to_world(local))
+    return home, "HOME_POSITION"
+
+
+async def set_mode(link: VehicleLink, mode: px4.Px4Mode, *, confirm_timeout: float,
+                   retry_for: float = 0.0, stalls: StationStalls | None = None) -> None:
+    """DO_SET_MODE until ACCEPTED (retrying TEMPORARILY_REJECTED for `retry_for` s), then
+    wait for HEARTBEAT to show the mode; `ModeRefused` otherwise."""
+    clock = _clock(stalls)
+    deadline = clock() + retry_for
+    while True:
+        result = await link.command(mavlink.MAV_CMD_DO_SET_MODE, mode.command_params,
+                                    clock=clock)
+        if result == mavlink.MAV_RESULT_ACCEPTED:
+            if await wait_running(link, lambda t: t.mode == mode, confirm_timeout, stalls):
+                return
+            raise ModeRefused(link.vehicle_id, mavlink.MAV_CMD_DO_SET_MODE, result,
+                              f"{mode.name} accepted but not shown in HEARTBEAT within "
+                              f"{confirm_timeout:g} s")
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED and clock() < deadline:
+            await asyncio.sleep(0.5)
+            continue
+        raise ModeRefused(link.vehicle_id, mavlink.MAV_CMD_DO_SET_MODE, result,
+                          f"{mode.name} refused: {result_name(result)}{last_text(link)}")
+
+
+async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
+              on_attempt: Callable[[], None] | None = None,
+              on_accepted: Callable[[], None] | None = None,
+              stalls: StationStalls | None = None) -> int:
+    """Arm, retrying TEMPORARILY_REJECTED for up to `timeout` s; confirmed by HEARTBEAT.
+    Returns the number of attempts; `ArmingRefused` otherwise. `on_attempt` is called before
+    each command goes out, `on_accepted` when one is ACCEPTED."""
+    clock = _clock(stalls)
+    deadline = clock() + timeout
+    attempts = 0
+    cmd = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+    while True:
+        attempts += 1
+        if on_attempt is not None:
+            on_attempt()
+        result = await link.command(cmd, (1.0,), clock=clock)
+        if result == mavlink.MAV_RESULT_ACCEPTED:
+            if on_accepted is not None:
+                on_accepted()
+            if await wait_running(link, lambda t: t.armed, confirm_timeout, stalls):
+                return attempts
+            raise ArmingRefused(link.vehicle_id, cmd, result,
+                                f"arming accepted but HEARTBEAT not armed within "
+                                f"{confirm_timeout:g} s")
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
+            if clock() + px4.ARM_TEMPORARILY_REJECTED_RETRY_S < deadline:
+                await asyncio.sleep(px4.ARM_TEMPORARILY_REJECTED_RETRY_S)
+                continue
+            raise ArmingRefused(link.vehicle_id, cmd, result,
+                                f"arming still TEMPORARILY_REJECTED after {timeout:g} s"
+                                f"{last_text(link)}")
+        raise ArmingRefused(link.vehicle_id, cmd, result,
+                            f"arming refused: {result_name(result)}{last_text(link)}")
+
+
+async def land(link: VehicleLink, *, confirm_timeout: float,
+               stalls: StationStalls | None = None) -> bool:
+    """MAV_CMD_NAV_LAND, falling back to DO_SET_MODE AUTO.LAND if refused (then returns True,
+    the mode being confirmed); `GcsError` when neither is accepted."""
+    result = await link.command(mavlink.MAV_CMD_NAV_LAND, clock=_clock(stalls))
+    if result == mavlink.MAV_RESULT_ACCEPTED:
+        return False
+    await set_mode(link, px4.LAND, confirm_timeout=confirm_timeout, stalls=stalls)
+    return True
+
+
+async def disarm(link: VehicleLink, *, force: bool = False,
+                 stalls: StationStalls | None = None) -> int:
+    """MAV_CMD_COMPONENT_ARM_DISARM(0); `force` adds PX4's magic number, which disarms even in
+    the air (the vehicle falls). Returns the MAV_RESULT."""
+    params = (0.0, px4.DISARM_FORCE_MAGIC) if force else (0.0,)
+    return await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, params,
+                              clock=_clock(stalls))
+
+
+#: PX4 offboard-link streams the GCS never reads (`gcs.flight.link.link.DECODED_IDS` is what it
+#: reads), turned off by `message_rates`: the fast ones (ATTITUDE 100/s, HIGHRES_IMU,
+#: ATTITUDE_QUATERNION, GLOBAL_POSITION_INT 50/s, ODOMETRY 30/s on SITL) and the 0.5-10/s rest.
+#: TIMESYNC's stream is the vehicle's own requests (10/s); the link reads only the answers to
+#: the station's (`gcs.flight.link.quality`), which come whatever its stream's rate.
+UNREAD_STREAMS = tuple(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in (
+    "ATTITUDE", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "GLOBAL_POSITION_INT", "ODOMETRY",
+    "ALTITUDE", "ATTITUDE_TARGET", "POSITION_TARGET_LOCAL_NED", "POSITION_TARGET_GLOBAL_INT",
+    "VFR_HUD", "SERVO_OUTPUT_RAW", "TIMESYNC", "SCALED_PRESSURE", "ESTIMATOR_STATUS",
+    "SYSTEM_TIME", "VIBRATION"))
+
+
+def message_rates(position_hz: float) -> dict[int, float]:
+    """What the GCS needs from a PX4 offboard link, by message id, in Hz (0 = off): position
+    at `position_hz`, status, landed state and GPS at 2 Hz, and every stream it never reads
+    (`UNREAD_STREAMS`) off. HEARTBEAT is absent (PX4 refuses to change it); HOME_POSITION
+    and BATTERY_STATUS (0.5/s, read) keep PX4's rate."""
+    m = mavlink
+    return {
+        m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
+        m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
+        m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
+        m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
+        **dict.fromkeys(UNREAD_STREAMS, 0.0),
+    }
+
+
+async def request_message_rates(link: VehicleLink, rates: dict[int, float],
+                                stalls: StationStalls | None = None) -> dict[str, str]:
+    """MAV_CMD_SET_MESSAGE_INTERVAL for each message id (param2: interval in us, -1 = off);
+    returns {message name: "<rate> <MAV_RESULT>"}. A refusal is reported, not raised: the
+    vehicle then keeps sending at its own rate. After a request that goes unanswered the rest
+    are reported "not sent" (a vehicle that ignores them would otherwise hold the connect
+    phase for minutes). PX4 keeps the rates it was given until it reboots."""
+    out: dict[str, str] = {}
+    unanswered = False
+    for message_id, hz in rates.items():
+        interval = -1.0 if hz <= 0 else 1e6 / hz
+        name = mavlink.mavlink_map[message_id].msgname if message_id in mavlink.mavlink_map \
+            else str(message_id)
+        if unanswered:
+            out[name] = f"{'off' if hz <= 0 else f'{hz:g} Hz'} not sent"
+            continue
+        try:
+            result = result_name(await link.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                                    (float(message_id), interval),
+                                                    clock=_clock(stalls)))
+        except GcsError as exc:
+            result = f"failed ({exc})"
+            unanswered = True
+        out[name] = f"{'off' if hz <= 0 else f'{hz:g} Hz'} {result}"
+    return out
+
+
+# ==================================================================== safe endings (never raise)
+
+
+async def land_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
+                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
+    """Send `v` down; its setpoints stop either way (PX4 lands on offboard loss if the command
+    never arrived)."""
+    v.phase = VehiclePhase.LANDING
+    v.expect_offboard = False
+    try:
+        if await land(v.linked, confirm_timeout=options.heartbeat_timeout, stalls=stalls):
+            emit(v.id, EventKind.MODE, f"{px4.LAND.name} confirmed")
+        emit(v.id, EventKind.LAND, "landing")
+    except GcsError as exc:
+        emit(v.id, EventKind.LAND_FAILED, f"{exc}; setpoints stopped, PX4's offboard-loss "
+                                  f"failsafe will land it")
+    finally:
+        stop_stream(v.id)
+
+
+async def hold_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
+                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
+    """Switch `v` to PX4 Hold where it is; its setpoints stop either way."""
+    v.expect_offboard = False
+    try:
+        await set_mode(v.linked, px4.HOLD, confirm_timeout=options.heartbeat_timeout,
+                       stalls=stalls)
+        emit(v.id, EventKind.MODE, f"{px4.HOLD.name} confirmed")
+        emit(v.id, EventKind.HOLD, "holding (PX4 Hold)")
+    except GcsError as exc:
+        emit(v.id, EventKind.HOLD_FAILED, f"{exc}; setpoints stopped, PX4's offboard-loss "
+                                  f"failsafe takes over")
+    finally:
+        stop_stream(v.id)
+
+
+async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Emit,
+                 stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
+    """Leave `v` safe: disarmed on the ground, landing, or (action hold) in Hold."""
+    if v.link is None:
+        return
+    tel = v.link.telemetry
+    if not tel.armed and not v.arm_sent:
+        stop_stream(v.id)
+        v.expect_offboard = False
+        if v.phase != VehiclePhase.LANDED:
+            v.phase = VehiclePhase.STOPPED
+        return
+    on_ground = v.phase == VehiclePhase.ARMING or (
+        tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND)
+    if on_ground:  # armed, or an arming command may have armed it: disarm
+        v.expect_offboard = False
+        try:
+            result = await disarm(v.link, stalls=stalls)
+            emit(v.id, EventKind.DISARM, f"on the ground: {result_name(result)}")
+        except GcsError as exc:
+            result = None
+            emit(v.id, EventKind.DISARM_FAILED, str(exc))
+        if result == mavlink.MAV_RESULT_ACCEPTED:
+            stop_stream(v.id)
+            v.phase = VehiclePhase.STOPPED
+            return
+        # refused (it has taken off after all) or unanswered: land it
+    if action == "hold":
+        await hold_vehicle(v, options, emit, stop_stream, stalls)
+        v.phase = VehiclePhase.HOVERING
+    else:
+        await land_vehicle(v, options, emit, stop_stream, stalls)
+
+
+def _landed_name(state: int | None) -> str:
+    """EXTENDED_SYS_STATE's landed state in words."""
+    return {mavlink.MAV_LANDED_STATE_ON_GROUND: "on the ground",
+            mavlink.MAV_LANDED_STATE_IN_AIR: "in the air",
+            mavlink.MAV_LANDED_STATE_LANDING: "landing",
+            mavlink.MAV_LANDED_STATE_TAKEOFF: "taking off"}.get(state or 0, "landed state unknown")
+
+
+async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
+                        emit: Emit, stalls: StationStalls | None = None) -> None:
+    """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome
+    (nothing to wait for when `vehicles` is empty)."""
+    stalls = stalls if stalls is not None else StationStalls()
+    deadline = stalls.clock() + options.land_timeout
+    pending = [v for v in vehicles if v.link is not None]
+    while pending and stalls.clock() < deadline:
+        still = []
+        now = time.monotonic()
+        for v in pending:
+            link = v.linked
+            tel = link.telemetry
+            silent = stalls.age(tel.message_time, now)
+            if silent > options.link_timeout:
+                if not tel.armed and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+                    v.phase = VehiclePhase.LANDED_LINK_LOST
+                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
+                         f"link lost: landed and disarmed when last heard {silent:.1f} s ago, "
+                         f"out of reach since")
+                else:
+                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
+                         f"link lost: {'armed' if tel.armed else 'disarmed'} and "
+                         f"{_landed_name(tel.landed_state)} when last heard {silent:.1f} s "
+                         f"ago: cannot confirm that it landed and disarmed")
+                continue
+            stale = stalls.age(tel.heartbeat_time, now) > options.heartbeat_timeout
+            if stale and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+                v.phase = VehiclePhase.LANDED
+                emit(v.id, EventKind.DISARM_UNCONFIRMED,
+                     "on the ground (EXTENDED_SYS_STATE), but no HEARTBEAT to "
+                     "confirm that it disarmed")
+                continue
+            if not tel.armed and not stale:
+                if v.phase == VehiclePhase.LANDING:
+                    v.phase = VehiclePhase.LANDED
+                    emit(v.id, EventKind.LANDED, "landed and disarmed")
+            else:
+                still.append(v)
+        pending = still
+        await asyncio.sleep(_POLL_PERIOD)
+    for v in pending:
+        emit(v.id, EventKind.NOT_DISARMED, f"not disarmed within {options.land_timeout:g} s")

@@ -1,0 +1,1 @@
+"""Replanning in flight: new goals, dropped vehicles, a faulty vehicle flown around."""

@@ -1,0 +1,64 @@
+"""A flight's JSON-ready live state, as the REST API, the page and ``fleetplan fly`` show it.
+
+Positions are in the world frame; ``flight_time`` is the flight clock (``mission_time``
+carries the same value for consumers that read that key).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from gcs import frames
+from gcs.flight.procedure.vehicle import VehicleStatus
+from gcs.flight.run.record import finite_or_none
+from gcs.flight.safety.health import health_report
+
+__all__ = ["flight_snapshot", "vehicle_snapshot"]
+
+
+def vehicle_snapshot(v: VehicleStatus, now: float) -> dict[str, Any]:
+    """One vehicle: phase, fault, mode, armed, heartbeat and link age, world position and
+    velocity, tracking error, health."""
+    tel = v.link.telemetry if v.link is not None else None
+    position = None
+    velocity = None
+    if tel is not None and tel.position_ned is not None and v.home is not None:
+        position = frames.ned_to_world(tel.position_ned, v.home).tolist()
+        if tel.velocity_ned is not None:
+            velocity = frames.ned_vector_to_world(tel.velocity_ned).tolist()
+    age = v.link.heartbeat_age(now) if v.link is not None else math.inf
+    silent = v.link.link_age(now) if v.link is not None else math.inf
+    return {
+        "id": v.id, "system_id": v.spec.system_id, "phase": v.phase,
+        "fault": v.fault,
+        "mode": tel.mode.name if tel is not None and tel.mode is not None else None,
+        "armed": bool(tel.armed) if tel is not None else False,
+        "heartbeat_age": None if math.isinf(age) else round(age, 3),
+        "link_age": None if math.isinf(silent) else round(silent, 3),
+        "position": position, "velocity": velocity,
+        "tracking_error": finite_or_none(v.tracking_error),
+        "dropped": v.dropped,
+        **(health_report(tel) if tel is not None else {}),
+    }
+
+
+def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
+                    min_separation: float, vehicles: Sequence[VehicleStatus],
+                    events: int, replan: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The whole flight: phase, flight time, horizon (the end of the plan flown now, a
+    switched replan's), live minimum separation, vehicles, number of events so far, and the
+    replan under way or the last one (`gcs.flight.replan.replan`; None before any)."""
+    now = time.monotonic()
+    return {
+        "phase": phase,
+        "flight_time": flight_time,
+        "mission_time": flight_time,
+        "horizon": horizon,
+        "min_separation_live": finite_or_none(min_separation),
+        "vehicles": [vehicle_snapshot(v, now) for v in vehicles],
+        "events": events,
+        "replan": None if replan is None else dict(replan),
+    }

@@ -1,0 +1,113 @@
+"""The fault policy: what a vehicle's fault or a separation alarm does to the flight.
+
+``land_faulty`` lands the faulty vehicle and the others fly on (the flight then does not count
+as completed); with ``landing: planned`` (the default) a faulty vehicle that still follows
+setpoints (a tracking error) cannot simply descend through the others' airspace: the whole
+fleet lands by a verified landing plan (`gcs.flight.safety.landing`) instead. One that cannot be
+steered goes straight down with PX4's Land; the others fly on only where that descent was
+checked clear of their plans (`gcs.flight.safety.descent`), and otherwise hold where they are.
+``replan`` lands the faulty vehicle on its own predicted motion and replans the others
+around it to their goals (`gcs.flight.replan.replan`); when no replan is flown, land_faulty's way
+(PX4's Land for it, the others fly on only where its descent is clear).
+``land_all`` / ``hold_all`` abort the flight (every vehicle lands / holds). Two vehicles
+about to meet is nobody's single fault: a separation alarm stops everyone where they
+are (PX4 Hold) rather than send anyone down through the others.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Awaitable, Callable
+
+from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.safety.descent import DescentConflict
+from gcs.flight.safety.landing import STEERABLE_FAULTS
+from gcs.phases import EventKind, VehiclePhase
+from gcs.tasks import TaskSet
+
+__all__ = ["FaultPolicy"]
+
+
+class FaultPolicy:
+    """Reacts to the monitor's findings (`FleetMonitor.on_fault`, `on_separation`)."""
+
+    def __init__(self, options: FlightOptions, emit: Emit, now: Callable[[], float], *,
+                 land: Callable[[VehicleStatus], Awaitable[None]],
+                 abort: Callable[[str, str], Awaitable[None]],
+                 aborting: Callable[[], bool],
+                 descent: Callable[[VehicleStatus], list[DescentConflict] | None]
+                 = lambda v: None,
+                 replan: Callable[[VehicleStatus, str], None] | None = None) -> None:
+        self.options = options
+        self.emit = emit
+        self.now = now
+        self.land = land
+        """Sends one vehicle down (its stream stops)."""
+        self.abort = abort
+        """Stops the whole flight: (action land | hold, reason)."""
+        self.aborting = aborting
+        self.descent = descent
+        """The others whose plan a vehicle's straight descent would come too close to
+        (`gcs.flight.safety.descent`), or None when it cannot be checked."""
+        self.replan = replan
+        """Policy replan: lands the faulty vehicle on its own motion and replans the others
+        around it (`FlightExecutor`, `gcs.flight.replan.replan`); None: land_faulty's way."""
+        self.tasks = TaskSet()
+        """The landings and aborts started here."""
+        self.landings: list[asyncio.Future[None]] = []
+        """The landings of land_faulty (a flight's end waits for their outcome)."""
+
+    def on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
+        """Mark `v` faulty and apply the policy."""
+        v.fault = kind
+        v.fault_time = self.now()
+        v.phase = VehiclePhase.FAULTY
+        policy = self.options.policy
+        self.emit(v.id, EventKind.FAULT, f"{kind}: {detail} -> policy {policy}")
+        if policy == "replan":
+            if self.replan is not None:
+                self.replan(v, kind)
+                return
+            policy = "land_faulty"
+        if policy == "land_faulty" and self.options.landing == "planned" \
+                and self.options.policy != "replan":
+            if kind in STEERABLE_FAULTS:  # it follows setpoints: everyone lands by a plan
+                self.tasks.spawn(self.abort("land", f"{v.id} {kind} ({detail}): land_faulty "
+                                                    f"lands the fleet by a landing plan"))
+                return
+            self.emit(v.id, EventKind.LANDING_FALLBACK, f"PX4 Land: cannot be steered "
+                                                        f"(fault {kind})")
+        if policy == "land_faulty":
+            self.landings.append(self.tasks.spawn(self.land(v)))
+            self.give_way(v)
+        else:
+            action = "hold" if policy == "hold_all" else "land"
+            self.tasks.spawn(self.abort(action, f"{v.id} {kind} ({detail})"))
+
+    def give_way(self, v: VehicleStatus) -> None:
+        """`v` goes straight down: the others fly on only where its descent was checked
+        clear of their plans; otherwise they hold where they are."""
+        conflicts = self.descent(v)
+        if conflicts is None:
+            self.emit(v.id, EventKind.DESCENT_CONFLICT, "descent not checked (position or "
+                                                        "flight time unknown): the others hold")
+        elif not conflicts:
+            self.emit(v.id, EventKind.DESCENT_CLEAR, "straight descent clear of every other "
+                                                     "vehicle's plan: the others fly on")
+            return
+        else:
+            named = ", ".join(f"{c.vehicle} {c.distance:.2f} m at t={c.flight_time:.1f} s"
+                              for c in conflicts)
+            self.emit(v.id, EventKind.DESCENT_CONFLICT,
+                      f"straight descent too close to {named}: the others hold")
+        if not self.aborting():
+            self.tasks.spawn(self.abort("hold", f"{v.id} lands across the others' plans"))
+
+    def on_separation(self, closest: float, alarm: float) -> None:
+        """Two vehicles closer than `alarm`: every vehicle to Hold."""
+        if self.aborting():
+            return
+        self.emit(None, EventKind.SEPARATION_ALARM,
+                  f"vehicles {closest:.2f} m apart (alarm below {alarm:.2f} m)")
+        self.tasks.spawn(self.abort("hold", f"separation {closest:.2f} m"))

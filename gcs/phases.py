@@ -1,0 +1,153 @@
+"""The flight's vocabulary, defined once: flight phases, vehicle phases and event kinds.
+
+A *phase* is where a flight (`FlightPhase`) or one of its vehicles (`VehiclePhase`) is inside
+its run; an *event kind* (`EventKind`) names one line of a flight's event log. They are
+StrEnums, so records, JSON and stored rows carry the plain value, and
+`GET /api/status` publishes them (`vocabulary()`) beside the statuses.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+__all__ = ["AIRBORNE", "EventKind", "FlightPhase", "ReplanStatus", "VehiclePhase", "vocabulary"]
+
+
+class FlightPhase(StrEnum):
+    """Where a whole flight is: created, then connecting → preparing → gathering → flying
+    (⇄ paused) → finishing → finished; or aborted / failed."""
+
+    CREATED = "created"
+    CONNECTING = "connecting"
+    PREPARING = "preparing"
+    GATHERING = "gathering"
+    FLYING = "flying"
+    PAUSED = "paused"
+    FINISHING = "finishing"
+    FINISHED = "finished"
+    ABORTED = "aborted"
+    FAILED = "failed"
+
+
+class VehiclePhase(StrEnum):
+    """Where one vehicle is inside its flight."""
+
+    PENDING = "pending"
+    CONNECTED = "connected"
+    ARMING = "arming"
+    CLIMBING = "climbing"
+    AT_START = "at_start"
+    FLYING = "flying"
+    HOLDING = "holding"
+    FAULTY = "faulty"
+    LANDING = "landing"
+    LANDED = "landed"
+    LANDED_LINK_LOST = "landed_link_lost"
+    """Landed and disarmed when last heard, out of reach since (not confirmed after)."""
+    HOVERING = "hovering"
+    STOPPED = "stopped"
+
+
+#: Vehicle phases in which the vehicle is (or may be) in the air.
+AIRBORNE: tuple[VehiclePhase, ...] = (
+    VehiclePhase.CLIMBING, VehiclePhase.AT_START, VehiclePhase.FLYING, VehiclePhase.HOLDING,
+    VehiclePhase.LANDING, VehiclePhase.FAULTY, VehiclePhase.HOVERING,
+)
+
+
+class ReplanStatus(StrEnum):
+    """Where one in-flight replan is (`gcs.flight.replan.replan`): planning (until its switch tick),
+    then switched (the fleet flies the new plan from that tick) or missed (no verified plan
+    in time, or the flight changed meanwhile: the fleet goes on with its plan)."""
+
+    PLANNING = "planning"
+    SWITCHED = "switched"
+    MISSED = "missed"
+
+
+class EventKind(StrEnum):
+    """The kind of one flight event (``{"t", "vehicle", "kind", "detail"}``)."""
+
+    # the fleet
+    MARGIN = "margin"
+    MARGIN_WARNING = "margin_warning"
+    STREAM_PRIORITY = "stream_priority"
+    FLIGHT_START = "mission_start"
+    HORIZON = "horizon"
+    GOAL_ERRORS = "goal_errors"
+    PAUSE = "pause"
+    RESUME = "resume"
+    PAUSE_LIMIT = "pause_limit"
+    ABORT = "abort"
+    """An abort accepted (`gcs.flight.run.precedence`): its reason and action, and whether it
+    overrides one under way or repeats it."""
+    COMMAND_REFUSED = "command_refused"
+    """A command that lost to one under way (`gcs.flight.run.precedence`), and why."""
+    ERROR = "error"
+    SEPARATION_ALARM = "separation_alarm"
+    STATION_STALL = "station_stall"
+    LANDING_PLAN = "landing_plan"
+    """An abort with land: the steerable vehicles fly a verified landing plan."""
+    LANDING_FALLBACK = "landing_fallback"
+    """PX4's own Land instead of a landing plan (the fleet's or one vehicle's), and why."""
+    DESCENT_CLEAR = "descent_clear"
+    """land_faulty: the unsteerable vehicle's straight descent was checked clear of every
+    other vehicle's plan (`gcs.flight.safety.descent`): the others fly on."""
+    DESCENT_CONFLICT = "descent_conflict"
+    """land_faulty: that descent would come within R of others' plans (named): the others
+    hold where they are instead of flying on."""
+    REPLAN_STARTED = "replan_started"
+    """An in-flight replan started: its switch time, vehicles, goals changed, dropped."""
+    REPLAN_SWITCHED = "replan_switched"
+    """The fleet flies the replanned plan from its switch tick (verified, planning time)."""
+    REPLAN_MISSED = "replan_missed"
+    """No replanned plan flown: why (late, not verified, the flight changed meanwhile); the
+    fleet goes on with its plan (policy replan: the faulty vehicle as under land_faulty)."""
+    GEOFENCE_SKIPPED = "geofence_skipped"
+    """No geofence is uploaded, and why (fleet option `geofence: skip`, no origin known)."""
+    GEOFENCE_NOT_FENCED = "geofence_not_fenced"
+    """Obstacles that do not reach the ground, named: no PX4 fence can hold them."""
+    # one vehicle
+    HOME = "home"
+    CONNECTED = "connected"
+    MESSAGE_RATES = "message_rates"
+    GEOFENCE = "geofence"
+    """The vehicle's geofence was uploaded and read back the same."""
+    GEOFENCE_RETRY = "geofence_retry"
+    """An upload of the vehicle's geofence failed (why) and is tried again after a wait."""
+    PREFLIGHT_OVERRIDE = "preflight_override"
+    MODE = "mode"
+    MODE_CHANGE = "mode_change"
+    ARMED = "armed"
+    CLIMB = "climb"
+    AT_START = "at_start"
+    FAULT = "fault"
+    STATUSTEXT = "statustext"
+    DROPPED_PACKETS = "dropped_packets"
+    LINK_DEGRADED = "link_degraded"
+    """The vehicle's link lost, delayed or jittered more than its bounds over the last
+    seconds (`gcs.flight.link.quality`), with the figures."""
+    LINK_RECOVERED = "link_recovered"
+    """A degraded link under half of every bound for a while, with the figures."""
+    LAND = "land"
+    LAND_FAILED = "land_failed"
+    LANDED = "landed"
+    HOLD = "hold"
+    HOLD_FAILED = "hold_failed"
+    DISARM = "disarm"
+    DISARM_FAILED = "disarm_failed"
+    DISARM_UNCONFIRMED = "disarm_unconfirmed"
+    NOT_DISARMED = "not_disarmed"
+    STILL_ARMED = "still_armed"
+
+
+def vocabulary() -> dict[str, list[str]]:
+    """Every phase set, the replan statuses and the event kinds, as served by
+    `GET /api/status` (``phases``, ``event_kinds``)."""
+    return {
+        "flight": [p.value for p in FlightPhase],
+        "vehicle": [p.value for p in VehiclePhase],
+        "airborne": [p.value for p in AIRBORNE],
+        "replan": [s.value for s in ReplanStatus],
+        "event_kinds": [k.value for k in EventKind],
+    }
