@@ -18,6 +18,7 @@ independent draws from one seeded generator: a run is reproducible for the same 
 from __future__ import annotations
 
 import asyncio
+import functools
 import random
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -108,11 +109,10 @@ class ChaosProxy:
         self._loop = loop
         for link in self._links:
             vehicle_side, _ = await loop.create_datagram_endpoint(
-                lambda link=link: _Side(self, link, True),
+                functools.partial(_Side, self, link, True),
                 local_addr=(self.host, self.vehicle_base_port + link.index))
             station_side, _ = await loop.create_datagram_endpoint(
-                lambda link=link: _Side(self, link, False),
-                local_addr=(self.host, 0))
+                functools.partial(_Side, self, link, False), local_addr=(self.host, 0))
             link.to_vehicle, link.to_station = vehicle_side, station_side
 
     def stop(self) -> None:
