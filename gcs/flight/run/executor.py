@@ -225,8 +225,7 @@ class FlightExecutor:
             raise aborting_refusal("pause", self._abort[0])
         if self.clock.pause is not None:
             raise StateConflict("status", "already paused")
-        if (self.phase != FlightPhase.FLYING or self._abort is not None
-                or self.clock.start is None):
+        if self.phase != FlightPhase.FLYING or self.clock.start is None:
             raise StateConflict("status", f"only a flying flight can be paused (phase "
                                           f"{self.phase})")
         if self._replanner is not None:
