@@ -120,9 +120,9 @@ async def one_run(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
             exported = (await client.post("/api/missions?wait=120",
                                           json=_example("circle16"))).json()
             assert flown["status"] == "planned" and exported["status"] == "planned"
-            flight = (await client.post(f"/api/missions/{flown['id']}/executions",
+            flight = (await client.post(f"/api/missions/{flown['id']}/flights",
                                         json={"rate_hz": 50.0})).json()
-            flight_url = f"/api/executions/{flight['id']}"
+            flight_url = f"/api/flights/{flight['id']}"
 
             async def flying() -> bool:
                 live = (await client.get(flight_url)).json()["live"] or {}

@@ -95,9 +95,9 @@ def one_run(big: dict[str, Any], workdir: Path, crossing: dict[str, Any],
 
             _wait(up, 60, "the service")
             small = client.post("/api/missions?wait=60", json=crossing).json()
-            flight = client.post(f"/api/missions/{small['id']}/executions",
+            flight = client.post(f"/api/missions/{small['id']}/flights",
                                  json=flight_options or None).json()
-            flight_url = f"/api/executions/{flight['id']}"
+            flight_url = f"/api/flights/{flight['id']}"
             _wait(lambda: (client.get(flight_url).json()["live"] or {}).get("phase")
                   == "flying", 30, "the flight")
 

@@ -40,7 +40,7 @@ export async function api(method, url, body) {
   return { status: response.status, ok: response.ok, data: data ?? {} };
 }
 
-/** The rows of a list answer: a bare array, or a page {items|executions|missions: [...]}.
+/** The rows of a list answer: a bare array, or a page {items|flights|missions: [...]}.
  * @param {any} data
  * @param {string} key
  * @returns {any[]} */

@@ -14,9 +14,9 @@ export async function loadCapabilities() {
   const posts = new Set(Object.entries(data.paths).filter(([, ops]) => ops && ops.post)
     .map(([path]) => path.replace(/\{[^}]+\}/g, "{}")));
   fleet.caps = {
-    pause: posts.has("/api/executions/{}/pause"),
-    resume: posts.has("/api/executions/{}/resume"),
-    replan: posts.has("/api/executions/{}/replan"),
+    pause: posts.has("/api/flights/{}/pause"),
+    resume: posts.has("/api/flights/{}/resume"),
+    replan: posts.has("/api/flights/{}/replan"),
     fleetCommands: posts.has("/api/fleet/commands"),
     vehicleCommands: posts.has("/api/vehicles/{}/commands"),
   };
@@ -45,11 +45,11 @@ function commandResult(text, good) {
 /** Pause or resume the flight shown; its buttons follow the service's answer.
  * @param {"pause" | "resume"} which */
 export async function pauseOrResume(which) {
-  const id = flight.execution;
+  const id = flight.id;
   if (!id || flight.commandPending) return;
   flight.commandPending = true;
   updateCommandButtons();
-  const r = await api("POST", `/api/executions/${id}/${which}`);
+  const r = await api("POST", `/api/flights/${id}/${which}`);
   flight.commandPending = false;
   if (unavailable(r)) {
     fleet.caps[which] = false;
@@ -58,7 +58,7 @@ export async function pauseOrResume(which) {
   } else if (!r.ok) {
     commandResult(`${which} refused (${r.status}): ${r.data.reason ?? ""}`, false);
   } else {
-    if (id === flight.execution) {
+    if (id === flight.id) {
       flight.paused = which === "pause";
       // The status the service gives a paused flight, from its own answer (no copy here).
       if (which === "pause" && typeof r.data.status === "string") flight.pausedStatus = r.data.status;

@@ -20,8 +20,8 @@ import { editor, fleet, flight, planning, views } from "./state.js";
 const TRAIL_POINTS = 1500;   // live trail kept per vehicle (5 Hz: 5 minutes)
 
 /** A flight is under way while it has no finish time.
- * @param {{finished_at?: string | null}} execution */
-export const isLive = (execution) => !execution.finished_at;
+ * @param {{finished_at?: string | null}} doc */
+export const isLive = (doc) => !doc.finished_at;
 
 /** Fly: start the mission on screen, if nothing blocks it. */
 export async function fly() {
@@ -30,42 +30,42 @@ export async function fly() {
   $("#fly-button").disabled = true;
   $("#event-log").innerHTML = "";
   $("#flight-summary").textContent = "";
-  const { status, data } = await api("POST", `/api/missions/${mission.id}/executions`);
+  const { status, data } = await api("POST", `/api/missions/${mission.id}/flights`);
   if (status !== 201) {
-    $("#execution-status").textContent = `refused (${status}): ${data.reason}`;
-    $("#execution-status").className = "bad";
+    $("#flight-status").textContent = `refused (${status}): ${data.reason}`;
+    $("#flight-status").className = "bad";
     updateFlyButton();
     return;
   }
   $("#follow").checked = true;
-  followExecution(data);
+  followFlight(data);
   loadFlights(mission.id);
   refreshMissionList();
   $("#fly-screen").scrollIntoView({ block: "nearest" });
 }
 
 /** Follow a flight under way: its telemetry, events and status.
- * @param {any} execution  GET /api/executions/{id} */
-export function followExecution(execution) {
+ * @param {any} doc  GET /api/flights/{id} */
+export function followFlight(doc) {
   if (flight.stream) flight.stream.close();
   closeReplay();
-  if (flight.execution !== execution.id) { clearFlightView(); flight.pausedStatus = null; }
-  flight.execution = execution.id;
+  if (flight.id !== doc.id) { clearFlightView(); flight.pausedStatus = null; }
+  flight.id = doc.id;
   flight.active = true;
-  flight.paused = Boolean(flight.pausedStatus) && execution.status === flight.pausedStatus;
-  setExecutionStatus(execution.status);
+  flight.paused = Boolean(flight.pausedStatus) && doc.status === flight.pausedStatus;
+  setFlightStatus(doc.status);
   updateFlyButton();
   updateReplanControls();
-  if (!planning.mission || planning.mission.id !== execution.mission_id) {
-    showFlownMission(execution.mission_id);  // flown from elsewhere: show its plan
+  if (!planning.mission || planning.mission.id !== doc.mission_id) {
+    showFlownMission(doc.mission_id);  // flown from elsewhere: show its plan
   }
-  const source = new EventSource(`/api/executions/${execution.id}/events`);
+  const source = new EventSource(`/api/flights/${doc.id}/events`);
   flight.stream = source;
   source.addEventListener("telemetry", (ev) => showTelemetry(JSON.parse(ev.data)));
   source.addEventListener("event", (ev) => logEvent(JSON.parse(ev.data)));
   source.addEventListener("status", (ev) => {
     const { status } = JSON.parse(ev.data);
-    setExecutionStatus(status);
+    setFlightStatus(status);
     // Paused or not as the flight says (once a pause answer named the paused status): a
     // flight paused elsewhere, resumed, or aborting while paused sets the buttons right.
     if (flight.pausedStatus) { flight.paused = status === flight.pausedStatus; updateCommandButtons(); }
@@ -78,10 +78,10 @@ export function followExecution(execution) {
     const done = JSON.parse(ev.data);
     flightEnded(done.status, done);
   });
-  source.onerror = () => {  // stream lost: poll the execution instead
+  source.onerror = () => {  // stream lost: poll the flight instead
     source.close();
     if (flight.stream === source) flight.stream = null;
-    setTimeout(() => pollExecution(execution.id), 1000);
+    setTimeout(() => pollFlight(doc.id), 1000);
   };
 }
 
@@ -91,7 +91,7 @@ export function followExecution(execution) {
 function flightEnded(status, done) {
   flight.active = false;
   flight.paused = false;
-  setExecutionStatus(status, Boolean(done && done.summary && done.summary.completed));
+  setFlightStatus(status, Boolean(done && done.summary && done.summary.completed));
   showFlightSummary(done);
   showClock();
   showVehicleTable();
@@ -115,25 +115,25 @@ async function showFlownMission(id) {
 
 /** Read a flight once: follow it while it flies, else show how it ended.
  * @param {string} id */
-export async function pollExecution(id) {
-  const { ok, data } = await api("GET", `/api/executions/${id}`);
+export async function pollFlight(id) {
+  const { ok, data } = await api("GET", `/api/flights/${id}`);
   if (!ok) return;
   if (isLive(data)) {
-    if (!(flight.active && flight.execution === id && flight.stream)) followExecution(data);
-  } else { flight.execution = id; flightEnded(data.status, data); }
+    if (!(flight.active && flight.id === id && flight.stream)) followFlight(data);
+  } else { flight.id = id; flightEnded(data.status, data); }
 }
 
 /** The flight's status line and the header banner. `good`: the finished flight completed
  * (from its summary); undefined while it flies.
  * @param {string} status
  * @param {boolean} [good] */
-export function setExecutionStatus(status, good) {
-  const el = $("#execution-status");
-  el.textContent = `flight ${flight.execution}: ${status}`;
+export function setFlightStatus(status, good) {
+  const el = $("#flight-status");
+  el.textContent = `flight ${flight.id}: ${status}`;
   el.dataset.status = status;
   el.className = flight.active || good === undefined ? "" : (good ? "ok" : "bad");
   $("#flight-banner").textContent = flight.active ? `✈ ${status}` : "";
-  $("#flight-banner").title = flight.active ? `flight ${flight.execution}` : "";
+  $("#flight-banner").title = flight.active ? `flight ${flight.id}` : "";
 }
 
 /** One telemetry snapshot: trails grow; drawn once per frame at most.
@@ -193,14 +193,14 @@ export function showFlightSummary(done) {
 
 /** Abort the flight shown and any other one under way: this button must always work. */
 export async function abortAll() {
-  const { ok, data } = await api("GET", "/api/executions?active=true");
-  const ids = new Set(ok ? rowsOf(data, "executions").map((e) => e.id) : []);
-  if (flight.execution && flight.active) ids.add(flight.execution);
+  const { ok, data } = await api("GET", "/api/flights?active=true");
+  const ids = new Set(ok ? rowsOf(data, "flights").map((e) => e.id) : []);
+  if (flight.id && flight.active) ids.add(flight.id);
   if (fleet.fleet && fleet.fleet.flying) ids.add(fleet.fleet.flying);
   if (!ids.size) { $("#flight-banner").textContent = "nothing is flying"; return; }
   for (const id of ids) {
-    const r = await api("POST", `/api/executions/${id}/abort`, { action: "land" });
-    if (r.ok && id === flight.execution) setExecutionStatus(r.data.status);
+    const r = await api("POST", `/api/flights/${id}/abort`, { action: "land" });
+    if (r.ok && id === flight.id) setFlightStatus(r.data.status);
   }
   updateCommandButtons();
 }

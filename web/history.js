@@ -5,7 +5,7 @@
 import { api, rowsOf } from "./api.js";
 import { $, $$, fmt } from "./dom.js";
 import { fillForm } from "./editor.js";
-import { followExecution, isLive, logEvent, setExecutionStatus, showFlightSummary } from "./flight.js";
+import { followFlight, isLive, logEvent, setFlightStatus, showFlightSummary } from "./flight.js";
 import { clearFlightView, horizon, moveSlider, stopPlay } from "./flyscreen.js";
 import { formKey } from "./form.js";
 import { closePlanStream, showMission } from "./planning.js";
@@ -15,23 +15,23 @@ import { editor, flight, planning, views } from "./state.js";
 import { measuredSeparation } from "./tracks.js";
 
 /** A status badge for a flight: green completed, neutral while flying, red otherwise.
- * @param {any} execution
+ * @param {any} doc
  * @returns {HTMLSpanElement} */
-function flightBadge(execution) {
+function flightBadge(doc) {
   const span = document.createElement("span");
-  span.className = `status-badge ${isLive(execution) ? "live" : (execution.summary && execution.summary.completed ? "good" : "poor")}`;
-  span.textContent = execution.status;
+  span.className = `status-badge ${isLive(doc) ? "live" : (doc.summary && doc.summary.completed ? "good" : "poor")}`;
+  span.textContent = doc.status;
   return span;
 }
 
 /** The flights of the mission shown, newest first.
  * @param {string} missionId */
 export async function loadFlights(missionId) {
-  const { ok, data } = await api("GET", `/api/missions/${missionId}/executions`);
+  const { ok, data } = await api("GET", `/api/missions/${missionId}/flights`);
   const list = $("#flight-list");
   if (!ok || !planning.mission || planning.mission.id !== missionId) return;
   list.innerHTML = "";
-  const flights = rowsOf(data, "executions");
+  const flights = rowsOf(data, "flights");
   if (!flights.length) {
     const li = document.createElement("li");
     li.className = "muted";
@@ -43,7 +43,7 @@ export async function loadFlights(missionId) {
     const li = document.createElement("li");
     li.dataset.id = e.id;
     li.dataset.status = e.status;
-    li.classList.toggle("selected", e.id === flight.execution);
+    li.classList.toggle("selected", e.id === flight.id);
     const when = new Date(e.created_at).toLocaleTimeString();
     li.append(flightBadge(e), ` ${e.id} · ${when}`);
     if (e.summary && e.summary.goal_error_max !== undefined) li.append(` · goal error ${fmt(e.summary.goal_error_max, 2)} m`);
@@ -56,20 +56,20 @@ export async function loadFlights(missionId) {
 /** Reopen a flight: follow it while it flies, else its summary, events and replay.
  * @param {string} id */
 async function openFlight(id) {
-  const { ok, data } = await api("GET", `/api/executions/${id}`);
+  const { ok, data } = await api("GET", `/api/flights/${id}`);
   if (!ok) return;
-  if (isLive(data)) { followExecution(data); return; }
+  if (isLive(data)) { followFlight(data); return; }
   if (flight.active) return;  // the flight under way keeps the screen
   stopPlay();
-  flight.execution = id;
+  flight.id = id;
   clearFlightView();
-  setExecutionStatus(data.status, Boolean(data.summary && data.summary.completed));
+  setFlightStatus(data.status, Boolean(data.summary && data.summary.completed));
   showFlightSummary(data);
   $$("#flight-list li").forEach((li) => li.classList.toggle("selected", li.dataset.id === id));
   let events = data.events;
   let record = null;
   if (data.has_record !== false) {
-    const r = await api("GET", `/api/executions/${id}/record`);
+    const r = await api("GET", `/api/flights/${id}/record`);
     if (r.ok) record = r.data;
   }
   if (!events && record) events = record.events;
@@ -83,7 +83,7 @@ async function openFlight(id) {
 
 /** Replay: recorded positions against the plan, on mission time (record t - mission_start).
  * @param {string} id
- * @param {any} record  GET /api/executions/{id}/record */
+ * @param {any} record  GET /api/flights/{id}/record */
 function startReplay(id, record) {
   const t0 = record.mission_start ?? 0;
   flight.replay = {
@@ -113,13 +113,13 @@ export function closeReplay() {
 /** The missions list: name, size, plan status, flights (the latest one's badge). */
 export async function refreshMissionList() {
   const [missions, flights] = await Promise.all([
-    api("GET", "/api/missions?limit=30"), api("GET", "/api/executions"),
+    api("GET", "/api/missions?limit=30"), api("GET", "/api/flights"),
   ]);
   if (!missions.ok) return;
-  // Flights per mission, newest first (the executions list is newest first).
+  // Flights per mission, newest first (the flights list is newest first).
   /** @type {Map<string, any[]>} */
   const byMission = new Map();
-  for (const e of flights.ok ? rowsOf(flights.data, "executions") : []) {
+  for (const e of flights.ok ? rowsOf(flights.data, "flights") : []) {
     if (!byMission.has(e.mission_id)) byMission.set(e.mission_id, []);
     byMission.get(e.mission_id)?.push(e);
   }

@@ -1,9 +1,9 @@
 // @ts-check
 // Replanning the flight under way: drag a vehicle's goal marker in the fly view (or type
 // its goal) and send the new goals, or drop a vehicle from the fleet table to land or hold;
-// each is POST /api/executions/{id}/replan. The replan's state comes from the flight's live
+// each is POST /api/flights/{id}/replan. The replan's state comes from the flight's live
 // state (its `replan` object); once the flight's plans change, the views show the plans
-// flown (GET /api/executions/{id}/trajectory: the first plan, then each switched replan's).
+// flown (GET /api/flights/{id}/trajectory: the first plan, then each switched replan's).
 import { api, errorsOf } from "./api.js";
 import { showVehicleTable } from "./fleettable.js";
 import { $, clamp, color, fmt, svgEl } from "./dom.js";
@@ -15,7 +15,7 @@ import { fleet, flight, planning, replan, views } from "./state.js";
 /** @typedef {import("./state.js").ReplanObject} ReplanObject */
 
 /** Replanning is offered: the service has the route and a flight is under way. */
-export const replanOffered = () => Boolean(fleet.caps.replan && flight.active && flight.execution);
+export const replanOffered = () => Boolean(fleet.caps.replan && flight.active && flight.id);
 
 /** Whether the views' plan has dropped this vehicle (it lands or holds on its own).
  * @param {string} id */
@@ -203,12 +203,12 @@ export async function dropVehicle(id) {
 /** POST the replan; its answer or refusal shown. @param {Record<string, unknown>} body
  * @returns {Promise<boolean>} accepted */
 async function requestReplan(body) {
-  const id = flight.execution;
+  const id = flight.id;
   if (!id || replan.sending) return false;
   replan.sending = true;
   showReplanPanel();
   $("#replan-error").textContent = "";
-  const r = await api("POST", `/api/executions/${id}/replan`, body);
+  const r = await api("POST", `/api/flights/${id}/replan`, body);
   replan.sending = false;
   showReplanPanel();
   if (!r.ok) {
@@ -249,7 +249,7 @@ export function replanTelemetry(t) {
   if (key === replan.seen) return;
   replan.seen = key;
   showReplanStatus(obj);
-  if (flight.execution) showFlownPlans(flight.execution);
+  if (flight.id) showFlownPlans(flight.id);
 }
 
 /** GET the plans flight `id` flew (so far); the views show them when they differ from what
@@ -258,8 +258,8 @@ export function replanTelemetry(t) {
 export async function showFlownPlans(id) {
   const shown = replan.planTraj || views.traj;
   if (!shown) { replan.seen = ""; return; }  // no plan on screen yet: the next snapshot
-  const r = await api("GET", `/api/executions/${id}/trajectory?rate=${shown.rate}`);
-  if (!r.ok || id !== flight.execution) { replan.seen = ""; return; }
+  const r = await api("GET", `/api/flights/${id}/trajectory?rate=${shown.rate}`);
+  if (!r.ok || id !== flight.id) { replan.seen = ""; return; }
   const switches = (r.data.switches || []).map((/** @type {{replan: number}} */ s) => s.replan).join(",");
   if (switches === replan.drawn) return;
   replan.drawn = switches;

@@ -23,7 +23,7 @@
 /** @typedef {{id: number, status: string, requested_at: number, switch_time: number,
  *   planning_s: number | null, goals: Record<string, number[]>, drop: string[],
  *   drop_action: string, reason: string | null, why?: string}} ReplanObject
- *   an in-flight replan (POST /api/executions/{id}/replan, the live state's `replan`) */
+ *   an in-flight replan (POST /api/flights/{id}/replan, the live state's `replan`) */
 /** @typedef {{mission_time?: number | null, phase: string, min_separation_live: number | null,
  *   vehicles: VehicleRow[], replan?: ReplanObject | null}} Telemetry  one `telemetry` event
  *   of a flight */
@@ -81,14 +81,14 @@ export const views = {
 };
 
 /** The flight shown, live or replayed.
- * @type {{execution: string | null, active: boolean, paused: boolean,
+ * @type {{id: string | null, active: boolean, paused: boolean,
  *   pausedStatus: string | null, commandPending: boolean, stream: EventSource | null,
  *   live: Telemetry | null, trails: Record<string, number[][]>, drawPending: boolean,
  *   replay: Replay | null}} */
 export const flight = {
-  execution: null,      // id of the flight shown (live or replayed)
+  id: null,             // id of the flight shown (live or replayed)
   active: false,        // that flight is under way
-  paused: false,        // its mission clock is stopped (by Pause)
+  paused: false,        // its flight clock is stopped (by Pause)
   pausedStatus: null,   // the status the service gives a paused flight (from its pause answer)
   commandPending: false,// a pause or resume request is on its way
   stream: null,         // EventSource of the flight telemetry

@@ -4,7 +4,7 @@
 // picked up from the fleet's `flying`.
 import { api } from "./api.js";
 import { $ } from "./dom.js";
-import { pollExecution } from "./flight.js";
+import { pollFlight } from "./flight.js";
 import { showVehicleTable } from "./fleettable.js";
 import { updateFlyButton } from "./flygate.js";
 import { drawFlyStatic, origin } from "./flyscreen.js";
@@ -21,8 +21,8 @@ export async function refreshVehicles() {
   if (Boolean(origin()) !== hadOrigin) drawFlyStatic();
   showVehicleTable();
   updateFlyButton();
-  if (data.fleet.flying && data.fleet.flying !== flight.execution && !flight.active) {
-    pollExecution(data.fleet.flying);  // a flight started elsewhere: show it (and its Abort)
+  if (data.fleet.flying && data.fleet.flying !== flight.id && !flight.active) {
+    pollFlight(data.fleet.flying);  // a flight started elsewhere: show it (and its Abort)
   }
 }
 

@@ -93,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if stale:
             log.warning("%d mission(s) left planning by a previous run marked failed", stale)
         interrupted = await run_in_threadpool(
-            store.fail_unfinished_executions, ORPHAN_ERROR
+            store.fail_unfinished_flights, ORPHAN_ERROR
         )
         if interrupted:
             log.warning("%d flight(s) left running by a previous run marked interrupted",
@@ -174,9 +174,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
 
 def _operation_id(route: APIRoute) -> str:
-    """operationIds that read well: the route function's name in camelCase (createMission)."""
+    """operationIds that read well: the route function's name in camelCase (createMission);
+    a deprecated alias of a route adds ``Deprecated`` (getFlightDeprecated)."""
     first, *rest = route.name.split("_")
-    return first + "".join(word.capitalize() for word in rest)
+    return first + "".join(word.capitalize() for word in rest) + (
+        "Deprecated" if route.deprecated else "")
 
 
 def _complete_openapi(app: FastAPI) -> None:

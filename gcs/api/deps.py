@@ -1,8 +1,8 @@
 """Shared dependencies of the routes, as `Annotated` aliases (one place to change them).
 
 The services live on `app.state` (created by the app's lifespan in `gcs.api.app`); these
-aliases hand them to the routes. `MissionDep` and `ExecutionDep` turn a `{mission_id}` /
-`{execution_id}` path parameter into the stored row or a 404 (one row-or-404 rule, `_found`)
+aliases hand them to the routes. `MissionDep` and `FlightDep` turn a `{mission_id}` /
+`{flight_id}` path parameter into the stored row or a 404 (one row-or-404 rule, `_found`)
 before a route (or a stream) starts.
 """
 
@@ -22,14 +22,14 @@ from gcs.service.flights import FleetService
 from gcs.service.planning import PlanningService
 from gcs.service.plans import PlanCache
 from gcs.service.settings import Settings
-from gcs.service.store import ExecutionRow, MissionRow, Store
+from gcs.service.store import FlightRow, MissionRow, Store
 
 __all__ = [
     "EventStreamSlot",
-    "ExecutionDep",
-    "ExecutionIdPath",
     "ExportSlot",
     "FleetDep",
+    "FlightDep",
+    "FlightIdPath",
     "JsonBody",
     "LastEventId",
     "MissionDep",
@@ -108,15 +108,15 @@ async def _mission(mission_id: MissionIdPath, store: StoreDep) -> MissionRow:
     return await _found(store.get_mission, mission_id, "mission_id", "mission")
 
 
-ExecutionIdPath = Annotated[str, Path(description="Execution id.", max_length=64)]
+FlightIdPath = Annotated[str, Path(description="Flight id.", max_length=64)]
 
 
-async def _execution(execution_id: ExecutionIdPath, store: StoreDep) -> ExecutionRow:
-    return await _found(store.get_execution, execution_id, "execution_id", "execution")
+async def _flight(flight_id: FlightIdPath, store: StoreDep) -> FlightRow:
+    return await _found(store.get_flight, flight_id, "flight_id", "flight")
 
 
 MissionDep = Annotated[MissionRow, Depends(_mission)]
-ExecutionDep = Annotated[ExecutionRow, Depends(_execution)]
+FlightDep = Annotated[FlightRow, Depends(_flight)]
 
 
 async def _json_body(request: Request) -> Any:

@@ -369,7 +369,7 @@ class MissionOut(MissionSummary):
                   "events": "/api/missions/3f2a9c81d0b4/events",
                   "trajectory": "/api/missions/3f2a9c81d0b4/trajectory?rate=20",
                   "show_skyc": "/api/missions/3f2a9c81d0b4/show.skyc",
-                  "executions": "/api/missions/3f2a9c81d0b4/executions"},
+                  "flights": "/api/missions/3f2a9c81d0b4/flights"},
     }]})
 
     progress: ProgressDoc

@@ -2,7 +2,7 @@
 
 Options override the settings (environment ``FLEETPLAN_*`` and the TOML config file; see
 `gcs.service.settings`). `--mock N` starts N in-process mock PX4 vehicles; `--fleet
-FLEET.json` flies real vehicles or SITL instead. Nothing arms or moves until an execution
+FLEET.json` flies real vehicles or SITL instead. Nothing arms or moves until a flight
 is requested.
 """
 

@@ -1,4 +1,4 @@
-"""The fleet's flights (executions): fly, pause, resume, replan, abort, and the run of one
+"""The fleet's flights: fly, pause, resume, replan, abort, and the run of one
 flight from its start to its stored record.
 
 `FleetService` drives the configured fleet and its one active flight: the fleet is one set of
@@ -8,11 +8,11 @@ commands) and each flight's `gcs.flight.run.executor.FlightExecutor`, hosted the
 `gcs.service.vehicle_host.FleetHost` and reached through its methods (start, pause, resume,
 replan, abort, snapshots, events, the record). So no request handler, export, event stream,
 planning job or store write of the service can delay a setpoint tick, not even by holding the
-interpreter's lock. The flight's state lives here in a `LiveExecution`
+interpreter's lock. The flight's state lives here in a `LiveFlight`
 (`gcs.service.live_flight`), its handle is a `gcs.service.remote_flight.RemoteFlight`, and it
 is journaled to the store while it flies (`gcs.service.journal`).
 
-Nothing arms or moves until `fly` is called (POST /api/missions/{id}/executions), which first
+Nothing arms or moves until `fly` is called (POST /api/missions/{id}/flights), which first
 applies the pre-flight gate (`gcs.flight.safety.health`) and the fleet's separation margin
 (`gcs.flight.safety.margin`); `abort` sends every vehicle of the active flight to land (or hold) at
 once; `pause` / `resume` stop and restart its flight clock; `replan` changes goals or drops
@@ -39,26 +39,26 @@ from gcs.flight.run.precedence import abort_in_force, aborting_refusal
 from gcs.phases import EventKind
 from gcs.service.fleet import FleetKind, fleet_kind
 from gcs.service.flown_trajectory import replanned_in
-from gcs.service.journal import ExecutionJournal, store_failure, write_final
-from gcs.service.live_flight import LiveExecution, execution_document
+from gcs.service.journal import FlightJournal, store_failure, write_final
+from gcs.service.live_flight import LiveFlight, flight_document
 from gcs.service.remote_flight import RemoteFlight
 from gcs.service.replan_handle import Segment
 from gcs.service.settings import Settings
-from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
+from gcs.service.statuses import FLIGHT_ACTIVE, FLIGHT_FINISHED, FlightStatus
 from gcs.service.storage_faults import storage_reason
-from gcs.service.store import ExecutionRow, Store
+from gcs.service.store import FlightRow, Store
 from gcs.service.vehicle_host import CLOSE_LANDING_S, PRELOAD, FleetHost
 from gcs.tasks import TaskSet
 from planner import Plan
 
-__all__ = ["FINISHED", "LIVE", "FleetService", "LiveExecution", "execution_document"]
+__all__ = ["FINISHED", "LIVE", "FleetService", "LiveFlight", "flight_document"]
 
 log = logging.getLogger(__name__)
 
-#: Execution statuses while the flight is under way, and final ones (`gcs.service.statuses`).
-LIVE = EXECUTION_ACTIVE
-FINISHED = EXECUTION_FINISHED
-#: Live telemetry snapshots per second on an execution's event stream.
+#: Flight statuses while the flight is under way, and final ones (`gcs.service.statuses`).
+LIVE = FLIGHT_ACTIVE
+FINISHED = FLIGHT_FINISHED
+#: Live telemetry snapshots per second on a flight's event stream.
 TELEMETRY_HZ = 5.0
 #: How often the record's mirror is brought up to date while a flight flies (s).
 MIRROR_PERIOD_S = 1.0
@@ -81,8 +81,8 @@ class FleetService:
         self._kind: FleetKind = fleet_kind(settings)
         self._described: dict[str, Any] = {"kind": self._kind, "vehicles": 0, "ids": [],
                                            "world_origin": None}
-        self._flights: dict[str, LiveExecution] = {}
-        self._active: LiveExecution | None = None
+        self._flights: dict[str, LiveFlight] = {}
+        self._active: LiveFlight | None = None
         self._tasks = TaskSet()
         self._lock = asyncio.Lock()
         self._closing = False
@@ -114,7 +114,7 @@ class FleetService:
         self._closing = True
         flight = self._active
         if flight is not None and flight.active:
-            log.warning("service stopping during execution %s: landing every vehicle", flight.id)
+            log.warning("service stopping during flight %s: landing every vehicle", flight.id)
             await self.abort(flight.id, "land", "the service is stopping")
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(flight.done.wait(), CLOSE_LANDING_S)
@@ -168,13 +168,13 @@ class FleetService:
         monitored: list[dict[str, Any]] = await self.vehicle_process.call("monitored")
         return monitored
 
-    def flight(self, execution_id: str) -> LiveExecution | None:
+    def flight(self, flight_id: str) -> LiveFlight | None:
         """The flight while it is under way, or ended and waiting for the store to take its
         final state (afterwards the store has it)."""
-        return self._flights.get(execution_id)
+        return self._flights.get(flight_id)
 
     @property
-    def active(self) -> LiveExecution | None:
+    def active(self) -> LiveFlight | None:
         """The flight under way, if any."""
         return self._active if self._active is not None and self._active.active else None
 
@@ -196,12 +196,12 @@ class FleetService:
 
     def _check_not_flying(self, while_flying: str) -> None:
         if self.active is not None:
-            raise StateConflict("fleet", f"execution {self.active.id} is flying: {while_flying}")
+            raise StateConflict("fleet", f"flight {self.active.id} is flying: {while_flying}")
 
     # ------------------------------------------------------------------ flying
 
-    async def fly(self, mission_id: str, plan: Plan, options: dict[str, Any]) -> ExecutionRow:
-        """Start flying `plan` on the fleet; returns the new execution (status starting).
+    async def fly(self, mission_id: str, plan: Plan, options: dict[str, Any]) -> FlightRow:
+        """Start flying `plan` on the fleet; returns the new flight (status starting).
 
         StateConflict when nothing can fly it (no fleet, a flight under way, a plan that is not
         verified, vehicles missing from the fleet); InvalidRequest for bad options.
@@ -210,57 +210,57 @@ class FleetService:
             self._check_not_flying("abort it or wait for it to end")
             flight_options = await self.vehicle_process.call("flight_options", plan, options)
             label = f"{self.kind}: {', '.join(plan.scenario.ids)}"
-            row = await asyncio.to_thread(self._store.create_execution, mission_id, label)
-            flight = LiveExecution(row.id, mission_id)
+            row = await asyncio.to_thread(self._store.create_flight, mission_id, label)
+            flight = LiveFlight(row.id, mission_id)
             self._flights[row.id] = flight
             self._active = flight
             self._tasks.spawn(self._run(flight, plan, flight_options))
             return row
 
     async def abort(
-        self, execution_id: str, action: str, reason: str = "operator abort",
+        self, flight_id: str, action: str, reason: str = "operator abort",
         stored_status: str = "finished",
-    ) -> LiveExecution:
+    ) -> LiveFlight:
         """Every vehicle of the flight to `action` (land or hold) now; StateConflict if it is not
         flying, or when `action` loses to the abort under way (`gcs.flight.run.precedence`: land
         overrides hold). Returns once the flight accepted it; the flight ends (status
         aborted) when the vehicles are safe."""
-        flight = self._flying(execution_id, stored_status)
+        flight = self._flying(flight_id, stored_status)
         if flight.handle is None:  # starting: passed on once the flight exists
             abort_in_force(flight.abort_requested, action)
         else:
             await flight.handle.request_abort(action, reason)
         flight.aborts.append(action)
         if flight.active:
-            flight.set_status(ExecutionStatus.ABORTING)
+            flight.set_status(FlightStatus.ABORTING)
         return flight
 
-    async def pause(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+    async def pause(self, flight_id: str, stored_status: str = "finished") -> LiveFlight:
         """Stop the flight's clock, every vehicle holding the plan's setpoint of the same plan
         time (status paused). StateConflict unless it is running its plan."""
-        flight = self._flying(execution_id, stored_status)
+        flight = self._flying(flight_id, stored_status)
         self._not_aborting(flight, "pause")
-        if flight.status != ExecutionStatus.RUNNING or flight.handle is None:
-            raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
+        if flight.status != FlightStatus.RUNNING or flight.handle is None:
+            raise StateConflict("flight_id", f"flight {flight_id!r} cannot be "
                                                 f"paused (status {flight.status})")
         await flight.handle.pause()
-        if flight.status == ExecutionStatus.RUNNING:  # not aborted meanwhile
-            flight.set_status(ExecutionStatus.PAUSED)
+        if flight.status == FlightStatus.RUNNING:  # not aborted meanwhile
+            flight.set_status(FlightStatus.PAUSED)
         return flight
 
-    async def resume(self, execution_id: str, stored_status: str = "finished") -> LiveExecution:
+    async def resume(self, flight_id: str, stored_status: str = "finished") -> LiveFlight:
         """Restart a paused flight's clock where it stopped (status running)."""
-        flight = self._flying(execution_id, stored_status)
+        flight = self._flying(flight_id, stored_status)
         self._not_aborting(flight, "resume")
-        if flight.status != ExecutionStatus.PAUSED or flight.handle is None:
-            raise StateConflict("execution_id", f"execution {execution_id!r} is not paused "
+        if flight.status != FlightStatus.PAUSED or flight.handle is None:
+            raise StateConflict("flight_id", f"flight {flight_id!r} is not paused "
                                                 f"(status {flight.status})")
         await flight.handle.resume()
-        if flight.status == ExecutionStatus.PAUSED:  # not aborted meanwhile
-            flight.set_status(ExecutionStatus.RUNNING)
+        if flight.status == FlightStatus.PAUSED:  # not aborted meanwhile
+            flight.set_status(FlightStatus.RUNNING)
         return flight
 
-    async def replan(self, execution_id: str, goals: dict[str, list[float]] | None,
+    async def replan(self, flight_id: str, goals: dict[str, list[float]] | None,
                      drop: list[str], drop_action: str, reason: str = "operator",
                      stored_status: str = "finished") -> dict[str, Any]:
         """Start an in-flight replan of a running flight (new goals for some vehicles, some
@@ -268,17 +268,17 @@ class FleetService:
         planning), its outcome follows as events. StateConflict unless the flight runs its
         plan (not starting, paused or aborting) or while another replan is under way;
         FieldError naming `goals.<id>` / `drop[n]` for an unknown vehicle or a bad goal."""
-        flight = self._flying(execution_id, stored_status)
+        flight = self._flying(flight_id, stored_status)
         self._not_aborting(flight, "replan")
-        if flight.status != ExecutionStatus.RUNNING or flight.handle is None:
-            raise StateConflict("execution_id", f"execution {execution_id!r} cannot be "
+        if flight.status != FlightStatus.RUNNING or flight.handle is None:
+            raise StateConflict("flight_id", f"flight {flight_id!r} cannot be "
                                                 f"replanned (status {flight.status})")
         return await flight.handle.replan(goals, drop, drop_action, reason)
 
-    async def replanned(self, execution_id: str) -> list[Segment]:
+    async def replanned(self, flight_id: str) -> list[Segment]:
         """The switched replans' plans of a flight, with their switch times: live from the
         vehicle process while it flies, from its record once it ended (none without)."""
-        flight = self._flights.get(execution_id)
+        flight = self._flights.get(flight_id)
         if flight is not None and flight.handle is not None:
             if flight.active:
                 return await flight.handle.replanned()
@@ -286,32 +286,32 @@ class FleetService:
                 return replanned_in(flight.handle.record)
         elif flight is not None:
             return []  # starting: nothing flown yet
-        row = await asyncio.to_thread(self._store.get_execution, execution_id,
+        row = await asyncio.to_thread(self._store.get_flight, flight_id,
                                       with_record=True)
         if row is None or row.record_json is None:
             return []
         return await asyncio.to_thread(replanned_in, orjson.loads(row.record_json))
 
     @staticmethod
-    def _not_aborting(flight: LiveExecution, command: str) -> None:
+    def _not_aborting(flight: LiveFlight, command: str) -> None:
         """StateConflict when `flight` aborts: an abort overrides `command`."""
         if flight.abort_requested is not None:
             conflict = aborting_refusal(command, flight.abort_requested,
-                                        f"execution {flight.id!r}")
-            raise StateConflict("execution_id", conflict.reason)
+                                        f"flight {flight.id!r}")
+            raise StateConflict("flight_id", conflict.reason)
 
-    def _flying(self, execution_id: str, stored_status: str) -> LiveExecution:
+    def _flying(self, flight_id: str, stored_status: str) -> LiveFlight:
         """The flight under way with this id; StateConflict naming its status otherwise."""
-        flight = self._flights.get(execution_id)
+        flight = self._flights.get(flight_id)
         if flight is None or not flight.active:
             status = stored_status if flight is None else flight.status
-            raise StateConflict("execution_id", f"execution {execution_id!r} is not flying "
+            raise StateConflict("flight_id", f"flight {flight_id!r} is not flying "
                                                 f"(status {status})")
         return flight
 
     # ------------------------------------------------------------------ one flight's run
 
-    async def _run(self, flight: LiveExecution, plan: Plan, options: FlightOptions) -> None:
+    async def _run(self, flight: LiveFlight, plan: Plan, options: FlightOptions) -> None:
         record: dict[str, Any] | None = None
         ticker: asyncio.Task[None] | None = None
         mirror: asyncio.Task[None] | None = None
@@ -319,7 +319,7 @@ class FleetService:
         process = self.vehicle_process
         # State, events and the record so far are stored about every second while flying,
         # so a crash keeps them; the record so far is mirrored from the vehicle process.
-        journal = ExecutionJournal(self._store, flight.id, lambda: (
+        journal = FlightJournal(self._store, flight.id, lambda: (
             flight.status, flight.events,
             None if flight.handle is None else flight.handle.record_so_far))
         journal.start()
@@ -334,30 +334,30 @@ class FleetService:
                 for action in list(flight.aborts):
                     await handle.request_abort(action, "operator abort")
             else:
-                flight.set_status(ExecutionStatus.RUNNING)
+                flight.set_status(FlightStatus.RUNNING)
             record = await handle.result()
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))
-            flight.status = (ExecutionStatus.COMPLETED if completed
-                             else ExecutionStatus.INCOMPLETE)
+            flight.status = (FlightStatus.COMPLETED if completed
+                             else FlightStatus.INCOMPLETE)
         except MissionAborted as exc:
-            flight.status, flight.error = ExecutionStatus.ABORTED, str(exc)
+            flight.status, flight.error = FlightStatus.ABORTED, str(exc)
         except VehicleLoopStopped as exc:
             # The vehicle process ended: nothing streams any more (PX4's offboard-loss
             # failsafe lands the vehicles); the operator must look at them.
-            log.critical("execution %s: %s; the setpoint stream has stopped, check the fleet",
+            log.critical("flight %s: %s; the setpoint stream has stopped, check the fleet",
                          flight.id, exc)
-            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
+            flight.status, flight.error = FlightStatus.FAILED, f"{type(exc).__name__}: {exc}"
         except GcsError as exc:
-            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
+            flight.status, flight.error = FlightStatus.FAILED, f"{type(exc).__name__}: {exc}"
             await _land_if_left_flying(flight, flying, type(exc).__name__)
         except asyncio.CancelledError:
-            flight.status = ExecutionStatus.INTERRUPTED
+            flight.status = FlightStatus.INTERRUPTED
             flight.error = "the service stopped during the flight"
             raise
         except Exception as exc:  # a bug: report it, keep the service up
-            log.exception("execution %s failed", flight.id)
-            flight.status, flight.error = ExecutionStatus.FAILED, f"{type(exc).__name__}: {exc}"
+            log.exception("flight %s failed", flight.id)
+            flight.status, flight.error = FlightStatus.FAILED, f"{type(exc).__name__}: {exc}"
             await _land_if_left_flying(flight, flying, type(exc).__name__)
         finally:
             for task in (ticker, mirror):
@@ -383,7 +383,7 @@ class FleetService:
             else:
                 self._tasks.spawn(self._store_later(flight, record))
 
-    async def _store_final(self, flight: LiveExecution, record: dict[str, Any] | None) -> bool:
+    async def _store_final(self, flight: LiveFlight, record: dict[str, Any] | None) -> bool:
         """One try at the flight's final write; on failure the reason is kept on the flight
         (`unstored`) and False returned."""
         try:
@@ -392,23 +392,23 @@ class FleetService:
                               error=flight.error)
         except Exception as exc:
             flight.unstored = storage_reason(exc)
-            log.error("could not store execution %s (kept in memory, retrying): %s",
+            log.error("could not store flight %s (kept in memory, retrying): %s",
                       flight.id, flight.unstored)
             return False
         flight.unstored = None
         return True
 
-    async def _store_later(self, flight: LiveExecution, record: dict[str, Any] | None) -> None:
+    async def _store_later(self, flight: LiveFlight, record: dict[str, Any] | None) -> None:
         """Retry an ended flight's final write (backing off to `STORE_RETRY_MAX_S`) until the
         store takes it, then drop the flight from memory. If the service stops first, the
-        execution is at least marked failed with the reason."""
+        flight is at least marked failed with the reason."""
         delay = STORE_RETRY_S
         try:
             while True:
                 await asyncio.sleep(delay)
                 delay = min(2 * delay, STORE_RETRY_MAX_S)
                 if await self._store_final(flight, record):
-                    log.info("execution %s stored after a storage fault", flight.id)
+                    log.info("flight %s stored after a storage fault", flight.id)
                     self._flights.pop(flight.id, None)
                     return
         except asyncio.CancelledError:
@@ -418,7 +418,7 @@ class FleetService:
             raise
 
     @staticmethod
-    def _unstored_reason(flight: LiveExecution) -> str:
+    def _unstored_reason(flight: LiveFlight) -> str:
         return (f"the flight ({flight.status}) could not be stored before the service "
                 f"stopped: {flight.unstored}")[:500]
 
@@ -438,14 +438,14 @@ class FleetService:
         elif kind == "snapshot" and flight.handle is not None:
             flight.handle.posted(data["snapshot"])
 
-    def _on_event(self, flight: LiveExecution, event: dict[str, Any]) -> None:
+    def _on_event(self, flight: LiveFlight, event: dict[str, Any]) -> None:
         """One event of the flight (handed over from the vehicle process, in order) into the
         flight's log and stream; a pause past its limit ends the pause (the executor lands
         or holds the fleet)."""
         flight.events.append(event)
         flight.publish("event", event)
-        if event["kind"] == EventKind.PAUSE_LIMIT and flight.status == ExecutionStatus.PAUSED:
-            flight.set_status(ExecutionStatus.ABORTING)
+        if event["kind"] == EventKind.PAUSE_LIMIT and flight.status == FlightStatus.PAUSED:
+            flight.set_status(FlightStatus.ABORTING)
 
     @staticmethod
     async def _mirror(handle: RemoteFlight) -> None:
@@ -458,7 +458,7 @@ class FleetService:
             except (GcsError, VehicleLoopStopped) as exc:
                 log.debug("record mirror: %s", exc)
 
-    async def _telemetry(self, flight: LiveExecution, handle: RemoteFlight) -> None:
+    async def _telemetry(self, flight: LiveFlight, handle: RemoteFlight) -> None:
         """Live snapshots on the flight's stream at TELEMETRY_HZ (the latest the vehicle
         process posted)."""
         while True:
@@ -468,7 +468,7 @@ class FleetService:
             await asyncio.sleep(1.0 / TELEMETRY_HZ)
 
 
-async def _land_if_left_flying(flight: LiveExecution, flying: bool, why: str) -> None:
+async def _land_if_left_flying(flight: LiveFlight, flying: bool, why: str) -> None:
     """A flight whose run here failed before it ended there is never left going on its own:
     every vehicle lands, and its end is awaited."""
     handle = flight.handle

@@ -1,12 +1,12 @@
-"""An execution's state, events and flight record written to the store while it flies, and
+"""A flight's state, events and flight record written to the store while it flies, and
 its final write when it ends.
 
-So that a crash (kill -9, power loss) keeps what a flight did, `ExecutionJournal` writes the
+So that a crash (kill -9, power loss) keeps what a flight did, `FlightJournal` writes the
 status and the events so far about once a second (batched: nothing is written when nothing
 changed), and a snapshot of the flight record so far every few seconds (it grows with the
 flight, so less often). The final write at the end of the flight (`write_final`) replaces all
 of it; while the store refuses that (a full disk), the flight service keeps the final state
-in memory and retries, and only a service that stops meanwhile leaves the execution `failed`
+in memory and retries, and only a service that stops meanwhile leaves the flight `failed`
 with the reason (`store_failure`), never stored as flying.
 
 The record so far is the service's mirror of it (`gcs.service.record_mirror`: only what is
@@ -27,7 +27,7 @@ import orjson
 
 from gcs.service.store import Store
 
-__all__ = ["ExecutionJournal", "RecordCopy", "Source", "store_failure", "write_final"]
+__all__ = ["FlightJournal", "RecordCopy", "Source", "store_failure", "write_final"]
 
 log = logging.getLogger(__name__)
 
@@ -44,14 +44,14 @@ RecordCopy = Callable[[], Awaitable[dict[str, Any]]]
 Source = Callable[[], tuple[str, list[dict[str, Any]], RecordCopy | None]]
 
 
-class ExecutionJournal:
-    """Writes one live execution to the store periodically until `close`."""
+class FlightJournal:
+    """Writes one live flight to the store periodically until `close`."""
 
-    def __init__(self, store: Store, execution_id: str, source: Source, *,
+    def __init__(self, store: Store, flight_id: str, source: Source, *,
                  state_period_s: float = STATE_PERIOD_S,
                  record_period_s: float = RECORD_PERIOD_S) -> None:
         self._store = store
-        self._id = execution_id
+        self._id = flight_id
         self._source = source
         self._state_period = state_period_s
         self._record_every = max(1, round(record_period_s / state_period_s))
@@ -105,13 +105,13 @@ class ExecutionJournal:
                     text = orjson.dumps(record, option=orjson.OPT_SERIALIZE_NUMPY).decode()
                 except TypeError as exc:  # never let the record keep the events unstored
                     log.warning("flight record of %s not serialisable: %s", self._id, exc)
-            self._store.update_execution(self._id, status=status, events=events,
+            self._store.update_flight(self._id, status=status, events=events,
                                          record_json=text)
 
         try:
             await asyncio.to_thread(write)
         except Exception as exc:
-            log.warning("could not store execution %s so far (will retry): %s", self._id, exc)
+            log.warning("could not store flight %s so far (will retry): %s", self._id, exc)
             return False
         self._written = state
         return True
@@ -121,7 +121,7 @@ class ExecutionJournal:
 _retries: set[asyncio.Task[bool]] = set()
 
 
-async def store_failure(store: Store, execution_id: str, reason: str,
+async def store_failure(store: Store, flight_id: str, reason: str,
                         events: list[dict[str, Any]], *, retry_s: float = 2.0,
                         attempts: int = 60) -> bool:
     """After the final write of a flight failed: mark it `failed` with `reason` (a small
@@ -129,7 +129,7 @@ async def store_failure(store: Store, execution_id: str, reason: str,
     background (`attempts` times, every `retry_s`). True if stored now."""
 
     def write() -> None:
-        store.update_execution(execution_id, status="failed", events=events, error=reason,
+        store.update_flight(flight_id, status="failed", events=events, error=reason,
                                finished=True)
 
     async def retry() -> bool:
@@ -144,14 +144,14 @@ async def store_failure(store: Store, execution_id: str, reason: str,
         await asyncio.to_thread(write)
         return True
     except Exception as exc:
-        log.error("could not mark execution %s failed (retrying): %s", execution_id, exc)
+        log.error("could not mark flight %s failed (retrying): %s", flight_id, exc)
     task = asyncio.ensure_future(retry())
     _retries.add(task)
     task.add_done_callback(_retries.discard)
     return False
 
 
-async def write_final(store: Store, execution_id: str, *, status: str,
+async def write_final(store: Store, flight_id: str, *, status: str,
                       events: list[dict[str, Any]], summary: dict[str, Any] | None,
                       record: dict[str, Any] | None, error: str | None) -> None:
     """The final write of a flight: status, events, summary, record and error, in one
@@ -163,7 +163,7 @@ async def write_final(store: Store, execution_id: str, *, status: str,
         if record is not None:
             # orjson: a flight record is megabytes; json.dumps would hold the GIL longer.
             text = orjson.dumps(record, option=orjson.OPT_SERIALIZE_NUMPY).decode()
-        store.update_execution(execution_id, status=status, events=events, summary=summary,
+        store.update_flight(flight_id, status=status, events=events, summary=summary,
                                record_json=text, error=error, finished=True)
 
     await asyncio.to_thread(write)

@@ -1,6 +1,5 @@
 """One flight while it is under way, in memory: its status, events, live telemetry and the
-listeners of its event stream; and the REST document of an execution (stored row + live
-state)."""
+listeners of its event stream; and the REST document of a flight (stored row + live state)."""
 
 from __future__ import annotations
 
@@ -12,19 +11,19 @@ from typing import Any
 
 from gcs.service.events import Broadcast, Event
 from gcs.service.remote_flight import RemoteFlight
-from gcs.service.statuses import ExecutionStatus
-from gcs.service.store import ExecutionRow
+from gcs.service.statuses import FlightStatus
+from gcs.service.store import FlightRow
 
-__all__ = ["LiveExecution", "execution_document"]
+__all__ = ["LiveFlight", "flight_document"]
 
 
 @dataclass
-class LiveExecution:
-    """One execution being flown (in memory while it runs)."""
+class LiveFlight:
+    """One flight being flown (in memory while it runs)."""
 
     id: str
     mission_id: str
-    status: ExecutionStatus = ExecutionStatus.STARTING
+    status: FlightStatus = FlightStatus.STARTING
     handle: RemoteFlight | None = None
     """The flight in the vehicle process, once it is made."""
     events: list[dict[str, Any]] = field(default_factory=list)
@@ -55,7 +54,7 @@ class LiveExecution:
         """Tell the stream's listeners."""
         self.listeners.publish(kind, data)
 
-    def set_status(self, status: ExecutionStatus) -> None:
+    def set_status(self, status: FlightStatus) -> None:
         """Change the status and tell the listeners."""
         self.status = status
         self.publish("status", {"status": status})
@@ -82,8 +81,8 @@ class LiveExecution:
             yield event
 
 
-def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[str, Any]:
-    """`ExecutionOut`: the stored execution, with live state while it flies."""
+def flight_document(row: FlightRow, flight: LiveFlight | None) -> dict[str, Any]:
+    """`FlightOut`: the stored flight, with live state while it flies."""
     doc = row.to_dict()
     if flight is not None and flight.active:
         # The live state, and the summary as soon as the flight has one (it is set together
@@ -102,14 +101,14 @@ def execution_document(row: ExecutionRow, flight: LiveExecution | None) -> dict[
         doc["live"] = None
     doc["storage"] = None if flight is None else flight.unstored
     doc["links"] = {
-        "self": f"/api/executions/{row.id}",
-        "events": f"/api/executions/{row.id}/events",
-        "abort": f"/api/executions/{row.id}/abort",
-        "pause": f"/api/executions/{row.id}/pause",
-        "resume": f"/api/executions/{row.id}/resume",
-        "replan": f"/api/executions/{row.id}/replan",
-        "trajectory": f"/api/executions/{row.id}/trajectory",
-        "record": f"/api/executions/{row.id}/record",
+        "self": f"/api/flights/{row.id}",
+        "events": f"/api/flights/{row.id}/events",
+        "abort": f"/api/flights/{row.id}/abort",
+        "pause": f"/api/flights/{row.id}/pause",
+        "resume": f"/api/flights/{row.id}/resume",
+        "replan": f"/api/flights/{row.id}/replan",
+        "trajectory": f"/api/flights/{row.id}/trajectory",
+        "record": f"/api/flights/{row.id}/record",
         "mission": f"/api/missions/{row.mission_id}",
     }
     return doc

@@ -14,9 +14,9 @@ from enum import StrEnum
 from planner.result import STATUSES as PLAN_STATUSES
 
 __all__ = [
-    "EXECUTION_ACTIVE",
-    "EXECUTION_FINISHED",
-    "ExecutionStatus",
+    "FLIGHT_ACTIVE",
+    "FLIGHT_FINISHED",
+    "FlightStatus",
     "MissionStatus",
     "status_sets",
 ]
@@ -32,7 +32,7 @@ class MissionStatus(StrEnum):
     FAILED = "failed"
 
 
-class ExecutionStatus(StrEnum):
+class FlightStatus(StrEnum):
     """One flight: `starting` (links opening, arming, climbing), `running`, `paused` (the
     flight clock stopped, every vehicle holding the setpoint of the same plan time),
     `aborting` while the vehicles may be flying; then one final status. `incomplete`: ran to
@@ -50,31 +50,33 @@ class ExecutionStatus(StrEnum):
     INTERRUPTED = "interrupted"
 
 
-#: Execution statuses during which the vehicles are (or may be) flying.
-EXECUTION_ACTIVE: tuple[ExecutionStatus, ...] = (
-    ExecutionStatus.STARTING, ExecutionStatus.RUNNING, ExecutionStatus.PAUSED,
-    ExecutionStatus.ABORTING,
+#: Flight statuses during which the vehicles are (or may be) flying.
+FLIGHT_ACTIVE: tuple[FlightStatus, ...] = (
+    FlightStatus.STARTING, FlightStatus.RUNNING, FlightStatus.PAUSED,
+    FlightStatus.ABORTING,
 )
-#: Final execution statuses.
-EXECUTION_FINISHED: tuple[ExecutionStatus, ...] = tuple(
-    s for s in ExecutionStatus if s not in EXECUTION_ACTIVE
+#: Final flight statuses.
+FLIGHT_FINISHED: tuple[FlightStatus, ...] = tuple(
+    s for s in FlightStatus if s not in FLIGHT_ACTIVE
 )
 
 
 def status_sets() -> dict[str, dict[str, list[str]]]:
     """Every status set as served by `GET /api/status` (``statuses``): mission statuses,
-    execution statuses with the active and finished subsets, and the planner's plan
+    flight statuses with the active and finished subsets, and the planner's plan
     statuses."""
+    flight = {
+        "all": [s.value for s in FlightStatus],
+        "active": [s.value for s in FLIGHT_ACTIVE],
+        "finished": [s.value for s in FLIGHT_FINISHED],
+    }
     return {
         "mission": {
             "all": [s.value for s in MissionStatus],
             "active": [MissionStatus.PLANNING.value],
             "failed": [MissionStatus.FAILED.value],
         },
-        "execution": {
-            "all": [s.value for s in ExecutionStatus],
-            "active": [s.value for s in EXECUTION_ACTIVE],
-            "finished": [s.value for s in EXECUTION_FINISHED],
-        },
+        "flight": flight,
+        "execution": flight,  # the same, under the flight's former name
         "plan": {"all": list(PLAN_STATUSES)},
     }

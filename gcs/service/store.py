@@ -1,7 +1,8 @@
 """Persistence of missions, plans and flight records (SQLAlchemy 2; SQLite or PostgreSQL).
 
 Two tables: `missions` (the scenario, the planning status and, once planned, the Plan JSON) and
-`executions` (one flight of a mission: status, events, summary and the flight record). JSON
+`executions` (the flights of a mission: status, events, summary and the flight record; the
+table keeps its first name so existing databases load). JSON
 documents are stored as text exactly as produced: a 64-vehicle plan is several megabytes, and
 keeping it as text lets the API send it without parsing and re-serialising it on every request.
 
@@ -42,11 +43,11 @@ from sqlalchemy.orm import (
     sessionmaker,
 )
 
-from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus
+from gcs.service.statuses import FLIGHT_ACTIVE, FlightStatus, MissionStatus
 
 __all__ = [
-    "EXECUTION_ACTIVE",
-    "ExecutionRow",
+    "FLIGHT_ACTIVE",
+    "FlightRow",
     "MissionRow",
     "Store",
     "new_mission_id",
@@ -88,8 +89,8 @@ class _Mission(_Base):
     error_json: Mapped[str | None] = mapped_column(Text, nullable=True)
 
 
-class _Execution(_Base):
-    __tablename__ = "executions"
+class _Flight(_Base):
+    __tablename__ = "executions"  # the flights' table, under its first name
 
     id: Mapped[str] = mapped_column(String(32), primary_key=True)
     mission_id: Mapped[str] = mapped_column(
@@ -142,12 +143,12 @@ class MissionRow:
 
 
 @dataclass(frozen=True)
-class ExecutionRow:
+class FlightRow:
     """One flight of a mission as stored."""
 
     id: str
     mission_id: str
-    status: ExecutionStatus
+    status: FlightStatus
     created_at: datetime
     finished_at: datetime | None
     fleet: str
@@ -195,13 +196,13 @@ def _mission_row(m: _Mission, *, with_plan: bool) -> MissionRow:
     )
 
 
-def _execution_row(
-    e: _Execution, *, with_record: bool = False, has_record: bool | None = None
-) -> ExecutionRow:
-    return ExecutionRow(
+def _flight_row(
+    e: _Flight, *, with_record: bool = False, has_record: bool | None = None
+) -> FlightRow:
+    return FlightRow(
         id=e.id,
         mission_id=e.mission_id,
-        status=ExecutionStatus(e.status),
+        status=FlightStatus(e.status),
         created_at=_aware(e.created_at),
         finished_at=None if e.finished_at is None else _aware(e.finished_at),
         fleet=e.fleet,
@@ -230,7 +231,7 @@ def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
 
 
 class Store:
-    """Missions and executions in a SQL database named by a SQLAlchemy URL."""
+    """Missions and flights in a SQL database named by a SQLAlchemy URL."""
 
     def __init__(self, url: str) -> None:
         connect_args: dict[str, Any] = {}
@@ -357,72 +358,72 @@ class Store:
             return _changed(result) > 0
 
     def delete_mission(self, mission_id: str) -> bool:
-        """Delete a mission and its executions; False if there was none."""
+        """Delete a mission and its flights; False if there was none."""
         with self._session() as session:
             mission = session.get(_Mission, mission_id)
             if mission is None:
                 return False
             # Explicit, so the cascade does not depend on the backend's foreign-key support.
-            for execution in session.scalars(
-                select(_Execution).where(_Execution.mission_id == mission_id)
+            for flight in session.scalars(
+                select(_Flight).where(_Flight.mission_id == mission_id)
             ):
-                session.delete(execution)
+                session.delete(flight)
             session.delete(mission)
             return True
 
-    # ------------------------------------------------------------------ executions
+    # ------------------------------------------------------------------ flights
 
-    def create_execution(self, mission_id: str, fleet: str) -> ExecutionRow:
-        execution = _Execution(
+    def create_flight(self, mission_id: str, fleet: str) -> FlightRow:
+        flight = _Flight(
             id=_new_id(),
             mission_id=mission_id,
-            status=ExecutionStatus.STARTING,
+            status=FlightStatus.STARTING,
             created_at=_now(),
             fleet=fleet[:200],
             events_json="[]",
         )
         with self._session() as session:
-            session.add(execution)
+            session.add(flight)
             session.flush()
-            return _execution_row(execution)
+            return _flight_row(flight)
 
-    def get_execution(self, execution_id: str, *, with_record: bool = False) -> ExecutionRow | None:
+    def get_flight(self, flight_id: str, *, with_record: bool = False) -> FlightRow | None:
         with self._session() as session:
-            execution = session.get(_Execution, execution_id)
-            return None if execution is None else _execution_row(execution, with_record=with_record)
+            flight = session.get(_Flight, flight_id)
+            return None if flight is None else _flight_row(flight, with_record=with_record)
 
-    def list_executions(self, mission_id: str | None = None) -> list[ExecutionRow]:
+    def list_flights(self, mission_id: str | None = None) -> list[FlightRow]:
         """Newest first, optionally of one mission (records are not loaded)."""
         query = (
-            select(_Execution, _Execution.record_json.is_not(None))
-            .options(defer(_Execution.record_json))
-            .order_by(_Execution.created_at.desc(), _Execution.id)
+            select(_Flight, _Flight.record_json.is_not(None))
+            .options(defer(_Flight.record_json))
+            .order_by(_Flight.created_at.desc(), _Flight.id)
         )
         if mission_id is not None:
-            query = query.where(_Execution.mission_id == mission_id)
+            query = query.where(_Flight.mission_id == mission_id)
         with self._session() as session:
             return [
-                _execution_row(e, has_record=bool(has))
+                _flight_row(e, has_record=bool(has))
                 for e, has in session.execute(query)
             ]
 
-    def page_executions(self, *, limit: int, offset: int) -> tuple[list[ExecutionRow], int]:
-        """One page of executions, newest first (records not loaded), and the total count."""
+    def page_flights(self, *, limit: int, offset: int) -> tuple[list[FlightRow], int]:
+        """One page of flights, newest first (records not loaded), and the total count."""
         query = (
-            select(_Execution, _Execution.record_json.is_not(None))
-            .options(defer(_Execution.record_json))
-            .order_by(_Execution.created_at.desc(), _Execution.id)
+            select(_Flight, _Flight.record_json.is_not(None))
+            .options(defer(_Flight.record_json))
+            .order_by(_Flight.created_at.desc(), _Flight.id)
             .limit(limit)
             .offset(offset)
         )
         with self._session() as session:
-            total = session.scalar(select(func.count()).select_from(_Execution)) or 0
-            rows = [_execution_row(e, has_record=bool(has)) for e, has in session.execute(query)]
+            total = session.scalar(select(func.count()).select_from(_Flight)) or 0
+            rows = [_flight_row(e, has_record=bool(has)) for e, has in session.execute(query)]
         return rows, int(total)
 
-    def update_execution(
+    def update_flight(
         self,
-        execution_id: str,
+        flight_id: str,
         *,
         status: str | None = None,
         events: list[dict[str, Any]] | None = None,
@@ -448,16 +449,16 @@ class Store:
             return True
         with self._session() as session:
             result = session.execute(
-                update(_Execution).where(_Execution.id == execution_id).values(**values)
+                update(_Flight).where(_Flight.id == flight_id).values(**values)
             )
             return _changed(result) > 0
 
-    def fail_unfinished_executions(self, reason: str) -> int:
-        """Executions a stopped server left active: mark them `interrupted`."""
+    def fail_unfinished_flights(self, reason: str) -> int:
+        """Flights a stopped server left active: mark them `interrupted`."""
         with self._session() as session:
             result = session.execute(
-                update(_Execution)
-                .where(_Execution.status.in_(EXECUTION_ACTIVE))
-                .values(status=ExecutionStatus.INTERRUPTED, error=reason, finished_at=_now())
+                update(_Flight)
+                .where(_Flight.status.in_(FLIGHT_ACTIVE))
+                .values(status=FlightStatus.INTERRUPTED, error=reason, finished_at=_now())
             )
             return _changed(result)

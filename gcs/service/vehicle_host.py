@@ -32,7 +32,7 @@ from gcs.service.journal import write_final
 from gcs.service.record_mirror import record_delta
 from gcs.service.replan_handle import ReplanHandle, Segment
 from gcs.service.settings import Settings
-from gcs.service.statuses import ExecutionStatus
+from gcs.service.statuses import FlightStatus
 from gcs.service.store import Store
 from gcs.sim import MockConfig
 from planner import Plan
@@ -97,7 +97,7 @@ class FleetHost:
             return
         store = Store(self._settings.database_url)
         try:
-            await write_final(store, execution, status=ExecutionStatus.INTERRUPTED,
+            await write_final(store, execution, status=FlightStatus.INTERRUPTED,
                               events=list(record.get("events", [])),
                               summary=record.get("summary"), record=record,
                               error=f"{ORPHAN_ERROR}; the vehicle process landed the fleet "
@@ -210,7 +210,7 @@ class FleetHost:
 
     def _current(self, execution: str) -> ReplanHandle:
         if self._flight is None or self._execution != execution:
-            raise StateConflict("execution_id", f"execution {execution!r} is not flying here")
+            raise StateConflict("flight_id", f"execution {execution!r} is not flying here")
         return self._flight
 
     async def pause(self, execution: str) -> float:

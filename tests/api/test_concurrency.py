@@ -29,9 +29,9 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
         assert small.status_code == 201
         small_id = small.json()["id"]
         # A flight on the mock fleet, streaming setpoints at 20 Hz from the service's loop.
-        flight = client.post(f"/api/missions/{small_id}/executions").json()
+        flight = client.post(f"/api/missions/{small_id}/flights").json()
         deadline = time.monotonic() + 30
-        while (client.get(f"/api/executions/{flight['id']}").json()["live"] or {}).get(
+        while (client.get(f"/api/flights/{flight['id']}").json()["live"] or {}).get(
                 "phase") != "flying":
             assert time.monotonic() < deadline, "the flight did not start"
             time.sleep(0.05)
@@ -65,7 +65,7 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
         planning_s = time.monotonic() - started
 
         deadline = time.monotonic() + 60
-        while (execution := client.get(f"/api/executions/{flight['id']}").json())[
+        while (execution := client.get(f"/api/flights/{flight['id']}").json())[
                 "status"] in ("starting", "running"):
             assert time.monotonic() < deadline, "the flight did not end"
             time.sleep(0.05)

@@ -13,7 +13,7 @@ from gcs.api import create_app
 from gcs.api.schemas import planner_schemas, shape_errors
 from gcs.phases import EventKind, vocabulary
 from gcs.service.settings import Settings
-from gcs.service.statuses import EXECUTION_ACTIVE, ExecutionStatus, MissionStatus, status_sets
+from gcs.service.statuses import FLIGHT_ACTIVE, FlightStatus, MissionStatus, status_sets
 from planner import Plan, Scenario
 from planner.result import STATUSES as PLAN_STATUSES
 from planner.scenario import DEFAULTS, Limits, Vehicle
@@ -68,10 +68,10 @@ def test_status_publishes_every_status_set(client: TestClient) -> None:
     assert statuses["mission"]["all"] == [s.value for s in MissionStatus]
     assert statuses["mission"]["active"] == ["planning"]
     assert statuses["mission"]["failed"] == ["failed"]
-    assert statuses["execution"]["all"] == [s.value for s in ExecutionStatus]
-    assert statuses["execution"]["active"] == ["starting", "running", "paused", "aborting"]
-    assert set(statuses["execution"]["active"]) == set(EXECUTION_ACTIVE)
-    assert set(statuses["execution"]["finished"]) == set(ExecutionStatus) - set(EXECUTION_ACTIVE)
+    assert statuses["flight"]["all"] == [s.value for s in FlightStatus]
+    assert statuses["flight"]["active"] == ["starting", "running", "paused", "aborting"]
+    assert set(statuses["flight"]["active"]) == set(FLIGHT_ACTIVE)
+    assert set(statuses["flight"]["finished"]) == set(FlightStatus) - set(FLIGHT_ACTIVE)
     assert statuses["plan"]["all"] == list(PLAN_STATUSES)
 
 
@@ -88,7 +88,7 @@ def test_the_status_example_is_made_from_the_definitions(shared_client: TestClie
     assert "phases" in component["properties"] and "phases" in component["required"]
     example = component["examples"][0]
     assert example["statuses"] == status_sets()
-    assert ExecutionStatus.PAUSED.value in example["statuses"]["execution"]["active"]
+    assert FlightStatus.PAUSED.value in example["statuses"]["flight"]["active"]
     assert example["phases"] == vocabulary()
     assert set(example["limits"]) == set(shared_client.get("/api/status").json()["limits"])
     assert example["limits"]["max_steps"] == Settings.model_fields["max_steps"].default

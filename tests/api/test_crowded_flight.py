@@ -62,10 +62,10 @@ def test_a_crowded_service_flies_and_refuses_only_with_503(
         async with httpx.AsyncClient(base_url=base_url, timeout=120, limits=limits) as client:
             mission = (await client.post("/api/missions?wait=120", json=QUICK_CROSSING)).json()
             assert mission["status"] == "planned", mission
-            started = await client.post(f"/api/missions/{mission['id']}/executions",
+            started = await client.post(f"/api/missions/{mission['id']}/flights",
                                         json={"hold_at_goal": 0.5})
             assert started.status_code == 201, started.text
-            url = f"/api/executions/{started.json()['id']}"
+            url = f"/api/flights/{started.json()['id']}"
             deadline = time.monotonic() + 60  # bound
             while ((await client.get(url)).json()["live"] or {}).get("phase") != "flying":
                 assert time.monotonic() < deadline, "the flight did not start"

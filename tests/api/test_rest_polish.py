@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.routes.test_executions import QUICK
+from tests.api.routes.test_flights import QUICK
 from tests.api.support import QUICK_CROSSING, example
 
 
@@ -47,7 +47,7 @@ def test_every_query_error_is_reported_at_once(shared_client: TestClient) -> Non
 def test_405_names_the_allowed_methods(shared_client: TestClient) -> None:
     cases = {("PUT", "/api/missions"): "GET, POST", ("POST", "/api/status"): "GET",
              ("PATCH", "/api/missions/abc"): "DELETE, GET",
-             ("GET", "/api/executions/abc/abort"): "POST"}
+             ("GET", "/api/flights/abc/abort"): "POST"}
     for (method, path), allow in cases.items():
         response = shared_client.request(method, path)
         assert response.status_code == 405, (method, path)
@@ -86,7 +86,7 @@ def test_flight_events_resume_and_flights_are_paginated_without_events(
 ) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = client.post("/api/missions?wait=60", json=QUICK_CROSSING).json()
-        flight = client.post(f"/api/missions/{mission['id']}/executions",
+        flight = client.post(f"/api/missions/{mission['id']}/flights",
                              json=QUICK).json()
         live = sse(client, flight["links"]["events"])
         assert live[-1][0] == "done" and live[-1][2]["status"] == "completed"
@@ -99,12 +99,12 @@ def test_flight_events_resume_and_flights_are_paginated_without_events(
         assert again[0][0] == "status" and again[-1][0] == "done"
         assert [(i, d) for kind, i, d in again if kind == "event"] == recorded[k + 1:]
 
-        page = client.get("/api/executions", params={"limit": 1}).json()
+        page = client.get("/api/flights", params={"limit": 1}).json()
         assert (page["total"], page["limit"], page["offset"]) == (1, 1, 0)
-        listed = page["executions"][0]
+        listed = page["flights"][0]
         assert listed["id"] == flight["id"] and "events" not in listed
         assert listed["event_count"] == len(recorded)
-        assert client.get("/api/executions", params={"offset": 1}).json()["executions"] == []
+        assert client.get("/api/flights", params={"offset": 1}).json()["flights"] == []
         assert len(client.get(flight["links"]["self"]).json()["events"]) == len(recorded)
 
 

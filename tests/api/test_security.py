@@ -34,23 +34,23 @@ def test_a_forged_cross_site_fly_request_is_refused(
     # without a CORS preflight; answered, it would arm the fleet.
     with TestClient(create_app(mock_settings())) as client:
         mission = client.post("/api/missions?wait=60", json=example("paper-circle2")).json()
-        url = f"/api/missions/{mission['id']}/executions"
+        url = f"/api/missions/{mission['id']}/flights"
         forged = client.post(url, content=b"", headers={
             "Content-Type": "text/plain", "Origin": "http://evil.example"})
         refused(forged, 403, "Origin", "cross-site request from http://evil.example refused")
         # Without the Origin the text/plain body alone is refused too.
         refused(client.post(url, content=b"", headers={"Content-Type": "text/plain"}),
                 415, "Content-Type", "must be JSON")
-        assert client.get("/api/executions").json()["total"] == 0  # nothing was flown
+        assert client.get("/api/flights").json()["total"] == 0  # nothing was flown
 
 
 @pytest.mark.parametrize(
     ("method", "path", "headers"),
     [
         ("DELETE", "/api/missions/{id}", {"Origin": "http://evil.example"}),
-        ("POST", "/api/missions/{id}/executions", {"Origin": "null"}),
-        ("POST", "/api/missions/{id}/executions", {"Origin": "http://testserver.evil.example"}),
-        ("POST", "/api/missions/{id}/executions", {"Origin": "http://localhost:3000"}),
+        ("POST", "/api/missions/{id}/flights", {"Origin": "null"}),
+        ("POST", "/api/missions/{id}/flights", {"Origin": "http://testserver.evil.example"}),
+        ("POST", "/api/missions/{id}/flights", {"Origin": "http://localhost:3000"}),
         ("DELETE", "/api/missions/{id}", {"Sec-Fetch-Site": "cross-site"}),
     ],
 )
@@ -151,7 +151,7 @@ def test_the_read_only_role_reads_and_changes_nothing(token_client: TestClient) 
     assert token_client.get(f"/api/missions/{mission_id}", headers=reader).status_code == 200
     assert token_client.get("/api/status", headers=reader).status_code == 200
     for method, path in [("POST", "/api/missions"), ("DELETE", f"/api/missions/{mission_id}"),
-                         ("POST", f"/api/missions/{mission_id}/executions")]:
+                         ("POST", f"/api/missions/{mission_id}/flights")]:
         refused(token_client.request(method, path, headers=reader, json=example("paper-circle2")
                                      if method == "POST" else None),
                 403, "Authorization", "read-only token may not change anything")

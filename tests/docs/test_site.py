@@ -22,7 +22,7 @@ import pytest
 import yaml  # type: ignore[import-untyped]
 
 from gcs.phases import FlightPhase, VehiclePhase
-from gcs.service.statuses import ExecutionStatus, MissionStatus
+from gcs.service.statuses import FlightStatus, MissionStatus
 from tests.paths import ROOT
 
 __all__: list[str] = []
@@ -173,5 +173,5 @@ def test_concepts_page_names_every_status_and_phase() -> None:
     """The glossary lists the defined statuses and phases (gcs/service/statuses.py,
     gcs/phases.py); a new one must be documented."""
     text = (ROOT / "docs" / "concepts.md").read_text()
-    for value in [*MissionStatus, *ExecutionStatus, *FlightPhase, *VehiclePhase]:
+    for value in [*MissionStatus, *FlightStatus, *FlightPhase, *VehiclePhase]:
         assert f"`{value}`" in text, value

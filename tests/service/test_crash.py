@@ -44,9 +44,9 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         planned = httpx.post(f"{url}/api/missions?wait=120", json=QUICK_PAIR,
                              timeout=130).json()
         assert planned["status"] == "planned", planned
-        execution = httpx.post(f"{url}/api/missions/{planned['id']}/executions",
+        execution = httpx.post(f"{url}/api/missions/{planned['id']}/flights",
                                json={"hold_at_goal": 60}, timeout=HTTP_S).json()
-        exec_url = f"{url}/api/executions/{execution['id']}"
+        exec_url = f"{url}/api/flights/{execution['id']}"
         # Plans computing concurrently with the flight (large ones that outlast the test).
         created: list[str] = []
 
@@ -102,7 +102,7 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
                 assert mission["status"] == "failed"
                 assert mission["error"]["reason"] == \
                     "the service stopped before this plan finished"
-        stored = httpx.get(f"{url}/api/executions/{execution['id']}", timeout=HTTP_S).json()
+        stored = httpx.get(f"{url}/api/flights/{execution['id']}", timeout=HTTP_S).json()
         assert stored["status"] == "interrupted"
         # The vehicle process (gone by now, as the workers) landed the fleet after the
         # crash and stored what it did: that landing is in the events and the record.
@@ -115,7 +115,7 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
                    for e in after), after
         assert [e["vehicle"] for e in after if e["kind"] == "landed"] != [], after
         assert stored["has_record"] is True
-        record = httpx.get(f"{url}/api/executions/{execution['id']}/record",
+        record = httpx.get(f"{url}/api/flights/{execution['id']}/record",
                            timeout=HTTP_S).json()
         assert record["events"] == stored["events"]
         assert record["summary"]["completed"] is False

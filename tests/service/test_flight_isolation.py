@@ -24,7 +24,7 @@ import pytest
 from gcs.errors import VehicleLoopStopped
 from gcs.flight.host.vehicle_loop import SWITCH_INTERVAL_S, VehicleLoop
 from gcs.phases import EventKind
-from gcs.service.flights import FleetService, LiveExecution
+from gcs.service.flights import FleetService, LiveFlight
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.support import free_udp_base
@@ -44,7 +44,7 @@ async def _wait_for(condition: Any, what: str, bound: float = 60.0) -> None:
         await asyncio.sleep(0.02)
 
 
-async def _flying(service: FleetService, mission_id: str, plan: Any) -> LiveExecution:
+async def _flying(service: FleetService, mission_id: str, plan: Any) -> LiveFlight:
     """Fly `plan` on the service's fleet; the live flight, once the plan's clock started."""
     row = await service.fly(mission_id, plan, {"hold_at_goal": 0.5})
     flight = service.flight(row.id)
@@ -194,8 +194,8 @@ def test_a_vehicle_process_killed_mid_flight_fails_the_flight(tmp_path: Path) ->
         finally:
             await service.close()
 
-    execution_id = asyncio.run(fly())
-    stored = store.get_execution(execution_id)
+    flight_id = asyncio.run(fly())
+    stored = store.get_flight(flight_id)
     store.close()
     assert stored is not None and stored.status == "failed"
     assert "VehicleLoopStopped" in (stored.error or "")

@@ -1,4 +1,4 @@
-"""Executions stored while they fly (`ExecutionJournal`). A flight whose final write fails
+"""Executions stored while they fly (`FlightJournal`). A flight whose final write fails
 is tests/service/test_storage_faults.py's."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from gcs.service.journal import ExecutionJournal
+from gcs.service.journal import FlightJournal
 from gcs.service.store import Store
 from planner import Scenario
 from tests.api.support import example
@@ -30,19 +30,19 @@ async def _until(condition: Callable[[], bool], bound: float = 30.0) -> None:
 def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> None:
     store = Store(f"sqlite:///{tmp_path / 'j.db'}")
     mission = store.create_mission(Scenario.from_dict(example("paper-circle2")).to_dict())
-    execution = store.create_execution(mission.id, "mock: a, b")
+    execution = store.create_flight(mission.id, "mock: a, b")
     writes: list[dict[str, Any]] = []
-    real_update = store.update_execution
+    real_update = store.update_flight
 
-    def update(execution_id: str, **values: Any) -> bool:
+    def update(flight_id: str, **values: Any) -> bool:
         writes.append(values)
-        return real_update(execution_id, **values)
+        return real_update(flight_id, **values)
 
-    store.update_execution = update  # type: ignore[method-assign]
+    store.update_flight = update  # type: ignore[method-assign]
     state: dict[str, Any] = {"status": "starting", "events": []}
 
     async def fly() -> None:
-        journal = ExecutionJournal(store, execution.id,
+        journal = FlightJournal(store, execution.id,
                                    lambda: (state["status"], state["events"], None),
                                    state_period_s=0.02)
         journal.start()
@@ -59,6 +59,6 @@ def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> 
     asyncio.run(fly())
     # One write per distinct state, however many beats passed.
     assert [(w["status"], len(w["events"])) for w in writes] == [("starting", 0), ("running", 1)]
-    row = store.get_execution(execution.id)
+    row = store.get_flight(execution.id)
     assert row is not None and row.status == "running" and row.events == state["events"]
     store.close()

@@ -76,7 +76,7 @@ def test_missions_and_flights_on_postgresql(
     with TestClient(create_app(settings)) as client:
         mission = plan_mission(client, QUICK_PAIR)
         assert mission["plan"]["status"] == "converged"
-        execution = client.post(f"/api/missions/{mission['id']}/executions",
+        execution = client.post(f"/api/missions/{mission['id']}/flights",
                                 json={"hold_at_goal": 0.5}).json()
         done = sse_events(client, execution["links"]["events"])[-1][1]
         assert done["status"] == "completed"

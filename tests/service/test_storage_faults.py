@@ -31,17 +31,17 @@ def test_a_flight_the_store_refuses_is_held_in_memory_then_stored_in_full(
     monkeypatch.setattr("gcs.service.flights.STORE_RETRY_S", 0.2)
     with TestClient(create_app(mock_settings())) as client:
         store = client.app.state.store  # type: ignore[attr-defined]
-        real_update = store.update_execution
+        real_update = store.update_flight
         disk_full = [True]
 
-        def update(execution_id: str, **values: Any) -> bool:
+        def update(flight_id: str, **values: Any) -> bool:
             if disk_full[0] and values.get("finished"):
                 raise OSError(28, "No space left on device")
-            return real_update(execution_id, **values)
+            return real_update(flight_id, **values)
 
-        monkeypatch.setattr(store, "update_execution", update)
+        monkeypatch.setattr(store, "update_flight", update)
         mission = plan_mission(client, QUICK_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/executions",
+        execution = client.post(f"/api/missions/{mission['id']}/flights",
                                 json={"hold_at_goal": 0.5}).json()
         streamed = sse_events(client, execution["links"]["events"])
         assert streamed[-1][0] == "done" and streamed[-1][1]["status"] == "completed"
@@ -52,7 +52,7 @@ def test_a_flight_the_store_refuses_is_held_in_memory_then_stored_in_full(
         assert held["storage"].startswith("disk full") and "No space left" in held["storage"]
         assert held["summary"]["completed"] is True and held["has_record"] is True
         assert held["events"] == [data for kind, data in streamed if kind == "event"]
-        listed = client.get("/api/executions").json()["executions"]
+        listed = client.get("/api/flights").json()["flights"]
         assert [e["status"] for e in listed if e["id"] == execution["id"]] == ["completed"]
         record = client.get(execution["links"]["record"])
         assert record.status_code == 200 and record.json()["summary"]["completed"] is True
@@ -62,7 +62,7 @@ def test_a_flight_the_store_refuses_is_held_in_memory_then_stored_in_full(
         while client.get(execution["links"]["self"]).json()["storage"] is not None:
             assert time.monotonic() < deadline, "the flight was never stored"
             time.sleep(0.2)
-        row = store.get_execution(execution["id"], with_record=True)
+        row = store.get_flight(execution["id"], with_record=True)
         assert row is not None and row.status == "completed" and row.record_json is not None
         assert row.summary == held["summary"] and row.events == held["events"]
         assert client.app.state.fleet.flight(execution["id"]) is None  # type: ignore[attr-defined]

@@ -97,10 +97,10 @@ def no_flight_left(request: pytest.FixtureRequest) -> Iterator[None]:
     flying = httpx.get(f"{base}/api/vehicles", timeout=30).json()["fleet"]["flying"]
     if flying is None:
         return
-    httpx.post(f"{base}/api/executions/{flying}/abort", json={"action": "land"}, timeout=30)
+    httpx.post(f"{base}/api/flights/{flying}/abort", json={"action": "land"}, timeout=30)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
-        if httpx.get(f"{base}/api/executions/{flying}", timeout=30).json()["finished_at"]:
+        if httpx.get(f"{base}/api/flights/{flying}", timeout=30).json()["finished_at"]:
             return
         time.sleep(0.1)
 
@@ -111,7 +111,7 @@ def no_flight_left(request: pytest.FixtureRequest) -> Iterator[None]:
 #: default, which lets a vehicle that fell behind reach its goal before it is judged. The
 #: flight's own checks are in tests/flight.
 FLY_OPTIONS = {"tracking_error_max": 3.0, "climb_speed": 2.0, "prestream": 0.3}
-FLY_REQUEST = re.compile(r".*/api/missions/[^/]+/executions$")
+FLY_REQUEST = re.compile(r".*/api/missions/[^/]+/flights$")
 
 
 def _quick_flights(route: Route) -> None:

@@ -103,7 +103,7 @@ class ShowPlan:
 
         page.route(re.compile(f".*{base}$"), mission)
         page.route(re.compile(f".*{base}/trajectory\\?.*"), trajectory)
-        page.route(re.compile(f".*{base}/executions$"), lambda route: route.fulfill(
+        page.route(re.compile(f".*{base}/flights$"), lambda route: route.fulfill(
             status=200, content_type="application/json", body="[]"))
 
 

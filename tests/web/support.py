@@ -85,7 +85,7 @@ HEALTH = {
 }
 
 
-FLIGHT_CONTROL = re.compile(r".*/api/executions/[^/]+/(pause|resume)$")
+FLIGHT_CONTROL = re.compile(r".*/api/flights/[^/]+/(pause|resume)$")
 
 
 def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]) -> None:
@@ -93,7 +93,7 @@ def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]
     origin; fleet and vehicle commands answered here); requests to them land in `sent`, and
     so do pause and resume, which go to the service and really pause the flight."""
     spec = httpx.get(f"{service.base_url}/openapi.json").json()
-    for path in ("/api/executions/{execution_id}/pause", "/api/executions/{execution_id}/resume",
+    for path in ("/api/flights/{flight_id}/pause", "/api/flights/{flight_id}/resume",
                  "/api/fleet/commands", "/api/vehicles/{vehicle_id}/commands"):
         spec["paths"][path] = {"post": {"responses": {"202": {"description": "accepted"}}}}
 

@@ -95,10 +95,10 @@ def test_a_changed_form_cannot_fly_the_plan_shown_and_loads_nothing_from_elsewhe
                       body=json.dumps({"status": 409, "field": "fleet",
                                        "reason": "test: not flying"}))
 
-    page.route("**/api/missions/*/executions", refuse)
+    page.route("**/api/missions/*/flights", refuse)
     fly.click()
-    expect(page.locator("#execution-status")).to_contain_text("refused (409)")
-    assert posted == [f"{service.base_url}/api/missions/{second}/executions"]
+    expect(page.locator("#flight-status")).to_contain_text("refused (409)")
+    assert posted == [f"{service.base_url}/api/missions/{second}/flights"]
     mission = httpx.get(f"{service.base_url}/api/missions/{second}").json()
     assert mission["scenario"]["steps"] == 55 and mission["scenario"]["dt"] == 0.2
     foreign = [u for u in urls if not u.startswith(service.base_url) and not u.startswith("data:")]

@@ -58,7 +58,7 @@ def test_fly_screen_follows_the_flight_then_abort(
             pause.click();
         }).observe(label, {childList: true, characterData: true, subtree: true}); }""")
     page.click("#fly-button")
-    status = page.locator("#execution-status")
+    status = page.locator("#flight-status")
     # Running, or already paused by the page's own mid-plan click.
     expect(status).to_have_attribute("data-status", re.compile("^(running|paused)$"),
                                      timeout=30_000)
@@ -107,7 +107,7 @@ def test_fly_screen_follows_the_flight_then_abort(
     page.wait_for_function("""() => { const drawn = document.getElementById('plot3d')._fullData;
         return drawn && [...drawn.at(-1).text].sort().join() === 'a,b,c,d'; }""")
     # Pause and resume go to this flight; per-vehicle commands from the vehicle's row.
-    execution_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
+    flight_id = status.inner_text().split(":")[0].removeprefix("flight ").strip()
     # The service's answers may be slow on a busy machine: awaited, not timed.
     expect(page.locator("#command-result")).to_have_text("paused", timeout=30_000)
     expect(page.locator("#resume-button")).to_be_enabled()
@@ -121,8 +121,8 @@ def test_fly_screen_follows_the_flight_then_abort(
     page.locator('#vehicle-state tr[data-id="c"] button[data-vehicle-command="land"]').click()
     # answered once the vehicle acknowledged LAND: awaited like pause and resume
     expect(page.locator("#command-result")).to_have_text("land sent to c", timeout=30_000)
-    assert sent == [(f"/api/executions/{execution_id}/pause", None),
-                    (f"/api/executions/{execution_id}/resume", None),
+    assert sent == [(f"/api/flights/{flight_id}/pause", None),
+                    (f"/api/flights/{flight_id}/resume", None),
                     ("/api/vehicles/c/commands", {"command": "land", "confirm": True})]
 
     expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
@@ -139,7 +139,7 @@ def test_fly_screen_follows_the_flight_then_abort(
     assert all(float(t) <= CROSSING_HORIZON_S for t in re.findall(r"t = (\d+\.\d)", clock)), clock
     expect(page.locator("#flight-list .status-badge.good")).to_have_text("completed")
     expect(page.locator("#fly-button")).to_be_enabled()
-    record = httpx.get(f"{service.base_url}/api/executions/{execution_id}").json()
+    record = httpx.get(f"{service.base_url}/api/flights/{flight_id}").json()
     assert record["status"] == "completed" and record["mission_id"] == mission_id
 
     # Fly again and abort from the always-visible button while the fleet is in the air: the

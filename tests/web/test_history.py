@@ -23,7 +23,7 @@ def fly_through_the_api(base: str) -> tuple[str, str]:
     scenario = {**QUICK_CROSSING, "name": "history-flight"}
     mission = httpx.post(f"{base}/api/missions?wait=60", json=scenario, timeout=90).json()
     assert mission["plan_ok"], mission
-    flight = httpx.post(f"{base}/api/missions/{mission['id']}/executions", json=FLY_OPTIONS,
+    flight = httpx.post(f"{base}/api/missions/{mission['id']}/flights", json=FLY_OPTIONS,
                         timeout=30).json()
     return mission["id"], flight["id"]
 
@@ -33,10 +33,10 @@ def pause_once_flying(base: str, flight_id: str) -> None:
     checks on the pages take, however busy the machine (its whole plan lasts a few seconds)."""
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
-        got = httpx.get(f"{base}/api/executions/{flight_id}", timeout=10).json()
+        got = httpx.get(f"{base}/api/flights/{flight_id}", timeout=10).json()
         assert not got["finished_at"], got
         if (got.get("live") or {}).get("phase") == FlightPhase.FLYING:
-            paused = httpx.post(f"{base}/api/executions/{flight_id}/pause", timeout=30)
+            paused = httpx.post(f"{base}/api/flights/{flight_id}/pause", timeout=30)
             assert paused.status_code == 200, paused.text
             return
         time.sleep(0.05)
@@ -46,7 +46,7 @@ def pause_once_flying(base: str, flight_id: str) -> None:
 def wait_finished(base: str, flight_id: str) -> None:
     deadline = time.monotonic() + 150
     while time.monotonic() < deadline:
-        got = httpx.get(f"{base}/api/executions/{flight_id}", timeout=10).json()
+        got = httpx.get(f"{base}/api/flights/{flight_id}", timeout=10).json()
         if got["finished_at"]:
             assert got["status"] == "completed", got
             return
@@ -66,7 +66,7 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     pause_once_flying(service.base_url, flight_id)
     # A flight started elsewhere (here: the API) shows up on the open pages, with its mission
     # taken into the empty form, so the plan shown is not stale.
-    expect(page.locator("#execution-status")).to_have_attribute("data-status", "paused",
+    expect(page.locator("#flight-status")).to_have_attribute("data-status", "paused",
                                                                 timeout=30_000)
     expect(page.locator("#flight-banner")).to_contain_text("paused")
     expect(page.locator("#f-name")).to_have_value("history-flight")
@@ -80,10 +80,10 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     header = phone.locator("header").bounding_box()
     assert header and header["height"] <= 48
     assert_fits(phone)
-    resumed = httpx.post(f"{service.base_url}/api/executions/{flight_id}/resume", timeout=30)
+    resumed = httpx.post(f"{service.base_url}/api/flights/{flight_id}/resume", timeout=30)
     assert resumed.status_code == 200, resumed.text
     wait_finished(service.base_url, flight_id)
-    record = httpx.get(f"{service.base_url}/api/executions/{flight_id}/record").json()
+    record = httpx.get(f"{service.base_url}/api/flights/{flight_id}/record").json()
     page.reload()
 
     entry = page.locator(f'#mission-list li[data-id="{mission_id}"]')
@@ -100,7 +100,7 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     expect(page.locator("#time-label")).to_contain_text(f"replay of flight {flight_id}")
     expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
     expect(page.locator("#event-log")).to_contain_text("mission_start")
-    expect(page.locator("#execution-status")).to_have_attribute("data-status", "completed")
+    expect(page.locator("#flight-status")).to_have_attribute("data-status", "completed")
     # The separation plot gains the measured separation of that flight, never below what
     # the recorded summary reports by more than its 5 Hz sampling allows.
     measured = page.evaluate("document.getElementById('separation-plot').data.at(-1)")

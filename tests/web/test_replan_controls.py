@@ -62,7 +62,7 @@ def test_drag_a_goal_drop_a_vehicle_and_see_refusals(
         (202, {"replan": replan_object(1, {"goals": {"a": [4.0, 1.5, 1.4]}})}),
         (202, {"replan": replan_object(2, {"drop": ["b"], "drop_action": "hold"})}),
     ]
-    page = open_page(before=lambda p: p.route("**/api/executions/*/replan",
+    page = open_page(before=lambda p: p.route("**/api/flights/*/replan",
                                               answered(sent, answers)))
     fill_scenario(page, "replan-controls", 150, CROSSING)  # 30 s: time to replan in
     plan(page)
@@ -119,7 +119,7 @@ def test_drag_a_goal_drop_a_vehicle_and_see_refusals(
 
     # The flight ends (aborted, or completed already on a busy machine): the controls go.
     page.click("#abort-button")
-    expect(page.locator("#execution-status")).to_have_attribute(
+    expect(page.locator("#flight-status")).to_have_attribute(
         "data-status", re.compile("^(aborted|completed)$"), timeout=120_000)
     expect(page.locator("#replan-panel")).to_be_hidden()
     expect(page.locator("#fly-view circle.goal-marker")).to_have_count(0)

@@ -105,7 +105,7 @@ def test_a_goal_dragged_and_a_vehicle_dropped_are_flown(
     x, y = _last_point(page, "b")
     assert abs(x - want[0]) < 1 and abs(y - want[1]) < 1, (x, y, want)
 
-    expect(page.locator("#execution-status")).to_have_attribute("data-status", "completed",
+    expect(page.locator("#flight-status")).to_have_attribute("data-status", "completed",
                                                                 timeout=180_000)
     expect(page.locator("#replan-panel")).to_be_hidden()
     flight_id = page.locator("#flight-list li[data-id]").first.get_attribute("data-id")

@@ -52,7 +52,7 @@ def test_paste_plan_show_download_and_fly_a_sequence(page: Page, service: Servic
     expect(page.locator("#fly-button")).to_be_enabled()
 
     page.click("#fly-button")
-    status = page.locator("#execution-status")
+    status = page.locator("#flight-status")
     expect(status).to_have_attribute("data-status", "running", timeout=30_000)
     expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
 

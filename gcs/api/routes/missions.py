@@ -57,7 +57,7 @@ from gcs.service.plan_worker import finite_json
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.plans import trajectory_csv_chunks, trajectory_json_chunks
 from gcs.service.settings import Settings
-from gcs.service.statuses import EXECUTION_ACTIVE, MissionStatus
+from gcs.service.statuses import FLIGHT_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
 from planner import Scenario
 from planner.sequence import FormationSequence, parse_sequence, timeline_scenario
@@ -77,7 +77,8 @@ def _links(mission_id: str) -> dict[str, str]:
         "trajectory": f"{base}/trajectory?rate=20",
         "trajectory_csv": f"{base}/trajectory?rate=20&format=csv",
         "show_skyc": f"{base}/show.skyc",
-        "executions": f"{base}/executions",
+        "flights": f"{base}/flights",
+        "executions": f"{base}/executions",  # the same, under the former name
     }
 
 
@@ -271,10 +272,10 @@ async def delete_mission(
     first (its worker is freed). Refused (409) while the mission is flying."""
     if mission.status == MissionStatus.PLANNING:
         await _stop_planning(planning, store, mission.id, "the mission was deleted")
-    executions = await run_in_threadpool(store.list_executions, mission.id)
-    flying = [e.id for e in executions if e.status in EXECUTION_ACTIVE]
+    flights = await run_in_threadpool(store.list_flights, mission.id)
+    flying = [f.id for f in flights if f.status in FLIGHT_ACTIVE]
     if flying:
-        raise StateConflict("mission_id", f"mission {mission.id!r} is flying (execution "
+        raise StateConflict("mission_id", f"mission {mission.id!r} is flying (flight "
                        f"{flying[0]}); abort or wait for the flight to end first")
     await run_in_threadpool(store.delete_mission, mission.id)
     planning.forget(mission.id)

@@ -46,7 +46,7 @@ class StatusOut(BaseModel):
     planning_jobs: int = Field(description="Plans computing now.")
     plan_workers: int
     fleet: dict[str, Any] = Field(
-        description="kind (mock, file or none), vehicles, ids, flying (execution id or null), "
+        description="kind (mock, file or none), vehicles, ids, flying (flight id or null), "
         "world_origin, vehicle_process (running or stopped)."
     )
     limits: dict[str, int | float] = Field(
@@ -56,8 +56,9 @@ class StatusOut(BaseModel):
     )
     statuses: dict[str, dict[str, list[str]]] = Field(
         description="Every status set, defined once in the service: mission.all, "
-        "execution.all / .active (the vehicles may be flying) / .finished, plan.all (the "
-        "planner's). Clients read these rather than keeping a copy."
+        "flight.all / .active (the vehicles may be flying) / .finished (also under execution, "
+        "the former name), plan.all (the planner's). Clients read these rather than keeping "
+        "a copy."
     )
     phases: dict[str, list[str]] = Field(
         description="The flight's vocabulary, defined once (`gcs.phases`): flight "

@@ -29,7 +29,7 @@ class VehiclesOut(BaseModel):
     }]})
 
     fleet: dict[str, Any] = Field(description="kind (mock, file, none), vehicles, ids, the "
-                                  "execution flying now (or null), world_origin {lat, lon, "
+                                  "flight flying now (or null), world_origin {lat, lon, "
                                   "alt} (deg, deg, m AMSL) of the world frame, or null, and "
                                   "vehicle_process (running, or stopped while the service "
                                   "restarts it).")

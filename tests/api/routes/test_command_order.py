@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.routes.test_executions import QUICK, wait_for
+from tests.api.routes.test_flights import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import SHORT_CROSSING
 
@@ -31,9 +31,8 @@ RACE: list[tuple[str, dict[str, Any] | None]] = [
 def test_racing_commands_resolve_by_precedence(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/executions",
-                                json=QUICK).json()
-        links = execution["links"]
+        flight = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK).json()
+        links = flight["links"]
         wait_for(lambda: (client.get(links["self"]).json()["live"] or {}).get("phase")
                  == "flying", 30, "the mission clock")
         start = threading.Barrier(len(RACE))

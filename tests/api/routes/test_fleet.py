@@ -14,7 +14,7 @@ from gcs.api import create_app
 from gcs.fleet.commands import FLEET_COMMANDS
 from gcs.service.settings import Settings
 from gcs.sim import DEFAULT_WORLD_ORIGIN
-from tests.api.routes.test_executions import QUICK, wait_for
+from tests.api.routes.test_flights import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import QUICK_CROSSING
 
@@ -25,7 +25,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
 ) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, QUICK_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/executions").json()
+        execution = client.post(f"/api/missions/{mission['id']}/flights").json()
         url = execution["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
                  30, "the mission clock")
@@ -80,7 +80,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
                              for v in client.get("/api/vehicles").json()["vehicles"]),
                  20, "every vehicle landed and disarmed")
         # and the landed fleet can fly again
-        again = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
+        again = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK)
         assert again.status_code == 201, again.text
         final = sse_events(client, again.json()["links"]["events"])[-1]
         assert final[1]["status"] == "completed", final
@@ -125,12 +125,12 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
                  ["remaining_pct"] == 15, 5, "the low battery to be reported")
 
         mission = plan_mission(client, QUICK_CROSSING)
-        url = f"/api/missions/{mission['id']}/executions"
+        url = f"/api/missions/{mission['id']}/flights"
         refused = client.post(url, json={"hold_at_goal": 0.5})
         assert refused.status_code == 409, refused.text
         reason = refused.json()["reason"]
         assert "uav3" in reason and "battery 15% (below 30%)" in reason
-        assert client.get("/api/executions").json()["executions"] == []  # nothing was started
+        assert client.get("/api/flights").json()["flights"] == []  # nothing was started
 
         allowed = client.post(url, json={**QUICK, "preflight": "override"})
         assert allowed.status_code == 201, allowed.text

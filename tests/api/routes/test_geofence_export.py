@@ -98,10 +98,10 @@ def test_the_fly_body_takes_the_geofence_option_and_refuses_another_value(
         mock_client: TestClient) -> None:
     created = mock_client.post("/api/missions?wait=60", json=example("paper-circle4"))
     assert created.status_code == 201, created.text
-    refused = mock_client.post(f"/api/missions/{created.json()['id']}/executions",
+    refused = mock_client.post(f"/api/missions/{created.json()['id']}/flights",
                                json={"geofence": "maybe"})
     assert refused.status_code == 422
     assert "geofence" in refused.text
-    assert mock_client.get("/api/executions").json()["total"] == 0  # nothing flew
+    assert mock_client.get("/api/flights").json()["total"] == 0  # nothing flew
     schema = mock_client.get("/openapi.json").json()["components"]["schemas"]["FlyRequest"]
     assert schema["properties"]["geofence"]["anyOf"][0]["enum"] == ["upload", "skip"]

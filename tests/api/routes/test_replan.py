@@ -1,6 +1,6 @@
-"""POST /api/executions/{id}/replan: its body's checks (422 naming the field), its refusals
+"""POST /api/flights/{id}/replan: its body's checks (422 naming the field), its refusals
 (404, 409 when nothing flies the plan), the same access rules as the other flight commands,
-and its documentation in the OpenAPI description; GET /api/executions/{id}/trajectory of a
+and its documentation in the OpenAPI description; GET /api/flights/{id}/trajectory of a
 flight that was not replanned. Replans flown on the mock fleet: test_replan_flight.py."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.replan_request import MAX_ENTRIES
 from gcs.service.settings import Settings
-from gcs.service.statuses import ExecutionStatus
+from gcs.service.statuses import FlightStatus
 from tests.api.routes.test_missions import plan_mission
 from tests.api.support import OPERATOR, READER, example, refused
 
@@ -28,19 +28,19 @@ def ended(make_settings: Callable[..., Settings]) -> Iterator[tuple[TestClient, 
     with TestClient(create_app(settings)) as client:
         store = client.app.state.store  # type: ignore[attr-defined]
         mission = store.create_mission(example("paper-circle2"))
-        row = store.create_execution(mission.id, "mock: a, b")
-        store.update_execution(row.id, status=ExecutionStatus.COMPLETED, finished=True)
-        yield client, f"/api/executions/{row.id}/replan"
+        row = store.create_flight(mission.id, "mock: a, b")
+        store.update_flight(row.id, status=FlightStatus.COMPLETED, finished=True)
+        yield client, f"/api/flights/{row.id}/replan"
 
 
 def test_nothing_flying_is_409_naming_the_status(ended: tuple[TestClient, str]) -> None:
     client, url = ended
-    refused(client.post(url, json={"goals": {"a": [1.0, 2.0, 3.0]}}), 409, "execution_id",
+    refused(client.post(url, json={"goals": {"a": [1.0, 2.0, 3.0]}}), 409, "flight_id",
             "is not flying (status completed)")
     refused(client.post(url, json={"drop": ["a"], "drop_action": "hold"}), 409,
-            "execution_id", "is not flying")
-    refused(client.post("/api/executions/nope/replan", json={"drop": ["a"]}), 404,
-            "execution_id", "")
+            "flight_id", "is not flying")
+    refused(client.post("/api/flights/nope/replan", json={"drop": ["a"]}), 404,
+            "flight_id", "")
 
 
 @pytest.mark.parametrize(
@@ -94,7 +94,7 @@ def test_a_missing_or_broken_body_is_refused(ended: tuple[TestClient, str]) -> N
 def test_bodies_over_the_size_limit_are_413(make_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(make_settings(max_body_bytes=2_000))) as client:
         body = json.dumps({"drop": [f"vehicle-{n}" for n in range(400)]})
-        refused(client.post("/api/executions/nope/replan", content=body,
+        refused(client.post("/api/flights/nope/replan", content=body,
                             headers={"Content-Type": "application/json"}),
                 413, "body", "exceeds 2000 bytes")
 
@@ -103,7 +103,7 @@ def test_replan_needs_the_operator_token_and_the_sites_own_origin(
     make_settings: Callable[..., Settings],
 ) -> None:
     with TestClient(create_app(make_settings(api_token=OPERATOR, read_token=READER))) as client:
-        url, body = "/api/executions/nope/replan", {"drop": ["a"]}
+        url, body = "/api/flights/nope/replan", {"drop": ["a"]}
         refused(client.post(url, json=body), 401, "Authorization", "an API token is required")
         refused(client.post(url, json=body, headers={"Authorization": f"Bearer {READER}"}),
                 403, "Authorization", "read-only token may not change anything")
@@ -115,13 +115,13 @@ def test_replan_needs_the_operator_token_and_the_sites_own_origin(
             415, "Content-Type", "must be JSON")
         # The operator's own request reaches the route (no such execution here).
         refused(client.post(url, json=body, headers={"Authorization": f"Bearer {OPERATOR}"}),
-                404, "execution_id", "")
+                404, "flight_id", "")
 
 
 def test_the_route_is_documented(client: TestClient) -> None:
     schema = client.get("/openapi.json").json()
-    post = schema["paths"]["/api/executions/{execution_id}/replan"]["post"]
-    assert post["operationId"] == "replanExecution"
+    post = schema["paths"]["/api/flights/{flight_id}/replan"]["post"]
+    assert post["operationId"] == "replanFlight"
     assert {"202", "404", "409", "422"} <= set(post["responses"])
     body = schema["components"]["schemas"]["ReplanRequest"]
     assert set(body["properties"]) == {"goals", "drop", "drop_action"}
@@ -133,14 +133,14 @@ def test_the_route_is_documented(client: TestClient) -> None:
 def test_a_flight_without_replans_flies_its_missions_trajectory(client: TestClient) -> None:
     mission = plan_mission(client, example("paper-circle2"))
     store = client.app.state.store  # type: ignore[attr-defined]
-    row = store.create_execution(mission["id"], "mock: a, b")
-    store.update_execution(row.id, status=ExecutionStatus.COMPLETED, finished=True)
-    url = f"/api/executions/{row.id}/trajectory"
+    row = store.create_flight(mission["id"], "mock: a, b")
+    store.update_flight(row.id, status=FlightStatus.COMPLETED, finished=True)
+    url = f"/api/flights/{row.id}/trajectory"
     flown = client.get(url, params={"rate": 5})
     assert flown.status_code == 200, flown.text
     doc = flown.json()
     planned = client.get(f"/api/missions/{mission['id']}/trajectory", params={"rate": 5}).json()
-    assert (doc["execution_id"], doc["mission_id"]) == (row.id, mission["id"])
+    assert (doc["flight_id"], doc["mission_id"]) == (row.id, mission["id"])
     assert doc["t"] == pytest.approx(planned["t"])
     assert [v["id"] for v in doc["vehicles"]] == [v["id"] for v in planned["vehicles"]]
     for got, want in zip(doc["vehicles"], planned["vehicles"], strict=True):
@@ -148,7 +148,7 @@ def test_a_flight_without_replans_flies_its_missions_trajectory(client: TestClie
     assert doc["switches"] == [] and doc["dropped"] == {}
     refused(client.get(url, params={"rate": 10_000}), 422, "rate", "must be at most")
     refused(client.get(url, params={"rate": 0}), 422, "rate", "greater than 0")
-    refused(client.get("/api/executions/nope/trajectory"), 404, "execution_id", "")
+    refused(client.get("/api/flights/nope/trajectory"), 404, "flight_id", "")
 
 
 def test_a_replan_names_at_most_max_entries(ended: tuple[TestClient, str]) -> None:

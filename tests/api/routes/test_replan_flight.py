@@ -15,11 +15,11 @@ from fastapi.testclient import TestClient
 
 from gcs import phases
 from gcs.api import create_app
-from gcs.api.routes.executions import FlyRequest
+from gcs.api.routes.flights import FlyRequest
 from gcs.fleet.fleetfile import POLICIES
 from gcs.phases import EventKind
 from gcs.service.settings import Settings
-from tests.api.routes.test_executions import QUICK, wait_for
+from tests.api.routes.test_flights import QUICK, wait_for
 from tests.api.routes.test_missions import plan_mission, sse_events
 from tests.api.support import SHORT_CROSSING, example
 
@@ -42,7 +42,7 @@ def mission_time(client: TestClient, url: str) -> float:
 def test_a_replan_through_the_api(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
-        flown = client.post(f"/api/missions/{mission['id']}/executions",
+        flown = client.post(f"/api/missions/{mission['id']}/flights",
                             json={**QUICK, "replan_lead_s": LEAD_S})
         assert flown.status_code == 201, flown.text
         execution = flown.json()
@@ -112,7 +112,7 @@ def test_nothing_flying_yet_is_409(mock_settings: Callable[..., Settings]) -> No
     """A flight still starting (links opening, arming) has no plan flown to replan."""
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, copy.deepcopy(SHORT_CROSSING))
-        execution = client.post(f"/api/missions/{mission['id']}/executions",
+        execution = client.post(f"/api/missions/{mission['id']}/flights",
                                 json=QUICK).json()
         answer = client.post(execution["links"]["replan"], json={"drop": ["d"]})
         assert answer.status_code == 409, answer.text
@@ -131,7 +131,7 @@ def test_the_replan_fly_options_are_checked(
 ) -> None:
     store = client.app.state.store  # type: ignore[attr-defined]
     mission = store.create_mission(example("paper-circle2"))
-    answer = client.post(f"/api/missions/{mission.id}/executions", json=options)
+    answer = client.post(f"/api/missions/{mission.id}/flights", json=options)
     assert answer.status_code == 422 and answer.json()["field"] == field, answer.text
     assert reason in answer.json()["reason"], answer.text
 

@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from planner import Plan
-from tests.api.routes.test_executions import QUICK, wait_for
+from tests.api.routes.test_flights import QUICK, wait_for
 from tests.api.routes.test_missions import sse_events
 from tests.api.support import SHORT_CROSSING
 
@@ -148,7 +148,7 @@ def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[...,
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_sequence(client, OUT_AND_BACK)
         assert mission["plan_ok"] is True
-        response = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
+        response = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK)
         assert response.status_code == 201, response.text
         execution = response.json()
         events = sse_events(client, execution["links"]["events"])
@@ -156,5 +156,5 @@ def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[...,
         assert done["status"] == "completed", done
         assert done["summary"]["goal_error_max"] < 0.2
         assert done["summary"]["min_separation_measured"] > 1.0 - 0.1
-        wait_for(lambda: client.get(f"/api/missions/{mission['id']}/executions").json(),
+        wait_for(lambda: client.get(f"/api/missions/{mission['id']}/flights").json(),
                  5, "the execution record")

@@ -71,15 +71,15 @@ def flown(module_mock_settings: Settings) -> Flown:
         idle = client.get("/api/vehicles").json()
         idle_vehicles = wait_for(lambda: heard(client), 10, "the mock vehicles' heartbeats")
         mission = plan_mission(client, QUICK_CROSSING)
-        response = client.post(f"/api/missions/{mission['id']}/executions", json=QUICK)
+        response = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK)
         assert response.status_code == 201, response.text
         created = response.json()
         events = sse_events(client, created["links"]["events"])
         stored = client.get(created["links"]["self"]).json()
         record = client.get(created["links"]["record"])
         assert record.status_code == 200
-        listed = client.get(f"/api/missions/{mission['id']}/executions").json()
-        active = client.get("/api/executions?active=true").json()["executions"]
+        listed = client.get(f"/api/missions/{mission['id']}/flights").json()
+        active = client.get("/api/flights?active=true").json()["flights"]
         after = client.get("/api/vehicles").json()
         after_vehicles = wait_for(lambda: heard(client), 10,
                                   "the monitor to hear the vehicles again")
@@ -145,7 +145,7 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
 def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/executions").json()
+        execution = client.post(f"/api/missions/{mission['id']}/flights").json()
         url = execution["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
                  30, "the mission clock")
@@ -153,7 +153,7 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
         assert while_flying["fleet"]["flying"] == execution["id"]
         assert all(v["link"] == "flight" and v["armed"] for v in while_flying["vehicles"])
         # One flight at a time, and no deleting a mission in the air.
-        again = client.post(f"/api/missions/{mission['id']}/executions")
+        again = client.post(f"/api/missions/{mission['id']}/flights")
         assert again.status_code == 409 and again.json()["field"] == "fleet"
         assert "is flying" in again.json()["reason"]
         assert client.delete(f"/api/missions/{mission['id']}").status_code == 409
@@ -185,12 +185,12 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
 def test_refusals(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         six = plan_mission(client, example("paper-circle6"))
-        response = client.post(f"/api/missions/{six['id']}/executions")
+        response = client.post(f"/api/missions/{six['id']}/flights")
         assert response.status_code == 409 and response.json()["field"] == "fleet"
         assert "6 vehicles, the mock fleet 4" in response.json()["reason"]
 
         crossing = plan_mission(client, SHORT_CROSSING)
-        url = f"/api/missions/{crossing['id']}/executions"
+        url = f"/api/missions/{crossing['id']}/flights"
         for body, field in [({"policy": "explode"}, "policy"), ({"rate_hz": 500}, "rate_hz"),
                             ({"stream_priority": "fastest"}, "stream_priority"),
                             ({"climb_speed": 0}, "climb_speed"), ({"prestream": 60}, "prestream"),
@@ -198,21 +198,21 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
             response = client.post(url, json=body)
             assert response.status_code == 422, response.text
             assert response.json()["field"] == field
-        assert client.post("/api/missions/nope/executions").status_code == 404
-        for path in ("/api/executions/nope", "/api/executions/nope/events",
-                     "/api/executions/nope/record"):
-            assert client.get(path).json()["field"] == "execution_id"
-        assert client.post("/api/executions/nope/abort").status_code == 404
+        assert client.post("/api/missions/nope/flights").status_code == 404
+        for path in ("/api/flights/nope", "/api/flights/nope/events",
+                     "/api/flights/nope/record"):
+            assert client.get(path).json()["field"] == "flight_id"
+        assert client.post("/api/flights/nope/abort").status_code == 404
 
         # A plan that did not converge is never flown (here: stopped after one iteration).
         unfinished = copy.deepcopy(SHORT_CROSSING)
         unfinished.update(max_iterations=1, cost_threshold=1e-9)
         bad = plan_mission(client, unfinished)
         assert bad["plan_ok"] is False
-        response = client.post(f"/api/missions/{bad['id']}/executions")
+        response = client.post(f"/api/missions/{bad['id']}/flights")
         assert response.status_code == 409 and response.json()["field"] == "mission_id"
         assert "only converged, verified plans are flown" in response.json()["reason"]
-        assert client.get("/api/executions").json()["total"] == 0  # nothing was started
+        assert client.get("/api/flights").json()["total"] == 0  # nothing was started
 
 
 def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> None:
@@ -221,7 +221,7 @@ def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> Non
             "fleet": {"kind": "none", "vehicles": 0, "ids": [], "flying": None,
                       "world_origin": None, "vehicle_process": "running"}, "vehicles": []}
         mission = plan_mission(client, SHORT_CROSSING)
-        response = client.post(f"/api/missions/{mission['id']}/executions")
+        response = client.post(f"/api/missions/{mission['id']}/flights")
         assert response.status_code == 409
         assert "no fleet configured" in response.json()["reason"]
 
@@ -234,16 +234,16 @@ def test_flights_survive_a_restart(flown: Flown) -> None:
     assert done["status"] == "completed"
     # What a killed server leaves behind: a flight still 'starting'.
     store = Store(settings.database_url)
-    orphan = store.create_execution(flown.mission["id"], "mock: a, b, c, d")
+    orphan = store.create_flight(flown.mission["id"], "mock: a, b, c, d")
     store.close()
     with TestClient(create_app(settings)) as client:
         again = client.get(execution["links"]["self"]).json()
         assert again["status"] == "completed" and again["summary"] == done["summary"]
         assert client.get(execution["links"]["record"]).status_code == 200
-        lost = client.get(f"/api/executions/{orphan.id}").json()
+        lost = client.get(f"/api/flights/{orphan.id}").json()
         assert lost["status"] == "interrupted"
         assert lost["error"] == "the service stopped during this flight"
-        assert [kind for kind, _ in sse_events(client, f"/api/executions/{orphan.id}/events")] \
+        assert [kind for kind, _ in sse_events(client, f"/api/flights/{orphan.id}/events")] \
             == ["status", "done"]
 
 
@@ -253,7 +253,7 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
     the flight completes. Pausing twice, resuming a running flight or a finished one: 409."""
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, QUICK_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/executions",
+        execution = client.post(f"/api/missions/{mission['id']}/flights",
                                 json=QUICK).json()
         url, links = execution["links"]["self"], execution["links"]
         assert client.post(links["resume"]).status_code == 409  # not paused
@@ -298,3 +298,36 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
         assert late.status_code == 409 and "is not flying" in late.json()["reason"]
         record = json.loads(client.get(links["record"]).content)
         assert len(record["pauses"]) == 1 and record["summary"]["completed"] is True
+
+
+def test_executions_is_a_deprecated_alias_of_flights(make_settings: Callable[..., Settings]
+                                                     ) -> None:
+    """Every flight route answers the same under /api/executions, its former name, and the
+    OpenAPI document marks exactly those (and the mission's /executions) deprecated."""
+    settings = make_settings()
+    with TestClient(create_app(settings)) as client:
+        mission = plan_mission(client, SHORT_CROSSING)
+        store = Store(settings.database_url)
+        flown = store.create_flight(mission["id"], "mock: a, b")
+        store.close()
+        flight = client.get(f"/api/flights/{flown.id}").json()
+        assert flight["links"]["self"] == f"/api/flights/{flown.id}"
+        assert client.get(f"/api/executions/{flown.id}").json() == flight
+        assert client.get("/api/flights").json()["flights"] == \
+            client.get("/api/executions").json()["executions"]
+        assert client.get(f"/api/missions/{mission['id']}/flights").json() == \
+            client.get(f"/api/missions/{mission['id']}/executions").json() == [flight]
+        refused = client.post(f"/api/executions/{flown.id}/pause")
+        assert refused.status_code == 409 and refused.json()["field"] == "flight_id"
+        assert client.get("/api/status").json()["statuses"]["execution"] == \
+            client.get("/api/status").json()["statuses"]["flight"]
+
+        paths = client.get("/openapi.json").json()["paths"]
+    flights = {p for p in paths if p.startswith("/api/flights")}
+    executions = {p for p in paths if p.startswith("/api/executions")}
+    assert {p.replace("/api/executions", "/api/flights") for p in executions} == flights
+    assert len(flights) == 9
+    for path, operations in paths.items():
+        former = path.startswith("/api/executions") or path.endswith("/executions")
+        for method, operation in operations.items():
+            assert operation.get("deprecated", False) is former, (method, path)

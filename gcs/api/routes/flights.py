@@ -1,8 +1,11 @@
-"""Flights: POST /api/missions/{id}/executions flies a mission on the configured fleet;
-/api/executions/{id} is its status and summary, /events its live telemetry and events
+"""Flights: POST /api/missions/{id}/flights flies a mission on the configured fleet;
+/api/flights/{id} is its status and summary, /events its live telemetry and events
 (server-sent events), /abort lands (or holds) every vehicle at once, /pause and /resume stop
-and restart its mission clock, /replan changes goals or drops vehicles in flight, /trajectory
+and restart its flight clock, /replan changes goals or drops vehicles in flight, /trajectory
 the plans it flies (the first, then each switched replan's), /record the flight record.
+
+`/api/executions` and `/api/missions/{id}/executions` are the same routes under their former
+name, kept working and marked deprecated in the OpenAPI document (`gcs.api.routes`).
 """
 
 from __future__ import annotations
@@ -18,8 +21,8 @@ from starlette.concurrency import run_in_threadpool
 
 from gcs.api.deps import (
     EventStreamSlot,
-    ExecutionDep,
     FleetDep,
+    FlightDep,
     LastEventId,
     MissionDep,
     PlanCacheDep,
@@ -32,16 +35,21 @@ from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import MAX_REPLAN_LEAD_S
 from gcs.phases import EventKind, ReplanStatus
 from gcs.replan_request import ReplanRequest, checked
-from gcs.service.flights import LiveExecution, execution_document
+from gcs.service.flights import LiveFlight, flight_document
 from gcs.service.flown_trajectory import flown_trajectory
 from gcs.service.replan_handle import Segment
-from gcs.service.statuses import EXECUTION_ACTIVE, EXECUTION_FINISHED, ExecutionStatus
-from gcs.service.store import ExecutionRow
+from gcs.service.statuses import FLIGHT_ACTIVE, FLIGHT_FINISHED, FlightStatus
+from gcs.service.store import FlightRow
 
-__all__ = ["mission_router", "router"]
+__all__ = ["executions_router", "flights_router", "mission_router", "router"]
 
-router = APIRouter(prefix="/executions", tags=["executions"])
-mission_router = APIRouter(prefix="/missions", tags=["executions"])
+#: One flight's routes (`/{flight_id}/...`), mounted under /flights and /executions.
+router = APIRouter(tags=["flights"])
+#: The list of flights, /flights ...
+flights_router = APIRouter(prefix="/flights", tags=["flights"])
+#: ... and its deprecated alias, /executions, with the page's former key.
+executions_router = APIRouter(prefix="/executions", tags=["flights"], deprecated=True)
+mission_router = APIRouter(prefix="/missions", tags=["flights"])
 
 
 class FlyRequest(BaseModel):
@@ -156,29 +164,29 @@ class ReplanOut(BaseModel):
     replan: ReplanObject
 
 
-_EXECUTION_EXAMPLE: dict[str, Any] = {
-    "id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "status": ExecutionStatus.COMPLETED,
+_FLIGHT_EXAMPLE: dict[str, Any] = {
+    "id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "status": FlightStatus.COMPLETED,
     "created_at": "2026-11-23T08:40:00+00:00", "finished_at": "2026-11-23T08:41:02+00:00",
     "fleet": "mock: uav1, uav2, uav3, uav4",
     "summary": {"completed": True, "goal_error_max": 0.04, "tracking_error_max": 0.12,
                 "min_separation_measured": 0.97, "setpoint_rate_hz": 20.0,
                 "jitter_p99_ms": 1.3},
     "error": None, "has_record": True, "event_count": 1,
-    "links": {"self": "/api/executions/a41c03e9b2f1"},
+    "links": {"self": "/api/flights/a41c03e9b2f1"},
 }
 
 
-class ExecutionSummary(BaseModel):
-    """One flight as listed: status and summary; its events are in the execution itself
+class FlightSummary(BaseModel):
+    """One flight as listed: status and summary; its events are in the flight itself
     (`links.self`) and its event stream (`links.events`)."""
 
-    model_config = ConfigDict(json_schema_extra={"examples": [_EXECUTION_EXAMPLE]})
+    model_config = ConfigDict(json_schema_extra={"examples": [_FLIGHT_EXAMPLE]})
 
     id: str
     mission_id: str
-    status: ExecutionStatus = Field(
-        description=f"{', '.join(EXECUTION_ACTIVE)} while flying; then one of "
-        f"{', '.join(EXECUTION_FINISHED)} ({ExecutionStatus.INCOMPLETE}: ran to its end "
+    status: FlightStatus = Field(
+        description=f"{', '.join(FLIGHT_ACTIVE)} while flying; then one of "
+        f"{', '.join(FLIGHT_FINISHED)} ({FlightStatus.INCOMPLETE}: ran to its end "
         "without completing)."
     )
     created_at: str
@@ -198,50 +206,64 @@ class ExecutionSummary(BaseModel):
     links: dict[str, str]
 
 
-class ExecutionOut(ExecutionSummary):
+class FlightOut(FlightSummary):
     """One flight: stored status, events and summary; live state while it flies."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [{
-        **_EXECUTION_EXAMPLE, "live": None,
+        **_FLIGHT_EXAMPLE, "live": None,
         "events": [{"t": 0.8, "vehicle": "uav1", "kind": EventKind.CONNECTED,
                     "detail": "mode HOLD"}],
     }]})
 
     events: list[dict[str, Any]] = Field(description="{t, vehicle, kind, detail} each.")
     live: dict[str, Any] | None = Field(
-        description="While flying: phase, mission_time, per vehicle position (world frame), "
+        description="While flying: phase, flight_time, per vehicle position (world frame), "
         "mode, armed, heartbeat age, tracking error; live minimum separation."
     )
 
 
-class ExecutionList(BaseModel):
+class FlightList(BaseModel):
     """A page of flights, newest first, without their events."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [
-        {"total": 1, "limit": 50, "offset": 0, "executions": [_EXECUTION_EXAMPLE]}]})
+        {"total": 1, "limit": 50, "offset": 0, "flights": [_FLIGHT_EXAMPLE]}]})
 
     total: int
     limit: int
     offset: int
-    executions: list[ExecutionSummary]
+    flights: list[FlightSummary]
 
 
-def _document(row: ExecutionRow, flight: LiveExecution | None) -> dict[str, Any]:
-    """The `ExecutionOut` document (the service's, with its event count)."""
-    document = execution_document(row, flight)
+class ExecutionList(BaseModel):
+    """The deprecated `GET /api/executions`: the same page, its flights under `executions`."""
+
+    total: int
+    limit: int
+    offset: int
+    executions: list[FlightSummary]
+
+
+def _document(row: FlightRow, flight: LiveFlight | None) -> dict[str, Any]:
+    """The `FlightOut` document (the service's, with its event count)."""
+    document = flight_document(row, flight)
     document["event_count"] = len(document.get("events") or ())
     return document
 
 
 def _summary(document: dict[str, Any]) -> dict[str, Any]:
-    """An `ExecutionOut` document as listed: without its events and live state."""
+    """A `FlightOut` document as listed: without its events and live state."""
     return {k: v for k, v in document.items() if k not in ("events", "live")}
 
 
 @mission_router.post(
-    "/{mission_id}/executions",
+    "/{mission_id}/executions", status_code=201, response_model=FlightOut, deprecated=True,
+    summary="Fly a mission (deprecated: POST /api/missions/{mission_id}/flights)",
+    responses=error_responses(400, 404, 409, 413, 422),
+)
+@mission_router.post(
+    "/{mission_id}/flights",
     status_code=201,
-    response_model=ExecutionOut,
+    response_model=FlightOut,
     summary="Fly a mission on the configured fleet",
     responses=error_responses(400, 404, 409, 413, 422),
 )
@@ -253,7 +275,7 @@ async def fly_mission(
     request: Annotated[FlyRequest | None, Body()] = None,
 ) -> dict[str, Any]:
     """Arm and fly the mission's plan on the fleet (mock vehicles, SITL or real): this is the
-    only request that moves a vehicle. 201 with the execution (status `starting`); follow it
+    only request that moves a vehicle. 201 with the flight (status `starting`); follow it
     at `links.events`. 409 if the plan is not verified, the fleet lacks a plan vehicle, or
     another flight is under way."""
     plan = await run_in_threadpool(plans.get, mission.id)
@@ -263,69 +285,90 @@ async def fly_mission(
 
 
 @mission_router.get(
-    "/{mission_id}/executions",
-    response_model=list[ExecutionOut],
+    "/{mission_id}/executions", response_model=list[FlightOut], deprecated=True,
+    summary="A mission's flights (deprecated: GET /api/missions/{mission_id}/flights)",
+    responses=error_responses(404),
+)
+@mission_router.get(
+    "/{mission_id}/flights",
+    response_model=list[FlightOut],
     summary="A mission's flights",
     responses=error_responses(404),
 )
-def mission_executions(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict]:
-    return [_document(r, fleet.flight(r.id)) for r in store.list_executions(mission.id)]
+def mission_flights(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict]:
+    return [_document(r, fleet.flight(r.id)) for r in store.list_flights(mission.id)]
 
 
-@router.get("", response_model=ExecutionList, summary="List flights")
-def list_executions(
-    store: StoreDep,
-    fleet: FleetDep,
-    active: Annotated[bool, Query(description="Only the flight under way, if any.")] = False,
-    limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    offset: Annotated[int, Query(ge=0, le=1_000_000_000)] = 0,
-) -> dict[str, Any]:
-    """Flights newest first, a page at a time (like missions), without their events."""
+ActiveOnly = Annotated[bool, Query(description="Only the flight under way, if any.")]
+PageLimit = Annotated[int, Query(ge=1, le=500)]
+PageOffset = Annotated[int, Query(ge=0, le=1_000_000_000)]
+
+
+def _page(store: StoreDep, fleet: FleetDep, active: bool, limit: int,
+          offset: int) -> dict[str, Any]:
+    """One page of flights newest first, without their events: total, limit, offset, and
+    the documents under ``flights``."""
     if active:
         flight = fleet.active
-        row = None if flight is None else store.get_execution(flight.id)
+        row = None if flight is None else store.get_flight(flight.id)
         rows = [] if row is None else [row]
         total, rows = len(rows), rows[offset:offset + limit]
     else:
-        rows, total = store.page_executions(limit=limit, offset=offset)
-    executions = [_summary(_document(r, fleet.flight(r.id))) for r in rows]
-    return {"total": total, "limit": limit, "offset": offset, "executions": executions}
+        rows, total = store.page_flights(limit=limit, offset=offset)
+    flights = [_summary(_document(r, fleet.flight(r.id))) for r in rows]
+    return {"total": total, "limit": limit, "offset": offset, "flights": flights}
+
+
+@flights_router.get("", response_model=FlightList, summary="List flights")
+def list_flights(store: StoreDep, fleet: FleetDep, active: ActiveOnly = False,
+                 limit: PageLimit = 50, offset: PageOffset = 0) -> dict[str, Any]:
+    """Flights newest first, a page at a time (like missions), without their events."""
+    return _page(store, fleet, active, limit, offset)
+
+
+@executions_router.get("", response_model=ExecutionList,
+                       summary="List flights (deprecated: GET /api/flights)")
+def list_executions(store: StoreDep, fleet: FleetDep, active: ActiveOnly = False,
+                    limit: PageLimit = 50, offset: PageOffset = 0) -> dict[str, Any]:
+    """`GET /api/flights`'s page, its flights under `executions`."""
+    page = _page(store, fleet, active, limit, offset)
+    page["executions"] = page.pop("flights")
+    return page
 
 
 @router.get(
-    "/{execution_id}",
-    response_model=ExecutionOut,
+    "/{flight_id}",
+    response_model=FlightOut,
     summary="A flight's status and summary",
     responses=error_responses(404),
 )
-def get_execution(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> dict[str, Any]:
-    row = store.get_execution(execution.id) or execution
-    return _document(row, fleet.flight(execution.id))
+def get_flight(row: FlightDep, store: StoreDep, fleet: FleetDep) -> dict[str, Any]:
+    return _document(store.get_flight(row.id) or row, fleet.flight(row.id))
 
 
 @router.get(
-    "/{execution_id}/events",
+    "/{flight_id}/events",
     response_class=EventSourceResponse,
     summary="Live telemetry and events (server-sent events)",
     responses=error_responses(404, 503, json_content=True),
 )
-async def execution_events(
-    execution: ExecutionDep, store: StoreDep, fleet: FleetDep, after: LastEventId,
+async def flight_events(
+    row: FlightDep, store: StoreDep, fleet: FleetDep, after: LastEventId,
     _slot: EventStreamSlot, shared: SharedJsonDep,
 ) -> AsyncIterable[ServerSentEvent]:
     """`status` {status}, `event` {t, vehicle, kind, detail}, `telemetry` (5 per second:
-    phase, mission_time, vehicles with world-frame position, mode, armed, heartbeat_age),
+    phase, flight_time, vehicles with world-frame position, mode, armed, heartbeat_age),
     then `done` {status, summary, error}; then the stream ends. Each `event` has an `id:`
     (its index in the flight's events); a client reconnecting with `Last-Event-ID: n` gets
     the current status and telemetry and only the events after n. Streams are bounded in
     total and per flight (settings `max_event_streams`, `max_event_streams_per_resource`):
     past either bound the answer is 503 with Retry-After."""
-    flight = fleet.flight(execution.id)
+    flight = fleet.flight(row.id)
     if flight is None:
         # Finished: the store has it (read again: it may have ended a moment ago).
-        stored = await run_in_threadpool(store.get_execution, execution.id)
-        execution = stored or execution
-        stream: AsyncIterable[tuple[str, dict[str, Any]]] = _stored_stream(execution)
+        stored = await run_in_threadpool(store.get_flight, row.id)
+        row = stored or row
+        stream: AsyncIterable[tuple[str, dict[str, Any]]] = _stored_stream(row)
     else:
         stream = flight.stream()
     sequence = 0
@@ -338,24 +381,24 @@ async def execution_events(
             yield ServerSentEvent(event=kind, raw_data=shared.text(data))
 
 
-async def _stored_stream(execution: ExecutionRow) -> AsyncIterable[tuple[str, dict[str, Any]]]:
+async def _stored_stream(row: FlightRow) -> AsyncIterable[tuple[str, dict[str, Any]]]:
     """A finished flight's stream, from the store."""
-    yield "status", {"status": execution.status}
-    for event in execution.events:
+    yield "status", {"status": row.status}
+    for event in row.events:
         yield "event", event
-    yield "done", {"status": execution.status, "summary": execution.summary,
-                   "error": execution.error}
+    yield "done", {"status": row.status, "summary": row.summary,
+                   "error": row.error}
 
 
 @router.post(
-    "/{execution_id}/abort",
+    "/{flight_id}/abort",
     status_code=202,
-    response_model=ExecutionOut,
+    response_model=FlightOut,
     summary="Abort a flight: every vehicle lands (or holds) now",
     responses=error_responses(400, 404, 409, 413, 422),
 )
-async def abort_execution(
-    execution: ExecutionDep,
+async def abort_flight(
+    row: FlightDep,
     store: StoreDep,
     fleet: FleetDep,
     request: Annotated[AbortRequest | None, Body()] = None,
@@ -364,47 +407,47 @@ async def abort_execution(
     once the vehicles are safe. 409 if it is not flying, or for a hold while the flight lands
     (land overrides hold; a land while it holds is applied after the hold)."""
     action = "land" if request is None else request.action
-    flight = await fleet.abort(execution.id, action, stored_status=execution.status)
-    return _document(execution, flight)
+    flight = await fleet.abort(row.id, action, stored_status=row.status)
+    return _document(row, flight)
 
 
 @router.post(
-    "/{execution_id}/pause",
-    response_model=ExecutionOut,
-    summary="Pause a flight: the mission clock stops, every vehicle holds",
+    "/{flight_id}/pause",
+    response_model=FlightOut,
+    summary="Pause a flight: the flight clock stops, every vehicle holds",
     responses=error_responses(404, 409),
 )
-async def pause_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str, Any]:
+async def pause_flight(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
     """Every vehicle flying the plan holds the plan's setpoint of the same plan time, so the
     fleet stays as separated as the plan is at that instant (status `paused`). After the
     fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the
     flight ends aborted. 409 unless the plan is being flown."""
-    flight = await fleet.pause(execution.id, stored_status=execution.status)
-    return _document(execution, flight)
+    flight = await fleet.pause(row.id, stored_status=row.status)
+    return _document(row, flight)
 
 
 @router.post(
-    "/{execution_id}/resume",
-    response_model=ExecutionOut,
-    summary="Resume a paused flight from where its mission clock stopped",
+    "/{flight_id}/resume",
+    response_model=FlightOut,
+    summary="Resume a paused flight from where its flight clock stopped",
     responses=error_responses(404, 409),
 )
-async def resume_execution(execution: ExecutionDep, fleet: FleetDep) -> dict[str, Any]:
-    """The mission clock runs again from the plan time it stopped at (status `running`).
+async def resume_flight(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
+    """The flight clock runs again from the plan time it stopped at (status `running`).
     409 unless paused."""
-    flight = await fleet.resume(execution.id, stored_status=execution.status)
-    return _document(execution, flight)
+    flight = await fleet.resume(row.id, stored_status=row.status)
+    return _document(row, flight)
 
 
 @router.post(
-    "/{execution_id}/replan",
+    "/{flight_id}/replan",
     status_code=202,
     response_model=ReplanOut,
     summary="Replan a flight in the air: change goals, drop vehicles",
     responses=error_responses(400, 404, 409, 413, 422),
 )
-async def replan_execution(
-    execution: ExecutionDep, fleet: FleetDep, settings: SettingsDep, request: ReplanRequest,
+async def replan_flight(
+    row: FlightDep, fleet: FleetDep, settings: SettingsDep, request: ReplanRequest,
 ) -> dict[str, Any]:
     """The flight plans anew from where its plan will be a moment ahead (the switch time)
     and switches its setpoint stream there if the new plan is verified in time; otherwise it
@@ -415,8 +458,8 @@ async def replan_execution(
     `goals.<id>` or `drop[n]` for an unknown vehicle, a goal outside the workspace, inside an
     obstacle's clearance or closer than R to another goal."""
     goals, drop = checked(request, settings.max_vehicles)
-    replan = await fleet.replan(execution.id, goals, drop, request.drop_action,
-                                stored_status=execution.status)
+    replan = await fleet.replan(row.id, goals, drop, request.drop_action,
+                                stored_status=row.status)
     return {"replan": replan}
 
 
@@ -438,13 +481,15 @@ class FlownTrajectoryOut(BaseModel):
     each switched replan's from its switch time."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [{
-        "execution_id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "rate": 10.0,
+        "flight_id": "a41c03e9b2f1", "mission_id": "3f2a9c81d0b4", "rate": 10.0,
         "frame": "world_enu", "t": [0.0, 0.1],
         "vehicles": [{"id": "uav1", "position": [[4.5, 2.5, 1.1], [4.49, 2.5, 1.1]],
                       "velocity": [[0.0, 0.0, 0.0], [-0.1, 0.0, 0.0]]}],
         "switches": [{"replan": 1, "t": 4.2}], "dropped": {"uav3": 4.2}}]})
 
-    execution_id: str
+    flight_id: str
+    execution_id: str = Field(description="The same as `flight_id` (deprecated).",
+                              deprecated=True)
     mission_id: str
     rate: float
     frame: Literal["world_enu"]
@@ -460,13 +505,13 @@ class FlownTrajectoryOut(BaseModel):
 
 
 @router.get(
-    "/{execution_id}/trajectory",
+    "/{flight_id}/trajectory",
     response_model=FlownTrajectoryOut,
     summary="The plans a flight flies, sampled (replans included)",
     responses=error_responses(404, 409, 422),
 )
-async def execution_trajectory(
-    execution: ExecutionDep, plans: PlanCacheDep, fleet: FleetDep, settings: SettingsDep,
+async def flight_trajectory(
+    row: FlightDep, plans: PlanCacheDep, fleet: FleetDep, settings: SettingsDep,
     rate: Annotated[float, Query(gt=0, description="Samples per second (Hz).")] = 10.0,
 ) -> dict[str, Any]:
     """Every vehicle's setpoints at `rate` Hz in flight time: the mission's plan, then each
@@ -475,23 +520,24 @@ async def execution_trajectory(
     if rate > settings.max_trajectory_rate:
         raise InvalidRequest(
             "rate", f"must be at most {settings.max_trajectory_rate:g} Hz, got {rate:g}")
-    plan = await run_in_threadpool(plans.get, execution.mission_id)
-    replanned = await fleet.replanned(execution.id)
+    plan = await run_in_threadpool(plans.get, row.mission_id)
+    replanned = await fleet.replanned(row.id)
     document = await run_in_threadpool(
         flown_trajectory, [Segment(0.0, plan), *replanned], rate,
         settings.max_trajectory_samples)
-    return {"execution_id": execution.id, "mission_id": execution.mission_id, **document}
+    return {"flight_id": row.id, "execution_id": row.id, "mission_id": row.mission_id,
+            **document}
 
 
 @router.get(
-    "/{execution_id}/record",
+    "/{flight_id}/record",
     response_model=None,
     summary="Download the flight record",
     responses={200: {"content": {"application/json": {}}}, **error_responses(404, 409)},
 )
-def get_record(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> Response:
+def get_record(row: FlightDep, store: StoreDep, fleet: FleetDep) -> Response:
     """Setpoints sent, telemetry received, events and the summary (gcs flight record)."""
-    flight = fleet.flight(execution.id)
+    flight = fleet.flight(row.id)
     held = None if flight is None or flight.unstored is None or flight.handle is None \
         else flight.handle.record
     if held is not None:
@@ -499,12 +545,12 @@ def get_record(execution: ExecutionDep, store: StoreDep, fleet: FleetDep) -> Res
         return Response(
             orjson.dumps(held, option=orjson.OPT_SERIALIZE_NUMPY),
             media_type="application/json",
-            headers={"Content-Disposition": f'attachment; filename="flight-{execution.id}.json"'})
-    row = store.get_execution(execution.id, with_record=True)
-    if row is None or row.record_json is None:
-        raise StateConflict("execution_id", f"execution {execution.id!r} has no flight record "
-                       f"(status {execution.status})")
+            headers={"Content-Disposition": f'attachment; filename="flight-{row.id}.json"'})
+    stored = store.get_flight(row.id, with_record=True)
+    if stored is None or stored.record_json is None:
+        raise StateConflict("flight_id", f"flight {row.id!r} has no flight record "
+                       f"(status {row.status})")
     return Response(
-        row.record_json, media_type="application/json",
-        headers={"Content-Disposition": f'attachment; filename="flight-{execution.id}.json"'},
+        stored.record_json, media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="flight-{row.id}.json"'},
     )
