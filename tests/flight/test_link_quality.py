@@ -166,3 +166,23 @@ def test_telemetry_reports_the_figures() -> None:
     assert {k: report[k] for k in ("received", "lost", "reordered", "duplicates")} == {
         "received": 5, "lost": 1, "reordered": 1, "duplicates": 1}
     assert report["loss_pct"] == pytest.approx(100 / 6, abs=0.01)
+
+
+def test_packets_in_flight_are_not_recent_loss() -> None:
+    """A 250 ms delay at 50 Hz keeps a dozen packets in flight: while they may still
+    arrive, they are not counted lost over the last seconds."""
+    quality = LinkQuality()
+    rng = random.Random(5)
+    arrivals = sorted((s * 0.02 + rng.uniform(0.1, 0.3), s) for s in range(50 * 12))
+    second = 1.0
+    in_flight = []
+    for t, seq in arrivals:
+        while t >= second:
+            quality.sample(second)
+            in_flight.append(quality.counter.pending)
+            second += 1.0
+        quality.counter.count(seq & 0xFF, t)
+    recent = quality.recent()
+    assert recent is not None and recent[1] == 0 and recent[0] > 200
+    assert max(in_flight) > 0  # bound: some were due at each sample, none was lost
+    assert quality.counter.lost == 0

@@ -103,6 +103,13 @@ class SequenceCounter:
         self.restarts += 1
         self.last = None
 
+    @property
+    def pending(self) -> int:
+        """Of `lost`, those still within the window: they may yet arrive late."""
+        if self.last is None:
+            return 0
+        return sum(self._state[(self.last - k) & 0xFF] == _MISSING for k in range(WINDOW))
+
     def _restart(self, seq: int) -> None:
         self._state[:] = bytes(256)  # nothing known behind the new start
         self._state[seq] = _RECEIVED
@@ -166,8 +173,10 @@ class LinkQuality:
         default_factory=lambda: deque(maxlen=int(WINDOW_S) + 2), repr=False)
 
     def sample(self, now: float) -> None:
-        """Note the counts now (about once a second) for `recent`."""
-        self._history.append((now, self.counter.received, self.counter.lost))
+        """Note the counts now (about once a second) for `recent`: the lost ones only once
+        they can no longer arrive late, so that packets merely delayed never count."""
+        c = self.counter
+        self._history.append((now, c.received, c.lost - c.pending))
 
     def recent(self) -> tuple[int, int] | None:
         """(received, lost) over the last `WINDOW_S` of samples, or None before two."""
