@@ -5,10 +5,13 @@ the fleet lands; every accepted command leaves an event, every refused one too).
 from __future__ import annotations
 
 import asyncio
+from pathlib import Path
+from typing import Any
 
 import pytest
 
 from gcs import px4
+from gcs.cli.control import ControlServer, request
 from gcs.errors import FlightAborted, StateConflict
 from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.run.precedence import abort_in_force
@@ -110,4 +113,53 @@ def test_hold_after_land_is_refused_and_recorded() -> None:
         "operator land: land all",
         "operator land again: land all (already under way: operator land)"]
     assert not any(v.mode == px4.HOLD for v in mock.vehicles)
+    assert not any(vehicle.armed for vehicle in mock.vehicles)
+
+
+class _Socketed:
+    """`gcs.cli.control.Flight` on a flight executor, as `fleetplan fly --control` drives
+    one (through its `FlightHandle`)."""
+
+    def __init__(self, flight: FlightExecutor) -> None:
+        self.flight = flight
+
+    async def replan(self, goals: Any, drop: list[str], drop_action: str,
+                     reason: str) -> dict[str, Any]:
+        return await self.flight.replan(goals, drop, drop_action, reason)
+
+    async def pause(self) -> float:
+        return self.flight.pause()
+
+    async def resume(self) -> float:
+        return self.flight.resume()
+
+    async def abort(self, action: str = "land", reason: str = "operator abort") -> None:
+        await self.flight.abort(action, reason)
+
+
+@pytest.mark.flight
+def test_racing_aborts_over_the_control_socket(tmp_path: Path) -> None:
+    """Hold and land sent together over `fly`'s control socket: the land is answered ok
+    whatever came first; the hold is applied before it or refused with the reason."""
+    plan = smooth_plan(short_line(2, steps=30))
+    answers: list[dict[str, Any]] = []
+
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
+        server = ControlServer(tmp_path / "fly.sock", _Socketed(flight), 2)
+        await server.start()
+        try:
+            await _while_flying(flight)
+            answers.extend(await asyncio.gather(
+                request(server.path, {"command": "abort", "action": "hold"}),
+                request(server.path, {"command": "abort", "action": "land"})))
+        finally:
+            await server.close()
+
+    flight, outcome, mock = asyncio.run(_fly(plan, during=during))
+    assert isinstance(outcome, FlightAborted)
+    hold, land = answers
+    assert land == {"ok": True}
+    assert hold == {"ok": True} or hold["error"]["reason"].endswith("land overrides hold")
+    aborts = [e["detail"] for e in flight.recorder.events if e["kind"] == "abort"]
+    assert len(aborts) == (2 if hold["ok"] else 1)
     assert not any(vehicle.armed for vehicle in mock.vehicles)
