@@ -258,7 +258,8 @@ def address_text(address: object) -> str:
 async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> bool:
     """Ask for GPS_GLOBAL_ORIGIN until the vehicle reports it, up to `ORIGIN_TRIES` times
     with a growing wait (a lossy link loses requests and answers alike); whether it did. A
-    request the vehicle refuses (no ACCEPTED) ends the asking."""
+    request the vehicle refuses (no ACCEPTED), or never acknowledges through all of its
+    command retries, ends the asking."""
     clock = _clock(stalls)
     wait = ORIGIN_WAIT_S
     for _ in range(ORIGIN_TRIES):
@@ -268,7 +269,7 @@ async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> 
             result = await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN,
                                                 clock=clock)
         except CommandError:
-            result = mavlink.MAV_RESULT_ACCEPTED  # unanswered: the answer may still come
+            result = None  # unanswered: the origin may still come, then stop asking
         if await link.wait_for(lambda t: t.gps_origin is not None, wait, clock=clock):
             return True
         if result != mavlink.MAV_RESULT_ACCEPTED:
