@@ -186,3 +186,18 @@ def test_packets_in_flight_are_not_recent_loss() -> None:
     assert recent is not None and recent[1] == 0 and recent[0] > 200
     assert max(in_flight) > 0  # bound: some were due at each sample, none was lost
     assert quality.counter.lost == 0
+
+
+def test_the_stations_own_stalls_are_not_the_links_jitter() -> None:
+    told: list[str] = []
+    watch = LinkWatch(lambda vid, text: told.append(text), lambda vid, text: None)
+    quality = LinkQuality()
+    for k in range(400):  # 50 Hz, every other message 100 ms late: 100 ms of jitter
+        quality.counter.count(k & 0xFF, 0.02 * k)
+        quality.timing.stamped(0.02 * k + (0.1 if k % 2 else 0.0), 0.02 * k)
+    for second in range(1, 5):
+        watch.check({"uav1": quality}, float(second), station_stalled=True)
+    assert told == []
+    for second in range(5, 8):
+        watch.check({"uav1": quality}, float(second))
+    assert len(told) == 1 and "jitter 100 ms" in told[0]

@@ -17,7 +17,9 @@ rate (which PX4 varies) and measures only what the link adds.
 `LinkWatch` judges each vehicle once a second over the last `WINDOW_S` seconds: degraded when
 the recent loss reaches `DEGRADED_LOSS` (or jitter `DEGRADED_JITTER_S`, latency
 `DEGRADED_LATENCY_S`) for two judgements in a row, recovered only when every figure is under
-half its threshold for `RECOVER_S`: hysteresis, so a link on the edge does not flap.
+half its threshold for `RECOVER_S`: hysteresis, so a link on the edge does not flap. While
+the station itself has stalled within the window (`gcs.flight.link.station`), late arrivals
+are its own: only the loss is judged then.
 """
 
 from __future__ import annotations
@@ -243,22 +245,26 @@ class LinkWatch:
         self._judged: dict[str, _Judged] = {}
         self._next = -math.inf
 
-    def check(self, links: dict[str, LinkQuality], now: float) -> None:
-        """Sample and judge every link when a second has passed since the last time."""
+    def check(self, links: dict[str, LinkQuality], now: float,
+              station_stalled: bool = False) -> None:
+        """Sample and judge every link when a second has passed since the last time;
+        `station_stalled`: the station itself stalled within the window, so late arrivals
+        are its own, and only the loss is judged."""
         if now < self._next:
             return
         self._next = now + 1.0
         for vid, quality in links.items():
             quality.sample(now)
-            self._judge(vid, quality, now)
+            self._judge(vid, quality, now, station_stalled)
 
-    def _judge(self, vid: str, q: LinkQuality, now: float) -> None:
+    def _judge(self, vid: str, q: LinkQuality, now: float, station_stalled: bool) -> None:
         judged = self._judged.setdefault(vid, _Judged())
         recent = q.recent()
         loss = (None if recent is None or sum(recent) < WINDOW_MIN
                 else recent[1] / sum(recent))
-        jitter = q.timing.jitter if q.timing.samples >= WINDOW_MIN else None
-        latency = q.timing.latency
+        timed = q.timing.samples >= WINDOW_MIN and not station_stalled
+        jitter = q.timing.jitter if timed else None
+        latency = q.timing.latency if not station_stalled else None
         figures = ((loss, DEGRADED_LOSS), (jitter, DEGRADED_JITTER_S),
                    (latency, DEGRADED_LATENCY_S))
         bad = any(v is not None and v >= limit for v, limit in figures)

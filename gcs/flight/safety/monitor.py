@@ -52,6 +52,7 @@ import numpy as np
 from gcs import frames, px4
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.quality import WINDOW_S as LINK_WINDOW_S
 from gcs.flight.link.quality import LinkWatch
 from gcs.flight.link.signing import REPEATED_TIMESTAMPS
 from gcs.flight.link.station import STALL_NOTE_S, StationStalls
@@ -250,7 +251,8 @@ class FleetMonitor:
             self._drops(now)
         if self._link_watch is not None:
             self._link_watch.check({v.id: v.link.telemetry.quality for v in self.vehicles
-                                    if v.link is not None}, now)
+                                    if v.link is not None}, now,
+                                   self.stalls.ended_since(now - LINK_WINDOW_S) > 0.0)
 
     def _drops(self, now: float) -> None:
         """Tell each vehicle's packets dropped since last told (at most every DROPS_NOTE_S)."""
