@@ -7,15 +7,16 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
+import numpy as np
 import pytest
 
 from gcs.errors import GeofenceFailed
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.station import StationStalls
-from gcs.flight.procedure import vehicle
+from gcs.flight.procedure import fence_upload, vehicle
 from gcs.flight.run import boarding
 from gcs.flight.run.boarding import fence_fleet, fence_vehicle
-from gcs.geofence import build_fence
+from gcs.geofence import build_fence, fence_items
 from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from gcs.sim.fleet import DEFAULT_WORLD_ORIGIN
@@ -173,3 +174,42 @@ def test_a_lossy_link_from_the_start_flies_fenced_or_not_at_all(seed: int) -> No
     if not armed:
         assert isinstance(outcome, Exception), outcome
         assert not any(v.armed for v in mock.vehicles)
+
+
+class _LosesTheLastAck:
+    """A vehicle's side of the mission protocol whose final MISSION_ACK is lost on the way."""
+
+    def __init__(self) -> None:
+        self.vehicle_id, self.system_id, self.component_id = "uav1", 1, 1
+        self.mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        self.own = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        self.listeners: list[Any] = []
+        self.stored: list[int] = []
+        self.count = 0
+
+    def send(self, msg: Any) -> None:
+        kind, fence = msg.get_type(), mavlink.MAV_MISSION_TYPE_FENCE
+        if kind == "MISSION_COUNT":
+            self.count = msg.count
+            self._answer(self.own.mission_request_int_encode(255, 190, 0, fence))
+        elif kind == "MISSION_ITEM_INT":
+            if msg.seq not in self.stored:
+                self.stored.append(msg.seq)
+            if msg.seq + 1 < self.count:
+                self._answer(self.own.mission_request_int_encode(255, 190, msg.seq + 1, fence))
+            # the last: stored, and its MISSION_ACK lost
+
+    def _answer(self, msg: Any) -> None:
+        msg.pack(self.own)
+        for listener in list(self.listeners):
+            listener(self, msg, 0.0)
+
+
+def test_the_last_ack_lost_is_left_to_the_read_back(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every item went and the vehicle stored them; its MISSION_ACK never came: the upload
+    ends without an error, and the read-back (`send_fence`) says whether the fence is there."""
+    monkeypatch.setattr(fence_upload, "ITEM_TIMEOUT_S", 0.01)
+    link = _LosesTheLastAck()
+    items = fence_items(build_fence(WORKSPACE), np.zeros(3), DEFAULT_WORLD_ORIGIN)
+    asyncio.run(fence_upload.upload_fence(link, items))  # type: ignore[arg-type]
+    assert link.stored == list(range(len(items)))

@@ -33,10 +33,11 @@ __all__ = ["FENCE_TRANSFERS", "connect_vehicle", "fence_fleet", "fence_origin", 
            "preflight", "prepare_vehicle"]
 
 #: Whole uploads (with read-back) of a vehicle's fence before the flight is refused, and the
-#: wait before the second (s; doubled before each next): every message of one upload is
-#: already resent 5 times, so a third upload is for a link that lost a run of them.
+#: wait before each next (s): every message of one upload is already resent 5 times, so a
+#: next upload is for a link that lost a run of them; it waits until the vehicle has given
+#: the failed transfer up (PX4 refuses another meanwhile).
 FENCE_TRANSFERS = 3
-FENCE_RETRY_WAIT_S = 1.0
+FENCE_RETRY_WAIT_S = px4.MISSION_PROTOCOL_TIMEOUT_S + 0.5
 
 
 async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
@@ -142,7 +143,6 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
         raise GeofenceFailed(v.id, f"its home {np.round(v.placed, 3).tolist()} lies outside "
                                    f"the fence ({', '.join(outside)})")
     items = fence_items(fence, home, origin)
-    wait = FENCE_RETRY_WAIT_S
     for transfer in range(1, FENCE_TRANSFERS + 1):
         try:
             await send_fence(v.linked, items)
@@ -151,9 +151,8 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
             if transfer == FENCE_TRANSFERS:
                 raise GeofenceFailed(v.id, f"{exc.detail} (after {transfer} uploads)") from None
             emit(v.id, EventKind.GEOFENCE_RETRY, f"upload {transfer} failed ({exc.detail}); "
-                                                 f"again in {wait:g} s")
-            await asyncio.sleep(wait)
-            wait *= 2
+                                                 f"again in {FENCE_RETRY_WAIT_S:g} s")
+            await asyncio.sleep(FENCE_RETRY_WAIT_S)
     emit(v.id, EventKind.GEOFENCE, f"{len(fence.shapes)} shape(s), {len(items)} items "
                                    f"uploaded and read back"
                                    + (f" (upload {transfer})" if transfer > 1 else ""))
