@@ -3,14 +3,26 @@
 A *phase* is where a flight (`FlightPhase`) or one of its vehicles (`VehiclePhase`) is inside
 its run; an *event kind* (`EventKind`) names one line of a flight's event log. They are
 StrEnums, so records, JSON and stored rows carry the plain value, and
-`GET /api/status` publishes them (`vocabulary()`) beside the statuses.
+`GET /api/status` publishes them (`vocabulary()`) beside the statuses. Events stored under a
+kind's former value (`FORMER_EVENT_KINDS`) read as the kind it is now.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from enum import StrEnum
+from typing import Any
 
-__all__ = ["AIRBORNE", "EventKind", "FlightPhase", "ReplanStatus", "VehiclePhase", "vocabulary"]
+__all__ = [
+    "AIRBORNE",
+    "FORMER_EVENT_KINDS",
+    "EventKind",
+    "FlightPhase",
+    "ReplanStatus",
+    "VehiclePhase",
+    "current_events",
+    "vocabulary",
+]
 
 
 class FlightPhase(StrEnum):
@@ -72,7 +84,7 @@ class EventKind(StrEnum):
     MARGIN = "margin"
     MARGIN_WARNING = "margin_warning"
     STREAM_PRIORITY = "stream_priority"
-    FLIGHT_START = "mission_start"
+    FLIGHT_START = "flight_start"
     HORIZON = "horizon"
     GOAL_ERRORS = "goal_errors"
     PAUSE = "pause"
@@ -139,6 +151,21 @@ class EventKind(StrEnum):
     DISARM_UNCONFIRMED = "disarm_unconfirmed"
     NOT_DISARMED = "not_disarmed"
     STILL_ARMED = "still_armed"
+
+    @classmethod
+    def _missing_(cls, value: object) -> EventKind | None:
+        """A kind's former value (`FORMER_EVENT_KINDS`) is that kind."""
+        return FORMER_EVENT_KINDS.get(value) if isinstance(value, str) else None
+
+
+#: Former values of event kinds, as events stored before they were renamed carry them.
+FORMER_EVENT_KINDS: dict[str, EventKind] = {"mission_start": EventKind.FLIGHT_START}
+
+
+def current_events(events: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Stored events with each kind under its current value (a former one replaced)."""
+    return [{**e, "kind": FORMER_EVENT_KINDS[e["kind"]]} if e.get("kind") in FORMER_EVENT_KINDS
+            else e for e in events]
 
 
 def vocabulary() -> dict[str, list[str]]:

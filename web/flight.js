@@ -161,8 +161,8 @@ export function drawTelemetry(t) {
   showVehicleTable();
   const sep = t.min_separation_live === null ? "" : `closest pair now ${t.min_separation_live.toFixed(2)} m`;
   $("#flight-phase").textContent = sep;
-  if ($("#follow").checked && views.traj && t.mission_time !== null && t.mission_time !== undefined) {
-    moveSlider(Math.round(t.mission_time * views.traj.rate));
+  if ($("#follow").checked && views.traj && t.flight_time !== null && t.flight_time !== undefined) {
+    moveSlider(Math.round(t.flight_time * views.traj.rate));
   } else {
     drawFlyMoving();
     showClock();

@@ -115,7 +115,7 @@ export function resetSlider() {
 export function showClock() {
   const t = sliderTime(), end = horizon();
   const live = flight.active ? flight.live : null;
-  const mt = live ? live.mission_time : null;
+  const mt = live ? live.flight_time : null;
   let text;
   let fraction = end > 0 ? t / end : 0;
   if (live) {

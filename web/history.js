@@ -81,11 +81,11 @@ async function openFlight(id) {
   startReplay(id, record);
 }
 
-/** Replay: recorded positions against the plan, on mission time (record t - mission_start).
+/** Replay: recorded positions against the plan, on flight time (record t - flight_start).
  * @param {string} id
  * @param {any} record  GET /api/flights/{id}/record */
 function startReplay(id, record) {
-  const t0 = record.mission_start ?? 0;
+  const t0 = record.flight_start ?? record.mission_start ?? 0;  // mission_start: older records
   flight.replay = {
     id,
     vehicles: record.vehicles.map((/** @type {any} */ v) => ({

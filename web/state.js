@@ -24,7 +24,7 @@
  *   planning_s: number | null, goals: Record<string, number[]>, drop: string[],
  *   drop_action: string, reason: string | null, why?: string}} ReplanObject
  *   an in-flight replan (POST /api/flights/{id}/replan, the live state's `replan`) */
-/** @typedef {{mission_time?: number | null, phase: string, min_separation_live: number | null,
+/** @typedef {{flight_time?: number | null, phase: string, min_separation_live: number | null,
  *   vehicles: VehicleRow[], replan?: ReplanObject | null}} Telemetry  one `telemetry` event
  *   of a flight */
 /** @typedef {{id: string, vehicles: {id: string, t: number[], position: number[][]}[]}} Replay */

@@ -52,7 +52,7 @@ export function minSeparation(plan, traj) {
 }
 
 /** Measured minimum separation of recorded tracks [{t, position}...], 5 per second over
- * [0, end] (mission time): {t, d}, or null with fewer than two tracks.
+ * [0, end] (flight time): {t, d}, or null with fewer than two tracks.
  * @param {{t: number[], position: number[][]}[]} tracks
  * @param {number[]} scale
  * @param {number} end

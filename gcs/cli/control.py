@@ -7,7 +7,7 @@ reads one JSON line back. Requests:
 - ``{"command": "replan", "goals": {...}, "drop": [...], "drop_action": "land"|"hold"}``
   (the body of POST /api/executions/{id}/replan, `gcs.replan_request`) -> ``{"ok": true,
   "replan": {...}}``, the replan object (status planning; its outcome follows as events);
-- ``{"command": "pause"}`` / ``{"command": "resume"}`` -> ``{"ok": true, "mission_time": t}``;
+- ``{"command": "pause"}`` / ``{"command": "resume"}`` -> ``{"ok": true, "flight_time": t}``;
 - ``{"command": "abort", "action": "land"|"hold"}`` -> ``{"ok": true}``.
 
 A refusal is ``{"ok": false, "error": {"type", "field", "reason"}}``: StateConflict (nothing
@@ -125,7 +125,7 @@ class ControlServer:
             if command in ("pause", "resume"):
                 _no_more(body)
                 run = self._flight.pause if command == "pause" else self._flight.resume
-                return {"ok": True, "mission_time": await run()}
+                return {"ok": True, "flight_time": await run()}
             action = body.pop("action", "land")
             _no_more(body)
             if action not in DROP_ACTIONS:

@@ -3,7 +3,7 @@
 Live progress per vehicle once a second and every event as it happens; a summary at the end;
 exit status 0 only when the flight completed. Ctrl-C aborts safely: every vehicle lands and
 the command waits for them to disarm (a second Ctrl-C exits at once). SIGUSR1 pauses the
-mission (the clock stops, every vehicle holds the plan's setpoint of the same plan time),
+flight (the clock stops, every vehicle holds the plan's setpoint of the same plan time),
 SIGUSR2 resumes it: ``kill -USR1 PID``. With ``--control PATH`` the flight also takes commands
 on a unix socket (`gcs.cli.control`): `fleetplan replan PATH ...` changes goals or drops
 vehicles in flight. The flight and the mock vehicles run on their own thread
@@ -219,7 +219,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"cannot {'resume' if resume else 'pause'}: {exc}", file=sys.stderr,
                       flush=True)
                 return
-            print(f"{'resumed' if resume else 'paused'} at mission time {t:.2f} s "
+            print(f"{'resumed' if resume else 'paused'} at flight time {t:.2f} s "
                   f"({'SIGUSR1 pauses' if resume else 'SIGUSR2 resumes'})", flush=True)
 
         def on_pause(resume: bool) -> None:

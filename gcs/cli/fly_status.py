@@ -28,7 +28,7 @@ def figure(value: float | None, spec: str = ".2f", unit: str = "") -> str:
 def header(snap: dict[str, Any]) -> str:
     """One line: flight phase, plan time against the horizon (then the time past it), live
     minimum separation."""
-    t = snap.get("mission_time")
+    t = snap.get("flight_time")
     horizon = snap.get("horizon")
     if t is None:
         clock = "t -"

@@ -36,7 +36,7 @@ from gcs.errors import GcsError, MissionAborted, StateConflict, VehicleLoopStopp
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.host.vehicle_process import VehicleProcess
 from gcs.flight.run.precedence import abort_in_force, aborting_refusal
-from gcs.phases import EventKind
+from gcs.phases import EventKind, FlightPhase
 from gcs.service.fleet import FleetKind, fleet_kind
 from gcs.service.flown_trajectory import replanned_in
 from gcs.service.journal import FlightJournal, store_failure, write_final
@@ -44,7 +44,7 @@ from gcs.service.live_flight import LiveFlight, flight_document
 from gcs.service.remote_flight import RemoteFlight
 from gcs.service.replan_handle import Segment
 from gcs.service.settings import Settings
-from gcs.service.statuses import FLIGHT_ACTIVE, FLIGHT_FINISHED, FlightStatus
+from gcs.service.statuses import FLIGHT_ACTIVE, FLIGHT_FINISHED, STATUS_OF_PHASE, FlightStatus
 from gcs.service.storage_faults import storage_reason
 from gcs.service.store import FlightRow, Store
 from gcs.service.vehicle_host import CLOSE_LANDING_S, PRELOAD, FleetHost
@@ -219,7 +219,7 @@ class FleetService:
 
     async def abort(
         self, flight_id: str, action: str, reason: str = "operator abort",
-        stored_status: str = "finished",
+        stored_status: FlightStatus | None = None,
     ) -> LiveFlight:
         """Every vehicle of the flight to `action` (land or hold) now; StateConflict if it is not
         flying, or when `action` loses to the abort under way (`gcs.flight.run.precedence`: land
@@ -235,7 +235,7 @@ class FleetService:
             flight.set_status(FlightStatus.ABORTING)
         return flight
 
-    async def pause(self, flight_id: str, stored_status: str = "finished") -> LiveFlight:
+    async def pause(self, flight_id: str, stored_status: FlightStatus | None = None) -> LiveFlight:
         """Stop the flight's clock, every vehicle holding the plan's setpoint of the same plan
         time (status paused). StateConflict unless it is running its plan."""
         flight = self._flying(flight_id, stored_status)
@@ -248,7 +248,7 @@ class FleetService:
             flight.set_status(FlightStatus.PAUSED)
         return flight
 
-    async def resume(self, flight_id: str, stored_status: str = "finished") -> LiveFlight:
+    async def resume(self, flight_id: str, stored_status: FlightStatus | None = None) -> LiveFlight:
         """Restart a paused flight's clock where it stopped (status running)."""
         flight = self._flying(flight_id, stored_status)
         self._not_aborting(flight, "resume")
@@ -262,7 +262,7 @@ class FleetService:
 
     async def replan(self, flight_id: str, goals: dict[str, list[float]] | None,
                      drop: list[str], drop_action: str, reason: str = "operator",
-                     stored_status: str = "finished") -> dict[str, Any]:
+                     stored_status: FlightStatus | None = None) -> dict[str, Any]:
         """Start an in-flight replan of a running flight (new goals for some vehicles, some
         dropped to land or hold on their own motion); the replan object at once (status
         planning), its outcome follows as events. StateConflict unless the flight runs its
@@ -300,13 +300,14 @@ class FleetService:
                                         f"flight {flight.id!r}")
             raise StateConflict("flight_id", conflict.reason)
 
-    def _flying(self, flight_id: str, stored_status: str) -> LiveFlight:
-        """The flight under way with this id; StateConflict naming its status otherwise."""
+    def _flying(self, flight_id: str, stored_status: FlightStatus | None) -> LiveFlight:
+        """The flight under way with this id; StateConflict naming its status otherwise (once
+        it left memory, the stored one the caller read, `stored_status`, if it did)."""
         flight = self._flights.get(flight_id)
         if flight is None or not flight.active:
             status = stored_status if flight is None else flight.status
-            raise StateConflict("flight_id", f"flight {flight_id!r} is not flying "
-                                                f"(status {status})")
+            known = "" if status is None else f" (status {status})"
+            raise StateConflict("flight_id", f"flight {flight_id!r} is not flying{known}")
         return flight
 
     # ------------------------------------------------------------------ one flight's run
@@ -330,11 +331,8 @@ class FleetService:
             flight.handle = handle
             ticker = asyncio.create_task(self._telemetry(flight, handle))
             mirror = asyncio.create_task(self._mirror(handle))
-            if flight.aborts:  # aborted while starting: each abort, in order
-                for action in list(flight.aborts):
-                    await handle.request_abort(action, "operator abort")
-            else:
-                flight.set_status(FlightStatus.RUNNING)
+            for action in list(flight.aborts):  # aborted while starting: each, in order
+                await handle.request_abort(action, "operator abort")
             record = await handle.result()
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))
@@ -437,6 +435,7 @@ class FleetService:
             self._on_event(flight, data["event"])
         elif kind == "snapshot" and flight.handle is not None:
             flight.handle.posted(data["snapshot"])
+            _leave_starting(flight, data["snapshot"]["phase"])
 
     def _on_event(self, flight: LiveFlight, event: dict[str, Any]) -> None:
         """One event of the flight (handed over from the vehicle process, in order) into the
@@ -466,6 +465,17 @@ class FleetService:
             if snapshot is not None:
                 flight.publish("telemetry", snapshot)
             await asyncio.sleep(1.0 / TELEMETRY_HZ)
+
+
+def _leave_starting(flight: LiveFlight, phase: str) -> None:
+    """A starting flight takes the status of the phase its executor reports
+    (`STATUS_OF_PHASE`) once that is no longer `starting`: running from the first snapshot
+    that says flying. Later statuses are the service's own steps (pause, resume, abort, the
+    end)."""
+    status = STATUS_OF_PHASE[FlightPhase(phase)]
+    if flight.status == FlightStatus.STARTING and status in FLIGHT_ACTIVE \
+            and status != FlightStatus.STARTING:
+        flight.set_status(status)
 
 
 async def _land_if_left_flying(flight: LiveFlight, flying: bool, why: str) -> None:

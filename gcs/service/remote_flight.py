@@ -41,11 +41,11 @@ class RemoteFlight:
         return self._snapshot
 
     async def pause(self) -> float:
-        """Stop the flight clock; the mission time it holds."""
+        """Stop the flight clock; the flight time it holds."""
         return float(await self._process.call("pause", self._execution))
 
     async def resume(self) -> float:
-        """Restart the flight clock; the mission time it restarts at."""
+        """Restart the flight clock; the flight time it restarts at."""
         return float(await self._process.call("resume", self._execution))
 
     async def replan(self, goals: dict[str, list[float]] | None, drop: list[str],

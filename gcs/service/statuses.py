@@ -11,11 +11,13 @@ from __future__ import annotations
 
 from enum import StrEnum
 
+from gcs.phases import FlightPhase
 from planner.result import STATUSES as PLAN_STATUSES
 
 __all__ = [
     "FLIGHT_ACTIVE",
     "FLIGHT_FINISHED",
+    "STATUS_OF_PHASE",
     "FlightStatus",
     "MissionStatus",
     "status_sets",
@@ -59,6 +61,25 @@ FLIGHT_ACTIVE: tuple[FlightStatus, ...] = (
 FLIGHT_FINISHED: tuple[FlightStatus, ...] = tuple(
     s for s in FlightStatus if s not in FLIGHT_ACTIVE
 )
+
+
+#: The status of a flight while its executor is in each phase: the one place the service's
+#: lifecycle (status) and the run's (phase) meet. A flight is `starting` until its vehicle
+#: process reports it flying; it ends in the status of its last phase (`finished`: completed,
+#: or incomplete by its summary). `aborting` (an abort asked for, not yet done) and
+#: `interrupted` (the service stopped) are the service's own.
+STATUS_OF_PHASE: dict[FlightPhase, FlightStatus] = {
+    FlightPhase.CREATED: FlightStatus.STARTING,
+    FlightPhase.CONNECTING: FlightStatus.STARTING,
+    FlightPhase.PREPARING: FlightStatus.STARTING,
+    FlightPhase.GATHERING: FlightStatus.STARTING,
+    FlightPhase.FLYING: FlightStatus.RUNNING,
+    FlightPhase.PAUSED: FlightStatus.PAUSED,
+    FlightPhase.FINISHING: FlightStatus.RUNNING,
+    FlightPhase.FINISHED: FlightStatus.COMPLETED,
+    FlightPhase.ABORTED: FlightStatus.ABORTED,
+    FlightPhase.FAILED: FlightStatus.FAILED,
+}
 
 
 def status_sets() -> dict[str, dict[str, list[str]]]:

@@ -43,6 +43,7 @@ from sqlalchemy.orm import (
     sessionmaker,
 )
 
+from gcs.phases import current_events
 from gcs.service.statuses import FLIGHT_ACTIVE, FlightStatus, MissionStatus
 
 __all__ = [
@@ -207,7 +208,7 @@ def _flight_row(
         finished_at=None if e.finished_at is None else _aware(e.finished_at),
         fleet=e.fleet,
         summary=None if e.summary_json is None else json.loads(e.summary_json),
-        events=json.loads(e.events_json or "[]"),
+        events=current_events(json.loads(e.events_json or "[]")),
         error=e.error,
         has_record=e.record_json is not None if has_record is None else has_record,
         record_json=e.record_json if with_record else None,

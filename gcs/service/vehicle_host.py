@@ -153,7 +153,7 @@ class FleetHost:
         start flying `plan`; the fleet's description as it now is. The executor's checks
         raise here (PlanRejected), and the monitor is reopened then."""
         if self._flying():
-            raise StateConflict("fleet", f"execution {self._execution} is flying")
+            raise StateConflict("fleet", f"flight {self._execution} is flying")
         await self.fleet.close_monitor()
         try:
             if self.fleet.kind == "mock":

@@ -55,7 +55,7 @@ def test_ctrl_c_lands_everyone(tmp_path: Path, sig: signal.Signals) -> None:
     assert proc.stdout is not None
     deadline = time.monotonic() + 60
     for line in proc.stdout:  # wait until the plan is being flown
-        if "mission_start" in line or time.monotonic() > deadline:
+        if "flight_start" in line or time.monotonic() > deadline:
             break
     time.sleep(0.2)  # into the 3 s plan
     proc.send_signal(sig)
@@ -203,20 +203,20 @@ def test_sigusr1_pauses_and_sigusr2_resumes(tmp_path: Path) -> None:
     lines = []
     for line in proc.stdout:  # wait until the plan is being flown
         lines.append(line)
-        if "mission_start" in line:
+        if "flight_start" in line:
             break
     time.sleep(0.2)  # into the 3 s plan
     proc.send_signal(signal.SIGUSR1)
     for line in proc.stdout:
         lines.append(line)
-        if "paused at mission time" in line:
+        if "paused at flight time" in line:
             break
     time.sleep(1.0)  # paused this long at least
     proc.send_signal(signal.SIGUSR2)
     out, _ = proc.communicate(timeout=60)
     out = "".join(lines) + out
     assert proc.returncode == 0, out
-    assert "resumed at mission time" in out
+    assert "resumed at flight time" in out
     record = json.loads((tmp_path / "record.json").read_text())
     [[start, end]] = record["pauses"]
     assert end - start >= 1.0

@@ -27,7 +27,7 @@ def test_one_row_per_vehicle_and_no_none_or_nan() -> None:
     vehicles = [_vehicle(i) for i in range(1, 8)]
     vehicles.append(_vehicle(8, phase="pending", mode=None, armed=False, position=None,
                              tracking_error=math.nan, link_age=None, fault="link_lost"))
-    snap = {"phase": "flying", "mission_time": 6.34, "horizon": 30.0,
+    snap = {"phase": "flying", "flight_time": 6.34, "horizon": 30.0,
             "min_separation_live": None, "vehicles": vehicles, "events": 3}
     text = _render(snap)
     lines = text.rstrip().splitlines()
@@ -40,7 +40,7 @@ def test_one_row_per_vehicle_and_no_none_or_nan() -> None:
 
 
 def test_clock_stops_at_the_horizon_and_counts_the_time_past_it() -> None:
-    snap = {"phase": "finishing", "mission_time": 37.34, "horizon": 30.0,
+    snap = {"phase": "finishing", "flight_time": 37.34, "horizon": 30.0,
             "min_separation_live": 1.23456, "vehicles": []}
     assert header(snap) == "finishing · t 30.0 / 30 s +7.3 s · min separation 1.23 m"
 

@@ -127,8 +127,8 @@ def test_a_replan_reaches_the_flight_and_its_object_comes_back(served: Served) -
 
 
 def test_pause_resume_and_abort(served: Served) -> None:
-    assert ask(served.server.path, {"command": "pause"}) == {"ok": True, "mission_time": 1.5}
-    assert ask(served.server.path, {"command": "resume"}) == {"ok": True, "mission_time": 1.5}
+    assert ask(served.server.path, {"command": "pause"}) == {"ok": True, "flight_time": 1.5}
+    assert ask(served.server.path, {"command": "resume"}) == {"ok": True, "flight_time": 1.5}
     assert ask(served.server.path, {"command": "abort", "action": "hold"}) == {"ok": True}
     assert [c[:2] for c in served.flight.calls] == [("pause",), ("resume",),
                                                      ("abort", "hold")]

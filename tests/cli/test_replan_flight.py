@@ -74,7 +74,7 @@ def test_fly_takes_a_replan_on_its_control_socket(tmp_path: Path) -> None:
     try:
         lines, reader = _lines(proc)
         _wait_for(lines, f"control socket: {sock}", seen, 60)
-        _wait_for(lines, "mission_start", seen, 60)
+        _wait_for(lines, "flight_start", seen, 60)
         # One at a time: two identical requests sent together (a busy machine may take
         # seconds to start each command): one is taken, the other refused while the first
         # waits for its switch.

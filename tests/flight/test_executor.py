@@ -143,7 +143,7 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
         assert not mock.vehicles[i].armed
     # sent down where it was when flagged (on a busy machine that comes later in plan time,
     # the station's stalls not counting in the gap), not flown on to its goal
-    t_fault = flagged[0]["t"] - record["mission_start"]
+    t_fault = flagged[0]["t"] - record["flight_start"]
     where = plan.sample([t_fault]).position[1, 0]
     assert where[1] < plan.scenario.goals[1][1] - 0.05
     assert mock.vehicles[1].position_world[1] < where[1] + 0.3

@@ -43,7 +43,7 @@ def test_requested_position_rate_is_what_arrives() -> None:
     assert all(v.intervals[LPN] == pytest.approx(0.02) for v in mock.vehicles)
     # and position reports kept arriving while the plan was flown (the rate that arrives is
     # bench/stream.py's figure: a starved machine delivers less)
-    t0, horizon = record["mission_start"], record["horizon"]
+    t0, horizon = record["flight_start"], record["horizon"]
     for v in record["vehicles"]:
         t = np.asarray(v["telemetry"]["t"])
         assert np.count_nonzero((t >= t0) & (t <= t0 + horizon)) > 0

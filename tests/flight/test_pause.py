@@ -117,7 +117,7 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     assert kinds.index("pause") < kinds.index("resume") < kinds.index("horizon")
     # the horizon came pause-length later than without the pause
     horizon = next(e["t"] for e in record["events"] if e["kind"] == "horizon")
-    assert horizon - record["mission_start"] >= plan.scenario.horizon + (end - start) - 0.1
+    assert horizon - record["flight_start"] >= plan.scenario.horizon + (end - start) - 0.1
 
 
 @pytest.mark.flight

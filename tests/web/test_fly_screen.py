@@ -72,16 +72,16 @@ def test_fly_screen_follows_the_flight_then_abort(
     table = page.locator("#vehicle-state").bounding_box()
     assert view and table and table["x"] >= view["x"] + view["width"]  # docked beside it
 
-    # Mid-plan: the slider follows mission time and the bar fills with it (the page's one
+    # Mid-plan: the slider follows flight time and the bar fills with it (the page's one
     # reading, taken as it clicked Pause).
     now = page.wait_for_function("window.midPlan", timeout=90_000).json_value()
     reading = re.search(rf"t = (\d+\.\d) s of {re.escape(HORIZON)} s", now["label"])
     assert reading, now["label"]
-    mission_time = float(reading.group(1))
-    assert now["slider"] == round(mission_time * 10)  # trajectory sampled at 10 Hz
+    flight_time = float(reading.group(1))
+    assert now["slider"] == round(flight_time * 10)  # trajectory sampled at 10 Hz
     # the clock shows tenths of a second: the bar may differ by what half a tenth is of the
     # horizon, plus its own rounding to a whole per mille
-    assert abs(now["progress"] - 1000 * mission_time / CROSSING_HORIZON_S) <= \
+    assert abs(now["progress"] - 1000 * flight_time / CROSSING_HORIZON_S) <= \
         1000 * 0.05 / CROSSING_HORIZON_S + 1
     # Live icons: one per vehicle, labelled with id and altitude.
     parsed = [ICON_LABEL.match(text) for text in now["icons"]]
@@ -134,7 +134,7 @@ def test_fly_screen_follows_the_flight_then_abort(
         assert all(float(t) <= CROSSING_HORIZON_S for t in re.findall(r"t = (\d+\.\d)", c)), c
     assert page.evaluate("document.getElementById('flight-progress').value") == 1000
     expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
-    expect(page.locator("#event-log")).to_contain_text("mission_start")
+    expect(page.locator("#event-log")).to_contain_text("flight_start")
     clock = page.locator("#time-label").inner_text()
     assert all(float(t) <= CROSSING_HORIZON_S for t in re.findall(r"t = (\d+\.\d)", clock)), clock
     expect(page.locator("#flight-list .status-badge.good")).to_have_text("completed")

@@ -99,7 +99,7 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     flight.click()
     expect(page.locator("#time-label")).to_contain_text(f"replay of flight {flight_id}")
     expect(page.locator("#flight-summary")).to_contain_text("completed: yes")
-    expect(page.locator("#event-log")).to_contain_text("mission_start")
+    expect(page.locator("#event-log")).to_contain_text("flight_start")
     expect(page.locator("#flight-status")).to_have_attribute("data-status", "completed")
     # The separation plot gains the measured separation of that flight, never below what
     # the recorded summary reports by more than its 5 Hz sampling allows.
@@ -107,11 +107,11 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     assert measured["name"] == f"measured (flight {flight_id})"
     assert min(measured["y"]) >= record["summary"]["min_separation_measured"] - 0.05
 
-    # The slider drives the replay: the recorded positions at that mission time, drawn in
+    # The slider drives the replay: the recorded positions at that flight time, drawn in
     # the top-down view (labelled) and the 3-D view.
     expect(page.locator("#fly-view g.vehicle-icon")).to_have_count(4)
     expect(page.locator("#fly-view polyline.trail")).to_have_count(4)
-    start = record["mission_start"]
+    start = record["flight_start"]
     end = round(CROSSING_HORIZON_S * 10)  # the slider's last sample (10 Hz)
     for k in (0, 40, end):
         page.locator("#time-slider").fill(str(k))

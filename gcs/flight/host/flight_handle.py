@@ -102,12 +102,12 @@ class FlightHandle:
         return self._snapshot
 
     async def pause(self) -> float:
-        """Stop the flight clock; the mission time it holds (StateConflict across). The
+        """Stop the flight clock; the flight time it holds (StateConflict across). The
         snapshot shows the pause once this returns."""
         return await self._vehicles.run(lambda: self._posting(self._executor.pause))
 
     async def resume(self) -> float:
-        """Restart the flight clock; the mission time it restarts at (StateConflict across).
+        """Restart the flight clock; the flight time it restarts at (StateConflict across).
         The snapshot shows it running once this returns."""
         return await self._vehicles.run(lambda: self._posting(self._executor.resume))
 

@@ -192,19 +192,10 @@ class FlightExecutor:
         paused."""
         return self.clock.flight_time()
 
-    def mission_time(self) -> float | None:
-        """`flight_time`, by the name users' scripts know."""
-        return self.flight_time()
-
     @property
     def flight_start(self) -> float | None:
         """GCS-clock time (s) of flight time 0 (None before the plan started)."""
         return self.clock.start
-
-    @property
-    def mission_start(self) -> float | None:
-        """`flight_start`, by the name users' scripts know."""
-        return self.flight_start
 
     @property
     def pauses(self) -> list[list[float | None]]:

@@ -1,13 +1,13 @@
 """The flight record: what was sent, what the vehicles reported, what happened, and a summary.
 
 Times are seconds on the GCS clock (0 when the executor started running); ``flight_start`` is
-the GCS-clock time of flight time 0 (null if the plan never started; ``mission_start`` carries
-the same value for consumers of that key), so flight time = t - flight_start, less the time
+the GCS-clock time of flight time 0 (null if the plan never started; records written before
+this key carry it as ``mission_start``), so flight time = t - flight_start, less the time
 spent in ``pauses`` ([start, end] each, GCS clock) before t (`plan_times`). Positions are
 in the world frame (ENU, m) unless the key says ``_ned``. JSON layout::
 
     {"format": "fleetplan-flight-record/2", "plan": {...scenario echo...},
-     "fleet": {...}, "options": {...}, "flight_start": 12.3, "mission_start": 12.3,
+     "fleet": {...}, "options": {...}, "flight_start": 12.3,
      "pauses": [[20.1, 25.3]],
      "horizon": 30.0,
      "error": null | {"type": "ArmingRefused", "message": "..."},

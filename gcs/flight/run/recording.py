@@ -90,7 +90,6 @@ def finish_record(recorder: FlightRecorder, plan: Plan, fleet: FleetSpec,
         "fleet": fleet.to_dict(),
         "options": options.to_dict(),
         "flight_start": flight_start,
-        "mission_start": flight_start,  # the same, for consumers of that key
         "pauses": pauses,
         "horizon": flown.horizon,
         "error": None if error is None else {

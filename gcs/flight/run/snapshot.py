@@ -1,7 +1,6 @@
 """A flight's JSON-ready live state, as the REST API, the page and ``fleetplan fly`` show it.
 
-Positions are in the world frame; ``flight_time`` is the flight clock (``mission_time``
-carries the same value for consumers that read that key).
+Positions are in the world frame; ``flight_time`` is the flight clock.
 """
 
 from __future__ import annotations
@@ -55,7 +54,6 @@ def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
     return {
         "phase": phase,
         "flight_time": flight_time,
-        "mission_time": flight_time,
         "horizon": horizon,
         "min_separation_live": finite_or_none(min_separation),
         "vehicles": [vehicle_snapshot(v, now) for v in vehicles],

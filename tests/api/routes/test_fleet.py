@@ -28,7 +28,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
         execution = client.post(f"/api/missions/{mission['id']}/flights").json()
         url = execution["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
-                 30, "the mission clock")
+                 30, "the flight clock")
         # while a flight is under way, its own abort is the way: no fleet command
         busy = client.post("/api/fleet/commands", json={"command": "land"})
         assert busy.status_code == 409 and busy.json()["field"] == "fleet"

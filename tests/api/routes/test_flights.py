@@ -104,13 +104,19 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
     assert kinds[0] == "status" and kinds[-1] == "done"
     statuses = [data["status"] for kind, data in events if kind == "status"]
     assert "running" in statuses
+    # running from the first telemetry that says flying: never while connecting or climbing
+    running = [data.get("status") for _, data in events].index("running")
+    before = [d["phase"] for k, d in events[:running] if k == "telemetry"]
+    after = [d["phase"] for k, d in events[running:] if k == "telemetry"]
+    assert set(before) <= {"created", "connecting", "preparing", "gathering"}
+    assert after and after[0] in ("flying", "finishing")
     telemetry = [data for kind, data in events if kind == "telemetry"]
     flying = [t for t in telemetry if t["phase"] == "flying"]
-    assert flying, "no telemetry while the mission clock ran"
+    assert flying, "no telemetry while the flight clock ran"
     assert {v["id"] for v in flying[-1]["vehicles"]} == {"a", "b", "c", "d"}
     assert all(v["mode"] == "OFFBOARD" and v["armed"] for v in flying[-1]["vehicles"])
     logged = [data["kind"] for kind, data in events if kind == "event"]
-    assert "mission_start" in logged and "landed" in logged
+    assert "flight_start" in logged and "landed" in logged
 
     done = events[-1][1]
     assert done["status"] == "completed", done
@@ -148,7 +154,7 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
         execution = client.post(f"/api/missions/{mission['id']}/flights").json()
         url = execution["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
-                 30, "the mission clock")
+                 30, "the flight clock")
         while_flying = client.get("/api/vehicles").json()
         assert while_flying["fleet"]["flying"] == execution["id"]
         assert all(v["link"] == "flight" and v["armed"] for v in while_flying["vehicles"])
@@ -249,7 +255,7 @@ def test_flights_survive_a_restart(flown: Flown) -> None:
 
 @pytest.mark.flight
 def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]) -> None:
-    """Paused: status `paused`, the mission clock stands still and the fleet holds; resumed:
+    """Paused: status `paused`, the flight clock stands still and the fleet holds; resumed:
     the flight completes. Pausing twice, resuming a running flight or a finished one: 409."""
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, QUICK_CROSSING)
@@ -258,8 +264,8 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
         url, links = execution["links"]["self"], execution["links"]
         assert client.post(links["resume"]).status_code == 409  # not paused
         # paused 1 s into the 6 s plan, the fleet moving
-        wait_for(lambda: ((client.get(url).json()["live"] or {}).get("mission_time") or 0) > 1,
-                 30, "the mission clock to pass 1 s")
+        wait_for(lambda: ((client.get(url).json()["live"] or {}).get("flight_time") or 0) > 1,
+                 30, "the flight clock to pass 1 s")
         paused = client.post(links["pause"])
         assert paused.status_code == 200, paused.text
         assert paused.json()["status"] == "paused"
@@ -284,7 +290,7 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
 
         later = wait_for(settled, 15, "the paused fleet to settle to its hold")
         assert later["status"] == "paused" and later["live"]["phase"] == "paused"
-        assert later["live"]["mission_time"] == pytest.approx(first["live"]["mission_time"])
+        assert later["live"]["flight_time"] == pytest.approx(first["live"]["flight_time"])
         assert later["live"]["min_separation_live"] > 1.0 - 0.1
 
         resumed = client.post(links["resume"])

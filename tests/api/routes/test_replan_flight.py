@@ -34,8 +34,8 @@ NEW_GOAL = [1.0, 1.4, 1.5]
 LEAD_S = 3.0
 
 
-def mission_time(client: TestClient, url: str) -> float:
-    return float((client.get(url).json()["live"] or {}).get("mission_time") or 0.0)
+def flight_time(client: TestClient, url: str) -> float:
+    return float((client.get(url).json()["live"] or {}).get("flight_time") or 0.0)
 
 
 @pytest.mark.flight
@@ -48,7 +48,7 @@ def test_a_replan_through_the_api(mock_settings: Callable[..., Settings]) -> Non
         execution = flown.json()
         url, links = execution["links"]["self"], execution["links"]
         assert links["replan"].endswith("/replan")
-        wait_for(lambda: mission_time(client, url) > 1.0, 60, "the mission clock to pass 1 s")
+        wait_for(lambda: flight_time(client, url) > 1.0, 60, "the flight clock to pass 1 s")
 
         # What only the flight can judge crosses from the vehicle process by its field.
         unknown = client.post(links["replan"], json={"goals": {"zz": [1.0, 1.0, 1.0]}})
