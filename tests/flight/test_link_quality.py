@@ -179,7 +179,7 @@ def test_packets_in_flight_are_not_recent_loss() -> None:
     for t, seq in arrivals:
         while t >= second:
             quality.sample(second)
-            in_flight.append(quality.counter.pending)
+            in_flight.append(quality.counter.lost - quality.counter.settled_lost)
             second += 1.0
         quality.counter.count(seq & 0xFF, t)
     recent = quality.recent()

@@ -33,8 +33,11 @@ from typing import Any
 
 __all__ = ["DEGRADED_LOSS", "LinkQuality", "LinkWatch", "SequenceCounter", "Timing"]
 
-#: How far behind the newest sequence number a packet is still judged late or repeated.
-WINDOW = 64
+#: How far behind the newest sequence number a packet is still judged late or repeated: half
+#: the 8-bit space, the most that keeps "ahead" and "behind" apart (PX4's offboard link sends
+#: about 410 messages/s, so 128 numbers are 0.3 s of reordering; further back a packet reads
+#: as a jump ahead, so a burst of more than 127 lost in under `RESYNC_S` is undercounted).
+WINDOW = 128
 #: Silence after which the next packet starts the count again (s): across an outage the
 #: numbers may have wrapped any number of times (the loss meanwhile is a lower bound).
 RESYNC_S = 1.0
@@ -68,6 +71,11 @@ class SequenceCounter:
     last: int | None = None
     """The newest sequence number."""
     last_time: float | None = None
+    settled_received: int = 0
+    settled_lost: int = 0
+    """Of the numbers that have left the window behind the newest (none of them can arrive
+    late any more): those received and those lost. The window's delay, not the link's, is
+    all that is behind; the figures of the last seconds are judged on these."""
     _state: bytearray = field(default_factory=lambda: bytearray(256), repr=False)
 
     def count(self, seq: int, now: float | None = None) -> None:
@@ -83,6 +91,8 @@ class SequenceCounter:
             return
         ahead = (seq - self.last - 1) & 0xFF
         if ahead < 256 - WINDOW:
+            for k in range(1, ahead + 2):
+                self._settle((self.last + k - WINDOW) & 0xFF)
             for k in range(ahead):
                 self._state[(self.last + 1 + k) & 0xFF] = _MISSING
             self.lost += ahead
@@ -105,12 +115,14 @@ class SequenceCounter:
         self.restarts += 1
         self.last = None
 
-    @property
-    def pending(self) -> int:
-        """Of `lost`, those still within the window: they may yet arrive late."""
-        if self.last is None:
-            return 0
-        return sum(self._state[(self.last - k) & 0xFF] == _MISSING for k in range(WINDOW))
+    def _settle(self, number: int) -> None:
+        """`number` leaves the window: received or lost for good."""
+        state = self._state[number]
+        if state == _RECEIVED:
+            self.settled_received += 1
+        elif state == _MISSING:
+            self.settled_lost += 1
+        self._state[number] = _NEW
 
     def _restart(self, seq: int) -> None:
         self._state[:] = bytes(256)  # nothing known behind the new start
@@ -178,7 +190,7 @@ class LinkQuality:
         """Note the counts now (about once a second) for `recent`: the lost ones only once
         they can no longer arrive late, so that packets merely delayed never count."""
         c = self.counter
-        self._history.append((now, c.received, c.lost - c.pending))
+        self._history.append((now, c.settled_received, c.settled_lost))
 
     def recent(self) -> tuple[int, int] | None:
         """(received, lost) over the last `WINDOW_S` of samples, or None before two."""
@@ -190,7 +202,7 @@ class LinkQuality:
             if t1 - entry[0] <= WINDOW_S + 0.5:
                 start = entry
                 break
-        return received1 - start[1], max(0, lost1 - start[2])
+        return received1 - start[1], lost1 - start[2]
 
     def report(self) -> dict[str, Any]:
         """JSON-ready figures (None: unknown): the `link_quality` of health and the record."""
