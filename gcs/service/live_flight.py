@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from gcs.flight.run.precedence import ABORT_ACTIONS
 from gcs.service.events import Broadcast, Event
 from gcs.service.remote_flight import RemoteFlight
 from gcs.service.statuses import FlightStatus
@@ -30,8 +31,9 @@ class LiveFlight:
     summary: dict[str, Any] | None = None
     error: str | None = None
     aborts: list[str] = field(default_factory=list)
-    """The abort actions accepted, in order (`gcs.flight.run.precedence`: the last is in
-    force); those accepted before the flight existed are passed on to it in this order."""
+    """The abort actions accepted, in the order they were answered
+    (`gcs.flight.run.precedence`); those accepted before the flight existed are passed on to
+    it in this order."""
     finished_at: datetime | None = None
     """When the flight ended (its final state is set by then)."""
     unstored: str | None = None
@@ -42,8 +44,9 @@ class LiveFlight:
 
     @property
     def abort_requested(self) -> str | None:
-        """The abort action in force (None: not aborting)."""
-        return self.aborts[-1] if self.aborts else None
+        """The abort action in force, the strongest accepted (None: not aborting); racing
+        requests may be answered in another order than the flight took them."""
+        return max(self.aborts, key=ABORT_ACTIONS.index, default=None)
 
     @property
     def active(self) -> bool:
