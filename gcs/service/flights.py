@@ -332,7 +332,9 @@ class FleetService:
             ticker = asyncio.create_task(self._telemetry(flight, handle))
             mirror = asyncio.create_task(self._mirror(handle))
             for action in list(flight.aborts):  # aborted while starting: each, in order
-                await handle.request_abort(action, "operator abort")
+                # (one the flight's own abort overrode meanwhile is its `command_refused`)
+                with contextlib.suppress(StateConflict):
+                    await handle.request_abort(action, "operator abort")
             record = await handle.result()
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))
