@@ -32,7 +32,7 @@ def main(url: str, out: Path, fly: bool) -> None:
         if fly:
             expect(page.locator("#fly-button")).to_be_enabled(timeout=30_000)
             page.click("#fly-button")
-            expect(page.locator("#execution-status")).to_have_attribute(
+            expect(page.locator("#flight-status")).to_have_attribute(
                 "data-status", "running", timeout=120_000)
             # Mid-flight: a few seconds into the plan.
             page.wait_for_function(
@@ -40,7 +40,7 @@ def main(url: str, out: Path, fly: bool) -> None:
         page.wait_for_timeout(500)
         page.screenshot(path=str(out / "screenshot.png"))
         if fly:
-            expect(page.locator("#execution-status")).to_have_attribute(
+            expect(page.locator("#flight-status")).to_have_attribute(
                 "data-status", "completed", timeout=120_000)
         phone = browser.new_page(viewport={"width": 390, "height": 844})
         phone.goto(url)

@@ -1,8 +1,8 @@
 """The plan (the output JSON contract): trajectories, cost history, timings, verification.
 
-`Plan.to_dict()` produces the Plan JSON of docs/DESIGN.md (and the README); `Plan.from_dict()`
-reads it back (for the GCS, the API and tests) and checks shapes, raising `PlanFormatError`
-naming the field.
+`Plan.to_dict()` produces the Plan JSON of docs/development/architecture.md (and the README);
+`Plan.from_dict()` reads it back (for the GCS, the API and tests) and checks shapes, raising
+`PlanFormatError` naming the field.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The architecture's import rules, checked by parsing every module's imports.
 
-Imports only run downward (docs/development/design.md, README "Architecture"):
+Imports only run downward (docs/development/architecture.md, README "Architecture"):
 - `planner/` never imports `gcs`;
 - `gcs/flight/` never imports `gcs.service`, `gcs.api`, `gcs.cli` or `gcs.sim`, and of
   `gcs/fleet/` only the fleet file (fleet commands and provisioning sit above the flight's link

@@ -430,7 +430,7 @@ class FleetService:
                 log.critical("%s: the fleet is not watched and no flight streams", data["reason"])
                 self._tasks.spawn(self._restart_vehicles())
             return
-        flight = self._flights.get(data["execution"])
+        flight = self._flights.get(data["flight"])
         if flight is None:
             return
         if kind == "event":

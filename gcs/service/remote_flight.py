@@ -21,9 +21,9 @@ __all__ = ["RemoteFlight"]
 class RemoteFlight:
     """One flight in the vehicle process, driven from the service's loop."""
 
-    def __init__(self, process: VehicleProcess, execution: str) -> None:
+    def __init__(self, process: VehicleProcess, flight_id: str) -> None:
         self._process = process
-        self._execution = execution
+        self._flight_id = flight_id
         self._snapshot: dict[str, Any] | None = None
         self._mirror = RecordMirror()
         self._mirroring = asyncio.Lock()  # one delta at a time: each is taken at the cursor
@@ -42,23 +42,23 @@ class RemoteFlight:
 
     async def pause(self) -> float:
         """Stop the flight clock; the flight time it holds."""
-        return float(await self._process.call("pause", self._execution))
+        return float(await self._process.call("pause", self._flight_id))
 
     async def resume(self) -> float:
         """Restart the flight clock; the flight time it restarts at."""
-        return float(await self._process.call("resume", self._execution))
+        return float(await self._process.call("resume", self._flight_id))
 
     async def replan(self, goals: dict[str, list[float]] | None, drop: list[str],
                      drop_action: str, reason: str) -> dict[str, Any]:
         """Start an in-flight replan (`FlightExecutor.replan`); the replan object at once
         (status planning). StateConflict / FieldError as the flight raised them."""
         replan: dict[str, Any] = await self._process.call(
-            "replan", self._execution, goals, drop, drop_action, reason)
+            "replan", self._flight_id, goals, drop, drop_action, reason)
         return replan
 
     async def replanned(self) -> list[Segment]:
         """The switched replans' plans and switch times, in order."""
-        segments: list[Segment] = await self._process.call("replanned", self._execution)
+        segments: list[Segment] = await self._process.call("replanned", self._flight_id)
         return segments
 
     async def request_abort(self, action: str, reason: str) -> None:
@@ -68,7 +68,7 @@ class RemoteFlight:
 
     async def abort(self, action: str = "land", reason: str = "operator abort") -> None:
         """Every vehicle to `action` now; returns once the commands were answered."""
-        await self._process.call("abort", self._execution, action, reason)
+        await self._process.call("abort", self._flight_id, action, reason)
 
     async def result(self) -> dict[str, Any]:
         """The flight record once the flight ended; the error it ended on is raised here
@@ -83,7 +83,7 @@ class RemoteFlight:
         """Bring the record's mirror up to date (only what is new crosses over); called about
         once a second, so each piece stays small."""
         async with self._mirroring:
-            self._mirror.apply(await self._process.call("record_delta", self._execution,
+            self._mirror.apply(await self._process.call("record_delta", self._flight_id,
                                                         self._mirror.cursor()))
 
     async def record_so_far(self) -> dict[str, Any]:

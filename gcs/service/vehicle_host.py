@@ -6,7 +6,7 @@ or the mocks, the monitor links, the fleet commands) and the one flight under wa
 process's vehicle loop). The service calls its
 public methods by name (`gcs.service.flights.FleetService`); everything it answers is plain
 data. It tells the service of a flight's events and live snapshots by notices tagged with the
-execution id: ``event`` ({execution, event}) in order, and ``snapshot`` ({execution, snapshot})
+flight's id: ``event`` ({flight, event}) in order, and ``snapshot`` ({flight, snapshot})
 `snapshot_hz` times a second.
 
 When the service goes away without asking (its process died, or SIGTERM reached this one),
@@ -59,7 +59,7 @@ class FleetHost:
         self.fleet = Fleet(settings)
         self._settings = settings
         self._flight: ReplanHandle | None = None
-        self._execution: str | None = None
+        self._flight_id: str | None = None
         self._result: asyncio.Future[dict[str, Any]] | None = None
         self._ticker: asyncio.Task[None] | None = None
 
@@ -74,8 +74,8 @@ class FleetHost:
         links and stop the mocks."""
         if self._flying():
             # kept here: the flight's end (`flight_result`, still pending) forgets them
-            flight, result, execution = self._flight, self._result, self._execution
-            assert flight is not None and result is not None and execution is not None
+            flight, result, flight_id = self._flight, self._result, self._flight_id
+            assert flight is not None and result is not None and flight_id is not None
             log.warning("vehicle process closing during a flight: landing every vehicle")
             with contextlib.suppress(Exception):
                 await flight.abort("land", "the service is stopping")
@@ -86,10 +86,10 @@ class FleetHost:
                 outcome = f"still flying after {CLOSE_LANDING_S:g} s"
             except Exception as exc:
                 outcome = f"{type(exc).__name__}: {exc}"
-            await self._store_orphan(execution, flight, outcome)
+            await self._store_orphan(flight_id, flight, outcome)
         await self.fleet.close()
 
-    async def _store_orphan(self, execution: str, flight: ReplanHandle, outcome: str) -> None:
+    async def _store_orphan(self, flight_id: str, flight: ReplanHandle, outcome: str) -> None:
         """Write the flight's events and record to the store from here: the service that
         would have is gone (a restarted one reads them as stored)."""
         record = flight.record
@@ -97,15 +97,15 @@ class FleetHost:
             return
         store = Store(self._settings.database_url)
         try:
-            await write_final(store, execution, status=FlightStatus.INTERRUPTED,
+            await write_final(store, flight_id, status=FlightStatus.INTERRUPTED,
                               events=list(record.get("events", [])),
                               summary=record.get("summary"), record=record,
                               error=f"{ORPHAN_ERROR}; the vehicle process landed the fleet "
                                     f"({outcome})")
-            log.warning("execution %s: events and record stored by the vehicle process",
-                        execution)
+            log.warning("flight %s: events and record stored by the vehicle process",
+                        flight_id)
         except Exception:
-            log.exception("execution %s: could not store its record", execution)
+            log.exception("flight %s: could not store its record", flight_id)
         finally:
             store.close()
 
@@ -147,13 +147,13 @@ class FleetHost:
 
     # ------------------------------------------------------------------ a flight
 
-    async def fly(self, execution: str, plan: Plan, options: FlightOptions,
+    async def fly(self, flight_id: str, plan: Plan, options: FlightOptions,
                   snapshot_hz: float) -> dict[str, Any]:
         """Take the links from the monitor (set the mocks down under the plan's starts) and
         start flying `plan`; the fleet's description as it now is. The executor's checks
         raise here (PlanRejected), and the monitor is reopened then."""
         if self._flying():
-            raise StateConflict("fleet", f"flight {self._execution} is flying")
+            raise StateConflict("fleet", f"flight {self._flight_id} is flying")
         await self.fleet.close_monitor()
         try:
             if self.fleet.kind == "mock":
@@ -162,14 +162,14 @@ class FleetHost:
             flight = await ReplanHandle.create(
                 self._vehicles, plan, spec, options, snapshot_hz=snapshot_hz,
                 on_event=lambda event: self._notify(
-                    "event", {"execution": execution, "event": event}))
+                    "event", {"flight": flight_id, "event": event}))
         except BaseException:
             await self.fleet.open_monitor()
             raise
-        self._flight, self._execution = flight, execution
+        self._flight, self._flight_id = flight, flight_id
         settle_heap()  # before the stream starts, not in the middle of it
         self._result = flight.start()
-        self._ticker = asyncio.ensure_future(self._post_snapshots(flight, execution,
+        self._ticker = asyncio.ensure_future(self._post_snapshots(flight, flight_id,
                                                                   1.0 / snapshot_hz))
         return self.fleet.describe()
 
@@ -194,7 +194,7 @@ class FleetHost:
             return
         if self._ticker is not None:
             self._ticker.cancel()
-        self._notify("snapshot", {"execution": self._execution, "snapshot": flight.snapshot()})
+        self._notify("snapshot", {"flight": self._flight_id, "snapshot": flight.snapshot()})
         self._flight, self._result, self._ticker = None, None, None
         settle_heap()  # between flights: what earlier flights left in cycles is freed
         await self.fleet.open_monitor()
@@ -202,57 +202,57 @@ class FleetHost:
     def _flying(self) -> bool:
         return self._result is not None and not self._result.done()
 
-    async def _post_snapshots(self, flight: ReplanHandle, execution: str,
+    async def _post_snapshots(self, flight: ReplanHandle, flight_id: str,
                               period: float) -> None:
         while True:
-            self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+            self._notify("snapshot", {"flight": flight_id, "snapshot": flight.snapshot()})
             await asyncio.sleep(period)
 
-    def _current(self, execution: str) -> ReplanHandle:
-        if self._flight is None or self._execution != execution:
-            raise StateConflict("flight_id", f"execution {execution!r} is not flying here")
+    def _current(self, flight_id: str) -> ReplanHandle:
+        if self._flight is None or self._flight_id != flight_id:
+            raise StateConflict("flight_id", f"flight {flight_id!r} is not flying here")
         return self._flight
 
-    async def pause(self, execution: str) -> float:
+    async def pause(self, flight_id: str) -> float:
         """`FlightHandle.pause` of the flight under way; its snapshot is posted before the
         answer, so the service shows the pause once the call returns."""
-        flight = self._current(execution)
+        flight = self._current(flight_id)
         held = await flight.pause()
-        self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+        self._notify("snapshot", {"flight": flight_id, "snapshot": flight.snapshot()})
         return held
 
-    async def resume(self, execution: str) -> float:
+    async def resume(self, flight_id: str) -> float:
         """`FlightHandle.resume` of the flight under way; its snapshot is posted before the
         answer."""
-        flight = self._current(execution)
+        flight = self._current(flight_id)
         restarted = await flight.resume()
-        self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+        self._notify("snapshot", {"flight": flight_id, "snapshot": flight.snapshot()})
         return restarted
 
-    async def replan(self, execution: str, goals: dict[str, list[float]] | None,
+    async def replan(self, flight_id: str, goals: dict[str, list[float]] | None,
                      drop: list[str], drop_action: str, reason: str) -> dict[str, Any]:
         """`ReplanHandle.replan` of the flight under way: the replan object (status
         planning) at once; StateConflict / FieldError cross as raised. Its snapshot is
         posted before the answer, so the service shows the replan once the call returns."""
-        flight = self._current(execution)
+        flight = self._current(flight_id)
         replan = await flight.replan(goals, drop, drop_action, reason)
-        self._notify("snapshot", {"execution": execution, "snapshot": flight.snapshot()})
+        self._notify("snapshot", {"flight": flight_id, "snapshot": flight.snapshot()})
         return replan
 
-    async def replanned(self, execution: str) -> list[Segment]:
+    async def replanned(self, flight_id: str) -> list[Segment]:
         """The switched replans' plans of the flight under way (`ReplanHandle.replanned`)."""
-        return await self._current(execution).replanned()
+        return await self._current(flight_id).replanned()
 
-    async def request_abort(self, execution: str, action: str, reason: str) -> None:
+    async def request_abort(self, flight_id: str, action: str, reason: str) -> None:
         """`FlightHandle.request_abort` of the flight under way: accepted, or refused
         (StateConflict across) by the commands' precedence."""
-        await self._current(execution).request_abort(action, reason)
+        await self._current(flight_id).request_abort(action, reason)
 
-    async def abort(self, execution: str, action: str, reason: str) -> None:
+    async def abort(self, flight_id: str, action: str, reason: str) -> None:
         """`FlightHandle.abort` of the flight under way."""
-        await self._current(execution).abort(action, reason)
+        await self._current(flight_id).abort(action, reason)
 
-    async def record_delta(self, execution: str, cursor: dict[str, Any]) -> dict[str, Any]:
+    async def record_delta(self, flight_id: str, cursor: dict[str, Any]) -> dict[str, Any]:
         """What the flight's record holds beyond `cursor` (`gcs.service.record_mirror`)."""
-        return await self._current(execution).with_recorder(
+        return await self._current(flight_id).with_recorder(
             lambda recorder: record_delta(recorder, cursor))

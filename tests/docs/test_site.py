@@ -21,8 +21,8 @@ from typing import Any
 import pytest
 import yaml  # type: ignore[import-untyped]
 
-from gcs.phases import FlightPhase, VehiclePhase
-from gcs.service.statuses import FlightStatus, MissionStatus
+from gcs.phases import FORMER_EVENT_KINDS, EventKind, FlightPhase, VehiclePhase
+from gcs.service.statuses import STATUS_OF_PHASE, FlightStatus, MissionStatus
 from tests.paths import ROOT
 
 __all__: list[str] = []
@@ -30,7 +30,8 @@ __all__: list[str] = []
 pytest.importorskip("mkdocs")
 pytest.importorskip("material")
 
-#: The navigation sections the documentation promises (DESIGN.md "Documentation layout").
+#: The navigation sections the documentation promises (docs/development/architecture.md,
+#: "Documentation layout").
 SECTIONS = (
     "Getting started",
     "Concepts",
@@ -175,3 +176,21 @@ def test_concepts_page_names_every_status_and_phase() -> None:
     text = (ROOT / "docs" / "concepts.md").read_text()
     for value in [*MissionStatus, *FlightStatus, *FlightPhase, *VehiclePhase]:
         assert f"`{value}`" in text, value
+
+
+def test_concepts_page_says_what_the_code_defines() -> None:
+    """The glossary's words are the code's: the flight's phase -> status table is
+    `STATUS_OF_PHASE`, every event kind named is a current one, and the classes named for a
+    flight exist where the page says."""
+    text = (ROOT / "docs" / "concepts.md").read_text()
+    rows = re.findall(r"^\| `(\w+)` \| `(\w+)` \|$", text, re.M)
+    assert dict(rows) == {str(p): str(s) for p, s in STATUS_OF_PHASE.items()}
+    kinds = text.split("### Event kinds")[1].split("\n## ")[0]
+    named = set(re.findall(r"`(\w+)`", kinds)) - {"event_kinds", "land_faulty"}
+    assert named - set(FORMER_EVENT_KINDS) <= {str(k) for k in EventKind}, named
+    assert f"`{EventKind.FLIGHT_START}`" in kinds
+    for name, module in [("FlightExecutor", "gcs/flight/run/executor.py"),
+                         ("FlightHandle", "gcs/flight/host/flight_handle.py"),
+                         ("RemoteFlight", "gcs/service/remote_flight.py"),
+                         ("LiveFlight", "gcs/service/live_flight.py")]:
+        assert f"`{name}`" in text and f"class {name}" in (ROOT / module).read_text(), name

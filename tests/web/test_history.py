@@ -4,6 +4,7 @@ driven by the time slider."""
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 
@@ -113,7 +114,8 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     expect(page.locator("#fly-view polyline.trail")).to_have_count(4)
     start = record["flight_start"]
     end = round(CROSSING_HORIZON_S * 10)  # the slider's last sample (10 Hz)
-    for k in (0, 40, end):
+
+    def replayed_at(k: int) -> None:
         page.locator("#time-slider").fill(str(k))
         expect(page.locator("#time-label")).to_contain_text(
             f"t = {k / 10:.1f} s of {CROSSING_HORIZON_S:.1f} s")
@@ -126,6 +128,18 @@ def test_a_flight_reopens_and_replays_against_the_plan(
             expected = [np.interp(k / 10, t, p[:, a]) for a in range(3)]
             shown = [flown["x"][i], flown["y"][i], flown["z"][i]]
             assert np.allclose(shown, expected, atol=1e-6), (vid, k, shown, expected)
+
+    for k in (0, 40, end):
+        replayed_at(k)
+    # A record written before `flight_start` had that name carries it as `mission_start`:
+    # it replays on the same flight time.
+    older = {key: value for key, value in record.items() if key != "flight_start"}
+    page.route(f"**/api/flights/{flight_id}/record", lambda route: route.fulfill(
+        status=200, content_type="application/json",
+        body=json.dumps({**older, "mission_start": start})))
+    page.locator(f'#flight-list li[data-id="{flight_id}"]').click()
+    expect(page.locator("#time-label")).to_contain_text(f"replay of flight {flight_id}")
+    replayed_at(40)
     # The flight it replays arrived: every goal error (measured after the hold at the goals;
     # at the horizon a vehicle may still trail a stalled station) within its tolerance.
     summary = record["summary"]

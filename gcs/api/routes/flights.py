@@ -222,24 +222,24 @@ class FlightOut(FlightSummary):
     )
 
 
-class FlightList(BaseModel):
+class _Page(BaseModel):
+    total: int
+    limit: int
+    offset: int
+
+
+class FlightList(_Page):
     """A page of flights, newest first, without their events."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [
         {"total": 1, "limit": 50, "offset": 0, "flights": [_FLIGHT_EXAMPLE]}]})
 
-    total: int
-    limit: int
-    offset: int
     flights: list[FlightSummary]
 
 
-class ExecutionList(BaseModel):
+class ExecutionList(_Page):
     """The deprecated `GET /api/executions`: the same page, its flights under `executions`."""
 
-    total: int
-    limit: int
-    offset: int
     executions: list[FlightSummary]
 
 
