@@ -160,15 +160,15 @@ async def one_run(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
             await _wait(finished, 180, "the end of the flight")
             done.set()
             await poller
-            execution = (await client.get(flight_url)).json()
+            doc = (await client.get(flight_url)).json()
     finally:
         server.terminate()
         server.wait(30)
         log.close()
-    summary = execution["summary"] or {}
-    kinds = Counter(e["kind"] for e in execution["events"])
+    summary = doc["summary"] or {}
+    kinds = Counter(e["kind"] for e in doc["events"])
     return {
-        "flight": {"status": execution["status"], "link_losses": kinds.get("link_lost", 0),
+        "flight": {"status": doc["status"], "link_losses": kinds.get("link_lost", 0),
                    "station_stalls": kinds.get("station_stall", 0),
                    "setpoint_rate_hz": summary.get("setpoint_rate_hz"),
                    "jitter_p99_ms": summary.get("jitter_p99_ms"),

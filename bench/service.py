@@ -121,18 +121,18 @@ def one_run(big: dict[str, Any], workdir: Path, crossing: dict[str, Any],
             # flight's status can read "completed" a moment before its summary exists).
             _wait(lambda: client.get(flight_url).json()["finished_at"] is not None, 120,
                   "the end of the flight")
-            execution = client.get(flight_url).json()
+            doc = client.get(flight_url).json()
     finally:
         server.terminate()
         server.wait(30)
         log.close()
     everything = [v for values in by_path.values() for v in values]
-    summary = execution["summary"] or {}
+    summary = doc["summary"] or {}
     return {
         "plan_status": status, "planning_s": round(planning_s, 2),
         "latency": _ms(everything),
         "by_path": {path: _ms(values) for path, values in by_path.items()},
-        "flight": {"status": execution["status"],
+        "flight": {"status": doc["status"],
                    "setpoint_rate_hz": summary.get("setpoint_rate_hz"),
                    "jitter_p50_ms": summary.get("jitter_p50_ms"),
                    "jitter_p99_ms": summary.get("jitter_p99_ms"),
