@@ -67,6 +67,10 @@ COM_DISARM_PRFLT_S = 10.0
 COM_DISARM_LAND_S = 2.0
 #: param2 of MAV_CMD_COMPONENT_ARM_DISARM that forces arming/disarming (not used by the GCS).
 DISARM_FORCE_MAGIC = 21196.0
+#: PX4's mission manager gives a transfer up after this long without progress
+#: (MAVLINK_MISSION_PROTOCOL_TIMEOUT_DEFAULT); until then another upload is refused
+#: (MAV_MISSION_DENIED).
+MISSION_PROTOCOL_TIMEOUT_S = 5.0
 #: How long to wait between arming attempts answered TEMPORARILY_REJECTED.
 ARM_TEMPORARILY_REJECTED_RETRY_S = 1.0
 #: Commands PX4 (v1.16 SITL, observed) answers with two identical COMMAND_ACKs:

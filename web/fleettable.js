@@ -4,14 +4,15 @@
 import { FLEET_CHANGED, REPLAN_CHANGED, on } from "./bus.js";
 import { vehicleCommand } from "./commands.js";
 import { $, colorOf } from "./dom.js";
-import { batteryCell, gpsCell, healthCell, linkLevel } from "./health.js";
+import { batteryCell, gpsCell, healthCell, linkLevel, linkQualityCell } from "./health.js";
 import { dropVehicle, isDropped, replanOffered } from "./replan.js";
 import { fleet, flight, views } from "./state.js";
 
 /** @typedef {import("./state.js").VehicleRow} VehicleRow */
 
 /** @type {[string, string, (value: any) => string[]][]} */
-const OPTIONAL_COLUMNS = [["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
+const OPTIONAL_COLUMNS = [["link_quality", "loss · latency", linkQualityCell],
+                          ["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
 /** Most rows drawn: a show-sized fleet's table lists its vehicles with a fault first, then
  * the others up to this many, and says how many are not listed. */
 export const TABLE_ROWS_MAX = 100;

@@ -16,6 +16,22 @@ export function linkLevel(v) {
   return age <= LINK_OK_S ? "ok" : (age <= LINK_WARN_S ? "warn" : "bad");
 }
 
+// Link quality, as GET /api/vehicles and the flight's telemetry report it (gcs.flight.link.quality):
+// {received, lost, reordered, duplicates, loss_pct, recent_loss_pct (last 5 s), latency_ms,
+// jitter_ms}. The loss of the last seconds is what the level judges (10 % and more: bad).
+/** @param {any} q @returns {string[]} [text, level, title] */
+export function linkQualityCell(q) {
+  if (q === null || q === undefined || typeof q !== "object") return ["–", "", ""];
+  const loss = q.recent_loss_pct ?? q.loss_pct;
+  const pct = typeof loss === "number" ? `${loss < 10 ? loss.toFixed(1) : Math.round(loss)} %` : "–";
+  const ms = typeof q.latency_ms === "number" ? ` · ${Math.round(q.latency_ms)} ms` : "";
+  const level = typeof loss !== "number" ? "" : (loss >= 10 ? "bad" : (loss >= 5 ? "warn" : "ok"));
+  const jitter = typeof q.jitter_ms === "number" ? `, jitter ${fmt1(q.jitter_ms)} ms` : "";
+  return [`${pct}${ms}`, level,
+          `loss ${pct} over the last 5 s (${q.lost ?? 0} of ${(q.received ?? 0) + (q.lost ?? 0)} in all), ` +
+          `${q.reordered ?? 0} reordered, ${q.duplicates ?? 0} duplicates${jitter}`];
+}
+
 // Battery, as GET /api/vehicles reports it: {remaining_pct (0..100, null unknown), voltage}.
 /** @param {any} b @returns {string[]} [text, level, title] */
 export function batteryCell(b) {

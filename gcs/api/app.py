@@ -38,6 +38,7 @@ from gcs.service.planning import PlanningService
 from gcs.service.plans import PlanCache
 from gcs.service.settings import Settings
 from gcs.service.store import Store
+from gcs.service.vehicle_host import ORPHAN_ERROR
 
 __all__ = ["PLOTLY_JS", "SWAGGER_UI", "create_app", "web_directory"]
 
@@ -92,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if stale:
             log.warning("%d mission(s) left planning by a previous run marked failed", stale)
         interrupted = await run_in_threadpool(
-            store.fail_unfinished_flights, "the service stopped during this flight"
+            store.fail_unfinished_flights, ORPHAN_ERROR
         )
         if interrupted:
             log.warning("%d flight(s) left running by a previous run marked interrupted",

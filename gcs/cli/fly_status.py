@@ -40,13 +40,24 @@ def header(snap: dict[str, Any]) -> str:
             f"{figure(snap.get('min_separation_live'), '.2f', ' m')}")
 
 
+def _link_quality(q: dict[str, Any]) -> tuple[Text, str]:
+    """The loss over the last seconds (over the whole flight until then; red from 10 %) and
+    the latency (`gcs.flight.link.quality`)."""
+    loss = q.get("recent_loss_pct")
+    loss = q.get("loss_pct") if loss is None else loss
+    style = "" if loss is None or loss < 10 else "bold red"
+    return Text(figure(loss, ".0f"), style=style), figure(q.get("latency_ms"), ".0f")
+
+
 def status_table(snap: dict[str, Any]) -> Table:
-    """One row per vehicle: phase, PX4 mode, armed, world position, tracking error, link age."""
+    """One row per vehicle: phase, PX4 mode, armed, world position, tracking error, link age,
+    link loss and latency."""
     table = Table(title=header(snap), title_justify="left", box=None, pad_edge=False,
                   header_style="bold", expand=False)
     for name, justify in (("vehicle", "left"), ("phase", "left"), ("mode", "left"),
                           ("armed", "left"), ("x", "right"), ("y", "right"), ("z", "right"),
-                          ("err m", "right"), ("link s", "right"), ("fault", "left")):
+                          ("err m", "right"), ("link s", "right"), ("loss %", "right"),
+                          ("lat ms", "right"), ("fault", "left")):
         table.add_column(name, justify=justify, no_wrap=True)  # type: ignore[arg-type]
     for v in snap["vehicles"]:
         position = v.get("position") or [None, None, None]
@@ -59,6 +70,7 @@ def status_table(snap: dict[str, Any]) -> Table:
             *(figure(c, ".1f") for c in position),
             figure(v.get("tracking_error"), ".2f"),
             figure(v.get("link_age"), ".1f"),
+            *_link_quality(v.get("link_quality") or {}),
             Text(v.get("fault") or "", style="bold red"),
         )
     return table

@@ -76,9 +76,13 @@ def run(args: argparse.Namespace) -> int:
     ids = None
     homes = None
     if args.plan:
-        from planner.result import Plan
+        from gcs.cli.plan_file import read_plan
 
-        plan = Plan.from_dict(json.loads(Path(args.plan).read_text()))
+        try:
+            plan = read_plan(args.plan, "mock --plan")
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         homes = homes_under(plan.scenario.starts)
         ids = plan.scenario.ids
         if args.vehicles is not None and args.vehicles != len(homes):

@@ -35,6 +35,7 @@ import orjson
 from gcs.errors import GcsError, MissionAborted, StateConflict, VehicleLoopStopped
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.host.vehicle_process import VehicleProcess
+from gcs.flight.run.precedence import abort_in_force, aborting_refusal
 from gcs.phases import EventKind, FlightPhase
 from gcs.service.fleet import FleetKind, fleet_kind
 from gcs.service.flown_trajectory import replanned_in
@@ -221,19 +222,24 @@ class FleetService:
         stored_status: FlightStatus | None = None,
     ) -> LiveFlight:
         """Every vehicle of the flight to `action` (land or hold) now; StateConflict if it is not
-        flying. Returns at once; the flight ends (status aborted) when the vehicles are safe."""
+        flying, or when `action` loses to the abort under way (`gcs.flight.run.precedence`: land
+        overrides hold). Returns once the flight accepted it; the flight ends (status
+        aborted) when the vehicles are safe."""
         flight = self._flying(flight_id, stored_status)
-        if flight.abort_requested is None:
-            flight.abort_requested = action
+        if flight.handle is None:  # starting: passed on once the flight exists
+            abort_in_force(flight.abort_requested, action)
+        else:
+            await flight.handle.request_abort(action, reason)
+        flight.aborts.append(action)
+        if flight.active:
             flight.set_status(FlightStatus.ABORTING)
-            if flight.handle is not None:
-                self._tasks.spawn(flight.handle.abort(action, reason))
         return flight
 
     async def pause(self, flight_id: str, stored_status: FlightStatus | None = None) -> LiveFlight:
         """Stop the flight's clock, every vehicle holding the plan's setpoint of the same plan
         time (status paused). StateConflict unless it is running its plan."""
         flight = self._flying(flight_id, stored_status)
+        self._not_aborting(flight, "pause")
         if flight.status != FlightStatus.RUNNING or flight.handle is None:
             raise StateConflict("flight_id", f"flight {flight_id!r} cannot be "
                                                 f"paused (status {flight.status})")
@@ -245,6 +251,7 @@ class FleetService:
     async def resume(self, flight_id: str, stored_status: FlightStatus | None = None) -> LiveFlight:
         """Restart a paused flight's clock where it stopped (status running)."""
         flight = self._flying(flight_id, stored_status)
+        self._not_aborting(flight, "resume")
         if flight.status != FlightStatus.PAUSED or flight.handle is None:
             raise StateConflict("flight_id", f"flight {flight_id!r} is not paused "
                                                 f"(status {flight.status})")
@@ -262,6 +269,7 @@ class FleetService:
         plan (not starting, paused or aborting) or while another replan is under way;
         FieldError naming `goals.<id>` / `drop[n]` for an unknown vehicle or a bad goal."""
         flight = self._flying(flight_id, stored_status)
+        self._not_aborting(flight, "replan")
         if flight.status != FlightStatus.RUNNING or flight.handle is None:
             raise StateConflict("flight_id", f"flight {flight_id!r} cannot be "
                                                 f"replanned (status {flight.status})")
@@ -283,6 +291,14 @@ class FleetService:
         if row is None or row.record_json is None:
             return []
         return await asyncio.to_thread(replanned_in, orjson.loads(row.record_json))
+
+    @staticmethod
+    def _not_aborting(flight: LiveFlight, command: str) -> None:
+        """StateConflict when `flight` aborts: an abort overrides `command`."""
+        if flight.abort_requested is not None:
+            conflict = aborting_refusal(command, flight.abort_requested,
+                                        f"flight {flight.id!r}")
+            raise StateConflict("flight_id", conflict.reason)
 
     def _flying(self, flight_id: str, stored_status: FlightStatus | None) -> LiveFlight:
         """The flight under way with this id; StateConflict naming its status otherwise (once
@@ -315,8 +331,10 @@ class FleetService:
             flight.handle = handle
             ticker = asyncio.create_task(self._telemetry(flight, handle))
             mirror = asyncio.create_task(self._mirror(handle))
-            if flight.abort_requested is not None:  # aborted while starting
-                await handle.abort(flight.abort_requested, "operator abort")
+            for action in list(flight.aborts):  # aborted while starting: each, in order
+                # (one the flight's own abort overrode meanwhile is its `command_refused`)
+                with contextlib.suppress(StateConflict):
+                    await handle.request_abort(action, "operator abort")
             record = await handle.result()
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))

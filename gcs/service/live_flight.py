@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from gcs.flight.run.precedence import ABORT_ACTIONS
 from gcs.service.events import Broadcast, Event
 from gcs.service.remote_flight import RemoteFlight
 from gcs.service.statuses import FlightStatus
@@ -29,7 +30,10 @@ class LiveFlight:
     events: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
     error: str | None = None
-    abort_requested: str | None = None
+    aborts: list[str] = field(default_factory=list)
+    """The abort actions accepted, in the order they were answered
+    (`gcs.flight.run.precedence`); those accepted before the flight existed are passed on to
+    it in this order."""
     finished_at: datetime | None = None
     """When the flight ended (its final state is set by then)."""
     unstored: str | None = None
@@ -37,6 +41,12 @@ class LiveFlight:
     None once stored, and while flying."""
     done: asyncio.Event = field(default_factory=asyncio.Event)
     listeners: Broadcast = field(default_factory=Broadcast)
+
+    @property
+    def abort_requested(self) -> str | None:
+        """The abort action in force, the strongest accepted (None: not aborting); racing
+        requests may be answered in another order than the flight took them."""
+        return max(self.aborts, key=ABORT_ACTIONS.index, default=None)
 
     @property
     def active(self) -> bool:

@@ -61,6 +61,11 @@ class RemoteFlight:
         segments: list[Segment] = await self._process.call("replanned", self._flight_id)
         return segments
 
+    async def request_abort(self, action: str, reason: str) -> None:
+        """Accept an abort by the commands' precedence (`gcs.flight.run.precedence`), or refuse
+        it (StateConflict); returns before the vehicles are secured."""
+        await self._process.call("request_abort", self._flight_id, action, reason)
+
     async def abort(self, action: str = "land", reason: str = "operator abort") -> None:
         """Every vehicle to `action` now; returns once the commands were answered."""
         await self._process.call("abort", self._flight_id, action, reason)

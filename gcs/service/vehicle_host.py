@@ -11,7 +11,9 @@ flight's id: ``event`` ({flight, event}) in order, and ``snapshot`` ({flight, sn
 
 When the service goes away without asking (its process died, or SIGTERM reached this one),
 `close` lands a flight under way before the process exits: a fleet is never left streaming
-from nowhere.
+from nowhere. It then writes that flight's events and record to the store itself (status
+`interrupted`, as a restarted service marks it), so that the landing it flew after the
+service was gone is not lost.
 """
 
 from __future__ import annotations
@@ -26,13 +28,16 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.host.vehicle_process import HostContext
 from gcs.flight.run.realtime import settle_heap
 from gcs.service.fleet import Fleet
+from gcs.service.journal import write_final
 from gcs.service.record_mirror import record_delta
 from gcs.service.replan_handle import ReplanHandle, Segment
 from gcs.service.settings import Settings
+from gcs.service.statuses import FlightStatus
+from gcs.service.store import Store
 from gcs.sim import MockConfig
 from planner import Plan
 
-__all__ = ["PRELOAD", "FleetHost"]
+__all__ = ["ORPHAN_ERROR", "PRELOAD", "FleetHost"]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +45,9 @@ log = logging.getLogger(__name__)
 PRELOAD = ("gcs.service.vehicle_host",)
 #: How long `close` waits for a flight under way to land (s).
 CLOSE_LANDING_S = 60.0
+#: Why a flight the service did not see to its end is `interrupted` (also what a restarted
+#: service says of one it finds still flying in the store).
+ORPHAN_ERROR = "the service stopped during this flight"
 
 
 class FleetHost:
@@ -49,6 +57,7 @@ class FleetHost:
         self._vehicles = context.vehicles
         self._notify = context.notify
         self.fleet = Fleet(settings)
+        self._settings = settings
         self._flight: ReplanHandle | None = None
         self._flight_id: str | None = None
         self._result: asyncio.Future[dict[str, Any]] | None = None
@@ -64,13 +73,41 @@ class FleetHost:
         """Land a flight under way (waiting for it up to CLOSE_LANDING_S), then release the
         links and stop the mocks."""
         if self._flying():
-            assert self._flight is not None and self._result is not None
+            # kept here: the flight's end (`flight_result`, still pending) forgets them
+            flight, result, flight_id = self._flight, self._result, self._flight_id
+            assert flight is not None and result is not None and flight_id is not None
             log.warning("vehicle process closing during a flight: landing every vehicle")
             with contextlib.suppress(Exception):
-                await self._flight.abort("land", "the service is stopping")
-            with contextlib.suppress(BaseException):
-                await asyncio.wait_for(asyncio.shield(self._result), CLOSE_LANDING_S)
+                await flight.abort("land", "the service is stopping")
+            try:
+                await asyncio.wait_for(asyncio.shield(result), CLOSE_LANDING_S)
+                outcome = "the flight ended"
+            except TimeoutError:
+                outcome = f"still flying after {CLOSE_LANDING_S:g} s"
+            except Exception as exc:
+                outcome = f"{type(exc).__name__}: {exc}"
+            await self._store_orphan(flight_id, flight, outcome)
         await self.fleet.close()
+
+    async def _store_orphan(self, flight_id: str, flight: ReplanHandle, outcome: str) -> None:
+        """Write the flight's events and record to the store from here: the service that
+        would have is gone (a restarted one reads them as stored)."""
+        record = flight.record
+        if record is None:
+            return
+        store = Store(self._settings.database_url)
+        try:
+            await write_final(store, flight_id, status=FlightStatus.INTERRUPTED,
+                              events=list(record.get("events", [])),
+                              summary=record.get("summary"), record=record,
+                              error=f"{ORPHAN_ERROR}; the vehicle process landed the fleet "
+                                    f"({outcome})")
+            log.warning("flight %s: events and record stored by the vehicle process",
+                        flight_id)
+        except Exception:
+            log.exception("flight %s: could not store its record", flight_id)
+        finally:
+            store.close()
 
     # ------------------------------------------------------------------ the fleet
 
@@ -205,6 +242,11 @@ class FleetHost:
     async def replanned(self, flight_id: str) -> list[Segment]:
         """The switched replans' plans of the flight under way (`ReplanHandle.replanned`)."""
         return await self._current(flight_id).replanned()
+
+    async def request_abort(self, flight_id: str, action: str, reason: str) -> None:
+        """`FlightHandle.request_abort` of the flight under way: accepted, or refused
+        (StateConflict across) by the commands' precedence."""
+        await self._current(flight_id).request_abort(action, reason)
 
     async def abort(self, flight_id: str, action: str, reason: str) -> None:
         """`FlightHandle.abort` of the flight under way."""

@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from gcs import px4
 from gcs.wire import addressed_to, mavlink
 
 __all__ = ["MAX_ITEMS", "RETRY_S", "TIMEOUT_S", "FenceShape", "MissionHost", "MissionItem",
@@ -32,7 +33,7 @@ _m = mavlink
 RETRY_S = 0.25
 #: Give a transfer up after this long without progress
 #: (PX4: MAVLINK_MISSION_PROTOCOL_TIMEOUT_DEFAULT).
-TIMEOUT_S = 5.0
+TIMEOUT_S = px4.MISSION_PROTOCOL_TIMEOUT_S
 #: Most items a list takes (PX4's dataman holds far more; a bound on the mock's memory).
 MAX_ITEMS = 2000
 

@@ -13,6 +13,7 @@ from gcs import frames, px4
 from gcs.errors import GeofenceFailed
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure import vehicle as vehicle_module
 from gcs.flight.run import executor as executor_module
 from gcs.flight.run.boarding import fence_fleet, fence_vehicle
 from gcs.flight.run.executor import FlightExecutor
@@ -96,7 +97,9 @@ def _fence_fleet(vehicles: list, options: FlightOptions,
     return events
 
 
-def test_without_an_origin_the_default_skips_and_says_why_and_an_explicit_upload_refuses() -> None:
+def test_without_an_origin_the_default_skips_and_says_why_and_an_explicit_upload_refuses(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(vehicle_module, "ORIGIN_WAIT_S", 0.01)  # asked again with a growing wait
     vehicles = [fake_vehicle(0, home=(1.0, 1.0, 0.0)), fake_vehicle(1, home=(4.0, 1.0, 0.0))]
     events = _fence_fleet(vehicles, FlightOptions(), None)
     assert [(vid, kind) for vid, kind, _ in events] == [(None, EventKind.GEOFENCE_SKIPPED)]

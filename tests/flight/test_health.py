@@ -54,8 +54,10 @@ def test_health_from_messages() -> None:
                              "v_acc": pytest.approx(0.7)}
     assert report["health"] == {"unhealthy": ["gps"], "prearm_ok": False,
                                 "warnings": ["Baro failure"]}
-    assert report["link_quality"] == {"received": 4, "lost": 3,
-                                      "loss_pct": pytest.approx(300 / 7)}
+    assert report["link_quality"] == {
+        "received": 4, "lost": 3, "reordered": 0, "duplicates": 0, "restarts": 0,
+        "loss_pct": pytest.approx(300 / 7, abs=0.01), "recent_loss_pct": None,
+        "latency_ms": None, "jitter_ms": None}
     # the gate: battery fine (64%), but the GPS is unhealthy; no HEARTBEAT or position yet
     problems = preflight_problems(link.telemetry)
     assert problems == ["missing: no HEARTBEAT", "no position estimate (no LOCAL_POSITION_NED)",

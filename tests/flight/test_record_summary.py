@@ -18,7 +18,7 @@ from tests.flight.support import line_scenario, smooth_plan
 
 
 def _summary(gap: float, *, reports: int = 80, margin: float = 0.0,
-             nan_report: bool = False) -> dict[str, Any]:
+             nan_report: bool = False, phase: str = "landed") -> dict[str, Any]:
     """The summary of a 2-vehicle flight whose vehicles hover `gap` m apart along x, every
     vehicle landed within a few cm of its goal (faked executor view)."""
     plan = smooth_plan(line_scenario(2))
@@ -35,7 +35,8 @@ def _summary(gap: float, *, reports: int = 80, margin: float = 0.0,
         if nan_report and n == 1:
             rec.tel_pos[3] = [math.nan, 1.0, 1.5]
     vehicles = [SimpleNamespace(id=vid, index=n, fault=None, fault_time=None,
-                                goal_error=0.05, goal_tolerance=math.nan, phase="landed",
+                                goal_error=0.05, goal_tolerance=math.nan,
+                                phase="landed" if n == 0 else phase,
                                 link=None, dropped=None, drop_reason=None)
                 for n, vid in enumerate(["uav1", "uav2"])]
     return summarise(recorder, plan, FlightOptions(), vehicles, flight_start=0.0,
@@ -76,3 +77,12 @@ def test_an_unknown_separation_breaks_a_promised_margin():
     summary = _summary(3.0, reports=1, margin=0.2)
     assert summary["separation_held"] is None
     assert summary["completed"] is False
+
+
+def test_landed_then_out_of_reach_is_told_apart_from_hovering():
+    summary = _summary(2.0, phase="landed_link_lost")
+    assert summary["completed"] is False
+    assert "uav2: landed and disarmed when last heard, then out of reach (link lost)" \
+        in summary["why"]
+    hovering = _summary(2.0, phase="hovering")
+    assert "uav2: not confirmed landed and disarmed (hovering)" in hovering["why"]

@@ -1,6 +1,7 @@
 """The fault test: plans computing and a flight under way, kill -9 of the service, restart on
 the same database. No mission stays `planning`, every mission and the flight are still there,
-the flight keeps its events up to the crash, and no planner worker outlives the service."""
+the flight keeps its events up to the crash and the landing its vehicle process flew after
+it, and no planner worker outlives the service."""
 
 from __future__ import annotations
 
@@ -103,12 +104,20 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
                     "the service stopped before this plan finished"
         stored = httpx.get(f"{url}/api/flights/{execution['id']}", timeout=HTTP_S).json()
         assert stored["status"] == "interrupted"
-        assert stored["error"] == "the service stopped during this flight"
+        # The vehicle process (gone by now, as the workers) landed the fleet after the
+        # crash and stored what it did: that landing is in the events and the record.
+        assert stored["error"].startswith("the service stopped during this flight; the "
+                                          "vehicle process landed the fleet ("), stored["error"]
         # Every event shown before the crash was stored (as the same records, in order).
         assert stored["events"][: len(seen)] == seen
+        after = stored["events"][len(seen):]
+        assert any(e["kind"] == "abort" and e["detail"] == "the service is stopping: land all"
+                   for e in after), after
+        assert [e["vehicle"] for e in after if e["kind"] == "landed"] != [], after
         assert stored["has_record"] is True
         record = httpx.get(f"{url}/api/flights/{execution['id']}/record",
                            timeout=HTTP_S).json()
-        assert record["partial"] is True
+        assert record["events"] == stored["events"]
+        assert record["summary"]["completed"] is False
         setpoints = [len(v["setpoints"]["t"]) for v in record["vehicles"]]
         assert len(setpoints) == 2 and min(setpoints) > 0

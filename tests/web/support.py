@@ -83,6 +83,14 @@ HEALTH = {
         {"fix_type": 1, "satellites": 3, "h_acc": None, "v_acc": None},
         {"unhealthy": ["3D gyro"], "prearm_ok": False, "warnings": []}),
 }
+#: Link quality the planned endpoint reports (`gcs.flight.link.quality`): a good link, and one
+#: losing 12 % of its messages over the last seconds.
+LINKS = {
+    0: {"received": 900, "lost": 2, "reordered": 0, "duplicates": 0, "restarts": 0,
+        "loss_pct": 0.22, "recent_loss_pct": 0.0, "latency_ms": 3.4, "jitter_ms": 0.8},
+    1: {"received": 800, "lost": 110, "reordered": 4, "duplicates": 1, "restarts": 0,
+        "loss_pct": 12.09, "recent_loss_pct": 12.4, "latency_ms": 35.0, "jitter_ms": 6.2},
+}
 
 
 FLIGHT_CONTROL = re.compile(r".*/api/flights/[^/]+/(pause|resume)$")
@@ -103,6 +111,7 @@ def planned_api(page: Page, service: ServiceProcess, sent: list[tuple[str, Any]]
         for i, v in enumerate(answer["vehicles"]):
             if i in HEALTH:
                 v["battery"], v["gps"], v["health"] = HEALTH[i]
+                v["link_quality"] = LINKS[i]
         route.fulfill(status=200, content_type="application/json", body=json.dumps(answer))
 
     def command(route: Route) -> None:

@@ -403,8 +403,9 @@ async def abort_flight(
     fleet: FleetDep,
     request: Annotated[AbortRequest | None, Body()] = None,
 ) -> dict[str, Any]:
-    """Accepted at once (202, status `aborting`); the flight ends `aborted` once the
-    vehicles are safe. 409 if it is not flying."""
+    """Accepted once the flight took it (202, status `aborting`); the flight ends `aborted`
+    once the vehicles are safe. 409 if it is not flying, or for a hold while the flight lands
+    (land overrides hold; a land while it holds is applied after the hold)."""
     action = "land" if request is None else request.action
     flight = await fleet.abort(row.id, action, stored_status=row.status)
     return _document(row, flight)

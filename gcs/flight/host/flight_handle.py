@@ -131,6 +131,12 @@ class FlightHandle:
         finally:
             self._snapshot = self._executor.snapshot()
 
+    async def request_abort(self, action: str, reason: str) -> None:
+        """`FlightExecutor.request_abort` on the vehicle loop: accepted (the vehicles are
+        secured in the background) or refused by precedence (StateConflict across)."""
+        await self._vehicles.run(lambda: self._posting(
+            lambda: self._executor.request_abort(action, reason)))
+
     async def abort(self, action: str = "land", reason: str = "operator abort") -> None:
         """Every vehicle to `action` (land or hold) now; returns once the commands were
         answered (or timed out); the record future then raises `FlightAborted`."""

@@ -66,10 +66,12 @@ class LinkHub:
         return link
 
     async def _heartbeats(self) -> None:
-        """The GCS HEARTBEAT to every vehicle each period; signing reservations kept ahead."""
+        """The GCS HEARTBEAT and a TIMESYNC request (latency) to every vehicle each period;
+        signing reservations kept ahead."""
         while True:
             for i, link in enumerate(list(self.links.values())):
                 link.send_heartbeat()
+                link.send_timesync()
                 if i % 10 == 9:  # a 100-vehicle round is milliseconds: let a tick through
                     await asyncio.sleep(0)
             for signing in self.signers.values():

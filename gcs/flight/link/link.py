@@ -47,6 +47,7 @@ DECODED_IDS = frozenset({
     _m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, _m.MAVLINK_MSG_ID_HOME_POSITION,
     _m.MAVLINK_MSG_ID_STATUSTEXT, _m.MAVLINK_MSG_ID_SYS_STATUS,
     _m.MAVLINK_MSG_ID_BATTERY_STATUS, _m.MAVLINK_MSG_ID_GPS_RAW_INT,
+    _m.MAVLINK_MSG_ID_TIMESYNC,  # the answers to the station's, for latency
     # the mission protocol, for the geofence upload and read-back
     # (`gcs.flight.procedure.fence_upload`)
     _m.MAVLINK_MSG_ID_MISSION_REQUEST_INT, _m.MAVLINK_MSG_ID_MISSION_REQUEST,
@@ -264,6 +265,12 @@ class VehicleLink:
         """The GCS HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID)."""
         self.send(self.mav.heartbeat_encode(
             mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
+
+    def send_timesync(self) -> None:
+        """A TIMESYNC request (tc1 0, ts1 the station's clock in ns): its answer gives the
+        round trip (`gcs.flight.link.quality.Timing`)."""
+        ts1 = self.telemetry.quality.timing.request(time.monotonic_ns())
+        self.send(self.mav.timesync_encode(0, ts1))
 
     def send_setup_signing(self, key: SigningKey, initial_timestamp: int) -> None:
         """SETUP_SIGNING with `key` (provisioning: only over a link you trust, and while the

@@ -2,10 +2,12 @@
 
 `Telemetry.update` reads HEARTBEAT (mode, armed, age), LOCAL_POSITION_NED, EXTENDED_SYS_STATE,
 GPS_GLOBAL_ORIGIN, HOME_POSITION, STATUSTEXT (chunks joined) and, for `gcs.flight.safety.health`,
-SYS_STATUS, BATTERY_STATUS and GPS_RAW_INT; `Telemetry.count_sequence` counts sequence-number
-gaps for link quality. A non-finite position or velocity is never stored: it is counted and
-timestamped (`Telemetry.invalid_estimate_time`) for the monitor to flag. Which packets get here
-at all (pinned peer, component, signature) is `gcs.flight.link.link`'s decision.
+SYS_STATUS, BATTERY_STATUS and GPS_RAW_INT, and TIMESYNC answers; `Telemetry.count_sequence`
+counts sequence numbers for link quality (`gcs.flight.link.quality`), and LOCAL_POSITION_NED's
+`time_boot_ms` gives the jitter and tells a reboot (it goes back). A non-finite position or
+velocity is never stored: it is counted and timestamped (`Telemetry.invalid_estimate_time`)
+for the monitor to flag. Which packets get here at all (pinned peer, component, signature)
+is `gcs.flight.link.link`'s decision.
 """
 
 from __future__ import annotations
@@ -16,9 +18,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gcs import px4, wire
+from gcs.flight.link.quality import LinkQuality
 from gcs.wire import mavlink
 
 __all__ = ["SecurityCounters", "Telemetry"]
+
+#: How far (ms) the vehicle's `time_boot_ms` must go back to be a reboot.
+REBOOT_BACK_MS = 1000
 
 
 @dataclass
@@ -99,27 +105,38 @@ class Telemetry:
     warnings: deque[str] = field(default_factory=lambda: deque(maxlen=5))
     """STATUSTEXT of severity WARNING or worse since the vehicle last armed: arming clears
     them, so "Preflight Fail: ..." from before does not stay for the whole flight."""
-    seq_received: int = 0
-    """Messages from the autopilot component counted for link quality (decoded or skipped)."""
     skipped: int = 0
     """Messages from the pinned autopilot dropped before decoding (an id the endpoint does not
     decode, `Endpoint.decode_ids`); they count for link quality, not as proof of life."""
-    seq_lost: int = 0
-    """Messages missing from the autopilot component's sequence numbers."""
-    last_seq: int | None = None
+    quality: LinkQuality = field(default_factory=LinkQuality, repr=False, compare=False)
+    """Loss, reordering and duplicates from the autopilot component's sequence numbers
+    (decoded or skipped messages), latency and jitter (`gcs.flight.link.quality`)."""
+    boot_ms: int | None = None
+    """The vehicle's latest `time_boot_ms` (LOCAL_POSITION_NED)."""
+    reboot_time: float | None = None
+    """When the vehicle was last seen to reboot: its `time_boot_ms` went back (monotonic s)."""
     text_chunks: wire.StatusTexts = field(default_factory=wire.StatusTexts, init=False,
                                           repr=False, compare=False)
     """STATUSTEXT chunks waiting for the rest of their text."""
 
-    def count_sequence(self, seq: int) -> None:
-        """Link quality: a gap in the sender's sequence numbers (mod 256) counts as lost
-        messages; a jump of 128 or more is taken as a restart or reordering, not a loss."""
-        if self.last_seq is not None:
-            gap = (seq - self.last_seq - 1) & 0xFF
-            if gap < 128:
-                self.seq_lost += gap
-        self.last_seq = seq
-        self.seq_received += 1
+    @property
+    def seq_received(self) -> int:
+        """Distinct messages from the autopilot component (`LinkQuality`)."""
+        return self.quality.counter.received
+
+    @property
+    def seq_lost(self) -> int:
+        """Messages missing from the autopilot component's sequence numbers (not arrived
+        late)."""
+        return self.quality.counter.lost
+
+    @property
+    def last_seq(self) -> int | None:
+        return self.quality.counter.last
+
+    def count_sequence(self, seq: int, now: float | None = None) -> None:
+        """Link quality: one message with sequence number `seq` (`SequenceCounter`)."""
+        self.quality.counter.count(seq, now)
 
     def update(self, msg: Any, now: float, autopilot_component: int) -> bool:
         """Take in one admitted, decoded message received at `now`. False when it must not be
@@ -142,6 +159,11 @@ class Telemetry:
             self.position_ned = (msg.x, msg.y, msg.z)
             self.velocity_ned = (msg.vx, msg.vy, msg.vz)
             self.position_time = now
+            if from_autopilot:
+                self._boot_clock(msg.time_boot_ms, now)
+        elif kind == "TIMESYNC":
+            if msg.tc1 != 0:  # an answer to the station's request (tc1 0: the vehicle asks)
+                self.quality.timing.reply(msg.ts1, now)
         elif kind == "EXTENDED_SYS_STATE":
             self.landed_state = msg.landed_state
         elif kind == "GPS_GLOBAL_ORIGIN":
@@ -154,6 +176,16 @@ class Telemetry:
         elif kind in ("SYS_STATUS", "BATTERY_STATUS", "GPS_RAW_INT"):
             self._health(kind, msg)
         return True
+
+    def _boot_clock(self, boot_ms: int, now: float) -> None:
+        """The vehicle's clock: jitter from it, and a reboot when it goes back by more than
+        a second (packets a little out of order do not)."""
+        if self.boot_ms is not None and boot_ms + REBOOT_BACK_MS < self.boot_ms:
+            self.reboot_time = now
+            self.quality.counter.restart()
+            self.quality.timing.restart()
+        self.boot_ms = boot_ms
+        self.quality.timing.stamped(now, boot_ms / 1000.0)
 
     def _heartbeat(self, msg: Any, now: float) -> None:
         """The autopilot's HEARTBEAT: mode, armed state, type, status."""

@@ -2,7 +2,9 @@
 
 Upload: MISSION_COUNT, then each MISSION_REQUEST_INT (or MISSION_REQUEST) answered with its
 MISSION_ITEM_INT (frame MAV_FRAME_GLOBAL, x/y degE7), until MISSION_ACK; nothing heard for
-`ITEM_TIMEOUT_S` resends what was last sent, at most `RETRIES` times in a row. Read-back:
+`ITEM_TIMEOUT_S` resends what was last sent, at most `RETRIES` times in a row (after the last
+item, an ACK that never comes is left to the read-back: lost on the way, or the item was).
+Read-back:
 MISSION_REQUEST_LIST, MISSION_COUNT, each item asked for by MISSION_REQUEST_INT, then our
 MISSION_ACK. `send_fence` does both and compares item by item (`gcs.geofence.item_mismatch`);
 any failure is `GeofenceFailed` naming the vehicle, which refuses the flight before arming.
@@ -75,6 +77,9 @@ async def upload_fence(link: VehicleLink, items: Sequence[FenceItem]) -> None:
             msg = await inbox.next(deadline)
             if msg is None:
                 tries += 1
+                if tries > RETRIES and last.get_type() == "MISSION_ITEM_INT" \
+                        and last.seq == len(items) - 1:
+                    return  # every item went; the ACK did not come: the read-back tells
                 if tries > RETRIES:
                     raise GeofenceFailed(link.vehicle_id, f"upload: no answer after "
                                          f"{RETRIES + 1} tries of {last.get_type()}")

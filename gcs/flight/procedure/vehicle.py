@@ -51,6 +51,7 @@ __all__ = [
     "Emit",
     "VehicleStatus",
     "arm",
+    "ask_origin",
     "connect",
     "disarm",
     "hold_vehicle",
@@ -75,6 +76,12 @@ StopStream = Callable[[str], None]
 #: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
 MODE_RETRY_FOR = 5.0
 _POLL_PERIOD = 0.05
+#: Requests for GPS_GLOBAL_ORIGIN before a vehicle is taken to report none (one lost
+#: datagram must not cost a flight its fence), the wait for the answer to the first (s), and
+#: how much longer each next wait is: 1, 1.5, 2.25 and 3.4 s, about 8 s at most in all.
+ORIGIN_TRIES = 4
+ORIGIN_WAIT_S = 1.0
+ORIGIN_BACKOFF = 1.5
 
 
 @dataclass
@@ -251,16 +258,35 @@ def address_text(address: object) -> str:
     return str(address)
 
 
+async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> bool:
+    """Ask for GPS_GLOBAL_ORIGIN until the vehicle reports it, up to `ORIGIN_TRIES` times
+    with a growing wait (a lossy link loses requests and answers alike); whether it did. A
+    request the vehicle refuses (no ACCEPTED), or never acknowledges through all of its
+    command retries, ends the asking."""
+    clock = _clock(stalls)
+    wait = ORIGIN_WAIT_S
+    for _ in range(ORIGIN_TRIES):
+        if link.telemetry.gps_origin is not None:
+            return True
+        try:
+            result = await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN,
+                                                clock=clock)
+        except CommandError:
+            result = None  # unanswered: the origin may still come, then stop asking
+        if await link.wait_for(lambda t: t.gps_origin is not None, wait, clock=clock):
+            return True
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            break
+        wait *= ORIGIN_BACKOFF
+    return link.telemetry.gps_origin is not None
+
+
 async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodetic,
                        stalls: StationStalls | None = None) -> tuple[np.ndarray, str]:
     """Home in the world frame from the vehicle's EKF origin and the fleet's world_origin;
     returns (home, the message it came from)."""
     clock = _clock(stalls)
-    for attempt in range(3):
-        with contextlib.suppress(CommandError):
-            await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, clock=clock)
-        if await link.wait_for(lambda t: t.gps_origin is not None, 1.0 + attempt, clock=clock):
-            break
+    await ask_origin(link, stalls)
     tel = link.telemetry
     if tel.gps_origin is not None:
         return frames.geodetic_to_enu(frames.Geodetic(*tel.gps_origin), origin), \
@@ -358,6 +384,8 @@ async def disarm(link: VehicleLink, *, force: bool = False,
 #: PX4 offboard-link streams the GCS never reads (`gcs.flight.link.link.DECODED_IDS` is what it
 #: reads), turned off by `message_rates`: the fast ones (ATTITUDE 100/s, HIGHRES_IMU,
 #: ATTITUDE_QUATERNION, GLOBAL_POSITION_INT 50/s, ODOMETRY 30/s on SITL) and the 0.5-10/s rest.
+#: TIMESYNC's stream is the vehicle's own requests (10/s); the link reads only the answers to
+#: the station's (`gcs.flight.link.quality`), which come whatever its stream's rate.
 UNREAD_STREAMS = tuple(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in (
     "ATTITUDE", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "GLOBAL_POSITION_INT", "ODOMETRY",
     "ALTITUDE", "ATTITUDE_TARGET", "POSITION_TARGET_LOCAL_NED", "POSITION_TARGET_GLOBAL_INT",
@@ -477,6 +505,14 @@ async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Em
         await land_vehicle(v, options, emit, stop_stream, stalls)
 
 
+def _landed_name(state: int | None) -> str:
+    """EXTENDED_SYS_STATE's landed state in words."""
+    return {mavlink.MAV_LANDED_STATE_ON_GROUND: "on the ground",
+            mavlink.MAV_LANDED_STATE_IN_AIR: "in the air",
+            mavlink.MAV_LANDED_STATE_LANDING: "landing",
+            mavlink.MAV_LANDED_STATE_TAKEOFF: "taking off"}.get(state or 0, "landed state unknown")
+
+
 async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
                         emit: Emit, stalls: StationStalls | None = None) -> None:
     """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome
@@ -490,9 +526,18 @@ async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
         for v in pending:
             link = v.linked
             tel = link.telemetry
-            if stalls.age(tel.message_time, now) > options.link_timeout:
-                emit(v.id, EventKind.DISARM_UNCONFIRMED,
-                     "link lost: cannot confirm that it landed and disarmed")
+            silent = stalls.age(tel.message_time, now)
+            if silent > options.link_timeout:
+                if not tel.armed and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+                    v.phase = VehiclePhase.LANDED_LINK_LOST
+                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
+                         f"link lost: landed and disarmed when last heard {silent:.1f} s ago, "
+                         f"out of reach since")
+                else:
+                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
+                         f"link lost: {'armed' if tel.armed else 'disarmed'} and "
+                         f"{_landed_name(tel.landed_state)} when last heard {silent:.1f} s "
+                         f"ago: cannot confirm that it landed and disarmed")
                 continue
             stale = stalls.age(tel.heartbeat_time, now) > options.heartbeat_timeout
             if stale and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:

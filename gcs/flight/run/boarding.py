@@ -11,13 +11,12 @@ clock.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from collections.abc import Sequence
 
 import numpy as np
 
 from gcs import frames, px4
-from gcs.errors import CommandError, GeofenceFailed, PreflightFailed
+from gcs.errors import GeofenceFailed, PreflightFailed
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import hold_track, transfer_track
 from gcs.flight.link.station import StationStalls
@@ -29,10 +28,16 @@ from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.health import PreflightThresholds, preflight_problems
 from gcs.geofence import WorldFence, fence_items
 from gcs.phases import EventKind, VehiclePhase
-from gcs.wire import mavlink
 
-__all__ = ["connect_vehicle", "fence_fleet", "fence_origin", "fence_vehicle", "preflight",
-           "prepare_vehicle"]
+__all__ = ["FENCE_TRANSFERS", "connect_vehicle", "fence_fleet", "fence_origin", "fence_vehicle",
+           "preflight", "prepare_vehicle"]
+
+#: Whole uploads (with read-back) of a vehicle's fence before the flight is refused, and the
+#: wait before each next (s): every message of one upload is already resent 5 times, so a
+#: next upload is for a link that lost a run of them; it waits until the vehicle has given
+#: the failed transfer up (PX4 refuses another meanwhile).
+FENCE_TRANSFERS = 3
+FENCE_RETRY_WAIT_S = px4.MISSION_PROTOCOL_TIMEOUT_S + 0.5
 
 
 async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
@@ -90,17 +95,6 @@ def fence_origin(v: VehicleStatus, world_origin: frames.Geodetic | None
     return None
 
 
-async def _ask_origin(v: VehicleStatus, stalls: StationStalls) -> None:
-    """Ask once for GPS_GLOBAL_ORIGIN when the vehicle has not reported it (a fleet file
-    that gives the home asks nothing else of it)."""
-    link = v.linked
-    if link.telemetry.gps_origin is not None:
-        return
-    with contextlib.suppress(CommandError):
-        await link.request_message(mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, clock=stalls.clock)
-    await link.wait_for(lambda t: t.gps_origin is not None, 1.0, clock=stalls.clock)
-
-
 async def fence_fleet(vehicles: Sequence[VehicleStatus], fence: WorldFence,
                       options: FlightOptions, world_origin: frames.Geodetic | None,
                       emit: Emit, stalls: StationStalls) -> None:
@@ -109,13 +103,18 @@ async def fence_fleet(vehicles: Sequence[VehicleStatus], fence: WorldFence,
     if options.geofence == "skip":
         emit(None, EventKind.GEOFENCE_SKIPPED, "fleet option geofence: skip")
         return
-    await asyncio.gather(*(_ask_origin(v, stalls) for v in vehicles))
+    await asyncio.gather(*(vehicle.ask_origin(v.linked, stalls) for v in vehicles))
     missing = [v.id for v in vehicles if fence_origin(v, world_origin) is None]
     if missing:
         why = (f"no geodetic origin for {', '.join(missing)}: no GPS_GLOBAL_ORIGIN reported "
-               f"and no world_origin in the fleet file")
+               f"after {vehicle.ORIGIN_TRIES} requests and no world_origin in the fleet file")
         if options.geofence == "upload":
             raise GeofenceFailed(missing[0], f"geofence: upload asked, but {why}")
+        if len(missing) < len(vehicles):  # the others have GPS: this one's link lost it
+            raise GeofenceFailed(missing[0], f"{why}, while the others reported theirs (a "
+                                             f"lossy link?); the flight is not flown without "
+                                             f"the fence (fleet option geofence: skip flies "
+                                             f"without one)")
         emit(None, EventKind.GEOFENCE_SKIPPED, f"not uploaded: {why}")
         return
     if fence.not_fenced:
@@ -144,9 +143,19 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
         raise GeofenceFailed(v.id, f"its home {np.round(v.placed, 3).tolist()} lies outside "
                                    f"the fence ({', '.join(outside)})")
     items = fence_items(fence, home, origin)
-    await send_fence(v.linked, items)
+    for transfer in range(1, FENCE_TRANSFERS + 1):
+        try:
+            await send_fence(v.linked, items)
+            break
+        except GeofenceFailed as exc:
+            if transfer == FENCE_TRANSFERS:
+                raise GeofenceFailed(v.id, f"{exc.detail} (after {transfer} uploads)") from None
+            emit(v.id, EventKind.GEOFENCE_RETRY, f"upload {transfer} failed ({exc.detail}); "
+                                                 f"again in {FENCE_RETRY_WAIT_S:g} s")
+            await asyncio.sleep(FENCE_RETRY_WAIT_S)
     emit(v.id, EventKind.GEOFENCE, f"{len(fence.shapes)} shape(s), {len(items)} items "
-                                   f"uploaded and read back")
+                                   f"uploaded and read back"
+                                   + (f" (upload {transfer})" if transfer > 1 else ""))
 
 
 async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightOptions,

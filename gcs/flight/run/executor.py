@@ -98,6 +98,7 @@ from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicl
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.flown import FlownPlans
+from gcs.flight.run.precedence import abort_in_force, aborting_refusal
 from gcs.flight.run.record import FlightRecorder, goal_tolerance
 from gcs.flight.run.recording import FlightRecording, finish_record
 from gcs.flight.run.snapshot import flight_snapshot
@@ -160,7 +161,7 @@ class FlightExecutor:
         self._plan_changed = asyncio.Event()
         """Set when a replan switched: the end of the flight's plan moved."""
         self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land_when_down,
-                                  abort=self.abort, aborting=lambda: self._abort is not None,
+                                  abort=self._fault_abort, aborting=lambda: self._abort is not None,
                                   descent=self._descent_conflicts,
                                   replan=self._replan_fault)
         self.monitor = FleetMonitor(self.vehicles, plan, self.options,
@@ -174,7 +175,8 @@ class FlightExecutor:
                                     stalls=self.stalls,
                                     on_drops=lambda v, detail: self._emit(
                                         v.id, EventKind.DROPPED_PACKETS, detail),
-                                    on_silent=self._on_silent, on_heard=self._on_heard)
+                                    on_silent=self._on_silent, on_heard=self._on_heard,
+                                    on_link=self._emit)
         self._silence_pause = False
         """The flight clock was stopped because a vehicle fell silent (`_on_silent`)."""
         self.streamer: Streamer | None = None
@@ -182,6 +184,8 @@ class FlightExecutor:
         self._tracks: list[SetpointTrack] = []
         self._flow: asyncio.Task[None] | None = None
         self._secure_task: asyncio.Future[Any] | None = None
+        self._secure_action: str | None = None
+        """The action `_secure_task` secures the vehicles with (land or hold)."""
         self._landing: PlannedLanding | None = None
         """The landing plan being flown after an abort with land (the monitor goes on)."""
         self._task: asyncio.Task[dict[str, Any]] | None = None
@@ -219,10 +223,11 @@ class FlightExecutor:
         separated as the plan is at that instant. Returns the plan time it holds.
         `StateConflict` unless the plan is being flown (and not already paused). After
         `pause_limit` s the `pause_expiry` action (land or hold) ends the flight."""
+        if self._abort is not None:
+            raise aborting_refusal("pause", self._abort[0])
         if self.clock.pause is not None:
             raise StateConflict("status", "already paused")
-        if (self.phase != FlightPhase.FLYING or self._abort is not None
-                or self.clock.start is None):
+        if self.phase != FlightPhase.FLYING or self.clock.start is None:
             raise StateConflict("status", f"only a flying flight can be paused (phase "
                                           f"{self.phase})")
         if self._replanner is not None:
@@ -250,7 +255,9 @@ class FlightExecutor:
     def resume(self) -> float:
         """Restart the shared flight clock where `pause` stopped it; returns that plan time.
         `StateConflict` unless paused."""
-        if self.clock.pause is None or self._abort is not None:
+        if self._abort is not None:
+            raise aborting_refusal("resume", self._abort[0])
+        if self.clock.pause is None:
             raise StateConflict("status", f"not paused (phase {self.phase})")
         streamer = self._streamer()
         tick = streamer.next_tick()
@@ -283,10 +290,32 @@ class FlightExecutor:
         """Stop the flight now: every vehicle to land or to Hold (PX4 AUTO.LOITER) at once.
 
         Returns once the commands were sent and answered (or timed out); `run()` then raises
-        `FlightAborted` after waiting for landed vehicles to disarm.
+        `FlightAborted` after waiting for landed vehicles to disarm. Conflicting aborts
+        resolve as `request_abort` says.
         """
-        if action not in ("land", "hold"):
-            raise ValueError("action must be 'land' or 'hold'")
+        self.request_abort(action, reason)
+        assert self._abort is not None
+        await self._secure_all(self._abort[0])
+
+    async def _fault_abort(self, action: str, reason: str) -> None:
+        """A fault policy's abort: one that loses to an abort under way leaves only its
+        `command_refused` event (nobody waits for an answer)."""
+        with contextlib.suppress(StateConflict):
+            await self.abort(action, reason)
+
+    def request_abort(self, action: str, reason: str) -> None:
+        """Accept an abort by the commands' precedence (`gcs.flight.run.precedence`), with an
+        `abort` event, or refuse it (`StateConflict`, with a `command_refused` event): land
+        overrides a hold under way (applied once the hold is sent), a hold is refused while
+        the fleet lands, a repeat changes nothing. The vehicles are secured by `run()` (and
+        by `abort`, which waits for it)."""
+        current = None if self._abort is None else self._abort[0]
+        try:
+            in_force = abort_in_force(current, action,
+                                      "" if self._abort is None else self._abort[1])
+        except StateConflict as exc:
+            self._emit(None, EventKind.COMMAND_REFUSED, f"{reason}: {action} all: {exc.reason}")
+            raise
         if self._abort is None:
             self._abort = (action, reason)
             if self._replanner is not None:
@@ -295,7 +324,13 @@ class FlightExecutor:
             self._emit(None, EventKind.ABORT, f"{reason}: {action} all")
             if self._flow is not None and not self._flow.done():
                 self._flow.cancel()
-        await self._secure_all(self._abort[0])
+        elif in_force == current:
+            self._emit(None, EventKind.ABORT, f"{reason}: {action} all (already under way: "
+                                              f"{self._abort[1]})")
+        else:
+            self._emit(None, EventKind.ABORT, f"{reason}: {action} all (overrides the "
+                                              f"{current} of {self._abort[1]})")
+            self._abort = (in_force, reason)
 
     def snapshot(self) -> dict[str, Any]:
         """JSON-ready live state (`gcs.flight.run.snapshot`): phase, flight time, per vehicle
@@ -333,11 +368,12 @@ class FlightExecutor:
 
     def _replanner_now(self) -> Replanner:
         """The replanner, when a replan may start now; `StateConflict` otherwise."""
+        if self._abort is not None:
+            raise aborting_refusal("replan", self._abort[0])
         if (self._replanner is None or self.phase != FlightPhase.FLYING
-                or self._abort is not None or self.clock.pause is not None):
-            why = ("the flight is aborting" if self._abort is not None
-                   else f"phase {self.phase}")
-            raise StateConflict("status", f"only a flying flight can be replanned ({why})")
+                or self.clock.pause is not None):
+            raise StateConflict("status", f"only a flying flight can be replanned (phase "
+                                          f"{self.phase})")
         return self._replanner
 
     def events(self) -> AsyncIterator[dict[str, Any]]:
@@ -726,10 +762,21 @@ class FlightExecutor:
                               self.stalls)
 
     async def _secure_all(self, action: str) -> None:
-        if self._secure_task is None and (landing := self._planned_landing(action)):
+        """Every vehicle to `action` (one securing per action: a land that overrides a hold
+        under way starts once the hold's commands were answered)."""
+        if self._secure_task is None or self._secure_action != action:
+            previous = self._secure_task
+            self._secure_action = action
+            self._secure_task = asyncio.ensure_future(self._secure_after(previous, action))
+        await asyncio.shield(self._secure_task)
+
+    async def _secure_after(self, previous: asyncio.Future[Any] | None, action: str) -> None:
+        if previous is not None:
+            await asyncio.gather(previous, return_exceptions=True)
+        if landing := self._planned_landing(action):
             self._landing = landing
-            self._secure_task = asyncio.ensure_future(landing.run())
-        if self._secure_task is None:
+            await landing.run()
+        else:
             # Freeze every stream where it is, so nothing moves on along the plan meanwhile.
             # (An abort can come before run() made the streamer: then nothing streams, and
             # `secure` skips the vehicles, none of which has a link yet.)
@@ -739,17 +786,20 @@ class FlightExecutor:
                     if assignment.last is not None:
                         streamer.assign(vid, assignment.link, hold_track(
                             assignment.last.position, assignment.last.yaw, streamer.rate))
-            self._secure_task = asyncio.ensure_future(asyncio.gather(
+            await asyncio.gather(
                 *(vehicle.secure(v, action, self.options, self._emit, self._stop_stream,
                                  self.stalls)
                   for v in self.vehicles),
-                return_exceptions=True))
-        await asyncio.shield(self._secure_task)
+                return_exceptions=True)
 
     async def _make_safe(self) -> None:
-        """After an error or abort: secure everyone, wait for landed vehicles to disarm."""
-        action = self._abort[0] if self._abort is not None else "land"
-        await self._secure_all(action)
+        """After an error or abort: secure everyone (again if a land overrode a hold
+        meanwhile), wait for landed vehicles to disarm."""
+        while True:
+            action = self._abort[0] if self._abort is not None else "land"
+            await self._secure_all(action)
+            if self._abort is None or self._abort[0] == action:
+                break
         if action == "land":
             await vehicle.wait_disarmed([v for v in self.vehicles if v.arm_sent], self.options,
                                         self._emit, self.stalls)

@@ -275,6 +275,9 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
                             "invalid_estimates": v.link.telemetry.invalid_estimates,
                             "link_garbage_datagrams": v.link.endpoint.garbage_datagrams}
                      for v in vehicles if v.link is not None},
+        # loss, reordering, duplicates, latency and jitter per vehicle at the end
+        "link_quality": {v.id: v.link.telemetry.quality.report()
+                         for v in vehicles if v.link is not None},
     }
     why: list[str] = out["why"]
     if error is not None:
@@ -367,7 +370,9 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         why.append("every vehicle was dropped")
     if error is None and not blocking and len(goal_errors) < len(judged):
         why.append("not every vehicle's goal error was measured")
-    why += [f"{v.id}: not confirmed landed and disarmed ({v.phase})"
+    why += [f"{v.id}: landed and disarmed when last heard, then out of reach (link lost)"
+            if v.phase == VehiclePhase.LANDED_LINK_LOST
+            else f"{v.id}: not confirmed landed and disarmed ({v.phase})"
             for v in must_land if options.at_end == "land"
             and v.phase != VehiclePhase.LANDED]
     if out["completed"]:

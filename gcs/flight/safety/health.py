@@ -7,7 +7,9 @@
 - ``gps``: fix type, satellites, horizontal / vertical accuracy (GPS_RAW_INT h_acc, v_acc, m);
 - ``health``: sensors present and enabled but not healthy (SYS_STATUS bits, by name), the
   pre-arm check bit, and the vehicle's latest warnings (STATUSTEXT, severity WARNING or worse);
-- ``link_quality``: messages received and lost, from the MAVLink sequence numbers (loss %).
+- ``link_quality``: messages received, lost, reordered and repeated (from the MAVLink
+  sequence numbers), loss % in all and over the last 5 s, latency and jitter (ms;
+  `gcs.flight.link.quality`).
 
 `preflight_problems(telemetry, thresholds)` lists what must stop a flight before anything is
 armed: no HEARTBEAT or position (a missing vehicle), battery below `min_battery_pct`, an
@@ -63,9 +65,10 @@ def _sensors(tel: Telemetry) -> tuple[int | None, int | None]:
 
 
 def link_loss_pct(tel: Telemetry) -> float | None:
-    """Share of the vehicle's messages lost on the way (%), from sequence-number gaps."""
-    total = tel.seq_received + tel.seq_lost
-    return None if total == 0 else 100.0 * tel.seq_lost / total
+    """Share of the vehicle's messages lost on the way (%), from the sequence numbers
+    (reordered and repeated messages are not lost: `gcs.flight.link.quality`)."""
+    loss = tel.quality.counter.loss
+    return None if loss is None else 100.0 * loss
 
 
 def health_report(tel: Telemetry) -> dict[str, Any]:
@@ -87,11 +90,7 @@ def health_report(tel: Telemetry) -> dict[str, Any]:
             "prearm_ok": None if prearm is None else bool(prearm),
             "warnings": list(tel.warnings),
         },
-        "link_quality": {
-            "received": tel.seq_received,
-            "lost": tel.seq_lost,
-            "loss_pct": finite_or_none(link_loss_pct(tel)),
-        },
+        "link_quality": tel.quality.report(),
     }
 
 

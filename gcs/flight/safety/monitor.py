@@ -7,12 +7,14 @@ is meant to be in OFFBOARD, in this order (the first failing check flags it):
 2. ``estimate_invalid``: a NaN or infinite position or velocity from the pinned peer within
    `link_timeout` (the link never stores it: `Telemetry.invalid_estimate_time`): a lost
    estimate, handled by the policy like any fault;
-3. ``heartbeat_lost``: HEARTBEAT older than `heartbeat_timeout` (5 s: mode and armed state
+3. ``rebooted``: the vehicle's `time_boot_ms` went back (`Telemetry.reboot_time`): its
+   autopilot restarted, whatever mode it came back in;
+4. ``heartbeat_lost``: HEARTBEAT older than `heartbeat_timeout` (5 s: mode and armed state
    unknown);
-4. ``geofence_breach``: the vehicle reports its geofence breached (SYS_STATUS's geofence
+5. ``geofence_breach``: the vehicle reports its geofence breached (SYS_STATUS's geofence
    bit unhealthy, or a STATUSTEXT naming it; PX4's GF_ACTION then switches it to Hold);
-5. ``left_offboard``: HEARTBEAT shows another mode;
-6. ``tracking_error``: farther than `tracking_error_max` from the plan at the flight time
+6. ``left_offboard``: HEARTBEAT shows another mode;
+7. ``tracking_error``: farther than `tracking_error_max` from the plan at the flight time
    (written so that a NaN distance never passes).
 
 Then the live minimum separation over every vehicle in the air (the plan's metric; an unheard
@@ -25,6 +27,10 @@ Packets with a vehicle's system id that its link dropped (another address, anoth
 component, bad signatures: `SecurityCounters`) are told as they happen (`on_drops`, at most
 once per `DROPS_NOTE_S` per vehicle, with their rate over the time since the last report),
 not only in the record: someone else is talking to the fleet.
+
+Each link's quality is judged once a second (`gcs.flight.link.quality.LinkWatch`): a link
+that degrades (loss, latency or jitter over its bounds) is told with its figures
+(`on_link(vehicle, "link_degraded", text)`), and again when it recovers; not a fault.
 
 The station's own stalls (`gcs.flight.link.station`) are not a vehicle's fault: the monitor notes
 each of its wake-ups later than `STALL_NOTE_S`; the link and heartbeat gaps count in
@@ -47,11 +53,13 @@ import numpy as np
 from gcs import frames, px4
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.quality import WINDOW_S as LINK_WINDOW_S
+from gcs.flight.link.quality import LinkWatch
 from gcs.flight.link.signing import REPEATED_TIMESTAMPS
 from gcs.flight.link.station import STALL_NOTE_S, StationStalls
 from gcs.flight.procedure.vehicle import VehicleStatus, address_text
 from gcs.flight.safety.margin import separation_alarm_at
-from gcs.phases import AIRBORNE, VehiclePhase
+from gcs.phases import AIRBORNE, EventKind, VehiclePhase
 from planner import Plan
 
 __all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "drops_text",
@@ -90,6 +98,11 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
     if (tel.invalid_estimate_time is not None
             and now - tel.invalid_estimate_time <= options.link_timeout):
         return "estimate_invalid", f"{tel.invalid_estimates} non-finite LOCAL_POSITION_NED"
+    if tel.reboot_time is not None:  # before the mode: a restarted PX4 is out of OFFBOARD
+        name = tel.mode.name if tel.mode is not None else "?"
+        return "rebooted", (f"its clock (time_boot_ms) went back to {(tel.boot_ms or 0) / 1e3:.1f}"
+                            f" s: the autopilot restarted; mode {name}, "
+                            f"{'armed' if tel.armed else 'disarmed'}")
     if age > options.heartbeat_timeout:
         return "heartbeat_lost", f"no HEARTBEAT for {age:.2f} s"
     if tel.geofence_breach is not None:  # before the mode: PX4's GF_ACTION switches it
@@ -117,6 +130,8 @@ def _warnings_text(warnings: Sequence[str]) -> str:
 DROPS_NOTE_S = 5.0
 
 DropsCallback = Callable[[VehicleStatus, str], None]
+#: Called with (vehicle id, event kind, detail) when a link degrades or recovers.
+LinkCallback = Callable[[str, str, str], None]
 #: (vehicle, flight times) -> its planned world positions there, (T, 3).
 PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.ndarray]
 #: (vehicle, flight time) -> its predicted world position, or None.
@@ -153,7 +168,8 @@ class FleetMonitor:
                  planned: PlannedCallback | None = None,
                  predicted: PredictedCallback | None = None,
                  on_silent: Callable[[VehicleStatus, float], None] | None = None,
-                 on_heard: Callable[[VehicleStatus], None] | None = None) -> None:
+                 on_heard: Callable[[VehicleStatus], None] | None = None,
+                 on_link: LinkCallback | None = None) -> None:
         self.vehicles = vehicles
         self.on_silent = on_silent
         """Called once when a vehicle meant to be in OFFBOARD has been unheard for
@@ -161,6 +177,10 @@ class FleetMonitor:
         self.on_heard = on_heard
         self.silent: set[str] = set()
         """The vehicles told silent and not heard since."""
+        self._link_watch = None if on_link is None else LinkWatch(
+            lambda vid, text: on_link(vid, EventKind.LINK_DEGRADED, text),
+            lambda vid, text: on_link(vid, EventKind.LINK_RECOVERED, text))
+        """Each link's quality judged once a second (`gcs.flight.link.quality`)."""
         self.planned = planned
         """Where a vehicle is meant to be at flight times (the flight's plans, replans
         included: `gcs.flight.run.flown`); None: `plan`."""
@@ -253,6 +273,10 @@ class FleetMonitor:
             self._separation(where)
         if self.on_drops is not None:
             self._drops(now)
+        if self._link_watch is not None:
+            self._link_watch.check({v.id: v.link.telemetry.quality for v in self.vehicles
+                                    if v.link is not None}, now,
+                                   self.stalls.ended_since(now - LINK_WINDOW_S) > 0.0)
 
     def _drops(self, now: float) -> None:
         """Tell each vehicle's packets dropped since last told (at most every DROPS_NOTE_S)."""
