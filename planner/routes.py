@@ -36,7 +36,7 @@ from planner.obstacles import describe
 from planner.scenario import Scenario
 from planner.types import FloatArray, IntArray
 
-__all__ = ["Grid", "Polylines", "RouteSeed", "along", "build_grid", "route_polylines",
+__all__ = ["Grid", "Polylines", "RouteSeed", "along", "build_grid", "holding", "route_polylines",
            "seed_routes"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
@@ -280,16 +280,26 @@ def _toward_line(grid: Grid, free: BoolArray, points: FloatArray) -> FloatArray:
     return out
 
 
+def holding(point: FloatArray, steps: int) -> Trajectories:
+    """The trajectory resting at `point` for `steps` steps: a vehicle whose goal is its
+    start."""
+    return (np.repeat(np.asarray(point, dtype=np.float64)[None], steps + 1, axis=0),
+            np.zeros((steps + 1, 3)), np.zeros((steps, 3)))
+
+
 def along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectories:
     """A trajectory along the polyline `points` that waits `delay` steps at the start, then
     moves rest to rest on the minimum-thrust unit profile of the remaining steps (the
     separation-free QP's own timing, so the first QP's solution stays near the routes in
-    time: measured 1.5-2x faster than a minimum-jerk timing on the forest family)."""
-    phi_p, phi_v, phi_a = unit_profile(scenario.steps - delay, scenario.dt)
+    time: measured 1.5-2x faster than a minimum-jerk timing on the forest family). A
+    polyline of no length (a vehicle that holds in place) rests at its point throughout."""
     seg = np.diff(points, axis=0)
     seg_len = np.linalg.norm(seg, axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg_len)])
     total = float(cum[-1])
+    if total <= 0.0:
+        return holding(points[0], scenario.steps)
+    phi_p, phi_v, phi_a = unit_profile(scenario.steps - delay, scenario.dt)
     s = np.clip(phi_p, 0.0, 1.0) * total
     piece = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
     frac = (s - cum[piece]) / np.maximum(seg_len[piece], 1e-12)
