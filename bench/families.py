@@ -18,6 +18,7 @@ import argparse
 import json
 import multiprocessing
 import os
+import resource
 import statistics
 import sys
 import time
@@ -163,6 +164,7 @@ def run(family: str, size: int, seed: int, extra: dict[str, Any], method: str,
     receive, send = context.Pipe(duplex=False)
     child = context.Process(target=_child, args=(family, size, seed, extra, method, send))
     began = time.perf_counter()
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
     child.start()
     send.close()
     if receive.poll(timeout):
@@ -174,8 +176,9 @@ def run(family: str, size: int, seed: int, extra: dict[str, Any], method: str,
         row.update(status="timeout", verified=False, wall_s=round(timeout, 3))
         child.kill()
     child.join()
-    if "cpu_s" not in row:
-        row["cpu_s"] = None
+    if "cpu_s" not in row:  # timed out or crashed: the CPU the child had used
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        row["cpu_s"] = round(after.ru_utime + after.ru_stime - used.ru_utime - used.ru_stime, 3)
     if "wall_s" not in row:
         row["wall_s"] = round(time.perf_counter() - began, 3)
     if row["status"] == "crashed":

@@ -167,9 +167,11 @@ def window_rooms(vehicles: int = 50, *, seed: int | None = 0, window: float = 3.
                  ) -> dict[str, Any]:
     """Vehicles fly from one room to the next through one square window (`window` m a side,
     mid-height, in a 0.2 m wall at x = 0): they start on a lattice (`spacing` apart, layers
-    of vertical grids facing the wall) in the west room, and each flies to its start
-    mirrored through the window's centre, so every path crosses that point. The horizon is
-    `horizon_factor` times the longest move's shortest time (v and a <= 3, jerk <= 5).
+    of vertical grids facing the wall) in the west room and fly to the same lattice in the
+    east room, the layer nearest the wall to the farthest one (a layer of vehicles waiting
+    or arrived is no wall to the others), each mirrored sideways and in height through the
+    window's centre: every path crosses the one window. The horizon is `horizon_factor`
+    times the longest move's shortest time (v and a <= 3, jerk <= 5).
 
     seed: None keeps everything regular; an integer moves the window by up to 0.5 m
     sideways and 0.2 m up or down, and each start by up to a tenth of `spacing`.
@@ -188,6 +190,8 @@ def window_rooms(vehicles: int = 50, *, seed: int | None = 0, window: float = 3.
         centre[1:] += [rng.uniform(-0.5, 0.5), rng.uniform(-0.2, 0.2)]
         starts += rng.uniform(-0.1, 0.1, starts.shape) * spacing
     goals = 2.0 * centre - starts
+    # the layers reversed: the nearest (x = -2) to the farthest, which flies first
+    goals[:, 0] = 2.0 + (layer.max() - layer) * spacing - (starts[:, 0] + 2.0 + layer * spacing)
     points = np.concatenate([starts, goals])
     low, high = points.min(axis=0) - 1.5, points.max(axis=0) + 1.5
     low[2], high[2] = 0.0, max(height, float(high[2]))

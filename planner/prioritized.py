@@ -40,6 +40,7 @@ from planner.scp import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.solvers import QPSolver
 from planner.spacetime import (
     BATCH_OBSTACLE_SEED,
+    ROUTE_GAP,
     continued_scp,
     depart,
     fleet_routes,
@@ -324,11 +325,24 @@ GUESS_GAP = 1.3
 DELAYS = (0.0, 0.1, 0.2, 0.3)
 #: Sideways detours through the move's midpoint tried, in units of R.
 DETOURS = (0.0, 1.5, 3.0)
+#: Where no candidate of DELAYS and DETOURS (four directions) keeps even R, these are
+#: tried too: later departures, a wider detour and the four diagonal directions. A crowd
+#: crossing one point needs them (antipodal sphere 64: no batch replanned with earlier
+#: vehicles, against 18 of 64, and 4x less CPU); tried wherever 1.3 R is not kept, they
+#: cost more than they save on crowds without one (grid -> sphere 256: 1.5x the CPU).
+WIDE_DELAYS = (0.05, 0.15, 0.25, 0.35, 0.4, 0.45, 0.5)
+WIDE_DETOURS = (4.5,)
 
 
-def _polylines(scenario: Scenario, vehicle: int) -> FloatArray:
+def _pushes(amounts: tuple[float, ...], ways: FloatArray) -> FloatArray:
+    """Every amount along every way ((W, 3) unit directions), amount-major: (A W, 3)."""
+    return (np.asarray(amounts)[:, None, None] * ways[None]).reshape(-1, 3)
+
+
+def _polylines(scenario: Scenario, vehicle: int, wide: bool = False) -> FloatArray:
     """(C, 3, 3) polylines start -> midpoint -> goal to try, cheapest first: the straight
-    move, then its midpoint pushed sideways by each of DETOURS in four directions."""
+    move, then its midpoint pushed sideways by each of DETOURS in four directions (`wide`:
+    and WIDE_DETOURS, in eight)."""
     s, g = scenario.starts[vehicle], scenario.goals[vehicle]
     move = g - s
     length = float(np.linalg.norm(move))
@@ -338,8 +352,13 @@ def _polylines(scenario: Scenario, vehicle: int) -> FloatArray:
     side /= np.linalg.norm(side)
     up = np.cross(side, axis)
     low, high = scenario.limits.position_min, scenario.limits.position_max
-    pushes = (np.asarray(DETOURS[1:])[:, None, None] * scenario.min_separation
-              * np.stack([side, -side, up, -up])[None]).reshape(-1, 3)  # detour-major
+    ways = np.stack([side, -side, up, -up])
+    pushes = _pushes(DETOURS[1:], ways)
+    if wide:  # after the first set: the diagonals, then the wider detours every way
+        diagonals = np.stack([side + up, side - up, up - side, -side - up]) / 2**0.5
+        pushes = np.concatenate([pushes, _pushes(DETOURS[1:], diagonals),
+                                 _pushes(WIDE_DETOURS, np.concatenate([ways, diagonals]))])
+    pushes = pushes * scenario.min_separation
     out = np.empty((1 + len(pushes), 3, 3))
     out[:, 0], out[:, 2] = s, g
     out[0, 1] = 0.5 * (s + g)
@@ -396,15 +415,22 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         chosen = (lines[0], 0)
         if routes and i in routes:
             if scenario.start_velocities is None:
-                p[i], v[i], a[i] = depart(scenario, routes[i], placed.points)
+                p[i], v[i], a[i] = _routed_departure(
+                    scenario, routes[i], _polylines(scenario, i, wide=True), placed)
                 placed.add(p[i] / scale)
                 continue
             chosen = _route_departure(scenario, routes[i], placed.points, need,
                                       drift[0][i])
         elif len(placed.points):
             best = -np.inf
-            tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
-            for subset, delay in tries:  # the straight move alone first: most often clear
+            wide = _polylines(scenario, i, wide=True)
+            tries = ([(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
+                     + [(wide[len(lines):], int(d * scenario.steps)) for d in DELAYS]
+                     + [(wide, int(d * scenario.steps)) for d in WIDE_DELAYS])
+            first = 1 + len(DELAYS)
+            for number, (subset, delay) in enumerate(tries):  # the straight move first
+                if number == first and best >= scenario.min_separation:
+                    break  # R kept already: the wide candidates cost more than they save
                 trial = (_positions(subset, scenario, delay) + drift[0][i]) / scale
                 gap = placed.gaps(trial, need)
                 clear = np.flatnonzero(gap >= need)
@@ -419,6 +445,61 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         a[i] += drift[2][i]
         placed.add(p[i] / scale)
     return p, v, a
+
+
+#: Samples per segment where a detoured polyline's clearance from the obstacles is checked.
+CLEARANCE_SAMPLES = 24
+
+
+def _clear_lines(scenario: Scenario, lines: FloatArray) -> NDArray[np.bool_]:
+    """Per polyline of `lines` (C, P, 3): does every sample along it (CLEARANCE_SAMPLES per
+    segment) keep the obstacle clearance, and a quarter of it more (the samples are
+    apart)? The broad phase (`ObstacleSet.near`) picks the obstacles to measure."""
+    s = np.linspace(0.0, 1.0, CLEARANCE_SAMPLES)
+    a, b = lines[:, :-1], lines[:, 1:]
+    points = (a[:, :, None] + s[None, None, :, None] * (b - a)[:, :, None]).reshape(
+        len(lines), -1, 3)
+    need = 1.25 * scenario.clearance
+    geometry = scenario.obstacle_set
+    box, obstacle = geometry.near(points.min(axis=1), points.max(axis=1), need)
+    ok = np.ones(len(lines), dtype=bool)
+    if box.size == 0:
+        return ok
+    count = points.shape[1]
+    flat = points[box].reshape(-1, 3)
+    distance = geometry.signed_distance(flat, np.repeat(obstacle, count)).reshape(-1, count)
+    ok[box[(distance < need).any(axis=1)]] = False
+    return ok
+
+
+def _routed_departure(scenario: Scenario, route: FloatArray, lines: FloatArray,
+                      placed: _Placed) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """A routed vehicle's first linearisation point from rest: its route departing at the
+    first delay that keeps ROUTE_GAP R from the trajectories placed before it
+    (`planner.spacetime.depart`); where none does and the route is the straight move (a
+    crowd crossing one opening), the first detour of `lines` (`_polylines`) clear of the
+    obstacles that does at one of DELAYS or WIDE_DELAYS, else the departure that keeps
+    farthest."""
+    scale = scenario.separation_scale
+    need = ROUTE_GAP * scenario.min_separation
+    trial = depart(scenario, route, placed.points)
+    if len(route) != 2 or len(placed.points) == 0:
+        return trial
+    best = float(placed.gaps((trial[0] / scale)[None], need)[0])
+    if best >= need:
+        return trial
+    detours = lines[1:][_clear_lines(scenario, lines[1:])]
+    if len(detours) == 0:
+        return trial
+    chosen: tuple[FloatArray, int] | None = None
+    for delay in (int(d * scenario.steps) for d in DELAYS + WIDE_DELAYS):
+        gap = placed.gaps(_positions(detours, scenario, delay) / scale, need)
+        pick = int(np.argmax(gap >= need)) if (gap >= need).any() else int(np.argmax(gap))
+        if gap[pick] > best:
+            chosen, best = (detours[pick], delay), float(gap[pick])
+        if best >= need:
+            break
+    return trial if chosen is None else along(chosen[0], scenario, chosen[1])
 
 
 def _drift(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:

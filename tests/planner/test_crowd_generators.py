@@ -92,19 +92,24 @@ def test_facing_grids_swap_places(pairing: str) -> None:
         facing_grids(10, pairing="sideways")
 
 
-def test_window_rooms_send_every_path_through_the_window_centre() -> None:
+def test_window_rooms_fly_the_crowd_through_one_window_nearest_layer_farthest() -> None:
     data = window_rooms(50, seed=2)
     s = planner.Scenario.from_dict(data)
     assert len(s.vehicles) == 50 and len(s.obstacles) == 4
     assert (s.starts[:, 0] < 0).all() and (s.goals[:, 0] > 0).all()  # room to room
-    centre = 0.5 * (s.starts[0] + s.goals[0])
-    assert _through(s, centre) < 1e-5
+    # sideways and in height mirrored through the window's centre
+    centre = 0.5 * (s.starts + s.goals)
+    assert np.allclose(centre[:, 1:], centre[0, 1:], atol=1e-5)
+    # the layer nearest the wall flies to the farthest one, and back to front
+    order = np.argsort(-s.starts[:, 0])
+    assert np.all(np.diff(s.goals[order, 0]) <= 0.21 * 1.6 + 1e-6)
+    assert s.goals[order[0], 0] > s.goals[order[-1], 0] + 1.6
     # the window: a 3.5 m square gap in the wall around that centre, the wall elsewhere
     boxes = {o["id"]: o["box"] for o in data["obstacles"]}
     assert boxes["wall-right"]["min"][1] - boxes["wall-left"]["max"][1] == pytest.approx(3.5)
     assert boxes["wall-above"]["min"][2] - boxes["wall-below"]["max"][2] == pytest.approx(3.5)
-    assert boxes["wall-left"]["max"][1] + 1.75 == pytest.approx(centre[1])
-    assert boxes["wall-below"]["max"][2] + 1.75 == pytest.approx(centre[2])
+    assert boxes["wall-left"]["max"][1] + 1.75 == pytest.approx(centre[0, 1])
+    assert boxes["wall-below"]["max"][2] + 1.75 == pytest.approx(centre[0, 2])
     assert boxes["wall-left"]["min"][1] == pytest.approx(s.limits.position_min[1], abs=1e-6)
     assert boxes["wall-right"]["max"][1] == pytest.approx(s.limits.position_max[1], abs=1e-6)
     assert _closest(s.starts) > 0.7 * 1.6

@@ -89,11 +89,17 @@ def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
     out = []
     for i in range(len(scenario.vehicles)):
         lines = prioritized._polylines(scenario, i)
+        wide = prioritized._polylines(scenario, i, wide=True)
+        assert np.array_equal(wide[:len(lines)], lines)  # the wide set extends the first
         against = np.concatenate(placed)
         chosen, best = (lines[0], 0), -np.inf
-        tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps))
-                                    for d in prioritized.DELAYS]
-        for subset, delay in tries:
+        steps = scenario.steps
+        first = [(lines[:1], 0)] + [(lines, int(d * steps)) for d in prioritized.DELAYS]
+        then = ([(wide[len(lines):], int(d * steps)) for d in prioritized.DELAYS]
+                + [(wide, int(d * steps)) for d in prioritized.WIDE_DELAYS])
+        for number, (subset, delay) in enumerate(first + then):
+            if number == len(first) and best >= scenario.min_separation:
+                break  # the wide candidates only where the first ones keep less than R
             trial = prioritized._positions(subset, scenario, delay) / scale
             gap = np.linalg.norm(trial[:, None] - against[None], axis=3).min(axis=(1, 2))
             clear = np.flatnonzero(gap >= need)
