@@ -36,8 +36,8 @@ from planner.obstacles import describe
 from planner.scenario import Scenario
 from planner.types import FloatArray, IntArray
 
-__all__ = ["Grid", "Polylines", "RouteSeed", "along", "build_grid", "holding", "route_polylines",
-           "seed_routes"]
+__all__ = ["Grid", "Polylines", "RouteSeed", "along", "build_grid", "holders", "holding",
+           "route_polylines", "seed_routes"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 BoolArray = NDArray[np.bool_]
@@ -192,17 +192,46 @@ class RouteSeed:
     """For an unreachable goal: that vehicle's index (-1 otherwise)."""
 
 
+def holders(scenario: Scenario) -> IntArray:
+    """Vehicles that hold in place (goal = start, from rest): for the others' route search
+    they are obstacles, which no delay gets past and which the obstacles may pin (a holder
+    in the gap between two trees is no way through, however the rows push)."""
+    still = np.all(scenario.goals == scenario.starts, axis=1)
+    if scenario.start_velocities is not None:
+        still &= ~np.any(scenario.start_velocities != 0.0, axis=1)
+    return np.flatnonzero(still).astype(np.intp)
+
+
+def _near_holders(scenario: Scenario, points: FloatArray, planar: bool = False) -> BoolArray:
+    """Per point of `points` (..., 3): within R (separation metric; horizontally only on a
+    `planar` grid, where a cell stands for every height) of a vehicle holding in place."""
+    held = scenario.starts[holders(scenario)]
+    near = np.zeros(points.shape[:-1], dtype=bool)
+    scale = scenario.separation_scale
+    axes = slice(0, 2) if planar else slice(0, 3)
+    for h in held:
+        d = ((points - h) / scale)[..., axes]
+        near |= np.einsum("...c,...c->...", d, d) < scenario.min_separation ** 2
+    return near
+
+
 def blocked_vehicles(scenario: Scenario, lin: Trajectories) -> IntArray:
     """Vehicles whose trajectory `lin` comes within the clearance of an obstacle (checked on
-    the chords between steps)."""
+    the chords between steps), or at a step within R of a vehicle holding in place."""
     rows = ObstacleRows(scenario)
     t = rows.near(lin[0], lin[1], 0.0)
+    hold = holders(scenario)
+    found = np.zeros(0, dtype=np.intp)
+    if hold.size:
+        near = _near_holders(scenario, lin[0]).any(axis=1)
+        near[hold] = False
+        found = np.flatnonzero(near)
     if len(t) == 0:
-        return np.zeros(0, dtype=np.intp)
+        return found.astype(np.intp)
     a, b = lin[0][t.vehicle, t.k], lin[0][t.vehicle, t.k + 1]
     q = chord_nearest(rows.geometry, a, b, t.obstacle)
     close = rows.geometry.signed_distance(q, t.obstacle) < scenario.clearance
-    return np.unique(t.vehicle[close])
+    return np.union1d(np.unique(t.vehicle[close]), found).astype(np.intp)
 
 
 def _cutting(grid: Grid, free: BoolArray, labels: IntArray, start: int, goal: int
@@ -384,7 +413,11 @@ def route_polylines(scenario: Scenario, blocked: IntArray) -> Polylines:
     routes: dict[int, FloatArray] = {}
     centres = grid.centres
     pending = list(range(len(blocked)))
-    for route_free in (free, sure):  # the optimistic grid where a gap is under a cell
+    masks = [free, sure]  # the optimistic grid where a gap is under a cell
+    if holders(scenario).size:  # around the vehicles holding in place first, if a way is
+        away = ~_near_holders(scenario, centres, grid.planar)
+        masks = [free & away, sure & away, *masks]
+    for route_free in masks:
         todo, pending = np.array(pending, dtype=np.intp), []
         graph = grid.graph(route_free)
         free_idx = np.flatnonzero(route_free)
