@@ -48,8 +48,8 @@ from planner.spacetime import (
 )
 from planner.types import FloatArray, IntArray
 
-__all__ = ["NOT_CONVERGED", "UNREACHABLE", "PrioritizedOutcome", "batch_size", "order_vehicles",
-           "plan_batches"]
+__all__ = ["NOT_CONVERGED", "UNREACHABLE", "PrioritizedOutcome", "batch_size",
+           "crosses_one_point", "order_vehicles", "plan_batches"]
 
 #: A fixed trajectory joins a batch's scenario only if it comes within this many R (scaled)
 #: of a batch vehicle's straight move at some instant of the horizon (any time: the batch's
@@ -168,7 +168,7 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
         routes = found.routes
     state = _State(work, np.repeat(work.starts[:, None, :], steps + 1, axis=1),
                    np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3)), np.zeros(n, bool),
-                   routes)
+                   routes, crosses_one_point(work))
     iterations: list[IterationRecord] = []
     seconds: list[float] = []
     first_qp = 0.0
@@ -236,6 +236,8 @@ class _State:
     a: FloatArray
     planned: NDArray[np.bool_]
     routes: dict[int, FloatArray] = dataclasses.field(default_factory=dict)
+    crossing: bool = False
+    """Do the fleet's straight moves cross one point (`crosses_one_point`)?"""
     """With obstacles, every vehicle's route polyline (`planner.spacetime.fleet_routes`)."""
 
 
@@ -290,7 +292,7 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
     guess = clear_guess(sub, others, preset,
                         {i: state.routes[int(j)] for i, j in enumerate(members)
-                         if int(j) in state.routes})
+                         if int(j) in state.routes}, state.crossing)
     if not state.routes:
         return run_scp(sub, solver, options, progress, guess), guess
     return continued_scp(sub, solver, options, progress, guess), guess
@@ -325,11 +327,11 @@ GUESS_GAP = 1.3
 DELAYS = (0.0, 0.1, 0.2, 0.3)
 #: Sideways detours through the move's midpoint tried, in units of R.
 DETOURS = (0.0, 1.5, 3.0)
-#: Where no candidate of DELAYS and DETOURS (four directions) keeps even R, these are
-#: tried too: later departures, a wider detour and the four diagonal directions. A crowd
-#: crossing one point needs them (antipodal sphere 64: no batch replanned with earlier
-#: vehicles, against 18 of 64, and 4x less CPU); tried wherever 1.3 R is not kept, they
-#: cost more than they save on crowds without one (grid -> sphere 256: 1.5x the CPU).
+#: In a crowd crossing one point (`crosses_one_point`), where no candidate of DELAYS and
+#: DETOURS (four directions) keeps even R, these are tried too: later departures, a wider
+#: detour and the four diagonal directions (antipodal sphere 64: no batch replanned with
+#: earlier vehicles, against 18 of 64, and 4x less CPU). Elsewhere they cost more than
+#: they save (grid -> sphere 256: 1.3-1.5x the CPU, tried where R is not kept).
 WIDE_DELAYS = (0.05, 0.15, 0.25, 0.35, 0.4, 0.45, 0.5)
 WIDE_DETOURS = (4.5,)
 
@@ -386,18 +388,31 @@ def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
     return p
 
 
+def crosses_one_point(scenario: Scenario) -> bool:
+    """Do most of the fleet's straight moves pass within R of one point, the mean of their
+    midpoints (antipodal swaps, grids mirrored through their centre)? Such a crowd needs
+    the wide candidates of `clear_guess`."""
+    s, g = scenario.starts, scenario.goals
+    centre = 0.5 * (s + g).mean(axis=0)
+    move = g - s
+    t = np.clip(np.einsum("nc,nc->n", centre - s, move)
+                / np.maximum(np.einsum("nc,nc->n", move, move), 1e-12), 0.0, 1.0)
+    miss = np.linalg.norm((s + t[:, None] * move - centre) / scenario.separation_scale, axis=1)
+    return bool(len(miss) > 1 and np.median(miss) < scenario.min_separation)
+
+
 def clear_guess(scenario: Scenario, others: FloatArray,
                 preset: tuple[FloatArray, FloatArray, FloatArray] | None = None,
-                routes: dict[int, FloatArray] | None = None
+                routes: dict[int, FloatArray] | None = None, crossing: bool = False
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """A first linearisation point for a batch: per vehicle the cheapest candidate (a
     straight or detoured polyline, departing at once or later) that keeps GUESS_GAP R at
     every step from `others` (F, K+1, 3) and from the batch's vehicles placed before it,
-    else the one that keeps farthest; the last vehicles keep `preset` (p, v, a) if given
+    else the one that keeps farthest (with `crossing`, a crowd crossing one point, the wide
+    candidates too where none keeps R); the last vehicles keep `preset` (p, v, a) if given
     (earlier vehicles planned again); a vehicle with a polyline in `routes` (around
-    obstacles) only tries it, departing at once or later (at rest: `planner.spacetime.depart`,
-    the first of its delays that keeps R). Rows linearised about a separated point ask the QP
-    for no jump past a fixed vehicle."""
+    obstacles) only tries it, departing at once or later (at rest: `_routed_departure`).
+    Rows linearised about a separated point ask the QP for no jump past a fixed vehicle."""
     n, stages = len(scenario.vehicles), scenario.steps + 1
     scale = scenario.separation_scale
     p = np.zeros((n, stages, 3))
@@ -429,8 +444,8 @@ def clear_guess(scenario: Scenario, others: FloatArray,
                      + [(wide, int(d * scenario.steps)) for d in WIDE_DELAYS])
             first = 1 + len(DELAYS)
             for number, (subset, delay) in enumerate(tries):  # the straight move first
-                if number == first and best >= scenario.min_separation:
-                    break  # R kept already: the wide candidates cost more than they save
+                if number == first and (not crossing or best >= scenario.min_separation):
+                    break  # the wide candidates cost more than they save here
                 trial = (_positions(subset, scenario, delay) + drift[0][i]) / scale
                 gap = placed.gaps(trial, need)
                 clear = np.flatnonzero(gap >= need)
