@@ -236,9 +236,9 @@ class _State:
     a: FloatArray
     planned: NDArray[np.bool_]
     routes: dict[int, FloatArray] = dataclasses.field(default_factory=dict)
+    """With obstacles, every vehicle's route polyline (`planner.spacetime.fleet_routes`)."""
     crossing: bool = False
     """Do the fleet's straight moves cross one point (`crosses_one_point`)?"""
-    """With obstacles, every vehicle's route polyline (`planner.spacetime.fleet_routes`)."""
 
 
 def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: IntArray,
@@ -438,14 +438,15 @@ def clear_guess(scenario: Scenario, others: FloatArray,
                                       drift[0][i])
         elif len(placed.points):
             best = -np.inf
-            wide = _polylines(scenario, i, wide=True)
-            tries = ([(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
-                     + [(wide[len(lines):], int(d * scenario.steps)) for d in DELAYS]
-                     + [(wide, int(d * scenario.steps)) for d in WIDE_DELAYS])
-            first = 1 + len(DELAYS)
+            tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
+            first = len(tries)
+            if crossing:
+                wide = _polylines(scenario, i, wide=True)
+                tries += ([(wide[len(lines):], int(d * scenario.steps)) for d in DELAYS]
+                          + [(wide, int(d * scenario.steps)) for d in WIDE_DELAYS])
             for number, (subset, delay) in enumerate(tries):  # the straight move first
-                if number == first and (not crossing or best >= scenario.min_separation):
-                    break  # the wide candidates cost more than they save here
+                if number == first and best >= scenario.min_separation:
+                    break  # R kept: the wide candidates would cost more than they save
                 trial = (_positions(subset, scenario, delay) + drift[0][i]) / scale
                 gap = placed.gaps(trial, need)
                 clear = np.flatnonzero(gap >= need)

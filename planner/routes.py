@@ -223,7 +223,7 @@ def blocked_vehicles(scenario: Scenario, lin: Trajectories) -> IntArray:
     hold = holders(scenario)
     found = np.zeros(0, dtype=np.intp)
     if hold.size:
-        near = _near_holders(scenario, lin[0]).any(axis=1)
+        near = np.asarray(_near_holders(scenario, lin[0]).any(axis=1), dtype=bool)
         near[hold] = False
         found = np.flatnonzero(near)
     if len(t) == 0:
