@@ -17,9 +17,13 @@ from planner.types import FloatArray
 __all__ = [
     "DMPC2019_BOX",
     "SHOW_SHAPES",
+    "antipodal_circle",
+    "antipodal_sphere",
     "circle_swap",
+    "crowd_steps",
     "dmpc2019_points",
     "dmpc2019_scenario",
+    "facing_grids",
     "formation",
     "free_steps",
     "grid_to_sphere",
@@ -500,3 +504,121 @@ def show_formations(vehicles: int, shapes: tuple[str, ...] | list[str] = SHOW_SH
         "vehicles": [f"uav{n + 1}" for n in range(vehicles)],
         "formations": formations,
     }
+
+
+# --------------------------------------------------------------------------- crowds through a point
+
+#: Speed (m/s) and acceleration (m/s^2) of the crowd families, as the show families.
+CROWD_SPEED, CROWD_ACCELERATION, CROWD_JERK = 3.0, 3.0, 5.0
+
+
+def _crowd(name: str, starts: FloatArray, goals: FloatArray, separation: float, dt: float,
+           steps: int, low: FloatArray, high: FloatArray) -> dict[str, Any]:
+    """A crowd family's scenario: v and a <= CROWD_SPEED/ACCELERATION, jerk <= CROWD_JERK."""
+    return {
+        "name": name,
+        "dt": dt,
+        "steps": steps,
+        "min_separation": separation,
+        "limits": _limits(low, high, CROWD_SPEED, CROWD_ACCELERATION, CROWD_JERK),
+        "vehicles": _vehicles(starts, goals),
+    }
+
+
+def crowd_steps(starts: FloatArray, goals: FloatArray, dt: float, factor: float) -> int:
+    """`factor` times the fewest steps in which the longest of the moves fits the crowd
+    families' boxes as a straight rest-to-rest profile (`planner.methods.horizon`), rounded up."""
+    from planner.methods.horizon import shortest_steps
+
+    limit = np.full(3, CROWD_SPEED)
+    fewest = shortest_steps(goals - starts, dt, limit, np.full(3, CROWD_ACCELERATION),
+                            np.full(3, CROWD_JERK))
+    return math.ceil(factor * fewest)
+
+
+def antipodal_sphere(vehicles: int, *, seed: int | None = 0, spacing: float = 2.0,
+                     separation: float = SHOW_SEPARATION, dt: float = SHOW_DT,
+                     steps: int = SHOW_STEPS) -> dict[str, Any]:
+    """Vehicles on a sphere shell (closest neighbours `spacing` apart, `sphere_shell`), each
+    flying to its antipode: every path crosses the centre (13 m moves for 100 at 2 m).
+    30 s, v and a <= 3, jerk <= 5, R = 1 m; the lowest point 2 m up.
+
+    seed: None keeps the Fibonacci lattice as built; an integer turns it by a seeded random
+    rotation about its centre (same crowd, other directions to the ground and the boxes).
+    """
+    shell = sphere_shell(vehicles, spacing)
+    if seed is not None:
+        shell = shell @ _rotation(np.random.default_rng(seed)).T
+    radius = float(np.linalg.norm(shell, axis=1).max()) if vehicles else 0.0
+    centre = np.array([0.0, 0.0, radius + 2.0])
+    starts, goals = centre + shell, centre - shell
+    low, high = centre - radius - 2.0, centre + radius + 2.0
+    low[2] = 0.0
+    name = f"antipodal-sphere{vehicles}-s{spacing:g}" + ("" if seed is None else f"-seed{seed}")
+    return _crowd(name, starts, goals, separation, dt, steps, low, high)
+
+
+def antipodal_circle(vehicles: int, *, seed: int | None = 0, spacing: float = 2.0,
+                     thickness: float = 1.6, separation: float = SHOW_SEPARATION,
+                     dt: float = SHOW_DT, horizon_factor: float = 1.5) -> dict[str, Any]:
+    """Vehicles evenly on a horizontal circle (neighbours `spacing` apart) at mid-height of a
+    slab `thickness` m thick (the workspace's height), each flying to its antipode: every
+    path crosses the centre, and the slab leaves little room to pass above one another.
+    The horizon is `horizon_factor` times the longest move's shortest time (v and a <= 3,
+    jerk <= 5); R = 1 m.
+
+    seed: None keeps the vehicles evenly spaced; an integer moves each by up to a tenth of
+    `spacing` along the circle (no two pairs meet exactly alike).
+    """
+    count = max(vehicles, 2)
+    radius = spacing / (2.0 * np.sin(np.pi / count))
+    angle = 2.0 * np.pi * np.arange(vehicles) / count
+    if seed is not None:
+        jitter = np.random.default_rng(seed).uniform(-0.1, 0.1, vehicles)
+        angle = angle + jitter * spacing / radius
+    height = 2.0
+    centre = np.array([radius + 2.0, radius + 2.0, height])
+    ring = radius * np.stack([np.cos(angle), np.sin(angle), np.zeros(vehicles)], axis=1)
+    starts, goals = centre + ring, centre - ring
+    low = np.array([0.0, 0.0, height - thickness / 2.0])
+    high = np.array([2.0 * centre[0], 2.0 * centre[1], height + thickness / 2.0])
+    steps = crowd_steps(starts, goals, dt, horizon_factor)
+    name = (f"antipodal-circle{vehicles}-s{spacing:g}-t{thickness:g}"
+            + ("" if seed is None else f"-seed{seed}"))
+    return _crowd(name, starts, goals, separation, dt, steps, low, high)
+
+
+def facing_grids(vehicles: int, *, seed: int | None = 0, spacing: float = 2.0,
+                 gap: float = 10.0, pairing: str = "centre",
+                 separation: float = SHOW_SEPARATION, dt: float = SHOW_DT,
+                 steps: int = SHOW_STEPS) -> dict[str, Any]:
+    """Two vertical grids (`spacing` apart, in x-z planes) facing each other `gap` m apart,
+    half the vehicles in each, swapping places. 30 s, v and a <= 3, jerk <= 5, R = 1 m; the
+    lowest row 2 m up.
+
+    pairing: "centre" sends each vehicle to the other grid's point mirrored through the
+    centre between the grids (every path crosses that centre); "across" to the point facing
+    it (pairs meet head-on halfway). Raises ValueError for another pairing.
+    seed: None keeps the grids regular; an integer moves each point by up to a tenth of
+    `spacing` in its grid's plane (no two pairs meet exactly alike).
+    """
+    if pairing not in ("centre", "across"):
+        raise ValueError(f"unknown pairing {pairing!r}: 'centre' or 'across'")
+    half = vehicles - vehicles // 2
+    grid = vertical_grid(half, spacing)
+    if seed is not None:
+        shift = np.random.default_rng(seed).uniform(-0.1, 0.1, (half, 3)) * spacing
+        shift[:, 1] = 0.0
+        grid = grid + shift
+    top = float(grid[:, 2].max()) if half else 0.0
+    centre = np.array([0.0, gap / 2.0, 0.5 * (2.0 + top)])
+    # the other grid: mirrored through the centre, or facing straight across
+    far = 2.0 * centre - grid if pairing == "centre" else grid + np.array([0.0, gap, 0.0])
+    starts = np.concatenate([grid, far])[:vehicles]
+    goals = np.concatenate([far, grid])[:vehicles]
+    low = np.minimum(starts.min(axis=0), goals.min(axis=0)) - 2.0
+    high = np.maximum(starts.max(axis=0), goals.max(axis=0)) + 2.0
+    low[2] = 0.0
+    name = f"facing-grids{vehicles}-{pairing}-s{spacing:g}-g{gap:g}" + (
+        "" if seed is None else f"-seed{seed}")
+    return _crowd(name, starts, goals, separation, dt, steps, low, high)

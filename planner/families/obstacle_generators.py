@@ -1,5 +1,6 @@
 """Scenario generators with obstacles, seeded: the paper's circle around a pillar, a wall
-with one window, rows of shelving, a forest of pillars, and a wall with no opening.
+with one window, rows of shelving, a forest of pillars, a wall with no opening, and a crowd
+flying from one room to another through one window.
 
 All return scenario dicts (the JSON contract), like `planner.families.generators`; the benchmark
 (`bench/planner.py obstacles`) and the examples in `planner/examples/` come from them.
@@ -11,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from planner.families.generators import _limits, _vehicles, circle_swap
+from planner.families.generators import _limits, _vehicles, circle_swap, crowd_steps
 from planner.types import FloatArray
 
-__all__ = ["forest", "pillar_circle", "sealed_wall", "shelving", "window_wall"]
+__all__ = ["forest", "pillar_circle", "sealed_wall", "shelving", "window_rooms", "window_wall"]
 
 
 def _box(oid: str, low: FloatArray | list[float], high: FloatArray | list[float]
@@ -158,3 +159,51 @@ def forest(vehicles: int = 50, pillars: int = 40, *, size: float = 30.0, seed: i
     return _scenario(f"forest{vehicles}-{pillars}-seed{seed}", dt, k, separation, clearance,
                      _limits(np.zeros(3), np.array([size, size, height]), 3.0, 3.0, 8.0),
                      starts, goals, obstacles)
+
+
+def window_rooms(vehicles: int = 50, *, seed: int | None = 0, window: float = 3.5,
+                 spacing: float = 1.6, height: float = 6.0, separation: float = 0.8,
+                 clearance: float = 0.3, dt: float = 0.2, horizon_factor: float = 2.0
+                 ) -> dict[str, Any]:
+    """Vehicles fly from one room to the next through one square window (`window` m a side,
+    mid-height, in a 0.2 m wall at x = 0): they start on a lattice (`spacing` apart, layers
+    of vertical grids facing the wall) in the west room and fly to the same lattice in the
+    east room, the layer nearest the wall to the farthest one (a layer of vehicles waiting
+    or arrived is no wall to the others), each mirrored sideways and in height through the
+    window's centre: every path crosses the one window. The horizon is `horizon_factor`
+    times the longest move's shortest time (v and a <= 3, jerk <= 5).
+
+    seed: None keeps everything regular; an integer moves the window by up to 0.5 m
+    sideways and 0.2 m up or down, and each start by up to a tenth of `spacing`.
+    """
+    rows = max(1, int((height - 2.0) // spacing) + 1)
+    columns = max(1, int(np.ceil(np.sqrt(vehicles / rows))))
+    n = np.arange(vehicles)
+    per_layer = rows * columns
+    layer, column, row = n // per_layer, (n % per_layer) % columns, (n % per_layer) // columns
+    width = (columns - 1) * spacing + 4.0
+    starts = np.stack([-2.0 - layer * spacing, 2.0 + column * spacing, 1.0 + row * spacing],
+                      axis=1).astype(float)
+    centre = np.array([0.0, width / 2.0, height / 2.0])
+    if seed is not None:
+        rng = np.random.default_rng(seed)
+        centre[1:] += [rng.uniform(-0.5, 0.5), rng.uniform(-0.2, 0.2)]
+        starts += rng.uniform(-0.1, 0.1, starts.shape) * spacing
+    goals = 2.0 * centre - starts
+    # the layers reversed: the nearest (x = -2) to the farthest, which flies first
+    goals[:, 0] = 2.0 + (layer.max() - layer) * spacing - (starts[:, 0] + 2.0 + layer * spacing)
+    points = np.concatenate([starts, goals])
+    low, high = points.min(axis=0) - 1.5, points.max(axis=0) + 1.5
+    low[2], high[2] = 0.0, max(height, float(high[2]))
+    half = window / 2.0
+    middle = float(centre[1] - low[1])  # _wall_boxes measures y from 0
+    opening = (middle - half, middle + half, centre[2] - half, centre[2] + half)
+    walls = _wall_boxes(0.0, 0.2, float(high[1] - low[1]), float(high[2]), opening)
+    for wall in walls:  # then moved to the workspace's y
+        for corner in ("min", "max"):
+            wall["box"][corner][1] = round(wall["box"][corner][1] + float(low[1]), 6)
+    steps = crowd_steps(starts, goals, dt, horizon_factor)
+    name = f"window-rooms{vehicles}-w{window:g}-s{spacing:g}" + (
+        "" if seed is None else f"-seed{seed}")
+    return _scenario(name, dt, steps, separation, clearance,
+                     _limits(low, high, 3.0, 3.0, 5.0), starts, goals, walls)

@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from planner.methods.routes import along
 from planner.methods.spacetime import (
     BATCH_OBSTACLE_SEED,
+    ROUTE_GAP,
     continued_scp,
     depart,
     fleet_routes,
@@ -48,8 +49,8 @@ from planner.scp.loop import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.scp.solvers import QPSolver
 from planner.types import FloatArray, IntArray
 
-__all__ = ["NOT_CONVERGED", "UNREACHABLE", "PrioritizedOutcome", "batch_size", "order_vehicles",
-           "plan_batches"]
+__all__ = ["NOT_CONVERGED", "UNREACHABLE", "PrioritizedOutcome", "batch_size",
+           "crosses_one_point", "order_vehicles", "plan_batches"]
 
 #: A fixed trajectory joins a batch's scenario only if it comes within this many R (scaled)
 #: of a batch vehicle's straight move at some instant of the horizon (any time: the batch's
@@ -170,7 +171,7 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
         routes = found.routes
     state = _State(work, np.repeat(work.starts[:, None, :], steps + 1, axis=1),
                    np.zeros((n, steps + 1, 3)), np.zeros((n, steps, 3)), np.zeros(n, bool),
-                   routes)
+                   routes, crosses_one_point(work))
     iterations: list[IterationRecord] = []
     seconds: list[float] = []
     first_qp = 0.0
@@ -240,6 +241,8 @@ class _State:
     planned: NDArray[np.bool_]
     routes: dict[int, FloatArray] = dataclasses.field(default_factory=dict)
     """With obstacles, every vehicle's route polyline (`planner.methods.spacetime.fleet_routes`)."""
+    crossing: bool = False
+    """Do the fleet's straight moves cross one point (`crosses_one_point`)?"""
 
 
 def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: IntArray,
@@ -293,7 +296,7 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
     guess = clear_guess(sub, others, preset,
                         {i: state.routes[int(j)] for i, j in enumerate(members)
-                         if int(j) in state.routes})
+                         if int(j) in state.routes}, state.crossing)
     if not state.routes:
         return run_scp(sub, solver, options, progress, guess), guess
     return continued_scp(sub, solver, options, progress, guess), guess
@@ -328,11 +331,24 @@ GUESS_GAP = 1.3
 DELAYS = (0.0, 0.1, 0.2, 0.3)
 #: Sideways detours through the move's midpoint tried, in units of R.
 DETOURS = (0.0, 1.5, 3.0)
+#: In a crowd crossing one point (`crosses_one_point`), where no candidate of DELAYS and
+#: DETOURS (four directions) keeps even R, these are tried too: later departures, a wider
+#: detour and the four diagonal directions (antipodal sphere 64: no batch replanned with
+#: earlier vehicles, against 18 of 64, and 4x less CPU). Elsewhere they cost more than
+#: they save (grid -> sphere 256: 1.3-1.5x the CPU, tried where R is not kept).
+WIDE_DELAYS = (0.05, 0.15, 0.25, 0.35, 0.4, 0.45, 0.5)
+WIDE_DETOURS = (4.5,)
 
 
-def _polylines(scenario: Scenario, vehicle: int) -> FloatArray:
+def _pushes(amounts: tuple[float, ...], ways: FloatArray) -> FloatArray:
+    """Every amount along every way ((W, 3) unit directions), amount-major: (A W, 3)."""
+    return (np.asarray(amounts)[:, None, None] * ways[None]).reshape(-1, 3)
+
+
+def _polylines(scenario: Scenario, vehicle: int, wide: bool = False) -> FloatArray:
     """(C, 3, 3) polylines start -> midpoint -> goal to try, cheapest first: the straight
-    move, then its midpoint pushed sideways by each of DETOURS in four directions."""
+    move, then its midpoint pushed sideways by each of DETOURS in four directions (`wide`:
+    and WIDE_DETOURS, in eight)."""
     s, g = scenario.starts[vehicle], scenario.goals[vehicle]
     move = g - s
     length = float(np.linalg.norm(move))
@@ -342,8 +358,13 @@ def _polylines(scenario: Scenario, vehicle: int) -> FloatArray:
     side /= np.linalg.norm(side)
     up = np.cross(side, axis)
     low, high = scenario.limits.position_min, scenario.limits.position_max
-    pushes = (np.asarray(DETOURS[1:])[:, None, None] * scenario.min_separation
-              * np.stack([side, -side, up, -up])[None]).reshape(-1, 3)  # detour-major
+    ways = np.stack([side, -side, up, -up])
+    pushes = _pushes(DETOURS[1:], ways)
+    if wide:  # after the first set: the diagonals, then the wider detours every way
+        diagonals = np.stack([side + up, side - up, up - side, -side - up]) / 2**0.5
+        pushes = np.concatenate([pushes, _pushes(DETOURS[1:], diagonals),
+                                 _pushes(WIDE_DETOURS, np.concatenate([ways, diagonals]))])
+    pushes = pushes * scenario.min_separation
     out = np.empty((1 + len(pushes), 3, 3))
     out[:, 0], out[:, 2] = s, g
     out[0, 1] = 0.5 * (s + g)
@@ -371,19 +392,31 @@ def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
     return p
 
 
+def crosses_one_point(scenario: Scenario) -> bool:
+    """Do most of the fleet's straight moves pass within R of one point, the mean of their
+    midpoints (antipodal swaps, grids mirrored through their centre)? Such a crowd needs
+    the wide candidates of `clear_guess`."""
+    s, g = scenario.starts, scenario.goals
+    centre = 0.5 * (s + g).mean(axis=0)
+    move = g - s
+    t = np.clip(np.einsum("nc,nc->n", centre - s, move)
+                / np.maximum(np.einsum("nc,nc->n", move, move), 1e-12), 0.0, 1.0)
+    miss = np.linalg.norm((s + t[:, None] * move - centre) / scenario.separation_scale, axis=1)
+    return bool(len(miss) > 1 and np.median(miss) < scenario.min_separation)
+
+
 def clear_guess(scenario: Scenario, others: FloatArray,
                 preset: tuple[FloatArray, FloatArray, FloatArray] | None = None,
-                routes: dict[int, FloatArray] | None = None
+                routes: dict[int, FloatArray] | None = None, crossing: bool = False
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """A first linearisation point for a batch: per vehicle the cheapest candidate (a
     straight or detoured polyline, departing at once or later) that keeps GUESS_GAP R at
     every step from `others` (F, K+1, 3) and from the batch's vehicles placed before it,
-    else the one that keeps farthest; the last vehicles keep `preset` (p, v, a) if given
+    else the one that keeps farthest (with `crossing`, a crowd crossing one point, the wide
+    candidates too where none keeps R); the last vehicles keep `preset` (p, v, a) if given
     (earlier vehicles planned again); a vehicle with a polyline in `routes` (around
-    obstacles) only tries it, departing at once or later (at rest:
-    `planner.methods.spacetime.depart`,
-    the first of its delays that keeps R). Rows linearised about a separated point ask the QP
-    for no jump past a fixed vehicle."""
+    obstacles) only tries it, departing at once or later (at rest: `_routed_departure`).
+    Rows linearised about a separated point ask the QP for no jump past a fixed vehicle."""
     n, stages = len(scenario.vehicles), scenario.steps + 1
     scale = scenario.separation_scale
     p = np.zeros((n, stages, 3))
@@ -401,7 +434,8 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         chosen = (lines[0], 0)
         if routes and i in routes:
             if scenario.start_velocities is None:
-                p[i], v[i], a[i] = depart(scenario, routes[i], placed.points)
+                p[i], v[i], a[i] = _routed_departure(
+                    scenario, routes[i], _polylines(scenario, i, wide=True), placed)
                 placed.add(p[i] / scale)
                 continue
             chosen = _route_departure(scenario, routes[i], placed.points, need,
@@ -409,7 +443,14 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         elif len(placed.points):
             best = -np.inf
             tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
-            for subset, delay in tries:  # the straight move alone first: most often clear
+            first = len(tries)
+            if crossing:
+                wide = _polylines(scenario, i, wide=True)
+                tries += ([(wide[len(lines):], int(d * scenario.steps)) for d in DELAYS]
+                          + [(wide, int(d * scenario.steps)) for d in WIDE_DELAYS])
+            for number, (subset, delay) in enumerate(tries):  # the straight move first
+                if number == first and best >= scenario.min_separation:
+                    break  # R kept: the wide candidates would cost more than they save
                 trial = (_positions(subset, scenario, delay) + drift[0][i]) / scale
                 gap = placed.gaps(trial, need)
                 clear = np.flatnonzero(gap >= need)
@@ -424,6 +465,61 @@ def clear_guess(scenario: Scenario, others: FloatArray,
         a[i] += drift[2][i]
         placed.add(p[i] / scale)
     return p, v, a
+
+
+#: Samples per segment where a detoured polyline's clearance from the obstacles is checked.
+CLEARANCE_SAMPLES = 24
+
+
+def _clear_lines(scenario: Scenario, lines: FloatArray) -> NDArray[np.bool_]:
+    """Per polyline of `lines` (C, P, 3): does every sample along it (CLEARANCE_SAMPLES per
+    segment) keep the obstacle clearance, and a quarter of it more (the samples are
+    apart)? The broad phase (`ObstacleSet.near`) picks the obstacles to measure."""
+    s = np.linspace(0.0, 1.0, CLEARANCE_SAMPLES)
+    a, b = lines[:, :-1], lines[:, 1:]
+    points = (a[:, :, None] + s[None, None, :, None] * (b - a)[:, :, None]).reshape(
+        len(lines), -1, 3)
+    need = 1.25 * scenario.clearance
+    geometry = scenario.obstacle_set
+    box, obstacle = geometry.near(points.min(axis=1), points.max(axis=1), need)
+    ok = np.ones(len(lines), dtype=bool)
+    if box.size == 0:
+        return ok
+    count = points.shape[1]
+    flat = points[box].reshape(-1, 3)
+    distance = geometry.signed_distance(flat, np.repeat(obstacle, count)).reshape(-1, count)
+    ok[box[(distance < need).any(axis=1)]] = False
+    return ok
+
+
+def _routed_departure(scenario: Scenario, route: FloatArray, lines: FloatArray,
+                      placed: _Placed) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """A routed vehicle's first linearisation point from rest: its route departing at the
+    first delay that keeps ROUTE_GAP R from the trajectories placed before it
+    (`planner.methods.spacetime.depart`); where none does and the route is the straight move (a
+    crowd crossing one opening), the first detour of `lines` (`_polylines`) clear of the
+    obstacles that does at one of DELAYS or WIDE_DELAYS, else the departure that keeps
+    farthest."""
+    scale = scenario.separation_scale
+    need = ROUTE_GAP * scenario.min_separation
+    trial = depart(scenario, route, placed.points)
+    if len(route) != 2 or len(placed.points) == 0:
+        return trial
+    best = float(placed.gaps((trial[0] / scale)[None], need)[0])
+    if best >= need:
+        return trial
+    detours = lines[1:][_clear_lines(scenario, lines[1:])]
+    if len(detours) == 0:
+        return trial
+    chosen: tuple[FloatArray, int] | None = None
+    for delay in (int(d * scenario.steps) for d in DELAYS + WIDE_DELAYS):
+        gap = placed.gaps(_positions(detours, scenario, delay) / scale, need)
+        pick = int(np.argmax(gap >= need)) if (gap >= need).any() else int(np.argmax(gap))
+        if gap[pick] > best:
+            chosen, best = (detours[pick], delay), float(gap[pick])
+        if best >= need:
+            break
+    return trial if chosen is None else along(chosen[0], scenario, chosen[1])
 
 
 def _drift(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -36,8 +36,8 @@ from planner.scp.first_qp import unit_profile
 from planner.scp.obstacle_rows import ObstacleRows, chord_nearest
 from planner.types import FloatArray, IntArray
 
-__all__ = ["Grid", "Polylines", "RouteSeed", "along", "build_grid", "route_polylines",
-           "seed_routes"]
+__all__ = ["Grid", "Polylines", "RouteSeed", "along", "build_grid", "holders", "holding",
+           "route_polylines", "seed_routes"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
 BoolArray = NDArray[np.bool_]
@@ -192,17 +192,46 @@ class RouteSeed:
     """For an unreachable goal: that vehicle's index (-1 otherwise)."""
 
 
+def holders(scenario: Scenario) -> IntArray:
+    """Vehicles that hold in place (goal = start, from rest): for the others' route search
+    they are obstacles, which no delay gets past and which the obstacles may pin (a holder
+    in the gap between two trees is no way through, however the rows push)."""
+    still = np.all(scenario.goals == scenario.starts, axis=1)
+    if scenario.start_velocities is not None:
+        still &= ~np.any(scenario.start_velocities != 0.0, axis=1)
+    return np.flatnonzero(still).astype(np.intp)
+
+
+def _near_holders(scenario: Scenario, points: FloatArray, planar: bool = False) -> BoolArray:
+    """Per point of `points` (..., 3): within R (separation metric; horizontally only on a
+    `planar` grid, where a cell stands for every height) of a vehicle holding in place."""
+    held = scenario.starts[holders(scenario)]
+    near = np.zeros(points.shape[:-1], dtype=bool)
+    scale = scenario.separation_scale
+    axes = slice(0, 2) if planar else slice(0, 3)
+    for h in held:
+        d = ((points - h) / scale)[..., axes]
+        near |= np.einsum("...c,...c->...", d, d) < scenario.min_separation ** 2
+    return near
+
+
 def blocked_vehicles(scenario: Scenario, lin: Trajectories) -> IntArray:
     """Vehicles whose trajectory `lin` comes within the clearance of an obstacle (checked on
-    the chords between steps)."""
+    the chords between steps), or at a step within R of a vehicle holding in place."""
     rows = ObstacleRows(scenario)
     t = rows.near(lin[0], lin[1], 0.0)
+    hold = holders(scenario)
+    found = np.zeros(0, dtype=np.intp)
+    if hold.size:
+        near = np.asarray(_near_holders(scenario, lin[0]).any(axis=1), dtype=bool)
+        near[hold] = False
+        found = np.flatnonzero(near)
     if len(t) == 0:
-        return np.zeros(0, dtype=np.intp)
+        return found.astype(np.intp)
     a, b = lin[0][t.vehicle, t.k], lin[0][t.vehicle, t.k + 1]
     q = chord_nearest(rows.geometry, a, b, t.obstacle)
     close = rows.geometry.signed_distance(q, t.obstacle) < scenario.clearance
-    return np.unique(t.vehicle[close])
+    return np.union1d(np.unique(t.vehicle[close]), found).astype(np.intp)
 
 
 def _cutting(grid: Grid, free: BoolArray, labels: IntArray, start: int, goal: int
@@ -280,16 +309,26 @@ def _toward_line(grid: Grid, free: BoolArray, points: FloatArray) -> FloatArray:
     return out
 
 
+def holding(point: FloatArray, steps: int) -> Trajectories:
+    """The trajectory resting at `point` for `steps` steps: a vehicle whose goal is its
+    start."""
+    return (np.repeat(np.asarray(point, dtype=np.float64)[None], steps + 1, axis=0),
+            np.zeros((steps + 1, 3)), np.zeros((steps, 3)))
+
+
 def along(points: FloatArray, scenario: Scenario, delay: int = 0) -> Trajectories:
     """A trajectory along the polyline `points` that waits `delay` steps at the start, then
     moves rest to rest on the minimum-thrust unit profile of the remaining steps (the
     separation-free QP's own timing, so the first QP's solution stays near the routes in
-    time: measured 1.5-2x faster than a minimum-jerk timing on the forest family)."""
-    phi_p, phi_v, phi_a = unit_profile(scenario.steps - delay, scenario.dt)
+    time: measured 1.5-2x faster than a minimum-jerk timing on the forest family). A
+    polyline of no length (a vehicle that holds in place) rests at its point throughout."""
     seg = np.diff(points, axis=0)
     seg_len = np.linalg.norm(seg, axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg_len)])
     total = float(cum[-1])
+    if total <= 0.0:
+        return holding(points[0], scenario.steps)
+    phi_p, phi_v, phi_a = unit_profile(scenario.steps - delay, scenario.dt)
     s = np.clip(phi_p, 0.0, 1.0) * total
     piece = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
     frac = (s - cum[piece]) / np.maximum(seg_len[piece], 1e-12)
@@ -374,7 +413,11 @@ def route_polylines(scenario: Scenario, blocked: IntArray) -> Polylines:
     routes: dict[int, FloatArray] = {}
     centres = grid.centres
     pending = list(range(len(blocked)))
-    for route_free in (free, sure):  # the optimistic grid where a gap is under a cell
+    masks = [free, sure]  # the optimistic grid where a gap is under a cell
+    if holders(scenario).size:  # around the vehicles holding in place first, if a way is
+        away = ~_near_holders(scenario, centres, grid.planar)
+        masks = [free & away, sure & away, *masks]
+    for route_free in masks:
         todo, pending = np.array(pending, dtype=np.intp), []
         graph = grid.graph(route_free)
         free_idx = np.flatnonzero(route_free)

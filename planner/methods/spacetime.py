@@ -63,10 +63,11 @@ def fleet_routes(scenario: Scenario) -> Polylines:
 def depart(scenario: Scenario, route: FloatArray, against: FloatArray) -> Trajectories:
     """The trajectory along `route` that departs at the first of DELAY_STEPS delays (0 to a
     third of the horizon) keeping ROUTE_GAP R (separation metric) from the scaled positions
-    `against` (F, K+1, 3) at every step; if none does, the delay that keeps farthest."""
+    `against` (F, K+1, 3) at every step; if none does, the delay that keeps farthest. A
+    route of one point (a vehicle holding in place) rests there: no delay changes it."""
     steps = scenario.steps
     need = ROUTE_GAP * scenario.min_separation
-    if len(against) == 0:
+    if len(against) == 0 or len(route) < 2:  # nothing placed, or a vehicle holding in place
         return along(route, scenario, 0)
     scale = scenario.separation_scale
     longest = steps // 3

@@ -79,7 +79,7 @@ def test_the_blocked_gaps_are_the_step_distances_where_they_matter() -> None:
     assert placed.gaps(trial[:1], 1.0)[0] == 0.0
 
 
-def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
+def _reference_guess(scenario: Scenario, others: np.ndarray, crossing: bool) -> np.ndarray:
     """clear_guess's choice computed the plain way: every candidate against every placed
     trajectory at every step, try by try (the straight move, then each delay)."""
     from planner.methods.routes import along
@@ -89,11 +89,17 @@ def _reference_guess(scenario: Scenario, others: np.ndarray) -> np.ndarray:
     out = []
     for i in range(len(scenario.vehicles)):
         lines = prioritized._polylines(scenario, i)
+        wide = prioritized._polylines(scenario, i, wide=True)
+        assert np.array_equal(wide[:len(lines)], lines)  # the wide set extends the first
         against = np.concatenate(placed)
         chosen, best = (lines[0], 0), -np.inf
-        tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps))
-                                    for d in prioritized.DELAYS]
-        for subset, delay in tries:
+        steps = scenario.steps
+        first = [(lines[:1], 0)] + [(lines, int(d * steps)) for d in prioritized.DELAYS]
+        then = ([(wide[len(lines):], int(d * steps)) for d in prioritized.DELAYS]
+                + [(wide, int(d * steps)) for d in prioritized.WIDE_DELAYS])
+        for number, (subset, delay) in enumerate(first + then):
+            if number == len(first) and (not crossing or best >= scenario.min_separation):
+                break  # the wide candidates: in a crowd crossing a point, less than R kept
             trial = prioritized._positions(subset, scenario, delay) / scale
             gap = np.linalg.norm(trial[:, None] - against[None], axis=3).min(axis=(1, 2))
             clear = np.flatnonzero(gap >= need)
@@ -119,7 +125,25 @@ def test_the_first_guess_is_the_plain_try_by_try_choice() -> None:
         mine = order[split:split + 4]
         sub = dataclasses.replace(work, vehicles=tuple(work.vehicles[j] for j in mine),
                                   starts=work.starts[mine], goals=work.goals[mine])
-        guess = prioritized.clear_guess(sub, straight[order[:split]])[0]
-        np.testing.assert_array_equal(guess, _reference_guess(sub, straight[order[:split]]))
+        for crossing in (False, True):
+            guess = prioritized.clear_guess(sub, straight[order[:split]], crossing=crossing)[0]
+            np.testing.assert_array_equal(
+                guess, _reference_guess(sub, straight[order[:split]], crossing))
         waited += int((np.linalg.norm(guess[:, 1] - sub.starts, axis=1) < 1e-12).sum())
     assert waited > 0  # some vehicle had to wait: the delayed candidates were exercised
+
+
+def test_a_crowd_crossing_one_point_is_told_from_one_that_does_not() -> None:
+    from planner.families.generators import antipodal_circle, antipodal_sphere, facing_grids
+    crossing = [antipodal_sphere(40), antipodal_circle(20), facing_grids(40)]
+    other = [facing_grids(40, pairing="across"), grid_to_sphere(64, seed=0)]
+    for data in crossing + other:
+        assert prioritized.crosses_one_point(Scenario.from_dict(data)) == (data in crossing)
+
+
+def test_an_antipodal_crowd_plans_in_batches_none_replanned_with_earlier_vehicles() -> None:
+    from planner.families.generators import antipodal_sphere
+    result = plan(antipodal_sphere(32), method="prioritized")
+    assert result.status == "converged" and result.verification.verified
+    assert result.message.startswith("planned in 32 prioritized batches")
+    assert "replanned with earlier vehicles" not in result.message
