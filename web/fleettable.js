@@ -11,7 +11,7 @@ import { fleet, flight, views } from "./state.js";
 /** @typedef {import("./state.js").VehicleRow} VehicleRow */
 
 /** @type {[string, string, (value: any) => string[]][]} */
-const OPTIONAL_COLUMNS = [["link_quality", "loss · latency", linkQualityCell],
+const OPTIONAL_COLUMNS = [["link_quality", "loss", linkQualityCell],
                           ["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
 /** Most rows drawn: a show-sized fleet's table lists its vehicles with a fault first, then
  * the others up to this many, and says how many are not listed. */

@@ -24,11 +24,13 @@ export function linkQualityCell(q) {
   if (q === null || q === undefined || typeof q !== "object") return ["–", "", ""];
   const loss = q.recent_loss_pct ?? q.loss_pct;
   const pct = typeof loss === "number" ? `${loss < 10 ? loss.toFixed(1) : Math.round(loss)} %` : "–";
-  const ms = typeof q.latency_ms === "number" ? ` · ${Math.round(q.latency_ms)} ms` : "";
+  const ms = typeof q.latency_ms === "number" ? `, latency ${Math.round(q.latency_ms)} ms` : "";
   const level = typeof loss !== "number" ? "" : (loss >= 10 ? "bad" : (loss >= 5 ? "warn" : "ok"));
   const jitter = typeof q.jitter_ms === "number" ? `, jitter ${fmt1(q.jitter_ms)} ms` : "";
-  return [`${pct}${ms}`, level,
-          `loss ${pct} over the last 5 s (${q.lost ?? 0} of ${(q.received ?? 0) + (q.lost ?? 0)} in all), ` +
+  // The cell stays narrow (the fly screen's table docks beside the map): the loss; the rest
+  // in its title.
+  return [pct, level,
+          `loss ${pct} over the last 5 s (${q.lost ?? 0} of ${(q.received ?? 0) + (q.lost ?? 0)} in all)${ms}, ` +
           `${q.reordered ?? 0} reordered, ${q.duplicates ?? 0} duplicates${jitter}`];
 }
 

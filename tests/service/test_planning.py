@@ -212,11 +212,11 @@ def test_time_limit_fails_the_mission_with_the_reason(store, cluster) -> None:
     async def scenario_run() -> None:
         service = await started_service(store, cluster, time_limit_s=30)
         try:
-            job = submit(service, store, "random128", time_limit_s=0.5)
+            job = submit(service, store, "random128", time_limit_s=0.05)
             outcome = await done(job)
         finally:
             await service.close()
-        reason = "planning exceeded its time limit of 0.5 s"
+        reason = "planning exceeded its time limit of 0.05 s"
         assert outcome["error"]["reason"] == reason
         row = store.get_mission(job.mission_id)
         assert row is not None and row.status == "failed" and row.error["reason"] == reason

@@ -64,14 +64,15 @@ def test_commands_health_and_geodetic_reference(open_page, service: ServiceProce
     expect(rows.nth(0).locator('td[data-key="health"]')).to_have_text("ok")
     expect(rows.nth(1).locator('td[data-key="health"]')).to_have_text("3D gyro")
     expect(rows.nth(1).locator('td[data-key="health"]')).to_have_class("cell-bad")
-    # Link quality: the loss of the last seconds and the latency, red from 10 %.
-    expect(rows.nth(0).locator('td[data-key="link_quality"]')).to_have_text("0.0 % · 3 ms")
+    # Link quality: the loss of the last seconds (latency and the rest in its title), red from
+    # 10 %.
+    expect(rows.nth(0).locator('td[data-key="link_quality"]')).to_have_text("0.0 %")
     expect(rows.nth(0).locator('td[data-key="link_quality"]')).to_have_class("cell-ok")
-    expect(rows.nth(1).locator('td[data-key="link_quality"]')).to_have_text("12 % · 35 ms")
+    expect(rows.nth(1).locator('td[data-key="link_quality"]')).to_have_text("12 %")
     expect(rows.nth(1).locator('td[data-key="link_quality"]')).to_have_class("cell-bad")
     expect(rows.nth(1).locator('td[data-key="link_quality"]')).to_have_attribute(
-        "title", "loss 12 % over the last 5 s (110 of 910 in all), 4 reordered, 1 duplicates, "
-                 "jitter 6.2 ms")
+        "title", "loss 12 % over the last 5 s (110 of 910 in all), latency 35 ms, 4 reordered, "
+                 "1 duplicates, jitter 6.2 ms")
 
     # Geodetic reference: the workspace corners' coordinates (checked against gcs.frames'
     # exact ECEF conversion), a north arrow and a scale bar.
