@@ -23,10 +23,9 @@ from planner.methods.portfolio import AUTO_TABLE
 from planner.methods.stages import Context, TableResult, run_table, table_for
 from planner.model.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.model.scenario import METHODS, Scenario
-from planner.options import PlanningOptions
+from planner.options import PlanningOptions, ScpOptions
 from planner.result import Attempt, IterationRecord, Outcome, Plan, PlanStatus, VehicleTrajectory
 from planner.scp.first_qp import straight_moves, timed_first_qp
-from planner.scp.loop import ScpOptions
 from planner.scp.solvers import make_solver
 from planner.types import FloatArray
 

@@ -36,9 +36,9 @@ from planner.errors import PlannerError
 from planner.model.fixed import FixedTrajectory
 from planner.model.from_state import scenario_from_state
 from planner.model.scenario import RANGES, Scenario, minimum_transfer_time
+from planner.options import ScpOptions
 from planner.planning import plan
 from planner.result import Plan
-from planner.scp.loop import ScpOptions
 from planner.types import FloatArray, IntArray
 
 __all__ = ["LandingError", "LandingPlan", "first_step_clearance", "plan_landing",

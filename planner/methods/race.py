@@ -68,7 +68,11 @@ def race(arms: Sequence[Arm], accept: Callable[[Any], bool],
     waiting = selectors.DefaultSelector()  # epoll: any fd number (select stops at 1024)
     try:
         for index, (name, fn) in enumerate(arms):
-            child = _spawn(name, fn, index, pools)
+            try:
+                child = _spawn(name, fn, index, pools)
+            except OSError as exc:  # no process or pipe to be had: this arm cannot run
+                results[index].error = f"could not start: {exc}"
+                continue
             children[child.fd] = child
             waiting.register(child.fd, selectors.EVENT_READ)
         while children:
@@ -133,9 +137,14 @@ def _spawn(name: str, fn: Callable[[Callable[[Any], None]], Any], index: int, po
     gets its pid and the pipe's read end."""
     read, write = os.pipe()
     parent = os.getpid()
-    with warnings.catch_warnings():  # Python >= 3.12 warns about forking with threads
-        warnings.simplefilter("ignore", DeprecationWarning)
-        pid = os.fork()
+    try:
+        with warnings.catch_warnings():  # Python >= 3.12 warns about forking with threads
+            warnings.simplefilter("ignore", DeprecationWarning)
+            pid = os.fork()
+    except OSError:
+        os.close(read)
+        os.close(write)
+        raise
     if pid == 0:  # the child: never returns
         os.close(read)
         _child(fn, write, parent, pools)

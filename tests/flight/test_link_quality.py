@@ -158,6 +158,23 @@ def test_a_reboot_is_named_as_a_reboot() -> None:
     assert tel.quality.counter.restarts == 1
 
 
+def test_a_non_finite_position_that_arrived_is_not_counted_lost() -> None:
+    """A LOCAL_POSITION_NED with NaN is refused as a position, but it arrived: its
+    sequence number fills its place, so it is not a gap."""
+    link = VehicleLink("uav1", Endpoint("udpin:127.0.0.1:9"), 1)
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    for k in range(3):
+        link._handle(_position(mav, 1_000 + 20 * k), 0.02 * k)
+    bad = mav.local_position_ned_encode(1_060, float("nan"), 0.0, -1.0, 0.0, 0.0, 0.0)
+    bad.pack(mav)
+    mav.seq = (mav.seq + 1) & 0xFF
+    link._handle(bad, 0.06)
+    link._handle(_position(mav, 1_080), 0.08)
+    report = link.telemetry.quality.report()
+    assert link.telemetry.invalid_estimates == 1
+    assert (report["received"], report["lost"]) == (5, 0)
+
+
 def test_telemetry_reports_the_figures() -> None:
     tel = Telemetry()
     for seq in [0, 1, 3, 2, 2, 5]:

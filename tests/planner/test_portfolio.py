@@ -97,6 +97,28 @@ def test_an_arm_that_raises_or_dies_reports_why() -> None:
     assert all(r.value is None and not r.cancelled for r in results)
 
 
+def test_an_arm_that_cannot_start_is_reported_and_leaves_no_descriptor(monkeypatch) -> None:
+    """A fork refused (no process to be had) fails that arm only, and closes its pipe."""
+    import os
+
+    import planner.methods.race as race_module
+
+    real_fork, forks = os.fork, []
+
+    def fork() -> int:
+        forks.append(1)
+        if len(forks) == 1:
+            raise OSError(11, "Resource temporarily unavailable")
+        return real_fork()
+
+    monkeypatch.setattr(race_module.os, "fork", fork)
+    before = sorted(os.listdir("/proc/self/fd"))
+    results = race([("refused", lambda send: 1), ("started", lambda send: 2)], lambda v: True)
+    assert results[0].error == "could not start: [Errno 11] Resource temporarily unavailable"
+    assert results[0].value is None and results[1].value == 2
+    assert sorted(os.listdir("/proc/self/fd")) == before
+
+
 def test_progress_is_forwarded_in_order_labelled_by_arm() -> None:
     def counts(send: Any) -> str:
         for n in range(5):

@@ -143,15 +143,15 @@ class Telemetry:
         passed on: a non-finite position, or a STATUSTEXT chunk before its text is whole."""
         kind = msg.get_type()
         self.message_time = now
+        from_autopilot = msg.get_srcComponent() == autopilot_component
+        if from_autopilot:  # every packet that arrived counts, a non-finite one too
+            self.count_sequence(msg.get_seq(), now)
         if kind == "LOCAL_POSITION_NED" and not all(map(math.isfinite, (
                 msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz))):
             # Proof of life, but not a position: never stored, never passed on.
             self.invalid_estimate_time = now
             self.invalid_estimates += 1
             return False
-        from_autopilot = msg.get_srcComponent() == autopilot_component
-        if from_autopilot:
-            self.count_sequence(msg.get_seq())
         if kind == "HEARTBEAT":
             if from_autopilot:
                 self._heartbeat(msg, now)

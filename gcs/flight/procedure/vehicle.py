@@ -115,7 +115,7 @@ class VehicleStatus:
     """Why it was dropped (the replan's reason: an operator's, or its fault)."""
     failsafe: px4.OffboardLossFailsafe = field(default_factory=px4.OffboardLossFailsafe)
     """What it does on its own once setpoints stop (PX4's defaults until read from it:
-    `gcs.flight.failsafe`)."""
+    `gcs.flight.procedure.failsafe`)."""
 
     @property
     def id(self) -> str:

@@ -259,6 +259,7 @@ class FlightExecutor:
             raise aborting_refusal("resume", self._abort[0])
         if self.clock.pause is None:
             raise StateConflict("status", f"not paused (phase {self.phase})")
+        self._silence_pause = False  # whoever resumes, the pause a silence made is over
         streamer = self._streamer()
         tick = streamer.next_tick()
         pause, paused = self.clock.restart(tick)
@@ -419,6 +420,10 @@ class FlightExecutor:
                     self.phase = (FlightPhase.ABORTED if isinstance(exc, FlightAborted)
                                   else FlightPhase.FAILED)
                     self._emit(None, EventKind.ERROR, f"{type(exc).__name__}: {exc}")
+                    if self._abort is None:  # the landing an error starts is the abort in
+                        # force: a hold loses to it, and the clock no longer waits on a pause
+                        self._abort = ("land", f"{type(exc).__name__}: {exc}")
+                        self._end_pause()
                     await asyncio.shield(self._make_safe())
                     raise
                 finally:

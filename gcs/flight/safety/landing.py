@@ -1,8 +1,8 @@
 """Flying a landing plan: the planned, checked way down when a flight is stopped with `land`.
 
-An abort with `land` (operator, Ctrl-C, the service stopping, a fault policy) used to send
-every vehicle straight down with PX4's Land where it was, which can bring two vehicles
-stacked above each other closer than R. `PlannedLanding.run` instead:
+An abort with `land` (operator, Ctrl-C, the service stopping, a fault policy) does not send
+every vehicle straight down with PX4's Land where it is, which can bring two vehicles
+stacked above each other closer than R. `PlannedLanding.run`:
 
 1. picks a switch tick `landing_plan_timeout` ahead, and every steerable vehicle's state at
    that tick: the setpoint its stream would send then (the plan's exact state, or its pause

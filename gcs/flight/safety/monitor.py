@@ -258,6 +258,7 @@ class FleetMonitor:
         trail = self.stalls.ended_since(now - CATCH_UP_S)
         for v in self.vehicles:
             if v.link is None or not v.expect_offboard or v.fault is not None:
+                self.silent.discard(v.id)  # a faulty vehicle is its fault's business now
                 continue
             self._silence(v, now)
             fault = vehicle_fault(v.link, opts, now, self.stalls)
