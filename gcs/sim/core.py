@@ -159,9 +159,9 @@ class VehicleCore:
         """Mock time (s since boot)."""
         return self.context.clock()
 
-    def event(self, what: str) -> None:
-        """Record that `what` happened now (`events`)."""
-        self.events.append((self.now(), what))
+    def event(self, what: str, at: float | None = None) -> None:
+        """Record that `what` happened at `at` (the clock's tick that decided it), else now."""
+        self.events.append((self.now() if at is None else at, what))
 
     def record_error(self, doing: str) -> None:
         """Count an exception caught while `doing` something; log the first ones in full."""
@@ -234,12 +234,12 @@ class VehicleCore:
             self.set_mode(px4.POSITION)
             self.failsafe = True
             self._failsafe_since = now
-            self.event("failsafe: offboard loss")
+            self.event("failsafe: offboard loss", now)
         if (self.failsafe and self._failsafe_since is not None
                 and now - self._failsafe_since >= cfg.failsafe_action_delay):
             self._failsafe_since = None
             if self.in_air:
-                self._failsafe_action()
+                self._failsafe_action(now)
         if self.armed:
             automodes.tick(self, now)
         if not self.armed:
@@ -260,10 +260,10 @@ class VehicleCore:
         elif 0 <= cfg.disarm_preflight <= now - self._armed_time:
             self.disarm("auto preflight disarming")
 
-    def _failsafe_action(self) -> None:
+    def _failsafe_action(self, now: float) -> None:
         """The offboard-loss failsafe's action once its delay is over (COM_OBL_RC_ACT)."""
         action = px4.OffboardLossFailsafe(action=int(self.config.offboard_loss_action)).effective
-        self.event(f"failsafe: {action}")
+        self.event(f"failsafe: {action}", now)
         if action in ("Terminate", "Disarm"):
             self.statustext(mavlink.MAV_SEVERITY_EMERGENCY, f"Failsafe: {action.lower()}")
             self.terminated = action == "Terminate"

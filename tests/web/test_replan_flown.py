@@ -100,8 +100,11 @@ def test_a_goal_dragged_and_a_vehicle_dropped_are_flown(
     expect(page.locator('#fly-view circle.goal-marker[data-id="d"]')).to_have_count(0)
     # The new plan drawn: b's path ends at its new goal, and so does its marker.
     want = (PAD + NEW_GOAL[0] * SCALE, VIEW - PAD - NEW_GOAL[1] * SCALE)
-    expect(page.locator('#fly-view circle.goal-marker[data-id="b"]')).to_have_attribute(
-        "cx", re.compile(rf"^{int(want[0])}\."))
+    # The status comes with the snapshot; the plans flown are fetched after it (and b's new
+    # goal keeps its old x), so both coordinates are waited for.
+    marker = page.locator('#fly-view circle.goal-marker[data-id="b"]')
+    expect(marker).to_have_attribute("cy", re.compile(rf"^{int(want[1])}\."), timeout=30_000)
+    expect(marker).to_have_attribute("cx", re.compile(rf"^{int(want[0])}\."))
     x, y = _last_point(page, "b")
     assert abs(x - want[0]) < 1 and abs(y - want[1]) < 1, (x, y, want)
 
