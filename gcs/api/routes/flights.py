@@ -295,7 +295,7 @@ async def fly_mission(
     summary="A mission's flights",
     responses=error_responses(404),
 )
-def mission_flights(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict]:
+def mission_flights(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict[str, Any]]:
     return [_document(r, fleet.flight(r.id)) for r in store.list_flights(mission.id)]
 
 
