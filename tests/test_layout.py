@@ -25,7 +25,8 @@ Imports only run downward (docs/development/architecture.md, README "Architectur
 - `gcs/export/` (plans written in other tools' formats) imports neither the vehicle side
   (`gcs.flight`, `gcs.fleet`, `gcs.sim`) nor the service, the API or the CLI, which call it;
 - the shared bottom layer (`gcs/frames.py`, `gcs/px4.py`, `gcs/wire.py`, `gcs/errors.py`,
-  `gcs/phases.py`: the flight's vocabulary) imports no other part of `gcs`; `gcs/geofence.py`
+  `gcs/phases.py`: the flight's vocabulary, `gcs/documents.py`: the typed shapes of its
+  events, snapshot and replan objects) imports no other part of `gcs`; `gcs/geofence.py`
   (the fence's numbers, shared by the flight and the API) and `gcs/replan_request.py` (a replan
   request's body, shared by the API and the CLI) import only that layer.
 
@@ -72,6 +73,7 @@ RULES: dict[str, tuple[str, ...]] = {
     "gcs/wire.py": _ABOVE_GCS,
     "gcs/errors.py": _ABOVE_GCS,
     "gcs/phases.py": _ABOVE_GCS,
+    "gcs/documents.py": _ABOVE_GCS,
     "gcs/geofence.py": _ABOVE_GCS,
     "gcs/replan_request.py": _ABOVE_GCS,
 }

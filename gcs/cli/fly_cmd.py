@@ -23,6 +23,7 @@ from gcs.cli import mock_timings
 if TYPE_CHECKING:
     import asyncio
 
+    from gcs.documents import FlightEvent
     from gcs.flight.host.flight_handle import FlightHandle
 
 __all__ = ["configure", "run"]
@@ -156,9 +157,9 @@ def run(args: argparse.Namespace) -> int:
 
     async def fly(vehicles: VehicleLoop) -> int:
         mock = None
-        events: asyncio.Queue[dict[str, Any] | None] = asyncio.Queue()
+        events: asyncio.Queue[FlightEvent | None] = asyncio.Queue()
 
-        def on_event(event: dict[str, Any]) -> None:
+        def on_event(event: FlightEvent) -> None:
             """Warnings to stderr at once (even with --quiet), every event to the printer."""
             warning = live_warning(event, ports)
             if warning is not None:
@@ -277,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
     return asyncio.run(main())
 
 
-async def _progress(handle: FlightHandle, events: asyncio.Queue[dict[str, Any] | None]
+async def _progress(handle: FlightHandle, events: asyncio.Queue[FlightEvent | None]
                     ) -> None:
     """Events as they happen (from `events`, the queue the flight hands them to), and the
     status table (`gcs.cli.fly_status`): redrawn in place on a terminal, printed every 5 s

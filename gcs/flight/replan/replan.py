@@ -39,14 +39,16 @@ from typing import Any
 import numpy as np
 
 from gcs import frames
+from gcs.documents import ReplanDocument
 from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, plan_tracks, spliced
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.replan.record import ReplanRecord, Switch
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
-from gcs.phases import AIRBORNE, EventKind, ReplanStatus, VehiclePhase
+from gcs.phases import AIRBORNE, EventKind, VehiclePhase
 from gcs.tasks import TaskSet
 from planner.methods.replan import Replan, ReplanError, check_goals, plan_replan
 from planner.model.fixed import FixedTrajectory, braking_motion, dropped_motion, landing_motion
@@ -91,8 +93,7 @@ POLL_S = 0.02
 class Job:
     """One replan under way."""
 
-    obj: dict[str, Any]
-    """The replan object (JSON-ready), as the API shows it."""
+    record: ReplanRecord
     tick: int
     """Streamer tick of the switch."""
     plan_tick: int
@@ -147,8 +148,8 @@ class Replanner:
             vid: np.asarray(g, dtype=float)
             for vid, g in zip(base.ids, base.assigned_goals, strict=True)}
         """Every vehicle's current goal (world frame)."""
-        self.records: list[dict[str, Any]] = []
-        """Every replan object of the flight, in order."""
+        self.records: list[ReplanRecord] = []
+        """Every replan of the flight, in order."""
         self.flown_plans: dict[int, dict[str, Any]] = {}
         """Per switched replan id: its plan document and switch instant (for the record)."""
         self.landings: list[asyncio.Future[None]] = []
@@ -162,9 +163,13 @@ class Replanner:
     # ------------------------------------------------------------------ state
 
     @property
-    def current(self) -> dict[str, Any] | None:
+    def current(self) -> ReplanDocument | None:
         """The running replan object, or the last one (None before any)."""
-        return self.records[-1] if self.records else None
+        return self.records[-1].document() if self.records else None
+
+    def documents(self) -> list[ReplanDocument]:
+        """Every replan object of the flight, in order."""
+        return [r.document() for r in self.records]
 
     @property
     def busy(self) -> bool:
@@ -194,7 +199,7 @@ class Replanner:
     def request(self, goals: Mapping[str, Sequence[float]] | None = None,
                 drop: Sequence[str] = (), drop_action: str = "land",
                 reason: str | None = "operator", *,
-                faulty: Sequence[VehicleStatus] = ()) -> dict[str, Any]:
+                faulty: Sequence[VehicleStatus] = ()) -> ReplanDocument:
         """Start a replan; returns its object (status planning). `faulty`: vehicles that
         faulted and land on their own motion (policy replan): a replan for them calls off
         the one under way instead of being refused. Raises `StateConflict` while another
@@ -219,7 +224,7 @@ class Replanner:
 
     def _start(self, goals: Mapping[str, Sequence[float]] | None, drop: Sequence[str],
                drop_action: str, reason: str | None, faulty: Sequence[VehicleStatus]
-               ) -> dict[str, Any]:
+               ) -> ReplanDocument:
         """`request` once it may start: check the fields, pick the switch tick and the
         states there, start planning."""
         if drop_action not in DROP_ACTIONS:
@@ -251,30 +256,27 @@ class Replanner:
                   for v in self._off_plan(steer + dropped)]
         goal_array = np.array([new_goals.get(v.id, self.goals[v.id]) for v in steer])
         now = self.clock.flight_time()
-        obj: dict[str, Any] = {
-            "id": len(self.records) + 1, "status": ReplanStatus.PLANNING.value,
-            "requested_at": None if now is None else round(now, 3),
-            "switch_time": round(t_switch, 4), "switch_tick": tick,
-            "lead_s": round(lead, 3), "planning_s": None,
-            "goals": {vid: [float(c) for c in g] for vid, g in new_goals.items()},
-            "drop": [v.id for v in dropped], "drop_action": drop_action, "reason": reason,
-            "vehicles": [v.id for v in steer], "fixed": [f.id for f in fixed],
-            "faulty": [v.id for v in faulty], "why": None, "horizon": None,
-        }
-        job = Job(obj, tick, plan_tick, steer, goal_array, dropped, drop_action, drops,
+        record = ReplanRecord(
+            id=len(self.records) + 1, requested_at=None if now is None else round(now, 3),
+            switch_time=round(t_switch, 4), switch_tick=tick, lead_s=round(lead, 3),
+            goals={vid: [float(c) for c in g] for vid, g in new_goals.items()},
+            drop=[v.id for v in dropped], drop_action=drop_action, reason=reason,
+            vehicles=[v.id for v in steer], fixed=[f.id for f in fixed],
+            faulty=[v.id for v in faulty])
+        job = Job(record, tick, plan_tick, steer, goal_array, dropped, drop_action, drops,
                   list(faulty))
-        self.records.append(obj)
+        self.records.append(record)
         self.job = job
-        self.emit(None, EventKind.REPLAN_STARTED, _started_text(obj))
+        self.emit(None, EventKind.REPLAN_STARTED, _started_text(record))
         self._thread = asyncio.ensure_future(asyncio.to_thread(
             plan_replan, self.base, [v.id for v in steer], positions, velocities,
             accelerations, goal_array, fixed=fixed,
             deadline=time.perf_counter() + max(0.0, streamer.tick_time(tick)
                                                - time.monotonic())))
         began = time.perf_counter()
-        self._thread.add_done_callback(lambda fut: self._planned(obj, fut, began))
+        self._thread.add_done_callback(lambda fut: self._planned(record, fut, began))
         self.tasks.spawn(self._run(job, self._thread))
-        return dict(obj)
+        return record.document()
 
     def _dropped(self, drop: Sequence[str], by_id: Mapping[str, VehicleStatus],
                  steer: list[VehicleStatus]) -> list[VehicleStatus]:
@@ -382,12 +384,12 @@ class Replanner:
 
     # ------------------------------------------------------------------ planning
 
-    def _planned(self, obj: dict[str, Any], fut: asyncio.Future[Replan], began: float
+    def _planned(self, record: ReplanRecord, fut: asyncio.Future[Replan], began: float
                  ) -> None:
         """The planning thread ended (in time or not): its planning time, as the flight
         saw it (what the next lead must cover)."""
         seconds = time.perf_counter() - began
-        obj["planning_s"] = round(seconds, 4)
+        record.planning_s = round(seconds, 4)
         if not fut.cancelled() and fut.exception() is None:
             self._last_planning = seconds
 
@@ -399,7 +401,7 @@ class Replanner:
         if self.job is not job:
             return  # called off meanwhile
         if not thread.done():
-            self._miss(job, f"no verified plan within the {job.obj['lead_s']:g} s lead "
+            self._miss(job, f"no verified plan within the {job.record.lead_s:g} s lead "
                             f"(still planning)")
             return
         error = thread.exception()
@@ -467,7 +469,7 @@ class Replanner:
                 v.phase = VehiclePhase.FLYING  # back on its way
         for v in job.drop:
             self.flown.motions[v.id] = job.drops[v.id]
-            v.dropped, v.drop_reason = job.action, job.obj["reason"]
+            v.dropped, v.drop_reason = job.action, job.record.reason
             if job.action == "land":
                 v.phase = VehiclePhase.LANDING
                 self.landings.append(self.tasks.spawn(
@@ -477,19 +479,19 @@ class Replanner:
         for v in job.faulty:
             v.dropped, v.drop_reason = "land", f"fault {v.fault}"
         verification = plan.verification
-        job.obj.update(
-            status=ReplanStatus.SWITCHED.value, horizon=round(plan.scenario.horizon, 3),
+        job.record.switched(Switch(
+            horizon=round(plan.scenario.horizon, 3),
             request_to_switch_s=round(self.clock.tick_time(job.tick) + self.clock.t0
                                       - job.requested, 3),
             min_separation_planned=None if verification is None
             else verification.min_separation_continuous,
-            separation_kept=round(result.separation, 4))
-        self.flown_plans[job.obj["id"]] = {
+            separation_kept=round(result.separation, 4)))
+        self.flown_plans[job.record.id] = {
             "plan": plan.to_dict(),
             "switch_gcs": self.clock.tick_time(job.tick),
         }
         self.emit(None, EventKind.REPLAN_SWITCHED, (
-            f"replan {job.obj['id']}: {len(job.steer)} vehicle(s) on a verified plan from "
+            f"replan {job.record.id}: {len(job.steer)} vehicle(s) on a verified plan from "
             f"t={t_switch:.2f} s (tick {job.tick}), {plan.scenario.horizon:.1f} s to the "
             f"goals, planned in {result.seconds:.3f} s"
             + (f"; {', '.join(v.id for v in job.drop)} {job.action} on their own motion"
@@ -502,8 +504,8 @@ class Replanner:
             self.job = None
         for vid in job.switches:
             self.streamer.cancel_switch(vid)
-        job.obj.update(status=ReplanStatus.MISSED.value, why=why)
-        self.emit(None, EventKind.REPLAN_MISSED, f"replan {job.obj['id']}: {why}; the "
+        job.record.missed(why)
+        self.emit(None, EventKind.REPLAN_MISSED, f"replan {job.record.id}: {why}; the "
                                                  f"flight goes on with its plan")
         if job.faulty and fallback:
             self.on_missed(job.faulty, why)
@@ -627,14 +629,14 @@ def _state(v: VehicleStatus) -> str:
     return f"phase {v.phase}"
 
 
-def _started_text(obj: dict[str, Any]) -> str:
-    parts = [f"replan {obj['id']} ({obj['reason'] or 'no reason given'}): switch at "
-             f"t={obj['switch_time']:.2f} s ({obj['lead_s']:g} s lead)",
-             f"{len(obj['vehicles'])} vehicle(s) planned"]
-    if obj["goals"]:
-        parts.append("new goals for " + ", ".join(obj["goals"]))
-    if obj["drop"]:
-        parts.append(f"dropping {', '.join(obj['drop'])} ({obj['drop_action']})")
-    if obj["fixed"]:
-        parts.append(f"around {', '.join(obj['fixed'])}")
+def _started_text(record: ReplanRecord) -> str:
+    parts = [f"replan {record.id} ({record.reason or 'no reason given'}): switch at "
+             f"t={record.switch_time:.2f} s ({record.lead_s:g} s lead)",
+             f"{len(record.vehicles)} vehicle(s) planned"]
+    if record.goals:
+        parts.append("new goals for " + ", ".join(record.goals))
+    if record.drop:
+        parts.append(f"dropping {', '.join(record.drop)} ({record.drop_action})")
+    if record.fixed:
+        parts.append(f"around {', '.join(record.fixed)}")
     return "; ".join(parts)
