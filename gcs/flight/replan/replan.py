@@ -49,19 +49,17 @@ from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
+from gcs.replan_request import check_entries
 from gcs.tasks import TaskSet
 from planner.methods.replan import Replan, ReplanError, check_goals, plan_replan
 from planner.model.fixed import FixedTrajectory, braking_motion, dropped_motion, landing_motion
 from planner.model.scenario import Scenario
 from planner.types import FloatArray
 
-__all__ = ["BRAKING_DECELERATION", "DROP_ACTIONS", "FAULT_MARGIN", "LEAD_FACTOR",
-           "UNHEARD_GROWTH", "UNHEARD_MARGIN", "Replanner", "predicted_landing", "stream_motion",
-           "unheard_margin"]
+__all__ = ["BRAKING_DECELERATION", "FAULT_MARGIN", "LEAD_FACTOR", "UNHEARD_GROWTH",
+           "UNHEARD_MARGIN", "Replanner", "braking_deceleration", "predicted_landing",
+           "stream_motion", "unheard_margin"]
 
-#: What a dropped vehicle does: land (streamed down to the landing height, then PX4's Land)
-#: or hold (streamed to a stop and held there).
-DROP_ACTIONS = ("land", "hold")
 #: The lead is at least this many times the flight's last replan's planning time.
 LEAD_FACTOR = 1.5
 #: Ticks kept free between the plan being ready and its switch tick (to build the tracks).
@@ -227,9 +225,7 @@ class Replanner:
                ) -> ReplanDocument:
         """`request` once it may start: check the fields, pick the switch tick and the
         states there, start planning."""
-        if drop_action not in DROP_ACTIONS:
-            raise InvalidRequest("drop_action", f"must be one of {', '.join(DROP_ACTIONS)}, "
-                                                f"got {drop_action!r}")
+        check_entries(goals, drop, drop_action)
         by_id = {v.id: v for v in self.vehicles}
         steer = [v for v in self.vehicles if self.steered(v)]
         dropped = self._dropped(drop, by_id, steer)
@@ -237,7 +233,7 @@ class Replanner:
         if not steer:
             raise InvalidRequest("drop", "would leave no vehicle on the plan: abort the "
                                          "flight instead")
-        new_goals = self._goals(goals or {}, by_id, steer, dropped)
+        new_goals = self._goals(goals or {}, by_id, steer)
         streamer = self.streamer
         rate = streamer.rate
         lead = self.lead()
@@ -280,32 +276,23 @@ class Replanner:
 
     def _dropped(self, drop: Sequence[str], by_id: Mapping[str, VehicleStatus],
                  steer: list[VehicleStatus]) -> list[VehicleStatus]:
-        if isinstance(drop, str):
-            raise InvalidRequest("drop", "must be a list of vehicle ids")
         out: list[VehicleStatus] = []
         for n, vid in enumerate(drop):
             where = f"drop[{n}]"
-            v = by_id.get(vid) if isinstance(vid, str) else None
+            v = by_id.get(vid)
             if v is None:
                 raise InvalidRequest(where, f"no vehicle {vid!r} in this flight")
-            if v in out:
-                raise InvalidRequest(where, f"{vid!r} is named twice")
             if v not in steer:
                 raise InvalidRequest(where, f"{vid!r} does not fly the plan ({_state(v)})")
             out.append(v)
         return out
 
     def _goals(self, goals: Mapping[str, Sequence[float]], by_id: Mapping[str, VehicleStatus],
-               steer: list[VehicleStatus], dropped: list[VehicleStatus]
-               ) -> dict[str, FloatArray]:
-        if not isinstance(goals, Mapping):
-            raise InvalidRequest("goals", "must be an object {vehicle id: [x, y, z]}")
+               steer: list[VehicleStatus]) -> dict[str, FloatArray]:
         for vid in goals:
             v = by_id.get(vid)
             if v is None:
                 raise InvalidRequest(f"goals.{vid}", f"no vehicle {vid!r} in this flight")
-            if v in dropped:
-                raise InvalidRequest(f"goals.{vid}", f"{vid!r} is dropped by this replan")
             if v not in steer:
                 raise InvalidRequest(f"goals.{vid}", f"{vid!r} does not fly the plan "
                                                      f"({_state(v)})")
@@ -325,19 +312,13 @@ class Replanner:
                 frames.ned_vector_to_world(sp.velocity),
                 frames.ned_vector_to_world(sp.acceleration))
 
-    def _deceleration(self) -> float:
-        lim = self.base.limits.acceleration_max
-        return BRAKING_DECELERATION if lim is None else min(BRAKING_DECELERATION,
-                                                           float(np.min(lim[:2])))
-
     def _drop_motion(self, v: VehicleStatus, plan_tick: int, action: str) -> FixedTrajectory:
         p, vel, acc = self._setpoint_state(v, plan_tick)
         lim = self.base.limits
         floor = float(lim.position_min[2]) + self.options.landing_height
         return dropped_motion(v.id, p, vel, acc, self.base.dt, action,
-                              deceleration=self._deceleration(),
-                              hardest=(BRAKING_DECELERATION if lim.acceleration_max is None
-                                       else float(np.min(lim.acceleration_max[:2]))),
+                              deceleration=braking_deceleration(self.base),
+                              hardest=_hardest_braking(self.base),
                               low=lim.position_min, high=lim.position_max,
                               descent_speed=self.options.land_speed,
                               floor=min(floor, float(p[2])))
@@ -586,9 +567,7 @@ def predicted_landing(v: VehicleStatus, base: Scenario, options: FlightOptions,
         return None
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))):
         return None
-    lim = base.limits.acceleration_max
-    deceleration = (BRAKING_DECELERATION if lim is None
-                    else min(BRAKING_DECELERATION, float(np.min(lim[:2]))))
+    deceleration = braking_deceleration(base)
     ground = max(float(base.limits.position_min[2]), float(v.home[2]))
     floor = min(ground, float(position[2]))
     if not unheard:
@@ -614,6 +593,19 @@ def predicted_landing(v: VehicleStatus, base: Scenario, options: FlightOptions,
     trajectory = FixedTrajectory(v.id, np.concatenate([on_p[:-1], then.positions]),
                                  np.concatenate([on_v[:-1], then.velocities]), margin)
     return Motion(at, trajectory, dt, False)
+
+
+def braking_deceleration(base: Scenario) -> float:
+    """The deceleration of the predicted and streamed stops (m/s^2): `BRAKING_DECELERATION`,
+    at most the scenario's horizontal acceleration bound."""
+    return min(BRAKING_DECELERATION, _hardest_braking(base))
+
+
+def _hardest_braking(base: Scenario) -> float:
+    """The hardest horizontal braking the scenario allows (m/s^2; `BRAKING_DECELERATION`
+    when it has no acceleration bound)."""
+    lim = base.limits.acceleration_max
+    return BRAKING_DECELERATION if lim is None else float(np.min(lim[:2]))
 
 
 def unheard_margin(age: float) -> float:
