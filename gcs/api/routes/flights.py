@@ -420,32 +420,30 @@ async def abort_flight(
     return _document(row, flight)
 
 
-@router.post(
-    "/{flight_id}/pause",
-    response_model=FlightOut,
-    summary="Pause a flight: the flight clock stops, every vehicle holds",
-    responses=error_responses(404, 409),
-)
-async def pause_flight(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
-    """Every vehicle flying the plan holds the plan's setpoint of the same plan time, so the
-    fleet stays as separated as the plan is at that instant (status `paused`). After the
-    fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the
-    flight ends aborted. 409 unless the plan is being flown."""
-    flight = await fleet.pause(row.id, stored_status=row.status)
-    return _document(row, flight)
+def _clock_route(pause: bool, summary: str, description: str) -> None:
+    """POST /{flight_id}/pause or /resume: the flight's clock stopped or restarted
+    (`FleetService.pause` / `resume`), its document in the answer."""
+    command = "pause" if pause else "resume"
+
+    async def set_clock(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
+        change = fleet.pause if pause else fleet.resume
+        return _document(row, await change(row.id, stored_status=row.status))
+
+    router.post(f"/{{flight_id}}/{command}", name=f"{command}_flight", response_model=FlightOut,
+                summary=summary, description=description,
+                responses=error_responses(404, 409))(set_clock)
 
 
-@router.post(
-    "/{flight_id}/resume",
-    response_model=FlightOut,
-    summary="Resume a paused flight from where its flight clock stopped",
-    responses=error_responses(404, 409),
-)
-async def resume_flight(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
-    """The flight clock runs again from the plan time it stopped at (status `running`).
-    409 unless paused."""
-    flight = await fleet.resume(row.id, stored_status=row.status)
-    return _document(row, flight)
+_clock_route(
+    True, "Pause a flight: the flight clock stops, every vehicle holds",
+    "Every vehicle flying the plan holds the plan's setpoint of the same plan time, so the "
+    "fleet stays as separated as the plan is at that instant (status `paused`). After the "
+    "fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the "
+    "flight ends aborted. 409 unless the plan is being flown.")
+_clock_route(
+    False, "Resume a paused flight from where its flight clock stopped",
+    "The flight clock runs again from the plan time it stopped at (status `running`). 409 "
+    "unless paused.")
 
 
 @router.post(
