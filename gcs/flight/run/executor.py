@@ -350,6 +350,12 @@ class FlightExecutor:
         return [] if self._replanner is None else self._replanner.documents()
 
     @property
+    def replan_lead(self) -> float | None:
+        """Seconds from a replan request to its switch now (`gcs.flight.replan.replan`:
+        `replan_lead_s`, or longer after a slow replan); None until the plan is flown."""
+        return None if self._replanner is None else self._replanner.lead()
+
+    @property
     def current_plan(self) -> Plan:
         """The plan the fleet flies now: the first, or the last switched replan's (its
         time 0 is ``flown.current.start`` in flight time)."""
@@ -786,12 +792,8 @@ class FlightExecutor:
             # Freeze every stream where it is, so nothing moves on along the plan meanwhile.
             # (An abort can come before run() made the streamer: then nothing streams, and
             # `secure` skips the vehicles, none of which has a link yet.)
-            streamer = self.streamer
-            if streamer is not None:
-                for vid, assignment in list(streamer.assignments.items()):
-                    if assignment.last is not None:
-                        streamer.assign(vid, assignment.link, hold_track(
-                            assignment.last.position, assignment.last.yaw, streamer.rate))
+            if self.streamer is not None:
+                self.streamer.freeze()
             await asyncio.gather(
                 *(vehicle.secure(v, action, self.options, self._emit, self._stop_stream,
                                  self.stalls)
