@@ -18,7 +18,7 @@
   - `PlanRejected`: the plan may not be flown (not converged, or its verification failed).
   - `ExportError` (also a `FieldError`): a plan cannot be written in the asked format (a step
     the format cannot time), or an export option is invalid; `field` names which.
-  - `FlightAborted` (alias `MissionAborted`): the flight stopped before completing (abort(),
+  - `FlightAborted`: the flight stopped before completing (abort(),
     a fault policy, Ctrl-C); `reason` says why. The vehicles were sent to hold or land
     before this is raised.
   - `RequestError` (also a `FieldError`): the service cannot carry out a request; `field` names
@@ -50,7 +50,6 @@ __all__ = [
     "GeofenceFailed",
     "InvalidRequest",
     "LinkError",
-    "MissionAborted",
     "ModeRefused",
     "NotFound",
     "PlanRejected",
@@ -162,11 +161,6 @@ class FlightAborted(GcsError):
     def __init__(self, reason: str) -> None:
         super().__init__(reason)
         self.reason = reason
-
-
-#: The name users' scripts know `FlightAborted` by: the same class, kept so that
-#: ``except MissionAborted`` goes on catching an aborted flight.
-MissionAborted = FlightAborted
 
 
 class RequestError(GcsError, FieldError):

@@ -65,7 +65,8 @@ def world_to_ned(p_world: ArrayLike, home_world: ArrayLike) -> FloatArray:
 
 def ned_to_world(p_ned: ArrayLike, home_world: ArrayLike) -> FloatArray:
     """A vehicle's LOCAL_NED positions back to the world frame (ENU)."""
-    return ned_vector_to_world(p_ned) + np.asarray(home_world, dtype=float)
+    world: FloatArray = ned_vector_to_world(p_ned) + np.asarray(home_world, dtype=float)
+    return world
 
 
 def world_yaw_to_ned(yaw_world: float) -> float:
@@ -86,13 +87,13 @@ def _wrap(angle: float) -> float:
 
 # ------------------------------------------------------------------------------ geodetic
 
-class Geodetic(tuple):
+class Geodetic(tuple[float, float, float]):
     """(lat, lon, alt): WGS84 latitude and longitude in degrees, altitude in metres (AMSL as
     PX4 reports it; only differences of altitude matter here)."""
 
     __slots__ = ()
 
-    def __new__(cls, lat: float, lon: float, alt: float):
+    def __new__(cls, lat: float, lon: float, alt: float) -> Geodetic:
         return super().__new__(cls, (float(lat), float(lon), float(alt)))
 
     @property

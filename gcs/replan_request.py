@@ -3,12 +3,14 @@ REST route (POST /api/executions/{id}/replan) and `fleetplan fly`'s control sock
 
 The body names new goals, vehicles to drop, or both. What only the flight can judge (the
 vehicle ids, each goal against the workspace, the obstacles and the other goals) is checked
-by `FlightExecutor.replan`; here the shape is: finite 3-vectors, bounded ids and counts, no
+by `FlightExecutor.replan`; here the shape is: finite 3-vectors, bounded ids and counts, and
+(`check_entries`, which the flight applies to every request too) a known drop action, no
 vehicle listed twice or both dropped and given a goal.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -16,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from gcs.errors import InvalidRequest, field_path
 
 __all__ = ["DROP_ACTIONS", "MAX_ENTRIES", "SERVICE_LIMIT", "DropAction", "GoalPoint",
-           "ReplanRequest", "VehicleId", "checked", "parse"]
+           "ReplanRequest", "VehicleId", "check_entries", "checked", "parse"]
 
 #: Most vehicles one replan names in `goals`, and in `drop`: a replan of more could not be
 #: planned within any lead (100 vehicles take about 2 s), and the body stays small.
@@ -73,15 +75,32 @@ def checked(request: ReplanRequest, max_vehicles: int, limit: str = SERVICE_LIMI
         if count > max_vehicles:
             raise InvalidRequest(name, f"{count} entries exceed "
                                        f"{limit.format(max=max_vehicles)}")
+    check_entries(goals, drop, request.drop_action)
+    return (dict(goals) if goals else None), drop
+
+
+def check_entries(goals: Mapping[str, Any] | None, drop: Sequence[str], drop_action: str
+                  ) -> None:
+    """A replan's entries against each other: `drop_action` one of `DROP_ACTIONS`, `drop` a
+    list naming each vehicle once, `goals` an object, no vehicle both dropped and given a
+    goal; InvalidRequest naming the field otherwise."""
+    if drop_action not in DROP_ACTIONS:
+        raise InvalidRequest("drop_action", f"must be one of {', '.join(DROP_ACTIONS)}, "
+                                            f"got {drop_action!r}")
+    if isinstance(drop, str):
+        raise InvalidRequest("drop", "must be a list of vehicle ids")
+    if goals is not None and not isinstance(goals, Mapping):
+        raise InvalidRequest("goals", "must be an object {vehicle id: [x, y, z]}")
     seen: set[str] = set()
     for n, vehicle in enumerate(drop):
+        if not isinstance(vehicle, str):
+            raise InvalidRequest(f"drop[{n}]", f"must be a vehicle id, got {vehicle!r}")
         if vehicle in seen:
             raise InvalidRequest(f"drop[{n}]", f"{vehicle!r} is listed twice")
         if goals and vehicle in goals:
             raise InvalidRequest(f"goals.{vehicle}", f"{vehicle!r} is dropped: it cannot be "
                                                      "given a goal too")
         seen.add(vehicle)
-    return (dict(goals) if goals else None), drop
 
 
 def parse(document: Any, max_vehicles: int, limit: str = SERVICE_LIMIT) -> ReplanRequest:

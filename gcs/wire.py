@@ -91,14 +91,15 @@ def result_name(result: int | None) -> str:
     entry = mavlink.enums["MAV_RESULT"].get(result)
     if entry is None or entry.name.endswith("_ENUM_END"):
         return f"MAV_RESULT {result}"
-    return entry.name.removeprefix("MAV_RESULT_")
+    name: str = entry.name  # pymavlink's enums carry no types
+    return name.removeprefix("MAV_RESULT_")
 
 
 def pack(msg: Any, mav: Any) -> bytes:
     """`msg` encoded by the pymavlink `mav` (and signed, if `mav` signs), advancing `mav`'s
     sequence number as pymavlink's own `send` does: `msg.pack` alone stamps every message with
     the same number, which a receiver counting gaps (link quality) reads as loss."""
-    buf = msg.pack(mav)
+    buf: bytes = msg.pack(mav)
     mav.seq = (mav.seq + 1) & 0xFF
     return buf
 

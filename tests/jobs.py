@@ -16,7 +16,7 @@ SAMPLE_S = 1.0
 MAX_JOBS = 3
 
 
-def _idle_fraction(sample_s: float = SAMPLE_S) -> float | None:
+def idle_fraction(sample_s: float = SAMPLE_S) -> float | None:
     """Share of all CPU time that was idle (idle + iowait) over `sample_s`, or None."""
     def read() -> tuple[int, int]:
         with open("/proc/stat") as stat:
@@ -47,4 +47,4 @@ def cores() -> int:
 
 
 if __name__ == "__main__":
-    print(jobs(cores(), _idle_fraction()))
+    print(jobs(cores(), idle_fraction()))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.jobs import _idle_fraction, jobs
+from tests.jobs import idle_fraction, jobs
 
 
 @pytest.mark.parametrize(("cores", "idle", "expected"), [
@@ -21,5 +21,5 @@ def test_one_per_core_and_one_more_only_when_idle(cores: int, idle: float | None
 
 
 def test_the_idle_share_is_a_fraction() -> None:
-    idle = _idle_fraction(0.05)
+    idle = idle_fraction(0.05)
     assert idle is None or 0.0 <= idle <= 1.0

@@ -25,7 +25,8 @@ Imports only run downward (docs/development/architecture.md, README "Architectur
 - `gcs/export/` (plans written in other tools' formats) imports neither the vehicle side
   (`gcs.flight`, `gcs.fleet`, `gcs.sim`) nor the service, the API or the CLI, which call it;
 - the shared bottom layer (`gcs/frames.py`, `gcs/px4.py`, `gcs/wire.py`, `gcs/errors.py`,
-  `gcs/phases.py`: the flight's vocabulary) imports no other part of `gcs`; `gcs/geofence.py`
+  `gcs/phases.py`: the flight's vocabulary, `gcs/documents.py`: the typed shapes of its
+  events, snapshot and replan objects) imports no other part of `gcs`; `gcs/geofence.py`
   (the fence's numbers, shared by the flight and the API) and `gcs/replan_request.py` (a replan
   request's body, shared by the API and the CLI) import only that layer.
 
@@ -33,6 +34,10 @@ And no module of `planner` or `gcs` imports, directly or through others, a modul
 it back: the module import graph (imports under ``if TYPE_CHECKING:`` and inside functions
 included, relative imports resolved, ``from pkg import module`` as an import of the module)
 has no cycle.
+
+The tests follow one rule of their own: a test module (`tests/**/test_*.py`) imports no other
+test module; what tests share lives in a `conftest.py` or a support module (`tests/support/`,
+a package's `support.py`).
 """
 
 from __future__ import annotations
@@ -72,6 +77,7 @@ RULES: dict[str, tuple[str, ...]] = {
     "gcs/wire.py": _ABOVE_GCS,
     "gcs/errors.py": _ABOVE_GCS,
     "gcs/phases.py": _ABOVE_GCS,
+    "gcs/documents.py": _ABOVE_GCS,
     "gcs/geofence.py": _ABOVE_GCS,
     "gcs/replan_request.py": _ABOVE_GCS,
 }
@@ -118,6 +124,37 @@ def test_imports_only_run_downward(prefix: str) -> None:
     if not (ROOT / prefix).exists():
         pytest.skip(f"{prefix} does not exist")
     assert _violations(prefix, RULES[prefix]) == []
+
+
+def imports_of_test_modules(root: Path) -> list[str]:
+    """Every import under `root` of a test module (a module named test_*)."""
+    found: dict[str, None] = {}
+    for path in sorted(root.rglob("*.py")):
+        for line, module in imported_modules(path):
+            parts = module.split(".")
+            tests = [n for n, part in enumerate(parts) if n and part.startswith("test_")]
+            if parts[0] == root.name and tests:
+                imported = ".".join(parts[:tests[0] + 1])
+                found[f"{path.relative_to(root.parent)}:{line} imports {imported}"] = None
+    return list(found)
+
+
+def test_no_test_module_imports_another() -> None:
+    """Shared helpers live in conftest.py or a support module, so each test module reads
+    alone and can move or go without breaking another."""
+    assert imports_of_test_modules(ROOT / "tests") == []
+
+
+def test_the_checker_sees_a_test_module_imported(tmp_path: Path) -> None:
+    root = tmp_path / "tests"
+    (root / "api").mkdir(parents=True)
+    (root / "api" / "test_a.py").write_text("QUICK = 1\n")
+    (root / "api" / "test_b.py").write_text("from tests.api.test_a import QUICK\n")
+    (root / "api" / "test_c.py").write_text("from tests.api import test_a\n")
+    (root / "api" / "support.py").write_text("import json\n")
+    (root / "api" / "test_d.py").write_text("from tests.api.support import json\n")
+    assert imports_of_test_modules(root) == ["tests/api/test_b.py:1 imports tests.api.test_a",
+                                         "tests/api/test_c.py:1 imports tests.api.test_a"]
 
 
 @pytest.mark.parametrize("path", sorted(ALLOWED))

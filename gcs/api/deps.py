@@ -43,23 +43,28 @@ __all__ = [
 
 
 def _settings(request: Request) -> Settings:
-    return request.app.state.settings
+    settings: Settings = request.app.state.settings
+    return settings
 
 
 def _store(request: Request) -> Store:
-    return request.app.state.store
+    store: Store = request.app.state.store
+    return store
 
 
 def _planning(request: Request) -> PlanningService:
-    return request.app.state.planning
+    planning: PlanningService = request.app.state.planning
+    return planning
 
 
 def _plans(request: Request) -> PlanCache:
-    return request.app.state.plans
+    plans: PlanCache = request.app.state.plans
+    return plans
 
 
 def _fleet(request: Request) -> FleetService:
-    return request.app.state.fleet
+    fleet: FleetService = request.app.state.fleet
+    return fleet
 
 
 def _export_slot(request: Request) -> Iterator[None]:
@@ -76,7 +81,8 @@ def _event_stream_slot(request: Request) -> Iterator[None]:
 
 
 def _shared_json(request: Request) -> SharedJson:
-    return request.app.state.shared_json
+    shared: SharedJson = request.app.state.shared_json
+    return shared
 
 
 SettingsDep = Annotated[Settings, Depends(_settings)]

@@ -51,7 +51,8 @@ __all__ = [
 
 def _example_scenario() -> dict[str, Any]:
     text = resources.files("planner").joinpath("examples/paper-circle4.json").read_text()
-    return json.loads(text)
+    scenario: dict[str, Any] = json.loads(text)
+    return scenario
 
 
 #: The paper's 4-vehicle circle case, shown as the request example.

@@ -26,6 +26,7 @@ import stat
 from pathlib import Path
 from typing import Any, Protocol
 
+from gcs.documents import ReplanDocument
 from gcs.errors import GcsError, InvalidRequest
 from gcs.replan_request import DROP_ACTIONS, parse
 from planner.errors import FieldError
@@ -46,7 +47,7 @@ class Flight(Protocol):
     """What the socket drives: `gcs.flight.host.flight_handle.FlightHandle`'s commands."""
 
     async def replan(self, goals: dict[str, list[float]] | None, drop: list[str],
-                     drop_action: str, reason: str) -> dict[str, Any]: ...
+                     drop_action: str, reason: str) -> ReplanDocument: ...
     async def pause(self) -> float: ...
     async def resume(self) -> float: ...
     async def abort(self, action: str = "land", reason: str = "operator abort") -> None: ...

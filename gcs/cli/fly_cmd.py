@@ -15,9 +15,16 @@ on the main thread's loop.
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING, Any
 
 from gcs import px4
 from gcs.cli import mock_timings
+
+if TYPE_CHECKING:
+    import asyncio
+
+    from gcs.documents import FlightEvent
+    from gcs.flight.host.flight_handle import FlightHandle
 
 __all__ = ["configure", "run"]
 
@@ -118,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 
-    def write_record(record: dict | None) -> None:
+    def write_record(record: dict[str, Any] | None) -> None:
         if args.record and record is not None:
             write_json(Path(args.record), record)
             print(f"flight record written to {args.record}")
@@ -150,9 +157,9 @@ def run(args: argparse.Namespace) -> int:
 
     async def fly(vehicles: VehicleLoop) -> int:
         mock = None
-        events: asyncio.Queue[dict | None] = asyncio.Queue()
+        events: asyncio.Queue[FlightEvent | None] = asyncio.Queue()
 
-        def on_event(event: dict) -> None:
+        def on_event(event: FlightEvent) -> None:
             """Warnings to stderr at once (even with --quiet), every event to the printer."""
             warning = live_warning(event, ports)
             if warning is not None:
@@ -200,7 +207,7 @@ def run(args: argparse.Namespace) -> int:
 
         loop = asyncio.get_running_loop()
         interrupts = 0
-        aborts: list[asyncio.Future] = []
+        aborts: list[asyncio.Future[Any]] = []
 
         def on_interrupt(name: str = "Ctrl-C") -> None:
             nonlocal interrupts
@@ -271,7 +278,8 @@ def run(args: argparse.Namespace) -> int:
     return asyncio.run(main())
 
 
-async def _progress(handle, events) -> None:
+async def _progress(handle: FlightHandle, events: asyncio.Queue[FlightEvent | None]
+                    ) -> None:
     """Events as they happen (from `events`, the queue the flight hands them to), and the
     status table (`gcs.cli.fly_status`): redrawn in place on a terminal, printed every 5 s
     otherwise (logs stay readable)."""
@@ -311,7 +319,7 @@ async def _progress(handle, events) -> None:
         watcher.cancel()
 
 
-def _tolerance_text(summary: dict) -> str:
+def _tolerance_text(summary: dict[str, Any]) -> str:
     """The goal tolerance the flight applied: each vehicle's (`goal_tolerances`: the fleet's
     `goal_tolerance`, or larger from the position error or the GPS accuracy a vehicle reports,
     1.8 m on PX4 SIH), not only the fleet-wide base."""
@@ -323,10 +331,10 @@ def _tolerance_text(summary: dict) -> str:
     return f"tolerance {hi:.3f} m" if lo == hi else f"tolerances {lo:.3f}-{hi:.3f} m"
 
 
-def _print_summary(record: dict) -> None:
+def _print_summary(record: dict[str, Any]) -> None:
     s = record["summary"]
 
-    def fmt(value, unit: str = "") -> str:
+    def fmt(value: float | None, unit: str = "") -> str:
         return "n/a" if value is None else f"{value:.3f}{unit}"
 
     print("summary:")

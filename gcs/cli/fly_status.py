@@ -7,10 +7,13 @@ Missing or non-finite figures print as "-", never "None" or "nan".
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 from rich.table import Table
 from rich.text import Text
+
+from gcs.documents import FlightSnapshot
 
 __all__ = ["figure", "header", "status_table"]
 
@@ -25,7 +28,7 @@ def figure(value: float | None, spec: str = ".2f", unit: str = "") -> str:
     return f"{value:{spec}}{unit}"
 
 
-def header(snap: dict[str, Any]) -> str:
+def header(snap: FlightSnapshot) -> str:
     """One line: flight phase, plan time against the horizon (then the time past it), live
     minimum separation."""
     t = snap.get("flight_time")
@@ -40,7 +43,7 @@ def header(snap: dict[str, Any]) -> str:
             f"{figure(snap.get('min_separation_live'), '.2f', ' m')}")
 
 
-def _link_quality(q: dict[str, Any]) -> tuple[Text, str]:
+def _link_quality(q: Mapping[str, Any]) -> tuple[Text, str]:
     """The loss over the last seconds (over the whole flight until then; red from 10 %) and
     the latency (`gcs.flight.link.quality`)."""
     loss = q.get("recent_loss_pct")
@@ -49,7 +52,7 @@ def _link_quality(q: dict[str, Any]) -> tuple[Text, str]:
     return Text(figure(loss, ".0f"), style=style), figure(q.get("latency_ms"), ".0f")
 
 
-def status_table(snap: dict[str, Any]) -> Table:
+def status_table(snap: FlightSnapshot) -> Table:
     """One row per vehicle: phase, PX4 mode, armed, world position, tracking error, link age,
     link loss and latency."""
     table = Table(title=header(snap), title_justify="left", box=None, pad_edge=False,
@@ -60,7 +63,7 @@ def status_table(snap: dict[str, Any]) -> Table:
                           ("lat ms", "right"), ("fault", "left")):
         table.add_column(name, justify=justify, no_wrap=True)  # type: ignore[arg-type]
     for v in snap["vehicles"]:
-        position = v.get("position") or [None, None, None]
+        position = v.get("position") or (None, None, None)
         phase = v.get("phase") or "-"
         table.add_row(
             str(v["id"]),

@@ -4,8 +4,8 @@ commands that meet the same error)."""
 from __future__ import annotations
 
 import errno
-from typing import Any
 
+from gcs.documents import FlightEvent
 from gcs.flight.link.signing import REPEATED_TIMESTAMPS
 from gcs.phases import EventKind
 
@@ -29,7 +29,7 @@ def port_error(flag: str, port: int | None) -> str | None:
     return f"{flag} must be a UDP port (1..65535), got {port}"
 
 
-def live_warning(event: dict[str, Any], options: str) -> str | None:
+def live_warning(event: FlightEvent, options: str) -> str | None:
     """The warning line `fleetplan fly` prints at once for a flight event the operator must
     see (packets from someone else arriving as a vehicle), naming what to change
     (`options`); None for any other event."""

@@ -166,7 +166,8 @@ def _method_summary(plan: Any) -> str:
     """The method that planned, and what became of the others that ran."""
     others = [f"{a.method} {a.outcome} after {a.seconds:.2f} s" for a in plan.attempts
               if a.outcome in ("failed", "cancelled")]
-    return plan.method + (f" ({'; '.join(others)})" if others else "")
+    text: str = plan.method + (f" ({'; '.join(others)})" if others else "")
+    return text
 
 
 def _verdict(plan: Any) -> int:
@@ -213,7 +214,8 @@ def _method(args: argparse.Namespace) -> str | None:
     if args.method is not None and args.method not in METHODS:
         raise ValueError(f"--method: must be one of {', '.join(METHODS)}, got {args.method!r}")
     if args.decompose is None:
-        return args.method
+        method: str | None = args.method
+        return method
     if args.decompose not in _DECOMPOSE:
         raise ValueError(f"--decompose: must be one of {', '.join(_DECOMPOSE)}, "
                          f"got {args.decompose!r}")

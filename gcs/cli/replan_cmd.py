@@ -12,6 +12,7 @@ hold``, hold). Exit status: 0 accepted, 1 refused by the flight (the error names
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from gcs.replan_request import DROP_ACTIONS
 
@@ -49,12 +50,12 @@ def goal_entry(text: str) -> tuple[str, list[float]]:
     return vehicle, point
 
 
-def body(args: argparse.Namespace) -> dict:
+def body(args: argparse.Namespace) -> dict[str, Any]:
     """The replan request the arguments ask for; ValueError naming the argument."""
     import json
     from pathlib import Path
 
-    goals: dict = {}
+    goals: dict[str, Any] = {}
     if args.goals:
         try:
             goals = json.loads(Path(args.goals).read_text())
@@ -70,7 +71,7 @@ def body(args: argparse.Namespace) -> dict:
             raise ValueError(f"--goal {vehicle}: given twice")
         named.add(vehicle)
         goals[vehicle] = point
-    document: dict = {"command": "replan", "drop_action": args.drop_action}
+    document: dict[str, Any] = {"command": "replan", "drop_action": args.drop_action}
     if goals:
         document["goals"] = goals
     if args.drop:

@@ -44,7 +44,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -90,26 +90,67 @@ _MAXIMA: dict[str, tuple[float, str]] = {
 
 __all__ = [
     "AT_END",
+    "CHOICES",
+    "GEOFENCE",
     "LANDING",
     "MARGIN_CHECK",
+    "MESSAGE_RATES",
     "PAUSE_EXPIRY",
     "POLICIES",
     "PREFLIGHT",
+    "STREAM_PRIORITY",
+    "AtEnd",
     "FleetFileWarning",
     "FleetSpec",
     "FlightOptions",
+    "GeofenceChoice",
+    "LandingChoice",
+    "MarginCheck",
+    "MessageRates",
+    "PauseExpiry",
+    "Policy",
+    "Preflight",
+    "StreamPriority",
     "VehicleSpec",
     "load_fleet",
 ]
 
+# The choices of `FlightOptions`, each a Literal (the field's type, and the API's schema)
+# and its values as a tuple (validation, messages).
+
 #: Fleet policies applied when a vehicle is flagged (heartbeat lost, left OFFBOARD, tracking).
-POLICIES = ("hold_all", "land_all", "land_faulty", "replan")
+Policy = Literal["hold_all", "land_all", "land_faulty", "replan"]
+POLICIES: tuple[Policy, ...] = get_args(Policy)
 #: What the fleet does once the plan has ended and it has held at the goals.
-AT_END = ("land", "hold")
+AtEnd = Literal["land", "hold"]
+AT_END: tuple[AtEnd, ...] = get_args(AtEnd)
 #: What the fleet does when a pause lasts longer than `pause_limit`.
-PAUSE_EXPIRY = ("land", "hold")
+PauseExpiry = Literal["land", "hold"]
+PAUSE_EXPIRY: tuple[PauseExpiry, ...] = get_args(PauseExpiry)
 #: How an abort with land lands the fleet (`FlightOptions.landing`).
-LANDING = ("planned", "px4")
+LandingChoice = Literal["planned", "px4"]
+LANDING: tuple[LandingChoice, ...] = get_args(LandingChoice)
+#: What `fly` does with a plan whose separation margin is below the fleet's need.
+MarginCheck = Literal["refuse", "warn"]
+MARGIN_CHECK: tuple[MarginCheck, ...] = get_args(MarginCheck)
+#: The pre-flight gate: refuse an unfit vehicle, or fly anyway (recorded).
+Preflight = Literal["check", "override"]
+PREFLIGHT: tuple[Preflight, ...] = get_args(Preflight)
+#: The geofence before arming (`gcs.geofence`): upload it to every vehicle, or skip it.
+GeofenceChoice = Literal["upload", "skip"]
+GEOFENCE: tuple[GeofenceChoice, ...] = get_args(GeofenceChoice)
+#: The telemetry rates: take what the vehicle sends, or ask for what the GCS reads.
+MessageRates = Literal["leave", "request"]
+MESSAGE_RATES: tuple[MessageRates, ...] = get_args(MessageRates)
+#: The setpoint stream's thread: ordinary, or real-time where the process may.
+StreamPriority = Literal["normal", "realtime"]
+STREAM_PRIORITY: tuple[StreamPriority, ...] = get_args(StreamPriority)
+#: FlightOptions field -> its allowed values.
+CHOICES: dict[str, tuple[str, ...]] = {
+    "policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
+    "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT, "message_rates": MESSAGE_RATES,
+    "stream_priority": STREAM_PRIORITY, "landing": LANDING, "geofence": GEOFENCE,
+}
 
 #: The key of the flight options, and the old name still read (with a `FleetFileWarning`).
 _OPTIONS_KEY = "flight"
@@ -117,12 +158,6 @@ _OLD_OPTIONS_KEY = "mission"
 _TOP_KEYS = {"world_origin", "vehicles", _OPTIONS_KEY, _OLD_OPTIONS_KEY, "signing_key",
              "position_error"}
 _VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home", "signing_key", "peer"}
-#: What `fly` does with a plan whose separation margin is below the fleet's need.
-MARGIN_CHECK = ("refuse", "warn")
-#: The pre-flight gate: refuse an unfit vehicle, or fly anyway (recorded).
-PREFLIGHT = ("check", "override")
-#: The geofence before arming (`gcs.geofence`): upload it to every vehicle, or skip it.
-GEOFENCE = ("upload", "skip")
 
 
 class FleetFileWarning(UserWarning):
@@ -137,10 +172,10 @@ class FlightOptions:
 
     rate_hz: float = 20.0
     """Setpoint stream rate (Hz), up to 100."""
-    policy: str = "land_all"
+    policy: Policy = "land_all"
     """What to do when a vehicle is flagged: hold_all, land_all, land_faulty or replan (it
     lands on its own predicted motion, the others replan around it: `gcs.flight.replan.replan`)."""
-    at_end: str = "land"
+    at_end: AtEnd = "land"
     """After the plan and the hold at the goals: land, or hold (PX4 Hold mode)."""
     link_timeout: float = 1.5
     """A vehicle from which no message at all arrived for this long has lost its link and
@@ -183,13 +218,13 @@ class FlightOptions:
     """Fixed heading in the world frame (rad, ENU: 0 = +x, counter-clockwise)."""
     pause_limit: float = 120.0
     """A paused flight may stay paused this long (s); then `pause_expiry` applies."""
-    pause_expiry: str = "land"
+    pause_expiry: PauseExpiry = "land"
     """When a pause outlasts `pause_limit`: land every vehicle, or hold (PX4 Hold); the
     flight ends aborted either way."""
-    margin_check: str = "refuse"
+    margin_check: MarginCheck = "refuse"
     """A plan whose separation margin is below 2 x the fleet's `position_error`: refuse to
     fly it, or warn (an event in the record) and fly."""
-    preflight: str = "check"
+    preflight: Preflight = "check"
     """The pre-flight gate (battery, unhealthy sensors, link loss; gcs.flight.safety.health):
     check (refuse to arm an unfit vehicle) or override (fly anyway; recorded as an event)."""
     min_battery_pct: float = 30.0
@@ -197,13 +232,13 @@ class FlightOptions:
     preflight_wait: float = 10.0
     """How long the gate waits for a problem to clear (PX4 reports sensors unhealthy for a
     few seconds after boot) before refusing (s)."""
-    message_rates: str = "leave"
+    message_rates: MessageRates = "leave"
     """leave: take the telemetry rates the vehicle sends; request: ask for what the GCS reads
     at the rates it needs and turn off PX4's fast streams it never reads
     (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.procedure.vehicle.message_rates`)."""
     position_rate_hz: float = 30.0
     """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
-    stream_priority: str = "realtime"
+    stream_priority: StreamPriority = "realtime"
     """realtime (default): stream setpoints from a real-time thread (SCHED_RR 1) where the
     process may (`gcs.flight.run.stream.Streamer`; on a busy machine most send jitter is the OS
     leaving the GCS waiting for a core); refused quietly otherwise (recorded as an event).
@@ -211,7 +246,7 @@ class FlightOptions:
     goal_tolerance_k: float = 2.0
     """A vehicle counts as arrived within max(goal_tolerance, goal_tolerance_k x the fleet's
     position_error)."""
-    landing: str = "planned"
+    landing: LandingChoice = "planned"
     """How an abort with land (and land_faulty) lands the fleet: planned, a verified landing
     plan flown as setpoints down to the touchdown points, then PX4's Land
     (`gcs.flight.safety.landing`); or px4, PX4's Land straight down where each vehicle is."""
@@ -232,7 +267,7 @@ class FlightOptions:
     `MAX_LAND_SPEED`]): a vehicle a replan drops with ``land`` is streamed down at it to
     `landing_height`, and the others' replanned paths expect a faulty vehicle that PX4
     lands to descend at it."""
-    geofence: str | None = None
+    geofence: GeofenceChoice | None = None
     """upload: before arming, give every vehicle the plan's fence (the workspace rectangle,
     obstacles on the ground; `gcs.geofence`), read it back and refuse the flight when it
     differs; refused when no geodetic origin places it. skip: no fence (a lab without GPS).
@@ -255,13 +290,8 @@ class FlightOptions:
     def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
-            if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight",
-                       "message_rates", "stream_priority", "landing", "geofence"):
-                allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
-                           "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT,
-                           "message_rates": ("leave", "request"),
-                           "stream_priority": ("normal", "realtime"),
-                           "landing": LANDING, "geofence": GEOFENCE}[key]
+            if key in CHOICES:
+                allowed = CHOICES[key]
                 if key == "geofence" and value is None:
                     continue  # upload when an origin is known
                 if value not in allowed:

@@ -187,7 +187,7 @@ class Fleet:
             position = None
             if tel is not None and tel.position_ned is not None and spec.home is not None:
                 position = frames.ned_to_world(tel.position_ned, spec.home).tolist()
-            out.append({
+            row: dict[str, Any] = {
                 "id": spec.id,
                 "system_id": spec.system_id,
                 "connection": spec.connection,
@@ -197,8 +197,10 @@ class Fleet:
                 "armed": None if tel is None or tel.heartbeat_time is None else bool(tel.armed),
                 "position": position,
                 "home": None if spec.home is None else spec.home.tolist(),
-                **(health_report(tel) if tel is not None else {}),
-            })
+            }
+            if tel is not None:
+                row.update(health_report(tel))
+            out.append(row)
         return out
 
     def configured(self) -> FleetSpec:

@@ -32,7 +32,7 @@ from typing import Any
 
 import orjson
 
-from gcs.errors import GcsError, MissionAborted, StateConflict, VehicleLoopStopped
+from gcs.errors import FlightAborted, GcsError, StateConflict, VehicleLoopStopped
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.host.vehicle_process import VehicleProcess
 from gcs.flight.run.precedence import abort_in_force, aborting_refusal
@@ -238,26 +238,27 @@ class FleetService:
     async def pause(self, flight_id: str, stored_status: FlightStatus | None = None) -> LiveFlight:
         """Stop the flight's clock, every vehicle holding the plan's setpoint of the same plan
         time (status paused). StateConflict unless it is running its plan."""
-        flight = self._flying(flight_id, stored_status)
-        self._not_aborting(flight, "pause")
-        if flight.status != FlightStatus.RUNNING or flight.handle is None:
-            raise StateConflict("flight_id", f"flight {flight_id!r} cannot be "
-                                                f"paused (status {flight.status})")
-        await flight.handle.pause()
-        if flight.status == FlightStatus.RUNNING:  # not aborted meanwhile
-            flight.set_status(FlightStatus.PAUSED)
-        return flight
+        return await self._set_clock(flight_id, stored_status, pause=True)
 
     async def resume(self, flight_id: str, stored_status: FlightStatus | None = None) -> LiveFlight:
         """Restart a paused flight's clock where it stopped (status running)."""
+        return await self._set_clock(flight_id, stored_status, pause=False)
+
+    async def _set_clock(self, flight_id: str, stored_status: FlightStatus | None, *,
+                         pause: bool) -> LiveFlight:
+        """`pause` (running -> paused) or resume (paused -> running) the flight's clock;
+        StateConflict from any other status or while it aborts."""
+        command, before, after, refusal = (
+            ("pause", FlightStatus.RUNNING, FlightStatus.PAUSED, "cannot be paused") if pause
+            else ("resume", FlightStatus.PAUSED, FlightStatus.RUNNING, "is not paused"))
         flight = self._flying(flight_id, stored_status)
-        self._not_aborting(flight, "resume")
-        if flight.status != FlightStatus.PAUSED or flight.handle is None:
-            raise StateConflict("flight_id", f"flight {flight_id!r} is not paused "
-                                                f"(status {flight.status})")
-        await flight.handle.resume()
-        if flight.status == FlightStatus.PAUSED:  # not aborted meanwhile
-            flight.set_status(FlightStatus.RUNNING)
+        self._not_aborting(flight, command)
+        if flight.status != before or flight.handle is None:
+            raise StateConflict("flight_id", f"flight {flight_id!r} {refusal} "
+                                             f"(status {flight.status})")
+        await (flight.handle.pause() if pause else flight.handle.resume())
+        if flight.status == before:  # not aborted meanwhile
+            flight.set_status(after)
         return flight
 
     async def replan(self, flight_id: str, goals: dict[str, list[float]] | None,
@@ -340,7 +341,7 @@ class FleetService:
             completed = bool(flight.summary and flight.summary.get("completed"))
             flight.status = (FlightStatus.COMPLETED if completed
                              else FlightStatus.INCOMPLETE)
-        except MissionAborted as exc:
+        except FlightAborted as exc:
             flight.status, flight.error = FlightStatus.ABORTED, str(exc)
         except VehicleLoopStopped as exc:
             # The vehicle process ended: nothing streams any more (PX4's offboard-loss

@@ -159,7 +159,7 @@ class JobRunner:
         future, legs = self._engine.submit(job, scenario)
         job.future = future
         try:
-            result = await future
+            result: plan_worker.PlanOutcome = await future
         except Exception as exc:
             if job.stop_reason is not None:  # the worker was restarted to stop it
                 return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
+from gcs.documents import FlightEvent
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.host.flight_handle import SNAPSHOT_HZ, FlightHandle
 from gcs.flight.host.vehicle_loop import VehicleLoop
@@ -39,7 +39,7 @@ class ReplanHandle(FlightHandle):
     @classmethod
     async def create(cls, vehicles: VehicleLoop, plan: Plan, fleet: FleetSpec,
                      options: FlightOptions | None = None, *,
-                     on_event: Callable[[dict[str, Any]], None] | None = None,
+                     on_event: Callable[[FlightEvent], None] | None = None,
                      snapshot_hz: float = SNAPSHOT_HZ) -> ReplanHandle:
         """`FlightHandle.create`, typed as this class."""
         handle = await super().create(vehicles, plan, fleet, options, on_event=on_event,

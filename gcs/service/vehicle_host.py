@@ -23,6 +23,7 @@ import contextlib
 import logging
 from typing import Any
 
+from gcs.documents import ReplanDocument
 from gcs.errors import StateConflict
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.host.vehicle_process import HostContext
@@ -230,7 +231,7 @@ class FleetHost:
         return restarted
 
     async def replan(self, flight_id: str, goals: dict[str, list[float]] | None,
-                     drop: list[str], drop_action: str, reason: str) -> dict[str, Any]:
+                     drop: list[str], drop_action: str, reason: str) -> ReplanDocument:
         """`ReplanHandle.replan` of the flight under way: the replan object (status
         planning) at once; StateConflict / FieldError cross as raised. Its snapshot is
         posted before the answer, so the service shows the replan once the call returns."""

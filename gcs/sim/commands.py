@@ -127,25 +127,25 @@ def _arm(v: VehicleCore, msg: Any, now: float) -> None:
 
 def _set_mode(v: VehicleCore, base_mode: int, main: int, sub: int, now: float) -> int:
     if not base_mode & _m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-        return _m.MAV_RESULT_UNSUPPORTED
+        return int(_m.MAV_RESULT_UNSUPPORTED)
     wanted = px4.Px4Mode(main, sub if main == px4.MainMode.AUTO else 0)
     if wanted == px4.OFFBOARD:
         if now - v.last_setpoint_time > v.config.offboard_loss_timeout:
             v.statustext(_m.MAV_SEVERITY_CRITICAL,
                          "Switching to Offboard is currently not available")
-            return _m.MAV_RESULT_TEMPORARILY_REJECTED
+            return int(_m.MAV_RESULT_TEMPORARILY_REJECTED)
         v.set_mode(px4.OFFBOARD)
         # hold where it is until the next setpoint arrives (PX4 only uses setpoints
         # received while in OFFBOARD)
         v.model.hold(v.index, v.model.position[v.index].copy())
-        return _m.MAV_RESULT_ACCEPTED
+        return int(_m.MAV_RESULT_ACCEPTED)
     if wanted == px4.POSITION and (now - v.last_manual_control
                                    > v.config.manual_control_timeout):
         v.statustext(_m.MAV_SEVERITY_CRITICAL,
                      "Switching to Position is currently not available")
-        return _m.MAV_RESULT_TEMPORARILY_REJECTED
+        return int(_m.MAV_RESULT_TEMPORARILY_REJECTED)
     if wanted in (px4.HOLD, px4.LAND, px4.POSITION, px4.RTL, px4.TAKEOFF):
         v.set_mode(wanted)
-        return _m.MAV_RESULT_ACCEPTED
+        return int(_m.MAV_RESULT_ACCEPTED)
     v.statustext(_m.MAV_SEVERITY_CRITICAL, f"Mode {wanted.name} not supported")
-    return _m.MAV_RESULT_TEMPORARILY_REJECTED
+    return int(_m.MAV_RESULT_TEMPORARILY_REJECTED)

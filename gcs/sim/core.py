@@ -139,11 +139,13 @@ class VehicleCore:
 
     @property
     def position_ned(self) -> np.ndarray:
-        return self.model.position[self.index].copy()
+        position: np.ndarray = self.model.position[self.index].copy()
+        return position
 
     @property
     def velocity_ned(self) -> np.ndarray:
-        return self.model.velocity[self.index].copy()
+        velocity: np.ndarray = self.model.velocity[self.index].copy()
+        return velocity
 
     @property
     def position_world(self) -> np.ndarray:
@@ -298,9 +300,9 @@ class VehicleCore:
         stream of `gcs.sim.telemetry`, an interval < 0 stops it, 0 restores its default
         rate, > 0 sets it (at most the mock's physics rate). Returns the MAV_RESULT."""
         if message_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT or message_id not in self.intervals:
-            return mavlink.MAV_RESULT_FAILED
+            return int(mavlink.MAV_RESULT_FAILED)
         if not math.isfinite(interval_us):
-            return mavlink.MAV_RESULT_DENIED
+            return int(mavlink.MAV_RESULT_DENIED)
         if interval_us < 0:
             period = None
         elif interval_us == 0:
@@ -311,7 +313,7 @@ class VehicleCore:
         self.intervals[message_id] = period
         if period is not None:
             self._next[message_id] = min(self._next[message_id], self.now() + period)
-        return mavlink.MAV_RESULT_ACCEPTED
+        return int(mavlink.MAV_RESULT_ACCEPTED)
 
     # ---------------------------------------------------------------- output
 

@@ -364,7 +364,7 @@ PROTOCOL_VERSION_ID = 300
 _MESSAGE: Any = _m.MAVLink_message  # pymavlink's base class of every message
 
 
-class ProtocolVersionMessage(_MESSAGE):
+class ProtocolVersionMessage(_MESSAGE):  # type: ignore[misc]  # pymavlink has no types
     """PROTOCOL_VERSION (300) from MAVLink's common.xml, which pymavlink's generated dialect
     leaves out: version, min_version, max_version (uint16, 100 x the MAVLink version), then
     the 8-byte hashes of the spec and the library (zeros: not known)."""

@@ -80,7 +80,8 @@ def _dominant_motion(scenario: Scenario) -> FloatArray | None:
     move = scenario.goals - scenario.starts
     mean = move.mean(axis=0)
     if float(np.linalg.norm(mean)) > 0.5 * float(np.linalg.norm(move, axis=1).mean()):
-        return mean / np.linalg.norm(mean)
+        direction: FloatArray | None = mean / np.linalg.norm(mean)
+        return direction
     return None
 
 
@@ -116,7 +117,8 @@ def _segment_distance(points: FloatArray, a: FloatArray, b: FloatArray) -> Float
     dd = np.maximum(np.einsum("sc,sc->s", d, d), 1e-12)
     rel = points[:, None, :] - a[None, :, :]
     t = np.clip(np.einsum("psc,sc->ps", rel, d) / dd[None, :], 0.0, 1.0)
-    return np.linalg.norm(rel - t[..., None] * d[None, :, :], axis=2)
+    distances: FloatArray = np.linalg.norm(rel - t[..., None] * d[None, :, :], axis=2)
+    return distances
 
 
 def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach: float,
@@ -386,7 +388,7 @@ def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
     frac = np.clip(frac, 0.0, 1.0)
     base = np.where(second[..., None], lines[:, 1:2], lines[:, 0:1])
     step = np.where(second[..., None], seg[:, 1:2], seg[:, 0:1])
-    p = base + frac[..., None] * step
+    p: FloatArray = base + frac[..., None] * step
     if delay:
         p = np.concatenate([np.repeat(lines[:, :1], delay, axis=1), p], axis=1)
     return p

@@ -274,7 +274,8 @@ def _climb(points: FloatArray) -> FloatArray:
     run = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points[:, :2], axis=0),
                                                           axis=1))])
     share = run / run[-1] if run[-1] > 1e-12 else np.linspace(0.0, 1.0, len(points))
-    return points[0, 2] + share * (points[-1, 2] - points[0, 2])
+    heights: FloatArray = points[0, 2] + share * (points[-1, 2] - points[0, 2])
+    return heights
 
 
 def _segments_free(grid: Grid, free: BoolArray, a: FloatArray, b: FloatArray) -> BoolArray:

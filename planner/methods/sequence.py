@@ -271,7 +271,7 @@ class SequencePlan:
 
     @property
     def duration(self) -> float:
-        return self.accelerations.shape[1] * self.sequence.dt
+        return float(self.accelerations.shape[1] * self.sequence.dt)
 
     def summary(self) -> dict[str, Any]:
         """The sequence details a flyable plan carries as its `sequence` block: formations

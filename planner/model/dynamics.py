@@ -8,6 +8,8 @@ checks) goes through `interpolate` so there is one definition of that motion.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -35,25 +37,12 @@ def integrate(
     return p, v
 
 
-class MotionSample(tuple):
+class MotionSample(NamedTuple):
     """(position, velocity, acceleration) arrays at sampled times, each (..., M, 3)."""
 
-    __slots__ = ()
-
-    def __new__(cls, position: FloatArray, velocity: FloatArray, acceleration: FloatArray):
-        return super().__new__(cls, (position, velocity, acceleration))
-
-    @property
-    def position(self) -> FloatArray:
-        return self[0]
-
-    @property
-    def velocity(self) -> FloatArray:
-        return self[1]
-
-    @property
-    def acceleration(self) -> FloatArray:
-        return self[2]
+    position: FloatArray
+    velocity: FloatArray
+    acceleration: FloatArray
 
 
 def interpolate(

@@ -28,12 +28,14 @@ def jerk_from_accelerations(accelerations: FloatArray, dt: float,
               else np.broadcast_to(np.asarray(initial, dtype=float)[..., None, :],
                                    a[..., :1, :].shape))
     previous = np.concatenate([before, a[..., :-1, :]], axis=-2)
-    return (a - previous) / dt
+    jerk: FloatArray = (a - previous) / dt
+    return jerk
 
 
 def thrust(accelerations: FloatArray) -> FloatArray:
     """(..., K) mass-normalised thrust f = ||a + g|| (m/s^2), paper eq. 14."""
-    return np.linalg.norm(np.asarray(accelerations, dtype=float) + _UP, axis=-1)
+    f: FloatArray = np.linalg.norm(np.asarray(accelerations, dtype=float) + _UP, axis=-1)
+    return f
 
 
 #: Thrust (m/s^2) below which the body axes are taken as at this thrust: at zero thrust

@@ -233,7 +233,8 @@ class _Dual:
         lo, hi = self._row_start[rows], self._row_start[rows + 1]
         size = hi - lo
         offset = np.repeat(lo - np.cumsum(size) + size, size)
-        return self._by_row[np.arange(int(size.sum())) + offset]
+        entries: IntArray = self._by_row[np.arange(int(size.sum())) + offset]
+        return entries
 
     def moves(self, lam: FloatArray) -> FloatArray:
         """(m, 3, F): every functional's change from x* under the multipliers `lam`,

@@ -132,7 +132,8 @@ def _profile_fits(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArra
     lim = scenario.limits
     tol = BOX_TOLERANCE
     middle = p[:, :-1] + 0.5 * scenario.dt * v[:, :-1]  # Bernstein middle points
-    ok = np.all((p >= lim.position_min - tol) & (p <= lim.position_max + tol), axis=(1, 2))
+    ok: NDArray[np.bool_] = np.all((p >= lim.position_min - tol) & (p <= lim.position_max + tol),
+                                   axis=(1, 2))
     ok &= np.all((middle >= lim.position_min - tol) & (middle <= lim.position_max + tol),
                  axis=(1, 2))
     if lim.velocity_max is not None:

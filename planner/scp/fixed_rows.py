@@ -49,7 +49,8 @@ def _box_gap2(lo: FloatArray, hi: FloatArray, other_lo: FloatArray, other_hi: Fl
     """Squared distance between boxes [lo, hi] and [other_lo, other_hi] (broadcast, last
     axis the coordinates)."""
     gap = np.maximum(0.0, np.maximum(lo - other_hi, other_lo - hi))
-    return np.einsum("...c,...c->...", gap, gap)
+    gap2: FloatArray = np.einsum("...c,...c->...", gap, gap)
+    return gap2
 
 
 class FixedRows(LazyRows):
@@ -102,7 +103,9 @@ class FixedRows(LazyRows):
                offset: FloatArray) -> FloatArray:
         """Per triple the smallest coef' x - R - offset over its three rows at (p, v)."""
         x = interval_points(p, v, t, self.dt)  # (T, 3 points, 3)
-        return (np.einsum("tpc,tc->tp", x, coef) - self.separation - offset).min(axis=1)
+        slack: FloatArray = (np.einsum("tpc,tc->tp", x, coef) - self.separation
+                             - offset).min(axis=1)
+        return slack
 
     def offsets(self, offset: FloatArray) -> FloatArray:
         """coef' x_i >= R + offset, one offset per control point."""

@@ -60,7 +60,8 @@ def chord_nearest(geometry: ObstacleSet, a: FloatArray, b: FloatArray, o: IntArr
     ends = np.stack([np.zeros(len(a)), t, np.ones(len(a))], axis=1)
     values = np.stack([dist(ends[:, 0]), best_inner, dist(ends[:, 2])], axis=1)
     best = ends[np.arange(len(a)), np.argmin(values, axis=1)]
-    return a + best[:, None] * d
+    nearest: FloatArray = a + best[:, None] * d
+    return nearest
 
 
 def row_point(geometry: ObstacleSet, a: FloatArray, b: FloatArray, o: IntArray
@@ -128,7 +129,8 @@ class ObstacleRows(LazyRows):
         """Per triple the smallest n'x - rhs over the interval's control points at (p, v)
         (>= 0: the row holds)."""
         points = interval_points(p, v, t, self.dt)  # (T, 3 points, 3)
-        return np.einsum("tpc,tc->tp", points, normal).min(axis=1) - rhs
+        slack: FloatArray = np.einsum("tpc,tc->tp", points, normal).min(axis=1) - rhs
+        return slack
 
     def offsets(self, rhs: FloatArray) -> FloatArray:
         """n'x >= R + offset with offset = rhs - R, the same for the three points."""

@@ -54,12 +54,13 @@ class StageLayout:
 
     def index(self, k: IntArray | int, vehicle: IntArray | int, var: int, axis: IntArray | int
               ) -> IntArray:
-        return (
+        index: IntArray = (
             np.asarray(k) * self.stage_size
             + np.asarray(vehicle) * PER_VEHICLE
             + var * 3
             + np.asarray(axis)
         )
+        return index
 
     def unpack(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(positions (m, K+1, 3), velocities (m, K+1, 3), accelerations (m, K, 3))."""
@@ -163,7 +164,7 @@ class QuadraticProgram:
 
     @property
     def size(self) -> int:
-        return self.q.shape[0]
+        return len(self.q)
 
 
 def _coo(rows: list[IntArray], cols: list[IntArray], vals: list[FloatArray], shape: tuple[int, int]

@@ -65,7 +65,8 @@ _FALLBACK = np.array([0.0, 0.0, 1.0])
 def _norm(x: FloatArray) -> FloatArray:
     """Euclidean norm over the last axis (3 coordinates): ~3x faster than np.linalg.norm
     on the (pairs, steps, 3) arrays of the hot path, which reduce over a short axis."""
-    return np.sqrt(np.einsum("...c,...c->...", x, x))
+    norm: FloatArray = np.sqrt(np.einsum("...c,...c->...", x, x))
+    return norm
 
 
 @dataclass(frozen=True)
@@ -254,7 +255,8 @@ def _unit(d: FloatArray, motion: FloatArray, separation: float = 0.0) -> FloatAr
 def _step_motion(d: FloatArray) -> FloatArray:
     """Relative motion around each step of scaled differences (pairs, K+1, 3)."""
     padded = np.concatenate([d[:, :1], d, d[:, -1:]], axis=1)
-    return padded[:, 2:] - padded[:, :-2]
+    motion: FloatArray = padded[:, 2:] - padded[:, :-2]
+    return motion
 
 
 def _chord_closest(u: FloatArray, w: FloatArray) -> FloatArray:
@@ -262,7 +264,8 @@ def _chord_closest(u: FloatArray, w: FloatArray) -> FloatArray:
     chord = w - u
     length2 = np.einsum("...c,...c->...", chord, chord)
     tau = np.clip(-np.einsum("...c,...c->...", u, chord) / np.maximum(length2, 1e-300), 0, 1)
-    return u + tau[..., None] * chord
+    nearest: FloatArray = u + tau[..., None] * chord
+    return nearest
 
 
 def _interval_directions_all(d: FloatArray, separation: float, moving: bool = False
@@ -323,13 +326,16 @@ def row_values(positions: FloatArray, velocities: FloatArray, dt: float, scale: 
     directions. Returns (P, K+1) or (P, K) values; the rows hold where value >= R.
     """
     r = (positions[i] - positions[j]) / scale
+    values: FloatArray
     if not continuous:
-        return np.einsum("psc,psc->ps", u, r)
+        values = np.einsum("psc,psc->ps", u, r)
+        return values
     mid = r[:, :-1] + 0.5 * dt * (velocities[i] - velocities[j])[:, :-1] / scale
-    return np.minimum(
+    values = np.minimum(
         np.minimum(np.einsum("psc,psc->ps", u, r[:, :-1]), np.einsum("psc,psc->ps", u, mid)),
         np.einsum("psc,psc->ps", u, r[:, 1:]),
     )
+    return values
 
 
 def _chunks_of(i: IntArray, j: IntArray, stages: int) -> Iterator[tuple[IntArray, IntArray]]:
@@ -377,7 +383,8 @@ def displacements(lin: tuple[FloatArray, FloatArray], current: tuple[FloatArray,
     `lin` to `current`: a row's value moves by at most the sum of its two vehicles'."""
     dp = (current[0] - lin[0]) / scale
     dm = dp + 0.5 * dt * (current[1] - lin[1]) / scale
-    return np.maximum(_norm(dp).max(axis=1), _norm(dm).max(axis=1))
+    bound: FloatArray = np.maximum(_norm(dp).max(axis=1), _norm(dm).max(axis=1))
+    return bound
 
 
 def row_displacements(lin: tuple[FloatArray, FloatArray],
@@ -602,11 +609,13 @@ def interval_minima(positions: FloatArray, velocities: FloatArray, accelerations
     def dist(s: FloatArray) -> FloatArray:
         """Distance at times s: (pairs,) or (pairs, samples)."""
         s = s[..., None]
+        d: FloatArray
         if s.ndim == 2:
-            return np.linalg.norm(r0 + s * w + s * s * half_alpha, axis=-1)
-        return np.linalg.norm(
-            r0[:, None] + s * w[:, None] + s * s * half_alpha[:, None], axis=-1
-        )
+            d = np.linalg.norm(r0 + s * w + s * s * half_alpha, axis=-1)
+        else:
+            d = np.linalg.norm(r0[:, None] + s * w[:, None] + s * s * half_alpha[:, None],
+                               axis=-1)
+        return d
 
     grid = np.linspace(0.0, dt, samples)
     values = dist(np.broadcast_to(grid, (len(i), samples)))

@@ -10,6 +10,7 @@ missing backend or a solver that broke down.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -229,7 +230,8 @@ class OsqpSolver:
         return QPSolution(FAILED, None, float("nan"), iterations, seconds)
 
 
-SOLVERS = {"piqp": PiqpSolver, "clarabel": ClarabelSolver, "osqp": OsqpSolver}
+SOLVERS: dict[str, Callable[[], QPSolver]] = {
+    "piqp": PiqpSolver, "clarabel": ClarabelSolver, "osqp": OsqpSolver}
 DEFAULT_SOLVER = "piqp"
 
 

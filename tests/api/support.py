@@ -13,13 +13,15 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+from fastapi.testclient import TestClient
 from httpx import Response
 
 from gcs.sim import ports
 from tests.paths import EXAMPLES
 
-__all__ = ["EXAMPLES", "OPERATOR", "QUICK_CROSSING", "QUICK_PAIR", "READER", "SHORT_CROSSING",
-           "ServiceProcess", "example", "free_port", "free_udp_base", "refused"]
+__all__ = ["EXAMPLES", "GOALS", "OPERATOR", "OUT_AND_BACK", "QUICK", "QUICK_CROSSING",
+           "QUICK_PAIR", "READER", "SHORT_CROSSING", "STARTS", "ServiceProcess", "example",
+           "free_port", "free_udp_base", "plan_mission", "refused", "sse_events"]
 
 #: Tokens the access tests configure: one that may operate, one that may only read.
 OPERATOR = "operator-token-0123456789"
@@ -144,3 +146,52 @@ class ServiceProcess:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def plan_mission(client: TestClient, scenario: dict[str, Any]) -> dict[str, Any]:
+    """POST a scenario and wait (up to a minute) for its plan."""
+    response = client.post("/api/missions?wait=60", json=scenario)
+    assert response.status_code == 201, response.text
+    return response.json()
+
+
+def sse_events(client: TestClient, url: str) -> list[tuple[str, dict[str, Any]]]:
+    """Every (event, data) of a server-sent event stream, until the server ends it."""
+    events: list[tuple[str, dict[str, Any]]] = []
+    kind = None
+    with client.stream("GET", url) as response:
+        assert response.status_code == 200
+        assert response.headers["content-type"].startswith("text/event-stream")
+        for line in response.iter_lines():
+            if line.startswith("event:"):
+                kind = line.split(":", 1)[1].strip()
+            elif line.startswith("data:"):
+                events.append((kind or "message", json.loads(line.split(":", 1)[1])))
+    return events
+
+
+#: Quick flights: half a second at the goals, a 2 m/s climb after a 0.3 s prestream. A
+#: vehicle is flagged 2 m (not 1 m) off its plan: on a loaded machine the station and its
+#: in-process mocks stall together and a vehicle falls behind while both catch up; the
+#: flight's accuracy is what these tests judge by its goal errors and separation (tracking
+#: is tested in tests/flight).
+QUICK = {"hold_at_goal": 0.5, "tracking_error_max": 2.0, "climb_speed": 2.0, "prestream": 0.3}
+
+#: SHORT_CROSSING's starts and goals, as formations.
+STARTS = [v["start"] for v in SHORT_CROSSING["vehicles"]]
+GOALS = [v["goal"] for v in SHORT_CROSSING["vehicles"]]
+
+
+#: Four vehicles out and back between two formations with short holds: 13.2 s in all.
+OUT_AND_BACK: dict[str, Any] = {
+    "name": "out-and-back",
+    "dt": 0.2,
+    "min_separation": 1.0,
+    "limits": SHORT_CROSSING["limits"],
+    "vehicles": ["a", "b", "c", "d"],
+    "formations": [
+        {"name": "home", "positions": STARTS, "hold": 0.4},
+        {"name": "crossed", "positions": GOALS, "duration": 6, "hold": 0.4},
+        {"name": "home", "positions": STARTS, "duration": 6, "hold": 0.4},
+    ],
+}

@@ -15,8 +15,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.routes.test_flights import QUICK
-from tests.api.support import QUICK_CROSSING, example
+from tests.api.support import QUICK, QUICK_CROSSING, example
 
 
 def sse(client: TestClient, url: str, headers: dict[str, str] | None = None

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 from collections.abc import Callable
 from typing import Any, cast
 
@@ -15,16 +14,9 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
-
-
-def _until(condition: Callable[[], Any], what: str, bound: float = 60.0) -> Any:
-    deadline = time.monotonic() + bound  # bound
-    while not (value := condition()):
-        assert time.monotonic() < deadline, f"never: {what}"
-        time.sleep(0.05)
-    return value
 
 
 def test_an_ended_vehicle_process_is_restarted_then_left_stopped_with_503s(
@@ -37,19 +29,19 @@ def test_an_ended_vehicle_process_is_restarted_then_left_stopped_with_503s(
             process = service.vehicle_process
             return process.pid if process.alive else None
 
-        first = _until(pid, "the vehicle process")
+        first = wait_for(pid, "the vehicle process")
         assert client.get("/api/status").json()["status"] == "ok"
         os.kill(first, signal.SIGKILL)
-        second = _until(lambda: (p := pid()) is not None and p != first and p,
-                        "a new vehicle process")
-        vehicles = _until(lambda: (r := client.get("/api/vehicles")).status_code == 200
-                          and len(r.json()["vehicles"]) == 2 and r.json(),
-                          "the fleet watched again")
+        second = wait_for(lambda: (p := pid()) is not None and p != first and p,
+                          "a new vehicle process")
+        vehicles = wait_for(lambda: (r := client.get("/api/vehicles")).status_code == 200
+                            and len(r.json()["vehicles"]) == 2 and r.json(),
+                            "the fleet watched again")
         assert vehicles["fleet"]["vehicle_process"] == "running"
 
         os.kill(second, signal.SIGKILL)  # again, at once: left stopped
-        _until(lambda: client.get("/api/status").json()["status"] == "degraded",
-               "the status to read degraded")
+        wait_for(lambda: client.get("/api/status").json()["status"] == "degraded",
+                 "the status to read degraded")
         status = client.get("/api/status").json()
         assert status["fleet"]["vehicle_process"] == "stopped"
         for method, url, body in (("GET", "/api/vehicles", None),

@@ -181,7 +181,7 @@ def test_concepts_page_names_every_status_and_phase() -> None:
 def test_concepts_page_says_what_the_code_defines() -> None:
     """The glossary's words are the code's: the flight's phase -> status table is
     `STATUS_OF_PHASE`, every event kind named is a current one, and the classes named for a
-    flight exist where the page says."""
+    flight and its documents exist where the page says."""
     text = (ROOT / "docs" / "concepts.md").read_text()
     rows = re.findall(r"^\| `(\w+)` \| `(\w+)` \|$", text, re.M)
     assert dict(rows) == {str(p): str(s) for p, s in STATUS_OF_PHASE.items()}
@@ -192,5 +192,10 @@ def test_concepts_page_says_what_the_code_defines() -> None:
     for name, module in [("FlightExecutor", "gcs/flight/run/executor.py"),
                          ("FlightHandle", "gcs/flight/host/flight_handle.py"),
                          ("RemoteFlight", "gcs/service/remote_flight.py"),
-                         ("LiveFlight", "gcs/service/live_flight.py")]:
+                         ("LiveFlight", "gcs/service/live_flight.py"),
+                         ("FlightEvent", "gcs/documents.py"),
+                         ("FlightSnapshot", "gcs/documents.py"),
+                         ("VehicleSnapshot", "gcs/documents.py"),
+                         ("ReplanDocument", "gcs/documents.py"),
+                         ("ReplanRecord", "gcs/flight/replan/record.py")]:
         assert f"`{name}`" in text and f"class {name}" in (ROOT / module).read_text(), name

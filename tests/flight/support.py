@@ -14,9 +14,19 @@ from planner.result import Plan, VehicleTrajectory
 from planner.scp.first_qp import unit_profile
 from planner.verification.verify import verify
 
-__all__ = ["FAST_MOCK", "QUICK", "QUICK_MOCK", "QUICK_MOCK_ENV",
-           "QUICK_MOCK_SETTINGS", "free_port_block",
-           "line_scenario", "mock_ports", "short_line", "smooth_plan"]
+__all__ = [
+    "FAST_MOCK",
+    "QUICK",
+    "QUICK_MOCK",
+    "QUICK_MOCK_ENV",
+    "QUICK_MOCK_SETTINGS",
+    "STACKED",
+    "free_port_block",
+    "line_scenario",
+    "mock_ports",
+    "short_line",
+    "smooth_plan",
+]
 
 #: Mock settings that shorten a flight's landing, not what it checks: PX4's MPC_LAND_SPEED
 #: and COM_DISARM_LAND set to other legal values (land at 1 m/s, disarm 0.5 s after).
@@ -101,3 +111,14 @@ def short_line(count: int, *, steps: int = 15, altitude: float = 1.0,
                **kw: Any) -> dict[str, Any]:
     """`line_scenario` flown in 3 s at 1 m: a whole flight in a few seconds of real time."""
     return line_scenario(count, steps=steps, altitude=altitude, **kw)
+
+
+#: Two vehicles stacked 0.84 m apart vertically and 0.55 m horizontally (1.004 m apart),
+#: flying side by side along y: landing each straight down brings them 0.55 m apart.
+STACKED = {
+    "name": "stacked", "dt": 0.2, "steps": 20, "min_separation": 1.0,
+    "limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [5.0, 5.0, 3.0],
+               "velocity_max": [2.0, 2.0, 2.0], "acceleration_max": [3.0, 3.0, 3.0]},
+    "vehicles": [{"id": "low", "start": [2.0, 1.0, 1.08], "goal": [2.0, 3.0, 1.08]},
+                 {"id": "high", "start": [2.55, 1.0, 1.92], "goal": [2.55, 3.0, 1.92]}],
+}

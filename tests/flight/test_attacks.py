@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -17,46 +16,13 @@ from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import new_key_file
+from tests.flight.flying import ALL_ATTACKS, Attacker
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
-from tests.paths import ROOT
+from tests.support.waiting import reached
 
 pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 
 FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3, climb_speed=2.0)
-ALL_ATTACKS = "heartbeat,hijack,ack,truncated,random,nan"
-#: The attacker's rates scaled to a fifth (still about 850 datagrams/s at three vehicles):
-#: each spoof and malformed datagram is judged alone, so the count exercises the same
-#: checks, while the full rates flood the GCS's receive buffers on a busy machine (the
-#: station and the in-process mock then stall, and the vehicles' own datagrams overflow:
-#: a real link loss that the preflight gate rightly refuses).
-RATE_SCALE = 0.2
-
-
-class Attacker:
-    """`tests/flight/attacker.py` (`module`) in its own process."""
-
-    module = "tests.flight.attacker"
-
-    def __init__(self, ports: list[int], systems: list[int], attacks: str = ALL_ATTACKS
-                 ) -> None:
-        self.args = ["--ports", ",".join(map(str, ports)),
-                     "--systems", ",".join(map(str, systems)),
-                     "--duration", "90", "--attacks", attacks,
-                     "--rate-scale", str(RATE_SCALE)]
-        self.proc: asyncio.subprocess.Process | None = None
-
-    async def start(self) -> None:
-        self.proc = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", self.module, *self.args, cwd=ROOT,
-            stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE)
-        assert self.proc.stdout is not None
-        assert json.loads(await self.proc.stdout.readline()) == {"ready": True}
-
-    async def stop(self) -> dict[str, Any]:
-        assert self.proc is not None and self.proc.stdin is not None
-        self.proc.stdin.close()
-        out, _ = await asyncio.wait_for(self.proc.communicate(), 20)
-        return json.loads(out.decode().strip().splitlines()[-1])
 
 
 async def _fly(plan: Any, options: FlightOptions, *, key: Path | None = None,
@@ -141,8 +107,7 @@ def test_spoofed_acks_do_not_hide_a_dead_vehicle() -> None:
     plan = smooth_plan(line_scenario(3, steps=50))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         mock.vehicles[1].faults.silent = True
 
     options = FAST.replace(policy="land_faulty")
@@ -175,8 +140,7 @@ def test_non_finite_position_from_the_vehicle_is_a_fault() -> None:
     plan = smooth_plan(line_scenario(3, steps=30))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         mock.vehicles[1].faults.nan_position = True
 
     options = FAST.replace(policy="land_faulty")

@@ -18,19 +18,11 @@ from gcs.flight.link.link import VehicleLink
 from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, QUICK, line_scenario, mock_ports, smooth_plan
+from tests.support.waiting import reached, until
 
 pytestmark = [pytest.mark.timeout(120), pytest.mark.flight]
 
 FAST = QUICK
-
-
-async def _until(predicate: Callable[[], bool], timeout: float) -> bool:
-    deadline = asyncio.get_running_loop().time() + timeout
-    while not predicate():
-        if asyncio.get_running_loop().time() > deadline:
-            return False
-        await asyncio.sleep(0.05)
-    return True
 
 
 async def _hovering_fleet(count: int,
@@ -46,8 +38,7 @@ async def _hovering_fleet(count: int,
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         executor = FlightExecutor(plan, fleet, FAST)
         task = executor.start()
-        while (executor.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(executor, 1.0)
         await executor.abort("hold", "operator abort")
         with pytest.raises(FlightAborted):
             await task
@@ -85,13 +76,14 @@ def test_a_fleet_left_hovering_by_a_hold_abort_can_be_landed() -> None:
         [returning] = await fleet_command(links, "rtl", ["uav2"])
         assert returning.done and returning.mode == "AUTO.RTL", returning
 
-        assert await _until(lambda: not any(v.armed for v in mock.vehicles), 30.0)
+        await until(lambda: not any(v.armed for v in mock.vehicles), "every mock disarmed", 30.0)
         for v in mock.vehicles:
             assert v.position_ned[2] == pytest.approx(0.0, abs=0.05)
         # RTL brought uav2 back over its home before landing
         np.testing.assert_allclose(mock.vehicles[1].position_ned[:2], [0.0, 0.0], atol=0.25)
         # a landed fleet (once its HEARTBEAT says so): land is done with nothing to send
-        assert await _until(lambda: not any(lk.telemetry.armed for lk in links.values()), 3.0)
+        await until(lambda: not any(lk.telemetry.armed for lk in links.values()),
+                    "every link to report disarmed", 3.0)
         outcomes = await fleet_command(links, "land")
         assert all(o.done and o.armed is False for o in outcomes)
         assert all("already disarmed" in o.detail for o in outcomes)
@@ -112,6 +104,7 @@ def test_forced_disarm_and_confirmed_termination_stop_the_motors() -> None:
         assert await links["uav2"].wait_for(
             lambda t: t.system_status == 8, 3.0)  # MAV_STATE_FLIGHT_TERMINATION
         # both fell to the ground
-        assert await _until(lambda: all(v.position_ned[2] > -0.05 for v in mock.vehicles), 5.0)
+        await until(lambda: all(v.position_ned[2] > -0.05 for v in mock.vehicles),
+                    "every mock on the ground", 5.0)
 
     asyncio.run(_hovering_fleet(2, then))

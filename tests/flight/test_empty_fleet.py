@@ -16,8 +16,8 @@ from gcs.flight.run.record import FlightRecorder, summarise
 from gcs.flight.run.stream import Streamer
 from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_vehicle
+from tests.flight.flying import monitor_of
 from tests.flight.support import line_scenario, smooth_plan
-from tests.flight.test_station_stalls import _monitor
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -63,7 +63,7 @@ def test_monitor_with_no_or_one_vehicle_measures_no_separation(count: int) -> No
     for v in vehicles:
         v.phase = VehiclePhase.FLYING
     faults: list[tuple[str, str, float]] = []
-    monitor = _monitor(vehicles, faults, StationStalls())
+    monitor = monitor_of(vehicles, faults, StationStalls())
     monitor.check(time.monotonic())
     assert faults == [] and math.isinf(monitor.min_separation)
 

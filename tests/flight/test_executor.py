@@ -16,33 +16,13 @@ from gcs.errors import ArmingRefused, FlightAborted
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.run.executor import TRACKING_TOLERANCE_M, FlightExecutor
 from gcs.phases import EventKind
-from gcs.sim import MockFleet, homes_under
-from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
+from gcs.sim import MockFleet
+from tests.flight.flying import FAST, fly_on_mocks
+from tests.flight.support import short_line, smooth_plan
 from tests.paths import EXAMPLES
+from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(120)
-
-FAST = QUICK
-
-
-async def _fly(plan, options=FAST, *, settle=0.5, configure=None, during=None, **mock_kw):
-    """Fly `plan` on mock vehicles below its starts; returns (flight, record or exception,
-    mock)."""
-    homes = homes_under(plan.scenario.starts)
-    async with MockFleet(homes=homes, settle_time=settle, **mock_ports(len(homes)),
-                         **{**FAST_MOCK, **mock_kw}) as mock:
-        if configure is not None:
-            configure(mock)
-        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
-        flight = FlightExecutor(plan, fleet, options)
-        task = flight.start()
-        if during is not None:
-            await during(flight, mock)
-        try:
-            outcome = await task
-        except Exception as exc:
-            outcome = exc
-        return flight, outcome, mock
 
 
 @pytest.mark.flight
@@ -55,7 +35,7 @@ def test_paper_circle4_end_to_end() -> None:
     scenario = planner.Scenario.from_dict({**data, "steps": 60})
     plan = planner.plan(scenario)
     assert plan.ok
-    _flight, record, mock = asyncio.run(_fly(plan))
+    _flight, record, mock = asyncio.run(fly_on_mocks(plan))
     assert isinstance(record, dict), record
     summary = record["summary"]
     assert summary["completed"] is True
@@ -104,15 +84,14 @@ def test_vehicle_stops_talking_mid_flight_land_faulty(fault: str, kind: str,
     plan = smooth_plan(short_line(3, steps=50))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         if fault == "silent":
             mock.vehicles[1].faults.silent = True
         else:
             mock.vehicles[1].faults.heartbeats = False
 
     options = FAST.replace(policy="land_faulty")
-    _flight, record, mock = asyncio.run(_fly(plan, options, during=during))
+    _flight, record, mock = asyncio.run(fly_on_mocks(plan, options, during=during))
     assert isinstance(record, dict), record
     flagged = [e for e in record["events"] if e["kind"] == "fault"]
     assert [e["vehicle"] for e in flagged] == ["uav2"]
@@ -157,11 +136,10 @@ def test_lost_link_fleet_policies(policy: str, mode: px4.Px4Mode) -> None:
     plan = smooth_plan(short_line(2, steps=20))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         mock.vehicles[0].faults.silent = True
 
-    flight, outcome, mock = asyncio.run(_fly(plan, FAST.replace(policy=policy),
+    flight, outcome, mock = asyncio.run(fly_on_mocks(plan, FAST.replace(policy=policy),
                                               during=during))
     assert isinstance(outcome, FlightAborted)
     assert "uav1 link_lost" in str(outcome)
@@ -191,7 +169,7 @@ def test_twenty_percent_packet_loss_still_completes() -> None:
         for vehicle in mock.vehicles:
             vehicle.faults.loss = 0.2
 
-    _flight, record, mock = asyncio.run(_fly(plan, configure=lossy))
+    _flight, record, mock = asyncio.run(fly_on_mocks(plan, configure=lossy))
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True, record["summary"]
     assert record["summary"]["goal_error_max"] < 0.2
@@ -207,7 +185,7 @@ def test_arming_refused_clear_error_and_nobody_left_armed() -> None:
     def refuse(mock: MockFleet) -> None:
         mock.vehicles[2].faults.refuse_arming = True
 
-    flight, outcome, mock = asyncio.run(_fly(plan, configure=refuse, settle=0.5))
+    flight, outcome, mock = asyncio.run(fly_on_mocks(plan, configure=refuse, settle=0.5))
     assert isinstance(outcome, ArmingRefused)
     assert outcome.vehicle == "uav3"
     assert "DENIED" in str(outcome) and "injected fault" in str(outcome)
@@ -230,8 +208,7 @@ def test_abort_from_the_api_holds_everyone_at_once() -> None:
                 seen.append(event["kind"])
 
         watcher = asyncio.create_task(watch())
-        while (flight.flight_time() or -1.0) < 0.5:
-            await asyncio.sleep(0.02)
+        await reached(flight, 0.5)
         snap = flight.snapshot()
         assert snap["phase"] == "flying"
         assert all(v["mode"] == "OFFBOARD" and v["armed"] for v in snap["vehicles"])
@@ -241,7 +218,7 @@ def test_abort_from_the_api_holds_everyone_at_once() -> None:
         assert all(v.mode == px4.HOLD for v in mock.vehicles)
         await watcher
 
-    _flight, outcome, _mock = asyncio.run(_fly(plan, during=during))
+    _flight, outcome, _mock = asyncio.run(fly_on_mocks(plan, during=during))
     assert isinstance(outcome, FlightAborted)
     assert "abort" in seen and "hold" in seen
 
@@ -265,7 +242,7 @@ def test_abort_right_after_start_stops_everything(yields: int, wait: float) -> N
             result["abort"] = exc
 
     # the PX4 default 1 Hz HEARTBEAT: the waits land in connecting, OFFBOARD and arming
-    _flight, outcome, mock = asyncio.run(_fly(plan, FAST, settle=0.0, during=during,
+    _flight, outcome, mock = asyncio.run(fly_on_mocks(plan, FAST, settle=0.0, during=during,
                                               status_rate=1.0))
     assert result["abort"] == "ok"
     assert isinstance(outcome, FlightAborted)
@@ -313,15 +290,14 @@ def test_a_separation_breach_stops_the_whole_fleet() -> None:
     plan = smooth_plan(short_line(2, steps=20))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         # push vehicle 2 to 0.4 m from vehicle 1 (R = 1 m): the model then flies it back
         target = mock.vehicles[0].position_world + np.array([0.4, 0.0, 0.0])
         mock.model.position[1] = frames.world_to_ned(target, mock.vehicles[1].home_world)
 
     # a wide tracking bound, so that the separation alarm is what reacts
     options = FAST.replace(tracking_error_max=5.0)
-    flight, outcome, mock = asyncio.run(_fly(plan, options, during=during))
+    flight, outcome, mock = asyncio.run(fly_on_mocks(plan, options, during=during))
     assert isinstance(outcome, FlightAborted)
     assert "separation" in str(outcome)
     kinds = [e["kind"] for e in flight.record["events"]]
@@ -342,7 +318,7 @@ def test_a_free_assignment_plan_flies_each_vehicle_to_its_assigned_goal() -> Non
     plan = planner.plan(data)
     assert plan.ok, plan.message
     assert list(plan.scenario.order) == [1, 0]  # each keeps its own lane
-    _flight, record, mock = asyncio.run(_fly(plan))
+    _flight, record, mock = asyncio.run(fly_on_mocks(plan))
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True, record["summary"]["why"]
     for vehicle, goal in zip(mock.vehicles, plan.scenario.assigned_goals, strict=True):
@@ -360,14 +336,13 @@ def test_the_hold_waits_for_a_vehicle_still_arriving_then_judges_it(returns: boo
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         horizon = plan.scenario.horizon
-        while (flight.flight_time() or -1.0) < horizon - 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, horizon - 1.0)
         mock.vehicles[1].faults.offset_ned = (0.5, 0.0, 0.0)  # 0.5 m off by the hold
         if returns:
             await asyncio.sleep(1.0 + options.hold_at_goal + 0.3)  # still off when it ends
             mock.vehicles[1].faults.offset_ned = (0.0, 0.0, 0.0)
 
-    _flight, record, _mock = asyncio.run(_fly(plan, options, during=during))
+    _flight, record, _mock = asyncio.run(fly_on_mocks(plan, options, during=during))
     assert isinstance(record, dict), record
     summary = record["summary"]
     if returns:

@@ -19,9 +19,8 @@ from gcs.flight.procedure.failsafe import (
 )
 from gcs.sim import MockFleet
 from gcs.wire import mavlink
-from tests.flight.support import FAST_MOCK, mock_ports, smooth_plan
-from tests.flight.test_landing import STACKED  # 0.55 m apart horizontally, 0.84 vertically
-from tests.sim.test_mock import _stream
+from tests.flight.flying import stream_setpoint
+from tests.flight.support import FAST_MOCK, STACKED, mock_ports, smooth_plan
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -59,7 +58,7 @@ def test_a_failsafe_set_over_mavlink_is_what_the_vehicle_does() -> None:
             vehicle = mock.vehicles[0]
             setpoint = hold_track([0, 0, -1.5], 0.0, 20).at(0)
 
-            streaming = asyncio.create_task(_stream(link, setpoint))
+            streaming = asyncio.create_task(stream_setpoint(link, setpoint))
             assert await link.wait_for(lambda _t: vehicle.setpoints_accepted > 0
                                        and mock.now() >= mock.config.settle_time, 2.0)
             assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,

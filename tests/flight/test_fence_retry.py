@@ -22,8 +22,8 @@ from gcs.sim import MockFleet
 from gcs.sim.fleet import DEFAULT_WORLD_ORIGIN
 from gcs.wire import mavlink
 from tests.flight.fakes import FakeLink, fake_link, fake_vehicle
+from tests.flight.flying import fly_on_mocks
 from tests.flight.support import QUICK, short_line, smooth_plan
-from tests.flight.test_executor import _fly
 
 WORKSPACE = {"limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [20.0, 10.0, 5.0]}}
 ORIGIN = tuple(DEFAULT_WORLD_ORIGIN)
@@ -162,7 +162,7 @@ def test_a_lossy_link_from_the_start_flies_fenced_or_not_at_all(seed: int) -> No
         for v in mock.vehicles:
             v.faults.loss = 0.2
 
-    flight, outcome, mock = asyncio.run(_fly(
+    flight, outcome, mock = asyncio.run(fly_on_mocks(
         plan, QUICK.replace(tracking_error_max=3.0, link_timeout=3.0), configure=lossy,
         seed=seed))
     assert flight.record is not None

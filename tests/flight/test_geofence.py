@@ -23,8 +23,8 @@ from gcs.sim import MockFleet
 from gcs.sim.fleet import DEFAULT_WORLD_ORIGIN
 from gcs.wire import mavlink
 from tests.flight.fakes import fake_link, fake_vehicle
+from tests.flight.flying import fly_on_mocks
 from tests.flight.support import QUICK, short_line, smooth_plan
-from tests.flight.test_executor import _fly as fly_on_mocks
 
 _m = mavlink
 WORKSPACE = {"limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [20.0, 10.0, 5.0]}}
@@ -128,8 +128,9 @@ def test_the_option_is_validated() -> None:
 async def _fly(plan: Any, options: FlightOptions, obstacles: list[dict[str, Any]],
                monkeypatch: pytest.MonkeyPatch, push: tuple[float, float, float] | None = None
                ) -> tuple[FlightExecutor, Any, MockFleet]:
-    """Fly `plan` on mocks (`test_executor._fly`) with `obstacles` in the scenario the fence is
-    built from; `push` offsets vehicle 2's setpoints (LOCAL_NED) once the flight clock runs."""
+    """Fly `plan` on mocks (`tests.flight.flying.fly_on_mocks`) with `obstacles` in the
+    scenario the fence is built from; `push` offsets vehicle 2's setpoints (LOCAL_NED) once
+    the flight clock runs."""
     monkeypatch.setattr(executor_module, "build_fence",
                         lambda scenario: build_fence({**scenario, "obstacles": obstacles}))
 

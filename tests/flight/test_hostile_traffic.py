@@ -27,8 +27,8 @@ from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from gcs.wire import mavlink, new_key_file, pack
 from tests.flight.attacker import drain
+from tests.flight.flying import Attacker
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
-from tests.flight.test_attacks import Attacker
 
 pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 

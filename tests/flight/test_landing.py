@@ -11,19 +11,11 @@ from gcs.fleet.fleetfile import FleetSpec
 from gcs.flight.run.executor import FlightExecutor
 from gcs.phases import EventKind
 from gcs.sim import MockFleet
-from tests.flight.support import FAST_MOCK, QUICK, mock_ports, smooth_plan
+from tests.flight.support import FAST_MOCK, QUICK, STACKED, mock_ports, smooth_plan
+from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(120)
 
-#: Two vehicles stacked 0.84 m apart vertically and 0.55 m horizontally (1.004 m apart),
-#: flying side by side along y: landing each straight down brings them 0.55 m apart.
-STACKED = {
-    "name": "stacked", "dt": 0.2, "steps": 20, "min_separation": 1.0,
-    "limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [5.0, 5.0, 3.0],
-               "velocity_max": [2.0, 2.0, 2.0], "acceleration_max": [3.0, 3.0, 3.0]},
-    "vehicles": [{"id": "low", "start": [2.0, 1.0, 1.08], "goal": [2.0, 3.0, 1.08]},
-                 {"id": "high", "start": [2.55, 1.0, 1.92], "goal": [2.55, 3.0, 1.92]}],
-}
 #: Homes apart, so the climbs (vertical, then horizontal) keep R too.
 HOMES = [[0.8, 1.0, 0.0], [3.75, 1.0, 0.0]]
 
@@ -43,8 +35,7 @@ async def _abort_at(plan, t_abort: float, options):
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         flight = FlightExecutor(plan, fleet, options)
         task = flight.start()
-        while (flight.flight_time() or -1.0) < t_abort:
-            await asyncio.sleep(0.02)
+        await reached(flight, t_abort)
         truth: list[float] = []
         sampler = asyncio.create_task(_sample_truth(mock, truth))
         await flight.abort("land", "test abort")
@@ -86,8 +77,7 @@ async def _fly_to_the_end(plan, options):
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         flight = FlightExecutor(plan, fleet, options)
         task = flight.start()
-        while (flight.flight_time() or -1.0) < plan.scenario.horizon:
-            await asyncio.sleep(0.02)
+        await reached(flight, plan.scenario.horizon)
         truth: list[float] = []
         sampler = asyncio.create_task(_sample_truth(mock, truth))
         record = await task

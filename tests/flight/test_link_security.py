@@ -13,7 +13,6 @@ import os
 import socket
 import stat
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +37,7 @@ from gcs.wire import (
     signing_timestamp,
 )
 from tests.flight.support import free_port_block, mock_ports
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -93,20 +93,11 @@ class Peer:
             out.extend(self.received())
             return any(m.get_type() == kind for m in out)
 
-        await _until(arrived)
+        await until(arrived, timeout=10.0, poll=0.001)
         return out
 
     def close(self) -> None:
         self.sock.close()
-
-
-async def _until(condition: Callable[[], Any], bound: float = 10.0) -> None:
-    """Wait, a loop turn at a time, until `condition()` holds (the packets that make it true
-    have been handled); fail after `bound` seconds."""
-    deadline = time.monotonic() + bound  # bound
-    while not condition():
-        assert time.monotonic() < deadline, "what the packets sent must cause never happened"
-        await asyncio.sleep(0.001)
 
 
 def _run(coro: Any) -> Any:
@@ -135,8 +126,8 @@ def test_truncated_headers_cannot_desynchronise_a_vehicle() -> None:
                 for i in range(20):
                     attacker.send(b"\xfd\xff\x00", port)
                     vehicle.send(vehicle.position(float(i)), port)
-                await _until(lambda: link.endpoint.garbage_datagrams == 20
-                             and len(positions) == 20)
+                await until(lambda: link.endpoint.garbage_datagrams == 20
+                            and len(positions) == 20, timeout=10.0, poll=0.001)
                 assert positions.count("LOCAL_POSITION_NED") == 20  # none swallowed
                 assert link.telemetry.position_ned == (19.0, 2.0, -3.0)
                 assert link.endpoint.garbage_datagrams == 20
@@ -155,7 +146,7 @@ def test_peer_is_pinned_spoofs_dropped_counted_and_never_sent_to() -> None:
             async with LinkHub(heartbeat_period=0.05) as hub:
                 link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
                 vehicle.send(vehicle.heartbeat(px4.OFFBOARD, armed=True), port)
-                await _until(lambda: link.pinned)
+                await until(lambda: link.pinned, timeout=10.0, poll=0.001)
                 assert link.peer_address == vehicle.address
                 assert link.telemetry.mode == px4.OFFBOARD
                 # spoofed HEARTBEAT (POSCTL, disarmed), positions, and the hijack's SYSTEM_TIME
@@ -163,7 +154,8 @@ def test_peer_is_pinned_spoofs_dropped_counted_and_never_sent_to() -> None:
                     spoofer.send(spoofer.heartbeat(px4.POSITION), port)
                     spoofer.send(spoofer.position(99.0), port)
                     spoofer.send(spoofer.mav.system_time_encode(0, 0).pack(spoofer.mav), port)
-                await _until(lambda: link.telemetry.security.foreign_source == 30)
+                await until(lambda: link.telemetry.security.foreign_source == 30,
+                            timeout=10.0, poll=0.001)
                 assert link.telemetry.mode == px4.OFFBOARD and link.telemetry.armed
                 assert link.telemetry.position_ned is None
                 assert link.peer_address == vehicle.address
@@ -189,10 +181,12 @@ def test_peer_from_the_fleet_file_is_pinned_before_first_contact() -> None:
                 link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1,
                                      peer=vehicle.address)
                 early.send(early.heartbeat(), port)  # first to speak, but not the pinned peer
-                await _until(lambda: link.telemetry.security.foreign_source == 1)
+                await until(lambda: link.telemetry.security.foreign_source == 1,
+                            timeout=10.0, poll=0.001)
                 assert link.telemetry.heartbeat_time is None and link.telemetry.seq_received == 0
                 vehicle.send(vehicle.heartbeat(), port)
-                await _until(lambda: link.telemetry.heartbeat_time is not None)
+                await until(lambda: link.telemetry.heartbeat_time is not None,
+                            timeout=10.0, poll=0.001)
                 assert link.peer_address == vehicle.address
         finally:
             vehicle.close()
@@ -209,17 +203,18 @@ def test_acks_count_only_from_the_pinned_peer_for_a_pending_command() -> None:
             async with LinkHub() as hub:
                 link = await hub.add("uav1", f"udpin:127.0.0.1:{port}", 1)
                 vehicle.send(vehicle.heartbeat(), port)
-                await _until(lambda: link.pinned)
+                await until(lambda: link.pinned, timeout=10.0, poll=0.001)
                 land = mavlink.MAV_CMD_NAV_LAND
                 # an ACK for a command nobody sent changes nothing
                 vehicle.send(vehicle.ack(land), port)
-                await _until(lambda: link.duplicate_acks == 1)
+                await until(lambda: link.duplicate_acks == 1, timeout=10.0, poll=0.001)
                 # one try, with a timeout no busy machine reaches: only an ACK ends it
                 task = asyncio.create_task(link.command(land, timeout=30.0, retries=0))
                 sent = await vehicle.receive_until("COMMAND_LONG")
                 assert [m.command for m in sent if m.get_type() == "COMMAND_LONG"] == [land]
                 spoofer.send(spoofer.ack(land), port)  # the spoofer's ACCEPTED is not an answer
-                await _until(lambda: link.telemetry.security.foreign_source == 1)
+                await until(lambda: link.telemetry.security.foreign_source == 1,
+                            timeout=10.0, poll=0.001)
                 assert not task.done()
                 vehicle.send(vehicle.ack(land, mavlink.MAV_RESULT_DENIED), port)
                 assert await task == mavlink.MAV_RESULT_DENIED
@@ -241,14 +236,15 @@ def test_non_finite_position_is_never_stored_and_is_timestamped() -> None:
                 seen: list[str] = []
                 link.listeners.append(lambda _l, m, _t: seen.append(m.get_type()))
                 vehicle.send(vehicle.position(1.0), port)
-                await _until(lambda: link.telemetry.position_ned is not None)
+                await until(lambda: link.telemetry.position_ned is not None,
+                            timeout=10.0, poll=0.001)
                 for bad in (math.nan, math.inf):
                     vehicle.send(vehicle.mav.local_position_ned_encode(
                         0, bad, 0.0, 0.0, 0.0, 0.0, 0.0).pack(vehicle.mav), port)
                 vehicle.send(vehicle.mav.local_position_ned_encode(
                     0, 1.0, 0.0, 0.0, 0.0, math.nan, 0.0).pack(vehicle.mav), port)
                 tel = link.telemetry
-                await _until(lambda: tel.invalid_estimates == 3)
+                await until(lambda: tel.invalid_estimates == 3, timeout=10.0, poll=0.001)
                 assert tel.position_ned == (1.0, 2.0, -3.0)  # the last finite one
                 assert tel.invalid_estimate_time is not None and tel.position_time is not None
                 assert tel.invalid_estimate_time >= tel.position_time  # the bad ones' time
@@ -306,7 +302,7 @@ def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
     async def body(link: VehicleLink, vehicle: Peer, port: int, key: Any) -> None:
         first = vehicle.heartbeat(px4.OFFBOARD, armed=True)
         vehicle.send(first, port)
-        await _until(lambda: link.telemetry.mode == px4.OFFBOARD)
+        await until(lambda: link.telemetry.mode == px4.OFFBOARD, timeout=10.0, poll=0.001)
         assert link.pinned
         # everything the GCS sends is signed with the key
         link.send_setpoint(_setpoint(), 0)
@@ -325,11 +321,11 @@ def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
         vehicle.send(wrong.heartbeat(px4.POSITION), port)
         vehicle.send(first, port)  # replayed: same timestamp as an accepted one
         sec = link.telemetry.security
-        await _until(lambda: sec.total == 3)
+        await until(lambda: sec.total == 3, timeout=10.0, poll=0.001)
         assert (sec.unsigned, sec.bad_signature, sec.replayed) == (1, 1, 1)
         assert link.telemetry.mode == px4.OFFBOARD
         vehicle.send(vehicle.heartbeat(px4.POSITION), port)  # a fresh signed one counts
-        await _until(lambda: link.telemetry.mode == px4.POSITION)
+        await until(lambda: link.telemetry.mode == px4.POSITION, timeout=10.0, poll=0.001)
         assert sec.total == 3
 
     _signed_hub_test(tmp_path, body)
@@ -347,7 +343,7 @@ def test_a_key_not_on_the_vehicle_fails_connect_naming_the_cause(tmp_path: Path)
             for _ in range(3):
                 unkeyed.send(unkeyed.heartbeat(), port)
                 unkeyed.send(unkeyed.position(), port)
-            await _until(lambda: link.telemetry.security.unsigned == 6)
+            await until(lambda: link.telemetry.security.unsigned == 6, timeout=10.0, poll=0.001)
             with pytest.raises(VehicleTimeout) as refused:
                 await connect(link, spec, 0.2)
             text = str(refused.value)
@@ -361,7 +357,8 @@ def test_a_key_not_on_the_vehicle_fails_connect_naming_the_cause(tmp_path: Path)
         other = Peer(key=b"\x02" * 32)
         try:
             other.send(other.heartbeat(), port)
-            await _until(lambda: link.telemetry.security.bad_signature == 1)
+            await until(lambda: link.telemetry.security.bad_signature == 1,
+                        timeout=10.0, poll=0.001)
             with pytest.raises(VehicleTimeout, match=r"1 wrongly signed packets from .*another "
                                                      r"key than the fleet file's"):
                 await connect(link, spec, 0.2)
@@ -378,8 +375,8 @@ def test_a_forged_future_timestamp_cannot_lock_the_stream_out(tmp_path: Path) ->
         forger.sock.close()
         vehicle.send(forger.heartbeat(px4.POSITION), port)  # bad signature, huge timestamp
         vehicle.send(vehicle.heartbeat(), port)  # after it, on the same socket
-        await _until(lambda: link.telemetry.security.bad_signature == 1)
-        await _until(lambda: link.telemetry.heartbeat_time is not None)
+        await until(lambda: link.telemetry.security.bad_signature == 1, timeout=10.0, poll=0.001)
+        await until(lambda: link.telemetry.heartbeat_time is not None, timeout=10.0, poll=0.001)
         assert link.telemetry.security.total == 1
 
     _signed_hub_test(tmp_path, body)
@@ -467,9 +464,9 @@ def test_two_sources_for_one_vehicle_fail_its_connect_naming_both() -> None:
                 # the spoofer speaks first and is pinned; the real vehicle claims it too
                 spoofer.send(spoofer.heartbeat(), port)
                 spoofer.send(spoofer.position(), port)
-                await _until(lambda: link.pinned)
+                await until(lambda: link.pinned, timeout=10.0, poll=0.001)
                 vehicle.send(vehicle.heartbeat(), port)
-                await _until(lambda: link.claimants)
+                await until(lambda: link.claimants, timeout=10.0, poll=0.001)
                 with pytest.raises(LinkError) as refused:
                     await connect(link, spec, 5.0)
                 text = str(refused.value)

@@ -11,7 +11,6 @@ from __future__ import annotations
 import asyncio
 import socket
 import time
-from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -23,6 +22,7 @@ from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.station import StationStalls
 from gcs.wire import GCS_SYSTEM_ID, mavlink, parse_datagram
 from tests.flight.support import free_port_block
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -68,13 +68,6 @@ class Responder:
                        if m.get_type() == "COMMAND_LONG")
 
 
-async def _until(condition: Callable[[], Any], bound: float = 10.0) -> None:
-    deadline = time.monotonic() + bound  # bound
-    while not condition():
-        assert time.monotonic() < deadline, "what the packets sent must cause never happened"
-        await asyncio.sleep(0.001)
-
-
 def _stall(stalls: StationStalls) -> None:
     """Block the event loop for `STALL_S` (a stalled station) and note it."""
     start = time.monotonic()
@@ -85,7 +78,7 @@ def _stall(stalls: StationStalls) -> None:
 async def _linked(hub: LinkHub, vehicle: Responder) -> VehicleLink:
     link = await hub.add("uav1", f"udpin:127.0.0.1:{vehicle.port}", 1)
     vehicle.heartbeat()  # pins the peer: commands go to it
-    await _until(lambda: link.telemetry.heartbeat_time is not None)
+    await until(lambda: link.telemetry.heartbeat_time is not None, timeout=10.0, poll=0.001)
     return link
 
 
@@ -103,7 +96,7 @@ async def _command_across_a_stall(stalls: StationStalls | None) -> int:
                 sent.extend(vehicle.commands())
                 return ARM in sent
 
-            await _until(arm_sent)
+            await until(arm_sent, timeout=10.0, poll=0.001)
             _stall(stalls if stalls is not None else StationStalls())
             # let the loop run the try's expired wall-time timer before the answer goes out
             await asyncio.sleep(0.1)

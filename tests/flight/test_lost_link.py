@@ -27,6 +27,7 @@ from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from gcs.sim.fleet import homes_under
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports
+from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -61,9 +62,7 @@ async def _blackhole(plan: planner.Plan, lost: int, at: float
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         flight = FlightExecutor(plan, fleet, OPTIONS)
         task = flight.start()
-        while (flight.flight_time() or -1.0) < at:
-            assert not task.done(), "the flight ended before the link was cut"
-            await asyncio.sleep(0.02)
+        await reached(flight, at)
         truth: list[np.ndarray] = []
         mock.vehicles[lost].faults.loss = 1.0  # nothing in, nothing out
         try:
@@ -122,7 +121,6 @@ def test_landing_plan_keeps_clear_of_a_lost_vehicle(circle4: planner.Plan, at: f
     land_all's landing plan keeps R from uav2's predicted failsafe descent."""
     flight, outcome, truth, mock = asyncio.run(_blackhole(circle4, 1, at))
     _check(flight, outcome, truth, mock, circle4, "uav2")
-
 
 
 @pytest.mark.flight

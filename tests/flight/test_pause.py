@@ -18,6 +18,7 @@ from gcs.flight.run.record import plan_times
 from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
+from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -41,11 +42,6 @@ async def _fly(plan, options, during):
         return flight, outcome
 
 
-async def _until_flight_time(flight: FlightExecutor, t: float) -> None:
-    while (flight.flight_time() or -1.0) < t:
-        await asyncio.sleep(0.02)
-
-
 @pytest.mark.flight
 def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
     plan = smooth_plan(CLOSE)
@@ -57,7 +53,7 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
             flight.resume()  # nothing to resume
         # mid-plan, every vehicle moving: a busy machine starves the in-process mock, whose
         # vehicles then trail the plan, so wait for the motion itself, not a plan time
-        await _until_flight_time(flight, 2.0)
+        await reached(flight, 2.0)
         while min(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) <= 0.3:
             assert flight.flight_time() < plan.scenario.horizon, "never moving"
             await asyncio.sleep(0.02)
@@ -125,7 +121,7 @@ def test_a_pause_longer_than_the_limit_lands_the_fleet() -> None:
     plan = smooth_plan(line_scenario(2))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        await _until_flight_time(flight, 1.5)
+        await reached(flight, 1.5)
         flight.pause()
 
     options = FAST.replace(pause_limit=1.0, pause_expiry="land")

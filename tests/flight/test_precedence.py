@@ -16,8 +16,9 @@ from gcs.errors import FlightAborted, StateConflict
 from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.run.precedence import abort_in_force
 from gcs.sim import MockFleet
+from tests.flight.flying import fly_on_mocks
 from tests.flight.support import short_line, smooth_plan
-from tests.flight.test_executor import _fly
+from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -41,8 +42,7 @@ def test_a_hold_after_a_land_is_refused_with_the_reason() -> None:
 
 
 async def _while_flying(flight: FlightExecutor) -> None:
-    while (flight.flight_time() or -1.0) < 0.3:
-        await asyncio.sleep(0.02)
+    await reached(flight, 0.3)
 
 
 @pytest.mark.flight
@@ -67,7 +67,7 @@ def test_land_after_hold_lands_the_fleet() -> None:
             await flight.replan({"uav1": [0.0, 0.0, 1.0]})
         refusals.append(refused.value.reason)
 
-    flight, outcome, mock = asyncio.run(_fly(plan, during=during))
+    flight, outcome, mock = asyncio.run(fly_on_mocks(plan, during=during))
     assert isinstance(outcome, FlightAborted)
     events = flight.recorder.events
     aborts = [e["detail"] for e in events if e["kind"] == "abort"]
@@ -101,7 +101,7 @@ def test_hold_after_land_is_refused_and_recorded() -> None:
         await flight.abort("land", "operator land again")
         await land
 
-    flight, outcome, mock = asyncio.run(_fly(plan, during=during))
+    flight, outcome, mock = asyncio.run(fly_on_mocks(plan, during=during))
     assert isinstance(outcome, FlightAborted)
     assert [exc.reason for exc in refused] == [
         "the flight is already aborting with land (operator land): land overrides hold"]
@@ -155,7 +155,7 @@ def test_racing_aborts_over_the_control_socket(tmp_path: Path) -> None:
         finally:
             await server.close()
 
-    flight, outcome, mock = asyncio.run(_fly(plan, during=during))
+    flight, outcome, mock = asyncio.run(fly_on_mocks(plan, during=during))
     assert isinstance(outcome, FlightAborted)
     hold, land = answers
     assert land == {"ok": True}

@@ -21,6 +21,7 @@ from gcs.phases import EventKind, ReplanStatus, VehiclePhase
 from gcs.sim import MockFleet, homes_under
 from planner.errors import FieldError
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
+from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(150)
 
@@ -63,13 +64,6 @@ async def _fly(plan: Any, options: FlightOptions, during: Any) -> tuple[Any, ...
         return flight, outcome, mock, found
 
 
-async def _until(flight: FlightExecutor, t: float) -> None:
-    while (flight.flight_time() or -1.0) < t:
-        if flight._task is not None and flight._task.done():
-            raise AssertionError("the flight ended before the test could act")
-        await asyncio.sleep(0.02)
-
-
 def _setpoint_steps_ok(record: dict[str, Any], speed: float) -> None:
     """No setpoint jumps: consecutive setpoints are at most `speed` x their tick gap apart."""
     rate = record["options"]["rate_hz"]
@@ -90,7 +84,7 @@ def test_eight_vehicles_two_new_goals_and_one_dropped_mid_flight() -> None:
     new_goals = {"uav4": [7.0, 3.2, 1.0], "uav6": [8.5, 0.6, 2.0]}
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
-        await _until(flight, 2.0)
+        await reached(flight, 2.0)
         truth: list[tuple[float, np.ndarray]] = []
         sampler = asyncio.create_task(_sample_truth(mock, truth))
         obj = await flight.replan(new_goals, ["uav5"], "land", "test")
@@ -105,8 +99,7 @@ def test_eight_vehicles_two_new_goals_and_one_dropped_mid_flight() -> None:
         assert snapshot["replan"]["status"] == ReplanStatus.SWITCHED, snapshot["replan"]
         assert snapshot["horizon"] == pytest.approx(
             snapshot["replan"]["switch_time"] + snapshot["replan"]["horizon"], abs=1e-3)
-        while flight._task is not None and not flight._task.done():
-            await asyncio.sleep(0.05)
+        await asyncio.wait([flight.start()])  # its run (start is idempotent) has ended
         sampler.cancel()
         return truth
 
@@ -167,14 +160,14 @@ def test_a_replan_not_ready_by_its_switch_tick_is_missed_and_the_flight_goes_on(
     options = OPTIONS.replace(replan_lead_s=0.1)
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
-        await _until(flight, 1.0)
+        await reached(flight, 1.0)
         obj = await flight.replan({"uav1": [1.0, 2.0, 2.0]}, reason="late")
         assert obj["lead_s"] == pytest.approx(0.1)
         while flight.replans[-1]["status"] == ReplanStatus.PLANNING:
             await asyncio.sleep(0.02)
         while flight.replans[-1]["planning_s"] is None:  # the late plan still finishes
             await asyncio.sleep(0.02)
-        return flight._replanner.lead() if flight._replanner is not None else None
+        return flight.replan_lead
 
     _flight, record, mock, lead = asyncio.run(_fly(plan, options, during))
     assert isinstance(record, dict), record
@@ -203,7 +196,7 @@ def test_replan_refusals(monkeypatch: pytest.MonkeyPatch) -> None:
         asyncio.run(before.replan({"uav1": [1.0, 2.0, 1.0]}))
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
-        await _until(flight, 0.5)
+        await reached(flight, 0.5)
         fields = []
         for goals, drop, action in [
             ({"nope": [1.0, 2.0, 1.0]}, (), "land"),
@@ -225,7 +218,7 @@ def test_replan_refusals(monkeypatch: pytest.MonkeyPatch) -> None:
         with pytest.raises(StateConflict):
             await flight.replan({"uav2": [4.0, 2.0, 2.0]})
         # paused and resumed after the switch, the fleet holds and goes on on the new plan
-        await _until(flight, obj["switch_time"] + 0.3)
+        await reached(flight, obj["switch_time"] + 0.3)
         assert flight.replans[-1]["status"] == ReplanStatus.SWITCHED
         flight.pause()
         await asyncio.sleep(0.3)
@@ -252,12 +245,11 @@ def test_policy_replan_flies_the_others_around_a_vehicle_whose_link_is_cut() -> 
     options = OPTIONS.replace(policy="replan")
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
-        await _until(flight, 2.0)
+        await reached(flight, 2.0)
         truth: list[tuple[float, np.ndarray]] = []
         sampler = asyncio.create_task(_sample_truth(mock, truth))
         mock.vehicles[3].faults.silent = True
-        while flight._task is not None and not flight._task.done():
-            await asyncio.sleep(0.05)
+        await asyncio.wait([flight.start()])  # its run (start is idempotent) has ended
         sampler.cancel()
         return truth
 
@@ -289,7 +281,7 @@ def test_policy_replan_that_misses_falls_back_to_land_faulty(
     options = OPTIONS.replace(policy="replan", replan_lead_s=0.1)
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        await _until(flight, 1.0)
+        await reached(flight, 1.0)
         mock.vehicles[1].faults.silent = True
 
     _flight, record, mock, _ = asyncio.run(_fly(plan, options, during))
@@ -329,12 +321,11 @@ def test_a_faulty_vehicle_landing_in_the_others_way(policy: str) -> None:
     plan = smooth_plan(UNDER)
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
-        await _until(flight, 1.0)
+        await reached(flight, 1.0)
         truth: list[tuple[float, np.ndarray]] = []
         sampler = asyncio.create_task(_sample_truth(mock, truth))
         mock.vehicles[1].faults.silent = True
-        while flight._task is not None and not flight._task.done():
-            await asyncio.sleep(0.05)
+        await asyncio.wait([flight.start()])  # its run (start is idempotent) has ended
         sampler.cancel()
         return truth
 
@@ -415,7 +406,7 @@ def test_a_replan_while_holding_at_the_goals_moves_the_end_and_a_hold_drop_lands
     options = OPTIONS.replace(hold_at_goal=3.0)
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> Any:
-        await _until(flight, plan.scenario.horizon + 0.5)
+        await reached(flight, plan.scenario.horizon + 0.5)
         obj = await flight.replan({"uav1": [1.0, 1.5, 1.5]}, ["uav2"], "hold")
         return obj
 

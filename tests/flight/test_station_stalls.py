@@ -11,11 +11,12 @@ import pytest
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.station import StallReport, StationStalls
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.safety.monitor import FleetMonitor, vehicle_fault
+from gcs.flight.safety.monitor import vehicle_fault
 from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_link, fake_vehicle
+from tests.flight.flying import FAST, fly_on_mocks, monitor_of
 from tests.flight.support import line_scenario, smooth_plan
-from tests.flight.test_executor import FAST, _fly
+from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -69,15 +70,6 @@ def _kind(fault: tuple[str, str] | None) -> str | None:
     return None if fault is None else fault[0]
 
 
-def _monitor(vehicles: list[VehicleStatus], faults: list[tuple[str, str, float]],
-             stalls: StationStalls, options: FlightOptions | None = None) -> FleetMonitor:
-    plan = smooth_plan(line_scenario(max(1, len(vehicles))))
-    return FleetMonitor(vehicles, plan, options or FlightOptions(), flight_time=lambda: None,
-                        on_fault=lambda v, kind, _d: faults.append((v.id, kind,
-                                                                    time.monotonic())),
-                        on_separation=lambda *_: None, stalls=stalls)
-
-
 async def _feed(vehicles: list[VehicleStatus], silent: set[str]) -> None:
     """The vehicles' messages arriving at 20 Hz (those in `silent` send nothing)."""
     while True:
@@ -93,7 +85,7 @@ def test_the_station_blocked_for_two_seconds_flags_nobody() -> None:
     stalls = StationStalls()
 
     async def main() -> None:
-        monitor = _monitor(vehicles, faults, stalls)
+        monitor = monitor_of(vehicles, faults, stalls)
         feed = asyncio.create_task(_feed(vehicles, set()))
         done = asyncio.Event()
         task = asyncio.create_task(monitor.run(done.is_set))
@@ -117,7 +109,7 @@ def test_a_vehicle_silent_while_the_station_runs_is_a_lost_link() -> None:
     silent: set[str] = set()
 
     async def main() -> float:
-        monitor = _monitor(vehicles, faults, stalls, options)
+        monitor = monitor_of(vehicles, faults, stalls, options)
         feed = asyncio.create_task(_feed(vehicles, silent))
         task = asyncio.create_task(monitor.run(lambda: bool(faults)))
         await asyncio.sleep(0.2)
@@ -139,7 +131,7 @@ def test_a_silent_vehicle_is_still_caught_across_a_station_stall() -> None:
     stalls = StationStalls()
 
     async def main() -> None:
-        monitor = _monitor(vehicles, faults, stalls)
+        monitor = monitor_of(vehicles, faults, stalls)
         fake_link(vehicles[0]).alive()
         task = asyncio.create_task(monitor.run(lambda: bool(faults)))
         await asyncio.sleep(0.5)
@@ -159,11 +151,10 @@ def test_a_flight_survives_the_station_blocked_for_two_seconds() -> None:
     plan = smooth_plan(line_scenario(2, steps=40))
 
     async def during(flight, mock) -> None:
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         asyncio.get_running_loop().call_soon(time.sleep, 2.0)
 
-    _flight, record, _mock = asyncio.run(_fly(plan, FAST, settle=0.5, during=during))
+    _flight, record, _mock = asyncio.run(fly_on_mocks(plan, FAST, settle=0.5, during=during))
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True, record["summary"]["why"]
     stalls = [e for e in record["events"] if e["kind"] == EventKind.STATION_STALL]
@@ -176,7 +167,7 @@ def test_eight_vehicles_complete_with_two_cpu_hogs_running() -> None:
     plan = smooth_plan(line_scenario(8, steps=20))
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(2)]
     try:
-        _flight, record, _mock = asyncio.run(_fly(plan, FAST, settle=0.5))
+        _flight, record, _mock = asyncio.run(fly_on_mocks(plan, FAST, settle=0.5))
     finally:
         for hog in hogs:
             hog.kill()

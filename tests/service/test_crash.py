@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import signal
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
@@ -17,21 +16,12 @@ import pytest
 
 from planner.families.generators import grid_to_sphere
 from tests.api.support import QUICK_PAIR, ServiceProcess, example, free_udp_base
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(400)
 
 #: Generous for every request: the service shares the machine with two planner workers.
 HTTP_S = 30.0
-
-
-def _wait(predicate: Any, timeout: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
 
 
 @pytest.mark.flight
@@ -68,14 +58,14 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         for thread in posters:
             thread.join(60)
         assert len(created) == 3
-        _wait(lambda: (httpx.get(exec_url, timeout=HTTP_S).json().get("live") or {})
-              .get("phase") == "flying", 60, "the flight to be flying")
+        wait_for(lambda: (httpx.get(exec_url, timeout=HTTP_S).json().get("live") or {})
+                 .get("phase") == "flying", "the flight to be flying", 60)
         # What the service has shown so far; the journal writes it within about a second.
         seen = httpx.get(exec_url, timeout=HTTP_S).json()["events"]
         assert seen, "no flight events yet"
         # The journal's first record snapshot (every ~5 s) is stored too.
-        _wait(lambda: httpx.get(exec_url, timeout=HTTP_S).json()["has_record"], 60,
-              "the first record snapshot")
+        wait_for(lambda: httpx.get(exec_url, timeout=HTTP_S).json()["has_record"],
+                 "the first record snapshot", 60)
         statuses = {m: httpx.get(f"{url}/api/missions/{m}", timeout=HTTP_S).json()["status"]
                     for m in created}
         assert "planning" in statuses.values(), statuses

@@ -29,6 +29,7 @@ from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.support import free_udp_base
 from tests.flight.support import QUICK_MOCK_SETTINGS, short_line, smooth_plan
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -37,20 +38,13 @@ pytestmark = pytest.mark.timeout(180)
 BLOCK_S = 1.5
 
 
-async def _wait_for(condition: Any, what: str, bound: float = 60.0) -> None:
-    deadline = time.monotonic() + bound  # bound
-    while not condition():
-        assert time.monotonic() < deadline, f"never: {what}"
-        await asyncio.sleep(0.02)
-
-
 async def _flying(service: FleetService, mission_id: str, plan: Any) -> LiveFlight:
     """Fly `plan` on the service's fleet; the live flight, once the plan's clock started."""
     row = await service.fly(mission_id, plan, {"hold_at_goal": 0.5})
     flight = service.flight(row.id)
     assert flight is not None
-    await _wait_for(lambda: any(e["kind"] == EventKind.FLIGHT_START for e in flight.events),
-                    "the plan started")
+    await until(lambda: any(e["kind"] == EventKind.FLIGHT_START for e in flight.events),
+                "the plan started")
     return flight
 
 
@@ -187,8 +181,8 @@ def test_a_vehicle_process_killed_mid_flight_fails_the_flight(tmp_path: Path) ->
             assert flight.error is not None and "vehicle process ended" in flight.error
             assert service.active is None
             # a new vehicle process watches the fleet again (its mocks start anew)
-            await _wait_for(lambda: service.vehicle_process.alive
-                            and service.vehicle_process.pid != killed, "a new vehicle process")
+            await until(lambda: service.vehicle_process.alive
+                        and service.vehicle_process.pid != killed, "a new vehicle process")
             assert [v["id"] for v in await service.vehicles()] == ["uav1", "uav2"]
             return flight.id
         finally:

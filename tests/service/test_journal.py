@@ -4,8 +4,6 @@ is tests/service/test_storage_faults.py's."""
 from __future__ import annotations
 
 import asyncio
-import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -15,16 +13,9 @@ from gcs.service.journal import FlightJournal
 from gcs.service.store import Store
 from planner import Scenario
 from tests.api.support import example
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(300)
-
-
-async def _until(condition: Callable[[], bool], bound: float = 30.0) -> None:
-    """Wait for the journal's writer thread (a busy machine delays it); fail after `bound`."""
-    deadline = time.monotonic() + bound  # bound
-    while not condition():
-        assert time.monotonic() < deadline, "the journal never wrote"
-        await asyncio.sleep(0.01)
 
 
 def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> None:
@@ -46,11 +37,11 @@ def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> 
                                    lambda: (state["status"], state["events"], None),
                                    state_period_s=0.02)
         journal.start()
-        await _until(lambda: len(writes) >= 1)
+        await until(lambda: len(writes) >= 1, "the journal to write")
         await asyncio.sleep(0.1)  # more beats of the same state: nothing more is written
         state["status"] = "running"
         state["events"].append({"t": 0.1, "vehicle": None, "kind": "armed", "detail": ""})
-        await _until(lambda: len(writes) >= 2)
+        await until(lambda: len(writes) >= 2, "the journal to write")
         await asyncio.sleep(0.1)
         await journal.close()
         state["status"] = "completed"  # after close: must not be written by the journal

@@ -5,11 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-import logging
-import os
 import time
-from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import psutil
@@ -23,38 +19,21 @@ from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.store import Store
 from planner import Scenario
 from tests.api.support import example
-from tests.service.support import fill_the_disk
+from tests.service.support import (
+    assert_idle,
+    done,
+    executing,
+    fill_the_disk,
+    started_service,
+    wait_idle,
+    worker_pids,
+)
 
 pytestmark = pytest.mark.timeout(300)
 
 
-@pytest.fixture(scope="module")
-def cluster() -> Iterator[LocalCluster]:
-    """Two worker processes with nannies (so a worker can be restarted), shared by the
-    module."""
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      scheduler_port=0, dashboard_address=None,
-                      silence_logs=logging.ERROR) as local:
-        yield local
-
-
-@pytest.fixture
-def store(tmp_path: Path) -> Iterator[Store]:
-    store = Store(f"sqlite:///{tmp_path / 'plans.db'}")
-    yield store
-    store.close()
-
-
 def scenario(name: str) -> dict[str, Any]:
     return Scenario.from_dict(example(name)).to_dict()
-
-
-async def started_service(store: Store, cluster: LocalCluster, **options: Any
-                          ) -> PlanningService:
-    service = PlanningService(store, workers=2, solver=None,
-                              scheduler=cluster.scheduler_address, **options)
-    await service.start()
-    return service
 
 
 def submit(service: PlanningService, store: Store, name: str, **options: Any) -> PlanJob:
@@ -63,31 +42,10 @@ def submit(service: PlanningService, store: Store, name: str, **options: Any) ->
     return service.submit(row.id, data, **options)
 
 
-async def done(job: PlanJob, timeout: float = 240.0) -> dict[str, Any]:
-    await asyncio.wait_for(job.done.wait(), timeout)
-    assert job.outcome is not None
-    return job.outcome
-
-
-def executing(cluster: LocalCluster) -> dict[str, int]:
-    """Tasks each worker process is executing right now (its own view, not the scheduler's)."""
-    with Client(cluster.scheduler_address, timeout=10) as client:
-        # A worker being restarted cannot answer: it is left out (wait_idle waits for two).
-        return client.run(lambda dask_worker: dask_worker.state.executing_count,
-                          on_error="ignore")
-
-
 def workers(cluster: LocalCluster) -> set[str]:
     """Addresses of the workers the scheduler knows now."""
     with Client(cluster.scheduler_address, timeout=10) as client:
         return set(client.scheduler_info()["workers"])
-
-
-def worker_pids(cluster: LocalCluster) -> dict[str, int]:
-    """Process id of each worker that answers, by address (a restarted worker may get a freed
-    port back, so processes are told apart by pid)."""
-    with Client(cluster.scheduler_address, timeout=10) as client:
-        return client.run(os.getpid, on_error="ignore")
 
 
 def arms_gone(cluster: LocalCluster, timeout: float = 30.0) -> bool:
@@ -98,21 +56,6 @@ def arms_gone(cluster: LocalCluster, timeout: float = 30.0) -> bool:
             return True
         time.sleep(0.2)
     return False
-
-
-def wait_idle(cluster: LocalCluster, timeout: float = 180.0) -> dict[str, int]:
-    deadline = time.monotonic() + timeout
-    while True:
-        counts = executing(cluster)
-        if (len(counts) == 2 and not any(counts.values())) or time.monotonic() > deadline:
-            return counts
-        time.sleep(0.05)
-
-
-def assert_idle(cluster: LocalCluster) -> None:
-    """Both workers are up and execute nothing (a restarted worker has a new address)."""
-    counts = wait_idle(cluster)
-    assert len(counts) == 2 and not any(counts.values()), counts
 
 
 def test_progress_arrives_in_order_and_matches_the_stored_plan(store, cluster) -> None:

@@ -17,8 +17,7 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_PAIR, free_port, free_udp_base
+from tests.api.support import QUICK_PAIR, free_port, free_udp_base, plan_mission, sse_events
 
 
 def _as_server_user() -> tuple[list[str], int | None]:

@@ -15,14 +15,7 @@ from gcs.service.planning import PlanJob
 from planner import Plan
 from planner.families.generators import show_formations, show_sequence
 from planner.methods.sequence import parse_sequence, timeline_scenario
-from tests.service.test_planning import (
-    assert_idle,
-    done,
-    started_service,
-    worker_pids,
-)
-from tests.service.test_planning import cluster as cluster  # the module's fixtures
-from tests.service.test_planning import store as store
+from tests.service.support import assert_idle, done, started_service, worker_pids
 
 pytestmark = pytest.mark.timeout(300)
 

@@ -15,8 +15,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.storage_faults import is_disk_full, storage_reason
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_CROSSING, example
+from tests.api.support import QUICK_CROSSING, example, plan_mission, sse_events
 from tests.service.support import fill_the_disk
 
 pytestmark = pytest.mark.timeout(300)

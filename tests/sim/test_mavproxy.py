@@ -12,7 +12,6 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -21,6 +20,7 @@ from gcs import px4
 from gcs.sim import MockFleet
 from gcs.sim.paramdefs import PX4_PARAMS
 from tests.flight.support import mock_ports
+from tests.support.waiting import until
 
 pytest.importorskip("MAVProxy", reason="MAVProxy is in the test extras: make install")
 
@@ -86,15 +86,15 @@ def test_mavproxy_fetches_parameters_lists_missions_and_takes_off(tmp_path: Path
             try:
                 await asyncio.to_thread(_connect_and_list, proxy)
                 proxy.send("param set MIS_TAKEOFF_ALT 2")
-                await _until(lambda: v.config.takeoff_altitude == 2.0, "MIS_TAKEOFF_ALT set")
+                await until(lambda: v.config.takeoff_altitude == 2.0, "MIS_TAKEOFF_ALT set", 30.0)
                 proxy.send("arm throttle")
                 await asyncio.to_thread(proxy.expect, "COMPONENT_ARM_DISARM: ACCEPTED", 30.0)
-                await _until(lambda: v.armed, "armed")
+                await until(lambda: v.armed, "armed", 30.0)
                 proxy.send("takeoff 2")
                 await asyncio.to_thread(proxy.expect, "NAV_TAKEOFF: ACCEPTED", 30.0)
                 # MAVProxy's takeoff 2 (param7 = 2 m AMSL, as MAVProxy sends it) is raised to
                 # MIS_TAKEOFF_ALT, which MAVProxy set to 2 m: the vehicle holds 2 m up
-                await _until(lambda: v.mode == px4.HOLD and v.in_air, "holding after takeoff")
+                await until(lambda: v.mode == px4.HOLD and v.in_air, "holding after takeoff", 30.0)
                 assert v.armed and -v.position_ned[2] == pytest.approx(2.0, abs=0.2)
             finally:
                 proxy.close()
@@ -107,11 +107,5 @@ def test_mavproxy_fetches_parameters_lists_missions_and_takes_off(tmp_path: Path
         proxy.expect("Requesting 0 waypoints", 30.0)
         proxy.send("fence list")
         proxy.expect("Requesting 0 fence items", 30.0)
-
-    async def _until(condition: Callable[[], bool], what: str) -> None:
-        deadline = time.monotonic() + 30.0  # bound: each step, on a busy machine
-        while not condition():
-            assert time.monotonic() < deadline, f"never: {what}"
-            await asyncio.sleep(0.05)
 
     asyncio.run(main())

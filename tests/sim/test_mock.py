@@ -15,6 +15,7 @@ from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import Setpoint, hold_track
 from gcs.sim import MockFleet
 from gcs.wire import mavlink
+from tests.flight.flying import stream_setpoint
 from tests.flight.support import FAST_MOCK, mock_ports
 
 pytestmark = pytest.mark.timeout(90)
@@ -25,12 +26,6 @@ async def _connect(mock: MockFleet, hub: LinkHub, index: int = 0) -> VehicleLink
     assert await link.wait_for(lambda t: t.heartbeat_time is not None
                                and t.position_ned is not None, 5.0)
     return link
-
-
-async def _stream(link: VehicleLink, setpoint: Setpoint, period: float = 0.05) -> None:
-    while True:
-        link.send_setpoint(setpoint, 0)
-        await asyncio.sleep(period)
 
 
 def test_px4_identity_and_requests() -> None:
@@ -103,7 +98,7 @@ def test_offboard_and_arming_rules() -> None:
                 mavlink.MAV_RESULT_ACCEPTED
             # stream at once: the 1 Hz HEARTBEAT confirming OFFBOARD may take longer than
             # COM_OF_LOSS_T on a busy machine
-            stream = asyncio.create_task(_stream(link, base))
+            stream = asyncio.create_task(stream_setpoint(link, base))
             try:
                 assert await link.wait_for(lambda t: t.mode == px4.OFFBOARD, 2.0)
                 await asyncio.sleep(0.2)
@@ -141,7 +136,8 @@ def test_setpoints_stop_trigger_the_failsafe_then_land_and_disarm() -> None:
                              **mock_ports(1)) as mock, LinkHub() as hub:
             link = await _connect(mock, hub)
             vehicle = mock.vehicles[0]
-            stream = asyncio.create_task(_stream(link, hold_track([0, 0, -1.5], 0.0, 20).at(0)))
+            stream = asyncio.create_task(
+                stream_setpoint(link, hold_track([0, 0, -1.5], 0.0, 20).at(0)))
             assert await link.wait_for(lambda _t: vehicle.setpoints_accepted > 0
                                        and mock.now() >= mock.config.settle_time, 2.0)
             assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
@@ -316,7 +312,7 @@ def test_absurd_setpoints_are_refused_and_the_fleet_keeps_serving() -> None:
             other = await _connect(mock, hub, 1)
             vehicle = mock.vehicles[0]
             valid = Setpoint((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
-            stream = asyncio.create_task(_stream(link, valid))
+            stream = asyncio.create_task(stream_setpoint(link, valid))
             try:
                 await asyncio.sleep(0.2)
                 assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
@@ -417,7 +413,7 @@ def test_statustexts_are_never_cut() -> None:
             assert texts.count("first") == 1
             # a normal flight: offboard, arm, climb, land, auto-disarm
             sp = Setpoint((0.0, 0.0, -0.5), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
-            stream = asyncio.create_task(_stream(link, sp))
+            stream = asyncio.create_task(stream_setpoint(link, sp))
             try:
                 while mock.now() < 1.1:
                     await asyncio.sleep(0.1)

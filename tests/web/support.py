@@ -13,9 +13,9 @@ from playwright.sync_api import Page, Request, Route, expect
 
 from tests.api.support import QUICK_CROSSING, ServiceProcess
 
-__all__ = ["CROSSING", "CROSSING_HORIZON_S", "CROSSING_STEPS", "HEALTH", "ORIGIN", "VEHICLES",
-           "ServiceStarting", "assert_fits", "fill_scenario", "plan", "planned_api",
-           "shown_mission_id"]
+__all__ = ["CROSSING", "CROSSING_HORIZON_S", "CROSSING_STEPS", "HEALTH", "ORIGIN", "PAD",
+           "SCALE", "SPAN", "VEHICLES", "VIEW", "ServiceStarting", "assert_fits", "client_point",
+           "fill_scenario", "plan", "planned_api", "shown_mission_id"]
 
 # A 4-vehicle swap entered by hand: two pairs crossing near the centre of a 6 m square.
 VEHICLES = [
@@ -183,3 +183,18 @@ class ServiceStarting:
     def stop(self) -> None:
         self._thread.join()
         self.service.stop()
+
+
+#: The fly view's viewBox side and padding (web/flyview.js VIEW, viewTransform's pad).
+VIEW, PAD = 400, 28
+#: fill_scenario's workspace: x and y from 0 to 6 m.
+SPAN = 6.0
+SCALE = (VIEW - 2 * PAD) / SPAN
+
+
+def client_point(page: Page, x: float, y: float) -> tuple[float, float]:
+    """Where world point (x, y) is on the screen, in the fly view."""
+    box = page.locator("#fly-view").bounding_box()
+    assert box is not None
+    sx, sy = PAD + x * SCALE, VIEW - PAD - y * SCALE
+    return box["x"] + sx / VIEW * box["width"], box["y"] + sy / VIEW * box["height"]

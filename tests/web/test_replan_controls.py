@@ -14,21 +14,7 @@ from typing import Any
 from playwright.sync_api import Page, Route, expect
 
 from tests.api.support import ServiceProcess
-from tests.web.support import CROSSING, fill_scenario, plan
-
-#: The fly view's viewBox side and padding (web/flyview.js VIEW, viewTransform's pad).
-VIEW, PAD = 400, 28
-#: fill_scenario's workspace: x and y from 0 to 6 m.
-SPAN = 6.0
-SCALE = (VIEW - 2 * PAD) / SPAN
-
-
-def client_point(page: Page, x: float, y: float) -> tuple[float, float]:
-    """Where world point (x, y) is on the screen, in the fly view."""
-    box = page.locator("#fly-view").bounding_box()
-    assert box is not None
-    sx, sy = PAD + x * SCALE, VIEW - PAD - y * SCALE
-    return box["x"] + sx / VIEW * box["width"], box["y"] + sy / VIEW * box["height"]
+from tests.web.support import CROSSING, client_point, fill_scenario, plan
 
 
 def answered(sent: list[dict[str, Any]], answers: list[tuple[int, dict[str, Any]]]

@@ -16,8 +16,7 @@ from playwright.sync_api import TimeoutError as PlaywrightTimeout
 from gcs import phases
 from tests.api.support import ServiceProcess
 from tests.web.conftest import FLY_OPTIONS, FLY_REQUEST
-from tests.web.support import CROSSING, fill_scenario, plan
-from tests.web.test_replan_controls import PAD, SCALE, VIEW, client_point
+from tests.web.support import CROSSING, PAD, SCALE, VIEW, client_point, fill_scenario, plan
 
 pytestmark = pytest.mark.skipif(not hasattr(phases, "ReplanStatus"),
                                 reason="needs FlightExecutor.replan (wt/flight)")

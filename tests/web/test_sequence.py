@@ -9,8 +9,7 @@ import json
 import httpx
 from playwright.sync_api import Page, expect
 
-from tests.api.routes.test_sequences import GOALS, OUT_AND_BACK
-from tests.api.support import ServiceProcess
+from tests.api.support import GOALS, OUT_AND_BACK, ServiceProcess
 
 #: Out to the crossed formation only (6.8 s): the sequence's flight kept short.
 OUT: dict = {**OUT_AND_BACK, "name": "out", "formations": OUT_AND_BACK["formations"][:2]}

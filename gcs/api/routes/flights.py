@@ -32,7 +32,16 @@ from gcs.api.deps import (
 )
 from gcs.api.errors import error_responses
 from gcs.errors import InvalidRequest, StateConflict
-from gcs.fleet.fleetfile import MAX_REPLAN_LEAD_S
+from gcs.fleet.fleetfile import (
+    MAX_REPLAN_LEAD_S,
+    AtEnd,
+    GeofenceChoice,
+    MarginCheck,
+    MessageRates,
+    Policy,
+    Preflight,
+    StreamPriority,
+)
 from gcs.phases import EventKind, ReplanStatus
 from gcs.replan_request import ReplanRequest, checked
 from gcs.service.flights import LiveFlight, flight_document
@@ -60,7 +69,7 @@ class FlyRequest(BaseModel):
         json_schema_extra={"examples": [{"policy": "land_all", "at_end": "land"}]},
     )
 
-    policy: Literal["hold_all", "land_all", "land_faulty", "replan"] | None = Field(
+    policy: Policy | None = Field(
         None, description="What to do when a vehicle is flagged (lost heartbeat, left "
         "OFFBOARD, tracking error): hold or land everyone, land the faulty one, or replan: "
         "the faulty one lands on its own and the others are replanned around it to their "
@@ -70,7 +79,7 @@ class FlyRequest(BaseModel):
         None, gt=0, le=MAX_REPLAN_LEAD_S,
         description="An in-flight replan switches at least this far ahead of its request "
         "(s, default 1); a new plan not verified by then is not flown.")
-    at_end: Literal["land", "hold"] | None = Field(
+    at_end: AtEnd | None = Field(
         None, description="After the plan and the hold at the goals: land, or PX4 Hold."
     )
     rate_hz: float | None = Field(None, gt=0, le=100, description="Setpoint rate (Hz).")
@@ -88,27 +97,27 @@ class FlyRequest(BaseModel):
     tracking_error_max: float | None = Field(
         None, gt=0, le=100, description="Flag a vehicle this far from its plan (m)."
     )
-    preflight: Literal["check", "override"] | None = Field(
+    preflight: Preflight | None = Field(
         None, description="The pre-flight gate (battery, unhealthy sensors, link loss): "
         "check (default: 409 naming the vehicle and the reason) or override (fly anyway; "
         "recorded as a preflight_override event)."
     )
-    message_rates: Literal["leave", "request"] | None = Field(
+    message_rates: MessageRates | None = Field(
         None, description="request: ask each vehicle for the telemetry the GCS reads at the "
         "rates it needs and turn PX4's fast streams off (MAV_CMD_SET_MESSAGE_INTERVAL)."
     )
-    stream_priority: Literal["normal", "realtime"] | None = Field(
+    stream_priority: StreamPriority | None = Field(
         None, description="realtime (the default): stream setpoints at SCHED_RR priority "
         "where the vehicle process may (root or CAP_SYS_NICE; recorded as an event either "
         "way), which keeps a large fleet's stream on time on a busy computer; normal: never "
         "ask."
     )
-    geofence: Literal["upload", "skip"] | None = Field(
+    geofence: GeofenceChoice | None = Field(
         None, description="upload: give every vehicle the plan's geofence before arming and "
         "read it back (the flight fails naming a vehicle that refuses it, or when no "
         "geodetic origin places it); skip: no fence. Default: upload when an origin is known."
     )
-    margin_check: Literal["refuse", "warn"] | None = Field(
+    margin_check: MarginCheck | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "
         "position_error: refuse (default, 409) or fly it with a warning in the record."
     )
@@ -295,7 +304,7 @@ async def fly_mission(
     summary="A mission's flights",
     responses=error_responses(404),
 )
-def mission_flights(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict]:
+def mission_flights(mission: MissionDep, store: StoreDep, fleet: FleetDep) -> list[dict[str, Any]]:
     return [_document(r, fleet.flight(r.id)) for r in store.list_flights(mission.id)]
 
 
@@ -411,32 +420,30 @@ async def abort_flight(
     return _document(row, flight)
 
 
-@router.post(
-    "/{flight_id}/pause",
-    response_model=FlightOut,
-    summary="Pause a flight: the flight clock stops, every vehicle holds",
-    responses=error_responses(404, 409),
-)
-async def pause_flight(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
-    """Every vehicle flying the plan holds the plan's setpoint of the same plan time, so the
-    fleet stays as separated as the plan is at that instant (status `paused`). After the
-    fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the
-    flight ends aborted. 409 unless the plan is being flown."""
-    flight = await fleet.pause(row.id, stored_status=row.status)
-    return _document(row, flight)
+def _clock_route(pause: bool, summary: str, description: str) -> None:
+    """POST /{flight_id}/pause or /resume: the flight's clock stopped or restarted
+    (`FleetService.pause` / `resume`), its document in the answer."""
+    command = "pause" if pause else "resume"
+
+    async def set_clock(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
+        change = fleet.pause if pause else fleet.resume
+        return _document(row, await change(row.id, stored_status=row.status))
+
+    router.post(f"/{{flight_id}}/{command}", name=f"{command}_flight", response_model=FlightOut,
+                summary=summary, description=description,
+                responses=error_responses(404, 409))(set_clock)
 
 
-@router.post(
-    "/{flight_id}/resume",
-    response_model=FlightOut,
-    summary="Resume a paused flight from where its flight clock stopped",
-    responses=error_responses(404, 409),
-)
-async def resume_flight(row: FlightDep, fleet: FleetDep) -> dict[str, Any]:
-    """The flight clock runs again from the plan time it stopped at (status `running`).
-    409 unless paused."""
-    flight = await fleet.resume(row.id, stored_status=row.status)
-    return _document(row, flight)
+_clock_route(
+    True, "Pause a flight: the flight clock stops, every vehicle holds",
+    "Every vehicle flying the plan holds the plan's setpoint of the same plan time, so the "
+    "fleet stays as separated as the plan is at that instant (status `paused`). After the "
+    "fleet's `pause_limit` (default 120 s) its `pause_expiry` applies (land, or hold) and the "
+    "flight ends aborted. 409 unless the plan is being flown.")
+_clock_route(
+    False, "Resume a paused flight from where its flight clock stopped",
+    "The flight clock runs again from the plan time it stopped at (status `running`). 409 "
+    "unless paused.")
 
 
 @router.post(

@@ -16,6 +16,7 @@ import contextlib
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
 
+from gcs.documents import FlightEvent, FlightSnapshot, ReplanDocument
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.host.vehicle_loop import VehicleLoop
 from gcs.flight.run.executor import FlightExecutor
@@ -34,7 +35,7 @@ class FlightHandle:
     """One flight on a vehicle loop, driven from the caller's loop; see the module."""
 
     def __init__(self, vehicles: VehicleLoop, executor: FlightExecutor,
-                 on_event: Callable[[dict[str, Any]], None] | None = None,
+                 on_event: Callable[[FlightEvent], None] | None = None,
                  snapshot_hz: float = SNAPSHOT_HZ) -> None:
         """Use `create`: the executor must have been made on the vehicle loop."""
         self._vehicles = vehicles
@@ -42,7 +43,7 @@ class FlightHandle:
         self._on_event = on_event
         self._period = 1.0 / snapshot_hz
         self._caller: asyncio.AbstractEventLoop | None = None
-        self._snapshot: dict[str, Any] = executor.snapshot()
+        self._snapshot: FlightSnapshot = executor.snapshot()
         self._task: asyncio.Future[dict[str, Any]] | None = None
         self.record: dict[str, Any] | None = None
         """The flight record once the flight ended (also after an error or abort)."""
@@ -52,7 +53,7 @@ class FlightHandle:
     @classmethod
     async def create(cls, vehicles: VehicleLoop, plan: Plan, fleet: FleetSpec,
                      options: FlightOptions | None = None, *,
-                     on_event: Callable[[dict[str, Any]], None] | None = None,
+                     on_event: Callable[[FlightEvent], None] | None = None,
                      snapshot_hz: float = SNAPSHOT_HZ) -> FlightHandle:
         """The executor made on the vehicle loop (its checks raise here: PlanRejected)."""
         executor = await vehicles.run(lambda: FlightExecutor(plan, fleet, options))
@@ -97,7 +98,7 @@ class FlightHandle:
             self._snapshot = self._executor.snapshot()
             await asyncio.sleep(self._period)
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> FlightSnapshot:
         """The latest live state the vehicle loop posted (`FlightExecutor.snapshot`)."""
         return self._snapshot
 
@@ -113,10 +114,10 @@ class FlightHandle:
 
     async def replan(self, goals: Mapping[str, Sequence[float]] | None = None,
                      drop: Sequence[str] = (), drop_action: str = "land",
-                     reason: str | None = "operator") -> dict[str, Any]:
+                     reason: str | None = "operator") -> ReplanDocument:
         """`FlightExecutor.replan` on the vehicle loop: the replan object (status planning;
         StateConflict and FieldErrors across). The snapshot shows it once this returns."""
-        async def replan() -> dict[str, Any]:
+        async def replan() -> ReplanDocument:
             try:
                 return await self._executor.replan(goals, drop, drop_action, reason)
             finally:

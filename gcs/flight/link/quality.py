@@ -29,7 +29,8 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+
+from gcs.documents import LinkQualityReport
 
 __all__ = ["DEGRADED_LOSS", "LinkQuality", "LinkWatch", "SequenceCounter", "Timing"]
 
@@ -204,7 +205,7 @@ class LinkQuality:
                 break
         return received1 - start[1], lost1 - start[2]
 
-    def report(self) -> dict[str, Any]:
+    def report(self) -> LinkQualityReport:
         """JSON-ready figures (None: unknown): the `link_quality` of health and the record."""
         c, t = self.counter, self.timing
         recent = self.recent()

@@ -113,7 +113,8 @@ class SetpointTrack:
 
     @property
     def final_position(self) -> FloatArray:
-        return self.position[-1]
+        final: FloatArray = self.position[-1]
+        return final
 
     def at(self, tick: int) -> Setpoint:
         """The setpoint for `tick`; before 0 the first position at rest, past the end the final

@@ -39,27 +39,27 @@ from typing import Any
 import numpy as np
 
 from gcs import frames
+from gcs.documents import ReplanDocument
 from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, plan_tracks, spliced
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.replan.record import ReplanRecord, Switch
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
-from gcs.phases import AIRBORNE, EventKind, ReplanStatus, VehiclePhase
+from gcs.phases import AIRBORNE, EventKind, VehiclePhase
+from gcs.replan_request import check_entries
 from gcs.tasks import TaskSet
 from planner.methods.replan import Replan, ReplanError, check_goals, plan_replan
 from planner.model.fixed import FixedTrajectory, braking_motion, dropped_motion, landing_motion
 from planner.model.scenario import Scenario
 from planner.types import FloatArray
 
-__all__ = ["BRAKING_DECELERATION", "DROP_ACTIONS", "FAULT_MARGIN", "LEAD_FACTOR",
-           "UNHEARD_GROWTH", "UNHEARD_MARGIN", "Replanner", "predicted_landing", "stream_motion",
-           "unheard_margin"]
+__all__ = ["BRAKING_DECELERATION", "FAULT_MARGIN", "LEAD_FACTOR", "UNHEARD_GROWTH",
+           "UNHEARD_MARGIN", "Replanner", "braking_deceleration", "predicted_landing",
+           "stream_motion", "unheard_margin"]
 
-#: What a dropped vehicle does: land (streamed down to the landing height, then PX4's Land)
-#: or hold (streamed to a stop and held there).
-DROP_ACTIONS = ("land", "hold")
 #: The lead is at least this many times the flight's last replan's planning time.
 LEAD_FACTOR = 1.5
 #: Ticks kept free between the plan being ready and its switch tick (to build the tracks).
@@ -91,8 +91,7 @@ POLL_S = 0.02
 class Job:
     """One replan under way."""
 
-    obj: dict[str, Any]
-    """The replan object (JSON-ready), as the API shows it."""
+    record: ReplanRecord
     tick: int
     """Streamer tick of the switch."""
     plan_tick: int
@@ -147,8 +146,8 @@ class Replanner:
             vid: np.asarray(g, dtype=float)
             for vid, g in zip(base.ids, base.assigned_goals, strict=True)}
         """Every vehicle's current goal (world frame)."""
-        self.records: list[dict[str, Any]] = []
-        """Every replan object of the flight, in order."""
+        self.records: list[ReplanRecord] = []
+        """Every replan of the flight, in order."""
         self.flown_plans: dict[int, dict[str, Any]] = {}
         """Per switched replan id: its plan document and switch instant (for the record)."""
         self.landings: list[asyncio.Future[None]] = []
@@ -162,9 +161,13 @@ class Replanner:
     # ------------------------------------------------------------------ state
 
     @property
-    def current(self) -> dict[str, Any] | None:
+    def current(self) -> ReplanDocument | None:
         """The running replan object, or the last one (None before any)."""
-        return self.records[-1] if self.records else None
+        return self.records[-1].document() if self.records else None
+
+    def documents(self) -> list[ReplanDocument]:
+        """Every replan object of the flight, in order."""
+        return [r.document() for r in self.records]
 
     @property
     def busy(self) -> bool:
@@ -194,7 +197,7 @@ class Replanner:
     def request(self, goals: Mapping[str, Sequence[float]] | None = None,
                 drop: Sequence[str] = (), drop_action: str = "land",
                 reason: str | None = "operator", *,
-                faulty: Sequence[VehicleStatus] = ()) -> dict[str, Any]:
+                faulty: Sequence[VehicleStatus] = ()) -> ReplanDocument:
         """Start a replan; returns its object (status planning). `faulty`: vehicles that
         faulted and land on their own motion (policy replan): a replan for them calls off
         the one under way instead of being refused. Raises `StateConflict` while another
@@ -219,12 +222,10 @@ class Replanner:
 
     def _start(self, goals: Mapping[str, Sequence[float]] | None, drop: Sequence[str],
                drop_action: str, reason: str | None, faulty: Sequence[VehicleStatus]
-               ) -> dict[str, Any]:
+               ) -> ReplanDocument:
         """`request` once it may start: check the fields, pick the switch tick and the
         states there, start planning."""
-        if drop_action not in DROP_ACTIONS:
-            raise InvalidRequest("drop_action", f"must be one of {', '.join(DROP_ACTIONS)}, "
-                                                f"got {drop_action!r}")
+        check_entries(goals, drop, drop_action)
         by_id = {v.id: v for v in self.vehicles}
         steer = [v for v in self.vehicles if self.steered(v)]
         dropped = self._dropped(drop, by_id, steer)
@@ -232,7 +233,7 @@ class Replanner:
         if not steer:
             raise InvalidRequest("drop", "would leave no vehicle on the plan: abort the "
                                          "flight instead")
-        new_goals = self._goals(goals or {}, by_id, steer, dropped)
+        new_goals = self._goals(goals or {}, by_id, steer)
         streamer = self.streamer
         rate = streamer.rate
         lead = self.lead()
@@ -251,59 +252,47 @@ class Replanner:
                   for v in self._off_plan(steer + dropped)]
         goal_array = np.array([new_goals.get(v.id, self.goals[v.id]) for v in steer])
         now = self.clock.flight_time()
-        obj: dict[str, Any] = {
-            "id": len(self.records) + 1, "status": ReplanStatus.PLANNING.value,
-            "requested_at": None if now is None else round(now, 3),
-            "switch_time": round(t_switch, 4), "switch_tick": tick,
-            "lead_s": round(lead, 3), "planning_s": None,
-            "goals": {vid: [float(c) for c in g] for vid, g in new_goals.items()},
-            "drop": [v.id for v in dropped], "drop_action": drop_action, "reason": reason,
-            "vehicles": [v.id for v in steer], "fixed": [f.id for f in fixed],
-            "faulty": [v.id for v in faulty], "why": None, "horizon": None,
-        }
-        job = Job(obj, tick, plan_tick, steer, goal_array, dropped, drop_action, drops,
+        record = ReplanRecord(
+            id=len(self.records) + 1, requested_at=None if now is None else round(now, 3),
+            switch_time=round(t_switch, 4), switch_tick=tick, lead_s=round(lead, 3),
+            goals={vid: [float(c) for c in g] for vid, g in new_goals.items()},
+            drop=[v.id for v in dropped], drop_action=drop_action, reason=reason,
+            vehicles=[v.id for v in steer], fixed=[f.id for f in fixed],
+            faulty=[v.id for v in faulty])
+        job = Job(record, tick, plan_tick, steer, goal_array, dropped, drop_action, drops,
                   list(faulty))
-        self.records.append(obj)
+        self.records.append(record)
         self.job = job
-        self.emit(None, EventKind.REPLAN_STARTED, _started_text(obj))
+        self.emit(None, EventKind.REPLAN_STARTED, _started_text(record))
         self._thread = asyncio.ensure_future(asyncio.to_thread(
             plan_replan, self.base, [v.id for v in steer], positions, velocities,
             accelerations, goal_array, fixed=fixed,
             deadline=time.perf_counter() + max(0.0, streamer.tick_time(tick)
                                                - time.monotonic())))
         began = time.perf_counter()
-        self._thread.add_done_callback(lambda fut: self._planned(obj, fut, began))
+        self._thread.add_done_callback(lambda fut: self._planned(record, fut, began))
         self.tasks.spawn(self._run(job, self._thread))
-        return dict(obj)
+        return record.document()
 
     def _dropped(self, drop: Sequence[str], by_id: Mapping[str, VehicleStatus],
                  steer: list[VehicleStatus]) -> list[VehicleStatus]:
-        if isinstance(drop, str):
-            raise InvalidRequest("drop", "must be a list of vehicle ids")
         out: list[VehicleStatus] = []
         for n, vid in enumerate(drop):
             where = f"drop[{n}]"
-            v = by_id.get(vid) if isinstance(vid, str) else None
+            v = by_id.get(vid)
             if v is None:
                 raise InvalidRequest(where, f"no vehicle {vid!r} in this flight")
-            if v in out:
-                raise InvalidRequest(where, f"{vid!r} is named twice")
             if v not in steer:
                 raise InvalidRequest(where, f"{vid!r} does not fly the plan ({_state(v)})")
             out.append(v)
         return out
 
     def _goals(self, goals: Mapping[str, Sequence[float]], by_id: Mapping[str, VehicleStatus],
-               steer: list[VehicleStatus], dropped: list[VehicleStatus]
-               ) -> dict[str, FloatArray]:
-        if not isinstance(goals, Mapping):
-            raise InvalidRequest("goals", "must be an object {vehicle id: [x, y, z]}")
+               steer: list[VehicleStatus]) -> dict[str, FloatArray]:
         for vid in goals:
             v = by_id.get(vid)
             if v is None:
                 raise InvalidRequest(f"goals.{vid}", f"no vehicle {vid!r} in this flight")
-            if v in dropped:
-                raise InvalidRequest(f"goals.{vid}", f"{vid!r} is dropped by this replan")
             if v not in steer:
                 raise InvalidRequest(f"goals.{vid}", f"{vid!r} does not fly the plan "
                                                      f"({_state(v)})")
@@ -323,19 +312,13 @@ class Replanner:
                 frames.ned_vector_to_world(sp.velocity),
                 frames.ned_vector_to_world(sp.acceleration))
 
-    def _deceleration(self) -> float:
-        lim = self.base.limits.acceleration_max
-        return BRAKING_DECELERATION if lim is None else min(BRAKING_DECELERATION,
-                                                           float(np.min(lim[:2])))
-
     def _drop_motion(self, v: VehicleStatus, plan_tick: int, action: str) -> FixedTrajectory:
         p, vel, acc = self._setpoint_state(v, plan_tick)
         lim = self.base.limits
         floor = float(lim.position_min[2]) + self.options.landing_height
         return dropped_motion(v.id, p, vel, acc, self.base.dt, action,
-                              deceleration=self._deceleration(),
-                              hardest=(BRAKING_DECELERATION if lim.acceleration_max is None
-                                       else float(np.min(lim.acceleration_max[:2]))),
+                              deceleration=braking_deceleration(self.base),
+                              hardest=_hardest_braking(self.base),
                               low=lim.position_min, high=lim.position_max,
                               descent_speed=self.options.land_speed,
                               floor=min(floor, float(p[2])))
@@ -382,12 +365,12 @@ class Replanner:
 
     # ------------------------------------------------------------------ planning
 
-    def _planned(self, obj: dict[str, Any], fut: asyncio.Future[Replan], began: float
+    def _planned(self, record: ReplanRecord, fut: asyncio.Future[Replan], began: float
                  ) -> None:
         """The planning thread ended (in time or not): its planning time, as the flight
         saw it (what the next lead must cover)."""
         seconds = time.perf_counter() - began
-        obj["planning_s"] = round(seconds, 4)
+        record.planning_s = round(seconds, 4)
         if not fut.cancelled() and fut.exception() is None:
             self._last_planning = seconds
 
@@ -399,7 +382,7 @@ class Replanner:
         if self.job is not job:
             return  # called off meanwhile
         if not thread.done():
-            self._miss(job, f"no verified plan within the {job.obj['lead_s']:g} s lead "
+            self._miss(job, f"no verified plan within the {job.record.lead_s:g} s lead "
                             f"(still planning)")
             return
         error = thread.exception()
@@ -467,7 +450,7 @@ class Replanner:
                 v.phase = VehiclePhase.FLYING  # back on its way
         for v in job.drop:
             self.flown.motions[v.id] = job.drops[v.id]
-            v.dropped, v.drop_reason = job.action, job.obj["reason"]
+            v.dropped, v.drop_reason = job.action, job.record.reason
             if job.action == "land":
                 v.phase = VehiclePhase.LANDING
                 self.landings.append(self.tasks.spawn(
@@ -477,19 +460,19 @@ class Replanner:
         for v in job.faulty:
             v.dropped, v.drop_reason = "land", f"fault {v.fault}"
         verification = plan.verification
-        job.obj.update(
-            status=ReplanStatus.SWITCHED.value, horizon=round(plan.scenario.horizon, 3),
+        job.record.switched(Switch(
+            horizon=round(plan.scenario.horizon, 3),
             request_to_switch_s=round(self.clock.tick_time(job.tick) + self.clock.t0
                                       - job.requested, 3),
             min_separation_planned=None if verification is None
             else verification.min_separation_continuous,
-            separation_kept=round(result.separation, 4))
-        self.flown_plans[job.obj["id"]] = {
+            separation_kept=round(result.separation, 4)))
+        self.flown_plans[job.record.id] = {
             "plan": plan.to_dict(),
             "switch_gcs": self.clock.tick_time(job.tick),
         }
         self.emit(None, EventKind.REPLAN_SWITCHED, (
-            f"replan {job.obj['id']}: {len(job.steer)} vehicle(s) on a verified plan from "
+            f"replan {job.record.id}: {len(job.steer)} vehicle(s) on a verified plan from "
             f"t={t_switch:.2f} s (tick {job.tick}), {plan.scenario.horizon:.1f} s to the "
             f"goals, planned in {result.seconds:.3f} s"
             + (f"; {', '.join(v.id for v in job.drop)} {job.action} on their own motion"
@@ -502,8 +485,8 @@ class Replanner:
             self.job = None
         for vid in job.switches:
             self.streamer.cancel_switch(vid)
-        job.obj.update(status=ReplanStatus.MISSED.value, why=why)
-        self.emit(None, EventKind.REPLAN_MISSED, f"replan {job.obj['id']}: {why}; the "
+        job.record.missed(why)
+        self.emit(None, EventKind.REPLAN_MISSED, f"replan {job.record.id}: {why}; the "
                                                  f"flight goes on with its plan")
         if job.faulty and fallback:
             self.on_missed(job.faulty, why)
@@ -584,9 +567,7 @@ def predicted_landing(v: VehicleStatus, base: Scenario, options: FlightOptions,
         return None
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))):
         return None
-    lim = base.limits.acceleration_max
-    deceleration = (BRAKING_DECELERATION if lim is None
-                    else min(BRAKING_DECELERATION, float(np.min(lim[:2]))))
+    deceleration = braking_deceleration(base)
     ground = max(float(base.limits.position_min[2]), float(v.home[2]))
     floor = min(ground, float(position[2]))
     if not unheard:
@@ -614,6 +595,19 @@ def predicted_landing(v: VehicleStatus, base: Scenario, options: FlightOptions,
     return Motion(at, trajectory, dt, False)
 
 
+def braking_deceleration(base: Scenario) -> float:
+    """The deceleration of the predicted and streamed stops (m/s^2): `BRAKING_DECELERATION`,
+    at most the scenario's horizontal acceleration bound."""
+    return min(BRAKING_DECELERATION, _hardest_braking(base))
+
+
+def _hardest_braking(base: Scenario) -> float:
+    """The hardest horizontal braking the scenario allows (m/s^2; `BRAKING_DECELERATION`
+    when it has no acceleration bound)."""
+    lim = base.limits.acceleration_max
+    return BRAKING_DECELERATION if lim is None else float(np.min(lim[:2]))
+
+
 def unheard_margin(age: float) -> float:
     """What the others keep beyond R from a vehicle last heard `age` s ago (m)."""
     return UNHEARD_MARGIN + UNHEARD_GROWTH * age
@@ -627,14 +621,14 @@ def _state(v: VehicleStatus) -> str:
     return f"phase {v.phase}"
 
 
-def _started_text(obj: dict[str, Any]) -> str:
-    parts = [f"replan {obj['id']} ({obj['reason'] or 'no reason given'}): switch at "
-             f"t={obj['switch_time']:.2f} s ({obj['lead_s']:g} s lead)",
-             f"{len(obj['vehicles'])} vehicle(s) planned"]
-    if obj["goals"]:
-        parts.append("new goals for " + ", ".join(obj["goals"]))
-    if obj["drop"]:
-        parts.append(f"dropping {', '.join(obj['drop'])} ({obj['drop_action']})")
-    if obj["fixed"]:
-        parts.append(f"around {', '.join(obj['fixed'])}")
+def _started_text(record: ReplanRecord) -> str:
+    parts = [f"replan {record.id} ({record.reason or 'no reason given'}): switch at "
+             f"t={record.switch_time:.2f} s ({record.lead_s:g} s lead)",
+             f"{len(record.vehicles)} vehicle(s) planned"]
+    if record.goals:
+        parts.append("new goals for " + ", ".join(record.goals))
+    if record.drop:
+        parts.append(f"dropping {', '.join(record.drop)} ({record.drop_action})")
+    if record.fixed:
+        parts.append(f"around {', '.join(record.fixed)}")
     return "; ".join(parts)

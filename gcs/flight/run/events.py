@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import AsyncIterator, Callable
-from typing import Any
 
+from gcs.documents import FlightEvent
 from gcs.flight.run.record import FlightRecorder
 
 __all__ = ["EventFanout"]
@@ -22,7 +22,7 @@ class EventFanout:
         self.recorder = recorder
         self.now = now
         """The GCS clock the events are stamped with."""
-        self._subscribers: list[asyncio.Queue[dict[str, Any] | None]] = []
+        self._subscribers: list[asyncio.Queue[FlightEvent | None]] = []
         self._closed = False
 
     def emit(self, vehicle: str | None, kind: str, detail: str = "") -> None:
@@ -31,11 +31,11 @@ class EventFanout:
         for queue in self._subscribers:
             queue.put_nowait(event)
 
-    async def events(self) -> AsyncIterator[dict[str, Any]]:
+    async def events(self) -> AsyncIterator[FlightEvent]:
         """Every event from now until the flight ends ({"t", "vehicle", "kind", "detail"})."""
         if self._closed:
             return
-        queue: asyncio.Queue[dict[str, Any] | None] = asyncio.Queue()
+        queue: asyncio.Queue[FlightEvent | None] = asyncio.Queue()
         self._subscribers.append(queue)
         try:
             while True:

@@ -73,6 +73,7 @@ from typing import Any
 import numpy as np
 
 from gcs import frames
+from gcs.documents import FlightEvent, FlightSnapshot, ReplanDocument
 from gcs.errors import (
     FlightAborted,
     GcsError,
@@ -333,7 +334,7 @@ class FlightExecutor:
                                               f"{current} of {self._abort[1]})")
             self._abort = (in_force, reason)
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> FlightSnapshot:
         """JSON-ready live state (`gcs.flight.run.snapshot`): phase, flight time, per vehicle
         position (world frame), mode, armed, heartbeat age, tracking error, fault; live
         minimum separation."""
@@ -344,9 +345,15 @@ class FlightExecutor:
                                else self._replanner.current)
 
     @property
-    def replans(self) -> list[dict[str, Any]]:
+    def replans(self) -> list[ReplanDocument]:
         """Every replan object of the flight, in order (also the record's ``replans``)."""
-        return [] if self._replanner is None else self._replanner.records
+        return [] if self._replanner is None else self._replanner.documents()
+
+    @property
+    def replan_lead(self) -> float | None:
+        """Seconds from a replan request to its switch now (`gcs.flight.replan.replan`:
+        `replan_lead_s`, or longer after a slow replan); None until the plan is flown."""
+        return None if self._replanner is None else self._replanner.lead()
 
     @property
     def current_plan(self) -> Plan:
@@ -356,7 +363,7 @@ class FlightExecutor:
 
     async def replan(self, goals: Mapping[str, Sequence[float]] | None = None,
                      drop: Sequence[str] = (), drop_action: str = "land",
-                     reason: str | None = "operator") -> dict[str, Any]:
+                     reason: str | None = "operator") -> ReplanDocument:
         """Start an in-flight replan (`gcs.flight.replan.replan`): the vehicles named in `goals`
         fly to their new goal, the ones in `drop` land or hold (`drop_action`) on their own
         motion, the rest go on to their goals, all by one verified plan switched in at a
@@ -377,7 +384,7 @@ class FlightExecutor:
                                           f"{self.phase})")
         return self._replanner
 
-    def events(self) -> AsyncIterator[dict[str, Any]]:
+    def events(self) -> AsyncIterator[FlightEvent]:
         """Every event from now until the flight ends ({"t", "vehicle", "kind", "detail"})."""
         return self._events.events()
 
@@ -785,12 +792,8 @@ class FlightExecutor:
             # Freeze every stream where it is, so nothing moves on along the plan meanwhile.
             # (An abort can come before run() made the streamer: then nothing streams, and
             # `secure` skips the vehicles, none of which has a link yet.)
-            streamer = self.streamer
-            if streamer is not None:
-                for vid, assignment in list(streamer.assignments.items()):
-                    if assignment.last is not None:
-                        streamer.assign(vid, assignment.link, hold_track(
-                            assignment.last.position, assignment.last.yaw, streamer.rate))
+            if self.streamer is not None:
+                self.streamer.freeze()
             await asyncio.gather(
                 *(vehicle.secure(v, action, self.options, self._emit, self._stop_stream,
                                  self.stalls)

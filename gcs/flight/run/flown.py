@@ -129,7 +129,8 @@ class FlownPlans:
         motion = self.motions.get(vehicle_id)
         if motion is None or t < motion.start:
             return None
-        return motion.position([t])[0]
+        position: FloatArray | None = motion.position([t])[0]
+        return position
 
     def planned(self, vehicle_id: str, t: float) -> bool:
         """True when a plan steers `vehicle_id` at flight time `t` (not off the plans)."""

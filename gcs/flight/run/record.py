@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from gcs.documents import FlightEvent
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import Setpoint
 from gcs.flight.run.stream import jitter_stats
@@ -136,15 +137,15 @@ class FlightRecorder:
     def __init__(self, ids: list[str], system_ids: list[int]) -> None:
         self.vehicles = {vid: VehicleRecord(vid, sid) for vid, sid in
                          zip(ids, system_ids, strict=True)}
-        self.events: list[dict[str, Any]] = []
+        self.events: list[FlightEvent] = []
         self.summary: dict[str, Any] = {}
         self.meta: dict[str, Any] = {}
         self.goal_settle_s = 0.0
         """Seconds the hold at the goals was extended for vehicles still arriving
         (`FlightOptions.goal_settle_max`): the summary's window includes them."""
 
-    def event(self, t: float, vehicle: str | None, kind: str, detail: str = "") -> dict[str, Any]:
-        entry = {"t": round(t, 4), "vehicle": vehicle, "kind": kind, "detail": detail}
+    def event(self, t: float, vehicle: str | None, kind: str, detail: str = "") -> FlightEvent:
+        entry: FlightEvent = {"t": round(t, 4), "vehicle": vehicle, "kind": kind, "detail": detail}
         self.events.append(entry)
         return entry
 

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from gcs import frames
+from gcs.documents import ReplanDocument
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import Setpoint
@@ -77,7 +78,7 @@ def finish_record(recorder: FlightRecorder, plan: Plan, fleet: FleetSpec,
                   flight_start: float | None, pauses: list[list[float | None]], now: float,
                   margin: MarginCheck, streamer: Streamer | None,
                   error: BaseException | None, flown: FlownPlans | None = None,
-                  replans: Sequence[dict[str, Any]] = (),
+                  replans: Sequence[ReplanDocument] = (),
                   flown_plans: Mapping[int, dict[str, Any]] | None = None) -> dict[str, Any]:
     """Fill the record's meta block and summary; returns the record document. `flown`: the
     flight's plans and the motions off them (`gcs.flight.run.flown`), `replans` its replan
@@ -113,7 +114,7 @@ def finish_record(recorder: FlightRecorder, plan: Plan, fleet: FleetSpec,
 SWITCH_WINDOW_S = 2.0
 
 
-def replan_entry(recorder: FlightRecorder, obj: Mapping[str, Any],
+def replan_entry(recorder: FlightRecorder, obj: ReplanDocument,
                  flown: Mapping[str, Any] | None, scenario: Scenario, options: FlightOptions
                  ) -> dict[str, Any]:
     """One replan for the record: its object; a switched one's plan document and the

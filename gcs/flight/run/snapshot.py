@@ -8,9 +8,9 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any
 
 from gcs import frames
+from gcs.documents import FlightSnapshot, ReplanDocument, VehicleSnapshot
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.run.record import finite_or_none
 from gcs.flight.safety.health import health_report
@@ -18,7 +18,7 @@ from gcs.flight.safety.health import health_report
 __all__ = ["flight_snapshot", "vehicle_snapshot"]
 
 
-def vehicle_snapshot(v: VehicleStatus, now: float) -> dict[str, Any]:
+def vehicle_snapshot(v: VehicleStatus, now: float) -> VehicleSnapshot:
     """One vehicle: phase, fault, mode, armed, heartbeat and link age, world position and
     velocity, tracking error, health."""
     tel = v.link.telemetry if v.link is not None else None
@@ -30,7 +30,7 @@ def vehicle_snapshot(v: VehicleStatus, now: float) -> dict[str, Any]:
             velocity = frames.ned_vector_to_world(tel.velocity_ned).tolist()
     age = v.link.heartbeat_age(now) if v.link is not None else math.inf
     silent = v.link.link_age(now) if v.link is not None else math.inf
-    return {
+    snapshot: VehicleSnapshot = {
         "id": v.id, "system_id": v.spec.system_id, "phase": v.phase,
         "fault": v.fault,
         "mode": tel.mode.name if tel is not None and tel.mode is not None else None,
@@ -40,13 +40,13 @@ def vehicle_snapshot(v: VehicleStatus, now: float) -> dict[str, Any]:
         "position": position, "velocity": velocity,
         "tracking_error": finite_or_none(v.tracking_error),
         "dropped": v.dropped,
-        **(health_report(tel) if tel is not None else {}),
     }
+    return snapshot if tel is None else {**snapshot, **health_report(tel)}
 
 
 def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
                     min_separation: float, vehicles: Sequence[VehicleStatus],
-                    events: int, replan: dict[str, Any] | None = None) -> dict[str, Any]:
+                    events: int, replan: ReplanDocument | None = None) -> FlightSnapshot:
     """The whole flight: phase, flight time, horizon (the end of the plan flown now, a
     switched replan's), live minimum separation, vehicles, number of events so far, and the
     replan under way or the last one (`gcs.flight.replan.replan`; None before any)."""
@@ -58,5 +58,5 @@ def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
         "min_separation_live": finite_or_none(min_separation),
         "vehicles": [vehicle_snapshot(v, now) for v in vehicles],
         "events": events,
-        "replan": None if replan is None else dict(replan),
+        "replan": None if replan is None else ReplanDocument(**replan),
     }

@@ -34,13 +34,13 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from gcs.flight.link.link import VehicleLink
-from gcs.flight.link.setpoints import Setpoint, SetpointTrack
+from gcs.flight.link.setpoints import Setpoint, SetpointTrack, hold_track
 from gcs.flight.link.station import STALL_NOTE_S
 from gcs.flight.run.realtime import enter_realtime, leave_realtime
 from gcs.wire import time_boot_ms
@@ -141,6 +141,15 @@ class Streamer:
         """Drop the switch waiting for a vehicle (its current assignment goes on); False
         when none waited (it may have taken over already)."""
         return self.pending.pop(vehicle_id, None) is not None
+
+    def freeze(self, vehicle_ids: Iterable[str] | None = None) -> None:
+        """Every stream (or those of `vehicle_ids`) holds its last setpoint from now on, so
+        nothing moves on along a plan; a stream that has sent nothing yet is left as it is."""
+        for vid in list(self.assignments) if vehicle_ids is None else vehicle_ids:
+            assignment = self.assignments.get(vid)
+            if assignment is not None and assignment.last is not None:
+                self.assign(vid, assignment.link, hold_track(
+                    assignment.last.position, assignment.last.yaw, self.rate))
 
     def unassign(self, vehicle_id: str) -> None:
         """Stop streaming to a vehicle (and drop any switch waiting for it)."""

@@ -21,8 +21,8 @@ arming is retried through that; its refusal is reported with PX4's own words.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
+from gcs.documents import HealthReport
 from gcs.flight.link.telemetry import Telemetry
 from gcs.flight.run.record import finite_or_none
 from gcs.wire import mavlink
@@ -71,7 +71,7 @@ def link_loss_pct(tel: Telemetry) -> float | None:
     return None if loss is None else 100.0 * loss
 
 
-def health_report(tel: Telemetry) -> dict[str, Any]:
+def health_report(tel: Telemetry) -> HealthReport:
     """battery, gps, health and link_quality of one vehicle (JSON-ready, None = unknown)."""
     unhealthy, prearm = _sensors(tel)
     return {

@@ -43,7 +43,7 @@ import numpy as np
 
 from gcs import frames
 from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.link.setpoints import hold_track, plan_tracks
+from gcs.flight.link.setpoints import plan_tracks
 from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.flight.replan.replan import predicted_landing, stream_motion
@@ -322,13 +322,9 @@ class PlannedLanding:
     def _freeze(self, steer: list[VehicleStatus]) -> None:
         """Every stream of `steer` holds its last setpoint from now on (the vehicles are
         landing: no longer judged against the plan)."""
-        streamer = self.streamer
         for v in steer:
             v.phase = VehiclePhase.LANDING
-            assignment = streamer.assignments.get(v.id)
-            if assignment is not None and assignment.last is not None:
-                streamer.assign(v.id, assignment.link, hold_track(
-                    assignment.last.position, assignment.last.yaw, streamer.rate))
+        self.streamer.freeze(v.id for v in steer)
 
     def _fallback(self, steer: list[VehicleStatus], why: str) -> bool:
         """Freeze the streams where they are and say that PX4's Land takes over."""

@@ -10,8 +10,7 @@ from typing import Any
 from fastapi.testclient import TestClient
 
 from planner import Plan
-from tests.api.routes.test_sequences import OUT_AND_BACK
-from tests.api.support import example, refused
+from tests.api.support import OUT_AND_BACK, example, refused
 
 #: `shared_client`'s max_steps (400) at dt = 0.2 s.
 SERVER_BUDGET_S = 80.0

@@ -15,9 +15,8 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.routes.test_flights import QUICK, wait_for
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import SHORT_CROSSING
+from tests.api.support import QUICK, SHORT_CROSSING, plan_mission, sse_events
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -34,7 +33,7 @@ def test_racing_commands_resolve_by_precedence(mock_settings: Callable[..., Sett
         flight = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK).json()
         links = flight["links"]
         wait_for(lambda: (client.get(links["self"]).json()["live"] or {}).get("phase")
-                 == "flying", 30, "the mission clock")
+                 == "flying", "the mission clock", 30)
         start = threading.Barrier(len(RACE))
 
         def send(link: str, body: dict[str, Any] | None) -> tuple[int, dict[str, Any]]:
@@ -79,4 +78,4 @@ def test_racing_commands_resolve_by_precedence(mock_settings: Callable[..., Sett
             assert {"replan_started", "replan_missed"} <= kinds
         wait_for(lambda: all(v["armed"] is False and v["position"][2] < 0.1
                              for v in client.get("/api/vehicles").json()["vehicles"]),
-                 20, "every vehicle landed and disarmed")
+                 "every vehicle landed and disarmed", 20)

@@ -14,9 +14,8 @@ from gcs.api import create_app
 from gcs.fleet.commands import FLEET_COMMANDS
 from gcs.service.settings import Settings
 from gcs.sim import DEFAULT_WORLD_ORIGIN
-from tests.api.routes.test_flights import QUICK, wait_for
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_CROSSING
+from tests.api.support import QUICK, QUICK_CROSSING, plan_mission, sse_events
+from tests.support.waiting import wait_for
 
 
 @pytest.mark.flight
@@ -28,7 +27,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
         execution = client.post(f"/api/missions/{mission['id']}/flights").json()
         url = execution["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
-                 30, "the flight clock")
+                 "the flight clock", 30)
         # while a flight is under way, its own abort is the way: no fleet command
         busy = client.post("/api/fleet/commands", json={"command": "land"})
         assert busy.status_code == 409 and busy.json()["field"] == "fleet"
@@ -44,7 +43,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
             lambda: (lambda vs: vs if all(v["armed"] and v["mode"] == "AUTO.LOITER"
                                           for v in vs) else None)(
                 client.get("/api/vehicles").json()["vehicles"]),
-            10, "the monitor to see the hovering fleet")
+            "the monitor to see the hovering fleet", 10)
         assert all(v["position"][2] > 0.8 for v in hovering)
         ids = [v["id"] for v in hovering]
 
@@ -78,7 +77,7 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
         assert all(v["mode"] == "AUTO.LAND" for v in rest["vehicles"])
         wait_for(lambda: all(v["armed"] is False and v["position"][2] < 0.1
                              for v in client.get("/api/vehicles").json()["vehicles"]),
-                 20, "every vehicle landed and disarmed")
+                 "every vehicle landed and disarmed", 20)
         # and the landed fleet can fly again
         again = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK)
         assert again.status_code == 201, again.text
@@ -107,7 +106,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
             lambda: (lambda vs: vs if all(v["gps"]["fix_type"] == 3
                                           and v["health"]["prearm_ok"] for v in vs) else None)(
                 client.get("/api/vehicles").json()["vehicles"]),
-            10, "every vehicle's GPS_RAW_INT and settled SYS_STATUS")
+            "every vehicle's GPS_RAW_INT and settled SYS_STATUS", 10)
         # the world frame's geodetic origin (the mock's), for a page's coordinates and scale
         mock_origin = DEFAULT_WORLD_ORIGIN  # the mocks' own (the service's mocks keep it)
         assert client.get("/api/vehicles").json()["fleet"]["world_origin"] == {
@@ -122,7 +121,7 @@ def test_vehicle_health_and_the_preflight_gate(mock_settings: Callable[..., Sett
         client.portal.call(app.state.fleet.vehicle_process.call,  # type: ignore[union-attr]
                            "inject_mock_fault", 2, "battery", 15.0)
         wait_for(lambda: client.get("/api/vehicles").json()["vehicles"][2]["battery"]
-                 ["remaining_pct"] == 15, 5, "the low battery to be reported")
+                 ["remaining_pct"] == 15, "the low battery to be reported", 5)
 
         mission = plan_mission(client, QUICK_CROSSING)
         url = f"/api/missions/{mission['id']}/flights"

@@ -17,25 +17,15 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.store import Store
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import QUICK_CROSSING, SHORT_CROSSING, example
-
-#: Quick flights: half a second at the goals, a 2 m/s climb after a 0.3 s prestream. A
-#: vehicle is flagged 2 m (not 1 m) off its plan: on a loaded machine the station and its
-#: in-process mocks stall together and a vehicle falls behind while both catch up; the
-#: flight's accuracy is what these tests judge by its goal errors and separation (tracking
-#: is tested in tests/flight).
-QUICK = {"hold_at_goal": 0.5, "tracking_error_max": 2.0, "climb_speed": 2.0, "prestream": 0.3}
-
-
-def wait_for(predicate: Callable[[], Any], timeout: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
+from tests.api.support import (
+    QUICK,
+    QUICK_CROSSING,
+    SHORT_CROSSING,
+    example,
+    plan_mission,
+    sse_events,
+)
+from tests.support.waiting import wait_for
 
 
 def heard(client: TestClient) -> list[dict[str, Any]] | None:
@@ -69,7 +59,7 @@ def flown(module_mock_settings: Settings) -> Flown:
     database)."""
     with TestClient(create_app(module_mock_settings)) as client:
         idle = client.get("/api/vehicles").json()
-        idle_vehicles = wait_for(lambda: heard(client), 10, "the mock vehicles' heartbeats")
+        idle_vehicles = wait_for(lambda: heard(client), "the mock vehicles' heartbeats", 10)
         mission = plan_mission(client, QUICK_CROSSING)
         response = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK)
         assert response.status_code == 201, response.text
@@ -81,8 +71,8 @@ def flown(module_mock_settings: Settings) -> Flown:
         listed = client.get(f"/api/missions/{mission['id']}/flights").json()
         active = client.get("/api/flights?active=true").json()["flights"]
         after = client.get("/api/vehicles").json()
-        after_vehicles = wait_for(lambda: heard(client), 10,
-                                  "the monitor to hear the vehicles again")
+        after_vehicles = wait_for(lambda: heard(client),
+                                  "the monitor to hear the vehicles again", 10)
     return Flown(module_mock_settings, idle, idle_vehicles, mission, created, events, stored,
                  json.loads(record.text), listed, active, after, after_vehicles)
 
@@ -154,7 +144,7 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
         execution = client.post(f"/api/missions/{mission['id']}/flights").json()
         url = execution["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
-                 30, "the flight clock")
+                 "the flight clock", 30)
         while_flying = client.get("/api/vehicles").json()
         assert while_flying["fleet"]["flying"] == execution["id"]
         assert all(v["link"] == "flight" and v["armed"] for v in while_flying["vehicles"])
@@ -183,7 +173,7 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
         assert late.json()["reason"].endswith("is not flying (status aborted)")
         wait_for(lambda: all(v["armed"] is False and v["position"][2] < 0.1
                              for v in client.get("/api/vehicles").json()["vehicles"]),
-                 15, "every vehicle landed and disarmed")
+                 "every vehicle landed and disarmed", 15)
         assert client.delete(f"/api/missions/{mission['id']}").status_code == 204
         assert client.get(url).status_code == 404  # its flights went with it
 
@@ -265,7 +255,7 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
         assert client.post(links["resume"]).status_code == 409  # not paused
         # paused 1 s into the 6 s plan, the fleet moving
         wait_for(lambda: ((client.get(url).json()["live"] or {}).get("flight_time") or 0) > 1,
-                 30, "the flight clock to pass 1 s")
+                 "the flight clock to pass 1 s", 30)
         paused = client.post(links["pause"])
         assert paused.status_code == 200, paused.text
         assert paused.json()["status"] == "paused"
@@ -288,7 +278,7 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
                         for v in live["live"]["vehicles"])
             return live if moved < 0.1 else None
 
-        later = wait_for(settled, 15, "the paused fleet to settle to its hold")
+        later = wait_for(settled, "the paused fleet to settle to its hold", 15)
         assert later["status"] == "paused" and later["live"]["phase"] == "paused"
         assert later["live"]["flight_time"] == pytest.approx(first["live"]["flight_time"])
         assert later["live"]["min_separation_live"] > 1.0 - 0.1

@@ -8,8 +8,7 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import example
+from tests.api.support import example, plan_mission, sse_events
 
 
 def _outcomes(plan: dict[str, Any]) -> dict[str, str]:

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 import pytest
@@ -17,29 +15,7 @@ from gcs.api import create_app
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from planner import Plan, Scenario
-from tests.api.support import example
-
-
-def plan_mission(client: TestClient, scenario: dict[str, Any]) -> dict[str, Any]:
-    """POST a scenario and wait (up to a minute) for its plan."""
-    response = client.post("/api/missions?wait=60", json=scenario)
-    assert response.status_code == 201, response.text
-    return response.json()
-
-
-def sse_events(client: TestClient, url: str) -> list[tuple[str, dict[str, Any]]]:
-    """Every (event, data) of a server-sent event stream, until the server ends it."""
-    events: list[tuple[str, dict[str, Any]]] = []
-    kind = None
-    with client.stream("GET", url) as response:
-        assert response.status_code == 200
-        assert response.headers["content-type"].startswith("text/event-stream")
-        for line in response.iter_lines():
-            if line.startswith("event:"):
-                kind = line.split(":", 1)[1].strip()
-            elif line.startswith("data:"):
-                events.append((kind or "message", json.loads(line.split(":", 1)[1])))
-    return events
+from tests.api.support import example, plan_mission, sse_events
 
 
 def test_round_trip_plans_and_reads_back(client: TestClient) -> None:

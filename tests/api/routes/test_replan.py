@@ -17,8 +17,7 @@ from gcs.api import create_app
 from gcs.replan_request import MAX_ENTRIES
 from gcs.service.settings import Settings
 from gcs.service.statuses import FlightStatus
-from tests.api.routes.test_missions import plan_mission
-from tests.api.support import OPERATOR, READER, example, refused
+from tests.api.support import OPERATOR, READER, example, plan_mission, refused
 
 
 @pytest.fixture

@@ -19,9 +19,8 @@ from gcs.api.routes.flights import FlyRequest
 from gcs.fleet.fleetfile import POLICIES
 from gcs.phases import EventKind
 from gcs.service.settings import Settings
-from tests.api.routes.test_flights import QUICK, wait_for
-from tests.api.routes.test_missions import plan_mission, sse_events
-from tests.api.support import SHORT_CROSSING, example
+from tests.api.support import QUICK, SHORT_CROSSING, example, plan_mission, sse_events
+from tests.support.waiting import wait_for
 
 #: Run only with the flight side of in-flight replans (helper flight's branch, wt/flight).
 NEEDS_FLIGHT_REPLANS = pytest.mark.skipif(not hasattr(phases, "ReplanStatus"),
@@ -48,7 +47,7 @@ def test_a_replan_through_the_api(mock_settings: Callable[..., Settings]) -> Non
         execution = flown.json()
         url, links = execution["links"]["self"], execution["links"]
         assert links["replan"].endswith("/replan")
-        wait_for(lambda: flight_time(client, url) > 1.0, 60, "the flight clock to pass 1 s")
+        wait_for(lambda: flight_time(client, url) > 1.0, "the flight clock to pass 1 s", 60)
 
         # What only the flight can judge crosses from the vehicle process by its field.
         unknown = client.post(links["replan"], json={"goals": {"zz": [1.0, 1.0, 1.0]}})

@@ -15,26 +15,8 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from planner import Plan
-from tests.api.routes.test_flights import QUICK, wait_for
-from tests.api.routes.test_missions import sse_events
-from tests.api.support import SHORT_CROSSING
-
-STARTS = [v["start"] for v in SHORT_CROSSING["vehicles"]]
-GOALS = [v["goal"] for v in SHORT_CROSSING["vehicles"]]
-
-#: Four vehicles out and back between two formations with short holds: 13.2 s in all.
-OUT_AND_BACK: dict[str, Any] = {
-    "name": "out-and-back",
-    "dt": 0.2,
-    "min_separation": 1.0,
-    "limits": SHORT_CROSSING["limits"],
-    "vehicles": ["a", "b", "c", "d"],
-    "formations": [
-        {"name": "home", "positions": STARTS, "hold": 0.4},
-        {"name": "crossed", "positions": GOALS, "duration": 6, "hold": 0.4},
-        {"name": "home", "positions": STARTS, "duration": 6, "hold": 0.4},
-    ],
-}
+from tests.api.support import GOALS, OUT_AND_BACK, QUICK, STARTS, sse_events
+from tests.support.waiting import wait_for
 
 
 def plan_sequence(client: TestClient, body: dict[str, Any]) -> dict[str, Any]:
@@ -157,4 +139,4 @@ def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[...,
         assert done["summary"]["goal_error_max"] < 0.2
         assert done["summary"]["min_separation_measured"] > 1.0 - 0.1
         wait_for(lambda: client.get(f"/api/missions/{mission['id']}/flights").json(),
-                 5, "the execution record")
+                 "the execution record", 5)
