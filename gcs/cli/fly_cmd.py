@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.cli import mock_timings
 
 if TYPE_CHECKING:

@@ -2,7 +2,7 @@
 
 When the ground station is gone (its process killed, its computer or radio dead), no
 setpoint arrives and each PX4 vehicle flies its offboard-loss failsafe
-(`gcs.px4.OffboardLossFailsafe`): COM_OF_LOSS_T after the last setpoint it leaves OFFBOARD
+(`gcs.autopilot.px4.OffboardLossFailsafe`): COM_OF_LOSS_T after the last setpoint it leaves OFFBOARD
 and holds in Position for COM_FAIL_ACT_T, then takes COM_OBL_RC_ACT (Position, Altitude and
 Manual need RC: without it PX4 lands). Before arming, `set_failsafe` reads the three
 parameters (PARAM_REQUEST_READ) and sets:
@@ -22,26 +22,20 @@ station lost then lands them that close (no autopilot failsafe moves a vehicle s
 
 from __future__ import annotations
 
-import asyncio
-import math
-import time
-from typing import Any
-
 import numpy as np
 from scipy.spatial import cKDTree
 
-from gcs import px4
-from gcs.flight.link.link import VehicleLink
+from gcs.flight.procedure.params import ParamError, read_param, set_param
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.phases import EventKind
-from gcs.wire import PARAM_TYPES, decode_param, encode_param
 from planner import Plan
 
-__all__ = ["FAILSAFE_PARAMS", "LAYER_GAP_M", "ParamError", "layer_delays", "read_param",
+__all__ = ["LAYER_BASE_DELAY_S", "LAYER_GAP_M", "ParamError", "layer_delays", "read_param",
            "set_failsafe", "set_param", "stacked_columns"]
 
-#: The failsafe's parameters and their PX4 types.
-FAILSAFE_PARAMS = {"COM_OF_LOSS_T": "f", "COM_FAIL_ACT_T": "f", "COM_OBL_RC_ACT": "i"}
+#: The lowest layer's delay (s): the default of both autopilots' failsafe delays (PX4's
+#: COM_FAIL_ACT_T, ArduPilot's FS_GCS_TIMEOUT).
+LAYER_BASE_DELAY_S = 5.0
 #: Vehicles whose planned heights differ by less than this (m) are one layer.
 LAYER_GAP_M = 0.3
 #: A layer above starts down this long (s) after the one below should be on the ground.
@@ -50,61 +44,6 @@ LAYER_SETTLE_S = 1.0
 ACTION_DELAY_MAX = 25.0
 #: Columns closer than R by more than this (m) are told as stacked (`stacked_columns`).
 STACKED_TOLERANCE = 0.05
-#: Tries of one parameter read or write, and the wait for each answer (s).
-TRIES = 3
-ANSWER_S = 1.0
-
-
-class ParamError(Exception):
-    """A parameter was not answered or not taken (the reason in words)."""
-
-
-async def _exchange(link: VehicleLink, name: str, send: Any) -> Any:
-    """Send `send()`'s message until a PARAM_VALUE for `name` answers; that message."""
-    answers: asyncio.Queue[Any] = asyncio.Queue()
-
-    def on_message(_link: VehicleLink, msg: Any, _now: float) -> None:
-        if msg.get_type() == "PARAM_VALUE" and _param_id(msg) == name:
-            answers.put_nowait(msg)
-
-    link.listeners.append(on_message)
-    try:
-        for _ in range(TRIES):
-            link.send(send())
-            deadline = time.monotonic() + ANSWER_S
-            while (left := deadline - time.monotonic()) > 0:
-                try:
-                    return await asyncio.wait_for(answers.get(), left)
-                except TimeoutError:
-                    break
-        raise ParamError(f"{name} not answered after {TRIES} tries")
-    finally:
-        link.listeners.remove(on_message)
-
-
-def _param_id(msg: Any) -> str:
-    raw = msg.param_id
-    text = raw.decode(errors="replace") if isinstance(raw, bytes) else str(raw)
-    return text.rstrip("\x00")
-
-
-async def read_param(link: VehicleLink, name: str, kind: str) -> float:
-    """The vehicle's value of parameter `name` (type `kind`: "f" or "i")."""
-    msg = await _exchange(link, name, lambda: link.mav.param_request_read_encode(
-        link.system_id, link.component_id, name.encode(), -1))
-    return decode_param(kind, msg.param_value)
-
-
-async def set_param(link: VehicleLink, name: str, kind: str, value: float) -> float:
-    """Set parameter `name` to `value`; the value the vehicle answers with (`ParamError`
-    when it keeps another)."""
-    msg = await _exchange(link, name, lambda: link.mav.param_set_encode(
-        link.system_id, link.component_id, name.encode(), encode_param(kind, value),
-        PARAM_TYPES[kind]))
-    got = decode_param(kind, msg.param_value)
-    if not math.isclose(got, value, rel_tol=1e-6, abs_tol=1e-6):
-        raise ParamError(f"{name} set to {value:g} but the vehicle keeps {got:g}")
-    return got
 
 
 def layer_delays(plan: Plan, land_speed: float) -> list[float]:
@@ -117,7 +56,7 @@ def layer_delays(plan: Plan, land_speed: float) -> list[float]:
     tops = plan.positions()[:, :, 2].max(axis=1) - floor
     order = np.argsort(tops, kind="stable")
     delays = np.empty(len(tops))
-    delay = px4.COM_FAIL_ACT_T_S
+    delay = LAYER_BASE_DELAY_S
     layer_top = layer_start = float(tops[order[0]]) if len(order) else 0.0
     for i in order:
         top = float(tops[i])
@@ -159,26 +98,25 @@ def stacked_columns(plan: Plan, clearance: float, rate: float = 5.0
 
 
 async def set_failsafe(v: VehicleStatus, delay: float, emit: Emit) -> None:
-    """Read `v`'s failsafe, set it to land after `delay` s (see the module), keep what it
-    answered in `v.failsafe` and say it (a `failsafe` event, also when it cannot be read or
-    set: then what the vehicle does without the station is not known)."""
+    """Read `v`'s failsafe, set it to land after `delay` s (see the module; its autopilot says
+    which parameters: `Autopilot.failsafe_settings`), keep what it answered in `v.failsafe`
+    and say it (a `failsafe` event, also when it cannot be read or set: then what the vehicle
+    does without the station is not known)."""
     link = v.linked
+    kind = v.autopilot
     try:
-        before = {name: await read_param(link, name, kind)
-                  for name, kind in FAILSAFE_PARAMS.items()}
-        action = before["COM_OBL_RC_ACT"]
-        if action != px4.OBL_LAND:
-            action = await set_param(link, "COM_OBL_RC_ACT", "i", px4.OBL_LAND)
-        wait = before["COM_FAIL_ACT_T"]
-        if not math.isclose(wait, delay, abs_tol=1e-3):
-            wait = await set_param(link, "COM_FAIL_ACT_T", "f", delay)
+        before = {name: await read_param(link, name, k)
+                  for name, k in kind.failsafe_params.items()}
+        settings = kind.failsafe_settings(before, delay)
+        after = dict(before)
+        for name, value in settings.items():
+            after[name] = await set_param(link, name, kind.failsafe_params[name], value)
     except ParamError as exc:
         emit(v.id, EventKind.FAILSAFE, f"not set ({exc}): without the station it does what "
                                        f"its own parameters say")
         return
-    v.failsafe = px4.OffboardLossFailsafe(before["COM_OF_LOSS_T"], wait, int(action))
-    changed = [f"{name} {before[name]:g} -> {after:g}" for name, after in
-               (("COM_OBL_RC_ACT", action), ("COM_FAIL_ACT_T", wait)) if before[name] != after]
+    v.failsafe = kind.failsafe(after)
+    changed = [f"{name} {before[name]:g} -> {after[name]:g}" for name in settings
+               if before[name] != after[name]]
     emit(v.id, EventKind.FAILSAFE, f"without the station: {v.failsafe.text()}"
                                    + (f" (set {', '.join(changed)})" if changed else ""))
-

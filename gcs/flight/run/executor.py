@@ -476,7 +476,8 @@ class FlightExecutor:
             v.goal_ned = frames.world_to_ned(goals[v.index], home)
         self.phase = FlightPhase.PREPARING
         streamer = self._streamer()
-        await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit, self.stalls)
+        await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit, self.stalls,
+                                   self.fleet.world_origin)
                    for v in self.vehicles)
         self.phase = FlightPhase.GATHERING
         await self._gather()
