@@ -49,7 +49,7 @@ from planner.planning import plan
 from planner.result import Plan
 from planner.types import FloatArray, IntArray
 
-__all__ = ["LandingError", "LandingPlan", "escape_points", "first_step_clearance",
+__all__ = ["STAGES", "LandingError", "LandingPlan", "escape_points", "first_step_clearance",
            "fixed_start_clearances", "plan_landing", "touchdown_points"]
 
 
@@ -75,6 +75,9 @@ DEFAULT_SPEED = 1.0
 RETRY_FACTORS = (1.0, 1.8)
 #: SCP iterations allowed per attempt (a landing must be quick; unconverged is retried).
 MAX_ITERATIONS = 12
+#: What `plan_landing` tries, in turn: a landing, then (with vehicles it cannot steer) a
+#: move away from their columns.
+STAGES = ("landing", "escape")
 
 
 class LandingError(PlannerError):
@@ -344,8 +347,8 @@ def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
 def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike,
                  accelerations: ArrayLike, *, ids: list[str] | None = None,
                  landing_height: float = 0.0, solver: str | None = None,
-                 deadline: float | None = None, fixed: Sequence[FixedTrajectory] = ()
-                 ) -> LandingPlan:
+                 deadline: float | None = None, fixed: Sequence[FixedTrajectory] = (),
+                 stages: Sequence[str] = STAGES) -> LandingPlan:
     """A verified landing plan for vehicles at `positions` (N, 3) moving with `velocities`
     and `accelerations` (N, 3), under `scenario`'s workspace, boxes, R and step length,
     keeping R + margin from the vehicles it cannot steer (`fixed`, from the plan's start:
@@ -353,7 +356,7 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     clear of too; the plan lasts at least as long as the longest of them. Where no landing
     keeps clear of them, the plan moves the vehicles away from their columns first
     (`LandingPlan.touchdown` False, `escape_points`), and the caller plans the landing again
-    from there.
+    from there. stages: which of "landing" and "escape" to try, in turn.
 
     ids: the vehicles' ids (default `scenario.ids`, which needs N equal to its size).
     landing_height: touchdown height above the workspace floor (m). deadline: a
@@ -416,17 +419,21 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
             failures.append(f"{steps * scenario.dt:.1f} s: {'; '.join(result.problems())}")
         raise LandingError(f"no verified {label} plan (" + " | ".join(failures) + ")")
 
-    try:
-        return attempts("landing", goals, max(_horizon(p, v, goals, scenario), longest))
-    except LandingError as straight:
-        if not fixed or (deadline is not None and time.perf_counter() > deadline):
-            raise
-        # no landing keeps clear of them: move away from their columns first, land later
+    failed: list[str] = []
+    for stage in stages:
+        if stage == "escape" and not fixed:
+            continue  # nothing to move away from
+        if failed and deadline is not None and time.perf_counter() > deadline:
+            break
         try:
+            if stage == "landing":
+                return attempts(stage, goals, max(_horizon(p, v, goals, scenario), longest))
+            # no landing keeps clear of them: move away from their columns first, land later
             away = escape_points(p + _stopping(v, scenario), scenario, height, fixed)
-            return attempts("escape", away, _horizon(p, v, away, scenario))
+            return attempts(stage, away, _horizon(p, v, away, scenario))
         except LandingError as exc:
-            raise LandingError(f"{straight}; moving away first: {exc}") from exc
+            failed.append(str(exc))
+    raise LandingError("; ".join(failed) or f"no stage to try among {list(stages)}")
 
 
 def _truncated(f: FixedTrajectory, steps: int) -> FixedTrajectory:

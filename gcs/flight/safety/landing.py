@@ -51,7 +51,7 @@ from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
-from planner.methods.landing import LandingError, LandingPlan, plan_landing
+from planner.methods.landing import STAGES, LandingError, LandingPlan, plan_landing
 from planner.model.fixed import CLEARANCE_RAMP_S, FixedTrajectory
 from planner.model.scenario import Scenario
 from planner.types import FloatArray
@@ -272,17 +272,18 @@ class PlannedLanding:
         deadline = began + bound
         def planned() -> LandingPlan:
             """The landing plan, keeping the full margins from the vehicles it cannot steer
-            or, when no plan can, a share of them (`MARGIN_SHARES`)."""
-            for share in MARGIN_SHARES:
+            or, when no plan can, a share of them (`MARGIN_SHARES`); when none keeps even R
+            from them, a plan that moves the vehicles away from their columns first."""
+            tries = [(stage, share) for stage in STAGES for share in MARGIN_SHARES]
+            for n, (stage, share) in enumerate(tries, start=1):
                 try:
                     return plan_landing(
                         self.scenario, positions, velocities, accelerations,
                         ids=[v.id for v in steer], landing_height=self.options.landing_height,
                         deadline=deadline, fixed=[replace(f, margin=share * f.margin)
-                                                  for f in fixed])
+                                                  for f in fixed], stages=(stage,))
                 except LandingError:
-                    if share == MARGIN_SHARES[-1] or not fixed \
-                            or time.perf_counter() > deadline:
+                    if n == len(tries) or not fixed or time.perf_counter() > deadline:
                         raise
             raise AssertionError("unreachable")
 
