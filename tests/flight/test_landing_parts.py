@@ -206,7 +206,8 @@ def test_a_lost_vehicle_is_planned_around_and_a_failed_plan_holds_and_retries(
         monkeypatch) -> None:
     """uav2 is lost (unheard for 2 s, on its own failsafe: 1 s on, 0.5 s hold, Land): it is
     not sent PX4's Land but predicted, and the landing plan keeps clear of that motion. The
-    first attempt fails (refused here at every share of the margin): uav1 holds where it is
+    first attempt fails (refused here at every share of the margin, landing or moving
+    away first): uav1 holds where it is
     and the landing is planned again from there; uav1, 0.6 m from uav2 as it starts, keeps
     what it has from uav2 alone, back to R within seconds; uav2 is handed to Land only once
     its motion has ended."""
@@ -214,7 +215,7 @@ def test_a_lost_vehicle_is_planned_around_and_a_failed_plan_holds_and_retries(
 
     def first_fails(*args, **kwargs):
         calls.append(len(kwargs["fixed"]))
-        if len(calls) <= len(landing_module.MARGIN_SHARES):
+        if len(calls) <= len(landing_module.MARGIN_SHARES) * len(landing_module.STAGES):
             raise LandingError("no room yet")
         return plan_landing(*args, **kwargs)
 

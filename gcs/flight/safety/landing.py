@@ -25,7 +25,12 @@ own offboard-loss failsafe from its last report (`gcs.flight.replan.replan.predi
 margin growing with the time since it was heard), is streamed that motion in case it still
 listens, and gets PX4's Land only once the motion has ended (a Land arriving earlier would
 take it down before its predicted hold was over). Their motions go to `FlownPlans.motions`,
-where the live separation monitor reads where a lost vehicle is predicted. Everyone gets
+where the live separation monitor reads where a lost vehicle is predicted. A steered vehicle
+already nearer than R to one of them keeps what it has from that one alone, back to R within
+seconds (`planner.methods.landing.fixed_start_clearances`). Where no landing plan keeps R from
+them (at any share of the margin, `MARGIN_SHARES`), a verified plan first moves the steered
+vehicles away from their columns, and the landing is planned again from there (at most
+`MAX_ESCAPES` times). Everyone gets
 PX4's Land when no verified plan is ready before the switch tick (the planner failed for
 whatever reason, or was late): the events say which (`landing_plan`, `landing_fallback`).
 Whatever happens, every vehicle is handed to `secure` in the end.
