@@ -14,8 +14,16 @@ landing height (the workspace floor plus `landing_height`) below or beside each 
   conditions, flyability). The separation it keeps is R, or less where the fleet's state
   does not allow R: vehicles already closer than R cannot be planned apart in no time, and
   a pair passing each other near R keeps what the first step's rows allow
-  (`first_step_clearance`, a few centimetres less), and a vehicle that starts closer than R
-  to a fixed one (a lost vehicle, predicted) keeps what it starts with.
+  (`first_step_clearance`, a few centimetres less); a vehicle that starts closer than R
+  to a fixed one (a lost vehicle, predicted) keeps what it starts with from that one
+  alone, growing back to R + its margin within seconds (`fixed_start_clearances`), while
+  every other pair keeps R.
+
+Where no landing plan keeps R + margin from a fixed vehicle (a neighbour caught under or
+beside a lost vehicle's column), a plan of the same kind moves the vehicles first: each
+horizontally, at its own height, to a point clear of every fixed vehicle's whole column and
+R from the others (`escape_points`), verified like a landing; from there each can go straight
+down, and the caller plans the landing again once they are there.
 
 Numerics only: the ground station streams the plan and hands over to PX4's Land at the
 touchdown points (`gcs.flight.safety.landing`).
@@ -26,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -41,8 +49,8 @@ from planner.planning import plan
 from planner.result import Plan
 from planner.types import FloatArray, IntArray
 
-__all__ = ["LandingError", "LandingPlan", "first_step_clearance", "plan_landing",
-           "touchdown_points"]
+__all__ = ["STAGES", "LandingError", "LandingPlan", "escape_points", "first_step_clearance",
+           "fixed_start_clearances", "plan_landing", "touchdown_points"]
 
 
 #: Touchdown points keep R (1 + this) apart horizontally, so that a vehicle descending
@@ -54,6 +62,9 @@ TOUCHDOWN_SLACK = 0.05
 START_SLACK = 0.01
 #: Rounds of pushing touchdown points apart before giving up (the floor is too crowded).
 SPREAD_ROUNDS = 200
+#: A fixed vehicle's column is the points it passes rounded to this grid (m): close enough
+#: for the slack of `escape_points`, few enough to compare with every vehicle.
+COLUMN_GRID = 0.05
 #: The horizon is this many times the farthest vehicle's minimum time, plus `HORIZON_EXTRA_S`:
 #: room for vehicles to give way to each other.
 HORIZON_FACTOR = 1.5
@@ -64,6 +75,9 @@ DEFAULT_SPEED = 1.0
 RETRY_FACTORS = (1.0, 1.8)
 #: SCP iterations allowed per attempt (a landing must be quick; unconverged is retried).
 MAX_ITERATIONS = 12
+#: What `plan_landing` tries, in turn: a landing, then (with vehicles it cannot steer) a
+#: move away from their columns.
+STAGES = ("landing", "escape")
 
 
 class LandingError(PlannerError):
@@ -72,7 +86,7 @@ class LandingError(PlannerError):
 
 @dataclass(frozen=True)
 class LandingPlan:
-    """A verified landing plan and how it was made."""
+    """A verified landing plan (or a move away first) and how it was made."""
 
     plan: Plan
     """Converged and verified; its goals are the touchdown points, its starts the state."""
@@ -83,6 +97,10 @@ class LandingPlan:
     """Planning time, touchdown placement included (s)."""
     attempts: int
     """Horizons tried (1 unless the first one failed)."""
+    touchdown: bool = True
+    """True: its goals are the touchdown points. False: no landing kept clear of the
+    vehicles it cannot steer, and this plan moves the vehicles away from their columns
+    (`escape_points`), from where a landing is planned again."""
 
 
 def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float,
@@ -96,20 +114,50 @@ def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float,
     descends there), inside the workspace. `LandingError` when the floor is too crowded
     for that."""
     p = np.asarray(positions, dtype=float)
+    rests = np.array([f.positions[-1, :2] for f in fixed]).reshape(-1, 2)
+    out = np.empty_like(p)
+    out[:, :2] = _spread(p, scenario, height, rests,
+                         np.array([scenario.min_separation + f.margin for f in fixed]))
+    out[:, 2] = height
+    return out
+
+
+def escape_points(positions: ArrayLike, scenario: Scenario, height: float,
+                  fixed: Sequence[FixedTrajectory]) -> FloatArray:
+    """(N, 3) points at each vehicle's own height from which it can go straight down: as
+    `touchdown_points`, but clear of every point each `fixed` vehicle passes (its whole
+    column, not only where it rests) by R + its margin (1 + TOUCHDOWN_SLACK) horizontally,
+    so a vehicle there keeps that from it whatever it does and whenever. `LandingError` when
+    the workspace is too crowded for that."""
+    p = np.asarray(positions, dtype=float)
+    paths = [np.unique(np.round(f.positions[:, :2] / COLUMN_GRID), axis=0) * COLUMN_GRID
+             for f in fixed]
+    out = p.copy()
+    out[:, :2] = _spread(p, scenario, height, np.concatenate(paths).reshape(-1, 2),
+                         np.concatenate([np.full(len(c), scenario.min_separation + f.margin)
+                                         for c, f in zip(paths, fixed, strict=True)]))
+    return out
+
+
+def _spread(p: FloatArray, scenario: Scenario, height: float, avoid: FloatArray,
+            avoid_need: FloatArray) -> FloatArray:
+    """(N, 2) horizontal positions (m) as near `p`'s as allowed: every two R (1 +
+    TOUCHDOWN_SLACK) apart in the horizontal separation metric, each `avoid_need[m]` (1 +
+    TOUCHDOWN_SLACK) from `avoid[m]` (M, 2), clear of the obstacles standing at `height`,
+    inside the workspace (`touchdown_points`)."""
     lim = scenario.limits
     scale = scenario.separation_scale[:2]
     need = scenario.min_separation * (1.0 + TOUCHDOWN_SLACK)
     lo, hi = lim.position_min[:2] / scale, lim.position_max[:2] / scale
     xy = np.clip(p[:, :2] / scale, lo, hi)
-    rests = np.array([f.positions[-1, :2] for f in fixed]).reshape(-1, 2) / scale
-    rest_need = np.array([scenario.min_separation + f.margin for f in fixed]) * (
-        1.0 + TOUCHDOWN_SLACK)
+    avoid = avoid / scale
+    avoid_need = avoid_need * (1.0 + TOUCHDOWN_SLACK)
     standing = _standing_at(scenario, height)
     rng = np.random.default_rng(0)  # only breaks exact coincidences, reproducibly
     for _ in range(SPREAD_ROUNDS):
         pairs = cKDTree(xy).query_pairs(need * (1.0 - 1e-9), output_type="ndarray")
         blocked = _obstacle_push(xy * scale, scenario, standing) / scale
-        blocked += _away_from(xy, rests, rest_need, rng)
+        blocked += _away_from(xy, avoid, avoid_need, rng)
         if len(pairs) == 0 and not blocked.any():
             break
         moves = blocked
@@ -128,33 +176,32 @@ def touchdown_points(positions: ArrayLike, scenario: Scenario, height: float,
             np.add.at(moves, j, push)
         xy = np.clip(xy + moves, lo, hi)
     else:
-        raise LandingError(f"cannot place {len(p)} touchdown points {need:.2f} m apart and "
-                           f"clear of the obstacles on the workspace floor within "
+        raise LandingError(f"cannot place {len(p)} points {need:.2f} m apart and clear of "
+                           f"the obstacles and the vehicles it cannot steer within "
                            f"{SPREAD_ROUNDS} rounds (too crowded)")
-    out = np.empty_like(p)
-    out[:, :2] = xy * scale
-    out[:, 2] = height
-    return out
+    return xy * scale
 
 
 def _away_from(xy: FloatArray, points: FloatArray, need: FloatArray,
                rng: np.random.Generator) -> FloatArray:
     """(N, 2) moves taking each of `xy` at least `need[m]` from each of `points` (M, 2),
-    which do not move: by the whole shortfall (a little more, so the rounds end)."""
+    which do not move: by the sum of the shortfalls (a little more, so the rounds end)."""
     moves = np.zeros_like(xy)
-    for point, least in zip(points, need, strict=True):
-        d = xy - point
-        dist = np.linalg.norm(d, axis=1)
-        short = dist < least * (1.0 - 1e-9)
-        if not short.any():
-            continue
-        same = short & (dist < 1e-9)
-        if same.any():
-            angle = rng.uniform(0.0, 2.0 * math.pi, int(same.sum()))
-            d[same] = np.stack([np.cos(angle), np.sin(angle)], axis=1)
-            dist[same] = 1.0
-        push = ((least - dist[short]) * 1.01 + 1e-6)[:, None] * d[short] / dist[short, None]
-        moves[short] += push
+    if len(points) == 0:
+        return moves
+    d = xy[:, None, :] - points[None, :, :]  # (N, M, 2)
+    dist = np.linalg.norm(d, axis=2)
+    short = dist < need[None, :] * (1.0 - 1e-9)
+    if not short.any():
+        return moves
+    same = short & (dist < 1e-9)
+    if same.any():
+        angle = rng.uniform(0.0, 2.0 * math.pi, int(same.sum()))
+        d[same] = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        dist[same] = 1.0
+    n, m = np.nonzero(short)
+    push = ((need[m] - dist[n, m]) * 1.01 + 1e-6)[:, None] * d[n, m] / dist[n, m, None]
+    np.add.at(moves, n, push)
     return moves
 
 
@@ -223,26 +270,64 @@ def first_step_clearance(p: FloatArray, v: FloatArray, a: FloatArray, scenario: 
     d0 = scaled[i] - scaled[j]
     dv = (v[i] - v[j]) / scale
     da = (a[i] - a[j]) / scale
-    d1 = d0 + dt * dv + 0.5 * dt * dt * da
+    return float(np.min(_chord_floor(d0, d0 + 0.5 * dt * dv,
+                                     d0 + dt * dv + 0.5 * dt * dt * da))) * (1.0 - 1e-9)
+
+
+def _chord_floor(d0: FloatArray, middle: FloatArray, d1: FloatArray) -> FloatArray:
+    """(pairs,) the smallest of the three control points (pairs, 3 each, scaled) of a
+    step's relative motion along the direction of the chord's closest point to the origin:
+    what the step's three rows can hold the pair to."""
     chord = d1 - d0
     along = np.clip(-np.einsum("rc,rc->r", d0, chord)
                     / np.maximum(np.einsum("rc,rc->r", chord, chord), 1e-18), 0.0, 1.0)
     closest = d0 + along[:, None] * chord
     u = closest / np.maximum(np.linalg.norm(closest, axis=1), 1e-12)[:, None]
-    values = [np.einsum("rc,rc->r", u, x) for x in (d0, d0 + 0.5 * dt * dv, d1)]
-    return float(np.min(np.minimum.reduce(values))) * (1.0 - 1e-9)
+    return np.minimum.reduce([np.einsum("rc,rc->r", u, x) for x in (d0, middle, d1)])
 
 
-def _fixed_start_clearance(p: FloatArray, fixed: Sequence[FixedTrajectory],
-                           scenario: Scenario) -> float:
-    """The smallest distance (separation metric) of a vehicle from a fixed one at the start
-    (inf without fixed ones): a plan cannot keep more from it there."""
-    if not fixed:
-        return math.inf
-    firsts = np.array([f.positions[0] for f in fixed])
-    d = np.linalg.norm((p[:, None, :] - firsts[None, :, :]) / scenario.separation_scale,
-                       axis=2)
-    return float(d.min()) * (1.0 - 1e-9)
+def fixed_start_clearances(p: FloatArray, v: FloatArray, a: FloatArray, ids: Sequence[str],
+                           fixed: Sequence[FixedTrajectory], scenario: Scenario
+                           ) -> list[FixedTrajectory]:
+    """`fixed` with each pair that cannot keep R from the state named in its
+    `start_clearance`: the first step's rows hold the pair to at most `_chord_floor` of
+    its relative motion, and a vehicle still closing in after it comes nearer by its
+    braking distance at half the acceleration bound; a pair whose least of the two is under
+    R (1 + START_SLACK) keeps that less START_SLACK R, and grows back to R + margin over
+    `planner.model.fixed.CLEARANCE_RAMP_S`. Every other pair keeps R + margin."""
+    if not fixed or len(p) == 0:
+        return list(fixed)
+    scale = scenario.separation_scale
+    dt = scenario.dt
+    r = scenario.min_separation
+    brake = (None if scenario.limits.acceleration_max is None
+             else 0.5 * float(np.min(scenario.limits.acceleration_max / scale)))
+    out = []
+    for f in fixed:
+        q, w, _ = (x[:2] for x in f.motion(dt, max(2, len(f))))
+        d0 = (p - q[0]) / scale
+        middle = d0 + 0.5 * dt * (v - w[0]) / scale
+        d1 = (p + dt * v + 0.5 * dt * dt * a - q[1]) / scale
+        floor = _chord_floor(d0, middle, d1)
+        if brake is not None:  # still closing in after the step: its braking distance
+            gap = np.linalg.norm(d1, axis=1)
+            closing = -np.einsum("nc,nc->n", d1, (v + dt * a - w[1]) / scale) \
+                / np.maximum(gap, 1e-12)
+            floor = np.minimum(floor, gap - np.maximum(closing, 0.0) ** 2 / (2.0 * brake))
+        short = floor < r * (1.0 + START_SLACK)
+        if not short.any():
+            out.append(f)
+            continue
+        keep = np.minimum(r, floor * (1.0 - 1e-9)) - START_SLACK * r
+        least = RANGES["min_separation"][0]
+        if (keep[short] < least).any():
+            n = int(np.flatnonzero(short)[np.argmin(keep[short])])
+            raise LandingError(f"{ids[n]} is too close to {f.id} to plan around it: the "
+                               f"first step keeps {max(float(floor[n]), 0.0):.3f} m, a plan "
+                               f"needs at least {least:g} m")
+        out.append(replace(f, start_clearance={
+            **f.start_clearance, **{ids[int(n)]: float(keep[n]) for n in np.flatnonzero(short)}}))
+    return out
 
 
 def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
@@ -262,13 +347,16 @@ def _horizon(starts: FloatArray, velocities: FloatArray, goals: FloatArray,
 def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike,
                  accelerations: ArrayLike, *, ids: list[str] | None = None,
                  landing_height: float = 0.0, solver: str | None = None,
-                 deadline: float | None = None, fixed: Sequence[FixedTrajectory] = ()
-                 ) -> LandingPlan:
+                 deadline: float | None = None, fixed: Sequence[FixedTrajectory] = (),
+                 stages: Sequence[str] = STAGES) -> LandingPlan:
     """A verified landing plan for vehicles at `positions` (N, 3) moving with `velocities`
     and `accelerations` (N, 3), under `scenario`'s workspace, boxes, R and step length,
     keeping R + margin from the vehicles it cannot steer (`fixed`, from the plan's start:
     a lost vehicle on its own failsafe), whose resting points the touchdown points keep
-    clear of too; the plan lasts at least as long as the longest of them.
+    clear of too; the plan lasts at least as long as the longest of them. Where no landing
+    keeps clear of them, the plan moves the vehicles away from their columns first
+    (`LandingPlan.touchdown` False, `escape_points`), and the caller plans the landing again
+    from there. stages: which of "landing" and "escape" to try, in turn.
 
     ids: the vehicles' ids (default `scenario.ids`, which needs N equal to its size).
     landing_height: touchdown height above the workspace floor (m). deadline: a
@@ -297,8 +385,8 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     if lim.acceleration_max is not None:
         a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
     goals = touchdown_points(p + _stopping(v, scenario), scenario, height, fixed)
-    clearance = min(first_step_clearance(p, v, a, scenario),
-                    _fixed_start_clearance(p, fixed, scenario))
+    fixed = fixed_start_clearances(p, v, a, names, fixed, scenario)
+    clearance = first_step_clearance(p, v, a, scenario)
     separation = scenario.min_separation
     if clearance < separation + START_SLACK * separation:
         # rows at the very edge of what the state allows leave the QP no room: give a hair
@@ -308,21 +396,50 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
         raise LandingError(f"two vehicles are too close to plan a landing: the first step "
                            f"keeps {max(clearance, 0.0):.3f} m, a plan needs at least "
                            f"{least:g} m")
-    horizon = max(_horizon(p, v, goals, scenario),
-                  max(((len(f) - 1) * scenario.dt for f in fixed), default=0.0))
-    failures: list[str] = []
-    for attempts, factor in enumerate(RETRY_FACTORS, start=1):
-        if deadline is not None and attempts > 1 and time.perf_counter() > deadline:
+    longest = max(((len(f) - 1) * scenario.dt for f in fixed), default=0.0)
+
+    def attempts(label: str, to: FloatArray, horizon: float) -> LandingPlan:
+        """The first verified plan to `to` over `horizon` times each of `RETRY_FACTORS`."""
+        failures: list[str] = []
+        for attempt, factor in enumerate(RETRY_FACTORS, start=1):
+            if deadline is not None and attempt > 1 and time.perf_counter() > deadline:
+                break
+            steps = max(3, math.ceil(factor * horizon / scenario.dt))
+            try:
+                spec = scenario_from_state(scenario, label, names, p, v, a, to,
+                                           separation=separation, steps=steps,
+                                           max_iterations=MAX_ITERATIONS,
+                                           fixed=[_truncated(f, steps) for f in fixed])
+                result = plan(spec, solver=solver, options=ScpOptions(), method="whole")
+            except (PlannerError, ValueError, ArithmeticError) as exc:  # the caller falls back
+                raise LandingError(f"cannot plan the {label}: {exc}") from exc
+            if result.ok:
+                return LandingPlan(result, separation, time.perf_counter() - began, attempt,
+                                   touchdown=label == "landing")
+            failures.append(f"{steps * scenario.dt:.1f} s: {'; '.join(result.problems())}")
+        raise LandingError(f"no verified {label} plan (" + " | ".join(failures) + ")")
+
+    failed: list[str] = []
+    for stage in stages:
+        if stage == "escape" and not fixed:
+            continue  # nothing to move away from
+        if failed and deadline is not None and time.perf_counter() > deadline:
             break
-        steps = max(3, math.ceil(factor * horizon / scenario.dt))
         try:
-            spec = scenario_from_state(scenario, "landing", names, p, v, a, goals,
-                                       separation=separation, steps=steps,
-                                       max_iterations=MAX_ITERATIONS, fixed=fixed)
-            result = plan(spec, solver=solver, options=ScpOptions(), method="whole")
-        except (PlannerError, ValueError, ArithmeticError) as exc:  # the caller falls back
-            raise LandingError(f"cannot plan the landing: {exc}") from exc
-        if result.ok:
-            return LandingPlan(result, separation, time.perf_counter() - began, attempts)
-        failures.append(f"{steps * scenario.dt:.1f} s: {'; '.join(result.problems())}")
-    raise LandingError("no verified landing plan (" + " | ".join(failures) + ")")
+            if stage == "landing":
+                return attempts(stage, goals, max(_horizon(p, v, goals, scenario), longest))
+            # no landing keeps clear of them: move away from their columns first, land later
+            away = escape_points(p + _stopping(v, scenario), scenario, height, fixed)
+            return attempts(stage, away, _horizon(p, v, away, scenario))
+        except LandingError as exc:
+            failed.append(str(exc))
+    raise LandingError("; ".join(failed) or f"no stage to try among {list(stages)}")
+
+
+def _truncated(f: FixedTrajectory, steps: int) -> FixedTrajectory:
+    """`f` over a plan of `steps` steps (a plan shorter than its motion, which
+    `escape_points` keeps clear of all the same)."""
+    if len(f) <= steps + 1:
+        return f
+    return replace(f, positions=f.positions[:steps + 1],
+                   velocities=None if f.velocities is None else f.velocities[:steps + 1])

@@ -294,7 +294,10 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
         np.concatenate([own.velocities, state.v[moving], np.zeros((len(resting), steps + 1, 3))]),
         np.concatenate([own.accelerations, state.a[moving], np.zeros((len(resting), steps, 3))]),
         np.concatenate([own.margins, np.zeros(planned)]),
-        np.concatenate([own.interval_margins, np.zeros((planned, steps))]))
+        np.concatenate([own.interval_margins, np.zeros((planned, steps))]),
+        None if own.deficits is None
+        else np.concatenate([own.deficits[group], np.zeros((len(group), planned))], axis=1),
+        own.interval_relief)
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
     guess = clear_guess(sub, others, preset,
                         {i: state.routes[int(j)] for i, j in enumerate(members)

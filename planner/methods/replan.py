@@ -10,7 +10,9 @@ and from the fixed ones (R + margin), boxes, obstacles, boundary conditions, fly
 
 From a verified plan's state, pairs passing each other near R can be held to a hair less
 than R on the first step (`planner.methods.landing.first_step_clearance`); the replan then keeps
-that (it says which in `Replan.separation`). `check_goals` refuses goals a replan could
+that (it says which in `Replan.separation`); a vehicle that starts closer than R to a fixed
+one keeps what it has from that one alone, growing back to R
+(`planner.methods.landing.fixed_start_clearances`). `check_goals` refuses goals a replan could
 never reach, naming `goals.<id>`.
 
 Numerics only: the ground station picks the switch instant, streams the plan from it and
@@ -31,7 +33,12 @@ from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from planner.errors import PlannerError, ScenarioError
-from planner.methods.landing import START_SLACK, first_step_clearance
+from planner.methods.landing import (
+    START_SLACK,
+    LandingError,
+    first_step_clearance,
+    fixed_start_clearances,
+)
 from planner.model.checks import check_vector
 from planner.model.fixed import FixedTrajectory
 from planner.model.from_state import scenario_from_state
@@ -230,6 +237,10 @@ def plan_replan(base: Scenario, ids: Sequence[str], positions: ArrayLike,
         v = np.clip(v, -lim.velocity_max, lim.velocity_max)
     if lim.acceleration_max is not None:
         a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
+    try:  # a vehicle already closer than R to a fixed one: that pair ramps back to R
+        fixed = fixed_start_clearances(p, v, a, names, fixed, base)
+    except LandingError as exc:
+        raise ReplanError(str(exc)) from exc
     clearance = first_step_clearance(p, v, a, base)
     separation = base.min_separation
     if clearance < separation * (1.0 + START_SLACK):

@@ -10,7 +10,10 @@ and a fixed vehicle is exact between steps. After its last sample it rests there
 
 The planned vehicles keep R + `margin` from it over continuous time (`planner.scp.fixed_rows`
 for the SCP rows, `planner.verification.verify` for the check): `margin` covers an uncertain
-prediction.
+prediction. A planned vehicle that starts closer than R to it (a lost vehicle's neighbour
+when the loss is noticed) is named in its `start_clearance`: that pair alone keeps what it
+starts with over the first step, then a clearance growing back to R + the margin over
+`CLEARANCE_RAMP_S`; every other pair keeps R + the margin.
 `braking_motion` and `landing_motion` predict the motion of a vehicle told to hold or land;
 one dropped from a flying plan first coasts `DROP_COAST_STEPS` on its state's acceleration.
 """
@@ -19,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -27,23 +30,28 @@ from numpy.typing import ArrayLike
 
 from planner.errors import ScenarioError
 from planner.model.checks import RANGES, check_id, check_keys, check_list, check_number
-from planner.types import FloatArray
+from planner.types import FloatArray, IntArray
 
-__all__ = ["DROP_COAST_STEPS", "MARGIN_RAMP_S", "MAX_FIXED", "FixedSet", "FixedTrajectory",
-           "braking_motion", "check_fixed_clear", "dropped_motion", "landing_motion",
-           "margin_at", "parse_fixed"]
+__all__ = ["CLEARANCE_RAMP_S", "DROP_COAST_STEPS", "MARGIN_RAMP_S", "MAX_FIXED", "FixedSet",
+           "FixedTrajectory", "braking_motion", "check_fixed_clear", "dropped_motion",
+           "landing_motion", "margin_at", "parse_fixed", "relief_at"]
 
 #: At most this many fixed trajectories per scenario (a cap on work, not a physical limit).
 MAX_FIXED = 256
 #: A fixed vehicle's margin grows linearly from 0 after the first step to its full value
 #: over this long (s): the prediction starts where the vehicle is, and drifts with time.
 MARGIN_RAMP_S = 1.0
+#: A pair in a fixed trajectory's `start_clearance` gets back to the full R + margin this
+#: long (s) after the first step, linearly from what it starts with: long enough for a
+#: vehicle to turn away from a neighbour it was closing in on, short enough that the pair is
+#: relaxed only while it must be.
+CLEARANCE_RAMP_S = 2.0
 #: Steps a vehicle dropped from a flying plan coasts on its state's acceleration before it
 #: brakes (`braking_motion`): the first step of everyone else is all but fixed by their state.
 DROP_COAST_STEPS = 1
 #: Largest speed a fixed trajectory may state (m/s), as the scenario's velocity bounds.
 SPEED_MAX = RANGES["velocity_max"][1]
-_KEYS = {"id", "positions", "velocities", "margin"}
+_KEYS = {"id", "positions", "velocities", "margin", "start_clearance"}
 
 
 @dataclass(frozen=True)
@@ -58,6 +66,10 @@ class FixedTrajectory:
     margin: float = 0.0
     """What the planned vehicles keep from it beyond R (m), once the prediction has had
     time to drift (`margin_at`)."""
+    start_clearance: Mapping[str, float] = field(default_factory=dict)
+    """Planned vehicles (by id) that start closer than R to it, and the distance each keeps
+    from it at first (m, separation metric; at least R means none): the pair's clearance
+    then grows back to R + margin (`relief_at`)."""
 
     def __len__(self) -> int:
         return len(self.positions)
@@ -103,6 +115,8 @@ class FixedTrajectory:
             out["velocities"] = self.velocities.tolist()
         if self.margin:
             out["margin"] = self.margin
+        if self.start_clearance:
+            out["start_clearance"] = dict(self.start_clearance)
         return out
 
     @staticmethod
@@ -123,7 +137,14 @@ class FixedTrajectory:
                                     f"({len(positions)}), got {len(velocities)}")
         margin = check_number(data.get("margin", 0.0), f"{where}.margin", nonneg=True,
                               within="separation_margin")
-        return FixedTrajectory(fid, positions, velocities, margin)
+        raw = data.get("start_clearance", {})
+        if not isinstance(raw, Mapping):
+            raise ScenarioError(f"{where}.start_clearance",
+                                "must be an object {planned vehicle id: clearance in m}")
+        start = {check_id(vid, f"{where}.start_clearance"): check_number(
+                     c, f"{where}.start_clearance.{vid}", positive=True, within="min_separation")
+                 for vid, c in raw.items()}
+        return FixedTrajectory(fid, positions, velocities, margin, start)
 
 
 def _samples(value: Any, name: str, bounds: tuple[float, float], at_most: int | None
@@ -171,6 +192,10 @@ def parse_fixed(data: Mapping[str, Any], vehicle_ids: Sequence[str], steps: int
                                 f"duplicate id {fixed.id!r} (also fixed[{seen[fixed.id]}])")
         if fixed.id in planned:
             raise ScenarioError(f"{where}.id", f"{fixed.id!r} is also a planned vehicle")
+        for vid in fixed.start_clearance:
+            if vid not in planned:
+                raise ScenarioError(f"{where}.start_clearance.{vid}",
+                                    f"{vid!r} is not a planned vehicle")
         seen[fixed.id] = index
         out.append(fixed)
     return tuple(out)
@@ -191,13 +216,40 @@ class FixedSet:
     """(F,) full margins."""
     interval_margins: FloatArray
     """(F, K) the margin over each step: `margin_at` its end (the largest over it)."""
+    deficits: FloatArray | None = None
+    """(N, F) how much closer than R each planned vehicle starts from each fixed one
+    (`FixedTrajectory.start_clearance`; 0 for a pair that keeps R), None: no pair."""
+    interval_relief: FloatArray | None = None
+    """(K,) the share of a deficit forgiven over each step: `relief_at` its end (the least
+    over it)."""
 
     def step_margins(self) -> FloatArray:
         """(F, K+1) the margin at each step's instant (0 at the start)."""
         return np.concatenate([np.zeros((len(self.ids), 1)), self.interval_margins], axis=1)
 
+    def interval_extra(self, vehicle: IntArray, fixed: IntArray, k: IntArray) -> FloatArray:
+        """What planned `vehicle` keeps from `fixed` beyond R over interval `k` (m; arrays of
+        one length): the margin less the pair's forgiven deficit, both at the interval's end
+        (the largest need over it)."""
+        extra = self.interval_margins[fixed, k]
+        if self.deficits is None or self.interval_relief is None:
+            return extra
+        return extra - self.deficits[vehicle, fixed] * self.interval_relief[k]
+
+    def step_extra(self, vehicle: IntArray, fixed: IntArray) -> FloatArray:
+        """(pairs, K+1) what each (vehicle, fixed) pair keeps beyond R at each step's
+        instant: the margin (0 at the start) less the forgiven deficit (all of it there)."""
+        extra = self.step_margins()[fixed]
+        if self.deficits is None or self.interval_relief is None:
+            return extra
+        relief = np.concatenate([[1.0], self.interval_relief])
+        return extra - self.deficits[vehicle, fixed][:, None] * relief[None, :]
+
     @staticmethod
-    def build(fixed: Sequence[FixedTrajectory], dt: float, steps: int) -> FixedSet:
+    def build(fixed: Sequence[FixedTrajectory], dt: float, steps: int,
+              vehicle_ids: Sequence[str] = (), separation: float = 0.0) -> FixedSet:
+        """The arrays of `fixed` on `steps` steps of `dt`; `vehicle_ids` and R
+        (`separation`) place each `start_clearance` as a deficit."""
         motions = [f.motion(dt, steps + 1) for f in fixed]
         margins = np.array([f.margin for f in fixed], dtype=float)
         ends = dt * np.arange(1, steps + 1)
@@ -205,10 +257,18 @@ class FixedSet:
         if not motions:
             return FixedSet([], np.zeros((0, steps + 1, 3)), np.zeros((0, steps + 1, 3)),
                             np.zeros((0, steps, 3)), margins, np.zeros((0, steps)))
+        deficits = None
+        if any(f.start_clearance for f in fixed):
+            row = {vid: n for n, vid in enumerate(vehicle_ids)}
+            deficits = np.zeros((len(vehicle_ids), len(fixed)))
+            for m, f in enumerate(fixed):
+                for vid, clearance in f.start_clearance.items():
+                    deficits[row[vid], m] = max(0.0, separation - clearance)
         return FixedSet([f.id for f in fixed],
                         np.stack([m[0] for m in motions]), np.stack([m[1] for m in motions]),
                         np.stack([m[2] for m in motions]), margins,
-                        margins[:, None] * ramp[None, :])
+                        margins[:, None] * ramp[None, :], deficits,
+                        None if deficits is None else relief_at(ends, dt))
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -218,6 +278,13 @@ def margin_at(margin: float, t: ArrayLike, dt: float) -> FloatArray:
     """The margin required at times `t` (s): none over the first step (the prediction
     starts where the vehicle is), then growing to `margin` over `MARGIN_RAMP_S`."""
     return margin * np.clip((np.asarray(t, dtype=float) - dt) / MARGIN_RAMP_S, 0.0, 1.0)
+
+
+def relief_at(t: ArrayLike, dt: float) -> FloatArray:
+    """The share of a pair's start deficit still forgiven at times `t` (s): all of it over
+    the first step (the state fixes it), then falling linearly to none over
+    `CLEARANCE_RAMP_S`."""
+    return 1.0 - np.clip((np.asarray(t, dtype=float) - dt) / CLEARANCE_RAMP_S, 0.0, 1.0)
 
 
 def _stop(position: FloatArray, velocity: FloatArray, dt: float, deceleration: float
@@ -338,17 +405,21 @@ def dropped_motion(vehicle_id: str, position: ArrayLike, velocity: ArrayLike,
 
 
 def check_fixed_clear(fixed: Sequence[FixedTrajectory], separation: float, scale: FloatArray,
-                      starts: FloatArray, goals: FloatArray) -> None:
-    """Refuses a start within R of a fixed vehicle's first position, or a goal within R +
-    margin of its last (where it rests): no plan could keep it. Names the vehicle and the
-    fixed trajectory."""
+                      starts: FloatArray, goals: FloatArray, ids: Sequence[str] = ()) -> None:
+    """Refuses a start within R (or the pair's `start_clearance`) of a fixed vehicle's first
+    position, or a goal within R + margin of its last (where it rests): no plan could keep
+    it. Names the vehicle and the fixed trajectory."""
     for f in fixed:
+        start_need = np.array([min(separation, f.start_clearance.get(vid, separation))
+                               for vid in ids]) if f.start_clearance else separation
         for label, points, at, when, need in (
-                ("start", starts, f.positions[0], "at its start", separation),
+                ("start", starts, f.positions[0], "at its start", start_need),
                 ("goal", goals, f.positions[-1], "where it rests", separation + f.margin)):
-            d = np.linalg.norm((points - at) / scale, axis=1)
-            if d.min() < need:
-                n = int(np.argmin(d))
+            short = np.linalg.norm((points - at) / scale, axis=1) - need
+            if short.min() < 0.0:
+                n = int(np.argmin(short))
+                d = float(short[n] + np.broadcast_to(need, short.shape)[n])
+                least = d - float(short[n])
                 raise ScenarioError(f"vehicles[{n}].{label}",
-                                    f"is {d[n]:.3f} m from fixed vehicle {f.id!r} {when}, "
-                                    f"closer than {need:g} m")
+                                    f"is {d:.3f} m from fixed vehicle {f.id!r} {when}, "
+                                    f"closer than {least:g} m")

@@ -208,14 +208,16 @@ class Scenario:
         return ObstacleSet.build(self.obstacles)
     fixed: tuple[FixedTrajectory, ...] = ()
     """Vehicles whose motion is known and not planned (`planner.model.fixed`): the planned ones
-    keep R + each one's margin from it at every instant."""
+    keep R + each one's margin from it at every instant (a pair named in its
+    `start_clearance`: from what it starts with, growing back to that)."""
 
     @cached_property
     def fixed_set(self) -> FixedSet:
         """The fixed trajectories as arrays on the step grid (built once)."""
         from planner.model.fixed import FixedSet
 
-        return FixedSet.build(self.fixed, self.dt, self.steps)
+        return FixedSet.build(self.fixed, self.dt, self.steps,
+                              [v.id for v in self.vehicles], self.min_separation)
     start_velocities: FloatArray | None = field(default=None, repr=False)
     """(N, 3) start velocities (m/s), when some vehicle has one; None: all start at rest."""
     start_accelerations: FloatArray | None = field(default=None, repr=False)
@@ -495,7 +497,7 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     from planner.model.fixed import check_fixed_clear, parse_fixed
 
     fixed = parse_fixed(data, [v.id for v in vehicles], steps)
-    check_fixed_clear(fixed, separation, scale, starts, goals)
+    check_fixed_clear(fixed, separation, scale, starts, goals, [v.id for v in vehicles])
 
     goal_order = None
     if assignment == "free":

@@ -5,9 +5,11 @@ r(s) = S (p_i(s) - q_f(s)) is a quadratic with Bernstein control points
 S (p_k - q_k), S (p_k + dt/2 v_k - q_k - dt/2 w_k), S (p_k+1 - q_k+1): one direction u
 linearised about the previous iterate (as the pair interval rows of `planner.scp.separation`)
 and three rows u' S (x_i - x_f) >= R + margin at the control points keep the pair apart over
-the whole interval (the margin grows with time, `planner.model.fixed.margin_at`: the rows of an
-interval ask for its largest). q is fixed, so each row is one-sided (`SeparationRows`,
-j = -1): coef' x_i >= R + offset, offset = coef' x_f + margin, coef = S u. The broad phase and the
+the whole interval (the margin grows with time, `planner.model.fixed.margin_at`, and a pair
+that starts closer than R is forgiven a deficit shrinking with time,
+`planner.model.fixed.relief_at`: the rows of an interval ask for its largest need). q is fixed,
+so each row is one-sided (`SeparationRows`, j = -1): coef' x_i >= R + offset,
+offset = coef' x_f + margin - forgiven deficit, coef = S u. The broad phase and the
 lazy check follow `planner.scp.obstacle_rows` (`planner.scp.lazy_rows`).
 """
 
@@ -66,7 +68,8 @@ class FixedRows(LazyRows):
         self.vehicles = len(scenario.vehicles)
         self.count = self.others = len(fs)
         self.intervals = scenario.steps
-        self.margins = fs.interval_margins  # (F, K)
+        self.fixed_set = fs
+        self.margins = fs.interval_margins  # (F, K): the broad phase's need (no deficit)
         self._positions, self._velocities = fs.positions, fs.velocities
         self._lo, self._hi = interval_boxes(fs.positions, fs.velocities, self.dt,
                                             self.scale)  # (F, K, 3)
@@ -96,7 +99,8 @@ class FixedRows(LazyRows):
         target[first], target[last] = here[first], after[last]
         u = _unit(target, chord, self.separation)
         coef = u / self.scale
-        offset = np.einsum("tc,tpc->tp", coef, q) + self.margins[t.fixed, t.k][:, None]
+        extra = self.fixed_set.interval_extra(t.vehicle, t.fixed, t.k)
+        offset = np.einsum("tc,tpc->tp", coef, q) + extra[:, None]
         return coef, offset
 
     def values(self, p: FloatArray, v: FloatArray, t: Triples, coef: FloatArray,

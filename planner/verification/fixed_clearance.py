@@ -5,8 +5,9 @@ Planned and fixed vehicles move alike inside a step (p_k + s v_k + s^2/2 a_k), s
 `planner.scp.separation`: the step distances give an upper bound on the minimum, the chord bound
 (`interval_lower_bounds`) clears most intervals, and `interval_minima` measures the rest
 exactly. Each fixed vehicle asks for R + its margin (growing with time,
-`planner.model.fixed.margin_at`), so the pair judged closest is the one with the least slack
-(distance - R - margin).
+`planner.model.fixed.margin_at`), less what a pair that started closer than R is still
+forgiven (`planner.model.fixed.relief_at`), so the pair judged closest is the one with the
+least slack (distance - that need).
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def closest_fixed(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArra
     f_of = np.tile(np.arange(count), n)
     j = n + f_of
     steps = np.linalg.norm((p[i] - fs.positions[f_of]) / scale, axis=-1)  # (pairs, K+1)
-    step_need = separation + fs.step_margins()[f_of]  # (pairs, K+1)
+    step_need = separation + fs.step_extra(i, f_of)  # (pairs, K+1)
     slack = steps - step_need
     pair, k = np.unravel_index(int(np.argmin(slack)), slack.shape)
     best = ClosestFixed(float(steps[pair, k]), float(step_need[pair, k]), int(i[pair]),
@@ -71,7 +72,7 @@ def closest_fixed(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArra
         if len(maybe) == 0:
             continue
         minima, when = interval_minima(positions, velocities, accelerations, dt, scale, maybe)
-        need = separation + fs.interval_margins[f, maybe.k]
+        need = separation + fs.interval_extra(maybe.i, np.full(len(maybe.k), f), maybe.k)
         idx = int(np.argmin(minima - need))
         if minima[idx] - need[idx] < best_slack:
             best_slack = float(minima[idx] - need[idx])

@@ -206,14 +206,16 @@ def test_a_lost_vehicle_is_planned_around_and_a_failed_plan_holds_and_retries(
         monkeypatch) -> None:
     """uav2 is lost (unheard for 2 s, on its own failsafe: 1 s on, 0.5 s hold, Land): it is
     not sent PX4's Land but predicted, and the landing plan keeps clear of that motion. The
-    first attempt fails (the first try is refused here; uav1, 0.55 m aside under it, has
-    no room for the smaller margins either): uav1 holds where it is and the landing is
-    planned again from there; uav2 is handed to Land only once its motion has ended."""
+    first attempt fails (refused here at every share of the margin, landing or moving
+    away first): uav1 holds where it is
+    and the landing is planned again from there; uav1, 0.6 m from uav2 as it starts, keeps
+    what it has from uav2 alone, back to R within seconds; uav2 is handed to Land only once
+    its motion has ended."""
     calls: list[int] = []
 
     def first_fails(*args, **kwargs):
         calls.append(len(kwargs["fixed"]))
-        if len(calls) == 1:
+        if len(calls) <= len(landing_module.MARGIN_SHARES) * len(landing_module.STAGES):
             raise LandingError("no room yet")
         return plan_landing(*args, **kwargs)
 
@@ -245,10 +247,11 @@ def test_a_lost_vehicle_is_planned_around_and_a_failed_plan_holds_and_retries(
     [held] = [d for v, k, d in told if k == EventKind.LANDING_FALLBACK and v is None]
     assert held.startswith("uav1 hold where they are: ") and "around uav2" in held
     [planned] = [d for _, k, d in told if k == EventKind.LANDING_PLAN]
-    assert "around uav2" in planned
-    assert calls[:2] == [1, 1]  # both tries planned around uav2's predicted motion
+    assert "around uav2" in planned and "started nearer than R: uav1 from uav2" in planned
+    assert calls[:4] == [1, 1, 1, 1]  # every try planned around uav2's predicted motion
     assert landing.result is not None and landing.result.plan.scenario.ids == ["uav1"]
-    assert landing.result.plan.scenario.fixed[0].id == "uav2"
+    [around] = landing.result.plan.scenario.fixed
+    assert around.id == "uav2" and 0.0 < around.start_clearance["uav1"] < 1.0
     motion = flown.motions["uav2"]  # from its last report, what the monitor reads too
     assert motion.start == pytest.approx(heard - streamer.epoch, abs=0.05)
     assert secured == ["uav1", "uav2"]  # the lost one last, once its motion had ended

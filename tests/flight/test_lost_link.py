@@ -23,9 +23,11 @@ import planner
 from gcs.autopilot import px4
 from gcs.fleet.fleetfile import FleetSpec
 from gcs.flight.run.executor import FlightExecutor
+from gcs.flight.safety import landing as landing_module
 from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from gcs.sim.fleet import homes_under
+from planner.methods.landing import LandingError, LandingPlan, plan_landing
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports
 from tests.support.waiting import reached
 
@@ -93,13 +95,16 @@ def _closest(truth: list[np.ndarray], scale: np.ndarray) -> float:
 
 
 def _check(flight: FlightExecutor, outcome: Any, truth: list[np.ndarray], mock: MockFleet,
-           plan: planner.Plan, lost: str) -> None:
+           plan: planner.Plan, lost: str, plans: int = 1) -> list[str]:
+    """The lost vehicle planned around by `plans` landing plans (their events returned),
+    nobody sent straight down unplanned, everyone down, R - 0.05 m kept in truth."""
     record = flight.record
     assert record is not None and not isinstance(outcome, dict), outcome
     told = [(e["vehicle"], e["kind"], e["detail"]) for e in record["events"]]
     assert (lost, EventKind.FAULT) in [(v, k) for v, k, _ in told]
-    [landing] = [d for _, k, d in told if k == EventKind.LANDING_PLAN]
-    assert f"around {lost}" in landing  # planned around its predicted failsafe motion
+    landings = [d for _, k, d in told if k == EventKind.LANDING_PLAN]
+    assert len(landings) == plans, landings
+    assert all(f"around {lost}" in d for d in landings)  # around its predicted failsafe
     # never sent straight down unplanned (a busy machine may miss the first plan's bound:
     # the others then hold, and the next plan lands them)
     assert not any(k == EventKind.LANDING_FALLBACK and (v not in (None, lost)
@@ -112,6 +117,7 @@ def _check(flight: FlightExecutor, outcome: Any, truth: list[np.ndarray], mock: 
     r = plan.scenario.min_separation
     assert len(truth) > 500
     assert _closest(truth, np.asarray(plan.scenario.separation_scale)) >= r - 0.05
+    return landings
 
 
 @pytest.mark.flight
@@ -124,10 +130,36 @@ def test_landing_plan_keeps_clear_of_a_lost_vehicle(circle4: planner.Plan, at: f
 
 
 @pytest.mark.flight
+def test_where_no_landing_keeps_clear_the_others_move_away_first(
+        circle4: planner.Plan, monkeypatch: pytest.MonkeyPatch) -> None:
+    """paper-circle4, uav2 lost at 5.5 s as it passes over uav1 (0.71 m apart horizontally
+    at 5.9 s). The straight landing is refused here, as where no landing keeps R: the
+    others first fly a verified plan away from uav2's predicted column at their own
+    heights, then land by a plan from there; R - 0.05 m kept in truth until touchdown."""
+    escaped: list[bool] = []
+
+    def no_landing_before_moving_away(*args: Any, **kwargs: Any) -> LandingPlan:
+        if kwargs["stages"] == ("landing",) and not escaped:
+            raise LandingError("no landing plan keeps R (refused by the test)")
+        result = plan_landing(*args, **kwargs)
+        escaped.append(not result.touchdown)
+        return result
+
+    monkeypatch.setattr(landing_module, "plan_landing", no_landing_before_moving_away)
+    flight, outcome, truth, mock = asyncio.run(_blackhole(circle4, 1, 5.5))
+    away, down = _check(flight, outcome, truth, mock, circle4, "uav2", plans=2)
+    assert escaped == [True, False]
+    assert "move away first" in away and "clear of their columns" in away
+    assert "land by a verified plan" in down
+
+
+@pytest.mark.flight
 @pytest.mark.slow
-def test_eight_vehicles_land_clear_of_a_lost_one() -> None:
-    """paper-circle8 (16 s), uav3's link blackholed at 6 s, as the circle closes in: the
-    other seven land by a plan around its failsafe, R kept in truth."""
+@pytest.mark.parametrize(("lost", "at"), [(2, 6.0), (1, 7.0)])
+def test_eight_vehicles_land_clear_of_a_lost_one(lost: int, at: float) -> None:
+    """paper-circle8 (16 s), a vehicle's link blackholed as the circle closes in: the other
+    seven land by a plan around its failsafe, R kept in truth. uav2 lost at 7 s leaves uav3
+    and uav4 nearer than R to its predicted motion: those pairs alone start below R."""
     plan = _plan("paper-circle8", 80)
-    flight, outcome, truth, mock = asyncio.run(_blackhole(plan, 2, 6.0))
-    _check(flight, outcome, truth, mock, plan, "uav3")
+    flight, outcome, truth, mock = asyncio.run(_blackhole(plan, lost, at))
+    _check(flight, outcome, truth, mock, plan, plan.scenario.ids[lost])

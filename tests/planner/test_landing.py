@@ -7,15 +7,19 @@ import numpy as np
 import pytest
 
 import planner
+from planner.errors import ScenarioError
 from planner.methods.landing import (
+    COLUMN_GRID,
     START_SLACK,
     TOUCHDOWN_SLACK,
     LandingError,
+    escape_points,
     first_step_clearance,
     plan_landing,
     touchdown_points,
 )
-from planner.model.fixed import landing_motion
+from planner.model.fixed import CLEARANCE_RAMP_S, landing_motion, relief_at
+from planner.model.scenario import Scenario
 from planner.verification.verify import SEPARATION_TOLERANCE
 from tests.planner.conftest import load_example
 
@@ -220,16 +224,104 @@ def test_a_landing_keeps_r_plus_margin_from_a_vehicle_on_its_own_failsafe(circle
 
 def test_a_vehicle_starting_near_a_lost_one_keeps_what_it_starts_with(circle8) -> None:
     """A vehicle at rest 0.9 m from a fixed one (a lost vehicle holding there) cannot be
-    0.9 m + anything at once: the landing keeps the 0.9 m it starts with (less the start
-    slack) from it and between the others, verified, instead of refusing the start."""
-    lost = landing_motion("lost", [2.0, 2.0, 1.5], np.zeros(3), circle8.scenario.dt, 2.0,
-                          0.7, 0.0, hold_s=2.0)
-    p = np.array([[2.9, 2.0, 1.5], [4.0, 4.0, 1.5]])
-    landing = plan_landing(circle8.scenario, p, np.zeros((2, 3)), np.zeros((2, 3)),
+    R away at once: that pair alone keeps the 0.9 m it starts with (less the start slack),
+    growing back to R within CLEARANCE_RAMP_S after the first step, verified; the other
+    vehicle, and the pair of them, keep the full R."""
+    scenario = circle8.scenario
+    lost = landing_motion("lost", [2.0, 2.0, 1.5], np.zeros(3), scenario.dt, 2.0,
+                          0.7, 0.0, hold_s=4.0)
+    p = np.array([[2.9, 2.0, 1.5], [2.9, 3.4, 1.5]])
+    landing = plan_landing(scenario, p, np.zeros((2, 3)), np.zeros((2, 3)),
                            ids=["near", "far"], fixed=[lost])
-    assert landing.plan.ok, landing.plan.problems()
-    assert landing.separation == pytest.approx(0.9 - START_SLACK, abs=1e-6)
-    verification = landing.plan.verification
-    assert verification.fixed_distance_min >= landing.separation - SEPARATION_TOLERANCE
-    gaps = np.linalg.norm(landing.plan.positions()[:, -1, :2] - [2.0, 2.0], axis=1)
+    plan = landing.plan
+    assert plan.ok, plan.problems()
+    assert landing.separation == scenario.min_separation  # the fleet keeps R
+    [kept] = plan.scenario.fixed
+    assert dict(kept.start_clearance) == {"near": pytest.approx(0.9 - START_SLACK, abs=1e-6)}
+    assert plan.verification.fixed_distance_min >= 0.9 - START_SLACK - SEPARATION_TOLERANCE
+    t = np.arange(0.0, plan.scenario.horizon, 0.005)
+    predicted = lost.state(t, scenario.dt)[0]
+    gap = np.linalg.norm(plan.sample(t).position - predicted[None], axis=2)
+    after = t >= scenario.dt + CLEARANCE_RAMP_S
+    assert gap[:, after].min() >= 1.0 - SEPARATION_TOLERANCE  # back to R, and stays
+    ramp = 0.89 + 0.11 * (1.0 - relief_at(t, scenario.dt))
+    assert (gap[0] >= ramp - SEPARATION_TOLERANCE).all()  # never below the ramp
+    assert gap[1].min() >= 1.0 - SEPARATION_TOLERANCE  # the other one never relaxed
+    gaps = np.linalg.norm(plan.positions()[:, -1, :2] - [2.0, 2.0], axis=1)
     assert gaps.min() >= 1.0 * (1.0 + TOUCHDOWN_SLACK) - 1e-9  # R from where it rests
+
+
+def test_a_start_clearance_names_planned_vehicles_only() -> None:
+    """A fixed trajectory's start_clearance is checked like the rest of the scenario: a
+    planned vehicle's id and a positive distance, and a start it allows is refused below
+    it."""
+    base = {"name": "t", "dt": 0.2, "steps": 30, "min_separation": 1.0,
+            "limits": {"position_min": [0, 0, 0], "position_max": [5, 5, 3]},
+            "vehicles": [{"id": "a", "start": [1.0, 1.0, 1.0], "goal": [4.0, 4.0, 1.0]}]}
+    lost = {"id": "x", "positions": [[1.0, 1.8, 1.0]]}
+    with pytest.raises(ScenarioError) as error:
+        Scenario.from_dict({**base, "fixed": [lost]})
+    assert error.value.field == "vehicles[0].start"
+    ok = Scenario.from_dict({**base, "fixed": [{**lost, "start_clearance": {"a": 0.75}}]})
+    assert ok.fixed[0].to_dict()["start_clearance"] == {"a": 0.75}
+    for clearance, field in (({"b": 0.5}, "fixed[0].start_clearance.b"),
+                             ({"a": -1.0}, "fixed[0].start_clearance.a"),
+                             ({"a": 0.85}, "vehicles[0].start"),
+                             ([0.5], "fixed[0].start_clearance")):
+        with pytest.raises(ScenarioError) as error:
+            Scenario.from_dict({**base, "fixed": [{**lost, "start_clearance": clearance}]})
+        assert error.value.field == field
+
+
+def test_moving_away_first_clears_a_lost_vehicles_whole_column(circle8) -> None:
+    """uav2 is lost over uav1 at 8 s (0.54 m aside horizontally): it holds 1 s, then comes
+    down. A plan that moves the others away first (the landing's second stage) takes each
+    to its own height, clear of every point uav2 passes by R + margin horizontally and R
+    from the others, verified against uav2's motion; from there each goes straight down."""
+    state = circle8.sample(np.array([8.0]))
+    p, v, a = (x[:, 0] for x in state)
+    lost = landing_motion("uav2", p[1], v[1], circle8.scenario.dt, 2.0, 0.7, 0.0,
+                          margin=0.2, hold_s=1.0)
+    others = [n for n in range(8) if n != 1]
+    ids = [circle8.scenario.ids[n] for n in others]
+    away = plan_landing(circle8.scenario, p[others], v[others], a[others], ids=ids,
+                        fixed=[lost], stages=("escape",))
+    plan = away.plan
+    assert plan.ok, plan.problems()
+    assert not away.touchdown and away.separation == 1.0
+    ends = plan.positions()[:, -1]
+    assert np.allclose(ends[:, 2], p[others, 2], atol=1e-6)  # at their own heights
+    column = lost.positions[:, :2]
+    gaps = np.linalg.norm(ends[:, None, :2] - column[None], axis=2)
+    assert gaps.min() >= 1.2 * (1.0 + TOUCHDOWN_SLACK) - COLUMN_GRID  # the whole column
+    i, j = np.triu_indices(len(ends), k=1)
+    assert np.linalg.norm(ends[i, :2] - ends[j, :2], axis=1).min() >= 1.0  # land side by side
+    assert plan.verification.fixed_distance_min >= 1.0 - SEPARATION_TOLERANCE
+    assert plan.scenario.horizon < (len(lost) - 1) * circle8.scenario.dt  # shorter than it
+    # from there a landing keeps R + the whole margin from it (none is relaxed)
+    rest = plan.sample(np.array([plan.scenario.horizon]))
+    t_end = plan.scenario.horizon
+    later = landing_motion("uav2", *lost.state(t_end, circle8.scenario.dt)[:2],
+                           circle8.scenario.dt, 2.0, 0.7, 0.0, margin=0.2,
+                           hold_s=max(0.0, 1.0 - t_end))
+    down = plan_landing(circle8.scenario, rest.position[:, 0], rest.velocity[:, 0],
+                        rest.acceleration[:, 0], ids=ids, fixed=[later])
+    assert down.touchdown and down.plan.ok, down.plan.problems()
+    assert not down.plan.scenario.fixed[0].start_clearance
+    assert down.plan.verification.fixed_distance_min >= 1.0 - SEPARATION_TOLERANCE
+
+
+def test_escape_points_of_vehicles_around_a_column() -> None:
+    """Vehicles around a descending column are pushed out of it horizontally, at their own
+    heights, the farther ones left where they are."""
+    scenario = Scenario.from_dict({
+        "name": "t", "dt": 0.2, "steps": 10, "min_separation": 1.0,
+        "limits": {"position_min": [0, 0, 0], "position_max": [6, 6, 3]},
+        "vehicles": [{"id": "a", "start": [1.0, 1.0, 1.0], "goal": [4.0, 4.0, 1.0]}]})
+    column = landing_motion("L", [3.0, 3.0, 2.5], np.zeros(3), 0.2, 2.0, 0.7, 0.0,
+                            margin=0.3)
+    p = np.array([[3.0, 3.2, 1.0], [3.5, 3.0, 0.6], [0.5, 0.5, 2.0]])
+    out = escape_points(p, scenario, 0.0, [column])
+    assert np.array_equal(out[:, 2], p[:, 2])
+    assert np.linalg.norm(out[:2, :2] - [3.0, 3.0], axis=1).min() >= 1.3 * 1.05 - 1e-6
+    assert np.allclose(out[2], p[2])

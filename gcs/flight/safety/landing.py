@@ -25,7 +25,12 @@ own offboard-loss failsafe from its last report (`gcs.flight.replan.replan.predi
 margin growing with the time since it was heard), is streamed that motion in case it still
 listens, and gets PX4's Land only once the motion has ended (a Land arriving earlier would
 take it down before its predicted hold was over). Their motions go to `FlownPlans.motions`,
-where the live separation monitor reads where a lost vehicle is predicted. Everyone gets
+where the live separation monitor reads where a lost vehicle is predicted. A steered vehicle
+already nearer than R to one of them keeps what it has from that one alone, back to R within
+seconds (`planner.methods.landing.fixed_start_clearances`). Where no landing plan keeps R from
+them (at any share of the margin, `MARGIN_SHARES`), a verified plan first moves the steered
+vehicles away from their columns, and the landing is planned again from there (at most
+`MAX_ESCAPES` times). Everyone gets
 PX4's Land when no verified plan is ready before the switch tick (the planner failed for
 whatever reason, or was late): the events say which (`landing_plan`, `landing_fallback`).
 Whatever happens, every vehicle is handed to `secure` in the end.
@@ -51,8 +56,8 @@ from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
-from planner.methods.landing import LandingError, LandingPlan, plan_landing
-from planner.model.fixed import FixedTrajectory
+from planner.methods.landing import STAGES, LandingError, LandingPlan, plan_landing
+from planner.model.fixed import CLEARANCE_RAMP_S, FixedTrajectory
 from planner.model.scenario import Scenario
 from planner.types import FloatArray
 
@@ -74,6 +79,10 @@ MARGIN_SHARES = (1.0, 0.5, 0.0)
 RETRY_S = 0.5
 #: After the landing horizon, PX4's Land takes over once the vehicles had this long to settle.
 SETTLE_S = 0.3
+#: Plans that move the vehicles away from a lost vehicle's column (no landing kept clear of
+#: it) flown at most before a landing; from their ends a vehicle can go straight down, so
+#: the landing after one rarely fails.
+MAX_ESCAPES = 2
 
 
 @dataclass
@@ -102,6 +111,8 @@ class PlannedLanding:
     """The predicted motions of the vehicles it cannot steer, by id."""
     unheard: set[str] = field(default_factory=set)
     """Those of them the station has lost (on their own failsafe)."""
+    escapes: int = 0
+    """Plans flown that moved the vehicles away from a column instead of landing them."""
 
     def steerable(self, v: VehicleStatus) -> str | None:
         """Why `v` cannot fly a landing plan, or None when it can."""
@@ -266,17 +277,18 @@ class PlannedLanding:
         deadline = began + bound
         def planned() -> LandingPlan:
             """The landing plan, keeping the full margins from the vehicles it cannot steer
-            or, when no plan can, a share of them (`MARGIN_SHARES`)."""
-            for share in MARGIN_SHARES:
+            or, when no plan can, a share of them (`MARGIN_SHARES`); when none keeps even R
+            from them, a plan that moves the vehicles away from their columns first."""
+            tries = [(stage, share) for stage in STAGES for share in MARGIN_SHARES]
+            for n, (stage, share) in enumerate(tries, start=1):
                 try:
                     return plan_landing(
                         self.scenario, positions, velocities, accelerations,
                         ids=[v.id for v in steer], landing_height=self.options.landing_height,
                         deadline=deadline, fixed=[replace(f, margin=share * f.margin)
-                                                  for f in fixed])
+                                                  for f in fixed], stages=(stage,))
                 except LandingError:
-                    if share == MARGIN_SHARES[-1] or not fixed \
-                            or time.perf_counter() > deadline:
+                    if n == len(tries) or not fixed or time.perf_counter() > deadline:
                         raise
             raise AssertionError("unreachable")
 
@@ -293,6 +305,23 @@ class PlannedLanding:
             return (f"the landing plan came after its switch tick "
                     f"({time.perf_counter() - began:.2f} s)")
         self.result = result
+        self._switch(steer, result, switch, rate)
+        self._announce(result, bound)
+        end = switch_at + result.plan.scenario.horizon + SETTLE_S
+        while (left := end - time.monotonic()) > 0:
+            await asyncio.sleep(left)
+        if result.touchdown:
+            return None
+        # it moved them away from the columns of the vehicles it cannot steer: land from there
+        self.escapes += 1
+        if self.escapes > MAX_ESCAPES:
+            return f"no landing plan after moving away {MAX_ESCAPES} time(s)"
+        return await self._attempt([v for v in steer if v in self.steered], rate)
+
+    def _switch(self, steer: list[VehicleStatus], result: LandingPlan, switch: int,
+                rate: float) -> None:
+        """Queue `result`'s tracks for the streams of `steer` at tick `switch`."""
+        streamer = self.streamer
         homes = [v.placed for v in steer]
         tracks = plan_tracks(result.plan, homes, rate, self.options.yaw)
         for v, track in zip(steer, tracks, strict=True):
@@ -301,7 +330,11 @@ class PlannedLanding:
                 continue  # sent down meanwhile (a fault policy)
             streamer.switch(v.id, link, track, switch)  # the flying plan streams until then
             v.phase = VehiclePhase.LANDING
-            self.steered.append(v)
+            if v not in self.steered:
+                self.steered.append(v)
+
+    def _announce(self, result: LandingPlan, bound: float) -> None:
+        """The `landing_plan` event of a plan about to be flown: what it keeps, from whom."""
         horizon = result.plan.scenario.horizon
         verification = result.plan.verification
         kept = verification.min_separation_continuous if verification is not None else None
@@ -310,14 +343,17 @@ class PlannedLanding:
                   f"{_figure(_fixed_kept(result))} m, margin "
                   f"{', '.join(f'{f.margin:.2f}' for f in kept_from)} m beyond R)"
                   if kept_from else "")
+        what = (f"land by a verified plan from t+{bound:g} s: touchdown in {horizon:.1f} s"
+                if result.touchdown else
+                f"move away first by a verified plan from t+{bound:g} s (no landing keeps "
+                f"clear of {', '.join(f.id for f in kept_from)}): clear of their columns in "
+                f"{horizon:.1f} s, then land from there")
+        relaxed = [f"{vid} from {f.id}" for f in kept_from for vid in f.start_clearance]
         self.emit(None, EventKind.LANDING_PLAN, (
-            f"{len(self.steered)} vehicle(s) land by a verified plan from t+{bound:g} s: "
-            f"touchdown in {horizon:.1f} s, closest {_figure(kept)} m (keeps at least "
-            f"{result.separation:.2f} m), planned in {result.seconds:.3f} s{around}"))
-        end = switch_at + horizon + SETTLE_S
-        while (left := end - time.monotonic()) > 0:
-            await asyncio.sleep(left)
-        return None
+            f"{len(self.steered)} vehicle(s) {what}, closest {_figure(kept)} m (keeps at "
+            f"least {result.separation:.2f} m), planned in {result.seconds:.3f} s{around}"
+            + (f"; started nearer than R: {', '.join(relaxed)} (those pairs back to R "
+               f"within {CLEARANCE_RAMP_S:g} s)" if relaxed else "")))
 
     def _freeze(self, steer: list[VehicleStatus]) -> None:
         """Every stream of `steer` holds its last setpoint from now on (the vehicles are
