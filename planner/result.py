@@ -144,6 +144,11 @@ class IterationRecord:
     method: str | None = None
     """The planning method whose iteration this is (`Attempt.method`); null in plans
     written without it."""
+    batch: int | None = None
+    """With prioritized batches, the batch (from 1) whose iteration this is; null otherwise."""
+    batches: int | None = None
+    """With prioritized batches, how many batches the plan has when this one started
+    (a batch deferred to the end of the order counts again); null otherwise."""
 
 
 #: Field metadata of the verification's obstacle figures: the plan JSON leaves them out
@@ -314,7 +319,12 @@ class Plan:
 
     @property
     def cost(self) -> float:
-        return self.iterations[-1].cost if self.iterations else float("nan")
+        """The plan's total-thrust cost sum ||a + g||^2 over every vehicle and step, from its
+        trajectories (the last iteration's cost is only its batch's with prioritized
+        batches); nan for a plan without vehicles."""
+        from planner.scp.loop import thrust_cost
+
+        return thrust_cost(self.accelerations()) if self.vehicles else float("nan")
 
     def positions(self) -> FloatArray:
         """(N, K+1, 3) positions of all vehicles."""

@@ -36,6 +36,7 @@ from planner import result as planner_result
 from planner.model import fixed as planner_fixed
 from planner.model import obstacles as planner_obstacles
 from planner.model import scenario as planner_scenario
+from planner.model.checks import unknown_key
 
 __all__ = [
     "EXAMPLE_SCENARIO",
@@ -303,7 +304,8 @@ def _check(value: Any, schema: dict[str, Any], path: str, out: list[ErrorItem]) 
         properties = schema.get("properties", {})
         for key in value:
             if key not in properties:
-                out.append(ErrorItem(field=_where(path, key), reason="unknown key"))
+                out.append(ErrorItem(field=_where(path, key),
+                                     reason=unknown_key(key, properties)))
         for key in schema.get("required", ()):
             if key not in value:
                 out.append(ErrorItem(field=_where(path, key), reason="is required"))

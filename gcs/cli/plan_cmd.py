@@ -79,7 +79,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _fail(message: str) -> int:
-    print(f"error: {message}", file=sys.stderr)
+    """Print every line of `message` as an error (one per problem found); bad input."""
+    for line in message.splitlines() or [message]:
+        print(f"error: {line}", file=sys.stderr)
     return EXIT_BAD_INPUT
 
 
@@ -167,6 +169,15 @@ def _method_summary(plan: Any) -> str:
     others = [f"{a.method} {a.outcome} after {a.seconds:.2f} s" for a in plan.attempts
               if a.outcome in ("failed", "cancelled")]
     return plan.method + (f" ({'; '.join(others)})" if others else "")
+
+
+def _label(record: Any) -> str:
+    """An iteration line's tail: the method whose iteration it is, and its batch of how many
+    with prioritized batches ("  [prioritized batch 3/8]")."""
+    parts = [] if record.method is None else [record.method]
+    if record.batch is not None:
+        parts.append(f"batch {record.batch}/{record.batches}")
+    return f"  [{' '.join(parts)}]" if parts else ""
 
 
 def _verdict(plan: Any) -> int:
@@ -394,6 +405,7 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
 
 def run(args: argparse.Namespace) -> int:
     import planner
+    from gcs.cli.scenario_check import check_scenario, problem_line
     from planner.errors import FieldError, SolverError
 
     try:
@@ -406,9 +418,13 @@ def run(args: argparse.Namespace) -> int:
                 return _fail("--fleet: a fleet's margin is not applied to formation sequences "
                              "yet; add it to the sequence's min_separation")
             return _run_sequence(args, data)
+        check_scenario(data, args.scenario)
         if getattr(args, "fleet", None) is not None:
             data = _for_fleet(data, args.fleet)
-        scenario = planner.Scenario.from_dict(data)
+        try:
+            scenario = planner.Scenario.from_dict(data)
+        except FieldError as exc:
+            return _fail(problem_line(exc.field, exc.reason, data))
         method = _method(args)
         if method is not None:
             scenario = dataclasses.replace(scenario, method=method)
@@ -427,7 +443,7 @@ def run(args: argparse.Namespace) -> int:
             f"iteration {record.iteration:>2}: cost {_number(record.cost, '{:.4f}')}{change}  "
             f"rows {record.separation_rows}  groups {record.groups}  "
             f"QPs {record.qp_solves}  {record.seconds:.3f} s"
-            + ("" if record.method is None else f"  [{record.method}]"),
+            + _label(record),
             flush=True,
         )
 

@@ -186,11 +186,13 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
         began = time.perf_counter()
         later = (np.concatenate(queue) if reserve and queue else np.zeros(0, dtype=np.intp))
         reopened = np.zeros(0, dtype=np.intp)
+        tag = _batch_tag(number + 1, number + 1 + len(queue))
+        told = None if progress is None else _tagged(progress, tag)
         for attempt in range(MERGE_ROUNDS + 1):
             outcome, guess = _plan_batch(state, members, reopened, later, solver, options,
-                                         progress, f"#batch{number}" + "+" * attempt,
+                                         told, f"#batch{number}" + "+" * attempt,
                                          cost_share)
-            iterations.extend(outcome.iterations)
+            iterations.extend(map(tag, outcome.iterations))
             first_qp += outcome.first_qp_seconds
             if outcome.status == "converged" or attempt == MERGE_ROUNDS:
                 break
@@ -222,6 +224,18 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     joined = ScpOutcome("converged", message, state.p, state.v, state.a, iterations,
                         first_qp)
     return PrioritizedOutcome(joined, planned_order, seconds)
+
+
+def _batch_tag(batch: int, batches: int) -> Callable[[IterationRecord], IterationRecord]:
+    """A record labelled as batch `batch` of `batches` (`IterationRecord.batch`)."""
+    return lambda record: dataclasses.replace(record, batch=batch, batches=batches)
+
+
+def _tagged(progress: Callable[[IterationRecord], None],
+            tag: Callable[[IterationRecord], IterationRecord]
+            ) -> Callable[[IterationRecord], None]:
+    """`progress` given each record labelled by `tag`: batch by batch progress."""
+    return lambda record: progress(tag(record))
 
 
 #: Rounds of replanning a failed batch with the earlier vehicles nearest to it.

@@ -61,6 +61,7 @@ from gcs.service.settings import Settings
 from gcs.service.statuses import FLIGHT_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
 from planner import Scenario
+from planner.errors import FieldError
 from planner.methods.sequence import FormationSequence, parse_sequence, timeline_scenario
 from planner.methods.sequence import trajectory_csv as show_csv
 from planner.verification.verify import refusal
@@ -139,12 +140,16 @@ def _validated(body: Any, settings: Settings) -> Scenario:
     exceeded, then the planner's own validation (the first problem of meaning)."""
     shape = shape_errors(body)
     if shape:
-        raise Unprocessable.of(shape)
+        raise Unprocessable.of(shape, body)
     work = WorkBounds.from_settings(settings)
     bounds = scenario_bound_errors(body, work)
     if bounds:
-        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds])
-    return Scenario.from_dict(with_server_horizon(body, work))
+        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds],
+                               body)
+    try:
+        return Scenario.from_dict(with_server_horizon(body, work))
+    except FieldError as exc:
+        raise Unprocessable.of([ErrorItem(field=exc.field, reason=exc.reason)], body) from None
 
 
 def is_sequence(body: Any) -> bool:

@@ -23,7 +23,9 @@ def assert_error(response: Response, status: int, field: str | None, reason: str
     assert body["status"] == status
     assert body["field"] == field, body
     assert reason in body["reason"], body
-    assert body["errors"] and body["errors"][0] == {"field": field, "reason": body["reason"]}
+    first = body["errors"][0] if body["errors"] else {}
+    assert {k: v for k, v in first.items() if k != "vehicle"} == {
+        "field": field, "reason": body["reason"]}
 
 
 def edited(change: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
@@ -69,6 +71,25 @@ BAD_SCENARIOS = [
     (_set("limits.velocity_max", [2, 0, 2]), "limits.velocity_max[1]", "must be positive"),
     (_set("name", ""), "name", "non-empty"),
 ]
+
+
+def test_each_error_names_its_vehicle_by_id_and_a_mistyped_key_its_nearest(
+    shared_client: TestClient,
+) -> None:
+    def broken(scenario: dict[str, Any]) -> None:
+        scenario["min_seperation"] = scenario.pop("min_separation")
+        scenario["vehicles"][2]["goal"] = [1, 2]
+
+    body = shared_client.post("/api/missions", json=edited(broken)).json()
+    assert body["status"] == 422
+    by_field = {e["field"]: e for e in body["errors"]}
+    assert by_field["min_seperation"]["reason"] == "unknown key (did you mean 'min_separation'?)"
+    assert "vehicle" not in by_field["min_seperation"]
+    assert by_field["vehicles[2].goal"]["vehicle"] == "uav3"
+    meaning = shared_client.post("/api/missions",
+                                 json=edited(_set("vehicles.1.goal", [9.0, 1.0, 1.0]))).json()
+    assert meaning["errors"][0]["field"] == "vehicles[1].goal"
+    assert meaning["errors"][0]["vehicle"] == "uav2"
 
 
 @pytest.mark.parametrize(("change", "field", "reason"), BAD_SCENARIOS)
