@@ -13,6 +13,7 @@ import { loadPlotly, nextTask, renderFigures } from "./planview.js";
 import { missionPlanShown } from "./replan.js";
 import { closeReplay } from "./replay.js";
 import { trajectoryRate } from "./scale.js";
+import { boxDocument, documentKind } from "./upload.js";
 import { flight, missionIs, planning, ready, views } from "./state.js";
 
 /** @typedef {import("./state.js").Mission} Mission */
@@ -72,34 +73,26 @@ export async function submitPlan(ev) {
     (errors) => { for (const e of errors) showError(e.field, e.reason); });
 }
 
-/** Plan the sequence JSON pasted or loaded: one mission like a scenario's, legs in parallel. */
+/** Plan or upload the JSON pasted, chosen or dropped: a scenario or a formation sequence is
+ * planned (one mission; a sequence's legs in parallel), a plan is verified again and stored. */
 export async function submitSequence() {
   if (!ready() || planning.planning) return;
   clearErrors();
   const box = $("#sequence-error");
-  let body;
-  try { body = JSON.parse($("#sequence-json").value); } catch (exc) {
-    box.append(errorItem("sequence", `not valid JSON: ${exc instanceof Error ? exc.message : exc}`));
+  const { doc, error } = boxDocument();
+  if (error) { box.append(errorItem("json", error)); return; }
+  if (!documentKind(doc)) {
+    box.append(errorItem("json", "must be a JSON object: a scenario (with vehicles), a formation " +
+      "sequence (with formations) or a plan from fleetplan plan (with status and scenario)"));
     return;
   }
-  if (!body || typeof body !== "object" || Array.isArray(body) || !("formations" in body)) {
-    box.append(errorItem("sequence", "must be a JSON object with formations"));
-    return;
-  }
-  await send(body, sequenceKey(), "the sequence errors",
-    (errors) => { for (const e of errors) box.append(errorItem(e.field || "", e.reason)); });
+  await send(doc, sequenceKey(), "the errors under the JSON",
+    (errors) => { for (const e of errors) box.append(errorItem(fieldText(e), e.reason)); });
 }
 
-/** A sequence file chosen: its text into the sequence input.
- * @param {Event} ev */
-export async function loadSequenceFile(ev) {
-  const files = /** @type {HTMLInputElement} */ (ev.target).files;
-  const file = files && files[0];
-  if (!file) return;
-  $("#sequence-json").value = await file.text();
-  $("#sequence-panel").open = true;
-  refreshStale();
-}
+/** An error's field, with its vehicle's id when the service names one.
+ * @param {{field?: string, vehicle?: string}} e */
+const fieldText = (e) => (e.field || "") + (e.vehicle ? ` (vehicle ${e.vehicle})` : "");
 
 /** A sequence's plan: its formations and timeline, and its show-tool CSVs to download.
  * @param {Mission} mission */

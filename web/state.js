@@ -37,9 +37,10 @@
  *   vehicleCommands: boolean}} Capabilities */
 /** @typedef {Record<string, Record<string, string[]>>} StatusSets  GET /api/status `statuses` */
 
-/** The service: its status sets (never a copy in the page) once GET /api/status answered.
- * @type {{statuses: StatusSets | null}} */
-export const service = { statuses: null };
+/** The service: its status sets (never a copy in the page) and the limits it checks requests
+ * against, once GET /api/status answered.
+ * @type {{statuses: StatusSets | null, limits: Record<string, number> | null}} */
+export const service = { statuses: null, limits: null };
 
 /** The editor: what the form holds beyond its inputs.
  * @type {{presetName: string | null, touched: boolean, selected: number, obstacle: number,

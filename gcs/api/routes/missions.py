@@ -54,13 +54,14 @@ from gcs.service.limits import (
     trajectory_sample_count,
     with_server_horizon,
 )
-from gcs.service.plan_worker import finite_json
+from gcs.service.plan_worker import finite_json, plan_json
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.plans import trajectory_csv_chunks, trajectory_json_chunks
 from gcs.service.settings import Settings
 from gcs.service.statuses import FLIGHT_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
-from planner import Scenario
+from gcs.service.uploaded_plan import is_plan_body, plan_document, uploaded_plan
+from planner import Plan, Scenario
 from planner.errors import FieldError
 from planner.methods.sequence import FormationSequence, parse_sequence, timeline_scenario
 from planner.methods.sequence import trajectory_csv as show_csv
@@ -152,6 +153,31 @@ def _validated(body: Any, settings: Settings) -> Scenario:
         raise Unprocessable.of([ErrorItem(field=exc.field, reason=exc.reason)], body) from None
 
 
+def _uploaded(body: Any, settings: Settings) -> tuple[dict[str, Any], str, Plan]:
+    """A plan body's scenario, plan text and plan, verified again here; 422 with every
+    problem found (each under `vehicles[i]` naming its vehicle) otherwise."""
+    plan, problems = uploaded_plan(body, WorkBounds.from_settings(settings))
+    if plan is None:
+        document = plan_document(body)
+        raise Unprocessable.of(
+            [ErrorItem(field=e.field, reason=e.reason) for e in problems],
+            document.get("scenario") if any(e.field.startswith("scenario.") for e in problems)
+            else document)
+    return plan.scenario.to_dict(), plan_json(plan), plan
+
+
+async def _store_uploaded(body: Any, store: Store, settings: Settings) -> Response:
+    """Store a plan made elsewhere, verified again, as a planned mission (201)."""
+    scenario, text, plan = await run_in_threadpool(_uploaded, body, settings)
+    row = await run_in_threadpool(store.create_mission, scenario)
+    await run_in_threadpool(store.finish_planning, row.id, plan_json=text,
+                            plan_status=plan.status, plan_ok=True,
+                            steps=plan.scenario.steps)
+    document = await run_in_threadpool(store.get_mission, row.id, with_plan=True)
+    assert document is not None
+    return _json(mission_document(document, None), 201, {"Location": f"/api/missions/{row.id}"})
+
+
 def is_sequence(body: Any) -> bool:
     """A formation sequence (`planner.methods.sequence` JSON) rather than a scenario."""
     return isinstance(body, dict) and "formations" in body
@@ -179,8 +205,10 @@ def _validated_sequence(body: Any, settings: Settings) -> FormationSequence:
     },
     openapi_extra={"requestBody": {
         "required": True,
-        "description": "A scenario (the planner's scenario JSON contract), or a formation "
-                       "sequence (an object with `formations`: see the README).",
+        "description": "A scenario (the planner's scenario JSON contract), a formation "
+                       "sequence (an object with `formations`: see the README), or a plan "
+                       "made elsewhere to fly (a Plan JSON, or `{\"plan\": PLAN}`), which "
+                       "is verified again before it is stored.",
         "content": {"application/json": {"schema": ref("Scenario")}},
     }},
 )
@@ -206,11 +234,17 @@ async def create_mission(
     as parallel Dask tasks (progress records carry their `leg`), stitched and verified as
     one plan whose scenario is the whole timeline; it flies like any mission.
 
+    A plan made elsewhere (a Plan JSON as `fleetplan plan` writes it, or `{"plan": PLAN}`)
+    is verified again on its own trajectories and stored as a planned mission (201), or
+    refused with 422 naming the field (`plan` when it may not be flown, and why).
+
     Answers 201 with the mission and its plan when planning ends within `wait` seconds, else
     202 with the mission still `planning` (poll `GET /api/missions/{id}` or follow
     `/events`). Invalid scenarios are 422 naming each offending field and the reason (every
     type, key and server-limit problem at once); nothing is stored for them.
     """
+    if is_plan_body(body):
+        return await _store_uploaded(body, store, settings)
     limit = planning.job_time_limit(time_limit)
     sequence: FormationSequence | None = None
     if is_sequence(body):

@@ -112,18 +112,24 @@ def test_server_limits_are_enforced_with_the_setting_named(shared_client: TestCl
 
 
 def test_body_size_limit(shared_client: TestClient) -> None:
-    scenario = edited(_set("name", "x" * 300_000))  # the shared app allows 200 kB
+    # the shared app allows 200 kB, and 400 kB to POST /api/missions (a plan to fly)
+    scenario = edited(_set("name", "x" * 500_000))
     response = shared_client.post("/api/missions", json=scenario)
+    assert_error(response, 413, "body", "request body exceeds 400000 bytes")
+    assert "(setting max_plan_body_bytes)" in response.json()["reason"]
+    response = shared_client.post("/api/missions/nope/flights",
+                                  json=edited(_set("name", "x" * 300_000)))
     assert_error(response, 413, "body", "request body exceeds 200000 bytes")
+    assert "(setting max_body_bytes)" in response.json()["reason"]
 
     def chunks() -> Any:  # no Content-Length: counted as it arrives
-        for _ in range(30):
+        for _ in range(50):
             yield b" " * 10_000
 
     response = shared_client.post(
         "/api/missions", content=chunks(), headers={"content-type": "application/json"}
     )
-    assert_error(response, 413, "body", "request body exceeds 200000 bytes")
+    assert_error(response, 413, "body", "request body exceeds 400000 bytes")
 
 
 @pytest.mark.parametrize(
