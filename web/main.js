@@ -13,6 +13,7 @@ import { setTime, togglePlay } from "./flyscreen.js";
 import { buildLimitRows } from "./form.js";
 import { refreshMissionList } from "./history.js";
 import { submitPlan, submitSequence, updatePlanButtons } from "./planning.js";
+import { cancelPlanning } from "./planprogress.js";
 import { cancelGoals, onGoalPointerDown, onGoalPointerMove, onGoalPointerUp, sendGoals } from "./replan.js";
 import { editor, flight } from "./state.js";
 import { refreshStatus, refreshVehicles } from "./status.js";
@@ -25,6 +26,7 @@ function wire() {
   $("#scenario-form").addEventListener("submit", submitPlan);
   $("#scenario-form").addEventListener("input", formEdited);
   $("#sequence-plan").addEventListener("click", submitSequence);
+  $("#plan-cancel").addEventListener("click", cancelPlanning);
   $("#sequence-file").addEventListener("change", onFileChosen);
   $("#sequence-json").addEventListener("input", () => { describeBox(); refreshStale(); });
   $("#sequence-panel").addEventListener("dragover", onDragOver);

@@ -11,6 +11,7 @@ import { clearFlightView, drawFlyStatic, resetSlider } from "./flyscreen.js";
 import { readScenario, sequenceKey } from "./form.js";
 import { loadPlotly, nextTask, renderFigures } from "./planview.js";
 import { missionPlanShown } from "./replan.js";
+import { iterationState, planningEnded, planningStarted, workingState } from "./planprogress.js";
 import { closeReplay } from "./replay.js";
 import { trajectoryRate } from "./scale.js";
 import { boxDocument, documentKind } from "./upload.js";
@@ -46,10 +47,12 @@ async function send(body, key, what, refused) {
   refreshStale();
   updatePlanButtons();
   $("#plan-state").textContent = "submitting…";
+  planning.startedAt = Date.now();
   $("#progress-log").innerHTML = "";
   $("#progress-log").hidden = false;
   const { status, data } = await api("POST", "/api/missions?wait=0", body);
   if (status !== 201 && status !== 202) {
+    planningEnded();
     planning.planning = false;
     planning.rejected = true;
     updatePlanButtons();
@@ -130,7 +133,7 @@ function iterationItem(r) {
   li.textContent = `${leg}iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
     (r.cost_change === null ? "" : ` (Δ ${fmt(r.cost_change, 3)})`) +
     `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s` +
-    (r.method ? ` · ${r.method}` : "");
+    (r.method ? ` · ${r.method}` : "") + (r.batch ? ` batch ${r.batch}/${r.batches}` : "");
   return li;
 }
 
@@ -153,14 +156,17 @@ function completeProgressLog(plan) {
 function followPlanning(mission, key) {
   $("#plan-state").textContent = "planning…";
   if (!missionIs(mission.status, "active")) { showMission(mission.id, key); return; }
+  // a mission opened while it plans (not sent from here): its clock starts at its creation
+  if (!planning.startedAt) planning.startedAt = Date.parse(mission.created_at) || Date.now();
+  planningStarted(mission.id);
   const source = new EventSource(`/api/missions/${mission.id}/events`);
   planning.stream = source;
   source.addEventListener("iteration", (ev) => {
     const r = JSON.parse(ev.data);
     appendScrolled($("#progress-log"), iterationItem(r));
-    const leg = (r.leg === undefined || r.leg === null) ? "" : `leg ${r.leg}, `;
-    $("#plan-state").textContent = `planning… ${leg}iteration ${r.iteration}`;
+    $("#plan-state").textContent = iterationState(r);
   });
+  source.addEventListener("working", (ev) => { $("#plan-state").textContent = workingState(JSON.parse(ev.data)); });
   source.addEventListener("done", () => { source.close(); planning.stream = null; showMission(mission.id, key); });
   source.onerror = () => {  // stream lost: fall back to polling the mission
     source.close();
@@ -206,6 +212,7 @@ export async function showMission(id, key) {
 }
 
 function finishPlanning() {
+  planningEnded();
   planning.planning = false;
   updatePlanButtons();
   refreshStale();

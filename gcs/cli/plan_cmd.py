@@ -252,7 +252,7 @@ def _options(args: argparse.Namespace, method: str) -> Any:
 
 
 def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
-                     progress: Any, options: Any = None) -> Any:
+                     progress: Any, working: Any, options: Any = None) -> Any:
     """Plan as one Dask task on the cluster at `address`, iterations printed as they come;
     returns the Plan. ValueError with a message for the user when it cannot."""
     import threading
@@ -274,6 +274,8 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
         message = event[1]
         if message["kind"] == "iteration":
             progress(planner.IterationRecord(**message["record"]))
+        elif message["kind"] == "working":
+            working(planner.IterationProgress(**message["record"]))
         elif message["kind"] == "started":
             print(f"planning on Dask worker {message['worker']}", flush=True)
         elif message["kind"] == "end":
@@ -447,13 +449,20 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
 
+    def working(step: planner.IterationProgress) -> None:
+        if not args.quiet:
+            print(f"  ... iteration {step.iteration:>2}: round {step.round}, "
+                  f"{step.groups_done}/{step.groups} groups solved (largest "
+                  f"{step.largest_group} vehicles, rows {step.separation_rows}), QPs "
+                  f"{step.qp_solves}, {step.seconds:.1f} s" + _label(step), flush=True)
+
     try:
         if args.scheduler:
             plan = _plan_on_cluster(args.scheduler, scenario.to_dict(), args.solver, progress,
-                                    options)
+                                    working, options)
         else:
             plan = planner.plan(scenario, solver=args.solver, progress=progress,
-                                options=options)
+                                options=options, within_iterations=working)
     except (SolverError, ValueError) as exc:
         return _fail(str(exc))
     output = args.output or Path(f"{scenario.name}.plan.json")

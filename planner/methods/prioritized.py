@@ -28,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,7 +44,7 @@ from planner.methods.spacetime import (
 )
 from planner.model.fixed import FixedSet, FixedTrajectory
 from planner.model.scenario import Scenario
-from planner.result import IterationRecord
+from planner.result import IterationRecord, Progress
 from planner.scp.first_qp import unit_profile, velocity_profile
 from planner.scp.loop import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.scp.solvers import QPSolver
@@ -139,7 +140,7 @@ def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach:
 
 
 def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = None,
-                 progress: Callable[[IterationRecord], None] | None = None,
+                 progress: Progress | None = None,
                  batch: int | None = None, order: IntArray | None = None,
                  cost_share: bool = False) -> PrioritizedOutcome | str:
     """Plan `work` (goals assigned; its own fixed trajectories, start velocities and
@@ -226,14 +227,13 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     return PrioritizedOutcome(joined, planned_order, seconds)
 
 
-def _batch_tag(batch: int, batches: int) -> Callable[[IterationRecord], IterationRecord]:
-    """A record labelled as batch `batch` of `batches` (`IterationRecord.batch`)."""
+def _batch_tag(batch: int, batches: int) -> Callable[[Any], Any]:
+    """An iteration's record (or its `IterationProgress`) labelled as batch `batch` of
+    `batches` (`IterationRecord.batch`)."""
     return lambda record: dataclasses.replace(record, batch=batch, batches=batches)
 
 
-def _tagged(progress: Callable[[IterationRecord], None],
-            tag: Callable[[IterationRecord], IterationRecord]
-            ) -> Callable[[IterationRecord], None]:
+def _tagged(progress: Progress, tag: Callable[[Any], Any]) -> Progress:
     """`progress` given each record labelled by `tag`: batch by batch progress."""
     return lambda record: progress(tag(record))
 
@@ -261,7 +261,7 @@ class _State:
 
 def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: IntArray,
                 solver: QPSolver, options: ScpOptions | None,
-                progress: Callable[[IterationRecord], None] | None, suffix: str,
+                progress: Progress | None, suffix: str,
                 cost_share: bool = False
                 ) -> tuple[ScpOutcome, tuple[FloatArray, FloatArray, FloatArray]]:
     """One batch's SCP: `members` and the `reopened` earlier vehicles planned, the other

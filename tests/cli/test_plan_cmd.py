@@ -229,3 +229,21 @@ def test_auto_labels_each_iteration_line_with_its_method_and_names_the_winner(
     outcomes = {a["method"]: a["outcome"] for a in doc["attempts"]}
     assert outcomes[doc["method"]] == "won"
     assert re.search(rf"method\s+.\s+{doc['method']}", printed)
+
+
+def test_long_iterations_print_the_groups_solved_so_far(tmp_path, capsys, monkeypatch):
+    """Inside an iteration a line per report (`planner.IterationProgress`: every group with
+    the report interval at zero), before the iteration's own line."""
+    from planner.scp import loop
+
+    monkeypatch.setattr(loop, "PROGRESS_EVERY_S", 0.0)
+    assert main(["plan", str(EXAMPLES / "random16.json"), "-o", str(tmp_path / "p.json"),
+                 "--method", "whole"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    inside = [n for n, line in enumerate(lines) if line.startswith("  ... iteration  1:")]
+    assert inside, lines
+    assert re.fullmatch(r"  \.\.\. iteration  1: round \d+, \d+/\d+ groups solved \(largest "
+                        r"\d+ vehicles, rows \d+\), QPs \d+, [0-9.]+ s  \[whole\]",
+                        lines[inside[0]])
+    record = next(n for n, line in enumerate(lines) if line.startswith("iteration  1:"))
+    assert max(inside) < record

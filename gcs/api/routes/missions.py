@@ -93,6 +93,7 @@ def mission_document(row: MissionRow, job: PlanJob | None) -> str:
     head = {
         **row.summary(),
         "progress": list(job.progress) if planning and job is not None else [],
+        "planning": job.summary() if planning and job is not None else None,
         "scenario": row.scenario,
         "links": _links(row.id),
     }
@@ -375,7 +376,9 @@ async def mission_events(
     _slot: EventStreamSlot, shared: SharedJsonDep,
 ) -> AsyncIterable[ServerSentEvent]:
     """`iteration` events (one per SCP iteration: iteration, cost, cost_change,
-    separation_rows, qp_solves, groups, seconds) while planning, then one `done` event
+    separation_rows, qp_solves, groups, seconds, method, batch, batches) while planning,
+    `working` events from inside long iterations (at most about once a second: the
+    mission's `planning` summary, with the groups solved so far), then one `done` event
     {status, plan_status, plan_ok, error}; then the stream ends. Each `iteration` has an
     `id:` (0, 1, ...); a client reconnecting with `Last-Event-ID: n` gets the iterations
     after n, then `done`. Streams are bounded like a flight's (503 with Retry-After)."""
