@@ -420,9 +420,9 @@ def run(args: argparse.Namespace) -> int:
                 return _fail("--fleet: a fleet's margin is not applied to formation sequences "
                              "yet; add it to the sequence's min_separation")
             return _run_sequence(args, data)
-        check_scenario(data, args.scenario)
         if getattr(args, "fleet", None) is not None:
             data = _for_fleet(data, args.fleet)
+        check_scenario(data, args.scenario)
         try:
             scenario = planner.Scenario.from_dict(data)
         except FieldError as exc:
