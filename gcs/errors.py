@@ -30,11 +30,13 @@
   - `VehicleLoopStopped`: the vehicle thread or process that runs flights is not running
     (never started, stopped, or ended); `gcs.api.errors` maps it to 503.
 
-`field_path` writes a validation error's location (pydantic's) as such a dotted path.
+`field_path` writes a validation error's location (pydantic's) as such a dotted path;
+`vehicle_at` finds the id of the vehicle such a path points into.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -60,6 +62,7 @@ __all__ = [
     "VehicleLoopStopped",
     "VehicleTimeout",
     "field_path",
+    "vehicle_at",
 ]
 
 
@@ -73,6 +76,26 @@ def field_path(loc: Sequence[Any]) -> str:
         else:
             out += f".{part}" if out else str(part)
     return out
+
+
+#: A dotted path into a document's vehicle list: ``vehicles[2]`` or ``vehicles[2].goal``.
+_VEHICLE_PATH = re.compile(r"vehicles\[(\d+)\](?:$|[.\[])")
+
+
+def vehicle_at(field: str | None, document: Any) -> str | None:
+    """The id of the vehicle a field path such as ``vehicles[2].goal`` points into, read from
+    the scenario or plan `document` it was found in; None when the path names no vehicle or
+    that vehicle has no usable id. Errors name the vehicle by id beside its index path."""
+    match = _VEHICLE_PATH.match(field or "")
+    if match is None or not isinstance(document, dict):
+        return None
+    vehicles = document.get("vehicles")
+    index = int(match.group(1))
+    if not isinstance(vehicles, list) or index >= len(vehicles):
+        return None
+    vehicle = vehicles[index]
+    vid = vehicle.get("id") if isinstance(vehicle, dict) else None
+    return vid if isinstance(vid, str) and vid else None
 
 
 class GcsError(Exception):

@@ -22,10 +22,17 @@ if TYPE_CHECKING:
     from planner.model.dynamics import MotionSample, integrate, interpolate
     from planner.model.scenario import Limits, Scenario, Vehicle
     from planner.planning import plan
-    from planner.result import IterationRecord, Plan, VehicleTrajectory, Verification
+    from planner.result import (
+        IterationProgress,
+        IterationRecord,
+        Plan,
+        VehicleTrajectory,
+        Verification,
+    )
 
 __all__ = [
     "FieldError",
+    "IterationProgress",
     "IterationRecord",
     "Limits",
     "MotionSample",
@@ -50,7 +57,8 @@ _HOMES: dict[str, str] = {
     "FieldError": "errors", "PlanFormatError": "errors", "PlannerError": "errors",
     "ScenarioError": "errors", "SolverError": "errors",
     "plan": "planning",
-    "IterationRecord": "result", "Plan": "result", "VehicleTrajectory": "result",
+    "IterationProgress": "result", "IterationRecord": "result", "Plan": "result",
+    "VehicleTrajectory": "result",
     "Verification": "result",
     "Limits": "model.scenario", "Scenario": "model.scenario", "Vehicle": "model.scenario",
 }

@@ -24,7 +24,16 @@ from planner.methods.stages import Context, TableResult, run_table, table_for
 from planner.model.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.model.scenario import METHODS, Scenario
 from planner.options import PlanningOptions, ScpOptions
-from planner.result import Attempt, IterationRecord, Outcome, Plan, PlanStatus, VehicleTrajectory
+from planner.result import (
+    Attempt,
+    IterationProgress,
+    IterationRecord,
+    Outcome,
+    Plan,
+    PlanStatus,
+    Progress,
+    VehicleTrajectory,
+)
 from planner.scp.first_qp import straight_moves, timed_first_qp
 from planner.scp.solvers import make_solver
 from planner.types import FloatArray
@@ -39,13 +48,16 @@ def plan(
     progress: Callable[[IterationRecord], None] | None = None,
     options: PlanningOptions | ScpOptions | None = None,
     method: str | None = None,
+    within_iterations: Callable[[IterationProgress], None] | None = None,
 ) -> Plan:
     """Plan collision-free trajectories for every vehicle of `scenario`.
 
     solver: 'piqp' (default), 'clarabel' or 'osqp'. progress: called after every SCP
     iteration with its `IterationRecord` (labelled with its method). options: the planning
     settings (`PlanningOptions`), or only the SCP loop's (`ScpOptions`). method: 'auto',
-    'whole' or 'prioritized', overriding the scenario's `method`. Raises `ScenarioError` for
+    'whole' or 'prioritized', overriding the scenario's `method`. within_iterations: called
+    during long SCP iterations, at most about once a second, with an `IterationProgress`
+    (groups solved so far; labelled like the records). Raises `ScenarioError` for
     invalid input and `SolverError` for an unknown solver; infeasibility is a plan status.
 
     The method picks a table of stages (`planner.methods.stages`): under free assignment a
@@ -72,16 +84,33 @@ def plan(
         from planner.methods.horizon_search import search_horizon
 
         return search_horizon(spec, backend, lambda fixed: plan(
-            fixed, solver=solver, progress=progress, options=options))
+            fixed, solver=solver, progress=progress, options=options,
+            within_iterations=within_iterations))
     work = spec.assigned()
     free = spec.assignment == "free"
     # iteration 0, solved once: the plan when already separated, else the loop's start
-    ctx = Context(work, free, backend, settings, progress,
+    ctx = Context(work, free, backend, settings, _split(progress, within_iterations),
                   first_qp=timed_first_qp(work, backend) if free else None)
     ctx.guess = straight_moves(work) if free else None
     table = AUTO_TABLE if spec.method == "auto" else table_for(spec.method)
     result = run_table(table, ctx)
     return _packed(spec, result, backend.name, began)
+
+
+def _split(progress: Callable[[IterationRecord], None] | None,
+           within: Callable[[IterationProgress], None] | None) -> Progress | None:
+    """The methods' one progress channel, each kind handed to its own callback."""
+    if progress is None and within is None:
+        return None
+
+    def told(item: IterationRecord | IterationProgress) -> None:
+        if isinstance(item, IterationProgress):
+            if within is not None:
+                within(item)
+        elif progress is not None:
+            progress(item)
+
+    return told
 
 
 def _message(spec: Scenario, result: TableResult) -> str:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, fields
 from enum import StrEnum
 from typing import Any, TextIO
@@ -27,10 +27,12 @@ __all__ = [
     "OUTCOMES",
     "STATUSES",
     "Attempt",
+    "IterationProgress",
     "IterationRecord",
     "Outcome",
     "Plan",
     "PlanStatus",
+    "Progress",
     "VehicleTrajectory",
     "Verification",
 ]
@@ -144,6 +146,46 @@ class IterationRecord:
     method: str | None = None
     """The planning method whose iteration this is (`Attempt.method`); null in plans
     written without it."""
+    batch: int | None = None
+    """With prioritized batches, the batch (from 1) whose iteration this is; null otherwise."""
+    batches: int | None = None
+    """With prioritized batches, how many batches the plan has when this one started
+    (a batch deferred to the end of the order counts again); null otherwise."""
+
+
+@dataclass(frozen=True)
+class IterationProgress:
+    """Work done so far inside a long SCP iteration, given to `progress` between the
+    iteration records (at most once a second; never part of a plan): a sign of life while
+    a crowd's QPs take minutes."""
+
+    iteration: int
+    """The iteration under way (1 is the first with separation rows)."""
+    round: int
+    """Its solve round (from 1): each round after the first adds the rows the last broke."""
+    groups_done: int
+    """Groups of this round solved so far."""
+    groups: int
+    """Groups in this round."""
+    separation_rows: int
+    """Separation rows in this round's QPs."""
+    largest_group: int
+    """Vehicles in this round's largest group (its QP is the longest)."""
+    qp_solves: int
+    """QP solves in this iteration so far."""
+    seconds: float
+    """Seconds since the iteration began."""
+    method: str | None = None
+    """As `IterationRecord.method`."""
+    batch: int | None = None
+    """As `IterationRecord.batch`."""
+    batches: int | None = None
+    """As `IterationRecord.batches`."""
+
+
+#: What the planner's methods report progress to: every iteration's record, and within long
+#: iterations their progress (`planner.plan` hands each kind to its own callback).
+Progress = Callable[[IterationRecord | IterationProgress], None]
 
 
 #: Field metadata of the verification's obstacle figures: the plan JSON leaves them out
@@ -314,7 +356,12 @@ class Plan:
 
     @property
     def cost(self) -> float:
-        return self.iterations[-1].cost if self.iterations else float("nan")
+        """The plan's total-thrust cost sum ||a + g||^2 over every vehicle and step, from its
+        trajectories (the last iteration's cost is only its batch's with prioritized
+        batches); nan for a plan without vehicles."""
+        from planner.scp.loop import thrust_cost
+
+        return thrust_cost(self.accelerations()) if self.vehicles else float("nan")
 
     def positions(self) -> FloatArray:
         """(N, K+1, 3) positions of all vehicles."""

@@ -3,14 +3,14 @@
 // selected, moved and resized by dragging, and removed; every edit
 // clears the errors it answers and marks the plan shown stale; presets fill the form.
 import { api } from "./api.js";
-import { $, clamp } from "./dom.js";
+import { $ } from "./dom.js";
 import { clearErrors, clearErrorsFor, hasErrors } from "./fielderrors.js";
 import { refreshStale } from "./flygate.js";
 import { addObstacleRow, addVehicleRow, obstacleRows, renumberVehicles, vehicleRows, workspace,
          writeScenario } from "./form.js";
 import { grabHandle, grabMove, polygonAt, valueAt } from "./grab.js";
 import { circleScenario, randomScenario, round2 } from "./presets.js";
-import { editor, planning } from "./state.js";
+import { editor, planning, service } from "./state.js";
 import { drawTopView, worldAt } from "./topview.js";
 
 /** @typedef {import("./state.js").Scenario} Scenario */
@@ -206,6 +206,18 @@ export async function loadExampleList() {
   presetChosen();
 }
 
+/** Why the generator cannot make `n` vehicles here ("" when it can): never fewer quietly.
+ * @param {number} n */
+function presetCountError(n) {
+  const most = service.limits ? service.limits.max_vehicles : Infinity;
+  if (n < 2) return `vehicles to generate: at least 2, got ${n}`;
+  if (n > most) {
+    return `vehicles to generate: ${n} exceed this server's limit of ${most} (setting ` +
+      `max_vehicles: start the service with FLEETPLAN_MAX_VEHICLES=${n} to plan them)`;
+  }
+  return "";
+}
+
 /** The vehicle count applies to the generated presets only: shown with them alone. */
 export function presetChosen() {
   $("#preset-count-label").hidden = !$("#preset").value.startsWith("gen:");
@@ -217,7 +229,10 @@ export function presetChosen() {
 export async function loadPreset(auto = false) {
   if (auto && editor.touched) return;
   const choice = $("#preset").value;
-  const n = clamp(Math.round(Number($("#preset-count").value) || 8), 2, 128);
+  const n = Math.round(Number($("#preset-count").value) || 8);
+  const tooMany = presetCountError(n);
+  $("#preset-error").textContent = choice.startsWith("gen:") ? tooMany : "";
+  if (choice.startsWith("gen:") && tooMany) return;
   let scenario = null;
   if (choice === "gen:circle") scenario = circleScenario(n);
   else if (choice === "gen:random") scenario = randomScenario(n);

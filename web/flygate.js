@@ -79,10 +79,18 @@ export function flyBlocker() {
   if (!mission.plan_ok) return "the plan is not verified: it cannot be flown";
   if (flight.active) return "a flight is under way";
   const f = fleet.fleet;
-  if (!f || !f.vehicles) return "no fleet configured";
+  const needed = mission.plan.vehicles.length;
+  if (!f || !f.vehicles) {
+    return `no fleet configured: start the service with ${needed} mock vehicles ` +
+      `(fleetplan serve --mock ${needed}) or a fleet file (fleetplan serve --fleet FLEET.json)`;
+  }
   if (f.flying) return `flight ${f.flying} is under way`;
   const missing = vehicleMapping().missing;
-  if (missing.length) return `${missing.length} plan vehicle${missing.length > 1 ? "s are" : " is"} not in the fleet`;
+  if (missing.length) {
+    return `${missing.length} plan vehicle${missing.length > 1 ? "s are" : " is"} not in the fleet ` +
+      `of ${f.vehicles}: restart the service with ${needed} mock vehicles (fleetplan serve --mock ${needed}) ` +
+      "or a fleet file naming them (fleetplan serve --fleet FLEET.json)";
+  }
   return null;
 }
 

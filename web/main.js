@@ -12,10 +12,12 @@ import { abortAll, drawTelemetry, fly } from "./flight.js";
 import { setTime, togglePlay } from "./flyscreen.js";
 import { buildLimitRows } from "./form.js";
 import { refreshMissionList } from "./history.js";
-import { loadSequenceFile, submitPlan, submitSequence, updatePlanButtons } from "./planning.js";
+import { submitPlan, submitSequence, updatePlanButtons } from "./planning.js";
+import { cancelPlanning } from "./planprogress.js";
 import { cancelGoals, onGoalPointerDown, onGoalPointerMove, onGoalPointerUp, sendGoals } from "./replan.js";
 import { editor, flight } from "./state.js";
 import { refreshStatus, refreshVehicles } from "./status.js";
+import { describeBox, onDragOver, onDrop, onFileChosen } from "./upload.js";
 
 const STATUS_EVERY_MS = 5000;
 const VEHICLES_EVERY_MS = 2000;
@@ -24,8 +26,11 @@ function wire() {
   $("#scenario-form").addEventListener("submit", submitPlan);
   $("#scenario-form").addEventListener("input", formEdited);
   $("#sequence-plan").addEventListener("click", submitSequence);
-  $("#sequence-file").addEventListener("change", loadSequenceFile);
-  $("#sequence-json").addEventListener("input", refreshStale);
+  $("#plan-cancel").addEventListener("click", cancelPlanning);
+  $("#sequence-file").addEventListener("change", onFileChosen);
+  $("#sequence-json").addEventListener("input", () => { describeBox(); refreshStale(); });
+  $("#sequence-panel").addEventListener("dragover", onDragOver);
+  $("#sequence-panel").addEventListener("drop", onDrop);
   $("#preset").addEventListener("change", presetChosen);
   $("#preset-load").addEventListener("click", () => loadPreset());
   $("#add-vehicle").addEventListener("click", addVehicle);

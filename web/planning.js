@@ -11,8 +11,10 @@ import { clearFlightView, drawFlyStatic, resetSlider } from "./flyscreen.js";
 import { readScenario, sequenceKey } from "./form.js";
 import { loadPlotly, nextTask, renderFigures } from "./planview.js";
 import { missionPlanShown } from "./replan.js";
+import { iterationState, planningEnded, planningStarted, workingState } from "./planprogress.js";
 import { closeReplay } from "./replay.js";
 import { trajectoryRate } from "./scale.js";
+import { boxDocument, documentKind } from "./upload.js";
 import { flight, missionIs, planning, ready, views } from "./state.js";
 
 /** @typedef {import("./state.js").Mission} Mission */
@@ -45,10 +47,12 @@ async function send(body, key, what, refused) {
   refreshStale();
   updatePlanButtons();
   $("#plan-state").textContent = "submitting…";
+  planning.startedAt = Date.now();
   $("#progress-log").innerHTML = "";
   $("#progress-log").hidden = false;
   const { status, data } = await api("POST", "/api/missions?wait=0", body);
   if (status !== 201 && status !== 202) {
+    planningEnded();
     planning.planning = false;
     planning.rejected = true;
     updatePlanButtons();
@@ -72,34 +76,26 @@ export async function submitPlan(ev) {
     (errors) => { for (const e of errors) showError(e.field, e.reason); });
 }
 
-/** Plan the sequence JSON pasted or loaded: one mission like a scenario's, legs in parallel. */
+/** Plan or upload the JSON pasted, chosen or dropped: a scenario or a formation sequence is
+ * planned (one mission; a sequence's legs in parallel), a plan is verified again and stored. */
 export async function submitSequence() {
   if (!ready() || planning.planning) return;
   clearErrors();
   const box = $("#sequence-error");
-  let body;
-  try { body = JSON.parse($("#sequence-json").value); } catch (exc) {
-    box.append(errorItem("sequence", `not valid JSON: ${exc instanceof Error ? exc.message : exc}`));
+  const { doc, error } = boxDocument();
+  if (error) { box.append(errorItem("json", error)); return; }
+  if (!documentKind(doc)) {
+    box.append(errorItem("json", "must be a JSON object: a scenario (with vehicles), a formation " +
+      "sequence (with formations) or a plan from fleetplan plan (with status and scenario)"));
     return;
   }
-  if (!body || typeof body !== "object" || Array.isArray(body) || !("formations" in body)) {
-    box.append(errorItem("sequence", "must be a JSON object with formations"));
-    return;
-  }
-  await send(body, sequenceKey(), "the sequence errors",
-    (errors) => { for (const e of errors) box.append(errorItem(e.field || "", e.reason)); });
+  await send(doc, sequenceKey(), "the errors under the JSON",
+    (errors) => { for (const e of errors) box.append(errorItem(fieldText(e), e.reason)); });
 }
 
-/** A sequence file chosen: its text into the sequence input.
- * @param {Event} ev */
-export async function loadSequenceFile(ev) {
-  const files = /** @type {HTMLInputElement} */ (ev.target).files;
-  const file = files && files[0];
-  if (!file) return;
-  $("#sequence-json").value = await file.text();
-  $("#sequence-panel").open = true;
-  refreshStale();
-}
+/** An error's field, with its vehicle's id when the service names one.
+ * @param {{field?: string, vehicle?: string}} e */
+const fieldText = (e) => (e.field || "") + (e.vehicle ? ` (vehicle ${e.vehicle})` : "");
 
 /** A sequence's plan: its formations and timeline, and its show-tool CSVs to download.
  * @param {Mission} mission */
@@ -137,7 +133,7 @@ function iterationItem(r) {
   li.textContent = `${leg}iteration ${r.iteration}: cost ${fmt(r.cost, 2)}` +
     (r.cost_change === null ? "" : ` (Δ ${fmt(r.cost_change, 3)})`) +
     `, ${r.separation_rows} separation rows, ${r.qp_solves} QP solves, ${fmt(r.seconds, 3)} s` +
-    (r.method ? ` · ${r.method}` : "");
+    (r.method ? ` · ${r.method}` : "") + (r.batch ? ` batch ${r.batch}/${r.batches}` : "");
   return li;
 }
 
@@ -160,14 +156,17 @@ function completeProgressLog(plan) {
 function followPlanning(mission, key) {
   $("#plan-state").textContent = "planning…";
   if (!missionIs(mission.status, "active")) { showMission(mission.id, key); return; }
+  // a mission opened while it plans (not sent from here): its clock starts at its creation
+  if (!planning.startedAt) planning.startedAt = Date.parse(mission.created_at) || Date.now();
+  planningStarted(mission.id);
   const source = new EventSource(`/api/missions/${mission.id}/events`);
   planning.stream = source;
   source.addEventListener("iteration", (ev) => {
     const r = JSON.parse(ev.data);
     appendScrolled($("#progress-log"), iterationItem(r));
-    const leg = (r.leg === undefined || r.leg === null) ? "" : `leg ${r.leg}, `;
-    $("#plan-state").textContent = `planning… ${leg}iteration ${r.iteration}`;
+    $("#plan-state").textContent = iterationState(r);
   });
+  source.addEventListener("working", (ev) => { $("#plan-state").textContent = workingState(JSON.parse(ev.data)); });
   source.addEventListener("done", () => { source.close(); planning.stream = null; showMission(mission.id, key); });
   source.onerror = () => {  // stream lost: fall back to polling the mission
     source.close();
@@ -213,6 +212,7 @@ export async function showMission(id, key) {
 }
 
 function finishPlanning() {
+  planningEnded();
   planning.planning = false;
   updatePlanButtons();
   refreshStale();

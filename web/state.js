@@ -37,9 +37,10 @@
  *   vehicleCommands: boolean}} Capabilities */
 /** @typedef {Record<string, Record<string, string[]>>} StatusSets  GET /api/status `statuses` */
 
-/** The service: its status sets (never a copy in the page) once GET /api/status answered.
- * @type {{statuses: StatusSets | null}} */
-export const service = { statuses: null };
+/** The service: its status sets (never a copy in the page) and the limits it checks requests
+ * against, once GET /api/status answered.
+ * @type {{statuses: StatusSets | null, limits: Record<string, number> | null}} */
+export const service = { statuses: null, limits: null };
 
 /** The editor: what the form holds beyond its inputs.
  * @type {{presetName: string | null, touched: boolean, selected: number, obstacle: number,
@@ -58,7 +59,7 @@ export const editor = {
 /** Planning: the mission shown and the request under way.
  * @type {{mission: Mission | null, shownKey: string | null, planning: boolean,
  *   pendingKey: string | null, rejected: boolean, stale: boolean,
- *   stream: EventSource | null}} */
+ *   stream: EventSource | null, planningId: string | null, startedAt: number}} */
 export const planning = {
   mission: null,     // the mission document shown (GET /api/missions/{id})
   shownKey: null,    // the form (or "seq:" + the sequence text) that mission was shown for
@@ -67,6 +68,8 @@ export const planning = {
   rejected: false,   // the last plan request was refused or failed
   stale: false,      // the results shown are not the form's mission
   stream: null,      // EventSource of the planning progress
+  planningId: null,  // the mission being planned (what Cancel stops)
+  startedAt: 0,      // when the plan request was sent (Date.now()), for the elapsed time
 };
 
 /** The plan's views: trajectories sampled for the plots, the slider and the fly view.

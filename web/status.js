@@ -33,10 +33,22 @@ export async function refreshStatus() {
   if (!ok) { el.textContent = "service unreachable"; el.className = "bad"; return; }
   el.className = "muted";
   service.statuses = data.statuses || service.statuses;
+  if (data.limits) showLimits(data.limits);
   const f = data.fleet;
   el.textContent = `${f.kind === "none" ? "no fleet" : `${f.vehicles} ${f.kind} vehicles`} · planning ${data.planning_jobs}`;
   el.title = `fleetplan ${data.version}: fleet ${f.kind}, ${data.planning_jobs} planning jobs`;
   fleet.fleet = { ...(fleet.fleet || {}), ...f };
   updateFlyButton();
   updatePlanButtons();
+}
+
+/** The server's limits, said before a request meets them: under the presets, and as the
+ * generator's largest vehicle count.
+ * @param {Record<string, number>} limits */
+function showLimits(limits) {
+  service.limits = limits;
+  $("#preset-count").max = String(limits.max_vehicles);
+  $("#server-limits").textContent = `This server plans up to ${limits.max_vehicles} vehicles, ` +
+    `${limits.max_steps} steps, a ${limits.max_horizon_s} s horizon and ${limits.max_obstacles} ` +
+    `obstacles per mission (its settings max_vehicles, max_steps, max_horizon_s, max_obstacles).`;
 }

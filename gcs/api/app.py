@@ -132,7 +132,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     # Added last, runs first: a forged or unauthorised request is refused before its body
     # is even counted.
-    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes,
+                       larger={("POST", "/api/missions"): (settings.max_plan_body_bytes,
+                                                            "max_plan_body_bytes")})
     app.add_middleware(SecurityMiddleware, policy=AccessPolicy.from_settings(settings))
     app.include_router(api_router)
 

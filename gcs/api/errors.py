@@ -46,6 +46,7 @@ from gcs.errors import (
     StateConflict,
     VehicleLoopStopped,
     field_path,
+    vehicle_at,
 )
 from gcs.service.storage_faults import is_disk_full, storage_reason
 from planner.errors import FieldError
@@ -79,6 +80,9 @@ class ErrorItem(BaseModel):
 
     field: str | None = Field(description="Dotted path of the offending field, or null.")
     reason: str = Field(description="What is wrong, in words.")
+    vehicle: str | None = Field(
+        default=None, description="The id of the vehicle the field belongs to (`vehicles[2]` "
+        "is the third vehicle of the document sent); left out when the field names none.")
 
 
 class ErrorBody(BaseModel):
@@ -124,9 +128,13 @@ class ApiError(Exception):
         self.headers: dict[str, str] = {}
 
     def body(self) -> dict[str, Any]:
-        return ErrorBody(
+        body = ErrorBody(
             status=self.status, field=self.field, reason=self.reason, errors=self.errors
         ).model_dump()
+        for item in body["errors"]:
+            if item["vehicle"] is None:
+                del item["vehicle"]
+        return body
 
 
 class BadRequest(ApiError):
@@ -153,8 +161,13 @@ class Unprocessable(ApiError):
     status = 422
 
     @classmethod
-    def of(cls, errors: Sequence[ErrorItem]) -> Unprocessable:
-        """Every problem at once; the first one is also the body's `field`/`reason`."""
+    def of(cls, errors: Sequence[ErrorItem], document: Any = None) -> Unprocessable:
+        """Every problem at once; the first one is also the body's `field`/`reason`. With
+        the `document` they were found in, each error under `vehicles[i]` names that
+        vehicle's id."""
+        if document is not None:
+            errors = [item.model_copy(update={"vehicle": vehicle_at(item.field, document)})
+                      for item in errors]
         return cls(errors[0].field, errors[0].reason, errors=errors)
 
 

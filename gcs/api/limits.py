@@ -15,16 +15,34 @@ __all__ = ["BodyLimitMiddleware"]
 
 
 class BodyLimitMiddleware:
-    """Pure ASGI middleware: 413 for request bodies over `max_bytes`."""
+    """Pure ASGI middleware: 413 for request bodies over `max_bytes`, or over the `larger`
+    limit of a (method, path) that takes big documents (a plan to fly): (bytes, the setting
+    that sets them)."""
 
-    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+    def __init__(self, app: ASGIApp, max_bytes: int,
+                 larger: dict[tuple[str, str], tuple[int, str]] | None = None) -> None:
         self.app = app
-        self.max_bytes = max_bytes
+        self.default_bytes = max_bytes
+        self.larger = dict(larger or {})
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        route = (scope.get("method", ""), scope.get("path", "").rstrip("/"))
+        max_bytes, setting = self.larger.get(route, (self.default_bytes, "max_body_bytes"))
+        await _Limited(self.app, max_bytes, setting)(scope, receive, send)
+
+
+class _Limited:
+    """One request's body held to `max_bytes` (the setting `setting`)."""
+
+    def __init__(self, app: ASGIApp, max_bytes: int, setting: str) -> None:
+        self.app = app
+        self.max_bytes = max_bytes
+        self.setting = setting
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         headers = dict(scope.get("headers", []))
         length = headers.get(b"content-length")
         if length is not None:
@@ -71,5 +89,5 @@ class BodyLimitMiddleware:
     def _too_large(self, announced: int | None) -> PayloadTooLarge:
         got = f" (got {announced} bytes)" if announced is not None else ""
         return PayloadTooLarge(
-            "body", f"request body exceeds {self.max_bytes} bytes{got} (setting max_body_bytes)"
+            "body", f"request body exceeds {self.max_bytes} bytes{got} (setting {self.setting})"
         )

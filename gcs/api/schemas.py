@@ -36,6 +36,7 @@ from planner import result as planner_result
 from planner.model import fixed as planner_fixed
 from planner.model import obstacles as planner_obstacles
 from planner.model import scenario as planner_scenario
+from planner.model.checks import unknown_key
 
 __all__ = [
     "EXAMPLE_SCENARIO",
@@ -304,7 +305,8 @@ def _check(value: Any, schema: dict[str, Any], path: str, out: list[ErrorItem]) 
         properties = schema.get("properties", {})
         for key in value:
             if key not in properties:
-                out.append(ErrorItem(field=_where(path, key), reason="unknown key"))
+                out.append(ErrorItem(field=_where(path, key),
+                                     reason=unknown_key(key, properties)))
         for key in schema.get("required", ()):
             if key not in value:
                 out.append(ErrorItem(field=_where(path, key), reason="is required"))
@@ -380,6 +382,9 @@ class MissionOut(MissionSummary):
     model_config = ConfigDict(json_schema_extra={"examples": [{
         **_SUMMARY_EXAMPLE, "status": "planning", "plan_status": None, "plan_ok": None,
         "progress": [{**_ITERATION, "iteration": 0, "cost_change": None}],
+        "planning": {"elapsed_s": 0.4, "iterations": 1,
+                     "last": {**_ITERATION, "iteration": 0, "cost_change": None},
+                     "working": None, "batches": None},
         "scenario": EXAMPLE_SCENARIO, "plan": None,
         "links": {"self": "/api/missions/3f2a9c81d0b4",
                   "events": "/api/missions/3f2a9c81d0b4/events",
@@ -389,6 +394,13 @@ class MissionOut(MissionSummary):
     }]})
 
     progress: ProgressDoc
+    planning: dict[str, Any] | None = Field(
+        default=None, description="While planning: elapsed_s (since a worker began), "
+        "iterations (records so far), last (the last record), working (the last report from "
+        "inside the iteration under way: iteration, round, groups_done, groups, qp_solves, "
+        "seconds, method, batch, batches; null between iterations) and batches ({done, "
+        "total, remaining_s}: prioritized batches done and the time left at the mean time "
+        "per batch so far, null until one is done; null without batches). Null otherwise.")
     scenario: ScenarioDoc
     plan: PlanDoc
     links: dict[str, str]

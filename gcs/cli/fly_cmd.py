@@ -68,10 +68,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="realtime: stream setpoints at SCHED_RR priority where the process "
                              "may (root or CAP_SYS_NICE); keeps a large fleet's stream on time on "
                              "a busy computer (default normal)")
-    parser.add_argument("--base-port", type=int, default=px4.OFFBOARD_GCS_BASE_PORT,
-                        help="--mock: vehicle i sends to this port + i (default %(default)s)")
-    parser.add_argument("--listen-base-port", type=int, default=px4.OFFBOARD_VEHICLE_BASE_PORT,
-                        help="--mock: vehicle i listens on this port + i (default %(default)s)")
+    parser.add_argument("--base-port", type=int, default=None,
+                        help=f"--mock: vehicle i sends to this port + i (default "
+                             f"{px4.OFFBOARD_GCS_BASE_PORT}, PX4 SITL's; when those ports are "
+                             f"taken and neither port flag is given, free ones are chosen)")
+    parser.add_argument("--listen-base-port", type=int, default=None,
+                        help=f"--mock: vehicle i listens on this port + i (default "
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}, as --base-port)")
     parser.add_argument("--mock-settle", type=float, default=None,
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
@@ -143,6 +146,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: --mock-settle {reason}", file=sys.stderr)
             return 2
         timings["settle_time"] = args.mock_settle
+
+    if args.mock:
+        args.base_port, args.listen_base_port = _mock_ports(
+            args.base_port, args.listen_base_port, len(plan.scenario.ids))
 
     async def main() -> int:
         vehicles = VehicleLoop()  # the flight and the mocks run apart from this loop
@@ -354,3 +361,23 @@ def _print_summary(record: dict[str, Any]) -> None:
     if record.get("error"):
         print(f"  error                   {record['error']['type']}: "
               f"{record['error']['message']}")
+
+
+def _mock_ports(base: int | None, listen: int | None, count: int) -> tuple[int, int]:
+    """The mock fleet's (GCS-side base, vehicle listen base): the flags given; else PX4
+    SITL's ports when all `count` of each are free; else a free block elsewhere, said on
+    stdout (the usual ports are held by `make run`, another fly or a mock)."""
+    from gcs.sim import ports
+
+    if base is not None or listen is not None:
+        return (px4.OFFBOARD_GCS_BASE_PORT if base is None else base,
+                px4.OFFBOARD_VEHICLE_BASE_PORT if listen is None else listen)
+    usual = px4.OFFBOARD_GCS_BASE_PORT
+    offsets = ports.mock_port_offsets(count)
+    if ports.block_free(usual, offsets):
+        return usual, px4.OFFBOARD_VEHICLE_BASE_PORT
+    chosen = ports.free_udp_base(offsets)
+    print(f"ports {usual}.. and {px4.OFFBOARD_VEHICLE_BASE_PORT}.. are taken (by `make run`, "
+          f"fleetplan serve, another fly or a mock?): the mock fleet flies on {chosen}.. and "
+          f"{chosen + ports.LISTEN_OFFSET}.. instead", flush=True)
+    return chosen, chosen + ports.LISTEN_OFFSET

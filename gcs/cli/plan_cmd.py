@@ -79,7 +79,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _fail(message: str) -> int:
-    print(f"error: {message}", file=sys.stderr)
+    """Print every line of `message` as an error (one per problem found); bad input."""
+    for line in message.splitlines() or [message]:
+        print(f"error: {line}", file=sys.stderr)
     return EXIT_BAD_INPUT
 
 
@@ -170,6 +172,15 @@ def _method_summary(plan: Any) -> str:
     return text
 
 
+def _label(record: Any) -> str:
+    """An iteration line's tail: the method whose iteration it is, and its batch of how many
+    with prioritized batches ("  [prioritized batch 3/8]")."""
+    parts = [] if record.method is None else [record.method]
+    if record.batch is not None:
+        parts.append(f"batch {record.batch}/{record.batches}")
+    return f"  [{' '.join(parts)}]" if parts else ""
+
+
 def _verdict(plan: Any) -> int:
     """Exit status from the plan's one verdict (`Plan.problems`, as in the table)."""
     problems = plan.problems()
@@ -243,7 +254,7 @@ def _options(args: argparse.Namespace, method: str) -> Any:
 
 
 def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
-                     progress: Any, options: Any = None) -> Any:
+                     progress: Any, working: Any, options: Any = None) -> Any:
     """Plan as one Dask task on the cluster at `address`, iterations printed as they come;
     returns the Plan. ValueError with a message for the user when it cannot."""
     import threading
@@ -265,6 +276,8 @@ def _plan_on_cluster(address: str, scenario: dict[str, Any], solver: str | None,
         message = event[1]
         if message["kind"] == "iteration":
             progress(planner.IterationRecord(**message["record"]))
+        elif message["kind"] == "working":
+            working(planner.IterationProgress(**message["record"]))
         elif message["kind"] == "started":
             print(f"planning on Dask worker {message['worker']}", flush=True)
         elif message["kind"] == "end":
@@ -396,6 +409,7 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
 
 def run(args: argparse.Namespace) -> int:
     import planner
+    from gcs.cli.scenario_check import check_scenario, problem_line
     from planner.errors import FieldError, SolverError
 
     try:
@@ -410,7 +424,11 @@ def run(args: argparse.Namespace) -> int:
             return _run_sequence(args, data)
         if getattr(args, "fleet", None) is not None:
             data = _for_fleet(data, args.fleet)
-        scenario = planner.Scenario.from_dict(data)
+        check_scenario(data, args.scenario)
+        try:
+            scenario = planner.Scenario.from_dict(data)
+        except FieldError as exc:
+            return _fail(problem_line(exc.field, exc.reason, data))
         method = _method(args)
         if method is not None:
             scenario = dataclasses.replace(scenario, method=method)
@@ -429,17 +447,24 @@ def run(args: argparse.Namespace) -> int:
             f"iteration {record.iteration:>2}: cost {_number(record.cost, '{:.4f}')}{change}  "
             f"rows {record.separation_rows}  groups {record.groups}  "
             f"QPs {record.qp_solves}  {record.seconds:.3f} s"
-            + ("" if record.method is None else f"  [{record.method}]"),
+            + _label(record),
             flush=True,
         )
+
+    def working(step: planner.IterationProgress) -> None:
+        if not args.quiet:
+            print(f"  ... iteration {step.iteration:>2}: round {step.round}, "
+                  f"{step.groups_done}/{step.groups} groups solved (largest "
+                  f"{step.largest_group} vehicles, rows {step.separation_rows}), QPs "
+                  f"{step.qp_solves}, {step.seconds:.1f} s" + _label(step), flush=True)
 
     try:
         if args.scheduler:
             plan = _plan_on_cluster(args.scheduler, scenario.to_dict(), args.solver, progress,
-                                    options)
+                                    working, options)
         else:
             plan = planner.plan(scenario, solver=args.solver, progress=progress,
-                                options=options)
+                                options=options, within_iterations=working)
     except (SolverError, ValueError) as exc:
         return _fail(str(exc))
     output = args.output or Path(f"{scenario.name}.plan.json")

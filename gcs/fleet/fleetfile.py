@@ -397,7 +397,9 @@ class FleetSpec:
         if missing:
             raise FleetFileError(
                 "vehicles", f"no entry for plan vehicle(s) {', '.join(map(repr, missing))} "
-                f"(the fleet has {', '.join(map(repr, by_id)) or 'none'})")
+                f"(the fleet has {', '.join(map(repr, by_id)) or 'none'}): add them to the "
+                f"fleet file, or fly the plan on {len(plan_ids)} mock vehicles (fleetplan fly "
+                f"PLAN.json --mock; a service: fleetplan serve --mock {len(plan_ids)})")
         return [by_id[vid] for vid in plan_ids]
 
 

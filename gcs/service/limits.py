@@ -42,7 +42,8 @@ MIN_STEPS = 3
 #: The settings that bound a request, as `GET /api/status` publishes them (``limits``).
 LIMIT_NAMES: tuple[str, ...] = (
     "max_vehicles", "max_steps", "max_obstacles", "dt_min", "dt_max", "max_horizon_s",
-    "max_coordinate_m", "max_body_bytes", "max_trajectory_rate", "max_trajectory_samples",
+    "max_coordinate_m", "max_body_bytes", "max_plan_body_bytes", "max_trajectory_rate",
+    "max_trajectory_samples",
     "plan_queue_max", "plan_time_limit_s", "request_timeout_s", "idle_timeout_s",
     "max_concurrent_exports", "max_event_streams", "max_event_streams_per_resource",
 )

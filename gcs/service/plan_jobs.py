@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
 import uuid
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
@@ -19,6 +20,7 @@ from typing import Any
 
 from gcs.errors import InvalidRequest, ServiceBusy
 from gcs.service.events import Broadcast, Event
+from gcs.service.plan_progress import planning_summary
 from gcs.service.store import new_mission_id
 
 __all__ = [
@@ -70,6 +72,11 @@ class PlanJob:
     time_limit_s: float | None = None
     progress: list[dict[str, Any]] = field(default_factory=list)
     """Iteration records received so far (IterationRecord as dicts)."""
+    working: dict[str, Any] | None = None
+    """The last report from inside the iteration under way (IterationProgress as a dict),
+    until that iteration's record arrives."""
+    started_at: float | None = None
+    """When a worker first began one of the job's tasks (time.monotonic)."""
     outcome: dict[str, Any] | None = None
     """The final event: {"status": "planned"|"failed", "plan_status", "plan_ok", "error"}."""
     done: asyncio.Event = field(default_factory=asyncio.Event)
@@ -100,7 +107,14 @@ class PlanJob:
     def add_progress(self, record: dict[str, Any]) -> None:
         """Append one SCP iteration record and tell the listeners."""
         self.progress.append(record)
+        self.working = None
         self.listeners.publish("iteration", record)
+
+    def summary(self) -> dict[str, Any]:
+        """The progress as `GET /api/missions/{id}` and the `working` events give it
+        (`gcs.service.plan_progress`)."""
+        elapsed = None if self.started_at is None else time.monotonic() - self.started_at
+        return planning_summary(self.progress, self.working, elapsed)
 
     def finish(self, outcome: dict[str, Any]) -> None:
         """Set the final event (once the mission's row says the same)."""
@@ -113,7 +127,12 @@ class PlanJob:
         kind = message.get("kind")
         if kind == "iteration":
             self.add_progress(message["record"])
+        elif kind == "working":
+            self.working = message["record"]
+            self.listeners.publish("working", self.summary())
         elif kind == "started":
+            if self.started_at is None:
+                self.started_at = time.monotonic()
             self.worker = message.get("worker")
             if self.worker is not None:
                 self.running[message.get("leg")] = self.worker

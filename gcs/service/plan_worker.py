@@ -6,9 +6,11 @@ structured events: the task logs ``{"job", "kind", ...}`` messages on the topic 
 named (`Worker.log_event`), the scheduler forwards them to the subscribed client
 (`Client.subscribe_topic`). Kinds: ``started`` (with the worker's address, so the service
 can restart that worker to stop a task that does not stop by itself), ``iteration`` (one SCP
-`IterationRecord`) and ``end`` (no more iterations follow).
+`IterationRecord`), ``working`` (an `IterationProgress` from inside a long iteration) and
+``end`` (no more iterations follow).
 
-The task stops cooperatively: after every SCP iteration it checks its time limit, its
+The task stops cooperatively: after every SCP iteration and every report from inside one it
+checks its time limit, its
 cancel flag (a `distributed.Event`) and whether the scheduler released it, and raises
 `PlanStopped` out of the planner's `progress` callback. The plan comes back as JSON text,
 serialised here so the service never spends event-loop time on a multi-megabyte document.
@@ -135,7 +137,7 @@ def run_plan(
     `time_limit_s`, the plan stops after the first SCP iteration that ends past the limit; with
     `cancel_event`, after the first iteration that ends with that Dask Event set.
     """
-    from planner import FieldError, IterationRecord, PlannerError, plan
+    from planner import FieldError, IterationProgress, IterationRecord, PlannerError, plan
 
     began = time.monotonic()
     worker = _dask_worker() if topic is not None else None
@@ -151,16 +153,18 @@ def run_plan(
     send("started", worker=None if worker is None else worker.address)
     cancelled = stop_check(cancel_event)
 
-    def progress(record: IterationRecord) -> None:
+    def report(kind: str, record: IterationRecord | IterationProgress) -> None:
         row = finite_json(asdict(record))
-        send("iteration", record=row if leg is None else {**row, "leg": leg})
+        send(kind, record=row if leg is None else {**row, "leg": leg})
         if time_limit_s is not None and time.monotonic() - began > time_limit_s:
             raise PlanStopped(f"planning exceeded its time limit of {time_limit_s:g} s")
         if cancelled():
             raise PlanStopped("planning was cancelled")
 
     try:
-        result = plan(scenario, solver=solver, progress=progress, options=options)
+        result = plan(scenario, solver=solver, options=options,
+                      progress=lambda record: report("iteration", record),
+                      within_iterations=lambda step: report("working", step))
     except PlanStopped as exc:
         return PlanOutcome.failed(str(exc), stopped=True)
     except FieldError as exc:

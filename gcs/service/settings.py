@@ -155,6 +155,12 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(
         2_000_000, ge=1024, description="Largest request body accepted (bytes)."
     )
+    max_plan_body_bytes: int = Field(
+        64_000_000, ge=1024, le=1_000_000_000,
+        description="Largest body of POST /api/missions (bytes), which may carry a plan made "
+        "elsewhere to fly (a 128-vehicle plan of 150 steps is about 6.4 MB); every other "
+        "request keeps max_body_bytes.",
+    )
     request_timeout_s: float = Field(
         10.0, gt=0, le=600, description="Longest a request may take to arrive in full (head "
         "and body) once started; a connection that sends nothing, or too slowly, is closed."

@@ -17,7 +17,8 @@ from collections.abc import Iterable
 
 from gcs.autopilot import px4
 
-__all__ = ["LISTEN_OFFSET", "free_udp_base", "mock_fleet_ports", "mock_port_offsets"]
+__all__ = ["LISTEN_OFFSET", "block_free", "free_udp_base", "mock_fleet_ports",
+           "mock_port_offsets"]
 
 #: Vehicle i of a mock fleet on base B listens on B + LISTEN_OFFSET + i (PX4 SITL's offset, 40).
 LISTEN_OFFSET = px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT
@@ -33,6 +34,22 @@ def mock_fleet_ports(base: int) -> dict[str, int]:
     return {"gcs_base_port": base, "listen_base_port": base + LISTEN_OFFSET}
 
 
+def block_free(base: int, offsets: Iterable[int], host: str = "127.0.0.1") -> bool:
+    """Is every UDP port `base` + offset free on `host` right now (each binds)?"""
+    sockets: list[socket.socket] = []
+    try:
+        for offset in offsets:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sockets.append(sock)
+            sock.bind((host, base + offset))
+        return True
+    except OSError:
+        return False
+    finally:
+        for sock in sockets:
+            sock.close()
+
+
 def free_udp_base(offsets: Iterable[int], *, host: str = "127.0.0.1", low: int = 20_000,
                   high: int = 60_000, attempts: int = 200) -> int:
     """A base port B such that every UDP port B + offset is free on `host` right now."""
@@ -40,16 +57,6 @@ def free_udp_base(offsets: Iterable[int], *, host: str = "127.0.0.1", low: int =
     top = max(spread, default=0)
     for _ in range(attempts):
         base = random.randrange(low, high - top)
-        sockets: list[socket.socket] = []
-        try:
-            for offset in spread:
-                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                sockets.append(sock)
-                sock.bind((host, base + offset))
+        if block_free(base, spread, host):
             return base
-        except OSError:
-            continue
-        finally:
-            for sock in sockets:
-                sock.close()
     raise OSError(f"no free block of UDP ports found on {host} in {attempts} tries")

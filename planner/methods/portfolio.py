@@ -36,7 +36,7 @@ from planner.methods.stages import (
     prioritized_declines,
     run_table,
 )
-from planner.result import Attempt, IterationRecord, Outcome
+from planner.result import Attempt, IterationProgress, IterationRecord, Outcome
 
 __all__ = ["ARMS", "AUTO", "AUTO_TABLE", "HEAD_START", "HEAD_START_MAX_VEHICLES",
            "HEAD_START_S"]
@@ -74,7 +74,7 @@ def _race(ctx: Context) -> Run:
 
     def forward(message: tuple[str, Any]) -> None:
         name, record = message
-        if given is not None and isinstance(record, IterationRecord):
+        if given is not None and isinstance(record, IterationRecord | IterationProgress):
             labelled(given, name)(record)
 
     results = race([(name, _arm(table, ctx)) for name, table in ARMS], _won, forward)
@@ -124,7 +124,7 @@ def _head_start(ctx: Context) -> Run:
     began = time.perf_counter()
     given = ctx.progress
 
-    def watch(record: IterationRecord) -> None:
+    def watch(record: IterationRecord | IterationProgress) -> None:
         if given is not None:
             given(record)
         if time.perf_counter() - began > HEAD_START_S:

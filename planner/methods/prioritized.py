@@ -28,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,7 +44,7 @@ from planner.methods.spacetime import (
 )
 from planner.model.fixed import FixedSet, FixedTrajectory
 from planner.model.scenario import Scenario
-from planner.result import IterationRecord
+from planner.result import IterationRecord, Progress
 from planner.scp.first_qp import unit_profile, velocity_profile
 from planner.scp.loop import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.scp.solvers import QPSolver
@@ -141,7 +142,7 @@ def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach:
 
 
 def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = None,
-                 progress: Callable[[IterationRecord], None] | None = None,
+                 progress: Progress | None = None,
                  batch: int | None = None, order: IntArray | None = None,
                  cost_share: bool = False) -> PrioritizedOutcome | str:
     """Plan `work` (goals assigned; its own fixed trajectories, start velocities and
@@ -188,11 +189,13 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
         began = time.perf_counter()
         later = (np.concatenate(queue) if reserve and queue else np.zeros(0, dtype=np.intp))
         reopened = np.zeros(0, dtype=np.intp)
+        tag = _batch_tag(number + 1, number + 1 + len(queue))
+        told = None if progress is None else _tagged(progress, tag)
         for attempt in range(MERGE_ROUNDS + 1):
             outcome, guess = _plan_batch(state, members, reopened, later, solver, options,
-                                         progress, f"#batch{number}" + "+" * attempt,
+                                         told, f"#batch{number}" + "+" * attempt,
                                          cost_share)
-            iterations.extend(outcome.iterations)
+            iterations.extend(map(tag, outcome.iterations))
             first_qp += outcome.first_qp_seconds
             if outcome.status == "converged" or attempt == MERGE_ROUNDS:
                 break
@@ -226,6 +229,17 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     return PrioritizedOutcome(joined, planned_order, seconds)
 
 
+def _batch_tag(batch: int, batches: int) -> Callable[[Any], Any]:
+    """An iteration's record (or its `IterationProgress`) labelled as batch `batch` of
+    `batches` (`IterationRecord.batch`)."""
+    return lambda record: dataclasses.replace(record, batch=batch, batches=batches)
+
+
+def _tagged(progress: Progress, tag: Callable[[Any], Any]) -> Progress:
+    """`progress` given each record labelled by `tag`: batch by batch progress."""
+    return lambda record: progress(tag(record))
+
+
 #: Rounds of replanning a failed batch with the earlier vehicles nearest to it.
 MERGE_ROUNDS = 2
 #: Earlier vehicles reopened per round (the second round reopens twice as many).
@@ -249,7 +263,7 @@ class _State:
 
 def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: IntArray,
                 solver: QPSolver, options: ScpOptions | None,
-                progress: Callable[[IterationRecord], None] | None, suffix: str,
+                progress: Progress | None, suffix: str,
                 cost_share: bool = False
                 ) -> tuple[ScpOutcome, tuple[FloatArray, FloatArray, FloatArray]]:
     """One batch's SCP: `members` and the `reopened` earlier vehicles planned, the other

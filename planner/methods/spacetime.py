@@ -12,13 +12,11 @@ without routing again (`run_scp(..., routed=True)`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from planner.methods.routes import Polylines, Trajectories, along, blocked_vehicles, route_polylines
 from planner.model.scenario import Scenario
-from planner.result import IterationRecord
+from planner.result import Progress
 from planner.scp.first_qp import straight_moves
 from planner.scp.loop import ScpOptions, ScpOutcome, run_scp
 from planner.scp.solvers import QPSolver
@@ -102,7 +100,7 @@ def route_segments(scenario: Scenario, members: IntArray, routes: dict[int, Floa
 
 
 def continued_scp(sub: Scenario, solver: QPSolver, options: ScpOptions | None,
-                  progress: Callable[[IterationRecord], None] | None, guess: Trajectories
+                  progress: Progress | None, guess: Trajectories
                   ) -> ScpOutcome:
     """A routed batch's SCP from `guess` (`run_scp(..., routed=True)`); if it stops at its
     iteration cap still creeping (a departure delay being pulled forward a little per

@@ -21,7 +21,15 @@ from planner.methods.prioritized import PrioritizedOutcome, batch_size, plan_bat
 from planner.methods.separated_first import separated_first
 from planner.model.scenario import Scenario
 from planner.options import PlanningOptions
-from planner.result import Attempt, IterationRecord, Outcome, PlanStatus, Verification
+from planner.result import (
+    Attempt,
+    IterationProgress,
+    IterationRecord,
+    Outcome,
+    PlanStatus,
+    Progress,
+    Verification,
+)
 from planner.scp.first_qp import FirstSolution, solve_first_qp, straight_moves
 from planner.scp.loop import ScpOutcome, run_scp, thrust_cost
 from planner.scp.solvers import SOLVED, QPSolver
@@ -32,7 +40,6 @@ __all__ = ["DODGE", "PRIORITIZED", "SEPARATED_FIRST", "WHOLE", "Context", "Run",
            "TableResult", "labelled", "run_table", "table_for"]
 
 Trajectories = tuple[FloatArray, FloatArray, FloatArray]
-Progress = Callable[[IterationRecord], None]
 
 
 @dataclass
@@ -133,7 +140,7 @@ def run_table(table: Sequence[Stage], ctx: Context) -> TableResult:
 
 def labelled(progress: Progress, method: str) -> Progress:
     """`progress` with every record not yet labelled labelled as `method`'s."""
-    def forward(record: IterationRecord) -> None:
+    def forward(record: IterationRecord | IterationProgress) -> None:
         progress(record if record.method is not None
                  else dataclasses.replace(record, method=method))
     return forward

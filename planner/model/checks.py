@@ -4,9 +4,10 @@ field (a dotted path) and the reason."""
 
 from __future__ import annotations
 
+import difflib
 import math
 import unicodedata
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -15,7 +16,7 @@ from planner.errors import ScenarioError
 from planner.types import FloatArray
 
 __all__ = ["MAX_ID_LENGTH", "RANGES", "check_id", "check_integer", "check_keys", "check_list",
-           "check_number", "check_vector", "show_number"]
+           "check_number", "check_vector", "show_number", "unknown_key"]
 
 #: Inclusive range of every number of a scenario, by field (`coordinate`: every position,
 #: workspace corners, starts, goals; m). A value outside is refused, naming the field: the
@@ -127,10 +128,17 @@ def check_keys(data: Any, allowed: set[str], name: str, required: Sequence[str],
     prefix = f"{name}." if name else ""
     for key in data:
         if key not in allowed:
-            raise ScenarioError(f"{prefix}{key}", "unknown key")
+            raise ScenarioError(f"{prefix}{key}", unknown_key(key, allowed))
     for key in required:
         if key not in data:
             raise ScenarioError(f"{prefix}{key}", "is required")
+
+
+def unknown_key(key: object, allowed: Iterable[str]) -> str:
+    """The reason for a key the contract does not know, with the nearest known key when one
+    is close (a typo such as min_seperation: "did you mean 'min_separation'?")."""
+    close = difflib.get_close_matches(str(key), sorted(allowed), n=1, cutoff=0.75)
+    return f"unknown key (did you mean {close[0]!r}?)" if close else "unknown key"
 
 
 def check_list(value: Any, name: str, what: str, at_most: int) -> Sequence[Any]:

@@ -32,7 +32,7 @@ from planner.methods.routes import seed_routes
 from planner.model.flatness import GRAVITY
 from planner.model.scenario import Scenario
 from planner.options import ScpOptions
-from planner.result import IterationRecord, PlanStatus
+from planner.result import IterationProgress, IterationRecord, PlanStatus, Progress
 from planner.scp.boxes import broken_boxes, near_boxes
 from planner.scp.first_qp import FirstSolution, timed_first_qp
 from planner.scp.group_solver import Codec, GroupSolver, Keys, Trajectories, groups_of
@@ -87,6 +87,10 @@ def _keep_right_bend(positions: FloatArray, scenario: Scenario, amplitude: float
     return positions + amplitude * bump[None, :, None] * right[:, None, :]
 
 
+#: `_solve_iteration`'s hook: (round, groups solved, groups, separation rows, largest group).
+Step = Callable[[int, int, int, int, int], None]
+
+
 @dataclass
 class _IterationResult:
     status: str
@@ -115,9 +119,12 @@ def _solve_iteration(
     keys: Keys,
     boxes: BoxMask,
     okeys: Keys | None = None,
+    step: Step | None = None,
 ) -> _IterationResult:
     """One SCP iteration: solve, check every row and box, add what is broken, repeat.
-    okeys: the obstacle rows it starts with (with obstacles)."""
+    okeys: the obstacle rows it starts with (with obstacles). step: told (round, groups
+    solved, groups, separation rows, largest group) as each round starts and after each
+    group's QP."""
     tolerance = options.violation_tolerance
     forced = np.zeros(0, dtype=np.intp)
     obstacles = groups_solver.obstacles
@@ -125,10 +132,16 @@ def _solve_iteration(
     # Rows are only checked where they can be violated: an interval whose rows all hold by
     # `margin` at `lin` stays clear while its two vehicles move less than that in total.
     pruning = margins(scenario, options, lin)
+    rounds = 0
     while True:
+        rounds += 1
         p, v, a = (x.copy() for x in base)
         owners = obstacles.vehicles_of(okeys) if obstacles is not None else forced
         groups = groups_of(keys, codec, np.union1d(forced, owners).astype(np.intp))
+        rows = int(keys.size) * (3 if options.continuous else 1)
+        largest = max((len(m) for m, _ in groups), default=0)
+        if step is not None:
+            step(rounds, 0, len(groups), rows, largest)
         active, held = [], []
         for members, group_keys in groups:
             group_okeys = okeys[np.isin(owners, members)] if obstacles is not None else None
@@ -141,6 +154,8 @@ def _solve_iteration(
             p[members], v[members], a[members] = solution
             active.append(group_active)
             held.append(group_held)
+            if step is not None:
+                step(rounds, len(active), len(groups), rows, largest)
         # Every violated row goes in at once: fewer rounds than adding the worst of each
         # run (measured on the paper and scale cases), at a similar QP size.
         violated = broken_rows(scenario, options, pruning, lin, (p, v))
@@ -151,7 +166,6 @@ def _solve_iteration(
         if added.size == 0 and not new_boxes.any() and o_added.size == 0:
             all_active = np.concatenate(active) if active else keys[:0]
             all_held = np.concatenate(held) if held else okeys[:0]
-            largest = max((len(m) for m, _ in groups), default=0)
             return _IterationResult(SOLVED, (p, v, a), keys, all_active, boxes, len(groups),
                                     largest, [], okeys, all_held)
         keys = np.union1d(keys, added)
@@ -163,6 +177,34 @@ def _solve_iteration(
                 | new_boxes.wall.any(axis=(1, 2))
             )
             forced = np.union1d(forced, touched)
+
+
+#: Least time (s) between two `IterationProgress` reports of one iteration.
+PROGRESS_EVERY_S = 1.0
+#: A round whose largest group has this many vehicles is reported as it starts: its QP alone
+#: can take minutes (100 vehicles crossing one point), where smaller ones take milliseconds.
+PROGRESS_GROUP_VEHICLES = 32
+
+
+def _working(progress: Progress, iteration: int, began: float, groups_solver: GroupSolver,
+             solves_before: int) -> Step:
+    """The step hook of iteration `iteration`: an `IterationProgress` to `progress` as a
+    round with a big group starts, and after a group's QP once PROGRESS_EVERY_S has passed
+    since the iteration began or the last report (a clock read per QP: nothing measurable
+    beside the QP)."""
+    last = began
+
+    def step(rounds: int, done: int, groups: int, rows: int, largest: int) -> None:
+        nonlocal last
+        now = time.perf_counter()
+        starting_big = done == 0 and largest >= PROGRESS_GROUP_VEHICLES
+        if not starting_big and now - last < PROGRESS_EVERY_S:
+            return
+        last = now
+        progress(IterationProgress(iteration, rounds, done, groups, rows, largest,
+                                   groups_solver.solves - solves_before, now - began))
+
+    return step
 
 
 def _first_infeasible(scenario: Scenario, first: FirstSolution, seconds: float) -> ScpOutcome:
@@ -197,6 +239,8 @@ class _Iterations:
     base: Trajectories
     one_sided: OneSidedRows | None
     dual: bool
+    step: Step | None = None
+    """Told how an iteration's rounds go (`_solve_iteration`)."""
 
     @staticmethod
     def start(scenario: Scenario, solver: QPSolver, options: ScpOptions, base: Trajectories
@@ -247,7 +291,7 @@ class _Iterations:
         self.groups_solver.cache.clear()
         return _solve_iteration(
             scenario, options, codec, self.groups_solver, lin, self.base, keys,
-            near_boxes(scenario, *current, dual=self.dual), okeys,
+            near_boxes(scenario, *current, dual=self.dual), okeys, self.step,
         )
 
 
@@ -255,7 +299,7 @@ def run_scp(
     scenario: Scenario,
     solver: QPSolver,
     options: ScpOptions | None = None,
-    progress: Callable[[IterationRecord], None] | None = None,
+    progress: Progress | None = None,
     guess: Trajectories | None = None,
     first_qp: tuple[FirstSolution, float] | None = None,
     routed: bool = False,
@@ -305,6 +349,8 @@ def run_scp(
     for iteration in range(1, scenario.max_iterations + 1):
         t0 = time.perf_counter()
         solves_before = groups_solver.solves
+        if progress is not None:
+            loop.step = _working(progress, iteration, t0, groups_solver, solves_before)
         last, again = loop.solve(current, carried, held)
         retried += again
         if last.status != SOLVED:

@@ -74,7 +74,8 @@ def shared_client(tmp_path_factory: pytest.TempPathFactory, dask_scheduler: str
     settings = Settings(
         database_url=f"sqlite:///{path}", mock_vehicles=0, plan_workers=1, max_vehicles=16,
         scheduler=dask_scheduler,
-        max_steps=400, max_body_bytes=200_000, allowed_hosts=["testserver"],
+        max_steps=400, max_body_bytes=200_000, max_plan_body_bytes=400_000,
+        allowed_hosts=["testserver"],
     )
     with TestClient(create_app(settings)) as test_client:
         yield test_client

@@ -172,7 +172,7 @@ def test_the_method_flags_choose_the_method_and_the_summary_and_lines_name_it(
     assert {a["method"]: a["outcome"] for a in doc["attempts"]}[method] == "won"
     assert re.search(rf"method\s+.\s+{method}", printed)
     lines = [line for line in printed.splitlines() if line.startswith("iteration")]
-    assert lines and all(line.endswith(f"[{method}]") for line in lines)
+    assert lines and all(re.search(rf"\[{method}( batch \d+/\d+)?\]$", line) for line in lines)
 
 
 def test_the_default_method_is_the_scenarios_then_auto(tmp_path, capsys):
@@ -222,9 +222,28 @@ def test_auto_labels_each_iteration_line_with_its_method_and_names_the_winner(
     assert main(["plan", str(EXAMPLES / "pillar-circle8.json"), "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     lines = [line for line in printed.splitlines() if line.startswith("iteration")]
-    assert lines and all(re.search(r"\[(whole|prioritized)\]$", line) for line in lines)
+    assert lines and all(re.search(r"\[(whole|prioritized( batch \d+/\d+)?)\]$", line)
+                         for line in lines)
     doc = json.loads(out.read_text())
     assert doc["method"] in ("whole", "prioritized")
     outcomes = {a["method"]: a["outcome"] for a in doc["attempts"]}
     assert outcomes[doc["method"]] == "won"
     assert re.search(rf"method\s+.\s+{doc['method']}", printed)
+
+
+def test_long_iterations_print_the_groups_solved_so_far(tmp_path, capsys, monkeypatch):
+    """Inside an iteration a line per report (`planner.IterationProgress`: every group with
+    the report interval at zero), before the iteration's own line."""
+    from planner.scp import loop
+
+    monkeypatch.setattr(loop, "PROGRESS_EVERY_S", 0.0)
+    assert main(["plan", str(EXAMPLES / "random16.json"), "-o", str(tmp_path / "p.json"),
+                 "--method", "whole"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    inside = [n for n, line in enumerate(lines) if line.startswith("  ... iteration  1:")]
+    assert inside, lines
+    assert re.fullmatch(r"  \.\.\. iteration  1: round \d+, \d+/\d+ groups solved \(largest "
+                        r"\d+ vehicles, rows \d+\), QPs \d+, [0-9.]+ s  \[whole\]",
+                        lines[inside[0]])
+    record = next(n for n, line in enumerate(lines) if line.startswith("iteration  1:"))
+    assert max(inside) < record

@@ -85,8 +85,12 @@ def test_same_system_id_twice_on_one_connection() -> None:
 
 def test_plan_vehicle_missing_from_fleet() -> None:
     spec = FleetSpec.from_dict(_fleet())
-    with pytest.raises(FleetFileError, match="'uav9'"):
+    with pytest.raises(FleetFileError, match="'uav9'") as info:
         spec.for_plan(["uav1", "uav9"])
+    # the way forward: the fleet file, or as many mock vehicles as the plan has
+    assert "add them to the fleet file" in info.value.reason
+    assert "fleetplan fly PLAN.json --mock" in info.value.reason
+    assert "fleetplan serve --mock 2" in info.value.reason
 
 
 def test_options_replace_validates() -> None:

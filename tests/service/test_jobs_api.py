@@ -58,3 +58,29 @@ def test_time_limit_per_request(jobs_client: TestClient) -> None:
     assert too_long.status_code == 422
     assert too_long.json()["field"] == "time_limit"
     assert "at most 120 s" in too_long.json()["reason"]
+
+
+def test_a_mission_planning_reports_its_progress_and_can_be_cancelled(
+        jobs_client: TestClient) -> None:
+    """GET /api/missions/{id} while planning: `planning` sums up the progress (the records so
+    far, the last one, the elapsed time); cancel stops it. random128 as a whole fleet plans
+    for seconds, iteration by iteration."""
+    import time
+
+    client = jobs_client
+    mission = client.post("/api/missions?wait=0",
+                          json=example("random128") | {"method": "whole"}).json()
+    deadline = time.monotonic() + 120  # bound: a loose wait for the first records
+    while True:
+        doc = client.get(f"/api/missions/{mission['id']}").json()
+        assert doc["status"] == "planning", "planned before a record was seen"
+        summary = doc["planning"]
+        if summary["iterations"] >= 1:
+            break
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    assert summary["last"] == doc["progress"][summary["iterations"] - 1]
+    assert summary["last"]["method"] == "whole" and summary["batches"] is None
+    assert summary["elapsed_s"] > 0
+    cancelled = client.post(f"/api/missions/{mission['id']}/cancel").json()
+    assert cancelled["status"] == "failed" and cancelled["planning"] is None

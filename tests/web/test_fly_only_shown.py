@@ -124,7 +124,10 @@ def test_an_edited_preset_is_named_apart_and_the_mapping_shows_mismatches(page: 
     expect(listed).to_contain_text("survey-north")
     expect(page.locator("#mapping-missing")).to_contain_text("not in the fleet: extra")
     expect(page.locator("#fly-button")).to_be_disabled()
-    expect(page.locator("#fly-reason")).to_have_text("1 plan vehicle is not in the fleet")
+    expect(page.locator("#fly-reason")).to_have_text(
+        "1 plan vehicle is not in the fleet of 4: restart the service with 5 mock vehicles "
+        "(fleetplan serve --mock 5) or a fleet file naming them "
+        "(fleetplan serve --fleet FLEET.json)")
     assert shown_mission_id(page) == mission_id
 
 

@@ -54,13 +54,15 @@ from gcs.service.limits import (
     trajectory_sample_count,
     with_server_horizon,
 )
-from gcs.service.plan_worker import finite_json
+from gcs.service.plan_worker import finite_json, plan_json
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.plans import trajectory_csv_chunks, trajectory_json_chunks
 from gcs.service.settings import Settings
 from gcs.service.statuses import FLIGHT_ACTIVE, MissionStatus
 from gcs.service.store import MissionRow, Store
-from planner import Scenario
+from gcs.service.uploaded_plan import is_plan_body, plan_document, uploaded_plan
+from planner import Plan, Scenario
+from planner.errors import FieldError
 from planner.methods.sequence import FormationSequence, parse_sequence, timeline_scenario
 from planner.methods.sequence import trajectory_csv as show_csv
 from planner.verification.verify import refusal
@@ -91,6 +93,7 @@ def mission_document(row: MissionRow, job: PlanJob | None) -> str:
     head = {
         **row.summary(),
         "progress": list(job.progress) if planning and job is not None else [],
+        "planning": job.summary() if planning and job is not None else None,
         "scenario": row.scenario,
         "links": _links(row.id),
     }
@@ -139,12 +142,41 @@ def _validated(body: Any, settings: Settings) -> Scenario:
     exceeded, then the planner's own validation (the first problem of meaning)."""
     shape = shape_errors(body)
     if shape:
-        raise Unprocessable.of(shape)
+        raise Unprocessable.of(shape, body)
     work = WorkBounds.from_settings(settings)
     bounds = scenario_bound_errors(body, work)
     if bounds:
-        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds])
-    return Scenario.from_dict(with_server_horizon(body, work))
+        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason) for e in bounds],
+                               body)
+    try:
+        return Scenario.from_dict(with_server_horizon(body, work))
+    except FieldError as exc:
+        raise Unprocessable.of([ErrorItem(field=exc.field, reason=exc.reason)], body) from None
+
+
+def _uploaded(body: Any, settings: Settings) -> tuple[dict[str, Any], str, Plan]:
+    """A plan body's scenario, plan text and plan, verified again here; 422 with every
+    problem found (each under `vehicles[i]` naming its vehicle) otherwise."""
+    plan, problems = uploaded_plan(body, WorkBounds.from_settings(settings))
+    if plan is None:
+        document = plan_document(body)
+        raise Unprocessable.of(
+            [ErrorItem(field=e.field, reason=e.reason) for e in problems],
+            document.get("scenario") if any(e.field.startswith("scenario.") for e in problems)
+            else document)
+    return plan.scenario.to_dict(), plan_json(plan), plan
+
+
+async def _store_uploaded(body: Any, store: Store, settings: Settings) -> Response:
+    """Store a plan made elsewhere, verified again, as a planned mission (201)."""
+    scenario, text, plan = await run_in_threadpool(_uploaded, body, settings)
+    row = await run_in_threadpool(store.create_mission, scenario)
+    await run_in_threadpool(store.finish_planning, row.id, plan_json=text,
+                            plan_status=plan.status, plan_ok=True,
+                            steps=plan.scenario.steps)
+    document = await run_in_threadpool(store.get_mission, row.id, with_plan=True)
+    assert document is not None
+    return _json(mission_document(document, None), 201, {"Location": f"/api/missions/{row.id}"})
 
 
 def is_sequence(body: Any) -> bool:
@@ -174,8 +206,10 @@ def _validated_sequence(body: Any, settings: Settings) -> FormationSequence:
     },
     openapi_extra={"requestBody": {
         "required": True,
-        "description": "A scenario (the planner's scenario JSON contract), or a formation "
-                       "sequence (an object with `formations`: see the README).",
+        "description": "A scenario (the planner's scenario JSON contract), a formation "
+                       "sequence (an object with `formations`: see the README), or a plan "
+                       "made elsewhere to fly (a Plan JSON, or `{\"plan\": PLAN}`), which "
+                       "is verified again before it is stored.",
         "content": {"application/json": {"schema": ref("Scenario")}},
     }},
 )
@@ -201,11 +235,17 @@ async def create_mission(
     as parallel Dask tasks (progress records carry their `leg`), stitched and verified as
     one plan whose scenario is the whole timeline; it flies like any mission.
 
+    A plan made elsewhere (a Plan JSON as `fleetplan plan` writes it, or `{"plan": PLAN}`)
+    is verified again on its own trajectories and stored as a planned mission (201), or
+    refused with 422 naming the field (`plan` when it may not be flown, and why).
+
     Answers 201 with the mission and its plan when planning ends within `wait` seconds, else
     202 with the mission still `planning` (poll `GET /api/missions/{id}` or follow
     `/events`). Invalid scenarios are 422 naming each offending field and the reason (every
     type, key and server-limit problem at once); nothing is stored for them.
     """
+    if is_plan_body(body):
+        return await _store_uploaded(body, store, settings)
     limit = planning.job_time_limit(time_limit)
     sequence: FormationSequence | None = None
     if is_sequence(body):
@@ -336,7 +376,9 @@ async def mission_events(
     _slot: EventStreamSlot, shared: SharedJsonDep,
 ) -> AsyncIterable[ServerSentEvent]:
     """`iteration` events (one per SCP iteration: iteration, cost, cost_change,
-    separation_rows, qp_solves, groups, seconds) while planning, then one `done` event
+    separation_rows, qp_solves, groups, seconds, method, batch, batches) while planning,
+    `working` events from inside long iterations (at most about once a second: the
+    mission's `planning` summary, with the groups solved so far), then one `done` event
     {status, plan_status, plan_ok, error}; then the stream ends. Each `iteration` has an
     `id:` (0, 1, ...); a client reconnecting with `Last-Event-ID: n` gets the iterations
     after n, then `done`. Streams are bounded like a flight's (503 with Retry-After)."""

@@ -23,7 +23,9 @@ def assert_error(response: Response, status: int, field: str | None, reason: str
     assert body["status"] == status
     assert body["field"] == field, body
     assert reason in body["reason"], body
-    assert body["errors"] and body["errors"][0] == {"field": field, "reason": body["reason"]}
+    first = body["errors"][0] if body["errors"] else {}
+    assert {k: v for k, v in first.items() if k != "vehicle"} == {
+        "field": field, "reason": body["reason"]}
 
 
 def edited(change: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
@@ -71,6 +73,25 @@ BAD_SCENARIOS = [
 ]
 
 
+def test_each_error_names_its_vehicle_by_id_and_a_mistyped_key_its_nearest(
+    shared_client: TestClient,
+) -> None:
+    def broken(scenario: dict[str, Any]) -> None:
+        scenario["min_seperation"] = scenario.pop("min_separation")
+        scenario["vehicles"][2]["goal"] = [1, 2]
+
+    body = shared_client.post("/api/missions", json=edited(broken)).json()
+    assert body["status"] == 422
+    by_field = {e["field"]: e for e in body["errors"]}
+    assert by_field["min_seperation"]["reason"] == "unknown key (did you mean 'min_separation'?)"
+    assert "vehicle" not in by_field["min_seperation"]
+    assert by_field["vehicles[2].goal"]["vehicle"] == "uav3"
+    meaning = shared_client.post("/api/missions",
+                                 json=edited(_set("vehicles.1.goal", [9.0, 1.0, 1.0]))).json()
+    assert meaning["errors"][0]["field"] == "vehicles[1].goal"
+    assert meaning["errors"][0]["vehicle"] == "uav2"
+
+
 @pytest.mark.parametrize(("change", "field", "reason"), BAD_SCENARIOS)
 def test_invalid_scenarios_are_422_naming_the_field(
     shared_client: TestClient, change: Callable[[dict[str, Any]], None], field: str, reason: str
@@ -91,18 +112,24 @@ def test_server_limits_are_enforced_with_the_setting_named(shared_client: TestCl
 
 
 def test_body_size_limit(shared_client: TestClient) -> None:
-    scenario = edited(_set("name", "x" * 300_000))  # the shared app allows 200 kB
+    # the shared app allows 200 kB, and 400 kB to POST /api/missions (a plan to fly)
+    scenario = edited(_set("name", "x" * 500_000))
     response = shared_client.post("/api/missions", json=scenario)
+    assert_error(response, 413, "body", "request body exceeds 400000 bytes")
+    assert "(setting max_plan_body_bytes)" in response.json()["reason"]
+    response = shared_client.post("/api/missions/nope/flights",
+                                  json=edited(_set("name", "x" * 300_000)))
     assert_error(response, 413, "body", "request body exceeds 200000 bytes")
+    assert "(setting max_body_bytes)" in response.json()["reason"]
 
     def chunks() -> Any:  # no Content-Length: counted as it arrives
-        for _ in range(30):
+        for _ in range(50):
             yield b" " * 10_000
 
     response = shared_client.post(
         "/api/missions", content=chunks(), headers={"content-type": "application/json"}
     )
-    assert_error(response, 413, "body", "request body exceeds 200000 bytes")
+    assert_error(response, 413, "body", "request body exceeds 400000 bytes")
 
 
 @pytest.mark.parametrize(
