@@ -14,6 +14,9 @@ skybrush-server ``flockwave/server/show``, Skybrush Live's show loader)::
                         "takeoffTime": 0, "landingHeight": z},
          "lights": {"version": 1, "data": base64 light program}}}]}}
 
+Each drone's light program is Skybrush's light bytecode (`gcs.export.lightcode`) made from
+the sequence's light design (`gcs.export.lights`); a plan without one writes one END.
+
 A keyframe after the first ends the Bezier segment that starts at the keyframe before it;
 its control points lie between (none: a straight segment; two: a cubic); the first keyframe
 has none. Times are seconds from ``takeoffTime``; Skybrush counts segment durations in whole
@@ -30,6 +33,7 @@ large show never sits in memory whole.
 
 from __future__ import annotations
 
+import base64
 import math
 import os
 import tempfile
@@ -42,6 +46,8 @@ import numpy as np
 import orjson
 
 from gcs.errors import ExportError
+from gcs.export.lightcode import encode
+from gcs.export.lights import light_changes
 from gcs.frames import SHOW_ORIENTATION_DEG, Geodetic, world_to_show
 from planner.model.scenario import Scenario
 from planner.result import Plan
@@ -71,8 +77,8 @@ FORMAT_VERSION = 1
 DECIMALS = 6
 #: Decimals of every time written: Skybrush times its segments in whole milliseconds.
 TIME_DECIMALS = 3
-#: The light program of every drone: one END instruction (no lights; what the Skybrush
-#: server assumes for a drone without a program).
+#: The light program of every drone of a plan without a light design: one END instruction
+#: (what the Skybrush server assumes for a drone without a program).
 NO_LIGHTS = {"version": FORMAT_VERSION, "data": "AA=="}
 #: The archive entries' timestamp: fixed, so the same plan always gives the same bytes.
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
@@ -116,11 +122,14 @@ def _milliseconds(dt: float) -> int:
 
 def check_exportable(plan: Plan) -> None:
     """`ExportError` naming the field when the plan cannot be written as a show: it has no
-    trajectories, or its step is not a whole number of milliseconds. Whether the plan is
-    verified is the caller's decision (`planner.verification.verify.refusal`)."""
+    trajectories, its step is not a whole number of milliseconds, or its light design is
+    malformed. Whether the plan is verified is the caller's decision
+    (`planner.verification.verify.refusal`)."""
     if not plan.vehicles:
         raise ExportError("vehicles", f"the plan (status {plan.status}) has no trajectories")
     _milliseconds(plan.scenario.dt)
+    for track in plan.vehicles:
+        light_changes(plan, track.id)
 
 
 def keyframe_count(plan: Plan) -> int:
@@ -242,8 +251,18 @@ def trajectory_points(p: FloatArray, v: FloatArray, a: FloatArray, dt: float
     return out
 
 
+def _lights(plan: Plan, vid: str) -> dict[str, Any]:
+    """The drone's light program (`gcs.export.lights`, in `gcs.export.lightcode`'s bytecode)
+    as the file carries it: base64 in a versioned block."""
+    changes = light_changes(plan, vid)
+    if changes is None:
+        return NO_LIGHTS
+    program = encode(changes, plan.scenario.horizon)
+    return {"version": FORMAT_VERSION, "data": base64.b64encode(program).decode("ascii")}
+
+
 def _drone(plan: Plan, index: int) -> dict[str, Any]:
-    """One drone of the swarm: its name, home (its start), trajectory and (no) lights."""
+    """One drone of the swarm: its name, home (its start), trajectory and lights."""
     track = plan.vehicles[index]
     points = trajectory_points(track.position, track.velocity, track.acceleration,
                                plan.scenario.dt)
@@ -252,7 +271,7 @@ def _drone(plan: Plan, index: int) -> dict[str, Any]:
         "home": points[0][1],
         "trajectory": {"version": FORMAT_VERSION, "points": points, "takeoffTime": 0.0,
                        "landingHeight": points[-1][1][2]},
-        "lights": NO_LIGHTS,
+        "lights": _lights(plan, track.id),
     }}
 
 

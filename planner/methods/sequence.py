@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from planner.errors import ScenarioError
 from planner.methods.assignment import assign_goals
+from planner.methods.lights import Colors, color_hex, formation_colors, leg_transition
 from planner.model.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.model.scenario import (
     AUTO_STEPS,
@@ -52,7 +53,7 @@ _TOP_KEYS = {
     "name", "dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",
     "limits", "assignment", "vehicles", "formations", "max_horizon", "method",
 }
-_FORMATION_KEYS = {"name", "positions", "duration", "hold", "assignment"}
+_FORMATION_KEYS = {"name", "positions", "duration", "hold", "assignment", "color", "lights"}
 #: Leg settings copied from the sequence into every leg scenario.
 _SHARED = ("dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",
            "limits", "method")
@@ -82,6 +83,11 @@ class FormationSequence:
     least_steps: tuple[int, ...] = ()
     """Each leg's steps; for a leg of `duration: "auto"` (`steps: "auto"`, its horizon
     searched when it is planned) the fewest its moves allow under the boxes."""
+    colors: tuple[Colors, ...] | None = None
+    """Each formation's colours in vehicle order (`planner.methods.lights`), None for a
+    sequence without a light design."""
+    transitions: tuple[str, ...] = ()
+    """How each leg changes the lights ("fade", "hold", "black"); empty without a design."""
 
 
 def _field_error(field: str, reason: str) -> ScenarioError:
@@ -147,13 +153,15 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     slots: list[tuple[int, ...]] = []
     legs: list[dict[str, Any]] = []
     least_steps: list[int] = []
+    colors: list[Colors | None] = []
+    transitions: list[str] = []
     total = 0
     for f, raw in enumerate(formations):
         where = f"formations[{f}]"
         check_keys(raw, _FORMATION_KEYS, where,
                     ("positions",) if f == 0 else ("positions", "duration"))
-        if f == 0 and ("duration" in raw or "assignment" in raw):
-            bad = "duration" if "duration" in raw else "assignment"
+        if f == 0 and ("duration" in raw or "assignment" in raw or "lights" in raw):
+            bad = next(key for key in ("duration", "assignment", "lights") if key in raw)
             raise _field_error(f"{where}.{bad}", "the first formation is where the fleet "
                                                  "starts: it has no transition")
         label = raw.get("name", f"F{f}")
@@ -187,6 +195,8 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
             total += least
             legs.append(leg)
             least_steps.append(least)
+            transitions.append(leg_transition(raw, where))
+        colors.append(formation_colors(raw, where, count, order))
         if total > MAX_STEPS * 10:
             raise _field_error(where, f"the sequence is longer than {MAX_STEPS * 10} steps")
         names.append(label)
@@ -200,8 +210,21 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     return FormationSequence(
         name=name, dt=dt, ids=tuple(ids), formation_names=tuple(names), holds=tuple(holds),
         legs=tuple(legs), slots=tuple(slots), points=tuple(points), shared=shared,
-        least_steps=tuple(least_steps),
+        least_steps=tuple(least_steps), **_light_design(colors, transitions, count),
     )
+
+
+def _light_design(colors: Sequence[Colors | None], transitions: Sequence[str], count: int
+                  ) -> dict[str, Any]:
+    """The sequence's light design when any formation has a colour: a formation without one
+    keeps the colours before it (the first: dark)."""
+    if all(c is None for c in colors):
+        return {}
+    filled: list[Colors] = []
+    for given in colors:
+        filled.append(given if given is not None
+                      else filled[-1] if filled else np.zeros((count, 3), dtype=np.uint8))
+    return {"colors": tuple(filled), "transitions": tuple(transitions)}
 
 
 def _duration(value: Any, dt: float, field: str) -> int | str:
@@ -331,6 +354,17 @@ class SequencePlan:
         the legs' plans (which hold every leg's trajectories: megabytes at show scale, not
         wanted in `summary`)."""
         seq = self.sequence
+        formations: list[dict[str, Any]] = [
+            {"name": name, "hold_s": hold * seq.dt,
+             "slots": {vid: slot for vid, slot in zip(seq.ids, slots, strict=True)}}
+            for name, hold, slots in zip(seq.formation_names, seq.holds, seq.slots, strict=True)
+        ]
+        if seq.colors is not None:
+            for f, (entry, colors) in enumerate(zip(formations, seq.colors, strict=True)):
+                entry["colors"] = {vid: color_hex(c) for vid, c in zip(seq.ids, colors,
+                                                                       strict=True)}
+                if f:
+                    entry["lights"] = seq.transitions[f - 1]
         return {
             "status": self.status,
             "message": self.message,
@@ -338,12 +372,7 @@ class SequencePlan:
             "dt": seq.dt,
             "duration_s": self.duration,
             "vehicles": list(seq.ids),
-            "formations": [
-                {"name": name, "hold_s": hold * seq.dt,
-                 "slots": {vid: slot for vid, slot in zip(seq.ids, slots, strict=True)}}
-                for name, hold, slots in zip(seq.formation_names, seq.holds, seq.slots,
-                                             strict=True)
-            ],
+            "formations": formations,
             "timeline": [dict(s) for s in self.segments],
         }
 
