@@ -1,8 +1,10 @@
 """Show benchmark: a lit show from design to file and back, timed stage by stage.
 
 Makes a show of --vehicles drones (`planner.families.generators.show_formations`: five
-formations with free assignment, 2 s holds) and gives its formations colours (a colour per
-position on every other formation, one colour on the rest; fade, hold and black legs), then
+formations with free assignment, 2 s holds), taking off from and landing on a ground grid
+(--grid spacing, default 2 m) under the first formation, and gives its formations colours
+(a colour per position on every other formation, one colour on the rest; fade, hold and
+black legs), then
 plans it (`plan_sequence`: legs in a local process pool of --workers), writes the `.skyc`
 (`gcs.export.skyc.write_skyc`), and imports it back (`read_skyc` + `to_sequence`) --repeats
 times. Prints one JSON document: per stage wall seconds (median of the repeats for import)
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import statistics
@@ -39,9 +42,25 @@ from planner.families.generators import show_formations
 from planner.methods.sequence import plan_sequence
 
 
-def lit_show(vehicles: int) -> dict[str, Any]:
-    """Five formations with colours and every kind of light transition."""
+def lit_show(vehicles: int, spacing: tuple[float, float]) -> dict[str, Any]:
+    """Five formations with colours and every kind of light transition, taking off from and
+    landing on a ground grid of `spacing` (m) under the first formation."""
     data = show_formations(vehicles)
+    columns = math.ceil(math.sqrt(vehicles))
+    rows = math.ceil(vehicles / columns)
+    first = np.array(data["formations"][0]["positions"])
+    centre = first.mean(axis=0)
+    data["takeoff"] = {"homes": [
+        [round(centre[0] + (c - (columns - 1) / 2) * spacing[0], 6),
+         round(centre[1] + (r - (rows - 1) / 2) * spacing[1], 6)]
+        for r, c in (divmod(n, columns) for n in range(vehicles))]}
+    data["landing"] = {}
+    homes = np.array(data["takeoff"]["homes"])
+    low, high = data["limits"]["position_min"], data["limits"]["position_max"]
+    data["limits"]["position_min"] = [min(low[0], homes[:, 0].min() - 2),
+                                      min(low[1], homes[:, 1].min() - 2), 0.0]
+    data["limits"]["position_max"] = [max(high[0], homes[:, 0].max() + 2),
+                                      max(high[1], homes[:, 1].max() + 2), high[2]]
     rng = np.random.default_rng(3)
     kinds = ["fade", "hold", "black", "fade"]
     for f, formation in enumerate(data["formations"]):
@@ -66,8 +85,9 @@ def _cpu_with_children() -> float:
     return t.user + t.system + t.children_user + t.children_system
 
 
-def measure(vehicles: int, repeats: int, workers: int) -> dict[str, Any]:
-    data = lit_show(vehicles)
+def measure(vehicles: int, repeats: int, workers: int, spacing: tuple[float, float],
+            keep: Path | None) -> dict[str, Any]:
+    data = lit_show(vehicles, spacing)
     cpu_before = _cpu_with_children()
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
@@ -79,6 +99,8 @@ def measure(vehicles: int, repeats: int, workers: int) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "show.skyc"
         size, export_s, export_cpu = _timed(lambda: write_skyc(plan, path))
+        if keep is not None:
+            keep.write_bytes(path.read_bytes())
         runs, cpus, sequence = [], [], {}
         for _ in range(repeats):
             def work() -> dict[str, Any]:
@@ -90,6 +112,9 @@ def measure(vehicles: int, repeats: int, workers: int) -> dict[str, Any]:
             cpus.append(cpu)
     return {
         "vehicles": vehicles, "formations": len(data["formations"]),
+        "ground_grid_m": list(spacing),
+        "takeoff_waves": int(shown.sequence.ground.takeoff_waves.max()) + 1
+        if shown.sequence.ground is not None else 0,
         "plan_status": plan.status, "plan_ok": plan.ok, "steps": plan.scenario.steps,
         "duration_s": plan.scenario.horizon,
         "plan_s": round(plan_s, 2), "plan_cpu_s": round(plan_cpu, 2),
@@ -109,9 +134,13 @@ def main() -> None:
     parser.add_argument("--vehicles", type=int, nargs="+", default=[1000])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    parser.add_argument("--grid", type=float, nargs=2, default=[2.0, 2.0], metavar=("DX", "DY"),
+                        help="the ground grid's spacing (m)")
+    parser.add_argument("--keep", type=Path, help="also write the last .skyc here")
     args = parser.parse_args()
     load_before = list(os.getloadavg())
-    sizes = [measure(n, args.repeats, args.workers) for n in args.vehicles]
+    sizes = [measure(n, args.repeats, args.workers, tuple(args.grid), args.keep)
+             for n in args.vehicles]
     print(json.dumps({
         "benchmark": "show",
         "sizes": sizes,

@@ -10,6 +10,9 @@ they agree), the hold's length as `hold`, and the time from the hold before as t
 its middle: the mean of the two colours (`fade`), the colour before (`hold`) or black
 (`black`), whichever is nearest. The design's moves between hold points are not kept: the
 planner plans them. Given `times`, formations are taken at those times instead (no holds).
+A show whose first hold point has every drone on the ground (z <= `GROUND_HEIGHT_M`) starts
+with a `takeoff` from those homes; when its last one does too, it ends with a `landing` on
+those slots (`planner.methods.ground`); the formations are the hold points in the air.
 """
 
 from __future__ import annotations
@@ -114,6 +117,20 @@ def _holds(tracks: Sequence[DesignTrack], options: ImportOptions, start: float, 
     return holds
 
 
+#: A drone at most this high (m) at a hold point is on the ground.
+GROUND_HEIGHT_M = 0.05
+
+
+def _on_ground(tracks: Sequence[DesignTrack], hold: tuple[float, float]
+               ) -> list[list[float]] | None:
+    """Every drone's [x, y] at the hold point when all of them stand on the ground there."""
+    at = 0.5 * (hold[0] + hold[1]) if math.isfinite(hold[1] - hold[0]) else hold[0]
+    points = np.array([positions_at(t, np.array([at]))[0] for t in tracks])
+    if np.abs(points[:, 2]).max() > GROUND_HEIGHT_M:
+        return None
+    return np.round(points[:, :2], 6).tolist()
+
+
 def _check_times(times: Sequence[float], start: float, end: float, file: str) -> None:
     for t in times:
         if not (math.isfinite(t) and start <= t <= end):
@@ -189,6 +206,11 @@ def to_sequence(tracks: Sequence[DesignTrack], *, name: str, file: str,
     if options.times is not None:
         _check_times(options.times, start, end, file)
     holds = _holds(tracks, options, start, end)
+    ground = {"takeoff": _on_ground(tracks, holds[0]), "landing": _on_ground(tracks, holds[-1])}
+    if ground["takeoff"] is None:
+        ground["landing"] = None  # a show that lands on the ground took off from it
+    holds = holds[1 if ground["takeoff"] is not None else 0:
+                  -1 if ground["landing"] is not None else None]
     if len(holds) < 2:
         raise ShowFileError(file, "hold points", "the show has one hold point only: give "
                                                  "formation times with --times")
@@ -211,8 +233,6 @@ def to_sequence(tracks: Sequence[DesignTrack], *, name: str, file: str,
                                     f"less than one step (dt {dt:g} s) after the one before: "
                                     f"give a smaller --dt or other --times")
             entry["duration"] = AUTO_STEPS if options.auto_durations else round(steps * dt, 6)
-            if options.assignment != "fixed":
-                entry["assignment"] = options.assignment
         if last > first:
             entry["hold"] = round((last - first) * dt, 6)
         if has_lights:
@@ -224,13 +244,17 @@ def to_sequence(tracks: Sequence[DesignTrack], *, name: str, file: str,
             previous_colors = colors
         formations.append(entry)
     separation = options.min_separation or validation.get("minDistance") or 1.0
-    sequence = {
+    sequence: dict[str, Any] = {
         "name": name, "dt": dt, "min_separation": separation,
         "limits": _limits(np.concatenate(every), validation, options),
-        "assignment": "fixed",
+        "assignment": options.assignment,
         "vehicles": [t.name for t in tracks],
         "formations": formations,
     }
+    if ground["takeoff"] is not None:
+        sequence["takeoff"] = {"homes": ground["takeoff"]}
+        sequence["landing"] = ({} if ground["landing"] is None
+                               else {"homes": ground["landing"]})
     try:
         parse_sequence(sequence)
     except ScenarioError as exc:

@@ -107,7 +107,7 @@ def test_given_times_choose_the_formations(lit, tmp_path: Path) -> None:
                            options=ImportOptions(times=(0.0, 20.0), assignment="free"))
     expected = plan.sample(np.array([20.0])).position[:, 0]
     assert np.abs(np.array(sequence["formations"][1]["positions"]) - expected).max() < 1e-5
-    assert sequence["formations"][1]["assignment"] == "free"
+    assert sequence["assignment"] == "free"
 
 
 def _zip(path: Path, files: dict[str, str]) -> Path:
@@ -199,3 +199,25 @@ def test_a_zip_that_is_not_a_show(tmp_path: Path) -> None:
     (tmp_path / "y.skyc").write_bytes(buffer.getvalue())
     with pytest.raises(ShowFileError, match=r"has no show\.json"):
         read_skyc(tmp_path / "y.skyc")
+
+
+def test_a_show_on_the_ground_comes_back_with_its_takeoff_and_landing(tmp_path: Path) -> None:
+    from tests.planner.test_ground import _show
+
+    data = _show(landing={})
+    data["formations"][0]["color"] = "#ff0000"
+    shown = plan_sequence(data)
+    assert shown.ok, shown.message
+    write_skyc(shown.to_plan(), tmp_path / "ground.skyc")
+    show = read_skyc(tmp_path / "ground.skyc")
+    sequence = to_sequence(show.tracks, name="g", file="ground.skyc",
+                           validation=show.validation)
+    homes = shown.sequence.ground.homes
+    assert np.abs(np.array(sequence["takeoff"]["homes"]) - homes[:, :2]).max() < 1e-6
+    slots = np.array(sequence["landing"]["homes"])
+    assert np.abs(slots - shown.sequence.ground.slots[:, :2]).max() < 1e-6
+    back = parse_sequence(sequence)
+    assert len(back.points) == 3
+    for got, expected in zip(back.points, shown.sequence.points, strict=True):
+        assert np.abs(got - expected).max() < 1e-3
+    assert back.ground is not None
