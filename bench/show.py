@@ -4,13 +4,13 @@ Makes a show of --vehicles drones (`planner.families.generators.show_formations`
 formations with free assignment, 2 s holds), taking off from and landing on a ground grid
 (--grid spacing, default 2 m) under the first formation, and gives its formations colours
 (a colour per position on every other formation, one colour on the rest; fade, hold and
-black legs), then
-plans it (`plan_sequence`: legs in a local process pool of --workers), writes the `.skyc`
-(`gcs.export.skyc.write_skyc`), and imports it back (`read_skyc` + `to_sequence`) --repeats
+black legs). Then plans it (`plan_sequence`: legs in a local process pool of --workers),
+writes the `.skyc` (`gcs.export.skyc.write_skyc`) and the validation report
+(`gcs.show.report`), and imports the `.skyc` back (`read_skyc` + `to_sequence`) --repeats
 times. Prints one JSON document: per stage wall seconds (median of the repeats for import)
 and CPU seconds (planning: this process and its pool's), the plan's status and size, the
-file's bytes, the formations found again, and the machine's load average before and after
-(the machine is shared: compare CPU seconds and ratios).
+file's and the report's bytes, the report's verdict, the formations found again, and the
+machine's load average before and after (the machine is shared: compare CPU seconds).
 
     python bench/show.py
     python bench/show.py --vehicles 1000 --repeats 3 --workers 2
@@ -36,6 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gcs.export.skyc import write_skyc
+from gcs.show.report import report_html
 from gcs.show.skyc_reader import read_skyc
 from gcs.show.to_sequence import to_sequence
 from planner.families.generators import show_formations
@@ -101,6 +102,7 @@ def measure(vehicles: int, repeats: int, workers: int, spacing: tuple[float, flo
         size, export_s, export_cpu = _timed(lambda: write_skyc(plan, path))
         if keep is not None:
             keep.write_bytes(path.read_bytes())
+        (text, passed), report_s, report_cpu = _timed(lambda: report_html(plan))
         runs, cpus, sequence = [], [], {}
         for _ in range(repeats):
             def work() -> dict[str, Any]:
@@ -122,6 +124,8 @@ def measure(vehicles: int, repeats: int, workers: int, spacing: tuple[float, flo
         "export_s": round(export_s, 2), "export_cpu_s": round(export_cpu, 2),
         "plan_and_export_s": round(plan_s + export_s, 2),
         "skyc_bytes": size,
+        "report_s": round(report_s, 2), "report_cpu_s": round(report_cpu, 2),
+        "report_bytes": len(text.encode()), "report_passed": passed,
         "import_s": round(statistics.median(runs), 3),
         "import_s_runs": [round(r, 3) for r in runs],
         "import_cpu_s": round(statistics.median(cpus), 3),
