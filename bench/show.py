@@ -142,16 +142,17 @@ def main() -> None:
                         help="the ground grid's spacing (m)")
     parser.add_argument("--keep", type=Path, help="also write the last .skyc here")
     args = parser.parse_args()
-    load_before = list(os.getloadavg())
+    before = list(os.getloadavg())
     sizes = [measure(n, args.repeats, args.workers, tuple(args.grid), args.keep)
              for n in args.vehicles]
-    print(json.dumps({
-        "benchmark": "show",
-        "sizes": sizes,
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                    "load_average_before": load_before,
-                    "load_average_after": list(os.getloadavg())},
-    }, indent=2))
+    print(json.dumps({"benchmark": "show", "sizes": sizes, "machine": _machine(before)},
+                     indent=2))
+
+
+def _machine(load_before: list[float]) -> dict[str, Any]:
+    """The machine and how busy it was (load average before and after the run)."""
+    return {"cpus": os.cpu_count(), "python": platform.python_version(),
+            "load_average_before": load_before, "load_average_after": list(os.getloadavg())}
 
 
 if __name__ == "__main__":
