@@ -71,7 +71,8 @@ def _files(path: Path) -> Iterator[tuple[str, bytes]]:
                 yield f"{path.name}:{entry.filename}", data
     except zipfile.BadZipFile as exc:
         raise ShowFileError(path.name, "file", f"neither a folder nor a readable ZIP archive "
-                                               f"({exc})") from None
+                                               f"({exc}): give a .skyc, or Skybrush CSV as a "
+                                               f"folder or .zip of per-drone files") from None
     except OSError as exc:
         raise ShowFileError(path.name, "file", f"cannot read it: {exc.strerror or exc}"
                             ) from None
