@@ -100,6 +100,15 @@ class FormationSequence:
     """The takeoff from and landing on the ground (`planner.methods.ground`), or None for a
     show that starts and ends in the air."""
 
+    @property
+    def jobs(self) -> tuple[dict[str, Any], ...]:
+        """Every scenario to plan, in the order `plan_sequence` takes their plans: the
+        formations' legs, then for a show on the ground its climbs, takeoff and landing."""
+        if self.ground is None:
+            return self.legs
+        return (*self.legs, *self.ground.climbs, self.ground.takeoff_leg,
+                self.ground.landing_leg)
+
 
 def _field_error(field: str, reason: str) -> ScenarioError:
     return ScenarioError(field, reason)
@@ -497,14 +506,12 @@ def dynamics_residual(p: FloatArray, v: FloatArray, a: FloatArray, dt: float) ->
 
 def plan_sequence(data: Mapping[str, Any] | FormationSequence, *, solver: str | None = None,
                   mapper: Callable[..., Iterable[Plan]] | None = None) -> SequencePlan:
-    """Plan every leg (through `mapper(plan_leg, legs, solvers)`, the built-in `map` by
+    """Plan every leg (through `mapper(plan_leg, sequence.jobs, solvers)`, the built-in `map` by
     default; an executor's `map` plans them in parallel), stitch them at rest with the holds,
     and verify the whole timeline. Raises `ScenarioError` for an invalid sequence."""
     sequence = data if isinstance(data, FormationSequence) else parse_sequence(data)
     ground = sequence.ground
-    jobs = list(sequence.legs)
-    if ground is not None:
-        jobs += [*ground.climbs, ground.takeoff_leg, ground.landing_leg]
+    jobs = sequence.jobs
     plans = list((mapper or map)(plan_leg, jobs, [solver] * len(jobs)))
     legs = plans[:len(sequence.legs)]
     p, v, a, segments = _stitch(sequence, legs)
