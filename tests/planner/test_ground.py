@@ -161,3 +161,17 @@ def test_a_show_in_the_air_is_unchanged() -> None:
     assert plain.ground is None
     result: Plan = plan_sequence(plain).to_plan()
     assert result.sequence is not None and "ground" not in result.sequence
+
+
+@pytest.mark.parametrize(("spacing", "count"), [((2.0, 2.0), 1), ((2.0, 0.8), 2),
+                                                ((0.8, 0.8), 2), ((0.6, 0.6), 4)])
+def test_waves_part_every_two_homes_closer_than_r(spacing: tuple[float, float],
+                                                  count: int) -> None:
+    from planner.methods.ground import WAVE_SLACK, waves
+
+    homes = np.array([[c * spacing[0], r * spacing[1], 0.0] for r in range(6) for c in range(7)])
+    wave = waves(homes, np.ones(3), 1.0)
+    assert int(wave.max()) + 1 == count
+    close = np.linalg.norm(homes[:, None] - homes[None], axis=2) < 1.0 * (1 + WAVE_SLACK)
+    np.fill_diagonal(close, False)
+    assert not (close & (wave[:, None] == wave[None])).any()
