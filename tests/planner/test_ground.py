@@ -175,3 +175,19 @@ def test_waves_part_every_two_homes_closer_than_r(spacing: tuple[float, float],
     close = np.linalg.norm(homes[:, None] - homes[None], axis=2) < 1.0 * (1 + WAVE_SLACK)
     np.fill_diagonal(close, False)
     assert not (close & (wave[:, None] == wave[None])).any()
+
+
+def test_a_landing_grid_with_spare_slots_takes_any_free_ones() -> None:
+    """A tight 3 x 3 takeoff grid (four waves) and a 4 x 4 landing grid: nine different
+    slots, each drone standing on its own at the end."""
+    landing = {"origin": [-3.0, -3.0], "columns": 4, "rows": 4, "spacing": [0.6, 0.6]}
+    data = _show(landing={"grid": landing})
+    data["takeoff"] = {"grid": {"origin": [-1.0, -1.0], "columns": 3, "rows": 3,
+                                "spacing": [0.6, 0.6]}}
+    result = plan_sequence(data)
+    assert result.ok, result.message
+    ground = result.sequence.ground
+    assert ground is not None and int(ground.takeoff_waves.max()) + 1 == 4
+    assert len(set(ground.slot_index)) == 9 and max(ground.slot_index) < 16
+    cells = np.array([[-3 + 0.6 * c, -3 + 0.6 * r, 0.0] for r in range(4) for c in range(4)])
+    assert np.abs(result.positions[:, -1] - cells[list(ground.slot_index)]).max() < 1e-6
