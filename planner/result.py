@@ -22,6 +22,7 @@ from planner.errors import PlanFormatError, ScenarioError
 from planner.model.dynamics import MotionSample, interpolate
 from planner.model.scenario import Scenario
 from planner.types import FloatArray
+from planner.verification.ground import starts_on_the_ground
 
 __all__ = [
     "OUTCOMES",
@@ -491,7 +492,8 @@ def _plan_from_dict(data: Mapping[str, Any]) -> Plan:
     if status not in STATUSES:
         raise PlanFormatError("status", f"must be one of {', '.join(STATUSES)}, got {status!r}")
     try:
-        scenario = Scenario.from_dict(data["scenario"])
+        scenario = Scenario.from_dict(data["scenario"],
+                                      on_ground=starts_on_the_ground(data.get("sequence")))
     except ScenarioError as exc:
         raise PlanFormatError(f"scenario.{exc.field}", exc.reason) from None
     if "assignment" in data:

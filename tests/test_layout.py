@@ -22,8 +22,9 @@ Imports only run downward (docs/development/architecture.md, README "Architectur
 - `gcs/api/` reaches vehicles only through the service: it never imports `gcs.flight`,
   `gcs.sim`, the fleet commands or provisioning (the fleet file's options are a contract, like
   the scenario's, and the API validates them);
-- `gcs/export/` (plans written in other tools' formats) imports neither the vehicle side
-  (`gcs.flight`, `gcs.fleet`, `gcs.sim`) nor the service, the API or the CLI, which call it;
+- `gcs/export/` (plans written in other tools' formats) and `gcs/show/` (shows from show
+  tools, the validation report) import neither the vehicle side (`gcs.flight`, `gcs.fleet`,
+  `gcs.sim`) nor the service, the API or the CLI, which call them;
 - the shared bottom layer (`gcs/frames.py`, `gcs/wire.py`, `gcs/errors.py`, `gcs/phases.py`:
   the flight's vocabulary, `gcs/documents.py`: the typed shapes of its events, snapshot and
   replan objects; `gcs/autopilot/`: what differs between PX4 and ArduPilot, behind one seam)
@@ -79,6 +80,8 @@ RULES: dict[str, tuple[str, ...]] = {
     "gcs/api": ("gcs.flight", "gcs.sim", "gcs.fleet.commands", "gcs.fleet.provision"),
     "gcs/export": ("gcs.flight", "gcs.fleet", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli",
                    "fastapi", "starlette"),
+    "gcs/show": ("gcs.flight", "gcs.fleet", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli",
+                 "fastapi", "starlette"),
     "gcs/frames.py": _ABOVE_GCS,
     "gcs/autopilot": _ABOVE_GCS,
     "gcs/wire.py": _ABOVE_GCS,

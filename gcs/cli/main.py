@@ -21,6 +21,9 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("replan", "gcs.cli.replan_cmd", "change goals or drop vehicles of a running `fleetplan fly "
      "--control`"),
     ("export", "gcs.cli.export_cmd", "write a plan as a show file (Skybrush .skyc)"),
+    ("report", "gcs.cli.report_cmd", "write a plan's validation report (one HTML file)"),
+    ("import", "gcs.cli.import_cmd", "read a show tool's show (.skyc, Skybrush CSV) as a "
+     "formation sequence"),
     ("fleet", "gcs.cli.fleet_cmd", "command vehicles between flights: hold, land, rtl, disarm, "
      "terminate"),
     ("mock", "gcs.cli.mock_cmd", "run PX4-like mock vehicles (PX4 SITL's ports)"),

@@ -377,10 +377,10 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
                          f"(letters, digits, '.', '_', '-' only)")
     if not args.quiet:
         where = f"Dask at {args.scheduler}" if args.scheduler else "local processes"
-        print(f"planning {len(sequence.legs)} legs of {len(sequence.ids)} vehicles "
+        print(f"planning {len(sequence.jobs)} legs of {len(sequence.ids)} vehicles "
               f"on {where}", flush=True)
     try:
-        mapper, close = _leg_mapper(args.scheduler, len(sequence.legs))
+        mapper, close = _leg_mapper(args.scheduler, len(sequence.jobs))
         try:
             show = plan_sequence(sequence, solver=args.solver, mapper=mapper)
         finally:

@@ -14,6 +14,9 @@ skybrush-server ``flockwave/server/show``, Skybrush Live's show loader)::
                         "takeoffTime": 0, "landingHeight": z},
          "lights": {"version": 1, "data": base64 light program}}}]}}
 
+Each drone's light program is Skybrush's light bytecode (`gcs.export.lightcode`) made from
+the sequence's light design (`gcs.export.lights`); a plan without one writes one END.
+
 A keyframe after the first ends the Bezier segment that starts at the keyframe before it;
 its control points lie between (none: a straight segment; two: a cubic); the first keyframe
 has none. Times are seconds from ``takeoffTime``; Skybrush counts segment durations in whole
@@ -30,6 +33,7 @@ large show never sits in memory whole.
 
 from __future__ import annotations
 
+import base64
 import math
 import os
 import tempfile
@@ -42,15 +46,19 @@ import numpy as np
 import orjson
 
 from gcs.errors import ExportError
+from gcs.export.lightcode import encode
+from gcs.export.lights import light_changes
 from gcs.frames import SHOW_ORIENTATION_DEG, Geodetic, world_to_show
 from planner.model.scenario import Scenario
 from planner.result import Plan
 from planner.types import FloatArray
+from planner.verification.ground import airborne, starts_on_the_ground
 
 __all__ = [
     "DECIMALS",
     "SKYC_MEDIA_TYPE",
     "check_exportable",
+    "flight_span",
     "keyframe_count",
     "parse_origin",
     "show_head",
@@ -71,8 +79,8 @@ FORMAT_VERSION = 1
 DECIMALS = 6
 #: Decimals of every time written: Skybrush times its segments in whole milliseconds.
 TIME_DECIMALS = 3
-#: The light program of every drone: one END instruction (no lights; what the Skybrush
-#: server assumes for a drone without a program).
+#: The light program of every drone of a plan without a light design: one END instruction
+#: (what the Skybrush server assumes for a drone without a program).
 NO_LIGHTS = {"version": FORMAT_VERSION, "data": "AA=="}
 #: The archive entries' timestamp: fixed, so the same plan always gives the same bytes.
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
@@ -116,11 +124,14 @@ def _milliseconds(dt: float) -> int:
 
 def check_exportable(plan: Plan) -> None:
     """`ExportError` naming the field when the plan cannot be written as a show: it has no
-    trajectories, or its step is not a whole number of milliseconds. Whether the plan is
-    verified is the caller's decision (`planner.verification.verify.refusal`)."""
+    trajectories, its step is not a whole number of milliseconds, or its light design is
+    malformed. Whether the plan is verified is the caller's decision
+    (`planner.verification.verify.refusal`)."""
     if not plan.vehicles:
         raise ExportError("vehicles", f"the plan (status {plan.status}) has no trajectories")
     _milliseconds(plan.scenario.dt)
+    for track in plan.vehicles:
+        light_changes(plan, track.id)
 
 
 def keyframe_count(plan: Plan) -> int:
@@ -173,20 +184,31 @@ def _geofence(scenario: Scenario) -> dict[str, Any]:
 
 def _cues(sequence: Mapping[str, Any] | None) -> dict[str, Any] | None:
     """For a stitched formation sequence: one cue per formation, when the fleet is on it (the
-    first at 0, each next one at the end of the leg that reaches it). None for a plain plan
-    or a timeline it cannot read (the cues are a convenience, never a reason to refuse)."""
+    first at 0, or when the takeoff ends; each next one at the end of the leg that reaches
+    it), and for a show on the ground `takeoff` at 0 and `landing` when it starts. None for a
+    plain plan or a timeline it cannot read (the cues are a convenience, never a reason to
+    refuse)."""
     if not sequence or not isinstance(sequence.get("timeline"), list):
         return None
     items: list[dict[str, Any]] = []
+    reached = 0.0
     for segment in sequence["timeline"]:
-        if not isinstance(segment, Mapping) or segment.get("kind") != "leg":
-            continue
-        source, target, end = segment.get("from"), segment.get("to"), segment.get("end_s")
-        if not (isinstance(source, str) and isinstance(target, str)
-                and isinstance(end, int | float) and math.isfinite(end)):
+        if not isinstance(segment, Mapping):
             return None
-        if not items:
-            items.append({"name": source, "time": 0.0})
+        kind, start, end = segment.get("kind"), segment.get("start_s"), segment.get("end_s")
+        if not (isinstance(start, int | float) and isinstance(end, int | float)
+                and math.isfinite(start) and math.isfinite(end)):
+            return None
+        if kind in ("takeoff", "landing"):
+            items.append({"name": kind, "time": round(float(start), TIME_DECIMALS)})
+            reached = float(end)
+        if kind != "leg":
+            continue
+        source, target = segment.get("from"), segment.get("to")
+        if not (isinstance(source, str) and isinstance(target, str)):
+            return None
+        if not any(item["name"] not in ("takeoff", "landing") for item in items):
+            items.append({"name": source, "time": round(reached, TIME_DECIMALS)})
         items.append({"name": target, "time": round(float(end), TIME_DECIMALS)})
     return {"version": FORMAT_VERSION, "items": items} if items else None
 
@@ -242,17 +264,47 @@ def trajectory_points(p: FloatArray, v: FloatArray, a: FloatArray, dt: float
     return out
 
 
-def _drone(plan: Plan, index: int) -> dict[str, Any]:
-    """One drone of the swarm: its name, home (its start), trajectory and (no) lights."""
+def _lights(plan: Plan, vid: str) -> dict[str, Any]:
+    """The drone's light program (`gcs.export.lights`, in `gcs.export.lightcode`'s bytecode)
+    as the file carries it: base64 in a versioned block."""
+    changes = light_changes(plan, vid)
+    if changes is None:
+        return NO_LIGHTS
+    program = encode(changes, plan.scenario.horizon)
+    return {"version": FORMAT_VERSION, "data": base64.b64encode(program).decode("ascii")}
+
+
+def flight_span(plan: Plan, index: int) -> tuple[int, int]:
+    """The steps [first, end) the drone flies: for a show on the ground from the step it
+    leaves the ground to the step it stands on it again (`planner.verification.ground`),
+    measured on its trajectory; else the whole plan."""
     track = plan.vehicles[index]
-    points = trajectory_points(track.position, track.velocity, track.acceleration,
-                               plan.scenario.dt)
+    steps = plan.scenario.steps
+    if not starts_on_the_ground(plan.sequence):
+        return 0, steps
+    flying = np.flatnonzero(airborne(track.position[None], track.velocity[None],
+                                     track.acceleration[None])[0])
+    if not len(flying):
+        return 0, steps
+    return int(flying[0]), int(flying[-1]) + 1
+
+
+def _drone(plan: Plan, index: int) -> dict[str, Any]:
+    """One drone of the swarm: its name, home (its start), trajectory and lights. A drone
+    that takes off from the ground has its keyframes from lift-off (`takeoffTime`, s from the
+    show's start) to touchdown; before it stands on its home, after it on its slot."""
+    track = plan.vehicles[index]
+    first, end = flight_span(plan, index)
+    points = trajectory_points(track.position[first:end + 1], track.velocity[first:end + 1],
+                               track.acceleration[first:end], plan.scenario.dt)
+    takeoff = round(first * _milliseconds(plan.scenario.dt)) / 1000.0
+    home = _clean(world_to_show(track.position[0]), DECIMALS).tolist()
     return {"type": "generic", "settings": {
         "name": track.id,
-        "home": points[0][1],
-        "trajectory": {"version": FORMAT_VERSION, "points": points, "takeoffTime": 0.0,
+        "home": home,
+        "trajectory": {"version": FORMAT_VERSION, "points": points, "takeoffTime": takeoff,
                        "landingHeight": points[-1][1][2]},
-        "lights": NO_LIGHTS,
+        "lights": _lights(plan, track.id),
     }}
 
 

@@ -133,7 +133,7 @@ class DaskEngine:
         legs = [
             client.submit(plan_worker.run_plan, job.key, leg, self._solver, **options, leg=k,
                           key=f"{job.key}-leg{k}", pure=False, priority=-job.work, retries=0)
-            for k, leg in enumerate(scenario.legs)
+            for k, leg in enumerate(scenario.jobs)
         ]
         stitched = client.submit(plan_worker.stitch_sequence, scenario, *legs, key=job.key,
                                  pure=False, priority=-job.work, retries=0)

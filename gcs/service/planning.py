@@ -167,7 +167,7 @@ class PlanningService:
         leg through the job's one cancel flag."""
         job = PlanJob.new(mission_id, work=sequence_work(sequence),
                           time_limit_s=self.job_time_limit(time_limit_s),
-                          ends_expected=len(sequence.legs))
+                          ends_expected=len(sequence.jobs))
         return self._start(job, sequence, reservation)
 
     def _start(self, job: PlanJob, scenario: Any, reservation: Reservation | None) -> PlanJob:

@@ -20,6 +20,14 @@ from numpy.typing import NDArray
 
 from planner.errors import ScenarioError
 from planner.methods.assignment import assign_goals
+from planner.methods.ground import (
+    GroundLegs,
+    ground_legs,
+    landing_motion,
+    parse_takeoff,
+    takeoff_motion,
+)
+from planner.methods.lights import Colors, color_hex, formation_colors, leg_transition
 from planner.model.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.model.scenario import (
     AUTO_STEPS,
@@ -50,9 +58,10 @@ __all__ = [
 
 _TOP_KEYS = {
     "name", "dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",
-    "limits", "assignment", "vehicles", "formations", "max_horizon", "method",
+    "limits", "assignment", "vehicles", "formations", "max_horizon", "method", "takeoff",
+    "landing",
 }
-_FORMATION_KEYS = {"name", "positions", "duration", "hold", "assignment"}
+_FORMATION_KEYS = {"name", "positions", "duration", "hold", "assignment", "color", "lights"}
 #: Leg settings copied from the sequence into every leg scenario.
 _SHARED = ("dt", "min_separation", "separation_scale", "cost_threshold", "max_iterations",
            "limits", "method")
@@ -82,6 +91,23 @@ class FormationSequence:
     least_steps: tuple[int, ...] = ()
     """Each leg's steps; for a leg of `duration: "auto"` (`steps: "auto"`, its horizon
     searched when it is planned) the fewest its moves allow under the boxes."""
+    colors: tuple[Colors, ...] | None = None
+    """Each formation's colours in vehicle order (`planner.methods.lights`), None for a
+    sequence without a light design."""
+    transitions: tuple[str, ...] = ()
+    """How each leg changes the lights ("fade", "hold", "black"); empty without a design."""
+    ground: GroundLegs | None = None
+    """The takeoff from and landing on the ground (`planner.methods.ground`), or None for a
+    show that starts and ends in the air."""
+
+    @property
+    def jobs(self) -> tuple[dict[str, Any], ...]:
+        """Every scenario to plan, in the order `plan_sequence` takes their plans: the
+        formations' legs, then for a show on the ground its climbs, takeoff and landing."""
+        if self.ground is None:
+            return self.legs
+        return (*self.legs, *self.ground.climbs, self.ground.takeoff_leg,
+                self.ground.landing_leg)
 
 
 def _field_error(field: str, reason: str) -> ScenarioError:
@@ -141,19 +167,22 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
     scale = check_vector(shared.get("separation_scale", DEFAULTS["separation_scale"]),
                          "separation_scale", positive=True, within="separation_scale")
     count = len(ids)
+    takeoff = parse_takeoff(data, shared, scale, count)
     names: list[str] = []
     holds: list[int] = []
     points: list[FloatArray] = []
     slots: list[tuple[int, ...]] = []
     legs: list[dict[str, Any]] = []
     least_steps: list[int] = []
+    colors: list[Colors | None] = []
+    transitions: list[str] = []
     total = 0
     for f, raw in enumerate(formations):
         where = f"formations[{f}]"
         check_keys(raw, _FORMATION_KEYS, where,
                     ("positions",) if f == 0 else ("positions", "duration"))
-        if f == 0 and ("duration" in raw or "assignment" in raw):
-            bad = "duration" if "duration" in raw else "assignment"
+        if f == 0 and ("duration" in raw or "assignment" in raw or "lights" in raw):
+            bad = next(key for key in ("duration", "assignment", "lights") if key in raw)
             raise _field_error(f"{where}.{bad}", "the first formation is where the fleet "
                                                  "starts: it has no transition")
         label = raw.get("name", f"F{f}")
@@ -165,6 +194,8 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
         total += hold
         if f == 0:
             order = np.arange(count)
+            if takeoff is not None and default_assignment == "free":
+                order = assign_goals(takeoff.liftoff, given, scale)
         else:
             steps = _duration(raw["duration"], dt, f"{where}.duration")
             assignment = raw.get("assignment", default_assignment)
@@ -187,6 +218,8 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
             total += least
             legs.append(leg)
             least_steps.append(least)
+            transitions.append(leg_transition(raw, where))
+        colors.append(formation_colors(raw, where, count, order))
         if total > MAX_STEPS * 10:
             raise _field_error(where, f"the sequence is longer than {MAX_STEPS * 10} steps")
         names.append(label)
@@ -197,11 +230,28 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
         raise _field_error("max_horizon", f'applies only with a formation of duration '
                                           f'"{AUTO_STEPS}": remove it, or set a duration to '
                                           f'"{AUTO_STEPS}"')
+    ground = None if takeoff is None else ground_legs(
+        data, takeoff, name=name, ids=ids, shared=shared, scale=scale, first=points[0],
+        last=points[-1])
     return FormationSequence(
         name=name, dt=dt, ids=tuple(ids), formation_names=tuple(names), holds=tuple(holds),
         legs=tuple(legs), slots=tuple(slots), points=tuple(points), shared=shared,
-        least_steps=tuple(least_steps),
+        least_steps=tuple(least_steps), **_light_design(colors, transitions, count),
+        ground=ground,
     )
+
+
+def _light_design(colors: Sequence[Colors | None], transitions: Sequence[str], count: int
+                  ) -> dict[str, Any]:
+    """The sequence's light design when any formation has a colour: a formation without one
+    keeps the colours before it (the first: dark)."""
+    if all(c is None for c in colors):
+        return {}
+    filled: list[Colors] = []
+    for given in colors:
+        filled.append(given if given is not None
+                      else filled[-1] if filled else np.zeros((count, 3), dtype=np.uint8))
+    return {"colors": tuple(filled), "transitions": tuple(transitions)}
 
 
 def _duration(value: Any, dt: float, field: str) -> int | str:
@@ -263,7 +313,10 @@ class SequencePlan:
     dynamics_error: float
     """Largest residual of the double integrator over the stitched timeline (m, m/s)."""
     segments: tuple[dict[str, Any], ...]
-    """The timeline: {'kind': 'hold'|'leg', 'formation' or 'leg', 'start_s', 'end_s'}."""
+    """The timeline: {'kind': 'hold'|'leg', 'formation' or 'leg', 'start_s', 'end_s'}, and
+    for a show on the ground 'takeoff' first and 'landing' last."""
+    ground_steps: tuple[tuple[int, ...], tuple[int, ...]] | None = None
+    """For a show on the ground: each drone's lift-off step and touchdown step."""
 
     @property
     def ok(self) -> bool:
@@ -331,6 +384,17 @@ class SequencePlan:
         the legs' plans (which hold every leg's trajectories: megabytes at show scale, not
         wanted in `summary`)."""
         seq = self.sequence
+        formations: list[dict[str, Any]] = [
+            {"name": name, "hold_s": hold * seq.dt,
+             "slots": {vid: slot for vid, slot in zip(seq.ids, slots, strict=True)}}
+            for name, hold, slots in zip(seq.formation_names, seq.holds, seq.slots, strict=True)
+        ]
+        if seq.colors is not None:
+            for f, (entry, colors) in enumerate(zip(formations, seq.colors, strict=True)):
+                entry["colors"] = {vid: color_hex(c) for vid, c in zip(seq.ids, colors,
+                                                                       strict=True)}
+                if f:
+                    entry["lights"] = seq.transitions[f - 1]
         return {
             "status": self.status,
             "message": self.message,
@@ -338,19 +402,27 @@ class SequencePlan:
             "dt": seq.dt,
             "duration_s": self.duration,
             "vehicles": list(seq.ids),
-            "formations": [
-                {"name": name, "hold_s": hold * seq.dt,
-                 "slots": {vid: slot for vid, slot in zip(seq.ids, slots, strict=True)}}
-                for name, hold, slots in zip(seq.formation_names, seq.holds, seq.slots,
-                                             strict=True)
-            ],
+            "formations": formations,
             "timeline": [dict(s) for s in self.segments],
+        } | ({} if self.sequence.ground is None else {"ground": self._ground()})
+
+    def _ground(self) -> dict[str, Any]:
+        """Where each drone takes off and lands, in which wave, and when."""
+        seq, ground, dt = self.sequence, self.sequence.ground, self.sequence.dt
+        assert ground is not None and self.ground_steps is not None
+        liftoff, touchdown = self.ground_steps
+
+        def per(values: Any) -> dict[str, Any]:
+            return dict(zip(seq.ids, values, strict=True))
+
+        return {
+            "takeoff": {"homes": per(ground.homes.tolist()),
+                        "waves": per(ground.takeoff_waves.tolist()),
+                        "liftoff_s": per([k * dt for k in liftoff])},
+            "landing": {"slots": per(ground.slots.tolist()),
+                        "waves": per(ground.landing_waves.tolist()),
+                        "touchdown_s": per([k * dt for k in touchdown])},
         }
-
-
-def _legs_in_order(sequence: FormationSequence, solver: str | None,
-                   mapper: Callable[..., Iterable[Plan]]) -> list[Plan]:
-    return list(mapper(plan_leg, sequence.legs, [solver] * len(sequence.legs)))
 
 
 def _stitch(sequence: FormationSequence, legs: Sequence[Plan]
@@ -393,6 +465,8 @@ def _whole_scenario(sequence: FormationSequence, steps: int) -> Scenario:
     """The whole timeline as one scenario (F0 to the last formation) for the verifier."""
     first = Scenario.from_dict(sequence.legs[0])
     starts, goals = sequence.points[0], sequence.points[-1]
+    if sequence.ground is not None:
+        starts, goals = sequence.ground.homes, sequence.ground.slots
     vehicles = tuple(Vehicle(vid, s, g)
                      for vid, s, g in zip(sequence.ids, starts, goals, strict=True))
     return Scenario(
@@ -410,8 +484,15 @@ def timeline_scenario(sequence: FormationSequence) -> Scenario:
 
 
 def timeline_steps(sequence: FormationSequence) -> int:
-    """Steps of the whole timeline: holds and legs (an auto leg at its fewest steps)."""
-    return sum(sequence.holds) + sum(sequence.least_steps)
+    """Steps of the whole timeline: holds and legs (an auto leg at its fewest steps), and
+    the takeoff and landing (each climb counted once up and once down)."""
+    steps = sum(sequence.holds) + sum(sequence.least_steps)
+    ground = sequence.ground
+    if ground is not None:
+        steps += sum(Scenario.from_dict(leg).steps
+                     for leg in (ground.takeoff_leg, ground.landing_leg))
+        steps += 2 * sum(Scenario.from_dict(climb).steps for climb in ground.climbs)
+    return steps
 
 
 def dynamics_residual(p: FloatArray, v: FloatArray, a: FloatArray, dt: float) -> float:
@@ -425,16 +506,23 @@ def dynamics_residual(p: FloatArray, v: FloatArray, a: FloatArray, dt: float) ->
 
 def plan_sequence(data: Mapping[str, Any] | FormationSequence, *, solver: str | None = None,
                   mapper: Callable[..., Iterable[Plan]] | None = None) -> SequencePlan:
-    """Plan every leg (through `mapper(plan_leg, legs, solvers)`, the built-in `map` by
+    """Plan every leg (through `mapper(plan_leg, sequence.jobs, solvers)`, the built-in `map` by
     default; an executor's `map` plans them in parallel), stitch them at rest with the holds,
     and verify the whole timeline. Raises `ScenarioError` for an invalid sequence."""
     sequence = data if isinstance(data, FormationSequence) else parse_sequence(data)
-    legs = _legs_in_order(sequence, solver, mapper or map)
+    ground = sequence.ground
+    jobs = sequence.jobs
+    plans = list((mapper or map)(plan_leg, jobs, [solver] * len(jobs)))
+    legs = plans[:len(sequence.legs)]
     p, v, a, segments = _stitch(sequence, legs)
+    moments = None
+    if ground is not None:
+        p, v, a, segments, moments = _on_the_ground(sequence, ground, plans[len(legs):],
+                                                    (p, v, a), segments)
     whole = _whole_scenario(sequence, a.shape[1])
-    verification = verify(whole, p, v, a)
+    verification = verify(whole, p, v, a, ground=ground is not None)
     residual = dynamics_residual(p, v, a, sequence.dt)
-    failed = [(k, leg) for k, leg in enumerate(legs) if not leg.ok]
+    failed = [(k, leg) for k, leg in enumerate(plans) if not leg.ok]
     if failed:
         k, leg = failed[0]
         status = leg.status if leg.status != "converged" else "unverified"
@@ -447,10 +535,35 @@ def plan_sequence(data: Mapping[str, Any] | FormationSequence, *, solver: str | 
         message = "the stitched sequence failed verification: " + "; ".join(problems)
     else:
         status = "converged"
-        message = (f"{len(legs)} legs converged; the stitched {a.shape[1] * sequence.dt:g} s "
+        message = (f"{len(plans)} legs converged; the stitched {a.shape[1] * sequence.dt:g} s "
                    f"timeline verified")
-    return SequencePlan(status, message, sequence, tuple(legs), p, v, a, verification,
-                        residual, segments)
+    return SequencePlan(status, message, sequence, tuple(plans), p, v, a, verification,
+                        residual, segments, moments)
+
+
+def _on_the_ground(sequence: FormationSequence, ground: GroundLegs, plans: Sequence[Plan],
+                   middle: tuple[FloatArray, FloatArray, FloatArray],
+                   segments: tuple[dict[str, Any], ...]
+                   ) -> tuple[FloatArray, FloatArray, FloatArray, tuple[dict[str, Any], ...],
+                              tuple[tuple[int, ...], tuple[int, ...]]]:
+    """The formations' timeline with the takeoff before it and the landing after it."""
+    climbs = dict(zip(ground.climb_heights, plans[:len(ground.climbs)], strict=True))
+    up = takeoff_motion(ground, climbs, plans[-2])
+    down = landing_motion(ground, climbs, plans[-1])
+    p, v, a = middle
+    dt = sequence.dt
+    before, during = up.a.shape[1], a.shape[1]
+    shift = before * dt
+    moved = tuple({**s, "start_s": s["start_s"] + shift, "end_s": s["end_s"] + shift}
+                  for s in segments)
+    total = before + during + down.a.shape[1]
+    timeline = ({"kind": "takeoff", "start_s": 0.0, "end_s": shift}, *moved,
+                {"kind": "landing", "start_s": (before + during) * dt, "end_s": total * dt})
+    moments = (tuple(int(k) for k in up.moment),
+               tuple(int(k) + before + during for k in down.moment))
+    return (np.concatenate([up.p[:, :-1], p[:, :-1], down.p], axis=1),
+            np.concatenate([up.v[:, :-1], v[:, :-1], down.v], axis=1),
+            np.concatenate([up.a, a, down.a], axis=1), timeline, moments)
 
 
 def _csv_rows(times_ms: NDArray[np.int64], positions: FloatArray) -> Iterator[str]:

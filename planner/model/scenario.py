@@ -288,9 +288,12 @@ class Scenario:
         return [v.id for v in self.vehicles]
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
-        """Parse and validate a scenario; raises `ScenarioError` naming the field."""
-        return _parse(data)
+    def from_dict(cls, data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
+        """Parse and validate a scenario; raises `ScenarioError` naming the field. With
+        `on_ground` (a show's whole timeline, which starts and ends on the ground), starts
+        and goals on the ground (z <= 0) may stand closer than R: only those in the air are
+        held to it (`planner.methods.ground`)."""
+        return _parse(data, on_ground=on_ground)
 
     def to_dict(self) -> dict[str, Any]:
         """The scenario JSON with every default filled in."""
@@ -408,7 +411,7 @@ def _closest_pair_within(points: FloatArray, scale: FloatArray, limit: float
     return float(d[k]), int(pairs[k, 0]), int(pairs[k, 1])
 
 
-def _parse(data: Mapping[str, Any]) -> Scenario:
+def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
     check_keys(data, _TOP_KEYS, "", ("dt", "steps", "min_separation", "limits", "vehicles"))
     name = data.get("name", DEFAULTS["name"])
     if not isinstance(name, str) or not name.strip():
@@ -477,11 +480,12 @@ def _parse(data: Mapping[str, Any]) -> Scenario:
     start_velocities = _stack_given([v.start_velocity for v in vehicles])
     start_accelerations = _stack_given([v.start_acceleration for v in vehicles])
     for label, points in (("start", starts), ("goal", goals)):
-        if len(points) < 2:
+        held = np.flatnonzero(points[:, 2] > 0.0) if on_ground else np.arange(len(points))
+        if len(held) < 2:
             continue
-        closest = _closest_pair_within(points, scale, separation)
+        closest = _closest_pair_within(points[held], scale, separation)
         if closest is not None:
-            dist, i, j = closest
+            dist, i, j = closest[0], int(held[closest[1]]), int(held[closest[2]])
             raise ScenarioError(
                 f"vehicles[{j}].{label}",
                 f"is {dist:.3f} m from vehicles[{i}].{label} in the separation metric, "

@@ -29,6 +29,7 @@ from planner.scp.separation import (
 from planner.types import FloatArray
 from planner.verification.clearance import closest_obstacle
 from planner.verification.fixed_clearance import closest_fixed
+from planner.verification.ground import airborne_spans, starts_on_the_ground
 
 __all__ = ["BOUND_TOLERANCE", "SEPARATION_TOLERANCE", "refusal", "verify"]
 
@@ -94,6 +95,24 @@ def continuous_minimum(scenario: Scenario, p: FloatArray, v: FloatArray, a: Floa
     return step_min, best[0], best[1], best[2], best[3]
 
 
+def airborne_minimum(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray
+                     ) -> tuple[float, float, int, int, float]:
+    """`continuous_minimum` over the pairs in the air only (`planner.verification.ground`):
+    each run of steps with the same drones in the air is measured on its own."""
+    step_best = float("inf")
+    best = (float("inf"), -1, -1, 0.0)
+    for first, end, drones in airborne_spans(p, v, a):
+        found = continuous_minimum(scenario, p[drones, first:end + 1],
+                                   v[drones, first:end + 1], a[drones, first:end])
+        if found[2] < 0:
+            continue
+        step_best = min(step_best, found[0])
+        if found[1] < best[0]:
+            best = (found[1], int(drones[found[2]]), int(drones[found[3]]),
+                    found[4] + first * scenario.dt)
+    return (step_best, *best)
+
+
 def _finite(x: float) -> float | None:
     """`x`, or None where it is NaN or infinite (undefined: JSON has neither)."""
     return float(x) if np.isfinite(x) else None
@@ -103,8 +122,11 @@ def _worst(values: dict[str, float]) -> dict[str, float | None]:
     return {key: _finite(x) for key, x in values.items()}
 
 
-def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> Verification:
+def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray, *,
+           ground: bool = False) -> Verification:
     """Check trajectories (N, K+1, 3) / (N, K, 3) against every requirement of the scenario.
+    With `ground` (a show that takes off from and lands on the ground), separation counts
+    only between drones both in the air (`airborne_minimum`).
 
     A figure that cannot be computed (non-finite motion, or a distance that overflows the
     separation metric) is reported as None and fails its check: undefined is never a pass.
@@ -116,7 +138,8 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray) -> V
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         measurable = finite and bool(np.isfinite(p / scenario.separation_scale).all())
         if measurable:
-            step_min, cont_min, i, j, when = continuous_minimum(scenario, p, v, a)
+            step_min, cont_min, i, j, when = (airborne_minimum if ground
+                                              else continuous_minimum)(scenario, p, v, a)
         else:
             step_min, cont_min, i, j, when = math.nan, math.nan, -1, -1, 0.0
         lo, hi = _position_extremes(p, v, a, dt)
@@ -213,7 +236,8 @@ def refusal(plan: Plan) -> str | None:
     edited, or written by another tool); None when it converged and verifies."""
     if plan.status != "converged":
         return f"its status is {plan.status!r}" + (f": {plan.message}" if plan.message else "")
-    check = verify(plan.scenario, plan.positions(), plan.velocities(), plan.accelerations())
+    check = verify(plan.scenario, plan.positions(), plan.velocities(), plan.accelerations(),
+                   ground=starts_on_the_ground(plan.sequence))
     if not check.verified:
         return "it fails verification: " + "; ".join(check.failures())
     for key, moving in (("start_velocity", plan.scenario.start_velocities),
