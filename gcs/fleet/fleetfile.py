@@ -52,7 +52,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
-from gcs.autopilot import CHOICES
+from gcs.autopilot import CHOICES as AUTOPILOT_CHOICES
 from gcs.errors import FleetFileError, LinkError
 from gcs.flight.link.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
@@ -440,8 +440,9 @@ def _peer(value: Any, where: str) -> tuple[str, int]:
 
 
 def _autopilot(value: Any, where: str) -> str:
-    if value not in CHOICES:
-        raise FleetFileError(where, f"must be one of {', '.join(CHOICES)}, got {value!r}")
+    if value not in AUTOPILOT_CHOICES:
+        raise FleetFileError(where, f"must be one of {', '.join(AUTOPILOT_CHOICES)}, "
+                                    f"got {value!r}")
     return str(value)
 
 

@@ -8,7 +8,7 @@ import socket
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.cli.fly_cmd import _mock_ports
 from gcs.sim import ports
 
