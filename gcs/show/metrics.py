@@ -46,7 +46,8 @@ class Metric:
         """Each drone's worst value (min for a floor, max for a ceiling; NaN-free)."""
         values = np.where(np.isfinite(self.values), self.values,
                           np.inf if self.low else -np.inf)
-        return values.min(axis=1) if self.low else values.max(axis=1)
+        worst: FloatArray = values.min(axis=1) if self.low else values.max(axis=1)
+        return worst
 
     def passes(self, tolerance: float) -> BoolArray:
         """Per drone: within the bounds (with `tolerance`)."""

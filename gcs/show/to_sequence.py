@@ -128,7 +128,8 @@ def _on_ground(tracks: Sequence[DesignTrack], hold: tuple[float, float]
     points = np.array([positions_at(t, np.array([at]))[0] for t in tracks])
     if np.abs(points[:, 2]).max() > GROUND_HEIGHT_M:
         return None
-    return np.round(points[:, :2], 6).tolist()
+    grid: list[list[float]] = np.round(points[:, :2], 6).tolist()
+    return grid
 
 
 def _check_times(times: Sequence[float], start: float, end: float, file: str) -> None:

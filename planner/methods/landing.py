@@ -283,7 +283,9 @@ def _chord_floor(d0: FloatArray, middle: FloatArray, d1: FloatArray) -> FloatArr
                     / np.maximum(np.einsum("rc,rc->r", chord, chord), 1e-18), 0.0, 1.0)
     closest = d0 + along[:, None] * chord
     u = closest / np.maximum(np.linalg.norm(closest, axis=1), 1e-12)[:, None]
-    return np.minimum.reduce([np.einsum("rc,rc->r", u, x) for x in (d0, middle, d1)])
+    nearest: FloatArray = np.minimum.reduce([np.einsum("rc,rc->r", u, x)
+                                             for x in (d0, middle, d1)])
+    return nearest
 
 
 def fixed_start_clearances(p: FloatArray, v: FloatArray, a: FloatArray, ids: Sequence[str],

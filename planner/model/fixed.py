@@ -243,7 +243,8 @@ class FixedSet:
         if self.deficits is None or self.interval_relief is None:
             return extra
         relief = np.concatenate([[1.0], self.interval_relief])
-        return extra - self.deficits[vehicle, fixed][:, None] * relief[None, :]
+        relieved: FloatArray = extra - self.deficits[vehicle, fixed][:, None] * relief[None, :]
+        return relieved
 
     @staticmethod
     def build(fixed: Sequence[FixedTrajectory], dt: float, steps: int,

@@ -37,7 +37,8 @@ def airborne(p: FloatArray, v: FloatArray, a: FloatArray) -> NDArray[np.bool_]:
     still = np.all(np.abs(v) <= GROUND_TOLERANCE, axis=2)
     parked = (low[:, :-1] & low[:, 1:] & still[:, :-1] & still[:, 1:]
               & np.all(np.abs(a) <= GROUND_TOLERANCE, axis=2))
-    return ~parked
+    moving: NDArray[np.bool_] = ~parked
+    return moving
 
 
 def airborne_spans(p: FloatArray, v: FloatArray, a: FloatArray
