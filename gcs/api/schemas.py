@@ -15,6 +15,7 @@ models; their `scenario`, `plan` and `progress` fields point at the planner-deri
 from __future__ import annotations
 
 import ast
+import collections.abc
 import dataclasses
 import inspect
 import itertools
@@ -188,7 +189,7 @@ def _type_schema(hint: Any, doc: str) -> dict[str, Any]:
         return {"anyOf": [inner, {"type": "null"}]} if type(None) in args else inner
     if origin in (tuple, list):
         return {"type": "array", "items": _type_schema(args[0], "") if args else {}}
-    if origin is dict:
+    if origin in (dict, collections.abc.Mapping):
         return {"type": "object", "additionalProperties": _type_schema(args[1], "")}
     if hint in _COMPONENT_OF:
         return ref(_COMPONENT_OF[hint])
