@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from gcs.documents import FlightEvent
     from gcs.flight.host.flight_handle import FlightHandle
 
-__all__ = ["configure", "run"]
+__all__ = ["configure", "run", "tolerance_text"]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -326,7 +326,7 @@ async def _progress(handle: FlightHandle, events: asyncio.Queue[FlightEvent | No
         watcher.cancel()
 
 
-def _tolerance_text(summary: dict[str, Any]) -> str:
+def tolerance_text(summary: dict[str, Any]) -> str:
     """The goal tolerance the flight applied: each vehicle's (`goal_tolerances`: the fleet's
     `goal_tolerance`, or larger from the position error or the GPS accuracy a vehicle reports,
     1.8 m on PX4 SIH), not only the fleet-wide base."""
@@ -349,7 +349,7 @@ def _print_summary(record: dict[str, Any]) -> None:
     for reason in s.get("why", []):
         print(f"    {reason}")
     print(f"  goal_error_max          {fmt(s['goal_error_max'], ' m')}"
-          f" ({_tolerance_text(s)})")
+          f" ({tolerance_text(s)})")
     print(f"  tracking_error_max      {fmt(s['tracking_error_max'], ' m')}")
     print(f"  min_separation_measured {fmt(s['min_separation_measured'], ' m')}"
           f" (planned {fmt(s['min_separation_planned'], ' m')}, must keep "

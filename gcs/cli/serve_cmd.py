@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 if TYPE_CHECKING:
     from gcs.service.settings import Settings
 
-__all__ = ["configure", "run"]
+__all__ = ["configure", "port_free", "run", "scheduler_problem", "uvicorn_server"]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -46,7 +46,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 GRACEFUL_SHUTDOWN_S = 5
 
 
-def _port_free(kind: int, port: int, host: str = "127.0.0.1") -> bool:
+def port_free(kind: int, port: int, host: str = "127.0.0.1") -> bool:
     """Can `port` be bound now? TCP is tried the way uvicorn binds (SO_REUSEADDR), so a
     TIME_WAIT left by closed client connections does not read as "in use"."""
     import socket
@@ -99,16 +99,16 @@ def _startup_problem(settings: Settings) -> str | None:
     elif settings.mock_vehicles:
         base, count = settings.mock_base_port, settings.mock_vehicles
         for port in (base + offset for offset in mock_port_offsets(count)):
-            if not _port_free(socket.SOCK_DGRAM, port):
+            if not port_free(socket.SOCK_DGRAM, port):
                 return (f"UDP port {port} (mock vehicles, mock_base_port {base}) is in use: "
                         f"another fleetplan or PX4 SITL running? Set FLEETPLAN_MOCK_BASE_PORT")
     host, port = settings.host, settings.port
-    if ":" not in host and not _port_free(socket.SOCK_STREAM, port, host):
+    if ":" not in host and not port_free(socket.SOCK_STREAM, port, host):
         return f"TCP port {port} on {host} is in use: choose another with --port"
-    return _database_problem(settings.database_url) or _scheduler_problem(settings.scheduler)
+    return _database_problem(settings.database_url) or scheduler_problem(settings.scheduler)
 
 
-def _scheduler_problem(address: str | None, timeout: float = 30.0) -> str | None:
+def scheduler_problem(address: str | None, timeout: float = 30.0) -> str | None:
     """Why the Dask scheduler named by the `scheduler` setting cannot be used (None: it
     answers, or none is named). Waits up to `timeout` for one that is still starting."""
     if not address:
@@ -135,7 +135,7 @@ async def _on_stop_signal(app: Any) -> None:
             await fleet.abort(flight.id, "land", "the service is stopping")
 
 
-def _server(app: Any, settings: Settings, log_level: str) -> Any:
+def uvicorn_server(app: Any, settings: Settings, log_level: str) -> Any:
     """A uvicorn server whose stop signals also call `_on_stop_signal`."""
     import asyncio
 
@@ -207,5 +207,5 @@ def run(args: argparse.Namespace) -> int:
     host = f"[{settings.host}]" if ":" in settings.host else settings.host
     print(f"fleetplan: serving on http://{host}:{settings.port}/ ({fleet}, "
           f"database {settings.database_url})", flush=True)
-    _server(app, settings, args.log_level).run()
+    uvicorn_server(app, settings, args.log_level).run()
     return 0

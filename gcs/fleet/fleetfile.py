@@ -95,11 +95,11 @@ _MAXIMA: dict[str, tuple[float, str]] = {
 
 __all__ = [
     "AT_END",
-    "CHOICES",
     "GEOFENCE",
     "LANDING",
     "MARGIN_CHECK",
     "MESSAGE_RATES",
+    "OPTION_CHOICES",
     "PAUSE_EXPIRY",
     "POLICIES",
     "PREFLIGHT",
@@ -151,7 +151,7 @@ MESSAGE_RATES: tuple[MessageRates, ...] = get_args(MessageRates)
 StreamPriority = Literal["normal", "realtime"]
 STREAM_PRIORITY: tuple[StreamPriority, ...] = get_args(StreamPriority)
 #: FlightOptions field -> its allowed values.
-CHOICES: dict[str, tuple[str, ...]] = {
+OPTION_CHOICES: dict[str, tuple[str, ...]] = {
     "policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
     "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT, "message_rates": MESSAGE_RATES,
     "stream_priority": STREAM_PRIORITY, "landing": LANDING, "geofence": GEOFENCE,
@@ -296,8 +296,8 @@ class FlightOptions:
     def replace(self, where: str = "options", **changes: Any) -> FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
-            if key in CHOICES:
-                allowed = CHOICES[key]
+            if key in OPTION_CHOICES:
+                allowed = OPTION_CHOICES[key]
                 if key == "geofence" and value is None:
                     continue  # upload when an origin is known
                 if value not in allowed:

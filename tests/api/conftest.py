@@ -17,7 +17,7 @@ from tests.flight.support import QUICK_MOCK_SETTINGS
 
 
 @pytest.fixture(autouse=True)
-def _isolated_settings(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+def isolated_settings(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """No FLEETPLAN_* variable or ./fleetplan.toml of the developer leaks into a test."""
     for name in list(os.environ):
         if name.startswith("FLEETPLAN_") and name != "FLEETPLAN_REQUIRE_BROWSER":

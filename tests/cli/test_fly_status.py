@@ -53,11 +53,11 @@ def test_figure() -> None:
 def test_the_summary_names_the_goal_tolerance_applied_not_only_the_base() -> None:
     """PX4 SIH reports a GPS accuracy of 0.9 m, so each vehicle is judged within 1.8 m while
     the fleet's base tolerance is 0.5 m: the summary line says what was applied."""
-    from gcs.cli.fly_cmd import _tolerance_text
+    from gcs.cli.fly_cmd import tolerance_text
 
     sih = {"goal_tolerance": 0.5, "goal_tolerances": {"a": 1.8, "b": 1.8}}
-    assert _tolerance_text(sih) == "tolerance 1.800 m"
+    assert tolerance_text(sih) == "tolerance 1.800 m"
     mixed = {"goal_tolerance": 0.5, "goal_tolerances": {"a": 0.5, "b": 1.8}}
-    assert _tolerance_text(mixed) == "tolerances 0.500-1.800 m"
-    assert _tolerance_text({"goal_tolerance": 0.2, "goal_tolerances": {}}) == "tolerance 0.200 m"
-    assert _tolerance_text({"goal_tolerance": None}) == "tolerance n/a"
+    assert tolerance_text(mixed) == "tolerances 0.500-1.800 m"
+    assert tolerance_text({"goal_tolerance": 0.2, "goal_tolerances": {}}) == "tolerance 0.200 m"
+    assert tolerance_text({"goal_tolerance": None}) == "tolerance n/a"

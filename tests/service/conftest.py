@@ -11,9 +11,9 @@ import pytest
 from distributed import LocalCluster
 
 from gcs.service.store import Store
-from tests.api.conftest import _isolated_settings, make_settings, mock_settings
+from tests.api.conftest import isolated_settings, make_settings, mock_settings
 
-__all__ = ["_isolated_settings", "make_settings", "mock_settings"]
+__all__ = ["isolated_settings", "make_settings", "mock_settings"]
 
 
 @pytest.fixture(scope="module")

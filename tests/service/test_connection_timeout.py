@@ -15,7 +15,7 @@ import pytest
 import uvicorn
 
 from gcs.api.connection_timeout import request_deadline_protocol
-from gcs.cli.serve_cmd import _server
+from gcs.cli.serve_cmd import uvicorn_server
 from gcs.service.settings import Settings
 from tests.api.support import free_port
 
@@ -142,6 +142,6 @@ def test_a_response_longer_than_the_deadline_arrives_in_full(server: int) -> Non
 def test_the_service_serves_with_the_settings_deadlines() -> None:
     settings = Settings(database_url="sqlite://", mock_vehicles=0, request_timeout_s=3.0,
                         idle_timeout_s=7.0)
-    server = _server(app, settings, "warning")
+    server = uvicorn_server(app, settings, "warning")
     assert server.config.http.request_timeout_s == 3.0
     assert server.config.timeout_keep_alive == 7

@@ -16,7 +16,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from gcs.cli.serve_cmd import _port_free
+from gcs.cli.serve_cmd import port_free
 from gcs.service.store import Store
 from tests.api.support import QUICK_PAIR, ServiceProcess, free_port, free_udp_base
 
@@ -42,12 +42,12 @@ def test_port_check_ignores_time_wait_but_not_a_listener() -> None:
     _time_wait_on(port)
     with socket.socket() as plain, pytest.raises(OSError):  # what the old check did
         plain.bind(("127.0.0.1", port))
-    assert _port_free(socket.SOCK_STREAM, port)
+    assert port_free(socket.SOCK_STREAM, port)
     with socket.socket() as listener:  # a real server on it (binding as uvicorn does)
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         listener.bind(("127.0.0.1", port))
         listener.listen()
-        assert not _port_free(socket.SOCK_STREAM, port)
+        assert not port_free(socket.SOCK_STREAM, port)
 
 
 def _serve(tmp_path: Path, db: str) -> subprocess.CompletedProcess[str]:
@@ -139,11 +139,11 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
 
 
 def test_an_unreachable_scheduler_is_a_one_line_problem() -> None:
-    from gcs.cli.serve_cmd import _scheduler_problem
+    from gcs.cli.serve_cmd import scheduler_problem
 
     address = f"tcp://127.0.0.1:{free_port()}"
-    problem = _scheduler_problem(address, timeout=2)
+    problem = scheduler_problem(address, timeout=2)
     assert problem is not None
     assert problem.startswith(f"cannot reach the Dask scheduler at {address} (setting scheduler)")
     assert "\n" not in problem
-    assert _scheduler_problem(None) is None
+    assert scheduler_problem(None) is None

@@ -92,6 +92,7 @@ class Job:
     """One replan under way."""
 
     record: ReplanRecord
+    """What the flight shows of it (`ReplanRecord.document`)."""
     tick: int
     """Streamer tick of the switch."""
     plan_tick: int

@@ -58,5 +58,5 @@ def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
         "min_separation_live": finite_or_none(min_separation),
         "vehicles": [vehicle_snapshot(v, now) for v in vehicles],
         "events": events,
-        "replan": None if replan is None else ReplanDocument(**replan),
+        "replan": replan,
     }
