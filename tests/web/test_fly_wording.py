@@ -60,3 +60,19 @@ def test_fly_scrolled_to_stays_below_the_header_on_a_phone(
     fly = page.locator("#fly-screen").bounding_box()
     assert header and fly
     assert fly["y"] >= header["y"] + header["height"]
+
+
+def test_a_settling_estimator_is_not_shown_as_a_pre_arm_failure(page: Page) -> None:
+    cells = page.evaluate("""async () => {
+        const { healthCell } = await import("/health.js");
+        const h = (warnings) => ({unhealthy: [], prearm_ok: false, warnings});
+        return [
+            healthCell(h([])),
+            healthCell(h(["Preflight Fail: heading estimate not stable",
+                          "Arming denied: Resolve system health failures first"])),
+            healthCell(h(["Preflight Fail: No valid data from Baro 0"])),
+            healthCell({unhealthy: ["3D gyro"], prearm_ok: false, warnings: []}),
+        ].map(([text, level]) => [text, level]);
+    }""")
+    assert cells == [["pre-arm not ready", "warn"], ["estimator settling", "warn"],
+                     ["No valid data from Baro 0", "bad"], ["3D gyro", "bad"]]
