@@ -76,3 +76,16 @@ def test_a_settling_estimator_is_not_shown_as_a_pre_arm_failure(page: Page) -> N
     }""")
     assert cells == [["pre-arm not ready", "warn"], ["estimator settling", "warn"],
                      ["No valid data from Baro 0", "bad"], ["3D gyro", "bad"]]
+
+
+def test_the_fleet_table_shows_every_column_at_phone_width(
+        open_page: Callable[..., Page]) -> None:
+    page = open_page(PHONE)
+    plan(page)
+    table = page.locator("#vehicle-state")
+    expect(table.locator("th", has_text="phase")).to_have_count(1)
+    widths = page.evaluate("""() => {
+        const table = document.querySelector('#vehicle-state');
+        return [table.scrollWidth, table.closest('.table-wrap').clientWidth];
+    }""")
+    assert widths[0] <= widths[1], widths  # no column behind the table's own scroller
