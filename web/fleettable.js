@@ -123,7 +123,10 @@ function vehicleRow(v, optional, health, drops, actions) {
     const [text, level, title] = render(v[key]);
     cell(text, level, key).title = title ?? "";
   }
-  if (health) { const [text, level] = healthCell(v.health, v.fault); cell(text, level, "health"); }
+  if (health) {
+    const [text, level, title] = healthCell(v.health, v.fault);
+    cell(text, level, "health").title = title ?? "";
+  }
   cell(v.phase ?? "idle", v.fault ? "bad" : "", "phase").title = v.fault || "";
   if (drops) {
     const td = cell("", "", "replan");

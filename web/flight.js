@@ -15,6 +15,7 @@ import { showMission } from "./planning.js";
 import { replanTelemetry, updateReplanControls } from "./replan.js";
 import { closeReplay } from "./replay.js";
 import { editor, fleet, flight, planning, views } from "./state.js";
+import { closestPair } from "./tracks.js";
 
 /** @typedef {import("./state.js").Telemetry} Telemetry */
 
@@ -157,8 +158,7 @@ function showTelemetry(t) {
 export function drawTelemetry(t) {
   if (!t) return;
   showVehicleTable();
-  const sep = t.min_separation_live === null ? "" : `closest pair now ${t.min_separation_live.toFixed(2)} m`;
-  $("#flight-phase").textContent = sep;
+  $("#flight-phase").textContent = separationLine(t);
   if ($("#follow").checked && views.traj && t.flight_time !== null && t.flight_time !== undefined) {
     moveSlider(Math.round(t.flight_time * views.traj.rate));
   } else {
@@ -167,11 +167,34 @@ export function drawTelemetry(t) {
   }
 }
 
+/** The separation line: the closest pair now, from the vehicles' positions in this snapshot
+ * (the plan's separation metric), beside the closest the flight has come so far (the
+ * service's `min_separation_live`, a minimum over the flight, not a current value).
+ * @param {Telemetry} t */
+export function separationLine(t) {
+  const scale = planning.mission?.plan?.scenario?.separation_scale ?? [1, 1, 1];
+  const points = t.vehicles.map((v) => v.position).filter((p) => Array.isArray(p));
+  const now = points.length > 1 ? `closest pair now ${closestPair(points, scale).toFixed(2)} m` : "";
+  const sofar = t.min_separation_live === null || t.min_separation_live === undefined ? ""
+    : `closest so far ${t.min_separation_live.toFixed(2)} m`;
+  return [now, sofar].filter(Boolean).join(" · ");
+}
+
+/** An event's words: its kind, then its detail, without saying a word twice ("landed:
+ * landed and disarmed" reads "landed and disarmed"; "land: landing" reads "landing").
+ * @param {{kind: string, detail?: string | null}} e */
+export function eventText(e) {
+  const detail = (e.detail ?? "").trim();
+  if (!detail) return e.kind;
+  const kind = e.kind.replace(/_/g, " ").toLowerCase();
+  return detail.toLowerCase().startsWith(kind) ? detail : `${e.kind}: ${detail}`;
+}
+
 /** One line of the event log.
  * @param {{t: number, vehicle?: string, kind: string, detail?: string}} e */
 export function logEvent(e) {
   const li = document.createElement("li");
-  li.textContent = `${fmt(e.t, 2)} s ${e.vehicle ? e.vehicle + ": " : ""}${e.kind} ${e.detail ?? ""}`;
+  li.textContent = `${fmt(e.t, 2)} s ${e.vehicle ? e.vehicle + ": " : ""}${eventText(e)}`;
   appendScrolled($("#event-log"), li);
 }
 

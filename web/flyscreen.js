@@ -135,12 +135,23 @@ export function showClock() {
   $("#flight-progress").value = Math.round(clamp(fraction, 0, 1) * 1000);
 }
 
-/** ▶: play the plan on the slider (loops); again to stop. */
+/** The play button's glyph, drawn as SVG (a font may lack ⏸ and show an empty box).
+ * @param {boolean} playing */
+export function playIcon(playing) {
+  const button = $("#play");
+  button.dataset.icon = playing ? "pause" : "play";
+  button.title = playing ? "stop playing the plan" : "play the plan";
+  button.innerHTML = playing
+    ? '<svg viewBox="0 0 10 10" width="10" height="10" aria-hidden="true"><rect x="1.5" y="1" width="2.5" height="8" fill="currentColor"/><rect x="6" y="1" width="2.5" height="8" fill="currentColor"/></svg>'
+    : '<svg viewBox="0 0 10 10" width="10" height="10" aria-hidden="true"><path d="M2 1 L9 5 L2 9 Z" fill="currentColor"/></svg>';
+}
+
+/** Play: the plan on the slider (loops); again to stop. */
 export function togglePlay() {
   const traj = views.traj;
   if (!traj) return;
   if (views.playTimer) { stopPlay(); return; }
-  $("#play").textContent = "⏸";
+  playIcon(true);
   $("#follow").checked = false;
   const slider = $("#time-slider");
   views.playTimer = setInterval(() => {
@@ -160,5 +171,5 @@ on(REPLAN_CHANGED, () => {
 export function stopPlay() {
   if (views.playTimer) clearInterval(views.playTimer);
   views.playTimer = null;
-  $("#play").textContent = "▶";
+  playIcon(false);
 }

@@ -60,15 +60,35 @@ export function gpsCell(g) {
           `${name} fix${count ? `, ${sats} satellites` : ""}${acc}`];
 }
 
+// A PX4 pre-arm failure about the state estimate: the estimator still settling after boot.
+const ESTIMATOR_TEXT = /estimat|\bekf\b|heading/i;
+const PREFLIGHT_FAIL = /^preflight fail:\s*/i;
+
+/** The health cell while the pre-arm check does not pass: the autopilot's own reason when it
+ * gave one ("Preflight Fail: ..."), as "estimator settling" (amber) when every reason is the
+ * estimate settling after boot (PX4 SITL and the mock for their first seconds), and "pre-arm
+ * not ready" (amber) until it names one (PX4 says why when arming is asked).
+ * @param {string[]} warnings @returns {string[]} [text, level, title] */
+function prearmCell(warnings) {
+  const failing = warnings.filter((w) => PREFLIGHT_FAIL.test(w));
+  if (failing.length && failing.every((w) => ESTIMATOR_TEXT.test(w))) {
+    return ["estimator settling", "warn", `the state estimate is settling after boot: ${failing.join("; ")}`];
+  }
+  if (failing.length) return [failing[failing.length - 1].replace(PREFLIGHT_FAIL, ""), "bad", warnings.join("; ")];
+  return ["pre-arm not ready", "warn",
+          "the autopilot's pre-arm check does not pass yet (an estimator settling after boot, " +
+          "or a failure it names when arming is asked)"];
+}
+
 // Health, as GET /api/vehicles reports it: {unhealthy: [sensor names] (null unknown),
 // prearm_ok (null unknown), warnings: [recent warning texts]}.
-/** @param {any} h @param {string} [fault] @returns {string[]} [text, level] */
+/** @param {any} h @param {string} [fault] @returns {string[]} [text, level, title] */
 export function healthCell(h, fault) {
   if (fault) return [String(fault), "bad"];
   if (h === null || h === undefined || typeof h !== "object") return ["–", ""];
   const unhealthy = h.unhealthy || [];
   if (unhealthy.length) return [unhealthy.join(", "), "bad"];
-  if (h.prearm_ok === false) return ["pre-arm failing", "bad"];
+  if (h.prearm_ok === false) return prearmCell(h.warnings || []);
   if (h.unhealthy === null || h.unhealthy === undefined) return ["–", ""];
   return (h.warnings || []).length ? ["warning", "warn"] : ["ok", "ok"];
 }

@@ -171,9 +171,14 @@ async def _store_uploaded(body: Any, store: Store, settings: Settings) -> Respon
     """Store a plan made elsewhere, verified again, as a planned mission (201)."""
     scenario, text, plan = await run_in_threadpool(_uploaded, body, settings)
     row = await run_in_threadpool(store.create_mission, scenario)
-    await run_in_threadpool(store.finish_planning, row.id, plan_json=text,
-                            plan_status=plan.status, plan_ok=True,
-                            steps=plan.scenario.steps)
+    try:
+        await run_in_threadpool(store.finish_planning, row.id, plan_json=text,
+                                plan_status=plan.status, plan_ok=True,
+                                steps=plan.scenario.steps)
+    except BaseException:  # never a mission left `planning` without a job
+        with contextlib.suppress(Exception):
+            await asyncio.shield(run_in_threadpool(store.delete_mission, row.id))
+        raise
     document = await run_in_threadpool(store.get_mission, row.id, with_plan=True)
     assert document is not None
     return _json(mission_document(document, None), 201, {"Location": f"/api/missions/{row.id}"})

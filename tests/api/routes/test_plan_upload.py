@@ -85,3 +85,15 @@ def test_a_plan_over_the_servers_limits_lists_every_bound(shared_client: TestCli
     reasons = {e["field"]: e["reason"] for e in body["errors"]}
     assert "64 vehicles exceed this server's limit of 16" in reasons["scenario.vehicles"]
     assert "401 steps exceed this server's limit of 400" in reasons["scenario.steps"]
+
+
+def test_a_big_body_is_parsed_off_the_event_loop_all_the_same(
+        shared_client: TestClient, monkeypatch: pytest.MonkeyPatch) -> None:
+    from gcs.api import deps
+
+    monkeypatch.setattr(deps, "PARSE_OFF_LOOP_BYTES", 0)  # every body counts as big
+    response = shared_client.post("/api/missions", json=_plan())
+    assert response.status_code == 201 and response.json()["plan_ok"] is True
+    bad = shared_client.post("/api/missions", content=b"{not json",
+                             headers={"content-type": "application/json"})
+    assert bad.status_code == 400 and "not valid JSON" in bad.json()["reason"]
