@@ -416,11 +416,10 @@ def check_fixed_clear(fixed: Sequence[FixedTrajectory], separation: float, scale
         for label, points, at, when, need in (
                 ("start", starts, f.positions[0], "at its start", start_need),
                 ("goal", goals, f.positions[-1], "where it rests", separation + f.margin)):
-            short = np.linalg.norm((points - at) / scale, axis=1) - need
-            if short.min() < 0.0:
-                n = int(np.argmin(short))
-                d = float(short[n] + np.broadcast_to(need, short.shape)[n])
-                least = d - float(short[n])
+            d = np.linalg.norm((points - at) / scale, axis=1)
+            least = np.broadcast_to(need, d.shape)
+            n = int(np.argmin(d - least))
+            if d[n] < least[n]:
                 raise ScenarioError(f"vehicles[{n}].{label}",
-                                    f"is {d:.3f} m from fixed vehicle {f.id!r} {when}, "
-                                    f"closer than {least:g} m")
+                                    f"is {d[n]:.3f} m from fixed vehicle {f.id!r} {when}, "
+                                    f"closer than {least[n]:g} m")

@@ -3,6 +3,8 @@ ground."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -191,17 +193,23 @@ def test_a_vehicle_nearer_a_shelf_than_the_clearance_still_gets_a_landing(shelvi
     assert landing.plan.verification.obstacle_distance_min >= kept - 1e-4
 
 
+def _lost_at_8s(circle8, *, margin: float, hold_s: float) -> tuple:
+    """The circle's state at 8 s, uav2 (over uav1) lost there: p, v, a of all, its predicted
+    landing (braking, `hold_s`, straight down), the others' indices and ids."""
+    state = circle8.sample(np.array([8.0]))
+    p, v, a = (x[:, 0] for x in state)
+    lost = landing_motion("uav2", p[1], v[1], circle8.scenario.dt, 2.0, 0.7, 0.0,
+                          margin=margin, hold_s=hold_s)
+    others = [n for n in range(8) if n != 1]
+    return p, v, a, lost, others, [circle8.scenario.ids[n] for n in others]
+
+
 def test_a_landing_keeps_r_plus_margin_from_a_vehicle_on_its_own_failsafe(circle8) -> None:
     """One vehicle of the circle is lost at t = 8 s: it holds 5 s where it is, then lands
     straight down (a fixed trajectory with a 0.3 m margin). The other seven land by a plan
     that keeps R + 0.3 m from it over continuous time, touch down R + 0.3 m (and the slack)
     from where it rests, and last until it is down; without it, the plan would not."""
-    state = circle8.sample(np.array([8.0]))
-    p, v, a = (x[:, 0] for x in state)
-    lost = landing_motion("uav2", p[1], v[1], circle8.scenario.dt, 2.0, 0.7, 0.0,
-                          margin=0.3, hold_s=5.0)
-    others = [n for n in range(8) if n != 1]
-    ids = [circle8.scenario.ids[n] for n in others]
+    p, v, a, lost, others, ids = _lost_at_8s(circle8, margin=0.3, hold_s=5.0)
     landing = plan_landing(circle8.scenario, p[others], v[others], a[others], ids=ids,
                            fixed=[lost])
     plan = landing.plan
@@ -278,12 +286,7 @@ def test_moving_away_first_clears_a_lost_vehicles_whole_column(circle8) -> None:
     down. A plan that moves the others away first (the landing's second stage) takes each
     to its own height, clear of every point uav2 passes by R + margin horizontally and R
     from the others, verified against uav2's motion; from there each goes straight down."""
-    state = circle8.sample(np.array([8.0]))
-    p, v, a = (x[:, 0] for x in state)
-    lost = landing_motion("uav2", p[1], v[1], circle8.scenario.dt, 2.0, 0.7, 0.0,
-                          margin=0.2, hold_s=1.0)
-    others = [n for n in range(8) if n != 1]
-    ids = [circle8.scenario.ids[n] for n in others]
+    p, v, a, lost, others, ids = _lost_at_8s(circle8, margin=0.2, hold_s=1.0)
     away = plan_landing(circle8.scenario, p[others], v[others], a[others], ids=ids,
                         fixed=[lost], stages=("escape",))
     plan = away.plan
@@ -325,3 +328,26 @@ def test_escape_points_of_vehicles_around_a_column() -> None:
     assert np.array_equal(out[:, 2], p[:, 2])
     assert np.linalg.norm(out[:2, :2] - [3.0, 3.0], axis=1).min() >= 1.3 * 1.05 - 1e-6
     assert np.allclose(out[2], p[2])
+
+
+def test_a_landing_whose_first_qp_has_no_solution_is_not_retried_longer() -> None:
+    """paper-circle8 flown in 16 s (as on the mock), uav2 lost at 7.5 s with uav1 and uav3
+    1.005 m from it: no landing opens the full 0.28 m margin in time, and its first QP says
+    so. A longer horizon starts from the same state (and took 26 s of CPU to say the same),
+    so the landing fails at once and the next share of the margin plans it."""
+    circle8 = planner.plan(planner.Scenario.from_dict(
+        {**load_example("paper-circle8"), "steps": 80}))
+    assert circle8.ok
+    state = circle8.sample(np.array([7.5]))
+    p, v, a = (x[:, 0] for x in state)
+    lost = landing_motion("uav2", p[1], v[1], circle8.scenario.dt, 2.0, 0.7, 0.0,
+                          margin=0.28, hold_s=7.6, acceleration=a[1], coast_steps=1)
+    others = [n for n in range(8) if n != 1]
+    ids = [circle8.scenario.ids[n] for n in others]
+    with pytest.raises(LandingError) as error:
+        plan_landing(circle8.scenario, p[others], v[others], a[others], ids=ids,
+                     fixed=[lost], stages=("landing",))
+    assert str(error.value).count("status infeasible: iteration 1") == 1
+    half = plan_landing(circle8.scenario, p[others], v[others], a[others], ids=ids,
+                        fixed=[replace(lost, margin=0.14)], stages=("landing",))
+    assert half.touchdown and half.plan.ok and half.attempts == 1
