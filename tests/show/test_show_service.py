@@ -17,6 +17,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from planner import Plan
+from tests.api.routes.test_sequences import plan_sequence as post_sequence
 from tests.planner.test_ground import _show
 
 
@@ -32,9 +33,7 @@ def client(tmp_path: Path, dask_scheduler: str) -> Iterator[TestClient]:
 def test_a_ground_show_is_a_mission_whose_file_takes_off(client: TestClient) -> None:
     body = _show(landing={})
     body["formations"][0]["color"] = "#ff8800"
-    response = client.post("/api/missions?wait=120", json=body)
-    assert response.status_code == 201, response.text
-    mission = response.json()
+    mission = post_sequence(client, body)  # planned within its wait: 201
     assert mission["plan_ok"] is True, mission["error"]
     plan = Plan.from_dict(client.get(mission["links"]["plan"]).json())
     assert plan.ok and plan.sequence is not None and "ground" in plan.sequence
