@@ -115,10 +115,10 @@ def test_pause_holds_a_guided_fleet_on_one_target_then_resumes() -> None:
 def test_hold_at_the_end_brakes_and_an_abort_lands() -> None:
     """at_end hold puts an ArduCopter in BRAKE (LOITER would sink without an RC throttle);
     an abort during the flight lands it (LAND) and it disarms."""
-    flight, record, mock = asyncio.run(_fly(1, ["ardupilot"], QUICK.replace(at_end="hold")))
+    _flight, record, mock = asyncio.run(_fly(1, ["ardupilot"], QUICK.replace(at_end="hold")))
     assert isinstance(record, dict), record
     assert mock.vehicles[0].mode == ardupilot.BRAKE and mock.vehicles[0].armed
-    assert any("holding (ArduPilot BRAKE)" == e["detail"] for e in record["events"])
+    assert any(e["detail"] == "holding (ArduPilot BRAKE)" for e in record["events"])
 
     async def abort(flight: FlightExecutor, mock: MockFleet) -> None:
         await _until(lambda: (flight.flight_time() or 0.0) > 0.5, "flying")
