@@ -11,8 +11,17 @@ import { fleet, flight, views } from "./state.js";
 /** @typedef {import("./state.js").VehicleRow} VehicleRow */
 
 /** @type {[string, string, (value: any) => string[]][]} */
-const OPTIONAL_COLUMNS = [["link_quality", "loss", linkQualityCell],
+const OPTIONAL_COLUMNS = [["autopilot", "autopilot", autopilotCell],
+                          ["link_quality", "loss", linkQualityCell],
                           ["battery", "battery", batteryCell], ["gps", "GPS", gpsCell]];
+// The autopilot a vehicle is flown as (GET /api/vehicles: "px4" or "ardupilot"; null unknown).
+const AUTOPILOT_NAMES = { px4: "PX4", ardupilot: "ArduPilot" };
+/** @param {any} a @returns {string[]} [text, level, title] */
+function autopilotCell(a) {
+  if (typeof a !== "string") return ["–", "", "autopilot not known yet"];
+  const name = AUTOPILOT_NAMES[/** @type {"px4" | "ardupilot"} */ (a)] ?? a;
+  return [name, "", `flown as ${name}`];
+}
 /** Most rows drawn: a show-sized fleet's table lists its vehicles with a fault first, then
  * the others up to this many, and says how many are not listed. */
 export const TABLE_ROWS_MAX = 100;

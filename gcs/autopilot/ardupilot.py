@@ -173,6 +173,23 @@ class ArduPilot(Autopilot):
                   "(FS_GCS_ENABLE) acts", "ArduPilot holds its last position target in GUIDED "
                   "until its GCS failsafe (FS_GCS_ENABLE) acts")
 
+    def unsigned_port(self, connection: str) -> str | None:
+        """SERIAL0 accepts unsigned packets whatever the key: SITL's TCP 5760 + 10 i, and a
+        board's USB port (/dev/ttyACM*)."""
+        scheme, _, rest = connection.partition(":")
+        port = rest.rpartition(":")[2]
+        if scheme == "tcp" and port.isdigit():
+            offset = int(port) - SITL_SERIAL0_BASE_PORT
+            if 0 <= offset < 2550 and offset % 10 == 0:
+                return (f"TCP {port} is ArduPilot SITL's SERIAL0 (5760 + 10 i), which "
+                        f"accepts unsigned packets whatever the key: connect to another of "
+                        f"its ports ({int(port) + 2}, or --serial1 udpclient:HOST:PORT)")
+        if "ttyACM" in connection or connection.startswith("/dev/serial/by-id/usb"):
+            return ("a USB port is SERIAL0 on an ArduPilot board, which accepts unsigned "
+                    "packets whatever the key: fly signed over a telemetry port (SERIAL1 "
+                    "or 2)")
+        return None
+
     def decode_mode(self, custom_mode: int) -> CopterMode:
         return CopterMode(int(custom_mode))
 

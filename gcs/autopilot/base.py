@@ -131,6 +131,11 @@ class Autopilot(ABC):
     #: What it does without setpoints before its parameters are read.
     default_failsafe: ClassVar[LinkLossFailsafe]
 
+    def unsigned_port(self, connection: str) -> str | None:
+        """Why a signed link on `connection` (a pymavlink URL) would still let unsigned
+        packets in, where the URL shows it; None when it does not."""
+        return None
+
     @abstractmethod
     def decode_mode(self, custom_mode: int) -> FlightMode:
         """HEARTBEAT.custom_mode -> its mode."""

@@ -36,6 +36,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--realism", choices=("ideal", "px4"), default="ideal",
                         help="ideal (exact state, default) or px4: PX4 SIH SITL's estimate "
                              "noise, tracking lag and timings")
+    parser.add_argument("--autopilot", default="px4",
+                        help="whose rules the vehicles follow: px4 (default) or ardupilot "
+                             "(ArduCopter 4.7: GUIDED, NAV_TAKEOFF, PreArm texts, streams only "
+                             "on request), or one per vehicle, comma-separated "
+                             "(px4,ardupilot,...: a mixed fleet)")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of the noise and injected loss (default 0)")
     parser.add_argument("--settle", type=float, default=None,
@@ -73,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gcs.cli.hints import port_error, port_in_use_hint
     from gcs.sim import MockConfig, MockFleet, homes_under
+    from gcs.sim.config import AUTOPILOTS
 
     ids = None
     homes = None
@@ -120,6 +126,12 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if homes is None:
         homes = [[args.spacing * i, 0.0, 0.0] for i in range(count)]
+    autopilots = [a.strip() for a in args.autopilot.split(",")]
+    bad = [a for a in autopilots if a not in AUTOPILOTS]
+    if bad or len(autopilots) not in (1, count):
+        print(f"error: --autopilot must be {' or '.join(AUTOPILOTS)}, or one of them per "
+              f"vehicle ({count}) separated by commas, got {args.autopilot!r}", file=sys.stderr)
+        return 2
 
     async def main() -> int:
         config = MockConfig.preset(args.realism, position_rate=args.position_rate,
@@ -131,7 +143,8 @@ def run(args: argparse.Namespace) -> int:
         mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
                          listen_base_port=args.listen_base_port,
                          max_port_offset=args.max_port_offset, config=config,
-                         gcs_link_port=args.gcs_port)
+                         gcs_link_port=args.gcs_port,
+                         autopilots=autopilots * count if len(autopilots) == 1 else autopilots)
         for vehicle in mock.vehicles:
             vehicle.faults.loss = args.loss
             vehicle.faults.delay = args.delay
@@ -146,7 +159,9 @@ def run(args: argparse.Namespace) -> int:
             if args.position_error is not None:
                 fleet["position_error"] = args.position_error
             Path(args.fleet_out).write_text(json.dumps(fleet, indent=1))
-        print(f"mock: {count} PX4-like vehicles ({args.realism}), listening on "
+        kinds = {"px4": "PX4-like", "ardupilot": "ArduCopter-like"}
+        label = kinds[autopilots[0]] if len(set(autopilots)) == 1 else "PX4- and ArduCopter-like"
+        print(f"mock: {count} {label} vehicles ({args.realism}), listening on "
               f"{args.listen_base_port}..{args.listen_base_port + count - 1}, sending to "
               f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}; time_boot_ms 0 "
               f"at monotonic {mock.boot_monotonic:.6f}", flush=True)

@@ -52,7 +52,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
-from gcs.autopilot import CHOICES as AUTOPILOT_CHOICES
+from gcs.autopilot import AUTOPILOTS, CHOICES
 from gcs.errors import FleetFileError, LinkError
 from gcs.flight.link.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
@@ -440,10 +440,24 @@ def _peer(value: Any, where: str) -> tuple[str, int]:
 
 
 def _autopilot(value: Any, where: str) -> str:
-    if value not in AUTOPILOT_CHOICES:
-        raise FleetFileError(where, f"must be one of {', '.join(AUTOPILOT_CHOICES)}, "
+    if value not in CHOICES:
+        raise FleetFileError(where, f"must be one of {', '.join(CHOICES)}, "
                                     f"got {value!r}")
     return str(value)
+
+
+def _warn_unsigned_ports(vehicles: Sequence[VehicleSpec], source: str) -> None:
+    """A `FleetFileWarning` for each signed vehicle whose connection goes to a port its
+    autopilot (or, for ``auto``, any autopilot) never checks signatures on."""
+    for index, v in enumerate(vehicles):
+        if v.signing_key is None:
+            continue
+        kinds = AUTOPILOTS.values() if v.autopilot == "auto" else [AUTOPILOTS[v.autopilot]]
+        for kind in kinds:
+            why = kind.unsigned_port(v.connection)
+            if why is not None:
+                warnings.warn(f"{source}: vehicles[{index}].connection ({v.id}) is signed, but "
+                              f"{why}", FleetFileWarning, stacklevel=3)
 
 
 def _options(data: Mapping[str, Any], source: str) -> FlightOptions:
@@ -544,6 +558,7 @@ def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") 
             else fleet_autopilot
         vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home,
                                     signing_key, peer, kind))
+    _warn_unsigned_ports(vehicles, source)
     options = _options(data, source)
     position_error = None
     if "position_error" in data:

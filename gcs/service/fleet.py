@@ -97,8 +97,10 @@ class Fleet:
     async def _start_mock(self, homes: list[list[float]], ids: list[str]) -> None:
         ports = mock_fleet_ports(self._settings.mock_base_port)
         config = MockConfig.preset(self._settings.mock_realism, **self._mock_overrides())
+        kinds = self._settings.mock_autopilot.split(",")
         mock = MockFleet(homes=homes, gcs_base_port=ports["gcs_base_port"],
-                         listen_base_port=ports["listen_base_port"], config=config)
+                         listen_base_port=ports["listen_base_port"], config=config,
+                         autopilots=[kinds[i % len(kinds)] for i in range(len(homes))])
         for attempt in range(MOCK_START_ATTEMPTS):
             try:
                 await mock.start()
@@ -193,6 +195,8 @@ class Fleet:
                 "connection": spec.connection,
                 "link": "monitor" if link is not None else "closed",
                 "heartbeat_age": None if age is None or not np.isfinite(age) else round(age, 3),
+                "autopilot": (tel.autopilot_named(spec.autopilot) if tel is not None
+                              else None if spec.autopilot == "auto" else spec.autopilot),
                 "mode": None if tel is None or tel.mode is None else tel.mode.name,
                 "armed": None if tel is None or tel.heartbeat_time is None else bool(tel.armed),
                 "position": position,

@@ -129,6 +129,11 @@ class Settings(BaseSettings):
         "ideal", description="Mock vehicles' behaviour: ideal (exact state) or px4 (PX4 SIH "
         "SITL's estimate noise, tracking lag and timings)."
     )
+    mock_autopilot: str = Field(
+        "px4", pattern=r"^(px4|ardupilot)(,(px4|ardupilot))*$",
+        description="Mock vehicles' autopilot: px4, ardupilot (ArduCopter 4.7's rules), or a "
+        "comma-separated list given to the vehicles in turn (px4,ardupilot: a mixed fleet)."
+    )
     vehicle_thread_priority: Literal["ordinary", "realtime"] = Field(
         "realtime", description="Scheduling of the thread that talks to the vehicles "
         "(flights, mock vehicles, fleet monitor; in the vehicle process): realtime asks Linux "

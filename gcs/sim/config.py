@@ -10,7 +10,7 @@ from typing import Any
 from gcs.autopilot import px4
 from gcs.sim.model import EstimateNoise, ModelLimits
 
-__all__ = ["REALISMS", "TIMING_BOUNDS", "MockConfig", "MockFaults", "timing_error"]
+__all__ = ["AUTOPILOTS", "REALISMS", "TIMING_BOUNDS", "MockConfig", "MockFaults", "timing_error"]
 
 #: The mock's behaviour presets (`MockConfig.preset`): "ideal" (exact state, no lag; the
 #: default) and "px4" (PX4 v1.16 SIH SITL's measured estimate noise, lag and timings).
@@ -28,6 +28,10 @@ TIMING_BOUNDS: dict[str, tuple[float, float, str]] = {
 }
 
 
+#: The autopilots whose rules the mock follows (`MockConfig.autopilot`).
+AUTOPILOTS = ("px4", "ardupilot")
+
+
 def timing_error(name: str, value: float) -> str | None:
     """Why `value` cannot be the timing `name` (`TIMING_BOUNDS`), or None when it can."""
     low, high, unit = TIMING_BOUNDS[name]
@@ -42,6 +46,9 @@ def timing_error(name: str, value: float) -> str | None:
 class MockConfig:
     """Behaviour shared by every vehicle of a `MockFleet` (PX4 defaults unless said)."""
 
+    autopilot: str = "px4"
+    """Whose rules it follows: ``px4``, or ``ardupilot`` (ArduCopter 4.7: `gcs.sim.arducopter`;
+    settle_time is then how long arming fails its pre-arm checks)."""
     settle_time: float = 5.0
     """Arming is TEMPORARILY_REJECTED this long after start (PX4 SITL: about 4-5 s)."""
     offboard_loss_timeout: float = px4.COM_OF_LOSS_T_S

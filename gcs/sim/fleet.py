@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import functools
 import logging
 import socket
@@ -38,7 +39,7 @@ from numpy.typing import ArrayLike
 
 from gcs import frames
 from gcs.autopilot import px4
-from gcs.sim.config import MockConfig
+from gcs.sim.config import AUTOPILOTS, MockConfig
 from gcs.sim.core import VehicleContext
 from gcs.sim.links import UdpLink
 from gcs.sim.model import FleetModel
@@ -74,7 +75,9 @@ class MockFleet:
     `signing_key` (32 bytes): every vehicle starts with it, as if provisioned earlier; without
     it they accept a key by SETUP_SIGNING (`gcs.sim.vehicle`).
     Behaviour: `config`, or the preset named by the keyword `realism` ("ideal", the default, or
-    "px4": `MockConfig.px4_like`), then any other keyword overrides one `MockConfig` field.
+    "px4": `MockConfig.px4_like`), then any other keyword overrides one `MockConfig` field;
+    `autopilots` (one per vehicle, ``px4`` or ``ardupilot``) gives vehicles their own
+    autopilot's rules (`MockConfig.autopilot`), for a mixed fleet.
     """
 
     def __init__(self, count: int | None = None, *, homes: Sequence[ArrayLike] | None = None,
@@ -83,7 +86,8 @@ class MockFleet:
                  listen_base_port: int = px4.OFFBOARD_VEHICLE_BASE_PORT,
                  max_port_offset: int | None = None, config: MockConfig | None = None,
                  seed: int | None = None, signing_key: bytes | None = None,
-                 gcs_link_port: int | None = None, **config_overrides: Any) -> None:
+                 gcs_link_port: int | None = None, autopilots: Sequence[str] | None = None,
+                 **config_overrides: Any) -> None:
         if homes is None:
             if count is None:
                 raise ValueError("give the vehicle count or their homes")
@@ -112,11 +116,19 @@ class MockFleet:
         self.model = FleetModel(len(homes), self.config.limits, self.config.estimate_noise,
                                 self.seed)
         context = VehicleContext(self.now, self.model, self.config, world_origin, self.seed)
+        if autopilots is not None and len(autopilots) != len(homes):
+            raise ValueError(f"{len(autopilots)} autopilots for {len(homes)} vehicles")
+        for kind in [self.config.autopilot, *(autopilots or ())]:
+            if kind not in AUTOPILOTS:
+                raise ValueError(f"autopilot must be one of {', '.join(AUTOPILOTS)}, got "
+                                 f"{kind!r}")
         self.vehicles: list[MockVehicle] = []
         for i, home in enumerate(homes):
             offset = i if max_port_offset is None else min(i, max_port_offset)
+            own = context if autopilots is None else dataclasses.replace(
+                context, config=dataclasses.replace(self.config, autopilot=autopilots[i]))
             self.vehicles.append(MockVehicle(
-                context, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
+                own, i, home, (host, gcs_base_port + offset), (host, listen_base_port + i)))
             if signing_key is not None:  # the key already on the vehicles' SD cards
                 self.vehicles[-1].set_signing_key(signing_key)
         self._start = time.monotonic()

@@ -16,7 +16,7 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from gcs import frames
-from gcs.autopilot import px4
+from gcs.autopilot import ardupilot, px4
 from gcs.sim.config import MockConfig, MockFaults
 from gcs.sim.model import GRAVITY, FleetModel
 from gcs.wire import mavlink, time_boot_ms
@@ -148,9 +148,15 @@ def _remaining(v: VehicleState) -> float:
 
 
 def heartbeat(v: VehicleState, now: float) -> Any:
-    """HEARTBEAT: PX4 quadrotor, custom mode, armed flag; MAV_STATE says failsafe/termination."""
+    """HEARTBEAT: PX4 (or ArduCopter: `gcs.sim.arducopter`) quadrotor, custom mode, armed
+    flag; MAV_STATE says failsafe/termination."""
     base = _m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | _m.MAV_MODE_FLAG_STABILIZE_ENABLED
-    if v.mode.main in (px4.MainMode.AUTO, px4.MainMode.OFFBOARD):
+    kind = _m.MAV_AUTOPILOT_PX4
+    if isinstance(v.mode, ardupilot.CopterMode):
+        kind = _m.MAV_AUTOPILOT_ARDUPILOTMEGA
+        if v.mode == ardupilot.GUIDED:
+            base |= _m.MAV_MODE_FLAG_GUIDED_ENABLED
+    elif v.mode.main in (px4.MainMode.AUTO, px4.MainMode.OFFBOARD):
         base |= _m.MAV_MODE_FLAG_AUTO_ENABLED | _m.MAV_MODE_FLAG_GUIDED_ENABLED
     elif v.mode.main == px4.MainMode.POSCTL:
         base |= _m.MAV_MODE_FLAG_GUIDED_ENABLED | _m.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
@@ -159,8 +165,8 @@ def heartbeat(v: VehicleState, now: float) -> Any:
     state = (_m.MAV_STATE_FLIGHT_TERMINATION if v.terminated else
              _m.MAV_STATE_CRITICAL if v.failsafe else
              _m.MAV_STATE_ACTIVE if v.armed else _m.MAV_STATE_STANDBY)
-    return ENCODER.heartbeat_encode(_m.MAV_TYPE_QUADROTOR, _m.MAV_AUTOPILOT_PX4, base,
-                                    v.mode.custom_mode, state)
+    return ENCODER.heartbeat_encode(_m.MAV_TYPE_QUADROTOR, kind, base, v.mode.custom_mode,
+                                    state)
 
 
 def sys_status(v: VehicleState, now: float) -> Any:
@@ -179,7 +185,7 @@ def sys_status(v: VehicleState, now: float) -> Any:
 
 def extended_sys_state(v: VehicleState, now: float) -> Any:
     landed = (_m.MAV_LANDED_STATE_ON_GROUND if not v.in_air else
-              _m.MAV_LANDED_STATE_LANDING if v.mode == px4.LAND else
+              _m.MAV_LANDED_STATE_LANDING if v.mode in (px4.LAND, ardupilot.LAND) else
               _m.MAV_LANDED_STATE_IN_AIR)
     return ENCODER.extended_sys_state_encode(0, landed)
 

@@ -24,6 +24,7 @@ import zlib
 from collections.abc import Callable
 from typing import Any, Protocol
 
+from gcs.sim.arducopter_params import ARDUCOPTER_PARAMS
 from gcs.sim.config import MockConfig
 from gcs.sim.model import FleetModel
 from gcs.sim.paramdefs import PX4_PARAMS, ParamDef
@@ -87,13 +88,18 @@ class VehicleParams:
 
     def __init__(self, host: ParamHost) -> None:
         self.host = host
-        self.values: dict[str, float] = {name: d.default for name, d in PX4_PARAMS.items()}
-        self.values["MAV_SYS_ID"] = float(host.system_id)
+        ardupilot = host.config.autopilot == "ardupilot"
+        self.table = ARDUCOPTER_PARAMS if ardupilot else PX4_PARAMS
+        """Its parameter set: PX4's, or ArduCopter's (`MockConfig.autopilot`)."""
+        self.values: dict[str, float] = {name: d.default for name, d in self.table.items()}
+        self.values["MAV_SYSID" if ardupilot else "MAV_SYS_ID"] = float(host.system_id)
         for name, field in MODELLED.items():
-            self.values[name] = float(getattr(host.config, field))
+            if name in self.table:
+                self.values[name] = float(getattr(host.config, field))
         for name, field in MODEL_LIMITS.items():
-            self.values[name] = float(getattr(host.model, field)[host.index])
-        self.names = list(PX4_PARAMS)
+            if name in self.table:
+                self.values[name] = float(getattr(host.model, field)[host.index])
+        self.names = list(self.table)
         """Parameter names by index (PX4's order: sorted by name)."""
         self._index = {name: i for i, name in enumerate(self.names)}
         self._queue: list[int] = []
@@ -131,7 +137,7 @@ class VehicleParams:
     def message(self, index: int) -> Any:
         """PARAM_VALUE of the parameter at `index`."""
         name = self.names[index]
-        d = PX4_PARAMS[name]
+        d = self.table[name]
         return _m.MAVLink_param_value_message(
             name.encode(), encode_value(d.kind, self.values[name]), _TYPES[d.kind],
             len(self.names), index)
@@ -164,7 +170,7 @@ class VehicleParams:
         if name == HASH_PARAM:  # PX4: the GCS has the list cached; stop sending it
             self._queue.clear()
             return
-        d = PX4_PARAMS.get(name)
+        d = self.table.get(name)
         if d is None:
             host.statustext(_m.MAV_SEVERITY_INFO, f"[pm] unknown param: {name}")
             return

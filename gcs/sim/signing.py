@@ -20,9 +20,11 @@ from gcs.wire import PX4_UNSIGNED_ACCEPTED, signing_timestamp
 __all__ = ["install_key", "setup_signing_key"]
 
 
-def install_key(signing: Any, key: bytes | None, initial_timestamp: int = 0) -> None:
+def install_key(signing: Any, key: bytes | None, initial_timestamp: int = 0,
+                unsigned_accepted: frozenset[int] = PX4_UNSIGNED_ACCEPTED) -> None:
     """Install `key` into pymavlink's `signing` state (None: signing off), as PX4 does on
-    SETUP_SIGNING: sign everything, accept unsigned only `PX4_UNSIGNED_ACCEPTED`."""
+    SETUP_SIGNING: sign everything, accept unsigned only `unsigned_accepted` (PX4's
+    `PX4_UNSIGNED_ACCEPTED` unless given)."""
     if key is None:
         signing.secret_key = None
         signing.sign_outgoing = False
@@ -32,7 +34,7 @@ def install_key(signing: Any, key: bytes | None, initial_timestamp: int = 0) -> 
     signing.sign_outgoing = True
     signing.timestamp = max(signing.timestamp, initial_timestamp,
                             signing_timestamp(time.time()))
-    signing.allow_unsigned_callback = lambda _mav, msg_id: msg_id in PX4_UNSIGNED_ACCEPTED
+    signing.allow_unsigned_callback = lambda _mav, msg_id: msg_id in unsigned_accepted
     signing.stream_timestamps.clear()
 
 

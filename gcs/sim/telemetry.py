@@ -113,4 +113,7 @@ def default_rates(config: MockConfig) -> dict[int, float]:
             hz = float(getattr(config, s.minimal))
         rates[s.msg_id] = hz
     rates[mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED] = float(config.position_rate)
+    if config.autopilot == "ardupilot":  # ArduCopter sends only HEARTBEAT until asked
+        rates = {k: (hz if k == mavlink.MAVLINK_MSG_ID_HEARTBEAT else 0.0)
+                 for k, hz in rates.items()}
     return rates

@@ -61,7 +61,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs.autopilot import px4
-from gcs.sim import geofence, protocols, signing
+from gcs.sim import arducopter, geofence, protocols, signing
 from gcs.sim.commands import handle_command
 from gcs.sim.core import VehicleContext, VehicleCore
 from gcs.sim.links import UdpLink
@@ -69,7 +69,7 @@ from gcs.sim.missions import VehicleMissions
 from gcs.sim.params import VehicleParams
 from gcs.sim.receiver import MavlinkIntake
 from gcs.sim.setpoints import ReceivedSetpoint, read_setpoint, refusal_text
-from gcs.wire import addressed_to, mavlink
+from gcs.wire import PX4_UNSIGNED_ACCEPTED, addressed_to, mavlink
 
 __all__ = ["MockVehicle"]
 
@@ -98,6 +98,11 @@ class MockVehicle(VehicleCore):
         self.geofence = geofence.Geofence(self.origin)
         """Its fence in LOCAL_NED and breach state (`gcs.sim.geofence`)."""
         self.missions.changed = self._mission_changed
+        self.ardupilot = self.config.autopilot == "ardupilot"
+        """It follows ArduCopter's rules (`gcs.sim.arducopter`) instead of PX4's."""
+        self.ardu = arducopter.ArduState()
+        if self.ardupilot:  # the PX4 rules' mode type holds a Copter mode here
+            self.mode = arducopter.BOOT_MODE  # type: ignore[assignment]
 
     @property
     def rejected(self) -> int:
@@ -111,7 +116,21 @@ class MockVehicle(VehicleCore):
         super().tick(now)
         self.params.drain()
         self.missions.tick(now)
-        geofence.check(self, now)
+        if self.ardupilot:
+            arducopter.tick(self, now)
+        else:
+            geofence.check(self, now)
+
+    def set_mode(self, mode: Any) -> None:
+        """Enter `mode` by its autopilot's rules."""
+        if self.ardupilot:
+            arducopter.set_mode(self, mode)
+        else:
+            super().set_mode(mode)
+
+    def ack(self, msg: Any, command: int, result: int, times: int = 1) -> None:
+        """COMMAND_ACK (ArduPilot answers every command once)."""
+        super().ack(msg, command, result, 1 if self.ardupilot else times)
 
     def _mission_changed(self, mission_type: int) -> None:
         if mission_type == mavlink.MAV_MISSION_TYPE_FENCE:
@@ -127,7 +146,9 @@ class MockVehicle(VehicleCore):
 
     def set_signing_key(self, key: bytes | None, initial_timestamp: int = 0) -> None:
         """Install (or with None clear) the signing key, as PX4 does on SETUP_SIGNING."""
-        signing.install_key(self.signing, key, initial_timestamp)
+        signing.install_key(self.signing, key, initial_timestamp,
+                            arducopter.UNSIGNED_ACCEPTED if self.ardupilot
+                            else PX4_UNSIGNED_ACCEPTED)
 
     # ---------------------------------------------------------------- messages in
 
@@ -163,10 +184,15 @@ class MockVehicle(VehicleCore):
     def _process(self, data: bytes, address: tuple[str, int], link: UdpLink) -> None:
         for msg in self.intake.receive(data, address, link):  # PX4's partner, signing rules
             kind = msg.get_type()
+            if self.ardupilot:
+                arducopter.heard(self, msg, self.now())
             if kind == "SET_POSITION_TARGET_LOCAL_NED":
                 self._on_setpoint(msg)
             elif kind in ("COMMAND_LONG", "COMMAND_INT"):
-                handle_command(self, msg)
+                if self.ardupilot and arducopter.is_command_handled(msg.command):
+                    arducopter.handle_command(self, msg)
+                else:
+                    handle_command(self, msg)
             elif kind == "SETUP_SIGNING":
                 self._on_setup_signing(msg)
             elif kind in protocols.HANDLED:
@@ -192,7 +218,12 @@ class MockVehicle(VehicleCore):
         self.setpoints_accepted += 1
         if self.config.record_setpoints:
             self.received.append(got)
-        if self.mode == px4.OFFBOARD:
+        if self.ardupilot:
+            if arducopter.follow(self, got.position + np.asarray(self.faults.offset_ned),
+                                 np.asarray(got.velocity), np.asarray(got.acceleration)) \
+                    and not math.isnan(got.yaw):
+                self.yaw = got.yaw
+        elif self.mode == px4.OFFBOARD:
             i = self.index
             self.model.position_sp[i] = got.position + np.asarray(self.faults.offset_ned)
             self.model.velocity_sp[i] = got.velocity

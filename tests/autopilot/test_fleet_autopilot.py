@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import warnings
+from typing import Any
+
 import pytest
 
 from gcs.errors import FleetFileError
-from gcs.fleet.fleetfile import FleetSpec
+from gcs.fleet.fleetfile import FleetFileWarning, FleetSpec
+from gcs.wire import new_key_file
 
 
 def _fleet(**extra: object) -> dict[str, object]:
@@ -39,3 +43,19 @@ def test_unknown_is_refused_by_field(extra: dict[str, object], field: str) -> No
     with pytest.raises(FleetFileError) as err:
         FleetSpec.from_dict(bad)
     assert err.value.field == "vehicles[0].autopilot"
+
+
+def test_a_signed_link_on_ardupilots_serial0_is_warned_about(tmp_path: Any) -> None:
+    """ArduPilot's SERIAL0 (SITL TCP 5760 + 10 i, a board's USB) lets unsigned packets in
+    whatever the key: a signed vehicle there is warned about, naming the port to use."""
+    key = new_key_file(tmp_path / "k.key")
+    fleet = {"signing_key": str(key.path), "vehicles": [
+        {"id": "a", "connection": "tcp:127.0.0.1:5770", "system_id": 2, "home": [0, 0, 0]},
+        {"id": "b", "connection": "tcp:127.0.0.1:5772", "system_id": 3, "home": [2, 0, 0]}]}
+    with pytest.warns(FleetFileWarning, match=r"vehicles\[0\].*SERIAL0.*5772") as caught:
+        FleetSpec.from_dict(fleet)
+    assert len(caught) == 1
+    fleet["vehicles"][0]["autopilot"] = "px4"  # PX4 checks signatures on every link
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        FleetSpec.from_dict(fleet)

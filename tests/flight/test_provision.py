@@ -28,12 +28,17 @@ def _fleet(mock: MockFleet, key: SigningKey) -> FleetSpec:
     return FleetSpec.from_dict({**mock.fleet_dict(), "signing_key": str(key.path)})
 
 
-def test_keys_are_provisioned_then_found_then_changed_with_the_old_key(tmp_path: Path) -> None:
+@pytest.mark.parametrize("autopilots", [["px4", "px4"], ["ardupilot", "px4"]],
+                         ids=["px4", "mixed"])
+def test_keys_are_provisioned_then_found_then_changed_with_the_old_key(
+        tmp_path: Path, autopilots: list[str]) -> None:
+    """The same on PX4 and on ArduPilot (which takes SETUP_SIGNING the same way)."""
     first = new_key_file(tmp_path / "first.key")
     second = new_key_file(tmp_path / "second.key")
 
     async def main() -> list[list[Any]]:
-        async with MockFleet(2, settle_time=0.0, **mock_ports(2), **FAST_MOCK) as mock:
+        async with MockFleet(2, settle_time=0.0, autopilots=autopilots, **mock_ports(2),
+                             **FAST_MOCK) as mock:
             runs = [await provision_fleet(_fleet(mock, first), timeout=2.0)]
             assert [v.signing_key for v in mock.vehicles] == [first.secret] * 2
             runs.append(await provision_fleet(_fleet(mock, first), timeout=2.0))

@@ -24,7 +24,8 @@ class VehiclesOut(BaseModel):
                   "flying": None, "vehicle_process": "running",
                   "world_origin": {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}},
         "vehicles": [{"id": "uav1", "system_id": 1, "connection": "udpin:127.0.0.1:14540",
-                      "link": "monitor", "heartbeat_age": 0.12, "mode": "AUTO.LOITER",
+                      "link": "monitor", "autopilot": "px4", "heartbeat_age": 0.12,
+                      "mode": "AUTO.LOITER",
                       "armed": False, "position": [0.0, -2.0, 0.0], "home": [0.0, -2.0, 0.0]}],
     }]})
 
@@ -34,7 +35,9 @@ class VehiclesOut(BaseModel):
                                   "vehicle_process (running, or stopped while the service "
                                   "restarts it).")
     vehicles: list[dict[str, Any]] = Field(
-        description="Per vehicle: id, heartbeat_age (s, null before the first), mode, armed, "
+        description="Per vehicle: id, autopilot (px4 or ardupilot: detected from its "
+        "HEARTBEAT or named in the fleet file; null before either), heartbeat_age (s, null "
+        "before the first), mode, armed, "
         "position (world frame ENU, m, when the home is known), link (monitor between "
         "flights, flight during one); battery {remaining_pct, voltage}, gps {fix_type, "
         "satellites, h_acc, v_acc (m)}, health {unhealthy (sensor names), prearm_ok, "

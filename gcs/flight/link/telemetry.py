@@ -187,6 +187,15 @@ class Telemetry:
         one its HEARTBEAT names, else the default (`gcs.autopilot.DEFAULT`)."""
         return self.autopilot_kind or by_heartbeat(self.autopilot) or DEFAULT
 
+    def autopilot_named(self, setting: str = "auto") -> str | None:
+        """The autopilot it is (or will be) flown as, by its fleet-file name: the one chosen,
+        else the one its HEARTBEAT names, else the fleet file's `setting` unless ``auto``
+        (None: not known yet)."""
+        kind = self.autopilot_kind or by_heartbeat(self.autopilot)
+        if kind is not None:
+            return kind.key
+        return None if setting == "auto" else setting
+
     def _boot_clock(self, boot_ms: int, now: float) -> None:
         """The vehicle's clock: jitter from it, and a reboot when it goes back by more than
         a second (packets a little out of order do not)."""

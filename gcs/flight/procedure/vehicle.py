@@ -206,14 +206,16 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
     clock = _clock(stalls)
     deadline = clock() + timeout
 
-    def asks_for_streams(t: Telemetry) -> bool:
+    def ready(t: Telemetry) -> bool:
+        """HEARTBEAT and position, or a HEARTBEAT saying not to wait for position: a
+        refused autopilot, or one that streams only when asked."""
+        if t.heartbeat_time is None:
+            return False
         kind = autopilot.choose(spec.autopilot, t.autopilot)
-        return isinstance(kind, Autopilot) and kind.streams_on_request
+        return (t.position_ned is not None or not isinstance(kind, Autopilot)
+                or kind.streams_on_request)
 
-    ok = await wait_running(
-        link, lambda t: t.heartbeat_time is not None and (t.position_ned is not None
-                                                          or asks_for_streams(t)),
-        timeout, stalls)
+    ok = await wait_running(link, ready, timeout, stalls)
     if ok:
         _choose_autopilot(link, spec)
         if link.telemetry.position_ned is None:  # it streams only when asked

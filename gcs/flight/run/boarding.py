@@ -52,6 +52,7 @@ async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
     await vehicle.connect(link, v.spec, options.connect_timeout, stalls,
                           position_hz=options.position_rate_hz)
     v.failsafe = v.autopilot.default_failsafe
+    recorder.vehicles[v.id].autopilot = v.autopilot.key
     if v.home is None:
         assert world_origin is not None
         v.home, source = await vehicle.resolve_home(link, v.id, world_origin, stalls)

@@ -99,6 +99,8 @@ class VehicleRecord:
     id: str
     system_id: int
     home: list[float] | None = None
+    autopilot: str | None = None
+    """The autopilot it was flown as (``px4`` or ``ardupilot``), once connected."""
     sp_t: list[float] = field(default_factory=list)
     sp_tick: list[int] = field(default_factory=list)
     sp_pos: list[tuple[float, float, float]] = field(default_factory=list)
@@ -123,7 +125,8 @@ class VehicleRecord:
 
     def to_dict(self) -> dict[str, Any]:
         doc: dict[str, Any] = {"id": self.id, "system_id": self.system_id, "home": self.home,
-                               "setpoints": {}, "telemetry": {}, "modes": self.modes}
+                               "autopilot": self.autopilot, "setpoints": {}, "telemetry": {},
+                               "modes": self.modes}
         for column in COLUMNS:
             values = getattr(self, column.attribute)
             doc[column.section][column.key] = (

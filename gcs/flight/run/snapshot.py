@@ -32,6 +32,8 @@ def vehicle_snapshot(v: VehicleStatus, now: float) -> VehicleSnapshot:
     silent = v.link.link_age(now) if v.link is not None else math.inf
     snapshot: VehicleSnapshot = {
         "id": v.id, "system_id": v.spec.system_id, "phase": v.phase,
+        "autopilot": (tel.autopilot_named(v.spec.autopilot) if tel is not None
+                      else None if v.spec.autopilot == "auto" else v.spec.autopilot),
         "fault": v.fault,
         "mode": tel.mode.name if tel is not None and tel.mode is not None else None,
         "armed": bool(tel.armed) if tel is not None else False,
