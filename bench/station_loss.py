@@ -39,6 +39,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
+from gcs import px4  # noqa: E402
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
 from gcs.flight.procedure import failsafe  # noqa: E402
 from gcs.flight.run import executor  # noqa: E402
@@ -53,6 +54,9 @@ OPTIONS = FlightOptions(hold_at_goal=0.5, prestream=0.3, climb_speed=2.0,
 #: `--columns`: plans whose vertical distances count a tenth, so every two vehicles stay
 #: nearly R apart horizontally (their columns apart).
 COLUMNS = [1.0, 1.0, 10.0]
+#: Once every vehicle that lands has landed and the others hover, they are watched this
+#: long more (s).
+HOVER_WATCH_S = 5.0
 #: The plans and their steps (0.2 s each: the paper's 30 s flown in 12-16 s).
 PLANS = {"paper-circle4": 60, "paper-circle8": 80, "circle16": 80}
 
@@ -82,9 +86,14 @@ async def one(plan: planner.Plan, at: float, lost: int | None) -> dict[str, Any]
             v.faults.loss = 1.0
         truth: list[np.ndarray] = []
         deadline = time.monotonic() + 60.0
-        while ((not task.done() or any(v.armed for v in mock.vehicles))
-               and time.monotonic() < deadline):
+        settled: float | None = None  # when the last lander disarmed and the rest hovered
+        while time.monotonic() < deadline and (settled is None
+                                               or time.monotonic() < settled + HOVER_WATCH_S):
             truth.append(np.array([v.true_position_world for v in mock.vehicles]))
+            if settled is None and all(
+                    not v.armed or (v.mode == px4.HOLD and v.config.offboard_loss_action
+                                    == px4.OBL_HOLD) for v in mock.vehicles):
+                settled = time.monotonic()
             await asyncio.sleep(0.01)
         task.cancel()
         with contextlib.suppress(BaseException):  # the flight's outcome is not the figure
@@ -101,9 +110,14 @@ async def one(plan: planner.Plan, at: float, lost: int | None) -> dict[str, Any]
             k = int(np.argmin(d))
             if d[k] < closest:
                 closest, where = float(d[k]), (plan.scenario.ids[i[k]], plan.scenario.ids[j[k]])
+        hovering = [vid for vid, v in zip(plan.scenario.ids, mock.vehicles, strict=True)
+                    if v.armed and v.mode == px4.HOLD]
         return {"at": at, "closest_m": round(closest, 3), "pair": where,
                 "all_down": all(not v.armed and v.true_position_world[2] < 0.05
                                 for v in mock.vehicles),
+                "hovering": hovering,
+                "landed": sum(not v.armed and v.true_position_world[2] < 0.05
+                              for v in mock.vehicles),
                 "samples": len(truth)}
 
 

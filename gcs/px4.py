@@ -29,6 +29,7 @@ __all__ = [
     "HOLD",
     "LAND",
     "OBL_ACTIONS",
+    "OBL_HOLD",
     "OBL_LAND",
     "OFFBOARD",
     "OFFBOARD_GCS_BASE_PORT",
@@ -61,6 +62,8 @@ OBL_ACTIONS = {0: "Position", 1: "Altitude", 2: "Manual", 3: "Return", 4: "Land"
                6: "Terminate", 7: "Disarm"}
 #: COM_OBL_RC_ACT = Land.
 OBL_LAND = 4
+#: COM_OBL_RC_ACT = Hold (AUTO.LOITER: hovers where it stopped until commanded).
+OBL_HOLD = 5
 #: Auto-disarm when armed on the ground without taking off (COM_DISARM_PRFLT, default 10 s).
 COM_DISARM_PRFLT_S = 10.0
 #: Auto-disarm after landing (COM_DISARM_LAND, default 2 s).
@@ -104,6 +107,11 @@ class OffboardLossFailsafe:
         it): Land, Return, Hold, Terminate or Disarm."""
         name = OBL_ACTIONS.get(self.action, "Land")
         return "Land" if name in ("Position", "Altitude", "Manual") else name
+
+    def to_dict(self) -> dict[str, float | str]:
+        """For the flight record: its three numbers and the action it takes."""
+        return {"loss_timeout": self.loss_timeout, "action_delay": self.action_delay,
+                "action": self.effective}
 
     def text(self) -> str:
         """"after 1 s without setpoints: Position hold for 5 s, then Land"."""

@@ -123,6 +123,9 @@ MARGIN_CHECK = ("refuse", "warn")
 PREFLIGHT = ("check", "override")
 #: The geofence before arming (`gcs.geofence`): upload it to every vehicle, or skip it.
 GEOFENCE = ("upload", "skip")
+#: Each vehicle's link-loss failsafe before arming (`gcs.flight.procedure.failsafe`): set it
+#: or refuse the flight, or try to set it and fly on the vehicle's own where it cannot be.
+FAILSAFE = ("set", "try")
 
 
 class FleetFileWarning(UserWarning):
@@ -238,6 +241,12 @@ class FlightOptions:
     differs; refused when no geodetic origin places it. skip: no fence (a lab without GPS).
     None (not given): upload when an origin is known (the vehicle reports GPS_GLOBAL_ORIGIN
     or the fleet has `world_origin`), else skip with an event saying why."""
+    failsafe: str = "set"
+    """set: before arming, read and set every vehicle's link-loss failsafe (what it does
+    when the station is gone: `gcs.flight.procedure.failsafe`) and refuse the flight,
+    naming the vehicle and the parameter, when one cannot be read or set. try: set it where
+    the vehicle answers, and fly a vehicle that does not on its own parameters (an event
+    says so)."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = _OPTIONS_KEY) -> FlightOptions:
@@ -256,12 +265,12 @@ class FlightOptions:
         """A copy with `changes`, validated (errors name ``where.field``)."""
         for key, value in changes.items():
             if key in ("policy", "at_end", "pause_expiry", "margin_check", "preflight",
-                       "message_rates", "stream_priority", "landing", "geofence"):
+                       "message_rates", "stream_priority", "landing", "geofence", "failsafe"):
                 allowed = {"policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
                            "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT,
                            "message_rates": ("leave", "request"),
                            "stream_priority": ("normal", "realtime"),
-                           "landing": LANDING, "geofence": GEOFENCE}[key]
+                           "landing": LANDING, "geofence": GEOFENCE, "failsafe": FAILSAFE}[key]
                 if key == "geofence" and value is None:
                     continue  # upload when an origin is known
                 if value not in allowed:

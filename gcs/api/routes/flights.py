@@ -108,6 +108,12 @@ class FlyRequest(BaseModel):
         "read it back (the flight fails naming a vehicle that refuses it, or when no "
         "geodetic origin places it); skip: no fence. Default: upload when an origin is known."
     )
+    failsafe: Literal["set", "try"] | None = Field(
+        None, description="set (default): before arming, read and set every vehicle's "
+        "link-loss failsafe (Land by altitude layer, Hold where the plan stacks columns "
+        "closer than R) and fail the flight naming the vehicle and the parameter when one "
+        "cannot be; try: fly a vehicle that does not answer on its own parameters."
+    )
     margin_check: Literal["refuse", "warn"] | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "
         "position_error: refuse (default, 409) or fly it with a warning in the record."

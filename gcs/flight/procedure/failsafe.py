@@ -7,8 +7,12 @@ and holds in Position for COM_FAIL_ACT_T, then takes COM_OBL_RC_ACT (Position, A
 Manual need RC: without it PX4 lands). Before arming, `set_failsafe` reads the three
 parameters (PARAM_REQUEST_READ) and sets:
 
-- COM_OBL_RC_ACT to Land: a fleet landing straight down from where it held is what can be
-  told in advance (Return climbs and crosses the others' paths, Hold never comes down);
+- COM_OBL_RC_ACT per vehicle from the plan (`failsafe_actions`): Hold for a vehicle whose
+  column ever comes within R of another's horizontally (`column_conflicts`: no autopilot
+  failsafe moves a vehicle sideways, so landing two such vehicles straight down brings them
+  that close; hovering where the station left them keeps the plan's separation in 3D, and
+  the operator lands them by plan: `fleetplan fleet land --plan`), Land for the others
+  (Return climbs and crosses the others' paths);
 - COM_FAIL_ACT_T staggered by altitude layer (`layer_delays`): the lowest layer lands after
   PX4's default 5 s, each layer above only once the one below has had time to reach the
   ground, so no vehicle descends onto one still hovering below it;
@@ -16,8 +20,9 @@ parameters (PARAM_REQUEST_READ) and sets:
 
 Every value is read back from the vehicle's PARAM_VALUE; `v.failsafe` then holds what the
 vehicle does (the flight's predictions of a lost vehicle use it), and a `failsafe` event says
-it. `stacked_columns` finds where the plan puts two vehicles closer than R horizontally: a
-station lost then lands them that close (no autopilot failsafe moves a vehicle sideways).
+it. A parameter that cannot be read or set refuses the flight (`FailsafeNotSet`) unless the
+fleet option `failsafe` is `try`. After the flight `restore_failsafe` puts back the values
+read.
 """
 
 from __future__ import annotations
@@ -25,19 +30,22 @@ from __future__ import annotations
 import asyncio
 import math
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from gcs import px4
+from gcs.errors import FailsafeNotSet
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.phases import EventKind
 from gcs.wire import PARAM_TYPES, decode_param, encode_param
 from planner import Plan
 
-__all__ = ["FAILSAFE_PARAMS", "LAYER_GAP_M", "ParamError", "layer_delays", "read_param",
+__all__ = ["FAILSAFE_PARAMS", "LAYER_GAP_M", "ColumnConflict", "ParamError", "column_conflicts",
+           "failsafe_actions", "layer_delays", "read_param", "restore_failsafe",
            "set_failsafe", "set_param", "stacked_columns"]
 
 #: The failsafe's parameters and their PX4 types.
@@ -48,8 +56,11 @@ LAYER_GAP_M = 0.3
 LAYER_SETTLE_S = 1.0
 #: COM_FAIL_ACT_T's largest value (PX4's documented maximum, s).
 ACTION_DELAY_MAX = 25.0
-#: Columns closer than R by more than this (m) are told as stacked (`stacked_columns`).
+#: Columns closer than R by more than this (m) meet (`column_conflicts`): a straight-down
+#: landing of the two keeps at least R less this.
 STACKED_TOLERANCE = 0.05
+#: The plan's samples per second the columns are compared at.
+COLUMN_RATE_HZ = 10.0
 #: Tries of one parameter read or write, and the wait for each answer (s).
 TRIES = 3
 ANSWER_S = 1.0
@@ -129,56 +140,147 @@ def layer_delays(plan: Plan, land_speed: float) -> list[float]:
     return [round(float(d), 1) for d in delays]
 
 
-def stacked_columns(plan: Plan, clearance: float, rate: float = 5.0
-                    ) -> tuple[str, str, float, float] | None:
-    """The pair of vehicles the plan brings closest horizontally, below `clearance` less
-    `STACKED_TOLERANCE`, as (lower, upper, horizontal distance m, flight time s), or None: a
-    fleet that loses its station there lands them that close. Sampled at `rate` Hz, the
-    close pairs of each sample found by a k-d tree (a large fleet is not paired whole)."""
-    times = np.arange(0.0, plan.scenario.horizon + 1e-9, 1.0 / rate)
+@dataclass(frozen=True)
+class ColumnConflict:
+    """Where the plan brings one vehicle's column closest to another's (below the clearance
+    `column_conflicts` was asked for)."""
+
+    other: str
+    """The other vehicle."""
+    gap: float
+    """Their horizontal distance then (m, the plan's separation metric)."""
+    t: float
+    """When (plan time, s)."""
+    above: bool
+    """This vehicle is the higher of the two then."""
+
+
+def column_conflicts(plan: Plan, clearance: float, rate: float = COLUMN_RATE_HZ
+                     ) -> dict[str, ColumnConflict]:
+    """Every vehicle whose column (its horizontal position, in the plan's separation metric)
+    comes closer than `clearance` less `STACKED_TOLERANCE` to another's at the same instant
+    of the plan, with the closest such other: a station lost then and a straight-down
+    landing bring them that close. Sampled at `rate` Hz; one k-d tree over every sample,
+    the sample index as a third coordinate spaced wider than the reach, so that only
+    pairs of one instant are found (no loop over samples or pairs)."""
+    scenario = plan.scenario
+    times = np.arange(0.0, scenario.horizon + 1e-9, 1.0 / rate)
     p = plan.sample(times).position  # (N, T, 3)
-    if len(p) < 2:
-        return None
+    n, m = p.shape[:2]
     reach = clearance - STACKED_TOLERANCE
-    best: tuple[float, int, int, int] | None = None
-    for k in range(len(times)):
-        xy = p[:, k, :2]
-        pairs = cKDTree(xy).query_pairs(reach, output_type="ndarray")
-        if len(pairs) == 0:
-            continue
-        gaps = np.linalg.norm(xy[pairs[:, 0]] - xy[pairs[:, 1]], axis=1)
-        n = int(np.argmin(gaps))
-        if best is None or gaps[n] < best[0]:
-            best = (float(gaps[n]), int(pairs[n, 0]), int(pairs[n, 1]), k)
-    if best is None:
+    if n < 2 or reach <= 0:
+        return {}
+    scale = np.asarray(scenario.separation_scale, dtype=float)[:2]
+    k = np.broadcast_to(np.arange(m, dtype=float), (n, m))
+    points = np.concatenate([p[:, :, :2] / scale, (2.0 * reach + 1.0) * k[:, :, None]],
+                            axis=2).reshape(-1, 3)
+    pairs = cKDTree(points).query_pairs(reach, output_type="ndarray")
+    if len(pairs) == 0:
+        return {}
+    gaps = np.linalg.norm(points[pairs[:, 0], :2] - points[pairs[:, 1], :2], axis=1)
+    who = np.concatenate([pairs[:, 0], pairs[:, 1]])  # flat index: vehicle * m + sample
+    other = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    gap = np.concatenate([gaps, gaps])
+    order = np.lexsort((who % m, gap, who // m))  # per vehicle: smallest gap, then earliest
+    first = order[np.unique(who[order] // m, return_index=True)[1]]
+    ids = scenario.ids
+    z = p[:, :, 2].reshape(-1)
+    return {ids[int(who[f] // m)]: ColumnConflict(
+        ids[int(other[f] // m)], float(gap[f]), float(times[int(who[f] % m)]),
+        bool(z[who[f]] > z[other[f]])) for f in first}
+
+
+def stacked_columns(plan: Plan, clearance: float, rate: float = COLUMN_RATE_HZ
+                    ) -> tuple[str, str, float, float] | None:
+    """The pair of vehicles the plan brings closest horizontally (`column_conflicts`), as
+    (lower, upper, horizontal distance m, flight time s), or None when no columns meet."""
+    conflicts = column_conflicts(plan, clearance, rate)
+    if not conflicts:
         return None
-    gap, a, b, k = best
-    lower, upper = (a, b) if p[a, k, 2] <= p[b, k, 2] else (b, a)
-    ids = plan.scenario.ids
-    return ids[lower], ids[upper], gap, float(times[k])
+    vid, c = min(conflicts.items(), key=lambda item: (item[1].gap, item[1].t))
+    return (vid, c.other, c.gap, c.t) if not c.above else (c.other, vid, c.gap, c.t)
 
 
-async def set_failsafe(v: VehicleStatus, delay: float, emit: Emit) -> None:
-    """Read `v`'s failsafe, set it to land after `delay` s (see the module), keep what it
-    answered in `v.failsafe` and say it (a `failsafe` event, also when it cannot be read or
-    set: then what the vehicle does without the station is not known)."""
+def failsafe_actions(ids: list[str], conflicts: dict[str, ColumnConflict]) -> dict[str, int]:
+    """COM_OBL_RC_ACT per vehicle: Hold for a vehicle whose column meets another's
+    (`conflicts`, from `column_conflicts`: landing straight down would bring them closer than
+    R; hovering where the station left them keeps the plan's 3D separation), Land for the
+    others (their straight descents keep clear of every vehicle, hovering or landing)."""
+    return {vid: px4.OBL_HOLD if vid in conflicts else px4.OBL_LAND for vid in ids}
+
+
+async def set_failsafe(v: VehicleStatus, delay: float, action: int, emit: Emit, *,
+                       required: bool = True, why: str = "") -> None:
+    """Read `v`'s failsafe, set it to take `action` (COM_OBL_RC_ACT) after `delay` s (see
+    the module), keep what it answered in `v.failsafe` and what it had in
+    `v.failsafe_before`, and say it in a `failsafe` event (with `why`, the reason for its
+    action). A parameter that cannot be read or set is `FailsafeNotSet` naming it when
+    `required` (the fleet option `failsafe: set`), else an event: then what the vehicle does
+    without the station is what its own parameters say."""
     link = v.linked
+    name = "COM_OF_LOSS_T"
     try:
-        before = {name: await read_param(link, name, kind)
-                  for name, kind in FAILSAFE_PARAMS.items()}
-        action = before["COM_OBL_RC_ACT"]
-        if action != px4.OBL_LAND:
-            action = await set_param(link, "COM_OBL_RC_ACT", "i", px4.OBL_LAND)
-        wait = before["COM_FAIL_ACT_T"]
+        before: dict[str, float] = {}
+        for name, kind in FAILSAFE_PARAMS.items():
+            before[name] = await read_param(link, name, kind)
+        name = "COM_OBL_RC_ACT"
+        got = before[name]
+        if got != action:
+            got = await set_param(link, name, "i", action)
+        name = "COM_FAIL_ACT_T"
+        wait = before[name]
         if not math.isclose(wait, delay, abs_tol=1e-3):
-            wait = await set_param(link, "COM_FAIL_ACT_T", "f", delay)
+            wait = await set_param(link, name, "f", delay)
     except ParamError as exc:
+        if required:
+            raise FailsafeNotSet(v.id, name, f"{exc}: what it does without the station is "
+                                             f"not known, so it is not armed (fleet option "
+                                             f"failsafe: try flies it anyway)") from None
         emit(v.id, EventKind.FAILSAFE, f"not set ({exc}): without the station it does what "
                                        f"its own parameters say")
         return
-    v.failsafe = px4.OffboardLossFailsafe(before["COM_OF_LOSS_T"], wait, int(action))
+    v.failsafe_before = before
+    v.failsafe = px4.OffboardLossFailsafe(before["COM_OF_LOSS_T"], wait, int(got))
     changed = [f"{name} {before[name]:g} -> {after:g}" for name, after in
-               (("COM_OBL_RC_ACT", action), ("COM_FAIL_ACT_T", wait)) if before[name] != after]
+               (("COM_OBL_RC_ACT", got), ("COM_FAIL_ACT_T", wait)) if before[name] != after]
     emit(v.id, EventKind.FAILSAFE, f"without the station: {v.failsafe.text()}"
+                                   + (f" ({why})" if why else "")
                                    + (f" (set {', '.join(changed)})" if changed else ""))
 
+
+async def restore_failsafe(v: VehicleStatus, emit: Emit) -> None:
+    """Put back the failsafe parameters `set_failsafe` changed on `v` (the values it read),
+    after the flight, and say it; a vehicle still in OFFBOARD keeps the flight's (the
+    station may yet stop streaming to it)."""
+    before = v.failsafe_before
+    if before is None or v.link is None:
+        return
+    changed = {name: value for name, value in before.items()
+               if name != "COM_OF_LOSS_T" and not math.isclose(
+                   value, _flight_value(v.failsafe, name), abs_tol=1e-3)}
+    if not changed:
+        return
+    tel = v.link.telemetry
+    if tel.armed and tel.mode == px4.OFFBOARD:
+        emit(v.id, EventKind.FAILSAFE, "not restored: still in OFFBOARD, it keeps the "
+                                       f"flight's failsafe ({v.failsafe.text()})")
+        return
+    done = []
+    try:
+        for name, value in changed.items():
+            await set_param(v.link, name, FAILSAFE_PARAMS[name], value)
+            done.append(f"{name} {_flight_value(v.failsafe, name):g} -> {value:g}")
+    except ParamError as exc:
+        emit(v.id, EventKind.FAILSAFE, f"not restored ({exc}); restored: "
+                                       f"{', '.join(done) or 'nothing'}")
+        return
+    v.failsafe_before = None
+    v.failsafe = px4.OffboardLossFailsafe(before["COM_OF_LOSS_T"], before["COM_FAIL_ACT_T"],
+                                          int(before["COM_OBL_RC_ACT"]))
+    emit(v.id, EventKind.FAILSAFE, f"restored after the flight: {', '.join(done)}")
+
+
+def _flight_value(failsafe: px4.OffboardLossFailsafe, name: str) -> float:
+    """The value of parameter `name` that `failsafe` stands for."""
+    return {"COM_OF_LOSS_T": failsafe.loss_timeout, "COM_FAIL_ACT_T": failsafe.action_delay,
+            "COM_OBL_RC_ACT": float(failsafe.action)}[name]

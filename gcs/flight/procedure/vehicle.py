@@ -116,6 +116,8 @@ class VehicleStatus:
     failsafe: px4.OffboardLossFailsafe = field(default_factory=px4.OffboardLossFailsafe)
     """What it does on its own once setpoints stop (PX4's defaults until read from it:
     `gcs.flight.procedure.failsafe`)."""
+    failsafe_before: dict[str, float] | None = None
+    """The failsafe parameters as read before the flight changed them (restored after it)."""
 
     @property
     def id(self) -> str:

@@ -86,7 +86,13 @@ from gcs.flight.link.link import DECODED_IDS
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.procedure import vehicle
-from gcs.flight.procedure.failsafe import layer_delays, set_failsafe, stacked_columns
+from gcs.flight.procedure.failsafe import (
+    column_conflicts,
+    failsafe_actions,
+    layer_delays,
+    restore_failsafe,
+    set_failsafe,
+)
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.replan import (
     Replanner,
@@ -431,6 +437,9 @@ class FlightExecutor:
                         monitor.cancel()
                         with contextlib.suppress(asyncio.CancelledError):
                             await monitor
+                    if not _cancelling():  # completed, aborted or failed: put them back
+                        await asyncio.gather(*(restore_failsafe(v, self._emit)
+                                               for v in self.vehicles))
                     await self.streamer.stop()
         finally:
             self._finish_record(error)
@@ -480,20 +489,36 @@ class FlightExecutor:
         self.phase = FlightPhase.FINISHED
 
     async def _set_failsafes(self) -> None:
-        """Before arming, each vehicle's own link-loss failsafe is set to hold, then land by
-        altitude layer, lowest first (`gcs.flight.procedure.failsafe`), and told; and where
-        the plan stacks two vehicles closer than R horizontally, that a station lost there
-        lands them that close."""
+        """Before arming, each vehicle's own link-loss failsafe is set from the plan (Hold
+        where its column meets another's, else Land by altitude layer, lowest first:
+        `gcs.flight.procedure.failsafe`), told per vehicle and recorded; a vehicle that does
+        not take it refuses the flight (`FailsafeNotSet`) unless the fleet option
+        `failsafe` is `try`."""
         delays = layer_delays(self.plan, self.options.land_speed)
-        await asyncio.gather(*(set_failsafe(v, delays[v.index], self._emit)
+        conflicts = column_conflicts(self.plan, required_separation(self.plan.scenario))
+        actions = failsafe_actions(self.plan.scenario.ids, conflicts)
+
+        def why(vid: str) -> str:
+            c = conflicts.get(vid)
+            if c is None:
+                return "its column keeps R from every other's"
+            where = "onto" if c.above else "under"
+            return (f"its column comes {c.gap:.2f} m from {c.other}'s at t={c.t:.1f} s: it "
+                    f"hovers where the plan keeps R instead of landing {where} it")
+
+        await asyncio.gather(*(set_failsafe(v, delays[v.index], actions[v.id], self._emit,
+                                            required=self.options.failsafe == "set",
+                                            why=why(v.id))
                                for v in self.vehicles))
-        stacked = stacked_columns(self.plan, required_separation(self.plan.scenario))
-        if stacked is not None:
-            lower, upper, gap, t = stacked
+        for v in self.vehicles:
+            self.recorder.vehicles[v.id].failsafe = {
+                **v.failsafe.to_dict(), "set": v.failsafe_before is not None, "why": why(v.id)}
+        hovering = [v.id for v in self.vehicles if v.failsafe.effective == "Hold"]
+        if hovering:
             self._emit(None, EventKind.FAILSAFE, (
-                f"the plan puts {upper} over {lower} ({gap:.2f} m apart horizontally at "
-                f"t={t:.1f} s): a station lost there lands them that close; a plan with "
-                f"separation_scale [1, 1, 10] keeps the columns nearly R apart"))
+                f"if the station is lost, {', '.join(hovering)} hover (their columns meet "
+                f"others'); land them by plan from a station: fleetplan fleet land --plan "
+                f"PLAN.json --fleet FLEET.json"))
 
     async def _gather(self) -> None:
         tol = self.options.start_tolerance
