@@ -163,8 +163,9 @@ async def wait_running(link: VehicleLink, predicate: Callable[[Telemetry], bool]
 
 
 async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
-                  stalls: StationStalls | None = None) -> None:
-    """Wait for the first HEARTBEAT and position; refuse a non-PX4 or already armed vehicle."""
+                  stalls: StationStalls | None = None, *, armed_ok: bool = False) -> None:
+    """Wait for the first HEARTBEAT and position; refuse a non-PX4 vehicle, and an already
+    armed one unless `armed_ok` (a fleet left hovering, taken over to land it)."""
     ok = await wait_running(
         link, lambda t: t.heartbeat_time is not None and t.position_ned is not None, timeout,
         stalls)
@@ -194,7 +195,7 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
     if tel.autopilot != mavlink.MAV_AUTOPILOT_PX4:
         raise LinkError(f"{spec.id}: autopilot type {tel.autopilot} is not PX4 "
                         f"(MAV_AUTOPILOT_PX4 = {mavlink.MAV_AUTOPILOT_PX4})")
-    if tel.armed:
+    if tel.armed and not armed_ok:
         raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
                        f"someone else armed")
     refuse_other_claimants(link, spec)

@@ -42,11 +42,12 @@ FENCE_RETRY_WAIT_S = px4.MISSION_PROTOCOL_TIMEOUT_S + 0.5
 
 async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
                           world_origin: frames.Geodetic | None, recorder: FlightRecorder,
-                          emit: Emit, stalls: StationStalls) -> None:
+                          emit: Emit, stalls: StationStalls, *, take_over: bool = False) -> None:
     """First HEARTBEAT and position, home in the world frame (from `world_origin` when the
-    fleet file gives none), the pre-flight gate, and the message rates when asked for."""
+    fleet file gives none), the pre-flight gate, and the message rates when asked for
+    (take_over: an armed vehicle is taken, not refused)."""
     link = v.linked
-    await vehicle.connect(link, v.spec, options.connect_timeout, stalls)
+    await vehicle.connect(link, v.spec, options.connect_timeout, stalls, armed_ok=take_over)
     if v.home is None:
         assert world_origin is not None
         v.home, source = await vehicle.resolve_home(link, v.id, world_origin, stalls)

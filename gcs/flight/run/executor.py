@@ -132,13 +132,18 @@ SETTLE_POLL_S = 0.05
 class FlightExecutor:
     """One flight of a plan on a fleet; see the module docstring."""
 
-    def __init__(self, plan: Plan, fleet: FleetSpec, options: FlightOptions | None = None) -> None:
+    def __init__(self, plan: Plan, fleet: FleetSpec, options: FlightOptions | None = None, *,
+                 take_over: bool = False) -> None:
+        """take_over: fly vehicles already armed (in the air, hovering where a lost station
+        left them: `gcs.cli.land_plan`) instead of refusing them; an error then leaves the
+        fleet in Hold rather than landing it straight down."""
         why = refusal(plan)  # verified again on the trajectories themselves
         if why is not None:
             raise PlanRejected(f"refusing to fly the plan: {why}")
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
+        self.take_over = take_over
         self.margin = check_margin(plan, fleet.position_error)
         if not self.margin.ok and self.options.margin_check == "refuse":
             raise PlanRejected(f"refusing to fly: {self.margin.message()}")
@@ -428,7 +433,8 @@ class FlightExecutor:
                     self._emit(None, EventKind.ERROR, f"{type(exc).__name__}: {exc}")
                     if self._abort is None:  # the landing an error starts is the abort in
                         # force: a hold loses to it, and the clock no longer waits on a pause
-                        self._abort = ("land", f"{type(exc).__name__}: {exc}")
+                        self._abort = ("hold" if self.take_over else "land",
+                                       f"{type(exc).__name__}: {exc}")
                         self._end_pause()
                     await asyncio.shield(self._make_safe())
                     raise
@@ -464,7 +470,8 @@ class FlightExecutor:
         opts = self.options
         self.phase = FlightPhase.CONNECTING
         await _all(connect_vehicle(v, opts, self.fleet.world_origin, self.recorder,
-                                   self._emit, self.stalls) for v in self.vehicles)
+                                   self._emit, self.stalls, take_over=self.take_over)
+                   for v in self.vehicles)
         await fence_fleet(self.vehicles, build_fence(self.plan.scenario.to_dict()), opts,
                           self.fleet.world_origin, self._emit, self.stalls)
         await self._set_failsafes()
