@@ -40,6 +40,7 @@ import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
 from gcs import px4  # noqa: E402
+from gcs.cli.land_plan import land_by_plan  # noqa: E402
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
 from gcs.flight.procedure import failsafe  # noqa: E402
 from gcs.flight.run import executor  # noqa: E402
@@ -71,7 +72,7 @@ def plan_of(name: str, steps: int | None, columns: bool) -> planner.Plan:
     return plan
 
 
-async def one(plan: planner.Plan, at: float, lost: int | None) -> dict[str, Any]:
+async def one(plan: planner.Plan, at: float, lost: int | None, land: bool) -> dict[str, Any]:
     homes = homes_under(plan.scenario.starts)
     base = free_udp_base(mock_port_offsets(len(homes)))
     async with MockFleet(homes=homes, settle_time=0.5, **mock_fleet_ports(base),
@@ -98,27 +99,49 @@ async def one(plan: planner.Plan, at: float, lost: int | None) -> dict[str, Any]
         task.cancel()
         with contextlib.suppress(BaseException):  # the flight's outcome is not the figure
             await task
-        scale = np.asarray(plan.scenario.separation_scale)
-        i, j = np.triu_indices(len(homes), k=1)
-        closest, where = np.inf, None
-        for p in truth:
-            air = (p[i, 2] > 0.05) | (p[j, 2] > 0.05)
-            if not air.any():
-                continue
-            d = np.linalg.norm((p[i] - p[j]) / scale, axis=1)
-            d[~air] = np.inf
-            k = int(np.argmin(d))
-            if d[k] < closest:
-                closest, where = float(d[k]), (plan.scenario.ids[i[k]], plan.scenario.ids[j[k]])
         hovering = [vid for vid, v in zip(plan.scenario.ids, mock.vehicles, strict=True)
                     if v.armed and v.mode == px4.HOLD]
-        return {"at": at, "closest_m": round(closest, 3), "pair": where,
-                "all_down": all(not v.armed and v.true_position_world[2] < 0.05
-                                for v in mock.vehicles),
-                "hovering": hovering,
-                "landed": sum(not v.armed and v.true_position_world[2] < 0.05
-                              for v in mock.vehicles),
-                "samples": len(truth)}
+        out: dict[str, Any] = {"at": at, **closest_pair(plan, truth),
+                               "hovering": hovering, "landed": _landed(mock),
+                               "samples": len(truth)}
+        if land and hovering:  # a new station lands them by plan (`fleetplan fleet land --plan`)
+            for v in mock.vehicles:
+                v.faults.loss = 0.0
+            landing = asyncio.create_task(land_by_plan(plan, fleet, list(plan.scenario.ids),
+                                                       10.0, say=lambda _text: None))
+            after: list[np.ndarray] = []
+            deadline = time.monotonic() + 60.0
+            while not landing.done() and time.monotonic() < deadline:
+                after.append(np.array([v.true_position_world for v in mock.vehicles]))
+                await asyncio.sleep(0.01)
+            status = await landing if landing.done() else None
+            landing.cancel()
+            out["landing_by_plan"] = {"exit": status, **closest_pair(plan, after),
+                                      "landed": _landed(mock), "samples": len(after)}
+        out["all_down"] = _landed(mock) == len(homes)
+        return out
+
+
+def _landed(mock: MockFleet) -> int:
+    return sum(bool(not v.armed and v.true_position_world[2] < 0.05) for v in mock.vehicles)
+
+
+def closest_pair(plan: planner.Plan, truth: list[np.ndarray]) -> dict[str, Any]:
+    """The closest true pair distance (the plan's metric) in `truth` while either of the
+    pair is in the air, and the pair."""
+    scale = np.asarray(plan.scenario.separation_scale)
+    i, j = np.triu_indices(len(plan.scenario.ids), k=1)
+    closest, where = np.inf, None
+    for p in truth:
+        air = (p[i, 2] > 0.05) | (p[j, 2] > 0.05)
+        if not air.any():
+            continue
+        d = np.linalg.norm((p[i] - p[j]) / scale, axis=1)
+        d[~air] = np.inf
+        k = int(np.argmin(d))
+        if d[k] < closest:
+            closest, where = float(d[k]), (plan.scenario.ids[i[k]], plan.scenario.ids[j[k]])
+    return {"closest_m": round(closest, 3) if np.isfinite(closest) else None, "pair": where}
 
 
 def main() -> None:
@@ -129,14 +152,18 @@ def main() -> None:
                         help="blackhole only this vehicle (index) under land_all")
     parser.add_argument("--columns", action="store_true",
                         help=f"plan with separation_scale {COLUMNS}: columns apart")
+    parser.add_argument("--land-by-plan", action="store_true",
+                        help="then land the hovering vehicles by plan from a new station")
     parser.add_argument("--default-failsafe", action="store_true",
                         help="PX4's own COM_FAIL_ACT_T (5 s) on every vehicle")
     args = parser.parse_args()
     if args.default_failsafe:
         executor.layer_delays = lambda plan, speed: [5.0] * len(plan.scenario.ids)  # type: ignore[assignment]
+        executor.failsafe_actions = lambda ids, conflicts: dict.fromkeys(ids, px4.OBL_LAND)  # type: ignore[assignment]
     out: dict[str, Any] = {"case": "vehicle lost" if args.lost is not None else "station lost",
                            "failsafe": "px4 default" if args.default_failsafe
                            else "land by layer",
+                           "columns_meet": "land" if args.default_failsafe else "hold",
                            "separation_scale": COLUMNS if args.columns else "the plan's",
                            "plans": {}}
     for name in args.plans:
@@ -146,7 +173,7 @@ def main() -> None:
         runs = []
         for at in args.at:
             print(f"{name} at {at:g} s", file=sys.stderr, flush=True)
-            runs.append(asyncio.run(one(plan, at, args.lost)))
+            runs.append(asyncio.run(one(plan, at, args.lost, args.land_by_plan)))
         out["plans"][name] = {
             "vehicles": len(plan.scenario.ids), "horizon_s": plan.scenario.horizon, "R": r,
             "stacked_columns": None if stacked is None else {
@@ -155,6 +182,14 @@ def main() -> None:
             "runs": runs,
             "closest_m": min(run["closest_m"] for run in runs),
             "kept_r_minus_5cm": all(run["closest_m"] >= r - 0.05 for run in runs)}
+        landings = [run["landing_by_plan"] for run in runs if "landing_by_plan" in run]
+        if landings:
+            out["plans"][name]["landing_by_plan"] = {
+                "closest_m": min(landing["closest_m"] for landing in landings),
+                "all_landed": all(landing["landed"] == len(plan.scenario.ids)
+                                  for landing in landings),
+                "kept_r_minus_5cm": all(landing["closest_m"] >= r - 0.05
+                                        for landing in landings)}
     json.dump(out, sys.stdout, indent=1)
     print()
 
