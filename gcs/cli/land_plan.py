@@ -1,5 +1,8 @@
 """`fleetplan fleet land --plan PLAN.json --fleet FLEET.json`: land a hovering fleet by plan.
 
+Every vehicle of the fleet must answer (its place is needed to plan around it); the chosen
+ones (`--vehicle`, default all) in the air are landed, the others kept clear of.
+
 A fleet whose station was lost is left hovering where their columns meet (the Hold failsafe:
 `gcs.flight.procedure.failsafe`): landing those vehicles straight down (`fleet land`) would
 bring them closer than R. This reads where every chosen vehicle is, plans a verified landing
@@ -34,28 +37,26 @@ __all__ = ["FleetState", "land_by_plan", "landing_for", "read_fleet_state"]
 
 
 class FleetState:
-    """Where the chosen vehicles are (world ENU) and which are in the air."""
+    """Where the fleet's vehicles are (world ENU) and which are in the air."""
 
     def __init__(self) -> None:
         self.flying: dict[str, np.ndarray] = {}
         self.grounded: dict[str, np.ndarray] = {}
 
 
-async def read_fleet_state(fleet: FleetSpec, chosen: list[str], timeout: float) -> FleetState:
-    """Every chosen vehicle's position in the world frame (its home from the fleet file, or
-    from its EKF origin and the fleet's world_origin) and whether it is in the air (armed
-    and not reported on the ground); `GcsError` naming a vehicle that does not answer."""
+async def read_fleet_state(fleet: FleetSpec, timeout: float) -> FleetState:
+    """Every vehicle's position in the world frame (its home from the fleet file, or from its
+    EKF origin and the fleet's world_origin) and whether it is in the air (armed and not
+    reported on the ground); `GcsError` naming a vehicle that does not answer (a landing
+    cannot be planned around a vehicle whose place is unknown)."""
     state = FleetState()
     async with LinkHub(decode_ids=DECODED_IDS) as hub:
         links: dict[str, VehicleLink] = {}
         for spec in fleet.vehicles:
-            if spec.id in chosen:
-                links[spec.id] = await hub.add(spec.id, spec.connection, spec.system_id,
-                                               spec.component_id,
-                                               signing_key=spec.signing_key, peer=spec.peer)
+            links[spec.id] = await hub.add(spec.id, spec.connection, spec.system_id,
+                                           spec.component_id, signing_key=spec.signing_key,
+                                           peer=spec.peer)
         for spec in fleet.vehicles:
-            if spec.id not in links:
-                continue
             link = links[spec.id]
             if not await link.wait_for(lambda t: t.heartbeat_time is not None
                                        and t.position_ned is not None, timeout):
@@ -73,14 +74,19 @@ async def read_fleet_state(fleet: FleetSpec, chosen: list[str], timeout: float) 
     return state
 
 
-def landing_for(plan: Plan, state: FleetState, landing_height: float) -> LandingPlan:
-    """The verified landing plan of `state.flying` under `plan`'s scenario, its touchdown
-    points clear of `state.grounded` (`LandingError` when there is none)."""
-    ids = list(state.flying)
+def landing_for(plan: Plan, state: FleetState, chosen: list[str], landing_height: float
+                ) -> LandingPlan:
+    """The verified landing plan of the `chosen` vehicles in the air under `plan`'s
+    scenario, clear of every other vehicle where it is, hovering or on the ground (fixed
+    obstacles: the plan keeps R from them and its touchdown points keep R from their
+    columns); `LandingError` when there is none."""
+    ids = [vid for vid in state.flying if vid in chosen]
     p = np.array([state.flying[vid] for vid in ids])
     zeros = np.zeros_like(p)
+    others = {**state.grounded, **{vid: where for vid, where in state.flying.items()
+                                   if vid not in chosen}}
     fixed = [FixedTrajectory(vid, np.asarray(where, dtype=float)[None, :])
-             for vid, where in state.grounded.items()]
+             for vid, where in others.items()]
     return plan_landing(plan.scenario, p, zeros, zeros, ids=ids,
                         landing_height=landing_height, fixed=fixed)
 
@@ -89,23 +95,26 @@ async def land_by_plan(plan: Plan, fleet: FleetSpec, chosen: list[str], timeout:
                        say: Any = print) -> int:
     """Read, plan, fly (see the module); the exit status: 0 when every vehicle that was in
     the air landed and disarmed, 1 when not, 2 when no landing plan was found."""
-    state = await read_fleet_state(fleet, chosen, timeout)
+    state = await read_fleet_state(fleet, timeout)
     for vid, where in state.grounded.items():
         say(f"{vid}: on the ground at {np.round(where, 2).tolist()}")
-    if not state.flying:
-        say("nothing in the air: nothing to land")
+    for vid in set(state.flying) - set(chosen):
+        say(f"{vid}: in the air at {np.round(state.flying[vid], 2).tolist()}, not chosen: "
+            f"landed around")
+    if not set(state.flying) & set(chosen):
+        say("nothing chosen in the air: nothing to land")
         return 0
     options = fleet.options.replace(where="fleet", at_end="land")
     try:
-        landing = await asyncio.to_thread(landing_for, plan, state, options.landing_height)
+        landing = await asyncio.to_thread(landing_for, plan, state, chosen,
+                                          options.landing_height)
     except LandingError as exc:
         print(f"no landing plan: {exc} (fleetplan fleet land without --plan lands each "
               f"straight down)", file=sys.stderr)
         return 2
     touchdowns = landing.plan.scenario.goals
-    for vid, where, down in zip(landing.plan.scenario.ids, state.flying.values(), touchdowns,
-                                strict=True):
-        say(f"{vid}: in the air at {np.round(where, 2).tolist()}, lands at "
+    for vid, down in zip(landing.plan.scenario.ids, touchdowns, strict=True):
+        say(f"{vid}: in the air at {np.round(state.flying[vid], 2).tolist()}, lands at "
             f"{np.round(down, 2).tolist()}")
     say(f"landing plan: {landing.plan.scenario.horizon:g} s, keeps {landing.separation:.2f} m "
         f"(R {plan.scenario.min_separation:g} m), planned in {landing.seconds:.2f} s")
