@@ -39,7 +39,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
-from gcs import px4  # noqa: E402
+from gcs.autopilot import px4  # noqa: E402
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
 from gcs.flight.run.executor import FlightExecutor  # noqa: E402
 from gcs.sim import MockFleet, homes_under  # noqa: E402

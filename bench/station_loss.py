@@ -39,7 +39,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
-from gcs import px4  # noqa: E402
+from gcs.autopilot import px4  # noqa: E402
 from gcs.cli.land_plan import land_by_plan  # noqa: E402
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
 from gcs.flight.procedure import failsafe  # noqa: E402
@@ -159,7 +159,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.default_failsafe:
         executor.layer_delays = lambda plan, speed: [5.0] * len(plan.scenario.ids)  # type: ignore[assignment]
-        executor.failsafe_actions = lambda ids, conflicts: dict.fromkeys(ids, px4.OBL_LAND)  # type: ignore[assignment]
+        executor.column_conflicts = lambda plan, clearance: {}  # type: ignore[assignment]
     out: dict[str, Any] = {"case": "vehicle lost" if args.lost is not None else "station lost",
                            "failsafe": "px4 default" if args.default_failsafe
                            else "land by layer",

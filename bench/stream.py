@@ -16,7 +16,7 @@ GCS reconnects signed; every setpoint is signed, every telemetry packet verified
 Telemetry (--telemetry): the mocks send ``minimal`` (~65 messages/s per vehicle) or ``px4``
 (PX4's offboard link, ~410 messages/s per vehicle, `gcs.sim.telemetry`). --message-rates
 ``leave`` takes what they send; ``request`` first asks each vehicle for what the GCS reads
-(MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.procedure.vehicle.message_rates`, the rest off). The GCS
+(MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.autopilot.px4.Px4.message_rates`, the rest off). The GCS
 decodes only the ids it reads and drops the rest before decoding (--decode needed, as the
 flight executor does; --decode all to compare). Telemetry latency is the receive instant of
 each LOCAL_POSITION_NED minus the mock's stamp (time_boot_ms, whose zero the mock prints on

@@ -24,10 +24,16 @@ Imports only run downward (docs/development/architecture.md, README "Architectur
   the scenario's, and the API validates them);
 - `gcs/export/` (plans written in other tools' formats) imports neither the vehicle side
   (`gcs.flight`, `gcs.fleet`, `gcs.sim`) nor the service, the API or the CLI, which call it;
-- the shared bottom layer (`gcs/frames.py`, `gcs/px4.py`, `gcs/wire.py`, `gcs/errors.py`,
-  `gcs/phases.py`: the flight's vocabulary) imports no other part of `gcs`; `gcs/geofence.py`
+- the shared bottom layer (`gcs/frames.py`, `gcs/wire.py`, `gcs/errors.py`, `gcs/phases.py`:
+  the flight's vocabulary; `gcs/autopilot/`: what differs between PX4 and ArduPilot, behind
+  one seam) imports no other part of `gcs`; `gcs/geofence.py`
   (the fence's numbers, shared by the flight and the API) and `gcs/replan_request.py` (a replan
   request's body, shared by the API and the CLI) import only that layer.
+
+Only the autopilot modules name an autopilot: no code in the flight (link, procedure,
+streaming, monitors, landing, replanning), the fleet commands, the service or the API imports
+`gcs.autopilot.px4` or `gcs.autopilot.ardupilot` or has a name that says PX4 or ArduPilot; they
+ask the vehicle's `gcs.autopilot.Autopilot` (`NAMES_NO_AUTOPILOT`).
 
 And no module of `planner` or `gcs` imports, directly or through others, a module that imports
 it back: the module import graph (imports under ``if TYPE_CHECKING:`` and inside functions
@@ -38,6 +44,7 @@ has no cycle.
 from __future__ import annotations
 
 import ast
+import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -68,7 +75,7 @@ RULES: dict[str, tuple[str, ...]] = {
     "gcs/export": ("gcs.flight", "gcs.fleet", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli",
                    "fastapi", "starlette"),
     "gcs/frames.py": _ABOVE_GCS,
-    "gcs/px4.py": _ABOVE_GCS,
+    "gcs/autopilot": _ABOVE_GCS,
     "gcs/wire.py": _ABOVE_GCS,
     "gcs/errors.py": _ABOVE_GCS,
     "gcs/phases.py": _ABOVE_GCS,
@@ -137,6 +144,52 @@ def test_the_checker_sees_a_forbidden_import(tmp_path: Path) -> None:
     assert "gcs.api.app" in found
     assert "gcs.service.store" in found
     assert "fastapi.FastAPI" in found
+
+
+# ------------------------------------------------------------------------ the autopilot seam
+
+#: Code that must not name an autopilot (it asks the vehicle's `gcs.autopilot.Autopilot`).
+NAMES_NO_AUTOPILOT = ("gcs/flight", "gcs/fleet", "gcs/service", "gcs/api")
+#: file -> why it may: the service hosts the mock, whose ports are PX4 SITL's.
+NAMES_ALLOWED = {"gcs/service/settings.py"}
+_AUTOPILOT_NAME = re.compile(r"px4|ardu", re.IGNORECASE)
+
+
+def autopilot_names(path: Path) -> list[tuple[int, str]]:
+    """(line, name) of every identifier, attribute, import or definition in `path` that
+    names an autopilot (comments, docstrings and strings are free to)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        names: list[str] = []
+        if isinstance(node, ast.Name):
+            names = [node.id]
+        elif isinstance(node, ast.Attribute):
+            names = [node.attr]
+        elif isinstance(node, ast.Import | ast.ImportFrom):
+            names = [a.name for a in node.names] + [getattr(node, "module", None) or ""]
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            names = [node.name]
+        elif isinstance(node, ast.arg):
+            names = [node.arg]
+        found.extend((getattr(node, "lineno", 0), n) for n in names if _AUTOPILOT_NAME.search(n))
+    return found
+
+
+@pytest.mark.parametrize("prefix", NAMES_NO_AUTOPILOT)
+def test_only_the_autopilot_modules_name_an_autopilot(prefix: str) -> None:
+    bad = [f"{path.relative_to(ROOT)}:{line} {name}" for path in _files(prefix)
+           if str(path.relative_to(ROOT)) not in NAMES_ALLOWED
+           for line, name in autopilot_names(path)]
+    assert bad == []
+
+
+def test_the_name_checker_sees_an_autopilot(tmp_path: Path) -> None:
+    """Imports, attributes and names are seen; a docstring or a string is not."""
+    module = tmp_path / "m.py"
+    module.write_text('''"""PX4 and ArduPilot."""\nfrom gcs.autopilot import px4\n'''
+                      "def f(link):\n    return link.mode == px4.HOLD, mavlink.MAV_AUTOPILOT_PX4, "
+                      "'ardupilot'\n")
+    assert sorted(n for _, n in autopilot_names(module)) == ["MAV_AUTOPILOT_PX4", "px4", "px4"]
 
 
 # ------------------------------------------------------------------------ import cycles

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.cli import mock_timings
 
 __all__ = ["configure", "run"]

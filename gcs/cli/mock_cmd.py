@@ -1,8 +1,9 @@
 """`fleetplan mock`: run N PX4-like mock vehicles (gcs.sim) until interrupted.
 
 Vehicle i listens on UDP --listen-base-port + i and sends to --base-port + i on 127.0.0.1
-(PX4 SITL's offboard ports by default, `gcs.px4`), system id i + 1. Homes: under the starts of
---plan, or a row --spacing metres apart along x. --fleet-out writes the matching fleet file.
+(PX4 SITL's offboard ports by default, `gcs.autopilot.px4`), system id i + 1. Homes: under
+the starts of --plan, or a row --spacing metres apart along x. --fleet-out writes the matching
+fleet file.
 --realism px4 makes them behave like PX4 v1.16 SIH SITL (noisy wandering estimate, attitude lag,
 late boot, arming refused for 3.5 s: `MockConfig.px4_like`); the default is ideal.
 --gcs-port PORT gives every vehicle a second, PX4-like GCS link sending to 127.0.0.1:PORT
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.cli import mock_timings
 
 __all__ = ["configure", "run"]

@@ -28,7 +28,6 @@ import asyncio
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 
-from gcs import px4
 from gcs.errors import GcsError, InvalidRequest, StateConflict
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.procedure import vehicle
@@ -41,7 +40,8 @@ FLEET_COMMANDS = ("hold", "land", "rtl", "disarm", "terminate")
 #: How long a command's effect may take to show in HEARTBEAT (PX4 sends it at 1 Hz).
 CONFIRM_TIMEOUT_S = 5.0
 
-_MODES = {"hold": px4.HOLD, "rtl": px4.RTL}
+#: Fleet commands that are a mode switch, by the `Autopilot` attribute naming the mode.
+_MODES = {"hold": "hold_mode", "rtl": "rtl_mode"}
 
 
 @dataclass(frozen=True)
@@ -102,18 +102,21 @@ async def run_command(link: VehicleLink, command: str, *, force: bool = False,
         return _outcome(link, command, False, "no HEARTBEAT from this vehicle yet: is it on "
                                               "and connected?")
     try:
+        kind = vehicle.autopilot_of(link)
         if command in _MODES:
-            mode = _MODES[command]
+            mode = getattr(kind, _MODES[command])
             await vehicle.set_mode(link, mode, confirm_timeout=confirm_timeout)
             return _outcome(link, command, True, f"{mode.name} confirmed")
         if command == "land":
             if not tel.armed:
                 return _outcome(link, command, True, "already disarmed: nothing to land")
             await vehicle.land(link, confirm_timeout=confirm_timeout)
-            ok = await link.wait_for(lambda t: t.mode == px4.LAND or not t.armed,
+            landing = kind.land_mode
+            ok = await link.wait_for(lambda t: t.mode == landing or not t.armed,
                                      confirm_timeout)
-            return _outcome(link, command, ok, "landing (AUTO.LAND confirmed)" if ok else
-                            f"land accepted but AUTO.LAND not shown within {confirm_timeout:g} s")
+            return _outcome(link, command, ok, f"landing ({landing.name} confirmed)" if ok else
+                            f"land accepted but {landing.name} not shown within "
+                            f"{confirm_timeout:g} s")
         if command == "disarm":
             if not tel.armed:
                 return _outcome(link, command, True, "already disarmed")

@@ -11,7 +11,8 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
       ],
       "flight": {"policy": "land_all", "rate_hz": 20},                       (optional)
       "signing_key": "fleet.key",                                            (optional)
-      "position_error": 0.25                                                 (optional)
+      "position_error": 0.25,                                                (optional)
+      "autopilot": "auto"                                                    (optional)
     }
 
 - `id` matches a plan vehicle; `connection` is a pymavlink URL (vehicles may share one);
@@ -28,6 +29,9 @@ A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home
   written out (`to_dict`), never the key.
 - `peer` (per vehicle, optional) ``"HOST:PORT"``: the vehicle's source address, pinned up front
   instead of at first contact (`gcs.flight.link.link`).
+- `autopilot` (fleet-wide, or per vehicle to override it): ``auto`` (the default: told by the
+  vehicle's HEARTBEAT, PX4 or ArduPilot), ``px4`` or ``ardupilot`` (`gcs.autopilot`); a
+  vehicle whose HEARTBEAT names the other one is refused at connect.
 - `position_error`: how far (m) a vehicle of this fleet may be from where it reports or is
   told to be (estimate and tracking error); plans for the fleet then keep 2x this margin
   (`gcs.flight.safety.margin`). Absent: not stated, no margin checked.
@@ -48,6 +52,7 @@ from typing import Any
 
 import numpy as np
 
+from gcs.autopilot import CHOICES
 from gcs.errors import FleetFileError, LinkError
 from gcs.flight.link.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
@@ -115,8 +120,9 @@ LANDING = ("planned", "px4")
 _OPTIONS_KEY = "flight"
 _OLD_OPTIONS_KEY = "mission"
 _TOP_KEYS = {"world_origin", "vehicles", _OPTIONS_KEY, _OLD_OPTIONS_KEY, "signing_key",
-             "position_error"}
-_VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home", "signing_key", "peer"}
+             "position_error", "autopilot"}
+_VEHICLE_KEYS = {"id", "connection", "system_id", "component_id", "home", "signing_key", "peer",
+                 "autopilot"}
 #: What `fly` does with a plan whose separation margin is below the fleet's need.
 MARGIN_CHECK = ("refuse", "warn")
 #: The pre-flight gate: refuse an unfit vehicle, or fly anyway (recorded).
@@ -203,7 +209,7 @@ class FlightOptions:
     message_rates: str = "leave"
     """leave: take the telemetry rates the vehicle sends; request: ask for what the GCS reads
     at the rates it needs and turn off PX4's fast streams it never reads
-    (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.flight.procedure.vehicle.message_rates`)."""
+    (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.autopilot.base.Autopilot.message_rates`)."""
     position_rate_hz: float = 30.0
     """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
     stream_priority: str = "realtime"
@@ -320,6 +326,8 @@ class VehicleSpec:
     """MAVLink 2 signing key (None: unsigned link, pinning only)."""
     peer: tuple[str, int] | None = None
     """Source address pinned up front (None: pinned at first contact)."""
+    autopilot: str = "auto"
+    """``auto`` (told by its HEARTBEAT), ``px4`` or ``ardupilot`` (`gcs.autopilot.CHOICES`)."""
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"id": self.id, "connection": self.connection,
@@ -330,6 +338,8 @@ class VehicleSpec:
             out["signing_key"] = str(self.signing_key.path)  # the path only, never the key
         if self.peer is not None:
             out["peer"] = f"{self.peer[0]}:{self.peer[1]}"
+        if self.autopilot != "auto":
+            out["autopilot"] = self.autopilot
         return out
 
 
@@ -406,6 +416,12 @@ def _peer(value: Any, where: str) -> tuple[str, int]:
         raise FleetFileError(where, f"must look like HOST:PORT, got {value!r}") from None
 
 
+def _autopilot(value: Any, where: str) -> str:
+    if value not in CHOICES:
+        raise FleetFileError(where, f"must be one of {', '.join(CHOICES)}, got {value!r}")
+    return str(value)
+
+
 def _options(data: Mapping[str, Any], source: str) -> FlightOptions:
     """The flight options under `_OPTIONS_KEY`, or under `_OLD_OPTIONS_KEY` with a warning
     naming `source` (the fleet file)."""
@@ -441,6 +457,7 @@ def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") 
         origin = Geodetic(lat, lon, _number(raw["alt"], "world_origin.alt"))
     fleet_key = _key(data["signing_key"], "signing_key", base_dir) \
         if "signing_key" in data else None
+    fleet_autopilot = _autopilot(data.get("autopilot", "auto"), "autopilot")
     raw_vehicles = data.get("vehicles")
     if not isinstance(raw_vehicles, list) or not raw_vehicles:
         raise FleetFileError("vehicles", "must be a non-empty list")
@@ -499,8 +516,10 @@ def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") 
         signing_key = _key(raw["signing_key"], f"{where}.signing_key", base_dir) \
             if "signing_key" in raw else fleet_key
         peer = _peer(raw["peer"], f"{where}.peer") if "peer" in raw else None
+        kind = _autopilot(raw["autopilot"], f"{where}.autopilot") if "autopilot" in raw \
+            else fleet_autopilot
         vehicles.append(VehicleSpec(vid, url, ids["system_id"], ids["component_id"], home,
-                                    signing_key, peer))
+                                    signing_key, peer, kind))
     options = _options(data, source)
     position_error = None
     if "position_error" in data:

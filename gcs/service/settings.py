@@ -24,7 +24,7 @@ from pydantic_settings import (
     TomlConfigSettingsSource,
 )
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.sim.config import TIMING_BOUNDS
 
 __all__ = [

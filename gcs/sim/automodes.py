@@ -20,7 +20,8 @@ from typing import Protocol
 
 import numpy as np
 
-from gcs import frames, px4
+from gcs import frames
+from gcs.autopilot import px4
 from gcs.sim.config import MockConfig
 from gcs.sim.model import FleetModel
 from gcs.wire import mavlink

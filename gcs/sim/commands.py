@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.sim import automodes, messages
 from gcs.sim.core import VehicleCore
 from gcs.wire import addressed_to, mavlink

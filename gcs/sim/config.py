@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.sim.model import EstimateNoise, ModelLimits
 
 __all__ = ["REALISMS", "TIMING_BOUNDS", "MockConfig", "MockFaults", "timing_error"]
@@ -50,7 +50,7 @@ class MockConfig:
     """COM_FAIL_ACT_T (s): the offboard-loss failsafe holds in Position this long, then takes
     `offboard_loss_action`."""
     offboard_loss_action: int = 0
-    """COM_OBL_RC_ACT (`gcs.px4.OBL_ACTIONS`): 0-2 and 4 land (no RC), 3 RTL, 5 Hold,
+    """COM_OBL_RC_ACT (`gcs.autopilot.px4.OBL_ACTIONS`): 0-2 and 4 land (no RC), 3 RTL, 5 Hold,
     6 terminate, 7 disarm."""
     disarm_after_land: float = px4.COM_DISARM_LAND_S
     """COM_DISARM_LAND (s)."""

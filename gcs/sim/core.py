@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gcs import frames, px4, wire
+from gcs import frames, wire
+from gcs.autopilot import px4
 from gcs.sim import automodes, telemetry
 from gcs.sim.config import MockConfig, MockFaults
 from gcs.sim.links import UdpLink

@@ -1,6 +1,6 @@
 """A fleet of PX4-like mock vehicles on one asyncio loop (`MockFleet`), and their placement.
 
-Each mock vehicle follows PX4 SITL's port convention (`gcs.px4`): instance i listens on UDP
+Each mock vehicle follows PX4 SITL's port convention (`px4`): instance i listens on UDP
 ``listen_base_port + i`` (`OFFBOARD_VEHICLE_BASE_PORT` + i) and sends to ``gcs_base_port + i``
 (`OFFBOARD_GCS_BASE_PORT` + i) on 127.0.0.1 until it hears its first partner, then to that
 partner (as PX4's UDP link latches it); system id i + 1, component 1. With `gcs_link_port`
@@ -36,7 +36,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gcs import frames, px4
+from gcs import frames
+from gcs.autopilot import px4
 from gcs.sim.config import MockConfig
 from gcs.sim.core import VehicleContext
 from gcs.sim.links import UdpLink
@@ -69,7 +70,7 @@ class MockFleet:
     max_port_offset)`` (`max_port_offset=9` reproduces PX4 SITL from instance 10 on, 0 puts the
     whole fleet behind one port) and listens on ``host:listen_base_port + i``.
     `gcs_link_port`: also give each vehicle a GCS link sending to ``host:gcs_link_port``
-    (`gcs.px4.GCS_LINK_PORT` for QGroundControl; None, the default: no GCS link).
+    (`gcs.autopilot.px4.GCS_LINK_PORT` for QGroundControl; None, the default: no GCS link).
     `signing_key` (32 bytes): every vehicle starts with it, as if provisioned earlier; without
     it they accept a key by SETUP_SIGNING (`gcs.sim.vehicle`).
     Behaviour: `config`, or the preset named by the keyword `realism` ("ideal", the default, or

@@ -19,7 +19,8 @@ from typing import Protocol
 
 import numpy as np
 
-from gcs import frames, px4
+from gcs import frames
+from gcs.autopilot import px4
 from gcs.geofence import shape_contains
 from gcs.sim.config import MockConfig
 from gcs.sim.missions import FenceShape

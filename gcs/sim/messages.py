@@ -15,7 +15,8 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-from gcs import frames, px4
+from gcs import frames
+from gcs.autopilot import px4
 from gcs.sim.config import MockConfig, MockFaults
 from gcs.sim.model import GRAVITY, FleetModel
 from gcs.wire import mavlink, time_boot_ms

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.wire import addressed_to, mavlink
 
 __all__ = ["MAX_ITEMS", "RETRY_S", "TIMEOUT_S", "FenceShape", "MissionHost", "MissionItem",

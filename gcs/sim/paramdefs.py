@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from gcs import px4
+from gcs.autopilot import px4
 
 __all__ = ["PX4_PARAMS", "ParamDef"]
 

@@ -1,6 +1,6 @@
 """The mock fleet's port rule, and free local UDP ports for mock fleets.
 
-A mock fleet on base port B is laid out like PX4 SITL on `gcs.px4.OFFBOARD_GCS_BASE_PORT`:
+A mock fleet on base port B is laid out like PX4 SITL on `gcs.autopilot.px4.OFFBOARD_GCS_BASE_PORT`:
 vehicle i sends its offboard link to B + i and listens on B + `LISTEN_OFFSET` + i (PX4:
 `OFFBOARD_GCS_BASE_PORT` + i / `OFFBOARD_VEHICLE_BASE_PORT` + i).
 
@@ -15,7 +15,7 @@ import random
 import socket
 from collections.abc import Iterable
 
-from gcs import px4
+from gcs.autopilot import px4
 
 __all__ = ["LISTEN_OFFSET", "free_udp_base", "mock_fleet_ports", "mock_port_offsets"]
 

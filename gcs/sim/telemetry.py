@@ -6,7 +6,7 @@ Two profiles (`MockConfig.telemetry_profile`):
   SYS_STATUS and EXTENDED_SYS_STATE at `status_rate`, LOCAL_POSITION_NED at `position_rate`,
   ATTITUDE at `attitude_rate`, GLOBAL_POSITION_INT at `global_position_rate`, GPS_RAW_INT at
   `gps_rate`, HOME_POSITION every 5 s): about 65 messages/s per vehicle.
-- ``px4``: PX4's offboard/API link (UDP `gcs.px4.OFFBOARD_GCS_BASE_PORT` + i, MAVLink mode
+- ``px4``: PX4's offboard/API link (UDP `gcs.autopilot.px4.OFFBOARD_GCS_BASE_PORT` + i, MAVLink mode
   "onboard" in PX4's mavlink_main.cpp) as measured on PX4 v1.16 SITL: ATTITUDE 100/s; HIGHRES_IMU,
   ATTITUDE_QUATERNION, GLOBAL_POSITION_INT 50/s; LOCAL_POSITION_NED and ODOMETRY 30/s;
   GPS_RAW_INT 8/s; SYS_STATUS 5/s; a dozen more at 0.5-10/s: about 410 messages/s (24 KB/s).

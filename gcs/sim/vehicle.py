@@ -33,7 +33,7 @@ hears, whatever it holds, and keeps it, as PX4's UDP links do; with a key only s
 
 It speaks MAVLink through pymavlink directly, never through `gcs.flight`: a wire-level mistake
 in our link must not be repeated by the stand-in that should catch it. It shares on purpose only
-constants and pure functions: the PX4 facts table (`gcs.px4`: modes, timeouts), frame
+constants and pure functions: the PX4 facts table (`gcs.autopilot.px4`: modes, timeouts), frame
 conversions (`gcs.frames`) and the MAVLink facts of `gcs.wire` (dialect, type-mask bits,
 `time_boot_ms`, the datagram adapter).
 
@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.sim import geofence, protocols, signing
 from gcs.sim.commands import handle_command
 from gcs.sim.core import VehicleContext, VehicleCore

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.fleet.fleetfile import FleetSpec
 from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import planner
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.sim import MockFleet
 from gcs.sim.fleet import homes_under
 from tests.flight.support import FAST_MOCK, mock_ports

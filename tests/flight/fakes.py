@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.fleet.fleetfile import VehicleSpec
 from gcs.flight.link.telemetry import Telemetry
 from gcs.flight.procedure.vehicle import VehicleStatus

@@ -9,7 +9,7 @@ from collections.abc import Awaitable, Callable
 import numpy as np
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.errors import FlightAborted, InvalidRequest, StateConflict
 from gcs.fleet.commands import fleet_command
 from gcs.fleet.fleetfile import FleetSpec

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import planner
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.errors import ArmingRefused, FlightAborted
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.run.executor import TRACKING_TOLERANCE_M, FlightExecutor

@@ -7,7 +7,7 @@ import asyncio
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.setpoints import hold_track
 from gcs.flight.procedure.failsafe import (

@@ -51,7 +51,7 @@ def _short_waits(monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
     """Short waits; off the mock, an upload that always works (the fake link has no mission
     protocol)."""
     monkeypatch.setattr(vehicle, "ORIGIN_WAIT_S", 0.01)
-    monkeypatch.setattr(boarding, "FENCE_RETRY_WAIT_S", 0.01)
+    monkeypatch.setattr(boarding, "fence_retry_wait", lambda _kind: 0.01)
     if request.node.get_closest_marker("flight") is None:
         async def uploaded(link: Any, items: Any) -> None:
             await asyncio.sleep(0)

@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gcs import frames, px4
+from gcs import frames
+from gcs.autopilot import px4
 from gcs.errors import GeofenceFailed
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.station import StationStalls

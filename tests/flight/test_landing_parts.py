@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import gcs.flight.safety.landing as landing_module
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import StationStalls

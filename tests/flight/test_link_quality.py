@@ -8,7 +8,7 @@ import random
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.endpoints import Endpoint
 from gcs.flight.link.link import VehicleLink

@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.errors import LinkError, VehicleTimeout
 from gcs.fleet.fleetfile import FleetSpec, VehicleSpec
 from gcs.flight.link import signing as signing_module

@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.errors import CommandError
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import VehicleLink

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import planner
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.fleet.fleetfile import FleetSpec
 from gcs.flight.run.executor import FlightExecutor
 from gcs.phases import EventKind

@@ -53,13 +53,13 @@ def test_requested_position_rate_is_what_arrives() -> None:
 def test_what_is_turned_off_is_never_what_the_gcs_decodes() -> None:
     """`message_rates: request` turns UNREAD_STREAMS off; none of them may be a message the
     link reads (DECODED_IDS), or the GCS would switch off its own telemetry."""
+    from gcs.autopilot.px4 import PX4, UNREAD_STREAMS
     from gcs.flight.link.link import DECODED_IDS
-    from gcs.flight.procedure.vehicle import UNREAD_STREAMS, message_rates
 
     # TIMESYNC's stream is the vehicle's own requests; the answers the link reads are not
     # streamed, so turning the stream off keeps them
     timesync = {mavlink.MAVLINK_MSG_ID_TIMESYNC}
     assert (DECODED_IDS - timesync).isdisjoint(UNREAD_STREAMS)
-    asked = message_rates(30.0)
+    asked = PX4.message_rates(30.0)
     assert all(hz > 0 for mid, hz in asked.items() if mid in DECODED_IDS - timesync)
     assert all(asked.get(mid, 0.0) <= 0 for mid in UNREAD_STREAMS)

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.cli.control import ControlServer, request
 from gcs.errors import FlightAborted, StateConflict
 from gcs.flight.run.executor import FlightExecutor

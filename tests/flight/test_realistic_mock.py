@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.errors import FlightAborted
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.hub import LinkHub

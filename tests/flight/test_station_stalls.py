@@ -192,7 +192,7 @@ def test_leaving_offboard_quotes_what_px4_warned_since_arming() -> None:
     failsafe took the vehicle to Altitude mode, and the fault said only "mode is now
     ALTCTL". The detail quotes PX4's latest warnings since arming (those before arming were
     cleared when it armed), and nothing when there were none."""
-    from gcs import px4
+    from gcs.autopilot import px4
     from gcs.flight.safety.monitor import WARNINGS_QUOTED
 
     options = FlightOptions()

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.sim import MockFleet
 from gcs.sim.paramdefs import PX4_PARAMS
 from tests.flight.support import mock_ports

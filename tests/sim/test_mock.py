@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import Setpoint, hold_track

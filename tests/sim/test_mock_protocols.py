@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gcs import px4
+from gcs.autopilot import px4
 from gcs.sim import DEFAULT_WORLD_ORIGIN, MockFleet
 from gcs.sim.paramdefs import PX4_PARAMS
 from gcs.sim.params import encode_value

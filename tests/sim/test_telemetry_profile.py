@@ -11,6 +11,7 @@ from collections import Counter
 
 import pytest
 
+from gcs.autopilot.px4 import PX4
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import DECODED_IDS, VehicleLink
 from gcs.flight.procedure import vehicle
@@ -148,7 +149,7 @@ def test_a_gcs_requesting_its_rates_receives_only_what_it_needs() -> None:
             assert await link.wait_for(lambda t: t.heartbeat_time is not None, 5.0)
             await asyncio.sleep(0.3)
             assert link.telemetry.skipped > 50  # PX4's full set: unread ids are skipped
-            answers = await vehicle.request_message_rates(link, vehicle.message_rates(30.0))
+            answers = await vehicle.request_message_rates(link, PX4.message_rates(30.0))
             await asyncio.sleep(0.3)  # what was in flight
             seen: Counter[str] = Counter()
             link.listeners.append(lambda _l, m, _t: seen.__setitem__(m.get_type(),
@@ -160,7 +161,7 @@ def test_a_gcs_requesting_its_rates_receives_only_what_it_needs() -> None:
 
     answers, seen, link, skipped_after, intervals = asyncio.run(main())
     assert all(a.endswith("ACCEPTED") for a in answers.values()), answers
-    for msg_id, hz in vehicle.message_rates(30.0).items():
+    for msg_id, hz in PX4.message_rates(30.0).items():
         assert intervals[msg_id] == (None if hz <= 0 else pytest.approx(1.0 / hz)), msg_id
     streaming = {i: 1.0 / p for i, p in intervals.items() if p is not None}
     assert set(streaming) <= DECODED_IDS

@@ -23,7 +23,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from gcs import px4
 from gcs.errors import CommandError
 from gcs.flight.link.endpoints import Endpoint
 from gcs.flight.link.setpoints import Setpoint
@@ -198,8 +197,9 @@ class VehicleLink:
         if msg.result == mavlink.MAV_RESULT_IN_PROGRESS:
             pending.sent_at = pending.clock()  # keep waiting for the final result
             return
-        if msg.command in px4.ACKED_TWICE:
-            self._echoes[msg.command] = (int(msg.result), now + px4.DUPLICATE_ACK_WINDOW_S)
+        kind = self.telemetry.flown_by
+        if msg.command in kind.acked_twice:
+            self._echoes[msg.command] = (int(msg.result), now + kind.duplicate_ack_window_s)
         pending.future.set_result(int(msg.result))
 
     def _check_waiters(self) -> None:
@@ -300,7 +300,7 @@ class VehicleLink:
         Resends (with `confirmation` counting up) when no ACK arrives within `timeout`;
         IN_PROGRESS extends the wait; a second ACK for the same command (PX4 sends two for
         DO_SET_MODE) is ignored, also when it arrives after a newer command with the same id
-        went out (`px4.ACKED_TWICE`): it never answers that one. Raises `CommandError` when no
+        went out (`Autopilot.acked_twice`): it never answers that one. Raises `CommandError` when no
         ACK came after all retries. Each try's `timeout` is on `clock` (monotonic time unless
         given; with `StationStalls.clock` a stall of the station does not use a try up).
         """

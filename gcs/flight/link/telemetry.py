@@ -17,7 +17,8 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from gcs import px4, wire
+from gcs import wire
+from gcs.autopilot import DEFAULT, Autopilot, FlightMode, by_heartbeat
 from gcs.flight.link.quality import LinkQuality
 from gcs.wire import mavlink
 
@@ -65,7 +66,10 @@ class Telemetry:
     """Reception of the vehicle's latest message of any kind: the link's proof of life."""
     autopilot: int | None = None
     vehicle_type: int | None = None
-    mode: px4.Px4Mode | None = None
+    autopilot_kind: Autopilot | None = None
+    """The autopilot the GCS flies it as, once chosen (`gcs.autopilot.choose`); until then
+    `flown_by` guesses."""
+    mode: FlightMode | None = None
     armed: bool = False
     system_status: int | None = None
     landed_state: int | None = None
@@ -177,6 +181,12 @@ class Telemetry:
             self._health(kind, msg)
         return True
 
+    @property
+    def flown_by(self) -> Autopilot:
+        """The autopilot its modes and commands are read as: the one chosen for it, else the
+        one its HEARTBEAT names, else the default (`gcs.autopilot.DEFAULT`)."""
+        return self.autopilot_kind or by_heartbeat(self.autopilot) or DEFAULT
+
     def _boot_clock(self, boot_ms: int, now: float) -> None:
         """The vehicle's clock: jitter from it, and a reboot when it goes back by more than
         a second (packets a little out of order do not)."""
@@ -192,7 +202,7 @@ class Telemetry:
         self.heartbeat_time = now
         self.autopilot = msg.autopilot
         self.vehicle_type = msg.type
-        self.mode = px4.decode_custom_mode(msg.custom_mode)
+        self.mode = self.flown_by.decode_mode(msg.custom_mode)
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
         if armed and not self.armed:
             self.warnings.clear()  # the pre-arm checks passed: their warnings are over

@@ -1,4 +1,6 @@
-"""The geofence's way onto a vehicle: PX4's mission protocol with mission_type FENCE.
+"""The geofence's way onto a vehicle: the mission protocol with mission_type FENCE, then the
+parameters its autopilot needs to act on it (`Autopilot.fence_enable`: ArduPilot's
+FENCE_ENABLE; PX4 checks an uploaded fence by itself).
 
 Upload: MISSION_COUNT, then each MISSION_REQUEST_INT (or MISSION_REQUEST) answered with its
 MISSION_ITEM_INT (frame MAV_FRAME_GLOBAL, x/y degE7), until MISSION_ACK; nothing heard for
@@ -17,12 +19,15 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
+from gcs.autopilot import Autopilot
 from gcs.errors import GeofenceFailed
 from gcs.flight.link.link import VehicleLink
+from gcs.flight.procedure.params import ParamError, set_param
 from gcs.geofence import FenceItem, item_mismatch
 from gcs.wire import mavlink
 
-__all__ = ["ITEM_TIMEOUT_S", "RETRIES", "download_fence", "send_fence", "upload_fence"]
+__all__ = ["ITEM_TIMEOUT_S", "RETRIES", "download_fence", "enable_fence", "send_fence",
+           "upload_fence"]
 
 _m = mavlink
 FENCE = _m.MAV_MISSION_TYPE_FENCE
@@ -146,3 +151,16 @@ async def send_fence(link: VehicleLink, items: Sequence[FenceItem]) -> None:
     problem = item_mismatch(items, got)
     if problem is not None:
         raise GeofenceFailed(link.vehicle_id, f"read back different: {problem}")
+
+
+async def enable_fence(link: VehicleLink, kind: Autopilot) -> str:
+    """Set the parameters that make `kind` act on its uploaded fence; what was set, in words
+    ("" when none is needed; `GeofenceFailed` when one is not taken)."""
+    done = []
+    for name, (param_kind, value) in kind.fence_enable.items():
+        try:
+            await set_param(link, name, param_kind, value)
+        except ParamError as exc:
+            raise GeofenceFailed(link.vehicle_id, f"uploaded, but not enabled: {exc}") from None
+        done.append(f"{name} {value:g}")
+    return ", ".join(done)

@@ -1,15 +1,21 @@
-"""One PX4 vehicle: the executor's view of it (`VehicleStatus`) and the PX4 procedure on its link.
+"""One vehicle: the executor's view of it (`VehicleStatus`) and the procedure on its link.
 
 The procedure steps are link-level coroutines, so a flight (`gcs.flight.run.executor`) and a fleet
 command outside a flight (`gcs.fleet.commands`) use the same code:
 
-- `connect`: first HEARTBEAT and LOCAL_POSITION_NED; refuse a vehicle that is not PX4 or is
-  already armed; `resolve_home` places its LOCAL_NED origin in the world frame;
+- `connect`: first HEARTBEAT, its autopilot chosen (`gcs.autopilot.choose`: detected, or
+  the fleet file's), its streams asked for where it sends none unasked, then
+  LOCAL_POSITION_NED; refuse a vehicle that is already armed; `resolve_home` places its
+  LOCAL_NED origin in the world frame;
 - `set_mode` / `arm`: MAV_CMD_DO_SET_MODE / MAV_CMD_COMPONENT_ARM_DISARM, retried while
-  TEMPORARILY_REJECTED, each confirmed by COMMAND_ACK *and* HEARTBEAT;
-- `land` (NAV_LAND, falling back to DO_SET_MODE AUTO.LAND), `disarm`;
+  refused for now (`Autopilot.arm_retry_results`), each confirmed by COMMAND_ACK *and*
+  HEARTBEAT; `set_origin`, `take_off`: what a GUIDED copter needs before it follows setpoints;
+- `land` (NAV_LAND falling back to the land mode, or the land mode), `disarm`;
 - `land_vehicle`, `hold_vehicle`, `secure`, `wait_disarmed`: the executor's safe endings,
-  which never raise (a failure is an event; PX4's offboard-loss failsafe is the fallback).
+  which never raise (a failure is an event; the vehicle's own failsafe is the fallback).
+
+What differs between autopilots is asked of the vehicle's `gcs.autopilot.Autopilot`
+(`autopilot_of`), never decided here.
 
 Every timeout counts station-running time when given the flight's `StationStalls`
 (`gcs.flight.link.station`): the station's own stalls do not use it up.
@@ -29,7 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gcs import frames, px4
+from gcs import autopilot, frames
+from gcs.autopilot import Autopilot, LinkLossFailsafe
 from gcs.errors import (
     ArmingRefused,
     CommandError,
@@ -47,23 +54,24 @@ from gcs.wire import mavlink, result_name
 
 __all__ = [
     "MODE_RETRY_FOR",
-    "UNREAD_STREAMS",
     "Emit",
     "VehicleStatus",
     "arm",
     "ask_origin",
+    "autopilot_of",
     "connect",
     "disarm",
     "hold_vehicle",
     "land",
     "land_vehicle",
     "last_text",
-    "message_rates",
     "refuse_other_claimants",
     "request_message_rates",
     "resolve_home",
     "secure",
     "set_mode",
+    "set_origin",
+    "take_off",
     "wait_disarmed",
     "wait_running",
 ]
@@ -75,6 +83,9 @@ StopStream = Callable[[str], None]
 
 #: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
 MODE_RETRY_FOR = 5.0
+#: LOCAL_POSITION_NED's rate asked of a vehicle that streams only when asked, unless the
+#: flight asks for another (FlightOptions.position_rate_hz).
+POSITION_HZ = 30.0
 _POLL_PERIOD = 0.05
 #: Requests for GPS_GLOBAL_ORIGIN before a vehicle is taken to report none (one lost
 #: datagram must not cost a flight its fence), the wait for the answer to the first (s), and
@@ -82,6 +93,11 @@ _POLL_PERIOD = 0.05
 ORIGIN_TRIES = 4
 ORIGIN_WAIT_S = 1.0
 ORIGIN_BACKOFF = 1.5
+#: SET_GPS_GLOBAL_ORIGIN sends (each followed by `ask_origin`'s requests).
+SET_ORIGIN_TRIES = 2
+#: The lowest takeoff (m) and how close to its height a takeoff counts as done (m).
+TAKEOFF_MIN_M = 1.0
+TAKEOFF_TOLERANCE_M = 0.15
 
 
 @dataclass
@@ -95,13 +111,14 @@ class VehicleStatus:
     start_ned: np.ndarray | None = None
     goal_ned: np.ndarray | None = None
     phase: VehiclePhase = VehiclePhase.PENDING
-    """Where it is in the flight (HOVERING: in PX4 Hold at the end)."""
+    """Where it is in the flight (HOVERING: in its autopilot's hold mode at the end)."""
     fault: str | None = None
     fault_time: float | None = None
     armed_by_us: bool = False
     arm_sent: bool = False
     """An arming command went out (it may have armed the vehicle even if we never saw it)."""
     expect_offboard: bool = False
+    """It should be in its autopilot's mode that follows setpoints (OFFBOARD, GUIDED)."""
     tracking_error: float = math.nan
     goal_error: float = math.nan
     goal_tolerance: float = math.nan
@@ -113,11 +130,19 @@ class VehicleStatus:
     on its own motion; it is no longer judged against a goal."""
     drop_reason: str | None = None
     """Why it was dropped (the replan's reason: an operator's, or its fault)."""
-    failsafe: px4.OffboardLossFailsafe = field(default_factory=px4.OffboardLossFailsafe)
-    """What it does on its own once setpoints stop (PX4's defaults until read from it:
-    `gcs.flight.procedure.failsafe`)."""
+    failsafe: LinkLossFailsafe = field(
+        default_factory=lambda: autopilot.DEFAULT.default_failsafe)
+    """What it does on its own once setpoints stop (its autopilot's defaults until read from
+    it: `gcs.flight.procedure.failsafe`)."""
     failsafe_before: dict[str, float] | None = None
     """The failsafe parameters as read before the flight changed them (restored after it)."""
+    failsafe_set: dict[str, float] | None = None
+    """The failsafe parameters as the flight set them (what `failsafe_before` undoes)."""
+
+    @property
+    def autopilot(self) -> Autopilot:
+        """The autopilot it is flown as (only once connected)."""
+        return autopilot_of(self.linked)
 
     @property
     def id(self) -> str:
@@ -143,13 +168,18 @@ class VehicleStatus:
         return float(np.linalg.norm(np.asarray(tel.position_ned) - target))
 
 
+def autopilot_of(link: VehicleLink) -> Autopilot:
+    """The autopilot `link`'s vehicle is flown as (`Telemetry.flown_by`)."""
+    return link.telemetry.flown_by
+
+
 def last_text(link: VehicleLink) -> str:
     """The vehicle's latest STATUSTEXT, as a suffix for an error message."""
     texts = link.telemetry.statustexts
     return f" (vehicle says: {texts[-1]!r})" if texts else ""
 
 
-# ==================================================================== the PX4 procedure
+# ==================================================================== the procedure
 
 
 def _clock(stalls: StationStalls | None) -> Callable[[], float]:
@@ -162,13 +192,40 @@ async def wait_running(link: VehicleLink, predicate: Callable[[Telemetry], bool]
     return await link.wait_for(predicate, timeout, clock=_clock(stalls))
 
 
+def _choose_autopilot(link: VehicleLink, spec: VehicleSpec) -> None:
+    """Fly `link`'s vehicle as the autopilot the fleet file names or its HEARTBEAT reports
+    (`LinkError` when neither names one the GCS flies, or they disagree)."""
+    kind = autopilot.choose(spec.autopilot, link.telemetry.autopilot)
+    if not isinstance(kind, Autopilot):
+        raise LinkError(f"{spec.id}: {kind}")
+    link.telemetry.autopilot_kind = kind
+
+
 async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
-                  stalls: StationStalls | None = None, *, armed_ok: bool = False) -> None:
-    """Wait for the first HEARTBEAT and position; refuse a non-PX4 vehicle, and an already
-    armed one unless `armed_ok` (a fleet left hovering, taken over to land it)."""
+                  stalls: StationStalls | None = None, *,
+                  position_hz: float = POSITION_HZ, armed_ok: bool = False) -> None:
+    """Wait for the first HEARTBEAT and position, choosing the vehicle's autopilot on the way
+    (asking for its streams, at `position_hz` for position, where it sends none unasked);
+    refuse a vehicle whose autopilot the GCS cannot fly, and one that is already armed unless
+    `armed_ok` (a fleet left hovering, taken over to land it)."""
+    clock = _clock(stalls)
+    deadline = clock() + timeout
+
+    def asks_for_streams(t: Telemetry) -> bool:
+        kind = autopilot.choose(spec.autopilot, t.autopilot)
+        return isinstance(kind, Autopilot) and kind.streams_on_request
+
     ok = await wait_running(
-        link, lambda t: t.heartbeat_time is not None and t.position_ned is not None, timeout,
-        stalls)
+        link, lambda t: t.heartbeat_time is not None and (t.position_ned is not None
+                                                          or asks_for_streams(t)),
+        timeout, stalls)
+    if ok:
+        _choose_autopilot(link, spec)
+        if link.telemetry.position_ned is None:  # it streams only when asked
+            await request_message_rates(
+                link, autopilot_of(link).message_rates(position_hz), stalls)
+            ok = await wait_running(link, lambda t: t.position_ned is not None,
+                                    max(0.0, deadline - clock()), stalls)
     if not ok:
         dropped = drop_diagnosis(link, spec)
         if dropped and link.telemetry.heartbeat_time is None:
@@ -192,9 +249,6 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
         raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
                                       f"{spec.connection} (system id {spec.system_id}){hint}")
     tel = link.telemetry
-    if tel.autopilot != mavlink.MAV_AUTOPILOT_PX4:
-        raise LinkError(f"{spec.id}: autopilot type {tel.autopilot} is not PX4 "
-                        f"(MAV_AUTOPILOT_PX4 = {mavlink.MAV_AUTOPILOT_PX4})")
     if tel.armed and not armed_ok:
         raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
                        f"someone else armed")
@@ -284,6 +338,44 @@ async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> 
     return link.telemetry.gps_origin is not None
 
 
+async def set_origin(link: VehicleLink, origin: frames.Geodetic,
+                     stalls: StationStalls | None = None) -> bool:
+    """Give a vehicle without an EKF origin one (SET_GPS_GLOBAL_ORIGIN, which has no answer of
+    its own), then ask for it back (`ask_origin`); whether it now reports one. Its LOCAL_NED
+    origin is then `origin`: the home the fleet file places it at."""
+    for _ in range(SET_ORIGIN_TRIES):
+        link.send(link.mav.set_gps_global_origin_encode(
+            link.system_id, round(origin.lat * 1e7), round(origin.lon * 1e7),
+            round(origin.alt * 1000), int(time.time() * 1e6)))
+        if await ask_origin(link, stalls):
+            return True
+    return False
+
+
+async def take_off(link: VehicleLink, height: float, *, timeout: float,
+                   stalls: StationStalls | None = None) -> float:
+    """MAV_CMD_NAV_TAKEOFF to `height` m above its LOCAL_NED origin (at least
+    `TAKEOFF_MIN_M`; a copter in GUIDED leaves the ground only so), then wait until it is
+    within `TAKEOFF_TOLERANCE_M` of it; returns the height asked for (`CommandError`,
+    `VehicleTimeout` otherwise)."""
+    clock = _clock(stalls)
+    height = max(height, TAKEOFF_MIN_M)
+    result = await link.command(mavlink.MAV_CMD_NAV_TAKEOFF,
+                                (0.0, 0.0, 0.0, math.nan, math.nan, math.nan, height),
+                                clock=clock)
+    if result != mavlink.MAV_RESULT_ACCEPTED:
+        raise CommandError(link.vehicle_id, mavlink.MAV_CMD_NAV_TAKEOFF, result,
+                           f"takeoff refused: {result_name(result)}{last_text(link)}")
+
+    def up(t: Telemetry) -> bool:
+        return t.position_ned is not None and -t.position_ned[2] >= height - TAKEOFF_TOLERANCE_M
+
+    if not await wait_running(link, up, timeout, stalls):
+        raise VehicleTimeout(link.vehicle_id, f"not at its takeoff height {height:g} m within "
+                                              f"{timeout:g} s{last_text(link)}")
+    return height
+
+
 async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodetic,
                        stalls: StationStalls | None = None) -> tuple[np.ndarray, str]:
     """Home in the world frame from the vehicle's EKF origin and the fleet's world_origin;
@@ -307,7 +399,7 @@ async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodet
     return home, "HOME_POSITION"
 
 
-async def set_mode(link: VehicleLink, mode: px4.Px4Mode, *, confirm_timeout: float,
+async def set_mode(link: VehicleLink, mode: autopilot.FlightMode, *, confirm_timeout: float,
                    retry_for: float = 0.0, stalls: StationStalls | None = None) -> None:
     """DO_SET_MODE until ACCEPTED (retrying TEMPORARILY_REJECTED for `retry_for` s), then
     wait for HEARTBEAT to show the mode; `ModeRefused` otherwise."""
@@ -333,9 +425,12 @@ async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
               on_attempt: Callable[[], None] | None = None,
               on_accepted: Callable[[], None] | None = None,
               stalls: StationStalls | None = None) -> int:
-    """Arm, retrying TEMPORARILY_REJECTED for up to `timeout` s; confirmed by HEARTBEAT.
-    Returns the number of attempts; `ArmingRefused` otherwise. `on_attempt` is called before
-    each command goes out, `on_accepted` when one is ACCEPTED."""
+    """Arm, retrying a refusal that is only for now (`Autopilot.arm_retry_results`: PX4's
+    TEMPORARILY_REJECTED, ArduPilot's FAILED with a "PreArm:" text) for up to `timeout` s;
+    confirmed by HEARTBEAT. Returns the number of attempts; `ArmingRefused` otherwise.
+    `on_attempt` is called before each command goes out, `on_accepted` when one is
+    ACCEPTED."""
+    kind = autopilot_of(link)
     clock = _clock(stalls)
     deadline = clock() + timeout
     attempts = 0
@@ -353,12 +448,12 @@ async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
             raise ArmingRefused(link.vehicle_id, cmd, result,
                                 f"arming accepted but HEARTBEAT not armed within "
                                 f"{confirm_timeout:g} s")
-        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
-            if clock() + px4.ARM_TEMPORARILY_REJECTED_RETRY_S < deadline:
-                await asyncio.sleep(px4.ARM_TEMPORARILY_REJECTED_RETRY_S)
+        if result in kind.arm_retry_results:
+            if clock() + kind.arm_retry_s < deadline:
+                await asyncio.sleep(kind.arm_retry_s)
                 continue
             raise ArmingRefused(link.vehicle_id, cmd, result,
-                                f"arming still TEMPORARILY_REJECTED after {timeout:g} s"
+                                f"arming still {result_name(result)} after {timeout:g} s"
                                 f"{last_text(link)}")
         raise ArmingRefused(link.vehicle_id, cmd, result,
                             f"arming refused: {result_name(result)}{last_text(link)}")
@@ -366,49 +461,26 @@ async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
 
 async def land(link: VehicleLink, *, confirm_timeout: float,
                stalls: StationStalls | None = None) -> bool:
-    """MAV_CMD_NAV_LAND, falling back to DO_SET_MODE AUTO.LAND if refused (then returns True,
-    the mode being confirmed); `GcsError` when neither is accepted."""
-    result = await link.command(mavlink.MAV_CMD_NAV_LAND, clock=_clock(stalls))
-    if result == mavlink.MAV_RESULT_ACCEPTED:
-        return False
-    await set_mode(link, px4.LAND, confirm_timeout=confirm_timeout, stalls=stalls)
+    """MAV_CMD_NAV_LAND, falling back to DO_SET_MODE to the land mode if refused, where the
+    autopilot lands by command (`Autopilot.land_by_command`), else the land mode straight
+    away; True when the mode was set (and confirmed); `GcsError` when neither is
+    accepted."""
+    kind = autopilot_of(link)
+    if kind.land_by_command:
+        result = await link.command(mavlink.MAV_CMD_NAV_LAND, clock=_clock(stalls))
+        if result == mavlink.MAV_RESULT_ACCEPTED:
+            return False
+    await set_mode(link, kind.land_mode, confirm_timeout=confirm_timeout, stalls=stalls)
     return True
 
 
 async def disarm(link: VehicleLink, *, force: bool = False,
                  stalls: StationStalls | None = None) -> int:
-    """MAV_CMD_COMPONENT_ARM_DISARM(0); `force` adds PX4's magic number, which disarms even in
-    the air (the vehicle falls). Returns the MAV_RESULT."""
-    params = (0.0, px4.DISARM_FORCE_MAGIC) if force else (0.0,)
+    """MAV_CMD_COMPONENT_ARM_DISARM(0); `force` adds the autopilot's magic number, which
+    disarms even in the air (the vehicle falls). Returns the MAV_RESULT."""
+    params = (0.0, autopilot_of(link).disarm_force_magic) if force else (0.0,)
     return await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, params,
                               clock=_clock(stalls))
-
-
-#: PX4 offboard-link streams the GCS never reads (`gcs.flight.link.link.DECODED_IDS` is what it
-#: reads), turned off by `message_rates`: the fast ones (ATTITUDE 100/s, HIGHRES_IMU,
-#: ATTITUDE_QUATERNION, GLOBAL_POSITION_INT 50/s, ODOMETRY 30/s on SITL) and the 0.5-10/s rest.
-#: TIMESYNC's stream is the vehicle's own requests (10/s); the link reads only the answers to
-#: the station's (`gcs.flight.link.quality`), which come whatever its stream's rate.
-UNREAD_STREAMS = tuple(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in (
-    "ATTITUDE", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "GLOBAL_POSITION_INT", "ODOMETRY",
-    "ALTITUDE", "ATTITUDE_TARGET", "POSITION_TARGET_LOCAL_NED", "POSITION_TARGET_GLOBAL_INT",
-    "VFR_HUD", "SERVO_OUTPUT_RAW", "TIMESYNC", "SCALED_PRESSURE", "ESTIMATOR_STATUS",
-    "SYSTEM_TIME", "VIBRATION"))
-
-
-def message_rates(position_hz: float) -> dict[int, float]:
-    """What the GCS needs from a PX4 offboard link, by message id, in Hz (0 = off): position
-    at `position_hz`, status, landed state and GPS at 2 Hz, and every stream it never reads
-    (`UNREAD_STREAMS`) off. HEARTBEAT is absent (PX4 refuses to change it); HOME_POSITION
-    and BATTERY_STATUS (0.5/s, read) keep PX4's rate."""
-    m = mavlink
-    return {
-        m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
-        m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
-        m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
-        m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
-        **dict.fromkeys(UNREAD_STREAMS, 0.0),
-    }
 
 
 async def request_message_rates(link: VehicleLink, rates: dict[int, float],
@@ -443,35 +515,42 @@ async def request_message_rates(link: VehicleLink, rates: dict[int, float],
 
 async def land_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
                        stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
-    """Send `v` down; its setpoints stop either way (PX4 lands on offboard loss if the command
-    never arrived)."""
+    """Send `v` down; its setpoints stop either way (its own failsafe is then what acts if
+    the command never arrived)."""
     v.phase = VehiclePhase.LANDING
     v.expect_offboard = False
     try:
         if await land(v.linked, confirm_timeout=options.heartbeat_timeout, stalls=stalls):
-            emit(v.id, EventKind.MODE, f"{px4.LAND.name} confirmed")
+            emit(v.id, EventKind.MODE, f"{v.autopilot.land_mode.name} confirmed")
         emit(v.id, EventKind.LAND, "landing")
     except GcsError as exc:
-        emit(v.id, EventKind.LAND_FAILED, f"{exc}; setpoints stopped, PX4's offboard-loss "
-                                  f"failsafe will land it")
+        emit(v.id, EventKind.LAND_FAILED, f"{exc}; setpoints stopped, {_on_its_own(v)}")
     finally:
         stop_stream(v.id)
 
 
 async def hold_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
                        stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
-    """Switch `v` to PX4 Hold where it is; its setpoints stop either way."""
+    """Switch `v` to its autopilot's hold mode where it is (PX4 Hold, ArduPilot BRAKE); its
+    setpoints stop either way."""
     v.expect_offboard = False
     try:
-        await set_mode(v.linked, px4.HOLD, confirm_timeout=options.heartbeat_timeout,
+        kind = v.autopilot
+        await set_mode(v.linked, kind.hold_mode, confirm_timeout=options.heartbeat_timeout,
                        stalls=stalls)
-        emit(v.id, EventKind.MODE, f"{px4.HOLD.name} confirmed")
-        emit(v.id, EventKind.HOLD, "holding (PX4 Hold)")
+        emit(v.id, EventKind.MODE, f"{kind.hold_mode.name} confirmed")
+        emit(v.id, EventKind.HOLD, f"holding ({kind.hold_words})")
     except GcsError as exc:
-        emit(v.id, EventKind.HOLD_FAILED, f"{exc}; setpoints stopped, PX4's offboard-loss "
-                                  f"failsafe takes over")
+        emit(v.id, EventKind.HOLD_FAILED, f"{exc}; setpoints stopped, {_on_its_own(v, True)}")
     finally:
         stop_stream(v.id)
+
+
+def _on_its_own(v: VehicleStatus, hold: bool = False) -> str:
+    """What `v` does on its own once its setpoints stop, as the end of a failure's event."""
+    if v.link is None:
+        return "its own failsafe takes over"
+    return v.link.telemetry.flown_by.left_alone[1 if hold else 0]
 
 
 async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Emit,

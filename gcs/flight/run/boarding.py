@@ -1,9 +1,9 @@
 """One vehicle's way into the air in a flight: connect, home, the pre-flight gate, message
-rates, its geofence, then prestream, OFFBOARD, arm and the climb to its start.
+rates, its geofence, then its autopilot's boarding steps to the climb to its start.
 
 The executor (`gcs.flight.run.executor`) runs `connect_vehicle` for every vehicle, then
 `fence_fleet` (`fence_vehicle` for every vehicle), then `prepare_vehicle` for every vehicle,
-concurrently; the PX4 commands themselves are the
+concurrently; the commands themselves are the
 primitives of `gcs.flight.procedure.vehicle`. Every deadline is on the flight's `StationStalls`
 clock.
 """
@@ -15,13 +15,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gcs import frames, px4
+from gcs import frames
+from gcs.autopilot import Autopilot
 from gcs.errors import GeofenceFailed, PreflightFailed
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import hold_track, transfer_track
 from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import vehicle
-from gcs.flight.procedure.fence_upload import send_fence
+from gcs.flight.procedure.fence_upload import enable_fence, send_fence
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.flight.run.record import FlightRecorder
 from gcs.flight.run.stream import Streamer
@@ -29,15 +30,17 @@ from gcs.flight.safety.health import PreflightThresholds, preflight_problems
 from gcs.geofence import WorldFence, fence_items
 from gcs.phases import EventKind, VehiclePhase
 
-__all__ = ["FENCE_TRANSFERS", "connect_vehicle", "fence_fleet", "fence_origin", "fence_vehicle",
-           "preflight", "prepare_vehicle"]
+__all__ = ["FENCE_RETRY_MARGIN_S", "FENCE_TRANSFERS", "connect_vehicle", "fence_fleet",
+           "fence_origin", "fence_retry_wait", "fence_vehicle", "preflight",
+           "prepare_vehicle"]
 
 #: Whole uploads (with read-back) of a vehicle's fence before the flight is refused, and the
 #: wait before each next (s): every message of one upload is already resent 5 times, so a
 #: next upload is for a link that lost a run of them; it waits until the vehicle has given
-#: the failed transfer up (PX4 refuses another meanwhile).
+#: the failed transfer up (PX4 refuses another meanwhile): its autopilot's
+#: `mission_protocol_timeout_s` and this much more.
 FENCE_TRANSFERS = 3
-FENCE_RETRY_WAIT_S = px4.MISSION_PROTOCOL_TIMEOUT_S + 0.5
+FENCE_RETRY_MARGIN_S = 0.5
 
 
 async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
@@ -47,7 +50,9 @@ async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
     fleet file gives none), the pre-flight gate, and the message rates when asked for
     (take_over: an armed vehicle is taken, not refused)."""
     link = v.linked
-    await vehicle.connect(link, v.spec, options.connect_timeout, stalls, armed_ok=take_over)
+    await vehicle.connect(link, v.spec, options.connect_timeout, stalls,
+                          position_hz=options.position_rate_hz, armed_ok=take_over)
+    v.failsafe = v.autopilot.default_failsafe
     if v.home is None:
         assert world_origin is not None
         v.home, source = await vehicle.resolve_home(link, v.id, world_origin, stalls)
@@ -56,7 +61,7 @@ async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
     await preflight(v, options, emit, stalls)
     if options.message_rates == "request":
         answers = await vehicle.request_message_rates(
-            link, vehicle.message_rates(options.position_rate_hz), stalls)
+            link, v.autopilot.message_rates(options.position_rate_hz), stalls)
         emit(v.id, EventKind.MESSAGE_RATES, ", ".join(f"{k} {a}" for k, a in answers.items()))
     vehicle.refuse_other_claimants(link, v.spec)  # over the whole connect, not its start
     v.phase = VehiclePhase.CONNECTED
@@ -94,6 +99,12 @@ def fence_origin(v: VehicleStatus, world_origin: frames.Geodetic | None
     if world_origin is not None:
         return np.zeros(3), world_origin
     return None
+
+
+def fence_retry_wait(kind: Autopilot) -> float:
+    """The wait before a fence upload is tried again (s): until a vehicle of `kind` has given
+    the failed transfer up."""
+    return kind.mission_protocol_timeout_s + FENCE_RETRY_MARGIN_S
 
 
 async def fence_fleet(vehicles: Sequence[VehicleStatus], fence: WorldFence,
@@ -144,6 +155,7 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
         raise GeofenceFailed(v.id, f"its home {np.round(v.placed, 3).tolist()} lies outside "
                                    f"the fence ({', '.join(outside)})")
     items = fence_items(fence, home, origin)
+    retry_wait = fence_retry_wait(v.autopilot)
     for transfer in range(1, FENCE_TRANSFERS + 1):
         try:
             await send_fence(v.linked, items)
@@ -152,26 +164,60 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
             if transfer == FENCE_TRANSFERS:
                 raise GeofenceFailed(v.id, f"{exc.detail} (after {transfer} uploads)") from None
             emit(v.id, EventKind.GEOFENCE_RETRY, f"upload {transfer} failed ({exc.detail}); "
-                                                 f"again in {FENCE_RETRY_WAIT_S:g} s")
-            await asyncio.sleep(FENCE_RETRY_WAIT_S)
+                                                 f"again in {retry_wait:g} s")
+            await asyncio.sleep(retry_wait)
+    enabled = await enable_fence(v.linked, v.autopilot)
     emit(v.id, EventKind.GEOFENCE, f"{len(fence.shapes)} shape(s), {len(items)} items "
                                    f"uploaded and read back"
-                                   + (f" (upload {transfer})" if transfer > 1 else ""))
+                                   + (f" (upload {transfer})" if transfer > 1 else "")
+                                   + (f", {enabled}" if enabled else ""))
 
 
 async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightOptions,
-                          yaw_ned: float, emit: Emit, stalls: StationStalls) -> None:
-    """Stream setpoints holding the vehicle where it is, then OFFBOARD, arm, and stream the
-    climb from there to its start (`v.start_ned`)."""
+                          yaw_ned: float, emit: Emit, stalls: StationStalls,
+                          world_origin: frames.Geodetic | None = None) -> None:
+    """Take `v` from disarmed on the ground to streaming the climb to its start
+    (`v.start_ned`) by its autopilot's boarding steps (`Autopilot.boarding`: PX4 prestreams,
+    switches to OFFBOARD, arms and climbs on setpoints; ArduPilot gets an EKF origin,
+    switches to GUIDED, arms, takes off to the start's height, then follows setpoints)."""
     link = v.linked
+    kind = v.autopilot
     here = np.asarray(link.telemetry.position_ned, dtype=float)
-    streamer.assign(v.id, link, hold_track(here, yaw_ned, options.rate_hz))
-    await asyncio.sleep(options.prestream)
-    v.phase = VehiclePhase.ARMING
-    await vehicle.set_mode(link, px4.OFFBOARD, confirm_timeout=options.heartbeat_timeout,
-                           retry_for=vehicle.MODE_RETRY_FOR, stalls=stalls)
-    emit(v.id, EventKind.MODE, f"{px4.OFFBOARD.name} confirmed")
-    v.expect_offboard = True
+    for step in kind.boarding:
+        if step == "prestream":
+            streamer.assign(v.id, link, hold_track(here, yaw_ned, options.rate_hz))
+            await asyncio.sleep(options.prestream)
+        elif step == "origin":
+            await _ensure_origin(v, world_origin, emit, stalls)
+        elif step == "follow":
+            v.phase = VehiclePhase.ARMING
+            await vehicle.set_mode(link, kind.follow_mode,
+                                   confirm_timeout=options.heartbeat_timeout,
+                                   retry_for=vehicle.MODE_RETRY_FOR, stalls=stalls)
+            emit(v.id, EventKind.MODE, f"{kind.follow_mode.name} confirmed")
+            v.expect_offboard = True
+        elif step == "arm":
+            await _arm(v, options, emit, stalls)
+        elif step == "takeoff":
+            assert v.start_ned is not None
+            height = await vehicle.take_off(link, -float(v.start_ned[2]),
+                                            timeout=options.gather_timeout, stalls=stalls)
+            emit(v.id, EventKind.CLIMB, f"took off to {height:.2f} m (NAV_TAKEOFF)")
+            here = np.asarray(link.telemetry.position_ned, dtype=float)
+        elif step == "climb":
+            assert v.start_ned is not None
+            track = transfer_track(here, v.start_ned, options.climb_speed, yaw_ned,
+                                   options.rate_hz)
+            streamer.assign(v.id, link, track)
+            v.phase = VehiclePhase.CLIMBING
+            emit(v.id, EventKind.CLIMB, f"to start, {track.duration:.1f} s")
+        else:
+            raise ValueError(f"unknown boarding step {step!r}")
+
+
+async def _arm(v: VehicleStatus, options: FlightOptions, emit: Emit,
+               stalls: StationStalls) -> None:
+    """Arm `v`, recording that an arming command went out and that one was accepted."""
 
     def attempt() -> None:
         v.arm_sent = True
@@ -179,12 +225,27 @@ async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightO
     def accepted() -> None:
         v.armed_by_us = True
 
-    attempts = await vehicle.arm(link, timeout=options.arm_timeout,
+    v.phase = VehiclePhase.ARMING
+    attempts = await vehicle.arm(v.linked, timeout=options.arm_timeout,
                                  confirm_timeout=options.heartbeat_timeout,
                                  on_attempt=attempt, on_accepted=accepted, stalls=stalls)
     emit(v.id, EventKind.ARMED, f"after {attempts} attempt(s)")
-    assert v.start_ned is not None
-    track = transfer_track(here, v.start_ned, options.climb_speed, yaw_ned, options.rate_hz)
-    streamer.assign(v.id, link, track)
-    v.phase = VehiclePhase.CLIMBING
-    emit(v.id, EventKind.CLIMB, f"to start, {track.duration:.1f} s")
+
+
+async def _ensure_origin(v: VehicleStatus, world_origin: frames.Geodetic | None, emit: Emit,
+                         stalls: StationStalls) -> None:
+    """`v` has an EKF origin (GPS_GLOBAL_ORIGIN), or gets one at its home placed by the
+    fleet's `world_origin` (SET_GPS_GLOBAL_ORIGIN); `PreflightFailed` when neither."""
+    link = v.linked
+    if await vehicle.ask_origin(link, stalls):
+        return
+    if world_origin is None:
+        raise PreflightFailed(v.id, ["it reports no EKF origin (GPS_GLOBAL_ORIGIN) and the "
+                                     "fleet file has no world_origin to set one from: give "
+                                     "world_origin"])
+    geodetic = frames.enu_to_geodetic(v.placed, world_origin)
+    if not await vehicle.set_origin(link, geodetic, stalls):
+        raise PreflightFailed(v.id, ["its EKF origin was set (SET_GPS_GLOBAL_ORIGIN) but it "
+                                     "does not report one (GPS_GLOBAL_ORIGIN)"])
+    emit(v.id, EventKind.HOME, f"EKF origin set at its home: lat {geodetic.lat:.7f}, "
+                               f"lon {geodetic.lon:.7f}, alt {geodetic.alt:.2f} m")

@@ -88,7 +88,7 @@ from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.procedure import vehicle
 from gcs.flight.procedure.failsafe import (
     column_conflicts,
-    failsafe_actions,
+    failsafe_record,
     layer_delays,
     restore_failsafe,
     set_failsafe,
@@ -485,7 +485,8 @@ class FlightExecutor:
             v.goal_ned = frames.world_to_ned(goals[v.index], home)
         self.phase = FlightPhase.PREPARING
         streamer = self._streamer()
-        await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit, self.stalls)
+        await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit, self.stalls,
+                                   self.fleet.world_origin)
                    for v in self.vehicles)
         self.phase = FlightPhase.GATHERING
         await self._gather()
@@ -503,7 +504,6 @@ class FlightExecutor:
         `failsafe` is `try`."""
         delays = layer_delays(self.plan, self.options.land_speed)
         conflicts = column_conflicts(self.plan, required_separation(self.plan.scenario))
-        actions = failsafe_actions(self.plan.scenario.ids, conflicts)
 
         def why(vid: str) -> str:
             c = conflicts.get(vid)
@@ -513,13 +513,14 @@ class FlightExecutor:
             return (f"its column comes {c.gap:.2f} m from {c.other}'s at t={c.t:.1f} s: it "
                     f"hovers where the plan keeps R instead of landing {where} it")
 
-        await asyncio.gather(*(set_failsafe(v, delays[v.index], actions[v.id], self._emit,
+        await asyncio.gather(*(set_failsafe(v, delays[v.index], v.id in conflicts, self._emit,
                                             required=self.options.failsafe == "set",
                                             why=why(v.id))
                                for v in self.vehicles))
         for v in self.vehicles:
             self.recorder.vehicles[v.id].failsafe = {
-                **v.failsafe.to_dict(), "set": v.failsafe_before is not None, "why": why(v.id)}
+                **failsafe_record(v.failsafe), "set": v.failsafe_before is not None,
+                "why": why(v.id)}
         hovering = [v.id for v in self.vehicles if v.failsafe.effective == "Hold"]
         if hovering:
             self._emit(None, EventKind.FAILSAFE, (

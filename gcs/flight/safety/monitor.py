@@ -50,7 +50,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from gcs import frames, px4
+from gcs import frames
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.quality import WINDOW_S as LINK_WINDOW_S
@@ -108,9 +108,10 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
     if tel.geofence_breach is not None:  # before the mode: PX4's GF_ACTION switches it
         name = tel.mode.name if tel.mode is not None else "?"
         return "geofence_breach", f"{tel.geofence_breach}, mode {name}"
-    if tel.mode != px4.OFFBOARD:
+    kind = tel.flown_by
+    if tel.mode != kind.follow_mode:
         name = tel.mode.name if tel.mode is not None else "?"
-        return "left_offboard", f"mode is now {name}{_warnings_text(tel.warnings)}"
+        return "left_offboard", f"mode is now {name}{_warnings_text(tel.warnings, kind.title)}"
     return None
 
 
@@ -118,12 +119,13 @@ def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
 WARNINGS_QUOTED = 3
 
 
-def _warnings_text(warnings: Sequence[str]) -> str:
-    """"; PX4 warned: 'Preflight Fail: No valid data from Baro 0', 'Failsafe activated'":
-    why PX4 took a vehicle out of OFFBOARD is in its warnings since arming (a failsafe names
-    the stale sensor or the lost link), or "" without any."""
+def _warnings_text(warnings: Sequence[str], title: str) -> str:
+    """"; PX4 warned: 'Preflight Fail: No valid data from Baro 0', 'Failsafe activated'"
+    (`title` names the autopilot): why it took a vehicle out of the mode that follows
+    setpoints is in its warnings since arming (a failsafe names the stale sensor or the lost
+    link), or "" without any."""
     latest = list(warnings)[-WARNINGS_QUOTED:]
-    return "; PX4 warned: " + ", ".join(repr(w) for w in latest) if latest else ""
+    return f"; {title} warned: " + ", ".join(repr(w) for w in latest) if latest else ""
 
 
 #: A vehicle's newly dropped packets are told at most this often (s).

@@ -7,14 +7,21 @@ answered TEMPORARILY_REJECTED (Commander::handle_command); OFFBOARD is only avai
 setpoint arrived within COM_OF_LOSS_T (offboardCheck.cpp), so the stream must be live first.
 Arming is answered TEMPORARILY_REJECTED while the estimator settles after boot: retry.
 
-Everything PX4-specific the GCS relies on lives here, so the streaming loop never asks "is
-this PX4?". The mock autopilot (`gcs.sim`) uses the same tables to speak like PX4.
+Everything PX4-specific the GCS relies on lives here, behind the autopilot seam
+(`gcs.autopilot.base.Autopilot`: `PX4`), so the streaming loop never asks "is this PX4?". The
+mock autopilot (`gcs.sim`) uses the same tables to speak like PX4.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import ClassVar
+
+from gcs.autopilot.base import Autopilot
+from gcs.wire import mavlink
 
 __all__ = [
     "ACKED_TWICE",
@@ -35,10 +42,13 @@ __all__ = [
     "OFFBOARD_GCS_BASE_PORT",
     "OFFBOARD_VEHICLE_BASE_PORT",
     "POSITION",
+    "PX4",
     "RTL",
     "TAKEOFF",
+    "UNREAD_STREAMS",
     "MainMode",
     "OffboardLossFailsafe",
+    "Px4",
     "Px4Mode",
     "decode_custom_mode",
     "mode_name",
@@ -107,11 +117,6 @@ class OffboardLossFailsafe:
         it): Land, Return, Hold, Terminate or Disarm."""
         name = OBL_ACTIONS.get(self.action, "Land")
         return "Land" if name in ("Position", "Altitude", "Manual") else name
-
-    def to_dict(self) -> dict[str, float | str]:
-        """For the flight record: its three numbers and the action it takes."""
-        return {"loss_timeout": self.loss_timeout, "action_delay": self.action_delay,
-                "action": self.effective}
 
     def text(self) -> str:
         """"after 1 s without setpoints: Position hold for 5 s, then Land"."""
@@ -185,3 +190,82 @@ def mode_name(main: int, sub: int = 0) -> str:
     if main == MainMode.AUTO:
         return f"AUTO.{_AUTO_SUB.get(sub, str(sub))}"
     return name
+
+
+#: PX4 offboard-link streams the GCS never reads (`gcs.flight.link.link.DECODED_IDS` is what it
+#: reads), turned off by `Px4.message_rates`: the fast ones (ATTITUDE 100/s, HIGHRES_IMU,
+#: ATTITUDE_QUATERNION, GLOBAL_POSITION_INT 50/s, ODOMETRY 30/s on SITL) and the 0.5-10/s rest.
+#: TIMESYNC's stream is the vehicle's own requests (10/s); the link reads only the answers to
+#: the station's (`gcs.flight.link.quality`), which come whatever its stream's rate.
+UNREAD_STREAMS = tuple(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in (
+    "ATTITUDE", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "GLOBAL_POSITION_INT", "ODOMETRY",
+    "ALTITUDE", "ATTITUDE_TARGET", "POSITION_TARGET_LOCAL_NED", "POSITION_TARGET_GLOBAL_INT",
+    "VFR_HUD", "SERVO_OUTPUT_RAW", "TIMESYNC", "SCALED_PRESSURE", "ESTIMATOR_STATUS",
+    "SYSTEM_TIME", "VIBRATION"))
+
+
+class Px4(Autopilot):
+    """PX4 behind the seam: OFFBOARD after a live stream, arming retried while
+    TEMPORARILY_REJECTED, the climb streamed, NAV_LAND, Hold, the offboard-loss failsafe."""
+
+    key = "px4"
+    title = "PX4"
+    mav_autopilot = mavlink.MAV_AUTOPILOT_PX4
+    follow_mode = OFFBOARD
+    hold_mode = HOLD
+    land_mode = LAND
+    rtl_mode = RTL
+    hold_words = "PX4 Hold"
+    boarding = ("prestream", "follow", "arm", "climb")
+    land_by_command = True
+    arm_retry_results = frozenset({mavlink.MAV_RESULT_TEMPORARILY_REJECTED})
+    arm_retry_s = ARM_TEMPORARILY_REJECTED_RETRY_S
+    disarm_force_magic = DISARM_FORCE_MAGIC
+    acked_twice = ACKED_TWICE
+    duplicate_ack_window_s = DUPLICATE_ACK_WINDOW_S
+    mission_protocol_timeout_s = MISSION_PROTOCOL_TIMEOUT_S
+    streams_on_request = False
+    #: PX4 checks an uploaded fence in every mode and acts by GF_ACTION (the operator's).
+    fence_enable: ClassVar[Mapping[str, tuple[str, float]]] = {}
+    failsafe_params: ClassVar[Mapping[str, str]] = {"COM_OF_LOSS_T": "f", "COM_FAIL_ACT_T": "f",
+                                          "COM_OBL_RC_ACT": "i"}
+    default_failsafe = OffboardLossFailsafe()
+    left_alone = ("PX4's offboard-loss failsafe will land it",
+                  "PX4's offboard-loss failsafe takes over")
+
+    def decode_mode(self, custom_mode: int) -> Px4Mode:
+        return decode_custom_mode(custom_mode)
+
+    def message_rates(self, position_hz: float) -> dict[int, float]:
+        """What the GCS needs from a PX4 offboard link, by message id, in Hz (0 = off):
+        position at `position_hz`, status, landed state and GPS at 2 Hz, and every stream it
+        never reads (`UNREAD_STREAMS`) off. HEARTBEAT is absent (PX4 refuses to change it);
+        HOME_POSITION and BATTERY_STATUS (0.5/s, read) keep PX4's rate."""
+        m = mavlink
+        return {
+            m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
+            m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
+            m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
+            m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
+            **dict.fromkeys(UNREAD_STREAMS, 0.0),
+        }
+
+    def failsafe_settings(self, values: Mapping[str, float], delay: float, *,
+                          hover: bool = False) -> dict[str, float]:
+        """COM_OBL_RC_ACT to Land (Hold with `hover`), COM_FAIL_ACT_T to `delay`
+        (COM_OF_LOSS_T is kept)."""
+        out: dict[str, float] = {}
+        action = OBL_HOLD if hover else OBL_LAND
+        if values["COM_OBL_RC_ACT"] != action:
+            out["COM_OBL_RC_ACT"] = action
+        if not math.isclose(values["COM_FAIL_ACT_T"], delay, abs_tol=1e-3):
+            out["COM_FAIL_ACT_T"] = delay
+        return out
+
+    def failsafe(self, values: Mapping[str, float]) -> OffboardLossFailsafe:
+        return OffboardLossFailsafe(values["COM_OF_LOSS_T"], values["COM_FAIL_ACT_T"],
+                                    int(values["COM_OBL_RC_ACT"]))
+
+
+#: The PX4 autopilot.
+PX4 = Px4()
