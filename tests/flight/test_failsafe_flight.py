@@ -14,6 +14,8 @@ import pytest
 from gcs.autopilot import px4
 from gcs.errors import FailsafeNotSet, FlightAborted
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.flight.link.hub import LinkHub
+from gcs.flight.procedure.params import read_param
 from gcs.flight.run.executor import FlightExecutor
 from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
@@ -134,3 +136,17 @@ def test_a_fleet_that_opts_out_flies_a_vehicle_whose_failsafe_cannot_be_set() ->
     assert "without the station" in details[second]
     assert record["vehicles"][0]["failsafe"]["set"] is False
     assert mock.vehicles[1].params.value("COM_OBL_RC_ACT") == OWN["COM_OBL_RC_ACT"]
+
+
+def test_parameters_are_read_over_a_lossy_link() -> None:
+    """20 % of the datagrams lost each way (the chaos bench's lossy start): every one of 12
+    reads is answered within its tries, so a lossy link does not refuse the flight."""
+    async def main() -> list[float]:
+        async with MockFleet(1, settle_time=0.2, seed=3, **mock_ports(1), **FAST_MOCK) as mock, \
+                LinkHub() as hub:
+            link = await hub.add("v0", mock.gcs_url(0), 1)
+            assert await link.wait_for(lambda t: t.heartbeat_time is not None, 5.0)
+            mock.vehicles[0].faults.loss = 0.2
+            return [await read_param(link, "COM_OBL_RC_ACT", "i") for _ in range(12)]
+
+    assert asyncio.run(main()) == [OWN["COM_OBL_RC_ACT"]] * 12
