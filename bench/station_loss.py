@@ -3,21 +3,27 @@ PX4's real failsafe timings; prints one JSON document to stdout.
 
     python bench/station_loss.py                         # station lost, every plan, 4 instants
     python bench/station_loss.py --plans paper-circle4 --at 2 4 6 8
+    python bench/station_loss.py --land-by-plan          # then land the hovering ones by plan
     python bench/station_loss.py --lost 2                # vehicle 2's link lost (land_all)
-    python bench/station_loss.py --default-failsafe      # PX4's own 5 s for every vehicle
+    python bench/station_loss.py --default-failsafe      # PX4's own 5 s and Land for every vehicle
     python bench/station_loss.py --columns               # plans that keep columns apart
 
 Each plan (`planner/examples`, flown faster than the paper: `--steps`) is planned with the
 SCP planner and flown on in-process mock vehicles (PX4's COM_OF_LOSS_T 1 s, COM_FAIL_ACT_T
 5 s, MPC_LAND_SPEED 0.7 m/s; disarm 0.5 s after touchdown). Before arming the station sets
-each vehicle's failsafe (`gcs.flight.procedure.failsafe`: Land, COM_FAIL_ACT_T staggered by
-altitude layer; `--default-failsafe` puts PX4's 5 s back on every vehicle instead). At
-flight time `--at` every vehicle's link is blackholed both ways: nothing the station sends
-arrives and nothing reaches it, as when its process is killed (`--lost N`: only vehicle N's,
-under policy land_all, the station landing the others around it). The figures per run: the
-closest true pair distance (every vehicle's true position in the mock, every 10 ms, while
-any vehicle of the pair is in the air) against R, the plan's most stacked columns
-(`stacked_columns`), and whether every vehicle ended disarmed on the ground.
+each vehicle's failsafe (`gcs.flight.procedure.failsafe`: Hold where the plan brings its
+column within R of another's, else Land, COM_FAIL_ACT_T staggered by altitude layer;
+`--default-failsafe` puts PX4's 5 s and Land back on every vehicle instead). At flight time
+`--at` every vehicle's link is blackholed both ways: nothing the station sends arrives and
+nothing reaches it, as when its process is killed (`--lost N`: only vehicle N's, under
+policy land_all, the station landing the others around it). They are watched until every
+vehicle that lands is down and the others hover, and `HOVER_WATCH_S` more; with
+`--land-by-plan` a new station then lands the hovering ones by plan (`fleetplan fleet land
+--plan`: `gcs.cli.land_plan`). The figures per run: the closest true pair distance (every
+vehicle's true position in the mock, every 10 ms, while any vehicle of the pair is in the
+air) against R, before and while landing by plan, the plan's most stacked columns
+(`stacked_columns`), the vehicles hovering and landed, and whether every vehicle ended
+disarmed on the ground.
 
 Progress goes to stderr.
 """
@@ -123,6 +129,7 @@ async def one(plan: planner.Plan, at: float, lost: int | None, land: bool) -> di
 
 
 def _landed(mock: MockFleet) -> int:
+    """How many vehicles are disarmed on the ground."""
     return sum(bool(not v.armed and v.true_position_world[2] < 0.05) for v in mock.vehicles)
 
 
@@ -155,7 +162,7 @@ def main() -> None:
     parser.add_argument("--land-by-plan", action="store_true",
                         help="then land the hovering vehicles by plan from a new station")
     parser.add_argument("--default-failsafe", action="store_true",
-                        help="PX4's own COM_FAIL_ACT_T (5 s) on every vehicle")
+                        help="PX4's own COM_FAIL_ACT_T (5 s) and Land on every vehicle")
     args = parser.parse_args()
     if args.default_failsafe:
         executor.layer_delays = lambda plan, speed: [5.0] * len(plan.scenario.ids)  # type: ignore[assignment]

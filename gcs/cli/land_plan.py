@@ -9,7 +9,7 @@ bring them closer than R. This reads where every chosen vehicle is, plans a veri
 from there under PLAN's workspace, obstacles and R (`planner.methods.landing.plan_landing`:
 touchdown points R apart, clear of the vehicles already on the ground), and flies it as a
 flight of its own (`FlightExecutor`: OFFBOARD from where each hovers, the landing plan as
-setpoints, then PX4's Land at the touchdown points).
+setpoints, then the autopilot's Land at the touchdown points).
 """
 
 from __future__ import annotations
@@ -58,9 +58,7 @@ async def read_fleet_state(fleet: FleetSpec, timeout: float) -> FleetState:
                                            peer=spec.peer)
         for spec in fleet.vehicles:
             link = links[spec.id]
-            if not await link.wait_for(lambda t: t.heartbeat_time is not None
-                                       and t.position_ned is not None, timeout):
-                raise GcsError(f"{spec.id}: no HEARTBEAT and position within {timeout:g} s")
+            await vehicle.connect(link, spec, timeout, armed_ok=True)  # its autopilot, streams
             if spec.home is not None:
                 home = np.asarray(spec.home, dtype=float)
             else:
