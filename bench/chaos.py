@@ -39,6 +39,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
+from gcs.autopilot import px4  # noqa: E402
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
 from gcs.flight.run.executor import FlightExecutor  # noqa: E402
 from gcs.sim import MockFleet, homes_under  # noqa: E402
@@ -182,6 +183,7 @@ async def _kill_fly_case(plan: planner.Plan, seed: int) -> dict[str, Any]:
                 "closest_m": round(_closest(samples, plan.scenario.separation_scale), 3),
                 "landed": sum(int(not v.armed and v.position_ned[2] > -0.05)
                               for v in mock.vehicles),
+                "hovering": sum(int(v.armed and v.mode == px4.HOLD) for v in mock.vehicles),
                 "record": {"file": kept}}
 
 

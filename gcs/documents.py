@@ -83,6 +83,8 @@ class VehicleSnapshot(TypedDict):
     id: str
     system_id: int
     phase: str
+    autopilot: str | None
+    """``px4`` or ``ardupilot``; None until an ``auto`` vehicle has been heard."""
     fault: str | None
     mode: str | None
     armed: bool

@@ -46,6 +46,7 @@ __all__ = [
     "ArmingRefused",
     "CommandError",
     "ExportError",
+    "FailsafeNotSet",
     "FleetFileError",
     "FlightAborted",
     "GcsError",
@@ -159,6 +160,17 @@ class GeofenceFailed(GcsError):
     def __init__(self, vehicle: str, detail: str) -> None:
         super().__init__(f"{vehicle}: geofence: {detail}")
         self.vehicle = vehicle
+        self.detail = detail
+
+
+class FailsafeNotSet(GcsError):
+    """A vehicle's link-loss failsafe parameter could not be read or set before arming: what
+    it would do without the station is not known, so the flight is refused."""
+
+    def __init__(self, vehicle: str, parameter: str, detail: str) -> None:
+        super().__init__(f"{vehicle}: failsafe: {detail}")
+        self.vehicle = vehicle
+        self.parameter = parameter
         self.detail = detail
 
 

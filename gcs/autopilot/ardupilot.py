@@ -33,6 +33,7 @@ __all__ = [
     "ARM_RETRY_S",
     "BRAKE",
     "FS_GCS_ACTIONS",
+    "FS_GCS_HOLD",
     "FS_GCS_LAND",
     "FS_GCS_TIMEOUT_S",
     "GUIDED",
@@ -64,6 +65,8 @@ FS_GCS_ACTIONS = {0: "Hold", 1: "Return", 2: "Return", 3: "Return", 4: "Land", 5
                   6: "Return", 7: "Land"}
 #: FS_GCS_ENABLE = Land.
 FS_GCS_LAND = 5
+#: FS_GCS_ENABLE = 0 (off): in GUIDED it holds its last position target for good.
+FS_GCS_HOLD = 0
 #: LAND mode's final descent (LAND_SPEED, default 50 cm/s).
 LAND_SPEED = 0.5
 #: How STATUSTEXT names a failed pre-arm check.
@@ -206,12 +209,14 @@ class ArduPilot(Autopilot):
             m.MAVLINK_MSG_ID_BATTERY_STATUS: 0.5,
         }
 
-    def failsafe_settings(self, values: Mapping[str, float], delay: float
-                          ) -> dict[str, float]:
-        """FS_GCS_ENABLE to Land and FS_GCS_TIMEOUT to `delay` (GUID_TIMEOUT is kept)."""
+    def failsafe_settings(self, values: Mapping[str, float], delay: float, *,
+                          hover: bool = False) -> dict[str, float]:
+        """FS_GCS_ENABLE to Land and FS_GCS_TIMEOUT to `delay` (GUID_TIMEOUT is kept); with
+        `hover`, FS_GCS_ENABLE 0: GUIDED holds its last position target for good."""
         out: dict[str, float] = {}
-        if values["FS_GCS_ENABLE"] != FS_GCS_LAND:
-            out["FS_GCS_ENABLE"] = FS_GCS_LAND
+        action = FS_GCS_HOLD if hover else FS_GCS_LAND
+        if values["FS_GCS_ENABLE"] != action:
+            out["FS_GCS_ENABLE"] = action
         if not math.isclose(values["FS_GCS_TIMEOUT"], delay, abs_tol=1e-3):
             out["FS_GCS_TIMEOUT"] = delay
         return out

@@ -146,10 +146,12 @@ class Autopilot(ABC):
         id, in Hz (0 = off), with LOCAL_POSITION_NED at `position_hz`."""
 
     @abstractmethod
-    def failsafe_settings(self, values: Mapping[str, float], delay: float
-                          ) -> dict[str, float]:
+    def failsafe_settings(self, values: Mapping[str, float], delay: float, *,
+                          hover: bool = False) -> dict[str, float]:
         """The failsafe parameters to set (name -> value) so that a vehicle whose parameters
-        read `values` lands `delay` s after its station is lost."""
+        read `values` lands `delay` s after its station is lost, or with `hover` stays
+        hovering where it stopped (its column meets another's: landing it straight down
+        would bring them closer than R)."""
 
     @abstractmethod
     def failsafe(self, values: Mapping[str, float]) -> LinkLossFailsafe:

@@ -36,6 +36,7 @@ __all__ = [
     "HOLD",
     "LAND",
     "OBL_ACTIONS",
+    "OBL_HOLD",
     "OBL_LAND",
     "OFFBOARD",
     "OFFBOARD_GCS_BASE_PORT",
@@ -71,6 +72,8 @@ OBL_ACTIONS = {0: "Position", 1: "Altitude", 2: "Manual", 3: "Return", 4: "Land"
                6: "Terminate", 7: "Disarm"}
 #: COM_OBL_RC_ACT = Land.
 OBL_LAND = 4
+#: COM_OBL_RC_ACT = Hold (AUTO.LOITER: hovers where it stopped until commanded).
+OBL_HOLD = 5
 #: Auto-disarm when armed on the ground without taking off (COM_DISARM_PRFLT, default 10 s).
 COM_DISARM_PRFLT_S = 10.0
 #: Auto-disarm after landing (COM_DISARM_LAND, default 2 s).
@@ -247,12 +250,14 @@ class Px4(Autopilot):
             **dict.fromkeys(UNREAD_STREAMS, 0.0),
         }
 
-    def failsafe_settings(self, values: Mapping[str, float], delay: float
-                          ) -> dict[str, float]:
-        """COM_OBL_RC_ACT to Land, COM_FAIL_ACT_T to `delay` (COM_OF_LOSS_T is kept)."""
+    def failsafe_settings(self, values: Mapping[str, float], delay: float, *,
+                          hover: bool = False) -> dict[str, float]:
+        """COM_OBL_RC_ACT to Land (Hold with `hover`), COM_FAIL_ACT_T to `delay`
+        (COM_OF_LOSS_T is kept)."""
         out: dict[str, float] = {}
-        if values["COM_OBL_RC_ACT"] != OBL_LAND:
-            out["COM_OBL_RC_ACT"] = OBL_LAND
+        action = OBL_HOLD if hover else OBL_LAND
+        if values["COM_OBL_RC_ACT"] != action:
+            out["COM_OBL_RC_ACT"] = action
         if not math.isclose(values["COM_FAIL_ACT_T"], delay, abs_tol=1e-3):
             out["COM_FAIL_ACT_T"] = delay
         return out

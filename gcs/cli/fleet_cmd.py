@@ -5,6 +5,10 @@ file's connections, waits for the chosen vehicles' HEARTBEAT, sends the command 
 at once and prints what each confirmed. ``land`` and ``rtl`` then wait (``--wait``, default
 on) until every vehicle has landed and disarmed. ``disarm`` in the air needs ``--force``,
 ``terminate`` needs ``--confirm``. Exit status 0 only when every vehicle did it.
+
+``land --plan PLAN.json`` lands a fleet left hovering (a lost station's Hold failsafe, where
+the plan stacks two vehicles closer than R horizontally) by a verified landing plan from
+where each vehicle is, instead of straight down (`gcs.cli.land_plan`).
 """
 
 from __future__ import annotations
@@ -30,6 +34,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="terminate: yes, stop the motors in flight")
     parser.add_argument("--no-wait", dest="wait", action="store_false",
                         help="land/rtl: do not wait for the vehicles to land and disarm")
+    parser.add_argument("--plan", metavar="PLAN.json",
+                        help="land: by a landing plan under this plan's workspace, obstacles "
+                             "and R, from where each vehicle hovers (vehicles stacked closer "
+                             "than R land side by side), instead of straight down")
     parser.add_argument("--timeout", type=float, default=120.0,
                         help="land/rtl: wait at most this long for the disarm (s, default 120)")
 
@@ -60,6 +68,12 @@ def run(args: argparse.Namespace) -> int:
     if not (args.timeout > 0):
         print("error: --timeout must be positive", file=sys.stderr)
         return 2
+    if args.plan is not None:
+        if args.command != "land":
+            print(f"error: --plan: only for land, not {args.command}", file=sys.stderr)
+            return 2
+        from gcs.cli import land_plan
+        return land_plan.run(args, fleet, chosen, CONNECT_TIMEOUT_S)
 
     async def main() -> int:
         async with LinkHub(decode_ids=DECODED_IDS) as hub:

@@ -95,6 +95,7 @@ _MAXIMA: dict[str, tuple[float, str]] = {
 
 __all__ = [
     "AT_END",
+    "FAILSAFE",
     "GEOFENCE",
     "LANDING",
     "MARGIN_CHECK",
@@ -105,6 +106,7 @@ __all__ = [
     "PREFLIGHT",
     "STREAM_PRIORITY",
     "AtEnd",
+    "FailsafeChoice",
     "FleetFileWarning",
     "FleetSpec",
     "FlightOptions",
@@ -144,6 +146,10 @@ PREFLIGHT: tuple[Preflight, ...] = get_args(Preflight)
 #: The geofence before arming (`gcs.geofence`): upload it to every vehicle, or skip it.
 GeofenceChoice = Literal["upload", "skip"]
 GEOFENCE: tuple[GeofenceChoice, ...] = get_args(GeofenceChoice)
+#: Each vehicle's link-loss failsafe before arming (`gcs.flight.procedure.failsafe`): set it
+#: or refuse the flight, or try to set it and fly on the vehicle's own where it cannot be.
+FailsafeChoice = Literal["set", "try"]
+FAILSAFE: tuple[FailsafeChoice, ...] = get_args(FailsafeChoice)
 #: The telemetry rates: take what the vehicle sends, or ask for what the GCS reads.
 MessageRates = Literal["leave", "request"]
 MESSAGE_RATES: tuple[MessageRates, ...] = get_args(MessageRates)
@@ -155,6 +161,7 @@ OPTION_CHOICES: dict[str, tuple[str, ...]] = {
     "policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
     "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT, "message_rates": MESSAGE_RATES,
     "stream_priority": STREAM_PRIORITY, "landing": LANDING, "geofence": GEOFENCE,
+    "failsafe": FAILSAFE,
 }
 
 #: The key of the flight options, and the old name still read (with a `FleetFileWarning`).
@@ -279,6 +286,12 @@ class FlightOptions:
     differs; refused when no geodetic origin places it. skip: no fence (a lab without GPS).
     None (not given): upload when an origin is known (the vehicle reports GPS_GLOBAL_ORIGIN
     or the fleet has `world_origin`), else skip with an event saying why."""
+    failsafe: FailsafeChoice = "set"
+    """set: before arming, read and set every vehicle's link-loss failsafe (what it does
+    when the station is gone: `gcs.flight.procedure.failsafe`) and refuse the flight,
+    naming the vehicle and the parameter, when one cannot be read or set. try: set it where
+    the vehicle answers, and fly a vehicle that does not on its own parameters (an event
+    says so)."""
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str = _OPTIONS_KEY) -> FlightOptions:

@@ -150,6 +150,11 @@ class MockFaults:
     """SYS_STATUS sensor bits reported present and enabled but not healthy."""
     gps_fix: int | None = None
     """GPS_RAW_INT fix_type reported instead of 3 (3D fix)."""
+    params_silent: bool = False
+    """No answer to any parameter message (PARAM_REQUEST_READ, PARAM_SET, ...)."""
+    params_kept: frozenset[str] = frozenset()
+    """PARAM_SET of these parameters is answered with the unchanged value (a vehicle that
+    will not change them)."""
     offset_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Added to every position setpoint the vehicle then takes (LOCAL_NED, m): it holds a
     constant error from the plan (an uncompensated wind, a biased controller) and reports

@@ -25,7 +25,7 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 from gcs.sim.arducopter_params import ARDUCOPTER_PARAMS
-from gcs.sim.config import MockConfig
+from gcs.sim.config import MockConfig, MockFaults
 from gcs.sim.model import FleetModel
 from gcs.sim.paramdefs import PX4_PARAMS, ParamDef
 from gcs.wire import PARAM_TYPES, addressed_to, decode_param, encode_param, mavlink
@@ -71,6 +71,8 @@ class ParamHost(Protocol):
     system_id: int
     component_id: int
     index: int
+
+    faults: MockFaults
 
     @property
     def config(self) -> MockConfig: ...
@@ -179,7 +181,9 @@ class VehicleParams:
             return
         value = decode_value(d.kind, msg.param_value)
         problem = _range_problem(d, value)
-        if problem is None:
+        if name in host.faults.params_kept:
+            host.reply(self.message(self._index[name]))
+        elif problem is None:
             self.values[name] = value
             if name in MODELLED:
                 setattr(host.config, MODELLED[name], value)

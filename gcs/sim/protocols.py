@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
+from gcs.sim.config import MockFaults
 from gcs.sim.messages import ENCODER
 from gcs.sim.missions import VehicleMissions
 from gcs.sim.params import VehicleParams
@@ -41,6 +42,7 @@ class ServiceHost(Protocol):
     params: VehicleParams
     missions: VehicleMissions
     last_manual_control: float
+    faults: MockFaults
 
     def now(self) -> float: ...
     def reply(self, msg: Any) -> None: ...
@@ -50,7 +52,8 @@ def handle(v: ServiceHost, msg: Any) -> None:
     """Handle one message of a type in `HANDLED`."""
     kind = msg.get_type()
     if kind in _PARAMS:
-        v.params.handle(msg)
+        if not v.faults.params_silent:
+            v.params.handle(msg)
     elif kind in _MISSIONS:
         v.missions.handle(msg)
     elif kind == "TIMESYNC":

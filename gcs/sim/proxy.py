@@ -104,16 +104,20 @@ class ChaosProxy:
         self.stop()
 
     async def start(self) -> None:
-        """Open both sockets of every link."""
+        """Open both sockets of every link; when one cannot be opened (its port taken), close
+        those already open and raise."""
         loop = asyncio.get_running_loop()
         self._loop = loop
-        for link in self._links:
-            vehicle_side, _ = await loop.create_datagram_endpoint(
-                functools.partial(_Side, self, link, True),
-                local_addr=(self.host, self.vehicle_base_port + link.index))
-            station_side, _ = await loop.create_datagram_endpoint(
-                functools.partial(_Side, self, link, False), local_addr=(self.host, 0))
-            link.to_vehicle, link.to_station = vehicle_side, station_side
+        try:
+            for link in self._links:
+                link.to_vehicle, _ = await loop.create_datagram_endpoint(
+                    functools.partial(_Side, self, link, True),
+                    local_addr=(self.host, self.vehicle_base_port + link.index))
+                link.to_station, _ = await loop.create_datagram_endpoint(
+                    functools.partial(_Side, self, link, False), local_addr=(self.host, 0))
+        except BaseException:
+            self.stop()
+            raise
 
     def stop(self) -> None:
         """Close every socket (datagrams still waiting are dropped)."""

@@ -38,6 +38,10 @@ _PROGRESS, _RESULT, _ERROR = "progress", "result", "error"
 #: Linux prctl option: the signal a child gets when the thread that forked it ends.
 _PR_SET_PDEATHSIG = 1
 _READ_CHUNK = 1 << 20
+#: Every race pipe end open in this process (of every race, in every thread), and the lock
+#: under which pipes are made, forked with and closed (`_spawn`, `_close`).
+_OPEN_FDS: set[int] = set()
+_FDS_LOCK = threading.RLock()
 
 
 @dataclass
@@ -134,22 +138,38 @@ class _Child:
 def _spawn(name: str, fn: Callable[[Callable[[Any], None]], Any], index: int, pools: Any
            ) -> _Child:
     """Fork a child running `fn` with its thread `pools` limited to one thread; the parent
-    gets its pid and the pipe's read end."""
-    read, write = os.pipe()
+    gets its pid and the pipe's read end. The pipe is made and the fork done under
+    `_FDS_LOCK`, so that a child of a race running in another thread never holds this pipe:
+    the child closes every race pipe of the process but its own write end (an inherited
+    write end would keep the other race from seeing its arm's end)."""
     parent = os.getpid()
-    try:
-        with warnings.catch_warnings():  # Python >= 3.12 warns about forking with threads
-            warnings.simplefilter("ignore", DeprecationWarning)
-            pid = os.fork()
-    except OSError:
-        os.close(read)
-        os.close(write)
-        raise
-    if pid == 0:  # the child: never returns
-        os.close(read)
-        _child(fn, write, parent, pools)
-    os.close(write)
+    with _FDS_LOCK:
+        read, write = os.pipe()
+        _OPEN_FDS.update((read, write))
+        try:
+            with warnings.catch_warnings():  # Python >= 3.12 warns about forking with threads
+                warnings.simplefilter("ignore", DeprecationWarning)
+                pid = os.fork()
+        except OSError:
+            for fd in (read, write):
+                _OPEN_FDS.discard(fd)
+                os.close(fd)
+            raise
+        if pid == 0:  # the child: never returns
+            for fd in _OPEN_FDS - {write}:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+            _child(fn, write, parent, pools)
+        _close(write)
     return _Child(name, index, pid, read, bytearray())
+
+
+def _close(fd: int) -> None:
+    """Close a race pipe's end in this process and forget it (under `_FDS_LOCK`, before its
+    number can be reused by another pipe)."""
+    with _FDS_LOCK:
+        _OPEN_FDS.discard(fd)
+        os.close(fd)
 
 
 def _child(fn: Callable[[Callable[[Any], None]], Any], fd: int, parent: int, pools: Any
@@ -213,7 +233,7 @@ def _thread_pools() -> Any:
 def _reap(child: _Child, result: ArmResult, began: float) -> None:
     """Wait for an ended child; an arm that sent nothing says how it ended."""
     _, status = os.waitpid(child.pid, 0)
-    os.close(child.fd)
+    _close(child.fd)
     if not child.done:
         result.seconds = time.perf_counter() - began
         result.error = (f"its process was killed by signal {os.WTERMSIG(status)}"
@@ -230,7 +250,7 @@ def _end(children: Any, results: list[ArmResult], began: float, *, cancel: bool)
         with contextlib.suppress(ProcessLookupError):
             os.kill(child.pid, signal.SIGKILL)
         with contextlib.suppress(OSError):
-            os.close(child.fd)
+            _close(child.fd)
         with contextlib.suppress(ChildProcessError):
             if os.waitpid(child.pid, os.WNOHANG) == (0, 0):
                 threading.Thread(target=_wait, args=(child.pid,), daemon=True,

@@ -71,8 +71,10 @@ async def _blackhole(plan: planner.Plan, lost: int, at: float
             outcome: Any = await _sampling(mock, task, truth)
         except Exception as exc:
             outcome = exc
-        deadline = time.monotonic() + 30.0  # the lost one lands on its own, later
-        while any(v.armed for v in mock.vehicles) and time.monotonic() < deadline:
+        deadline = time.monotonic() + 30.0  # the lost one lands on its own, later, or
+        # hovers on its Hold failsafe (its column meets another's)
+        while any(v.armed and v.mode != px4.HOLD for v in mock.vehicles) \
+                and time.monotonic() < deadline:
             truth.append(np.array([v.true_position_world for v in mock.vehicles]))
             await asyncio.sleep(0.01)
         return flight, outcome, truth, mock
@@ -110,10 +112,14 @@ def _check(flight: FlightExecutor, outcome: Any, truth: list[np.ndarray], mock: 
     assert not any(k == EventKind.LANDING_FALLBACK and (v not in (None, lost)
                                                         or d.startswith("PX4 Land"))
                    for v, k, d in told), told
-    for vehicle in mock.vehicles:  # all down, the lost one by its own failsafe
+    gone = mock.vehicles[plan.scenario.ids.index(lost)]
+    hold = gone.config.offboard_loss_action == px4.OBL_HOLD  # its column meets another's
+    for vehicle in mock.vehicles:  # all down, the lost one by its own failsafe, or hovering
+        if vehicle is gone and hold:
+            assert vehicle.armed and vehicle.mode == px4.HOLD
+            continue
         assert not vehicle.armed and vehicle.true_position_world[2] < 0.05
-    assert any("failsafe: Land" in what for _, what in mock.vehicles[
-        plan.scenario.ids.index(lost)].events)
+    assert any(f"failsafe: {'Hold' if hold else 'Land'}" in what for _, what in gone.events)
     r = plan.scenario.min_separation
     assert len(truth) > 500
     assert _closest(truth, np.asarray(plan.scenario.separation_scale)) >= r - 0.05

@@ -35,6 +35,7 @@ from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import (
     MAX_REPLAN_LEAD_S,
     AtEnd,
+    FailsafeChoice,
     GeofenceChoice,
     MarginCheck,
     MessageRates,
@@ -116,6 +117,12 @@ class FlyRequest(BaseModel):
         None, description="upload: give every vehicle the plan's geofence before arming and "
         "read it back (the flight fails naming a vehicle that refuses it, or when no "
         "geodetic origin places it); skip: no fence. Default: upload when an origin is known."
+    )
+    failsafe: FailsafeChoice | None = Field(
+        None, description="set (default): before arming, read and set every vehicle's "
+        "link-loss failsafe (Land by altitude layer, Hold where the plan stacks columns "
+        "closer than R) and fail the flight naming the vehicle and the parameter when one "
+        "cannot be; try: fly a vehicle that does not answer on its own parameters."
     )
     margin_check: MarginCheck | None = Field(
         None, description="A plan whose separation margin is below 2 x the fleet's "

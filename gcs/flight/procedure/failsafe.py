@@ -1,37 +1,48 @@
-"""Each vehicle's own link-loss failsafe, read and set before arming, and told.
+"""Each vehicle's own link-loss failsafe, read and set before arming, told, and put back.
 
 When the ground station is gone (its process killed, its computer or radio dead), no
-setpoint arrives and each PX4 vehicle flies its offboard-loss failsafe
-(`gcs.autopilot.px4.OffboardLossFailsafe`): COM_OF_LOSS_T after the last setpoint it leaves OFFBOARD
-and holds in Position for COM_FAIL_ACT_T, then takes COM_OBL_RC_ACT (Position, Altitude and
-Manual need RC: without it PX4 lands). Before arming, `set_failsafe` reads the three
-parameters (PARAM_REQUEST_READ) and sets:
+setpoint arrives and each vehicle flies its own link-loss failsafe (its autopilot's:
+`gcs.autopilot.base.Autopilot.failsafe`; on PX4, COM_OF_LOSS_T after the last setpoint it
+leaves OFFBOARD and holds in Position for COM_FAIL_ACT_T, then takes COM_OBL_RC_ACT). Before
+arming, `set_failsafe` reads its parameters (PARAM_REQUEST_READ) and sets, from the plan
+(`Autopilot.failsafe_settings`):
 
-- COM_OBL_RC_ACT to Land: a fleet landing straight down from where it held is what can be
-  told in advance (Return climbs and crosses the others' paths, Hold never comes down);
-- COM_FAIL_ACT_T staggered by altitude layer (`layer_delays`): the lowest layer lands after
-  PX4's default 5 s, each layer above only once the one below has had time to reach the
-  ground, so no vehicle descends onto one still hovering below it;
-- COM_OF_LOSS_T is kept (PX4's 1 s unless the operator chose otherwise).
+- hover for a vehicle whose column ever comes within R of another's horizontally
+  (`column_conflicts`, autopilot-free: no autopilot failsafe moves a vehicle sideways, so
+  landing two such vehicles straight down brings them that close; hovering where the
+  station left them keeps the plan's separation in 3D, and the operator lands them by plan:
+  `fleetplan fleet land --plan`), land for the others (Return climbs and crosses the others'
+  paths);
+- the delay staggered by altitude layer (`layer_delays`): the lowest layer lands after the
+  autopilots' default 5 s, each layer above only once the one below has had time to reach
+  the ground, so no vehicle descends onto one still hovering below it.
 
 Every value is read back from the vehicle's PARAM_VALUE; `v.failsafe` then holds what the
 vehicle does (the flight's predictions of a lost vehicle use it), and a `failsafe` event says
-it. `stacked_columns` finds where the plan puts two vehicles closer than R horizontally: a
-station lost then lands them that close (no autopilot failsafe moves a vehicle sideways).
+it. A parameter that cannot be read or set refuses the flight (`FailsafeNotSet`) unless the
+fleet option `failsafe` is `try`. After the flight `restore_failsafe` puts back the values
+read.
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 from scipy.spatial import cKDTree
 
+from gcs.autopilot import LinkLossFailsafe
+from gcs.errors import FailsafeNotSet
 from gcs.flight.procedure.params import ParamError, read_param, set_param
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.phases import EventKind
 from planner import Plan
 
-__all__ = ["LAYER_BASE_DELAY_S", "LAYER_GAP_M", "ParamError", "layer_delays", "read_param",
-           "set_failsafe", "set_param", "stacked_columns"]
+__all__ = ["LAYER_BASE_DELAY_S", "LAYER_GAP_M", "ColumnConflict", "ParamError",
+           "column_conflicts", "failsafe_record", "layer_delays", "read_param",
+           "restore_failsafe", "set_failsafe", "set_param", "stacked_columns"]
 
 #: The lowest layer's delay (s): the default of both autopilots' failsafe delays (PX4's
 #: COM_FAIL_ACT_T, ArduPilot's FS_GCS_TIMEOUT).
@@ -42,8 +53,11 @@ LAYER_GAP_M = 0.3
 LAYER_SETTLE_S = 1.0
 #: COM_FAIL_ACT_T's largest value (PX4's documented maximum, s).
 ACTION_DELAY_MAX = 25.0
-#: Columns closer than R by more than this (m) are told as stacked (`stacked_columns`).
+#: Columns closer than R by more than this (m) meet (`column_conflicts`): a straight-down
+#: landing of the two keeps at least R less this.
 STACKED_TOLERANCE = 0.05
+#: The plan's samples per second the columns are compared at.
+COLUMN_RATE_HZ = 10.0
 
 
 def layer_delays(plan: Plan, land_speed: float) -> list[float]:
@@ -68,55 +82,137 @@ def layer_delays(plan: Plan, land_speed: float) -> list[float]:
     return [round(float(d), 1) for d in delays]
 
 
-def stacked_columns(plan: Plan, clearance: float, rate: float = 5.0
-                    ) -> tuple[str, str, float, float] | None:
-    """The pair of vehicles the plan brings closest horizontally, below `clearance` less
-    `STACKED_TOLERANCE`, as (lower, upper, horizontal distance m, flight time s), or None: a
-    fleet that loses its station there lands them that close. Sampled at `rate` Hz, the
-    close pairs of each sample found by a k-d tree (a large fleet is not paired whole)."""
-    times = np.arange(0.0, plan.scenario.horizon + 1e-9, 1.0 / rate)
+@dataclass(frozen=True)
+class ColumnConflict:
+    """Where the plan brings one vehicle's column closest to another's (below the clearance
+    `column_conflicts` was asked for)."""
+
+    other: str
+    """The other vehicle."""
+    gap: float
+    """Their horizontal distance then (m, the plan's separation metric)."""
+    t: float
+    """When (plan time, s)."""
+    above: bool
+    """This vehicle is the higher of the two then."""
+
+
+def column_conflicts(plan: Plan, clearance: float, rate: float = COLUMN_RATE_HZ
+                     ) -> dict[str, ColumnConflict]:
+    """Every vehicle whose column (its horizontal position, in the plan's separation metric)
+    comes closer than `clearance` less `STACKED_TOLERANCE` to another's at the same instant
+    of the plan, with the closest such other: a station lost then and a straight-down
+    landing bring them that close. Sampled at `rate` Hz; one k-d tree over every sample,
+    the sample index as a third coordinate spaced wider than the reach, so that only
+    pairs of one instant are found (no loop over samples or pairs)."""
+    scenario = plan.scenario
+    times = np.arange(0.0, scenario.horizon + 1e-9, 1.0 / rate)
     p = plan.sample(times).position  # (N, T, 3)
-    if len(p) < 2:
-        return None
+    n, m = p.shape[:2]
     reach = clearance - STACKED_TOLERANCE
-    best: tuple[float, int, int, int] | None = None
-    for k in range(len(times)):
-        xy = p[:, k, :2]
-        pairs = cKDTree(xy).query_pairs(reach, output_type="ndarray")
-        if len(pairs) == 0:
-            continue
-        gaps = np.linalg.norm(xy[pairs[:, 0]] - xy[pairs[:, 1]], axis=1)
-        n = int(np.argmin(gaps))
-        if best is None or gaps[n] < best[0]:
-            best = (float(gaps[n]), int(pairs[n, 0]), int(pairs[n, 1]), k)
-    if best is None:
+    if n < 2 or reach <= 0:
+        return {}
+    scale = np.asarray(scenario.separation_scale, dtype=float)[:2]
+    k = np.broadcast_to(np.arange(m, dtype=float), (n, m))
+    points = np.concatenate([p[:, :, :2] / scale, (2.0 * reach + 1.0) * k[:, :, None]],
+                            axis=2).reshape(-1, 3)
+    pairs = cKDTree(points).query_pairs(reach, output_type="ndarray")
+    if len(pairs) == 0:
+        return {}
+    gaps = np.linalg.norm(points[pairs[:, 0], :2] - points[pairs[:, 1], :2], axis=1)
+    who = np.concatenate([pairs[:, 0], pairs[:, 1]])  # flat index: vehicle * m + sample
+    other = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    gap = np.concatenate([gaps, gaps])
+    order = np.lexsort((who % m, gap, who // m))  # per vehicle: smallest gap, then earliest
+    first = order[np.unique(who[order] // m, return_index=True)[1]]
+    ids = scenario.ids
+    z = p[:, :, 2].reshape(-1)
+    return {ids[int(who[f] // m)]: ColumnConflict(
+        ids[int(other[f] // m)], float(gap[f]), float(times[int(who[f] % m)]),
+        bool(z[who[f]] > z[other[f]])) for f in first}
+
+
+def stacked_columns(plan: Plan, clearance: float, rate: float = COLUMN_RATE_HZ
+                    ) -> tuple[str, str, float, float] | None:
+    """The pair of vehicles the plan brings closest horizontally (`column_conflicts`), as
+    (lower, upper, horizontal distance m, flight time s), or None when no columns meet."""
+    conflicts = column_conflicts(plan, clearance, rate)
+    if not conflicts:
         return None
-    gap, a, b, k = best
-    lower, upper = (a, b) if p[a, k, 2] <= p[b, k, 2] else (b, a)
-    ids = plan.scenario.ids
-    return ids[lower], ids[upper], gap, float(times[k])
+    vid, c = min(conflicts.items(), key=lambda item: (item[1].gap, item[1].t))
+    return (vid, c.other, c.gap, c.t) if not c.above else (c.other, vid, c.gap, c.t)
 
 
-async def set_failsafe(v: VehicleStatus, delay: float, emit: Emit) -> None:
-    """Read `v`'s failsafe, set it to land after `delay` s (see the module; its autopilot says
-    which parameters: `Autopilot.failsafe_settings`), keep what it answered in `v.failsafe`
-    and say it (a `failsafe` event, also when it cannot be read or set: then what the vehicle
-    does without the station is not known)."""
+async def set_failsafe(v: VehicleStatus, delay: float, hover: bool, emit: Emit, *,
+                       required: bool = True, why: str = "") -> None:
+    """Read `v`'s failsafe, set it to land after `delay` s, or with `hover` to stay hovering
+    (see the module; its autopilot says which parameters: `Autopilot.failsafe_settings`),
+    keep what it answered in `v.failsafe`, what it had in `v.failsafe_before`, and say it in
+    a `failsafe` event (with `why`). A parameter that cannot be read or set is
+    `FailsafeNotSet` naming it when `required` (the fleet option `failsafe: set`), else an
+    event: then what the vehicle does without the station is what its own parameters say."""
     link = v.linked
     kind = v.autopilot
+    name = next(iter(kind.failsafe_params))
     try:
-        before = {name: await read_param(link, name, k)
-                  for name, k in kind.failsafe_params.items()}
-        settings = kind.failsafe_settings(before, delay)
+        before: dict[str, float] = {}
+        for name, k in kind.failsafe_params.items():
+            before[name] = await read_param(link, name, k)
+        settings = kind.failsafe_settings(before, delay, hover=hover)
         after = dict(before)
         for name, value in settings.items():
             after[name] = await set_param(link, name, kind.failsafe_params[name], value)
     except ParamError as exc:
+        if required:
+            raise FailsafeNotSet(v.id, name, f"{exc}: what it does without the station is "
+                                             f"not known, so it is not armed (fleet option "
+                                             f"failsafe: try flies it anyway)") from None
         emit(v.id, EventKind.FAILSAFE, f"not set ({exc}): without the station it does what "
                                        f"its own parameters say")
         return
     v.failsafe = kind.failsafe(after)
+    v.failsafe_before, v.failsafe_set = before, after
     changed = [f"{name} {before[name]:g} -> {after[name]:g}" for name in settings
                if before[name] != after[name]]
     emit(v.id, EventKind.FAILSAFE, f"without the station: {v.failsafe.text()}"
+                                   + (f" ({why})" if why else "")
                                    + (f" (set {', '.join(changed)})" if changed else ""))
+
+
+async def restore_failsafe(v: VehicleStatus, emit: Emit) -> None:
+    """Put back the failsafe parameters `set_failsafe` changed on `v` (the values it read),
+    after the flight, and say it; a vehicle still following setpoints keeps the flight's
+    (the station may yet stop streaming to it)."""
+    before, after = v.failsafe_before, v.failsafe_set
+    if before is None or after is None or v.link is None:
+        return
+    changed = {name: value for name, value in before.items() if value != after[name]}
+    if not changed:
+        return
+    kind = v.autopilot
+    tel = v.link.telemetry
+    if tel.armed and tel.mode == kind.follow_mode:
+        emit(v.id, EventKind.FAILSAFE, f"not restored: still in {kind.follow_mode.name}, it "
+                                       f"keeps the flight's failsafe ({v.failsafe.text()})")
+        return
+    done = []
+    try:
+        for name, value in changed.items():
+            await set_param(v.link, name, kind.failsafe_params[name], value)
+            done.append(f"{name} {after[name]:g} -> {value:g}")
+    except ParamError as exc:
+        emit(v.id, EventKind.FAILSAFE, f"not restored ({exc}); restored: "
+                                       f"{', '.join(done) or 'nothing'}")
+        return
+    v.failsafe = kind.failsafe(before)
+    v.failsafe_before = v.failsafe_set = None
+    emit(v.id, EventKind.FAILSAFE, f"restored after the flight: {', '.join(done)}")
+
+
+def failsafe_record(failsafe: LinkLossFailsafe) -> dict[str, Any]:
+    """What a vehicle does without the station, for the flight record."""
+    def finite(x: float) -> float | None:  # ArduPilot's hold lasts for good: no number
+        return x if math.isfinite(x) else None
+
+    return {"loss_timeout": finite(failsafe.loss_timeout),
+            "action_delay": finite(failsafe.action_delay), "action": failsafe.effective}

@@ -134,6 +134,10 @@ class VehicleStatus:
         default_factory=lambda: autopilot.DEFAULT.default_failsafe)
     """What it does on its own once setpoints stop (its autopilot's defaults until read from
     it: `gcs.flight.procedure.failsafe`)."""
+    failsafe_before: dict[str, float] | None = None
+    """The failsafe parameters as read before the flight changed them (restored after it)."""
+    failsafe_set: dict[str, float] | None = None
+    """The failsafe parameters as the flight set them (what `failsafe_before` undoes)."""
 
     @property
     def autopilot(self) -> Autopilot:
@@ -199,10 +203,11 @@ def _choose_autopilot(link: VehicleLink, spec: VehicleSpec) -> None:
 
 async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
                   stalls: StationStalls | None = None, *,
-                  position_hz: float = POSITION_HZ) -> None:
+                  position_hz: float = POSITION_HZ, armed_ok: bool = False) -> None:
     """Wait for the first HEARTBEAT and position, choosing the vehicle's autopilot on the way
     (asking for its streams, at `position_hz` for position, where it sends none unasked);
-    refuse a vehicle whose autopilot the GCS cannot fly or that is already armed."""
+    refuse a vehicle whose autopilot the GCS cannot fly, and one that is already armed unless
+    `armed_ok` (a fleet left hovering, taken over to land it)."""
     clock = _clock(stalls)
     deadline = clock() + timeout
 
@@ -246,7 +251,7 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
         raise VehicleTimeout(spec.id, f"no {what} within {timeout:g} s on "
                                       f"{spec.connection} (system id {spec.system_id}){hint}")
     tel = link.telemetry
-    if tel.armed:
+    if tel.armed and not armed_ok:
         raise GcsError(f"{spec.id}: already armed; refusing to take control of a vehicle that "
                        f"someone else armed")
     refuse_other_claimants(link, spec)

@@ -45,12 +45,13 @@ FENCE_RETRY_MARGIN_S = 0.5
 
 async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
                           world_origin: frames.Geodetic | None, recorder: FlightRecorder,
-                          emit: Emit, stalls: StationStalls) -> None:
+                          emit: Emit, stalls: StationStalls, *, take_over: bool = False) -> None:
     """First HEARTBEAT and position, home in the world frame (from `world_origin` when the
-    fleet file gives none), the pre-flight gate, and the message rates when asked for."""
+    fleet file gives none), the pre-flight gate, and the message rates when asked for
+    (take_over: an armed vehicle is taken, not refused)."""
     link = v.linked
     await vehicle.connect(link, v.spec, options.connect_timeout, stalls,
-                          position_hz=options.position_rate_hz)
+                          position_hz=options.position_rate_hz, armed_ok=take_over)
     v.failsafe = v.autopilot.default_failsafe
     recorder.vehicles[v.id].autopilot = v.autopilot.key
     if v.home is None:

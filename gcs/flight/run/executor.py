@@ -87,7 +87,13 @@ from gcs.flight.link.link import DECODED_IDS
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.procedure import vehicle
-from gcs.flight.procedure.failsafe import layer_delays, set_failsafe, stacked_columns
+from gcs.flight.procedure.failsafe import (
+    column_conflicts,
+    failsafe_record,
+    layer_delays,
+    restore_failsafe,
+    set_failsafe,
+)
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.replan import (
     Replanner,
@@ -127,13 +133,18 @@ SETTLE_POLL_S = 0.05
 class FlightExecutor:
     """One flight of a plan on a fleet; see the module docstring."""
 
-    def __init__(self, plan: Plan, fleet: FleetSpec, options: FlightOptions | None = None) -> None:
+    def __init__(self, plan: Plan, fleet: FleetSpec, options: FlightOptions | None = None, *,
+                 take_over: bool = False) -> None:
+        """take_over: fly vehicles already armed (in the air, hovering where a lost station
+        left them: `gcs.cli.land_plan`) instead of refusing them; an error then leaves the
+        fleet in Hold rather than landing it straight down."""
         why = refusal(plan)  # verified again on the trajectories themselves
         if why is not None:
             raise PlanRejected(f"refusing to fly the plan: {why}")
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
+        self.take_over = take_over
         self.margin = check_margin(plan, fleet.position_error)
         if not self.margin.ok and self.options.margin_check == "refuse":
             raise PlanRejected(f"refusing to fly: {self.margin.message()}")
@@ -429,7 +440,8 @@ class FlightExecutor:
                     self._emit(None, EventKind.ERROR, f"{type(exc).__name__}: {exc}")
                     if self._abort is None:  # the landing an error starts is the abort in
                         # force: a hold loses to it, and the clock no longer waits on a pause
-                        self._abort = ("land", f"{type(exc).__name__}: {exc}")
+                        self._abort = ("hold" if self.take_over else "land",
+                                       f"{type(exc).__name__}: {exc}")
                         self._end_pause()
                     await asyncio.shield(self._make_safe())
                     raise
@@ -438,6 +450,9 @@ class FlightExecutor:
                         monitor.cancel()
                         with contextlib.suppress(asyncio.CancelledError):
                             await monitor
+                    if not _cancelling():  # completed, aborted or failed: put them back
+                        await asyncio.gather(*(restore_failsafe(v, self._emit)
+                                               for v in self.vehicles))
                     await self.streamer.stop()
         finally:
             self._finish_record(error)
@@ -462,7 +477,8 @@ class FlightExecutor:
         opts = self.options
         self.phase = FlightPhase.CONNECTING
         await _all(connect_vehicle(v, opts, self.fleet.world_origin, self.recorder,
-                                   self._emit, self.stalls) for v in self.vehicles)
+                                   self._emit, self.stalls, take_over=self.take_over)
+                   for v in self.vehicles)
         await fence_fleet(self.vehicles, build_fence(self.plan.scenario.to_dict()), opts,
                           self.fleet.world_origin, self._emit, self.stalls)
         await self._set_failsafes()
@@ -488,20 +504,36 @@ class FlightExecutor:
         self.phase = FlightPhase.FINISHED
 
     async def _set_failsafes(self) -> None:
-        """Before arming, each vehicle's own link-loss failsafe is set to hold, then land by
-        altitude layer, lowest first (`gcs.flight.procedure.failsafe`), and told; and where
-        the plan stacks two vehicles closer than R horizontally, that a station lost there
-        lands them that close."""
+        """Before arming, each vehicle's own link-loss failsafe is set from the plan (Hold
+        where its column meets another's, else Land by altitude layer, lowest first:
+        `gcs.flight.procedure.failsafe`), told per vehicle and recorded; a vehicle that does
+        not take it refuses the flight (`FailsafeNotSet`) unless the fleet option
+        `failsafe` is `try`."""
         delays = layer_delays(self.plan, self.options.land_speed)
-        await asyncio.gather(*(set_failsafe(v, delays[v.index], self._emit)
+        conflicts = column_conflicts(self.plan, required_separation(self.plan.scenario))
+
+        def why(vid: str) -> str:
+            c = conflicts.get(vid)
+            if c is None:
+                return "its column keeps R from every other's"
+            where = "onto" if c.above else "under"
+            return (f"its column comes {c.gap:.2f} m from {c.other}'s at t={c.t:.1f} s: it "
+                    f"hovers where the plan keeps R instead of landing {where} it")
+
+        await asyncio.gather(*(set_failsafe(v, delays[v.index], v.id in conflicts, self._emit,
+                                            required=self.options.failsafe == "set",
+                                            why=why(v.id))
                                for v in self.vehicles))
-        stacked = stacked_columns(self.plan, required_separation(self.plan.scenario))
-        if stacked is not None:
-            lower, upper, gap, t = stacked
+        for v in self.vehicles:
+            self.recorder.vehicles[v.id].failsafe = {
+                **failsafe_record(v.failsafe), "set": v.failsafe_before is not None,
+                "why": why(v.id)}
+        hovering = [v.id for v in self.vehicles if v.failsafe.effective == "Hold"]
+        if hovering:
             self._emit(None, EventKind.FAILSAFE, (
-                f"the plan puts {upper} over {lower} ({gap:.2f} m apart horizontally at "
-                f"t={t:.1f} s): a station lost there lands them that close; a plan with "
-                f"separation_scale [1, 1, 10] keeps the columns nearly R apart"))
+                f"if the station is lost, {', '.join(hovering)} hover (their columns meet "
+                f"others'); land them by plan from a station: fleetplan fleet land --plan "
+                f"PLAN.json --fleet FLEET.json"))
 
     async def _gather(self) -> None:
         tol = self.options.start_tolerance

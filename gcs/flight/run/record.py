@@ -11,7 +11,7 @@ in the world frame (ENU, m) unless the key says ``_ned``. JSON layout::
      "pauses": [[20.1, 25.3]],
      "horizon": 30.0,
      "error": null | {"type": "ArmingRefused", "message": "..."},
-     "vehicles": [{"id", "system_id", "home",
+     "vehicles": [{"id", "system_id", "home", "failsafe": {...} (once set),
                    "setpoints": {"t": [...], "tick": [...], "position_ned": [[x,y,z]...],
                                  "velocity_ned": [...], "acceleration_ned": [...]},
                    "telemetry": {"t": [...], "position": [...], "velocity": [...]},
@@ -110,6 +110,9 @@ class VehicleRecord:
     tel_pos: list[list[float]] = field(default_factory=list)
     tel_vel: list[list[float]] = field(default_factory=list)
     modes: list[dict[str, Any]] = field(default_factory=list)
+    failsafe: dict[str, Any] | None = None
+    """What it does without the station, as set before arming (`loss_timeout`,
+    `action_delay`, `action`, whether the station `set` it, and `why`)."""
 
     def add_setpoint(self, t: float, tick: int, sp: Setpoint) -> None:
         self.sp_t.append(t)
@@ -127,6 +130,8 @@ class VehicleRecord:
         doc: dict[str, Any] = {"id": self.id, "system_id": self.system_id, "home": self.home,
                                "autopilot": self.autopilot, "setpoints": {}, "telemetry": {},
                                "modes": self.modes}
+        if self.failsafe is not None:
+            doc["failsafe"] = self.failsafe
         for column in COLUMNS:
             values = getattr(self, column.attribute)
             doc[column.section][column.key] = (

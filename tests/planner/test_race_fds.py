@@ -1,0 +1,52 @@
+"""Two races in one process (`planner.methods.race`, as two Dask tasks in one worker): the
+arms of one never hold the pipes of the other."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from typing import Any
+
+from planner.methods.race import race
+
+
+def _pipes() -> set[int]:
+    """The pipe descriptors open in this process."""
+    out = set()
+    for name in os.listdir("/proc/self/fd"):
+        try:
+            if os.readlink(f"/proc/self/fd/{name}").startswith("pipe:"):
+                out.add(int(name))
+        except OSError:
+            continue  # the listing's own descriptor, closed meanwhile
+    return out
+
+
+def test_an_arm_holds_no_pipe_of_another_race() -> None:
+    """Race A's arm is still running (its pipe open in this process) when race B forks: B's
+    arm finds none of A's pipe descriptors open in its own process (its own write end is
+    its only race pipe), and both races end with their results."""
+    before = _pipes()
+    started = threading.Event()
+    results: dict[str, Any] = {}
+
+    def slow(send: Any) -> str:
+        send("running")
+        time.sleep(1.0)
+        return "a"
+
+    def run_a() -> None:
+        results["a"] = race([("slow", slow)], lambda v: True,
+                            progress=lambda _message: started.set())
+
+    thread = threading.Thread(target=run_a)
+    thread.start()
+    assert started.wait(30.0)
+    a_pipes = _pipes() - before
+    assert a_pipes  # race A's read end, held while its arm runs
+
+    [b] = race([("pipes", lambda _send: _pipes())], lambda v: True)
+    thread.join(30.0)
+    assert b.error is None and a_pipes.isdisjoint(b.value), (a_pipes, b.value)
+    assert results["a"][0].value == "a"
