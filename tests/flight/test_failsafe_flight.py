@@ -82,14 +82,19 @@ def test_columns_apart_land_and_an_aborted_flight_puts_the_parameters_back() -> 
     """Three vehicles 3 m apart: every column keeps R, so each lands on its failsafe
     (COM_OBL_RC_ACT 4); an abort with land mid-flight still restores PX4's own values."""
     plan = smooth_plan(short_line(3, steps=40))
+    flights: list[FlightExecutor] = []
 
     async def abort(flight: FlightExecutor) -> None:
+        flights.append(flight)
         while (flight.flight_time() or -1.0) < 1.0:
             await asyncio.sleep(0.02)
         flight.request_abort("land", "test")
 
     outcome, mock = asyncio.run(_fly(plan, during=abort))
     assert isinstance(outcome, FlightAborted), outcome
+    record = flights[0].record
+    assert record is not None
+    assert [v["failsafe"]["action"] for v in record["vehicles"]] == ["Land"] * 3
     for v in mock.vehicles:
         assert not v.armed
         assert v.params.value("COM_OBL_RC_ACT") == OWN["COM_OBL_RC_ACT"]
