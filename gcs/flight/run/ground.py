@@ -1,0 +1,39 @@
+"""Plans this ground station does not fly: a show's that takes off from or lands on the ground.
+
+The executor arms each vehicle at its home, climbs it to the plan's start, streams the plan in
+the air and lands it after the goals itself (`gcs.flight.run.executor`). A show planned with
+`takeoff` / `landing` (`planner.methods.ground`) starts and ends parked on the ground, its own
+takeoff waves and landing legs part of the trajectories: flown here, the executor's climb would
+come on top of the plan's and its waves would not be flown as planned. Such a plan is refused
+before anything is armed, with the fix: a show controller flies its `.skyc`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner import Plan
+from planner.verification.ground import airborne, starts_on_the_ground
+
+__all__ = ["GROUND_FIX", "ground_refusal"]
+
+#: What to do instead, the same words from the CLI and the REST API.
+GROUND_FIX = ("export it with `fleetplan export PLAN.json --format skyc -o show.skyc` for a "
+              "show controller, or plan the sequence without `takeoff` and `landing` to fly "
+              "it here (the ground station takes off to the first formation and lands after "
+              "the last by itself)")
+
+
+def ground_refusal(plan: Plan) -> str | None:
+    """Why `plan` cannot be flown by this ground station because it starts or ends on the
+    ground (its `sequence.ground` block, or a drone parked at z <= 0 in its trajectories);
+    None for a plan flown in the air."""
+    if starts_on_the_ground(plan.sequence):
+        what = "it is a show that takes off from and lands on the ground"
+    else:
+        parked = ~airborne(plan.positions(), plan.velocities(), plan.accelerations())
+        if not parked.any():
+            return None
+        vehicle = plan.scenario.ids[int(np.flatnonzero(parked.any(axis=1))[0])]
+        what = f"vehicle {vehicle} stands on the ground (z <= 0) in it"
+    return f"refusing to fly the plan: {what}; {GROUND_FIX}"
