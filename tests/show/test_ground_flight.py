@@ -11,11 +11,15 @@ from pathlib import Path
 import pytest
 
 from gcs.cli.main import main
+from gcs.errors import PlanRejected
+from gcs.fleet.fleetfile import FleetSpec
+from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.run.ground import ground_refusal
 from planner import Plan, Scenario, plan
 from planner.methods.sequence import plan_sequence
 from tests.api.support import QUICK_CROSSING
 from tests.planner.test_ground import _show
+from tests.show.test_fleet_takeoff import HOMES, fleet_dict
 
 
 @pytest.fixture(scope="module")
@@ -54,3 +58,10 @@ def test_fly_refuses_it_with_exit_2(ground_show: Plan, tmp_path: Path, capsys) -
     err = capsys.readouterr().err
     assert err.startswith("error: refusing to fly the plan: it is a show that takes off")
     assert "--format skyc" in err and "Traceback" not in err
+
+
+def test_the_executor_refuses_it_too(ground_show: Plan) -> None:
+    """The Python API (FlightExecutor) refuses it before it holds any vehicle."""
+    fleet = FleetSpec.from_dict(fleet_dict(list(ground_show.scenario.ids), HOMES))
+    with pytest.raises(PlanRejected, match="takes off from and lands on the ground"):
+        FlightExecutor(ground_show, fleet)
