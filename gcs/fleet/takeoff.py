@@ -10,12 +10,9 @@ from typing import Any
 
 from gcs.errors import FleetFileError
 from gcs.fleet.fleetfile import FleetSpec
+from planner.verification.ground import GROUND_TOLERANCE
 
-__all__ = ["GROUND_Z_TOLERANCE", "with_fleet_homes"]
-
-#: How far (m) a fleet home may lie from z = 0 and still count as standing on the show's
-#: ground: a show's homes are on the ground plane.
-GROUND_Z_TOLERANCE = 1e-6
+__all__ = ["with_fleet_homes"]
 
 
 def with_fleet_homes(sequence: Mapping[str, Any], fleet: FleetSpec,
@@ -23,11 +20,11 @@ def with_fleet_homes(sequence: Mapping[str, Any], fleet: FleetSpec,
     """`sequence` with `takeoff.homes` = the fleet's homes in the sequence's vehicle order
     (`takeoff.fleet` dropped, its other keys kept). `FleetFileError` naming `where` and the
     vehicle: one the fleet lacks, one without a `home`, a home off the ground (z != 0), or a
-    takeoff that gives its homes already."""
+    takeoff that gives its homes already. A sequence without a list of ids is left as it is,
+    for the sequence parser to name."""
     ids = sequence.get("vehicles")
     if not isinstance(ids, list) or not all(isinstance(vid, str) for vid in ids):
-        raise FleetFileError("vehicles", "must be a list of vehicle ids (strings) to take "
-                                         "their homes from the fleet file")
+        return dict(sequence)
     raw = sequence.get("takeoff", {})
     takeoff = {k: v for k, v in raw.items() if k != "fleet"} if isinstance(raw, Mapping) else {}
     given = [key for key in ("homes", "grid") if key in takeoff]
@@ -46,7 +43,7 @@ def with_fleet_homes(sequence: Mapping[str, Any], fleet: FleetSpec,
                                         f"home would come from GPS at connection); give it "
                                         f"home [x, y, 0]")
         x, y, z = (float(c) for c in spec.home)
-        if abs(z) > GROUND_Z_TOLERANCE:
+        if abs(z) > GROUND_TOLERANCE:  # the ground the planner's ground rule measures
             raise FleetFileError(where, f"vehicle {vid!r} has its home at z = {z:g} m; a "
                                         f"show takes off from the ground (z = 0)")
         homes.append([x, y])
