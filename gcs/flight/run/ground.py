@@ -10,10 +10,8 @@ before anything is armed, with the fix: a show controller flies its `.skyc`.
 
 from __future__ import annotations
 
-import numpy as np
-
 from planner import Plan
-from planner.verification.ground import airborne, starts_on_the_ground
+from planner.verification.ground import GROUND_TOLERANCE, airborne, starts_on_the_ground
 
 __all__ = ["GROUND_FIX", "ground_refusal"]
 
@@ -27,13 +25,16 @@ GROUND_FIX = ("export it with `fleetplan export PLAN.json --format skyc -o show.
 def ground_refusal(plan: Plan) -> str | None:
     """Why `plan` cannot be flown by this ground station because it starts or ends on the
     ground (its `sequence.ground` block, or a drone parked at z <= 0 in its trajectories);
-    None for a plan flown in the air."""
+    None for a plan flown in the air. Only drones that reach z <= 0 are looked at closer, so
+    a plan in the air costs one pass over its heights, no copy of its trajectories."""
     if starts_on_the_ground(plan.sequence):
-        what = "it is a show that takes off from and lands on the ground"
-    else:
-        parked = ~airborne(plan.positions(), plan.velocities(), plan.accelerations())
-        if not parked.any():
-            return None
-        vehicle = plan.scenario.ids[int(np.flatnonzero(parked.any(axis=1))[0])]
-        what = f"vehicle {vehicle} stands on the ground (z <= 0) in it"
-    return f"refusing to fly the plan: {what}; {GROUND_FIX}"
+        return (f"refusing to fly the plan: it is a show that takes off from and lands on the "
+                f"ground; {GROUND_FIX}")
+    for track in plan.vehicles:
+        if track.position[:, 2].min() > GROUND_TOLERANCE:
+            continue
+        parked = ~airborne(track.position[None], track.velocity[None], track.acceleration[None])
+        if parked.any():
+            return (f"refusing to fly the plan: vehicle {track.id} stands on the ground "
+                    f"(z <= 0) in it; {GROUND_FIX}")
+    return None
