@@ -16,10 +16,10 @@ from planner.verification.ground import GROUND_TOLERANCE, airborne, starts_on_th
 __all__ = ["GROUND_FIX", "ground_refusal"]
 
 #: What to do instead, the same words from the CLI and the REST API.
-GROUND_FIX = ("export it with `fleetplan export PLAN.json --format skyc -o show.skyc` for a "
-              "show controller, or plan the sequence without `takeoff` and `landing` to fly "
-              "it here (the ground station takes off to the first formation and lands after "
-              "the last by itself)")
+GROUND_FIX = ("export it as a .skyc for a show controller (fleetplan export PLAN.json "
+              "--format skyc -o show.skyc, or the mission's show.skyc from the service), or "
+              "plan the sequence without takeoff and landing to fly it here (the ground "
+              "station takes off to the first formation and lands after the last by itself)")
 
 
 def ground_refusal(plan: Plan) -> str | None:
