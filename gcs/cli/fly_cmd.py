@@ -118,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.errors import FleetFileError, GcsError
     from gcs.fleet.fleetfile import FleetSpec, load_fleet
     from gcs.flight.host.vehicle_loop import VehicleLoop
+    from gcs.flight.run.ground import ground_refusal
     from gcs.flight.run.realtime import settle_heap
     from gcs.service.replan_handle import ReplanHandle
     from gcs.sim import MockConfig, MockFleet, homes_under
@@ -126,6 +127,9 @@ def run(args: argparse.Namespace) -> int:
         plan = read_plan(args.plan, "fly")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if (on_ground := ground_refusal(plan)) is not None:
+        print(f"error: {on_ground}", file=sys.stderr)
         return 2
 
     def write_record(record: dict[str, Any] | None) -> None:

@@ -70,8 +70,7 @@ def run(args: argparse.Namespace) -> int:
     import json
     import os
 
-    from gcs.show.csv_reader import read_csv_show
-    from gcs.show.skyc_reader import read_skyc
+    from gcs.show.design import read_design
     from gcs.show.to_sequence import DEFAULT_DT, ImportOptions, to_sequence
     from gcs.show.tracks import ShowFileError
 
@@ -91,15 +90,9 @@ def run(args: argparse.Namespace) -> int:
     if not source.exists():
         return _fail(f"{source}: no such file or folder")
     try:
-        validation: dict[str, float] = {}
-        name = source.stem
-        if source.is_file() and _is_skyc(source):
-            show = read_skyc(source)
-            tracks, validation, name = show.tracks, show.validation, show.title
-        else:
-            tracks = read_csv_show(source)
-        sequence = to_sequence(tracks, name=name, file=source.name, options=options,
-                               validation=validation)
+        show = read_design(source)
+        sequence = to_sequence(show.tracks, name=show.title, file=source.name, options=options,
+                               validation=show.validation)
     except ShowFileError as exc:
         return _fail(str(exc))
     output = Path(args.output)
@@ -114,16 +107,3 @@ def run(args: argparse.Namespace) -> int:
     print(f"{output}: {len(sequence['vehicles'])} drones, {len(formations)} formations "
           f"{lit} from {source.name}; plan it: fleetplan plan {output} -o PLAN.json")
     return EXIT_WRITTEN
-
-
-def _is_skyc(path: Path) -> bool:
-    """A .skyc, or a ZIP archive holding show.json (a .skyc by another name), not CSVs."""
-    import zipfile
-
-    if path.suffix.lower() == ".skyc":
-        return True
-    try:
-        with zipfile.ZipFile(path) as archive:
-            return "show.json" in archive.namelist()
-    except (zipfile.BadZipFile, OSError):
-        return False

@@ -66,6 +66,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="vehicles per prioritized batch (methods auto and prioritized; default: the "
              "planner's, by the fleet's motion: planner.methods.prioritized.batch_size)",
     )
+    parser.add_argument(
+        "--takeoff-fleet", type=Path, default=None, metavar="FLEET.json",
+        help="sequences: take off from this fleet file's homes (world frame, z = 0), in the "
+             "sequence's vehicle order: fills takeoff.homes (as the sequence's own "
+             "takeoff.fleet does, a path relative to the sequence file)",
+    )
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration lines")
     parser.add_argument(
         "--scheduler", metavar="tcp://HOST:8786", default=os.environ.get(SCHEDULER_ENV) or None,
@@ -358,6 +364,32 @@ def _write_csvs(show: Any, directory: Path, rate: float | None) -> None:
         (directory / f"{vid}.csv").write_text(text)
 
 
+def _takeoff_from_fleet(args: argparse.Namespace, data: dict[str, Any]) -> dict[str, Any]:
+    """The sequence taking off from a fleet file's homes (`gcs.fleet.takeoff`): the one named
+    by --takeoff-fleet, else by the sequence's `takeoff.fleet` (relative to the sequence
+    file); the sequence as it is without either. ValueError naming the field otherwise."""
+    from gcs.errors import FleetFileError
+    from gcs.fleet.fleetfile import load_fleet
+    from gcs.fleet.takeoff import with_fleet_homes
+
+    takeoff = data.get("takeoff")
+    named = takeoff.get("fleet") if isinstance(takeoff, dict) else None
+    if getattr(args, "takeoff_fleet", None) is not None:
+        path, where = Path(args.takeoff_fleet), "--takeoff-fleet"
+    elif named is not None:
+        if not isinstance(named, str) or not named:
+            raise ValueError("takeoff.fleet: must be the path of a fleet file (JSON)")
+        path, where = args.scenario.parent / named, "takeoff.fleet"
+    else:
+        return data
+    try:
+        return with_fleet_homes(data, load_fleet(path), where)
+    except FleetFileError as exc:
+        if exc.field == where:
+            raise
+        raise ValueError(f"{where}: {path}: {exc.field}: {exc.reason}") from None
+
+
 def _run_sequence(args: argparse.Namespace, data: Any) -> int:
     """Plan a formation sequence: legs in parallel, the stitched plan and the CSVs written."""
     from planner.errors import FieldError, SolverError
@@ -421,7 +453,10 @@ def run(args: argparse.Namespace) -> int:
             if getattr(args, "fleet", None) is not None:
                 return _fail("--fleet: a fleet's margin is not applied to formation sequences "
                              "yet; add it to the sequence's min_separation")
-            return _run_sequence(args, data)
+            return _run_sequence(args, _takeoff_from_fleet(args, data))
+        if getattr(args, "takeoff_fleet", None) is not None:
+            return _fail("--takeoff-fleet: applies to a formation sequence (a document with "
+                         "formations); a scenario's starts are its own")
         if getattr(args, "fleet", None) is not None:
             data = _for_fleet(data, args.fleet)
         check_scenario(data, args.scenario)

@@ -27,6 +27,7 @@ from gcs.fleet.commands import fleet_command
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions, load_fleet
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import DECODED_IDS, VehicleLink
+from gcs.flight.run.ground import ground_refusal
 from gcs.flight.safety.health import PreflightThresholds, health_report, preflight_problems
 from gcs.flight.safety.margin import check_margin
 from gcs.service.settings import Settings
@@ -244,6 +245,8 @@ class Fleet:
             raise StateConflict("mission_id", f"the plan is not flyable: status {plan.status!r}"
                            f"{'' if plan.verification is None else ', verification failed'}"
                            "; only converged, verified plans are flown")
+        if (on_ground := ground_refusal(plan)) is not None:
+            raise StateConflict("mission_id", on_ground)
         ids = plan.scenario.ids
         if self.kind == "mock" and len(ids) > self._settings.mock_vehicles:
             raise StateConflict("fleet", f"the plan has {len(ids)} vehicles, the mock fleet "

@@ -4,5 +4,5 @@ tracks (`gcs.show.tracks`), whose hold points become a formation sequence with i
 (`gcs.show.to_sequence`) for the planner to plan the transitions between them.
 
 Pure functions of files to JSON documents: no vehicles, no service; the CLI (`fleetplan
-import`) calls them.
+import`, `fleetplan report`) and the service's show routes (`gcs.api.routes.shows`) call them.
 """

@@ -34,8 +34,9 @@ COLUMNS = ("Time [msec]", "x [m]", "y [m]", "z [m]", "Red", "Green", "Blue")
 _WHITE = (255, 255, 255)
 
 
-def _files(path: Path) -> Iterator[tuple[str, bytes]]:
-    """(file name, contents) of every .csv in the folder or ZIP archive, by name."""
+def _files(path: Path, unpacked: int) -> Iterator[tuple[str, bytes]]:
+    """(file name, contents) of every .csv in the folder or ZIP archive, by name, at most
+    `unpacked` bytes in all."""
     if path.is_dir():
         files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".csv" and p.is_file())
         if len(files) > MAX_VEHICLES:
@@ -45,7 +46,7 @@ def _files(path: Path) -> Iterator[tuple[str, bytes]]:
         for file in files:
             size = file.stat().st_size
             total += size
-            if size > MAX_FILE_BYTES or total > MAX_TOTAL_BYTES:
+            if size > MAX_FILE_BYTES or total > unpacked:
                 raise ShowFileError(file.name, "size", "more data than fleetplan reads in "
                                                        "one show: split the show")
             yield file.name, file.read_bytes()
@@ -63,7 +64,7 @@ def _files(path: Path) -> Iterator[tuple[str, bytes]]:
                 raise ShowFileError(path.name, "files", f"{len(entries)} CSV files, more than "
                                                         f"the {MAX_VEHICLES} drones a plan "
                                                         f"may hold")
-            left = MAX_TOTAL_BYTES
+            left = unpacked
             for entry in entries:
                 with archive.open(entry) as stream:
                     data = read_bounded(stream, left, f"{path.name}:{entry.filename}")
@@ -78,10 +79,10 @@ def _files(path: Path) -> Iterator[tuple[str, bytes]]:
                             ) from None
 
 
-def read_csv_show(path: Path) -> tuple[DesignTrack, ...]:
-    """One track per CSV file of the folder or archive; `ShowFileError` naming the file, the
-    line and the column of the first bad value."""
-    tracks = [_track(name, data) for name, data in _files(path)]
+def read_csv_show(path: Path, *, unpacked: int = MAX_TOTAL_BYTES) -> tuple[DesignTrack, ...]:
+    """One track per CSV file of the folder or archive (at most `unpacked` bytes of CSV in
+    all); `ShowFileError` naming the file, the line and the column of the first bad value."""
+    tracks = [_track(name, data) for name, data in _files(path, unpacked)]
     if not tracks:
         raise ShowFileError(path.name, "files", "no .csv files: export the show from Skybrush "
                                                 "Studio as Skybrush CSV (one file per drone)")

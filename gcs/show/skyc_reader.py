@@ -42,10 +42,11 @@ class SkycShow:
     validation: dict[str, float]
 
 
-def read_skyc(path: Path) -> SkycShow:
+def read_skyc(path: Path, *, unpacked: int = MAX_TOTAL_BYTES // 2) -> SkycShow:
     """The show in `path`; `ShowFileError` naming the file and the field for anything a
     show tool would not have written (not a ZIP, no show.json, a drone without keyframes,
-    a non-finite number, a light program that cannot be read, too large)."""
+    a non-finite number, a light program that cannot be read, too large: its show.json
+    unpacking to more than `unpacked` bytes)."""
     name = path.name
     try:
         size = path.stat().st_size
@@ -60,7 +61,7 @@ def read_skyc(path: Path) -> SkycShow:
                 raise ShowFileError(name, _ENTRY, "the archive has no show.json: is it a "
                                                   "Skybrush compiled show?")
             with archive.open(_ENTRY) as entry:
-                data = read_bounded(entry, MAX_TOTAL_BYTES // 2, f"{name}:{_ENTRY}")
+                data = read_bounded(entry, unpacked, f"{name}:{_ENTRY}")
     except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError) as exc:
         raise ShowFileError(name, "file", f"not a readable ZIP archive ({exc}): a .skyc is "
                                           f"a ZIP holding show.json") from None

@@ -198,6 +198,11 @@ def parse_takeoff(data: Mapping[str, Any], shared: Mapping[str, Any], scale: Flo
                                            "took off from it")
         return None
     takeoff = data["takeoff"]
+    if isinstance(takeoff, Mapping) and "fleet" in takeoff:
+        raise ScenarioError("takeoff.fleet", "a fleet file is read by `fleetplan plan` "
+                                             "(--takeoff-fleet), which fills takeoff.homes from "
+                                             "its homes; here give takeoff.homes or "
+                                             "takeoff.grid")
     check_keys(takeoff, _TAKEOFF_KEYS, "takeoff", ())
     separation = check_number(shared["min_separation"], "min_separation", positive=True)
     limits = shared["limits"]

@@ -8,12 +8,13 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from gcs.api.routes import examples, fleet, flights, missions, status, vehicles
+from gcs.api.routes import examples, fleet, flights, missions, shows, status, vehicles
 
 __all__ = ["api_router"]
 
 api_router = APIRouter(prefix="/api")
 api_router.include_router(missions.router)
+api_router.include_router(shows.router)
 api_router.include_router(flights.mission_router)
 api_router.include_router(flights.flights_router)
 api_router.include_router(flights.router, prefix="/flights")

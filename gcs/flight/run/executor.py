@@ -105,6 +105,7 @@ from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicl
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.flown import FlownPlans
+from gcs.flight.run.ground import ground_refusal
 from gcs.flight.run.precedence import abort_in_force, aborting_refusal
 from gcs.flight.run.record import FlightRecorder, goal_tolerance
 from gcs.flight.run.recording import FlightRecording, finish_record
@@ -141,6 +142,8 @@ class FlightExecutor:
         why = refusal(plan)  # verified again on the trajectories themselves
         if why is not None:
             raise PlanRejected(f"refusing to fly the plan: {why}")
+        if (on_ground := ground_refusal(plan)) is not None:
+            raise PlanRejected(on_ground)
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
