@@ -57,12 +57,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
+from gcs.autopilot.px4 import PX4
 from gcs.flight.link.endpoints import UdpEndpoint
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import DECODED_IDS, VehicleLink
 from gcs.flight.link.setpoints import Setpoint, SetpointTrack
 from gcs.flight.link.signing import LinkSigning
-from gcs.flight.procedure.vehicle import message_rates as needed_rates
 from gcs.flight.procedure.vehicle import request_message_rates
 from gcs.flight.run.stream import Streamer, jitter_stats
 from gcs.sim.ports import free_udp_base
@@ -123,7 +123,7 @@ async def one_run(vehicles: int, rate: float, duration: float,
             answers: list[dict[str, str]] = []
             if message_rates == "request":
                 answers = await asyncio.gather(*(
-                    request_message_rates(link, needed_rates(30.0)) for link in links))
+                    request_message_rates(link, PX4.message_rates(30.0)) for link in links))
                 await asyncio.sleep(0.5)  # what was sent before the requests
             latency: list[float] = []
             measuring = [False]

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from planner.errors import PlanFormatError, ScenarioError
 from planner.model.dynamics import MotionSample, interpolate
+from planner.model.flatness import thrust_cost
 from planner.model.scenario import Scenario
 from planner.types import FloatArray
 from planner.verification.ground import starts_on_the_ground
@@ -360,8 +361,6 @@ class Plan:
         """The plan's total-thrust cost sum ||a + g||^2 over every vehicle and step, from its
         trajectories (the last iteration's cost is only its batch's with prioritized
         batches); nan for a plan without vehicles."""
-        from planner.scp.loop import thrust_cost
-
         return thrust_cost(self.accelerations()) if self.vehicles else float("nan")
 
     def positions(self) -> FloatArray:

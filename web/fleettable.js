@@ -33,15 +33,21 @@ export function showVehicleTable() {
   const rows = flight.live && flight.active
     ? flight.live.vehicles.map((v) => ({ ...(byId.get(v.id) || {}), ...v }))
     : fleet.vehicles;
-  const optional = OPTIONAL_COLUMNS.filter(([key]) => rows.some((v) => v[key] !== undefined && v[key] !== null));
+  // The autopilot column only where the fleet mixes autopilots (each row's vehicle cell names
+  // its autopilot in its title either way), so a uniform fleet's table keeps its width.
+  const mixed = new Set(rows.map((v) => v.autopilot).filter((a) => typeof a === "string")).size > 1;
+  const optional = OPTIONAL_COLUMNS.filter(([key]) => (key === "autopilot" ? mixed
+    : rows.some((v) => v[key] !== undefined && v[key] !== null)));
   const health = rows.some((v) => v.health !== undefined && v.health !== null);
   const actions = fleet.caps.vehicleCommands;
   const drops = replanOffered();
-  const heads = ["vehicle", "link", "mode", "armed", "alt", ...optional.map((c) => c[1]),
-                 ...(health ? ["health"] : []), "phase", ...(drops ? ["replan"] : []),
-                 ...(actions ? [""] : [])];
+  /** @type {[string, string][]} [label, key] */
+  const heads = [["vehicle", "id"], ["link", "link"], ["mode", "mode"], ["armed", "armed"],
+                 ["alt", "alt"], ...optional.map((c) => /** @type {[string, string]} */ ([c[1], c[0]])),
+                 ...(health ? [["health", "health"]] : []), ["phase", "phase"],
+                 ...(drops ? [["replan", "replan"]] : []), ...(actions ? [["", "commands"]] : [])];
   const thead = $("#vehicle-state thead");
-  const headHtml = `<tr>${heads.map((h) => `<th>${h}</th>`).join("")}</tr>`;
+  const headHtml = `<tr>${heads.map(([h, key]) => `<th data-key="${key}">${h}</th>`).join("")}</tr>`;
   if (thead.innerHTML !== headHtml) thead.innerHTML = headHtml;
   const tbody = $("#vehicle-state tbody");
   const listed = rows.length > TABLE_ROWS_MAX
@@ -113,6 +119,7 @@ function vehicleRow(v, optional, health, drops, actions) {
     return td;
   };
   const name = cell("", "", "id");
+  if (typeof v.autopilot === "string") name.title = `${v.id}: ${autopilotCell(v.autopilot)[2]}`;
   const dot = document.createElement("span");
   dot.className = "swatch";
   dot.style.background = colorOf(v.id, views.traj);

@@ -11,7 +11,8 @@ import numpy as np
 
 from planner.types import FloatArray
 
-__all__ = ["GRAVITY", "THRUST_FLOOR", "body_rates", "jerk_from_accelerations", "thrust"]
+__all__ = ["GRAVITY", "THRUST_FLOOR", "body_rates", "jerk_from_accelerations", "thrust",
+           "thrust_cost"]
 
 
 #: Standard gravity (m/s^2); the world frame's gravity vector is (0, 0, -GRAVITY).
@@ -74,3 +75,9 @@ def body_rates(accelerations: FloatArray, jerk: FloatArray) -> FloatArray:
     w1 = -(yx * jx + yy * jy + yz * jz) / f
     w2 = (xx * jx + xy * jy + xz * jz) / f
     return np.stack([w1, w2, np.zeros_like(w1)], axis=-1)
+
+
+def thrust_cost(accelerations: FloatArray) -> float:
+    """The paper's total-thrust cost sum ||a + g||^2 over vehicles and steps."""
+    a = np.asarray(accelerations)
+    return float(np.sum(a[..., :2] ** 2) + np.sum((a[..., 2] + GRAVITY) ** 2))

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.methods.routes import seed_routes
-from planner.model.flatness import GRAVITY
+from planner.model.flatness import thrust_cost
 from planner.model.scenario import Scenario
 from planner.options import ScpOptions
 from planner.result import IterationProgress, IterationRecord, PlanStatus, Progress
@@ -68,12 +68,6 @@ class ScpOutcome:
     iterations: list[IterationRecord]
     first_qp_seconds: float
     infeasible_groups: tuple[str, ...] = ()
-
-
-def thrust_cost(accelerations: FloatArray) -> float:
-    """The paper's total-thrust cost sum ||a + g||^2 over vehicles and steps."""
-    a = np.asarray(accelerations)
-    return float(np.sum(a[..., :2] ** 2) + np.sum((a[..., 2] + GRAVITY) ** 2))
 
 
 def _keep_right_bend(positions: FloatArray, scenario: Scenario, amplitude: float) -> FloatArray:

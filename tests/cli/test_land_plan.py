@@ -20,8 +20,8 @@ from gcs.autopilot import px4
 from gcs.fleet.fleetfile import FleetSpec
 from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet
-from tests.flight.support import FAST_MOCK, QUICK, mock_ports, smooth_plan
-from tests.flight.test_landing import HOMES, STACKED
+from tests.flight.support import FAST_MOCK, QUICK, STACKED, mock_ports, smooth_plan
+from tests.flight.support import STACKED_HOMES as HOMES
 
 pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 

@@ -19,26 +19,10 @@ from planner.errors import ScenarioError
 from planner.families.generators import show_sequence
 from planner.methods.sequence import parse_sequence, plan_sequence
 from tests.export.reader import evaluate, read_show
+from tests.support.shows import light_design as _design
+from tests.support.shows import slot_colors as _slot_colors
 
 RED, BLUE, BLACK = (255, 0, 0), (0, 0, 255), (0, 0, 0)
-
-
-def _slot_colors(count: int) -> list[list[int]]:
-    return [[20 * i, 255 - 20 * i, 7 * i] for i in range(count)]
-
-
-def _design() -> dict[str, Any]:
-    """grid (red) -> sphere (a colour per slot, fade) -> grid (blue, hold) -> sphere (no
-    colour: keeps blue, through black)."""
-    data = show_sequence(9, seed=2, hold=1.0)
-    grid, sphere, _ = data["formations"]
-    data["formations"] = [
-        {**grid, "color": "#ff0000"},
-        {**sphere, "color": _slot_colors(9), "lights": "fade"},
-        {**data["formations"][2], "color": list(BLUE), "lights": "hold"},
-        {**copy.deepcopy(sphere), "lights": "black"},
-    ]
-    return data
 
 
 @pytest.fixture(scope="module")

@@ -21,6 +21,7 @@ __all__ = [
     "QUICK_MOCK_ENV",
     "QUICK_MOCK_SETTINGS",
     "STACKED",
+    "STACKED_HOMES",
     "free_port_block",
     "line_scenario",
     "mock_ports",
@@ -122,3 +123,5 @@ STACKED = {
     "vehicles": [{"id": "low", "start": [2.0, 1.0, 1.08], "goal": [2.0, 3.0, 1.08]},
                  {"id": "high", "start": [2.55, 1.0, 1.92], "goal": [2.55, 3.0, 1.92]}],
 }
+#: Where the STACKED pair stands on the ground (world frame).
+STACKED_HOMES = [[0.8, 1.0, 0.0], [3.75, 1.0, 0.0]]

@@ -19,8 +19,8 @@ from gcs.flight.procedure.params import read_param
 from gcs.flight.run.executor import FlightExecutor
 from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
-from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
-from tests.flight.test_landing import HOMES, STACKED
+from tests.flight.support import FAST_MOCK, QUICK, STACKED, mock_ports, short_line, smooth_plan
+from tests.flight.support import STACKED_HOMES as HOMES
 
 pytestmark = [pytest.mark.timeout(120), pytest.mark.flight]
 

@@ -12,12 +12,12 @@ from gcs.flight.run.executor import FlightExecutor
 from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from tests.flight.support import FAST_MOCK, QUICK, STACKED, mock_ports, smooth_plan
+from tests.flight.support import STACKED_HOMES as HOMES
 from tests.support.waiting import reached
 
 pytestmark = pytest.mark.timeout(120)
 
 #: Homes apart, so the climbs (vertical, then horizontal) keep R too.
-HOMES = [[0.8, 1.0, 0.0], [3.75, 1.0, 0.0]]
 
 
 async def _sample_truth(mock: MockFleet, pairs: list[float]) -> None:

@@ -18,17 +18,10 @@ from planner.families.generators import show_sequence
 from planner.methods.sequence import SequencePlan, parse_sequence, plan_sequence
 from planner.verification.verify import refusal
 from tests.export.reader import evaluate, read_show
+from tests.support.shows import GRID
+from tests.support.shows import ground_show as _show
 
 #: Rows 0.8 m apart (R = 1): neighbours in y must not share a wave.
-GRID = {"origin": [-2.0, -2.0], "columns": 3, "rows": 3, "spacing": [2.0, 0.8]}
-
-
-def _show(**ground: Any) -> dict[str, Any]:
-    data = show_sequence(9, seed=2, hold=1.0)
-    data["limits"]["position_min"][2] = 0.0
-    data["takeoff"] = {"grid": GRID}
-    data.update(ground)
-    return data
 
 
 @pytest.fixture(scope="module")

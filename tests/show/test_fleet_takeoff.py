@@ -14,17 +14,11 @@ from gcs.cli.main import main
 from gcs.errors import FleetFileError
 from gcs.fleet.fleetfile import FleetSpec
 from gcs.fleet.takeoff import with_fleet_homes
-from tests.planner.test_ground import _show
+from tests.support.shows import FLEET_HOMES as HOMES
+from tests.support.shows import fleet_dict
+from tests.support.shows import ground_show as _show
 
 #: The test show's 3 x 3 grid (rows 0.8 m apart, closer than R), as fleet homes.
-HOMES = [[-2.0 + 2.0 * c, -2.0 + 0.8 * r, 0.0] for r in range(3) for c in range(3)]
-
-
-def fleet_dict(ids: list[str], homes: list[list[float]]) -> dict[str, Any]:
-    """A fleet file of `ids` standing at `homes` (listed in reverse, not the show's order)."""
-    vehicles = [{"id": vid, "connection": f"udpin:127.0.0.1:{14540 + n}", "system_id": n + 1,
-                 "home": home} for n, (vid, home) in enumerate(zip(ids, homes, strict=True))]
-    return {"vehicles": vehicles[::-1]}
 
 
 def ground_sequence() -> dict[str, Any]:

@@ -18,8 +18,9 @@ from gcs.flight.run.ground import ground_refusal
 from planner import Plan, Scenario, plan
 from planner.methods.sequence import plan_sequence
 from tests.api.support import QUICK_CROSSING
-from tests.planner.test_ground import _show
-from tests.show.test_fleet_takeoff import HOMES, fleet_dict
+from tests.support.shows import FLEET_HOMES as HOMES
+from tests.support.shows import fleet_dict
+from tests.support.shows import ground_show as _show
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,6 @@ import numpy as np
 import pytest
 
 from gcs.cli.main import main
-from gcs.export.lightcode import colors_at
-from gcs.export.lights import light_changes
 from gcs.export.skyc import write_skyc
 from gcs.show.csv_reader import read_csv_show
 from gcs.show.skyc_reader import read_skyc
@@ -22,7 +20,8 @@ from gcs.show.to_sequence import ImportOptions, to_sequence
 from gcs.show.tracks import ShowFileError
 from planner import Plan
 from planner.methods.sequence import parse_sequence, plan_sequence
-from tests.export.test_lights import _design
+from tests.support.shows import csv_zip as _csv_zip
+from tests.support.shows import light_design as _design
 
 
 @pytest.fixture(scope="module")
@@ -32,22 +31,6 @@ def lit() -> tuple[Plan, object]:
     plan = shown.to_plan()
     assert plan.ok, plan.problems()
     return plan, shown.sequence
-
-
-def _csv_zip(plan: Plan, path: Path, rate: float = 25.0) -> Path:
-    """The plan as Skybrush CSV (7 columns, a file per drone), zipped."""
-    times = np.arange(0.0, plan.scenario.horizon + 1e-9, 1.0 / rate)
-    sampled = plan.sample(times).position
-    with zipfile.ZipFile(path, "w") as archive:
-        for n, track in enumerate(plan.vehicles):
-            changes = light_changes(plan, track.id)
-            assert changes is not None
-            rgb = np.rint(colors_at(changes, times)).astype(int)
-            rows = ["Time [msec],x [m],y [m],z [m],Red,Green,Blue"] + [
-                f"{round(t * 1000)},{x:.4f},{y:.4f},{z:.4f},{r},{g},{b}"
-                for t, (x, y, z), (r, g, b) in zip(times, sampled[n], rgb, strict=True)]
-            archive.writestr(f"{track.id}.csv", "\n".join(rows) + "\n")
-    return path
 
 
 def _check_round_trip(sequence: dict, plan: Plan, parsed) -> None:
@@ -200,7 +183,7 @@ def test_a_zip_that_is_not_a_show(tmp_path: Path) -> None:
 
 
 def test_a_show_on_the_ground_comes_back_with_its_takeoff_and_landing(tmp_path: Path) -> None:
-    from tests.planner.test_ground import _show
+    from tests.support.shows import ground_show as _show
 
     data = _show(landing={})
     data["formations"][0]["color"] = "#ff0000"

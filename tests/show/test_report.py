@@ -17,8 +17,8 @@ from gcs.cli.main import main
 from gcs.show.report import report_facts, report_html
 from planner import Plan
 from planner.methods.sequence import plan_sequence
-from tests.export.test_lights import _design
 from tests.paths import EXAMPLES
+from tests.support.shows import light_design as _design
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs.cli.main import main
-from tests.planner.test_ground import _show
+from tests.support.shows import ground_show as _show
 
 
 def test_plan_export_import_plan_report(tmp_path: Path, capsys) -> None:

@@ -17,8 +17,8 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from planner import Plan
-from tests.api.routes.test_sequences import plan_sequence as post_sequence
-from tests.planner.test_ground import _show
+from tests.support.shows import ground_show as _show
+from tests.support.shows import post_sequence
 
 
 @pytest.fixture

@@ -9,8 +9,8 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.service.settings import Settings
-from tests.api.routes.test_sequences import plan_sequence
-from tests.planner.test_ground import _show
+from tests.support.shows import ground_show as _show
+from tests.support.shows import post_sequence as plan_sequence
 
 
 def test_a_ground_show_is_not_flown(mock_settings: Callable[..., Settings]) -> None:

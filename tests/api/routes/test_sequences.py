@@ -16,13 +16,8 @@ from gcs.api import create_app
 from gcs.service.settings import Settings
 from planner import Plan
 from tests.api.support import GOALS, OUT_AND_BACK, QUICK, STARTS, sse_events
+from tests.support.shows import post_sequence as plan_sequence
 from tests.support.waiting import wait_for
-
-
-def plan_sequence(client: TestClient, body: dict[str, Any]) -> dict[str, Any]:
-    response = client.post("/api/missions?wait=60", json=body)
-    assert response.status_code == 201, response.text
-    return response.json()
 
 
 def test_a_sequence_is_a_mission_with_a_stitched_flyable_plan(client: TestClient) -> None:

@@ -22,9 +22,9 @@ from gcs.show.design import read_design
 from gcs.show.to_sequence import to_sequence
 from planner import Plan
 from planner.methods.sequence import plan_sequence
-from tests.api.routes.test_sequences import plan_sequence as post_sequence
-from tests.planner.test_ground import _show
-from tests.show.test_import import _csv_zip
+from tests.support.shows import csv_zip as _csv_zip
+from tests.support.shows import ground_show as _show
+from tests.support.shows import post_sequence
 
 
 def _lit_show() -> dict:
