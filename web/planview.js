@@ -163,12 +163,14 @@ function scheduleMarkers() {
   });
 }
 
-/** Move the 3-D view's "planned now" markers (the trace after the vehicles' lines).
- * @param {number[][]} positions */
-export function showPlannedNow(positions) {
+/** Move the 3-D view's "planned now" markers (the trace after the vehicles' lines), each in
+ * its colour at that time (a show's lights).
+ * @param {number[][]} positions @param {string[]} colours */
+export function showPlannedNow(positions, colours) {
   const trace = scene().data?.[markers.lines];
   if (!trace) return;
   [trace.x, trace.y, trace.z] = [0, 1, 2].map((a) => positions.map((p) => p[a]));
+  trace.marker.color = colours;
   scheduleMarkers();
 }
 
