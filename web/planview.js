@@ -232,13 +232,22 @@ function renderSummary(plan, planOk) {
   method.id = "plan-method";
   row(sol, "solver", String(plan.solver));
   row(sol, "SCP iterations", its.length ? String(its[its.length - 1].iteration) : "–");
-  row(sol, "final cost", its.length ? fmt(its[its.length - 1].cost, 2) : "–");
+  const cost = row(sol, "final cost", plan.vehicles.length ? fmt(planCost(plan), 2) : "–");
+  cost.id = "final-cost";
   row(sol, "QP solves", String(its.reduce((s, r) => s + r.qp_solves, 0)));
   row(sol, "separation rows (last)", its.length ? String(its[its.length - 1].separation_rows) : "–");
   row(sol, "planning time", `${fmt(plan.timing.total_s, 3)} s`);
   row(sol, "first QP", `${fmt(plan.timing.first_qp_s, 3)} s`);
   row(sol, "vehicles × steps", `${plan.vehicles.length} × ${plan.scenario.steps} (dt ${plan.scenario.dt} s)`
     + (plan.horizon ? ", steps chosen by the planner" : ""));
+}
+
+/** The plan's total-thrust cost sum ||a + g||² over every vehicle and step (Plan.cost), from
+ * its thrust ||a + g||: with prioritized batches the last iteration's cost is only the last
+ * batch's.
+ * @param {Plan} plan @returns {number} */
+export function planCost(plan) {
+  return plan.vehicles.reduce((sum, v) => sum + v.thrust.reduce((s, f) => s + f * f, 0), 0);
 }
 
 /** The separation plot: the plan's minimum pairwise distance against R, and the measured

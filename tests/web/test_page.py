@@ -6,6 +6,7 @@ from __future__ import annotations
 import httpx
 from playwright.sync_api import Page, expect
 
+from planner import Plan
 from tests.api.support import ServiceProcess, example
 from tests.web.support import CROSSING, fill_scenario, shown_mission_id
 
@@ -158,3 +159,8 @@ def test_the_method_selector_defaults_to_auto_and_the_plan_panel_names_the_metho
                         f"{shown_mission_id(page)}").json()
     assert mission["scenario"]["method"] == "prioritized"
     assert mission["plan"]["method"] == "prioritized"
+    # The plan's cost over every batch, not the last batch's (its last iteration's).
+    cost = Plan.from_dict(mission["plan"]).cost
+    assert abs(cost - mission["plan"]["iterations"][-1]["cost"]) > 1.0
+    page.wait_for_function("(cost) => Math.abs(Number(document.getElementById('final-cost')"
+                           "?.textContent) - cost) <= 0.006", arg=cost)
