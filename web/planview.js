@@ -13,6 +13,16 @@ import { minSeparation } from "./tracks.js";
 /** @typedef {import("./state.js").Trajectory} Trajectory */
 
 const PLOT_CONFIG = { responsive: true, displaylogo: false };
+/** Top margin (px) of a captioned plot: plotly's toolbar (top right, ~25 px) in a row of its
+ * own, the caption in the row under it. */
+const CAPTIONED_TOP = 54;
+
+/** A plot's caption, left-aligned just above its plotting area, under the toolbar's row
+ * (centred at the top, the toolbar covered its end). @param {string} text */
+const caption = (text) => ({
+  text, font: { size: 13 }, x: 0, xref: "paper", xanchor: "left",
+  y: 1, yref: "paper", yanchor: "bottom", pad: { b: 8 },
+});
 const PLOTLY_URL = "/vendor/plotly.min.js";
 
 /** @type {Promise<any> | null} */
@@ -117,8 +127,8 @@ function render3d(plan, traj) {
   };
   const s = plan.scenario.limits;
   const layout = {
-    margin: { l: 0, r: 0, t: 24, b: 0 }, showlegend: !many,
-    title: { text: "trajectories (world frame, z up); rings: plan now, diamonds: flown", font: { size: 13 } },
+    margin: { l: 0, r: 0, t: CAPTIONED_TOP, b: 0 }, showlegend: !many,
+    title: caption("trajectories (world frame, z up); rings: plan now, diamonds: flown"),
     scene: {
       aspectmode: "data",
       xaxis: { title: { text: "x (m)" }, range: [s.position_min[0], s.position_max[0]] },
@@ -272,8 +282,8 @@ export function renderSeparation(plan, traj) {
                   line: { color: "#2e7d32" } });
   }
   Plotly.react("separation-plot", traces, {
-    title: { text: `minimum pairwise separation: ${low.toFixed(3)} m (R = ${R} m)`, font: { size: 13 } },
-    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } },
+    title: caption(`minimum pairwise separation: ${low.toFixed(3)} m (R = ${R} m)`),
+    margin: { l: 50, r: 10, t: CAPTIONED_TOP, b: 40 }, xaxis: { title: { text: "t (s)" } },
     yaxis: { title: { text: "m" }, rangemode: "tozero" }, legend: { orientation: "h" },
   }, PLOT_CONFIG);
   $("#separation-plot").dataset.minimum = low;
@@ -285,8 +295,8 @@ function renderSpeed(traj) {
     (v) => v.velocity.map((u, k) => [traj.t[k], Math.hypot(u[0], u[1], u[2])]),
     (i) => ({ mode: "lines", line: { color: color(i), width: 1 } }), false);
   plotly().react("speed-plot", speeds, {
-    title: { text: "speed per vehicle", font: { size: 13 } }, showlegend: false,
-    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s" } },
+    title: caption("speed per vehicle"), showlegend: false,
+    margin: { l: 50, r: 10, t: CAPTIONED_TOP, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s" } },
   }, PLOT_CONFIG);
 }
 
@@ -301,7 +311,7 @@ function renderThrust(plan) {
     if (lim[key] !== undefined) traces.push({ x: [0, end], y: [lim[key], lim[key]], mode: "lines", name: `thrust ${label}`, line: { color: "#c62828", dash: "dot" } });
   }
   plotly().react("thrust-plot", traces, {
-    title: { text: "mass-normalised thrust per vehicle", font: { size: 13 } }, showlegend: false,
-    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s²" } },
+    title: caption("mass-normalised thrust per vehicle"), showlegend: false,
+    margin: { l: 50, r: 10, t: CAPTIONED_TOP, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s²" } },
   }, PLOT_CONFIG);
 }
