@@ -16,7 +16,7 @@ import numpy as np
 import orjson
 
 from gcs.errors import ExportError, InvalidRequest, NotFound, StateConflict
-from gcs.export.lights import light_changes
+from gcs.export.lights import has_lights, light_changes
 from gcs.service.limits import trajectory_sample_count
 from gcs.service.statuses import MissionStatus
 from gcs.service.store import Store
@@ -108,13 +108,13 @@ def light_rows(plan: Plan) -> dict[str, list[tuple[float, float, str]]] | None:
     the colour linearly over [start, end] (`gcs.export.lights`, the changes the `.skyc`
     writes), so the page colours each drone at any time without deriving them again. None
     for a plan without a light design, or with one too malformed to export."""
+    if not has_lights(plan):
+        return None
     try:
-        changes = {v.id: light_changes(plan, v.id) for v in plan.vehicles}
+        changes = {v.id: light_changes(plan, v.id) or [] for v in plan.vehicles}
     except ExportError:
         return None
-    if any(c is None for c in changes.values()):
-        return None
-    return {vid: [(c.start, c.end, color_hex(c.color)) for c in rows or ()]
+    return {vid: [(c.start, c.end, color_hex(c.color)) for c in rows]
             for vid, rows in changes.items()}
 
 
