@@ -207,9 +207,19 @@ export function showFlightSummary(done) {
   if (done.error) box.append(badge(false, `${done.error} `));
   if (!s) return;
   box.append(badge(Boolean(s.completed), `completed: ${s.completed ? "yes" : "no"}`),
-    ` · goal error max ${fmt(s.goal_error_max)} m · tracking error max ${fmt(s.tracking_error_max)} m · ` +
+    ` · goal error max ${fmt(s.goal_error_max)} m · ${trackingText(s)} · ` +
     `measured min separation ${fmt(s.min_separation_measured)} m · setpoints ${fmt(s.setpoint_rate_hz, 1)} Hz, ` +
     `jitter p99 ${fmt(s.jitter_p99_ms, 2)} ms`);
+}
+
+/** The tracking error, with an abort told apart: judged up to the abort, the landing or
+ * hold after it flown off the plan on purpose.
+ * @param {any} s  a flight summary @returns {string} */
+export function trackingText(s) {
+  const tracking = `tracking error max ${fmt(s.tracking_error_max)} m`;
+  if (s.aborted_at === null || s.aborted_at === undefined) return tracking;
+  return `${tracking} up to the abort at t = ${fmt(s.aborted_at, 1)} s, ` +
+    `then ${fmt(s.after_abort_s, 1)} s aborting (off the plan on purpose)`;
 }
 
 /** Abort the flight shown and any other one under way: this button must always work. */

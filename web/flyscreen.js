@@ -9,7 +9,7 @@ import { linkLevel } from "./health.js";
 import { showFlown, showPlannedNow } from "./planview.js";
 import { drawGoalMarkers, resetReplan } from "./replan.js";
 import { fleet, flight, planning, views } from "./state.js";
-import { sampleAt } from "./tracks.js";
+import { lightAt, sampleAt } from "./tracks.js";
 
 /** The fleet's geodetic origin, if its fleet file gives one. */
 export const origin = () => (fleet.fleet && fleet.fleet.world_origin) || null;
@@ -33,12 +33,27 @@ export function drawFlyStatic() {
   drawGoalMarkers();
 }
 
-/** Where each vehicle is: the flight under way, or the replayed one at the slider's time. */
+/** Each planned vehicle's colour at plan time t: a show's light at t where the plan has a
+ * light design, else the vehicle's own colour.
+ * @param {import("./state.js").Trajectory} traj @param {number} t @returns {string[]} */
+export function coloursAt(traj, t) {
+  return traj.vehicles.map((v, i) => (v.lights ? lightAt(v.lights, t) : color(i)));
+}
+
+/** Where each vehicle is: the flight under way, or the replayed one at the slider's time
+ * (in its light's colour then, for a show). */
 function actualVehicles() {
   if (flight.replay) {
     const t = sliderTime();
+    const traj = views.traj;
+    const lit = traj ? coloursAt(traj, t) : [];
+    /** @param {string} id */
+    const colourOf = (id) => {
+      const i = traj ? traj.vehicles.findIndex((v) => v.id === id) : -1;
+      return i >= 0 ? lit[i] : colorOf(id, traj);
+    };
     return flight.replay.vehicles.map((v) => ({
-      id: v.id, color: colorOf(v.id, views.traj), position: sampleAt(v.t, v.position, t),
+      id: v.id, color: colourOf(v.id), position: sampleAt(v.t, v.position, t),
       trail: v.position.filter((_, i) => v.t[i] <= t).map((p) => [p[0], p[1]]),
     }));
   }
@@ -54,7 +69,8 @@ export function drawFlyMoving() {
   const traj = views.traj;
   if (!views.flyTf || !traj) return;
   const k = Number($("#time-slider").value);
-  const planned = traj.vehicles.map((v, i) => ({ id: v.id, color: color(i), position: v.position[k] }));
+  const lit = coloursAt(traj, traj.t[k]);
+  const planned = traj.vehicles.map((v, i) => ({ id: v.id, color: lit[i], position: v.position[k] }));
   const vehicles = actualVehicles();
   drawMoving($("#fly-view"), views.flyTf, { planned, vehicles });
   const shown = /** @type {{id: string, color: string, position: number[]}[]} */ (
@@ -82,7 +98,7 @@ export const horizon = () => (views.traj ? views.traj.t[views.traj.t.length - 1]
 export function setTime(k) {
   const traj = views.traj;
   if (!traj) return;
-  showPlannedNow(traj.vehicles.map((v) => v.position[k]));
+  showPlannedNow(traj.vehicles.map((v) => v.position[k]), coloursAt(traj, traj.t[k]));
   drawFlyMoving();
   showClock();
 }

@@ -24,10 +24,14 @@ function flightBadge(doc) {
   return span;
 }
 
-/** The flights of the mission shown, newest first.
+/** Most flights a mission's list shows (the API's largest page). */
+const FLIGHTS_LISTED = 500;
+
+/** The flights of the mission shown, newest first: summaries only, a flight's events are
+ * fetched when it is opened.
  * @param {string} missionId */
 export async function loadFlights(missionId) {
-  const { ok, data } = await api("GET", `/api/missions/${missionId}/flights`);
+  const { ok, data } = await api("GET", `/api/flights?mission_id=${encodeURIComponent(missionId)}&limit=${FLIGHTS_LISTED}`);
   const list = $("#flight-list");
   if (!ok || !planning.mission || planning.mission.id !== missionId) return;
   list.innerHTML = "";
@@ -49,6 +53,12 @@ export async function loadFlights(missionId) {
     if (e.summary && e.summary.goal_error_max !== undefined) li.append(` · goal error ${fmt(e.summary.goal_error_max, 2)} m`);
     li.title = isLive(e) ? "flying: follow it" : "reopen: summary, events, replay";
     li.addEventListener("click", () => openFlight(e.id));
+    list.appendChild(li);
+  }
+  if (data.total > flights.length) {
+    const li = document.createElement("li");
+    li.className = "muted";
+    li.textContent = `${data.total - flights.length} older flights not listed`;
     list.appendChild(li);
   }
 }

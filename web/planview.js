@@ -13,6 +13,16 @@ import { minSeparation } from "./tracks.js";
 /** @typedef {import("./state.js").Trajectory} Trajectory */
 
 const PLOT_CONFIG = { responsive: true, displaylogo: false };
+/** Top margin (px) of a captioned plot: plotly's toolbar (top right, ~25 px) in a row of its
+ * own, the caption in the row under it. */
+const CAPTIONED_TOP = 54;
+
+/** A plot's caption, left-aligned just above its plotting area, under the toolbar's row
+ * (centred at the top, the toolbar covered its end). @param {string} text */
+const caption = (text) => ({
+  text, font: { size: 13 }, x: 0, xref: "paper", xanchor: "left",
+  y: 1, yref: "paper", yanchor: "bottom", pad: { b: 8 },
+});
 const PLOTLY_URL = "/vendor/plotly.min.js";
 
 /** @type {Promise<any> | null} */
@@ -117,8 +127,8 @@ function render3d(plan, traj) {
   };
   const s = plan.scenario.limits;
   const layout = {
-    margin: { l: 0, r: 0, t: 24, b: 0 }, showlegend: !many,
-    title: { text: "trajectories (world frame, z up); rings: plan now, diamonds: flown", font: { size: 13 } },
+    margin: { l: 0, r: 0, t: CAPTIONED_TOP, b: 0 }, showlegend: !many,
+    title: caption("trajectories (world frame, z up); rings: plan now, diamonds: flown"),
     scene: {
       aspectmode: "data",
       xaxis: { title: { text: "x (m)" }, range: [s.position_min[0], s.position_max[0]] },
@@ -163,12 +173,14 @@ function scheduleMarkers() {
   });
 }
 
-/** Move the 3-D view's "planned now" markers (the trace after the vehicles' lines).
- * @param {number[][]} positions */
-export function showPlannedNow(positions) {
+/** Move the 3-D view's "planned now" markers (the trace after the vehicles' lines), each in
+ * its colour at that time (a show's lights).
+ * @param {number[][]} positions @param {string[]} colours */
+export function showPlannedNow(positions, colours) {
   const trace = scene().data?.[markers.lines];
   if (!trace) return;
   [trace.x, trace.y, trace.z] = [0, 1, 2].map((a) => positions.map((p) => p[a]));
+  trace.marker.color = colours;
   scheduleMarkers();
 }
 
@@ -230,13 +242,22 @@ function renderSummary(plan, planOk) {
   method.id = "plan-method";
   row(sol, "solver", String(plan.solver));
   row(sol, "SCP iterations", its.length ? String(its[its.length - 1].iteration) : "–");
-  row(sol, "final cost", its.length ? fmt(its[its.length - 1].cost, 2) : "–");
+  const cost = row(sol, "final cost", plan.vehicles.length ? fmt(planCost(plan), 2) : "–");
+  cost.id = "final-cost";
   row(sol, "QP solves", String(its.reduce((s, r) => s + r.qp_solves, 0)));
   row(sol, "separation rows (last)", its.length ? String(its[its.length - 1].separation_rows) : "–");
   row(sol, "planning time", `${fmt(plan.timing.total_s, 3)} s`);
   row(sol, "first QP", `${fmt(plan.timing.first_qp_s, 3)} s`);
   row(sol, "vehicles × steps", `${plan.vehicles.length} × ${plan.scenario.steps} (dt ${plan.scenario.dt} s)`
     + (plan.horizon ? ", steps chosen by the planner" : ""));
+}
+
+/** The plan's total-thrust cost sum ||a + g||² over every vehicle and step (Plan.cost), from
+ * its thrust ||a + g||: with prioritized batches the last iteration's cost is only the last
+ * batch's.
+ * @param {Plan} plan @returns {number} */
+export function planCost(plan) {
+  return plan.vehicles.reduce((sum, v) => sum + v.thrust.reduce((s, f) => s + f * f, 0), 0);
 }
 
 /** The separation plot: the plan's minimum pairwise distance against R, and the measured
@@ -261,8 +282,8 @@ export function renderSeparation(plan, traj) {
                   line: { color: "#2e7d32" } });
   }
   Plotly.react("separation-plot", traces, {
-    title: { text: `minimum pairwise separation: ${low.toFixed(3)} m (R = ${R} m)`, font: { size: 13 } },
-    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } },
+    title: caption(`minimum pairwise separation: ${low.toFixed(3)} m (R = ${R} m)`),
+    margin: { l: 50, r: 10, t: CAPTIONED_TOP, b: 40 }, xaxis: { title: { text: "t (s)" } },
     yaxis: { title: { text: "m" }, rangemode: "tozero" }, legend: { orientation: "h" },
   }, PLOT_CONFIG);
   $("#separation-plot").dataset.minimum = low;
@@ -274,8 +295,8 @@ function renderSpeed(traj) {
     (v) => v.velocity.map((u, k) => [traj.t[k], Math.hypot(u[0], u[1], u[2])]),
     (i) => ({ mode: "lines", line: { color: color(i), width: 1 } }), false);
   plotly().react("speed-plot", speeds, {
-    title: { text: "speed per vehicle", font: { size: 13 } }, showlegend: false,
-    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s" } },
+    title: caption("speed per vehicle"), showlegend: false,
+    margin: { l: 50, r: 10, t: CAPTIONED_TOP, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s" } },
   }, PLOT_CONFIG);
 }
 
@@ -290,7 +311,7 @@ function renderThrust(plan) {
     if (lim[key] !== undefined) traces.push({ x: [0, end], y: [lim[key], lim[key]], mode: "lines", name: `thrust ${label}`, line: { color: "#c62828", dash: "dot" } });
   }
   plotly().react("thrust-plot", traces, {
-    title: { text: "mass-normalised thrust per vehicle", font: { size: 13 } }, showlegend: false,
-    margin: { l: 50, r: 10, t: 30, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s²" } },
+    title: caption("mass-normalised thrust per vehicle"), showlegend: false,
+    margin: { l: 50, r: 10, t: CAPTIONED_TOP, b: 40 }, xaxis: { title: { text: "t (s)" } }, yaxis: { title: { text: "m/s²" } },
   }, PLOT_CONFIG);
 }

@@ -19,7 +19,8 @@
 /** @typedef {{id: string, name: string, status: string, plan: Plan | null, plan_ok: boolean,
  *   plan_status?: string, scenario: Scenario, error?: {field?: string, reason: string}}} Mission */
 /** @typedef {{rate: number, t: number[], vehicles: {id: string, position: number[][],
- *   velocity: number[][]}[]}} Trajectory  GET /api/missions/{id}/trajectory */
+ *   velocity: number[][], lights?: [number, number, string][]}[]}} Trajectory
+ *   GET /api/missions/{id}/trajectory (`lights`: a show's light changes) */
 /** @typedef {{t: number[], d: number[], label?: string}} SeparationSeries */
 /** @typedef {{id: string, position?: number[], velocity?: number[], fault?: string,
  *   phase?: string, heartbeat_age?: number | null, [key: string]: any}} VehicleRow */

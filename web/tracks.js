@@ -68,3 +68,19 @@ export function measuredSeparation(tracks, scale, end) {
   }
   return { t, d };
 }
+
+/** A show's light colour at time t from its changes ([start, end, "#rrggbb"] rows in time
+ * order, GET /trajectory's `lights`): dark before the first, each reached linearly over
+ * [start, end] from what showed at start.
+ * @param {[number, number, string][]} changes @param {number} t @returns {string} */
+export function lightAt(changes, t) {
+  let rgb = [0, 0, 0];
+  for (const [start, end, hex] of changes) {
+    if (t < start) break;
+    const target = [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
+    const w = t >= end ? 1 : (t - start) / (end - start);
+    rgb = rgb.map((c, a) => c + w * (target[a] - c));
+    if (t < end) break;
+  }
+  return `#${rgb.map((c) => Math.round(c).toString(16).padStart(2, "0")).join("")}`;
+}

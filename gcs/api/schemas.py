@@ -430,6 +430,10 @@ class TrajectoryVehicleOut(BaseModel):
     position: list[list[float]] = Field(description="(M, 3) positions (m), world frame ENU.")
     velocity: list[list[float]] = Field(description="(M, 3) velocities (m/s).")
     acceleration: list[list[float]] = Field(description="(M, 3) accelerations (m/s^2).")
+    lights: list[tuple[float, float, str]] | None = Field(
+        default=None, description="A show's light changes, when its plan has a light design: "
+        "[start s, end s, \"#rrggbb\"] rows in time order, the light reaching the colour "
+        "linearly over [start, end] from what it showed at start (dark before the first).")
 
 
 class TrajectoryOut(BaseModel):

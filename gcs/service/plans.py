@@ -15,13 +15,15 @@ from collections.abc import Iterator
 import numpy as np
 import orjson
 
-from gcs.errors import InvalidRequest, NotFound, StateConflict
+from gcs.errors import ExportError, InvalidRequest, NotFound, StateConflict
+from gcs.export.lights import has_lights, light_changes
 from gcs.service.limits import trajectory_sample_count
 from gcs.service.statuses import MissionStatus
 from gcs.service.store import Store
 from planner import Plan, PlanFormatError
+from planner.methods.lights import color_hex
 
-__all__ = ["PlanCache", "csv_text_field", "sample_times", "trajectory_csv",
+__all__ = ["PlanCache", "csv_text_field", "light_rows", "sample_times", "trajectory_csv",
            "trajectory_csv_chunks", "trajectory_json_chunks"]
 
 
@@ -101,8 +103,24 @@ def trajectory_json_chunks(mission_id: str, plan: Plan, rate: float, max_rows: i
     return _json_pieces(mission_id, plan, times, rate)
 
 
+def light_rows(plan: Plan) -> dict[str, list[tuple[float, float, str]]] | None:
+    """Each vehicle's light changes as (start s, end s, "#rrggbb") rows, the lights reaching
+    the colour linearly over [start, end] (`gcs.export.lights`, the changes the `.skyc`
+    writes), so the page colours each drone at any time without deriving them again. None
+    for a plan without a light design, or with one too malformed to export."""
+    if not has_lights(plan):
+        return None
+    try:
+        changes = {v.id: light_changes(plan, v.id) or [] for v in plan.vehicles}
+    except ExportError:
+        return None
+    return {vid: [(c.start, c.end, color_hex(c.color)) for c in rows]
+            for vid, rows in changes.items()}
+
+
 def _json_pieces(mission_id: str, plan: Plan, times: np.ndarray, rate: float
                  ) -> Iterator[bytes]:
+    lights = light_rows(plan)
     head = orjson.dumps({"mission_id": mission_id, "rate": rate, "frame": "world_enu"})
     yield head[:-1] + b',"t":' + orjson.dumps(times, option=orjson.OPT_SERIALIZE_NUMPY) \
         + b',"vehicles":['
@@ -113,6 +131,7 @@ def _json_pieces(mission_id: str, plan: Plan, times: np.ndarray, rate: float
             "position": np.ascontiguousarray(motion.position),
             "velocity": np.ascontiguousarray(motion.velocity),
             "acceleration": np.ascontiguousarray(motion.acceleration),
+            **({"lights": lights[vehicle.id]} if lights is not None else {}),
         }, option=orjson.OPT_SERIALIZE_NUMPY)
         yield piece if k == 0 else b"," + piece
     yield b"]}"

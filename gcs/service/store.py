@@ -33,6 +33,7 @@ from sqlalchemy import (
     select,
     update,
 )
+from sqlalchemy.dialects.postgresql import JSON as PG_JSON
 from sqlalchemy.engine import CursorResult, Engine, Result
 from sqlalchemy.orm import (
     DeclarativeBase,
@@ -42,6 +43,7 @@ from sqlalchemy.orm import (
     mapped_column,
     sessionmaker,
 )
+from sqlalchemy.sql.elements import ColumnElement
 
 from gcs.phases import current_events
 from gcs.service.statuses import FLIGHT_ACTIVE, FlightStatus, MissionStatus
@@ -158,6 +160,8 @@ class FlightRow:
     error: str | None
     has_record: bool
     record_json: str | None = None
+    event_count: int | None = None
+    """How many events are stored, when `events` were not loaded (a listed summary)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -198,8 +202,10 @@ def _mission_row(m: _Mission, *, with_plan: bool) -> MissionRow:
 
 
 def _flight_row(
-    e: _Flight, *, with_record: bool = False, has_record: bool | None = None
+    e: _Flight, *, with_record: bool = False, has_record: bool | None = None,
+    event_count: int | None = None,
 ) -> FlightRow:
+    """The row as stored; with `event_count` given its events are not read (left empty)."""
     return FlightRow(
         id=e.id,
         mission_id=e.mission_id,
@@ -208,10 +214,12 @@ def _flight_row(
         finished_at=None if e.finished_at is None else _aware(e.finished_at),
         fleet=e.fleet,
         summary=None if e.summary_json is None else json.loads(e.summary_json),
-        events=current_events(json.loads(e.events_json or "[]")),
+        events=([] if event_count is not None
+                else current_events(json.loads(e.events_json or "[]"))),
         error=e.error,
         has_record=e.record_json is not None if has_record is None else has_record,
         record_json=e.record_json if with_record else None,
+        event_count=event_count,
     )
 
 
@@ -411,19 +419,34 @@ class Store:
                 for e, has in session.execute(query)
             ]
 
-    def page_flights(self, *, limit: int, offset: int) -> tuple[list[FlightRow], int]:
-        """One page of flights, newest first (records not loaded), and the total count."""
+    def page_flights(self, *, limit: int, offset: int, mission_id: str | None = None
+                     ) -> tuple[list[FlightRow], int]:
+        """One page of flights newest first, optionally of one mission, and the total count:
+        neither records nor events are loaded (a flight's events can be megabytes), the
+        database counts the events (`event_count`)."""
         query = (
-            select(_Flight, _Flight.record_json.is_not(None))
-            .options(defer(_Flight.record_json))
+            select(_Flight, _Flight.record_json.is_not(None), self._event_count())
+            .options(defer(_Flight.record_json), defer(_Flight.events_json))
             .order_by(_Flight.created_at.desc(), _Flight.id)
             .limit(limit)
             .offset(offset)
         )
+        counted = select(func.count()).select_from(_Flight)
+        if mission_id is not None:
+            query = query.where(_Flight.mission_id == mission_id)
+            counted = counted.where(_Flight.mission_id == mission_id)
         with self._session() as session:
-            total = session.scalar(select(func.count()).select_from(_Flight)) or 0
-            rows = [_flight_row(e, has_record=bool(has)) for e, has in session.execute(query)]
+            total = session.scalar(counted) or 0
+            rows = [_flight_row(e, has_record=bool(has), event_count=int(count or 0))
+                    for e, has, count in session.execute(query)]
         return rows, int(total)
+
+    def _event_count(self) -> ColumnElement[int]:
+        """The length of a flight's stored event list, counted in SQL (PostgreSQL's JSON
+        function takes a json value, SQLite's the text)."""
+        if self.engine.dialect.name == "postgresql":
+            return func.json_array_length(_Flight.events_json.cast(PG_JSON))
+        return func.json_array_length(_Flight.events_json)
 
     def update_flight(
         self,

@@ -211,3 +211,12 @@ def test_station_loss_benchmark_lands_a_fleet_whose_columns_are_apart():
     assert run["at"] == 4.0 and run["all_down"] is True and run["samples"] > 500
     assert row["closest_m"] == run["closest_m"] >= row["R"] - 0.05
     assert row["kept_r_minus_5cm"] is True
+
+
+def test_flight_list_benchmark_lists_summaries_smaller_than_the_events():
+    report = _run("flight_list.py", "--flights", "3", "--events", "50", "--repeat", "1")
+    assert (report["flights"], report["events_per_flight"]) == (3, 50)
+    full, listed = report["mission_flights_with_events"], report["flight_summaries"]
+    assert "mission_id=" in listed["url"] and listed["bytes"] < full["bytes"]
+    assert report["cpu_ratio"] == pytest.approx(
+        full["cpu_s_median"] / max(listed["cpu_s_median"], 1e-9), rel=0.01, abs=0.1)

@@ -86,3 +86,32 @@ def test_landed_then_out_of_reach_is_told_apart_from_hovering():
         in summary["why"]
     hovering = _summary(2.0, phase="hovering")
     assert "uav2: not confirmed landed and disarmed (hovering)" in hovering["why"]
+
+
+@pytest.mark.parametrize("abort_at", [None, 4.0])
+def test_an_abort_ends_the_tracking_and_the_time_after_it_is_told_apart(abort_at):
+    """Two vehicles on their plan until t = 4 s, then straight down (an abort's landing): the
+    tracking error is the one before the abort, the landing is the time after it; without
+    the abort the same descent is a tracking error."""
+    plan = smooth_plan(line_scenario(2))
+    recorder = FlightRecorder(["uav1", "uav2"], [1, 2])
+    t = np.linspace(0.0, 8.0, 161)
+    for n, vid in enumerate(["uav1", "uav2"]):
+        rec = recorder.vehicles[vid]
+        planned = plan.vehicles[n].sample(plan.scenario.dt, np.minimum(t, 4.0)).position
+        planned[t > 4.0, 2] -= (t[t > 4.0] - 4.0) * 0.5  # down at 0.5 m/s
+        rec.tel_t, rec.tel_pos = list(t), planned.tolist()
+    if abort_at is not None:
+        recorder.event(abort_at, None, "abort", "operator abort: land all")
+    vehicles = [SimpleNamespace(id=vid, index=n, fault=None, fault_time=None,
+                                goal_error=2.0, goal_tolerance=math.nan, phase="landed",
+                                link=None, dropped=None, drop_reason=None)
+                for n, vid in enumerate(["uav1", "uav2"])]
+    summary = summarise(recorder, plan, FlightOptions(), vehicles, flight_start=0.0,
+                        now=8.0, missed_ticks=0, lateness=None, error=None)
+    if abort_at is None:
+        assert summary["tracking_error_max"] > 1.5  # the descent, 2 m below the plan
+        assert summary["aborted_at"] is None and summary["after_abort_s"] is None
+    else:
+        assert summary["tracking_error_max"] == pytest.approx(0.0, abs=1e-9)
+        assert summary["aborted_at"] == 4.0 and summary["after_abort_s"] == 4.0

@@ -83,6 +83,8 @@ def test_missions_and_flights_on_postgresql(
         assert client.get(f"/api/missions/{mission['id']}").json() == mission
         stored = client.get(execution["links"]["self"]).json()
         assert stored["status"] == "completed" and stored["summary"] == done["summary"]
+        listed = client.get("/api/flights", params={"mission_id": mission["id"]}).json()
+        assert [f["event_count"] for f in listed["flights"]] == [len(stored["events"])]
         assert client.get(execution["links"]["record"]).status_code == 200
         assert client.delete(f"/api/missions/{mission['id']}").status_code == 204
         assert client.get(execution["links"]["self"]).status_code == 404

@@ -103,8 +103,10 @@ class ShowPlan:
 
         page.route(re.compile(f".*{base}$"), mission)
         page.route(re.compile(f".*{base}/trajectory\\?.*"), trajectory)
-        page.route(re.compile(f".*{base}/flights$"), lambda route: route.fulfill(
-            status=200, content_type="application/json", body="[]"))
+        page.route(re.compile(f".*/api/flights\\?mission_id={self.mission_id}&.*"),
+                   lambda route: route.fulfill(
+                       status=200, content_type="application/json",
+                       body='{"total": 0, "limit": 500, "offset": 0, "flights": []}'))
 
 
 def show_plan(vehicles: int) -> ShowPlan:

@@ -162,6 +162,9 @@ def test_fly_screen_follows_the_flight_then_abort(
         return document.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2) === b; }""")
     expect(status).to_have_attribute("data-status", "aborted", timeout=60_000)
     expect(page.locator("#event-log")).to_contain_text("abort")
+    # The summary tells the tracking before the abort from the landing after it.
+    expect(page.locator("#flight-summary")).to_contain_text(re.compile(
+        r"tracking error max [\d.]+ m up to the abort at t = [\d.]+ s, then [\d.]+ s aborting"))
     expect(page.locator("#flight-banner")).to_have_text("")
     expect(page.locator("#flight-list li[data-id]")).to_have_count(2)
     aborted = page.locator('#flight-list li[data-status="aborted"] .status-badge.poor')

@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 import httpx
 import numpy as np
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Page, Request, expect
 
 from gcs.phases import FlightPhase
 from tests.api.support import QUICK_CROSSING, ServiceProcess
@@ -86,6 +86,12 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     wait_finished(service.base_url, flight_id)
     record = httpx.get(f"{service.base_url}/api/flights/{flight_id}/record").json()
     page.reload()
+    asked: list[str] = []
+
+    def ask(request: Request) -> None:
+        asked.append(request.url)
+
+    page.on("request", ask)
 
     entry = page.locator(f'#mission-list li[data-id="{mission_id}"]')
     expect(entry).to_contain_text("history-flight")
@@ -96,6 +102,10 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     expect(page.locator("#stale-banner")).to_be_hidden()  # the form is that mission's
     flight = page.locator(f'#flight-list li[data-id="{flight_id}"]')
     expect(flight.locator(".status-badge.good")).to_have_text("completed")
+    # Listed from summaries; the events come with the flight opened.
+    assert f"{service.base_url}/api/flights?mission_id={mission_id}&limit=500" in asked
+    assert not any(url.endswith(f"/missions/{mission_id}/flights") for url in asked)
+    page.remove_listener("request", ask)
 
     flight.click()
     expect(page.locator("#time-label")).to_contain_text(f"replay of flight {flight_id}")
@@ -137,8 +147,11 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     page.route(f"**/api/flights/{flight_id}/record", lambda route: route.fulfill(
         status=200, content_type="application/json",
         body=json.dumps({**older, "mission_start": start})))
+    page.locator("#time-slider").fill("0")
     page.locator(f'#flight-list li[data-id="{flight_id}"]').click()
-    expect(page.locator("#time-label")).to_contain_text(f"replay of flight {flight_id}")
+    # Replayed again once the slider is back at the end (where a replay starts).
+    expect(page.locator("#time-label")).to_contain_text(
+        f"replay of flight {flight_id} · t = {CROSSING_HORIZON_S:.1f} s")
     replayed_at(40)
     # The flight it replays arrived: every goal error (measured after the hold at the goals;
     # at the horizon a vehicle may still trail a stalled station) within its tolerance.

@@ -6,8 +6,19 @@ from __future__ import annotations
 import httpx
 from playwright.sync_api import Page, expect
 
+from planner import Plan
 from tests.api.support import ServiceProcess, example
-from tests.web.support import CROSSING, fill_scenario, shown_mission_id
+from tests.web.support import CROSSING, fill_scenario, plan, shown_mission_id
+
+#: Each plot's toolbar (plotly's modebar) and caption boxes, and whether they overlap.
+TOOLBAR_OVER_CAPTION = """(id) => {
+  const plot = document.getElementById(id);
+  const box = (sel) => plot.querySelector(sel)?.getBoundingClientRect();
+  const bar = box(".modebar"), cap = box(".gtitle");
+  if (!bar || !cap) return "missing";
+  return bar.left < cap.right && cap.left < bar.right && bar.top < cap.bottom
+    && cap.top < bar.bottom;
+}"""
 
 
 def test_plan_from_the_form_shows_plots_and_separation(
@@ -158,3 +169,21 @@ def test_the_method_selector_defaults_to_auto_and_the_plan_panel_names_the_metho
                         f"{shown_mission_id(page)}").json()
     assert mission["scenario"]["method"] == "prioritized"
     assert mission["plan"]["method"] == "prioritized"
+    # The plan's cost over every batch, not the last batch's (its last iteration's).
+    cost = Plan.from_dict(mission["plan"]).cost
+    assert abs(cost - mission["plan"]["iterations"][-1]["cost"]) > 1.0
+    page.wait_for_function("(cost) => Math.abs(Number(document.getElementById('final-cost')"
+                           "?.textContent) - cost) <= 0.006", arg=cost)
+
+
+def test_no_plot_toolbar_covers_its_caption_on_a_desktop_or_a_phone(page: Page) -> None:
+    """plotly's toolbar (top right) has a row of its own above each plot's caption."""
+    expect(page.locator("#vehicle-table tr.vehicle")).to_have_count(4)
+    fill_scenario(page, "browser-captions", 50, CROSSING)
+    plan(page)
+    plots = ("plot3d", "separation-plot", "speed-plot", "thrust-plot")
+    for width in (1280, 390):
+        page.set_viewport_size({"width": width, "height": 900})
+        for plot in plots:
+            page.wait_for_function(f"document.querySelector('#{plot} .gtitle') !== null")
+            assert page.evaluate(TOOLBAR_OVER_CAPTION, plot) is False, (plot, width)

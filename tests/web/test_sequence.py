@@ -56,6 +56,25 @@ def test_paste_plan_show_download_and_fly_a_sequence(page: Page, service: Servic
     expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
 
 
+def test_a_lit_sequence_draws_each_drone_in_its_light_colour_at_the_slider_s_time(
+        page: Page) -> None:
+    """Red at home, fading to blue over the leg (0.4 to 6.4 s): purple half way, in the fly
+    view's planned rings and the 3-D view's planned-now markers."""
+    lit = {**OUT, "formations": [{**OUT["formations"][0], "color": "#ff0000"},
+                                 {**OUT["formations"][1], "color": "#0000ff", "lights": "fade"}]}
+    paste(page, lit)
+    page.click("#sequence-plan")
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    ring = page.locator('#fly-view .planned-icon[data-id="a"]')
+    markers = "document.getElementById('plot3d').data.find((t) => t.name === 'planned now')"
+    for k, label, colour in [(0, "t = 0.0 s", "#ff0000"), (34, "t = 3.4 s", "#800080"),
+                             (68, "t = 6.8 s", "#0000ff")]:
+        page.locator("#time-slider").fill(str(k))
+        expect(page.locator("#time-label")).to_contain_text(label)
+        expect(ring).to_have_attribute("stroke", colour)
+        page.wait_for_function(f"{markers}?.marker.color.every((c) => c === '{colour}')")
+
+
 def test_sequence_errors_name_the_field(page: Page) -> None:
     bad = copy.deepcopy(OUT_AND_BACK)
     del bad["formations"][2]["duration"]

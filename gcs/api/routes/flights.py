@@ -260,9 +260,12 @@ class ExecutionList(_Page):
 
 
 def _document(row: FlightRow, flight: LiveFlight | None) -> dict[str, Any]:
-    """The `FlightOut` document (the service's, with its event count)."""
+    """The `FlightOut` document (the service's, with its event count: the stored count of a
+    row listed without its events, unless the flight is live)."""
     document = flight_document(row, flight)
-    document["event_count"] = len(document.get("events") or ())
+    live_events = flight is not None and (flight.active or flight.unstored is not None)
+    document["event_count"] = (row.event_count if row.event_count is not None and not live_events
+                               else len(document.get("events") or ()))
     return document
 
 
@@ -321,26 +324,32 @@ PageLimit = Annotated[int, Query(ge=1, le=500)]
 PageOffset = Annotated[int, Query(ge=0, le=1_000_000_000)]
 
 
+MissionFilter = Annotated[str | None, Query(
+    max_length=64, description="Only this mission's flights (the page lists them so).")]
+
+
 def _page(store: StoreDep, fleet: FleetDep, active: bool, limit: int,
-          offset: int) -> dict[str, Any]:
+          offset: int, mission_id: str | None = None) -> dict[str, Any]:
     """One page of flights newest first, without their events: total, limit, offset, and
     the documents under ``flights``."""
     if active:
         flight = fleet.active
         row = None if flight is None else store.get_flight(flight.id)
-        rows = [] if row is None else [row]
+        rows = [] if row is None or mission_id not in (None, row.mission_id) else [row]
         total, rows = len(rows), rows[offset:offset + limit]
     else:
-        rows, total = store.page_flights(limit=limit, offset=offset)
+        rows, total = store.page_flights(limit=limit, offset=offset, mission_id=mission_id)
     flights = [_summary(_document(r, fleet.flight(r.id))) for r in rows]
     return {"total": total, "limit": limit, "offset": offset, "flights": flights}
 
 
 @flights_router.get("", response_model=FlightList, summary="List flights")
 def list_flights(store: StoreDep, fleet: FleetDep, active: ActiveOnly = False,
-                 limit: PageLimit = 50, offset: PageOffset = 0) -> dict[str, Any]:
-    """Flights newest first, a page at a time (like missions), without their events."""
-    return _page(store, fleet, active, limit, offset)
+                 limit: PageLimit = 50, offset: PageOffset = 0,
+                 mission_id: MissionFilter = None) -> dict[str, Any]:
+    """Flights newest first, a page at a time (like missions), without their events (each
+    flight's own document has them), optionally of one mission."""
+    return _page(store, fleet, active, limit, offset, mission_id)
 
 
 @executions_router.get("", response_model=ExecutionList,

@@ -23,14 +23,16 @@ in the world frame (ENU, m) unless the key says ``_ned``. JSON layout::
                   "separation_across_switch": {"min", "at", "window"} | null}...],
      "summary": {"completed", "goal_error_max", "tracking_error_max",
                  "min_separation_measured", "setpoint_rate_hz", "jitter_p99_ms",
-                 "dropped", ...}}
+                 "aborted_at", "after_abort_s", "dropped", ...}}
 
 Format 2 adds ``replans`` (every in-flight replan, `gcs.flight.replan.replan`; a switched one with
 the plan flown from its switch tick and the separation measured across it) and the
 summary's ``dropped``; ``horizon`` is the end of the last plan flown, in flight time.
 
 `summarise` computes the summary from the recorded data: tracking errors of every position
-report during the flight against the plan at its receive time; the measured minimum
+report during the flight against the plan at its receive time, up to an abort if there was one
+(``aborted_at``, flight time; ``after_abort_s``, the time flown after it, landing or holding
+off the plan on purpose); the measured minimum
 separation (the plan's metric, diag(1/separation_scale)) from every vehicle's reports
 interpolated onto common instants at the stream rate.
 """
@@ -49,7 +51,7 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import Setpoint
 from gcs.flight.run.stream import jitter_stats
 from gcs.flight.safety.margin import MarginCheck, separation_alarm_at
-from gcs.phases import VehiclePhase
+from gcs.phases import EventKind, VehiclePhase
 from planner import Plan
 from planner.verification.verify import SEPARATION_TOLERANCE
 
@@ -267,7 +269,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     out: dict[str, Any] = {
         "completed": False, "why": [], "goal_error_max": None, "goal_tolerance": tolerance,
         "goal_tolerances": tolerances,
-        "tracking_error_max": None,
+        "tracking_error_max": None, "aborted_at": None, "after_abort_s": None,
         "min_separation_measured": None, "min_separation_planned": None,
         "min_separation_required": scenario.min_separation - scenario.separation_margin,
         "separation_alarm_at": separation_alarm_at(scenario, options.separation_alarm),
@@ -305,12 +307,20 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
                       default=math.inf)
     t1 = min(end, first_fault, now)
+    # An abort leaves the plan on purpose (a landing or a hold): the tracking is judged up to
+    # it, and the time flown after it is told apart.
+    aborted = next((e["t"] for e in recorder.events if e["kind"] == EventKind.ABORT), None)
+    tracked_until = t1 if aborted is None else min(t1, aborted)
+    if aborted is not None:
+        at = float(plan_times(np.array([aborted]), t0, pauses)[0])
+        out["aborted_at"] = round(max(0.0, at), 3)
+        out["after_abort_s"] = round(max(0.0, now - aborted), 3)
     tracking = []
     times, positions = [], []
     for v in vehicles:
         rec = recorder.vehicles[v.id]
         t, p = rec.telemetry_arrays()
-        stop = min(t1, v.fault_time if v.fault_time is not None else math.inf)
+        stop = min(tracked_until, v.fault_time if v.fault_time is not None else math.inf)
         if v.id in off_plan:
             stop = min(stop, gcs_time(off_plan[v.id], t0, pauses))
         window = (t >= t0) & (t <= stop)

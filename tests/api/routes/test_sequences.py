@@ -135,3 +135,25 @@ def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[...,
         assert done["summary"]["min_separation_measured"] > 1.0 - 0.1
         wait_for(lambda: client.get(f"/api/missions/{mission['id']}/flights").json(),
                  "the execution record", 5)
+
+
+#: OUT_AND_BACK lit: red at home, fading to blue on the way out, through black to green back.
+LIT: dict[str, Any] = {**OUT_AND_BACK, "formations": [
+    {**OUT_AND_BACK["formations"][0], "color": "#ff0000"},
+    {**OUT_AND_BACK["formations"][1], "color": "#0000ff", "lights": "fade"},
+    {**OUT_AND_BACK["formations"][2], "color": [0, 255, 0], "lights": "black"},
+]}
+
+
+def test_a_lit_sequence_s_trajectory_carries_each_drone_s_light_changes(
+        shared_client: TestClient, shared_sequence: dict[str, Any]) -> None:
+    mission = plan_sequence(shared_client, LIT)
+    trajectory = shared_client.get(f"/api/missions/{mission['id']}/trajectory?rate=5").json()
+    # Legs 0.4-6.4 s (out) and 6.8-12.8 s (back, through black at its middle).
+    expected = [[0.0, 0.0, "#ff0000"], [0.4, 6.4, "#0000ff"], [6.8, 9.8, "#000000"],
+                [9.8, 12.8, "#00ff00"]]
+    for vehicle in trajectory["vehicles"]:
+        assert [[pytest.approx(a), pytest.approx(b), c] for a, b, c in vehicle["lights"]] \
+            == expected, vehicle["id"]
+    dark = shared_client.get(f"/api/missions/{shared_sequence['id']}/trajectory?rate=5").json()
+    assert all("lights" not in v for v in dark["vehicles"])
