@@ -14,6 +14,10 @@ parameters (PARAM_REQUEST_READ) and sets:
   ground, so no vehicle descends onto one still hovering below it;
 - COM_OF_LOSS_T is kept (PX4's 1 s unless the operator chose otherwise).
 
+An ArduCopter's counterparts (`gcs.autopilot.ardupilot`): `FS_GCS_ENABLE` set to Land and
+`FS_GCS_TIMEOUT` staggered the same way; `GUID_TIMEOUT` kept. Which parameters, and what they
+mean, is the vehicle's `Autopilot`'s to say.
+
 Every value is read back from the vehicle's PARAM_VALUE; `v.failsafe` then holds what the
 vehicle does (the flight's predictions of a lost vehicle use it), and a `failsafe` event says
 it. `stacked_columns` finds where the plan puts two vehicles closer than R horizontally: a
