@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import ClassVar
 
-from gcs.autopilot.base import Autopilot, SetpointLossFailsafe
+from gcs.autopilot.base import Autopilot, SetpointLossFailsafe, read_rates
 from gcs.wire import mavlink
 
 __all__ = [
@@ -169,6 +169,11 @@ class ArduPilot(Autopilot):
     fence_enable: ClassVar[Mapping[str, tuple[str, float]]] = {"FENCE_ENABLE": ("f", 1.0)}
     failsafe_params: ClassVar[Mapping[str, str]] = {"FS_GCS_ENABLE": "f", "FS_GCS_TIMEOUT": "f",
                                           "GUID_TIMEOUT": "f"}
+    #: FS_GCS_ENABLE to Land and FS_GCS_TIMEOUT to the delay (GUID_TIMEOUT is kept).
+    failsafe_action_param = "FS_GCS_ENABLE"
+    failsafe_land = float(FS_GCS_LAND)
+    failsafe_hover = float(FS_GCS_HOLD)
+    failsafe_delay_param = "FS_GCS_TIMEOUT"
     default_failsafe = SetpointLossFailsafe(GUID_TIMEOUT_S, math.inf, "Hold",
                                             "holds its last position target")
 
@@ -199,27 +204,8 @@ class ArduPilot(Autopilot):
     def message_rates(self, position_hz: float) -> dict[int, float]:
         """What the GCS reads, by message id, in Hz: ArduCopter sends nothing else unasked
         (HEARTBEAT and STATUSTEXT always come)."""
-        m = mavlink
-        return {
-            m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
-            m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
-            m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
-            m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
-            m.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
-            m.MAVLINK_MSG_ID_BATTERY_STATUS: 0.5,
-        }
-
-    def failsafe_settings(self, values: Mapping[str, float], delay: float, *,
-                          hover: bool = False) -> dict[str, float]:
-        """FS_GCS_ENABLE to Land and FS_GCS_TIMEOUT to `delay` (GUID_TIMEOUT is kept); with
-        `hover`, FS_GCS_ENABLE 0: GUIDED holds its last position target for good."""
-        out: dict[str, float] = {}
-        action = FS_GCS_HOLD if hover else FS_GCS_LAND
-        if values["FS_GCS_ENABLE"] != action:
-            out["FS_GCS_ENABLE"] = action
-        if not math.isclose(values["FS_GCS_TIMEOUT"], delay, abs_tol=1e-3):
-            out["FS_GCS_TIMEOUT"] = delay
-        return out
+        return {**read_rates(position_hz), mavlink.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
+                mavlink.MAVLINK_MSG_ID_BATTERY_STATUS: 0.5}
 
     def failsafe(self, values: Mapping[str, float]) -> SetpointLossFailsafe:
         """Its last target flown for GUID_TIMEOUT, then held until FS_GCS_TIMEOUT after the

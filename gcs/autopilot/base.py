@@ -18,8 +18,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar, Protocol
 
+from gcs.wire import mavlink
+
 __all__ = ["BOARDING_STEPS", "Autopilot", "FlightMode", "LinkLossFailsafe",
-           "SetpointLossFailsafe"]
+           "SetpointLossFailsafe", "read_rates"]
 
 #: Every step a boarding procedure may name (`Autopilot.boarding`), run in the autopilot's
 #: order by `gcs.flight.run.boarding.prepare_vehicle`:
@@ -31,6 +33,15 @@ __all__ = ["BOARDING_STEPS", "Autopilot", "FlightMode", "LinkLossFailsafe",
 #: - ``takeoff``: MAV_CMD_NAV_TAKEOFF to the start's height, and wait until it is there;
 #: - ``climb``: stream the transfer from where it is to its start.
 BOARDING_STEPS = ("prestream", "origin", "follow", "arm", "takeoff", "climb")
+
+
+def read_rates(position_hz: float) -> dict[int, float]:
+    """The telemetry the GCS reads from every autopilot, by message id, in Hz: position at
+    `position_hz`, status, landed state and GPS at 2 Hz."""
+    return {mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
+            mavlink.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
+            mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
+            mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0}
 
 
 class FlightMode(Protocol):
@@ -145,13 +156,27 @@ class Autopilot(ABC):
         """The telemetry rates the GCS asks for (MAV_CMD_SET_MESSAGE_INTERVAL), by message
         id, in Hz (0 = off), with LOCAL_POSITION_NED at `position_hz`."""
 
-    @abstractmethod
+    #: The failsafe parameter that says what it does (set to `failsafe_land`, or to
+    #: `failsafe_hover` for a vehicle that must stay where it stopped), and the one that says
+    #: when (set to the altitude layer's delay).
+    failsafe_action_param: ClassVar[str]
+    failsafe_land: ClassVar[float]
+    failsafe_hover: ClassVar[float]
+    failsafe_delay_param: ClassVar[str]
+
     def failsafe_settings(self, values: Mapping[str, float], delay: float, *,
                           hover: bool = False) -> dict[str, float]:
-        """The failsafe parameters to set (name -> value) so that a vehicle whose parameters
-        read `values` lands `delay` s after its station is lost, or with `hover` stays
-        hovering where it stopped (its column meets another's: landing it straight down
-        would bring them closer than R)."""
+        """The failsafe parameters to set (name -> value, in the order to set them) so that a
+        vehicle whose parameters read `values` lands `delay` s after its station is lost, or
+        with `hover` stays hovering where it stopped (its column meets another's: landing it
+        straight down would bring them closer than R)."""
+        out: dict[str, float] = {}
+        action = self.failsafe_hover if hover else self.failsafe_land
+        if values[self.failsafe_action_param] != action:
+            out[self.failsafe_action_param] = action
+        if not math.isclose(values[self.failsafe_delay_param], delay, abs_tol=1e-3):
+            out[self.failsafe_delay_param] = delay
+        return out
 
     @abstractmethod
     def failsafe(self, values: Mapping[str, float]) -> LinkLossFailsafe:

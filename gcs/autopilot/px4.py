@@ -14,13 +14,12 @@ mock autopilot (`gcs.sim`) uses the same tables to speak like PX4.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import ClassVar
 
-from gcs.autopilot.base import Autopilot
+from gcs.autopilot.base import Autopilot, read_rates
 from gcs.wire import mavlink
 
 __all__ = [
@@ -229,6 +228,11 @@ class Px4(Autopilot):
     fence_enable: ClassVar[Mapping[str, tuple[str, float]]] = {}
     failsafe_params: ClassVar[Mapping[str, str]] = {"COM_OF_LOSS_T": "f", "COM_FAIL_ACT_T": "f",
                                           "COM_OBL_RC_ACT": "i"}
+    #: COM_OBL_RC_ACT to Land, COM_FAIL_ACT_T to the delay (COM_OF_LOSS_T is kept).
+    failsafe_action_param = "COM_OBL_RC_ACT"
+    failsafe_land = float(OBL_LAND)
+    failsafe_hover = float(OBL_HOLD)
+    failsafe_delay_param = "COM_FAIL_ACT_T"
     default_failsafe = OffboardLossFailsafe()
     left_alone = ("PX4's offboard-loss failsafe will land it",
                   "PX4's offboard-loss failsafe takes over")
@@ -241,26 +245,7 @@ class Px4(Autopilot):
         position at `position_hz`, status, landed state and GPS at 2 Hz, and every stream it
         never reads (`UNREAD_STREAMS`) off. HEARTBEAT is absent (PX4 refuses to change it);
         HOME_POSITION and BATTERY_STATUS (0.5/s, read) keep PX4's rate."""
-        m = mavlink
-        return {
-            m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: position_hz,
-            m.MAVLINK_MSG_ID_SYS_STATUS: 2.0,
-            m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
-            m.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,
-            **dict.fromkeys(UNREAD_STREAMS, 0.0),
-        }
-
-    def failsafe_settings(self, values: Mapping[str, float], delay: float, *,
-                          hover: bool = False) -> dict[str, float]:
-        """COM_OBL_RC_ACT to Land (Hold with `hover`), COM_FAIL_ACT_T to `delay`
-        (COM_OF_LOSS_T is kept)."""
-        out: dict[str, float] = {}
-        action = OBL_HOLD if hover else OBL_LAND
-        if values["COM_OBL_RC_ACT"] != action:
-            out["COM_OBL_RC_ACT"] = action
-        if not math.isclose(values["COM_FAIL_ACT_T"], delay, abs_tol=1e-3):
-            out["COM_FAIL_ACT_T"] = delay
-        return out
+        return {**read_rates(position_hz), **dict.fromkeys(UNREAD_STREAMS, 0.0)}
 
     def failsafe(self, values: Mapping[str, float]) -> OffboardLossFailsafe:
         return OffboardLossFailsafe(values["COM_OF_LOSS_T"], values["COM_FAIL_ACT_T"],

@@ -17,6 +17,10 @@ arming, `set_failsafe` reads its parameters (PARAM_REQUEST_READ) and sets, from 
   autopilots' default 5 s, each layer above only once the one below has had time to reach
   the ground, so no vehicle descends onto one still hovering below it.
 
+An ArduCopter's counterparts (`gcs.autopilot.ardupilot`): `FS_GCS_ENABLE` set to Land and
+`FS_GCS_TIMEOUT` staggered the same way; `GUID_TIMEOUT` kept. Which parameters, and what they
+mean, is the vehicle's `Autopilot`'s to say.
+
 Every value is read back from the vehicle's PARAM_VALUE; `v.failsafe` then holds what the
 vehicle does (the flight's predictions of a lost vehicle use it), and a `failsafe` event says
 it. A parameter that cannot be read or set refuses the flight (`FailsafeNotSet`) unless the

@@ -86,6 +86,8 @@ MODE_RETRY_FOR = 5.0
 #: LOCAL_POSITION_NED's rate asked of a vehicle that streams only when asked, unless the
 #: flight asks for another (FlightOptions.position_rate_hz).
 POSITION_HZ = 30.0
+#: Such a vehicle is asked for its streams again this often until its position comes (s).
+STREAMS_ASKED_AGAIN_S = 5.0
 _POLL_PERIOD = 0.05
 #: Requests for GPS_GLOBAL_ORIGIN before a vehicle is taken to report none (one lost
 #: datagram must not cost a flight its fence), the wait for the answer to the first (s), and
@@ -223,11 +225,15 @@ async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
     ok = await wait_running(link, ready, timeout, stalls)
     if ok:
         _choose_autopilot(link, spec)
-        if link.telemetry.position_ned is None:  # it streams only when asked
+        while link.telemetry.position_ned is None and clock() < deadline:
+            # it streams only when asked, and may miss requests while it boots (on ArduCopter
+            # SITL one vehicle of four never sent what its first requests asked for): ask
+            # again until it does
             await request_message_rates(
                 link, autopilot_of(link).message_rates(position_hz), stalls)
-            ok = await wait_running(link, lambda t: t.position_ned is not None,
-                                    max(0.0, deadline - clock()), stalls)
+            await wait_running(link, lambda t: t.position_ned is not None,
+                               min(STREAMS_ASKED_AGAIN_S, max(0.0, deadline - clock())), stalls)
+        ok = link.telemetry.position_ned is not None
     if not ok:
         dropped = drop_diagnosis(link, spec)
         if dropped and link.telemetry.heartbeat_time is None:

@@ -692,7 +692,9 @@ class FlightExecutor:
         hold = 0.0
         if v.fault == "link_lost":  # on its own failsafe: it holds first, seen from afar
             age = self.stalls.age(tel.position_time, time.monotonic())
-            hold = v.failsafe.hold_s
+            # one that holds for good (ArduCopter without its GCS failsafe) is passed by the
+            # others for the rest of the plan: its column counts for the whole plan
+            hold = min(v.failsafe.hold_s, flying.plan.scenario.horizon)
             clearance += unheard_margin(age)
         return descent_conflicts(flying.plan, v.id, position, now - flying.start, clearance,
                                  ground=float(v.home[2]), hold=hold)

@@ -1,0 +1,51 @@
+"""MAVProxy talks to the mock's ArduCopter personality as to ArduCopter: it connects, fetches
+every parameter (4.7's names), switches to GUIDED, arms and takes off with `takeoff 2`."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from gcs.autopilot import ardupilot
+from gcs.sim import MockFleet
+from gcs.sim.arducopter_params import ARDUCOPTER_PARAMS
+from tests.flight.support import mock_ports
+from tests.sim.test_mavproxy import _MavProxy
+
+pytest.importorskip("MAVProxy", reason="MAVProxy is in the test extras: make install")
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def test_mavproxy_fetches_parameters_and_takes_off_in_guided(tmp_path: Path) -> None:
+    async def main() -> None:
+        async with MockFleet(1, settle_time=0.5, autopilots=["ardupilot"],
+                             **mock_ports(1)) as mock:
+            v = mock.vehicles[0]
+            proxy = _MavProxy(f"udpin:127.0.0.1:{v.gcs_port}", tmp_path)
+            try:
+                await asyncio.to_thread(proxy.expect, "online system 1", 30.0)
+                proxy.send("param fetch")
+                await asyncio.to_thread(proxy.expect,
+                                        f"Received {len(ARDUCOPTER_PARAMS)} parameters", 30.0)
+                proxy.send("mode GUIDED")
+                await _until(lambda: v.mode == ardupilot.GUIDED, "GUIDED")
+                proxy.send("arm throttle")
+                await _until(lambda: v.armed, "armed")
+                proxy.send("takeoff 2")
+                await _until(lambda: v.in_air and -v.position_ned[2] > 1.8, "up 2 m")
+                assert v.mode == ardupilot.GUIDED
+            finally:
+                proxy.close()
+
+    async def _until(condition: Callable[[], bool], what: str) -> None:
+        deadline = time.monotonic() + 30.0  # bound: each step, on a busy machine
+        while not condition():
+            assert time.monotonic() < deadline, f"never: {what}"
+            await asyncio.sleep(0.05)
+
+    asyncio.run(main())
