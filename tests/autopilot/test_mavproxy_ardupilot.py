@@ -14,7 +14,7 @@ from gcs.autopilot import ardupilot
 from gcs.sim import MockFleet
 from gcs.sim.arducopter_params import ARDUCOPTER_PARAMS
 from tests.flight.support import mock_ports
-from tests.sim.test_mavproxy import _MavProxy
+from tests.sim.mavproxy import MavProxy as _MavProxy
 
 pytest.importorskip("MAVProxy", reason="MAVProxy is in the test extras: make install")
 
