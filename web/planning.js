@@ -124,6 +124,30 @@ function renderSequence(mission) {
   info.append(links);
 }
 
+/** The stored mission's files to keep: what each link is, its route and the name it saves as. */
+const DOWNLOADS = [
+  ["plan (JSON)", "plan", "plan-{id}.json"],
+  ["trajectory CSV, 20 Hz", "trajectory?rate=20&format=csv", "trajectory-{id}.csv"],
+  ["Skybrush show (.skyc)", "show.skyc", "show-{id}.skyc"],
+  ["validation report (HTML)", "report.html", "report-{id}.html"],
+];
+
+/** Links to the mission's plan, trajectory, show file and validation report.
+ * @param {Mission} mission */
+function renderDownloads(mission) {
+  const box = $("#plan-downloads");
+  box.innerHTML = "";
+  box.append("download: ");
+  DOWNLOADS.forEach(([label, route, name], i) => {
+    const a = document.createElement("a");
+    a.href = `/api/missions/${mission.id}/${route}`;
+    a.download = name.replace("{id}", mission.id);
+    a.dataset.download = route.split(/[?.]/)[0];
+    a.textContent = label;
+    box.append(i ? " · " : "", a);
+  });
+}
+
 /** One line of the progress log: an SCP iteration (live event or the plan's own record).
  * @param {any} r
  * @returns {HTMLLIElement} */
@@ -240,6 +264,7 @@ async function renderPlan(mission) {
   $("main").classList.add("has-plan");
   $("#plan-results").hidden = false;
   await renderFigures(plan, mission.plan_ok, traj.data, sepTraj.data);
+  renderDownloads(mission);
   renderSequence(mission);
   await nextTask();
   drawFlyStatic();
