@@ -2,7 +2,10 @@
 // Bring your own: a scenario, a formation sequence or a plan made elsewhere (`fleetplan plan`),
 // pasted, chosen or dropped as JSON into one box; what kind of document it is, said before it
 // is sent. The service takes all three at POST /api/missions (a plan is verified again there).
+// A show tool's file (.skyc, or a ZIP of Skybrush CSVs) is read by the service into a sequence.
+import { api, errorsOf } from "./api.js";
 import { $ } from "./dom.js";
+import { errorItem } from "./fielderrors.js";
 import { refreshStale } from "./flygate.js";
 
 /** @typedef {"plan" | "sequence" | "scenario"} DocumentKind */
@@ -49,11 +52,47 @@ export function describeBox() {
   line.textContent = kind ? `a ${kind}${count}: ${DOES[kind]}` : "";
 }
 
-/** A file's text into the box, the box opened.
+/** A show tool's file: a Skybrush compiled show or a ZIP of its per-drone CSV files, which
+ * the service reads (POST /api/imports) into a formation sequence. */
+const SHOW_FILE = /\.(skyc|zip)$/i;
+
+/** A file's bytes in base64, as POST /api/imports takes them.
+ * @param {File} file
+ * @returns {Promise<string>} */
+function base64Of(file) {
+  return new Promise((resolve, reject) => {
+    const reader = new FileReader();
+    reader.onload = () => resolve(String(reader.result).replace(/^data:[^,]*,/, ""));
+    reader.onerror = () => reject(reader.error);
+    reader.readAsDataURL(file);
+  });
+}
+
+/** A show file's formation sequence from the service, or null with its errors listed under
+ * the box (each naming the file, line and column the service found wrong).
+ * @param {File} file
+ * @returns {Promise<string | null>} */
+async function importedSequence(file) {
+  const box = $("#sequence-error");
+  box.innerHTML = "";
+  $("#sequence-kind").textContent = `reading ${file.name}…`;
+  const { ok, status, data } = await api("POST", "/api/imports",
+    { file: await base64Of(file), filename: file.name });
+  if (ok) return JSON.stringify(data, null, 2);
+  $("#sequence-kind").textContent = "";
+  box.append(errorItem("file", `${file.name} was not imported (${status})`));
+  for (const e of errorsOf(data)) box.append(errorItem(e.field || "", e.reason));
+  return null;
+}
+
+/** A file into the box, the box opened: JSON as it is, a show file as the sequence the
+ * service reads from it.
  * @param {File} file */
 async function loadFile(file) {
-  $("#sequence-json").value = await file.text();
   $("#sequence-panel").open = true;
+  const text = SHOW_FILE.test(file.name) ? await importedSequence(file) : await file.text();
+  if (text === null) return;
+  $("#sequence-json").value = text;
   describeBox();
   refreshStale();
 }
