@@ -1,6 +1,7 @@
 // @ts-check
 // The fleet table: one row per vehicle, the flight's telemetry (5 per second) merged with
-// GET /api/vehicles (link, mode, battery, GPS, health), and per-vehicle command buttons.
+// GET /api/vehicles (link, mode, battery, GPS, health), the newer winning, and per-vehicle
+// command buttons.
 import { FLEET_CHANGED, REPLAN_CHANGED, on } from "./bus.js";
 import { vehicleCommand } from "./commands.js";
 import { $, colorOf } from "./dom.js";
@@ -26,13 +27,26 @@ function autopilotCell(a) {
  * the others up to this many, and says how many are not listed. */
 export const TABLE_ROWS_MAX = 100;
 
+/** Each vehicle's row from the flight's telemetry (phase, fault, tracking) and GET
+ * /api/vehicles (link, battery, GPS, health), the newer source's fields winning where both
+ * report one (mode, armed, position): a poll asked before the flight's last snapshot never
+ * undoes it. After a flight its last snapshot (the fleet as the flight left it) stays until
+ * a newer poll answers.
+ * @returns {VehicleRow[]} */
+function tableRows() {
+  const live = flight.live;
+  const polledNewer = fleet.vehiclesAt > flight.liveAt;
+  if (!live || (!flight.active && polledNewer)) return fleet.vehicles;
+  const byId = new Map(fleet.vehicles.map((v) => [v.id, v]));
+  return live.vehicles.map((v) => {
+    const polled = byId.get(v.id) || {};
+    return polledNewer ? { ...v, ...polled } : { ...polled, ...v };
+  });
+}
+
 /** Redraw the table from the fleet and the flight under way. */
 export function showVehicleTable() {
-  const byId = new Map(fleet.vehicles.map((v) => [v.id, v]));
-  /** @type {VehicleRow[]} */
-  const rows = flight.live && flight.active
-    ? flight.live.vehicles.map((v) => ({ ...(byId.get(v.id) || {}), ...v }))
-    : fleet.vehicles;
+  const rows = tableRows();
   // The autopilot column only where the fleet mixes autopilots (each row's vehicle cell names
   // its autopilot in its title either way), so a uniform fleet's table keeps its width.
   const mixed = new Set(rows.map((v) => v.autopilot).filter((a) => typeof a === "string")).size > 1;

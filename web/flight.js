@@ -139,6 +139,7 @@ export function setFlightStatus(status, good) {
  * @param {Telemetry} t */
 function showTelemetry(t) {
   flight.live = t;
+  flight.liveAt = performance.now();
   replanTelemetry(t);
   for (const v of t.vehicles) {
     if (!v.position) continue;

@@ -100,15 +100,17 @@ export const flight = {
   commandPending: false,// a pause or resume request is on its way
   stream: null,         // EventSource of the flight telemetry
   live: null,           // last telemetry snapshot of the flight under way
+  liveAt: 0,            // when it arrived (performance.now(), ms)
   trails: {},           // id -> [[x, y]...] live positions so far
   drawPending: false,   // a frame is requested to draw the last snapshot
   replay: null,         // the finished flight replayed
 };
 
 /** The fleet: GET /api/vehicles and the control endpoints this service has.
- * @type {{vehicles: VehicleRow[], fleet: Fleet | null, caps: Capabilities}} */
+ * @type {{vehicles: VehicleRow[], vehiclesAt: number, fleet: Fleet | null, caps: Capabilities}} */
 export const fleet = {
   vehicles: [],
+  vehiclesAt: 0,  // when the answer shown was asked for (performance.now(), ms)
   fleet: null,
   caps: { pause: false, resume: false, replan: false, fleetCommands: false, vehicleCommands: false },
 };

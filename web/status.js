@@ -13,9 +13,11 @@ import { fleet, flight, service } from "./state.js";
 
 /** GET /api/vehicles into the fleet table (and a flight under way found). */
 export async function refreshVehicles() {
+  const asked = performance.now();  // the answer is at most as new as the question
   const { ok, data } = await api("GET", "/api/vehicles");
   if (!ok) return;
   fleet.vehicles = data.vehicles;
+  fleet.vehiclesAt = asked;
   const hadOrigin = Boolean(origin());
   fleet.fleet = { ...(fleet.fleet || {}), ...data.fleet };
   if (Boolean(origin()) !== hadOrigin) drawFlyStatic();

@@ -364,6 +364,12 @@ class FleetService:
             for task in (ticker, mirror):
                 if task is not None:
                     task.cancel()
+            # The fleet as the flight left it (the vehicle process posts it as the flight
+            # ends), before the record is stored: the stream's last telemetry follows its
+            # last events, so no vehicle is left shown "armed / landing" after it disarmed.
+            final = flight.snapshot()
+            if final is not None:
+                flight.publish("telemetry", final)
             if record is None and flight.handle is not None:
                 record = flight.handle.record
             if record is not None and flight.summary is None:
