@@ -79,7 +79,7 @@ async function importedSequence(file) {
   const { ok, status, data } = await api("POST", "/api/imports",
     { file: await base64Of(file), filename: file.name });
   if (ok) return JSON.stringify(data, null, 2);
-  $("#sequence-kind").textContent = "";
+  describeBox();  // the box keeps what it held
   box.append(errorItem("file", `${file.name} was not imported (${status})`));
   for (const e of errorsOf(data)) box.append(errorItem(e.field || "", e.reason));
   return null;

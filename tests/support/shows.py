@@ -14,11 +14,14 @@ from fastapi.testclient import TestClient
 
 from gcs.export.lightcode import colors_at
 from gcs.export.lights import light_changes
+from gcs.export.skyc import write_skyc
+from gcs.show.design import read_design
+from gcs.show.to_sequence import to_sequence
 from planner import Plan
 from planner.families.generators import show_sequence
 
 __all__ = ["BLUE", "FLEET_HOMES", "GRID", "csv_zip", "fleet_dict", "ground_show", "light_design",
-           "post_sequence", "slot_colors"]
+           "post_sequence", "skyc_import", "slot_colors"]
 
 #: A 3 x 3 ground grid 2 m apart in x and 0.8 m in y (tighter than R = 1 m in y).
 GRID = {"origin": [-2.0, -2.0], "columns": 3, "rows": 3, "spacing": [2.0, 0.8]}
@@ -70,6 +73,15 @@ def csv_zip(plan: Plan, path: Path, rate: float = 25.0) -> Path:
                 for t, (x, y, z), (r, g, b) in zip(times, sampled[n], rgb, strict=True)]
             archive.writestr(f"{track.id}.csv", "\n".join(rows) + "\n")
     return path
+
+
+def skyc_import(plan: Plan, path: Path) -> dict[str, Any]:
+    """The plan written as a `.skyc` at `path`, and the sequence `fleetplan import` (and
+    POST /api/imports, with the default options) reads from it."""
+    write_skyc(plan, path)
+    design = read_design(path)
+    return to_sequence(design.tracks, name=design.title, file=path.name,
+                       validation=design.validation)
 
 
 def fleet_dict(ids: list[str], homes: list[list[float]]) -> dict[str, Any]:

@@ -13,12 +13,9 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Page, expect
 
-from gcs.export.skyc import write_skyc
-from gcs.show.design import read_design
-from gcs.show.to_sequence import to_sequence
 from planner import Plan
 from planner.methods.sequence import plan_sequence
-from tests.support.shows import csv_zip, ground_show
+from tests.support.shows import csv_zip, ground_show, skyc_import
 
 
 @pytest.fixture(scope="module")
@@ -39,10 +36,7 @@ def _box(page: Page) -> dict:
 def test_a_chosen_skyc_fills_the_box_with_its_sequence(
         page: Page, show: Plan, tmp_path: Path) -> None:
     skyc = tmp_path / "show.skyc"
-    write_skyc(show, skyc)
-    design = read_design(skyc)
-    expected = to_sequence(design.tracks, name=design.title, file=skyc.name,
-                           validation=design.validation)
+    expected = skyc_import(show, skyc)
     page.click("#sequence-panel summary")
     page.set_input_files("#sequence-file", str(skyc))
     sequence = _box(page)
@@ -79,3 +73,4 @@ def test_a_dropped_csv_zip_fills_the_box_and_a_bad_one_is_named(
     expect(errors).to_contain_text("bad.zip was not imported (422)")
     expect(errors).to_contain_text("x [m]: bad.zip:a.csv, line 3: 'nan' is not a finite number")
     assert json.loads(page.input_value("#sequence-json")) == sequence  # the box is kept
+    expect(page.locator("#sequence-kind")).to_contain_text("a sequence, 9 vehicles")

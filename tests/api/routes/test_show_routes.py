@@ -16,15 +16,12 @@ from fastapi.testclient import TestClient
 
 from gcs.api import create_app
 from gcs.api.routes import shows
-from gcs.export.skyc import write_skyc
 from gcs.service.settings import Settings
-from gcs.show.design import read_design
-from gcs.show.to_sequence import to_sequence
 from planner import Plan
 from planner.methods.sequence import plan_sequence
 from tests.support.shows import csv_zip as _csv_zip
 from tests.support.shows import ground_show as _show
-from tests.support.shows import post_sequence
+from tests.support.shows import post_sequence, skyc_import
 
 
 def _lit_show() -> dict:
@@ -73,10 +70,7 @@ def _upload(client: TestClient, data: bytes, **options: object):
 def test_an_uploaded_skyc_or_csv_zip_is_the_sequence_import_writes(
         ground_show: Plan, client: TestClient, tmp_path: Path) -> None:
     skyc = tmp_path / "show.skyc"
-    write_skyc(ground_show, skyc)
-    design = read_design(skyc)
-    expected = to_sequence(design.tracks, name=design.title, file=skyc.name,
-                           validation=design.validation)
+    expected = skyc_import(ground_show, skyc)
     response = _upload(client, skyc.read_bytes(), filename="show.skyc")
     assert response.status_code == 200, response.text
     assert response.json() == expected
