@@ -6,7 +6,14 @@ poll answers."""
 
 from __future__ import annotations
 
-from playwright.sync_api import Page
+import json
+import re
+from collections.abc import Callable
+
+import httpx
+from playwright.sync_api import Page, Route, expect
+
+from tests.web.support import CROSSING, CROSSING_STEPS, fill_scenario, plan
 
 # Run in one task, so that no poll of the page's own lands between the state set and the
 # table read: the `armed` and `phase` cells of vehicle a for each case.
@@ -55,3 +62,40 @@ def test_the_newer_of_telemetry_and_poll_wins_in_the_fleet_table(page: Page) -> 
         "ended": ["no", "landed"],
         "afterPoll": ["armed", "idle"],
     }
+
+
+def test_after_a_flight_the_table_shows_the_fleet_landed_not_an_older_poll(
+        open_page: Callable[..., Page]) -> None:
+    """A real flight on the mocks whose last fleet poll answered mid-flight (every vehicle
+    armed) and no later poll answers: as the flight ends the table shows every vehicle
+    disarmed and landed, from the stream's last telemetry."""
+    state: dict[str, bool] = {"flying": False, "answered": False}
+    held: list[Route] = []
+
+    def vehicles(route: Route) -> None:
+        if state["answered"]:
+            held.append(route)  # unanswered: no poll newer than the flight's last snapshot
+            return
+        answer = httpx.get(route.request.url, timeout=30).json()
+        if state["flying"]:
+            for v in answer["vehicles"]:
+                v.update(armed=True, mode="OFFBOARD")
+            state["answered"] = True
+        route.fulfill(status=200, content_type="application/json", body=json.dumps(answer))
+
+    page = open_page(before=lambda p: p.route(re.compile(r".*/api/vehicles$"), vehicles))
+    fill_scenario(page, "browser-table", CROSSING_STEPS, CROSSING)
+    plan(page)
+    page.click("#fly-button")
+    status = page.locator("#flight-status")
+    expect(status).to_have_attribute("data-status", "running", timeout=30_000)
+    state["flying"] = True
+    expect(status).to_have_attribute("data-status", "completed", timeout=90_000)
+    assert state["answered"]  # the flight outlasted a poll: the table had a mid-flight one
+    cells = page.evaluate("""() => Array.from(document.querySelectorAll(
+        "#vehicle-state tbody tr[data-id]"), (tr) => [
+        tr.querySelector('td[data-key="armed"]').textContent,
+        tr.querySelector('td[data-key="phase"]').textContent])""")
+    assert cells == [["no", "landed"]] * len(CROSSING)
+    for route in held:
+        route.abort()
