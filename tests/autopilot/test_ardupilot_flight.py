@@ -11,11 +11,13 @@ import pytest
 
 from gcs.autopilot import ardupilot, px4
 from gcs.errors import FlightAborted
-from gcs.fleet.fleetfile import FleetSpec, FlightOptions
+from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.run.executor import FlightExecutor
 from gcs.phases import EventKind
-from gcs.sim import MockFleet, homes_under
-from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
+from gcs.sim import MockFleet
+from tests.flight.flying import fly_on_mocks
+from tests.flight.support import QUICK, short_line, smooth_plan
+from tests.support.waiting import until
 
 pytestmark = [pytest.mark.timeout(120), pytest.mark.flight]
 
@@ -23,27 +25,9 @@ pytestmark = [pytest.mark.timeout(120), pytest.mark.flight]
 async def _fly(count: int, autopilots: list[str], options: FlightOptions = QUICK,
                during: Any = None, steps: int = 15, **fleet_extra: Any
                ) -> tuple[FlightExecutor, Any, MockFleet]:
-    plan = smooth_plan(short_line(count, steps=steps))
-    homes = homes_under(plan.scenario.starts)
-    async with MockFleet(homes=homes, settle_time=1.0, autopilots=autopilots,
-                         **mock_ports(count), **FAST_MOCK) as mock:
-        fleet = FleetSpec.from_dict({**mock.fleet_dict(plan.scenario.ids), **fleet_extra})
-        flight = FlightExecutor(plan, fleet, options)
-        task = flight.start()
-        if during is not None:
-            await during(flight, mock)
-        try:
-            outcome = await task
-        except Exception as exc:
-            outcome = exc
-        return flight, outcome, mock
-
-
-async def _until(check: Any, what: str, timeout: float = 30.0) -> None:
-    deadline = asyncio.get_running_loop().time() + timeout
-    while not check():
-        assert asyncio.get_running_loop().time() < deadline, what
-        await asyncio.sleep(0.02)
+    """A short line flown on `count` mock vehicles of these `autopilots`."""
+    return await fly_on_mocks(smooth_plan(short_line(count, steps=steps)), options, settle=1.0,
+                              during=during, fleet_extra=fleet_extra, autopilots=autopilots)
 
 
 def _events(record: dict[str, Any], vehicle: str, kind: str) -> list[str]:
@@ -96,7 +80,7 @@ def test_pause_holds_a_guided_fleet_on_one_target_then_resumes() -> None:
     seen: dict[str, float] = {}
 
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        await _until(lambda: (flight.flight_time() or 0.0) > 1.0, "flying")
+        await until(lambda: (flight.flight_time() or 0.0) > 1.0, "flying")
         seen["t"] = flight.pause()
         await asyncio.sleep(2.0)
         before = np.stack([v.position_world for v in mock.vehicles])
@@ -121,7 +105,7 @@ def test_hold_at_the_end_brakes_and_an_abort_lands() -> None:
     assert any(e["detail"] == "holding (ArduPilot BRAKE)" for e in record["events"])
 
     async def abort(flight: FlightExecutor, mock: MockFleet) -> None:
-        await _until(lambda: (flight.flight_time() or 0.0) > 0.5, "flying")
+        await until(lambda: (flight.flight_time() or 0.0) > 0.5, "flying")
         await flight.abort("land")
 
     _flight, outcome, mock = asyncio.run(_fly(1, ["ardupilot"], during=abort))

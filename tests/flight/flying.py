@@ -38,15 +38,16 @@ FAST = QUICK
 async def fly_on_mocks(plan: Plan, options: FlightOptions = FAST, *, settle: float = 0.5,
                        configure: Callable[[MockFleet], None] | None = None,
                        during: Callable[[FlightExecutor, MockFleet], Awaitable[Any]] | None = None,
+                       fleet_extra: dict[str, Any] | None = None,
                        **mock_kw: Any) -> tuple[FlightExecutor, Any, MockFleet]:
-    """Fly `plan` on mock vehicles below its starts; returns (flight, record or exception,
-    mock)."""
+    """Fly `plan` on mock vehicles below its starts (`fleet_extra`: top-level keys added to
+    their fleet file); returns (flight, record or exception, mock)."""
     homes = homes_under(plan.scenario.starts)
     async with MockFleet(homes=homes, settle_time=settle, **mock_ports(len(homes)),
                          **{**FAST_MOCK, **mock_kw}) as mock:
         if configure is not None:
             configure(mock)
-        fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
+        fleet = FleetSpec.from_dict({**mock.fleet_dict(plan.scenario.ids), **(fleet_extra or {})})
         flight = FlightExecutor(plan, fleet, options)
         task = flight.start()
         if during is not None:
