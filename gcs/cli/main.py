@@ -17,7 +17,8 @@ __all__ = ["build_parser", "main"]
 #: (subcommand, module, one-line help)
 COMMANDS: tuple[tuple[str, str, str], ...] = (
     ("plan", "gcs.cli.plan_cmd", "plan collision-free trajectories for a scenario"),
-    ("fly", "gcs.cli.fly_cmd", "fly a plan on PX4 vehicles (or mock ones) and record it"),
+    ("fly", "gcs.cli.fly_cmd", "fly a plan on PX4 or ArduPilot vehicles (or mock ones) and "
+     "record it"),
     ("replan", "gcs.cli.replan_cmd", "change goals or drop vehicles of a running `fleetplan fly "
      "--control`"),
     ("export", "gcs.cli.export_cmd", "write a plan as a show file (Skybrush .skyc)"),
@@ -26,7 +27,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = (
      "formation sequence"),
     ("fleet", "gcs.cli.fleet_cmd", "command vehicles between flights: hold, land, rtl, disarm, "
      "terminate"),
-    ("mock", "gcs.cli.mock_cmd", "run PX4-like mock vehicles (PX4 SITL's ports)"),
+    ("mock", "gcs.cli.mock_cmd", "run mock vehicles, PX4 or ArduCopter (on PX4 SITL's ports)"),
     ("serve", "gcs.cli.serve_cmd", "serve the REST API and browser page (mock or real fleet)"),
     ("keys", "gcs.cli.keys_cmd", "make MAVLink 2 signing key files"),
 )
