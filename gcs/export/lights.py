@@ -7,7 +7,7 @@ second formation on `lights`, how the leg that reaches it changes them ("fade", 
 `end_s`) say when. A drone shows formation 0's colour from time 0; on each leg it fades to
 the next colour over the leg, holds its colour and switches on arrival, or fades out over the
 first half and in over the second; holds keep the colour. A plan without a design has no
-light changes (None): its drones stay dark, as before lights existed.
+light changes (None): its drones stay dark (each program is a single END).
 """
 
 from __future__ import annotations

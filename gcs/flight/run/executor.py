@@ -442,7 +442,7 @@ class FlightExecutor:
                                   else FlightPhase.FAILED)
                     self._emit(None, EventKind.ERROR, f"{type(exc).__name__}: {exc}")
                     if self._abort is None:  # the landing an error starts is the abort in
-                        # force: a hold loses to it, and the clock no longer waits on a pause
+                        # force: a hold loses to it, and the clock does not wait on a pause
                         self._abort = ("hold" if self.take_over else "land",
                                        f"{type(exc).__name__}: {exc}")
                         self._end_pause()
