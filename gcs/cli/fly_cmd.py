@@ -74,7 +74,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              f"taken and neither port flag is given, free ones are chosen)")
     parser.add_argument("--listen-base-port", type=int, default=None,
                         help=f"--mock: vehicle i listens on this port + i (default "
-                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}, as --base-port)")
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}, as --base-port; a fleet of more "
+                             f"than {px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT}"
+                             " vehicles: right after the --base-port block)")
     parser.add_argument("--mock-settle", type=float, default=None,
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
@@ -370,18 +372,19 @@ def _print_summary(record: dict[str, Any]) -> None:
 def _mock_ports(base: int | None, listen: int | None, count: int) -> tuple[int, int]:
     """The mock fleet's (GCS-side base, vehicle listen base): the flags given; else PX4
     SITL's ports when all `count` of each are free; else a free block elsewhere, said on
-    stdout (the usual ports are held by `make run`, another fly or a mock)."""
+    stdout (the usual ports are held by `make run`, another fly or a mock). A fleet larger
+    than PX4 SITL's layout holds listens right after its GCS block (`gcs.sim.ports`)."""
     from gcs.sim import ports
 
-    if base is not None or listen is not None:
-        return (px4.OFFBOARD_GCS_BASE_PORT if base is None else base,
-                px4.OFFBOARD_VEHICLE_BASE_PORT if listen is None else listen)
     usual = px4.OFFBOARD_GCS_BASE_PORT
+    usual_listen = usual + ports.listen_offset(count)
+    if base is not None or listen is not None:
+        return (usual if base is None else base, usual_listen if listen is None else listen)
     offsets = ports.mock_port_offsets(count)
     if ports.block_free(usual, offsets):
-        return usual, px4.OFFBOARD_VEHICLE_BASE_PORT
+        return usual, usual_listen
     chosen = ports.free_udp_base(offsets)
-    print(f"ports {usual}.. and {px4.OFFBOARD_VEHICLE_BASE_PORT}.. are taken (by `make run`, "
+    print(f"ports {usual}.. and {usual_listen}.. are taken (by `make run`, "
           f"fleetplan serve, another fly or a mock?): the mock fleet flies on {chosen}.. and "
-          f"{chosen + ports.LISTEN_OFFSET}.. instead", flush=True)
-    return chosen, chosen + ports.LISTEN_OFFSET
+          f"{chosen + ports.listen_offset(count)}.. instead", flush=True)
+    return chosen, chosen + ports.listen_offset(count)
