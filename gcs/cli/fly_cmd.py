@@ -74,9 +74,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              f"taken and neither port flag is given, free ones are chosen)")
     parser.add_argument("--listen-base-port", type=int, default=None,
                         help=f"--mock: vehicle i listens on this port + i (default "
-                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}, as --base-port; a fleet of more "
-                             f"than {px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT}"
-                             " vehicles: right after the --base-port block)")
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}, as --base-port; a fleet of N > "
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT}: "
+                             f"{px4.OFFBOARD_GCS_BASE_PORT} + N, past its GCS ports)")
     parser.add_argument("--mock-settle", type=float, default=None,
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
