@@ -378,7 +378,7 @@ def _mock_ports(base: int | None, listen: int | None, count: int) -> tuple[int, 
     """The mock fleet's (GCS-side base, vehicle listen base): the flags given; else PX4
     SITL's ports when all `count` of each are free; else a free block elsewhere, said on
     stdout (the usual ports are held by `make run`, another fly or a mock). A fleet larger
-    than PX4 SITL's layout holds listens right after its GCS block (`gcs.sim.ports`)."""
+    than PX4 SITL's layout holds listens past its own GCS ports (`gcs.sim.ports`)."""
     from gcs.sim import ports
 
     usual = px4.OFFBOARD_GCS_BASE_PORT

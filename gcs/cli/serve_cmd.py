@@ -227,7 +227,7 @@ def run(args: argparse.Namespace) -> int:
         if settings.fleet_file
         else f"{settings.mock_vehicles} mock vehicles" + (
             f", more as a plan needs them up to {settings.mock_fleet_limit}"
-            if settings.mock_max_vehicles > settings.mock_vehicles else "")
+            if settings.mock_fleet_grows else "")
     )
     host = f"[{settings.host}]" if ":" in settings.host else settings.host
     print(f"fleetplan: serving on http://{host}:{settings.port}/ ({fleet}, "

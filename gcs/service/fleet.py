@@ -316,7 +316,7 @@ class Fleet:
         mock_max_vehicles); None for a fleet that keeps its size (a fixed mock fleet, a fleet
         file, none)."""
         settings = self._settings
-        grows = self.kind == "mock" and settings.mock_max_vehicles > settings.mock_vehicles
+        grows = self.kind == "mock" and settings.mock_fleet_grows
         return settings.mock_fleet_limit if grows else None
 
     def _preflight(self, spec: FleetSpec, ids: list[str], options: FlightOptions) -> None:

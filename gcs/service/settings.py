@@ -320,6 +320,12 @@ class Settings(BaseSettings):
         and never has fewer than the `mock_vehicles` it starts with."""
         return max(self.mock_vehicles, self.mock_max_vehicles)
 
+    @property
+    def mock_fleet_grows(self) -> bool:
+        """Mock vehicles are added as plans need them (`--mock auto`), rather than the fleet
+        keeping the `mock_vehicles` it starts with (`--mock N`)."""
+        return 0 < self.mock_vehicles < self.mock_max_vehicles
+
     @model_validator(mode="after")
     def _fleet_file_exists(self) -> Settings:
         if self.fleet_file is not None and not self.fleet_file.is_file():
