@@ -45,9 +45,8 @@ class DaskEngine:
         self._topic = f"fleetplan-progress-{uuid.uuid4().hex[:12]}"
         self.workers = workers
         """Worker processes planning (known once started)."""
-        self.restarts = 0
-        """Worker restarts this engine has asked for (`restart_workers`): a task that dies
-        with its worker while this count moved was killed by the service, not by its plan."""
+        self._restarts_begun = 0
+        self._restarts_done = 0
 
     @property
     def started(self) -> bool:
@@ -165,11 +164,24 @@ class DaskEngine:
         client = self._client
         if client is None:
             return
-        self.restarts += 1
+        self._restarts_begun += 1
         try:
             await client.restart_workers(workers, timeout=60, raise_for_error=False)
         except Exception:  # not restartable (no nanny): the task runs on, results dropped
             log.exception("could not restart worker(s) %s", workers)
+        finally:
+            self._restarts_done += 1
+
+    def restart_mark(self) -> tuple[int, int]:
+        """Where the engine's worker restarts stand now (restarts begun, restarts done)."""
+        return self._restarts_begun, self._restarts_done
+
+    def restarted_since(self, mark: tuple[int, int]) -> bool:
+        """Did a worker restart of this engine's run at some time after `mark` (one under way
+        then, or one begun since)? A task that died with its worker meanwhile may have been
+        killed by the service's own restart rather than by its plan."""
+        begun, done = mark
+        return self._restarts_begun != begun or done < begun
 
 
 def _executing_keys(prefix: str, dask_worker: Any = None) -> list[str]:

@@ -163,7 +163,7 @@ class JobRunner:
         for attempt in range(RESTART_RESUBMITS + 1):
             if job.stop_reason is not None:  # cancelled while waiting for a slot or a retry
                 return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
-            restarts = self._engine.restarts
+            mark = self._engine.restart_mark()
             future, legs = self._engine.submit(job, scenario, attempt)
             job.future = future
             try:
@@ -173,7 +173,7 @@ class JobRunner:
                 if job.stop_reason is not None:  # the worker was restarted to stop it
                     return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
                 name = type(exc).__name__
-                if (name == "KilledWorker" and self._engine.restarts != restarts
+                if (name == "KilledWorker" and self._engine.restarted_since(mark)
                         and attempt < RESTART_RESUBMITS):
                     # Queued on a worker the service restarted to stop another job's task:
                     # not this plan's doing, so it goes to the workers again.
