@@ -1,6 +1,7 @@
 """Fly beside a mock fleet that grows to the plan (`serve --mock auto`): the mocks to be added
 are said and Fly is enabled; past the fleet's limit, Fly names the setting to raise. The
-shared service's fleet is fixed (`--mock 4`): its answers are given a `grows_to` here."""
+shared service's fleet is fixed (`--mock 4`): its answers are given a `grows_to` here. The
+generated random preset's starts are R apart in x-y, so the mocks can climb to them."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import Any
 
 from playwright.sync_api import Page, Route, expect
 
+from gcs.sim import climb_clash
 from tests.web.support import plan
 
 #: What the fleet's answers (GET /api/vehicles, /api/status) are changed to, read per answer.
@@ -60,3 +62,14 @@ def test_fly_says_the_mocks_added_for_the_plan_and_the_limit_past_it(
         "(fleetplan serve --fleet FLEET.json)", timeout=10_000)
     expect(page.locator("#mapping-missing")).to_contain_text("not in the fleet: extra")
     expect(page.locator("#fly-button")).to_be_disabled()
+
+
+def test_a_generated_random_fleet_can_climb_to_its_starts(page: Page) -> None:
+    scenarios = page.evaluate("""async () => {
+        const { randomScenario } = await import("/presets.js");
+        return [randomScenario(128), randomScenario(40)];
+    }""")
+    for scenario in scenarios:
+        starts = [v["start"] for v in scenario["vehicles"]]
+        ids = [v["id"] for v in scenario["vehicles"]]
+        assert climb_clash(starts, ids, scenario["min_separation"]) is None
