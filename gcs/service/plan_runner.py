@@ -7,7 +7,7 @@ cancellation and the large-job slots enforced on the way.
 - A stop sets the job's cancel flag (the task ends after its current iteration); a task still
   running `grace_s` later is stopped by restarting its worker (Nanny restart). Another job's
   task queued on that worker dies with it; it is submitted again (`RESTART_RESUBMITS`), so a
-  plan posted just after a cancel never fails for it.
+  plan posted just after a cancel does not fail for it.
 - The plan text is stored (in a thread) before the job is marked done, so a client told
   "done" always finds the plan in the database. A plan the store refuses leaves the mission
   `failed` with that reason; if even that write fails, it is retried until it succeeds, so no

@@ -81,7 +81,8 @@ def climb_clash(starts: ArrayLike, ids: Sequence[str], clearance: float) -> str 
     if not len(pairs):
         return None
     i, j = pairs[int(np.argmin(gaps))]
-    more = f" (and {len(pairs) - 1} more pairs)" if len(pairs) > 1 else ""
+    others = len(pairs) - 1
+    more = f" (and {others} more pair{'s' if others > 1 else ''})" if others else ""
     return (f"{ids[i]} and {ids[j]} start {gaps.min():.2f} m apart horizontally (at "
             f"{points[i, 2]:.2f} m and {points[j, 2]:.2f} m){more}, closer than the "
             f"{clearance:g} m they must keep: mock vehicles set down under their starts would "

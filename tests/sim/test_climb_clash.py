@@ -13,7 +13,7 @@ def test_starts_stacked_closer_than_r_are_named_closest_first() -> None:
     why = climb_clash(starts, ["low", "high", "c", "d"], 1.0)
     assert why is not None
     assert why.startswith("low and high start 0.55 m apart horizontally (at 1.08 m and 1.92 m)"
-                          " (and 1 more pairs), closer than the 1 m they must keep")
+                          " (and 1 more pair), closer than the 1 m they must keep")
     assert "a fleet file" in why
 
 
