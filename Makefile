@@ -26,9 +26,9 @@ $(STAMP): pyproject.toml | $(PY)
 
 install: $(STAMP)
 
-# The service with 4 mock vehicles: open the printed URL (Ctrl-C stops it). Host, port and the
-# rest come from the settings (defaults 127.0.0.1:8000, 4 mocks; FLEETPLAN_HOST, FLEETPLAN_PORT,
-# ./fleetplan.toml), so nothing is forced here.
+# The service with mock vehicles (4, and as many as a plan needs up to 256): open the printed
+# URL (Ctrl-C stops it). Host, port and the rest come from the settings (defaults
+# 127.0.0.1:8000; FLEETPLAN_HOST, FLEETPLAN_PORT, ./fleetplan.toml), so nothing is forced here.
 run: $(STAMP)
 	$(VENV)/bin/fleetplan serve
 

@@ -32,8 +32,9 @@ export function vehicleMapping() {
   const f = fleet.fleet;
   if (!f || !f.vehicles) return { planIds, pairs: [], missing: planIds, spare: [] };
   if (f.kind === "mock") {
-    // The mock fleet is set down under the plan's starts and takes the plan's ids.
-    const n = Math.min(planIds.length, f.vehicles);
+    // The mock fleet is set down under the plan's starts and takes the plan's ids; one that
+    // grows (serve --mock auto) adds the mocks a plan needs, up to grows_to.
+    const n = Math.min(planIds.length, Math.max(f.vehicles, f.grows_to || 0));
     return { planIds, pairs: planIds.slice(0, n).map((id, i) => [id, `mock ${i + 1}`]),
              missing: planIds.slice(n), spare: [] };
   }
@@ -66,6 +67,8 @@ function showMapping() {
     box.append(bad);
   }
   if (m.spare.length) box.append(` · idle: ${m.spare.join(", ")}`);
+  const added = fleet.fleet.kind === "mock" ? m.pairs.length - fleet.fleet.vehicles : 0;
+  if (added > 0) box.append(` · ${added} mock vehicle${added > 1 ? "s" : ""} added at Fly`);
 }
 
 /** Why Fly is disabled now, or null if the mission on screen can fly.
@@ -86,6 +89,12 @@ export function flyBlocker() {
   }
   if (f.flying) return `flight ${f.flying} is under way`;
   const missing = vehicleMapping().missing;
+  if (missing.length && f.grows_to) {
+    return `the plan has ${needed} vehicles, more than the mock fleet may grow to ` +
+      `(${f.grows_to}, setting mock_max_vehicles): restart the service with ` +
+      `FLEETPLAN_MOCK_MAX_VEHICLES=${needed} (or fleetplan serve --mock ${needed}) ` +
+      "or a fleet file naming them (fleetplan serve --fleet FLEET.json)";
+  }
   if (missing.length) {
     return `${missing.length} plan vehicle${missing.length > 1 ? "s are" : " is"} not in the fleet ` +
       `of ${f.vehicles}: restart the service with ${needed} mock vehicles (fleetplan serve --mock ${needed}) ` +

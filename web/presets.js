@@ -31,18 +31,20 @@ export function circleScenario(n) {
   };
 }
 
-/** n vehicles at random starts and goals, at least 1.5 R apart.
+/** n vehicles at random starts and goals, at least 1.5 R apart; the starts also R apart in
+ * x-y, so vehicles standing under them climb to them without meeting.
  * @param {number} n @returns {Scenario} */
 export function randomScenario(n) {
   const R = 1.0;
   const side = Math.max(5, Math.ceil(Math.sqrt(n * 6)));
   const size = [side, side, 4];
-  /** @param {number[][]} taken @returns {number[]} */
-  const pick = (taken) => {
+  /** @param {number[][]} taken @param {boolean} columns @returns {number[]} */
+  const pick = (taken, columns) => {
     for (let tries = 0; tries < 10000; tries++) {
       const p = [0.5 + Math.random() * (side - 1), 0.5 + Math.random() * (side - 1),
                  1 + Math.random() * 2.5].map(round2);
-      if (taken.every((q) => Math.hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]) >= 1.5 * R)) return p;
+      if (taken.every((q) => Math.hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]) >= 1.5 * R &&
+                             (!columns || Math.hypot(p[0] - q[0], p[1] - q[1]) >= R))) return p;
     }
     throw new Error("workspace too crowded");
   };
@@ -50,7 +52,7 @@ export function randomScenario(n) {
   const starts = [];
   /** @type {number[][]} */
   const goals = [];
-  for (let i = 0; i < n; i++) { starts.push(pick(starts)); goals.push(pick(goals)); }
+  for (let i = 0; i < n; i++) { starts.push(pick(starts, true)); goals.push(pick(goals, false)); }
   const far = Math.max(...starts.map((s, i) => Math.hypot(...s.map((v, a) => v - goals[i][a]))));
   return {
     name: `random${n}`, dt: 0.2, steps: transferSteps(far, 0.2), min_separation: R,

@@ -33,7 +33,8 @@
  *   of a flight */
 /** @typedef {{id: string, vehicles: {id: string, t: number[], position: number[][]}[]}} Replay */
 /** @typedef {{kind?: string, vehicles?: number, ids?: string[], flying?: string | null,
- *   world_origin?: {lat: number, lon: number, alt: number}}} Fleet */
+ *   world_origin?: {lat: number, lon: number, alt: number}, grows_to?: number | null}} Fleet
+ *   (grows_to: a mock fleet that adds the mocks a plan needs, up to this many) */
 /** @typedef {{pause: boolean, resume: boolean, replan: boolean, fleetCommands: boolean,
  *   vehicleCommands: boolean}} Capabilities */
 /** @typedef {Record<string, Record<string, string[]>>} StatusSets  GET /api/status `statuses` */

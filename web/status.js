@@ -37,7 +37,8 @@ export async function refreshStatus() {
   service.statuses = data.statuses || service.statuses;
   if (data.limits) showLimits(data.limits);
   const f = data.fleet;
-  el.textContent = `${f.kind === "none" ? "no fleet" : `${f.vehicles} ${f.kind} vehicles`} · planning ${data.planning_jobs}`;
+  const grows = f.grows_to ? ` (up to ${f.grows_to} as plans need)` : "";
+  el.textContent = `${f.kind === "none" ? "no fleet" : `${f.vehicles} ${f.kind} vehicles${grows}`} · planning ${data.planning_jobs}`;
   el.title = `fleetplan ${data.version}: fleet ${f.kind}, ${data.planning_jobs} planning jobs`;
   fleet.fleet = { ...(fleet.fleet || {}), ...f };
   updateFlyButton();

@@ -74,7 +74,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              f"taken and neither port flag is given, free ones are chosen)")
     parser.add_argument("--listen-base-port", type=int, default=None,
                         help=f"--mock: vehicle i listens on this port + i (default "
-                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}, as --base-port)")
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}, as --base-port; a fleet of N > "
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT}: "
+                             f"{px4.OFFBOARD_GCS_BASE_PORT} + N, past its GCS ports)")
     parser.add_argument("--mock-settle", type=float, default=None,
                         help="--mock: arming rejected this long after start (s, default 5, "
                              "3.5 with --mock-realism px4)")
@@ -120,8 +122,9 @@ def run(args: argparse.Namespace) -> int:
     from gcs.flight.host.vehicle_loop import VehicleLoop
     from gcs.flight.run.ground import ground_refusal
     from gcs.flight.run.realtime import settle_heap
+    from gcs.flight.safety.margin import required_separation
     from gcs.service.replan_handle import ReplanHandle
-    from gcs.sim import MockConfig, MockFleet, homes_under
+    from gcs.sim import MockConfig, MockFleet, climb_clash, homes_under
     from gcs.sim.config import timing_error
     try:
         plan = read_plan(args.plan, "fly")
@@ -130,6 +133,10 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if (on_ground := ground_refusal(plan)) is not None:
         print(f"error: {on_ground}", file=sys.stderr)
+        return 2
+    if args.mock and (clash := climb_clash(plan.scenario.starts, plan.scenario.ids,
+                                           required_separation(plan.scenario))) is not None:
+        print(f"error: refusing to fly the plan on mock vehicles: {clash}", file=sys.stderr)
         return 2
 
     def write_record(record: dict[str, Any] | None) -> None:
@@ -370,18 +377,19 @@ def _print_summary(record: dict[str, Any]) -> None:
 def _mock_ports(base: int | None, listen: int | None, count: int) -> tuple[int, int]:
     """The mock fleet's (GCS-side base, vehicle listen base): the flags given; else PX4
     SITL's ports when all `count` of each are free; else a free block elsewhere, said on
-    stdout (the usual ports are held by `make run`, another fly or a mock)."""
+    stdout (the usual ports are held by `make run`, another fly or a mock). A fleet larger
+    than PX4 SITL's layout holds listens past its own GCS ports (`gcs.sim.ports`)."""
     from gcs.sim import ports
 
-    if base is not None or listen is not None:
-        return (px4.OFFBOARD_GCS_BASE_PORT if base is None else base,
-                px4.OFFBOARD_VEHICLE_BASE_PORT if listen is None else listen)
     usual = px4.OFFBOARD_GCS_BASE_PORT
+    usual_listen = usual + ports.listen_offset(count)
+    if base is not None or listen is not None:
+        return (usual if base is None else base, usual_listen if listen is None else listen)
     offsets = ports.mock_port_offsets(count)
     if ports.block_free(usual, offsets):
-        return usual, px4.OFFBOARD_VEHICLE_BASE_PORT
+        return usual, usual_listen
     chosen = ports.free_udp_base(offsets)
-    print(f"ports {usual}.. and {px4.OFFBOARD_VEHICLE_BASE_PORT}.. are taken (by `make run`, "
+    print(f"ports {usual}.. and {usual_listen}.. are taken (by `make run`, "
           f"fleetplan serve, another fly or a mock?): the mock fleet flies on {chosen}.. and "
-          f"{chosen + ports.LISTEN_OFFSET}.. instead", flush=True)
-    return chosen, chosen + ports.LISTEN_OFFSET
+          f"{chosen + ports.listen_offset(count)}.. instead", flush=True)
+    return chosen, chosen + ports.listen_offset(count)

@@ -28,8 +28,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="without --plan: homes this far apart along x (m, default 2)")
     parser.add_argument("--base-port", type=int, default=px4.OFFBOARD_GCS_BASE_PORT,
                         help="vehicle i sends to this port + i (default %(default)s)")
-    parser.add_argument("--listen-base-port", type=int, default=px4.OFFBOARD_VEHICLE_BASE_PORT,
-                        help="vehicle i listens on this port + i (default %(default)s)")
+    parser.add_argument("--listen-base-port", type=int, default=None,
+                        help=f"vehicle i listens on this port + i (default "
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT}; a fleet of N > "
+                             f"{px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT}: "
+                             f"{px4.OFFBOARD_GCS_BASE_PORT} + N, past its GCS ports)")
     parser.add_argument("--max-port-offset", type=int, default=None,
                         help="vehicles from this index on share one GCS port, like PX4 SITL "
                              "from instance 10 on (9); 0 puts the whole fleet on one port")
@@ -79,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.cli.hints import port_error, port_in_use_hint
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import AUTOPILOTS
+    from gcs.sim.ports import listen_offset
 
     ids = None
     homes = None
@@ -97,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 2
     count = len(homes) if homes is not None else (4 if args.vehicles is None else args.vehicles)
+    if args.listen_base_port is None:  # PX4 SITL's, or past the usual GCS block of a larger fleet
+        args.listen_base_port = px4.OFFBOARD_GCS_BASE_PORT + listen_offset(count)
     for name in ("settle", "position_rate", "position_error"):
         value = getattr(args, name)
         if value is not None and not (math.isfinite(value) and value >= 0.0):

@@ -1,9 +1,10 @@
 """`fleetplan serve`: the REST API and browser page (uvicorn), with mock or configured vehicles.
 
 Options override the settings (environment ``FLEETPLAN_*`` and the TOML config file; see
-`gcs.service.settings`). `--mock N` starts N in-process mock PX4 vehicles; `--fleet
-FLEET.json` flies real vehicles or SITL instead. Nothing arms or moves until a flight
-is requested.
+`gcs.service.settings`). `--mock N` runs N in-process mock PX4 vehicles; `--mock auto` (the
+default) starts `mock_vehicles` and adds mocks as a plan needs them, up to
+`mock_max_vehicles`; `--fleet FLEET.json` flies real vehicles or SITL instead. Nothing arms
+or moves until a flight is requested.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 if TYPE_CHECKING:
     from gcs.service.settings import Settings
 
-__all__ = ["configure", "port_free", "run", "scheduler_problem", "uvicorn_server"]
+__all__ = ["configure", "overrides", "port_free", "run", "scheduler_problem",
+           "uvicorn_server"]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -26,8 +28,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", metavar="URL",
                         help="database URL (default sqlite:///fleetplan.db; or postgresql+psycopg://...)")
     vehicles = parser.add_mutually_exclusive_group()
-    vehicles.add_argument("--mock", type=int, metavar="N",
-                          help="start N mock PX4 vehicles in-process (default 4)")
+    vehicles.add_argument("--mock", type=_mock_count, metavar="N|auto",
+                          help="N: run N mock PX4 vehicles in-process; auto (the default): "
+                          "start 4 and add as many as a plan needs, up to 256 (settings "
+                          "mock_vehicles, mock_max_vehicles)")
     vehicles.add_argument("--fleet", type=Path, metavar="FLEET.json",
                           help="fleet file of real vehicles or SITL instances")
     parser.add_argument("--workers", type=int, metavar="N",
@@ -40,6 +44,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="settings file (default $FLEETPLAN_CONFIG or ./fleetplan.toml)")
     parser.add_argument("--log-level", default="info",
                         choices=("critical", "error", "warning", "info", "debug"))
+
+
+def _mock_count(text: str) -> int | None:
+    """`--mock`: a vehicle count, or auto (None: the settings' growing mock fleet)."""
+    if text == "auto":
+        return None
+    try:
+        count = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither a vehicle count nor auto") from None
+    if count < 0:
+        raise argparse.ArgumentTypeError(f"{count} vehicles: give 0 or more, or auto")
+    return count
 
 
 #: Seconds open responses (event streams) get to end once the service is told to stop.
@@ -169,26 +186,32 @@ def uvicorn_server(app: Any, settings: Settings, log_level: str) -> Any:
     return Server(config)
 
 
-def run(args: argparse.Namespace) -> int:
-    from pydantic import ValidationError
-
-    from gcs.service.settings import Settings, SettingsFileError
-
-    overrides = {
+def overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The settings the options give (None: not given); `--mock N` runs N mock vehicles and
+    no more, `--mock auto` leaves the mock fleet's settings as they are."""
+    return {
         key: value
         for key, value in (
             ("host", args.host),
             ("port", args.port),
             ("database_url", args.db),
             ("mock_vehicles", args.mock),
+            ("mock_max_vehicles", args.mock or None),
             ("fleet_file", args.fleet),
             ("plan_workers", args.workers),
             ("scheduler", args.scheduler),
         )
         if value is not None
     }
+
+
+def run(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from gcs.service.settings import Settings, SettingsFileError
+
     try:
-        settings = Settings.load(args.config, **overrides)
+        settings = Settings.load(args.config, **overrides(args))
     except (ValidationError, SettingsFileError) as exc:
         print(f"fleetplan serve: invalid settings: {exc}", file=sys.stderr)
         return 2
@@ -202,7 +225,9 @@ def run(args: argparse.Namespace) -> int:
     fleet = (
         f"fleet file {settings.fleet_file}"
         if settings.fleet_file
-        else f"{settings.mock_vehicles} mock vehicles"
+        else f"{settings.mock_vehicles} mock vehicles" + (
+            f", more as a plan needs them up to {settings.mock_fleet_limit}"
+            if settings.mock_fleet_grows else "")
     )
     host = f"[{settings.host}]" if ":" in settings.host else settings.host
     print(f"fleetplan: serving on http://{host}:{settings.port}/ ({fleet}, "

@@ -6,10 +6,11 @@ running in-process (`gcs.sim.MockFleet`), or none. Between flights it keeps a li
 MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live link state;
 a flight closes the monitor and takes the connections (`gcs.service.vehicle_host`). It lives
 in the vehicle process, on its vehicle loop (`gcs.flight.host.vehicle_process`). Mock vehicles
-are set down under a plan's starts before each flight (as ``fleetplan fly --mock`` does);
-vehicles the plan does not use are parked beside its workspace. `command` sends a fleet
-command (`gcs.fleet.commands`: hold, land, rtl, disarm, terminate) over the monitor's
-connections, so a fleet left hovering can always be landed.
+are set down under a plan's starts before each flight (as ``fleetplan fly --mock`` does),
+with as many more as the plan needs up to `mock_max_vehicles` (a fleet that grows, `serve
+--mock auto`); vehicles the plan does not use are parked beside its workspace. `command`
+sends a fleet command (`gcs.fleet.commands`: hold, land, rtl, disarm, terminate) over the
+monitor's connections, so a fleet left hovering can always be landed.
 """
 
 from __future__ import annotations
@@ -29,10 +30,10 @@ from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import DECODED_IDS, VehicleLink
 from gcs.flight.run.ground import ground_refusal
 from gcs.flight.safety.health import PreflightThresholds, health_report, preflight_problems
-from gcs.flight.safety.margin import check_margin
+from gcs.flight.safety.margin import check_margin, required_separation
 from gcs.service.settings import Settings
-from gcs.sim import MockConfig, MockFleet, homes_under
-from gcs.sim.ports import mock_fleet_ports
+from gcs.sim import MockConfig, MockFleet, climb_clash, homes_under
+from gcs.sim.ports import block_free, free_udp_base, mock_fleet_ports, mock_port_offsets
 from planner import Plan
 
 __all__ = ["Fleet", "FleetKind", "fleet_kind"]
@@ -48,6 +49,8 @@ def fleet_kind(settings: Settings) -> FleetKind:
     return "mock" if settings.mock_vehicles > 0 else "none"
 
 
+#: The highest UDP port number.
+MAX_UDP_PORT = 65535
 #: A just-stopped mock fleet's sockets close on a later loop iteration: start attempts, gap.
 MOCK_START_ATTEMPTS = 20
 MOCK_START_RETRY_S = 0.05
@@ -63,6 +66,8 @@ class Fleet:
         """The fleet as a fleet file describes it (the mocks' own, for a mock fleet)."""
         self.mock: MockFleet | None = None
         """The in-process mock vehicles, for a mock fleet."""
+        self._mock_ports: list[int] = []
+        """The UDP ports the mock vehicles run on (theirs and the GCS side's)."""
         self._monitor: LinkHub | None = None
         self.links: dict[str, VehicleLink] = {}
         """The monitor's link to each vehicle, by id (empty while a flight has them)."""
@@ -95,8 +100,24 @@ class Fleet:
                  "disarm_after_land": self._settings.mock_disarm_after_land_s}
         return {name: value for name, value in given.items() if value is not None}
 
+    def _mock_base(self, count: int) -> int:
+        """The base port of a mock fleet of `count` vehicles: `mock_base_port` when its ports
+        are free (or the fleet's own, closing as the old fleet stops), else a free block
+        elsewhere (a fleet grown past the block the settings leave free), logged."""
+        base = self._settings.mock_base_port
+        offsets = mock_port_offsets(count)
+        own = set(self._mock_ports) if self.mock is not None else set()
+        fresh = [offset for offset in offsets if base + offset not in own]
+        if base + max(offsets) <= MAX_UDP_PORT and block_free(base, fresh):
+            return base
+        chosen = free_udp_base(offsets)
+        log.warning("UDP ports %d.. (setting mock_base_port) are taken for %d mock vehicles: "
+                    "they run on %d.. instead", base, count, chosen)
+        return chosen
+
     async def _start_mock(self, homes: list[list[float]], ids: list[str]) -> None:
-        ports = mock_fleet_ports(self._settings.mock_base_port)
+        base = self._mock_base(len(homes))
+        ports = mock_fleet_ports(base, len(homes))
         config = MockConfig.preset(self._settings.mock_realism, **self._mock_overrides())
         kinds = self._settings.mock_autopilot.split(",")
         mock = MockFleet(homes=homes, gcs_base_port=ports["gcs_base_port"],
@@ -111,6 +132,7 @@ class Fleet:
                     raise
                 await asyncio.sleep(MOCK_START_RETRY_S)
         self.mock = mock
+        self._mock_ports = [base + offset for offset in mock_port_offsets(len(homes))]
         self.spec = FleetSpec.from_dict(mock.fleet_dict(ids))
 
     async def open_monitor(self) -> None:
@@ -138,7 +160,8 @@ class Fleet:
         self.links = {}
 
     async def rehome_mock(self, plan: Plan) -> None:
-        """Set the mock vehicles down under the plan's starts; park the rest beside it."""
+        """Set the mock vehicles down under the plan's starts (as many more as it needs, up
+        to `grows_to`, checked by `flight_options`); park the rest beside it."""
         old = self.mock
         if old is not None:
             await old.stop()
@@ -160,9 +183,11 @@ class Fleet:
     # ------------------------------------------------------------------ state
 
     def describe(self) -> dict[str, Any]:
-        """kind, vehicle count and ids, and the geodetic origin of the world frame when known
-        (the fleet file's `world_origin`, or the mock's). Safe from any thread: it reads the
-        spec and the mock once, and the vehicle loop replaces them whole."""
+        """kind, vehicle count and ids, the geodetic origin of the world frame when known
+        (the fleet file's `world_origin`, or the mock's), and `grows_to`: the most vehicles a
+        mock fleet adding mocks as plans need may have (None: the fleet keeps its size). Safe
+        from any thread: it reads the spec and the mock once, and the vehicle loop replaces
+        them whole."""
         spec, mock = self.spec, self.mock  # each replaced whole on the vehicle loop
         ids = [] if spec is None else [v.id for v in spec.vehicles]
         origin = spec.world_origin if spec is not None else None
@@ -174,6 +199,7 @@ class Fleet:
             "ids": ids,
             "world_origin": None if origin is None else {
                 "lat": origin.lat, "lon": origin.lon, "alt": origin.alt},
+            "grows_to": self.grows_to,
         }
 
     def monitored(self) -> list[dict[str, Any]]:
@@ -211,8 +237,9 @@ class Fleet:
     def configured(self) -> FleetSpec:
         """The fleet's spec; StateConflict when there is no fleet."""
         if self.kind == "none" or self.spec is None:
-            raise StateConflict("fleet", "no fleet configured: start the service with --mock N "
-                                         "or --fleet FLEET.json")
+            raise StateConflict("fleet", "no fleet configured: start the service with --mock "
+                                         "auto (mock vehicles as plans need them), --mock N or "
+                                         "--fleet FLEET.json")
         return self.spec
 
     # ------------------------------------------------------------------ commands
@@ -248,9 +275,12 @@ class Fleet:
         if (on_ground := ground_refusal(plan)) is not None:
             raise StateConflict("mission_id", on_ground)
         ids = plan.scenario.ids
-        if self.kind == "mock" and len(ids) > self._settings.mock_vehicles:
-            raise StateConflict("fleet", f"the plan has {len(ids)} vehicles, the mock fleet "
-                           f"{self._settings.mock_vehicles} (setting mock_vehicles)")
+        if self.kind == "mock" and len(ids) > self._settings.mock_fleet_limit:
+            raise StateConflict("fleet", self._mock_too_small(len(ids)))
+        if self.kind == "mock" and (clash := climb_clash(
+                plan.scenario.starts, ids, required_separation(plan.scenario))) is not None:
+            raise StateConflict("mission_id", f"refusing to fly the plan on the mock fleet: "
+                                              f"{clash}")
         if self.kind == "file":
             try:
                 spec.for_plan(ids)
@@ -268,6 +298,27 @@ class Fleet:
             raise StateConflict("mission_id", margin.message())
         return flight_options
 
+    def _mock_too_small(self, needed: int) -> str:
+        """Why the mock fleet cannot fly a plan of `needed` vehicles, and the setting to
+        change."""
+        settings = self._settings
+        if self.grows_to is None:
+            return (f"the plan has {needed} vehicles, the mock fleet {settings.mock_vehicles} "
+                    f"(setting mock_vehicles): restart the service with --mock {needed}, or "
+                    "--mock auto to add mock vehicles as plans need them")
+        return (f"the plan has {needed} vehicles, more than the mock fleet may grow to: "
+                f"{self.grows_to} (setting mock_max_vehicles): restart the service with "
+                f"FLEETPLAN_MOCK_MAX_VEHICLES={needed} (or --mock {needed})")
+
+    @property
+    def grows_to(self) -> int | None:
+        """How many vehicles a mock fleet that adds mocks as plans need may grow to (setting
+        mock_max_vehicles); None for a fleet that keeps its size (a fixed mock fleet, a fleet
+        file, none)."""
+        settings = self._settings
+        grows = self.kind == "mock" and settings.mock_fleet_grows
+        return settings.mock_fleet_limit if grows else None
+
     def _preflight(self, spec: FleetSpec, ids: list[str], options: FlightOptions) -> None:
         """The pre-flight gate on what the monitor sees now (battery, unhealthy sensors, link
         loss): StateConflict naming the vehicle and the reason, unless `preflight: override`.
@@ -277,9 +328,9 @@ class Fleet:
             return
         limits = PreflightThresholds(min_battery_pct=options.min_battery_pct)
         if self.kind == "mock":  # mock vehicle i flies plan vehicle i (see rehome_mock)
-            fleet_ids = [v.id for v in spec.vehicles][:len(ids)]
+            fleet_ids = [v.id for v in spec.vehicles][:len(ids)]  # those the fleet adds: new
             names = [f"{vid} (mock vehicle {fid})" if vid != fid else vid
-                     for vid, fid in zip(ids, fleet_ids, strict=True)]
+                     for vid, fid in zip(ids, fleet_ids, strict=False)]
         else:
             fleet_ids, names = list(ids), list(ids)
         for fid, name in zip(fleet_ids, names, strict=True):

@@ -80,7 +80,7 @@ class FleetService:
         self._restarted_at: float | None = None
         self._kind: FleetKind = fleet_kind(settings)
         self._described: dict[str, Any] = {"kind": self._kind, "vehicles": 0, "ids": [],
-                                           "world_origin": None}
+                                           "world_origin": None, "grows_to": None}
         self._flights: dict[str, LiveFlight] = {}
         self._active: LiveFlight | None = None
         self._tasks = TaskSet()

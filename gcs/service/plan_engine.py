@@ -45,6 +45,8 @@ class DaskEngine:
         self._topic = f"fleetplan-progress-{uuid.uuid4().hex[:12]}"
         self.workers = workers
         """Worker processes planning (known once started)."""
+        self._restarts_begun = 0
+        self._restarts_done = 0
 
     @property
     def started(self) -> bool:
@@ -120,22 +122,25 @@ class DaskEngine:
 
         return DaskEvent(f"{job.key}-cancel", client=self._connected())
 
-    def submit(self, job: PlanJob, scenario: Any) -> tuple[Any, list[Any]]:
+    def submit(self, job: PlanJob, scenario: Any, attempt: int = 0) -> tuple[Any, list[Any]]:
         """Submit the job's task(s): its final future, and the futures it depends on (a
-        sequence's legs). Small jobs first (priority by estimated work)."""
+        sequence's legs). Small jobs first (priority by estimated work). A later `attempt`
+        (the first was killed with a worker the service restarted) gets keys of its own:
+        the scheduler may still hold the killed ones."""
         client = self._connected()
         options = {"topic": self._topic, "time_limit_s": job.time_limit_s,
                    "cancel_event": f"{job.key}-cancel"}
+        key = job.key if attempt == 0 else f"{job.key}-retry{attempt}"
         if isinstance(scenario, dict):
             return client.submit(plan_worker.run_plan, job.key, scenario, self._solver,
-                                 **options, key=job.key, pure=False, priority=-job.work,
+                                 **options, key=key, pure=False, priority=-job.work,
                                  retries=0), []
         legs = [
             client.submit(plan_worker.run_plan, job.key, leg, self._solver, **options, leg=k,
-                          key=f"{job.key}-leg{k}", pure=False, priority=-job.work, retries=0)
+                          key=f"{key}-leg{k}", pure=False, priority=-job.work, retries=0)
             for k, leg in enumerate(scenario.jobs)
         ]
-        stitched = client.submit(plan_worker.stitch_sequence, scenario, *legs, key=job.key,
+        stitched = client.submit(plan_worker.stitch_sequence, scenario, *legs, key=key,
                                  pure=False, priority=-job.work, retries=0)
         return stitched, legs
 
@@ -159,10 +164,24 @@ class DaskEngine:
         client = self._client
         if client is None:
             return
+        self._restarts_begun += 1
         try:
             await client.restart_workers(workers, timeout=60, raise_for_error=False)
         except Exception:  # not restartable (no nanny): the task runs on, results dropped
             log.exception("could not restart worker(s) %s", workers)
+        finally:
+            self._restarts_done += 1
+
+    def restart_mark(self) -> tuple[int, int]:
+        """Where the engine's worker restarts stand now (restarts begun, restarts done)."""
+        return self._restarts_begun, self._restarts_done
+
+    def restarted_since(self, mark: tuple[int, int]) -> bool:
+        """Did a worker restart of this engine's run at some time after `mark` (one under way
+        then, or one begun since)? A task that died with its worker meanwhile may have been
+        killed by the service's own restart rather than by its plan."""
+        begun, done = mark
+        return self._restarts_begun != begun or done < begun
 
 
 def _executing_keys(prefix: str, dask_worker: Any = None) -> list[str]:

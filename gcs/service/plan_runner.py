@@ -5,7 +5,9 @@ cancellation and the large-job slots enforced on the way.
 - The time limit counts from the task's start; the task checks it itself after every SCP
   iteration, and the runner stops a task whose single iteration overruns it.
 - A stop sets the job's cancel flag (the task ends after its current iteration); a task still
-  running `grace_s` later is stopped by restarting its worker (Nanny restart).
+  running `grace_s` later is stopped by restarting its worker (Nanny restart). Another job's
+  task queued on that worker dies with it; it is submitted again (`RESTART_RESUBMITS`), so a
+  plan posted just after a cancel does not fail for it.
 - The plan text is stored (in a thread) before the job is marked done, so a client told
   "done" always finds the plan in the database. A plan the store refuses leaves the mission
   `failed` with that reason; if even that write fails, it is retried until it succeeds, so no
@@ -26,7 +28,8 @@ from gcs.service.plan_jobs import LARGE_JOB_WORK, PlanJob, failed_outcome
 from gcs.service.store import Store
 from gcs.tasks import TaskSet
 
-__all__ = ["CANCEL_GRACE_S", "STARTING_LOOKS", "STARTING_LOOK_S", "STORE_RETRY_S", "JobRunner"]
+__all__ = ["CANCEL_GRACE_S", "RESTART_RESUBMITS", "STARTING_LOOKS", "STARTING_LOOK_S",
+           "STORE_RETRY_S", "JobRunner"]
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +40,9 @@ CANCEL_GRACE_S = 5.0
 #: workers are asked whether it started after all.
 STARTING_LOOKS = 4
 STARTING_LOOK_S = 0.5
+#: How many times a task killed with a worker the service restarted (to stop another job's
+#: task) is submitted again before its death is reported as the plan's.
+RESTART_RESUBMITS = 2
 #: Retry period of a mission's final write when the store refused it.
 STORE_RETRY_S = 2.0
 #: How long the last iterations (sent as events) may trail the task's result (s).
@@ -154,28 +160,31 @@ class JobRunner:
 
     async def _compute(self, job: PlanJob, scenario: Any) -> plan_worker.PlanOutcome:
         """Run the task(s); the outcome (with its `error` when it failed or was stopped)."""
-        if job.stop_reason is not None:  # cancelled while waiting for a large-job slot
-            return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
-        future, legs = self._engine.submit(job, scenario)
-        job.future = future
-        try:
-            result: plan_worker.PlanOutcome = await future
-        except Exception as exc:
-            if job.stop_reason is not None:  # the worker was restarted to stop it
+        for attempt in range(RESTART_RESUBMITS + 1):
+            if job.stop_reason is not None:  # cancelled while waiting for a slot or a retry
                 return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
-            name = type(exc).__name__
-            if name == "KilledWorker":
-                log.error("planner worker died while planning mission %s", job.mission_id)
-                reason = ("the planner worker process died (out of memory?); try a smaller "
-                          "scenario")
-            else:  # a bug in the planner: report it, keep serving
-                log.error("planning mission %s failed: %s: %s", job.mission_id, name, exc)
-                reason = f"{name}: {exc}"
-            return plan_worker.PlanOutcome.failed(reason)
-        finally:
-            for done in (future, *legs):
-                with contextlib.suppress(Exception):
-                    done.release()
+            mark = self._engine.restart_mark()
+            future, legs = self._engine.submit(job, scenario, attempt)
+            job.future = future
+            try:
+                result: plan_worker.PlanOutcome = await future
+                break
+            except Exception as exc:
+                if job.stop_reason is not None:  # the worker was restarted to stop it
+                    return plan_worker.PlanOutcome.failed(job.stop_reason, stopped=True)
+                name = type(exc).__name__
+                if (name == "KilledWorker" and self._engine.restarted_since(mark)
+                        and attempt < RESTART_RESUBMITS):
+                    # Queued on a worker the service restarted to stop another job's task:
+                    # not this plan's doing, so it goes to the workers again.
+                    log.warning("mission %s: its task went with a restarted worker; "
+                                "submitted again", job.mission_id)
+                    continue
+                return _failed_task(job, name, exc)
+            finally:
+                for done in (future, *legs):
+                    with contextlib.suppress(Exception):
+                        done.release()
         if job.stop_reason is not None and (result.error is None or result.stopped):
             # Stopped on request (or finished just as it was stopped: a cancel still wins):
             # the reason is the service's, not the task's generic one.
@@ -229,6 +238,17 @@ class JobRunner:
                 return
             except Exception:
                 continue
+
+
+def _failed_task(job: PlanJob, name: str, exc: Exception) -> plan_worker.PlanOutcome:
+    """The outcome of a task that raised `exc` (named `name`): its worker died, or a bug."""
+    if name == "KilledWorker":
+        log.error("planner worker died while planning mission %s", job.mission_id)
+        reason = "the planner worker process died (out of memory?); try a smaller scenario"
+    else:  # a bug in the planner: report it, keep serving
+        log.error("planning mission %s failed: %s: %s", job.mission_id, name, exc)
+        reason = f"{name}: {exc}"
+    return plan_worker.PlanOutcome.failed(reason)
 
 
 def _short(exc: BaseException) -> str:

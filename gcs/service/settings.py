@@ -31,6 +31,7 @@ __all__ = [
     "CONFIG_ENV",
     "DEFAULT_CONFIG_FILE",
     "MIN_TOKEN_LENGTH",
+    "MOCK_VEHICLES_MAX",
     "Settings",
     "SettingsFileError",
     "is_loopback",
@@ -40,6 +41,10 @@ __all__ = [
 CONFIG_ENV = "FLEETPLAN_CONFIG"
 #: Config file read when `CONFIG_ENV` is unset (only if it exists).
 DEFAULT_CONFIG_FILE = "fleetplan.toml"
+
+
+#: Most mock vehicles the service may run (each has two UDP ports, in blocks above the base).
+MOCK_VEHICLES_MAX = 1024
 
 
 #: Shortest API token accepted (a token is a password for the fleet).
@@ -96,7 +101,14 @@ class Settings(BaseSettings):
         None, description="Fleet JSON (real vehicles or SITL); when set, no mock vehicles start."
     )
     mock_vehicles: int = Field(
-        4, ge=0, le=64, description="Mock PX4 vehicles started in-process when no fleet file."
+        4, ge=0, le=MOCK_VEHICLES_MAX,
+        description="Mock PX4 vehicles started in-process when no fleet file."
+    )
+    mock_max_vehicles: int = Field(
+        256, ge=1, le=MOCK_VEHICLES_MAX,
+        description="The mock fleet grows to as many vehicles as a plan needs, up to this many "
+        "(`--mock auto`, the default); `--mock N` keeps it at N. A plan with more is refused, "
+        "naming this setting."
     )
     mock_base_port: int = Field(
         px4.OFFBOARD_GCS_BASE_PORT,
@@ -301,6 +313,18 @@ class Settings(BaseSettings):
         if self.dt_min >= self.dt_max:
             raise ValueError(f"dt_min ({self.dt_min:g}) must be less than dt_max ({self.dt_max:g})")
         return self
+
+    @property
+    def mock_fleet_limit(self) -> int:
+        """Most vehicles the mock fleet flies: it grows to `mock_max_vehicles` as plans need,
+        and never has fewer than the `mock_vehicles` it starts with."""
+        return max(self.mock_vehicles, self.mock_max_vehicles)
+
+    @property
+    def mock_fleet_grows(self) -> bool:
+        """Mock vehicles are added as plans need them (`--mock auto`), rather than the fleet
+        keeping the `mock_vehicles` it starts with (`--mock N`)."""
+        return 0 < self.mock_vehicles < self.mock_max_vehicles
 
     @model_validator(mode="after")
     def _fleet_file_exists(self) -> Settings:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.flight.support import free_port_block, short_line, smooth_plan
+from tests.flight.support import STACKED, free_port_block, short_line, smooth_plan
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -129,6 +129,17 @@ def test_fly_mock_on_a_busy_port_names_the_options(tmp_path: Path) -> None:
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "--base-port (the GCS side) and --listen-base-port (the mock vehicles)" \
         in proc.stderr
+
+
+def test_fly_mock_refuses_starts_its_vehicles_would_climb_through(tmp_path: Path) -> None:
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(STACKED).to_dict()))
+    proc = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path),
+                           "--mock"], capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.startswith("error: refusing to fly the plan on mock vehicles: low and "
+                                  "high start 0.55 m apart horizontally")
+    assert "a fleet file" in proc.stderr
 
 
 def test_fly_given_a_scenario_says_to_plan_it_first(tmp_path: Path) -> None:

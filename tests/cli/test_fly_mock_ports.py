@@ -44,3 +44,17 @@ def test_port_flags_are_kept_even_on_taken_ports(usual: int) -> None:
         held.bind(("127.0.0.1", usual))
         assert _mock_ports(usual, None, 3) == (usual, usual + ports.LISTEN_OFFSET)
         assert _mock_ports(None, 30_000, 3) == (usual, 30_000)
+
+
+def test_a_fleet_larger_than_px4s_layout_listens_after_its_gcs_block(usual: int) -> None:
+    """Past 40 vehicles PX4 SITL's listen ports (base + 40 + i) would be the GCS ports of
+    vehicles 40 and up: the fleet listens right after its GCS block instead, every port
+    its own."""
+    count = 128
+    offsets = ports.mock_port_offsets(count)
+    assert len(set(offsets)) == 2 * count
+    base = ports.free_udp_base(offsets)
+    assert ports.mock_fleet_ports(base, count) == {"gcs_base_port": base,
+                                                   "listen_base_port": base + count}
+    chosen, listen = _mock_ports(None, None, count)  # the usual block, or a free one
+    assert listen == chosen + count and ports.block_free(chosen, offsets)

@@ -151,6 +151,32 @@ def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
     asyncio.run(scenario_run())
 
 
+def test_a_plan_posted_as_a_cancelled_plans_worker_restarts_is_planned(
+    store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The service's own cluster (one worker, no failures allowed): a plan posted right after
+    a cancel is queued on the worker restarted to stop the cancelled task, dies with it, and
+    is submitted again: it is planned, never 'worker process died'."""
+    monkeypatch.setattr(plan_worker, "run_plan", stubborn_plan)
+
+    async def scenario_run() -> None:
+        service = PlanningService(store, workers=1, solver=None, cancel_grace_s=0.5)
+        await service.start()
+        try:
+            stuck = submit(service, store, "paper-circle6")  # 6 vehicles: stubborn
+            await asyncio.wait_for(stuck.started.wait(), 60)
+            service.cancel(stuck.mission_id, "stop now")
+            small = submit(service, store, "paper-circle4")  # no wait for the restart
+            assert (await done(stuck))["error"]["reason"] == "stop now"
+            outcome = await done(small)
+            assert outcome["status"] == "planned", outcome
+            assert "went with a restarted worker" in caplog.text  # the race was met
+        finally:
+            await service.close()
+
+    asyncio.run(scenario_run())
+
+
 def test_time_limit_fails_the_mission_with_the_reason(store, cluster) -> None:
     async def scenario_run() -> None:
         service = await started_service(store, cluster, time_limit_s=30)

@@ -16,7 +16,9 @@ from pathlib import Path
 import httpx
 import pytest
 
-from gcs.cli.serve_cmd import port_free
+from gcs.cli.main import build_parser
+from gcs.cli.serve_cmd import overrides, port_free
+from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.support import QUICK_PAIR, ServiceProcess, free_port, free_udp_base
 
@@ -48,6 +50,24 @@ def test_port_check_ignores_time_wait_but_not_a_listener() -> None:
         listener.bind(("127.0.0.1", port))
         listener.listen()
         assert not port_free(socket.SOCK_STREAM, port)
+
+
+def test_mock_n_is_a_fleet_of_n_and_mock_auto_one_that_grows(
+    capsys, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.chdir(tmp_path)  # no ./fleetplan.toml, no FLEETPLAN_* of the developer's
+    for name in [name for name in os.environ if name.startswith("FLEETPLAN_")]:
+        monkeypatch.delenv(name)
+    parser = build_parser()
+    fixed = Settings(**overrides(parser.parse_args(["serve", "--mock", "6"])))
+    assert (fixed.mock_vehicles, fixed.mock_fleet_limit) == (6, 6)
+    for argv in (["serve", "--mock", "auto"], ["serve"]):  # auto is the default
+        grows = Settings(**overrides(parser.parse_args(argv)))
+        assert (grows.mock_vehicles, grows.mock_fleet_limit) == (4, 256)
+    with pytest.raises(SystemExit) as exit_info:
+        parser.parse_args(["serve", "--mock", "many"])
+    assert exit_info.value.code == 2
+    assert "--mock: 'many' is neither a vehicle count nor auto" in capsys.readouterr().err
 
 
 def _serve(tmp_path: Path, db: str) -> subprocess.CompletedProcess[str]:

@@ -27,7 +27,8 @@ def status_example() -> dict[str, Any]:
         "status": "ok", "version": "0.1.0", "planning_jobs": 0,
         "plan_workers": defaults.plan_workers,
         "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
-                  "flying": None, "world_origin": None, "vehicle_process": "running"},
+                  "flying": None, "world_origin": None,
+                  "grows_to": defaults.mock_max_vehicles, "vehicle_process": "running"},
         "limits": limits_in_force(defaults),
         "statuses": status_sets(),
         "phases": vocabulary(),
@@ -47,7 +48,9 @@ class StatusOut(BaseModel):
     plan_workers: int
     fleet: dict[str, Any] = Field(
         description="kind (mock, file or none), vehicles, ids, flying (flight id or null), "
-        "world_origin, vehicle_process (running or stopped)."
+        "world_origin, grows_to (a mock fleet that adds vehicles as a plan needs them: the "
+        "most it may have, setting mock_max_vehicles; null: the fleet keeps its size), "
+        "vehicle_process (running or stopped)."
     )
     limits: dict[str, int | float] = Field(
         description="Every limit a request is checked against: "

@@ -21,7 +21,7 @@ router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 class VehiclesOut(BaseModel):
     model_config = ConfigDict(json_schema_extra={"examples": [{
         "fleet": {"kind": "mock", "vehicles": 4, "ids": ["uav1", "uav2", "uav3", "uav4"],
-                  "flying": None, "vehicle_process": "running",
+                  "flying": None, "vehicle_process": "running", "grows_to": 256,
                   "world_origin": {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}},
         "vehicles": [{"id": "uav1", "system_id": 1, "connection": "udpin:127.0.0.1:14540",
                       "link": "monitor", "autopilot": "px4", "heartbeat_age": 0.12,
@@ -31,9 +31,11 @@ class VehiclesOut(BaseModel):
 
     fleet: dict[str, Any] = Field(description="kind (mock, file, none), vehicles, ids, the "
                                   "flight flying now (or null), world_origin {lat, lon, "
-                                  "alt} (deg, deg, m AMSL) of the world frame, or null, and "
-                                  "vehicle_process (running, or stopped while the service "
-                                  "restarts it).")
+                                  "alt} (deg, deg, m AMSL) of the world frame, or null, "
+                                  "grows_to (a mock fleet that adds vehicles as a plan needs "
+                                  "them: the most it may have; null: the fleet keeps its "
+                                  "size), and vehicle_process (running, or stopped while the "
+                                  "service restarts it).")
     vehicles: list[dict[str, Any]] = Field(
         description="Per vehicle: id, autopilot (px4 or ardupilot: detected from its "
         "HEARTBEAT or named in the fleet file; null before either), heartbeat_age (s, null "

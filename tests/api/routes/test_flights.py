@@ -83,7 +83,7 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
                                    "ids": ["uav1", "uav2", "uav3", "uav4"],
                                    "world_origin": {"lat": 47.397742, "lon": 8.545594,
                                                     "alt": 488.0},
-                                   "vehicle_process": "running"}
+                                   "grows_to": 256, "vehicle_process": "running"}
     for v in flown.idle_vehicles:
         assert v["link"] == "monitor" and v["armed"] is False and v["mode"]
         np.testing.assert_allclose(v["position"], v["home"], atol=0.05)
@@ -179,11 +179,12 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
 
 
 def test_refusals(mock_settings: Callable[..., Settings]) -> None:
-    with TestClient(create_app(mock_settings())) as client:
+    with TestClient(create_app(mock_settings(mock_max_vehicles=4))) as client:  # --mock 4
         six = plan_mission(client, example("paper-circle6"))
         response = client.post(f"/api/missions/{six['id']}/flights")
         assert response.status_code == 409 and response.json()["field"] == "fleet"
-        assert "6 vehicles, the mock fleet 4" in response.json()["reason"]
+        assert ("the plan has 6 vehicles, the mock fleet 4 (setting mock_vehicles): restart "
+                "the service with --mock 6, or --mock auto") in response.json()["reason"]
 
         crossing = plan_mission(client, SHORT_CROSSING)
         url = f"/api/missions/{crossing['id']}/flights"
@@ -215,7 +216,8 @@ def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> Non
     with TestClient(create_app(make_settings(mock_vehicles=0))) as client:
         assert client.get("/api/vehicles").json() == {
             "fleet": {"kind": "none", "vehicles": 0, "ids": [], "flying": None,
-                      "world_origin": None, "vehicle_process": "running"}, "vehicles": []}
+                      "world_origin": None, "grows_to": None, "vehicle_process": "running"},
+            "vehicles": []}
         mission = plan_mission(client, SHORT_CROSSING)
         response = client.post(f"/api/missions/{mission['id']}/flights")
         assert response.status_code == 409
