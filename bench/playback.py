@@ -3,13 +3,15 @@
 Starts `fleetplan serve` (no mock vehicles), posts `bench/show.py`'s show (--vehicles drones
 taking off from a 2 m ground grid, five formations with colours, landing) for the service to
 plan, opens the page in headless Chromium (Playwright, Debian's /usr/bin/chromium or
-FLEETPLAN_CHROMIUM), shows the mission, puts the slider a third into the show (its
-formations with a colour per drone, and fades), presses play and, for --seconds of playback, records
-every gap between two animation frames (requestAnimationFrame) and the browser's long tasks
-(over 50 ms). Prints one JSON document: the longest and median frame (ms), the 99th
-percentile, how many slider steps were played against the plan's rate, the distinct colours
-the drones showed in the fly view, and the load average before and after (the machine is
-shared: the page's frames compete with everything else on it).
+FLEETPLAN_CHROMIUM) and shows the mission. Then, for --seconds each, records every gap
+between two animation frames (requestAnimationFrame) and the browser's long tasks (over
+50 ms): with the page idle (the control: what the busy machine alone costs a frame), playing
+from a third into the show (its formations with a colour per drone, and fades) with the fly
+view on screen, and again with the 3-D view scrolled into view (it redraws its markers only
+when on screen). Prints one JSON document: per run the longest, median and 99th-percentile
+frame (ms), the frames over 200 ms, the frames that drew a new sample, the samples played
+against the plan's rate, the distinct colours the drones showed in the fly view, and the
+load average before and after (the machine is shared).
 
     python bench/playback.py
     python bench/playback.py --vehicles 1000 --seconds 20
@@ -39,13 +41,15 @@ from tests.api.support import ServiceProcess
 
 #: Every gap between two animation frames and every long task, from the page's first script.
 WATCH = """
-window.__frames = []; window.__longTasks = [];
+window.__frames = []; window.__steps = []; window.__longTasks = [];
 new PerformanceObserver((list) => {
   for (const e of list.getEntries()) window.__longTasks.push(e.duration);
 }).observe({ type: "longtask", buffered: true });
 let last = performance.now();
 const tick = (now) => {
-  window.__frames.push(now - last); last = now; requestAnimationFrame(tick);
+  const slider = document.querySelector('#time-slider');
+  window.__frames.push(now - last); window.__steps.push(slider ? Number(slider.value) : -1);
+  last = now; requestAnimationFrame(tick);
 };
 requestAnimationFrame(tick);
 """
@@ -83,7 +87,9 @@ def _chromium() -> str:
 def plan_on_service(service: ServiceProcess, data: dict[str, Any], timeout: float) -> str:
     """POST the show and wait until the service has planned it; its mission id."""
     answer = httpx.post(f"{service.base_url}/api/missions?wait=0", json=data, timeout=120)
-    answer.raise_for_status()
+    if answer.status_code not in (201, 202):
+        raise SystemExit(f"the service refused the show: {answer.status_code} "
+                         f"{answer.text[:500]}")
     mission_id: str = answer.json()["id"]
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -97,8 +103,52 @@ def plan_on_service(service: ServiceProcess, data: dict[str, Any], timeout: floa
     raise SystemExit(f"the show was not planned within {timeout:g} s")
 
 
+RESET = "() => { window.__frames = []; window.__steps = []; window.__longTasks = []; }"
+#: Whether the 3-D view is on screen (it redraws its markers only then).
+ON_SCREEN = """() => { const r = document.getElementById('plot3d').getBoundingClientRect();
+    return r.bottom > 0 && r.top < innerHeight; }"""
+
+
+def _frames(frames: list[float], steps: list[int] | None = None) -> dict[str, Any]:
+    """The figures of one run of frame gaps (ms); with the slider's sample at each frame,
+    the frames that drew a new sample and the one after each (it carries their paint)."""
+    frames = frames[1:]  # the first gap spans the reset
+    ordered = sorted(frames)
+    out: dict[str, Any] = {
+        "frames": len(frames), "frame_max_ms": round(max(frames), 1),
+        "frame_median_ms": round(statistics.median(frames), 1),
+        "frame_p99_ms": round(ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))], 1),
+        "frames_over_200_ms": sum(f > 200 for f in frames)}
+    if steps is not None:
+        steps = steps[1:]
+        moved = [i + 1 for i in range(len(steps) - 1) if steps[i + 1] != steps[i]]
+        out["step_frames_ms"] = [round(max(frames[i:i + 2]), 1) for i in moved]
+    return out
+
+
+def _played(page: Any, seconds: float, rate: float) -> dict[str, Any]:
+    """Play from a third into the show (its formations with a colour per drone, and fades)
+    for `seconds`; the frames, the long tasks, the samples played, the colours shown."""
+    page.evaluate(RESET)
+    first = int(page.evaluate(START))
+    page.click("#play")
+    colours = []
+    for _ in range(4):
+        page.wait_for_timeout(seconds * 250)
+        colours.append(page.evaluate(COLOURS))
+    page.click("#play")
+    last = int(page.eval_on_selector("#time-slider", "(e) => Number(e.value)"))
+    tasks = page.evaluate("window.__longTasks")
+    return {**_frames(page.evaluate("window.__frames"), page.evaluate("window.__steps")),
+            "view_3d_on_screen": page.evaluate(ON_SCREEN),
+            "long_tasks": len(tasks), "long_task_max_ms": round(max(tasks, default=0.0), 1),
+            "steps_played": last - first, "steps_expected": round(seconds * rate),
+            "colours_shown": colours}
+
+
 def play(base_url: str, mission_id: str, seconds: float) -> dict[str, Any]:
-    """Show the mission on the page, play it for `seconds`, and measure the frames."""
+    """Show the mission on the page; measure the frames idle (the control), playing with
+    the fly view on screen, and playing with the 3-D view scrolled into view."""
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright:
@@ -117,30 +167,17 @@ def play(base_url: str, mission_id: str, seconds: float) -> dict[str, Any]:
             shown_s = time.monotonic() - started
             page.wait_for_timeout(1000)  # the drawing's last frames
             rate = page.evaluate("() => import('/state.js').then((m) => m.views.traj.rate)")
-            page.evaluate("() => { window.__frames = []; window.__longTasks = []; }")
-            # from a third into the show: its formations with a colour per drone and fades
-            first = int(page.evaluate(START))
-            page.click("#play")
-            colours = []
-            for _ in range(4):
-                page.wait_for_timeout(seconds * 250)
-                colours.append(page.evaluate(COLOURS))
-            page.click("#play")
-            last = int(page.eval_on_selector("#time-slider", "(e) => Number(e.value)"))
-            frames = page.evaluate("window.__frames")
-            tasks = page.evaluate("window.__longTasks")
+            page.evaluate(RESET)
+            page.wait_for_timeout(seconds * 1000)
+            idle = _frames(page.evaluate("window.__frames"))
+            fly = _played(page, seconds, rate)
+            page.locator("#plot3d").scroll_into_view_if_needed()
+            page.wait_for_timeout(2000)  # the markers catch up with the slider
+            view_3d = _played(page, seconds, rate)
         finally:
             browser.close()
-    frames = frames[1:]  # the first gap spans the reset
-    ordered = sorted(frames)
-    return {"shown_s": round(shown_s, 2), "frames": len(frames),
-            "frame_max_ms": round(max(frames), 1),
-            "frame_median_ms": round(statistics.median(frames), 1),
-            "frame_p99_ms": round(ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))], 1),
-            "frames_over_200_ms": sum(f > 200 for f in frames),
-            "long_tasks": len(tasks), "long_task_max_ms": round(max(tasks, default=0.0), 1),
-            "steps_played": last - first, "steps_expected": round(seconds * rate),
-            "trajectory_rate_hz": rate, "colours_shown": colours}
+    return {"shown_s": round(shown_s, 2), "trajectory_rate_hz": rate, "idle": idle,
+            "playing": fly, "playing_3d_view": view_3d}
 
 
 def main() -> None:
@@ -153,7 +190,8 @@ def main() -> None:
     data = lit_show(args.vehicles)
     with tempfile.TemporaryDirectory() as folder, \
             ServiceProcess(Path(folder), "--mock", "0",
-                           env={"FLEETPLAN_MAX_TRAJECTORY_SAMPLES": str(10**9)},
+                           env={"FLEETPLAN_MAX_TRAJECTORY_SAMPLES": str(10**9),
+                                "FLEETPLAN_MAX_VEHICLES": str(max(128, args.vehicles))},
                            start_timeout=300.0) as service:
         planned = time.monotonic()
         mission_id = plan_on_service(service, data, args.plan_timeout)

@@ -102,7 +102,10 @@ def ground_refusal(plan: Plan, *, take_over: bool = False) -> str | None:
     """Why this ground station cannot fly `plan` from or to the ground (`ground_spans`), or
     with `take_over` (vehicles already in the air) a plan that starts on the ground; None
     when it can."""
-    spans = ground_spans(plan)
+    return _refusal(ground_spans(plan), take_over)
+
+
+def _refusal(spans: dict[str, GroundSpan] | str, take_over: bool) -> str | None:
     if isinstance(spans, str):
         return f"refusing to fly the plan: {spans}"
     if take_over:
@@ -126,11 +129,10 @@ class GroundShow:
     @classmethod
     def of(cls, plan: Plan, *, take_over: bool = False) -> GroundShow:
         """`PlanRejected` with `ground_refusal`'s reason when it cannot be flown."""
-        why = ground_refusal(plan, take_over=take_over)
-        if why is not None:
-            raise PlanRejected(why)
         spans = ground_spans(plan)
-        assert not isinstance(spans, str)
+        why = _refusal(spans, take_over)
+        if why is not None or isinstance(spans, str):
+            raise PlanRejected(why or "")
         return cls(spans)
 
     def on_ground(self, v: VehicleStatus) -> bool:
