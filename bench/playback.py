@@ -9,7 +9,8 @@ between two animation frames (requestAnimationFrame) and the browser's long task
 from a third into the show (its formations with a colour per drone, and fades) with the fly
 view on screen, and again with the 3-D view scrolled into view (it redraws its markers only
 when on screen). Prints one JSON document: per run the longest, median and 99th-percentile
-frame (ms), the frames over 200 ms, the frames that drew a new sample, the samples played
+frame (ms), the frames over 200 ms, the frames that drew a new sample, the longest frame
+after playing stops (the views drawn at the slider's time), the samples played
 against the plan's rate, the distinct colours the drones showed in the fly view, and the
 load average before and after (the machine is shared).
 
@@ -104,6 +105,8 @@ def plan_on_service(service: ServiceProcess, data: dict[str, Any], timeout: floa
 
 
 RESET = "() => { window.__frames = []; window.__steps = []; window.__longTasks = []; }"
+#: Press play (or stop) without scrolling the page to the button, as a click would.
+PLAY = "() => document.querySelector('#play').click()"
 #: Whether the 3-D view is on screen (it redraws its markers only then).
 ON_SCREEN = """() => { const r = document.getElementById('plot3d').getBoundingClientRect();
     return r.bottom > 0 && r.top < innerHeight; }"""
@@ -129,21 +132,26 @@ def _frames(frames: list[float], steps: list[int] | None = None) -> dict[str, An
 def _played(page: Any, seconds: float, rate: float) -> dict[str, Any]:
     """Play from a third into the show (its formations with a colour per drone, and fades)
     for `seconds`; the frames, the long tasks, the samples played, the colours shown."""
-    page.evaluate(RESET)
     first = int(page.evaluate(START))
-    page.click("#play")
+    page.wait_for_timeout(2000)  # the move's own drawing is not playing
+    page.evaluate(RESET)
+    page.evaluate(PLAY)
     colours = []
     for _ in range(4):
         page.wait_for_timeout(seconds * 250)
         colours.append(page.evaluate(COLOURS))
-    page.click("#play")
     last = int(page.eval_on_selector("#time-slider", "(e) => Number(e.value)"))
     tasks = page.evaluate("window.__longTasks")
-    return {**_frames(page.evaluate("window.__frames"), page.evaluate("window.__steps")),
-            "view_3d_on_screen": page.evaluate(ON_SCREEN),
+    played = _frames(page.evaluate("window.__frames"), page.evaluate("window.__steps"))
+    on_screen = page.evaluate(ON_SCREEN)
+    page.evaluate(RESET)
+    page.evaluate(PLAY)  # stop: every view drawn at the slider's time
+    page.wait_for_timeout(2000)
+    stopped = _frames(page.evaluate("window.__frames"))
+    return {**played, "view_3d_on_screen": on_screen,
             "long_tasks": len(tasks), "long_task_max_ms": round(max(tasks, default=0.0), 1),
             "steps_played": last - first, "steps_expected": round(seconds * rate),
-            "colours_shown": colours}
+            "colours_shown": colours, "stop_frame_max_ms": stopped["frame_max_ms"]}
 
 
 def play(base_url: str, mission_id: str, seconds: float) -> dict[str, Any]:
