@@ -184,8 +184,11 @@ on(REPLAN_CHANGED, () => {
   setTime(Number($("#time-slider").value));
 });
 
+/** Stop playing; every view at the slider's time (a show-sized 3-D view is drawn only now). */
 export function stopPlay() {
-  if (views.playTimer) clearInterval(views.playTimer);
+  const playing = views.playTimer;
+  if (playing) clearInterval(playing);
   views.playTimer = null;
   playIcon(false);
+  if (playing) setTime(Number($("#time-slider").value));
 }

@@ -143,8 +143,15 @@ function render3d(plan, traj) {
 
 /** The 3-D view's moving markers: their data changes at once, the WebGL scene is redrawn
  * once per frame at most and only while the view is on screen (an off-screen redraw costs a
- * laptop CPU for nothing; it is drawn as it scrolls into view). */
+ * laptop CPU for nothing; it is drawn as it scrolls into view), and at show scale not while
+ * the plan plays (a redraw rebuilds every path of the scene: 0.8-1.6 s at 1,000 vehicles in
+ * software WebGL, a frame held that long at every played sample; the fly view plays, the
+ * 3-D view is drawn where playing stops). */
 const markers = { lines: 0, scheduled: false, onScreen: true, watched: false };
+
+/** Whether the plan plays (▶) on a fleet drawn in layers. */
+const playingAtScale = () => Boolean(views.playTimer && views.traj
+  && layered(views.traj.vehicles.length));
 
 /** @returns {any} the 3-D view's element (its `data` once plotted) */
 const scene = () => /** @type {any} */ ($("#plot3d"));
@@ -158,7 +165,7 @@ function scheduleMarkers() {
       scheduleMarkers();
     }).observe(scene());
   }
-  if (markers.scheduled || !markers.onScreen) return;
+  if (markers.scheduled || !markers.onScreen || playingAtScale()) return;
   markers.scheduled = true;
   requestAnimationFrame(() => {
     markers.scheduled = false;

@@ -155,6 +155,14 @@ class ArduPilot(Autopilot):
     rtl_mode = RTL
     hold_words = "ArduPilot BRAKE"
     boarding = ("origin", "follow", "arm", "takeoff", "climb")
+    #: GUIDED is accepted disarmed. Landed, GUIDED ignores position targets
+    #: (`ModeGuided::pos_control_run` and the others keep it on the ground while
+    #: `is_disarmed_or_landed`), and a target arriving after MAV_CMD_NAV_TAKEOFF switches it
+    #: out of its takeoff submode at once (`ModeGuided::set_destination`), which leaves it on
+    #: the ground if it has not yet lifted off: it takes off by command, and gets setpoints
+    #: only once it is up. Armed, it disarms by itself after DISARM_DELAY without a takeoff.
+    ground_boarding = ("origin", "follow")
+    liftoff = "takeoff"
     land_by_command = False
     arm_retry_results = frozenset({mavlink.MAV_RESULT_FAILED,
                                    mavlink.MAV_RESULT_TEMPORARILY_REJECTED})

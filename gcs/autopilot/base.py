@@ -20,7 +20,7 @@ from typing import ClassVar, Protocol
 
 from gcs.wire import mavlink
 
-__all__ = ["BOARDING_STEPS", "Autopilot", "FlightMode", "LinkLossFailsafe",
+__all__ = ["BOARDING_STEPS", "LIFTOFF_WAYS", "Autopilot", "FlightMode", "LinkLossFailsafe",
            "SetpointLossFailsafe", "read_rates"]
 
 #: Every step a boarding procedure may name (`Autopilot.boarding`), run in the autopilot's
@@ -33,6 +33,15 @@ __all__ = ["BOARDING_STEPS", "Autopilot", "FlightMode", "LinkLossFailsafe",
 #: - ``takeoff``: MAV_CMD_NAV_TAKEOFF to the start's height, and wait until it is there;
 #: - ``climb``: stream the transfer from where it is to its start.
 BOARDING_STEPS = ("prestream", "origin", "follow", "arm", "takeoff", "climb")
+
+#: Every way a vehicle standing on the ground may leave it at its takeoff time in a show's
+#: plan (`Autopilot.liftoff`), flown by `gcs.flight.run.ground`:
+#: - ``setpoints``: armed in the mode that follows setpoints with the plan's setpoints
+#:   streaming (at rest on the ground until then), it climbs when they climb;
+#: - ``takeoff``: no setpoint may reach it between the takeoff command and leaving the ground
+#:   (it would end the takeoff with the vehicle still landed): MAV_CMD_NAV_TAKEOFF to the
+#:   plan's height a moment ahead, then the plan's setpoints.
+LIFTOFF_WAYS = ("setpoints", "takeoff")
 
 
 def read_rates(position_hz: float) -> dict[int, float]:
@@ -117,6 +126,12 @@ class Autopilot(ABC):
     hold_words: ClassVar[str]
     #: The boarding procedure's steps in order (names from `BOARDING_STEPS`).
     boarding: ClassVar[tuple[str, ...]]
+    #: The boarding steps of a vehicle that takes off by the plan itself (a show standing on
+    #: the ground): up to the mode that follows setpoints, disarmed; it is armed shortly
+    #: before its takeoff time (`gcs.flight.run.ground`).
+    ground_boarding: ClassVar[tuple[str, ...]]
+    #: How it leaves the ground at its takeoff time (a name from `LIFTOFF_WAYS`).
+    liftoff: ClassVar[str]
     #: MAV_CMD_NAV_LAND is tried before switching to `land_mode`.
     land_by_command: ClassVar[bool]
     #: MAV_RESULTs that refuse arming only for now (pre-arm checks not passed yet): retried

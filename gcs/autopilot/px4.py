@@ -216,6 +216,11 @@ class Px4(Autopilot):
     rtl_mode = RTL
     hold_words = "PX4 Hold"
     boarding = ("prestream", "follow", "arm", "climb")
+    #: OFFBOARD is entered disarmed on the ground with the stream live; armed there, it stands
+    #: at rest on setpoints on the ground and climbs when they climb (MAVROS's offboard
+    #: takeoff). Armed, it disarms by itself after COM_DISARM_PRFLT without a takeoff.
+    ground_boarding = ("prestream", "follow")
+    liftoff = "setpoints"
     land_by_command = True
     arm_retry_results = frozenset({mavlink.MAV_RESULT_TEMPORARILY_REJECTED})
     arm_retry_s = ARM_TEMPORARILY_REJECTED_RETRY_S

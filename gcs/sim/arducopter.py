@@ -8,7 +8,9 @@ where they differ from PX4's, as ArduCopter SITL showed them (`gcs.autopilot.ard
   disarming in the air FAILED unless forced (21196);
 - MAV_CMD_NAV_TAKEOFF (armed, GUIDED, on the ground) climbs to param7 m; position targets
   move it only in GUIDED once airborne, and are held for good when they stop, while a
-  velocity feed-forward is flown on for GUID_TIMEOUT;
+  velocity feed-forward is flown on for GUID_TIMEOUT; a position target that arrives during
+  the takeoff before it is airborne ends the takeoff and leaves it on the ground
+  (`ModeGuided::set_destination` leaves the takeoff submode, and landed it flies nothing);
 - LAND descends at LAND_SPEED (0.5 m/s) and disarms once down; RTL returns over home and lands;
   BRAKE holds where it is;
 - the GCS failsafe: FS_GCS_ENABLE (0 by default) acts FS_GCS_TIMEOUT after the ground
@@ -63,6 +65,8 @@ class ArduState:
         """The last position target's velocity feed-forward (flown on for GUID_TIMEOUT)."""
         self.guided_stopped = True
         """The feed-forward has been stopped (GUID_TIMEOUT passed, or none was given)."""
+        self.taking_off = False
+        """A MAV_CMD_NAV_TAKEOFF is climbing (until a mode change or a position target)."""
 
 
 class ArduHost(Protocol):
@@ -104,6 +108,7 @@ def set_mode(v: ArduHost, mode: ap.CopterMode) -> None:
     v.mode = mode
     i = v.index
     v.ardu.landed_since = None
+    v.ardu.taking_off = False
     if mode == ap.LAND:
         v.model.descend(i, ap.LAND_SPEED)
     elif mode == ap.RTL:
@@ -139,6 +144,7 @@ def handle_command(v: ArduHost, msg: Any) -> None:
             return
         p = v.model.position[v.index]
         v.model.hold(v.index, np.array([p[0], p[1], -float(height)]))
+        v.ardu.taking_off = True
         v.event(f"takeoff to {float(height):g} m")
         v.ack(msg, cmd, _m.MAV_RESULT_ACCEPTED)
     elif cmd == _m.MAV_CMD_NAV_LAND:
@@ -184,10 +190,16 @@ def heard(v: ArduHost, msg: Any, now: float) -> None:
 
 def follow(v: ArduHost, position: np.ndarray, velocity: np.ndarray,
            acceleration: np.ndarray) -> bool:
-    """Take a position target: followed in GUIDED once airborne (True), else ignored."""
-    if v.mode != ap.GUIDED or not v.in_air:
-        return False
+    """Take a position target: followed in GUIDED once airborne (True), else ignored; one
+    that arrives while a takeoff has not yet left the ground ends it there."""
     i = v.index
+    if v.mode != ap.GUIDED or not v.in_air:
+        if v.mode == ap.GUIDED and v.ardu.taking_off:
+            v.ardu.taking_off = False
+            p = v.model.position[i]
+            v.model.hold(i, np.array([p[0], p[1], 0.0]))
+            v.event("guided: takeoff ended by a position target while still landed")
+        return False
     v.model.position_sp[i] = position
     v.model.velocity_sp[i] = velocity
     v.model.acceleration_sp[i] = acceleration

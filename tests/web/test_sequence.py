@@ -13,6 +13,15 @@ from tests.api.support import GOALS, OUT_AND_BACK, ServiceProcess
 
 #: Out to the crossed formation only (6.8 s): the sequence's flight kept short.
 OUT: dict = {**OUT_AND_BACK, "name": "out", "formations": OUT_AND_BACK["formations"][:2]}
+#: OUT lit: red at home, fading to blue over the leg (0.4 to 6.4 s).
+LIT: dict = {**OUT, "formations": [{**OUT["formations"][0], "color": "#ff0000"},
+                                   {**OUT["formations"][1], "color": "#0000ff",
+                                    "lights": "fade"}]}
+#: The longest gap between two animation frames since `window.__longest` was reset.
+FRAMES = """() => { window.__longest = 0; let last = performance.now();
+  const tick = (now) => { window.__longest = Math.max(window.__longest, now - last);
+                          last = now; requestAnimationFrame(tick); };
+  requestAnimationFrame(tick); }"""
 
 
 def paste(page: Page, body: dict) -> None:
@@ -60,9 +69,7 @@ def test_a_lit_sequence_draws_each_drone_in_its_light_colour_at_the_slider_s_tim
         page: Page) -> None:
     """Red at home, fading to blue over the leg (0.4 to 6.4 s): purple half way, in the fly
     view's planned rings and the 3-D view's planned-now markers."""
-    lit = {**OUT, "formations": [{**OUT["formations"][0], "color": "#ff0000"},
-                                 {**OUT["formations"][1], "color": "#0000ff", "lights": "fade"}]}
-    paste(page, lit)
+    paste(page, LIT)
     page.click("#sequence-plan")
     expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
     ring = page.locator('#fly-view .planned-icon[data-id="a"]')
@@ -73,6 +80,28 @@ def test_a_lit_sequence_draws_each_drone_in_its_light_colour_at_the_slider_s_tim
         expect(page.locator("#time-label")).to_contain_text(label)
         expect(ring).to_have_attribute("stroke", colour)
         page.wait_for_function(f"{markers}?.marker.color.every((c) => c === '{colour}')")
+
+
+def test_playing_a_lit_sequence_plays_it_in_colour(page: Page) -> None:
+    """▶ plays the plan on the slider with the drones in their light's colour as it goes:
+    red, then the fade's purples, then blue, with frames coming all along (the figures for a
+    1,000-drone show are bench/playback.py's)."""
+    paste(page, LIT)
+    page.click("#sequence-plan")
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    ring = page.locator('#fly-view .planned-icon[data-id="a"]')
+    expect(ring).to_have_attribute("stroke", "#ff0000")
+    page.evaluate(FRAMES)
+    page.click("#play")
+    seen = set()
+    for _ in range(200):  # about 10 s: the 6.8 s plan played once
+        seen.add(ring.get_attribute("stroke"))
+        if "#0000ff" in seen:
+            break
+        page.wait_for_timeout(50)
+    page.click("#play")
+    assert "#0000ff" in seen and len(seen) >= 3, seen  # red, a purple, blue
+    assert page.evaluate("window.__longest") < 2000  # bound: frames kept coming (ms)
 
 
 def test_sequence_errors_name_the_field(page: Page) -> None:

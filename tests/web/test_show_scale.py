@@ -105,3 +105,28 @@ def test_a_show_sized_fleet_table_lists_100_vehicles_and_counts_the_rest(
     expect(page.locator("#vehicle-state tr.more-vehicles")).to_have_text(
         "… and 50 more vehicles (150 in all)")
     assert rows.first.get_attribute("data-id") == "show140"
+
+
+def test_playing_a_show_moves_the_fly_view_and_draws_the_3d_view_where_it_stops(
+    open_page: Callable[..., Page]
+) -> None:
+    """At show scale ▶ plays in the fly view at every sample, while the 3-D view keeps its
+    markers' data in step but redraws its WebGL scene only where playing stops (a redraw
+    rebuilds every path: about a second at 1,000 vehicles in software WebGL, bench/playback.py)."""
+    small = ShowPlan(64, mission_id="show-play")
+    page = open_page(before=small.route)
+    expect(page.locator("#plan-button")).to_be_enabled(timeout=30_000)
+    page.evaluate(SHOW, small.mission_id)
+    expect(page.locator("#plan-state")).to_contain_text("converged", timeout=60_000)
+    page.locator("#plot3d").scroll_into_view_if_needed()
+    now = "document.getElementById('plot3d').{}.find((t) => t.name === 'planned now').x"
+    data, drawn = now.format("data"), now.format("_fullData")
+    page.wait_for_function(f"() => {drawn}.length === 64")  # drawn at the slider's start
+    rings = page.locator("#fly-view path.planned-icons").first
+    before = rings.get_attribute("d")
+    page.evaluate("() => document.querySelector('#play').click()")  # no scroll to it
+    page.wait_for_function("() => Number(document.querySelector('#time-slider').value) >= 5")
+    assert rings.get_attribute("d") != before  # the fly view plays
+    assert page.evaluate(f"() => {data}[0] !== {drawn}[0]")  # the scene waits
+    page.evaluate("() => document.querySelector('#play').click()")
+    page.wait_for_function(f"() => {data}.every((x, i) => x === {drawn}[i])")

@@ -295,9 +295,9 @@ async def fly_mission(
 ) -> dict[str, Any]:
     """Arm and fly the mission's plan on the fleet (mock vehicles, SITL or real): this is the
     only request that moves a vehicle. 201 with the flight (status `starting`); follow it
-    at `links.events`. 409 if the plan is not verified, takes off from and lands on the
-    ground (a show controller's to fly, `gcs.flight.run.ground`), the fleet lacks a plan
-    vehicle, or another flight is under way."""
+    at `links.events`. 409 if the plan is not verified, cannot be flown from the ground
+    (`gcs.flight.run.ground`: a show's own takeoff and landing waves are flown), the fleet
+    lacks a plan vehicle, or another flight is under way."""
     plan = await run_in_threadpool(plans.get, mission.id)
     options = {} if request is None else request.model_dump(exclude_none=True)
     row = await fleet.fly(mission.id, plan, options)

@@ -361,13 +361,14 @@ async def set_origin(link: VehicleLink, origin: frames.Geodetic,
 
 
 async def take_off(link: VehicleLink, height: float, *, timeout: float,
-                   stalls: StationStalls | None = None) -> float:
+                   stalls: StationStalls | None = None, up_at: float | None = None) -> float:
     """MAV_CMD_NAV_TAKEOFF to `height` m above its LOCAL_NED origin (at least
     `TAKEOFF_MIN_M`; a copter in GUIDED leaves the ground only so), then wait until it is
-    within `TAKEOFF_TOLERANCE_M` of it; returns the height asked for (`CommandError`,
-    `VehicleTimeout` otherwise)."""
+    within `TAKEOFF_TOLERANCE_M` of it (or, with `up_at`, at that height on its way);
+    returns the height asked for (`CommandError`, `VehicleTimeout` otherwise)."""
     clock = _clock(stalls)
     height = max(height, TAKEOFF_MIN_M)
+    reached = height - TAKEOFF_TOLERANCE_M if up_at is None else min(up_at, height)
     result = await link.command(mavlink.MAV_CMD_NAV_TAKEOFF,
                                 (0.0, 0.0, 0.0, math.nan, math.nan, math.nan, height),
                                 clock=clock)
@@ -376,11 +377,12 @@ async def take_off(link: VehicleLink, height: float, *, timeout: float,
                            f"takeoff refused: {result_name(result)}{last_text(link)}")
 
     def up(t: Telemetry) -> bool:
-        return t.position_ned is not None and -t.position_ned[2] >= height - TAKEOFF_TOLERANCE_M
+        return t.position_ned is not None and -t.position_ned[2] >= reached
 
     if not await wait_running(link, up, timeout, stalls):
-        raise VehicleTimeout(link.vehicle_id, f"not at its takeoff height {height:g} m within "
-                                              f"{timeout:g} s{last_text(link)}")
+        raise VehicleTimeout(link.vehicle_id, f"not at {reached:g} m on its takeoff to "
+                                              f"{height:g} m within {timeout:g} s"
+                                              f"{last_text(link)}")
     return height
 
 

@@ -30,8 +30,8 @@ from gcs.flight.safety.health import PreflightThresholds, preflight_problems
 from gcs.geofence import WorldFence, fence_items
 from gcs.phases import EventKind, VehiclePhase
 
-__all__ = ["FENCE_RETRY_MARGIN_S", "FENCE_TRANSFERS", "connect_vehicle", "fence_fleet",
-           "fence_origin", "fence_retry_wait", "fence_vehicle", "preflight",
+__all__ = ["FENCE_RETRY_MARGIN_S", "FENCE_TRANSFERS", "arm_vehicle", "connect_vehicle",
+           "fence_fleet", "fence_origin", "fence_retry_wait", "fence_vehicle", "preflight",
            "prepare_vehicle"]
 
 #: Whole uploads (with read-back) of a vehicle's fence before the flight is refused, and the
@@ -176,15 +176,19 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
 
 async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightOptions,
                           yaw_ned: float, emit: Emit, stalls: StationStalls,
-                          world_origin: frames.Geodetic | None = None) -> None:
+                          world_origin: frames.Geodetic | None = None, *,
+                          on_ground: bool = False) -> None:
     """Take `v` from disarmed on the ground to streaming the climb to its start
     (`v.start_ned`) by its autopilot's boarding steps (`Autopilot.boarding`: PX4 prestreams,
     switches to OFFBOARD, arms and climbs on setpoints; ArduPilot gets an EKF origin,
-    switches to GUIDED, arms, takes off to the start's height, then follows setpoints)."""
+    switches to GUIDED, arms, takes off to the start's height, then follows setpoints).
+    `on_ground`: its plan starts where it stands and takes off by itself; only the steps up
+    to the mode that follows setpoints are taken (`Autopilot.ground_boarding`: arming and
+    the takeoff are `gcs.flight.run.ground`'s, on the flight clock)."""
     link = v.linked
     kind = v.autopilot
     here = np.asarray(link.telemetry.position_ned, dtype=float)
-    for step in kind.boarding:
+    for step in kind.ground_boarding if on_ground else kind.boarding:
         if step == "prestream":
             streamer.assign(v.id, link, hold_track(here, yaw_ned, options.rate_hz))
             await asyncio.sleep(options.prestream)
@@ -198,7 +202,7 @@ async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightO
             emit(v.id, EventKind.MODE, f"{kind.follow_mode.name} confirmed")
             v.expect_offboard = True
         elif step == "arm":
-            await _arm(v, options, emit, stalls)
+            await arm_vehicle(v, options, emit, stalls)
         elif step == "takeoff":
             assert v.start_ned is not None
             height = await vehicle.take_off(link, -float(v.start_ned[2]),
@@ -216,9 +220,10 @@ async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightO
             raise ValueError(f"unknown boarding step {step!r}")
 
 
-async def _arm(v: VehicleStatus, options: FlightOptions, emit: Emit,
-               stalls: StationStalls) -> None:
-    """Arm `v`, recording that an arming command went out and that one was accepted."""
+async def arm_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
+                      stalls: StationStalls, timeout: float | None = None) -> None:
+    """Arm `v` (retried for `timeout`, the fleet's `arm_timeout` by default), recording that
+    an arming command went out and that one was accepted."""
 
     def attempt() -> None:
         v.arm_sent = True
@@ -227,7 +232,8 @@ async def _arm(v: VehicleStatus, options: FlightOptions, emit: Emit,
         v.armed_by_us = True
 
     v.phase = VehiclePhase.ARMING
-    attempts = await vehicle.arm(v.linked, timeout=options.arm_timeout,
+    attempts = await vehicle.arm(v.linked, timeout=options.arm_timeout if timeout is None
+                                 else timeout,
                                  confirm_timeout=options.heartbeat_timeout,
                                  on_attempt=attempt, on_accepted=accepted, stalls=stalls)
     emit(v.id, EventKind.ARMED, f"after {attempts} attempt(s)")

@@ -19,7 +19,8 @@ executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
    (MAV_CMD_DO_SET_MODE, retried while TEMPORARILY_REJECTED), then arm (retried while
    TEMPORARILY_REJECTED, up to `arm_timeout`), each confirmed by COMMAND_ACK *and* HEARTBEAT;
    then climb vertically from home to the plan's start (then horizontally, if the home is not
-   below the start);
+   below the start). A vehicle whose plan starts on the ground where it stands is armed,
+   lifted off and landed by the plan's own waves instead (`gcs.flight.run.ground`);
 3. when every vehicle is within `start_tolerance` of its start, start the shared flight
    clock: every vehicle's setpoint for tick k leaves in tick k (`gcs.flight.run.stream.Streamer`);
 4. after the horizon (of the last plan switched in by a replan), hold at the goals for
@@ -105,7 +106,7 @@ from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicl
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.flown import FlownPlans
-from gcs.flight.run.ground import ground_refusal
+from gcs.flight.run.ground import GroundShow
 from gcs.flight.run.precedence import abort_in_force, aborting_refusal
 from gcs.flight.run.record import FlightRecorder, goal_tolerance
 from gcs.flight.run.recording import FlightRecording, finish_record
@@ -144,8 +145,9 @@ class FlightExecutor:
         why = refusal(plan)  # verified again on the trajectories themselves
         if why is not None:
             raise PlanRejected(f"refusing to fly the plan: {why}")
-        if (on_ground := ground_refusal(plan)) is not None:
-            raise PlanRejected(on_ground)
+        self.ground = GroundShow.of(plan, take_over=take_over)
+        """The vehicles that take off from or land on the ground by the plan
+        (`gcs.flight.run.ground`)."""
         self.plan = plan
         self.fleet = fleet
         self.options = options or fleet.options
@@ -402,6 +404,8 @@ class FlightExecutor:
                 or self.clock.pause is not None):
             raise StateConflict("status", f"only a flying flight can be replanned (phase "
                                           f"{self.phase})")
+        if (why := self.ground.replan_refusal()) is not None:
+            raise StateConflict("status", why)
         return self._replanner
 
     def events(self) -> AsyncIterator[FlightEvent]:
@@ -502,8 +506,9 @@ class FlightExecutor:
         self.phase = FlightPhase.PREPARING
         streamer = self._streamer()
         await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit, self.stalls,
-                                   self.fleet.world_origin)
+                                   self.fleet.world_origin, on_ground=self.ground.on_ground(v))
                    for v in self.vehicles)
+        await self.ground.board(self.vehicles, opts, self._emit, self.stalls)
         self.phase = FlightPhase.GATHERING
         await self._gather()
         self.phase = FlightPhase.FLYING
@@ -552,6 +557,8 @@ class FlightExecutor:
         while True:
             waiting = []
             for v in self.vehicles:
+                if self.ground.on_ground(v):  # at its start already (`GroundShow.board`)
+                    continue
                 assignment = streamer.assignments.get(v.id)
                 done = (assignment is not None
                         and streamer.tick - assignment.start_tick >= len(assignment.track) - 1)
@@ -575,8 +582,10 @@ class FlightExecutor:
         streamer = self._streamer()
         start_tick = streamer.next_tick() + 1
         for v, track in zip(self.vehicles, self._tracks, strict=True):
-            streamer.assign(v.id, v.linked, track, start_tick)
-            v.phase = VehiclePhase.FLYING
+            if self.ground.streams_from_start(v):
+                streamer.assign(v.id, v.linked, track, start_tick)
+            if not self.ground.on_ground(v):  # (one on the ground lifts off with its wave)
+                v.phase = VehiclePhase.FLYING
         self.clock.begin(start_tick)
         streamer.measuring = True
         replanner = self._replanner = Replanner(
@@ -586,6 +595,26 @@ class FlightExecutor:
             on_missed=self._replan_missed)
         self._emit(None, EventKind.FLIGHT_START, f"tick {start_tick}, horizon "
                                                  f"{self.plan.scenario.horizon:g} s")
+        ground = asyncio.ensure_future(self.ground.fly(
+            self.vehicles, self._tracks, streamer, self.clock, self.options, self._emit,
+            self.stalls, self._stop_stream, lambda why: self.request_abort("land", why)))
+        try:
+            await self._fly_to_plan_end(replanner)
+            await ground  # every landing by the plan has ended
+        finally:
+            ground.cancel()
+        await self._settle_at_goals()
+        streamer.measuring = False
+        judged = [v for v in self.vehicles if v.fault is None and v.dropped is None]
+        for v in judged:
+            v.goal_error = v.distance_ned(v.goal_ned)
+            v.goal_tolerance = self._goal_tolerance(v)
+        self._emit(None, EventKind.GOAL_ERRORS, ", ".join(
+            f"{v.id} {v.goal_error:.3f} m" for v in judged))
+
+    async def _fly_to_plan_end(self, replanner: Replanner) -> None:
+        """Until the flight's plan (the last switched replan's) has ended and the hold at
+        the goals is over."""
         while True:  # until the flight's plan (the last switched replan's) has ended
             if not await self._sleep_until_plan_end(0.0):
                 continue
@@ -606,14 +635,6 @@ class FlightExecutor:
                 await asyncio.sleep(PERIOD)
             if len(self.flown.segments) == segments:
                 break
-        await self._settle_at_goals()
-        streamer.measuring = False
-        judged = [v for v in self.vehicles if v.fault is None and v.dropped is None]
-        for v in judged:
-            v.goal_error = v.distance_ned(v.goal_ned)
-            v.goal_tolerance = self._goal_tolerance(v)
-        self._emit(None, EventKind.GOAL_ERRORS, ", ".join(
-            f"{v.id} {v.goal_error:.3f} m" for v in judged))
 
     async def _sleep_until_plan_end(self, extra: float) -> bool:
         """Sleep until `extra` s of flight time after the flight's plan ends; False as soon
@@ -657,7 +678,8 @@ class FlightExecutor:
 
     async def _finish(self) -> None:
         # (a vehicle a replan dropped with land is handed to PX4's Land by the replanner)
-        live = [v for v in self.vehicles if v.fault is None and v.dropped != "land"]
+        live = [v for v in self.vehicles if v.fault is None and v.dropped != "land"
+                and v.id not in self.ground.landed]  # (those the plan landed are down)
         if self.options.at_end == "hold":
             await _all(self._hold(v) for v in live)
             for v in live:
