@@ -87,10 +87,11 @@ class ServiceProcess:
     `quick_mocks`, its mock vehicles get `FAST_MOCK`'s timings (`QUICK_MOCK_ENV`)."""
 
     def __init__(self, workdir: Path, *args: str, env: dict[str, str] | None = None,
-                 token: str | None = None, start_timeout: float = 60.0,
+                 token: str | None = None, start_timeout: float = 120.0,
                  quick_mocks: bool = False) -> None:
         self.workdir = workdir
-        #: How long `with ServiceProcess(...)` waits for the service to answer (s).
+        #: How long `with ServiceProcess(...)` waits for the service to answer (s): a loose
+        #: bound, as `start`'s: at load 30 a service can take over a minute to answer.
         self.start_timeout = start_timeout
         #: The API token the service is configured with (sent while waiting for it), if any.
         self.headers = {} if token is None else {"Authorization": f"Bearer {token}"}

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from gcs import phases
+from gcs.cli.main import main
 from tests.flight.support import free_port_block, line_scenario, smooth_plan
 
 pytestmark = [pytest.mark.timeout(150),
@@ -111,9 +112,12 @@ def test_fly_takes_a_replan_on_its_control_socket(tmp_path: Path) -> None:
     (["--replan-lead", "50"], "option.replan_lead_s: at most 10 s"),
     (["--replan-lead", "0"], "option.replan_lead_s: must be positive"),
 ])
-def test_fly_checks_its_replan_options(tmp_path: Path, flags: list[str], message: str) -> None:
+def test_fly_checks_its_replan_options(tmp_path: Path, flags: list[str], message: str,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """In process (the command line's `main`): the refusal comes before any vehicle or
+    socket, and a child Python would add only its start-up."""
     plan_path = tmp_path / "plan.json"
     plan_path.write_text(json.dumps(smooth_plan(line_scenario(2)).to_dict()))
-    done = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path),
-                           "--mock", *flags], capture_output=True, text=True, timeout=60)
-    assert done.returncode == 2 and message in done.stderr, done.stderr
+    assert main(["fly", str(plan_path), "--mock", *flags]) == 2
+    err = capsys.readouterr().err
+    assert message in err, err
