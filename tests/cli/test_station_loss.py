@@ -101,7 +101,7 @@ def test_a_killed_station_leaves_the_fleet_landing_apart_by_layer(tmp_path: Path
     landed = {n: next(t for t, what in v.events if what == "failsafe: Land")
               for n, v in enumerate(mock.vehicles)}
     assert max(landed[n] for n in low) < min(landed[n] for n in high)
-    assert len(truth) > 500
+    assert len(truth) > 200  # every 10 ms of some 10 s (fewer on a busy machine)
     r = plan.scenario.min_separation
     assert _closest_airborne(truth, np.asarray(plan.scenario.separation_scale)) >= r - 0.05
     # the record so far, written as the flight went
