@@ -6,9 +6,9 @@ the port rule of `ports`. It never imports `gcs.flight` (see `gcs.sim.vehicle`).
 """
 
 from gcs.sim.config import MockConfig, MockFaults
-from gcs.sim.fleet import DEFAULT_WORLD_ORIGIN, MockFleet, climb_clash, homes_under
+from gcs.sim.fleet import DEFAULT_WORLD_ORIGIN, MockFleet, homes_under
 from gcs.sim.setpoints import ReceivedSetpoint
 from gcs.sim.vehicle import MockVehicle
 
 __all__ = ["DEFAULT_WORLD_ORIGIN", "MockConfig", "MockFaults", "MockFleet", "MockVehicle",
-           "ReceivedSetpoint", "climb_clash", "homes_under"]
+           "ReceivedSetpoint", "homes_under"]

@@ -46,7 +46,7 @@ from gcs.sim.model import FleetModel
 from gcs.sim.vehicle import MockVehicle
 from gcs.wire import Datagrams
 
-__all__ = ["DEFAULT_WORLD_ORIGIN", "ON_THE_GROUND_M", "MockFleet", "climb_clash", "homes_under"]
+__all__ = ["DEFAULT_WORLD_ORIGIN", "MockFleet", "homes_under"]
 
 _log = logging.getLogger(__name__)
 
@@ -58,36 +58,10 @@ OWN_STALL_S = 0.1
 
 
 def homes_under(starts: ArrayLike) -> list[list[float]]:
-    """Homes on the ground (z = 0) right under each start: the climb to the start is vertical,
-    so it needs no deconfliction (how `fleetplan fly --mock` and the service place mocks)."""
+    """Homes on the ground (z = 0) right under each start: the climb to the start is vertical
+    (how `fleetplan fly --mock` and the service place mocks); where two columns are nearer
+    than R, the higher start climbs first (`gcs.flight.run.climb_order`)."""
     return [[float(s[0]), float(s[1]), 0.0] for s in np.asarray(starts, dtype=float)]
-
-
-#: A start this low stands on the ground: its mock vehicle does not climb to it.
-ON_THE_GROUND_M = 0.05
-
-
-def climb_clash(starts: ArrayLike, ids: Sequence[str], clearance: float) -> str | None:
-    """Why mock vehicles set down under `starts` (`homes_under`) cannot climb to them: two
-    starts in the air closer than `clearance` in x-y, so one vehicle would climb straight
-    through the other (the closest pair named, and how many there are); None when none are."""
-    from scipy.spatial import cKDTree
-
-    points = np.asarray(starts, dtype=float).reshape(-1, 3)
-    pairs = cKDTree(points[:, :2]).query_pairs(clearance, output_type="ndarray")
-    gaps = np.linalg.norm(points[pairs[:, 0], :2] - points[pairs[:, 1], :2], axis=1)
-    close = (gaps < clearance) & (points[pairs, 2].max(axis=1) > ON_THE_GROUND_M)
-    pairs, gaps = pairs[close], gaps[close]
-    if not len(pairs):
-        return None
-    i, j = pairs[int(np.argmin(gaps))]
-    others = len(pairs) - 1
-    more = f" (and {others} more pair{'s' if others > 1 else ''})" if others else ""
-    return (f"{ids[i]} and {ids[j]} start {gaps.min():.2f} m apart horizontally (at "
-            f"{points[i, 2]:.2f} m and {points[j, 2]:.2f} m){more}, closer than the "
-            f"{clearance:g} m they must keep: mock vehicles set down under their starts would "
-            "climb through each other. Fly it on vehicles whose homes are apart (a fleet "
-            "file), or plan it from starts at least that far apart in x-y")
 
 
 class MockFleet:

@@ -131,15 +131,21 @@ def test_fly_mock_on_a_busy_port_names_the_options(tmp_path: Path) -> None:
         in proc.stderr
 
 
-def test_fly_mock_refuses_starts_its_vehicles_would_climb_through(tmp_path: Path) -> None:
+@pytest.mark.flight
+def test_fly_mock_climbs_stacked_starts_one_after_the_other(tmp_path: Path) -> None:
+    """Mocks set down under starts 0.55 m apart horizontally (R = 1 m): the higher climbs
+    first, the lower after it, and the flight completes."""
     plan_path = tmp_path / "plan.json"
     plan_path.write_text(json.dumps(smooth_plan(STACKED).to_dict()))
-    proc = subprocess.run([sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path),
-                           "--mock"], capture_output=True, text=True, timeout=30)
-    assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert proc.stderr.startswith("error: refusing to fly the plan on mock vehicles: low and "
-                                  "high start 0.55 m apart horizontally")
-    assert "a fleet file" in proc.stderr
+    base = free_port_block(4)
+    proc = subprocess.run(
+        [sys.executable, "-m", "gcs.cli.main", "fly", str(plan_path), "--mock",
+         "--mock-settle", "0.5", "--mock-status-rate", "5", "--mock-land-speed", "1",
+         "--mock-disarm-after-land", "0.5", "--hold-at-goal", "0.5", "--climb-speed", "2",
+         "--prestream", "0.3", "--base-port", str(base), "--listen-base-port", str(base + 2)],
+        capture_output=True, text=True, timeout=90)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "low: climb climbs in wave 2 of 2" in proc.stdout, proc.stdout
 
 
 def test_fly_given_a_scenario_says_to_plan_it_first(tmp_path: Path) -> None:

@@ -19,8 +19,10 @@ executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
    (MAV_CMD_DO_SET_MODE, retried while TEMPORARILY_REJECTED), then arm (retried while
    TEMPORARILY_REJECTED, up to `arm_timeout`), each confirmed by COMMAND_ACK *and* HEARTBEAT;
    then climb vertically from home to the plan's start (then horizontally, if the home is not
-   below the start). A vehicle whose plan starts on the ground where it stands is armed,
-   lifted off and landed by the plan's own waves instead (`gcs.flight.run.ground`);
+   below the start); vehicles whose homes are nearer than R horizontally climb in waves, the
+   higher start first (`gcs.flight.run.climb_order`). A vehicle whose plan starts on the
+   ground where it stands is armed, lifted off and landed by the plan's own waves instead
+   (`gcs.flight.run.ground`);
 3. when every vehicle is within `start_tolerance` of its start, start the shared flight
    clock: every vehicle's setpoint for tick k leaves in tick k (`gcs.flight.run.stream.Streamer`);
 4. after the horizon (of the last plan switched in by a replan), hold at the goals for
@@ -103,6 +105,7 @@ from gcs.flight.replan.replan import (
     unheard_margin,
 )
 from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicle
+from gcs.flight.run.climb_order import climb_waves
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.flown import FlownPlans
@@ -505,9 +508,20 @@ class FlightExecutor:
             v.goal_ned = frames.world_to_ned(goals[v.index], home)
         self.phase = FlightPhase.PREPARING
         streamer = self._streamer()
-        await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit, self.stalls,
-                                   self.fleet.world_origin, on_ground=self.ground.on_ground(v))
-                   for v in self.vehicles)
+        waves = climb_waves(homes, scenario.starts, required_separation(scenario),
+                            scenario.separation_scale)
+        last = max(waves, default=0)
+        for k in range(last + 1):  # one whose column another's climb passes waits for it
+            wave = [v for v, w in zip(self.vehicles, waves, strict=True) if w == k]
+            for v in wave if k else ():
+                self._emit(v.id, EventKind.CLIMB, f"climbs in wave {k + 1} of {last + 1}: a "
+                                                  f"vehicle with a higher start stands nearer "
+                                                  f"than R to its column")
+            await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit,
+                                       self.stalls, self.fleet.world_origin,
+                                       on_ground=self.ground.on_ground(v)) for v in wave)
+            if k < last:
+                await self._gather(wave)
         await self.ground.board(self.vehicles, opts, self._emit, self.stalls)
         self.phase = FlightPhase.GATHERING
         await self._gather()
@@ -549,14 +563,16 @@ class FlightExecutor:
                 f"others'); land them by plan from a station: fleetplan fleet land --plan "
                 f"PLAN.json --fleet FLEET.json"))
 
-    async def _gather(self) -> None:
+    async def _gather(self, vehicles: Sequence[VehicleStatus] | None = None) -> None:
+        """Until every vehicle (or those of `vehicles`) has flown its climb and is within
+        `start_tolerance` of its start (`VehicleTimeout` after `gather_timeout`)."""
         tol = self.options.start_tolerance
         clock = self.stalls.clock  # the station's own stalls do not use up the timeout
         deadline = clock() + self.options.gather_timeout
         streamer = self._streamer()
         while True:
             waiting = []
-            for v in self.vehicles:
+            for v in self.vehicles if vehicles is None else vehicles:
                 if self.ground.on_ground(v):  # at its start already (`GroundShow.board`)
                     continue
                 assignment = streamer.assignments.get(v.id)

@@ -1,7 +1,6 @@
 """A mock fleet that grows (`serve --mock auto`, the default): a plan with more vehicles than
 the mocks started flies on as many mocks as it has, and one over `mock_max_vehicles` is
-refused naming the setting; so is one whose mocks, set down under their starts, would climb
-through each other."""
+refused naming the setting."""
 
 from __future__ import annotations
 
@@ -14,7 +13,6 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from tests.api.support import QUICK, example, plan_mission, refused, sse_events
-from tests.flight.support import STACKED
 
 #: The paper's 6-vehicle circle swap in 8 s: two vehicles more than the 4 mocks started.
 SIX: dict[str, Any] = example("paper-circle6") | {"name": "circle6-quick", "steps": 40}
@@ -49,13 +47,3 @@ def test_a_plan_over_the_growth_limit_is_refused_naming_the_setting(
                 "the plan has 6 vehicles, more than the mock fleet may grow to: 5 (setting "
                 "mock_max_vehicles): restart the service with FLEETPLAN_MOCK_MAX_VEHICLES=6")
         assert client.get("/api/vehicles").json()["fleet"]["vehicles"] == 4  # none added
-
-
-def test_starts_the_mocks_would_climb_through_are_refused(
-    mock_settings: Callable[..., Settings],
-) -> None:
-    with TestClient(create_app(mock_settings())) as client:
-        mission = plan_mission(client, STACKED)
-        refused(client.post(f"/api/missions/{mission['id']}/flights"), 409, "mission_id",
-                "refusing to fly the plan on the mock fleet: low and high start 0.55 m apart "
-                "horizontally (at 1.08 m and 1.92 m)")
