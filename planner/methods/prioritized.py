@@ -50,8 +50,9 @@ from planner.scp.loop import DEFAULT_BATCH, ScpOptions, ScpOutcome, run_scp
 from planner.scp.solvers import QPSolver
 from planner.types import FloatArray, IntArray
 
-__all__ = ["NOT_CONVERGED", "UNREACHABLE", "PrioritizedOutcome", "batch_size",
-           "crosses_one_point", "order_vehicles", "plan_batches"]
+__all__ = ["NOT_CONVERGED", "UNREACHABLE", "Placed", "PrioritizedOutcome", "batch_size",
+           "clear_guess", "crosses_one_point", "dominant_motion", "near_fixed",
+           "order_vehicles", "plan_batches", "polylines", "positions_along"]
 
 #: A fixed trajectory joins a batch's scenario only if it comes within this many R (scaled)
 #: of a batch vehicle's straight move at some instant of the horizon (any time: the batch's
@@ -75,7 +76,7 @@ NOT_CONVERGED = "a batch did not converge, even with its nearest earlier vehicle
 UNREACHABLE = "a goal cannot be reached around the obstacles"
 
 
-def _dominant_motion(scenario: Scenario) -> FloatArray | None:
+def dominant_motion(scenario: Scenario) -> FloatArray | None:
     """The unit direction of the fleet's mean move when it is over half the mean move's
     length (a fleet moving as one), else None (crowds crossing a centre, random moves)."""
     move = scenario.goals - scenario.starts
@@ -91,7 +92,7 @@ def order_vehicles(scenario: Scenario) -> IntArray:
     lie farthest along it first (they fill the far side before the others arrive and leave
     the near side free); without a dominant motion (crowds crossing a centre, random moves)
     the longest moves first."""
-    direction = _dominant_motion(scenario)
+    direction = dominant_motion(scenario)
     if direction is not None:
         return np.argsort(-(scenario.goals @ direction), kind="stable").astype(np.intp)
     length = np.linalg.norm(scenario.goals - scenario.starts, axis=1)
@@ -107,7 +108,7 @@ def batch_size(scenario: Scenario, asked: int | None = None) -> int:
     forest 50 measured the same either way)."""
     if asked is not None:
         return asked
-    if scenario.obstacles or _dominant_motion(scenario) is not None:
+    if scenario.obstacles or dominant_motion(scenario) is not None:
         return DEFAULT_BATCH
     return 1
 
@@ -122,7 +123,7 @@ def _segment_distance(points: FloatArray, a: FloatArray, b: FloatArray) -> Float
     return distances
 
 
-def _near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach: float,
+def near_fixed(scenario: Scenario, members: IntArray, paths: FloatArray, reach: float,
                 routes: dict[int, FloatArray] | None = None) -> IntArray:
     """Indices of the trajectories `paths` (F, K+1, 3) whose samples come within `reach`
     (scaled) of a straight move of `members`, or of its polyline in `routes` (keyed by
@@ -283,12 +284,12 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
         later = later[goal_gap.min(axis=1) >= work.min_separation * 1.05]
     own = work.fixed_set
     fixed: list[FixedTrajectory] = list(work.fixed)
-    moving = earlier[_near_fixed(work, group, state.p[earlier], reach, state.routes)]
+    moving = earlier[near_fixed(work, group, state.p[earlier], reach, state.routes)]
     for j in moving:
         fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", state.p[j], state.v[j]))
     resting = np.zeros(0, dtype=np.intp)
     if len(later):
-        resting = later[_near_fixed(work, group, work.starts[later][:, None, :], reach,
+        resting = later[near_fixed(work, group, work.starts[later][:, None, :], reach,
                                     state.routes)]
         for j in resting:
             fixed.append(FixedTrajectory(f"~{work.vehicles[j].id}", work.starts[j][None, :]))
@@ -364,7 +365,7 @@ def _pushes(amounts: tuple[float, ...], ways: FloatArray) -> FloatArray:
     return (np.asarray(amounts)[:, None, None] * ways[None]).reshape(-1, 3)
 
 
-def _polylines(scenario: Scenario, vehicle: int, wide: bool = False) -> FloatArray:
+def polylines(scenario: Scenario, vehicle: int, wide: bool = False) -> FloatArray:
     """(C, 3, 3) polylines start -> midpoint -> goal to try, cheapest first: the straight
     move, then its midpoint pushed sideways by each of DETOURS in four directions (`wide`:
     and WIDE_DETOURS, in eight)."""
@@ -391,7 +392,7 @@ def _polylines(scenario: Scenario, vehicle: int, wide: bool = False) -> FloatArr
     return out
 
 
-def _positions(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
+def positions_along(lines: FloatArray, scenario: Scenario, delay: int) -> FloatArray:
     """(C, K+1, 3) positions along each polyline of `lines` (C, 3, 3), waiting `delay`
     steps, then on the unit profile (as `planner.methods.routes.along`)."""
     phi = np.clip(unit_profile(scenario.steps - delay, scenario.dt)[0], 0.0, 1.0)
@@ -445,16 +446,16 @@ def clear_guess(scenario: Scenario, others: FloatArray,
     if preset is not None and len(preset[0]):
         fresh = n - len(preset[0])
         p[fresh:], v[fresh:], a[fresh:] = preset
-    placed = _Placed(np.concatenate([others / scale, p[fresh:] / scale]))
+    placed = Placed(np.concatenate([others / scale, p[fresh:] / scale]))
     need = GUESS_GAP * scenario.min_separation
     drift = _drift(scenario)
     for i in range(fresh):
-        lines = _polylines(scenario, i)
+        lines = polylines(scenario, i)
         chosen = (lines[0], 0)
         if routes and i in routes:
             if scenario.start_velocities is None:
                 p[i], v[i], a[i] = _routed_departure(
-                    scenario, routes[i], _polylines(scenario, i, wide=True), placed)
+                    scenario, routes[i], polylines(scenario, i, wide=True), placed)
                 placed.add(p[i] / scale)
                 continue
             chosen = _route_departure(scenario, routes[i], placed.points, need,
@@ -464,13 +465,13 @@ def clear_guess(scenario: Scenario, others: FloatArray,
             tries = [(lines[:1], 0)] + [(lines, int(d * scenario.steps)) for d in DELAYS]
             first = len(tries)
             if crossing:
-                wide = _polylines(scenario, i, wide=True)
+                wide = polylines(scenario, i, wide=True)
                 tries += ([(wide[len(lines):], int(d * scenario.steps)) for d in DELAYS]
                           + [(wide, int(d * scenario.steps)) for d in WIDE_DELAYS])
             for number, (subset, delay) in enumerate(tries):  # the straight move first
                 if number == first and best >= scenario.min_separation:
                     break  # R kept: the wide candidates would cost more than they save
-                trial = (_positions(subset, scenario, delay) + drift[0][i]) / scale
+                trial = (positions_along(subset, scenario, delay) + drift[0][i]) / scale
                 gap = placed.gaps(trial, need)
                 clear = np.flatnonzero(gap >= need)
                 pick = int(clear[0]) if clear.size else int(np.argmax(gap))
@@ -512,11 +513,11 @@ def _clear_lines(scenario: Scenario, lines: FloatArray) -> NDArray[np.bool_]:
 
 
 def _routed_departure(scenario: Scenario, route: FloatArray, lines: FloatArray,
-                      placed: _Placed) -> tuple[FloatArray, FloatArray, FloatArray]:
+                      placed: Placed) -> tuple[FloatArray, FloatArray, FloatArray]:
     """A routed vehicle's first linearisation point from rest: its route departing at the
     first delay that keeps ROUTE_GAP R from the trajectories placed before it
     (`planner.methods.spacetime.depart`); where none does and the route is the straight move (a
-    crowd crossing one opening), the first detour of `lines` (`_polylines`) clear of the
+    crowd crossing one opening), the first detour of `lines` (`polylines`) clear of the
     obstacles that does at one of DELAYS or WIDE_DELAYS, else the departure that keeps
     farthest."""
     scale = scenario.separation_scale
@@ -532,7 +533,7 @@ def _routed_departure(scenario: Scenario, route: FloatArray, lines: FloatArray,
         return trial
     chosen: tuple[FloatArray, int] | None = None
     for delay in (int(d * scenario.steps) for d in DELAYS + WIDE_DELAYS):
-        gap = placed.gaps(_positions(detours, scenario, delay) / scale, need)
+        gap = placed.gaps(positions_along(detours, scenario, delay) / scale, need)
         pick = int(np.argmax(gap >= need)) if (gap >= need).any() else int(np.argmax(gap))
         if gap[pick] > best:
             chosen, best = (detours[pick], delay), float(gap[pick])
@@ -553,11 +554,11 @@ def _drift(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:
     return v0 * psi_p[None, :, None], v0 * psi_v[None, :, None], v0 * psi_a[None, :, None]
 
 
-#: Steps per coarse box of `_Placed.gaps`.
+#: Steps per coarse box of `Placed.gaps`.
 GAP_BLOCK = 10
 
 
-class _Placed:
+class Placed:
     """Trajectories placed so far (scaled positions, (F, K+1, 3)) with the boxes of their
     positions over blocks of GAP_BLOCK steps, so that a candidate is compared step by step
     only with those whose box comes near its own in the same block."""

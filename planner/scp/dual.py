@@ -18,7 +18,7 @@ sign_r sign_s W[f_r, f_s], W = T M T' the "compliance" between two functionals (
 that share a vehicle, so it is small and sparse where the primal KKT system has ~15 rows per
 vehicle and step (measured in the README, Drone-show scale). Where every vehicle meets
 dozens of others the rows sharing vehicles couple nearly all of Q; the working set keeps
-each solve to about one row per close approach (`_Dual.worst_per_link`), so Q's blocks stay
+each solve to about one row per close approach (`GroupDual.worst_per_link`), so Q's blocks stay
 small there too.
 """
 
@@ -38,7 +38,7 @@ from planner.scp.qp import A, BoxMask, P, SeparationRows, V
 from planner.scp.solvers import FAILED, INFEASIBLE, MAX_ITER, SOLVED
 from planner.types import FloatArray, IntArray
 
-__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "Functionals", "functionals",
+__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "Functionals", "GroupDual", "functionals",
            "solve_group_dual"]
 
 Keys = NDArray[np.int64]
@@ -48,7 +48,7 @@ Keys = NDArray[np.int64]
 #: (a vehicle with thousands of box rows, a giant crowd's every row) the primal QP is the
 #: better tool. Working sets below it still solve a group whose whole Q is larger.
 MAX_PAIRS = 2_000_000
-#: `_Dual.solve`'s status when the rows it would need exceed MAX_PAIRS.
+#: `GroupDual.solve`'s status when the rows it would need exceed MAX_PAIRS.
 TOO_LARGE = "too_large"
 
 
@@ -184,7 +184,7 @@ def _solve_bounded(Q: sp.csc_matrix, c: FloatArray, tolerance: float
     return SOLVED, np.maximum(np.array(solver.result.x), 0.0), iterations
 
 
-class _Dual:
+class GroupDual:
     """One group's dual: its rows as entries (row, vehicle, functional, coefficient vector;
     a separation row has one entry per vehicle it moves, a box row one) and the linear term
     c = C x* - h. Blocks of Q = C M C' are built for the rows a solve needs, and the
@@ -344,7 +344,7 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     when a block of the dual's matrix to solve would exceed `MAX_PAIRS` entries (the caller
     solves the primal).
 
-    The dual is solved over a working set of rows (`_Dual.solve`) that starts from the rows
+    The dual is solved over a working set of rows (`GroupDual.solve`) that starts from the rows
     the straight moves break or, with row_ids and memory (names of the separation rows,
     unique and stable across solves, and what earlier solves found active), from the
     remembered active rows; the memory learns this solve's active rows. fleet: the
@@ -384,7 +384,7 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     c = np.bincount(e_row, np.einsum("ec,ec->e", e_coef, g_star[e_veh, e_func]),
                     minlength=n_rows) - rhs
 
-    dual = _Dual(fn, m, e_row, e_veh, e_func, e_coef, c)
+    dual = GroupDual(fn, m, e_row, e_veh, e_func, e_coef, c)
     box_ids = np.zeros(0, dtype=np.int64)
     # Start from the rows remembered active, else from those the straight moves break.
     start = dual.worst_per_link(c < -tolerance, c)

@@ -30,7 +30,8 @@ from planner.model.flatness import GRAVITY
 from planner.model.scenario import Scenario
 from planner.types import FloatArray, IntArray
 
-__all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
+__all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp",
+           "build_structure", "group_structure"]
 
 
 P, V, A = 0, 1, 2
@@ -176,20 +177,22 @@ def _coo(rows: list[IntArray], cols: list[IntArray], vals: list[FloatArray], sha
 
 
 #: Groups of at most this many vehicles share their equality and cost matrices between QPs
-#: (`_structure`): prioritized batches build thousands of small QPs of the same shape.
+#: (`group_structure`): prioritized batches build thousands of small QPs of the same shape.
 STRUCTURE_CACHE_VEHICLES = 16
 
 
-def _structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+def group_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
     """(A_eq, P) of a group of `m` vehicles: the dynamics and boundary-condition rows and
     the cost's Hessian depend only on the shape and dt, so small groups' are built once
     (the solvers only read them)."""
     if m <= STRUCTURE_CACHE_VEHICLES:
         return _cached_structure(steps, m, dt)
-    return _build_structure(steps, m, dt)
+    return build_structure(steps, m, dt)
 
 
-def _build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+def build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """(A_eq, P) of a group of `m` vehicles built afresh (`group_structure` shares small
+    groups' through a cache)."""
     lay = StageLayout(steps, m)
     n = lay.size
     # Grids over (vehicle, axis) and (stage, vehicle, axis): flat index arrays.
@@ -236,7 +239,7 @@ def _build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.c
     return A_eq, sp.diags(diag, format="csc")
 
 
-_cached_structure = functools.lru_cache(maxsize=32)(_build_structure)
+_cached_structure = functools.lru_cache(maxsize=32)(build_structure)
 
 
 def build_group_qp(
@@ -260,7 +263,7 @@ def build_group_qp(
 
     veh = np.repeat(np.arange(m), 3)
     axis = np.tile(np.arange(3), m)
-    A_eq, P_mat = _structure(steps, m, dt)
+    A_eq, P_mat = group_structure(steps, m, dt)
     starts = scenario.starts[members].reshape(-1)  # chain order: vehicle-major, axis
     goals = scenario.goals[members].reshape(-1)
     start_v = scenario.initial_velocities[members].reshape(-1)

@@ -1,6 +1,6 @@
 """Prioritized batches on crowds crossing a centre (grid -> sphere with fixed goals): a
 vehicle at a time by default, every vehicle keeping R from the earlier ones over continuous
-time, and the first guesses' blocked gap test (`planner.methods.prioritized._Placed`) agreeing with
+time, and the first guesses' blocked gap test (`planner.methods.prioritized.Placed`) agreeing with
 the step-by-step distances."""
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def test_a_crowd_goes_a_vehicle_at_a_time_a_fleet_moving_as_one_in_pairs() -> No
     assert prioritized.batch_size(Scenario.from_dict(sideways(16)).assigned()) == DEFAULT_BATCH
     # a crowd among obstacles stays in pairs (measured no faster alone)
     woods = Scenario.from_dict(forest(8, 6, size=20.0, seed=0)).assigned()
-    assert prioritized._dominant_motion(woods) is None and woods.obstacles
+    assert prioritized.dominant_motion(woods) is None and woods.obstacles
     assert prioritized.batch_size(woods) == DEFAULT_BATCH
     assert prioritized.batch_size(_crowd(), 3) == 3  # asked for: as asked
 
@@ -65,7 +65,7 @@ def test_the_blocked_gaps_are_the_step_distances_where_they_matter() -> None:
                 + rng.uniform(-12.0, 12.0, (count, 1, 3)))
 
     placed_points = walks(12)
-    placed = prioritized._Placed(placed_points)
+    placed = prioritized.Placed(placed_points)
     trial = walks(40)
     exact = np.linalg.norm(trial[:, None] - placed_points[None], axis=3).min(axis=(1, 2))
     for need in np.quantile(exact, [0.2, 0.5, 0.8]):  # some candidates fail, some clear
@@ -88,8 +88,8 @@ def _reference_guess(scenario: Scenario, others: np.ndarray, crossing: bool) -> 
     placed = [others / scale]
     out = []
     for i in range(len(scenario.vehicles)):
-        lines = prioritized._polylines(scenario, i)
-        wide = prioritized._polylines(scenario, i, wide=True)
+        lines = prioritized.polylines(scenario, i)
+        wide = prioritized.polylines(scenario, i, wide=True)
         assert np.array_equal(wide[:len(lines)], lines)  # the wide set extends the first
         against = np.concatenate(placed)
         chosen, best = (lines[0], 0), -np.inf
@@ -100,7 +100,7 @@ def _reference_guess(scenario: Scenario, others: np.ndarray, crossing: bool) -> 
         for number, (subset, delay) in enumerate(first + then):
             if number == len(first) and (not crossing or best >= scenario.min_separation):
                 break  # the wide candidates: in a crowd crossing a point, less than R kept
-            trial = prioritized._positions(subset, scenario, delay) / scale
+            trial = prioritized.positions_along(subset, scenario, delay) / scale
             gap = np.linalg.norm(trial[:, None] - against[None], axis=3).min(axis=(1, 2))
             clear = np.flatnonzero(gap >= need)
             pick = int(clear[0]) if clear.size else int(np.argmax(gap))

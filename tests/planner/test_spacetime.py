@@ -129,8 +129,8 @@ def test_a_batch_fixes_the_earlier_vehicles_near_its_route_not_only_its_straight
                         scenario.steps + 1, axis=1)
     reach = prioritized.REACH * scenario.min_separation
     members = np.array([0])
-    assert prioritized._near_fixed(scenario, members, resting, reach).size == 0
-    assert prioritized._near_fixed(scenario, members, resting, reach, route).tolist() == [0]
+    assert prioritized.near_fixed(scenario, members, resting, reach).size == 0
+    assert prioritized.near_fixed(scenario, members, resting, reach, route).tolist() == [0]
 
 
 def test_full_height_obstacles_are_routed_in_the_plane_at_the_lanes_own_heights() -> None:
