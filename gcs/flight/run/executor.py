@@ -41,7 +41,7 @@ An abort with land (or an error) while the plan is flown flies a verified landin
 like the plan, then PX4's Land at the touchdown points; PX4's Land straight away for vehicles
 that cannot be steered, or for all when no plan is ready in time.
 
-Safety: nothing is armed before `run()`; every error path ends in `vehicle.secure`, which disarms
+Safety: nothing is armed before `run()`; every error path ends in `endings.secure`, which disarms
 armed vehicles still on the ground, sends airborne ones to land (or Hold for an explicit hold
 abort), stops their streams, and waits for landed vehicles to disarm. A vehicle that does not
 answer still gets no more setpoints, so PX4's own offboard-loss failsafe lands it.
@@ -86,7 +86,7 @@ from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import DECODED_IDS
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
-from gcs.flight.procedure import vehicle
+from gcs.flight.procedure import endings
 from gcs.flight.procedure.failsafe import (
     column_conflicts,
     failsafe_record,
@@ -666,14 +666,14 @@ class FlightExecutor:
         await asyncio.gather(*self.policy.landings, return_exceptions=True)
         if self._replanner is not None:
             await asyncio.gather(*self._replanner.landings, return_exceptions=True)
-        await vehicle.wait_disarmed([v for v in self.vehicles
+        await endings.wait_disarmed([v for v in self.vehicles
                                      if v.phase == VehiclePhase.LANDING],
                                     self.options, self._emit, self.stalls)
 
     # ================================================================ making safe
 
     def _land(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.land_vehicle(v, self.options, self._emit, self._stop_stream,
+        return endings.land_vehicle(v, self.options, self._emit, self._stop_stream,
                                     self.stalls)
 
     def _descent_conflicts(self, v: VehicleStatus) -> list[DescentConflict] | None:
@@ -775,7 +775,7 @@ class FlightExecutor:
             self.policy.give_way(v)
 
     def _hold(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.hold_vehicle(v, self.options, self._emit, self._stop_stream,
+        return endings.hold_vehicle(v, self.options, self._emit, self._stop_stream,
                                     self.stalls)
 
     def _stop_stream(self, vehicle_id: str) -> None:
@@ -808,7 +808,7 @@ class FlightExecutor:
         return landing if landing.eligible() else None
 
     def _secure_one(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.secure(v, "land", self.options, self._emit, self._stop_stream,
+        return endings.secure(v, "land", self.options, self._emit, self._stop_stream,
                               self.stalls)
 
     async def _secure_all(self, action: str) -> None:
@@ -833,7 +833,7 @@ class FlightExecutor:
             if self.streamer is not None:
                 self.streamer.freeze()
             await asyncio.gather(
-                *(vehicle.secure(v, action, self.options, self._emit, self._stop_stream,
+                *(endings.secure(v, action, self.options, self._emit, self._stop_stream,
                                  self.stalls)
                   for v in self.vehicles),
                 return_exceptions=True)
@@ -847,7 +847,7 @@ class FlightExecutor:
             if self._abort is None or self._abort[0] == action:
                 break
         if action == "land":
-            await vehicle.wait_disarmed([v for v in self.vehicles if v.arm_sent], self.options,
+            await endings.wait_disarmed([v for v in self.vehicles if v.arm_sent], self.options,
                                         self._emit, self.stalls)
         for v in self.vehicles:
             if (v.link is not None and v.link.telemetry.armed

@@ -96,7 +96,7 @@ class PlannedLanding:
     options: FlightOptions
     emit: Emit
     secure: Callable[[VehicleStatus], Awaitable[None]]
-    """Leaves one vehicle safe with PX4's Land (`gcs.flight.procedure.vehicle.secure`: disarmed on
+    """Leaves one vehicle safe with PX4's Land (`gcs.flight.procedure.endings.secure`: disarmed on
     the ground, or landing); its stream stops."""
     stalls: StationStalls
     flown: FlownPlans | None = None
