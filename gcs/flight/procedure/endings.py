@@ -1,64 +1,58 @@
 """The executor's safe endings of one vehicle, on the procedure's steps
 (`gcs.flight.procedure.vehicle`): `land_vehicle`, `hold_vehicle`, `secure` (whatever state it
 is in, leave it safe) and `wait_disarmed`. None of them raises: a failure is an event, and
-the vehicle's own failsafe is the fallback.
-
-Streaming is not done here: the endings that must stop a vehicle's setpoints take a
-`stop_stream(vehicle_id)` callback, so this module stays below `gcs.flight.run.stream`.
+the vehicle's own failsafe is the fallback. Each takes the flight it runs in as one
+`FlightContext` (its options, events, stalls, and how a vehicle's setpoints stop).
 """
 
 from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Callable
 
 from gcs.errors import GcsError
-from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.link.station import StationStalls
-from gcs.flight.procedure.vehicle import Emit, VehicleStatus, disarm, land, set_mode
+from gcs.flight.procedure.context import FlightContext
+from gcs.flight.procedure.vehicle import VehicleStatus, disarm, land, set_mode
 from gcs.phases import EventKind, VehiclePhase
 from gcs.wire import mavlink, result_name
 
-__all__ = ["StopStream", "hold_vehicle", "land_vehicle", "secure", "wait_disarmed"]
+__all__ = ["hold_vehicle", "land_vehicle", "secure", "wait_disarmed"]
 
-#: Called with a vehicle id to stop streaming setpoints to it.
-StopStream = Callable[[str], None]
 #: How often `wait_disarmed` looks at the landing vehicles (s).
 POLL_PERIOD = 0.05
 
 
-async def land_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
+async def land_vehicle(v: VehicleStatus, context: FlightContext) -> None:
     """Send `v` down; its setpoints stop either way (its own failsafe is then what acts if
     the command never arrived)."""
     v.phase = VehiclePhase.LANDING
     v.expect_offboard = False
     try:
-        if await land(v.linked, confirm_timeout=options.heartbeat_timeout, stalls=stalls):
-            emit(v.id, EventKind.MODE, f"{v.autopilot.land_mode.name} confirmed")
-        emit(v.id, EventKind.LAND, "landing")
+        if await land(v.linked, confirm_timeout=context.options.heartbeat_timeout,
+                      stalls=context.stalls):
+            context.emit(v.id, EventKind.MODE, f"{v.autopilot.land_mode.name} confirmed")
+        context.emit(v.id, EventKind.LAND, "landing")
     except GcsError as exc:
-        emit(v.id, EventKind.LAND_FAILED, f"{exc}; setpoints stopped, {_on_its_own(v)}")
+        context.emit(v.id, EventKind.LAND_FAILED, f"{exc}; setpoints stopped, {_on_its_own(v)}")
     finally:
-        stop_stream(v.id)
+        context.stop_stream(v.id)
 
 
-async def hold_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
+async def hold_vehicle(v: VehicleStatus, context: FlightContext) -> None:
     """Switch `v` to its autopilot's hold mode where it is (PX4 Hold, ArduPilot BRAKE); its
     setpoints stop either way."""
     v.expect_offboard = False
     try:
         kind = v.autopilot
-        await set_mode(v.linked, kind.hold_mode, confirm_timeout=options.heartbeat_timeout,
-                       stalls=stalls)
-        emit(v.id, EventKind.MODE, f"{kind.hold_mode.name} confirmed")
-        emit(v.id, EventKind.HOLD, f"holding ({kind.hold_words})")
+        await set_mode(v.linked, kind.hold_mode, confirm_timeout=context.options.heartbeat_timeout,
+                       stalls=context.stalls)
+        context.emit(v.id, EventKind.MODE, f"{kind.hold_mode.name} confirmed")
+        context.emit(v.id, EventKind.HOLD, f"holding ({kind.hold_words})")
     except GcsError as exc:
-        emit(v.id, EventKind.HOLD_FAILED, f"{exc}; setpoints stopped, {_on_its_own(v, True)}")
+        context.emit(v.id, EventKind.HOLD_FAILED,
+                     f"{exc}; setpoints stopped, {_on_its_own(v, True)}")
     finally:
-        stop_stream(v.id)
+        context.stop_stream(v.id)
 
 
 def _on_its_own(v: VehicleStatus, hold: bool = False) -> str:
@@ -68,14 +62,13 @@ def _on_its_own(v: VehicleStatus, hold: bool = False) -> str:
     return v.link.telemetry.flown_by.left_alone[1 if hold else 0]
 
 
-async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Emit,
-                 stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
+async def secure(v: VehicleStatus, action: str, context: FlightContext) -> None:
     """Leave `v` safe: disarmed on the ground, landing, or (action hold) in Hold."""
     if v.link is None:
         return
     tel = v.link.telemetry
     if not tel.armed and not v.arm_sent:
-        stop_stream(v.id)
+        context.stop_stream(v.id)
         v.expect_offboard = False
         if v.phase != VehiclePhase.LANDED:
             v.phase = VehiclePhase.STOPPED
@@ -85,21 +78,21 @@ async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Em
     if on_ground:  # armed, or an arming command may have armed it: disarm
         v.expect_offboard = False
         try:
-            result = await disarm(v.link, stalls=stalls)
-            emit(v.id, EventKind.DISARM, f"on the ground: {result_name(result)}")
+            result = await disarm(v.link, stalls=context.stalls)
+            context.emit(v.id, EventKind.DISARM, f"on the ground: {result_name(result)}")
         except GcsError as exc:
             result = None
-            emit(v.id, EventKind.DISARM_FAILED, str(exc))
+            context.emit(v.id, EventKind.DISARM_FAILED, str(exc))
         if result == mavlink.MAV_RESULT_ACCEPTED:
-            stop_stream(v.id)
+            context.stop_stream(v.id)
             v.phase = VehiclePhase.STOPPED
             return
         # refused (it has taken off after all) or unanswered: land it
     if action == "hold":
-        await hold_vehicle(v, options, emit, stop_stream, stalls)
+        await hold_vehicle(v, context)
         v.phase = VehiclePhase.HOVERING
     else:
-        await land_vehicle(v, options, emit, stop_stream, stalls)
+        await land_vehicle(v, context)
 
 
 def _landed_name(state: int | None) -> str:
@@ -110,14 +103,13 @@ def _landed_name(state: int | None) -> str:
             mavlink.MAV_LANDED_STATE_TAKEOFF: "taking off"}.get(state or 0, "landed state unknown")
 
 
-async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
-                        emit: Emit, stalls: StationStalls | None = None) -> None:
+async def wait_disarmed(vehicles: list[VehicleStatus], context: FlightContext) -> None:
     """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome
     (nothing to wait for when `vehicles` is empty)."""
-    stalls = stalls if stalls is not None else StationStalls()
-    deadline = stalls.clock() + options.land_timeout
+    options, emit, stalls = context.options, context.emit, context.stalls
+    deadline = context.clock() + options.land_timeout
     pending = [v for v in vehicles if v.link is not None]
-    while pending and stalls.clock() < deadline:
+    while pending and context.clock() < deadline:
         still = []
         now = time.monotonic()
         for v in pending:
