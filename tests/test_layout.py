@@ -415,8 +415,6 @@ LONG: dict[str, str] = {
         "the landing's stages tried in turn, each with its own verdict",
     "planner/methods/assignment.py::_certified":
         "one loop: a candidate graph grown until its dual certificate holds",
-    "planner/methods/prioritized.py::plan_batches":
-        "the batches' loop: merge, defer or place each batch, in order",
     "planner/scp/loop.py::run_scp":
         "the SCP loop read top to bottom: seeding, iterations, stop rules and outcome",
 }

@@ -155,11 +155,7 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
     n, steps = len(work.vehicles), work.steps
     # a vehicle in motion cannot wait where it is: starts are reserved from rest only
     reserve = not (np.any(work.initial_velocities) or np.any(work.initial_accelerations))
-    # a batch's QPs are small and mostly one-sided rows, dense in the dual (one vehicle's
-    # rows against many fixed ones all couple): the primal measured about twice as fast
-    options = dataclasses.replace(options or ScpOptions(), dual=False)
-    if work.obstacles:
-        options = dataclasses.replace(options, obstacle_seed=BATCH_OBSTACLE_SEED)
+    options = _batch_options(work, options)
     order = order_vehicles(work) if order is None else order
     batch = batch_size(work, batch)
     batches = [order[s:s + batch] for s in range(0, n, batch)]
@@ -217,13 +213,28 @@ def plan_batches(work: Scenario, solver: QPSolver, options: ScpOptions | None = 
             outcome.positions, outcome.velocities, outcome.accelerations)
         state.planned[group] = True
         planned_order.append(members)
-    message = (f"planned in {len(planned_order)} prioritized batches of up to {batch} vehicles"
-               + (f" ({merges} replanned with earlier vehicles)" if merges else "")
-               + (f" ({len(deferred)} deferred to the end of the order)" if deferred else "")
-               + ", each converged")
+    message = _message(len(planned_order), batch, merges, len(deferred))
     joined = ScpOutcome("converged", message, state.p, state.v, state.a, iterations,
                         first_qp)
     return PrioritizedOutcome(joined, planned_order, seconds)
+
+
+def _batch_options(work: Scenario, options: ScpOptions | None) -> ScpOptions:
+    """The SCP options every batch of `work` is planned with."""
+    # a batch's QPs are small and mostly one-sided rows, dense in the dual (one vehicle's
+    # rows against many fixed ones all couple): the primal measured about twice as fast
+    options = dataclasses.replace(options or ScpOptions(), dual=False)
+    if work.obstacles:
+        options = dataclasses.replace(options, obstacle_seed=BATCH_OBSTACLE_SEED)
+    return options
+
+
+def _message(batches: int, batch: int, merges: int, deferred: int) -> str:
+    """What the joined plan says of its batches."""
+    return (f"planned in {batches} prioritized batches of up to {batch} vehicles"
+            + (f" ({merges} replanned with earlier vehicles)" if merges else "")
+            + (f" ({deferred} deferred to the end of the order)" if deferred else "")
+            + ", each converged")
 
 
 def _batch_tag(batch: int, batches: int) -> Callable[[Any], Any]:
