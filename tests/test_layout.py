@@ -382,8 +382,6 @@ LONG: dict[str, str] = {
         "one algorithm: the certified sparse assignment and its dense fallback",
     "planner/model/obstacles.py":
         "the obstacle contract and its geometry on the same padded arrays",
-    "planner/scp/dual.py":
-        "one algorithm: a group's QP solved through its dual, with its working set",
     "gcs/wire.py":
         "the MAVLink facts, a table of encodings each defined once",
     "gcs/sim/messages.py":

@@ -25,7 +25,6 @@ small there too.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,12 +33,12 @@ from numpy.typing import NDArray
 from planner.model.scenario import Scenario
 from planner.scp.active_rows import ActiveRows
 from planner.scp.first_qp import straight_moves_of
+from planner.scp.functionals import Functionals, functionals
 from planner.scp.qp import A, BoxMask, P, SeparationRows, V
 from planner.scp.solvers import FAILED, INFEASIBLE, MAX_ITER, SOLVED
 from planner.types import FloatArray, IntArray
 
-__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "Functionals", "GroupDual", "functionals",
-           "solve_group_dual"]
+__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "GroupDual", "solve_group_dual"]
 
 Keys = NDArray[np.int64]
 
@@ -50,57 +49,6 @@ Keys = NDArray[np.int64]
 MAX_PAIRS = 2_000_000
 #: `GroupDual.solve`'s status when the rows it would need exceed MAX_PAIRS.
 TOO_LARGE = "too_large"
-
-
-@dataclass(frozen=True)
-class Functionals:
-    """Indices of the linear functionals of one vehicle-axis trajectory, and W = T M T'."""
-
-    steps: int
-    compliance: FloatArray
-    """(F, F): W[f, g] = response of functional f to a unit force on functional g."""
-
-    def position(self, k: IntArray | int) -> IntArray:
-        return np.asarray(k)
-
-    def velocity(self, k: IntArray | int) -> IntArray:
-        return self.steps + 1 + np.asarray(k)
-
-    def middle(self, k: IntArray | int) -> IntArray:
-        """p_k + dt/2 v_k, the Bernstein middle point of step k."""
-        return 2 * (self.steps + 1) + np.asarray(k)
-
-    def acceleration(self, k: IntArray | int) -> IntArray:
-        return 2 * (self.steps + 1) + self.steps + np.asarray(k)
-
-    def jerk(self, k: IntArray | int) -> IntArray:
-        """a_k - a_{k-1} (a_{-1} = 0)."""
-        return 2 * (self.steps + 1) + 2 * self.steps + np.asarray(k)
-
-    def values(self, p: FloatArray, v: FloatArray, a: FloatArray, dt: float) -> FloatArray:
-        """(m, F, 3): every functional of every vehicle and axis of trajectories (p, v, a)."""
-        middle = p[:, :-1] + 0.5 * dt * v[:, :-1]
-        jerk = np.diff(a, axis=1, prepend=0.0)
-        return np.concatenate([p, v, middle, a, jerk], axis=1)
-
-
-@lru_cache(maxsize=8)
-def functionals(steps: int, dt: float) -> Functionals:
-    """The functionals' map T from one axis' accelerations a (K) and W = T M T', M = Pi / 2
-    (the cost's Hessian is 2 I; Pi projects on the null space of the boundary conditions
-    p_K, v_K, a_{K-1}, which fix the rest of the move)."""
-    k = np.arange(steps + 1)[:, None]
-    j = np.arange(steps)[None, :]
-    pos = np.where(j < k, dt * dt * (k - j - 0.5), 0.0)  # p_k - p_0 - k dt v_0 (v_0 = 0)
-    vel = np.where(j < k, dt, 0.0)
-    middle = pos[:-1] + 0.5 * dt * vel[:-1]
-    acc = np.eye(steps)
-    jerk = acc - np.eye(steps, k=-1)
-    T = np.concatenate([pos, vel, middle, acc, jerk])
-    E = np.stack([pos[-1], vel[-1], acc[-1]])
-    Pi = np.eye(steps) - E.T @ np.linalg.solve(E @ E.T, E)
-    TP = T @ Pi
-    return Functionals(steps, 0.5 * TP @ T.T)
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,9 @@ import planner
 from planner.families.generators import grid_to_sphere, random_dense
 from planner.model.scenario import Scenario
 from planner.scp.boxes import near_boxes
-from planner.scp.dual import functionals, solve_group_dual
+from planner.scp.dual import solve_group_dual
 from planner.scp.first_qp import straight_moves
+from planner.scp.functionals import functionals
 from planner.scp.loop import ScpOptions
 from planner.scp.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.scp.separation import PairSteps, all_pairs, close_rows, directions
