@@ -411,8 +411,6 @@ LONG: dict[str, str] = {
         "the application's wiring: lifespan, routers and error handlers in one place",
     "planner/methods/landing.py::plan_landing":
         "the landing's stages tried in turn, each with its own verdict",
-    "planner/methods/assignment.py::_certified":
-        "one loop: a candidate graph grown until its dual certificate holds",
     "planner/scp/loop.py::run_scp":
         "the SCP loop read top to bottom: seeding, iterations, stop rules and outcome",
 }
