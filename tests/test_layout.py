@@ -347,6 +347,9 @@ LONG: dict[str, str] = {
     "gcs/flight/procedure/vehicle.py":
         "the procedure's link-level steps, one short coroutine each, and the executor's view "
         "of a vehicle (`VehicleStatus`) that they update",
+    "planner/scp/qp.py":
+        "the staged variables' layout, the structure shared by groups of one shape and the "
+        "group QP's rows: every part indexes the same variables",
     "planner/scp/separation.py":
         "the pair geometry of one constraint: pair selection, directions, margins and row "
         "values share the same step and interval formulas",
@@ -397,8 +400,6 @@ LONG: dict[str, str] = {
         "builds the summary document key by key, in the order of its contract",
     "planner/model/scenario.py::_parse":
         "a parser: every field of the scenario checked in document order",
-    "planner/scp/qp.py::build_group_qp":
-        "assembles one QP's rows in their staged order, read top to bottom",
     "gcs/cli/mock_cmd.py::run":
         "one command's run: options to mock fleet, ports and signals",
     "planner/verification/verify.py::verify":
