@@ -169,8 +169,8 @@ class FlightExecutor:
         self.stalls.listeners.append(self._on_stall)
         self._stall_report = StallReport()
         self.context = FlightContext(self.options, self._emit, self.stalls, self._stop_stream)
-        """What the procedure's endings, the failsafe and the planned landing need of this
-        flight (`gcs.flight.procedure.context`)."""
+        """What the procedure's endings, the failsafe, the fault policy and the planned landing
+        need of this flight (`gcs.flight.procedure.context`)."""
         self._abort: tuple[str, str] | None = None
         self.flown = FlownPlans.of(plan)
         """The plans the flight flies in flight time, and the motions off them
