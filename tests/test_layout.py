@@ -402,8 +402,6 @@ LONG: dict[str, str] = {
         "a parser: every field of the scenario checked in document order",
     "gcs/cli/mock_cmd.py::run":
         "one command's run: options to mock fleet, ports and signals",
-    "planner/verification/verify.py::verify":
-        "a table of checks, each a few lines, that fill one `Verification`",
     "planner/methods/sequence.py::parse_sequence":
         "a parser: every field of the sequence checked in document order",
     "gcs/fleet/fleetfile.py::_parse":
