@@ -398,8 +398,6 @@ LONG: dict[str, str] = {
         "the flight under the CLI: events, Ctrl-C, pause and the control socket in one place",
     "gcs/flight/run/record.py::summarise":
         "builds the summary document key by key, in the order of its contract",
-    "planner/model/scenario.py::_parse":
-        "a parser: every field of the scenario checked in document order",
     "gcs/cli/mock_cmd.py::run":
         "one command's run: options to mock fleet, ports and signals",
     "planner/methods/sequence.py::parse_sequence":
