@@ -404,8 +404,6 @@ LONG: dict[str, str] = {
         "a parser: every field of the fleet file checked in document order",
     "gcs/api/app.py::create_app":
         "the application's wiring: lifespan, routers and error handlers in one place",
-    "planner/methods/landing.py::plan_landing":
-        "the landing's stages tried in turn, each with its own verdict",
     "planner/scp/loop.py::run_scp":
         "the SCP loop read top to bottom: seeding, iterations, stop rules and outcome",
 }
