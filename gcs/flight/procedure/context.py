@@ -3,9 +3,10 @@ callbacks.
 
 The executor makes one `FlightContext` per flight and hands it to the procedure's endings
 (`gcs.flight.procedure.endings`), the failsafe's set and restore
-(`gcs.flight.procedure.failsafe`) and the planned landing (`gcs.flight.safety.landing`). What
-a step needs of one vehicle (its link, its autopilot) is on the vehicle (`VehicleStatus`);
-what it needs of the flight is here.
+(`gcs.flight.procedure.failsafe`), the fault policy (`gcs.flight.safety.policy`), the planned
+landing (`gcs.flight.safety.landing`) and the replans (`gcs.flight.replan.replan`). What a
+step needs of one vehicle (its link, its autopilot) is on the vehicle (`VehicleStatus`); what
+it needs of the flight is here.
 """
 
 from __future__ import annotations

@@ -43,6 +43,7 @@ from gcs.documents import ReplanDocument
 from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, plan_tracks, spliced
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.flight.replan.record import ReplanRecord, Switch
 from gcs.flight.run.clock import FlightClock
@@ -118,7 +119,7 @@ class Replanner:
     """The in-flight replans of one flight (see the module)."""
 
     def __init__(self, base: Scenario, vehicles: list[VehicleStatus], streamer: Streamer,
-                 clock: FlightClock, options: FlightOptions, emit: Emit, flown: FlownPlans,
+                 clock: FlightClock, context: FlightContext, flown: FlownPlans,
                  tracks: list[SetpointTrack], *,
                  land: Callable[[VehicleStatus], Awaitable[None]],
                  active: Callable[[], bool],
@@ -130,8 +131,8 @@ class Replanner:
         self.vehicles = vehicles
         self.streamer = streamer
         self.clock = clock
-        self.options = options
-        self.emit = emit
+        self.options = context.options
+        self.emit: Emit = context.emit
         self.flown = flown
         self.tracks = tracks
         """The executor's plan tracks, one per vehicle (flight-tick indexed); a switch

@@ -169,8 +169,8 @@ class FlightExecutor:
         self.stalls.listeners.append(self._on_stall)
         self._stall_report = StallReport()
         self.context = FlightContext(self.options, self._emit, self.stalls, self._stop_stream)
-        """What the procedure's endings, the failsafe, the fault policy and the planned landing
-        need of this flight (`gcs.flight.procedure.context`)."""
+        """What the procedure's endings, the failsafe, the fault policy, the planned landing and
+        the replans need of this flight (`gcs.flight.procedure.context`)."""
         self._abort: tuple[str, str] | None = None
         self.flown = FlownPlans.of(plan)
         """The plans the flight flies in flight time, and the motions off them
@@ -577,8 +577,8 @@ class FlightExecutor:
         self.clock.begin(start_tick)
         streamer.measuring = True
         replanner = self._replanner = Replanner(
-            self.plan.scenario.assigned(), self.vehicles, streamer, self.clock, self.options,
-            self._emit, self.flown, self._tracks, land=self._land,
+            self.plan.scenario.assigned(), self.vehicles, streamer, self.clock, self.context,
+            self.flown, self._tracks, land=self._land,
             active=lambda: self._abort is None, on_switch=self._plan_changed.set,
             on_missed=self._replan_missed)
         self._emit(None, EventKind.FLIGHT_START, f"tick {start_tick}, horizon "
