@@ -400,8 +400,6 @@ LONG: dict[str, str] = {
         "builds the summary document key by key, in the order of its contract",
     "gcs/cli/mock_cmd.py::run":
         "one command's run: options to mock fleet, ports and signals",
-    "gcs/fleet/fleetfile.py::_parse":
-        "a parser: every field of the fleet file checked in document order",
     "gcs/api/app.py::create_app":
         "the application's wiring: lifespan, routers and error handlers in one place",
     "planner/scp/loop.py::run_scp":
