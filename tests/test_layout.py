@@ -383,8 +383,6 @@ LONG: dict[str, str] = {
         "fixed trajectories: the dataclasses and the braking, landing and dropped motions",
     "planner/methods/assignment.py":
         "one algorithm: the certified sparse assignment and its dense fallback",
-    "planner/model/obstacles.py":
-        "the obstacle contract and its geometry on the same padded arrays",
     "gcs/wire.py":
         "the MAVLink facts, a table of encodings each defined once",
     "gcs/sim/messages.py":

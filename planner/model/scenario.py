@@ -31,7 +31,8 @@ from planner.types import FloatArray, IntArray
 
 if TYPE_CHECKING:
     from planner.model.fixed import FixedSet, FixedTrajectory
-    from planner.model.obstacles import Obstacle, ObstacleSet
+    from planner.model.obstacle_set import ObstacleSet
+    from planner.model.obstacles import Obstacle
 
 __all__ = ["AUTO_STEPS", "DEFAULTS", "DEFAULT_MAX_HORIZON", "METHODS", "RANGES", "Limits",
            "Scenario", "Vehicle", "check_id", "check_keys", "check_number", "check_vector",
@@ -203,7 +204,7 @@ class Scenario:
     @cached_property
     def obstacle_set(self) -> ObstacleSet:
         """The obstacles as arrays for vectorised geometry (built once)."""
-        from planner.model.obstacles import ObstacleSet
+        from planner.model.obstacle_set import ObstacleSet
 
         return ObstacleSet.build(self.obstacles)
     fixed: tuple[FixedTrajectory, ...] = ()
@@ -443,7 +444,8 @@ def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
     start_accelerations = _stack_given([v.start_acceleration for v in vehicles])
     _check_spacing(starts, goals, scale, separation, on_ground)
 
-    from planner.model.obstacles import check_clear, parse_obstacles
+    from planner.model.obstacle_set import check_clear
+    from planner.model.obstacles import parse_obstacles
 
     obstacles, clearance = parse_obstacles(data, separation)
     check_clear(obstacles, clearance, starts, "start")
