@@ -373,8 +373,6 @@ LONG: dict[str, str] = {
         "one class, `FleetService`: a flight's commands and its run to the stored record",
     "gcs/service/store.py":
         "the two tables and their queries, one transaction each",
-    "planner/methods/routes.py":
-        "one algorithm: the grid, its shortest paths and the polylines they become",
     "planner/methods/landing.py":
         "one algorithm: touchdown points, the landing plan and its escape move",
     "gcs/api/schemas.py":
