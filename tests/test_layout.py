@@ -42,6 +42,10 @@ it back: the module import graph (imports under ``if TYPE_CHECKING:`` and inside
 included, relative imports resolved, ``from pkg import module`` as an import of the module)
 has no cycle.
 
+One job per module and per function: no module of `planner` or `gcs` over `MODULE_LINES` lines
+and no function over `FUNCTION_LINES`, unless `LONG` names it with a one-line reason; an entry
+whose module or function is no longer long fails too.
+
 The tests follow one rule of their own: a test module (`tests/**/test_*.py`) imports no other
 test module; what tests share lives in a `conftest.py` or a support module (`tests/support/`,
 a package's `support.py`).
