@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 
+import numpy as np
 import pytest
 
 from gcs.autopilot import px4
@@ -38,6 +39,30 @@ def test_layers_land_lowest_first_and_stacked_columns_are_found() -> None:
                                      for n, v in enumerate(STACKED["vehicles"])]}
     assert stacked_columns(smooth_plan(apart), 1.0) is None
     assert layer_delays(smooth_plan(apart), 0.7)[0] == px4.COM_FAIL_ACT_T_S
+
+
+#: Two vehicles crossing 1 m apart in height and 0.5 m apart sideways, their columns nearest
+#: at 1.75 s: between two of the 10 Hz samples, which see them 0.529 m apart at best.
+CROSSING = {
+    "name": "crossing", "dt": 0.25, "steps": 15, "min_separation": 0.6,
+    "limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [5.0, 5.0, 3.0],
+               "velocity_max": [3.0, 3.0, 3.0], "acceleration_max": [4.0, 4.0, 4.0]},
+    "vehicles": [{"id": "a", "start": [0.5, 2.0, 1.0], "goal": [4.5, 2.0, 1.0]},
+                 {"id": "b", "start": [4.5, 2.5, 2.0], "goal": [0.5, 2.5, 2.0]}],
+}
+
+
+def test_columns_that_meet_between_two_samples_are_found() -> None:
+    """Columns 0.5 m apart at 1.75 s, 0.529 m at the nearest 10 Hz sample: with a clearance
+    of 0.565 m (they meet below 0.515 m) the pair is found, with the instant and the gap
+    between the samples."""
+    plan = smooth_plan(CROSSING)
+    times = np.arange(0.0, plan.scenario.horizon + 1e-9, 0.1)
+    p = plan.sample(times).position
+    assert np.linalg.norm(p[0, :, :2] - p[1, :, :2], axis=1).min() > 0.515  # samples miss it
+    assert stacked_columns(plan, 0.565) == ("a", "b", pytest.approx(0.5, abs=1e-3),
+                                            pytest.approx(1.75, abs=0.01))
+    assert stacked_columns(plan, 0.54) is None  # 0.49 m is not reached
 
 
 def test_a_failsafe_set_over_mavlink_is_what_the_vehicle_does() -> None:

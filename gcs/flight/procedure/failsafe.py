@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from gcs.autopilot import LinkLossFailsafe
@@ -44,6 +45,7 @@ from gcs.flight.procedure.params import ParamError, read_param, set_param
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.phases import EventKind
 from planner import Plan
+from planner.types import FloatArray
 
 __all__ = ["LAYER_BASE_DELAY_S", "LAYER_GAP_M", "ColumnConflict", "ParamError",
            "column_conflicts", "failsafe_record", "layer_delays", "read_param",
@@ -61,8 +63,10 @@ ACTION_DELAY_MAX = 25.0
 #: Columns closer than R by more than this (m) meet (`column_conflicts`): a straight-down
 #: landing of the two keeps at least R less this.
 STACKED_TOLERANCE = 0.05
-#: The plan's samples per second the columns are compared at.
+#: The plan's samples per second the columns are compared at (and followed between).
 COLUMN_RATE_HZ = 10.0
+#: Points per sample step at which a pair found near is followed between its samples.
+BETWEEN = 10
 
 
 def layer_delays(plan: Plan, land_speed: float) -> list[float]:
@@ -107,34 +111,73 @@ def column_conflicts(plan: Plan, clearance: float, rate: float = COLUMN_RATE_HZ
     """Every vehicle whose column (its horizontal position, in the plan's separation metric)
     comes closer than `clearance` less `STACKED_TOLERANCE` to another's at the same instant
     of the plan, with the closest such other: a station lost then and a straight-down
-    landing bring them that close. Sampled at `rate` Hz; one k-d tree over every sample,
-    the sample index as a third coordinate spaced wider than the reach, so that only
-    pairs of one instant are found (no loop over samples or pairs)."""
+    landing bring them that close. The plan is sampled at `rate` Hz into one k-d tree, the
+    sample index as a third coordinate spaced wider than the reach, so that only pairs of
+    one instant are found (no loop over samples or pairs); the reach is widened by how far
+    two columns can close in half a sample, and each pair found is followed between its
+    samples (`_between`), so a crossing between two samples is not missed."""
     scenario = plan.scenario
     times = np.arange(0.0, scenario.horizon + 1e-9, 1.0 / rate)
-    p = plan.sample(times).position  # (N, T, 3)
+    sample = plan.sample(times)
+    p, v = sample.position, sample.velocity  # (N, T, 3)
     n, m = p.shape[:2]
     reach = clearance - STACKED_TOLERANCE
     if n < 2 or reach <= 0:
         return {}
     scale = np.asarray(scenario.separation_scale, dtype=float)[:2]
+    xy, vxy = p[:, :, :2] / scale, v[:, :, :2] / scale
+    speed = float(np.linalg.norm(vxy, axis=2).max())
+    wider = reach + speed / rate  # two columns, each half a sample either way
     k = np.broadcast_to(np.arange(m, dtype=float), (n, m))
-    points = np.concatenate([p[:, :, :2] / scale, (2.0 * reach + 1.0) * k[:, :, None]],
-                            axis=2).reshape(-1, 3)
-    pairs = cKDTree(points).query_pairs(reach, output_type="ndarray")
+    points = np.concatenate([xy, (2.0 * wider + 1.0) * k[:, :, None]], axis=2).reshape(-1, 3)
+    pairs = cKDTree(points).query_pairs(wider, output_type="ndarray")
     if len(pairs) == 0:
         return {}
-    gaps = np.linalg.norm(points[pairs[:, 0], :2] - points[pairs[:, 1], :2], axis=1)
+    gaps, at = _between(xy.reshape(-1, 2), vxy.reshape(-1, 2), pairs, m, 1.0 / rate)
+    near = gaps < reach
+    pairs, gaps, at = pairs[near], gaps[near], at[near]
+    if len(pairs) == 0:
+        return {}
     who = np.concatenate([pairs[:, 0], pairs[:, 1]])  # flat index: vehicle * m + sample
     other = np.concatenate([pairs[:, 1], pairs[:, 0]])
     gap = np.concatenate([gaps, gaps])
-    order = np.lexsort((who % m, gap, who // m))  # per vehicle: smallest gap, then earliest
+    when = np.concatenate([at, at])
+    order = np.lexsort((when, gap, who // m))  # per vehicle: smallest gap, then earliest
     first = order[np.unique(who[order] // m, return_index=True)[1]]
     ids = scenario.ids
     z = p[:, :, 2].reshape(-1)
     return {ids[int(who[f] // m)]: ColumnConflict(
-        ids[int(other[f] // m)], float(gap[f]), float(times[int(who[f] % m)]),
+        ids[int(other[f] // m)], float(gap[f]), float(when[f]),
         bool(z[who[f]] > z[other[f]])) for f in first}
+
+
+def _between(xy: FloatArray, vxy: FloatArray, pairs: NDArray[np.intp], m: int, step: float
+             ) -> tuple[FloatArray, FloatArray]:
+    """For each pair of flat sample indices (vehicle * m + sample) of one instant: the
+    smallest horizontal distance of the two from the previous sample to the next, on the
+    cubic each sample's position and velocity fix (`BETWEEN` points a step), and when
+    (s)."""
+    a, b = pairs[:, 0], pairs[:, 1]
+    k = a % m
+    s = np.linspace(0.0, 1.0, BETWEEN + 1)
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    gaps = np.full(len(pairs), np.inf)
+    at = np.zeros(len(pairs))
+    for lo in (-1, 0):  # the step before the sample, and the one after
+        i0 = np.clip(k + lo, 0, m - 1) - k
+        i1 = np.clip(k + lo + 1, 0, m - 1) - k
+        r0, r1 = xy[a + i0] - xy[b + i0], xy[a + i1] - xy[b + i1]
+        u0, u1 = vxy[a + i0] - vxy[b + i0], vxy[a + i1] - vxy[b + i1]
+        r = (h00[:, None, None] * r0 + h10[:, None, None] * step * u0
+             + h01[:, None, None] * r1 + h11[:, None, None] * step * u1)  # (S, C, 2)
+        d = np.linalg.norm(r, axis=2)
+        j = np.argmin(d, axis=0)
+        low = d[j, np.arange(len(pairs))]
+        better = low < gaps
+        gaps[better] = low[better]
+        at[better] = ((k + i0)[better] + s[j[better]] * (i1 - i0)[better]) * step
+    return gaps, at
 
 
 def stacked_columns(plan: Plan, clearance: float, rate: float = COLUMN_RATE_HZ

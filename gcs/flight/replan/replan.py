@@ -45,6 +45,7 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, plan_tracks, spliced
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.replan.cascade import follow, substeps
 from gcs.flight.replan.record import ReplanRecord, Switch
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
@@ -53,7 +54,7 @@ from gcs.phases import AIRBORNE, EventKind, VehiclePhase
 from gcs.replan_request import check_entries
 from gcs.tasks import TaskSet
 from planner.methods.replan import Replan, ReplanError, check_goals, plan_replan
-from planner.model.fixed import FixedTrajectory, braking_motion, dropped_motion, landing_motion
+from planner.model.fixed import FixedTrajectory, dropped_motion, landing_motion
 from planner.model.scenario import Scenario
 from planner.types import FloatArray
 
@@ -76,10 +77,9 @@ FAULT_MARGIN = 0.5
 #: does is seen. (On the ideal mock the prediction ends within 0.1 m of where it lands.)
 UNHEARD_MARGIN = 0.2
 UNHEARD_GROWTH = 0.05
-#: The position controller's gain (1/s) a vehicle flies its last setpoint with once the
-#: setpoints stop (PX4's MPC_XY_P default, 0.95; MPC_Z_P is 1): it goes on towards the
-#: setpoint's position plus its feed-forward velocity over this gain.
-STALE_SETPOINT_GAIN = 0.95
+#: How long (s) a lost vehicle's failsafe hold takes to bring it to rest (the cascade's
+#: overshoot has died down to millimetres by then).
+SETTLE_HOLD_S = 3.0
 #: After its streamed descent, a dropped vehicle gets this long to settle before PX4's Land.
 SETTLE_S = 0.3
 #: A switch tick the stream has not reached this long after its instant never comes (s).
@@ -578,22 +578,27 @@ def predicted_landing(v: VehicleStatus, base: Scenario, options: FlightOptions,
         return Motion(at, trajectory, base.dt, False)
     failsafe = v.failsafe
     dt = base.dt
-    # until its failsafe, it flies on to its last setpoint: the position controller pulls
-    # it towards the point the setpoint's feed-forward velocity leads to, exponentially
-    t = dt * np.arange(math.ceil(failsafe.loss_timeout / dt - 1e-9) + 1)[:, None]
-    decay = np.exp(-STALE_SETPOINT_GAIN * t)
-    on_p = position + velocity / STALE_SETPOINT_GAIN * (1.0 - decay)
-    on_v = velocity * decay
-    stop = float(np.linalg.norm(on_v[-1])) / deceleration
+    # until its failsafe it flies on on its last setpoint (about its last report), then it
+    # holds where the failsafe found it, overshooting a little on the way (`cascade`)
+    n = substeps(dt)
+    on = math.ceil(failsafe.loss_timeout / dt - 1e-9) * n
+    on_p, on_v = follow(position, velocity, position, velocity, on, dt / n)
+    land = failsafe.effective != "Hold"
+    settling = min(SETTLE_HOLD_S, failsafe.action_delay) if land else SETTLE_HOLD_S
+    settle = math.ceil(settling / dt - 1e-9) * n
+    hold_p, hold_v = follow(on_p[-1], on_v[-1], on_p[-1], 0.0, settle, dt / n)
+    p = np.concatenate([on_p[:-1:n], hold_p[::n]])
+    u = np.concatenate([on_v[:-1:n], hold_v[::n]])
+    u[-1] = 0.0  # at rest on its hold: the rest of its motion starts from there
     margin = unheard_margin(max(0.0, (clock.flight_time() or at) - at))
-    if failsafe.effective == "Hold":
-        then = braking_motion(v.id, on_p[-1], on_v[-1], dt, deceleration)
+    if not land:
+        trajectory = FixedTrajectory(v.id, p, u, margin)
     else:
-        then = landing_motion(v.id, on_p[-1], on_v[-1], dt, deceleration, options.land_speed,
-                              floor, hold_s=max(0.0, failsafe.action_delay - stop))
-    assert then.velocities is not None
-    trajectory = FixedTrajectory(v.id, np.concatenate([on_p[:-1], then.positions]),
-                                 np.concatenate([on_v[:-1], then.velocities]), margin)
+        then = landing_motion(v.id, p[-1], u[-1], dt, deceleration, options.land_speed,
+                              floor, hold_s=max(0.0, failsafe.action_delay - settling))
+        assert then.velocities is not None
+        trajectory = FixedTrajectory(v.id, np.concatenate([p[:-1], then.positions]),
+                                     np.concatenate([u[:-1], then.velocities]), margin)
     return Motion(at, trajectory, dt, False)
 
 

@@ -22,6 +22,9 @@ class Pause:
     """Streamer tick from which the fleet holds."""
     plan_tick: int
     """The plan's tick (flight time * rate) every vehicle holds."""
+    shift: float = 0.0
+    """Seconds of plan time from the tick reached to the one held (`stop`; negative: the
+    fleet holds a little back along the plan)."""
     held: list[str] = field(default_factory=list)
     """The vehicles set to hold the plan's setpoint of `plan_tick`."""
 
@@ -64,10 +67,13 @@ class FlightClock:
             return self.pause.plan_tick / self.rate
         return self.now() - self.start - self.paused_total
 
-    def stop(self, tick: int) -> Pause:
-        """Pause from streamer `tick`: returns the pause (its plan tick is where to hold)."""
+    def stop(self, tick: int, plan_tick: int | None = None) -> Pause:
+        """Pause from streamer `tick`: returns the pause (its plan tick is where to hold:
+        `plan_tick`, or the plan tick reached by default)."""
         assert self.pause is None and self.start is not None
-        self.pause = Pause(tick, tick - self.start_tick)
+        reached = tick - self.start_tick
+        at = reached if plan_tick is None else max(0, plan_tick)
+        self.pause = Pause(tick, at, shift=(at - reached) / self.rate)
         self.pauses.append([self.tick_time(tick), None])
         return self.pause
 
@@ -76,8 +82,8 @@ class FlightClock:
         pause = self.pause
         assert pause is not None
         paused = (tick - pause.tick) / self.rate
-        self.paused_total += paused
-        self.start_tick += tick - pause.tick
+        self.paused_total += paused - pause.shift
+        self.start_tick = tick - pause.plan_tick
         self.pauses[-1][1] = self.tick_time(tick)
         self.pause = None
         return pause, paused

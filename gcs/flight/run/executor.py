@@ -117,9 +117,11 @@ from gcs.flight.safety.landing import SETTLE_S, PlannedLanding
 from gcs.flight.safety.margin import check_margin, required_separation
 from gcs.flight.safety.monitor import PERIOD, FleetMonitor
 from gcs.flight.safety.policy import FaultPolicy
+from gcs.flight.safety.silence import SilentHold, silent_hold
 from gcs.geofence import build_fence
 from gcs.phases import AIRBORNE, EventKind, FlightPhase, VehiclePhase
 from planner import Plan
+from planner.types import FloatArray
 from planner.verification.verify import refusal
 
 __all__ = ["TRACKING_TOLERANCE_M", "FlightExecutor", "VehicleStatus"]
@@ -236,10 +238,13 @@ class FlightExecutor:
     def paused(self) -> bool:
         return self.clock.pause is not None
 
-    def pause(self) -> float:
+    def pause(self, at: float | None = None,
+              nudges: Mapping[str, FloatArray] | None = None) -> float:
         """Stop the shared flight clock: from the next tick every vehicle flying the plan
         holds the plan's setpoint of that same plan time (at rest), so the fleet stays as
-        separated as the plan is at that instant. Returns the plan time it holds.
+        separated as the plan is at that instant: the plan time reached, or `at` (flight
+        time, s; `_on_silent` picks one near it, and `nudges` some holds off the plan, world
+        offsets by vehicle id). Returns the plan time it holds.
         `StateConflict` unless the plan is being flown (and not already paused). After
         `pause_limit` s the `pause_expiry` action (land or hold) ends the flight."""
         if self._abort is not None:
@@ -253,13 +258,14 @@ class FlightExecutor:
             self._replanner.cancel("the flight was paused before the switch")
         streamer = self._streamer()
         tick = streamer.next_tick()
-        pause = self.clock.stop(tick)
+        pause = self.clock.stop(tick, None if at is None else round(at * streamer.rate))
         for v, track in zip(self.vehicles, self._tracks, strict=True):
             assignment = streamer.assignments.get(v.id)
             if assignment is None or assignment.track is not track:
                 continue  # landing (land_faulty) or already stopped: not ours to hold
             sp = track.at(pause.plan_tick)
-            streamer.assign(v.id, assignment.link, hold_track(sp.position, sp.yaw,
+            nudge = frames.world_vector_to_ned((nudges or {}).get(v.id, np.zeros(3)))
+            streamer.assign(v.id, assignment.link, hold_track(sp.position + nudge, sp.yaw,
                                                               streamer.rate), tick)
             pause.held.append(v.id)
         self._pause_timer = asyncio.ensure_future(self._pause_limit())
@@ -702,16 +708,42 @@ class FlightExecutor:
 
     def _on_silent(self, v: VehicleStatus, silent: float) -> None:
         """`v` has been unheard for `SILENT_HOLD_S`: stop the flight clock, so that the
-        others stop on the plan at nearly the plan time at which it stops on its own if its
-        link is lost (it flies on to its last setpoint, then holds: PX4's failsafe)."""
+        others stop on the plan where they keep the most room from where it stops on its
+        own if its link is lost (it flies on to its last setpoint, then holds: PX4's
+        failsafe; `gcs.flight.safety.silence`)."""
         if (self.phase != FlightPhase.FLYING or self._abort is not None
                 or self.clock.pause is not None or self.clock.start is None):
             return
-        t = self.pause()
+        hold = self._silent_hold(v)
+        t = self.pause(None if hold is None else hold.time,
+                       None if hold is None else hold.nudges)
         self._silence_pause = True
         self._emit(v.id, EventKind.LINK_SILENT, f"no message for {silent:.2f} s: the fleet "
                                                 f"holds on the plan at t={t:.2f} s until it "
                                                 f"is heard again or declared lost")
+
+    def _silent_hold(self, v: VehicleStatus) -> SilentHold | None:
+        """Where the others hold while `v` is silent (None: on the plan, now)."""
+        now = self.clock.flight_time()
+        motion = predicted_landing(v, self.plan.scenario, self.options, self.clock,
+                                   measured=True, unheard=True)
+        if now is None or motion is None:
+            return None
+        held, positions, velocities = [], [], []
+        for u in self.vehicles:
+            tel = u.link.telemetry if u.link is not None else None
+            if (u.id == v.id or u.fault is not None or u.home is None or tel is None
+                    or tel.position_ned is None):
+                continue
+            held.append(u.id)
+            positions.append(frames.ned_to_world(tel.position_ned, u.home))
+            velocities.append(frames.ned_vector_to_world(tel.velocity_ned or (0.0, 0.0, 0.0)))
+        flying = self.flown.current
+        hold = silent_hold(flying.plan, lambda s: motion.position(now + s), now - flying.start,
+                           held, np.array(positions).reshape(-1, 3),
+                           np.array(velocities).reshape(-1, 3), self._streamer().rate,
+                           required_separation(self.plan.scenario))
+        return SilentHold(hold.time + flying.start, hold.nudges)
 
     def _on_heard(self, v: VehicleStatus) -> None:
         """A silent vehicle is heard again: resume when nothing else keeps the fleet held."""

@@ -68,12 +68,12 @@ __all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "drops_text",
 #: Seconds between two checks.
 PERIOD = 0.05
 #: A vehicle unheard this long (s) is told (`on_silent`) before it is declared lost at
-#: `link_timeout`, and the flight holds on the plan. A lost vehicle flies on towards its last
-#: setpoint plus its feed-forward velocity over PX4's position gain (0.95/s), about a second
-#: of its plan, and stops there: the others, stopped on the plan this much later, stop at
-#: nearly the same plan time (paper-circle8 blackholed mid-crossing: 0.90 m from it with
-#: 0.4 s, 0.99 m with 0.8 s, R = 1 m).
-SILENT_HOLD_S = 0.8
+#: `link_timeout`, and the flight holds near the plan where the others keep the most room
+#: from its predicted motion (`gcs.flight.safety.silence`). The sooner, the more room there
+#: is: a lost vehicle flies on on its last setpoint while the others still follow the plan
+#: (paper-circle8 blackholed mid-crossing, R = 1 m: 0.96 m after 0.8 s, 0.985 m after 0.5 s).
+#: Well above the gaps of a jittery link (0.3 s).
+SILENT_HOLD_S = 0.5
 #: For this long after a station stall ends, a vehicle may trail the plan by the stall's
 #: duration (it held its last setpoint meanwhile, then catches up).
 CATCH_UP_S = 3.0
