@@ -346,8 +346,7 @@ LONG: dict[str, str] = {
         "the flight's one coordinator: phases, pause, abort, faults and replans all act on the "
         "same vehicles, streams and clock",
     "gcs/flight/replan/replan.py":
-        "`Replanner` (a replan from request to switch or miss) and the predicted motions of "
-        "vehicles off the plan that it plans around",
+        "one class, `Replanner`: a replan's lifecycle from request to switch or miss",
     "gcs/flight/procedure/vehicle.py":
         "the procedure's link-level steps, one short coroutine each, and the executor's view "
         "of a vehicle (`VehicleStatus`) that they update",

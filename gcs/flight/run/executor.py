@@ -96,12 +96,8 @@ from gcs.flight.procedure.failsafe import (
     set_failsafe,
 )
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.replan.replan import (
-    Replanner,
-    predicted_landing,
-    stream_motion,
-    unheard_margin,
-)
+from gcs.flight.replan.prediction import predicted_landing, stream_motion, unheard_margin
+from gcs.flight.replan.replan import Replanner
 from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicle
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout

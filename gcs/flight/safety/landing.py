@@ -16,24 +16,23 @@ stacked above each other closer than R. `PlannedLanding.run`:
    the workspace floor, and PX4's Land takes it down vertically (touchdown points are R
    apart, so no descent crosses another vehicle).
 
-Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate
-invalid, already landing) are moving obstacles the landing plan keeps R + a margin from
+Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate invalid,
+already landing) are moving obstacles the landing plan keeps R + a margin from
 (`planner.model.fixed`, given to `plan_landing` from the switch on, with the `around` vehicles
 another part of the flight lands): one still heard gets PX4's Land at once and is predicted
-going straight down from where it is measured; one the station has lost is predicted on its
-own offboard-loss failsafe from its last report (`gcs.flight.replan.replan.predicted_landing`, its
-margin growing with the time since it was heard), is streamed that motion in case it still
-listens, and gets PX4's Land only once the motion has ended (a Land arriving earlier would
-take it down before its predicted hold was over). Their motions go to `FlownPlans.motions`,
-where the live separation monitor reads where a lost vehicle is predicted. A steered vehicle
-already nearer than R to one of them keeps what it has from that one alone, back to R within
-seconds (`planner.methods.landing.fixed_start_clearances`). Where no landing plan keeps R from
-them (at any share of the margin, `MARGIN_SHARES`), a verified plan first moves the steered
-vehicles away from their columns, and the landing is planned again from there (at most
-`MAX_ESCAPES` times). Everyone gets
-PX4's Land when no verified plan is ready before the switch tick (the planner failed for
-whatever reason, or was late): the events say which (`landing_plan`, `landing_fallback`).
-Whatever happens, every vehicle is handed to `secure` in the end.
+going straight down from where it is measured; one the station has lost is predicted on its own
+offboard-loss failsafe from its last report (`gcs.flight.replan.prediction.predicted_landing`,
+its margin growing with the time since it was heard), is streamed that motion in case it still
+listens, and gets PX4's Land only once the motion has ended (a Land arriving earlier would take
+it down before its predicted hold was over). Their motions go to `FlownPlans.motions`, where
+the live separation monitor reads where a lost vehicle is predicted. A steered vehicle already
+nearer than R to one of them keeps what it has from that one alone, back to R within seconds
+(`planner.methods.landing.fixed_start_clearances`). Where no landing plan keeps R from them (at
+any share of the margin, `MARGIN_SHARES`), a verified plan first moves the steered vehicles
+away from their columns, and the landing is planned again from there (at most `MAX_ESCAPES`
+times). Everyone gets PX4's Land when no verified plan is ready before the switch tick (the
+planner failed for whatever reason, or was late): the events say which (`landing_plan`,
+`landing_fallback`). Whatever happens, every vehicle is handed to `secure` in the end.
 """
 
 from __future__ import annotations
@@ -50,7 +49,7 @@ from gcs import frames
 from gcs.flight.link.setpoints import plan_tracks
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.replan.replan import predicted_landing, stream_motion
+from gcs.flight.replan.prediction import predicted_landing, stream_motion
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
