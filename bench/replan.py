@@ -46,7 +46,7 @@ import numpy as np  # noqa: E402
 
 import planner  # noqa: E402
 from gcs.fleet.fleetfile import FlightOptions  # noqa: E402
-from gcs.flight.replan.replan import BRAKING_DECELERATION  # noqa: E402
+from gcs.flight.replan.prediction import BRAKING_DECELERATION  # noqa: E402
 from planner.errors import ScenarioError  # noqa: E402
 from planner.families.generators import circle_swap, grid_to_sphere, random_transitions  # noqa: E402
 from planner.methods.replan import ReplanError, check_goals, plan_replan  # noqa: E402

@@ -42,6 +42,10 @@ it back: the module import graph (imports under ``if TYPE_CHECKING:`` and inside
 included, relative imports resolved, ``from pkg import module`` as an import of the module)
 has no cycle.
 
+One job per module and per function: no module of `planner` or `gcs` over `MODULE_LINES` lines
+and no function over `FUNCTION_LINES`, unless `LONG` names it with a one-line reason; an entry
+whose module or function is no longer long fails too.
+
 The tests follow one rule of their own: a test module (`tests/**/test_*.py`) imports no other
 test module; what tests share lives in a `conftest.py` or a support module (`tests/support/`,
 a package's `support.py`).
@@ -321,3 +325,140 @@ def test_the_cycle_checker_sees_every_import_form(tmp_path: Path) -> None:
     assert strongly_connected(graph) == [["gcs.a", "gcs.b", "gcs.c"], ["planner.p", "planner.q"]]
     assert a_cycle(graph, ["gcs.a", "gcs.b", "gcs.c"]) == ["gcs.a", "gcs.b", "gcs.c", "gcs.a"]
     assert strongly_connected({"x": {"y"}, "y": {"z"}, "z": set()}) == []
+
+
+# ------------------------------------------------------------- long modules and functions
+
+#: The longest a module (lines) and a function (lines, decorators excluded) may be without a
+#: reason in `LONG`.
+MODULE_LINES = 400
+FUNCTION_LINES = 80
+#: The trees held to those lengths.
+LENGTH_TREES = ("planner", "gcs")
+
+#: What stays long, and why, one line each: a module by its path, a function by
+#: ``path::name`` (a nested function or a method: ``path::outer.name``). Every other module
+#: or function is split by concept once it grows past the limit, and an entry goes once its
+#: module or function is no longer long.
+LONG: dict[str, str] = {
+    # modules
+    "gcs/flight/run/executor.py":
+        "the flight's one coordinator: phases, pause, abort, faults and replans all act on the "
+        "same vehicles, streams and clock",
+    "gcs/flight/replan/replan.py":
+        "one class, `Replanner`: a replan's lifecycle from request to switch or miss",
+    "gcs/flight/procedure/vehicle.py":
+        "the procedure's link-level steps, one short coroutine each, and the executor's view "
+        "of a vehicle (`VehicleStatus`) that they update",
+    "planner/scp/qp.py":
+        "the staged variables' layout, the structure shared by groups of one shape and the "
+        "group QP's rows: every part indexes the same variables",
+    "planner/scp/separation.py":
+        "the pair geometry of one constraint: pair selection, directions, margins and row "
+        "values share the same step and interval formulas",
+    "planner/families/generators.py":
+        "a catalogue of scenario families, each a short independent function",
+    "planner/model/scenario.py":
+        "the scenario contract: its dataclasses and the parser that names every field",
+    "planner/methods/sequence.py":
+        "the formation-sequence contract: its parser, the legs and their stitching",
+    "gcs/api/routes/missions.py":
+        "the routes of one resource (missions), each short, sharing its helpers",
+    "planner/result.py":
+        "the plan contract: its dataclasses and the reader that checks every field",
+    "gcs/fleet/fleetfile.py":
+        "the fleet-file contract: `FlightOptions` (a table of fields) and the parser",
+    "gcs/api/routes/flights.py":
+        "the routes of one resource (flights), each short, sharing its helpers",
+    "gcs/cli/plan_cmd.py":
+        "one command: its options, progress lines and summary table",
+    "gcs/service/flights.py":
+        "one class, `FleetService`: a flight's commands and its run to the stored record",
+    "gcs/service/store.py":
+        "the two tables and their queries, one transaction each",
+    "planner/methods/landing.py":
+        "one algorithm: touchdown points, the landing plan and its escape move",
+    "gcs/api/schemas.py":
+        "the API's documents, a table of pydantic models derived from the planner's types",
+    "planner/model/fixed.py":
+        "fixed trajectories: the dataclasses and the braking, landing and dropped motions",
+    "planner/methods/assignment.py":
+        "one algorithm: the certified sparse assignment and its dense fallback",
+    "gcs/wire.py":
+        "the MAVLink facts, a table of encodings each defined once",
+    "gcs/sim/messages.py":
+        "a table of encoders, one short function per message the mock sends",
+    "gcs/flight/run/record.py":
+        "the flight record and its summary, whose keys are one contract",
+    # functions
+    "gcs/cli/fly_cmd.py::run":
+        "one command's run: its nested handlers share the flight, its record and the signals",
+    "gcs/cli/fly_cmd.py::run.fly":
+        "the flight under the CLI: events, Ctrl-C, pause and the control socket in one place",
+    "gcs/flight/run/record.py::summarise":
+        "builds the summary document key by key, in the order of its contract",
+    "gcs/cli/mock_cmd.py::run":
+        "one command's run: options to mock fleet, ports and signals",
+    "gcs/api/app.py::create_app":
+        "the application's wiring: lifespan, routers and error handlers in one place",
+    "planner/scp/loop.py::run_scp":
+        "the SCP loop read top to bottom: seeding, iterations, stop rules and outcome",
+}
+
+
+def _functions(tree: ast.AST, prefix: str = "") -> Iterable[tuple[str, int]]:
+    """(dotted name, lines) of every function and method in `tree`, nested ones included."""
+    for node in ast.iter_child_nodes(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            name = f"{prefix}{node.name}"
+            if not isinstance(node, ast.ClassDef):
+                yield name, (node.end_lineno or node.lineno) - node.lineno + 1
+            yield from _functions(node, name + ".")
+        else:
+            yield from _functions(node, prefix)
+
+
+def long_parts(root: Path, trees: Iterable[str] = LENGTH_TREES) -> dict[str, int]:
+    """Every module over MODULE_LINES lines and function over FUNCTION_LINES under `root`'s
+    `trees`, as `LONG` names them, with its length."""
+    found: dict[str, int] = {}
+    for tree in trees:
+        for path in sorted((root / tree).rglob("*.py")):
+            rel = str(path.relative_to(root))
+            text = path.read_text()
+            if (lines := len(text.splitlines())) > MODULE_LINES:
+                found[rel] = lines
+            for name, length in _functions(ast.parse(text, filename=rel)):
+                if length > FUNCTION_LINES:
+                    found[f"{rel}::{name}"] = length
+    return found
+
+
+def test_long_modules_and_functions_say_why() -> None:
+    """One job per module and per function: a long one is split, or `LONG` says why not."""
+    found = long_parts(ROOT)
+    assert {name: found[name] for name in found if name not in LONG} == {}
+
+
+def test_every_long_entry_is_still_long() -> None:
+    """An entry goes once its module or function is short, so the list stays honest."""
+    assert sorted(set(LONG) - set(long_parts(ROOT))) == []
+
+
+def _long_function(name: str, indent: str = "") -> str:
+    """A function of FUNCTION_LINES + 1 lines (its def and FUNCTION_LINES statements)."""
+    body = [f"{indent}    x{n} = {n}" for n in range(FUNCTION_LINES)]
+    return "\n".join([f"{indent}def {name}():", *body]) + "\n"
+
+
+def test_the_length_checker_sees_modules_methods_and_nested_functions(tmp_path: Path) -> None:
+    _package(tmp_path, {
+        "gcs/short.py": "def f():\n    return 1\n",
+        "gcs/long.py": "\n" * MODULE_LINES + "X = 1\n",
+        "gcs/funcs.py": "class C:\n" + _long_function("m", "    ") + "def outer():\n"
+                        + _long_function("inner", "    ") + "    return inner\n",
+    })
+    assert long_parts(tmp_path, ("gcs",)) == {"gcs/long.py": MODULE_LINES + 1,
+                                              "gcs/funcs.py::C.m": FUNCTION_LINES + 1,
+                                              "gcs/funcs.py::outer": FUNCTION_LINES + 3,
+                                              "gcs/funcs.py::outer.inner": FUNCTION_LINES + 1}

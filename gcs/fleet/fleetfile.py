@@ -494,18 +494,7 @@ def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") 
     for key in data:
         if key not in _TOP_KEYS:
             raise FleetFileError(key, "unknown key")
-    origin = None
-    if "world_origin" in data:
-        raw = data["world_origin"]
-        if not isinstance(raw, Mapping) or set(raw) != {"lat", "lon", "alt"}:
-            raise FleetFileError("world_origin", "must be an object {lat, lon, alt}")
-        lat = _number(raw["lat"], "world_origin.lat")
-        lon = _number(raw["lon"], "world_origin.lon")
-        if not -90.0 <= lat <= 90.0:
-            raise FleetFileError("world_origin.lat", f"must be within [-90, 90], got {lat}")
-        if not -180.0 <= lon <= 180.0:
-            raise FleetFileError("world_origin.lon", f"must be within [-180, 180], got {lon}")
-        origin = Geodetic(lat, lon, _number(raw["alt"], "world_origin.alt"))
+    origin = _world_origin(data["world_origin"]) if "world_origin" in data else None
     fleet_key = _key(data["signing_key"], "signing_key", base_dir) \
         if "signing_key" in data else None
     fleet_autopilot = _autopilot(data.get("autopilot", "auto"), "autopilot")
@@ -532,16 +521,7 @@ def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") 
             raise FleetFileError(f"{where}.id",
                                  f"duplicate id {vid!r} (also vehicles[{seen_ids[vid]}])")
         seen_ids[vid] = index
-        url = raw["connection"]
-        if not isinstance(url, str) or not url.strip():
-            raise FleetFileError(f"{where}.connection", "must be a pymavlink URL string")
-        if is_udp_url(url):
-            try:
-                parse_udp_url(url)
-            except LinkError:
-                scheme = url.partition(":")[0]
-                raise FleetFileError(f"{where}.connection",
-                                     f"must look like {scheme}:HOST:PORT, got {url!r}") from None
+        url = _connection(raw["connection"], f"{where}.connection")
         ids = {}
         for key, lo, hi, default in (("system_id", 1, 254, None), ("component_id", 1, 255, 1)):
             value = raw.get(key, default)
@@ -580,3 +560,29 @@ def _parse(data: Any, base_dir: Path | None = None, source: str = "fleet file") 
             raise FleetFileError("position_error", f"must be within [0, 10] m, got "
                                                    f"{position_error:g}")
     return FleetSpec(tuple(vehicles), origin, options, position_error)
+
+
+def _world_origin(raw: Any) -> Geodetic:
+    """The fleet's `world_origin` {lat, lon, alt} (degrees, metres)."""
+    if not isinstance(raw, Mapping) or set(raw) != {"lat", "lon", "alt"}:
+        raise FleetFileError("world_origin", "must be an object {lat, lon, alt}")
+    lat = _number(raw["lat"], "world_origin.lat")
+    lon = _number(raw["lon"], "world_origin.lon")
+    if not -90.0 <= lat <= 90.0:
+        raise FleetFileError("world_origin.lat", f"must be within [-90, 90], got {lat}")
+    if not -180.0 <= lon <= 180.0:
+        raise FleetFileError("world_origin.lon", f"must be within [-180, 180], got {lon}")
+    return Geodetic(lat, lon, _number(raw["alt"], "world_origin.alt"))
+
+
+def _connection(url: Any, field: str) -> str:
+    """A vehicle's `connection`: a pymavlink URL string, a UDP one with a host and a port."""
+    if not isinstance(url, str) or not url.strip():
+        raise FleetFileError(field, "must be a pymavlink URL string")
+    if is_udp_url(url):
+        try:
+            parse_udp_url(url)
+        except LinkError:
+            scheme = url.partition(":")[0]
+            raise FleetFileError(field, f"must look like {scheme}:HOST:PORT, got {url!r}") from None
+    return url

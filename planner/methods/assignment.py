@@ -200,9 +200,12 @@ def _lifted_best(a: FloatArray, b: FloatArray, v: FloatArray, k: int
     return dist * dist - top, np.asarray(best, dtype=np.intp).reshape(len(a), -1)
 
 
-def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
-    """Exact matching over a candidate graph grown until the dual check over all N^2 edges
-    passes (module docstring); a round cap or float trouble ends it unproven."""
+def _first_graph(a: FloatArray, b: FloatArray, k: int
+                 ) -> tuple[IntArray, FloatArray, FloatArray]:
+    """The first candidate graph of the sparse loop, as sorted edge keys (start * N + goal),
+    and the potentials (u, v) it starts from: three sort-order matchings, the `k` nearest
+    goals of each start and starts of each goal, and from `COARSE_BELOW` points the goals a
+    solved random quarter's moves predict (module docstring)."""
     from scipy.spatial import cKDTree
 
     n = len(a)
@@ -247,7 +250,15 @@ def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
         u_cost, u_goal = _lifted_best(a, b, v, 1)
         u = u_cost[:, 0]
         keys.append(np.arange(n) * n + u_goal[:, 0])
-    edges = np.unique(np.concatenate(keys))
+    return np.unique(np.concatenate(keys)), u, v
+
+
+def _certified(a: FloatArray, b: FloatArray, k: int) -> _Solved:
+    """Exact matching over a candidate graph grown until the dual check over all N^2 edges
+    passes (module docstring); a round cap or float trouble ends it unproven."""
+    n = len(a)
+    kk = min(k, n)
+    edges, u, v = _first_graph(a, b, k)
     rounds = 0
     quantum = WEIGHT_QUANTUM
     failing, gap = np.arange(n), np.inf

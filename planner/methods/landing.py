@@ -371,25 +371,8 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
     to hold any separation, a state the scenario refuses, a solver failure).
     """
     began = time.perf_counter()
-    lim = scenario.limits
-    p = np.asarray(positions, dtype=float).reshape(-1, 3)
-    v = np.asarray(velocities, dtype=float).reshape(-1, 3)
-    a = np.asarray(accelerations, dtype=float).reshape(-1, 3)
-    names = scenario.ids if ids is None else list(ids)
-    if not len(p) == len(v) == len(a) == len(names) or len(p) == 0:
-        raise LandingError("positions, velocities, accelerations and ids must agree in length")
-    if not (np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()):
-        raise LandingError("the fleet's state is not finite")
-    floor, ceiling = float(lim.position_min[2]), float(lim.position_max[2])
-    height = floor + landing_height
-    if not floor <= height <= ceiling:
-        raise LandingError(f"landing height {landing_height:g} m lies outside the workspace")
-    # A measured state may lie a hair outside the boxes; plan from the nearest state inside.
-    p = np.clip(p, lim.position_min, lim.position_max)
-    if lim.velocity_max is not None:
-        v = np.clip(v, -lim.velocity_max, lim.velocity_max)
-    if lim.acceleration_max is not None:
-        a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
+    p, v, a, names, height = _fleet_state(scenario, positions, velocities, accelerations, ids,
+                                          landing_height)
     goals = touchdown_points(p + _stopping(v, scenario), scenario, height, fixed)
     fixed = fixed_start_clearances(p, v, a, names, fixed, scenario)
     clearance = first_step_clearance(p, v, a, scenario)
@@ -442,6 +425,33 @@ def plan_landing(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike
         except LandingError as exc:
             failed.append(str(exc))
     raise LandingError("; ".join(failed) or f"no stage to try among {list(stages)}")
+
+
+def _fleet_state(scenario: Scenario, positions: ArrayLike, velocities: ArrayLike,
+                 accelerations: ArrayLike, ids: list[str] | None, landing_height: float
+                 ) -> tuple[FloatArray, FloatArray, FloatArray, list[str], float]:
+    """(p, v, a, ids, touchdown height) of the fleet a landing is planned from, checked
+    (`LandingError`) and brought inside the scenario's boxes."""
+    lim = scenario.limits
+    p = np.asarray(positions, dtype=float).reshape(-1, 3)
+    v = np.asarray(velocities, dtype=float).reshape(-1, 3)
+    a = np.asarray(accelerations, dtype=float).reshape(-1, 3)
+    names = scenario.ids if ids is None else list(ids)
+    if not len(p) == len(v) == len(a) == len(names) or len(p) == 0:
+        raise LandingError("positions, velocities, accelerations and ids must agree in length")
+    if not (np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()):
+        raise LandingError("the fleet's state is not finite")
+    floor, ceiling = float(lim.position_min[2]), float(lim.position_max[2])
+    height = floor + landing_height
+    if not floor <= height <= ceiling:
+        raise LandingError(f"landing height {landing_height:g} m lies outside the workspace")
+    # A measured state may lie a hair outside the boxes; plan from the nearest state inside.
+    p = np.clip(p, lim.position_min, lim.position_max)
+    if lim.velocity_max is not None:
+        v = np.clip(v, -lim.velocity_max, lim.velocity_max)
+    if lim.acceleration_max is not None:
+        a = np.clip(a, -lim.acceleration_max, lim.acceleration_max)
+    return p, v, a, names, height
 
 
 def _truncated(f: FixedTrajectory, steps: int) -> FixedTrajectory:

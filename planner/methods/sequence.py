@@ -137,11 +137,8 @@ def _positions(value: Any, field: str, count: int) -> FloatArray:
     return out
 
 
-def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
-    """Validate a sequence document and split it into leg scenarios; `ScenarioError` names
-    the field (`formations[2].positions[5]`, `formations[1].duration`, ...)."""
-    check_keys(data, _TOP_KEYS, "", ("dt", "min_separation", "limits", "vehicles",
-                                     "formations"), document="sequence")
+def _header(data: Mapping[str, Any]) -> tuple[str, list[str], str, Sequence[Any]]:
+    """(name, vehicle ids, default assignment, formations) of a sequence document."""
     name = data.get("name", "sequence")
     if not isinstance(name, str) or not name.strip():
         raise _field_error("name", "must be a non-empty string")
@@ -161,6 +158,27 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
         raise _field_error("formations", "must be a list of formations")
     if not 2 <= len(formations) <= MAX_FORMATIONS:
         raise _field_error("formations", f"must hold 2 to {MAX_FORMATIONS} formations")
+    return name, list(ids), default_assignment, formations
+
+
+def _leg(data: Mapping[str, Any], name: str, shared: Mapping[str, Any], steps: int | str,
+         ids: Sequence[str], starts: FloatArray, goals: FloatArray) -> dict[str, Any]:
+    """One leg's scenario document: the shared settings, its steps (and the sequence's
+    `max_horizon` for an "auto" duration) and every vehicle from its start to its goal."""
+    return {
+        "name": name, **shared, "steps": steps,
+        "vehicles": [{"id": vid, "start": s.tolist(), "goal": g.tolist()}
+                     for vid, s, g in zip(ids, starts, goals, strict=True)],
+    } | ({"max_horizon": data["max_horizon"]}
+         if steps == AUTO_STEPS and "max_horizon" in data else {})
+
+
+def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
+    """Validate a sequence document and split it into leg scenarios; `ScenarioError` names
+    the field (`formations[2].positions[5]`, `formations[1].duration`, ...)."""
+    check_keys(data, _TOP_KEYS, "", ("dt", "min_separation", "limits", "vehicles",
+                                     "formations"), document="sequence")
+    name, ids, default_assignment, formations = _header(data)
     shared = {key: data[key] for key in _SHARED if key in data}
     dt = check_number(data["dt"], "dt", positive=True, within="dt")
     # checked here, before it weighs any assignment; the legs check every other setting
@@ -205,12 +223,8 @@ def parse_sequence(data: Mapping[str, Any]) -> FormationSequence:
             order = np.arange(count)
             if assignment == "free":
                 order = assign_goals(points[-1], given, scale)
-            leg = {
-                "name": f"{name}: {names[-1]} -> {label}", **shared, "steps": steps,
-                "vehicles": [{"id": vid, "start": s.tolist(), "goal": g.tolist()}
-                             for vid, s, g in zip(ids, points[-1], given[order], strict=True)],
-            } | ({"max_horizon": data["max_horizon"]}
-                 if steps == AUTO_STEPS and "max_horizon" in data else {})
+            leg = _leg(data, f"{name}: {names[-1]} -> {label}", shared, steps, ids, points[-1],
+                       given[order])
             try:
                 least = Scenario.from_dict(leg).steps
             except ScenarioError as exc:

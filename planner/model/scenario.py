@@ -31,7 +31,8 @@ from planner.types import FloatArray, IntArray
 
 if TYPE_CHECKING:
     from planner.model.fixed import FixedSet, FixedTrajectory
-    from planner.model.obstacles import Obstacle, ObstacleSet
+    from planner.model.obstacle_set import ObstacleSet
+    from planner.model.obstacles import Obstacle
 
 __all__ = ["AUTO_STEPS", "DEFAULTS", "DEFAULT_MAX_HORIZON", "METHODS", "RANGES", "Limits",
            "Scenario", "Vehicle", "check_id", "check_keys", "check_number", "check_vector",
@@ -203,7 +204,7 @@ class Scenario:
     @cached_property
     def obstacle_set(self) -> ObstacleSet:
         """The obstacles as arrays for vectorised geometry (built once)."""
-        from planner.model.obstacles import ObstacleSet
+        from planner.model.obstacle_set import ObstacleSet
 
         return ObstacleSet.build(self.obstacles)
     fixed: tuple[FixedTrajectory, ...] = ()
@@ -418,19 +419,7 @@ def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
         raise ScenarioError("name", "must be a non-empty string")
     dt = check_number(data["dt"], "dt", positive=True, within="dt")
     steps, steps_auto, max_horizon = _steps_setting(data, dt)
-    separation = check_number(data["min_separation"], "min_separation", positive=True,
-                         within="min_separation")
-    margin = check_number(data.get("separation_margin", 0.0), "separation_margin", nonneg=True,
-                     within="separation_margin")
-    if margin >= separation:
-        raise ScenarioError("separation_margin", f"must be less than min_separation "
-                                                 f"{separation:g} m, got {margin:g}")
-    scale = check_vector(
-        data.get("separation_scale", DEFAULTS["separation_scale"]),
-        "separation_scale",
-        positive=True,
-        within="separation_scale",
-    )
+    separation, margin, scale = _separation_setting(data)
     threshold = check_number(
         data.get("cost_threshold", DEFAULTS["cost_threshold"]), "cost_threshold", positive=True,
         within="cost_threshold",
@@ -448,51 +437,15 @@ def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
         raise ScenarioError("method", f"must be one of {', '.join(map(repr, METHODS))}, "
                                       f"got {method!r}")
 
-    raw_vehicles = check_list(data["vehicles"], "vehicles", "vehicles", MAX_VEHICLES)
-    if not raw_vehicles:
-        raise ScenarioError("vehicles", "must contain at least one vehicle")
-
-    vehicles: list[Vehicle] = []
-    seen: dict[str, int] = {}
-    for index, raw in enumerate(raw_vehicles):
-        where = f"vehicles[{index}]"
-        check_keys(raw, _VEHICLE_KEYS, where, ("id", "start", "goal"))
-        vid = check_id(raw["id"], f"{where}.id")
-        if vid in seen:
-            raise ScenarioError(f"{where}.id", f"duplicate id {vid!r} (also vehicles[{seen[vid]}])")
-        seen[vid] = index
-        start = check_vector(raw["start"], f"{where}.start")
-        goal = check_vector(raw["goal"], f"{where}.goal")
-        for label, point in (("start", start), ("goal", goal)):
-            outside = (point < limits.position_min) | (point > limits.position_max)
-            if outside.any():
-                axis = int(np.argmax(outside))
-                raise ScenarioError(
-                    f"{where}.{label}",
-                    f"{point.tolist()} lies outside the workspace on axis {'xyz'[axis]} "
-                    f"[{limits.position_min[axis]:g}, {limits.position_max[axis]:g}]",
-                )
-        vehicles.append(Vehicle(vid, start, goal,
-                                *_start_state(raw, where, limits)))
-
+    vehicles = _parse_vehicles(data["vehicles"], limits)
     starts = np.array([v.start for v in vehicles])
     goals = np.array([v.goal for v in vehicles])
     start_velocities = _stack_given([v.start_velocity for v in vehicles])
     start_accelerations = _stack_given([v.start_acceleration for v in vehicles])
-    for label, points in (("start", starts), ("goal", goals)):
-        held = np.flatnonzero(points[:, 2] > 0.0) if on_ground else np.arange(len(points))
-        if len(held) < 2:
-            continue
-        closest = _closest_pair_within(points[held], scale, separation)
-        if closest is not None:
-            dist, i, j = closest[0], int(held[closest[1]]), int(held[closest[2]])
-            raise ScenarioError(
-                f"vehicles[{j}].{label}",
-                f"is {dist:.3f} m from vehicles[{i}].{label} in the separation metric, "
-                f"closer than min_separation {separation:g} m",
-            )
+    _check_spacing(starts, goals, scale, separation, on_ground)
 
-    from planner.model.obstacles import check_clear, parse_obstacles
+    from planner.model.obstacle_set import check_clear
+    from planner.model.obstacles import parse_obstacles
 
     obstacles, clearance = parse_obstacles(data, separation)
     check_clear(obstacles, clearance, starts, "start")
@@ -506,38 +459,9 @@ def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
     goal_order = None
     if assignment == "free":
         goal_order = assign_goals(starts, goals, scale)
-    horizon = steps * dt
-    # The last acceleration is pinned to zero, so the motion has (K-1) steps to happen in.
-    usable = (steps - 1) * dt
-    targets = goals if goal_order is None else goals[goal_order]
-    need = minimum_transfer_time(targets - starts, limits.velocity_max,
-                                 limits.acceleration_max)
-    if start_velocities is not None:
-        # a rest-to-rest bound says nothing about a vehicle already moving: the QP judges it
-        need[np.any(start_velocities != 0.0, axis=1)] = 0.0
-    worst_vehicle, worst_axis = np.unravel_index(int(np.argmax(need)), need.shape)
-    culprit = worst_vehicle if goal_order is None else int(goal_order[worst_vehicle])
-    assigned = "" if goal_order is None else f" (assigned to vehicles[{worst_vehicle}])"
-    distance = abs(targets[worst_vehicle, worst_axis] - starts[worst_vehicle, worst_axis])
-    why = (f"moving {distance:.3f} m along {'xyz'[worst_axis]} needs at least "
-           f"{need[worst_vehicle, worst_axis]:.2f} s under the velocity/acceleration limits")
-    if steps_auto:
-        # the search starts from the fewest steps the boxes allow (and every fixed sample)
-        least = max(3, math.ceil(need[worst_vehicle, worst_axis] / dt - 1e-9) + 1,
-                    max((len(f) - 1 for f in fixed), default=0))
-        if least > steps:
-            raise ScenarioError(
-                "max_horizon",
-                f"{steps * dt:g} s ({steps} steps of dt) is too short: vehicles[{culprit}]"
-                f"{assigned} {why}, so the horizon needs at least {least} steps "
-                f"({least * dt:g} s); raise max_horizon (at most {MAX_STEPS} steps)")
-        steps = least
-    elif need[worst_vehicle, worst_axis] > usable + 1e-9:
-        raise ScenarioError(
-            f"vehicles[{culprit}].goal",
-            f"cannot be reached within the horizon{assigned}: {why}; the horizon is "
-            f"{horizon:.2f} s (steps * dt)",
-        )
+    steps = _reachable_steps(starts, goals if goal_order is None else goals[goal_order],
+                             goal_order, start_velocities, limits, dt, steps, steps_auto,
+                             max((len(f) - 1 for f in fixed), default=0))
 
     return Scenario(
         name=name,
@@ -563,6 +487,110 @@ def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
         steps_auto=steps_auto,
         max_horizon=max_horizon,
     )
+
+
+def _separation_setting(data: Mapping[str, Any]) -> tuple[float, float, FloatArray]:
+    """(min_separation, separation_margin, separation_scale): the margin below R."""
+    separation = check_number(data["min_separation"], "min_separation", positive=True,
+                              within="min_separation")
+    margin = check_number(data.get("separation_margin", 0.0), "separation_margin", nonneg=True,
+                          within="separation_margin")
+    if margin >= separation:
+        raise ScenarioError("separation_margin", f"must be less than min_separation "
+                                                 f"{separation:g} m, got {margin:g}")
+    scale = check_vector(data.get("separation_scale", DEFAULTS["separation_scale"]),
+                         "separation_scale", positive=True, within="separation_scale")
+    return separation, margin, scale
+
+
+def _parse_vehicles(data: Any, limits: Limits) -> list[Vehicle]:
+    """The `vehicles` list: each one's keys, a unique id, a start and goal inside the
+    workspace, and its optional start state."""
+    raw_vehicles = check_list(data, "vehicles", "vehicles", MAX_VEHICLES)
+    if not raw_vehicles:
+        raise ScenarioError("vehicles", "must contain at least one vehicle")
+    vehicles: list[Vehicle] = []
+    seen: dict[str, int] = {}
+    for index, raw in enumerate(raw_vehicles):
+        where = f"vehicles[{index}]"
+        check_keys(raw, _VEHICLE_KEYS, where, ("id", "start", "goal"))
+        vid = check_id(raw["id"], f"{where}.id")
+        if vid in seen:
+            raise ScenarioError(f"{where}.id", f"duplicate id {vid!r} (also vehicles[{seen[vid]}])")
+        seen[vid] = index
+        start = check_vector(raw["start"], f"{where}.start")
+        goal = check_vector(raw["goal"], f"{where}.goal")
+        for label, point in (("start", start), ("goal", goal)):
+            outside = (point < limits.position_min) | (point > limits.position_max)
+            if outside.any():
+                axis = int(np.argmax(outside))
+                raise ScenarioError(
+                    f"{where}.{label}",
+                    f"{point.tolist()} lies outside the workspace on axis {'xyz'[axis]} "
+                    f"[{limits.position_min[axis]:g}, {limits.position_max[axis]:g}]",
+                )
+        vehicles.append(Vehicle(vid, start, goal,
+                                *_start_state(raw, where, limits)))
+    return vehicles
+
+
+def _check_spacing(starts: FloatArray, goals: FloatArray, scale: FloatArray,
+                   separation: float, on_ground: bool) -> None:
+    """No two starts, and no two goals, closer than min_separation (`on_ground`: only those
+    in the air, z > 0, count)."""
+    for label, points in (("start", starts), ("goal", goals)):
+        held = np.flatnonzero(points[:, 2] > 0.0) if on_ground else np.arange(len(points))
+        if len(held) < 2:
+            continue
+        closest = _closest_pair_within(points[held], scale, separation)
+        if closest is not None:
+            dist, i, j = closest[0], int(held[closest[1]]), int(held[closest[2]])
+            raise ScenarioError(
+                f"vehicles[{j}].{label}",
+                f"is {dist:.3f} m from vehicles[{i}].{label} in the separation metric, "
+                f"closer than min_separation {separation:g} m",
+            )
+
+
+def _reachable_steps(starts: FloatArray, targets: FloatArray, goal_order: IntArray | None,
+                     start_velocities: FloatArray | None, limits: Limits, dt: float,
+                     steps: int, steps_auto: bool, fixed_steps: int) -> int:
+    """The scenario's steps once every vehicle can reach its goal (`targets`, in the
+    vehicles' order) under the velocity and acceleration boxes: `steps` as given, or with
+    `steps_auto` the fewest the boxes and the fixed trajectories' samples (`fixed_steps`)
+    allow, the search's start. A goal out of reach names the vehicle and what it needs."""
+    horizon = steps * dt
+    # The last acceleration is pinned to zero, so the motion has (K-1) steps to happen in.
+    usable = (steps - 1) * dt
+    need = minimum_transfer_time(targets - starts, limits.velocity_max,
+                                 limits.acceleration_max)
+    if start_velocities is not None:
+        # a rest-to-rest bound says nothing about a vehicle already moving: the QP judges it
+        need[np.any(start_velocities != 0.0, axis=1)] = 0.0
+    worst_vehicle, worst_axis = np.unravel_index(int(np.argmax(need)), need.shape)
+    culprit = worst_vehicle if goal_order is None else int(goal_order[worst_vehicle])
+    assigned = "" if goal_order is None else f" (assigned to vehicles[{worst_vehicle}])"
+    distance = abs(targets[worst_vehicle, worst_axis] - starts[worst_vehicle, worst_axis])
+    why = (f"moving {distance:.3f} m along {'xyz'[worst_axis]} needs at least "
+           f"{need[worst_vehicle, worst_axis]:.2f} s under the velocity/acceleration limits")
+    if steps_auto:
+        # the search starts from the fewest steps the boxes allow (and every fixed sample)
+        least = int(max(3, math.ceil(need[worst_vehicle, worst_axis] / dt - 1e-9) + 1,
+                        fixed_steps))
+        if least > steps:
+            raise ScenarioError(
+                "max_horizon",
+                f"{steps * dt:g} s ({steps} steps of dt) is too short: vehicles[{culprit}]"
+                f"{assigned} {why}, so the horizon needs at least {least} steps "
+                f"({least * dt:g} s); raise max_horizon (at most {MAX_STEPS} steps)")
+        return least
+    if need[worst_vehicle, worst_axis] > usable + 1e-9:
+        raise ScenarioError(
+            f"vehicles[{culprit}].goal",
+            f"cannot be reached within the horizon{assigned}: {why}; the horizon is "
+            f"{horizon:.2f} s (steps * dt)",
+        )
+    return steps
 
 
 def _steps_within(seconds: float, dt: float) -> int:

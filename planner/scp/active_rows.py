@@ -1,6 +1,6 @@
 """Which rows of the group QPs' duals were active, remembered across solves (`planner.scp.dual`).
 
-A group's dual is solved over a working set of rows (`planner.scp.dual._Dual.solve`); the rows
+A group's dual is solved over a working set of rows (`planner.scp.dual.GroupDual.solve`); the rows
 found active by the latest solve that held them start the next solve that holds them again.
 """
 

@@ -18,14 +18,13 @@ sign_r sign_s W[f_r, f_s], W = T M T' the "compliance" between two functionals (
 that share a vehicle, so it is small and sparse where the primal KKT system has ~15 rows per
 vehicle and step (measured in the README, Drone-show scale). Where every vehicle meets
 dozens of others the rows sharing vehicles couple nearly all of Q; the working set keeps
-each solve to about one row per close approach (`_Dual.worst_per_link`), so Q's blocks stay
+each solve to about one row per close approach (`GroupDual.worst_per_link`), so Q's blocks stay
 small there too.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,12 +33,12 @@ from numpy.typing import NDArray
 from planner.model.scenario import Scenario
 from planner.scp.active_rows import ActiveRows
 from planner.scp.first_qp import straight_moves_of
+from planner.scp.functionals import Functionals, functionals
 from planner.scp.qp import A, BoxMask, P, SeparationRows, V
 from planner.scp.solvers import FAILED, INFEASIBLE, MAX_ITER, SOLVED
 from planner.types import FloatArray, IntArray
 
-__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "Functionals", "functionals",
-           "solve_group_dual"]
+__all__ = ["ActiveRows", "DualOutcome", "FleetMoves", "GroupDual", "solve_group_dual"]
 
 Keys = NDArray[np.int64]
 
@@ -48,59 +47,8 @@ Keys = NDArray[np.int64]
 #: (a vehicle with thousands of box rows, a giant crowd's every row) the primal QP is the
 #: better tool. Working sets below it still solve a group whose whole Q is larger.
 MAX_PAIRS = 2_000_000
-#: `_Dual.solve`'s status when the rows it would need exceed MAX_PAIRS.
+#: `GroupDual.solve`'s status when the rows it would need exceed MAX_PAIRS.
 TOO_LARGE = "too_large"
-
-
-@dataclass(frozen=True)
-class Functionals:
-    """Indices of the linear functionals of one vehicle-axis trajectory, and W = T M T'."""
-
-    steps: int
-    compliance: FloatArray
-    """(F, F): W[f, g] = response of functional f to a unit force on functional g."""
-
-    def position(self, k: IntArray | int) -> IntArray:
-        return np.asarray(k)
-
-    def velocity(self, k: IntArray | int) -> IntArray:
-        return self.steps + 1 + np.asarray(k)
-
-    def middle(self, k: IntArray | int) -> IntArray:
-        """p_k + dt/2 v_k, the Bernstein middle point of step k."""
-        return 2 * (self.steps + 1) + np.asarray(k)
-
-    def acceleration(self, k: IntArray | int) -> IntArray:
-        return 2 * (self.steps + 1) + self.steps + np.asarray(k)
-
-    def jerk(self, k: IntArray | int) -> IntArray:
-        """a_k - a_{k-1} (a_{-1} = 0)."""
-        return 2 * (self.steps + 1) + 2 * self.steps + np.asarray(k)
-
-    def values(self, p: FloatArray, v: FloatArray, a: FloatArray, dt: float) -> FloatArray:
-        """(m, F, 3): every functional of every vehicle and axis of trajectories (p, v, a)."""
-        middle = p[:, :-1] + 0.5 * dt * v[:, :-1]
-        jerk = np.diff(a, axis=1, prepend=0.0)
-        return np.concatenate([p, v, middle, a, jerk], axis=1)
-
-
-@lru_cache(maxsize=8)
-def functionals(steps: int, dt: float) -> Functionals:
-    """The functionals' map T from one axis' accelerations a (K) and W = T M T', M = Pi / 2
-    (the cost's Hessian is 2 I; Pi projects on the null space of the boundary conditions
-    p_K, v_K, a_{K-1}, which fix the rest of the move)."""
-    k = np.arange(steps + 1)[:, None]
-    j = np.arange(steps)[None, :]
-    pos = np.where(j < k, dt * dt * (k - j - 0.5), 0.0)  # p_k - p_0 - k dt v_0 (v_0 = 0)
-    vel = np.where(j < k, dt, 0.0)
-    middle = pos[:-1] + 0.5 * dt * vel[:-1]
-    acc = np.eye(steps)
-    jerk = acc - np.eye(steps, k=-1)
-    T = np.concatenate([pos, vel, middle, acc, jerk])
-    E = np.stack([pos[-1], vel[-1], acc[-1]])
-    Pi = np.eye(steps) - E.T @ np.linalg.solve(E @ E.T, E)
-    TP = T @ Pi
-    return Functionals(steps, 0.5 * TP @ T.T)
 
 
 @dataclass(frozen=True)
@@ -184,7 +132,7 @@ def _solve_bounded(Q: sp.csc_matrix, c: FloatArray, tolerance: float
     return SOLVED, np.maximum(np.array(solver.result.x), 0.0), iterations
 
 
-class _Dual:
+class GroupDual:
     """One group's dual: its rows as entries (row, vehicle, functional, coefficient vector;
     a separation row has one entry per vehicle it moves, a box row one) and the linear term
     c = C x* - h. Blocks of Q = C M C' are built for the rows a solve needs, and the
@@ -344,7 +292,7 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     when a block of the dual's matrix to solve would exceed `MAX_PAIRS` entries (the caller
     solves the primal).
 
-    The dual is solved over a working set of rows (`_Dual.solve`) that starts from the rows
+    The dual is solved over a working set of rows (`GroupDual.solve`) that starts from the rows
     the straight moves break or, with row_ids and memory (names of the separation rows,
     unique and stable across solves, and what earlier solves found active), from the
     remembered active rows; the memory learns this solve's active rows. fleet: the
@@ -384,7 +332,7 @@ def solve_group_dual(scenario: Scenario, members: IntArray, rows: SeparationRows
     c = np.bincount(e_row, np.einsum("ec,ec->e", e_coef, g_star[e_veh, e_func]),
                     minlength=n_rows) - rhs
 
-    dual = _Dual(fn, m, e_row, e_veh, e_func, e_coef, c)
+    dual = GroupDual(fn, m, e_row, e_veh, e_func, e_coef, c)
     box_ids = np.zeros(0, dtype=np.int64)
     # Start from the rows remembered active, else from those the straight moves break.
     start = dual.worst_per_link(c < -tolerance, c)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.model.obstacles import ObstacleSet
+from planner.model.obstacle_set import ObstacleSet
 from planner.model.scenario import Scenario
 from planner.scp.golden import golden_minimum
 from planner.scp.lazy_rows import LazyRows, Triples, interval_points

@@ -12,15 +12,16 @@ uniform; it is zero at the optimum and never reported. The problem is
     min 1/2 x'Px + q'x   s.t.  A x = b,   h_l <= G x <= h_u,   x_l <= x <= x_u,
 
 PIQP's native form; other backends convert. All matrices are built with vectorised COO
-arithmetic from one per-vehicle template, never with a Python loop over steps or pairs.
-`build_group_qp` runs past 80 lines: it assembles the cost, dynamics, boxes and rows of one
-sparse matrix in index order, and its blocks share the layout's index arrays.
+arithmetic from one per-vehicle template, never with a Python loop over steps or pairs:
+`build_group_qp` takes the equality rows and the cost's Hessian shared by every group of its
+shape (`group_structure`) and adds the inequality rows (jerk, walls, separation, each kind by
+a function of its own) and the variable bounds.
 """
 
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,7 +31,8 @@ from planner.model.flatness import GRAVITY
 from planner.model.scenario import Scenario
 from planner.types import FloatArray, IntArray
 
-__all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp"]
+__all__ = ["BoxMask", "QuadraticProgram", "SeparationRows", "StageLayout", "build_group_qp",
+           "build_structure", "group_structure"]
 
 
 P, V, A = 0, 1, 2
@@ -176,20 +178,22 @@ def _coo(rows: list[IntArray], cols: list[IntArray], vals: list[FloatArray], sha
 
 
 #: Groups of at most this many vehicles share their equality and cost matrices between QPs
-#: (`_structure`): prioritized batches build thousands of small QPs of the same shape.
+#: (`group_structure`): prioritized batches build thousands of small QPs of the same shape.
 STRUCTURE_CACHE_VEHICLES = 16
 
 
-def _structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+def group_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
     """(A_eq, P) of a group of `m` vehicles: the dynamics and boundary-condition rows and
     the cost's Hessian depend only on the shape and dt, so small groups' are built once
     (the solvers only read them)."""
     if m <= STRUCTURE_CACHE_VEHICLES:
         return _cached_structure(steps, m, dt)
-    return _build_structure(steps, m, dt)
+    return build_structure(steps, m, dt)
 
 
-def _build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+def build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """(A_eq, P) of a group of `m` vehicles built afresh (`group_structure` shares small
+    groups' through a cache)."""
     lay = StageLayout(steps, m)
     n = lay.size
     # Grids over (vehicle, axis) and (stage, vehicle, axis): flat index arrays.
@@ -236,7 +240,7 @@ def _build_structure(steps: int, m: int, dt: float) -> tuple[sp.csc_matrix, sp.c
     return A_eq, sp.diags(diag, format="csc")
 
 
-_cached_structure = functools.lru_cache(maxsize=32)(_build_structure)
+_cached_structure = functools.lru_cache(maxsize=32)(build_structure)
 
 
 def build_group_qp(
@@ -258,9 +262,7 @@ def build_group_qp(
     if boxes is None:
         boxes = BoxMask.full(m, steps)
 
-    veh = np.repeat(np.arange(m), 3)
-    axis = np.tile(np.arange(3), m)
-    A_eq, P_mat = _structure(steps, m, dt)
+    A_eq, P_mat = group_structure(steps, m, dt)
     starts = scenario.starts[members].reshape(-1)  # chain order: vehicle-major, axis
     goals = scenario.goals[members].reshape(-1)
     start_v = scenario.initial_velocities[members].reshape(-1)
@@ -268,92 +270,19 @@ def build_group_qp(
     n_dyn = steps * 3 * m
     b = np.concatenate([np.zeros(2 * n_dyn), *bc_rhs])
 
-    # --- inequality rows: jerk (a_k - a_{k-1} within +-jmax dt, a_{-1} the acceleration
-    # before the start), then separation.
-    g_rows: list[IntArray] = []
-    g_cols: list[IntArray] = []
-    g_vals: list[FloatArray] = []
-    h_l_parts: list[FloatArray] = []
-    h_u_parts: list[FloatArray] = []
-    n_jerk = 0
+    # --- inequality rows: jerk, then the workspace walls between steps, then separation.
+    rows = _Rows()
     if limits.jerk_max is not None:
-        j_vehicle, jk, j_axis = np.nonzero(boxes.jerk)
-        jv = j_vehicle * 3 + j_axis
-        n_jerk = jk.size
-        jrow = np.arange(n_jerk)
-        g_rows += [jrow]
-        g_cols += [lay.index(jk, veh[jv], A, axis[jv])]
-        g_vals += [np.ones(n_jerk)]
-        later = jk > 0
-        g_rows += [jrow[later]]
-        g_cols += [lay.index(jk[later] - 1, veh[jv[later]], A, axis[jv[later]])]
-        g_vals += [-np.ones(int(later.sum()))]
-        bound = (limits.jerk_max * dt)[axis[jv]]
-        # the first step's row bounds a_0 alone: shift it by the acceleration before the start
-        before = np.where(later, 0.0,
-                          scenario.initial_accelerations[members][veh[jv], axis[jv]])
-        h_l_parts.append(before - bound)
-        h_u_parts.append(before + bound)
-
-    n_wall = 0
+        _jerk_rows(rows, scenario, members, boxes.jerk, lay)
     if boxes.wall.any():
-        w_vehicle, wk, w_axis = np.nonzero(boxes.wall)
-        n_wall = wk.size
-        wrow = n_jerk + np.arange(n_wall)
-        g_rows += [wrow, wrow]
-        g_cols += [lay.index(wk, w_vehicle, P, w_axis), lay.index(wk, w_vehicle, V, w_axis)]
-        g_vals += [np.ones(n_wall), np.full(n_wall, 0.5 * dt)]
-        h_l_parts.append(limits.position_min[w_axis])
-        h_u_parts.append(limits.position_max[w_axis])
-
+        _wall_rows(rows, scenario, boxes.wall, lay)
     n_sep = len(separation)
     if n_sep:
-        srow = n_jerk + n_wall + np.arange(n_sep)
-        s_k = separation.k
-        kind = separation.kind
-        stage = np.where(kind == 2, s_k + 1, s_k)
-        two = separation.j >= 0
-        for c in range(3):
-            coef = separation.coef[:, c]
-            g_rows += [srow, srow[two]]
-            g_cols += [lay.index(stage, separation.i, P, c),
-                       lay.index(stage[two], separation.j[two], P, c)]
-            g_vals += [coef, -coef[two]]
-        mid = kind == 1
-        if mid.any():
-            mrow = srow[mid]
-            mid_two = two[mid]
-            for c in range(3):
-                coef = 0.5 * dt * separation.coef[mid, c]
-                g_rows += [mrow, mrow[mid_two]]
-                g_cols += [
-                    lay.index(s_k[mid], separation.i[mid], V, c),
-                    lay.index(s_k[mid][mid_two], separation.j[mid][mid_two], V, c),
-                ]
-                g_vals += [coef, -coef[mid_two]]
-        rhs = np.full(n_sep, scenario.min_separation)
-        if separation.offset is not None:
-            rhs = rhs + separation.offset
-        h_l_parts.append(rhs)
-        h_u_parts.append(np.full(n_sep, np.inf))
-    G = _coo(g_rows, g_cols, g_vals, (n_jerk + n_wall + n_sep, n))
-    h_l = np.concatenate(h_l_parts) if h_l_parts else np.zeros(0)
-    h_u = np.concatenate(h_u_parts) if h_u_parts else np.zeros(0)
-
-    # --- variable bounds: workspace box, velocity and acceleration boxes.
-    stage_lo = np.empty((m, 3, 3))
-    stage_hi = np.empty((m, 3, 3))
-    stage_lo[:, P, :], stage_hi[:, P, :] = limits.position_min, limits.position_max
-    inf3 = np.full(3, np.inf)
-    vmax = inf3 if limits.velocity_max is None else limits.velocity_max
-    amax = inf3 if limits.acceleration_max is None else limits.acceleration_max
-    stage_lo[:, V, :], stage_hi[:, V, :] = -vmax, vmax
-    stage_lo[:, A, :], stage_hi[:, A, :] = -amax, amax
-    x_l = np.tile(stage_lo.reshape(-1), steps + 1)
-    x_u = np.tile(stage_hi.reshape(-1), steps + 1)
-    off = ~boxes.bounds.transpose(1, 0, 2, 3).reshape(-1)
-    x_l[off] = -np.inf
-    x_u[off] = np.inf
+        _separation_rows(rows, scenario, separation, lay)
+    G = _coo(rows.rows, rows.cols, rows.vals, (rows.count, n))
+    h_l = np.concatenate(rows.lower) if rows.lower else np.zeros(0)
+    h_u = np.concatenate(rows.upper) if rows.upper else np.zeros(0)
+    x_l, x_u = _variable_bounds(scenario, boxes.bounds, m)
 
     # --- cost: sum_k ||a_k + g||^2 = a'a + 2 G a_z + K G^2 per vehicle; phantom a_K weight 1.
     q = np.zeros((steps + 1, m, 3, 3))
@@ -373,3 +302,115 @@ def build_group_qp(
         constant=constant,
         separation_rows=n_sep,
     )
+
+
+@dataclass
+class _Rows:
+    """A group QP's inequality rows as they are assembled: their COO entries, bounds and
+    count (each kind of row is numbered after the ones before it)."""
+
+    rows: list[IntArray] = field(default_factory=list)
+    cols: list[IntArray] = field(default_factory=list)
+    vals: list[FloatArray] = field(default_factory=list)
+    lower: list[FloatArray] = field(default_factory=list)
+    upper: list[FloatArray] = field(default_factory=list)
+    count: int = 0
+
+
+def _jerk_rows(rows: _Rows, scenario: Scenario, members: IntArray, mask: NDArray[np.bool_],
+               lay: StageLayout) -> None:
+    """a_k - a_{k-1} within +-jmax dt where `mask` (vehicle, step, axis) says, a_{-1} the
+    acceleration before the start."""
+    m = len(members)
+    veh, axis = np.repeat(np.arange(m), 3), np.tile(np.arange(3), m)
+    j_vehicle, jk, j_axis = np.nonzero(mask)
+    jv = j_vehicle * 3 + j_axis
+    n_jerk = jk.size
+    jrow = rows.count + np.arange(n_jerk)
+    rows.rows += [jrow]
+    rows.cols += [lay.index(jk, veh[jv], A, axis[jv])]
+    rows.vals += [np.ones(n_jerk)]
+    later = jk > 0
+    rows.rows += [jrow[later]]
+    rows.cols += [lay.index(jk[later] - 1, veh[jv[later]], A, axis[jv[later]])]
+    rows.vals += [-np.ones(int(later.sum()))]
+    assert scenario.limits.jerk_max is not None
+    bound = (scenario.limits.jerk_max * scenario.dt)[axis[jv]]
+    # the first step's row bounds a_0 alone: shift it by the acceleration before the start
+    before = np.where(later, 0.0, scenario.initial_accelerations[members][veh[jv], axis[jv]])
+    rows.lower.append(before - bound)
+    rows.upper.append(before + bound)
+    rows.count += n_jerk
+
+
+def _wall_rows(rows: _Rows, scenario: Scenario, mask: NDArray[np.bool_],
+               lay: StageLayout) -> None:
+    """The workspace box at the Bernstein middle point p_k + dt/2 v_k where `mask`
+    (vehicle, step, axis) says."""
+    limits = scenario.limits
+    w_vehicle, wk, w_axis = np.nonzero(mask)
+    n_wall = wk.size
+    wrow = rows.count + np.arange(n_wall)
+    rows.rows += [wrow, wrow]
+    rows.cols += [lay.index(wk, w_vehicle, P, w_axis), lay.index(wk, w_vehicle, V, w_axis)]
+    rows.vals += [np.ones(n_wall), np.full(n_wall, 0.5 * scenario.dt)]
+    rows.lower.append(limits.position_min[w_axis])
+    rows.upper.append(limits.position_max[w_axis])
+    rows.count += n_wall
+
+
+def _separation_rows(rows: _Rows, scenario: Scenario, separation: SeparationRows,
+                     lay: StageLayout) -> None:
+    """c'(p_i - p_j) >= R (+ offset) at a step, its end, or its middle point (`kind`); a
+    one-sided row (j < 0) moves vehicle i alone."""
+    n_sep = len(separation)
+    srow = rows.count + np.arange(n_sep)
+    s_k = separation.k
+    kind = separation.kind
+    stage = np.where(kind == 2, s_k + 1, s_k)
+    two = separation.j >= 0
+    for c in range(3):
+        coef = separation.coef[:, c]
+        rows.rows += [srow, srow[two]]
+        rows.cols += [lay.index(stage, separation.i, P, c),
+                      lay.index(stage[two], separation.j[two], P, c)]
+        rows.vals += [coef, -coef[two]]
+    mid = kind == 1
+    if mid.any():
+        mrow = srow[mid]
+        mid_two = two[mid]
+        for c in range(3):
+            coef = 0.5 * scenario.dt * separation.coef[mid, c]
+            rows.rows += [mrow, mrow[mid_two]]
+            rows.cols += [
+                lay.index(s_k[mid], separation.i[mid], V, c),
+                lay.index(s_k[mid][mid_two], separation.j[mid][mid_two], V, c),
+            ]
+            rows.vals += [coef, -coef[mid_two]]
+    rhs = np.full(n_sep, scenario.min_separation)
+    if separation.offset is not None:
+        rhs = rhs + separation.offset
+    rows.lower.append(rhs)
+    rows.upper.append(np.full(n_sep, np.inf))
+    rows.count += n_sep
+
+
+def _variable_bounds(scenario: Scenario, mask: NDArray[np.bool_], m: int
+                     ) -> tuple[FloatArray, FloatArray]:
+    """(x_l, x_u): the workspace box on positions, the velocity and acceleration boxes, on
+    the variables `mask` (vehicle, stage, kind, axis) keeps; +-inf elsewhere."""
+    limits, steps = scenario.limits, scenario.steps
+    stage_lo = np.empty((m, 3, 3))
+    stage_hi = np.empty((m, 3, 3))
+    stage_lo[:, P, :], stage_hi[:, P, :] = limits.position_min, limits.position_max
+    inf3 = np.full(3, np.inf)
+    vmax = inf3 if limits.velocity_max is None else limits.velocity_max
+    amax = inf3 if limits.acceleration_max is None else limits.acceleration_max
+    stage_lo[:, V, :], stage_hi[:, V, :] = -vmax, vmax
+    stage_lo[:, A, :], stage_hi[:, A, :] = -amax, amax
+    x_l = np.tile(stage_lo.reshape(-1), steps + 1)
+    x_u = np.tile(stage_hi.reshape(-1), steps + 1)
+    off = ~mask.transpose(1, 0, 2, 3).reshape(-1)
+    x_l[off] = -np.inf
+    x_u[off] = np.inf
+    return x_l, x_u

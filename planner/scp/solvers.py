@@ -183,6 +183,9 @@ class OsqpSolver:
         self._solver: Any = None
         """The OSQP instance of the last problem (reused while the sparsity is the same)."""
         self._pattern: tuple[tuple[int, ...], bytes, bytes] | None = None
+        self.setups = 0
+        """How many times an OSQP instance was set up (factorised afresh); a problem with the
+        last one's sparsity is updated instead, so this stays put."""
 
     @staticmethod
     def _stack(qp: QuadraticProgram) -> tuple[sp.csc_matrix, FloatArray, FloatArray]:
@@ -212,6 +215,7 @@ class OsqpSolver:
                 scaled_termination=False, adaptive_rho=True,
             )
             self._solver, self._pattern = solver, pattern
+            self.setups += 1
         if warm_start is not None:
             solver.warm_start(x=warm_start)
         result = solver.solve(raise_error=False)

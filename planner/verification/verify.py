@@ -153,14 +153,7 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray, *,
             "acceleration": _excess(a, lim.acceleration_max),
             "jerk": _excess(jerk, lim.jerk_max),
         }
-        boundary = {
-            "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
-            "start_velocity": float(np.max(np.abs(v[:, 0] - scenario.initial_velocities))),
-            # each vehicle's own goal: the assigned one under free assignment
-            "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
-            "goal_velocity": float(np.max(np.abs(v[:, -1]))),
-            "goal_acceleration": float(np.max(np.abs(a[:, -1]))),
-        }
+        boundary = _boundary_errors(scenario, p, v, a)
         thrust_range = [float(f.min()), float(f.max())]
         rate_peak = float(np.max(np.abs(rates[..., :2])))
     # With two or more vehicles the minimum must be a number: inf or NaN means the metric
@@ -177,34 +170,8 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray, *,
     bounded = finite and all(math.isfinite(x) for x in (*violation.values(),
                                                         *boundary.values()))
     ids = scenario.ids
-    obstacle: dict[str, Any] = {}
-    if scenario.obstacles:
-        near = closest_obstacle(scenario, p, v, a) if finite else None
-        if near is None or not math.isfinite(near.distance):
-            obstacle = {"obstacle_distance_min": None, "clear": False,
-                        "closest_obstacle": None}
-        else:
-            obstacle = {
-                "obstacle_distance_min": near.distance,
-                "closest_obstacle": {"id": scenario.obstacles[near.obstacle].id,
-                                     "vehicle": ids[near.vehicle], "time": near.time},
-                "clear": near.distance >= scenario.clearance - SEPARATION_TOLERANCE,
-            }
-    fixed: dict[str, Any] = {}
-    fixed_ok = True
-    if scenario.fixed:
-        nearest = closest_fixed(scenario, p, v, a) if measurable else None
-        if nearest is None or not math.isfinite(nearest.distance):
-            fixed = {"fixed_distance_min": None, "closest_fixed": {}}
-            fixed_ok = False
-        else:
-            fixed = {
-                "fixed_distance_min": nearest.distance,
-                "closest_fixed": {"id": scenario.fixed[nearest.fixed].id,
-                                  "vehicle": ids[nearest.vehicle], "time": nearest.time,
-                                  "required": nearest.required},
-            }
-            fixed_ok = nearest.distance >= nearest.required - SEPARATION_TOLERANCE
+    obstacle = _obstacle_figures(scenario, p, v, a, finite)
+    fixed, fixed_ok = _fixed_figures(scenario, p, v, a, measurable)
     return Verification(
         min_separation=step_min if pairs and measured else None,
         min_separation_continuous=cont_min if pairs and measured else None,
@@ -228,6 +195,54 @@ def verify(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray, *,
         **obstacle,
         **fixed,
     )
+
+
+def _boundary_errors(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray
+                     ) -> dict[str, float]:
+    """The largest miss of each boundary condition: the start's state, and rest at the goal."""
+    return {
+        "start_position": float(np.max(np.abs(p[:, 0] - scenario.starts))),
+        "start_velocity": float(np.max(np.abs(v[:, 0] - scenario.initial_velocities))),
+        # each vehicle's own goal: the assigned one under free assignment
+        "goal_position": float(np.max(np.abs(p[:, -1] - scenario.assigned_goals))),
+        "goal_velocity": float(np.max(np.abs(v[:, -1]))),
+        "goal_acceleration": float(np.max(np.abs(a[:, -1]))),
+    }
+
+
+def _obstacle_figures(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
+                      finite: bool) -> dict[str, Any]:
+    """The closest any vehicle comes to an obstacle and whether that keeps the clearance: {}
+    without obstacles, None figures and not clear when it cannot be measured."""
+    if not scenario.obstacles:
+        return {}
+    near = closest_obstacle(scenario, p, v, a) if finite else None
+    if near is None or not math.isfinite(near.distance):
+        return {"obstacle_distance_min": None, "clear": False, "closest_obstacle": None}
+    return {
+        "obstacle_distance_min": near.distance,
+        "closest_obstacle": {"id": scenario.obstacles[near.obstacle].id,
+                             "vehicle": scenario.ids[near.vehicle], "time": near.time},
+        "clear": near.distance >= scenario.clearance - SEPARATION_TOLERANCE,
+    }
+
+
+def _fixed_figures(scenario: Scenario, p: FloatArray, v: FloatArray, a: FloatArray,
+                   measurable: bool) -> tuple[dict[str, Any], bool]:
+    """The closest any vehicle comes to a fixed trajectory and whether that keeps what the
+    pair needs: ({}, True) without fixed trajectories, None figures and False when it cannot
+    be measured."""
+    if not scenario.fixed:
+        return {}, True
+    nearest = closest_fixed(scenario, p, v, a) if measurable else None
+    if nearest is None or not math.isfinite(nearest.distance):
+        return {"fixed_distance_min": None, "closest_fixed": {}}, False
+    return {
+        "fixed_distance_min": nearest.distance,
+        "closest_fixed": {"id": scenario.fixed[nearest.fixed].id,
+                          "vehicle": scenario.ids[nearest.vehicle], "time": nearest.time,
+                          "required": nearest.required},
+    }, nearest.distance >= nearest.required - SEPARATION_TOLERANCE
 
 
 def refusal(plan: Plan) -> str | None:

@@ -197,5 +197,7 @@ def test_concepts_page_says_what_the_code_defines() -> None:
                          ("FlightSnapshot", "gcs/documents.py"),
                          ("VehicleSnapshot", "gcs/documents.py"),
                          ("ReplanDocument", "gcs/documents.py"),
-                         ("ReplanRecord", "gcs/flight/replan/record.py")]:
+                         ("ReplanRecord", "gcs/flight/replan/record.py"),
+                         ("FlightContext", "gcs/flight/procedure/context.py"),
+                         ("VehicleStatus", "gcs/flight/procedure/vehicle.py")]:
         assert f"`{name}`" in text and f"class {name}" in (ROOT / module).read_text(), name

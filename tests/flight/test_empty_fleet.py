@@ -10,7 +10,8 @@ import pytest
 
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.station import StationStalls
-from gcs.flight.procedure import vehicle
+from gcs.flight.procedure import endings, vehicle
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run.executor import FlightExecutor, _all
 from gcs.flight.run.record import FlightRecorder, summarise
 from gcs.flight.run.stream import Streamer
@@ -44,7 +45,7 @@ def test_all_still_raises_the_first_error() -> None:
 
 def test_wait_disarmed_of_nobody_returns_at_once() -> None:
     events, emit = _events()
-    asyncio.run(asyncio.wait_for(vehicle.wait_disarmed([], OPTIONS, emit, StationStalls()),
+    asyncio.run(asyncio.wait_for(endings.wait_disarmed([], FlightContext(OPTIONS, emit)),
                                  1.0))  # bound
     assert events == []
 
@@ -53,7 +54,7 @@ def test_secure_without_a_link_does_nothing() -> None:
     v = fake_vehicle(0)
     v.link = None
     events, emit = _events()
-    asyncio.run(vehicle.secure(v, "land", OPTIONS, emit, lambda _vid: None))
+    asyncio.run(endings.secure(v, "land", FlightContext(OPTIONS, emit)))
     assert events == [] and v.phase == VehiclePhase.PENDING
 
 

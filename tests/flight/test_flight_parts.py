@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from gcs.fleet.fleetfile import FlightOptions
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.record import FlightRecorder
@@ -55,8 +56,9 @@ def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] 
     async def abort(action: str, reason: str) -> None:
         calls.append(("abort", action, reason))
 
-    out = FaultPolicy(FlightOptions(policy=policy, landing=landing),
-                      lambda vid, kind, _d: events.append((vid, kind)), lambda: 1.0,
+    out = FaultPolicy(FlightContext(FlightOptions(policy=policy, landing=landing),
+                                    lambda vid, kind, _d: events.append((vid, kind))),
+                      lambda: 1.0,
                       land=land, abort=abort, aborting=lambda: False, descent=descent)
     return out, calls, events
 

@@ -8,8 +8,8 @@ import time
 from typing import Any
 
 from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.link.station import StationStalls
-from gcs.flight.procedure import vehicle
+from gcs.flight.procedure import endings
+from gcs.flight.procedure.context import FlightContext
 from gcs.phases import EventKind, VehiclePhase
 from gcs.wire import mavlink
 from tests.flight.fakes import fake_link, fake_vehicle
@@ -24,8 +24,7 @@ def _wait(armed: bool, landed_state: int) -> tuple[Any, list[tuple[Any, str, str
     tel.armed, tel.landed_state = armed, landed_state
     tel.message_time = tel.heartbeat_time = time.monotonic() - 3.0  # out of reach for 3 s
     events: list[tuple[Any, str, str]] = []
-    asyncio.run(vehicle.wait_disarmed([v], OPTIONS, lambda *e: events.append(e),
-                                      StationStalls()))
+    asyncio.run(endings.wait_disarmed([v], FlightContext(OPTIONS, lambda *e: events.append(e))))
     return v, events
 
 

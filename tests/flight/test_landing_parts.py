@@ -13,7 +13,7 @@ import gcs.flight.safety.landing as landing_module
 from gcs.autopilot import px4
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
-from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans
@@ -56,9 +56,13 @@ def _landing(vehicles, streamer, events, secured, **options) -> PlannedLanding:
         secured.append(v.id)
         streamer.unassign(v.id)
 
-    return PlannedLanding(SCENARIO, vehicles, streamer, FlightOptions(**options),
-                          lambda vid, kind, detail: events.append((vid, kind, detail)),
-                          secure, StationStalls())
+    return PlannedLanding(SCENARIO, vehicles, streamer, _context(events, **options), secure)
+
+
+def _context(events, **options) -> FlightContext:
+    """A flight's context whose events go to `events`."""
+    return FlightContext(FlightOptions(**options),
+                         lambda vid, kind, detail: events.append((vid, kind, detail)))
 
 
 def _slow(seconds: float):
@@ -231,10 +235,9 @@ def test_a_lost_vehicle_is_planned_around_and_a_failed_plan_holds_and_retries(
     clock = FlightClock(streamer.rate, streamer.epoch, streamer.epoch)
     clock.begin(0)
     flown = FlownPlans([])
-    landing = PlannedLanding(SCENARIO, vehicles, streamer, FlightOptions(landing_plan_timeout=0.5),
-                             lambda vid, kind, detail: events.append((vid, kind, detail)),
-                             lambda v: _secure(v, streamer, secured), StationStalls(), flown,
-                             clock)
+    landing = PlannedLanding(SCENARIO, vehicles, streamer,
+                             _context(events, landing_plan_timeout=0.5),
+                             lambda v: _secure(v, streamer, secured), flown, clock)
 
     async def fly() -> None:
         streamer.start()

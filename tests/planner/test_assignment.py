@@ -237,7 +237,10 @@ def test_an_unfinished_certificate_is_not_reported_proven(monkeypatch):
     starts, goals = _clusters(np.random.default_rng(5))
     best = _dense_optimum(starts, goals).cost
     monkeypatch.setattr(assignment, "MAX_ROUNDS", 1)
-    cut = assignment._sparse(starts, goals, 4)
+    with monkeypatch.context() as no_fallback:
+        no_fallback.setattr(assignment, "DENSE_FALLBACK", 0)
+        cut = _sparse(starts, goals, neighbours=4)
+    assert cut.method == "sparse"
     assert cut.cost > best * (1 + 1e-6)  # the crafted case really needs more edges
     assert not cut.proven
     assert cut.lower_bound <= best * (1 + 1e-9)  # the reported bound stays a true bound

@@ -10,8 +10,9 @@ import planner
 from planner.families.generators import grid_to_sphere, random_dense
 from planner.model.scenario import Scenario
 from planner.scp.boxes import near_boxes
-from planner.scp.dual import functionals, solve_group_dual
+from planner.scp.dual import solve_group_dual
 from planner.scp.first_qp import straight_moves
+from planner.scp.functionals import functionals
 from planner.scp.loop import ScpOptions
 from planner.scp.qp import BoxMask, SeparationRows, StageLayout, build_group_qp
 from planner.scp.separation import PairSteps, all_pairs, close_rows, directions
@@ -251,7 +252,7 @@ def _random16_rows(within: float):
 def test_blocks_and_slacks_of_the_dual_equal_the_matrix_built_whole():
     # The working set's blocks of Q = C M C' and every row's slack Q l + c read through the
     # forces equal Q built from C and M explicitly.
-    from planner.scp.dual import _Dual
+    from planner.scp.dual import GroupDual
 
     scenario, lin, pairs, _ = _random16_rows(1.2)
     rows = _rows(scenario, lin[0], pairs)
@@ -265,7 +266,7 @@ def test_blocks_and_slacks_of_the_dual_equal_the_matrix_built_whole():
     e_coef = np.concatenate([rows.coef, -rows.coef])
     rng = np.random.default_rng(0)
     c = rng.normal(size=len(rows))
-    dual = _Dual(fn, n, e_row, e_veh, e_func, e_coef, c)
+    dual = GroupDual(fn, n, e_row, e_veh, e_func, e_coef, c)
     # Q = sum over vehicles and axes of C_va W C_va', C_va: the rows' coefficients on that
     # vehicle's and axis' functionals.
     Q = np.zeros((len(rows), len(rows)))

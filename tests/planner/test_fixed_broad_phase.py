@@ -1,7 +1,7 @@
 """The fixed-trajectory broad phase (`planner.scp.fixed_rows.FixedRows.near`) compares boxes over
 blocks of steps before single intervals: it must find exactly the triples that the
 interval-by-interval comparison finds (never drop one within reach), and small groups' QPs
-share their equality and cost matrices (`planner.scp.qp._structure`) without changing them."""
+share their equality and cost matrices (`planner.scp.qp.group_structure`) without changing them."""
 
 from __future__ import annotations
 
@@ -40,7 +40,8 @@ def _rows(scenario: Scenario, rng: np.random.Generator, count: int) -> FixedRows
 def _every_interval(rows: FixedRows, p: np.ndarray, v: np.ndarray, reach: float) -> set:
     """The triples whose interval boxes come within R + margin + reach, one by one."""
     lo, hi = interval_boxes(p, v, rows.dt, rows.scale)
-    f_lo, f_hi = interval_boxes(rows._positions, rows._velocities, rows.dt, rows.scale)
+    fixed = rows.fixed_set
+    f_lo, f_hi = interval_boxes(fixed.positions, fixed.velocities, rows.dt, rows.scale)
     gap = np.maximum(0.0, np.maximum(lo[:, None] - f_hi[None], f_lo[None] - hi[:, None]))
     close = (gap ** 2).sum(axis=-1) <= (rows.separation + rows.margins + reach)[None] ** 2
     return set(zip(*(x.tolist() for x in np.nonzero(close)), strict=True))
@@ -69,7 +70,7 @@ def test_small_groups_share_their_equality_and_cost_matrices_unchanged() -> None
     one = build_group_qp(scenario, np.array([0, 1]), SeparationRows.empty())
     two = build_group_qp(scenario, np.array([5, 3]), SeparationRows.empty())
     assert one.A is two.A and one.P is two.P
-    fresh_a, fresh_p = qp._build_structure(scenario.steps, 2, scenario.dt)
+    fresh_a, fresh_p = qp.build_structure(scenario.steps, 2, scenario.dt)
     assert abs(one.A - fresh_a).max() == 0 and abs(one.P - fresh_p).max() == 0
     # the boundary conditions are the members' own
     assert not np.array_equal(one.b, two.b)

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.model.obstacles import ObstacleSet, parse_obstacles
+from planner.model.obstacle_set import ObstacleSet
+from planner.model.obstacles import parse_obstacles
 from planner.scp.obstacle_rows import chord_nearest, row_point
 
 TREES, _ = parse_obstacles({"obstacles": [

@@ -13,7 +13,8 @@ import pytest
 import planner
 from planner.families import obstacle_generators as families
 from planner.methods.routes import seed_routes
-from planner.model.obstacles import MAX_OBSTACLES, ObstacleSet, parse_obstacles
+from planner.model.obstacle_set import ObstacleSet
+from planner.model.obstacles import MAX_OBSTACLES, parse_obstacles
 from planner.scp.first_qp import straight_moves
 from planner.scp.obstacle_rows import ObstacleRows, Triples, control_points
 from planner.verification.verify import verify

@@ -1,6 +1,6 @@
 """Prioritized batches on crowds crossing a centre (grid -> sphere with fixed goals): a
 vehicle at a time by default, every vehicle keeping R from the earlier ones over continuous
-time, and the first guesses' blocked gap test (`planner.methods.prioritized._Placed`) agreeing with
+time, and the first guesses' blocked gap test (`planner.methods.first_guess.Placed`) agreeing with
 the step-by-step distances."""
 
 from __future__ import annotations
@@ -9,6 +9,7 @@ import dataclasses
 
 import numpy as np
 
+import planner.methods.first_guess as first_guess
 import planner.methods.prioritized as prioritized
 from planner import plan
 from planner.families.generators import grid_to_sphere, sideways
@@ -29,7 +30,7 @@ def test_a_crowd_goes_a_vehicle_at_a_time_a_fleet_moving_as_one_in_pairs() -> No
     assert prioritized.batch_size(Scenario.from_dict(sideways(16)).assigned()) == DEFAULT_BATCH
     # a crowd among obstacles stays in pairs (measured no faster alone)
     woods = Scenario.from_dict(forest(8, 6, size=20.0, seed=0)).assigned()
-    assert prioritized._dominant_motion(woods) is None and woods.obstacles
+    assert prioritized.dominant_motion(woods) is None and woods.obstacles
     assert prioritized.batch_size(woods) == DEFAULT_BATCH
     assert prioritized.batch_size(_crowd(), 3) == 3  # asked for: as asked
 
@@ -65,7 +66,7 @@ def test_the_blocked_gaps_are_the_step_distances_where_they_matter() -> None:
                 + rng.uniform(-12.0, 12.0, (count, 1, 3)))
 
     placed_points = walks(12)
-    placed = prioritized._Placed(placed_points)
+    placed = first_guess.Placed(placed_points)
     trial = walks(40)
     exact = np.linalg.norm(trial[:, None] - placed_points[None], axis=3).min(axis=(1, 2))
     for need in np.quantile(exact, [0.2, 0.5, 0.8]):  # some candidates fail, some clear
@@ -84,23 +85,23 @@ def _reference_guess(scenario: Scenario, others: np.ndarray, crossing: bool) -> 
     trajectory at every step, try by try (the straight move, then each delay)."""
     from planner.methods.routes import along
     scale = scenario.separation_scale
-    need = prioritized.GUESS_GAP * scenario.min_separation
+    need = first_guess.GUESS_GAP * scenario.min_separation
     placed = [others / scale]
     out = []
     for i in range(len(scenario.vehicles)):
-        lines = prioritized._polylines(scenario, i)
-        wide = prioritized._polylines(scenario, i, wide=True)
+        lines = first_guess.polylines(scenario, i)
+        wide = first_guess.polylines(scenario, i, wide=True)
         assert np.array_equal(wide[:len(lines)], lines)  # the wide set extends the first
         against = np.concatenate(placed)
         chosen, best = (lines[0], 0), -np.inf
         steps = scenario.steps
-        first = [(lines[:1], 0)] + [(lines, int(d * steps)) for d in prioritized.DELAYS]
-        then = ([(wide[len(lines):], int(d * steps)) for d in prioritized.DELAYS]
-                + [(wide, int(d * steps)) for d in prioritized.WIDE_DELAYS])
+        first = [(lines[:1], 0)] + [(lines, int(d * steps)) for d in first_guess.DELAYS]
+        then = ([(wide[len(lines):], int(d * steps)) for d in first_guess.DELAYS]
+                + [(wide, int(d * steps)) for d in first_guess.WIDE_DELAYS])
         for number, (subset, delay) in enumerate(first + then):
             if number == len(first) and (not crossing or best >= scenario.min_separation):
                 break  # the wide candidates: in a crowd crossing a point, less than R kept
-            trial = prioritized._positions(subset, scenario, delay) / scale
+            trial = first_guess.positions_along(subset, scenario, delay) / scale
             gap = np.linalg.norm(trial[:, None] - against[None], axis=3).min(axis=(1, 2))
             clear = np.flatnonzero(gap >= need)
             pick = int(clear[0]) if clear.size else int(np.argmax(gap))
@@ -126,7 +127,7 @@ def test_the_first_guess_is_the_plain_try_by_try_choice() -> None:
         sub = dataclasses.replace(work, vehicles=tuple(work.vehicles[j] for j in mine),
                                   starts=work.starts[mine], goals=work.goals[mine])
         for crossing in (False, True):
-            guess = prioritized.clear_guess(sub, straight[order[:split]], crossing=crossing)[0]
+            guess = first_guess.clear_guess(sub, straight[order[:split]], crossing=crossing)[0]
             np.testing.assert_array_equal(
                 guess, _reference_guess(sub, straight[order[:split]], crossing))
         waited += int((np.linalg.norm(guess[:, 1] - sub.starts, axis=1) < 1e-12).sum())
@@ -138,7 +139,7 @@ def test_a_crowd_crossing_one_point_is_told_from_one_that_does_not() -> None:
     crossing = [antipodal_sphere(40), antipodal_circle(20), facing_grids(40)]
     other = [facing_grids(40, pairing="across"), grid_to_sphere(64, seed=0)]
     for data in crossing + other:
-        assert prioritized.crosses_one_point(Scenario.from_dict(data)) == (data in crossing)
+        assert first_guess.crosses_one_point(Scenario.from_dict(data)) == (data in crossing)
 
 
 def test_an_antipodal_crowd_plans_in_batches_none_replanned_with_earlier_vehicles() -> None:

@@ -12,6 +12,7 @@ import pytest
 
 import planner
 import planner.methods.prioritized as prioritized
+import planner.methods.route_grid as route_grid
 import planner.methods.routes as routes
 import planner.methods.spacetime as spacetime
 from planner.families import obstacle_generators as families
@@ -129,15 +130,15 @@ def test_a_batch_fixes_the_earlier_vehicles_near_its_route_not_only_its_straight
                         scenario.steps + 1, axis=1)
     reach = prioritized.REACH * scenario.min_separation
     members = np.array([0])
-    assert prioritized._near_fixed(scenario, members, resting, reach).size == 0
-    assert prioritized._near_fixed(scenario, members, resting, reach, route).tolist() == [0]
+    assert prioritized.near_fixed(scenario, members, resting, reach).size == 0
+    assert prioritized.near_fixed(scenario, members, resting, reach, route).tolist() == [0]
 
 
 def test_full_height_obstacles_are_routed_in_the_plane_at_the_lanes_own_heights() -> None:
     scenario = planner.Scenario.from_dict(families.forest(12, 10, size=20.0, seed=0))
-    grid = routes.build_grid(scenario)
+    grid = route_grid.build_grid(scenario)
     assert grid.planar and grid.shape[2] == 1  # trees floor to ceiling: one layer
-    assert not routes.build_grid(
+    assert not route_grid.build_grid(
         planner.Scenario.from_dict(families.window_wall(8, seed=1))).planar
     found = fleet_routes(scenario)
     for i, points in found.routes.items():  # each lane keeps its height (start = goal z)
@@ -149,7 +150,7 @@ def test_a_full_height_wall_still_cuts_the_goals_off_at_once() -> None:
     data["obstacles"].append({"id": "wall", "box": {"min": [9.8, 0.0, 0.0],
                                                     "max": [10.2, 20.0, 4.0]}})
     scenario = planner.Scenario.from_dict(data)
-    assert routes.build_grid(scenario).planar
+    assert route_grid.build_grid(scenario).planar
     result = planner.plan(data, method="prioritized")
     assert result.status == "infeasible" and result.infeasible_groups == ("obstacles",)
     assert "cannot reach its goal" in result.message and "'wall'" in result.message

@@ -40,8 +40,9 @@ from scipy.spatial import cKDTree
 
 from gcs.autopilot import LinkLossFailsafe
 from gcs.errors import FailsafeNotSet
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.params import ParamError, read_param, set_param
-from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.phases import EventKind
 from planner import Plan
 from planner.types import FloatArray
@@ -190,14 +191,15 @@ def stacked_columns(plan: Plan, clearance: float, rate: float = COLUMN_RATE_HZ
     return (vid, c.other, c.gap, c.t) if not c.above else (c.other, vid, c.gap, c.t)
 
 
-async def set_failsafe(v: VehicleStatus, delay: float, hover: bool, emit: Emit, *,
-                       required: bool = True, why: str = "") -> None:
+async def set_failsafe(v: VehicleStatus, delay: float, hover: bool, context: FlightContext, *,
+                       why: str = "") -> None:
     """Read `v`'s failsafe, set it to land after `delay` s, or with `hover` to stay hovering
     (see the module; its autopilot says which parameters: `Autopilot.failsafe_settings`),
     keep what it answered in `v.failsafe`, what it had in `v.failsafe_before`, and say it in
     a `failsafe` event (with `why`). A parameter that cannot be read or set is
-    `FailsafeNotSet` naming it when `required` (the fleet option `failsafe: set`), else an
-    event: then what the vehicle does without the station is what its own parameters say."""
+    `FailsafeNotSet` naming it when the fleet option `failsafe` is `set`, else an event: then
+    what the vehicle does without the station is what its own parameters say."""
+    emit = context.emit
     link = v.linked
     kind = v.autopilot
     name = next(iter(kind.failsafe_params))
@@ -210,7 +212,7 @@ async def set_failsafe(v: VehicleStatus, delay: float, hover: bool, emit: Emit, 
         for name, value in settings.items():
             after[name] = await set_param(link, name, kind.failsafe_params[name], value)
     except ParamError as exc:
-        if required:
+        if context.options.failsafe == "set":
             raise FailsafeNotSet(v.id, name, f"{exc}: what it does without the station is "
                                              f"not known, so it is not armed (fleet option "
                                              f"failsafe: try flies it anyway)") from None
@@ -226,10 +228,11 @@ async def set_failsafe(v: VehicleStatus, delay: float, hover: bool, emit: Emit, 
                                    + (f" (set {', '.join(changed)})" if changed else ""))
 
 
-async def restore_failsafe(v: VehicleStatus, emit: Emit) -> None:
+async def restore_failsafe(v: VehicleStatus, context: FlightContext) -> None:
     """Put back the failsafe parameters `set_failsafe` changed on `v` (the values it read),
     after the flight, and say it; a vehicle still following setpoints keeps the flight's
     (the station may yet stop streaming to it)."""
+    emit = context.emit
     before, after = v.failsafe_before, v.failsafe_set
     if before is None or after is None or v.link is None:
         return

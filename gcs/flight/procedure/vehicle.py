@@ -10,18 +10,16 @@ command outside a flight (`gcs.fleet.commands`) use the same code:
 - `set_mode` / `arm`: MAV_CMD_DO_SET_MODE / MAV_CMD_COMPONENT_ARM_DISARM, retried while
   refused for now (`Autopilot.arm_retry_results`), each confirmed by COMMAND_ACK *and*
   HEARTBEAT; `set_origin`, `take_off`: what a GUIDED copter needs before it follows setpoints;
-- `land` (NAV_LAND falling back to the land mode, or the land mode), `disarm`;
-- `land_vehicle`, `hold_vehicle`, `secure`, `wait_disarmed`: the executor's safe endings,
-  which never raise (a failure is an event; the vehicle's own failsafe is the fallback).
+- `land` (NAV_LAND falling back to the land mode, or the land mode), `disarm`.
+
+The executor's safe endings on these steps, which never raise, are
+`gcs.flight.procedure.endings`.
 
 What differs between autopilots is asked of the vehicle's `gcs.autopilot.Autopilot`
 (`autopilot_of`), never decided here.
 
 Every timeout counts station-running time when given the flight's `StationStalls`
 (`gcs.flight.link.station`): the station's own stalls do not use it up.
-
-Streaming is not done here: the steps that must stop a vehicle's setpoints take a
-`stop_stream(vehicle_id)` callback, so this module stays below `gcs.flight.run.stream`.
 """
 
 from __future__ import annotations
@@ -45,11 +43,11 @@ from gcs.errors import (
     ModeRefused,
     VehicleTimeout,
 )
-from gcs.fleet.fleetfile import FlightOptions, VehicleSpec
+from gcs.fleet.fleetfile import VehicleSpec
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.station import StationStalls
 from gcs.flight.link.telemetry import Telemetry
-from gcs.phases import EventKind, VehiclePhase
+from gcs.phases import VehiclePhase
 from gcs.wire import mavlink, result_name
 
 __all__ = [
@@ -61,25 +59,19 @@ __all__ = [
     "autopilot_of",
     "connect",
     "disarm",
-    "hold_vehicle",
     "land",
-    "land_vehicle",
     "last_text",
     "refuse_other_claimants",
     "request_message_rates",
     "resolve_home",
-    "secure",
     "set_mode",
     "set_origin",
     "take_off",
-    "wait_disarmed",
     "wait_running",
 ]
 
 #: Called with (vehicle id or None for the fleet, event kind, detail).
 Emit = Callable[[str | None, str, str], None]
-#: Called with a vehicle id to stop streaming setpoints to it.
-StopStream = Callable[[str], None]
 
 #: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
 MODE_RETRY_FOR = 5.0
@@ -88,7 +80,6 @@ MODE_RETRY_FOR = 5.0
 POSITION_HZ = 30.0
 #: Such a vehicle is asked for its streams again this often until its position comes (s).
 STREAMS_ASKED_AGAIN_S = 5.0
-_POLL_PERIOD = 0.05
 #: Requests for GPS_GLOBAL_ORIGIN before a vehicle is taken to report none (one lost
 #: datagram must not cost a flight its fence), the wait for the answer to the first (s), and
 #: how much longer each next wait is: 1, 1.5, 2.25 and 3.4 s, about 8 s at most in all.
@@ -518,133 +509,3 @@ async def request_message_rates(link: VehicleLink, rates: dict[int, float],
             unanswered = True
         out[name] = f"{'off' if hz <= 0 else f'{hz:g} Hz'} {result}"
     return out
-
-
-# ==================================================================== safe endings (never raise)
-
-
-async def land_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
-    """Send `v` down; its setpoints stop either way (its own failsafe is then what acts if
-    the command never arrived)."""
-    v.phase = VehiclePhase.LANDING
-    v.expect_offboard = False
-    try:
-        if await land(v.linked, confirm_timeout=options.heartbeat_timeout, stalls=stalls):
-            emit(v.id, EventKind.MODE, f"{v.autopilot.land_mode.name} confirmed")
-        emit(v.id, EventKind.LAND, "landing")
-    except GcsError as exc:
-        emit(v.id, EventKind.LAND_FAILED, f"{exc}; setpoints stopped, {_on_its_own(v)}")
-    finally:
-        stop_stream(v.id)
-
-
-async def hold_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                       stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
-    """Switch `v` to its autopilot's hold mode where it is (PX4 Hold, ArduPilot BRAKE); its
-    setpoints stop either way."""
-    v.expect_offboard = False
-    try:
-        kind = v.autopilot
-        await set_mode(v.linked, kind.hold_mode, confirm_timeout=options.heartbeat_timeout,
-                       stalls=stalls)
-        emit(v.id, EventKind.MODE, f"{kind.hold_mode.name} confirmed")
-        emit(v.id, EventKind.HOLD, f"holding ({kind.hold_words})")
-    except GcsError as exc:
-        emit(v.id, EventKind.HOLD_FAILED, f"{exc}; setpoints stopped, {_on_its_own(v, True)}")
-    finally:
-        stop_stream(v.id)
-
-
-def _on_its_own(v: VehicleStatus, hold: bool = False) -> str:
-    """What `v` does on its own once its setpoints stop, as the end of a failure's event."""
-    if v.link is None:
-        return "its own failsafe takes over"
-    return v.link.telemetry.flown_by.left_alone[1 if hold else 0]
-
-
-async def secure(v: VehicleStatus, action: str, options: FlightOptions, emit: Emit,
-                 stop_stream: StopStream, stalls: StationStalls | None = None) -> None:
-    """Leave `v` safe: disarmed on the ground, landing, or (action hold) in Hold."""
-    if v.link is None:
-        return
-    tel = v.link.telemetry
-    if not tel.armed and not v.arm_sent:
-        stop_stream(v.id)
-        v.expect_offboard = False
-        if v.phase != VehiclePhase.LANDED:
-            v.phase = VehiclePhase.STOPPED
-        return
-    on_ground = v.phase == VehiclePhase.ARMING or (
-        tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND)
-    if on_ground:  # armed, or an arming command may have armed it: disarm
-        v.expect_offboard = False
-        try:
-            result = await disarm(v.link, stalls=stalls)
-            emit(v.id, EventKind.DISARM, f"on the ground: {result_name(result)}")
-        except GcsError as exc:
-            result = None
-            emit(v.id, EventKind.DISARM_FAILED, str(exc))
-        if result == mavlink.MAV_RESULT_ACCEPTED:
-            stop_stream(v.id)
-            v.phase = VehiclePhase.STOPPED
-            return
-        # refused (it has taken off after all) or unanswered: land it
-    if action == "hold":
-        await hold_vehicle(v, options, emit, stop_stream, stalls)
-        v.phase = VehiclePhase.HOVERING
-    else:
-        await land_vehicle(v, options, emit, stop_stream, stalls)
-
-
-def _landed_name(state: int | None) -> str:
-    """EXTENDED_SYS_STATE's landed state in words."""
-    return {mavlink.MAV_LANDED_STATE_ON_GROUND: "on the ground",
-            mavlink.MAV_LANDED_STATE_IN_AIR: "in the air",
-            mavlink.MAV_LANDED_STATE_LANDING: "landing",
-            mavlink.MAV_LANDED_STATE_TAKEOFF: "taking off"}.get(state or 0, "landed state unknown")
-
-
-async def wait_disarmed(vehicles: list[VehicleStatus], options: FlightOptions,
-                        emit: Emit, stalls: StationStalls | None = None) -> None:
-    """Wait (up to `land_timeout`) for landing vehicles to disarm, reporting each outcome
-    (nothing to wait for when `vehicles` is empty)."""
-    stalls = stalls if stalls is not None else StationStalls()
-    deadline = stalls.clock() + options.land_timeout
-    pending = [v for v in vehicles if v.link is not None]
-    while pending and stalls.clock() < deadline:
-        still = []
-        now = time.monotonic()
-        for v in pending:
-            link = v.linked
-            tel = link.telemetry
-            silent = stalls.age(tel.message_time, now)
-            if silent > options.link_timeout:
-                if not tel.armed and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
-                    v.phase = VehiclePhase.LANDED_LINK_LOST
-                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
-                         f"link lost: landed and disarmed when last heard {silent:.1f} s ago, "
-                         f"out of reach since")
-                else:
-                    emit(v.id, EventKind.DISARM_UNCONFIRMED,
-                         f"link lost: {'armed' if tel.armed else 'disarmed'} and "
-                         f"{_landed_name(tel.landed_state)} when last heard {silent:.1f} s "
-                         f"ago: cannot confirm that it landed and disarmed")
-                continue
-            stale = stalls.age(tel.heartbeat_time, now) > options.heartbeat_timeout
-            if stale and tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
-                v.phase = VehiclePhase.LANDED
-                emit(v.id, EventKind.DISARM_UNCONFIRMED,
-                     "on the ground (EXTENDED_SYS_STATE), but no HEARTBEAT to "
-                     "confirm that it disarmed")
-                continue
-            if not tel.armed and not stale:
-                if v.phase == VehiclePhase.LANDING:
-                    v.phase = VehiclePhase.LANDED
-                    emit(v.id, EventKind.LANDED, "landed and disarmed")
-            else:
-                still.append(v)
-        pending = still
-        await asyncio.sleep(_POLL_PERIOD)
-    for v in pending:
-        emit(v.id, EventKind.NOT_DISARMED, f"not disarmed within {options.land_timeout:g} s")

@@ -44,7 +44,7 @@ An abort with land (or an error) while the plan is flown flies a verified landin
 like the plan, then PX4's Land at the touchdown points; PX4's Land straight away for vehicles
 that cannot be steered, or for all when no plan is ready in time.
 
-Safety: nothing is armed before `run()`; every error path ends in `vehicle.secure`, which disarms
+Safety: nothing is armed before `run()`; every error path ends in `endings.secure`, which disarms
 armed vehicles still on the ground, sends airborne ones to land (or Hold for an explicit hold
 abort), stops their streams, and waits for landed vehicles to disarm. A vehicle that does not
 answer still gets no more setpoints, so PX4's own offboard-loss failsafe lands it.
@@ -89,7 +89,8 @@ from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import DECODED_IDS
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
-from gcs.flight.procedure import vehicle
+from gcs.flight.procedure import endings
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.failsafe import (
     column_conflicts,
     failsafe_record,
@@ -98,12 +99,8 @@ from gcs.flight.procedure.failsafe import (
     set_failsafe,
 )
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.replan.replan import (
-    Replanner,
-    predicted_landing,
-    stream_motion,
-    unheard_margin,
-)
+from gcs.flight.replan.prediction import predicted_landing, stream_motion, unheard_margin
+from gcs.flight.replan.replan import Replanner
 from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicle
 from gcs.flight.run.climb_order import climb_waves
 from gcs.flight.run.clock import FlightClock
@@ -174,6 +171,9 @@ class FlightExecutor:
         """The station's own stalls (`gcs.flight.link.station`), not counted against vehicles."""
         self.stalls.listeners.append(self._on_stall)
         self._stall_report = StallReport()
+        self.context = FlightContext(self.options, self._emit, self.stalls, self._stop_stream)
+        """What the procedure's endings, the failsafe, the fault policy, the planned landing and
+        the replans need of this flight (`gcs.flight.procedure.context`)."""
         self._abort: tuple[str, str] | None = None
         self.flown = FlownPlans.of(plan)
         """The plans the flight flies in flight time, and the motions off them
@@ -182,7 +182,7 @@ class FlightExecutor:
         """The flight's in-flight replans (`gcs.flight.replan.replan`), once the plan is flown."""
         self._plan_changed = asyncio.Event()
         """Set when a replan switched: the end of the flight's plan moved."""
-        self.policy = FaultPolicy(self.options, self._emit, self.now, land=self._land_when_down,
+        self.policy = FaultPolicy(self.context, self.now, land=self._land_when_down,
                                   abort=self._fault_abort, aborting=lambda: self._abort is not None,
                                   descent=self._descent_conflicts,
                                   replan=self._replan_fault)
@@ -467,7 +467,7 @@ class FlightExecutor:
                         with contextlib.suppress(asyncio.CancelledError):
                             await monitor
                     if not _cancelling():  # completed, aborted or failed: put them back
-                        await asyncio.gather(*(restore_failsafe(v, self._emit)
+                        await asyncio.gather(*(restore_failsafe(v, self.context)
                                                for v in self.vehicles))
                     await self.streamer.stop()
         finally:
@@ -548,8 +548,7 @@ class FlightExecutor:
             return (f"its column comes {c.gap:.2f} m from {c.other}'s at t={c.t:.1f} s: it "
                     f"hovers where the plan keeps R instead of landing {where} it")
 
-        await asyncio.gather(*(set_failsafe(v, delays[v.index], v.id in conflicts, self._emit,
-                                            required=self.options.failsafe == "set",
+        await asyncio.gather(*(set_failsafe(v, delays[v.index], v.id in conflicts, self.context,
                                             why=why(v.id))
                                for v in self.vehicles))
         for v in self.vehicles:
@@ -605,8 +604,8 @@ class FlightExecutor:
         self.clock.begin(start_tick)
         streamer.measuring = True
         replanner = self._replanner = Replanner(
-            self.plan.scenario.assigned(), self.vehicles, streamer, self.clock, self.options,
-            self._emit, self.flown, self._tracks, land=self._land,
+            self.plan.scenario.assigned(), self.vehicles, streamer, self.clock, self.context,
+            self.flown, self._tracks, land=self._land,
             active=lambda: self._abort is None, on_switch=self._plan_changed.set,
             on_missed=self._replan_missed)
         self._emit(None, EventKind.FLIGHT_START, f"tick {start_tick}, horizon "
@@ -710,15 +709,13 @@ class FlightExecutor:
         await asyncio.gather(*self.policy.landings, return_exceptions=True)
         if self._replanner is not None:
             await asyncio.gather(*self._replanner.landings, return_exceptions=True)
-        await vehicle.wait_disarmed([v for v in self.vehicles
-                                     if v.phase == VehiclePhase.LANDING],
-                                    self.options, self._emit, self.stalls)
+        await endings.wait_disarmed([v for v in self.vehicles
+                                     if v.phase == VehiclePhase.LANDING], self.context)
 
     # ================================================================ making safe
 
     def _land(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.land_vehicle(v, self.options, self._emit, self._stop_stream,
-                                    self.stalls)
+        return endings.land_vehicle(v, self.context)
 
     def _descent_conflicts(self, v: VehicleStatus) -> list[DescentConflict] | None:
         """The others whose plan `v`'s straight descent from where it was last seen would
@@ -845,8 +842,7 @@ class FlightExecutor:
             self.policy.give_way(v)
 
     def _hold(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.hold_vehicle(v, self.options, self._emit, self._stop_stream,
-                                    self.stalls)
+        return endings.hold_vehicle(v, self.context)
 
     def _stop_stream(self, vehicle_id: str) -> None:
         self._streamer().unassign(vehicle_id)
@@ -858,8 +854,7 @@ class FlightExecutor:
         if action != "land" or self.options.landing != "planned" or self.streamer is None:
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), self.vehicles, self.streamer,
-                                 self.options, self._emit, self._secure_one, self.stalls,
-                                 self.flown, self.clock)
+                                 self.context, self._secure_one, self.flown, self.clock)
         return landing if landing.eligible() else None
 
     def _end_landing(self, live: list[VehicleStatus]) -> PlannedLanding | None:
@@ -873,13 +868,11 @@ class FlightExecutor:
         if not around and all(self._descent_conflicts(v) == [] for v in live):
             return None
         landing = PlannedLanding(self.plan.scenario.assigned(), live, self.streamer,
-                                 self.options, self._emit, self._land, self.stalls,
-                                 self.flown, self.clock, around)
+                                 self.context, self._land, self.flown, self.clock, around)
         return landing if landing.eligible() else None
 
     def _secure_one(self, v: VehicleStatus) -> Awaitable[None]:
-        return vehicle.secure(v, "land", self.options, self._emit, self._stop_stream,
-                              self.stalls)
+        return endings.secure(v, "land", self.context)
 
     async def _secure_all(self, action: str) -> None:
         """Every vehicle to `action` (one securing per action: a land that overrides a hold
@@ -903,9 +896,7 @@ class FlightExecutor:
             if self.streamer is not None:
                 self.streamer.freeze()
             await asyncio.gather(
-                *(vehicle.secure(v, action, self.options, self._emit, self._stop_stream,
-                                 self.stalls)
-                  for v in self.vehicles),
+                *(endings.secure(v, action, self.context) for v in self.vehicles),
                 return_exceptions=True)
 
     async def _make_safe(self) -> None:
@@ -917,8 +908,7 @@ class FlightExecutor:
             if self._abort is None or self._abort[0] == action:
                 break
         if action == "land":
-            await vehicle.wait_disarmed([v for v in self.vehicles if v.arm_sent], self.options,
-                                        self._emit, self.stalls)
+            await endings.wait_disarmed([v for v in self.vehicles if v.arm_sent], self.context)
         for v in self.vehicles:
             if (v.link is not None and v.link.telemetry.armed
                     and v.phase != VehiclePhase.HOVERING):

@@ -16,24 +16,23 @@ stacked above each other closer than R. `PlannedLanding.run`:
    the workspace floor, and PX4's Land takes it down vertically (touchdown points are R
    apart, so no descent crosses another vehicle).
 
-Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate
-invalid, already landing) are moving obstacles the landing plan keeps R + a margin from
+Vehicles that cannot be steered (link or heartbeat lost, out of OFFBOARD, estimate invalid,
+already landing) are moving obstacles the landing plan keeps R + a margin from
 (`planner.model.fixed`, given to `plan_landing` from the switch on, with the `around` vehicles
 another part of the flight lands): one still heard gets PX4's Land at once and is predicted
-going straight down from where it is measured; one the station has lost is predicted on its
-own offboard-loss failsafe from its last report (`gcs.flight.replan.replan.predicted_landing`, its
-margin growing with the time since it was heard), is streamed that motion in case it still
-listens, and gets PX4's Land only once the motion has ended (a Land arriving earlier would
-take it down before its predicted hold was over). Their motions go to `FlownPlans.motions`,
-where the live separation monitor reads where a lost vehicle is predicted. A steered vehicle
-already nearer than R to one of them keeps what it has from that one alone, back to R within
-seconds (`planner.methods.landing.fixed_start_clearances`). Where no landing plan keeps R from
-them (at any share of the margin, `MARGIN_SHARES`), a verified plan first moves the steered
-vehicles away from their columns, and the landing is planned again from there (at most
-`MAX_ESCAPES` times). Everyone gets
-PX4's Land when no verified plan is ready before the switch tick (the planner failed for
-whatever reason, or was late): the events say which (`landing_plan`, `landing_fallback`).
-Whatever happens, every vehicle is handed to `secure` in the end.
+going straight down from where it is measured; one the station has lost is predicted on its own
+offboard-loss failsafe from its last report (`gcs.flight.replan.prediction.predicted_landing`,
+its margin growing with the time since it was heard), is streamed that motion in case it still
+listens, and gets PX4's Land only once the motion has ended (a Land arriving earlier would take
+it down before its predicted hold was over). Their motions go to `FlownPlans.motions`, where
+the live separation monitor reads where a lost vehicle is predicted. A steered vehicle already
+nearer than R to one of them keeps what it has from that one alone, back to R within seconds
+(`planner.methods.landing.fixed_start_clearances`). Where no landing plan keeps R from them (at
+any share of the margin, `MARGIN_SHARES`), a verified plan first moves the steered vehicles
+away from their columns, and the landing is planned again from there (at most `MAX_ESCAPES`
+times). Everyone gets PX4's Land when no verified plan is ready before the switch tick (the
+planner failed for whatever reason, or was late): the events say which (`landing_plan`,
+`landing_fallback`). Whatever happens, every vehicle is handed to `secure` in the end.
 """
 
 from __future__ import annotations
@@ -47,11 +46,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gcs import frames
-from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import plan_tracks
-from gcs.flight.link.station import StationStalls
-from gcs.flight.procedure.vehicle import Emit, VehicleStatus
-from gcs.flight.replan.replan import predicted_landing, stream_motion
+from gcs.flight.procedure.context import FlightContext
+from gcs.flight.procedure.vehicle import VehicleStatus
+from gcs.flight.replan.prediction import predicted_landing, stream_motion
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.flown import FlownPlans, Motion, shifted
 from gcs.flight.run.stream import Streamer
@@ -93,12 +91,11 @@ class PlannedLanding:
     """The flying plan's scenario: workspace, boxes, R, step length."""
     vehicles: list[VehicleStatus]
     streamer: Streamer
-    options: FlightOptions
-    emit: Emit
+    context: FlightContext
+    """The flight it lands (`gcs.flight.procedure.context`): options, events, stalls."""
     secure: Callable[[VehicleStatus], Awaitable[None]]
-    """Leaves one vehicle safe with PX4's Land (`gcs.flight.procedure.vehicle.secure`: disarmed on
+    """Leaves one vehicle safe with PX4's Land (`gcs.flight.procedure.endings.secure`: disarmed on
     the ground, or landing); its stream stops."""
-    stalls: StationStalls
     flown: FlownPlans | None = None
     """The flight's plans and motions off them (None: nothing is predicted)."""
     clock: FlightClock | None = None
@@ -124,8 +121,8 @@ class PlannedLanding:
             return f"phase {v.phase}"
         if v.id not in self.streamer.assignments:
             return "not streaming"
-        age = self.stalls.age(v.link.telemetry.message_time, time.monotonic())
-        if not age <= self.options.link_timeout:
+        age = self.context.stalls.age(v.link.telemetry.message_time, time.monotonic())
+        if not age <= self.context.options.link_timeout:
             return "link silent"
         return None
 
@@ -169,14 +166,14 @@ class PlannedLanding:
                     continue
                 airborne = v.phase in AIRBORNE and v.phase != VehiclePhase.LANDING
                 if v.phase in AIRBORNE and self._lost(v):
-                    self.emit(v.id, EventKind.LANDING_FALLBACK, (
+                    self.context.emit(v.id, EventKind.LANDING_FALLBACK, (
                         f"lost ({self.steerable(v)}): on its own failsafe "
                         f"({v.failsafe.text()}), planned around"))
                     self._predict(v, unheard=True)
                     continue  # handed to `secure` once its predicted motion has ended
                 if airborne:
-                    self.emit(v.id, EventKind.LANDING_FALLBACK,
-                              f"PX4 Land: cannot be steered ({self.steerable(v)})")
+                    self.context.emit(v.id, EventKind.LANDING_FALLBACK,
+                                      f"PX4 Land: cannot be steered ({self.steerable(v)})")
                 down(v)
                 self._predict(v, unheard=False)
             if steer:
@@ -198,8 +195,8 @@ class PlannedLanding:
         """True when the station has lost `v`: no report for `link_timeout`."""
         if v.link is None or v.home is None:
             return False
-        age = self.stalls.age(v.link.telemetry.position_time, time.monotonic())
-        return v.fault == "link_lost" or not age <= self.options.link_timeout
+        age = self.context.stalls.age(v.link.telemetry.position_time, time.monotonic())
+        return v.fault == "link_lost" or not age <= self.context.options.link_timeout
 
     def _predict(self, v: VehicleStatus, *, unheard: bool) -> None:
         """Predict what `v`, which the landing plan cannot steer, does: its known motion off
@@ -209,7 +206,7 @@ class PlannedLanding:
             return
         motion = self.flown.motions.get(v.id) if not unheard else None
         if motion is None:
-            motion = predicted_landing(v, self.scenario, self.options, self.clock,
+            motion = predicted_landing(v, self.scenario, self.context.options, self.clock,
                                        measured=True, unheard=unheard)
         if motion is None:
             return
@@ -217,7 +214,7 @@ class PlannedLanding:
         self.predicted[v.id] = motion
         if unheard:
             self.unheard.add(v.id)
-            stream_motion(self.streamer, self.clock, v, motion, self.options.yaw)
+            stream_motion(self.streamer, self.clock, v, motion, self.context.options.yaw)
 
     def _fixed(self, switch: int) -> list[FixedTrajectory]:
         """The motions of the vehicles the plan cannot steer, from streamer tick `switch`."""
@@ -244,7 +241,7 @@ class PlannedLanding:
         why = await self._attempt(steer, rate)
         if why is not None and self._lost_in_air():
             self._freeze(steer)
-            self.emit(None, EventKind.LANDING_FALLBACK, (
+            self.context.emit(None, EventKind.LANDING_FALLBACK, (
                 f"{', '.join(v.id for v in steer)} hold where they are: {why}; landing "
                 f"planned again every {RETRY_S:g} s around {', '.join(sorted(self.unheard))}"))
             while why is not None:
@@ -266,7 +263,8 @@ class PlannedLanding:
         """One landing plan from the state `landing_plan_timeout` ahead: None once it was
         flown to its end, or why there was none."""
         streamer = self.streamer
-        bound = self.options.landing_plan_timeout
+        options = self.context.options
+        bound = options.landing_plan_timeout
         switch = streamer.next_tick() + SWITCH_MARGIN_TICKS + math.ceil(bound * rate)
         switch_at = streamer.tick_time(switch)
         states = [self._state(v, switch, switch_at) for v in steer]
@@ -284,7 +282,7 @@ class PlannedLanding:
                 try:
                     return plan_landing(
                         self.scenario, positions, velocities, accelerations,
-                        ids=[v.id for v in steer], landing_height=self.options.landing_height,
+                        ids=[v.id for v in steer], landing_height=options.landing_height,
                         deadline=deadline, fixed=[replace(f, margin=share * f.margin)
                                                   for f in fixed], stages=(stage,))
                 except LandingError:
@@ -323,7 +321,7 @@ class PlannedLanding:
         """Queue `result`'s tracks for the streams of `steer` at tick `switch`."""
         streamer = self.streamer
         homes = [v.placed for v in steer]
-        tracks = plan_tracks(result.plan, homes, rate, self.options.yaw)
+        tracks = plan_tracks(result.plan, homes, rate, self.context.options.yaw)
         for v, track in zip(steer, tracks, strict=True):
             link = streamer.assignments[v.id].link if v.id in streamer.assignments else None
             if link is None:
@@ -349,7 +347,7 @@ class PlannedLanding:
                 f"clear of {', '.join(f.id for f in kept_from)}): clear of their columns in "
                 f"{horizon:.1f} s, then land from there")
         relaxed = [f"{vid} from {f.id}" for f in kept_from for vid in f.start_clearance]
-        self.emit(None, EventKind.LANDING_PLAN, (
+        self.context.emit(None, EventKind.LANDING_PLAN, (
             f"{len(self.steered)} vehicle(s) {what}, closest {_figure(kept)} m (keeps at "
             f"least {result.separation:.2f} m), planned in {result.seconds:.3f} s{around}"
             + (f"; started nearer than R: {', '.join(relaxed)} (those pairs back to R "
@@ -365,8 +363,8 @@ class PlannedLanding:
     def _fallback(self, steer: list[VehicleStatus], why: str) -> bool:
         """Freeze the streams where they are and say that PX4's Land takes over."""
         self._freeze(steer)
-        self.emit(None, EventKind.LANDING_FALLBACK,
-                  f"PX4 Land for {', '.join(v.id for v in steer)}: {why}")
+        self.context.emit(None, EventKind.LANDING_FALLBACK,
+                          f"PX4 Land for {', '.join(v.id for v in steer)}: {why}")
         return False
 
 

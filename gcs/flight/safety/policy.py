@@ -21,8 +21,8 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Awaitable, Callable
 
-from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.procedure.context import FlightContext
+from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.safety.descent import DescentConflict
 from gcs.flight.safety.landing import STEERABLE_FAULTS
 from gcs.phases import EventKind, VehiclePhase
@@ -34,15 +34,15 @@ __all__ = ["FaultPolicy"]
 class FaultPolicy:
     """Reacts to the monitor's findings (`FleetMonitor.on_fault`, `on_separation`)."""
 
-    def __init__(self, options: FlightOptions, emit: Emit, now: Callable[[], float], *,
+    def __init__(self, context: FlightContext, now: Callable[[], float], *,
                  land: Callable[[VehicleStatus], Awaitable[None]],
                  abort: Callable[[str, str], Awaitable[None]],
                  aborting: Callable[[], bool],
                  descent: Callable[[VehicleStatus], list[DescentConflict] | None]
                  = lambda v: None,
                  replan: Callable[[VehicleStatus, str], None] | None = None) -> None:
-        self.options = options
-        self.emit = emit
+        self.options = context.options
+        self.emit = context.emit
         self.now = now
         self.land = land
         """Sends one vehicle down (its stream stops)."""
