@@ -611,8 +611,8 @@ class FlightExecutor:
         self._emit(None, EventKind.FLIGHT_START, f"tick {start_tick}, horizon "
                                                  f"{self.plan.scenario.horizon:g} s")
         ground = asyncio.ensure_future(self.ground.fly(
-            self.vehicles, self._tracks, streamer, self.clock, self.options, self._emit,
-            self.stalls, self._stop_stream, lambda why: self.request_abort("land", why)))
+            self.vehicles, self._tracks, streamer, self.clock, self.context,
+            lambda why: self.request_abort("land", why)))
         try:
             await self._fly_to_plan_end(replanner)
             await ground  # every landing by the plan has ended

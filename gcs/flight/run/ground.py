@@ -32,7 +32,9 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack
 from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import vehicle
-from gcs.flight.procedure.vehicle import Emit, StopStream, VehicleStatus
+from gcs.flight.procedure.context import FlightContext
+from gcs.flight.procedure.endings import land_vehicle, wait_disarmed
+from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.flight.run.boarding import arm_vehicle
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.stream import Streamer
@@ -169,15 +171,13 @@ class GroundShow:
                                    if not v.linked.telemetry.armed))
 
     async def fly(self, vehicles: Sequence[VehicleStatus], tracks: Sequence[SetpointTrack],
-                  streamer: Streamer, clock: FlightClock, options: FlightOptions, emit: Emit,
-                  stalls: StationStalls, stop_stream: StopStream,
+                  streamer: Streamer, clock: FlightClock, context: FlightContext,
                   abort: AbortCallback) -> None:
         """While the plan is flown: arm, lift off and land each vehicle at its times; a
         vehicle that cannot (arming or takeoff refused) aborts the flight with land."""
         async def one(v: VehicleStatus, track: SetpointTrack) -> None:
             try:
-                await self._fly_one(v, track, streamer, clock, options, emit, stalls,
-                                    stop_stream)
+                await self._fly_one(v, track, streamer, clock, context)
             except GcsError as exc:
                 with contextlib.suppress(GcsError):
                     abort(f"{v.id} could not take off with its wave: {exc}")
@@ -186,8 +186,8 @@ class GroundShow:
                                if v.id in self.spans))
 
     async def _fly_one(self, v: VehicleStatus, track: SetpointTrack, streamer: Streamer,
-                       clock: FlightClock, options: FlightOptions, emit: Emit,
-                       stalls: StationStalls, stop_stream: StopStream) -> None:
+                       clock: FlightClock, context: FlightContext) -> None:
+        options, emit, stalls = context.options, context.emit, context.stalls
         span = self.spans[v.id]
         if span.liftoff is not None:
             if not v.linked.telemetry.armed:
@@ -203,9 +203,9 @@ class GroundShow:
             await _until(clock, span.touchdown)
             if not _flown(v):
                 return
-            await vehicle.land_vehicle(v, options, emit, stop_stream, stalls)
+            await land_vehicle(v, context)
             self.landed.add(v.id)
-            await vehicle.wait_disarmed([v], options, emit, stalls)
+            await wait_disarmed([v], context)
 
 
 def _flown(v: VehicleStatus) -> bool:
