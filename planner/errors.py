@@ -1,7 +1,8 @@
 """The planner's exceptions, one tree rooted in `PlannerError`.
 
 - `PlannerError`: base class of everything the planner raises on purpose.
-  - `ScenarioError` (also a `FieldError`): the scenario is invalid.
+  - `ScenarioError` (also a `FieldError`): the scenario is invalid (`ScenarioErrors`: with
+    every problem of its settings at once).
   - `PlanFormatError` (also a `FieldError`): a plan JSON document is malformed.
   - `SolverError`: a QP solver failed in a way that is not a verdict on the problem
     (numerical trouble, missing backend). Infeasibility is a plan status, not an exception.
@@ -15,7 +16,8 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["FieldError", "PlanFormatError", "PlannerError", "ScenarioError", "SolverError"]
+__all__ = ["FieldError", "PlanFormatError", "PlannerError", "ScenarioError", "ScenarioErrors",
+           "SolverError"]
 
 
 class PlannerError(Exception):
@@ -51,6 +53,15 @@ def _rebuild_field_error(cls: type[FieldError], args: tuple[Any, ...],
 
 class ScenarioError(PlannerError, FieldError):
     """An invalid scenario."""
+
+
+class ScenarioErrors(ScenarioError):
+    """Several problems of one scenario found at once (`errors`, each a `FieldError`); its
+    `field` and `reason` are the first's."""
+
+    def __init__(self, errors: list[FieldError]) -> None:
+        super().__init__(errors[0].field, errors[0].reason)
+        self.errors = errors
 
 
 class PlanFormatError(PlannerError, FieldError):

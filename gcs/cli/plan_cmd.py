@@ -441,7 +441,7 @@ def _run_sequence(args: argparse.Namespace, data: Any) -> int:
 
 def run(args: argparse.Namespace) -> int:
     import planner
-    from gcs.cli.scenario_check import check_scenario, problem_line
+    from gcs.cli.scenario_check import MAX_LISTED, check_scenario, problem_line
     from planner.errors import FieldError, SolverError
 
     try:
@@ -463,7 +463,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             scenario = planner.Scenario.from_dict(data)
         except FieldError as exc:
-            return _fail(problem_line(exc.field, exc.reason, data))
+            return _fail("\n".join(problem_line(e.field, e.reason, data)
+                                   for e in getattr(exc, "errors", [exc])[:MAX_LISTED]))
         method = _method(args)
         if method is not None:
             scenario = dataclasses.replace(scenario, method=method)

@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from planner.errors import ScenarioError
+from planner.errors import FieldError, ScenarioError, ScenarioErrors
 from planner.methods.assignment import assign_goals
 from planner.model.checks import (
     RANGES,
@@ -412,11 +412,58 @@ def _closest_pair_within(points: FloatArray, scale: FloatArray, limit: float
     return float(d[k]), int(pairs[k, 0]), int(pairs[k, 1])
 
 
-def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
-    check_keys(data, _TOP_KEYS, "", ("dt", "steps", "min_separation", "limits", "vehicles"))
+def _settings_problems(data: Mapping[str, Any]) -> list[FieldError]:
+    """Every problem of the scenario's own settings (each checked alone, as `_parse` checks
+    it), so that a document with several is told them all at once."""
+    checks: list[Callable[[], object]] = [
+        lambda: _name(data),
+        lambda: check_number(data["dt"], "dt", positive=True, within="dt"),
+        lambda: _separation_setting(data),
+        lambda: check_number(data.get("cost_threshold", DEFAULTS["cost_threshold"]),
+                             "cost_threshold", positive=True, within="cost_threshold"),
+        lambda: _integer(data.get("max_iterations", DEFAULTS["max_iterations"]),
+                         "max_iterations", 1, MAX_ITERATIONS),
+        lambda: _parse_limits(data["limits"]),
+        lambda: _choice(data, "assignment", ASSIGNMENTS),
+        lambda: _choice(data, "method", METHODS),
+    ]
+    problems: list[FieldError] = []
+    for check in checks:
+        try:
+            check()
+        except ScenarioError as exc:
+            problems.append(exc)
+    if not any(p.field == "dt" for p in problems):  # the horizon's bounds are in steps of dt
+        try:
+            _steps_setting(data, float(data["dt"]))
+        except ScenarioError as exc:
+            problems.insert(2, exc)
+    return problems
+
+
+def _name(data: Mapping[str, Any]) -> str:
     name = data.get("name", DEFAULTS["name"])
     if not isinstance(name, str) or not name.strip():
         raise ScenarioError("name", "must be a non-empty string")
+    return name
+
+
+def _choice(data: Mapping[str, Any], key: str, choices: tuple[str, ...]) -> str:
+    """`data[key]` (or its default), one of `choices`."""
+    value = data.get(key, DEFAULTS[key])
+    if not isinstance(value, str) or value not in choices:
+        allowed = (" or ".join(map(repr, choices)) if len(choices) == 2
+                   else f"one of {', '.join(map(repr, choices))}")
+        raise ScenarioError(key, f"must be {allowed}, got {value!r}")
+    return value
+
+
+def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
+    check_keys(data, _TOP_KEYS, "", ("dt", "steps", "min_separation", "limits", "vehicles"))
+    problems = _settings_problems(data)
+    if len(problems) > 1:
+        raise ScenarioErrors(problems)
+    name = _name(data)
     dt = check_number(data["dt"], "dt", positive=True, within="dt")
     steps, steps_auto, max_horizon = _steps_setting(data, dt)
     separation, margin, scale = _separation_setting(data)
@@ -429,13 +476,8 @@ def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
         MAX_ITERATIONS,
     )
     limits = _parse_limits(data["limits"])
-    assignment = data.get("assignment", DEFAULTS["assignment"])
-    if assignment not in ASSIGNMENTS:
-        raise ScenarioError("assignment", f"must be 'fixed' or 'free', got {assignment!r}")
-    method = data.get("method", DEFAULTS["method"])
-    if not isinstance(method, str) or method not in METHODS:
-        raise ScenarioError("method", f"must be one of {', '.join(map(repr, METHODS))}, "
-                                      f"got {method!r}")
+    assignment = _choice(data, "assignment", ASSIGNMENTS)
+    method = _choice(data, "method", METHODS)
 
     vehicles = _parse_vehicles(data["vehicles"], limits)
     starts = np.array([v.start for v in vehicles])

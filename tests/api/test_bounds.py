@@ -94,6 +94,16 @@ def test_every_shape_error_is_reported_at_once(shared_client: TestClient) -> Non
     }
 
 
+def test_every_problem_of_the_settings_is_reported_at_once(shared_client: TestClient) -> None:
+    scenario = _scenario(dt=-1.0, min_separation=0.0, assignment="any")
+    response = shared_client.post("/api/missions", json=scenario)
+    assert response.status_code == 422, response.text
+    body = response.json()
+    assert [e["field"] for e in body["errors"]] == ["dt", "min_separation", "assignment"]
+    assert (body["field"], body["errors"][2]["reason"]) == (
+        "dt", "must be 'fixed' or 'free', got 'any'")
+
+
 def test_a_valid_mission_document_is_strict_json(shared_client: TestClient) -> None:
     response = shared_client.post("/api/missions?wait=60", json=example("paper-circle2"))
     assert response.status_code == 201

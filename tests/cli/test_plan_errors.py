@@ -76,6 +76,25 @@ def test_every_problem_of_shape_is_listed_each_vehicle_by_its_id(tmp_path, capsy
     ]
 
 
+def test_every_problem_of_the_settings_is_listed(tmp_path, capsys):
+    """Problems of meaning in several settings are told at once, in the document's order;
+    one alone is told as before."""
+    def wrong(data):
+        data["dt"] = -1
+        data["min_separation"] = 0
+        data["method"] = "fastest"
+
+    assert main(["plan", str(_scenario(tmp_path, wrong))]) == 2
+    assert _errors(capsys) == [
+        "error: dt: must be positive, got -1",
+        "error: min_separation: must be positive, got 0",
+        "error: method: must be one of 'auto', 'whole', 'prioritized', got 'fastest'",
+    ]
+    assert main(["plan", str(_scenario(tmp_path, lambda d: d.update(steps=2)))]) == 2
+    (line,) = _errors(capsys)
+    assert line == "error: steps: must be between 3 and 5000, got 2"
+
+
 def test_a_problem_of_meaning_names_the_vehicle_by_id(tmp_path, capsys):
     def outside(data):
         data["vehicles"][2]["goal"] = [99.0, 1.0, 1.0]

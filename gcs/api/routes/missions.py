@@ -139,7 +139,8 @@ async def _document(store: Store, planning: PlanningService, mission_id: str) ->
 
 def _validated(body: Any, settings: Settings) -> Scenario:
     """The scenario of a request body: every shape problem at once, then every work bound
-    exceeded, then the planner's own validation (the first problem of meaning)."""
+    exceeded, then the planner's own validation (every problem of the settings at once, then
+    the first problem of the vehicles)."""
     shape = shape_errors(body)
     if shape:
         raise Unprocessable.of(shape, body)
@@ -151,7 +152,8 @@ def _validated(body: Any, settings: Settings) -> Scenario:
     try:
         return Scenario.from_dict(with_server_horizon(body, work))
     except FieldError as exc:
-        raise Unprocessable.of([ErrorItem(field=exc.field, reason=exc.reason)], body) from None
+        raise Unprocessable.of([ErrorItem(field=e.field, reason=e.reason)
+                                for e in getattr(exc, "errors", [exc])], body) from None
 
 
 def _uploaded(body: Any, settings: Settings) -> tuple[dict[str, Any], str, Plan]:
