@@ -87,7 +87,7 @@ from gcs.errors import (
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.link import DECODED_IDS
-from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
+from gcs.flight.link.setpoints import SetpointTrack, plan_tracks
 from gcs.flight.link.station import STALL_NOTE_S, StallReport, StationStalls
 from gcs.flight.procedure import endings
 from gcs.flight.procedure.context import FlightContext
@@ -107,6 +107,7 @@ from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.flown import FlownPlans
 from gcs.flight.run.ground import GroundShow
+from gcs.flight.run.pausing import hold_fleet, release_fleet
 from gcs.flight.run.precedence import abort_in_force, aborting_refusal
 from gcs.flight.run.record import FlightRecorder, goal_tolerance
 from gcs.flight.run.recording import FlightRecording, finish_record
@@ -258,17 +259,7 @@ class FlightExecutor:
         if self._replanner is not None:
             self._replanner.cancel("the flight was paused before the switch")
         streamer = self._streamer()
-        tick = streamer.next_tick()
-        pause = self.clock.stop(tick, None if at is None else round(at * streamer.rate))
-        for v, track in zip(self.vehicles, self._tracks, strict=True):
-            assignment = streamer.assignments.get(v.id)
-            if assignment is None or assignment.track is not track:
-                continue  # landing (land_faulty) or already stopped: not ours to hold
-            sp = track.at(pause.plan_tick)
-            nudge = frames.world_vector_to_ned((nudges or {}).get(v.id, np.zeros(3)))
-            streamer.assign(v.id, assignment.link, hold_track(sp.position + nudge, sp.yaw,
-                                                              streamer.rate), tick)
-            pause.held.append(v.id)
+        pause = hold_fleet(streamer, self.clock, self.vehicles, self._tracks, at, nudges)
         self._pause_timer = asyncio.ensure_future(self._pause_limit())
         self.phase = FlightPhase.PAUSED
         t = pause.plan_tick / streamer.rate
@@ -287,12 +278,7 @@ class FlightExecutor:
             raise StateConflict("status", f"not paused (phase {self.phase})")
         self._silence_pause = False  # whoever resumes, the pause a silence made is over
         streamer = self._streamer()
-        tick = streamer.next_tick()
-        pause, paused = self.clock.restart(tick)
-        for v, track in zip(self.vehicles, self._tracks, strict=True):
-            if v.id in pause.held and v.id in streamer.assignments and v.fault is None:
-                streamer.assign(v.id, streamer.assignments[v.id].link, track,
-                                tick - pause.plan_tick)
+        pause, paused = release_fleet(streamer, self.clock, self.vehicles, self._tracks)
         self._cancel_pause_timer()
         self.phase = FlightPhase.FLYING
         t = pause.plan_tick / streamer.rate
