@@ -189,7 +189,7 @@ def rejection_cost(n: int = 20_000) -> dict[str, float]:
                                            0, 0).pack(attacker)
         start = time.perf_counter()
         for _ in range(n):
-            endpoint._received(buf, peer)
+            endpoint.received(buf, peer)
         refused = (time.perf_counter() - start) / n * 1e6
         start = time.perf_counter()
         for _ in range(n):

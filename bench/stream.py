@@ -221,7 +221,7 @@ def per_message_costs(key: SigningKey, count: int = 2000) -> dict:
             datagrams = iter([vehicle.local_position_ned_encode(0, 1, 2, -3, 0, 0, 0).pack(
                 vehicle) for _ in range(count)])
             times.append(timeit.timeit(
-                lambda e=endpoint, d=datagrams: e._received(next(d), ("127.0.0.1", 1)),
+                lambda e=endpoint, d=datagrams: e.received(next(d), ("127.0.0.1", 1)),
                 number=count) / count)
         if link.telemetry.security.total:
             raise RuntimeError(f"{mode}: telemetry dropped {link.telemetry.security}")
@@ -233,7 +233,7 @@ def per_message_costs(key: SigningKey, count: int = 2000) -> dict:
             datagrams = iter([vehicle.attitude_encode(0, 0.1, 0.2, 0.3, 0, 0, 0).pack(vehicle)
                               for _ in range(count)])
             skips.append(timeit.timeit(
-                lambda e=skipper, d=datagrams: e._received(next(d), ("127.0.0.1", 1)),
+                lambda e=skipper, d=datagrams: e.received(next(d), ("127.0.0.1", 1)),
                 number=count) / count)
         if pinned.telemetry.skipped != 5 * count:
             raise RuntimeError(f"{mode}: {pinned.telemetry.skipped} skipped of {5 * count}")

@@ -72,15 +72,15 @@ def ned_to_world(p_ned: ArrayLike, home_world: ArrayLike) -> FloatArray:
 def world_yaw_to_ned(yaw_world: float) -> float:
     """Heading from ENU (from +x east, counter-clockwise) to NED (from north, clockwise), in
     (-pi, pi]."""
-    return _wrap(math.pi / 2.0 - yaw_world)
+    return wrap_angle(math.pi / 2.0 - yaw_world)
 
 
 def ned_yaw_to_world(yaw_ned: float) -> float:
     """Heading from NED to ENU, in (-pi, pi]."""
-    return _wrap(math.pi / 2.0 - yaw_ned)
+    return wrap_angle(math.pi / 2.0 - yaw_ned)
 
 
-def _wrap(angle: float) -> float:
+def wrap_angle(angle: float) -> float:
     wrapped = math.remainder(angle, 2.0 * math.pi)
     return math.pi if wrapped == -math.pi else wrapped
 

@@ -8,10 +8,10 @@ a flight, a plan job's watcher); `TaskSet` holds them until they are done.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Awaitable, Iterator
+from collections.abc import Awaitable, Iterable, Iterator
 from typing import Any, TypeVar
 
-__all__ = ["TaskSet"]
+__all__ = ["TaskSet", "all_or_first_error"]
 
 T = TypeVar("T")
 
@@ -44,3 +44,20 @@ class TaskSet:
         """Wait up to `timeout` s for every running task to end (no error if some do not)."""
         if self._tasks:
             await asyncio.wait(list(self._tasks), timeout=timeout)
+
+
+async def all_or_first_error(coros: Iterable[Awaitable[Any]]) -> None:
+    """Run concurrently; on the first error cancel the rest and raise that error."""
+    tasks = [asyncio.ensure_future(c) for c in coros]
+    if not tasks:  # nothing to run (no vehicle left): asyncio.wait refuses an empty set
+        return
+    try:
+        done, _pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
+        for task in done:
+            if task.exception() is not None:
+                raise task.exception()  # type: ignore[misc]
+    finally:
+        for task in tasks:
+            if not task.done():
+                task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)

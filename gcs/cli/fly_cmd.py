@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         timings["settle_time"] = args.mock_settle
 
     if args.mock:
-        args.base_port, args.listen_base_port = _mock_ports(
+        args.base_port, args.listen_base_port = mock_ports(
             args.base_port, args.listen_base_port, len(plan.scenario.ids))
 
     async def main() -> int:
@@ -369,7 +369,7 @@ def _print_summary(record: dict[str, Any]) -> None:
               f"{record['error']['message']}")
 
 
-def _mock_ports(base: int | None, listen: int | None, count: int) -> tuple[int, int]:
+def mock_ports(base: int | None, listen: int | None, count: int) -> tuple[int, int]:
     """The mock fleet's (GCS-side base, vehicle listen base): the flags given; else PX4
     SITL's ports when all `count` of each are free; else a free block elsewhere, said on
     stdout (the usual ports are held by `make run`, another fly or a mock). A fleet larger

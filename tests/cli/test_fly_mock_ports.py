@@ -9,7 +9,7 @@ import socket
 import pytest
 
 from gcs.autopilot import px4
-from gcs.cli.fly_cmd import _mock_ports
+from gcs.cli.fly_cmd import mock_ports
 from gcs.sim import ports
 
 
@@ -24,14 +24,14 @@ def usual(monkeypatch: pytest.MonkeyPatch) -> int:
 
 
 def test_the_usual_ports_when_they_are_free(usual: int, capsys) -> None:
-    assert _mock_ports(None, None, 3) == (usual, usual + ports.LISTEN_OFFSET)
+    assert mock_ports(None, None, 3) == (usual, usual + ports.LISTEN_OFFSET)
     assert capsys.readouterr().out == ""
 
 
 def test_a_free_block_named_when_the_usual_ports_are_taken(usual: int, capsys) -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held:
         held.bind(("127.0.0.1", usual + ports.LISTEN_OFFSET + 2))  # the third vehicle's
-        base, listen = _mock_ports(None, None, 3)
+        base, listen = mock_ports(None, None, 3)
         assert base != usual and listen == base + ports.LISTEN_OFFSET
         assert ports.block_free(base, ports.mock_port_offsets(3))
     out = capsys.readouterr().out
@@ -42,8 +42,8 @@ def test_a_free_block_named_when_the_usual_ports_are_taken(usual: int, capsys) -
 def test_port_flags_are_kept_even_on_taken_ports(usual: int) -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held:
         held.bind(("127.0.0.1", usual))
-        assert _mock_ports(usual, None, 3) == (usual, usual + ports.LISTEN_OFFSET)
-        assert _mock_ports(None, 30_000, 3) == (usual, 30_000)
+        assert mock_ports(usual, None, 3) == (usual, usual + ports.LISTEN_OFFSET)
+        assert mock_ports(None, 30_000, 3) == (usual, 30_000)
 
 
 def test_a_fleet_larger_than_px4s_layout_listens_after_its_gcs_block(usual: int) -> None:
@@ -56,5 +56,5 @@ def test_a_fleet_larger_than_px4s_layout_listens_after_its_gcs_block(usual: int)
     base = ports.free_udp_base(offsets)
     assert ports.mock_fleet_ports(base, count) == {"gcs_base_port": base,
                                                    "listen_base_port": base + count}
-    chosen, listen = _mock_ports(None, None, count)  # the usual block, or a free one
+    chosen, listen = mock_ports(None, None, count)  # the usual block, or a free one
     assert listen == chosen + count and ports.block_free(chosen, offsets)

@@ -104,7 +104,7 @@ def test_flight_completes_under_every_attack(signed: bool, autopilot: str,
         assert not [e for _, e in vehicle.events if "failsafe" in e]
         if signed:
             assert vehicle.signing_key is not None
-            assert vehicle._mav.signing.goodsig_count > 100
+            assert vehicle.signing.goodsig_count > 100
     _json_clean(record)
 
 

@@ -12,10 +12,11 @@ from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import endings, vehicle
 from gcs.flight.procedure.context import FlightContext
-from gcs.flight.run.executor import FlightExecutor, _all
+from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.run.record import FlightRecorder, summarise
 from gcs.flight.run.stream import Streamer
 from gcs.phases import EventKind, VehiclePhase
+from gcs.tasks import all_or_first_error
 from tests.flight.fakes import fake_vehicle
 from tests.flight.flying import monitor_of
 from tests.flight.support import line_scenario, smooth_plan
@@ -31,8 +32,8 @@ def _events() -> tuple[list[tuple[str | None, str, str]], vehicle.Emit]:
 
 
 def test_all_of_nothing_returns() -> None:
-    asyncio.run(_all([]))
-    asyncio.run(_all(iter(())))
+    asyncio.run(all_or_first_error([]))
+    asyncio.run(all_or_first_error(iter(())))
 
 
 def test_all_still_raises_the_first_error() -> None:
@@ -40,7 +41,7 @@ def test_all_still_raises_the_first_error() -> None:
         raise RuntimeError("boom")
 
     with pytest.raises(RuntimeError, match="boom"):
-        asyncio.run(_all([fail(), asyncio.sleep(5)]))
+        asyncio.run(all_or_first_error([fail(), asyncio.sleep(5)]))
 
 
 def test_wait_disarmed_of_nobody_returns_at_once() -> None:
@@ -98,7 +99,7 @@ def test_finish_with_no_live_vehicle(at_end: str) -> None:
     for v in ex.vehicles:
         v.fault, v.phase = "estimate_invalid", VehiclePhase.LANDING
         v.linked.telemetry.armed = False
-    asyncio.run(asyncio.wait_for(ex._finish(), 5.0))  # bound
+    asyncio.run(asyncio.wait_for(ex.finish(), 5.0))  # bound
     assert [v.phase for v in ex.vehicles] == [VehiclePhase.LANDED] * 2
     kinds = [e["kind"] for e in ex.recorder.events]
     assert kinds == [EventKind.LANDED, EventKind.LANDED]
@@ -117,7 +118,7 @@ def test_abort_with_every_vehicle_already_down_sends_nothing() -> None:
 def test_record_of_a_flight_that_never_streamed() -> None:
     ex = _executor(1)
     ex.streamer = None
-    ex._finish_record(None)
+    ex.close_record(None)
     assert ex.record is not None
     assert ex.record["summary"]["completed"] is False
     assert ex.snapshot()["vehicles"][0]["id"] == "uav1"

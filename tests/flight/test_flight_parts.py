@@ -208,20 +208,20 @@ def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() ->
                            on_separation=lambda *_: None, stalls=StationStalls(),
                            on_drops=lambda v, detail: told.append((v.id, detail)))
     link = fake_link(vehicles[1])
-    monitor._drops(100.0)
+    monitor.report_drops(100.0)
     assert told == []  # nothing dropped: nothing said
     link.telemetry.security.foreign_source = 12
     link.dropped_from["foreign_source"] = (("127.0.0.1", 5555), 1)
-    monitor._drops(100.0)
+    monitor.report_drops(100.0)
     assert told == [("uav2", "12 more packets dropped (12 foreign_source), the latest from "
                              "127.0.0.1:5555 (component 1)")]
     link.telemetry.security.foreign_source = 20
-    monitor._drops(100.0 + DROPS_NOTE_S / 2)  # too soon: kept for the next report
+    monitor.report_drops(100.0 + DROPS_NOTE_S / 2)  # too soon: kept for the next report
     assert len(told) == 1
-    monitor._drops(100.0 + DROPS_NOTE_S)
+    monitor.report_drops(100.0 + DROPS_NOTE_S)
     assert told[-1] == ("uav2", "8 more packets dropped in 5.0 s, 1.6/s (8 foreign_source), "
                                 "the latest from 127.0.0.1:5555 (component 1)")
-    monitor._drops(200.0)  # no new drops
+    monitor.report_drops(200.0)  # no new drops
     assert len(told) == 2
 
 

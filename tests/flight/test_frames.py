@@ -47,7 +47,7 @@ def test_two_vehicles_same_world_point_different_local() -> None:
                                            (math.pi, -math.pi / 2), (-math.pi / 2, math.pi)])
 def test_yaw(enu: float, ned: float) -> None:
     assert frames.world_yaw_to_ned(enu) == pytest.approx(ned)
-    assert frames.ned_yaw_to_world(ned) == pytest.approx(frames._wrap(enu))
+    assert frames.ned_yaw_to_world(ned) == pytest.approx(frames.wrap_angle(enu))
 
 
 def test_geodetic_round_trip_and_scale() -> None:

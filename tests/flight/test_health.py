@@ -35,7 +35,7 @@ def _link() -> tuple[VehicleLink, mavlink.MAVLink]:
 def _feed(link: VehicleLink, mav: mavlink.MAVLink, msg: object) -> None:
     msg.pack(mav)  # type: ignore[attr-defined]  # stamps mav.seq; counting up is send()'s job
     mav.seq = (mav.seq + 1) & 0xFF
-    link._handle(msg, 0.0)
+    link.handle(msg, 0.0)
 
 
 def test_health_from_messages() -> None:

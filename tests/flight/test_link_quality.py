@@ -146,12 +146,12 @@ def test_a_reboot_is_named_as_a_reboot() -> None:
     tel.heartbeat_time = tel.message_time = 0.0
     tel.mode = px4.OFFBOARD
     for k in range(5):
-        link._handle(_position(mav, 60_000 + 20 * k), 0.02 * k)
+        link.handle(_position(mav, 60_000 + 20 * k), 0.02 * k)
     assert vehicle_fault(link, FlightOptions(), 0.1) is None
-    link._handle(_position(mav, 60_050), 0.11)  # a little out of order: no reboot
+    link.handle(_position(mav, 60_050), 0.11)  # a little out of order: no reboot
     assert tel.reboot_time is None
     tel.mode = px4.HOLD
-    link._handle(_position(mav, 1_200), 0.2)
+    link.handle(_position(mav, 1_200), 0.2)
     fault = vehicle_fault(link, FlightOptions(), 0.2)
     assert fault is not None and fault[0] == "rebooted"
     assert "went back to 1.2 s" in fault[1] and "mode AUTO.LOITER" in fault[1]
@@ -164,12 +164,12 @@ def test_a_non_finite_position_that_arrived_is_not_counted_lost() -> None:
     link = VehicleLink("uav1", Endpoint("udpin:127.0.0.1:9"), 1)
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     for k in range(3):
-        link._handle(_position(mav, 1_000 + 20 * k), 0.02 * k)
+        link.handle(_position(mav, 1_000 + 20 * k), 0.02 * k)
     bad = mav.local_position_ned_encode(1_060, float("nan"), 0.0, -1.0, 0.0, 0.0, 0.0)
     bad.pack(mav)
     mav.seq = (mav.seq + 1) & 0xFF
-    link._handle(bad, 0.06)
-    link._handle(_position(mav, 1_080), 0.08)
+    link.handle(bad, 0.06)
+    link.handle(_position(mav, 1_080), 0.08)
     report = link.telemetry.quality.report()
     assert link.telemetry.invalid_estimates == 1
     assert (report["received"], report["lost"]) == (5, 0)

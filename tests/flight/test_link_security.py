@@ -307,11 +307,11 @@ def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
         # everything the GCS sends is signed with the key
         link.send_setpoint(_setpoint(), 0)
         received = await vehicle.receive_until("SET_POSITION_TARGET_LOCAL_NED")
-        assert all(m._msgbuf[2] & mavlink.MAVLINK_IFLAG_SIGNED for m in received)
+        assert all(m.get_msgbuf()[2] & mavlink.MAVLINK_IFLAG_SIGNED for m in received)
         checker = mavlink.MAVLink(None)
         checker.signing.secret_key = key.secret
         for m in received:
-            assert checker.decode(bytearray(m._msgbuf))._signed
+            assert checker.decode(bytearray(m.get_msgbuf()))._signed
         # from the pinned address: unsigned, signed with another key, and a replay
         unsigned = Peer()
         unsigned.sock.close()

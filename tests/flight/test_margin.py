@@ -177,9 +177,9 @@ def test_the_live_alarm_lets_a_flight_use_its_margin_and_stops_one_below_r() -> 
                            on_separation=lambda closest, at: alarms.append((closest, at)),
                            stalls=StationStalls())
     for gap in (1.4, 1.2, 1.1, 1.001):
-        monitor._separation({"uav1": np.zeros(3), "uav2": np.array([gap, 0.0, 0.0])})
+        monitor.check_separation({"uav1": np.zeros(3), "uav2": np.array([gap, 0.0, 0.0])})
     assert alarms == []
-    monitor._separation({"uav1": np.zeros(3), "uav2": np.array([0.95, 0.0, 0.0])})
+    monitor.check_separation({"uav1": np.zeros(3), "uav2": np.array([0.95, 0.0, 0.0])})
     assert alarms == [(pytest.approx(0.95), pytest.approx(1.0))]
 
 
@@ -202,7 +202,7 @@ def test_an_unheard_vehicle_counts_at_its_predicted_position_named_as_predicted(
                            stalls=StationStalls(),
                            predicted=lambda v, t: np.array([0.5, 0.0, 1.0])
                            if v.id == "uav2" else None)
-    monitor._separation(monitor.positions(now))
+    monitor.check_separation(monitor.positions(now))
     assert alarms == [(pytest.approx(0.5), pytest.approx(0.7))]
     assert monitor.predicted_ids == {"uav2"}
     assert monitor.closest_text() == "uav1 and uav2 (predicted: unheard)"

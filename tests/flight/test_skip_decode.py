@@ -1,7 +1,7 @@
 """Dropping unread message ids before decoding (`Endpoint.decode_ids`, `gcs.wire.peek_packet`):
 skipped packets are counted, never garbage, never loss, and a spoofed one changes nothing.
 
-Datagrams go straight into an endpoint's receive callback (`UdpEndpoint._received`, what
+Datagrams go straight into an endpoint's receive callback (`UdpEndpoint.received`, what
 asyncio calls), so every count is exact."""
 
 from __future__ import annotations
@@ -80,9 +80,9 @@ def test_skipped_ids_count_for_link_quality_not_as_garbage_or_loss() -> None:
     endpoint, link, seen = _endpoint()
     s = Sender()
     for i in range(300):
-        endpoint._received(s.attitude(), VEHICLE)
+        endpoint.received(s.attitude(), VEHICLE)
         if i % 10 == 0:
-            endpoint._received(s.position(float(i)), VEHICLE)
+            endpoint.received(s.position(float(i)), VEHICLE)
     tel = link.telemetry
     assert tel.skipped == 300 and endpoint.skipped == 300
     assert seen == ["LOCAL_POSITION_NED"] * 30  # only what is decoded reaches listeners
@@ -95,7 +95,7 @@ def test_skipped_ids_count_for_link_quality_not_as_garbage_or_loss() -> None:
     for i in range(51):  # a loss shows with the next packet that arrives
         buf = s.attitude() if i % 2 else s.position()
         if i % 5 != 4:  # lose every fifth packet on the way
-            endpoint._received(buf, VEHICLE)
+            endpoint.received(buf, VEHICLE)
     assert tel.seq_lost == 10
 
 
@@ -104,8 +104,8 @@ def test_garbage_of_a_skipped_id_is_still_garbage() -> None:
     s = Sender()
     corrupt = bytearray(s.attitude())
     corrupt[14] ^= 0x55
-    endpoint._received(bytes(corrupt), VEHICLE)
-    endpoint._received(s.attitude()[:-3], VEHICLE)
+    endpoint.received(bytes(corrupt), VEHICLE)
+    endpoint.received(s.attitude()[:-3], VEHICLE)
     assert endpoint.garbage_datagrams == 2 and endpoint.skipped == 0
     assert link.telemetry.skipped == 0 and link.telemetry.seq_received == 0
 
@@ -113,15 +113,15 @@ def test_garbage_of_a_skipped_id_is_still_garbage() -> None:
 def test_a_spoofed_skipped_packet_changes_nothing() -> None:
     endpoint, link, _ = _endpoint()
     s = Sender()
-    endpoint._received(s.position(), VEHICLE)
+    endpoint.received(s.position(), VEHICLE)
     tel = link.telemetry
     before = (tel.seq_received, tel.seq_lost, tel.last_seq, tel.message_time, tel.skipped)
     spoofer = Sender()
     spoofer.mav.seq = 100  # a jump that would read as 98 lost messages if it counted
-    endpoint._received(spoofer.attitude(), ELSEWHERE)  # another address
+    endpoint.received(spoofer.attitude(), ELSEWHERE)  # another address
     other = Sender(component=42)
     other.mav.seq = 100
-    endpoint._received(other.attitude(), VEHICLE)  # another component
+    endpoint.received(other.attitude(), VEHICLE)  # another component
     assert (tel.seq_received, tel.seq_lost, tel.last_seq, tel.message_time, tel.skipped) == \
         before
     assert tel.security.foreign_source == 1 and tel.security.other_component == 1
@@ -132,23 +132,23 @@ def test_signed_link_verifies_skipped_packets(tmp_path: Path) -> None:
     endpoint, link, _ = _endpoint(LinkSigning(key))
     tel = link.telemetry
     good = Sender(key.secret)
-    endpoint._received(good.position(), VEHICLE)
-    endpoint._received(good.attitude(), VEHICLE)
+    endpoint.received(good.position(), VEHICLE)
+    endpoint.received(good.attitude(), VEHICLE)
     assert tel.skipped == 1 and tel.seq_received == 2 and tel.security.total == 0
     replay = good.attitude()
-    endpoint._received(replay, VEHICLE)
-    endpoint._received(replay, VEHICLE)  # the same signed packet again
+    endpoint.received(replay, VEHICLE)
+    endpoint.received(replay, VEHICLE)  # the same signed packet again
     assert tel.security.replayed == 1
     unsigned = Sender()
     unsigned.mav.seq = 200  # would read as a big loss if it counted
-    endpoint._received(unsigned.attitude(), VEHICLE)  # from the pinned address, unsigned
+    endpoint.received(unsigned.attitude(), VEHICLE)  # from the pinned address, unsigned
     wrong = Sender(bytes(32))
     wrong.mav.seq = 60
-    endpoint._received(wrong.attitude(), VEHICLE)
+    endpoint.received(wrong.attitude(), VEHICLE)
     assert tel.security.unsigned == 1 and tel.security.bad_signature == 1
     assert tel.skipped == 2 and tel.seq_received == 3 and tel.seq_lost == 0
     # decoded packets still go through the full check: an unsigned position is refused
-    endpoint._received(unsigned.position(9.0), VEHICLE)
+    endpoint.received(unsigned.position(9.0), VEHICLE)
     assert tel.position_ned == (1.0, 2.0, -3.0) and tel.security.unsigned == 2
 
 
@@ -158,7 +158,7 @@ def test_without_decode_ids_everything_is_decoded() -> None:
     seen: list[Any] = []
     link.listeners.append(lambda _l, m, _t: seen.append(m.get_type()))
     s = Sender()
-    endpoint._received(s.attitude(), VEHICLE)
+    endpoint.received(s.attitude(), VEHICLE)
     assert seen == ["ATTITUDE"] and endpoint.skipped == 0 and link.telemetry.skipped == 0
 
 
@@ -166,12 +166,12 @@ def test_an_unpinned_vehicle_is_pinned_by_a_decoded_packet_only() -> None:
     endpoint = UdpEndpoint("udpin:127.0.0.1:9", DECODED_IDS)
     link = VehicleLink("v", endpoint, 1, 1)
     s = Sender()
-    endpoint._received(s.attitude(), VEHICLE)  # before pinning: decoded, pins
+    endpoint.received(s.attitude(), VEHICLE)  # before pinning: decoded, pins
     assert link.pinned and link.peer_address == VEHICLE and endpoint.skipped == 0
-    endpoint._received(s.attitude(), VEHICLE)
+    endpoint.received(s.attitude(), VEHICLE)
     assert endpoint.skipped == 1
     unknown = mavlink.MAVLink(None, srcSystem=9, srcComponent=1)
-    endpoint._received(pack(unknown.attitude_encode(0, 0, 0, 0, 0, 0, 0), unknown), VEHICLE)
+    endpoint.received(pack(unknown.attitude_encode(0, 0, 0, 0, 0, 0, 0), unknown), VEHICLE)
     assert endpoint.dropped_unknown == 1
 
 
@@ -191,7 +191,7 @@ def test_refused_packets_are_never_decoded(tmp_path: Path, monkeypatch: Any) -> 
     key = new_key_file(tmp_path / "k.key")
     endpoint, link, seen = _endpoint(LinkSigning(key))
     good = Sender(key.secret)
-    endpoint._received(good.position(5.0), VEHICLE)
+    endpoint.received(good.position(5.0), VEHICLE)
     decoded = []
     real_parse = endpoints.parse_datagram
     monkeypatch.setattr(endpoints, "parse_datagram",
@@ -200,10 +200,10 @@ def test_refused_packets_are_never_decoded(tmp_path: Path, monkeypatch: Any) -> 
     unsigned = Sender()
     other_component = Sender(key.secret, component=42)
     for _ in range(10):
-        endpoint._received(signed_elsewhere.position(9.0), ELSEWHERE)
-        endpoint._received(_command(unsigned), VEHICLE)
-        endpoint._received(unsigned.heartbeat(), VEHICLE)
-        endpoint._received(other_component.position(9.0), VEHICLE)
+        endpoint.received(signed_elsewhere.position(9.0), ELSEWHERE)
+        endpoint.received(_command(unsigned), VEHICLE)
+        endpoint.received(unsigned.heartbeat(), VEHICLE)
+        endpoint.received(other_component.position(9.0), VEHICLE)
     assert decoded == []
     assert endpoint.refused == 40 and endpoint.messages_received == 41
     security = link.telemetry.security
@@ -211,6 +211,6 @@ def test_refused_packets_are_never_decoded(tmp_path: Path, monkeypatch: Any) -> 
         10, 20, 10)
     assert link.dropped_from["unsigned"] == (VEHICLE, 1)
     assert link.telemetry.position_ned == (5.0, 2.0, -3.0)
-    endpoint._received(good.position(6.0), VEHICLE)  # the vehicle's own: decoded, admitted
+    endpoint.received(good.position(6.0), VEHICLE)  # the vehicle's own: decoded, admitted
     assert len(decoded) == 1 and link.telemetry.position_ned == (6.0, 2.0, -3.0)
     assert seen == ["LOCAL_POSITION_NED", "LOCAL_POSITION_NED"]

@@ -12,7 +12,7 @@ from tests.flight.fakes import fake_vehicle
 
 def _sent(streamer: Streamer, tick: int) -> tuple[float, ...]:
     """The position streamed to uav1 at `tick`."""
-    ready = {vid: sp for vid, _, sp, _ in streamer._prepare_tick(tick)}
+    ready = {vid: sp for vid, _, sp, _ in streamer.prepare_tick(tick)}
     return ready["uav1"].position
 
 
@@ -30,7 +30,7 @@ def test_a_switch_takes_over_at_its_tick_and_assign_or_unassign_cancel_it() -> N
     assert _sent(streamer, 300) == (5.0, 0.0, -1.0)
     streamer.switch("uav1", link, here, 400)
     streamer.unassign("uav1")
-    assert "uav1" not in streamer.pending and not streamer._prepare_tick(500)
+    assert "uav1" not in streamer.pending and not streamer.prepare_tick(500)
 
 
 def test_a_switch_with_an_origin_indexes_its_track_from_there_and_can_be_cancelled() -> None:

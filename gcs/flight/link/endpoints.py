@@ -150,7 +150,7 @@ class UdpEndpoint(Endpoint):
         sock.setblocking(False)
         self._sock = sock
         self._transport, _ = await loop.create_datagram_endpoint(
-            lambda: Datagrams(self._received, self._send_error), sock=sock)
+            lambda: Datagrams(self.received, self._send_error), sock=sock)
 
     def close(self) -> None:
         if self._transport is not None:
@@ -160,7 +160,7 @@ class UdpEndpoint(Endpoint):
     def _send_error(self, exc: Exception) -> None:
         self.send_errors += 1
 
-    def _received(self, data: bytes, addr: Any) -> None:
+    def received(self, data: bytes, addr: Any) -> None:
         """One datagram from `addr`: refused or skipped on its header, or decoded on its own
         and dispatched."""
         now = time.monotonic()

@@ -116,7 +116,7 @@ class VehicleLink:
     def receive(self, msg: Any, address: Any, now: float) -> None:
         """A decoded packet with this vehicle's system id: handled if it is admitted."""
         if self._admit(msg.get_srcComponent(), address, lambda signing: signing.verify(msg)):
-            self._handle(msg, now)
+            self.handle(msg, now)
 
     def receive_skipped(self, header: PacketHeader, packet: bytes, address: Any) -> None:
         """A packet the endpoint did not decode (an id not read, or one `refuses` drops): if
@@ -167,7 +167,7 @@ class VehicleLink:
             self.pinned = True
         return True
 
-    def _handle(self, msg: Any, now: float) -> None:
+    def handle(self, msg: Any, now: float) -> None:
         """An admitted message: into the telemetry, to a pending command, to the listeners."""
         if not self.telemetry.update(msg, now, self.component_id):
             return

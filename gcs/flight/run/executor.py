@@ -70,7 +70,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import AsyncIterator, Awaitable, Iterable, Mapping, Sequence
+from collections.abc import AsyncIterator, Awaitable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -121,6 +121,7 @@ from gcs.flight.safety.policy import FaultPolicy
 from gcs.flight.safety.silence import SilentHold, silent_hold
 from gcs.geofence import build_fence
 from gcs.phases import AIRBORNE, EventKind, FlightPhase, VehiclePhase
+from gcs.tasks import all_or_first_error
 from planner import Plan
 from planner.types import FloatArray
 from planner.verification.verify import refusal
@@ -457,7 +458,7 @@ class FlightExecutor:
                                                for v in self.vehicles))
                     await self.streamer.stop()
         finally:
-            self._finish_record(error)
+            self.close_record(error)
             self._events.close()
         assert self.record is not None
         return self.record
@@ -478,7 +479,7 @@ class FlightExecutor:
     async def _fly(self) -> None:
         opts = self.options
         self.phase = FlightPhase.CONNECTING
-        await _all(connect_vehicle(v, opts, self.fleet.world_origin, self.recorder,
+        await all_or_first_error(connect_vehicle(v, opts, self.fleet.world_origin, self.recorder,
                                    self._emit, self.stalls, take_over=self.take_over)
                    for v in self.vehicles)
         await fence_fleet(self.vehicles, build_fence(self.plan.scenario.to_dict()), opts,
@@ -503,7 +504,7 @@ class FlightExecutor:
                 self._emit(v.id, EventKind.CLIMB, f"climbs in wave {k + 1} of {last + 1}: a "
                                                   f"vehicle with a higher start stands nearer "
                                                   f"than R to its column")
-            await _all(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit,
+            await all_or_first_error(prepare_vehicle(v, streamer, opts, self._yaw_ned, self._emit,
                                        self.stalls, self.fleet.world_origin,
                                        on_ground=self.ground.on_ground(v)) for v in wave)
             if k < last:
@@ -514,7 +515,7 @@ class FlightExecutor:
         self.phase = FlightPhase.FLYING
         await self._fly_plan()
         self.phase = FlightPhase.FINISHING
-        await self._finish()
+        await self.finish()
         self.phase = FlightPhase.FINISHED
 
     async def _set_failsafes(self) -> None:
@@ -677,19 +678,21 @@ class FlightExecutor:
             waited = time.monotonic() - started
         self.recorder.goal_settle_s = waited
 
-    async def _finish(self) -> None:
+    async def finish(self) -> None:
+        """The end of the flight: land (or hold, `at_end`) every vehicle still the plan's and
+        wait for the landing ones to disarm."""
         # (a vehicle a replan dropped with land is handed to PX4's Land by the replanner)
         live = [v for v in self.vehicles if v.fault is None and v.dropped != "land"
                 and v.id not in self.ground.landed]  # (those the plan landed are down)
         if self.options.at_end == "hold":
-            await _all(self._hold(v) for v in live)
+            await all_or_first_error(self._hold(v) for v in live)
             for v in live:
                 v.phase = VehiclePhase.HOVERING
         elif (landing := self._end_landing(live)) is not None:
             self._landing = landing
             await landing.run()
         else:
-            await _all(self._land(v) for v in live)
+            await all_or_first_error(self._land(v) for v in live)
         # and the ones a land_faulty policy sent down, once their landing command has an
         # outcome (an unanswered one is given up on after its retries: land_failed)
         await asyncio.gather(*self.policy.landings, return_exceptions=True)
@@ -910,7 +913,9 @@ class FlightExecutor:
     def _emit(self, vehicle: str | None, kind: str, detail: str = "") -> None:
         self._events.emit(vehicle, kind, detail)
 
-    def _finish_record(self, error: BaseException | None) -> None:
+    def close_record(self, error: BaseException | None) -> None:
+        """Write the flight record (`self.record`) as the flight ended, with `error` if it
+        ended on one."""
         self._end_pause()
         text = self._stall_report.flush(time.monotonic())
         if text is not None:
@@ -958,20 +963,3 @@ class FlightExecutor:
 def _cancelling() -> bool:
     task = asyncio.current_task()
     return task is not None and task.cancelling() > 0
-
-
-async def _all(coros: Iterable[Awaitable[Any]]) -> None:
-    """Run concurrently; on the first error cancel the rest and raise that error."""
-    tasks = [asyncio.ensure_future(c) for c in coros]
-    if not tasks:  # nothing to run (no vehicle left): asyncio.wait refuses an empty set
-        return
-    try:
-        done, _pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
-        for task in done:
-            if task.exception() is not None:
-                raise task.exception()  # type: ignore[misc]
-    finally:
-        for task in tasks:
-            if not task.done():
-                task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)

@@ -167,7 +167,7 @@ class Streamer:
                 await self._task
             self._task = None
 
-    def _prepare_tick(self, tick: int) -> list[tuple[str, Assignment, Setpoint, bytes]]:
+    def prepare_tick(self, tick: int) -> list[tuple[str, Assignment, Setpoint, bytes]]:
         """Every vehicle's setpoint for `tick`, encoded, ready to send."""
         boot_ms = time_boot_ms(self.tick_time(tick) - self.boot_epoch)
         if self.pending:  # almost always empty: no copy of it on every tick
@@ -223,11 +223,11 @@ class Streamer:
             if due > self.tick:  # late: send the current tick now, never a burst
                 if due > self.tick + 1 and self.tick >= 0:
                     self.missed_ticks += due - self.tick - 1
-                self._send_tick(due, self._prepare_tick(due))
+                self._send_tick(due, self.prepare_tick(due))
             else:
                 tick = self.tick + 1
                 began = time.monotonic()
-                ready = self._prepare_tick(tick)
+                ready = self.prepare_tick(tick)
                 encode_time = time.monotonic() - began
                 while time.monotonic() < self.tick_time(tick):
                     pass  # a fraction of a millisecond: the clock, not the timer

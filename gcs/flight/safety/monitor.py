@@ -273,15 +273,15 @@ class FleetMonitor:
                                   f"{v.tracking_error:.2f} m from the plan "
                                   f"(bound {opts.tracking_error_max:g} m)")
         if positions:
-            self._separation(where)
+            self.check_separation(where)
         if self.on_drops is not None:
-            self._drops(now)
+            self.report_drops(now)
         if self._link_watch is not None:
             self._link_watch.check({v.id: v.link.telemetry.quality for v in self.vehicles
                                     if v.link is not None}, now,
                                    self.stalls.ended_since(now - LINK_WINDOW_S) > 0.0)
 
-    def _drops(self, now: float) -> None:
+    def report_drops(self, now: float) -> None:
         """Tell each vehicle's packets dropped since last told (at most every DROPS_NOTE_S)."""
         assert self.on_drops is not None
         if self._drops_since is None:
@@ -334,7 +334,7 @@ class FleetMonitor:
             planned = plan.vehicles[v.index].sample(plan.scenario.dt, times).position
         return float(np.min(np.linalg.norm(planned - position, axis=1)))
 
-    def _separation(self, positions: dict[str, np.ndarray]) -> None:
+    def check_separation(self, positions: dict[str, np.ndarray]) -> None:
         plan = self.plan
         opts = self.options
         # Every vehicle in the air counts, a faulty one going down among the others too.
