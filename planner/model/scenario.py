@@ -12,7 +12,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -74,6 +74,10 @@ AUTO_STEPS = "auto"
 #: Longest horizon (s) a `steps: "auto"` search tries when the scenario gives no
 #: `max_horizon`; the search never goes past `MAX_STEPS` steps either.
 DEFAULT_MAX_HORIZON = 300.0
+
+#: A setting's checked value (`_settings`).
+_T = TypeVar("_T")
+
 #: Largest `max_horizon` a scenario may give (s): a sanity bound, an hour of flight.
 MAX_HORIZON_LIMIT = 3600.0
 
@@ -412,33 +416,57 @@ def _closest_pair_within(points: FloatArray, scale: FloatArray, limit: float
     return float(d[k]), int(pairs[k, 0]), int(pairs[k, 1])
 
 
-def _settings_problems(data: Mapping[str, Any]) -> list[FieldError]:
-    """Every problem of the scenario's own settings (each checked alone, as `_parse` checks
-    it), so that a document with several is told them all at once."""
-    checks: list[Callable[[], object]] = [
-        lambda: _name(data),
-        lambda: check_number(data["dt"], "dt", positive=True, within="dt"),
-        lambda: _separation_setting(data),
-        lambda: check_number(data.get("cost_threshold", DEFAULTS["cost_threshold"]),
-                             "cost_threshold", positive=True, within="cost_threshold"),
-        lambda: _integer(data.get("max_iterations", DEFAULTS["max_iterations"]),
-                         "max_iterations", 1, MAX_ITERATIONS),
-        lambda: _parse_limits(data["limits"]),
-        lambda: _choice(data, "assignment", ASSIGNMENTS),
-        lambda: _choice(data, "method", METHODS),
-    ]
+@dataclass(frozen=True)
+class _Settings:
+    """A scenario's own settings, checked (everything but its vehicles and what they meet)."""
+
+    name: str
+    dt: float
+    horizon: tuple[int, bool, float | None]
+    """(steps, steps "auto", max_horizon): `_steps_setting`."""
+    separation: tuple[float, float, FloatArray]
+    """(min_separation, separation_margin, separation_scale): `_separation_setting`."""
+    threshold: float
+    max_iterations: int
+    limits: Limits
+    assignment: str
+    method: str
+
+
+def _settings(data: Mapping[str, Any]) -> _Settings:
+    """The scenario's own settings, each checked alone, so that a document with several
+    problems is told them all at once (`ScenarioErrors`; one alone is its `ScenarioError`)."""
     problems: list[FieldError] = []
-    for check in checks:
+
+    def checked(check: Callable[[], _T]) -> _T | None:
         try:
-            check()
+            return check()
         except ScenarioError as exc:
             problems.append(exc)
-    if not any(p.field == "dt" for p in problems):  # the horizon's bounds are in steps of dt
-        try:
-            _steps_setting(data, float(data["dt"]))
-        except ScenarioError as exc:
-            problems.insert(2, exc)
-    return problems
+            return None
+
+    name = checked(lambda: _name(data))
+    dt = checked(lambda: check_number(data["dt"], "dt", positive=True, within="dt"))
+    # the horizon's bounds are in steps of dt: judged only with a dt
+    horizon = None if dt is None else checked(lambda: _steps_setting(data, dt))
+    separation = checked(lambda: _separation_setting(data))
+    threshold = checked(lambda: check_number(
+        data.get("cost_threshold", DEFAULTS["cost_threshold"]), "cost_threshold",
+        positive=True, within="cost_threshold"))
+    max_iterations = checked(lambda: _integer(
+        data.get("max_iterations", DEFAULTS["max_iterations"]), "max_iterations", 1,
+        MAX_ITERATIONS))
+    limits = checked(lambda: _parse_limits(data["limits"]))
+    assignment = checked(lambda: _choice(data, "assignment", ASSIGNMENTS))
+    method = checked(lambda: _choice(data, "method", METHODS))
+    if problems:
+        raise problems[0] if len(problems) == 1 else ScenarioErrors(problems)
+    assert (name is not None and dt is not None and horizon is not None
+            and separation is not None and threshold is not None
+            and max_iterations is not None and limits is not None
+            and assignment is not None and method is not None)
+    return _Settings(name, dt, horizon, separation, threshold, max_iterations, limits,
+                     assignment, method)
 
 
 def _name(data: Mapping[str, Any]) -> str:
@@ -460,24 +488,12 @@ def _choice(data: Mapping[str, Any], key: str, choices: tuple[str, ...]) -> str:
 
 def _parse(data: Mapping[str, Any], *, on_ground: bool = False) -> Scenario:
     check_keys(data, _TOP_KEYS, "", ("dt", "steps", "min_separation", "limits", "vehicles"))
-    problems = _settings_problems(data)
-    if len(problems) > 1:
-        raise ScenarioErrors(problems)
-    name = _name(data)
-    dt = check_number(data["dt"], "dt", positive=True, within="dt")
-    steps, steps_auto, max_horizon = _steps_setting(data, dt)
-    separation, margin, scale = _separation_setting(data)
-    threshold = check_number(
-        data.get("cost_threshold", DEFAULTS["cost_threshold"]), "cost_threshold", positive=True,
-        within="cost_threshold",
-    )
-    max_iterations = _integer(
-        data.get("max_iterations", DEFAULTS["max_iterations"]), "max_iterations", 1,
-        MAX_ITERATIONS,
-    )
-    limits = _parse_limits(data["limits"])
-    assignment = _choice(data, "assignment", ASSIGNMENTS)
-    method = _choice(data, "method", METHODS)
+    settings = _settings(data)
+    name, dt, limits = settings.name, settings.dt, settings.limits
+    steps, steps_auto, max_horizon = settings.horizon
+    separation, margin, scale = settings.separation
+    threshold, max_iterations = settings.threshold, settings.max_iterations
+    assignment, method = settings.assignment, settings.method
 
     vehicles = _parse_vehicles(data["vehicles"], limits)
     starts = np.array([v.start for v in vehicles])
