@@ -17,7 +17,7 @@ import pytest
 import planner
 from gcs.flight.replan.cascade import STEP_S, follow
 from gcs.flight.run.clock import FlightClock
-from gcs.flight.safety.silence import HOLD_WINDOW_S, NUDGE_MAX_M, silent_hold
+from gcs.flight.safety.silence import HOLD_WINDOW_S, silent_hold
 from gcs.sim.model import FleetModel
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"
@@ -59,11 +59,9 @@ def _state(plan: planner.Plan, t: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _room(plan: planner.Plan, lost: np.ndarray, held: list[int], p: np.ndarray,
-          v: np.ndarray, t: float, nudges: dict[str, np.ndarray] | None = None) -> float:
+          v: np.ndarray, t: float) -> float:
     """The closest the held vehicles come to `lost` (T, 3) holding the plan at `t`."""
     targets = _state(plan, t)[0][held]
-    for k, i in enumerate(held):
-        targets[k] = targets[k] + (nudges or {}).get(plan.scenario.ids[i], 0.0)
     paths, _ = follow(p[held], v[held], targets, 0.0, lost.shape[0] - 1)
     return float(np.linalg.norm(paths - lost[:, None, :], axis=2).min())
 
@@ -88,26 +86,24 @@ def test_the_hold_keeps_more_room_from_a_silent_vehicle_than_stopping_where_it_i
     p, v = _state(circle8, now)
     held = [i for i in range(8) if i != lost_index]
     ids = [circle8.scenario.ids[i] for i in held]
-    hold = silent_hold(circle8, predicted, now, ids, p[held], v[held], RATE, 1.0)
-    assert abs(hold.time - now) <= HOLD_WINDOW_S + 1e-9
-    assert round(hold.time * RATE) == pytest.approx(hold.time * RATE)  # on the stream's grid
-    assert all(np.linalg.norm(n) <= NUDGE_MAX_M + 1e-9 for n in hold.nudges.values())
+    hold = silent_hold(circle8, predicted, now, ids, p[held], v[held], RATE)
+    assert abs(hold - now) <= HOLD_WINDOW_S + 1e-9
+    assert round(hold * RATE) == pytest.approx(hold * RATE)  # on the stream's grid
     here = _room(circle8, lost, held, p, v, now)
-    chosen = _room(circle8, lost, held, p, v, hold.time, hold.nudges)
+    chosen = _room(circle8, lost, held, p, v, hold)
     assert here < 0.9
     assert chosen >= 0.98 and chosen > here
 
 
 def test_a_silent_vehicle_far_from_everyone_holds_the_fleet_where_it_is(
         circle8: planner.Plan) -> None:
-    """Nobody within reach of the silent one's motion: the hold is the plan time reached,
-    with no nudge."""
+    """Nobody within reach of the silent one's motion: the hold is the plan time reached."""
     now = 5.0
     p, v = _state(circle8, now)
     far = np.array([60.0, 60.0, 2.0])
     hold = silent_hold(circle8, lambda s: np.repeat(far[None], len(s), axis=0), now,
-                       list(circle8.scenario.ids[1:]), p[1:], v[1:], RATE, 1.0)
-    assert hold.time == pytest.approx(now) and hold.nudges == {}
+                       list(circle8.scenario.ids[1:]), p[1:], v[1:], RATE)
+    assert hold == pytest.approx(now)
 
 
 @pytest.mark.parametrize("shift", [-7, 4])

@@ -118,12 +118,11 @@ from gcs.flight.safety.landing import SETTLE_S, PlannedLanding
 from gcs.flight.safety.margin import check_margin, required_separation
 from gcs.flight.safety.monitor import PERIOD, FleetMonitor
 from gcs.flight.safety.policy import FaultPolicy
-from gcs.flight.safety.silence import SilentHold, silent_hold
+from gcs.flight.safety.silence import silent_hold
 from gcs.geofence import build_fence
 from gcs.phases import AIRBORNE, EventKind, FlightPhase, VehiclePhase
 from gcs.tasks import all_or_first_error
 from planner import Plan
-from planner.types import FloatArray
 from planner.verification.verify import refusal
 
 __all__ = ["TRACKING_TOLERANCE_M", "FlightExecutor", "VehicleStatus"]
@@ -241,13 +240,11 @@ class FlightExecutor:
     def paused(self) -> bool:
         return self.clock.pause is not None
 
-    def pause(self, at: float | None = None,
-              nudges: Mapping[str, FloatArray] | None = None) -> float:
+    def pause(self, at: float | None = None) -> float:
         """Stop the shared flight clock: from the next tick every vehicle flying the plan
         holds the plan's setpoint of that same plan time (at rest), so the fleet stays as
         separated as the plan is at that instant: the plan time reached, or `at` (flight
-        time, s; `_on_silent` picks one near it, and `nudges` some holds off the plan, world
-        offsets by vehicle id). Returns the plan time it holds.
+        time, s; `_on_silent` picks one near it). Returns the plan time it holds.
         `StateConflict` unless the plan is being flown (and not already paused). After
         `pause_limit` s the `pause_expiry` action (land or hold) ends the flight."""
         if self._abort is not None:
@@ -260,7 +257,7 @@ class FlightExecutor:
         if self._replanner is not None:
             self._replanner.cancel("the flight was paused before the switch")
         streamer = self._streamer()
-        pause = hold_fleet(streamer, self.clock, self.vehicles, self._tracks, at, nudges)
+        pause = hold_fleet(streamer, self.clock, self.vehicles, self._tracks, at)
         self._pause_timer = asyncio.ensure_future(self._pause_limit())
         self.phase = FlightPhase.PAUSED
         t = pause.plan_tick / streamer.rate
@@ -737,16 +734,15 @@ class FlightExecutor:
         if (self.phase != FlightPhase.FLYING or self._abort is not None
                 or self.clock.pause is not None or self.clock.start is None):
             return
-        hold = self._silent_hold(v)
-        t = self.pause(None if hold is None else hold.time,
-                       None if hold is None else hold.nudges)
+        t = self.pause(self._silent_hold(v))
         self._silence_pause = True
         self._emit(v.id, EventKind.LINK_SILENT, f"no message for {silent:.2f} s: the fleet "
                                                 f"holds on the plan at t={t:.2f} s until it "
                                                 f"is heard again or declared lost")
 
-    def _silent_hold(self, v: VehicleStatus) -> SilentHold | None:
-        """Where the others hold while `v` is silent (None: on the plan, now)."""
+    def _silent_hold(self, v: VehicleStatus) -> float | None:
+        """The flight time whose plan setpoints the others hold while `v` is silent (None:
+        the one reached)."""
         now = self.clock.flight_time()
         motion = predicted_landing(v, self.plan.scenario, self.options, self.clock,
                                    measured=True, unheard=True)
@@ -762,11 +758,10 @@ class FlightExecutor:
             positions.append(frames.ned_to_world(tel.position_ned, u.home))
             velocities.append(frames.ned_vector_to_world(tel.velocity_ned or (0.0, 0.0, 0.0)))
         flying = self.flown.current
-        hold = silent_hold(flying.plan, lambda s: motion.position(now + s), now - flying.start,
-                           held, np.array(positions).reshape(-1, 3),
-                           np.array(velocities).reshape(-1, 3), self._streamer().rate,
-                           required_separation(self.plan.scenario))
-        return SilentHold(hold.time + flying.start, hold.nudges)
+        return flying.start + silent_hold(
+            flying.plan, lambda s: motion.position(now + s), now - flying.start, held,
+            np.array(positions).reshape(-1, 3), np.array(velocities).reshape(-1, 3),
+            self._streamer().rate)
 
     def _on_heard(self, v: VehicleStatus) -> None:
         """A silent vehicle is heard again: resume when nothing else keeps the fleet held."""

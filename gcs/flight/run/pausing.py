@@ -8,27 +8,22 @@ limit) and tells it; the setpoints themselves change here, on the shared `Stream
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
-import numpy as np
-
-from gcs import frames
 from gcs.flight.link.setpoints import SetpointTrack, hold_track
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.run.clock import FlightClock, Pause
 from gcs.flight.run.stream import Streamer
-from planner.types import FloatArray
 
 __all__ = ["hold_fleet", "release_fleet"]
 
 
 def hold_fleet(streamer: Streamer, clock: FlightClock, vehicles: Sequence[VehicleStatus],
-               tracks: Sequence[SetpointTrack], at: float | None = None,
-               nudges: Mapping[str, FloatArray] | None = None) -> Pause:
+               tracks: Sequence[SetpointTrack], at: float | None = None) -> Pause:
     """Stop `clock` from the next tick and set every vehicle still streamed its plan track
-    to hold that track's setpoint of the plan time reached (or of flight time `at`), moved
-    by its world offset in `nudges`; a vehicle on another track (landing, stopped) is left
-    as it is. Returns the pause (`held`: the vehicles set to hold)."""
+    to hold that track's setpoint of the plan time reached (or of flight time `at`); a
+    vehicle on another track (landing, stopped) is left as it is. Returns the pause
+    (`held`: the vehicles set to hold)."""
     tick = streamer.next_tick()
     pause = clock.stop(tick, None if at is None else round(at * streamer.rate))
     for v, track in zip(vehicles, tracks, strict=True):
@@ -36,9 +31,8 @@ def hold_fleet(streamer: Streamer, clock: FlightClock, vehicles: Sequence[Vehicl
         if assignment is None or assignment.track is not track:
             continue  # landing (land_faulty) or already stopped: not ours to hold
         sp = track.at(pause.plan_tick)
-        nudge = frames.world_vector_to_ned((nudges or {}).get(v.id, np.zeros(3)))
-        streamer.assign(v.id, assignment.link, hold_track(sp.position + nudge, sp.yaw,
-                                                          streamer.rate), tick)
+        streamer.assign(v.id, assignment.link, hold_track(sp.position, sp.yaw, streamer.rate),
+                        tick)
         pause.held.append(v.id)
     return pause
 
