@@ -18,9 +18,10 @@ from gcs.autopilot import px4
 from gcs.fleet.fleetfile import VehicleSpec
 from gcs.flight.link.telemetry import Telemetry
 from gcs.flight.procedure.vehicle import VehicleStatus
+from gcs.flight.safety.monitor import Watched
 from gcs.wire import mavlink
 
-__all__ = ["FakeLink", "fake_link", "fake_vehicle"]
+__all__ = ["FakeLink", "Findings", "fake_link", "fake_vehicle"]
 
 
 class FakeLink:
@@ -111,3 +112,38 @@ def fake_vehicle(index: int, *, home: tuple[float, float, float] = (0.0, 0.0, 0.
     v.home = np.asarray(home, dtype=float)
     v.expect_offboard = True
     return v
+
+
+class Findings(Watched):
+    """A flight watched by a monitor in a test: a fixed flight time, the positions predicted
+    for unheard vehicles (by id), and what the monitor found, in order."""
+
+    def __init__(self, flight_time: float | None = None,
+                 predicted: dict[str, np.ndarray] | None = None,
+                 faults: list[tuple[str, str, float]] | None = None) -> None:
+        self.time = flight_time
+        self.guesses = predicted or {}
+        self.faults = faults if faults is not None else []
+        """(vehicle id, fault kind, GCS clock when found)."""
+        self.separations: list[tuple[float, float, str]] = []
+        """(closest, alarm, the pair named)."""
+        self.silent: list[str] = []
+        self.heard: list[str] = []
+
+    def flight_time(self) -> float | None:
+        return self.time
+
+    def predicted(self, v: VehicleStatus, t: float) -> np.ndarray | None:
+        return self.guesses.get(v.id)
+
+    def on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
+        self.faults.append((v.id, kind, time.monotonic()))
+
+    def on_separation(self, closest: float, alarm: float, between: str) -> None:
+        self.separations.append((closest, alarm, between))
+
+    def on_silent(self, v: VehicleStatus, silent: float) -> None:
+        self.silent.append(v.id)
+
+    def on_heard(self, v: VehicleStatus) -> None:
+        self.heard.append(v.id)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import json
 import sys
-import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -14,11 +13,13 @@ from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import Setpoint
 from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.safety.monitor import FleetMonitor
 from gcs.sim import MockFleet, homes_under
 from planner.result import Plan
+from tests.flight.fakes import Findings
 from tests.flight.support import (
     FAST_MOCK,
     QUICK,
@@ -70,10 +71,8 @@ def monitor_of(vehicles: list[VehicleStatus], faults: list[tuple[str, str, float
                stalls: StationStalls, options: FlightOptions | None = None) -> FleetMonitor:
     """A fault monitor of `vehicles` on a line plan, noting each fault in `faults`."""
     plan = smooth_plan(line_scenario(max(1, len(vehicles))))
-    return FleetMonitor(vehicles, plan, options or FlightOptions(), flight_time=lambda: None,
-                        on_fault=lambda v, kind, _d: faults.append((v.id, kind,
-                                                                    time.monotonic())),
-                        on_separation=lambda *_: None, stalls=stalls)
+    context = FlightContext(options or FlightOptions(), lambda *_: None, stalls)
+    return FleetMonitor(vehicles, plan, context, Findings(faults=faults))
 
 
 #: Every attack `tests/flight/attacker.py` knows.

@@ -12,8 +12,8 @@ import pytest
 
 from gcs.errors import GeofenceFailed
 from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import fence_upload, vehicle
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run import boarding
 from gcs.flight.run.boarding import fence_fleet, fence_vehicle
 from gcs.geofence import build_fence, fence_items
@@ -63,9 +63,9 @@ def _fence(vehicles: list[Any], options: FlightOptions = QUICK) -> list[tuple[An
     events: list[tuple[Any, str, str]] = []
 
     async def run() -> None:
-        await fence_fleet(vehicles, build_fence(WORKSPACE), options, None,
-                          lambda vid, kind, detail: events.append((vid, kind, detail)),
-                          StationStalls())
+        await fence_fleet(vehicles, build_fence(WORKSPACE),
+                          FlightContext(options, lambda vid, kind, detail:
+                                        events.append((vid, kind, detail))), None)
 
     asyncio.run(run())
     return events

@@ -15,7 +15,7 @@ from gcs.flight.run.events import EventFanout
 from gcs.flight.run.record import FlightRecorder
 from gcs.flight.run.snapshot import flight_snapshot
 from gcs.flight.safety.descent import DescentConflict, descent_conflicts
-from gcs.flight.safety.policy import FaultPolicy
+from gcs.flight.safety.policy import FaultPolicy, Responder
 from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_vehicle
 from tests.flight.support import short_line, smooth_plan
@@ -50,16 +50,29 @@ def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] 
     calls: list[Any] = []
     events: list[tuple[str | None, str]] = []
 
-    async def land(v: Any) -> None:
-        calls.append(("land", v.id))
+    class Carried(Responder):
+        """Notes what the policy asks for; an abort asked for is under way from then on; it
+        never replans (land_faulty's way then)."""
 
-    async def abort(action: str, reason: str) -> None:
-        calls.append(("abort", action, reason))
+        async def land(self, v: Any) -> None:
+            calls.append(("land", v.id))
+
+        async def abort(self, action: str, reason: str) -> None:
+            calls.append(("abort", action, reason))
+
+        def aborting(self) -> bool:
+            return any(call[0] == "abort" for call in calls)
+
+        def descent(self, v: Any) -> list[DescentConflict] | None:
+            return descent(v)
+
+        def replan(self, v: Any, kind: str) -> bool:
+            calls.append(("replan", v.id))
+            return False
 
     out = FaultPolicy(FlightContext(FlightOptions(policy=policy, landing=landing),
                                     lambda vid, kind, _d: events.append((vid, kind))),
-                      lambda: 1.0,
-                      land=land, abort=abort, aborting=lambda: False, descent=descent)
+                      lambda: 1.0, Carried())
     return out, calls, events
 
 
@@ -149,8 +162,7 @@ def test_a_separation_alarm_holds_everyone_once() -> None:
         p, calls, _events = _policy("land_faulty")
         p.on_separation(0.4, 0.7)
         await asyncio.gather(*p.tasks)
-        p.aborting = lambda: True  # the abort is under way: no second one
-        p.on_separation(0.3, 0.7)
+        p.on_separation(0.3, 0.7)  # the abort is under way: no second one
         return calls
 
     assert asyncio.run(main()) == [("abort", "hold", "separation 0.40 m")]
@@ -196,17 +208,19 @@ def test_dropped_packets_are_told_as_they_happen_at_most_every_five_seconds() ->
     """Someone else talking as a vehicle is told live (once per DROPS_NOTE_S per vehicle,
     with the counts and their rate since the last time, and the latest source), not only in
     the record."""
-    from gcs.flight.link.station import StationStalls
     from gcs.flight.safety.monitor import DROPS_NOTE_S, FleetMonitor
-    from tests.flight.fakes import fake_link
+    from tests.flight.fakes import Findings, fake_link
     from tests.flight.support import line_scenario, smooth_plan
 
     vehicles = [fake_vehicle(0), fake_vehicle(1)]
-    told: list[tuple[str, str]] = []
-    monitor = FleetMonitor(vehicles, smooth_plan(line_scenario(2)), FlightOptions(),
-                           flight_time=lambda: None, on_fault=lambda *_: None,
-                           on_separation=lambda *_: None, stalls=StationStalls(),
-                           on_drops=lambda v, detail: told.append((v.id, detail)))
+    told: list[tuple[str | None, str]] = []
+
+    def emit(vehicle: str | None, kind: str, detail: str = "") -> None:
+        assert kind == EventKind.DROPPED_PACKETS
+        told.append((vehicle, detail))
+
+    monitor = FleetMonitor(vehicles, smooth_plan(line_scenario(2)),
+                           FlightContext(FlightOptions(), emit), Findings())
     link = fake_link(vehicles[1])
     monitor.report_drops(100.0)
     assert told == []  # nothing dropped: nothing said

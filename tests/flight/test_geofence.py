@@ -13,8 +13,8 @@ from gcs import frames
 from gcs.autopilot import px4
 from gcs.errors import GeofenceFailed
 from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import vehicle as vehicle_module
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run import executor as executor_module
 from gcs.flight.run.boarding import fence_fleet, fence_vehicle
 from gcs.flight.run.executor import FlightExecutor
@@ -90,9 +90,9 @@ def _fence_fleet(vehicles: list, options: FlightOptions,
     events: list[tuple[Any, str, str]] = []
 
     async def run() -> None:
-        await fence_fleet(vehicles, build_fence(WORKSPACE), options, origin,
-                          lambda vid, kind, detail: events.append((vid, kind, detail)),
-                          StationStalls())
+        await fence_fleet(vehicles, build_fence(WORKSPACE),
+                          FlightContext(options, lambda vid, kind, detail:
+                                        events.append((vid, kind, detail))), origin)
 
     asyncio.run(run())
     return events

@@ -15,7 +15,7 @@ import pytest
 
 from gcs.errors import FleetFileError, PlanRejected
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
-from gcs.flight.link.station import StationStalls
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.run.record import goal_tolerance
 from gcs.flight.safety.margin import check_margin, scenario_for_fleet, separation_alarm_at
@@ -23,7 +23,7 @@ from gcs.flight.safety.monitor import FleetMonitor
 from gcs.phases import VehiclePhase
 from gcs.sim import MockFleet, homes_under
 from planner import Scenario
-from tests.flight.fakes import fake_vehicle
+from tests.flight.fakes import Findings, fake_vehicle
 from tests.flight.support import (
     FAST_MOCK,
     QUICK,
@@ -171,16 +171,14 @@ def test_the_live_alarm_lets_a_flight_use_its_margin_and_stops_one_below_r() -> 
     vehicles = [fake_vehicle(0), fake_vehicle(1)]
     for v in vehicles:
         v.phase = VehiclePhase.FLYING
-    alarms: list[tuple[float, float]] = []
-    monitor = FleetMonitor(vehicles, plan, FlightOptions(), flight_time=lambda: None,
-                           on_fault=lambda *_: None,
-                           on_separation=lambda closest, at: alarms.append((closest, at)),
-                           stalls=StationStalls())
+    found = Findings()
+    monitor = FleetMonitor(vehicles, plan, FlightContext(FlightOptions(), lambda *_: None),
+                           found)
     for gap in (1.4, 1.2, 1.1, 1.001):
         monitor.check_separation({"uav1": np.zeros(3), "uav2": np.array([gap, 0.0, 0.0])})
-    assert alarms == []
+    assert found.separations == []
     monitor.check_separation({"uav1": np.zeros(3), "uav2": np.array([0.95, 0.0, 0.0])})
-    assert alarms == [(pytest.approx(0.95), pytest.approx(1.0))]
+    assert found.separations == [(pytest.approx(0.95), pytest.approx(1.0), "uav1 and uav2")]
 
 
 def test_an_unheard_vehicle_counts_at_its_predicted_position_named_as_predicted() -> None:
@@ -195,14 +193,11 @@ def test_an_unheard_vehicle_counts_at_its_predicted_position_named_as_predicted(
         tel = v.linked.telemetry
         tel.position_ned, tel.velocity_ned = (0.0, east, -1.0), (0.0, 0.0, 0.0)
         tel.position_time = tel.message_time = now - (3.0 if v.id == "uav2" else 0.0)
-    alarms: list[tuple[float, float]] = []
-    monitor = FleetMonitor(vehicles, plan, FlightOptions(), flight_time=lambda: 5.0,
-                           on_fault=lambda *_: None,
-                           on_separation=lambda closest, at: alarms.append((closest, at)),
-                           stalls=StationStalls(),
-                           predicted=lambda v, t: np.array([0.5, 0.0, 1.0])
-                           if v.id == "uav2" else None)
+    found = Findings(5.0, {"uav2": np.array([0.5, 0.0, 1.0])})
+    monitor = FleetMonitor(vehicles, plan, FlightContext(FlightOptions(), lambda *_: None),
+                           found)
     monitor.check_separation(monitor.positions(now))
-    assert alarms == [(pytest.approx(0.5), pytest.approx(0.7))]
+    assert found.separations == [(pytest.approx(0.5), pytest.approx(0.7),
+                                  "uav1 and uav2 (predicted: unheard)")]
     assert monitor.predicted_ids == {"uav2"}
     assert monitor.closest_text() == "uav1 and uav2 (predicted: unheard)"

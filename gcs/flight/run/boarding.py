@@ -2,10 +2,11 @@
 rates, its geofence, then its autopilot's boarding steps to the climb to its start.
 
 The executor (`gcs.flight.run.executor`) runs `connect_vehicle` for every vehicle, then
-`fence_fleet` (`fence_vehicle` for every vehicle), then `prepare_vehicle` for every vehicle,
-concurrently; the commands themselves are the
-primitives of `gcs.flight.procedure.vehicle`. Every deadline is on the flight's `StationStalls`
-clock.
+`fence_fleet` (`fence_vehicle` for every vehicle), `set_failsafes`, then `prepare_vehicle` for
+every vehicle, concurrently; the commands themselves are the
+primitives of `gcs.flight.procedure.vehicle`. Each step takes the flight's `FlightContext`
+(`gcs.flight.procedure.context`): its options, its events, and the `StationStalls` clock every
+deadline is on.
 """
 
 from __future__ import annotations
@@ -18,21 +19,28 @@ import numpy as np
 from gcs import frames
 from gcs.autopilot import Autopilot
 from gcs.errors import GeofenceFailed, PreflightFailed
-from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import hold_track, transfer_track
-from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import vehicle
+from gcs.flight.procedure.context import FlightContext
+from gcs.flight.procedure.failsafe import (
+    column_conflicts,
+    failsafe_record,
+    layer_delays,
+    set_failsafe,
+)
 from gcs.flight.procedure.fence_upload import enable_fence, send_fence
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.flight.run.record import FlightRecorder
 from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.health import PreflightThresholds, preflight_problems
+from gcs.flight.safety.margin import required_separation
 from gcs.geofence import WorldFence, fence_items
 from gcs.phases import EventKind, VehiclePhase
+from planner import Plan
 
 __all__ = ["FENCE_RETRY_MARGIN_S", "FENCE_TRANSFERS", "arm_vehicle", "connect_vehicle",
            "fence_fleet", "fence_origin", "fence_retry_wait", "fence_vehicle", "preflight",
-           "prepare_vehicle"]
+           "prepare_vehicle", "set_failsafes"]
 
 #: Whole uploads (with read-back) of a vehicle's fence before the flight is refused, and the
 #: wait before each next (s): every message of one upload is already resent 5 times, so a
@@ -43,12 +51,13 @@ FENCE_TRANSFERS = 3
 FENCE_RETRY_MARGIN_S = 0.5
 
 
-async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
-                          world_origin: frames.Geodetic | None, recorder: FlightRecorder,
-                          emit: Emit, stalls: StationStalls, *, take_over: bool = False) -> None:
+async def connect_vehicle(v: VehicleStatus, context: FlightContext,
+                          world_origin: frames.Geodetic | None, recorder: FlightRecorder, *,
+                          take_over: bool = False) -> None:
     """First HEARTBEAT and position, home in the world frame (from `world_origin` when the
     fleet file gives none), the pre-flight gate, and the message rates when asked for
     (take_over: an armed vehicle is taken, not refused)."""
+    options, emit, stalls = context.options, context.emit, context.stalls
     link = v.linked
     await vehicle.connect(link, v.spec, options.connect_timeout, stalls,
                           position_hz=options.position_rate_hz, armed_ok=take_over)
@@ -59,7 +68,7 @@ async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
         v.home, source = await vehicle.resolve_home(link, v.id, world_origin, stalls)
         recorder.vehicles[v.id].home = v.home.tolist()
         emit(v.id, EventKind.HOME, f"from {source}: {np.round(v.home, 3).tolist()}")
-    await preflight(v, options, emit, stalls)
+    await preflight(v, context)
     if options.message_rates == "request":
         answers = await vehicle.request_message_rates(
             link, v.autopilot.message_rates(options.position_rate_hz), stalls)
@@ -71,22 +80,22 @@ async def connect_vehicle(v: VehicleStatus, options: FlightOptions,
                                     f"{np.round(v.home, 3).tolist()}")
 
 
-async def preflight(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                    stalls: StationStalls | None = None) -> None:
+async def preflight(v: VehicleStatus, context: FlightContext) -> None:
     """The pre-flight gate (`gcs.flight.safety.health`): wait up to `preflight_wait` for the
     vehicle to be fit; then refuse it (`PreflightFailed`), or with `preflight: override`
     record what was overridden and carry on."""
+    options = context.options
     limits = PreflightThresholds(min_battery_pct=options.min_battery_pct)
     link = v.linked
     if options.preflight == "check":
         await vehicle.wait_running(link, lambda t: not preflight_problems(t, limits),
-                                   options.preflight_wait, stalls)
+                                   options.preflight_wait, context.stalls)
     problems = preflight_problems(link.telemetry, limits)
     if not problems:
         return
     if options.preflight == "check":
         raise PreflightFailed(v.id, problems)
-    emit(v.id, EventKind.PREFLIGHT_OVERRIDE, "; ".join(problems))
+    context.emit(v.id, EventKind.PREFLIGHT_OVERRIDE, "; ".join(problems))
 
 
 def fence_origin(v: VehicleStatus, world_origin: frames.Geodetic | None
@@ -109,14 +118,14 @@ def fence_retry_wait(kind: Autopilot) -> float:
 
 
 async def fence_fleet(vehicles: Sequence[VehicleStatus], fence: WorldFence,
-                      options: FlightOptions, world_origin: frames.Geodetic | None,
-                      emit: Emit, stalls: StationStalls) -> None:
+                      context: FlightContext, world_origin: frames.Geodetic | None) -> None:
     """The fleet option `geofence` applied: upload `fence` to every vehicle, or say why not
     (`GeofenceFailed` when an explicit upload has no origin or fails)."""
+    options, emit = context.options, context.emit
     if options.geofence == "skip":
         emit(None, EventKind.GEOFENCE_SKIPPED, "fleet option geofence: skip")
         return
-    await asyncio.gather(*(vehicle.ask_origin(v.linked, stalls) for v in vehicles))
+    await asyncio.gather(*(vehicle.ask_origin(v.linked, context.stalls) for v in vehicles))
     missing = [v.id for v in vehicles if fence_origin(v, world_origin) is None]
     if missing:
         why = (f"no geodetic origin for {', '.join(missing)}: no GPS_GLOBAL_ORIGIN reported "
@@ -174,9 +183,8 @@ async def fence_vehicle(v: VehicleStatus, fence: WorldFence,
                                    + (f", {enabled}" if enabled else ""))
 
 
-async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightOptions,
-                          yaw_ned: float, emit: Emit, stalls: StationStalls,
-                          world_origin: frames.Geodetic | None = None, *,
+async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, context: FlightContext,
+                          yaw_ned: float, world_origin: frames.Geodetic | None = None, *,
                           on_ground: bool = False) -> None:
     """Take `v` from disarmed on the ground to streaming the climb to its start
     (`v.start_ned`) by its autopilot's boarding steps (`Autopilot.boarding`: PX4 prestreams,
@@ -185,6 +193,7 @@ async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightO
     `on_ground`: its plan starts where it stands and takes off by itself; only the steps up
     to the mode that follows setpoints are taken (`Autopilot.ground_boarding`: arming and
     the takeoff are `gcs.flight.run.ground`'s, on the flight clock)."""
+    options, emit, stalls = context.options, context.emit, context.stalls
     link = v.linked
     kind = v.autopilot
     here = np.asarray(link.telemetry.position_ned, dtype=float)
@@ -193,7 +202,7 @@ async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightO
             streamer.assign(v.id, link, hold_track(here, yaw_ned, options.rate_hz))
             await asyncio.sleep(options.prestream)
         elif step == "origin":
-            await _ensure_origin(v, world_origin, emit, stalls)
+            await _ensure_origin(v, world_origin, context)
         elif step == "follow":
             v.phase = VehiclePhase.ARMING
             await vehicle.set_mode(link, kind.follow_mode,
@@ -202,7 +211,7 @@ async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightO
             emit(v.id, EventKind.MODE, f"{kind.follow_mode.name} confirmed")
             v.expect_offboard = True
         elif step == "arm":
-            await arm_vehicle(v, options, emit, stalls)
+            await arm_vehicle(v, context)
         elif step == "takeoff":
             assert v.start_ned is not None
             height = await vehicle.take_off(link, -float(v.start_ned[2]),
@@ -220,8 +229,8 @@ async def prepare_vehicle(v: VehicleStatus, streamer: Streamer, options: FlightO
             raise ValueError(f"unknown boarding step {step!r}")
 
 
-async def arm_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
-                      stalls: StationStalls, timeout: float | None = None) -> None:
+async def arm_vehicle(v: VehicleStatus, context: FlightContext,
+                      timeout: float | None = None) -> None:
     """Arm `v` (retried for `timeout`, the fleet's `arm_timeout` by default), recording that
     an arming command went out and that one was accepted."""
 
@@ -231,19 +240,21 @@ async def arm_vehicle(v: VehicleStatus, options: FlightOptions, emit: Emit,
     def accepted() -> None:
         v.armed_by_us = True
 
+    options = context.options
     v.phase = VehiclePhase.ARMING
     attempts = await vehicle.arm(v.linked, timeout=options.arm_timeout if timeout is None
                                  else timeout,
                                  confirm_timeout=options.heartbeat_timeout,
-                                 on_attempt=attempt, on_accepted=accepted, stalls=stalls)
-    emit(v.id, EventKind.ARMED, f"after {attempts} attempt(s)")
+                                 on_attempt=attempt, on_accepted=accepted,
+                                 stalls=context.stalls)
+    context.emit(v.id, EventKind.ARMED, f"after {attempts} attempt(s)")
 
 
-async def _ensure_origin(v: VehicleStatus, world_origin: frames.Geodetic | None, emit: Emit,
-                         stalls: StationStalls) -> None:
+async def _ensure_origin(v: VehicleStatus, world_origin: frames.Geodetic | None,
+                         context: FlightContext) -> None:
     """`v` has an EKF origin (GPS_GLOBAL_ORIGIN), or gets one at its home placed by the
     fleet's `world_origin` (SET_GPS_GLOBAL_ORIGIN); `PreflightFailed` when neither."""
-    link = v.linked
+    link, stalls = v.linked, context.stalls
     if await vehicle.ask_origin(link, stalls):
         return
     if world_origin is None:
@@ -254,5 +265,38 @@ async def _ensure_origin(v: VehicleStatus, world_origin: frames.Geodetic | None,
     if not await vehicle.set_origin(link, geodetic, stalls):
         raise PreflightFailed(v.id, ["its EKF origin was set (SET_GPS_GLOBAL_ORIGIN) but it "
                                      "does not report one (GPS_GLOBAL_ORIGIN)"])
-    emit(v.id, EventKind.HOME, f"EKF origin set at its home: lat {geodetic.lat:.7f}, "
-                               f"lon {geodetic.lon:.7f}, alt {geodetic.alt:.2f} m")
+    context.emit(v.id, EventKind.HOME, f"EKF origin set at its home: lat {geodetic.lat:.7f}, "
+                                       f"lon {geodetic.lon:.7f}, alt {geodetic.alt:.2f} m")
+
+
+async def set_failsafes(vehicles: Sequence[VehicleStatus], plan: Plan, context: FlightContext,
+                        recorder: FlightRecorder) -> None:
+    """Before arming, each vehicle's own link-loss failsafe is set from the plan (Hold
+    where its column meets another's, else Land by altitude layer, lowest first:
+    `gcs.flight.procedure.failsafe`), told per vehicle and recorded; a vehicle that does
+    not take it refuses the flight (`FailsafeNotSet`) unless the fleet option
+    `failsafe` is `try`."""
+    delays = layer_delays(plan, context.options.land_speed)
+    conflicts = column_conflicts(plan, required_separation(plan.scenario))
+
+    def why(vid: str) -> str:
+        c = conflicts.get(vid)
+        if c is None:
+            return "its column keeps R from every other's"
+        where = "onto" if c.above else "under"
+        return (f"its column comes {c.gap:.2f} m from {c.other}'s at t={c.t:.1f} s: it "
+                f"hovers where the plan keeps R instead of landing {where} it")
+
+    await asyncio.gather(*(set_failsafe(v, delays[v.index], v.id in conflicts, context,
+                                        why=why(v.id))
+                           for v in vehicles))
+    for v in vehicles:
+        recorder.vehicles[v.id].failsafe = {
+            **failsafe_record(v.failsafe), "set": v.failsafe_before is not None,
+            "why": why(v.id)}
+    hovering = [v.id for v in vehicles if v.failsafe.effective == "Hold"]
+    if hovering:
+        context.emit(None, EventKind.FAILSAFE, (
+            f"if the station is lost, {', '.join(hovering)} hover (their columns meet "
+            f"others'); land them by plan from a station: fleetplan fleet land --plan "
+            f"PLAN.json --fleet FLEET.json"))

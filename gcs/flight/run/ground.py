@@ -28,13 +28,11 @@ import numpy as np
 
 from gcs import frames
 from gcs.errors import GcsError, PlanRejected, PreflightFailed
-from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack
-from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import vehicle
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.endings import land_vehicle, wait_disarmed
-from gcs.flight.procedure.vehicle import Emit, VehicleStatus
+from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.run.boarding import arm_vehicle
 from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.stream import Streamer
@@ -155,19 +153,18 @@ class GroundShow:
         return ("a plan that takes off from or lands on the ground is not replanned in flight "
                 "(its takeoff and landing waves are the plan's); abort lands every vehicle")
 
-    async def board(self, vehicles: Sequence[VehicleStatus], options: FlightOptions,
-                    emit: Emit, stalls: StationStalls) -> None:
+    async def board(self, vehicles: Sequence[VehicleStatus], context: FlightContext) -> None:
         """Before the flight clock starts: every vehicle on the ground stands at its place in
         the plan (`PreflightFailed` naming it otherwise), and those whose takeoff time is
         within `ARM_LEAD_S` of it are armed (again, for one an autopilot disarmed while
         another took long to arm)."""
         for v in vehicles:
             if self.on_ground(v):
-                _check_at_home(v, options.start_tolerance)
+                _check_at_home(v, context.options.start_tolerance)
         first = [v for v in vehicles if self.on_ground(v)
                  and (self.spans[v.id].liftoff or 0.0) < ARM_LEAD_S]
         for _ in range(2):
-            await asyncio.gather(*(arm_vehicle(v, options, emit, stalls) for v in first
+            await asyncio.gather(*(arm_vehicle(v, context) for v in first
                                    if not v.linked.telemetry.armed))
 
     async def fly(self, vehicles: Sequence[VehicleStatus], tracks: Sequence[SetpointTrack],
@@ -187,18 +184,17 @@ class GroundShow:
 
     async def _fly_one(self, v: VehicleStatus, track: SetpointTrack, streamer: Streamer,
                        clock: FlightClock, context: FlightContext) -> None:
-        options, emit, stalls = context.options, context.emit, context.stalls
         span = self.spans[v.id]
         if span.liftoff is not None:
             if not v.linked.telemetry.armed:
                 await _until(clock, span.liftoff - ARM_LEAD_S)
                 if not _flown(v):
                     return
-                await arm_vehicle(v, options, emit, stalls, timeout=ARM_LEAD_S)
+                await arm_vehicle(v, context, timeout=ARM_LEAD_S)
             await _until(clock, span.liftoff)
             if not _flown(v):
                 return
-            await _lift_off(v, track, span.liftoff, streamer, clock, options, emit, stalls)
+            await _lift_off(v, track, span.liftoff, streamer, clock, context)
         if span.touchdown is not None:
             await _until(clock, span.touchdown)
             if not _flown(v):
@@ -214,14 +210,15 @@ def _flown(v: VehicleStatus) -> bool:
 
 
 async def _lift_off(v: VehicleStatus, track: SetpointTrack, t: float, streamer: Streamer,
-                    clock: FlightClock, options: FlightOptions, emit: Emit,
-                    stalls: StationStalls) -> None:
+                    clock: FlightClock, context: FlightContext) -> None:
     """`v` leaves the ground at plan time `t` by its autopilot's way (`Autopilot.liftoff`)."""
+    emit = context.emit
     if v.autopilot.liftoff == "takeoff":
         v.phase = VehiclePhase.CLIMBING
         ahead = track.at(round((t + TAKEOFF_AHEAD_S) * track.rate)).position
         height = await vehicle.take_off(v.linked, -float(ahead[2]), up_at=HANDOVER_M,
-                                        timeout=options.gather_timeout, stalls=stalls)
+                                        timeout=context.options.gather_timeout,
+                                        stalls=context.stalls)
         while clock.pause is not None:  # paused meanwhile: it holds its takeoff height
             await asyncio.sleep(_POLL_S)
         streamer.assign(v.id, v.linked, track, clock.start_tick)

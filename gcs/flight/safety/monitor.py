@@ -21,16 +21,18 @@ Then the live minimum separation over every vehicle in the air (the plan's metri
 vehicle counts at its predicted position, and the alarm names it as predicted), with an
 alarm below the clearance the vehicles must keep minus the alarm band
 (`gcs.flight.safety.margin.separation_alarm_at`). The monitor only detects: what to do is the
-executor's (`on_fault`, `on_separation`).
+flight's: the monitor tells what it finds to the flight it watches (`Watched`, the flight's
+fault routing: `gcs.flight.run.faults`).
 
 Packets with a vehicle's system id that its link dropped (another address, another
-component, bad signatures: `SecurityCounters`) are told as they happen (`on_drops`, at most
-once per `DROPS_NOTE_S` per vehicle, with their rate over the time since the last report),
+component, bad signatures: `SecurityCounters`) are told as they happen (a `dropped_packets`
+event, at most once per `DROPS_NOTE_S` per vehicle, with their rate over the time since the
+last report),
 not only in the record: someone else is talking to the fleet.
 
 Each link's quality is judged once a second (`gcs.flight.link.quality.LinkWatch`): a link
 that degrades (loss, latency or jitter over its bounds) is told with its figures
-(`on_link(vehicle, "link_degraded", text)`), and again when it recovers; not a fault.
+(a `link_degraded` event), and again when it recovers (`link_recovered`); not a fault.
 
 The station's own stalls (`gcs.flight.link.station`) are not a vehicle's fault: the monitor notes
 each of its wake-ups later than `STALL_NOTE_S`; the link and heartbeat gaps count in
@@ -47,6 +49,7 @@ import asyncio
 import math
 import time
 from collections.abc import Callable, Sequence
+from typing import Protocol
 
 import numpy as np
 
@@ -57,17 +60,17 @@ from gcs.flight.link.quality import WINDOW_S as LINK_WINDOW_S
 from gcs.flight.link.quality import LinkWatch
 from gcs.flight.link.signing import REPEATED_TIMESTAMPS
 from gcs.flight.link.station import STALL_NOTE_S, StationStalls
+from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus, address_text
 from gcs.flight.safety.margin import separation_alarm_at
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
 from planner import Plan
 
-__all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "drops_text",
-           "vehicle_fault"]
+__all__ = ["CATCH_UP_S", "PERIOD", "FleetMonitor", "Watched", "drops_text", "vehicle_fault"]
 
 #: Seconds between two checks.
 PERIOD = 0.05
-#: A vehicle unheard this long (s) is told (`on_silent`) before it is declared lost at
+#: A vehicle unheard this long (s) is told (`Watched.on_silent`) before it is declared lost at
 #: `link_timeout`, and the flight holds near the plan where the others keep the most room
 #: from its predicted motion (`gcs.flight.safety.silence`). The sooner, the more room there
 #: is: a lost vehicle flies on on its last setpoint while the others still follow the plan
@@ -79,10 +82,40 @@ SILENT_HOLD_S = 0.5
 CATCH_UP_S = 3.0
 _TRACKED = (VehiclePhase.FLYING, VehiclePhase.HOLDING)
 
-#: Called with (vehicle, fault kind, detail).
-FaultCallback = Callable[[VehicleStatus, str, str], None]
-#: Called with (closest distance, alarm threshold) when two vehicles are too close.
-SeparationCallback = Callable[[float, float], None]
+class Watched(Protocol):
+    """The flight a `FleetMonitor` watches: where its vehicles are meant to be, and what it
+    does with what the monitor finds. Each method here is the answer of a flight that knows
+    nothing more than its first plan and does nothing with a finding; the flight's fault
+    routing (`gcs.flight.run.faults.FaultRouter`) is the one that acts."""
+
+    def flight_time(self) -> float | None:
+        """Seconds on the shared flight clock (None before it started: nothing is tracked)."""
+        return None
+
+    def planned(self, v: VehicleStatus, times: Sequence[float] | np.ndarray) -> np.ndarray | None:
+        """`v`'s planned world positions at flight `times`, (T, 3), replans included; None:
+        the monitor's plan."""
+        return None
+
+    def predicted(self, v: VehicleStatus, t: float) -> np.ndarray | None:
+        """Where `v`, off the plans, is predicted at flight time `t` (None when not known):
+        it stands in for its position once its reports are older than `link_timeout` (a
+        faulty vehicle landing on its own)."""
+        return None
+
+    def on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
+        """`v` is faulty (`vehicle_fault`'s kinds, or ``tracking_error``)."""
+
+    def on_separation(self, closest: float, alarm: float, between: str) -> None:
+        """Two vehicles are `closest` m apart (the plan's metric), below `alarm` m; `between`
+        names them (`FleetMonitor.closest_text`)."""
+
+    def on_silent(self, v: VehicleStatus, silent: float) -> None:
+        """`v`, meant to follow setpoints, has been unheard for `silent` s
+        (> `SILENT_HOLD_S`); told once until it is heard again."""
+
+    def on_heard(self, v: VehicleStatus) -> None:
+        """`v`, told silent, is heard again."""
 
 
 def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
@@ -131,15 +164,6 @@ def _warnings_text(warnings: Sequence[str], title: str) -> str:
 #: A vehicle's newly dropped packets are told at most this often (s).
 DROPS_NOTE_S = 5.0
 
-DropsCallback = Callable[[VehicleStatus, str], None]
-#: Called with (vehicle id, event kind, detail) when a link degrades or recovers.
-LinkCallback = Callable[[str, str, str], None]
-#: (vehicle, flight times) -> its planned world positions there, (T, 3).
-PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.ndarray]
-#: (vehicle, flight time) -> its predicted world position, or None.
-PredictedCallback = Callable[[VehicleStatus, float], "np.ndarray | None"]
-
-
 def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
                window: float = 0.0) -> str:
     """"40 more packets dropped in 5.0 s, 8.0/s (40 unsigned), the latest from
@@ -162,52 +186,33 @@ def drops_text(delta: dict[str, int], latest: tuple[object, int] | None,
 class FleetMonitor:
     """Checks every vehicle of a flight and the fleet's separation (see the module)."""
 
-    def __init__(self, vehicles: Sequence[VehicleStatus], plan: Plan, options: FlightOptions,
-                 *, flight_time: Callable[[], float | None], on_fault: FaultCallback,
-                 on_separation: SeparationCallback,
-                 stalls: StationStalls | None = None,
-                 on_drops: DropsCallback | None = None,
-                 planned: PlannedCallback | None = None,
-                 predicted: PredictedCallback | None = None,
-                 on_silent: Callable[[VehicleStatus, float], None] | None = None,
-                 on_heard: Callable[[VehicleStatus], None] | None = None,
-                 on_link: LinkCallback | None = None) -> None:
+    def __init__(self, vehicles: Sequence[VehicleStatus], plan: Plan, context: FlightContext,
+                 watched: Watched) -> None:
         self.vehicles = vehicles
-        self.on_silent = on_silent
-        """Called once when a vehicle meant to be in OFFBOARD has been unheard for
-        `SILENT_HOLD_S` (with how long), `on_heard` when it is heard again."""
-        self.on_heard = on_heard
+        self.plan = plan
+        self.options: FlightOptions = context.options
+        self.emit = context.emit
+        """Tells the dropped packets and the links' quality as events."""
+        self.watched = watched
+        """The flight watched: what it plans and predicts, and what it does with a finding."""
         self.silent: set[str] = set()
         """The vehicles told silent and not heard since."""
-        self._link_watch = None if on_link is None else LinkWatch(
-            lambda vid, text: on_link(vid, EventKind.LINK_DEGRADED, text),
-            lambda vid, text: on_link(vid, EventKind.LINK_RECOVERED, text))
+        self._link_watch = LinkWatch(
+            lambda vid, text: self.emit(vid, EventKind.LINK_DEGRADED, text),
+            lambda vid, text: self.emit(vid, EventKind.LINK_RECOVERED, text))
         """Each link's quality judged once a second (`gcs.flight.link.quality`)."""
-        self.planned = planned
-        """Where a vehicle is meant to be at flight times (the flight's plans, replans
-        included: `gcs.flight.run.flown`); None: `plan`."""
-        self.predicted = predicted
-        """Where a vehicle off the plans is predicted at a flight time (None when not
-        known): stands in for its position once its reports are older than
-        `link_timeout` (a faulty vehicle landing on its own)."""
-        self.on_drops = on_drops
         self._drops_told: dict[str, tuple[dict[str, int], float]] = {}
         """Per vehicle: the counters last told and when."""
         self._drops_since: float | None = None
         """When the drops were first looked at (the first report's window starts there)."""
-        self.plan = plan
-        self.options = options
-        self.flight_time = flight_time
-        self.on_fault = on_fault
-        self.on_separation = on_separation
         self.min_separation = math.inf
         """Smallest separation seen so far (the plan's metric, m)."""
         self.closest_pair: tuple[str, str] | None = None
         """The two vehicles closest at the last check."""
         self.predicted_ids: set[str] = set()
         """The vehicles whose position at the last check was predicted, not reported (they
-        are unheard: `predicted`)."""
-        self.stalls = stalls if stalls is not None else StationStalls()
+        are unheard: `Watched.predicted`)."""
+        self.stalls = context.stalls
         """The station's own stalls, which this monitor's late wake-ups add to."""
         self._scale = np.asarray(plan.scenario.separation_scale, dtype=float)
 
@@ -232,15 +237,14 @@ class FleetMonitor:
         """Every vehicle's world position at `now`, extrapolated from its last report."""
         out = {}
         self.predicted_ids = set()
-        t_flight = self.flight_time() if self.predicted is not None else None
+        t_flight = self.watched.flight_time()
         for v in self.vehicles:
             if v.link is None or v.home is None:
                 continue
             tel = v.link.telemetry
-            if (self.predicted is not None and t_flight is not None
-                    and tel.position_time is not None
+            if (t_flight is not None and tel.position_time is not None
                     and self.stalls.age(tel.position_time, now) > self.options.link_timeout):
-                guess = self.predicted(v, t_flight)
+                guess = self.watched.predicted(v, t_flight)
                 if guess is not None:
                     out[v.id] = guess
                     self.predicted_ids.add(v.id)
@@ -255,7 +259,7 @@ class FleetMonitor:
         """One pass: flag faulty vehicles, update the separation, raise its alarm; with
         `positions` false only the link, heartbeat and mode checks run."""
         opts = self.options
-        t_flight = self.flight_time()
+        t_flight = self.watched.flight_time()
         where = self.positions(now) if positions else {}
         trail = self.stalls.ended_since(now - CATCH_UP_S)
         for v in self.vehicles:
@@ -265,25 +269,22 @@ class FleetMonitor:
             self._silence(v, now)
             fault = vehicle_fault(v.link, opts, now, self.stalls)
             if fault is not None:
-                self.on_fault(v, *fault)
+                self.watched.on_fault(v, *fault)
             elif t_flight is not None and v.phase in _TRACKED and v.id in where:
                 v.tracking_error = self._tracking_error(v, where[v.id], t_flight, trail)
                 if not v.tracking_error <= opts.tracking_error_max:  # NaN never passes
-                    self.on_fault(v, "tracking_error",
+                    self.watched.on_fault(v, "tracking_error",
                                   f"{v.tracking_error:.2f} m from the plan "
                                   f"(bound {opts.tracking_error_max:g} m)")
         if positions:
             self.check_separation(where)
-        if self.on_drops is not None:
-            self.report_drops(now)
-        if self._link_watch is not None:
-            self._link_watch.check({v.id: v.link.telemetry.quality for v in self.vehicles
-                                    if v.link is not None}, now,
-                                   self.stalls.ended_since(now - LINK_WINDOW_S) > 0.0)
+        self.report_drops(now)
+        self._link_watch.check({v.id: v.link.telemetry.quality for v in self.vehicles
+                                if v.link is not None}, now,
+                               self.stalls.ended_since(now - LINK_WINDOW_S) > 0.0)
 
     def report_drops(self, now: float) -> None:
         """Tell each vehicle's packets dropped since last told (at most every DROPS_NOTE_S)."""
-        assert self.on_drops is not None
         if self._drops_since is None:
             self._drops_since = now
         for v in self.vehicles:
@@ -299,7 +300,8 @@ class FleetMonitor:
                           if delta.get(k)), default=None, key=lambda item: delta[item[0]])
             self._drops_told[v.id] = (counts, now)
             window = now - (when if math.isfinite(when) else self._drops_since)
-            self.on_drops(v, drops_text(delta, None if latest is None else latest[1], window))
+            self.emit(v.id, EventKind.DROPPED_PACKETS,
+                      drops_text(delta, None if latest is None else latest[1], window))
 
     def _silence(self, v: VehicleStatus, now: float) -> None:
         """Tell a vehicle falling silent, and heard again."""
@@ -307,12 +309,10 @@ class FleetMonitor:
         silent = self.stalls.age(v.link.telemetry.message_time, now)
         if silent > SILENT_HOLD_S and v.id not in self.silent:
             self.silent.add(v.id)
-            if self.on_silent is not None:
-                self.on_silent(v, silent)
+            self.watched.on_silent(v, silent)
         elif silent <= SILENT_HOLD_S and v.id in self.silent:
             self.silent.discard(v.id)
-            if self.on_heard is not None:
-                self.on_heard(v)
+            self.watched.on_heard(v)
 
     def closest_text(self) -> str:
         """"uav2 (predicted: unheard) and uav3": the pair closest at the last check."""
@@ -328,9 +328,8 @@ class FleetMonitor:
         plan = self.plan
         times = [t] if trail <= 0 else np.linspace(max(0.0, t - trail), t, min(
             64, 2 + math.ceil(4 * trail / plan.scenario.dt)))
-        if self.planned is not None:
-            planned = self.planned(v, times)
-        else:
+        planned = self.watched.planned(v, times)
+        if planned is None:
             planned = plan.vehicles[v.index].sample(plan.scenario.dt, times).position
         return float(np.min(np.linalg.norm(planned - position, axis=1)))
 
@@ -349,4 +348,4 @@ class FleetMonitor:
             self.min_separation = min(self.min_separation, closest)
             alarm = separation_alarm_at(plan.scenario, opts.separation_alarm)
             if not closest >= alarm:  # a distance that is not a number alarms too
-                self.on_separation(closest, alarm)
+                self.watched.on_separation(closest, alarm, self.closest_text())

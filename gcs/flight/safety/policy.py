@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Awaitable, Callable
+from typing import Protocol
 
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus
@@ -28,33 +29,47 @@ from gcs.flight.safety.landing import STEERABLE_FAULTS
 from gcs.phases import EventKind, VehiclePhase
 from gcs.tasks import TaskSet
 
-__all__ = ["FaultPolicy"]
+__all__ = ["FaultPolicy", "Responder"]
+
+
+class Responder(Protocol):
+    """What carries out the policy's decisions on the flight (its fault routing:
+    `gcs.flight.run.faults.FaultRouter`)."""
+
+    def land(self, v: VehicleStatus) -> Awaitable[None]:
+        """Sends one vehicle down (its stream stops)."""
+        ...
+
+    def abort(self, action: str, reason: str) -> Awaitable[None]:
+        """Stops the whole flight: every vehicle to `action` (land | hold)."""
+        ...
+
+    def aborting(self) -> bool:
+        """True once an abort is in force."""
+        ...
+
+    def descent(self, v: VehicleStatus) -> list[DescentConflict] | None:
+        """The others whose plan `v`'s straight descent would come too close to
+        (`gcs.flight.safety.descent`), or None when it cannot be checked."""
+        ...
+
+    def replan(self, v: VehicleStatus, kind: str) -> bool:
+        """Policy replan: lands `v` on its own motion and replans the others around it
+        (`gcs.flight.replan.replan`); False when it cannot: land_faulty's way then."""
+        ...
 
 
 class FaultPolicy:
-    """Reacts to the monitor's findings (`FleetMonitor.on_fault`, `on_separation`)."""
+    """Decides what the monitor's findings do (`gcs.flight.safety.monitor.Watched`:
+    `on_fault`, `on_separation`)."""
 
-    def __init__(self, context: FlightContext, now: Callable[[], float], *,
-                 land: Callable[[VehicleStatus], Awaitable[None]],
-                 abort: Callable[[str, str], Awaitable[None]],
-                 aborting: Callable[[], bool],
-                 descent: Callable[[VehicleStatus], list[DescentConflict] | None]
-                 = lambda v: None,
-                 replan: Callable[[VehicleStatus, str], None] | None = None) -> None:
+    def __init__(self, context: FlightContext, now: Callable[[], float],
+                 responder: Responder) -> None:
         self.options = context.options
         self.emit = context.emit
         self.now = now
-        self.land = land
-        """Sends one vehicle down (its stream stops)."""
-        self.abort = abort
-        """Stops the whole flight: (action land | hold, reason)."""
-        self.aborting = aborting
-        self.descent = descent
-        """The others whose plan a vehicle's straight descent would come too close to
-        (`gcs.flight.safety.descent`), or None when it cannot be checked."""
-        self.replan = replan
-        """Policy replan: lands the faulty vehicle on its own motion and replans the others
-        around it (`FlightExecutor`, `gcs.flight.replan.replan`); None: land_faulty's way."""
+        self.responder = responder
+        """Carries out what the policy decides (lands, aborts, replans)."""
         self.tasks = TaskSet()
         """The landings and aborts started here."""
         self.landings: list[asyncio.Future[None]] = []
@@ -68,29 +83,29 @@ class FaultPolicy:
         policy = self.options.policy
         self.emit(v.id, EventKind.FAULT, f"{kind}: {detail} -> policy {policy}")
         if policy == "replan":
-            if self.replan is not None:
-                self.replan(v, kind)
+            if self.responder.replan(v, kind):
                 return
             policy = "land_faulty"
         if policy == "land_faulty" and self.options.landing == "planned" \
                 and self.options.policy != "replan":
             if kind in STEERABLE_FAULTS:  # it follows setpoints: everyone lands by a plan
-                self.tasks.spawn(self.abort("land", f"{v.id} {kind} ({detail}): land_faulty "
-                                                    f"lands the fleet by a landing plan"))
+                self.tasks.spawn(self.responder.abort(
+                    "land", f"{v.id} {kind} ({detail}): land_faulty lands the fleet by a "
+                            f"landing plan"))
                 return
             self.emit(v.id, EventKind.LANDING_FALLBACK, f"PX4 Land: cannot be steered "
                                                         f"(fault {kind})")
         if policy == "land_faulty":
-            self.landings.append(self.tasks.spawn(self.land(v)))
+            self.landings.append(self.tasks.spawn(self.responder.land(v)))
             self.give_way(v)
         else:
             action = "hold" if policy == "hold_all" else "land"
-            self.tasks.spawn(self.abort(action, f"{v.id} {kind} ({detail})"))
+            self.tasks.spawn(self.responder.abort(action, f"{v.id} {kind} ({detail})"))
 
     def give_way(self, v: VehicleStatus) -> None:
         """`v` goes straight down: the others fly on only where its descent was checked
         clear of their plans; otherwise they land by a plan around it (or hold, `_around`)."""
-        conflicts = self.descent(v)
+        conflicts = self.responder.descent(v)
         action = "land by a plan around it" if self._around() else "hold"
         if conflicts is None:
             self.emit(v.id, EventKind.DESCENT_CONFLICT, f"descent not checked (position or "
@@ -105,9 +120,9 @@ class FaultPolicy:
                               for c in conflicts)
             self.emit(v.id, EventKind.DESCENT_CONFLICT,
                       f"straight descent too close to {named}: the others {action}")
-        if not self.aborting():
+        if not self.responder.aborting():
             action = "land" if self._around() else "hold"
-            self.tasks.spawn(self.abort(action, f"{v.id} lands across the others' plans"))
+            self.tasks.spawn(self.responder.abort(action, f"{v.id} lands across the others' plans"))
 
     def _around(self) -> bool:
         """True when an abort with land flies a landing plan that keeps clear of a vehicle
@@ -116,9 +131,9 @@ class FaultPolicy:
 
     def on_separation(self, closest: float, alarm: float, between: str = "") -> None:
         """Two vehicles (`between`, named) closer than `alarm`: every vehicle to Hold."""
-        if self.aborting():
+        if self.responder.aborting():
             return
         named = f" ({between})" if between else ""
         self.emit(None, EventKind.SEPARATION_ALARM,
                   f"vehicles{named} {closest:.2f} m apart (alarm below {alarm:.2f} m)")
-        self.tasks.spawn(self.abort("hold", f"separation {closest:.2f} m"))
+        self.tasks.spawn(self.responder.abort("hold", f"separation {closest:.2f} m"))
