@@ -2,7 +2,7 @@
 
 Starts `fleetplan mock` (python -m gcs.cli.main mock) with N vehicles on free ports, connects
 one `gcs.flight.link.hub.LinkHub`, and streams every vehicle a moving setpoint track through the
-shared clock (`gcs.flight.run.stream.Streamer`) at RATE Hz for DURATION s. Prints one JSON
+shared clock (`gcs.flight.timeline.stream.Streamer`) at RATE Hz for DURATION s. Prints one JSON
 document: scenario, achieved rate, send-instant jitter p50/p99/max (lateness of each send against
 its tick's scheduled instant), missed ticks, CPU of the GCS process and of the mock process, machine
 info. With --repeat R it runs R times per mode and also reports the medians. Floor: p99 jitter
@@ -64,7 +64,7 @@ from gcs.flight.link.link import DECODED_IDS, VehicleLink
 from gcs.flight.link.setpoints import Setpoint, SetpointTrack
 from gcs.flight.link.signing import LinkSigning
 from gcs.flight.procedure.vehicle import request_message_rates
-from gcs.flight.run.stream import Streamer, jitter_stats
+from gcs.flight.timeline.stream import Streamer, jitter_stats
 from gcs.sim.ports import free_udp_base
 from gcs.wire import SigningKey, mavlink, new_key_file, signing_timestamp
 

@@ -9,6 +9,7 @@ seconds (events on the GCS clock, the rest in flight time), positions in the wor
 
 from __future__ import annotations
 
+import math
 from typing import NotRequired, TypedDict
 
 __all__ = [
@@ -21,6 +22,7 @@ __all__ = [
     "ReplanDocument",
     "SensorReport",
     "VehicleSnapshot",
+    "finite_or_none",
 ]
 
 
@@ -139,3 +141,8 @@ class FlightSnapshot(TypedDict):
     """How many events the flight has logged so far."""
     replan: ReplanDocument | None
     """The replan under way, or the last one (None before any)."""
+
+
+def finite_or_none(x: float | None) -> float | None:
+    """`x` as a float, or None when it is None, NaN or infinite (JSON has no NaN/Infinity)."""
+    return None if x is None or not math.isfinite(x) else float(x)

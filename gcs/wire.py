@@ -44,6 +44,7 @@ __all__ = [
     "GCS_SYSTEM_ID",
     "KEY_BYTES",
     "MAV_FRAME_LOCAL_NED",
+    "MAX_RATE_HZ",
     "PARAM_TYPES",
     "PX4_UNSIGNED_ACCEPTED",
     "SIGNING_EPOCH_UNIX",
@@ -70,6 +71,10 @@ __all__ = [
     "signing_timestamp",
     "time_boot_ms",
 ]
+
+#: The highest setpoint rate the station streams (Hz): a fleet file's `rate_hz` and a setpoint
+#: track are held to it.
+MAX_RATE_HZ = 100.0
 
 #: The GCS's own MAVLink identity: system 255, MAV_COMP_ID_MISSIONPLANNER (190).
 GCS_SYSTEM_ID = 255

@@ -7,11 +7,16 @@ Imports only run downward (docs/development/architecture.md, README "Architectur
   and procedure); inside it, from the wire up:
   - `link/` (endpoints, signing, telemetry, one vehicle's link, the hub, the setpoints a link
     sends, the station's stalls) imports no other sub-package and no part of `gcs.fleet`;
-  - `procedure/` (the PX4 procedure, the geofence upload) imports only `link/` and the fleet
-    file;
-  - `host/` (the vehicle thread and process, the flight handle) is imported by none of them;
+  - `procedure/` (each autopilot's procedure steps, the geofence upload, the flight context)
+    imports only `link/` and the fleet file;
+  - then, each importing only those before it (`FLIGHT_LAYERS`): `timeline/` (the setpoint
+    stream, the flight clock, the plans flown), `replan/` (in-flight replans, predicted
+    motions), `safety/` (monitor, policy, margins, planned landing), `run/` (the executor and
+    its parts), and `host/` (the vehicle thread and process, the flight handle), imported by
+    none of them; a sub-package not in `FLIGHT_LAYERS` fails;
 - `gcs/fleet/` (fleet file, fleet commands, provisioning) imports `gcs.flight` only for the link
-  and the procedure, and never the service, the API, the CLI or the mock;
+  and the procedure (the fleet file, a contract, not at all), and never the service, the API,
+  the CLI or the mock;
 - `gcs/sim/` (the stand-in for PX4) never imports `gcs.flight` or `gcs.fleet`, so a wire-level
   mistake in our link is not repeated by the mock that should catch it;
 - `gcs/service/` never imports `gcs.api`, `gcs.cli` or FastAPI/Starlette, and imports the mock
@@ -64,21 +69,20 @@ from tests.paths import ROOT
 from tests.support.graphs import a_cycle, cycles, strongly_connected
 
 _ABOVE_GCS = ("gcs.flight", "gcs.fleet", "gcs.sim", "gcs.service", "gcs.api", "gcs.cli")
-_FLIGHT_UPPER = ("gcs.flight.procedure", "gcs.flight.run", "gcs.flight.safety", "gcs.flight.replan",
-                 "gcs.flight.host")
+#: `gcs/flight`'s sub-packages, lowest first: each imports only those before it.
+FLIGHT_LAYERS = ("link", "procedure", "timeline", "replan", "safety", "run", "host")
+_FLIGHT_UPPER = tuple(f"gcs.flight.{name}" for name in FLIGHT_LAYERS[1:])
 
 #: package (as a path prefix) -> module prefixes it must not import
 RULES: dict[str, tuple[str, ...]] = {
     "planner": ("gcs",),
     "gcs/flight": ("gcs.service", "gcs.api", "gcs.cli", "gcs.sim", "gcs.fleet.commands",
                    "gcs.fleet.provision"),
+    **{f"gcs/flight/{name}": _FLIGHT_UPPER[n:] for n, name in enumerate(FLIGHT_LAYERS[2:-1], 2)},
     "gcs/flight/link": (*_FLIGHT_UPPER, "gcs.fleet"),
     "gcs/flight/procedure": (*_FLIGHT_UPPER[1:], "gcs.fleet.commands", "gcs.fleet.provision"),
-    "gcs/flight/run": ("gcs.flight.host",),
-    "gcs/flight/safety": ("gcs.flight.host",),
-    "gcs/flight/replan": ("gcs.flight.host",),
-    "gcs/fleet": ("gcs.flight.run", "gcs.flight.safety", "gcs.flight.replan", "gcs.flight.host",
-                  "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
+    "gcs/fleet": (*_FLIGHT_UPPER[1:], "gcs.sim", "gcs.service", "gcs.api", "gcs.cli"),
+    "gcs/fleet/fleetfile.py": ("gcs.flight",),  # the contract, below every flight part
     "gcs/sim": ("gcs.flight", "gcs.fleet", "gcs.service", "gcs.api", "gcs.cli"),
     "gcs/service": ("gcs.api", "gcs.cli", "fastapi", "starlette", "gcs.sim"),
     "gcs/api": ("gcs.flight", "gcs.sim", "gcs.fleet.commands", "gcs.fleet.provision"),
@@ -135,9 +139,15 @@ def _violations(prefix: str, forbidden: tuple[str, ...]) -> list[str]:
 
 @pytest.mark.parametrize("prefix", sorted(RULES))
 def test_imports_only_run_downward(prefix: str) -> None:
-    if not (ROOT / prefix).exists():
-        pytest.skip(f"{prefix} does not exist")
+    assert (ROOT / prefix).exists(), f"{prefix} is gone: move its rule with it"
     assert _violations(prefix, RULES[prefix]) == []
+
+
+def test_the_flight_package_holds_its_layers() -> None:
+    """Every sub-package of `gcs/flight` has its place in `FLIGHT_LAYERS`, so its rule
+    exists: a new one is placed there, not left unchecked."""
+    found = {p.parent.name for p in (ROOT / "gcs" / "flight").glob("*/__init__.py")}
+    assert found == set(FLIGHT_LAYERS)
 
 
 def imports_of_test_modules(root: Path) -> list[str]:
@@ -388,8 +398,6 @@ LONG: dict[str, str] = {
         "the MAVLink facts, a table of encodings each defined once",
     "gcs/sim/messages.py":
         "a table of encoders, one short function per message the mock sends",
-    "gcs/flight/run/record.py":
-        "the flight record and its summary, whose keys are one contract",
     # functions
     "gcs/cli/fly_cmd.py::run":
         "one command's run: its nested handlers share the flight, its record and the signals",

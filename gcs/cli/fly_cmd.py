@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs.fleet.fleetfile import FleetSpec, load_fleet
     from gcs.flight.host.vehicle_loop import VehicleLoop
     from gcs.flight.run.ground import ground_refusal
-    from gcs.flight.run.realtime import settle_heap
+    from gcs.flight.timeline.realtime import settle_heap
     from gcs.service.replan_handle import ReplanHandle
     from gcs.sim import MockConfig, MockFleet, homes_under
     from gcs.sim.config import timing_error
@@ -246,7 +246,7 @@ def run(args: argparse.Namespace) -> int:
         def on_pause(resume: bool) -> None:
             aborts.append(asyncio.ensure_future(pause_or_resume(resume)))
 
-        # this process's collections then skip the libraries (gcs.flight.run.realtime)
+        # this process's collections then skip the libraries (gcs.flight.timeline.realtime)
         settle_heap()
         task = handle.start()
         loop.add_signal_handler(signal.SIGINT, on_interrupt)

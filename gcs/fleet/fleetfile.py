@@ -54,9 +54,9 @@ import numpy as np
 
 from gcs.autopilot import AUTOPILOTS, CHOICES
 from gcs.errors import FleetFileError, LinkError
-from gcs.flight.link.setpoints import MAX_RATE_HZ
 from gcs.frames import Geodetic
 from gcs.wire import (
+    MAX_RATE_HZ,
     KeyFileError,
     SigningKey,
     is_udp_url,
@@ -253,7 +253,7 @@ class FlightOptions:
     """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
     stream_priority: StreamPriority = "realtime"
     """realtime (default): stream setpoints from a real-time thread (SCHED_RR 1) where the
-    process may (`gcs.flight.run.stream.Streamer`; on a busy machine most send jitter is the OS
+    process may (`gcs.flight.timeline.stream.Streamer`; on a busy machine most send jitter is the OS
     leaving the GCS waiting for a core); refused quietly otherwise (recorded as an event).
     normal never asks."""
     goal_tolerance_k: float = 2.0

@@ -27,7 +27,7 @@ from gcs.documents import ReplanDocument
 from gcs.errors import StateConflict
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.host.vehicle_process import HostContext
-from gcs.flight.run.realtime import settle_heap
+from gcs.flight.timeline.realtime import settle_heap
 from gcs.service.fleet import Fleet
 from gcs.service.journal import write_final
 from gcs.service.record_mirror import record_delta

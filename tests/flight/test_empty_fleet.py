@@ -14,7 +14,7 @@ from gcs.flight.procedure import endings, vehicle
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.run.record import FlightRecorder, summarise
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind, VehiclePhase
 from gcs.tasks import all_or_first_error
 from tests.flight.fakes import fake_vehicle

@@ -10,12 +10,12 @@ import pytest
 
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.procedure.context import FlightContext
-from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.record import FlightRecorder
 from gcs.flight.run.snapshot import flight_snapshot
 from gcs.flight.safety.descent import DescentConflict, descent_conflicts
 from gcs.flight.safety.policy import FaultPolicy, Responder
+from gcs.flight.timeline.clock import FlightClock
 from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_vehicle
 from tests.flight.support import short_line, smooth_plan

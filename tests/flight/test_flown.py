@@ -1,11 +1,11 @@
-"""gcs.flight.run.flown: the flight's plans in flight time and the motions off them."""
+"""gcs.flight.timeline.flown: the flight's plans in flight time and the motions off them."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from gcs.flight.run.flown import FlownPlans, Motion, shifted
+from gcs.flight.timeline.flown import FlownPlans, Motion, shifted
 from planner.model.fixed import braking_motion, landing_motion
 from tests.flight.support import short_line, smooth_plan
 

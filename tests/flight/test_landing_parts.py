@@ -15,10 +15,10 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack, hold_track, plan_tracks
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.run.clock import FlightClock
-from gcs.flight.run.flown import FlownPlans
-from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.landing import PlannedLanding
+from gcs.flight.timeline.clock import FlightClock
+from gcs.flight.timeline.flown import FlownPlans
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind, VehiclePhase
 from planner.methods.landing import LandingError, plan_landing
 from planner.model.scenario import Scenario

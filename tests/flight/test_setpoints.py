@@ -11,7 +11,7 @@ import pytest
 from gcs import frames
 from gcs.flight.link.hub import LinkHub
 from gcs.flight.link.setpoints import plan_tracks, transfer_track
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.stream import Streamer
 from gcs.sim import MockFleet
 from gcs.wire import MAV_FRAME_LOCAL_NED, TYPE_MASK_POS_VEL_ACC_YAW, time_boot_ms
 from tests.flight.support import mock_ports

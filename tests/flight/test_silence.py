@@ -16,8 +16,8 @@ import pytest
 
 import planner
 from gcs.flight.replan.cascade import STEP_S, follow
-from gcs.flight.run.clock import FlightClock
 from gcs.flight.safety.silence import HOLD_WINDOW_S, silent_hold
+from gcs.flight.timeline.clock import FlightClock
 from gcs.sim.model import FleetModel
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "planner" / "examples"

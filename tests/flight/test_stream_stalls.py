@@ -11,7 +11,7 @@ import pytest
 from gcs.flight.link.endpoints import UdpEndpoint
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import hold_track
-from gcs.flight.run.stream import STALL_S, Streamer
+from gcs.flight.timeline.stream import STALL_S, Streamer
 
 pytestmark = pytest.mark.timeout(30)
 

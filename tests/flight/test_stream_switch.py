@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from gcs.flight.link.setpoints import hold_track
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.stream import Streamer
 from tests.flight.fakes import fake_vehicle
 
 

@@ -24,7 +24,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar
 
 from gcs.errors import VehicleLoopStopped
-from gcs.flight.run.realtime import enter_realtime
+from gcs.flight.timeline.realtime import enter_realtime
 
 __all__ = ["SWITCH_INTERVAL_S", "VehicleLoop"]
 
@@ -119,7 +119,8 @@ class VehicleLoop:
             loop.close()
 
     def _enter_realtime(self) -> None:
-        """SCHED_RR 1 for this thread (`gcs.flight.run.realtime`), or a warning saying why not."""
+        """SCHED_RR 1 for this thread (`gcs.flight.timeline.realtime`), or a warning saying
+        why not."""
         scheduling = enter_realtime()
         self.scheduling = scheduling.text
         if not scheduling.granted:

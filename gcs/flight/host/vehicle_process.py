@@ -37,7 +37,7 @@ from typing import Any
 
 from gcs.errors import GcsError, VehicleLoopStopped
 from gcs.flight.host.vehicle_loop import VehicleLoop
-from gcs.flight.run.realtime import settle_heap
+from gcs.flight.timeline.realtime import settle_heap
 
 __all__ = ["HostContext", "VehicleProcess"]
 

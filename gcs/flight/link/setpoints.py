@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gcs import frames
-from gcs.wire import MAV_FRAME_LOCAL_NED, TYPE_MASK_POS_VEL_ACC_YAW
+from gcs.wire import MAV_FRAME_LOCAL_NED, MAX_RATE_HZ, TYPE_MASK_POS_VEL_ACC_YAW
 from planner.types import FloatArray
 
 __all__ = [
@@ -43,7 +43,6 @@ __all__ = [
 DEFAULT_RATE_HZ = 20.0
 #: One 3-vector of a setpoint (x, y, z).
 Vec3 = tuple[float, float, float]
-MAX_RATE_HZ = 100.0
 
 
 @dataclass(frozen=True)

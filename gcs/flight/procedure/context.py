@@ -41,7 +41,7 @@ class FlightContext:
     (`StationStalls.clock`), so a stall of the station does not use it up."""
     stop_stream: StopStream = _nothing_streams
     """Stops the setpoints streamed to a vehicle (by id). The procedure stays below the
-    streamer (`gcs.flight.run.stream`), which only the executor holds."""
+    streamer (`gcs.flight.timeline.stream`), which only the executor holds."""
 
     def clock(self) -> float:
         """Station-running time (s): the clock every timeout of the flight counts on."""

@@ -17,9 +17,9 @@ from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import SetpointTrack
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.cascade import follow, substeps
-from gcs.flight.run.clock import FlightClock
-from gcs.flight.run.flown import Motion
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.clock import FlightClock
+from gcs.flight.timeline.flown import Motion
+from gcs.flight.timeline.stream import Streamer
 from planner.model.fixed import FixedTrajectory, landing_motion
 from planner.model.scenario import Scenario
 from planner.types import FloatArray

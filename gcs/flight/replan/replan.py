@@ -18,7 +18,7 @@ policy ``replan``) and returns its replan object at once (status ``planning``):
    on along the flying plan; a plan ready and verified before the switch tick is queued with
    `Streamer.switch` at exactly that tick (its tracks are the flying plan's ticks up to
    there, then the new plan's); at the tick the flight's plan becomes the new plan
-   (`gcs.flight.run.flown`): its end, the goals each vehicle is judged against, the tracking
+   (`gcs.flight.timeline.flown`): its end, the goals each vehicle is judged against, the tracking
    the monitor checks.
 
 A plan not ready and verified in time is not flown: the fleet goes on with its plan, status
@@ -52,9 +52,9 @@ from gcs.flight.replan.prediction import (
     stream_motion,
 )
 from gcs.flight.replan.record import ReplanRecord, Switch
-from gcs.flight.run.clock import FlightClock
-from gcs.flight.run.flown import FlownPlans, Motion, shifted
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.clock import FlightClock
+from gcs.flight.timeline.flown import FlownPlans, Motion, shifted
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
 from gcs.replan_request import check_entries
 from gcs.tasks import TaskSet

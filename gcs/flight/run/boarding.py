@@ -31,9 +31,9 @@ from gcs.flight.procedure.failsafe import (
 from gcs.flight.procedure.fence_upload import enable_fence, send_fence
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
 from gcs.flight.run.record import FlightRecorder
-from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.health import PreflightThresholds, preflight_problems
 from gcs.flight.safety.margin import required_separation
+from gcs.flight.timeline.stream import Streamer
 from gcs.geofence import WorldFence, fence_items
 from gcs.phases import EventKind, VehiclePhase
 from planner import Plan

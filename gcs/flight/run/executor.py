@@ -5,10 +5,10 @@ flight's state (phase, abort, clock, streams) and the order of its phases; each 
 it through `gcs.flight.run.state.Flight`: one vehicle's way into the air
 `gcs.flight.run.boarding` (on the procedure primitives of `gcs.flight.procedure.vehicle`), the
 arrival at the starts and goals `gcs.flight.run.arrival`, pauses `gcs.flight.run.pausing` (the
-flight clock: `gcs.flight.run.clock`), what the monitor finds and what it does
+flight clock: `gcs.flight.timeline.clock`), what the monitor finds and what it does
 `gcs.flight.run.faults` (detection `gcs.flight.safety.monitor`, the policy
 `gcs.flight.safety.policy`), making the fleet safe `gcs.flight.run.securing`, in-flight replans
-`gcs.flight.replan.replan` (the plans flown, in flight time: `gcs.flight.run.flown`), the live
+`gcs.flight.replan.replan` (the plans flown, in flight time: `gcs.flight.timeline.flown`), the live
 state `gcs.flight.run.snapshot`, the event fan-out `gcs.flight.run.events`, the station's own
 stalls `gcs.flight.link.station`, and the record `gcs.flight.run.recording` and
 `gcs.flight.run.record`. What a step needs of the flight is its `FlightContext`
@@ -28,7 +28,8 @@ executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
    ground where it stands is armed, lifted off and landed by the plan's own waves instead
    (`gcs.flight.run.ground`);
 3. when every vehicle is within `start_tolerance` of its start, start the shared flight
-   clock: every vehicle's setpoint for tick k leaves in tick k (`gcs.flight.run.stream.Streamer`);
+   clock: every vehicle's setpoint for tick k leaves in tick k
+   (`gcs.flight.timeline.stream.Streamer`);
 4. after the horizon (of the last plan switched in by a replan), hold at the goals for
    `hold_at_goal`, measure the goal errors (each vehicle against its last goal; a dropped
    one is not judged), then land (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch
@@ -93,10 +94,8 @@ from gcs.flight.replan.replan import Replanner
 from gcs.flight.run import arrival
 from gcs.flight.run.boarding import connect_vehicle, fence_fleet, prepare_vehicle, set_failsafes
 from gcs.flight.run.climb_order import climb_waves
-from gcs.flight.run.clock import FlightClock
 from gcs.flight.run.events import EventFanout
 from gcs.flight.run.faults import FaultRouter
-from gcs.flight.run.flown import FlownPlans
 from gcs.flight.run.ground import GroundShow
 from gcs.flight.run.pausing import Pausing
 from gcs.flight.run.precedence import abort_in_force, aborting_refusal
@@ -104,8 +103,10 @@ from gcs.flight.run.record import FlightRecorder
 from gcs.flight.run.recording import FlightRecording, finish_record
 from gcs.flight.run.securing import Securing
 from gcs.flight.run.snapshot import flight_snapshot
-from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.margin import check_margin, required_separation
+from gcs.flight.timeline.clock import FlightClock
+from gcs.flight.timeline.flown import FlownPlans
+from gcs.flight.timeline.stream import Streamer
 from gcs.geofence import build_fence
 from gcs.phases import EventKind, FlightPhase, VehiclePhase
 from gcs.tasks import all_or_first_error
@@ -148,7 +149,7 @@ class FlightExecutor:
         self.record: dict[str, Any] | None = None
         self._t0 = time.monotonic()
         self.clock = FlightClock(self.options.rate_hz, self._t0, self._t0)
-        """The flight clock (`gcs.flight.run.clock`); made again on the streamer's ticks by
+        """The flight clock (`gcs.flight.timeline.clock`); made again on the streamer's ticks by
         `run`."""
         self._events = EventFanout(self.recorder, self.now)
         self._recording = FlightRecording(self.recorder, {v.id: v for v in self.vehicles},
@@ -164,7 +165,7 @@ class FlightExecutor:
         """The abort in force, (action, reason) (`request_abort`), or None."""
         self.flown = FlownPlans.of(plan)
         """The plans the flight flies in flight time, and the motions off them
-        (`gcs.flight.run.flown`): the first plan, then each switched replan's."""
+        (`gcs.flight.timeline.flown`): the first plan, then each switched replan's."""
         self.replanner: Replanner | None = None
         """The flight's in-flight replans (`gcs.flight.replan.replan`), once the plan is flown."""
         self._plan_changed = asyncio.Event()

@@ -30,7 +30,6 @@ from gcs.flight.procedure import endings
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.prediction import predicted_landing, stream_motion, unheard_margin
 from gcs.flight.replan.replan import Replanner
-from gcs.flight.run.clock import Pause
 from gcs.flight.run.state import Flight
 from gcs.flight.safety.descent import DescentConflict, descent_conflicts
 from gcs.flight.safety.landing import SETTLE_S
@@ -38,6 +37,7 @@ from gcs.flight.safety.margin import required_separation
 from gcs.flight.safety.monitor import PERIOD, FleetMonitor, Watched
 from gcs.flight.safety.policy import FaultPolicy, Responder
 from gcs.flight.safety.silence import silent_hold
+from gcs.flight.timeline.clock import Pause
 from gcs.phases import AIRBORNE, EventKind, FlightPhase
 
 __all__ = ["FaultRouter"]

@@ -34,8 +34,8 @@ from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.endings import land_vehicle, wait_disarmed
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.run.boarding import arm_vehicle
-from gcs.flight.run.clock import FlightClock
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.clock import FlightClock
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind, VehiclePhase
 from planner import Plan
 from planner.verification.ground import GROUND_TOLERANCE, airborne

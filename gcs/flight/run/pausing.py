@@ -4,7 +4,7 @@ one plan setpoint, and a resume hands each back its track where the clock stoppe
 `Pausing` decides whether a pause or resume may happen (the flight's phase, an abort) and ends
 a pause that lasts longer than `pause_limit` by the `pause_expiry` action; the setpoints
 themselves change in `hold_fleet` and `release_fleet`, on the shared `Streamer` and
-`FlightClock` (`gcs.flight.run.clock`).
+`FlightClock` (`gcs.flight.timeline.clock`).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from collections.abc import Sequence
 from gcs.errors import StateConflict
 from gcs.flight.link.setpoints import SetpointTrack, hold_track
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.run.clock import FlightClock, Pause
 from gcs.flight.run.precedence import aborting_refusal
 from gcs.flight.run.state import Flight
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.clock import FlightClock, Pause
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind, FlightPhase
 
 __all__ = ["Pausing", "hold_fleet", "release_fleet"]

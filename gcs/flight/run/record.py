@@ -46,11 +46,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gcs.documents import FlightEvent
+from gcs.documents import FlightEvent, finite_or_none
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.link.setpoints import Setpoint
-from gcs.flight.run.stream import jitter_stats
 from gcs.flight.safety.margin import MarginCheck, separation_alarm_at
+from gcs.flight.timeline.stream import jitter_stats
 from gcs.phases import EventKind, VehiclePhase
 from planner import Plan
 from planner.verification.verify import SEPARATION_TOLERANCE
@@ -59,13 +59,8 @@ if TYPE_CHECKING:
     from gcs.flight.procedure.vehicle import VehicleStatus
 
 __all__ = ["COLUMNS", "RECORD_FORMAT", "Column", "FlightRecorder", "VehicleRecord",
-           "finite_or_none", "gcs_time", "goal_tolerance",
+           "gcs_time", "goal_tolerance",
            "measured_min_separation", "plan_times", "summarise"]
-
-
-def finite_or_none(x: float | None) -> float | None:
-    """`x` as a float, or None when it is None, NaN or infinite (JSON has no NaN/Infinity)."""
-    return None if x is None or not math.isfinite(x) else float(x)
 
 
 #: The flight record's format name (its ``format`` key).
@@ -253,7 +248,7 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     flight is or is not complete.
 
     With in-flight replans: `planned(id, flight times)` is where a vehicle was meant to be
-    (the flight's plans, `gcs.flight.run.flown`; default `plan`), `horizon` the end of the last
+    (the flight's plans, `gcs.flight.timeline.flown`; default `plan`), `horizon` the end of the last
     plan flown (flight time; default the plan's), `off_plan` the flight time from which a
     vehicle flew off the plans (dropped: its tracking is judged up to there). A dropped
     vehicle is not judged against a goal; a faulty one the others were replanned around

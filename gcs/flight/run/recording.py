@@ -13,21 +13,20 @@ from typing import Any
 import numpy as np
 
 from gcs import frames
-from gcs.documents import ReplanDocument
+from gcs.documents import ReplanDocument, finite_or_none
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import Setpoint
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
-from gcs.flight.run.flown import FlownPlans
 from gcs.flight.run.record import (
     STALE_REPORT_S,
     FlightRecorder,
-    finite_or_none,
     measured_min_separation,
     summarise,
 )
-from gcs.flight.run.stream import Streamer
 from gcs.flight.safety.margin import MarginCheck
+from gcs.flight.timeline.flown import FlownPlans
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind
 from planner import Plan
 from planner.model.scenario import Scenario
@@ -81,7 +80,7 @@ def finish_record(recorder: FlightRecorder, plan: Plan, fleet: FleetSpec,
                   replans: Sequence[ReplanDocument] = (),
                   flown_plans: Mapping[int, dict[str, Any]] | None = None) -> dict[str, Any]:
     """Fill the record's meta block and summary; returns the record document. `flown`: the
-    flight's plans and the motions off them (`gcs.flight.run.flown`), `replans` its replan
+    flight's plans and the motions off them (`gcs.flight.timeline.flown`), `replans` its replan
     objects, `flown_plans` each switched one's plan document and switch instant (GCS
     clock)."""
     scenario = plan.scenario

@@ -10,9 +10,8 @@ import time
 from collections.abc import Sequence
 
 from gcs import frames
-from gcs.documents import FlightSnapshot, ReplanDocument, VehicleSnapshot
+from gcs.documents import FlightSnapshot, ReplanDocument, VehicleSnapshot, finite_or_none
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.run.record import finite_or_none
 from gcs.flight.safety.health import health_report
 
 __all__ = ["flight_snapshot", "vehicle_snapshot"]

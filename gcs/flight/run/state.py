@@ -16,10 +16,10 @@ from gcs.flight.link.setpoints import SetpointTrack
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.replan import Replanner
-from gcs.flight.run.clock import FlightClock
-from gcs.flight.run.flown import FlownPlans
 from gcs.flight.run.ground import GroundShow
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.clock import FlightClock
+from gcs.flight.timeline.flown import FlownPlans
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import FlightPhase
 from planner import Plan
 
@@ -39,7 +39,7 @@ class Flight(Protocol):
     phase: FlightPhase
     clock: FlightClock
     flown: FlownPlans
-    """The plans flown in flight time, and the motions off them (`gcs.flight.run.flown`)."""
+    """The plans flown in flight time, and the motions off them (`gcs.flight.timeline.flown`)."""
     ground: GroundShow
     streamer: Streamer | None
     """The setpoint streams (None before `run` made them)."""

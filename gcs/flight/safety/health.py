@@ -22,9 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gcs.documents import HealthReport
+from gcs.documents import HealthReport, finite_or_none
 from gcs.flight.link.telemetry import Telemetry
-from gcs.flight.run.record import finite_or_none
 from gcs.wire import mavlink
 
 __all__ = ["PreflightThresholds", "health_report", "preflight_problems", "sensor_names"]

@@ -50,9 +50,9 @@ from gcs.flight.link.setpoints import plan_tracks
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.prediction import predicted_landing, stream_motion
-from gcs.flight.run.clock import FlightClock
-from gcs.flight.run.flown import FlownPlans, Motion, shifted
-from gcs.flight.run.stream import Streamer
+from gcs.flight.timeline.clock import FlightClock
+from gcs.flight.timeline.flown import FlownPlans, Motion, shifted
+from gcs.flight.timeline.stream import Streamer
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
 from planner.methods.landing import STAGES, LandingError, LandingPlan, plan_landing
 from planner.model.fixed import CLEARANCE_RAMP_S, FixedTrajectory

@@ -42,7 +42,7 @@ import numpy as np
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import Setpoint, SetpointTrack, hold_track
 from gcs.flight.link.station import STALL_NOTE_S
-from gcs.flight.run.realtime import enter_realtime, leave_realtime
+from gcs.flight.timeline.realtime import enter_realtime, leave_realtime
 from gcs.wire import time_boot_ms
 
 __all__ = ["STALL_S", "Assignment", "SendCallback", "Streamer", "jitter_stats"]
