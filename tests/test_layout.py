@@ -353,8 +353,7 @@ LENGTH_TREES = ("planner", "gcs")
 LONG: dict[str, str] = {
     # modules
     "gcs/flight/run/executor.py":
-        "the flight's one coordinator: phases, pause, abort, faults and replans all act on the "
-        "same vehicles, streams and clock",
+        "the flight's state, public API and order of phases, each step a few lines over its parts",
     "gcs/flight/replan/replan.py":
         "one class, `Replanner`: a replan's lifecycle from request to switch or miss",
     "gcs/flight/procedure/vehicle.py":

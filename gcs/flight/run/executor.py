@@ -1,56 +1,38 @@
-"""The fleet executor: fly a plan on a fleet of PX4 vehicles with one shared flight clock.
+"""The fleet executor: fly a plan on a fleet of PX4 and ArduPilot vehicles with one shared
+flight clock.
 
 `FlightExecutor(plan, fleet)` runs the whole flight on the caller's asyncio loop. It keeps the
 flight's state (phase, abort, clock, streams) and the order of its phases; each part acts on
-it through `gcs.flight.run.state.Flight`: one vehicle's way into the air
-`gcs.flight.run.boarding` (on the procedure primitives of `gcs.flight.procedure.vehicle`), the
-arrival at the starts and goals `gcs.flight.run.arrival`, pauses `gcs.flight.run.pausing` (the
-flight clock: `gcs.flight.timeline.clock`), what the monitor finds and what it does
-`gcs.flight.run.faults` (detection `gcs.flight.safety.monitor`, the policy
-`gcs.flight.safety.policy`), making the fleet safe `gcs.flight.run.securing`, in-flight replans
-`gcs.flight.replan.replan` (the plans flown, in flight time: `gcs.flight.timeline.flown`), the live
-state `gcs.flight.run.snapshot`, the event fan-out `gcs.flight.run.events`, the station's own
-stalls `gcs.flight.link.station`, and the record `gcs.flight.run.recording` and
-`gcs.flight.run.record`. What a step needs of the flight is its `FlightContext`
-(`gcs.flight.procedure.context`). A setpoint goes
-executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP:
+it through one protocol, `gcs.flight.run.state.Flight`, and each step on a vehicle gets the
+flight's `FlightContext` (`gcs.flight.procedure.context`). A setpoint goes
+executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP.
 
-1. connect: open the fleet's links, send the GCS HEARTBEAT at 1 Hz, wait for every vehicle's
-   HEARTBEAT and LOCAL_POSITION_NED (refuse a vehicle that is already armed or not PX4);
-   place each vehicle's home in the world frame (fleet file, or `world_origin` and the
-   vehicle's GPS_GLOBAL_ORIGIN / HOME_POSITION);
-2. per vehicle, concurrently: stream setpoints holding its current position, then OFFBOARD
-   (MAV_CMD_DO_SET_MODE, retried while TEMPORARILY_REJECTED), then arm (retried while
-   TEMPORARILY_REJECTED, up to `arm_timeout`), each confirmed by COMMAND_ACK *and* HEARTBEAT;
-   then climb vertically from home to the plan's start (then horizontally, if the home is not
-   below the start); vehicles whose homes are nearer than R horizontally climb in waves, the
-   higher start first (`gcs.flight.run.climb_order`). A vehicle whose plan starts on the
-   ground where it stands is armed, lifted off and landed by the plan's own waves instead
-   (`gcs.flight.run.ground`);
-3. when every vehicle is within `start_tolerance` of its start, start the shared flight
-   clock: every vehicle's setpoint for tick k leaves in tick k
-   (`gcs.flight.timeline.stream.Streamer`);
-4. after the horizon (of the last plan switched in by a replan), hold at the goals for
-   `hold_at_goal`, measure the goal errors (each vehicle against its last goal; a dropped
-   one is not judged), then land (MAV_CMD_NAV_LAND) and wait for the auto-disarm, or switch
-   to Hold (`at_end`). Goals stacked closer than R horizontally are left by a landing plan
-   first (`gcs.flight.safety.landing`), as an abort is: straight down, one would land under another.
+1. connect (`gcs.flight.run.boarding`): open the fleet's links, wait for every vehicle's
+   HEARTBEAT and position (refuse one already armed), place each home in the world frame,
+   the pre-flight gate, the geofence, each vehicle's own link-loss failsafe;
+2. board, per vehicle, concurrently: its autopilot's steps into the mode that follows
+   setpoints, armed, climbing to the plan's start (`Autopilot.boarding`); vehicles whose
+   homes are nearer than R horizontally climb in waves, the higher start first
+   (`gcs.flight.run.climb_order`); one whose plan starts on the ground where it stands is
+   armed, lifted off and landed by the plan's own waves (`gcs.flight.run.ground`);
+3. when every vehicle is within `start_tolerance` of its start (`gcs.flight.run.arrival`),
+   start the shared flight clock: every vehicle's setpoint for tick k leaves in tick k
+   (`gcs.flight.timeline`); in-flight replans switch plans on it (`gcs.flight.replan`), and
+   pauses stop it (`gcs.flight.run.pausing`);
+4. after the horizon (of the last plan switched in), hold at the goals for `hold_at_goal`,
+   judge the goal errors, then land and wait for the disarm, or Hold (`at_end`); goals
+   stacked closer than R horizontally are left by a landing plan first.
 
-Monitors (20 Hz, `gcs.flight.safety.monitor`): no message at all for `link_timeout` (1.5 s of
-station-running time: a lost link), HEARTBEAT older than `heartbeat_timeout` (5 s: mode and
-armed state unknown), leaving OFFBOARD, tracking error over `tracking_error_max`, and the live
-minimum separation. A flagged vehicle triggers the policy (`gcs.flight.run.faults`):
-``hold_all`` / ``land_all`` stop the flight (`FlightAborted`), ``land_faulty`` lands that
-vehicle and carries on (the flight then does not count as completed), ``replan`` lands it on
-its predicted motion and replans the others around it (`gcs.flight.replan.replan`).
+The monitor (20 Hz, `gcs.flight.safety.monitor`) finds lost links, stale heartbeats, a vehicle
+out of its mode, tracking errors and the live separation; `gcs.flight.run.faults` routes each
+finding to the fault policy (`gcs.flight.safety.policy`: ``hold_all`` / ``land_all`` abort,
+``land_faulty`` lands that vehicle and flies the others on, ``replan`` flies them around it).
 
-An abort with land (or an error) while the plan is flown flies a verified landing plan first
-(`gcs.flight.run.securing`, `gcs.flight.safety.landing`).
-
-Safety: nothing is armed before `run()`; every error path ends in `endings.secure`, which disarms
-armed vehicles still on the ground, sends airborne ones to land (or Hold for an explicit hold
-abort), stops their streams, and waits for landed vehicles to disarm. A vehicle that does not
-answer still gets no more setpoints, so PX4's own offboard-loss failsafe lands it.
+Safety: nothing is armed before `run()`; every abort or error ends in
+`gcs.flight.run.securing`: a verified landing plan where one is flown, else each vehicle
+secured where it is (disarmed on the ground, Land or Hold in the air), then the wait for the
+landed ones to disarm. A vehicle that does not answer gets no more setpoints, so its own
+offboard-loss failsafe takes over.
 
 Python API (for the CLI and the REST API)::
 
