@@ -1,5 +1,7 @@
 """The flight record: what was sent, what the vehicles reported, what happened, and a summary.
 
+Long: the flight record and its summary, whose keys are one contract.
+
 Times are seconds on the GCS clock (0 when the executor started running); ``flight_start`` is
 the GCS-clock time of flight time 0 (null if the plan never started; records written before
 this key carry it as ``mission_start``), so flight time = t - flight_start, less the time
@@ -251,6 +253,8 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     the executor's final view of each vehicle (fault, goal error, phase). `now` is the GCS-clock
     time at the end; `lateness` is None when nothing was streamed. `why` says in words why the
     flight is or is not complete.
+
+    Long: builds the summary document key by key, in the order of its contract.
 
     With in-flight replans: `planned(id, flight times)` is where a vehicle was meant to be
     (the flight's plans, `gcs.flight.run.flown`; default `plan`), `horizon` the end of the last
