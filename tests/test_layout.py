@@ -454,11 +454,12 @@ def test_the_length_checker_sees_modules_methods_and_nested_functions(tmp_path: 
 
 
 def test_the_length_checker_reads_reasons_from_docstrings(tmp_path: Path) -> None:
-    """A module's and a method's `Long:` lines are found wherever they stand in the docstring;
-    a reason wrapped onto a second line comes with it; a short function's is found too (to be
-    reported as stale); a comment or a string that is not the docstring gives no reason."""
+    """A module's and a method's `Long:` lines are found wherever they stand in the docstring
+    (right under a line of text, or a paragraph of their own); a reason wrapped onto a second
+    line comes with it; a short function's is found too (to be reported as stale); a comment
+    or a string that is not the docstring gives no reason."""
     _package(tmp_path, {
-        "gcs/long.py": '"""A table.\n\nLong: one table, read whole.\n"""\n'
+        "gcs/long.py": '"""A table.\nLong: one table, read whole.\n"""\n'
                        + "\n" * MODULE_LINES,
         "gcs/funcs.py": "class C:\n"
                         + _long_function("m", "    ", "A parser.\n\n        Long: one parser")

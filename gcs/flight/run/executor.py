@@ -63,7 +63,7 @@ Python API (for the CLI and the REST API)::
 `run()` returns the flight record when the flight ran to its end (check
 ``record["summary"]["completed"]``) and raises a `GcsError` (`ArmingRefused`, `FlightAborted`,
 ...) otherwise, after the vehicles were made safe; `flight.record` holds the record then too.
-Long: the flight's one coordinator: phases, pause, abort, faults and replans act on one fleet.
+Long: one coordinator: phases, pause, abort, faults and replans share vehicles, streams and clock.
 """
 
 from __future__ import annotations
