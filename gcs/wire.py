@@ -1,5 +1,7 @@
 """MAVLink facts shared by the GCS (`gcs.flight`) and the PX4-like mock (`gcs.sim`), each once.
 
+Long: the MAVLink facts, a table of encodings each defined once.
+
 - the wire format: pymavlink's MAVLink 2 `common` dialect (this module is the one place that
   selects it, through the ``MAVLINK20`` environment variable);
 - the GCS's own identity (system 255, MAV_COMP_ID_MISSIONPLANNER) and MAV_RESULT names, from

@@ -1,5 +1,7 @@
 """The plan (the output JSON contract): trajectories, cost history, timings, verification.
 
+Long: the plan contract: its dataclasses and the reader that checks every field.
+
 `Plan.to_dict()` produces the Plan JSON of docs/development/architecture.md (and the README);
 `Plan.from_dict()` reads it back (for the GCS, the API and tests) and checks shapes, raising
 `PlanFormatError` naming the field.

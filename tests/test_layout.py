@@ -48,8 +48,9 @@ included, relative imports resolved, ``from pkg import module`` as an import of 
 has no cycle.
 
 One job per module and per function: no module of `planner` or `gcs` over `MODULE_LINES` lines
-and no function over `FUNCTION_LINES`, unless `LONG` names it with a one-line reason; an entry
-whose module or function is no longer long fails too.
+and no function over `FUNCTION_LINES`, unless its docstring says why in one line,
+``Long: <reason>`` (a table or a parser can read best whole); a `Long:` line on a module or
+function that is no longer long fails too.
 
 The tests follow one rule of their own: a test module (`tests/**/test_*.py`) imports no other
 test module; what tests share lives in a `conftest.py` or a support module (`tests/support/`,
@@ -59,6 +60,7 @@ a package's `support.py`).
 from __future__ import annotations
 
 import ast
+import itertools
 import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -340,121 +342,111 @@ def test_the_cycle_checker_sees_every_import_form(tmp_path: Path) -> None:
 # ------------------------------------------------------------- long modules and functions
 
 #: The longest a module (lines) and a function (lines, decorators excluded) may be without a
-#: reason in `LONG`.
+#: `Long:` line in its docstring.
 MODULE_LINES = 400
 FUNCTION_LINES = 80
 #: The trees held to those lengths.
 LENGTH_TREES = ("planner", "gcs")
-
-#: What stays long, and why, one line each: a module by its path, a function by
-#: ``path::name`` (a nested function or a method: ``path::outer.name``). Every other module
-#: or function is split by concept once it grows past the limit, and an entry goes once its
-#: module or function is no longer long.
-LONG: dict[str, str] = {
-    # modules
-    "gcs/flight/run/executor.py":
-        "the flight's state, public API and order of phases, each step a few lines over its parts",
-    "gcs/flight/replan/replan.py":
-        "one class, `Replanner`: a replan's lifecycle from request to switch or miss",
-    "gcs/flight/procedure/vehicle.py":
-        "the procedure's link-level steps, one short coroutine each, and the executor's view "
-        "of a vehicle (`VehicleStatus`) that they update",
-    "planner/scp/qp.py":
-        "the staged variables' layout, the structure shared by groups of one shape and the "
-        "group QP's rows: every part indexes the same variables",
-    "planner/scp/separation.py":
-        "the pair geometry of one constraint: pair selection, directions, margins and row "
-        "values share the same step and interval formulas",
-    "planner/families/generators.py":
-        "a catalogue of scenario families, each a short independent function",
-    "planner/model/scenario.py":
-        "the scenario contract: its dataclasses and the parser that names every field",
-    "planner/methods/sequence.py":
-        "the formation-sequence contract: its parser, the legs and their stitching",
-    "gcs/api/routes/missions.py":
-        "the routes of one resource (missions), each short, sharing its helpers",
-    "planner/result.py":
-        "the plan contract: its dataclasses and the reader that checks every field",
-    "gcs/fleet/fleetfile.py":
-        "the fleet-file contract: `FlightOptions` (a table of fields) and the parser",
-    "gcs/api/routes/flights.py":
-        "the routes of one resource (flights), each short, sharing its helpers",
-    "gcs/cli/plan_cmd.py":
-        "one command: its options, progress lines and summary table",
-    "gcs/service/flights.py":
-        "one class, `FleetService`: a flight's commands and its run to the stored record",
-    "gcs/service/store.py":
-        "the two tables and their queries, one transaction each",
-    "planner/methods/landing.py":
-        "one algorithm: touchdown points, the landing plan and its escape move",
-    "gcs/api/schemas.py":
-        "the API's documents, a table of pydantic models derived from the planner's types",
-    "planner/model/fixed.py":
-        "fixed trajectories: the dataclasses and the braking, landing and dropped motions",
-    "planner/methods/assignment.py":
-        "one algorithm: the certified sparse assignment and its dense fallback",
-    "gcs/wire.py":
-        "the MAVLink facts, a table of encodings each defined once",
-    "gcs/sim/messages.py":
-        "a table of encoders, one short function per message the mock sends",
-    # functions
-    "gcs/cli/fly_cmd.py::run":
-        "one command's run: its nested handlers share the flight, its record and the signals",
-    "gcs/cli/fly_cmd.py::run.fly":
-        "the flight under the CLI: events, Ctrl-C, pause and the control socket in one place",
-    "gcs/flight/run/record.py::summarise":
-        "builds the summary document key by key, in the order of its contract",
-    "gcs/cli/mock_cmd.py::run":
-        "one command's run: options to mock fleet, ports and signals",
-    "gcs/api/app.py::create_app":
-        "the application's wiring: lifespan, routers and error handlers in one place",
-    "planner/scp/loop.py::run_scp":
-        "the SCP loop read top to bottom: seeding, iterations, stop rules and outcome",
-}
+#: The docstring line that says why a module or function stays long, in one line (a table or
+#: a parser can read best whole): ``Long: <reason>``.
+LONG_MARK = "Long: "
 
 
-def _functions(tree: ast.AST, prefix: str = "") -> Iterable[tuple[str, int]]:
-    """(dotted name, lines) of every function and method in `tree`, nested ones included."""
+_Function = ast.FunctionDef | ast.AsyncFunctionDef
+
+
+def _functions(tree: ast.AST, prefix: str = "") -> Iterable[tuple[str, _Function]]:
+    """(dotted name, node) of every function and method in `tree`, nested ones included."""
     for node in ast.iter_child_nodes(tree):
         if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
             name = f"{prefix}{node.name}"
             if not isinstance(node, ast.ClassDef):
-                yield name, (node.end_lineno or node.lineno) - node.lineno + 1
+                yield name, node
             yield from _functions(node, name + ".")
         else:
             yield from _functions(node, prefix)
 
 
-def long_parts(root: Path, trees: Iterable[str] = LENGTH_TREES) -> dict[str, int]:
-    """Every module over MODULE_LINES lines and function over FUNCTION_LINES under `root`'s
-    `trees`, as `LONG` names them, with its length."""
-    found: dict[str, int] = {}
+def parts(root: Path, trees: Iterable[str] = LENGTH_TREES) -> Iterable[tuple[str, int, str]]:
+    """(name, lines, docstring) of every module and function under `root`'s `trees`: a module
+    by its path, a function by ``path::name`` (a method or a nested function:
+    ``path::outer.name``); "" for no docstring."""
     for tree in trees:
         for path in sorted((root / tree).rglob("*.py")):
             rel = str(path.relative_to(root))
             text = path.read_text()
-            if (lines := len(text.splitlines())) > MODULE_LINES:
-                found[rel] = lines
-            for name, length in _functions(ast.parse(text, filename=rel)):
-                if length > FUNCTION_LINES:
-                    found[f"{rel}::{name}"] = length
-    return found
+            module = ast.parse(text, filename=rel)
+            yield rel, len(text.splitlines()), ast.get_docstring(module) or ""
+            for name, node in _functions(module):
+                lines = (node.end_lineno or node.lineno) - node.lineno + 1
+                yield f"{rel}::{name}", lines, ast.get_docstring(node) or ""
+
+
+def long_reason(docstring: str) -> str | None:
+    """The reason the docstring's `LONG_MARK` line gives, with any lines that continue it
+    (one-line reasons have none), or None without such a line."""
+    lines = docstring.splitlines()
+    for n, line in enumerate(lines):
+        if line.startswith(LONG_MARK):
+            paragraph = itertools.takewhile(str.strip, lines[n + 1:])
+            return "\n".join([line.removeprefix(LONG_MARK), *paragraph])
+    return None
+
+
+def _limit(name: str) -> int:
+    return FUNCTION_LINES if "::" in name else MODULE_LINES
+
+
+def long_parts(root: Path, trees: Iterable[str] = LENGTH_TREES) -> dict[str, int]:
+    """Every module over MODULE_LINES lines and function over FUNCTION_LINES under `root`'s
+    `trees`, with its length."""
+    return {name: lines for name, lines, _ in parts(root, trees) if lines > _limit(name)}
+
+
+def long_reasons(root: Path, trees: Iterable[str] = LENGTH_TREES) -> dict[str, str]:
+    """The reason of every module and function under `root`'s `trees` that gives one."""
+    return {name: reason for name, _, doc in parts(root, trees)
+            if (reason := long_reason(doc)) is not None}
+
+
+def unexplained(root: Path, trees: Iterable[str] = LENGTH_TREES) -> dict[str, int]:
+    """The long modules and functions (with their lengths) that give no reason."""
+    reasons = long_reasons(root, trees)
+    return {name: n for name, n in long_parts(root, trees).items() if name not in reasons}
+
+
+def stale(root: Path, trees: Iterable[str] = LENGTH_TREES) -> list[str]:
+    """The modules and functions that give a reason but are not long."""
+    return sorted(set(long_reasons(root, trees)) - set(long_parts(root, trees)))
 
 
 def test_long_modules_and_functions_say_why() -> None:
-    """One job per module and per function: a long one is split, or `LONG` says why not."""
-    found = long_parts(ROOT)
-    assert {name: found[name] for name in found if name not in LONG} == {}
+    """One job per module and per function: a long one is split, or its docstring says why
+    not."""
+    assert unexplained(ROOT) == {}, (
+        f"over {MODULE_LINES} lines (a module) or {FUNCTION_LINES} (a function): split it by "
+        f"concept, or add a one-line `{LONG_MARK}<reason>` to its docstring")
 
 
-def test_every_long_entry_is_still_long() -> None:
-    """An entry goes once its module or function is short, so the list stays honest."""
-    assert sorted(set(LONG) - set(long_parts(ROOT))) == []
+def test_every_long_line_is_on_a_long_part() -> None:
+    """A `Long:` line goes once its module or function is short, so no reason outlives it."""
+    assert stale(ROOT) == [], (
+        f"no longer over {MODULE_LINES} lines (a module) or {FUNCTION_LINES} (a function): "
+        f"remove the `{LONG_MARK.strip()}` line from its docstring")
 
 
-def _long_function(name: str, indent: str = "") -> str:
-    """A function of FUNCTION_LINES + 1 lines (its def and FUNCTION_LINES statements)."""
+def test_every_long_reason_is_one_line() -> None:
+    """The reason is one line, so it stays a reason and not a second docstring."""
+    wrapped = {name: reason for name, reason in long_reasons(ROOT).items() if "\n" in reason}
+    assert wrapped == {}, f"shorten each `{LONG_MARK.strip()}` reason to one line"
+
+
+def _long_function(name: str, indent: str = "", doc: str = "") -> str:
+    """A function of FUNCTION_LINES + 1 lines (its def and FUNCTION_LINES statements), the
+    first of them `doc` as its docstring when given."""
     body = [f"{indent}    x{n} = {n}" for n in range(FUNCTION_LINES)]
+    if doc:
+        body[0] = f'{indent}    """{doc}"""'
     return "\n".join([f"{indent}def {name}():", *body]) + "\n"
 
 
@@ -469,3 +461,33 @@ def test_the_length_checker_sees_modules_methods_and_nested_functions(tmp_path: 
                                               "gcs/funcs.py::C.m": FUNCTION_LINES + 1,
                                               "gcs/funcs.py::outer": FUNCTION_LINES + 3,
                                               "gcs/funcs.py::outer.inner": FUNCTION_LINES + 1}
+
+
+def test_the_length_checker_reads_reasons_from_docstrings(tmp_path: Path) -> None:
+    """A module's and a method's `Long:` lines are found wherever they stand in the docstring
+    (right under a line of text, or a paragraph of their own); a reason wrapped onto a second
+    line comes with it; a short function's is found too (to be reported as stale); a comment
+    or a string that is not the docstring gives no reason."""
+    _package(tmp_path, {
+        "gcs/long.py": '"""A table.\nLong: one table, read whole.\n"""\n'
+                       + "\n" * MODULE_LINES,
+        "gcs/funcs.py": "class C:\n"
+                        + _long_function("m", "    ", "A parser.\n\n        Long: one parser")
+                        + 'def short():\n    """Short.\n\n    Long: a stale reason\n'
+                        + '    wrapped."""\n'
+                        + "def plain():\n    # Long: a comment\n    return 'Long: a string'\n",
+    })
+    assert long_reasons(tmp_path, ("gcs",)) == {"gcs/long.py": "one table, read whole.",
+                                                "gcs/funcs.py::C.m": "one parser",
+                                                "gcs/funcs.py::short": "a stale reason\nwrapped."}
+    assert unexplained(tmp_path, ("gcs",)) == {}
+    assert stale(tmp_path, ("gcs",)) == ["gcs/funcs.py::short"]
+
+
+def test_the_length_checker_sees_a_long_part_without_a_reason(tmp_path: Path) -> None:
+    _package(tmp_path, {
+        "gcs/long.py": '"""A module that says nothing of its length."""\n' + "\n" * MODULE_LINES,
+        "gcs/funcs.py": _long_function("f", doc="A function that says nothing either."),
+    })
+    assert unexplained(tmp_path, ("gcs",)) == {"gcs/long.py": MODULE_LINES + 1,
+                                               "gcs/funcs.py::f": FUNCTION_LINES + 1}

@@ -81,7 +81,10 @@ def _version() -> str:
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
-    """A fresh application configured by `settings` (default: environment and config file)."""
+    """A fresh application configured by `settings` (default: environment and config file).
+
+    Long: the application's wiring: lifespan, routers and error handlers in one place.
+    """
     settings = settings or Settings()
 
     @asynccontextmanager

@@ -1,5 +1,7 @@
 """The API's documents, derived from the planner's types so each field is declared once.
 
+Long: the API's documents, a table of pydantic models derived from the planner's types.
+
 The scenario and the plan are the planner's contracts (`planner.model.scenario`, `planner.result`).
 `planner_schemas` turns those dataclasses into OpenAPI/JSON Schema components by reading their
 fields, type hints, attribute docstrings and `planner.model.scenario.DEFAULTS`; nothing here repeats

@@ -107,6 +107,10 @@ _OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
                  "stream_priority": "stream_priority", "replan_lead": "replan_lead_s"}
 
 def run(args: argparse.Namespace) -> int:
+    """Fly the plan of `args` and return the exit status (0: the flight completed).
+
+    Long: one command's run: its nested handlers share the flight, its record and the signals.
+    """
     import asyncio
     import contextlib
     import signal
@@ -169,6 +173,10 @@ def run(args: argparse.Namespace) -> int:
              if args.mock else "the connection URLs in the fleet file")
 
     async def fly(vehicles: VehicleLoop) -> int:
+        """The flight on `vehicles`' loop, printed as it goes; the exit status.
+
+        Long: the flight under the CLI: events, Ctrl-C, pause and the control socket together.
+        """
         mock = None
         events: asyncio.Queue[FlightEvent | None] = asyncio.Queue()
 

@@ -72,6 +72,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the mock fleet of `args` until interrupted or `--duration`; the exit status.
+
+    Long: one command's run: options to mock fleet, ports and signals.
+    """
     import asyncio
     import json
     import math

@@ -1,5 +1,7 @@
 """`fleetplan plan SCENARIO.json -o PLAN.json`: plan, print progress and a summary, save.
 
+Long: one command: its options, progress lines and summary table.
+
 A formation sequence (a document with a `formations` key, see `planner.methods.sequence`) is planned
 leg by leg (in parallel: a local process pool, or Dask tasks with --scheduler), stitched and
 verified as a whole; the stitched plan is written (flyable with `fleetplan fly`) and, with

@@ -1,5 +1,7 @@
 """The fleet file (JSON) and flight options: parsing and validation.
 
+Long: the fleet-file contract: `FlightOptions` (a table of fields) and the parser.
+
 A fleet file says how to reach each vehicle and where its LOCAL_NED origin (home) lies::
 
     {

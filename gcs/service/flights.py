@@ -1,6 +1,8 @@
 """The fleet's flights: fly, pause, resume, replan, abort, and the run of one
 flight from its start to its stored record.
 
+Long: one class, `FleetService`: a flight's commands and its run to the stored record.
+
 `FleetService` drives the configured fleet and its one active flight: the fleet is one set of
 aircraft. Everything that talks to vehicles runs in a process of its own, the vehicle process
 (`gcs.flight.host.vehicle_process.VehicleProcess`): the fleet (mocks, monitor links, fleet

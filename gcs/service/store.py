@@ -1,5 +1,7 @@
 """Persistence of missions, plans and flight records (SQLAlchemy 2; SQLite or PostgreSQL).
 
+Long: the two tables and their queries, one transaction each.
+
 Two tables: `missions` (the scenario, the planning status and, once planned, the Plan JSON) and
 `executions` (the flights of a mission: status, events, summary and the flight record; the
 table keeps its first name so existing databases load). JSON

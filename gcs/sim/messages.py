@@ -1,5 +1,7 @@
 """How a mock vehicle encodes each message it sends, from its state (`VehicleState`).
 
+Long: a table of encoders, one short function per message the mock sends.
+
 Every encoder is a function (state, mock time s) -> message (None: nothing this time). Values
 come from the vehicle's model, so the fast streams are plausible (attitude from the commanded
 acceleration), not sensor-accurate. Which of them go out, and how often, is

@@ -2,6 +2,8 @@
 dmpc2019 benchmark's trial distribution (Luis & Schoellig, RA-L 2019), and the drone-show
 families (grid -> sphere show transitions, dense random transitions).
 
+Long: a catalogue of scenario families, each a short independent function.
+
 All return scenario dicts (the JSON contract), ready for `Scenario.from_dict` or `plan`.
 """
 

@@ -1,6 +1,8 @@
 """Goal assignment for `"assignment": "free"` and its CAPT initial guess (Turpin, Michael &
 Kumar 2014).
 
+Long: one algorithm: the certified sparse assignment and its dense fallback.
+
 The assignment minimises the total squared distance from starts to goals in the separation
 metric ||diag(1/scale) d|| (plain Euclidean for the default scale). Such an assignment makes
 every pair's start and goal displacements r0 = S(s_i - s_j), r1 = S(g_i - g_j) satisfy

@@ -1,5 +1,7 @@
 """Landing plans: from a flying fleet's state to touchdown points, planned and verified.
 
+Long: one algorithm: touchdown points, the landing plan and its escape move.
+
 A way out of a flight must keep R as the plan does. `plan_landing` takes every vehicle's
 current position, velocity and acceleration (world frame ENU, e.g. the flying plan's state at
 a switch instant) and plans, with the same SCP planner, a move to a touchdown point at the

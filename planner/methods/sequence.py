@@ -1,5 +1,7 @@
 """Formation sequences: F0 -> F1 -> ... with hold times, one planning problem per leg.
 
+Long: the formation-sequence contract: its parser, the legs and their stitching.
+
 A sequence is parsed (`parse_sequence`) into independent leg scenarios: goal assignments
 (free legs) are resolved up front in order, so leg k's starts are known without planning leg
 k - 1, and every leg is a pure function of picklable inputs (`plan_leg(scenario, solver)`),

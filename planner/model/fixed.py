@@ -1,5 +1,7 @@
 """Fixed trajectories: vehicles whose motion is known and not planned.
 
+Long: fixed trajectories: the dataclasses and the braking, landing and dropped motions.
+
 A vehicle descending to land, braking to a hold, or flying on its own failsafe is not a
 planned vehicle, yet the planned ones must keep R from it. A `FixedTrajectory` is such a
 vehicle's motion on the scenario's step grid (world frame ENU): positions at t = k dt and,

@@ -1,5 +1,7 @@
 """The scenario model (the input JSON contract) and its validation.
 
+Long: the scenario contract: its dataclasses and the parser that names every field.
+
 A scenario is parsed once into frozen dataclasses holding numpy arrays; every problem found is
 a `ScenarioError` naming the field (dotted path) and the reason. `Scenario.to_dict` echoes the
 scenario with every default filled in, which is what a plan carries.

@@ -300,6 +300,8 @@ def run_scp(
 ) -> ScpOutcome:
     """Run the SCP loop on a validated scenario (goals as the vehicles fly to them).
 
+    Long: the SCP loop read top to bottom: seeding, iterations, stop rules and outcome.
+
     guess: (p, v, a) to linearise the first SCP iteration about instead of the
     separation-free optimum (e.g. CAPT's synchronised straight moves); any point gives
     valid rows, a separated one gives rows that the guess itself satisfies.

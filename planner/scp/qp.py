@@ -1,5 +1,7 @@
 """Sparse QP assembly for a group of vehicles: states and accelerations as variables.
 
+Long: the group QP's variable layout and every part that indexes it: shared structure and rows.
+
 Variables are ordered by time stage so every constraint couples at most two neighbouring
 stages (dynamics, jerk, continuous-time separation) or one stage (step separation):
 stage k holds, for every vehicle of the group, [p_xyz, v_xyz, a_xyz], i.e.

@@ -1,5 +1,7 @@
 """Pair geometry for the separation constraint ||S (p_i - p_j)|| >= R, S = diag(1/scale).
 
+Long: broad phases, directions, row values and bounds share the pair-step geometry (`PairSteps`).
+
 Two ways to linearise it about a previous iterate (the linearisation point, `lin`):
 
 - Step rows (the paper, eqs. 29-31): for pair (i, j) at step k, u_k'S(p_i - p_j)[k] >= R
@@ -14,9 +16,7 @@ Two ways to linearise it about a previous iterate (the linearisation point, `lin
   intervals use the direction of their fixed endpoint (start or goal), so the rows never
   contradict the boundary conditions.
 
-Every function is vectorised over pairs and steps, in chunks that bound memory. The module
-runs past 400 lines: its broad phases, directions, row values and distance bounds share the
-pair-step geometry (`PairSteps`, the chunking, the chord's closest point).
+Every function is vectorised over pairs and steps, in chunks that bound memory.
 """
 
 from __future__ import annotations

@@ -4,9 +4,6 @@ Everything is measured on the trajectories themselves with their exact motion be
 steps: pair distances at the steps and over continuous time, every box (position checked
 over continuous time too, since it is quadratic inside a step), boundary conditions, and
 the flyability of thrust and body rates.
-
-`verify` runs past 80 lines: it is one flat list of independent checks, each a few lines
-that fill one field of `Verification`, read best top to bottom.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@
 and restart its flight clock, /replan changes goals or drops vehicles in flight, /trajectory
 the plans it flies (the first, then each switched replan's), /record the flight record.
 
+Long: the routes of one resource (flights), each short, sharing its helpers.
+
 `/api/executions` and `/api/missions/{id}/executions` are the same routes under their former
 name, kept working and marked deprecated in the OpenAPI document (`gcs.api.routes`).
 """

@@ -1,6 +1,8 @@
 """/api/missions: create (plan), list, read, delete missions; progress; trajectory and show
 exports; the geofence as a QGroundControl .plan file.
 
+Long: the routes of one resource (missions), each short, sharing its helpers.
+
 A mission is a validated scenario plus, once its worker answers, the plan. POST waits up to
 ``wait`` seconds (default: the `plan_wait_s` setting) for the plan and answers 201 with it;
 a plan still computing by then is answered 202 with the mission (status ``planning``) to poll

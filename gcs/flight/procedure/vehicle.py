@@ -1,5 +1,7 @@
 """One vehicle: the executor's view of it (`VehicleStatus`) and the procedure on its link.
 
+Long: the link-level procedure steps, a short coroutine each, and the `VehicleStatus` they update.
+
 The procedure steps are link-level coroutines, so a flight (`gcs.flight.run.executor`) and a fleet
 command outside a flight (`gcs.fleet.commands`) use the same code:
 

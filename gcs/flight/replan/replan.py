@@ -1,5 +1,7 @@
 """Replanning in flight: new goals, dropped vehicles, a faulty vehicle flown around.
 
+Long: one class, `Replanner`: a replan's lifecycle from request to switch or miss.
+
 `Replanner.request` starts one replan of a flying fleet (`FlightExecutor.replan`, the fault
 policy ``replan``) and returns its replan object at once (status ``planning``):
 

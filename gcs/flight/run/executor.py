@@ -1,6 +1,8 @@
 """The fleet executor: fly a plan on a fleet of PX4 and ArduPilot vehicles with one shared
 flight clock.
 
+Long: the flight's state, public API and order of phases, each a few lines over its parts.
+
 `FlightExecutor(plan, fleet)` runs the whole flight on the caller's asyncio loop. It keeps the
 flight's state (phase, abort, clock, streams) and the order of its phases; each part acts on
 it through one protocol, `gcs.flight.run.state.Flight`, and each step on a vehicle gets the

@@ -247,6 +247,8 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     time at the end; `lateness` is None when nothing was streamed. `why` says in words why the
     flight is or is not complete.
 
+    Long: builds the summary document key by key, in the order of its contract.
+
     With in-flight replans: `planned(id, flight times)` is where a vehicle was meant to be
     (the flight's plans, `gcs.flight.timeline.flown`; default `plan`), `horizon` the end of the last
     plan flown (flight time; default the plan's), `off_plan` the flight time from which a
