@@ -45,6 +45,7 @@ from gcs.fleet.fleetfile import (
 )
 from gcs.phases import EventKind, ReplanStatus
 from gcs.replan_request import ReplanRequest, checked
+from gcs.service.events import Event
 from gcs.service.flights import LiveFlight, flight_document
 from gcs.service.flown_trajectory import flown_trajectory
 from gcs.service.replan_handle import Segment
@@ -394,7 +395,7 @@ async def flight_events(
         # Finished: the store has it (read again: it may have ended a moment ago).
         stored = await run_in_threadpool(store.get_flight, row.id)
         row = stored or row
-        stream: AsyncIterable[tuple[str, dict[str, Any]]] = _stored_stream(row)
+        stream: AsyncIterable[Event] = _stored_stream(row)
     else:
         stream = flight.stream()
     sequence = 0
@@ -407,7 +408,7 @@ async def flight_events(
             yield ServerSentEvent(event=kind, raw_data=shared.text(data))
 
 
-async def _stored_stream(row: FlightRow) -> AsyncIterable[tuple[str, dict[str, Any]]]:
+async def _stored_stream(row: FlightRow) -> AsyncIterable[Event]:
     """A finished flight's stream, from the store."""
     yield "status", {"status": row.status}
     for event in row.events:

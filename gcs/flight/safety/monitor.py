@@ -133,7 +133,7 @@ DROPS_NOTE_S = 5.0
 
 DropsCallback = Callable[[VehicleStatus, str], None]
 #: Called with (vehicle id, event kind, detail) when a link degrades or recovers.
-LinkCallback = Callable[[str, str, str], None]
+LinkCallback = Callable[[str, EventKind, str], None]
 #: (vehicle, flight times) -> its planned world positions there, (T, 3).
 PlannedCallback = Callable[[VehicleStatus, "Sequence[float] | np.ndarray"], np.ndarray]
 #: (vehicle, flight time) -> its predicted world position, or None.
