@@ -2,13 +2,14 @@
 replan objects.
 
 They are TypedDicts (plain dicts at run time), so the record, the REST API, the page and
-``fleetplan fly`` read the same keys the flight writes, and mypy checks both ends; the REST
-API's schema of them is derived from these classes (their attribute docstrings become the
-field descriptions), and pydantic validates only ``typing_extensions`` TypedDicts on Python
-3.11. Times are
-seconds (events on the GCS clock, the rest in flight time), positions in the world frame
-(ENU, m); None is unknown. Their words are `gcs.phases`' enums and Literals (StrEnums: the
-JSON carries the plain value); `current_events` reads stored events back as `FlightEvent`s.
+``fleetplan fly`` read the same keys the flight writes, and mypy checks both ends. Their
+words are `gcs.phases`' enums and Literals (StrEnums: the JSON carries the plain value).
+Times are seconds (events on the GCS clock, the rest in flight time), positions in the world
+frame (ENU, m); None is unknown. `current_events` reads stored events back as `FlightEvent`s.
+
+The REST API's schema of them is derived from these classes, their attribute docstrings as
+the field descriptions; pydantic takes a TypedDict only from ``typing_extensions`` on Python
+3.11.
 """
 
 from __future__ import annotations
