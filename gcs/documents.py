@@ -2,15 +2,26 @@
 replan objects.
 
 They are TypedDicts (plain dicts at run time), so the record, the REST API, the page and
-``fleetplan fly`` read the same keys the flight writes, and mypy checks both ends. Times are
-seconds (events on the GCS clock, the rest in flight time), positions in the world frame
-(ENU, m); None is unknown.
+``fleetplan fly`` read the same keys the flight writes, and mypy checks both ends. Their
+words are `gcs.phases`' enums and Literals (StrEnums: the JSON carries the plain value).
+Times are seconds (events on the GCS clock, the rest in flight time), positions in the world
+frame (ENU, m); None is unknown. `current_events` reads stored events back as `FlightEvent`s.
+
+The REST API's schema of them is derived from these classes, their attribute docstrings as
+the field descriptions; pydantic takes a TypedDict only from ``typing_extensions`` on Python
+3.11.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NotRequired, TypedDict
+from collections.abc import Iterable, Mapping
+from typing import Any, NotRequired
+
+from pydantic import ConfigDict, with_config
+from typing_extensions import TypedDict
+
+from gcs.phases import DropAction, EventKind, FlightPhase, ReplanStatus, VehiclePhase
 
 __all__ = [
     "BatteryReport",
@@ -22,25 +33,32 @@ __all__ = [
     "ReplanDocument",
     "SensorReport",
     "VehicleSnapshot",
+    "current_events",
     "finite_or_none",
 ]
 
+#: The field docstrings are the API schema's field descriptions.
+_DOCUMENTED = with_config(ConfigDict(use_attribute_docstrings=True))
 
+
+@_DOCUMENTED
 class FlightEvent(TypedDict):
-    """One line of a flight's event log (`gcs.phases.EventKind` names its kind)."""
+    """One line of a flight's event log."""
 
     t: float
     vehicle: str | None
     """The vehicle it is about; None for the fleet."""
-    kind: str
+    kind: EventKind
     detail: str
 
 
+@_DOCUMENTED
 class BatteryReport(TypedDict):
     remaining_pct: int | None
     voltage: float | None
 
 
+@_DOCUMENTED
 class GpsReport(TypedDict):
     fix_type: int | None
     satellites: int | None
@@ -48,6 +66,7 @@ class GpsReport(TypedDict):
     v_acc: float | None
 
 
+@_DOCUMENTED
 class SensorReport(TypedDict):
     unhealthy: list[str] | None
     """SYS_STATUS sensors present and enabled but not healthy, by name."""
@@ -56,6 +75,7 @@ class SensorReport(TypedDict):
     """The vehicle's latest pre-arm warnings (STATUSTEXT)."""
 
 
+@_DOCUMENTED
 class LinkQualityReport(TypedDict):
     """One vehicle's link figures (`gcs.flight.link.quality.LinkQuality.report`)."""
 
@@ -70,6 +90,7 @@ class LinkQualityReport(TypedDict):
     jitter_ms: float | None
 
 
+@_DOCUMENTED
 class HealthReport(TypedDict):
     """What a vehicle reports of its fitness (`gcs.flight.safety.health.health_report`)."""
 
@@ -79,12 +100,13 @@ class HealthReport(TypedDict):
     link_quality: LinkQualityReport
 
 
+@_DOCUMENTED
 class VehicleSnapshot(TypedDict):
     """One vehicle of a flight's snapshot; the health keys once it has been heard."""
 
     id: str
     system_id: int
-    phase: str
+    phase: VehiclePhase
     autopilot: str | None
     """``px4`` or ``ardupilot``; None until an ``auto`` vehicle has been heard."""
     fault: str | None
@@ -95,7 +117,7 @@ class VehicleSnapshot(TypedDict):
     position: list[float] | None
     velocity: list[float] | None
     tracking_error: float | None
-    dropped: str | None
+    dropped: DropAction | None
     """``land`` or ``hold`` once a replan has dropped it."""
     battery: NotRequired[BatteryReport]
     gps: NotRequired[GpsReport]
@@ -103,36 +125,60 @@ class VehicleSnapshot(TypedDict):
     link_quality: NotRequired[LinkQualityReport]
 
 
+@_DOCUMENTED
 class ReplanDocument(TypedDict):
     """One in-flight replan as the flight shows it (`gcs.flight.replan.record.ReplanRecord`);
     the keys after ``horizon`` once it has switched."""
 
     id: int
-    status: str
-    """`gcs.phases.ReplanStatus`: planning, switched or missed."""
+    """The replan's number in this flight, from 1."""
+    status: ReplanStatus
+    """planning (the new plan is being made), switched (the stream flies it since
+    `switch_time`) or missed (no verified plan by `switch_time`: the flight goes on with its
+    plan; `why` and the `replan_missed` event say why)."""
     requested_at: float | None
+    """Flight time of the request (s); None if the flight clock had not started."""
     switch_time: float
+    """Flight time the new plan starts at (s)."""
     switch_tick: int
+    """The stream's tick the new plan starts at."""
     lead_s: float
+    """The lead it was given (s): it switches at the last tick within that time after the
+    request."""
     planning_s: float | None
+    """Planning time once planned (s)."""
     goals: dict[str, list[float]]
+    """The new goals asked for: vehicle id -> [x, y, z]."""
     drop: list[str]
-    drop_action: str
+    """The vehicles dropped."""
+    drop_action: DropAction
+    """What the dropped vehicles do: land, or hold."""
     reason: str | None
+    """Who asked, or which fault caused it."""
     vehicles: list[str]
+    """The vehicles planned."""
     fixed: list[str]
+    """The vehicles the others avoid on a known motion (the dropped ones, any vehicle in the
+    air off the plan)."""
     faulty: list[str]
+    """The faulty vehicles it flies the others around (policy replan)."""
     why: str | None
+    """Why it was missed."""
     horizon: float | None
+    """Once switched: the new plan's length (s) from `switch_time`."""
     request_to_switch_s: NotRequired[float]
+    """From the request to the switch tick (s)."""
     min_separation_planned: NotRequired[float | None]
+    """The new plan's verified minimum separation (m; None: not verified)."""
     separation_kept: NotRequired[float]
+    """The separation the replan planned with (m)."""
 
 
+@_DOCUMENTED
 class FlightSnapshot(TypedDict):
     """A flight's live state (`gcs.flight.run.snapshot.flight_snapshot`)."""
 
-    phase: str
+    phase: FlightPhase
     flight_time: float | None
     horizon: float
     min_separation_live: float | None
@@ -141,6 +187,13 @@ class FlightSnapshot(TypedDict):
     """How many events the flight has logged so far."""
     replan: ReplanDocument | None
     """The replan under way, or the last one (None before any)."""
+
+
+def current_events(events: Iterable[Mapping[str, Any]]) -> list[FlightEvent]:
+    """Stored events (decoded JSON) as `FlightEvent`s, each kind under its current value (a
+    former one, `gcs.phases.FORMER_EVENT_KINDS`, read as the kind it is now)."""
+    return [{"t": e["t"], "vehicle": e["vehicle"], "kind": EventKind(e["kind"]),
+             "detail": e["detail"]} for e in events]
 
 
 def finite_or_none(x: float | None) -> float | None:

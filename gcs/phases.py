@@ -1,4 +1,5 @@
-"""The flight's vocabulary, defined once: flight phases, vehicle phases and event kinds.
+"""The flight's vocabulary, defined once: flight phases, vehicle phases, event kinds and what
+a replan is and does with a dropped vehicle.
 
 A *phase* is where a flight (`FlightPhase`) or one of its vehicles (`VehiclePhase`) is inside
 its run; an *event kind* (`EventKind`) names one line of a flight's event log. They are
@@ -9,18 +10,18 @@ kind's former value (`FORMER_EVENT_KINDS`) read as the kind it is now.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from enum import StrEnum
-from typing import Any
+from typing import Literal, get_args
 
 __all__ = [
     "AIRBORNE",
+    "DROP_ACTIONS",
     "FORMER_EVENT_KINDS",
+    "DropAction",
     "EventKind",
     "FlightPhase",
     "ReplanStatus",
     "VehiclePhase",
-    "current_events",
     "vocabulary",
 ]
 
@@ -75,6 +76,11 @@ class ReplanStatus(StrEnum):
     PLANNING = "planning"
     SWITCHED = "switched"
     MISSED = "missed"
+
+
+#: What a vehicle a replan drops does: land, or brake and hold where it stops.
+DropAction = Literal["land", "hold"]
+DROP_ACTIONS: tuple[DropAction, ...] = get_args(DropAction)
 
 
 class EventKind(StrEnum):
@@ -167,12 +173,6 @@ class EventKind(StrEnum):
 
 #: Former values of event kinds, as events stored before they were renamed carry them.
 FORMER_EVENT_KINDS: dict[str, EventKind] = {"mission_start": EventKind.FLIGHT_START}
-
-
-def current_events(events: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Stored events with each kind under its current value (a former one replaced)."""
-    return [{**e, "kind": FORMER_EVENT_KINDS[e["kind"]]} if e.get("kind") in FORMER_EVENT_KINDS
-            else e for e in events]
 
 
 def vocabulary() -> dict[str, list[str]]:

@@ -11,11 +11,12 @@ vehicle listed twice or both dropped and given a goal.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, Literal, get_args
+from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from gcs.errors import InvalidRequest, field_path
+from gcs.phases import DROP_ACTIONS, DropAction
 
 __all__ = ["DROP_ACTIONS", "MAX_ENTRIES", "SERVICE_LIMIT", "DropAction", "GoalPoint",
            "ReplanRequest", "VehicleId", "check_entries", "checked", "parse"]
@@ -23,9 +24,6 @@ __all__ = ["DROP_ACTIONS", "MAX_ENTRIES", "SERVICE_LIMIT", "DropAction", "GoalPo
 #: Most vehicles one replan names in `goals`, and in `drop`: a replan of more could not be
 #: planned within any lead (100 vehicles take about 2 s), and the body stays small.
 MAX_ENTRIES = 512
-#: What a dropped vehicle does: land, or brake and hold where it stops.
-DropAction = Literal["land", "hold"]
-DROP_ACTIONS: tuple[str, ...] = get_args(DropAction)
 #: A vehicle id in a replan (as long as a fleet command's).
 VehicleId = Annotated[str, Field(min_length=1, max_length=64)]
 #: A new goal: x, y, z in the world frame (ENU, m), finite.
@@ -80,11 +78,12 @@ def checked(request: ReplanRequest, max_vehicles: int, limit: str = SERVICE_LIMI
 
 
 def check_entries(goals: Mapping[str, Any] | None, drop: Sequence[str], drop_action: str
-                  ) -> None:
+                  ) -> DropAction:
     """A replan's entries against each other: `drop_action` one of `DROP_ACTIONS`, `drop` a
     list naming each vehicle once, `goals` an object, no vehicle both dropped and given a
-    goal; InvalidRequest naming the field otherwise."""
-    if drop_action not in DROP_ACTIONS:
+    goal; InvalidRequest naming the field otherwise. Returns the drop action as checked."""
+    action = next((a for a in DROP_ACTIONS if a == drop_action), None)
+    if action is None:
         raise InvalidRequest("drop_action", f"must be one of {', '.join(DROP_ACTIONS)}, "
                                             f"got {drop_action!r}")
     if isinstance(drop, str):
@@ -101,6 +100,7 @@ def check_entries(goals: Mapping[str, Any] | None, drop: Sequence[str], drop_act
             raise InvalidRequest(f"goals.{vehicle}", f"{vehicle!r} is dropped: it cannot be "
                                                      "given a goal too")
         seen.add(vehicle)
+    return action
 
 
 def parse(document: Any, max_vehicles: int, limit: str = SERVICE_LIMIT) -> ReplanRequest:

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gcs.phases import FORMER_EVENT_KINDS, EventKind, FlightPhase, current_events, vocabulary
+from gcs.documents import current_events
+from gcs.phases import FORMER_EVENT_KINDS, EventKind, FlightPhase, vocabulary
 from gcs.service.statuses import FLIGHT_FINISHED, STATUS_OF_PHASE, FlightStatus
 from gcs.service.store import Store
 from planner.model.scenario import Scenario

@@ -16,7 +16,7 @@ from __future__ import annotations
 import asyncio
 import weakref
 from collections import deque
-from collections.abc import AsyncIterator, Iterable
+from collections.abc import AsyncIterator, Iterable, Mapping
 from typing import Any
 
 __all__ = ["MAX_BACKLOG", "Broadcast", "Event", "end_streams", "streams_ended"]
@@ -25,7 +25,7 @@ __all__ = ["MAX_BACKLOG", "Broadcast", "Event", "end_streams", "streams_ended"]
 MAX_BACKLOG = 4096
 
 #: (kind, data): kind "done" ends a stream.
-Event = tuple[str, dict[str, Any]]
+Event = tuple[str, Mapping[str, Any]]
 
 #: Per event loop (one service): set once its streams must end.
 _ending: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, asyncio.Event] = (
@@ -81,7 +81,7 @@ class Broadcast:
         """Followers subscribed now."""
         return len(self._listeners)
 
-    def publish(self, kind: str, data: dict[str, Any]) -> None:
+    def publish(self, kind: str, data: Mapping[str, Any]) -> None:
         for listener in self._listeners:
             listener.put((kind, data))
 

@@ -34,11 +34,12 @@ from typing import Any
 
 import orjson
 
+from gcs.documents import FlightEvent, ReplanDocument
 from gcs.errors import FlightAborted, GcsError, StateConflict, VehicleLoopStopped
 from gcs.fleet.fleetfile import FlightOptions
 from gcs.flight.host.vehicle_process import VehicleProcess
 from gcs.flight.run.precedence import abort_in_force, aborting_refusal
-from gcs.phases import EventKind, FlightPhase
+from gcs.phases import DropAction, EventKind, FlightPhase
 from gcs.service.fleet import FleetKind, fleet_kind
 from gcs.service.flown_trajectory import replanned_in
 from gcs.service.journal import FlightJournal, store_failure, write_final
@@ -264,8 +265,8 @@ class FleetService:
         return flight
 
     async def replan(self, flight_id: str, goals: dict[str, list[float]] | None,
-                     drop: list[str], drop_action: str, reason: str = "operator",
-                     stored_status: FlightStatus | None = None) -> dict[str, Any]:
+                     drop: list[str], drop_action: DropAction, reason: str = "operator",
+                     stored_status: FlightStatus | None = None) -> ReplanDocument:
         """Start an in-flight replan of a running flight (new goals for some vehicles, some
         dropped to land or hold on their own motion); the replan object at once (status
         planning), its outcome follows as events. StateConflict unless the flight runs its
@@ -448,7 +449,7 @@ class FleetService:
             flight.handle.posted(data["snapshot"])
             _leave_starting(flight, data["snapshot"]["phase"])
 
-    def _on_event(self, flight: LiveFlight, event: dict[str, Any]) -> None:
+    def _on_event(self, flight: LiveFlight, event: FlightEvent) -> None:
         """One event of the flight (handed over from the vehicle process, in order) into the
         flight's log and stream; a pause past its limit ends the pause (the executor lands
         or holds the fleet)."""

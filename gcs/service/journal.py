@@ -25,6 +25,7 @@ from typing import Any
 
 import orjson
 
+from gcs.documents import FlightEvent
 from gcs.service.store import Store
 
 __all__ = ["FlightJournal", "RecordCopy", "Source", "store_failure", "write_final"]
@@ -41,7 +42,7 @@ RECORD_PERIOD_S = 5.0
 RecordCopy = Callable[[], Awaitable[dict[str, Any]]]
 #: What the journal reads each beat: (status, events so far, how to take the record so far,
 #: or None while there is none).
-Source = Callable[[], tuple[str, list[dict[str, Any]], RecordCopy | None]]
+Source = Callable[[], tuple[str, list[FlightEvent], RecordCopy | None]]
 
 
 class FlightJournal:
@@ -122,7 +123,7 @@ _retries: set[asyncio.Task[bool]] = set()
 
 
 async def store_failure(store: Store, flight_id: str, reason: str,
-                        events: list[dict[str, Any]], *, retry_s: float = 2.0,
+                        events: list[FlightEvent], *, retry_s: float = 2.0,
                         attempts: int = 60) -> bool:
     """After the final write of a flight failed: mark it `failed` with `reason` (a small
     write, likelier to pass on a full disk). Tried once now; if that fails too, retried in the
@@ -152,7 +153,7 @@ async def store_failure(store: Store, flight_id: str, reason: str,
 
 
 async def write_final(store: Store, flight_id: str, *, status: str,
-                      events: list[dict[str, Any]], summary: dict[str, Any] | None,
+                      events: list[FlightEvent], summary: dict[str, Any] | None,
                       record: dict[str, Any] | None, error: str | None) -> None:
     """The final write of a flight: status, events, summary, record and error, in one
     update. Raises what the store raised: the caller keeps the flight in memory and retries

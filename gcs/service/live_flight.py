@@ -4,11 +4,12 @@ listeners of its event stream; and the REST document of a flight (stored row + l
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from gcs.documents import FlightEvent, FlightSnapshot
 from gcs.flight.run.precedence import ABORT_ACTIONS
 from gcs.service.events import Broadcast, Event
 from gcs.service.remote_flight import RemoteFlight
@@ -27,7 +28,7 @@ class LiveFlight:
     status: FlightStatus = FlightStatus.STARTING
     handle: RemoteFlight | None = None
     """The flight in the vehicle process, once it is made."""
-    events: list[dict[str, Any]] = field(default_factory=list)
+    events: list[FlightEvent] = field(default_factory=list)
     summary: dict[str, Any] | None = None
     error: str | None = None
     aborts: list[str] = field(default_factory=list)
@@ -53,7 +54,7 @@ class LiveFlight:
         """The flight has not ended (the vehicles may be flying)."""
         return not self.done.is_set()
 
-    def publish(self, kind: str, data: dict[str, Any]) -> None:
+    def publish(self, kind: str, data: Mapping[str, Any]) -> None:
         """Tell the stream's listeners."""
         self.listeners.publish(kind, data)
 
@@ -62,7 +63,7 @@ class LiveFlight:
         self.status = status
         self.publish("status", {"status": status})
 
-    def snapshot(self) -> dict[str, Any] | None:
+    def snapshot(self) -> FlightSnapshot | None:
         """The flight's live state (phase, vehicles) as the vehicle process last posted it, once
         the flight exists."""
         return None if self.handle is None else self.handle.snapshot()

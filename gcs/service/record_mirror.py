@@ -15,22 +15,43 @@ marked ``"partial": true``.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
+from gcs.documents import FlightEvent
 from gcs.flight.run.record import COLUMNS, RECORD_FORMAT
 
 if TYPE_CHECKING:
     from gcs.flight.run.record import FlightRecorder
 
-__all__ = ["RecordMirror", "record_delta"]
+__all__ = ["RecordDelta", "RecordMirror", "VehicleDelta", "record_delta"]
 
 
-def record_delta(recorder: FlightRecorder, cursor: dict[str, Any]) -> dict[str, Any]:
+class VehicleDelta(TypedDict):
+    """One vehicle's part of a `RecordDelta`: its new column entries and mode changes."""
+
+    id: str
+    system_id: int
+    home: list[float] | None
+    columns: dict[str, list[Any]]
+    """`COLUMNS`' attribute -> its entries beyond the cursor."""
+    modes: list[dict[str, Any]]
+
+
+class RecordDelta(TypedDict):
+    """What a recorder holds beyond a cursor (`record_delta`)."""
+
+    meta: dict[str, Any] | None
+    """The record's meta when it changed, or None."""
+    events: list[FlightEvent]
+    vehicles: list[VehicleDelta]
+
+
+def record_delta(recorder: FlightRecorder, cursor: dict[str, Any]) -> RecordDelta:
     """What `recorder` holds beyond `cursor` (a `RecordMirror.cursor()`): the meta when it
     changed, the new events and each vehicle's new column entries and mode changes.
     Runs on the vehicle loop, so the lists are not appended to meanwhile."""
     seen = cursor.get("vehicles", {})
-    vehicles = []
+    vehicles: list[VehicleDelta] = []
     for v in recorder.vehicles.values():
         had = seen.get(v.id, {})
         columns = {c.attribute: getattr(v, c.attribute)[had.get(c.attribute, 0):]
@@ -47,7 +68,7 @@ class RecordMirror:
 
     def __init__(self) -> None:
         self._meta: dict[str, Any] = {}
-        self._events: list[dict[str, Any]] = []
+        self._events: list[FlightEvent] = []
         self._vehicles: dict[str, dict[str, Any]] = {}
 
     def cursor(self) -> dict[str, Any]:
@@ -58,7 +79,7 @@ class RecordMirror:
                                    "modes": len(v["modes"])}
                              for vid, v in self._vehicles.items()}}
 
-    def apply(self, delta: dict[str, Any]) -> None:
+    def apply(self, delta: RecordDelta) -> None:
         """Append a `record_delta` taken at this copy's cursor."""
         if delta["meta"] is not None:
             self._meta = delta["meta"]

@@ -11,7 +11,9 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
+from gcs.documents import FlightSnapshot, ReplanDocument
 from gcs.flight.host.vehicle_process import VehicleProcess
+from gcs.phases import DropAction
 from gcs.service.record_mirror import RecordMirror
 from gcs.service.replan_handle import Segment
 
@@ -24,7 +26,7 @@ class RemoteFlight:
     def __init__(self, process: VehicleProcess, flight_id: str) -> None:
         self._process = process
         self._flight_id = flight_id
-        self._snapshot: dict[str, Any] | None = None
+        self._snapshot: FlightSnapshot | None = None
         self._mirror = RecordMirror()
         self._mirroring = asyncio.Lock()  # one delta at a time: each is taken at the cursor
         self.record: dict[str, Any] | None = None
@@ -32,11 +34,11 @@ class RemoteFlight:
         self.scheduling = process.scheduling
         """The vehicle thread's scheduling (`VehicleLoop.scheduling`)."""
 
-    def posted(self, snapshot: dict[str, Any]) -> None:
+    def posted(self, snapshot: FlightSnapshot) -> None:
         """A snapshot the vehicle process posted."""
         self._snapshot = snapshot
 
-    def snapshot(self) -> dict[str, Any] | None:
+    def snapshot(self) -> FlightSnapshot | None:
         """The latest live state the vehicle process posted (`FlightExecutor.snapshot`)."""
         return self._snapshot
 
@@ -49,10 +51,10 @@ class RemoteFlight:
         return float(await self._process.call("resume", self._flight_id))
 
     async def replan(self, goals: dict[str, list[float]] | None, drop: list[str],
-                     drop_action: str, reason: str) -> dict[str, Any]:
+                     drop_action: DropAction, reason: str) -> ReplanDocument:
         """Start an in-flight replan (`FlightExecutor.replan`); the replan object at once
         (status planning). StateConflict / FieldError as the flight raised them."""
-        replan: dict[str, Any] = await self._process.call(
+        replan: ReplanDocument = await self._process.call(
             "replan", self._flight_id, goals, drop, drop_action, reason)
         return replan
 

@@ -47,7 +47,7 @@ from sqlalchemy.orm import (
 )
 from sqlalchemy.sql.elements import ColumnElement
 
-from gcs.phases import current_events
+from gcs.documents import FlightEvent, current_events
 from gcs.service.statuses import FLIGHT_ACTIVE, FlightStatus, MissionStatus
 
 __all__ = [
@@ -158,7 +158,7 @@ class FlightRow:
     finished_at: datetime | None
     fleet: str
     summary: dict[str, Any] | None
-    events: list[dict[str, Any]]
+    events: list[FlightEvent]
     error: str | None
     has_record: bool
     record_json: str | None = None
@@ -455,7 +455,7 @@ class Store:
         flight_id: str,
         *,
         status: str | None = None,
-        events: list[dict[str, Any]] | None = None,
+        events: list[FlightEvent] | None = None,
         summary: dict[str, Any] | None = None,
         record_json: str | None = None,
         error: str | None = None,

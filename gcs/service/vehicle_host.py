@@ -30,7 +30,7 @@ from gcs.flight.host.vehicle_process import HostContext
 from gcs.flight.timeline.realtime import settle_heap
 from gcs.service.fleet import Fleet
 from gcs.service.journal import write_final
-from gcs.service.record_mirror import record_delta
+from gcs.service.record_mirror import RecordDelta, record_delta
 from gcs.service.replan_handle import ReplanHandle, Segment
 from gcs.service.settings import Settings
 from gcs.service.statuses import FlightStatus
@@ -253,7 +253,7 @@ class FleetHost:
         """`FlightHandle.abort` of the flight under way."""
         await self._current(flight_id).abort(action, reason)
 
-    async def record_delta(self, flight_id: str, cursor: dict[str, Any]) -> dict[str, Any]:
+    async def record_delta(self, flight_id: str, cursor: dict[str, Any]) -> RecordDelta:
         """What the flight's record holds beyond `cursor` (`gcs.service.record_mirror`)."""
         return await self._current(flight_id).with_recorder(
             lambda recorder: record_delta(recorder, cursor))

@@ -1,5 +1,6 @@
 """One definition per contract: the API's scenario and plan schemas come from the planner's
-dataclasses, and the status sets the service uses are the ones it publishes."""
+dataclasses, a flight's events and live state from gcs.documents' TypedDicts, and the status
+sets the service uses are the ones it publishes."""
 
 from __future__ import annotations
 
@@ -8,10 +9,12 @@ import json
 from typing import Any
 
 from fastapi.testclient import TestClient
+from typing_extensions import get_type_hints
 
 from gcs.api import create_app
 from gcs.api.schemas import planner_schemas, shape_errors
-from gcs.phases import EventKind, vocabulary
+from gcs.documents import FlightEvent, FlightSnapshot, VehicleSnapshot
+from gcs.phases import EventKind, FlightPhase, VehiclePhase, vocabulary
 from gcs.service.settings import Settings
 from gcs.service.statuses import FLIGHT_ACTIVE, FlightStatus, MissionStatus, status_sets
 from planner import Plan, Scenario
@@ -61,6 +64,29 @@ def test_openapi_publishes_the_derived_components_and_readable_operation_ids() -
     ids = [op["operationId"] for path in schema["paths"].values() for op in path.values()]
     assert len(ids) == len(set(ids))
     assert all("_" not in i for i in ids), ids
+
+
+def test_a_flights_events_and_live_state_are_the_flights_documents() -> None:
+    """FlightOut's events and live state are `FlightEvent` and `FlightSnapshot` (its vehicles
+    `VehicleSnapshot`), key for key, their kinds and phases the flight's own enums."""
+    components = create_app(Settings(database_url="sqlite://", mock_vehicles=0)).openapi()[
+        "components"]["schemas"]
+
+    def ref(name: str) -> dict[str, str]:
+        return {"$ref": f"#/components/schemas/{name}"}
+
+    flight = components["FlightOut"]["properties"]
+    assert flight["events"]["items"] == ref("FlightEvent")
+    assert ref("FlightSnapshot") in flight["live"]["anyOf"]
+    for cls in (FlightEvent, FlightSnapshot, VehicleSnapshot):
+        assert set(components[cls.__name__]["properties"]) == set(get_type_hints(cls)), cls
+    assert components["FlightSnapshot"]["properties"]["vehicles"]["items"] == \
+        ref("VehicleSnapshot")
+    for document, key, enum in (("FlightEvent", "kind", EventKind),
+                                ("FlightSnapshot", "phase", FlightPhase),
+                                ("VehicleSnapshot", "phase", VehiclePhase)):
+        assert components[document]["properties"][key] == ref(enum.__name__), document
+        assert components[enum.__name__]["enum"] == [e.value for e in enum]
 
 
 def test_status_publishes_every_status_set(client: TestClient) -> None:

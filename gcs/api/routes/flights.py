@@ -33,6 +33,7 @@ from gcs.api.deps import (
     StoreDep,
 )
 from gcs.api.errors import error_responses
+from gcs.documents import FlightEvent, FlightSnapshot, ReplanDocument
 from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import (
     MAX_REPLAN_LEAD_S,
@@ -45,8 +46,9 @@ from gcs.fleet.fleetfile import (
     Preflight,
     StreamPriority,
 )
-from gcs.phases import EventKind, ReplanStatus
+from gcs.phases import EventKind
 from gcs.replan_request import ReplanRequest, checked
+from gcs.service.events import Event
 from gcs.service.flights import LiveFlight, flight_document
 from gcs.service.flown_trajectory import flown_trajectory
 from gcs.service.replan_handle import Segment
@@ -143,43 +145,19 @@ class AbortRequest(BaseModel):
     )
 
 
-class ReplanObject(BaseModel):
-    """One in-flight replan, as the flight keeps it (times are flight time, s)."""
-
-    model_config = ConfigDict(extra="allow")
-
-    id: int = Field(description="The replan's number in this flight, from 1.")
-    status: ReplanStatus = Field(
-        description="planning (the new plan is being made), switched (the stream flies it "
-        "since `switch_time`) or missed (no verified plan by `switch_time`: the flight goes "
-        "on with its plan; `why` and the `replan_missed` event say why).")
-    requested_at: float = Field(description="Flight time of the request (s).")
-    switch_time: float = Field(description="Flight time the new plan starts at (s).")
-    lead_s: float = Field(description="switch_time - requested_at (s).")
-    planning_s: float | None = Field(description="Planning time once planned (s).")
-    goals: dict[str, list[float]] = Field(description="The new goals asked for.")
-    drop: list[str] = Field(description="The vehicles dropped.")
-    drop_action: str = Field(description="land or hold.")
-    reason: str | None = Field(description="Who asked, or which fault caused it.")
-    why: str | None = Field(None, description="Why it was missed.")
-    vehicles: list[str] | None = Field(None, description="The vehicles planned.")
-    fixed: list[str] | None = Field(
-        None, description="The vehicles the others avoid on a known motion (the dropped "
-        "ones, any vehicle in the air off the plan).")
-    horizon: float | None = Field(None, description="Once switched: the new plan's length "
-                                  "(s) from `switch_time`.")
-
-
 class ReplanOut(BaseModel):
     """The replan started (202): its outcome follows on the flight's event stream as
     `replan_started`, then `replan_switched` or `replan_missed`."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [{"replan": {
-        "id": 1, "status": "planning", "requested_at": 3.2, "switch_time": 4.2, "lead_s": 1.0,
-        "planning_s": None, "goals": {"uav2": [4.0, 1.5, 2.0]}, "drop": ["uav3"],
-        "drop_action": "land", "reason": "operator"}}]})
+        "id": 1, "status": "planning", "requested_at": 3.2, "switch_time": 4.2,
+        "switch_tick": 84, "lead_s": 1.0, "planning_s": None, "goals": {"uav2": [4.0, 1.5, 2.0]},
+        "drop": ["uav3"], "drop_action": "land", "reason": "operator",
+        "vehicles": ["uav1", "uav2"], "fixed": ["uav3"], "faulty": [], "why": None,
+        "horizon": None}}]})
 
-    replan: ReplanObject
+    replan: ReplanDocument = Field(description="The replan, as the flight's live state "
+                                   "carries it (times are flight time, s).")
 
 
 _FLIGHT_EXAMPLE: dict[str, Any] = {
@@ -233,8 +211,8 @@ class FlightOut(FlightSummary):
                     "detail": "mode HOLD"}],
     }]})
 
-    events: list[dict[str, Any]] = Field(description="{t, vehicle, kind, detail} each.")
-    live: dict[str, Any] | None = Field(
+    events: list[FlightEvent] = Field(description="{t, vehicle, kind, detail} each.")
+    live: FlightSnapshot | None = Field(
         description="While flying: phase, flight_time, per vehicle position (world frame), "
         "mode, armed, heartbeat age, tracking error; live minimum separation."
     )
@@ -396,7 +374,7 @@ async def flight_events(
         # Finished: the store has it (read again: it may have ended a moment ago).
         stored = await run_in_threadpool(store.get_flight, row.id)
         row = stored or row
-        stream: AsyncIterable[tuple[str, dict[str, Any]]] = _stored_stream(row)
+        stream: AsyncIterable[Event] = _stored_stream(row)
     else:
         stream = flight.stream()
     sequence = 0
@@ -409,7 +387,7 @@ async def flight_events(
             yield ServerSentEvent(event=kind, raw_data=shared.text(data))
 
 
-async def _stored_stream(row: FlightRow) -> AsyncIterable[tuple[str, dict[str, Any]]]:
+async def _stored_stream(row: FlightRow) -> AsyncIterable[Event]:
     """A finished flight's stream, from the store."""
     yield "status", {"status": row.status}
     for event in row.events:

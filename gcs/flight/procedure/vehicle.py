@@ -49,7 +49,7 @@ from gcs.fleet.fleetfile import VehicleSpec
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.station import StationStalls
 from gcs.flight.link.telemetry import Telemetry
-from gcs.phases import VehiclePhase
+from gcs.phases import DropAction, EventKind, VehiclePhase
 from gcs.wire import mavlink, result_name
 
 __all__ = [
@@ -73,7 +73,7 @@ __all__ = [
 ]
 
 #: Called with (vehicle id or None for the fleet, event kind, detail).
-Emit = Callable[[str | None, str, str], None]
+Emit = Callable[[str | None, EventKind, str], None]
 
 #: How long OFFBOARD is retried while TEMPORARILY_REJECTED (the stream is not yet seen).
 MODE_RETRY_FOR = 5.0
@@ -120,7 +120,7 @@ class VehicleStatus:
     """The tolerance its goal error is judged with (from its reported accuracy then)."""
     last_mode: str | None = None
     last_armed: bool | None = None
-    dropped: str | None = None
+    dropped: DropAction | None = None
     """Taken off the plan by a switched replan (`gcs.flight.replan.replan`): ``land`` or ``hold``
     on its own motion; it is no longer judged against a goal."""
     drop_reason: str | None = None

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from gcs.documents import ReplanDocument
-from gcs.phases import ReplanStatus
+from gcs.phases import DropAction, ReplanStatus
 
 __all__ = ["ReplanRecord", "Switch"]
 
@@ -40,7 +40,7 @@ class ReplanRecord:
     lead_s: float
     goals: dict[str, list[float]]
     drop: list[str]
-    drop_action: str
+    drop_action: DropAction
     reason: str | None
     vehicles: list[str]
     """The vehicles it plans."""
@@ -64,7 +64,7 @@ class ReplanRecord:
     def document(self) -> ReplanDocument:
         """The JSON-ready object (a fresh dict: the caller may keep it)."""
         doc: ReplanDocument = {
-            "id": self.id, "status": self.status.value, "requested_at": self.requested_at,
+            "id": self.id, "status": self.status, "requested_at": self.requested_at,
             "switch_time": self.switch_time, "switch_tick": self.switch_tick,
             "lead_s": self.lead_s, "planning_s": self.planning_s,
             "goals": {vid: list(g) for vid, g in self.goals.items()},

@@ -57,7 +57,7 @@ from gcs.flight.replan.record import ReplanRecord, Switch
 from gcs.flight.timeline.clock import FlightClock
 from gcs.flight.timeline.flown import FlownPlans, Motion, shifted
 from gcs.flight.timeline.stream import Streamer
-from gcs.phases import AIRBORNE, EventKind, VehiclePhase
+from gcs.phases import AIRBORNE, DropAction, EventKind, VehiclePhase
 from gcs.replan_request import check_entries
 from gcs.tasks import TaskSet
 from planner.methods.replan import Replan, ReplanError, check_goals, plan_replan
@@ -93,7 +93,7 @@ class Job:
     goals: FloatArray
     """(N, 3) world goals of `steer`, in order."""
     drop: list[VehicleStatus]
-    action: str
+    action: DropAction
     drops: dict[str, Motion]
     """The dropped vehicles' streamed motions from the switch."""
     faulty: list[VehicleStatus] = field(default_factory=list)
@@ -218,7 +218,7 @@ class Replanner:
                ) -> ReplanDocument:
         """`request` once it may start: check the fields, pick the switch tick and the
         states there, start planning."""
-        check_entries(goals, drop, drop_action)
+        action = check_entries(goals, drop, drop_action)
         by_id = {v.id: v for v in self.vehicles}
         steer = [v for v in self.vehicles if self.steered(v)]
         dropped = self._dropped(drop, by_id, steer)
@@ -249,10 +249,10 @@ class Replanner:
             id=len(self.records) + 1, requested_at=None if now is None else round(now, 3),
             switch_time=round(t_switch, 4), switch_tick=tick, lead_s=round(lead, 3),
             goals={vid: [float(c) for c in g] for vid, g in new_goals.items()},
-            drop=[v.id for v in dropped], drop_action=drop_action, reason=reason,
+            drop=[v.id for v in dropped], drop_action=action, reason=reason,
             vehicles=[v.id for v in steer], fixed=[f.id for f in fixed],
             faulty=[v.id for v in faulty])
-        job = Job(record, tick, plan_tick, steer, goal_array, dropped, drop_action, drops,
+        job = Job(record, tick, plan_tick, steer, goal_array, dropped, action, drops,
                   list(faulty))
         self.records.append(record)
         self.job = job

@@ -11,6 +11,7 @@ from collections.abc import AsyncIterator, Callable
 
 from gcs.documents import FlightEvent
 from gcs.flight.run.record import FlightRecorder
+from gcs.phases import EventKind
 
 __all__ = ["EventFanout"]
 
@@ -25,7 +26,7 @@ class EventFanout:
         self._subscribers: list[asyncio.Queue[FlightEvent | None]] = []
         self._closed = False
 
-    def emit(self, vehicle: str | None, kind: str, detail: str = "") -> None:
+    def emit(self, vehicle: str | None, kind: EventKind, detail: str = "") -> None:
         """Record one event and pass it on to every subscriber."""
         event = self.recorder.event(self.now(), vehicle, kind, detail)
         for queue in self._subscribers:

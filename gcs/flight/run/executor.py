@@ -495,7 +495,7 @@ class FlightExecutor:
         if text is not None:
             self._emit(None, EventKind.STATION_STALL, text)
 
-    def _emit(self, vehicle: str | None, kind: str, detail: str = "") -> None:
+    def _emit(self, vehicle: str | None, kind: EventKind, detail: str = "") -> None:
         self._events.emit(vehicle, kind, detail)
 
     def close_record(self, error: BaseException | None) -> None:

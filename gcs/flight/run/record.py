@@ -149,7 +149,8 @@ class FlightRecorder:
         """Seconds the hold at the goals was extended for vehicles still arriving
         (`FlightOptions.goal_settle_max`): the summary's window includes them."""
 
-    def event(self, t: float, vehicle: str | None, kind: str, detail: str = "") -> FlightEvent:
+    def event(self, t: float, vehicle: str | None, kind: EventKind, detail: str = ""
+              ) -> FlightEvent:
         entry: FlightEvent = {"t": round(t, 4), "vehicle": vehicle, "kind": kind, "detail": detail}
         self.events.append(entry)
         return entry

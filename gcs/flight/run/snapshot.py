@@ -13,6 +13,7 @@ from gcs import frames
 from gcs.documents import FlightSnapshot, ReplanDocument, VehicleSnapshot, finite_or_none
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.safety.health import health_report
+from gcs.phases import FlightPhase
 
 __all__ = ["flight_snapshot", "vehicle_snapshot"]
 
@@ -45,7 +46,7 @@ def vehicle_snapshot(v: VehicleStatus, now: float) -> VehicleSnapshot:
     return snapshot if tel is None else {**snapshot, **health_report(tel)}
 
 
-def flight_snapshot(phase: str, flight_time: float | None, horizon: float,
+def flight_snapshot(phase: FlightPhase, flight_time: float | None, horizon: float,
                     min_separation: float, vehicles: Sequence[VehicleStatus],
                     events: int, replan: ReplanDocument | None = None) -> FlightSnapshot:
     """The whole flight: phase, flight time, horizon (the end of the plan flown now, a

@@ -7,13 +7,16 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import Any, NotRequired, get_origin
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from typing_extensions import get_type_hints
 
 from gcs.api import create_app
+from gcs.documents import ReplanDocument
+from gcs.phases import DROP_ACTIONS, ReplanStatus
 from gcs.replan_request import MAX_ENTRIES
 from gcs.service.settings import Settings
 from gcs.service.statuses import FlightStatus
@@ -124,9 +127,23 @@ def test_the_route_is_documented(client: TestClient) -> None:
     assert {"202", "404", "409", "422"} <= set(post["responses"])
     body = schema["components"]["schemas"]["ReplanRequest"]
     assert set(body["properties"]) == {"goals", "drop", "drop_action"}
-    answer = schema["components"]["schemas"]["ReplanObject"]
-    assert {"id", "status", "switch_time", "planning_s", "goals", "drop"} <= \
-        set(answer["properties"])
+
+
+def test_the_replan_objects_schema_is_replan_document(client: TestClient) -> None:
+    """The replan object the API documents is `ReplanDocument`, key for key: the keys a
+    replan may lack until it switched are the only ones not required, and its status and
+    drop action are the flight's own words."""
+    schemas = client.get("/openapi.json").json()["components"]["schemas"]
+    answer = schemas["ReplanOut"]["properties"]["replan"]["$ref"].rsplit("/", 1)[1]
+    replan = schemas[answer]
+    hints = get_type_hints(ReplanDocument, include_extras=True)
+    assert set(replan["properties"]) == set(hints)
+    assert set(replan["required"]) == {k for k, hint in hints.items()
+                                       if get_origin(hint) is not NotRequired}
+    assert set(replan["required"]) < set(hints)
+    status = replan["properties"]["status"]["$ref"].rsplit("/", 1)[1]
+    assert schemas[status]["enum"] == [s.value for s in ReplanStatus]
+    assert replan["properties"]["drop_action"]["enum"] == list(DROP_ACTIONS)
 
 
 def test_a_flight_without_replans_flies_its_missions_trajectory(client: TestClient) -> None:
