@@ -25,7 +25,7 @@ from pydantic_settings import (
 )
 
 from gcs.autopilot import px4
-from gcs.sim.config import TIMING_BOUNDS
+from gcs.sim.config import TIMING_BOUNDS, Realism
 
 __all__ = [
     "CONFIG_ENV",
@@ -137,7 +137,7 @@ class Settings(BaseSettings):
         description="Mock vehicles disarm this long after touching down "
         "(s; PX4's COM_DISARM_LAND, default 2)."
     )
-    mock_realism: Literal["ideal", "px4"] = Field(
+    mock_realism: Realism = Field(
         "ideal", description="Mock vehicles' behaviour: ideal (exact state) or px4 (PX4 SIH "
         "SITL's estimate noise, tracking lag and timings)."
     )

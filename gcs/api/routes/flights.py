@@ -33,7 +33,9 @@ from gcs.api.deps import (
 from gcs.api.errors import error_responses
 from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import (
+    MAX_RATE_HZ,
     MAX_REPLAN_LEAD_S,
+    MIN_RATE_HZ,
     AtEnd,
     FailsafeChoice,
     GeofenceChoice,
@@ -43,7 +45,7 @@ from gcs.fleet.fleetfile import (
     Preflight,
     StreamPriority,
 )
-from gcs.phases import EventKind, ReplanStatus
+from gcs.phases import AbortAction, EventKind, ReplanStatus
 from gcs.replan_request import ReplanRequest, checked
 from gcs.service.flights import LiveFlight, flight_document
 from gcs.service.flown_trajectory import flown_trajectory
@@ -83,7 +85,10 @@ class FlyRequest(BaseModel):
     at_end: AtEnd | None = Field(
         None, description="After the plan and the hold at the goals: land, or PX4 Hold."
     )
-    rate_hz: float | None = Field(None, gt=0, le=100, description="Setpoint rate (Hz).")
+    rate_hz: float | None = Field(
+        None, gt=MIN_RATE_HZ, le=MAX_RATE_HZ,
+        description=f"Setpoint rate (Hz): above {MIN_RATE_HZ:g} (PX4 leaves OFFBOARD at a "
+        f"slower stream), at most {MAX_RATE_HZ:g}.")
     hold_at_goal: float | None = Field(None, ge=0, le=600, description="Seconds at the goals.")
     goal_settle_max: float | None = Field(
         None, ge=0, le=60,
@@ -136,7 +141,7 @@ class AbortRequest(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True,
                               json_schema_extra={"examples": [{"action": "land"}]})
 
-    action: Literal["land", "hold"] = Field(
+    action: AbortAction = Field(
         "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."
     )
 

@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
-from gcs.fleet.commands import FLEET_COMMANDS
+from gcs.phases import FLEET_COMMANDS
 from gcs.service.settings import Settings
 from gcs.sim import DEFAULT_WORLD_ORIGIN
 from tests.api.support import QUICK, QUICK_CROSSING, plan_mission, sse_events

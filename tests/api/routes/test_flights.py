@@ -15,6 +15,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
+from gcs.fleet.fleetfile import MAX_RATE_HZ, MIN_RATE_HZ
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.support import (
@@ -189,6 +190,8 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
         crossing = plan_mission(client, SHORT_CROSSING)
         url = f"/api/missions/{crossing['id']}/flights"
         for body, field in [({"policy": "explode"}, "policy"), ({"rate_hz": 500}, "rate_hz"),
+                            ({"rate_hz": MIN_RATE_HZ}, "rate_hz"),
+                            ({"rate_hz": MAX_RATE_HZ + 1}, "rate_hz"),
                             ({"stream_priority": "fastest"}, "stream_priority"),
                             ({"climb_speed": 0}, "climb_speed"), ({"prestream": 60}, "prestream"),
                             ({"colour": 1}, "colour")]:
