@@ -1,5 +1,4 @@
-"""The flight's vocabulary, defined once: flight phases, vehicle phases, event kinds, abort
-actions and fleet commands.
+"""The flight's vocabulary, defined once: flight phases, vehicle phases and event kinds.
 
 A *phase* is where a flight (`FlightPhase`) or one of its vehicles (`VehiclePhase`) is inside
 its run; an *event kind* (`EventKind`) names one line of a flight's event log. They are
