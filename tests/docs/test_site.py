@@ -170,6 +170,21 @@ def test_no_page_names_an_issue_number() -> None:
     assert not found, found
 
 
+#: Packages whose every module the architecture page names (by file name, in backticks).
+NAMED_MODULES = ("gcs/flight", "gcs/fleet")
+
+
+@pytest.mark.parametrize("package", NAMED_MODULES)
+def test_the_architecture_page_names_every_module(package: str) -> None:
+    """A module added to the flight or the fleet is placed on the architecture page, so the
+    page shows the packages as they are."""
+    text = (ROOT / "docs" / "development" / "architecture.md").read_text()
+    modules = sorted((ROOT / package).rglob("*.py"))
+    unnamed = [str(m.relative_to(ROOT)) for m in modules
+               if m.name != "__init__.py" and f"`{m.name}`" not in text]
+    assert unnamed == []
+
+
 def test_concepts_page_names_every_status_and_phase() -> None:
     """The glossary lists the defined statuses and phases (gcs/service/statuses.py,
     gcs/phases.py); a new one must be documented."""
@@ -205,14 +220,15 @@ def test_the_glossary_lists_every_place_the_former_name_remains() -> None:
 
 def test_concepts_page_says_what_the_code_defines() -> None:
     """The glossary's words are the code's: the flight's phase -> status table is
-    `STATUS_OF_PHASE`, every event kind named is a current one, and the classes named for a
-    flight and its documents exist where the page says."""
+    `STATUS_OF_PHASE`, every event kind named is a current one and every current one is
+    named, and the classes named for a flight and its documents exist where the page says."""
     text = (ROOT / "docs" / "concepts.md").read_text()
     rows = re.findall(r"^\| `(\w+)` \| `(\w+)` \|$", text, re.M)
     assert dict(rows) == {str(p): str(s) for p, s in STATUS_OF_PHASE.items()}
     kinds = text.split("### Event kinds")[1].split("\n## ")[0]
-    named = set(re.findall(r"`(\w+)`", kinds)) - {"event_kinds", "land_faulty"}
+    named = set(re.findall(r"`(\w+)`", kinds)) - {"event_kinds", "land_faulty", "land_timeout"}
     assert named - set(FORMER_EVENT_KINDS) <= {str(k) for k in EventKind}, named
+    assert {str(k) for k in EventKind} - named == set(), "event kinds the glossary leaves out"
     assert f"`{EventKind.FLIGHT_START}`" in kinds
     for name, module in [("FlightExecutor", "gcs/flight/run/executor.py"),
                          ("FlightHandle", "gcs/flight/host/flight_handle.py"),
