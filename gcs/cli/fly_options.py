@@ -62,7 +62,7 @@ def add_flags(parser: argparse.ArgumentParser) -> None:
         default = getattr(_DEFAULTS, field)
         shown = f"{default:g}" if isinstance(default, float) else default
         parser.add_argument(f"--{flag}", choices=choices,
-                            type=float if isinstance(default, float) else None,
+                            type=float if isinstance(default, float) else str,
                             help=f"{text} (default {shown})")
 
 
