@@ -23,7 +23,7 @@
     before this is raised.
   - `RequestError` (also a `FieldError`): the service cannot carry out a request; `field` names
     what is wrong. `gcs.api.errors` maps each subclass to one HTTP status, in one place.
-    - `NotFound`: no such mission, execution, example or vehicle.
+    - `NotFound`: no such mission, flight, example or vehicle.
     - `StateConflict`: the resource is in the wrong state (still planning, already flying).
     - `InvalidRequest`: the request is well-formed but invalid, or exceeds a server limit.
     - `ServiceBusy`: the service cannot take the work now (a full queue); retry later.
@@ -203,7 +203,7 @@ class RequestError(GcsError, FieldError):
 
 
 class NotFound(RequestError):
-    """No such resource (mission, execution, example, vehicle)."""
+    """No such resource (mission, flight, example, vehicle)."""
 
 
 class StateConflict(RequestError):

@@ -5,7 +5,9 @@ A *phase* is where a flight (`FlightPhase`) or one of its vehicles (`VehiclePhas
 its run; an *event kind* (`EventKind`) names one line of a flight's event log. They are
 StrEnums, so records, JSON and stored rows carry the plain value, and
 `GET /api/status` publishes them (`vocabulary()`) beside the statuses. Events stored under a
-kind's former value (`FORMER_EVENT_KINDS`) read as the kind it is now.
+kind's former value (`FORMER_EVENT_KINDS`) read as the kind it is now. The abort actions
+(`AbortAction`) and the fleet commands (`FleetCommand`) are Literals, each with its values as a
+tuple: the API's schemas, the CLI's choices and the checks below them take them from here.
 """
 
 from __future__ import annotations
@@ -14,16 +16,30 @@ from enum import StrEnum
 from typing import Literal, get_args
 
 __all__ = [
+    "ABORT_ACTIONS",
     "AIRBORNE",
     "DROP_ACTIONS",
+    "FLEET_COMMANDS",
     "FORMER_EVENT_KINDS",
+    "AbortAction",
     "DropAction",
     "EventKind",
+    "FleetCommand",
     "FlightPhase",
     "ReplanStatus",
     "VehiclePhase",
     "vocabulary",
 ]
+
+
+#: What every vehicle of an aborted flight does: hold (PX4 Hold) or land. Strongest last: a
+#: later one overrides an earlier one, never back (`gcs.flight.run.precedence`).
+AbortAction = Literal["hold", "land"]
+ABORT_ACTIONS: tuple[AbortAction, ...] = get_args(AbortAction)
+#: The fleet commands between flights (`gcs.fleet.commands`), in the order the API documents
+#: them.
+FleetCommand = Literal["hold", "land", "rtl", "disarm", "terminate"]
+FLEET_COMMANDS: tuple[FleetCommand, ...] = get_args(FleetCommand)
 
 
 class FlightPhase(StrEnum):

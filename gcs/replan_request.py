@@ -1,5 +1,5 @@
 """An operator's in-flight replan request: its body and its checks, one definition for the
-REST route (POST /api/executions/{id}/replan) and `fleetplan fly`'s control socket.
+REST route (POST /api/flights/{id}/replan) and `fleetplan fly`'s control socket.
 
 The body names new goals, vehicles to drop, or both. What only the flight can judge (the
 vehicle ids, each goal against the workspace, the obstacles and the other goals) is checked

@@ -22,8 +22,9 @@ Imports only run downward (docs/development/architecture.md, README "Architectur
 - `gcs/service/` never imports `gcs.api`, `gcs.cli` or FastAPI/Starlette, and imports the mock
   (`gcs.sim`) only where it hosts it (`ALLOWED`): `serve --mock N` makes a mock fleet one of
   the service's fleets, started by `service/fleet.py`, configured in the vehicle process by
-  `service/vehicle_host.py`, its timings bounded by the settings (`service/settings.py`). The
-  mock sits below the service (it imports only the bottom layer), so these run downward;
+  `service/vehicle_host.py`, its timings and realism checked by the settings
+  (`service/settings.py`). The mock sits below the service (it imports only the bottom layer),
+  so these run downward; each module says so in its docstring;
 - `gcs/api/` reaches vehicles only through the service: it never imports `gcs.flight`,
   `gcs.sim`, the fleet commands or provisioning (the fleet file's options are a contract, like
   the scenario's, and the API validates them);

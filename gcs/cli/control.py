@@ -5,7 +5,7 @@ flight ends. One request per connection: the client sends one JSON object on one
 reads one JSON line back. Requests:
 
 - ``{"command": "replan", "goals": {...}, "drop": [...], "drop_action": "land"|"hold"}``
-  (the body of POST /api/executions/{id}/replan, `gcs.replan_request`) -> ``{"ok": true,
+  (the body of POST /api/flights/{id}/replan, `gcs.replan_request`) -> ``{"ok": true,
   "replan": {...}}``, the replan object (status planning; its outcome follows as events);
 - ``{"command": "pause"}`` / ``{"command": "resume"}`` -> ``{"ok": true, "flight_time": t}``;
 - ``{"command": "abort", "action": "land"|"hold"}`` -> ``{"ok": true}``.
@@ -28,7 +28,8 @@ from typing import Any, Protocol
 
 from gcs.documents import ReplanDocument
 from gcs.errors import GcsError, InvalidRequest
-from gcs.replan_request import DROP_ACTIONS, parse
+from gcs.phases import ABORT_ACTIONS
+from gcs.replan_request import parse
 from planner.errors import FieldError
 
 __all__ = ["COMMANDS", "REQUEST_BYTES_MAX", "ControlServer", "Flight", "request"]
@@ -129,8 +130,9 @@ class ControlServer:
                 return {"ok": True, "flight_time": await run()}
             action = body.pop("action", "land")
             _no_more(body)
-            if action not in DROP_ACTIONS:
-                raise InvalidRequest("action", f"must be land or hold, got {action!r}")
+            if action not in ABORT_ACTIONS:
+                raise InvalidRequest("action", f"must be one of {', '.join(ABORT_ACTIONS)}, "
+                                               f"got {action!r}")
             await self._flight.abort(action, ABORT_REASON)
             return {"ok": True}
         except (GcsError, FieldError) as exc:

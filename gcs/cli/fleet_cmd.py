@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import argparse
 
+from gcs.phases import FLEET_COMMANDS
+
 __all__ = ["configure", "run"]
 
 #: Waiting for the chosen vehicles' first HEARTBEAT (s).
@@ -22,7 +24,7 @@ CONNECT_TIMEOUT_S = 10.0
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("command", choices=("hold", "land", "rtl", "disarm", "terminate"),
+    parser.add_argument("command", choices=FLEET_COMMANDS,
                         help="hold, land, rtl (return to launch), disarm (refused in the air "
                              "unless --force), terminate (motors off; needs --confirm)")
     parser.add_argument("--fleet", required=True, help="fleet file (JSON): connections")

@@ -18,7 +18,8 @@ import argparse
 from typing import TYPE_CHECKING, Any
 
 from gcs.autopilot import px4
-from gcs.cli import mock_timings
+from gcs.cli import fly_options, mock_timings
+from gcs.sim.config import REALISMS
 
 if TYPE_CHECKING:
     import asyncio
@@ -37,37 +38,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="start mock vehicles in this run, homes under the plan's starts")
     parser.add_argument("--record", help="write the flight record (JSON) here: the record so "
                         "far (\"partial\": true) about once a second, the whole one at the end")
-    parser.add_argument("--rate", type=float, help="setpoint rate (Hz, default 20, max 100)")
-    parser.add_argument("--policy",
-                        help="what to do when a vehicle is flagged: hold_all, land_all "
-                             "(default), land_faulty, or replan (it lands on its own, the "
-                             "others are replanned around it); checked as the fleet file's")
-    parser.add_argument("--replan-lead", type=float,
-                        help="an in-flight replan switches this far ahead (s, default 1)")
-    parser.add_argument("--at-end", choices=("land", "hold"),
-                        help="after the plan: land (default) or hold in PX4 Hold mode")
-    parser.add_argument("--hold-at-goal", type=float, help="seconds at the goals (default 2)")
-    parser.add_argument("--climb-speed", type=float,
-                        help="peak speed of the climb from home to the start (m/s, default 1)")
-    parser.add_argument("--prestream", type=float,
-                        help="seconds of hold setpoints before OFFBOARD is asked for (default "
-                             "0.5)")
-    parser.add_argument("--tracking-error-max", type=float,
-                        help="flag a vehicle this far from the plan (m, default 1)")
-    parser.add_argument("--start-tolerance", type=float,
-                        help="start the clock when all are this close to their starts (m)")
-    parser.add_argument("--arm-timeout", type=float,
-                        help="retry TEMPORARILY_REJECTED arming this long (s, default 30)")
-    parser.add_argument("--margin-check", choices=("refuse", "warn"),
-                        help="a plan whose separation margin is below 2 x the fleet's "
-                             "position_error: refuse (default) or warn and fly")
-    parser.add_argument("--message-rates", choices=("leave", "request"),
-                        help="request: ask each vehicle for the telemetry the GCS reads at the "
-                             "rates it needs and turn PX4's fast streams off (default leave)")
-    parser.add_argument("--stream-priority", choices=("normal", "realtime"),
-                        help="realtime: stream setpoints at SCHED_RR priority where the process "
-                             "may (root or CAP_SYS_NICE); keeps a large fleet's stream on time on "
-                             "a busy computer (default normal)")
+    fly_options.add_flags(parser)
     parser.add_argument("--base-port", type=int, default=None,
                         help=f"--mock: vehicle i sends to this port + i (default "
                              f"{px4.OFFBOARD_GCS_BASE_PORT}, PX4 SITL's; when those ports are "
@@ -85,7 +56,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="--mock: also give every vehicle a GCS link sending to this port, "
                              "like PX4's, so QGroundControl or MAVProxy can watch the flight "
                              "(they listen on 14550; default: none)")
-    parser.add_argument("--mock-realism", choices=("ideal", "px4"), default="ideal",
+    parser.add_argument("--mock-realism", choices=REALISMS, default="ideal",
                         help="--mock: ideal vehicles (default) or px4: PX4 SITL's estimate noise, "
                              "lag, timings and telemetry (see fleetplan mock --realism)")
     parser.add_argument("--mock-position-error", type=float, default=None,
@@ -98,13 +69,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "drops vehicles in flight")
     parser.add_argument("--quiet", "-q", action="store_true", help="no live progress")
 
-
-_OPTION_FLAGS = {"rate": "rate_hz", "policy": "policy", "at_end": "at_end",
-                 "hold_at_goal": "hold_at_goal", "climb_speed": "climb_speed",
-                 "prestream": "prestream", "tracking_error_max": "tracking_error_max",
-                 "start_tolerance": "start_tolerance", "arm_timeout": "arm_timeout",
-                 "margin_check": "margin_check", "message_rates": "message_rates",
-                 "stream_priority": "stream_priority", "replan_lead": "replan_lead_s"}
 
 def run(args: argparse.Namespace) -> int:
     """Fly the plan of `args` and return the exit status (0: the flight completed).
@@ -200,9 +164,7 @@ def run(args: argparse.Namespace) -> int:
                 fleet = FleetSpec.from_dict(fleet_dict)
             else:
                 fleet = load_fleet(args.fleet)
-            changes = {field: getattr(args, flag) for flag, field in _OPTION_FLAGS.items()
-                       if getattr(args, flag) is not None}
-            options = fleet.options.replace(where="option", **changes)
+            options = fleet.options.replace(where="option", **fly_options.chosen(args))
             handle = await ReplanHandle.create(vehicles, plan, fleet, options,
                                                on_event=on_event)
         except (GcsError, OSError) as exc:

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planner.model.scenario import ASSIGNMENTS
+
 __all__ = ["configure", "run"]
 
 EXIT_WRITTEN = 0
@@ -38,7 +40,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-hold", type=float, default=0.5, metavar="S",
                         help="shortest stretch with every drone at rest that is a hold point "
                              "(s, default %(default)s)")
-    parser.add_argument("--assignment", choices=("fixed", "free"), default="fixed",
+    parser.add_argument("--assignment", choices=ASSIGNMENTS, default="fixed",
                         help="fixed: each drone keeps its design's place in every formation; "
                              "free: the planner assigns the places per leg (default "
                              "%(default)s)")

@@ -16,6 +16,7 @@ import argparse
 
 from gcs.autopilot import px4
 from gcs.cli import mock_timings
+from gcs.sim.config import REALISMS
 
 __all__ = ["configure", "run"]
 
@@ -36,7 +37,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-port-offset", type=int, default=None,
                         help="vehicles from this index on share one GCS port, like PX4 SITL "
                              "from instance 10 on (9); 0 puts the whole fleet on one port")
-    parser.add_argument("--realism", choices=("ideal", "px4"), default="ideal",
+    parser.add_argument("--realism", choices=REALISMS, default="ideal",
                         help="ideal (exact state, default) or px4: PX4 SIH SITL's estimate "
                              "noise, tracking lag and timings")
     parser.add_argument("--autopilot", default="px4",

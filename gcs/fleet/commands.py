@@ -31,12 +31,11 @@ from dataclasses import asdict, dataclass
 from gcs.errors import GcsError, InvalidRequest, StateConflict
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.procedure import vehicle
+from gcs.phases import FLEET_COMMANDS
 from gcs.wire import mavlink, result_name
 
-__all__ = ["FLEET_COMMANDS", "CommandOutcome", "check_command", "fleet_command", "run_command"]
+__all__ = ["CommandOutcome", "check_command", "fleet_command", "run_command"]
 
-#: The fleet commands, in the order the API documents them.
-FLEET_COMMANDS = ("hold", "land", "rtl", "disarm", "terminate")
 #: How long a command's effect may take to show in HEARTBEAT (PX4 sends it at 1 Hz).
 CONFIRM_TIMEOUT_S = 5.0
 

@@ -1,8 +1,9 @@
-"""Flying a plan on a fleet of PX4 vehicles, in sub-packages from the wire up.
+"""Flying a plan on a fleet of PX4 or ArduPilot vehicles, in sub-packages from the wire up.
 
 - `link`: one vehicle's MAVLink link and the links of a fleet (endpoints, signing, telemetry,
   the setpoints the link sends, the ground station's own stalls);
-- `procedure`: the PX4 procedure on a link (connect, modes, arming, landing, the geofence);
+- `procedure`: the procedure on a link, asking the vehicle's autopilot (connect, modes,
+  arming, landing, parameters, the link-loss failsafe, the geofence);
 - `safety`: the margin a fleet needs, health, fault detection, the fault policy, landing;
 - `replan`: replanning a flying fleet;
 - `run`: one flight on one clock (the executor, boarding, the stream, the flight clock, the

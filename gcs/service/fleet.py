@@ -1,16 +1,21 @@
 """The configured fleet: its vehicles, the in-process mocks, the link monitor, and what may be
 sent to the vehicles between flights.
 
-`Fleet` owns one fleet: the vehicles of a fleet file (real PX4 or SITL), or mock PX4 vehicles
-running in-process (`gcs.sim.MockFleet`), or none. Between flights it keeps a listen-only
-MAVLink monitor open on the fleet's connections so `GET /api/vehicles` shows live link state;
-a flight closes the monitor and takes the connections (`gcs.service.vehicle_host`). It lives
-in the vehicle process, on its vehicle loop (`gcs.flight.host.vehicle_process`). Mock vehicles
-are set down under a plan's starts before each flight (as ``fleetplan fly --mock`` does),
-with as many more as the plan needs up to `mock_max_vehicles` (a fleet that grows, `serve
---mock auto`); vehicles the plan does not use are parked beside its workspace. `command`
-sends a fleet command (`gcs.fleet.commands`: hold, land, rtl, disarm, terminate) over the
-monitor's connections, so a fleet left hovering can always be landed.
+`Fleet` owns one fleet: the vehicles of a fleet file (real PX4 or ArduPilot vehicles, or
+SITL), or mock vehicles running in-process (`gcs.sim.MockFleet`), or none. Between flights it
+keeps a listen-only MAVLink monitor open on the fleet's connections so `GET /api/vehicles`
+shows live link state; a flight closes the monitor and takes the connections
+(`gcs.service.vehicle_host`). It lives in the vehicle process, on its vehicle loop
+(`gcs.flight.host.vehicle_process`). Mock vehicles are set down under a plan's starts before
+each flight (as ``fleetplan fly --mock`` does), with as many more as the plan needs up to
+`mock_max_vehicles` (a fleet that grows, `serve --mock auto`); vehicles the plan does not use
+are parked beside its workspace. `command` sends a fleet command (`gcs.fleet.commands`: hold,
+land, rtl, disarm, terminate) over the monitor's connections, so a fleet left hovering can
+always be landed.
+
+It imports the mock (`gcs.sim`), which the service may only where it hosts it: ``serve --mock
+N`` makes a mock fleet one of the service's fleets, started here (`tests/test_layout.py`,
+`ALLOWED`). The mock imports only the bottom layer, so this import runs downward.
 """
 
 from __future__ import annotations

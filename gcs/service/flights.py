@@ -47,7 +47,7 @@ from gcs.service.live_flight import LiveFlight, flight_document
 from gcs.service.remote_flight import RemoteFlight
 from gcs.service.replan_handle import Segment
 from gcs.service.settings import Settings
-from gcs.service.statuses import FLIGHT_ACTIVE, FLIGHT_FINISHED, STATUS_OF_PHASE, FlightStatus
+from gcs.service.statuses import FLIGHT_ACTIVE, FLIGHT_FINISHED, FlightStatus, status_of
 from gcs.service.storage_faults import storage_reason
 from gcs.service.store import FlightRow, Store
 from gcs.service.vehicle_host import CLOSE_LANDING_S, PRELOAD, FleetHost
@@ -251,9 +251,10 @@ class FleetService:
                          pause: bool) -> LiveFlight:
         """`pause` (running -> paused) or resume (paused -> running) the flight's clock;
         StateConflict from any other status or while it aborts."""
+        running, paused = status_of(FlightPhase.FLYING), status_of(FlightPhase.PAUSED)
         command, before, after, refusal = (
-            ("pause", FlightStatus.RUNNING, FlightStatus.PAUSED, "cannot be paused") if pause
-            else ("resume", FlightStatus.PAUSED, FlightStatus.RUNNING, "is not paused"))
+            ("pause", running, paused, "cannot be paused") if pause
+            else ("resume", paused, running, "is not paused"))
         flight = self._flying(flight_id, stored_status)
         self._not_aborting(flight, command)
         if flight.status != before or flight.handle is None:
@@ -342,18 +343,17 @@ class FleetService:
             record = await handle.result()
             flight.summary = record.get("summary")
             completed = bool(flight.summary and flight.summary.get("completed"))
-            flight.status = (FlightStatus.COMPLETED if completed
-                             else FlightStatus.INCOMPLETE)
+            flight.status = status_of(FlightPhase.FINISHED, completed)
         except FlightAborted as exc:
-            flight.status, flight.error = FlightStatus.ABORTED, str(exc)
+            flight.status, flight.error = status_of(FlightPhase.ABORTED), str(exc)
         except VehicleLoopStopped as exc:
             # The vehicle process ended: nothing streams any more (PX4's offboard-loss
             # failsafe lands the vehicles); the operator must look at them.
             log.critical("flight %s: %s; the setpoint stream has stopped, check the fleet",
                          flight.id, exc)
-            flight.status, flight.error = FlightStatus.FAILED, f"{type(exc).__name__}: {exc}"
+            _failed(flight, exc)
         except GcsError as exc:
-            flight.status, flight.error = FlightStatus.FAILED, f"{type(exc).__name__}: {exc}"
+            _failed(flight, exc)
             await _land_if_left_flying(flight, flying, type(exc).__name__)
         except asyncio.CancelledError:
             flight.status = FlightStatus.INTERRUPTED
@@ -361,7 +361,7 @@ class FleetService:
             raise
         except Exception as exc:  # a bug: report it, keep the service up
             log.exception("flight %s failed", flight.id)
-            flight.status, flight.error = FlightStatus.FAILED, f"{type(exc).__name__}: {exc}"
+            _failed(flight, exc)
             await _land_if_left_flying(flight, flying, type(exc).__name__)
         finally:
             for task in (ticker, mirror):
@@ -480,14 +480,19 @@ class FleetService:
 
 
 def _leave_starting(flight: LiveFlight, phase: str) -> None:
-    """A starting flight takes the status of the phase its executor reports
-    (`STATUS_OF_PHASE`) once that is no longer `starting`: running from the first snapshot
-    that says flying. Later statuses are the service's own steps (pause, resume, abort, the
-    end)."""
-    status = STATUS_OF_PHASE[FlightPhase(phase)]
+    """A starting flight takes the status of the phase its executor reports (`status_of`)
+    once that is no longer `starting`: running from the first snapshot that says flying.
+    Later statuses are the service's own steps: a pause, a resume and the end take theirs from
+    `status_of` too, an abort asked for makes it `aborting`."""
+    status = status_of(FlightPhase(phase))
     if flight.status == FlightStatus.STARTING and status in FLIGHT_ACTIVE \
             and status != FlightStatus.STARTING:
         flight.set_status(status)
+
+
+def _failed(flight: LiveFlight, error: BaseException) -> None:
+    """The run ended in `error`: the status of a failed flight, and the error named."""
+    flight.status, flight.error = status_of(FlightPhase.FAILED), f"{type(error).__name__}: {error}"
 
 
 async def _land_if_left_flying(flight: LiveFlight, flying: bool, why: str) -> None:

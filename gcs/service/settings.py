@@ -5,6 +5,11 @@ named ``FLEETPLAN_<FIELD>`` (e.g. ``FLEETPLAN_DATABASE_URL``) or in a TOML confi
 path is ``$FLEETPLAN_CONFIG`` (default ``fleetplan.toml`` in the working directory; a missing
 default file is ignored, a missing named file is an error). The `fleetplan serve` options are
 explicit values and win over both.
+
+It imports the mock's settings (`gcs.sim.config`), which the service may only where it hosts
+the mock (`tests/test_layout.py`, `ALLOWED`): the `mock_*` settings take the mock's own
+timing bounds and realism presets, defined once there. The mock imports only the bottom layer,
+so this import runs downward.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from pydantic_settings import (
 )
 
 from gcs.autopilot import px4
-from gcs.sim.config import TIMING_BOUNDS
+from gcs.sim.config import TIMING_BOUNDS, Realism
 
 __all__ = [
     "CONFIG_ENV",
@@ -137,7 +142,7 @@ class Settings(BaseSettings):
         description="Mock vehicles disarm this long after touching down "
         "(s; PX4's COM_DISARM_LAND, default 2)."
     )
-    mock_realism: Literal["ideal", "px4"] = Field(
+    mock_realism: Realism = Field(
         "ideal", description="Mock vehicles' behaviour: ideal (exact state) or px4 (PX4 SIH "
         "SITL's estimate noise, tracking lag and timings)."
     )

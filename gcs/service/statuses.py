@@ -20,6 +20,7 @@ __all__ = [
     "STATUS_OF_PHASE",
     "FlightStatus",
     "MissionStatus",
+    "status_of",
     "status_sets",
 ]
 
@@ -64,10 +65,12 @@ FLIGHT_FINISHED: tuple[FlightStatus, ...] = tuple(
 
 
 #: The status of a flight while its executor is in each phase: the one place the service's
-#: lifecycle (status) and the run's (phase) meet. A flight is `starting` until its vehicle
-#: process reports it flying; it ends in the status of its last phase (`finished`: completed,
-#: or incomplete by its summary). `aborting` (an abort asked for, not yet done) and
-#: `interrupted` (the service stopped) are the service's own.
+#: lifecycle (status) and the run's (phase) meet, read through `status_of`. A flight is
+#: `starting` until its vehicle process reports a phase past that; a pause and a resume take
+#: the status of `paused` and `flying`; the end takes that of the phase the run ended in
+#: (`finished`: completed, or incomplete by its summary; an abort: `aborted`; an error:
+#: `failed`). `aborting` (an abort asked for, not yet done) and `interrupted` (the service
+#: stopped) are the service's own.
 STATUS_OF_PHASE: dict[FlightPhase, FlightStatus] = {
     FlightPhase.CREATED: FlightStatus.STARTING,
     FlightPhase.CONNECTING: FlightStatus.STARTING,
@@ -80,6 +83,16 @@ STATUS_OF_PHASE: dict[FlightPhase, FlightStatus] = {
     FlightPhase.ABORTED: FlightStatus.ABORTED,
     FlightPhase.FAILED: FlightStatus.FAILED,
 }
+
+
+def status_of(phase: FlightPhase, completed: bool = True) -> FlightStatus:
+    """The status of a flight whose executor is in `phase` (`STATUS_OF_PHASE`); a finished one
+    that did not complete (`completed` false: a vehicle landed by land_faulty, a goal missed)
+    is `incomplete`."""
+    status = STATUS_OF_PHASE[phase]
+    if status == FlightStatus.COMPLETED and not completed:
+        return FlightStatus.INCOMPLETE
+    return status
 
 
 def status_sets() -> dict[str, dict[str, list[str]]]:

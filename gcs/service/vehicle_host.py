@@ -14,6 +14,11 @@ When the service goes away without asking (its process died, or SIGTERM reached 
 from nowhere. It then writes that flight's events and record to the store itself (status
 `interrupted`, as a restarted service marks it), so that the landing it flew after the
 service was gone is not lost.
+
+It imports the mock (`gcs.sim`), which the service may only where it hosts it
+(`tests/test_layout.py`, `ALLOWED`): the mock vehicles run here, in the vehicle process, and it
+answers their configuration (`mock_config`) and injects a demo's or a test's faults into them.
+The mock imports only the bottom layer, so this import runs downward.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, Literal, TypeVar, get_args
 
 import numpy as np
 
@@ -36,9 +36,9 @@ if TYPE_CHECKING:
     from planner.model.obstacle_set import ObstacleSet
     from planner.model.obstacles import Obstacle
 
-__all__ = ["AUTO_STEPS", "DEFAULTS", "DEFAULT_MAX_HORIZON", "METHODS", "RANGES", "Limits",
-           "Scenario", "Vehicle", "check_id", "check_keys", "check_number", "check_vector",
-           "minimum_transfer_time"]
+__all__ = ["ASSIGNMENTS", "AUTO_STEPS", "DEFAULTS", "DEFAULT_MAX_HORIZON", "METHODS", "RANGES",
+           "Assignment", "Limits", "Scenario", "Vehicle", "check_id", "check_keys", "check_number",
+           "check_vector", "minimum_transfer_time"]
 
 
 #: Defaults filled in when a scenario omits a key (documented in the README).
@@ -56,7 +56,8 @@ DEFAULTS: dict[str, Any] = {
 
 #: `assignment` values: "fixed" (vehicle n flies to its own goal) or "free" (any vehicle may
 #: take any goal; see `planner.methods.assignment`).
-ASSIGNMENTS = ("fixed", "free")
+Assignment = Literal["fixed", "free"]
+ASSIGNMENTS: tuple[Assignment, ...] = get_args(Assignment)
 
 #: `method` values, how the fleet is planned (`planner.methods.stages`): "auto" (both methods at
 # once

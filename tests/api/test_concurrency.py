@@ -65,7 +65,7 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
         planning_s = time.monotonic() - started
 
         deadline = time.monotonic() + 60
-        while (execution := client.get(f"/api/flights/{flight['id']}").json())[
+        while (ended := client.get(f"/api/flights/{flight['id']}").json())[
                 "status"] in ("starting", "running"):
             assert time.monotonic() < deadline, "the flight did not end"
             time.sleep(0.05)
@@ -76,14 +76,14 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
     latencies.sort()
     p50 = statistics.median(latencies)
     p99 = latencies[int(0.99 * (len(latencies) - 1))]
-    assert execution["status"] == "completed", (execution["status"], execution["error"])
-    summary = execution["summary"]
+    assert ended["status"] == "completed", (ended["status"], ended["error"])
+    summary = ended["summary"]
     print(f"\n64-vehicle plan: {planning_s:.1f} s; {len(latencies)} requests meanwhile: "
           f"p50 {p50 * 1e3:.1f} ms, p99 {p99 * 1e3:.1f} ms, max {latencies[-1] * 1e3:.1f} ms")
     for path, values in by_path.items():
         print(f"  {path}: median {statistics.median(values) * 1e3:.1f} ms, "
               f"max {max(values) * 1e3:.1f} ms")
-    print(f"  flight meanwhile: {execution['status']}, setpoints "
+    print(f"  flight meanwhile: {ended['status']}, setpoints "
           f"{summary['setpoint_rate_hz']:.2f} Hz, send jitter p50 {summary['jitter_p50_ms']:.2f}"
           f" ms, p99 {summary['jitter_p99_ms']:.2f} ms, missed ticks {summary['missed_ticks']}")
     # Every request was answered (200, above) while the plan computed, more than once.
@@ -95,6 +95,6 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
     # The flight flew through it: completed, every vehicle at its goal, and nothing went
     # wrong on the way (no error, no separation alarm, no abort).
     assert summary["completed"] is True
-    kinds = {event["kind"] for event in execution["events"]}
+    kinds = {event["kind"] for event in ended["events"]}
     assert EventKind.GOAL_ERRORS in kinds
     assert not kinds & {EventKind.ERROR, EventKind.SEPARATION_ALARM, EventKind.ABORT}, kinds

@@ -77,19 +77,19 @@ def test_a_crowded_service_flies_and_refuses_only_with_503(
                 asyncio.gather(*(_plan(client, i) for i in range(PLANS))),
             )
             deadline = time.monotonic() + 120  # bound
-            while (execution := (await client.get(url)).json())["finished_at"] is None:
+            while (flight := (await client.get(url)).json())["finished_at"] is None:
                 assert time.monotonic() < deadline, "the flight did not end"
                 await asyncio.sleep(0.1)
-            return execution, {"exports": list(exports), "streams": list(streams),
+            return flight, {"exports": list(exports), "streams": list(streams),
                                "plans": list(plans)}
 
     with ServiceProcess(tmp_path, "--mock", "4", "--scheduler", dask_scheduler, env=env,
                         start_timeout=120, quick_mocks=True) as service:
-        execution, answers = asyncio.run(crowd(service.base_url))
+        flight, answers = asyncio.run(crowd(service.base_url))
 
-    assert execution["status"] == "completed", (execution["status"], execution["error"])
-    assert execution["summary"]["completed"] is True
-    assert not execution["summary"]["faults"]
+    assert flight["status"] == "completed", (flight["status"], flight["error"])
+    assert flight["summary"]["completed"] is True
+    assert not flight["summary"]["faults"]
     expected = {"exports": {200}, "streams": {200}, "plans": {201, 202}}
     for crowd_name, codes in answers.items():
         for code, retry_after in codes:

@@ -159,7 +159,7 @@ def test_the_flights_refusals_cross_with_their_field(served: Served) -> None:
         ({"command": "replan", "drop": ["a"], "drop_action": "rtl"}, "drop_action", "'land'"),
         ({"command": "replan", "drop": ["a"], "why": "x"}, "why", "Extra inputs"),
         ({"command": "pause", "at": 3}, "at", "is not a field of this command"),
-        ({"command": "abort", "action": "rtl"}, "action", "must be land or hold"),
+        ({"command": "abort", "action": "rtl"}, "action", "must be one of hold, land"),
     ],
 )
 def test_bad_requests_name_the_field_and_reach_nothing(

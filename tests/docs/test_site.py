@@ -170,6 +170,15 @@ def test_no_page_names_an_issue_number() -> None:
     assert not found, found
 
 
+def test_the_architecture_page_names_every_module() -> None:
+    """A module added to the ground station is placed on the architecture page (by its file
+    name, in backticks), so the page shows the packages as they are."""
+    text = (ROOT / "docs" / "development" / "architecture.md").read_text()
+    unnamed = [str(m.relative_to(ROOT)) for m in sorted((ROOT / "gcs").rglob("*.py"))
+               if m.name != "__init__.py" and f"`{m.name}`" not in text]
+    assert unnamed == []
+
+
 def test_concepts_page_names_every_status_and_phase() -> None:
     """The glossary lists the defined statuses and phases (gcs/service/statuses.py,
     gcs/phases.py); a new one must be documented."""
@@ -178,16 +187,42 @@ def test_concepts_page_names_every_status_and_phase() -> None:
         assert f"`{value}`" in text, value
 
 
+#: Where the former name of a flight remains (a contract with clients or stored data): the
+#: glossary's words for it, and the module that keeps it.
+FORMER_NAME = [("`/api/executions`", "gcs/api/routes/__init__.py"),
+               ("`/api/missions/{id}/executions`", "gcs/api/routes/flights.py"),
+               ("list key `executions`", "gcs/api/routes/flights.py"),
+               ("`execution_id`", "gcs/api/routes/flights.py"),
+               ("`statuses.execution`", "gcs/service/statuses.py"),
+               ("`links.executions`", "gcs/api/routes/missions.py"),
+               ("storage table `executions`", "gcs/service/store.py")]
+_EXECUTION = re.compile(r"\bexecution(s|_id)?\b")
+
+
+def test_the_glossary_lists_every_place_the_former_name_remains() -> None:
+    """*execution* is said only where the glossary says it remains, and it does remain there:
+    a new use (or one gone) must change the glossary too."""
+    text = " ".join((ROOT / "docs" / "concepts.md").read_text().split())
+    for words, module in FORMER_NAME:
+        assert words in text, words
+        assert _EXECUTION.search((ROOT / module).read_text()), module
+    sources = [*sorted((ROOT / "gcs").rglob("*.py")), *sorted((ROOT / "web").rglob("*.js"))]
+    saying = {str(p.relative_to(ROOT)) for p in sources if _EXECUTION.search(p.read_text())}
+    describing = {"gcs/api/routes/status.py"}  # the OpenAPI text of `statuses.execution`
+    assert saying <= {module for _, module in FORMER_NAME} | describing, saying
+
+
 def test_concepts_page_says_what_the_code_defines() -> None:
     """The glossary's words are the code's: the flight's phase -> status table is
-    `STATUS_OF_PHASE`, every event kind named is a current one, and the classes named for a
-    flight and its documents exist where the page says."""
+    `STATUS_OF_PHASE`, every event kind named is a current one and every current one is
+    named, and the classes named for a flight and its documents exist where the page says."""
     text = (ROOT / "docs" / "concepts.md").read_text()
     rows = re.findall(r"^\| `(\w+)` \| `(\w+)` \|$", text, re.M)
     assert dict(rows) == {str(p): str(s) for p, s in STATUS_OF_PHASE.items()}
     kinds = text.split("### Event kinds")[1].split("\n## ")[0]
-    named = set(re.findall(r"`(\w+)`", kinds)) - {"event_kinds", "land_faulty"}
+    named = set(re.findall(r"`(\w+)`", kinds)) - {"event_kinds", "land_faulty", "land_timeout"}
     assert named - set(FORMER_EVENT_KINDS) <= {str(k) for k in EventKind}, named
+    assert {str(k) for k in EventKind} - named == set(), "event kinds the glossary leaves out"
     assert f"`{EventKind.FLIGHT_START}`" in kinds
     for name, module in [("FlightExecutor", "gcs/flight/run/executor.py"),
                          ("FlightHandle", "gcs/flight/host/flight_handle.py"),

@@ -34,9 +34,9 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         planned = httpx.post(f"{url}/api/missions?wait=120", json=QUICK_PAIR,
                              timeout=130).json()
         assert planned["status"] == "planned", planned
-        execution = httpx.post(f"{url}/api/missions/{planned['id']}/flights",
+        flight = httpx.post(f"{url}/api/missions/{planned['id']}/flights",
                                json={"hold_at_goal": 60}, timeout=HTTP_S).json()
-        exec_url = f"{url}/api/flights/{execution['id']}"
+        flight_url = f"{url}/api/flights/{flight['id']}"
         # Plans computing concurrently with the flight (large ones that outlast the test).
         created: list[str] = []
 
@@ -58,13 +58,13 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
         for thread in posters:
             thread.join(60)
         assert len(created) == 3
-        wait_for(lambda: (httpx.get(exec_url, timeout=HTTP_S).json().get("live") or {})
+        wait_for(lambda: (httpx.get(flight_url, timeout=HTTP_S).json().get("live") or {})
                  .get("phase") == "flying", "the flight to be flying", 60)
         # What the service has shown so far; the journal writes it within about a second.
-        seen = httpx.get(exec_url, timeout=HTTP_S).json()["events"]
+        seen = httpx.get(flight_url, timeout=HTTP_S).json()["events"]
         assert seen, "no flight events yet"
         # The journal's first record snapshot (every ~5 s) is stored too.
-        wait_for(lambda: httpx.get(exec_url, timeout=HTTP_S).json()["has_record"],
+        wait_for(lambda: httpx.get(flight_url, timeout=HTTP_S).json()["has_record"],
                  "the first record snapshot", 60)
         statuses = {m: httpx.get(f"{url}/api/missions/{m}", timeout=HTTP_S).json()["status"]
                     for m in created}
@@ -92,7 +92,7 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
                 assert mission["status"] == "failed"
                 assert mission["error"]["reason"] == \
                     "the service stopped before this plan finished"
-        stored = httpx.get(f"{url}/api/flights/{execution['id']}", timeout=HTTP_S).json()
+        stored = httpx.get(f"{url}/api/flights/{flight['id']}", timeout=HTTP_S).json()
         assert stored["status"] == "interrupted"
         # The vehicle process (gone by now, as the workers) landed the fleet after the
         # crash and stored what it did: that landing is in the events and the record.
@@ -105,7 +105,7 @@ def test_kill_9_loses_nothing_and_leaves_no_worker(tmp_path: Path) -> None:
                    for e in after), after
         assert [e["vehicle"] for e in after if e["kind"] == "landed"] != [], after
         assert stored["has_record"] is True
-        record = httpx.get(f"{url}/api/flights/{execution['id']}/record",
+        record = httpx.get(f"{url}/api/flights/{flight['id']}/record",
                            timeout=HTTP_S).json()
         assert record["events"] == stored["events"]
         assert record["summary"]["completed"] is False

@@ -21,7 +21,7 @@ pytestmark = pytest.mark.timeout(300)
 def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> None:
     store = Store(f"sqlite:///{tmp_path / 'j.db'}")
     mission = store.create_mission(Scenario.from_dict(example("paper-circle2")).to_dict())
-    execution = store.create_flight(mission.id, "mock: a, b")
+    flight = store.create_flight(mission.id, "mock: a, b")
     writes: list[dict[str, Any]] = []
     real_update = store.update_flight
 
@@ -33,7 +33,7 @@ def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> 
     state: dict[str, Any] = {"status": "starting", "events": []}
 
     async def fly() -> None:
-        journal = FlightJournal(store, execution.id,
+        journal = FlightJournal(store, flight.id,
                                    lambda: (state["status"], state["events"], None),
                                    state_period_s=0.02)
         journal.start()
@@ -50,6 +50,6 @@ def test_journal_writes_changes_only_and_nothing_after_close(tmp_path: Path) -> 
     asyncio.run(fly())
     # One write per distinct state, however many beats passed.
     assert [(w["status"], len(w["events"])) for w in writes] == [("starting", 0), ("running", 1)]
-    row = store.get_flight(execution.id)
+    row = store.get_flight(flight.id)
     assert row is not None and row.status == "running" and row.events == state["events"]
     store.close()

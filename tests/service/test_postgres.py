@@ -75,16 +75,16 @@ def test_missions_and_flights_on_postgresql(
     with TestClient(create_app(settings)) as client:
         mission = plan_mission(client, QUICK_PAIR)
         assert mission["plan"]["status"] == "converged"
-        execution = client.post(f"/api/missions/{mission['id']}/flights",
+        flight = client.post(f"/api/missions/{mission['id']}/flights",
                                 json={"hold_at_goal": 0.5}).json()
-        done = sse_events(client, execution["links"]["events"])[-1][1]
+        done = sse_events(client, flight["links"]["events"])[-1][1]
         assert done["status"] == "completed"
     with TestClient(create_app(settings)) as client:  # a restart keeps everything
         assert client.get(f"/api/missions/{mission['id']}").json() == mission
-        stored = client.get(execution["links"]["self"]).json()
+        stored = client.get(flight["links"]["self"]).json()
         assert stored["status"] == "completed" and stored["summary"] == done["summary"]
         listed = client.get("/api/flights", params={"mission_id": mission["id"]}).json()
         assert [f["event_count"] for f in listed["flights"]] == [len(stored["events"])]
-        assert client.get(execution["links"]["record"]).status_code == 200
+        assert client.get(flight["links"]["record"]).status_code == 200
         assert client.delete(f"/api/missions/{mission['id']}").status_code == 204
-        assert client.get(execution["links"]["self"]).status_code == 404
+        assert client.get(flight["links"]["self"]).status_code == 404

@@ -111,9 +111,9 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
                              timeout=130).json()
         assert mission["status"] == "planned", mission
         # Six seconds of mission then a minute of holding: it would not end by itself soon.
-        execution = httpx.post(f"{url}/api/missions/{mission['id']}/flights",
+        flight = httpx.post(f"{url}/api/missions/{mission['id']}/flights",
                                json={"hold_at_goal": 60}, timeout=30).json()
-        events_url = f"{url}/api/flights/{execution['id']}/events"
+        events_url = f"{url}/api/flights/{flight['id']}/events"
         lines: list[str] = []
         stream_ended = threading.Event()
 
@@ -127,7 +127,7 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
         reader.start()
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
-            live = httpx.get(f"{url}/api/flights/{execution['id']}", timeout=30).json()
+            live = httpx.get(f"{url}/api/flights/{flight['id']}", timeout=30).json()
             if (live.get("live") or {}).get("phase") == "flying":
                 break
             time.sleep(0.05)
@@ -145,7 +145,7 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
     # What the stopped service stored (a restart on this database reads the same rows).
     store = Store(f"sqlite:///{tmp_path / 'fleetplan.db'}")
     try:
-        stored = store.get_flight(execution["id"])
+        stored = store.get_flight(flight["id"])
     finally:
         store.close()
     assert stored is not None

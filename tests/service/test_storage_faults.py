@@ -40,31 +40,31 @@ def test_a_flight_the_store_refuses_is_held_in_memory_then_stored_in_full(
 
         monkeypatch.setattr(store, "update_flight", update)
         mission = plan_mission(client, QUICK_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/flights",
+        flight = client.post(f"/api/missions/{mission['id']}/flights",
                                 json={"hold_at_goal": 0.5}).json()
-        streamed = sse_events(client, execution["links"]["events"])
+        streamed = sse_events(client, flight["links"]["events"])
         assert streamed[-1][0] == "done" and streamed[-1][1]["status"] == "completed"
 
         # Not stored, and told so: the final state comes from memory, never "running".
-        held = client.get(execution["links"]["self"]).json()
+        held = client.get(flight["links"]["self"]).json()
         assert held["status"] == "completed" and held["finished_at"] is not None
         assert held["storage"].startswith("disk full") and "No space left" in held["storage"]
         assert held["summary"]["completed"] is True and held["has_record"] is True
         assert held["events"] == [data for kind, data in streamed if kind == "event"]
         listed = client.get("/api/flights").json()["flights"]
-        assert [e["status"] for e in listed if e["id"] == execution["id"]] == ["completed"]
-        record = client.get(execution["links"]["record"])
+        assert [e["status"] for e in listed if e["id"] == flight["id"]] == ["completed"]
+        record = client.get(flight["links"]["record"])
         assert record.status_code == 200 and record.json()["summary"]["completed"] is True
 
         disk_full[0] = False  # space returns: the retry stores everything
         deadline = time.monotonic() + 60  # bound: retries back off to STORE_RETRY_MAX_S
-        while client.get(execution["links"]["self"]).json()["storage"] is not None:
+        while client.get(flight["links"]["self"]).json()["storage"] is not None:
             assert time.monotonic() < deadline, "the flight was never stored"
             time.sleep(0.2)
-        row = store.get_flight(execution["id"], with_record=True)
+        row = store.get_flight(flight["id"], with_record=True)
         assert row is not None and row.status == "completed" and row.record_json is not None
         assert row.summary == held["summary"] and row.events == held["events"]
-        assert client.app.state.fleet.flight(execution["id"]) is None  # type: ignore[attr-defined]
+        assert client.app.state.fleet.flight(flight["id"]) is None  # type: ignore[attr-defined]
 
 
 def test_a_write_on_a_full_disk_answers_507_disk_full(

@@ -131,7 +131,7 @@ def test_top_view_click_places_the_selected_vehicle(page: Page) -> None:
 
 
 def test_the_page_keeps_no_copy_of_the_status_sets() -> None:
-    """Mission and execution statuses come from GET /api/status (`statuses`), not from
+    """Mission and flight statuses come from GET /api/status (`statuses`), not from
     literals in the page's scripts."""
     import re
     from pathlib import Path

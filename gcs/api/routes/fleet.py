@@ -7,13 +7,14 @@ the vehicle counts as done (`gcs.fleet.commands`): a fleet left hovering can alw
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Body
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.api.deps import FleetDep
 from gcs.api.errors import error_responses
+from gcs.phases import FleetCommand
 
 __all__ = ["COMMAND_INFO", "CommandOut", "CommandRequest", "router"]
 
@@ -30,7 +31,7 @@ class CommandRequest(BaseModel):
                                         {"command": "terminate", "confirm": True}]},
     )
 
-    command: Literal["hold", "land", "rtl", "disarm", "terminate"] = Field(
+    command: FleetCommand = Field(
         description="hold: PX4 Hold where it is; land: land where it is; rtl: return to "
         "launch and land; disarm: stop the motors (refused in the air unless `force`); "
         "terminate: flight termination, motors off at once (needs `confirm`)."
@@ -69,7 +70,7 @@ class CommandOut(BaseModel):
 
 
 class CommandInfo(BaseModel):
-    command: str
+    command: FleetCommand
     description: str
     needs: str | None = Field(description="The body field it needs (force, confirm), if any.")
 

@@ -36,7 +36,9 @@ from gcs.api.errors import error_responses
 from gcs.documents import FlightEvent, FlightSnapshot, ReplanDocument
 from gcs.errors import InvalidRequest, StateConflict
 from gcs.fleet.fleetfile import (
+    MAX_RATE_HZ,
     MAX_REPLAN_LEAD_S,
+    MIN_RATE_HZ,
     AtEnd,
     FailsafeChoice,
     GeofenceChoice,
@@ -46,7 +48,7 @@ from gcs.fleet.fleetfile import (
     Preflight,
     StreamPriority,
 )
-from gcs.phases import EventKind
+from gcs.phases import AbortAction, EventKind
 from gcs.replan_request import ReplanRequest, checked
 from gcs.service.events import Event
 from gcs.service.flights import LiveFlight, flight_document
@@ -87,7 +89,10 @@ class FlyRequest(BaseModel):
     at_end: AtEnd | None = Field(
         None, description="After the plan and the hold at the goals: land, or PX4 Hold."
     )
-    rate_hz: float | None = Field(None, gt=0, le=100, description="Setpoint rate (Hz).")
+    rate_hz: float | None = Field(
+        None, gt=MIN_RATE_HZ, le=MAX_RATE_HZ,
+        description=f"Setpoint rate (Hz): above {MIN_RATE_HZ:g} (PX4 leaves OFFBOARD at a "
+        f"slower stream), at most {MAX_RATE_HZ:g}.")
     hold_at_goal: float | None = Field(None, ge=0, le=600, description="Seconds at the goals.")
     goal_settle_max: float | None = Field(
         None, ge=0, le=60,
@@ -140,7 +145,7 @@ class AbortRequest(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True,
                               json_schema_extra={"examples": [{"action": "land"}]})
 
-    action: Literal["land", "hold"] = Field(
+    action: AbortAction = Field(
         "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."
     )
 

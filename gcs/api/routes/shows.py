@@ -15,7 +15,7 @@ import base64
 import re
 import tempfile
 from pathlib import Path, PurePath
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter
 from fastapi.responses import HTMLResponse
@@ -28,6 +28,7 @@ from gcs.show.design import read_design
 from gcs.show.report import report_html
 from gcs.show.to_sequence import DEFAULT_DT, ImportOptions, to_sequence
 from gcs.show.tracks import ShowFileError
+from planner.model.scenario import Assignment
 
 __all__ = ["MAX_IMPORT_UNPACKED", "ImportRequest", "router"]
 
@@ -89,7 +90,7 @@ class ImportRequest(BaseModel):
                                          "the show's minDistance, else 1)")
     min_hold: float = Field(0.5, ge=0, le=3600, description="shortest stretch with every "
                             "drone at rest that is a hold point (s)")
-    assignment: Literal["fixed", "free"] = Field("fixed", description="fixed: each drone "
+    assignment: Assignment = Field("fixed", description="fixed: each drone "
                                                  "keeps its place; free: the planner assigns "
                                                  "the places per leg")
     auto_durations: bool = Field(False, description="the planner chooses each leg's "

@@ -11,11 +11,9 @@ The table is in docs/flying/operations.md ("Commands and their order").
 from __future__ import annotations
 
 from gcs.errors import StateConflict
+from gcs.phases import ABORT_ACTIONS
 
 __all__ = ["ABORT_ACTIONS", "abort_in_force", "aborting_refusal"]
-
-#: The abort actions, strongest last: a later one overrides an earlier one, never back.
-ABORT_ACTIONS = ("hold", "land")
 
 
 def abort_in_force(current: str | None, action: str, why: str = "") -> str:

@@ -33,7 +33,7 @@ def test_racing_commands_resolve_by_precedence(mock_settings: Callable[..., Sett
         flight = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK).json()
         links = flight["links"]
         wait_for(lambda: (client.get(links["self"]).json()["live"] or {}).get("phase")
-                 == "flying", "the mission clock", 30)
+                 == "flying", "the flight clock", 30)
         start = threading.Barrier(len(RACE))
 
         def send(link: str, body: dict[str, Any] | None) -> tuple[int, dict[str, Any]]:

@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
-from gcs.fleet.commands import FLEET_COMMANDS
+from gcs.phases import FLEET_COMMANDS
 from gcs.service.settings import Settings
 from gcs.sim import DEFAULT_WORLD_ORIGIN
 from tests.api.support import QUICK, QUICK_CROSSING, plan_mission, sse_events
@@ -24,8 +24,8 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
 ) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, QUICK_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/flights").json()
-        url = execution["links"]["self"]
+        flight = client.post(f"/api/missions/{mission['id']}/flights").json()
+        url = flight["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
                  "the flight clock", 30)
         # while a flight is under way, its own abort is the way: no fleet command
@@ -33,12 +33,12 @@ def test_a_fleet_left_hovering_after_a_hold_abort_is_landed_by_a_fleet_command(
         assert busy.status_code == 409 and busy.json()["field"] == "fleet"
         assert "abort" in busy.json()["reason"]
 
-        response = client.post(execution["links"]["abort"], json={"action": "hold"})
+        response = client.post(flight["links"]["abort"], json={"action": "hold"})
         assert response.status_code == 202
-        done = sse_events(client, execution["links"]["events"])[-1]
+        done = sse_events(client, flight["links"]["events"])[-1]
         assert done[1]["status"] == "aborted"
         # The flight is over; the vehicles hover in PX4 Hold, and abort has nothing to abort.
-        assert client.post(execution["links"]["abort"]).status_code == 409
+        assert client.post(flight["links"]["abort"]).status_code == 409
         hovering = wait_for(
             lambda: (lambda vs: vs if all(v["armed"] and v["mode"] == "AUTO.LOITER"
                                           for v in vs) else None)(

@@ -15,6 +15,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from gcs.api import create_app
+from gcs.fleet.fleetfile import MAX_RATE_HZ, MIN_RATE_HZ
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.support import (
@@ -88,8 +89,8 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
         assert v["link"] == "monitor" and v["armed"] is False and v["mode"]
         np.testing.assert_allclose(v["position"], v["home"], atol=0.05)
 
-    mission, execution, events = flown.mission, flown.created, flown.events
-    assert execution["status"] == "starting" and execution["mission_id"] == mission["id"]
+    mission, flight, events = flown.mission, flown.created, flown.events
+    assert flight["status"] == "starting" and flight["mission_id"] == mission["id"]
     kinds = [kind for kind, _ in events]
     assert kinds[0] == "status" and kinds[-1] == "done"
     statuses = [data["status"] for kind, data in events if kind == "status"]
@@ -124,7 +125,7 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
     assert flown.record["summary"] == summary
     # the request's options are the ones flown (the rest are the fleet's)
     assert {k: flown.record["options"][k] for k in QUICK} == QUICK
-    assert [e["id"] for e in flown.listed] == [execution["id"]]
+    assert [e["id"] for e in flown.listed] == [flight["id"]]
     assert flown.active == []
 
     # Back to the monitor: the vehicles are landed, disarmed, at their goals.
@@ -141,12 +142,12 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
 def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/flights").json()
-        url = execution["links"]["self"]
+        flight = client.post(f"/api/missions/{mission['id']}/flights").json()
+        url = flight["links"]["self"]
         wait_for(lambda: (client.get(url).json()["live"] or {}).get("phase") == "flying",
                  "the flight clock", 30)
         while_flying = client.get("/api/vehicles").json()
-        assert while_flying["fleet"]["flying"] == execution["id"]
+        assert while_flying["fleet"]["flying"] == flight["id"]
         assert all(v["link"] == "flight" and v["armed"] for v in while_flying["vehicles"])
         # One flight at a time, and no deleting a mission in the air.
         again = client.post(f"/api/missions/{mission['id']}/flights")
@@ -154,10 +155,10 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
         assert "is flying" in again.json()["reason"]
         assert client.delete(f"/api/missions/{mission['id']}").status_code == 409
 
-        response = client.post(execution["links"]["abort"], json={"action": "land"})
+        response = client.post(flight["links"]["abort"], json={"action": "land"})
         assert response.status_code == 202
         assert response.json()["status"] == "aborting"
-        done = sse_events(client, execution["links"]["events"])[-1]
+        done = sse_events(client, flight["links"]["events"])[-1]
         assert done[0] == "done" and done[1]["status"] == "aborted"
         assert "abort" in done[1]["error"]
         assert done[1]["summary"]["completed"] is False
@@ -168,7 +169,7 @@ def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) ->
         # its bound on a busy machine: the events say which
         assert {"landing_plan", "landing_fallback"} & {e["kind"] for e in stored["events"]}
         # Aborting a finished flight is a conflict, and everyone is down and disarmed.
-        late = client.post(execution["links"]["abort"])
+        late = client.post(flight["links"]["abort"])
         assert late.status_code == 409
         assert late.json()["reason"].endswith("is not flying (status aborted)")
         wait_for(lambda: all(v["armed"] is False and v["position"][2] < 0.1
@@ -189,6 +190,8 @@ def test_refusals(mock_settings: Callable[..., Settings]) -> None:
         crossing = plan_mission(client, SHORT_CROSSING)
         url = f"/api/missions/{crossing['id']}/flights"
         for body, field in [({"policy": "explode"}, "policy"), ({"rate_hz": 500}, "rate_hz"),
+                            ({"rate_hz": MIN_RATE_HZ}, "rate_hz"),
+                            ({"rate_hz": MAX_RATE_HZ + 1}, "rate_hz"),
                             ({"stream_priority": "fastest"}, "stream_priority"),
                             ({"climb_speed": 0}, "climb_speed"), ({"prestream": 60}, "prestream"),
                             ({"colour": 1}, "colour")]:
@@ -228,16 +231,16 @@ def test_no_fleet_means_no_flight(make_settings: Callable[..., Settings]) -> Non
 def test_flights_survive_a_restart(flown: Flown) -> None:
     """A restarted service on the flight's database (the service that flew it has stopped)
     serves the finished flight, and marks one a killed server left 'starting' interrupted."""
-    settings, execution, done = flown.settings, flown.created, flown.events[-1][1]
+    settings, flight, done = flown.settings, flown.created, flown.events[-1][1]
     assert done["status"] == "completed"
     # What a killed server leaves behind: a flight still 'starting'.
     store = Store(settings.database_url)
     orphan = store.create_flight(flown.mission["id"], "mock: a, b, c, d")
     store.close()
     with TestClient(create_app(settings)) as client:
-        again = client.get(execution["links"]["self"]).json()
+        again = client.get(flight["links"]["self"]).json()
         assert again["status"] == "completed" and again["summary"] == done["summary"]
-        assert client.get(execution["links"]["record"]).status_code == 200
+        assert client.get(flight["links"]["record"]).status_code == 200
         lost = client.get(f"/api/flights/{orphan.id}").json()
         assert lost["status"] == "interrupted"
         assert lost["error"] == "the service stopped during this flight"
@@ -251,9 +254,9 @@ def test_pause_and_resume_through_the_api(mock_settings: Callable[..., Settings]
     the flight completes. Pausing twice, resuming a running flight or a finished one: 409."""
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, QUICK_CROSSING)
-        execution = client.post(f"/api/missions/{mission['id']}/flights",
+        flight = client.post(f"/api/missions/{mission['id']}/flights",
                                 json=QUICK).json()
-        url, links = execution["links"]["self"], execution["links"]
+        url, links = flight["links"]["self"], flight["links"]
         assert client.post(links["resume"]).status_code == 409  # not paused
         # paused 1 s into the 6 s plan, the fleet moving
         wait_for(lambda: ((client.get(url).json()["live"] or {}).get("flight_time") or 0) > 1,

@@ -25,7 +25,7 @@ from tests.api.support import OPERATOR, READER, example, plan_mission, refused
 
 @pytest.fixture
 def ended(make_settings: Callable[..., Settings]) -> Iterator[tuple[TestClient, str]]:
-    """A service with no fleet and one stored execution that has ended (nothing flies)."""
+    """A service with no fleet and one stored flight that has ended (nothing flies)."""
     settings = make_settings(max_vehicles=4)
     with TestClient(create_app(settings)) as client:
         store = client.app.state.store  # type: ignore[attr-defined]
@@ -115,7 +115,7 @@ def test_replan_needs_the_operator_token_and_the_sites_own_origin(
         refused(client.post(url, content=json.dumps(body), headers={
             "Authorization": f"Bearer {OPERATOR}", "Content-Type": "text/plain"}),
             415, "Content-Type", "must be JSON")
-        # The operator's own request reaches the route (no such execution here).
+        # The operator's own request reaches the route (no such flight here).
         refused(client.post(url, json=body, headers={"Authorization": f"Bearer {OPERATOR}"}),
                 404, "flight_id", "")
 

@@ -44,8 +44,8 @@ def test_a_replan_through_the_api(mock_settings: Callable[..., Settings]) -> Non
         flown = client.post(f"/api/missions/{mission['id']}/flights",
                             json={**QUICK, "replan_lead_s": LEAD_S})
         assert flown.status_code == 201, flown.text
-        execution = flown.json()
-        url, links = execution["links"]["self"], execution["links"]
+        flight = flown.json()
+        url, links = flight["links"]["self"], flight["links"]
         assert links["replan"].endswith("/replan")
         wait_for(lambda: flight_time(client, url) > 1.0, "the flight clock to pass 1 s", 60)
 
@@ -111,12 +111,12 @@ def test_nothing_flying_yet_is_409(mock_settings: Callable[..., Settings]) -> No
     """A flight still starting (links opening, arming) has no plan flown to replan."""
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, copy.deepcopy(SHORT_CROSSING))
-        execution = client.post(f"/api/missions/{mission['id']}/flights",
+        flight = client.post(f"/api/missions/{mission['id']}/flights",
                                 json=QUICK).json()
-        answer = client.post(execution["links"]["replan"], json={"drop": ["d"]})
+        answer = client.post(flight["links"]["replan"], json={"drop": ["d"]})
         assert answer.status_code == 409, answer.text
-        client.post(execution["links"]["abort"], json={"action": "land"})
-        events: list[tuple[str, dict[str, Any]]] = sse_events(client, execution["links"]["events"])
+        client.post(flight["links"]["abort"], json={"action": "land"})
+        events: list[tuple[str, dict[str, Any]]] = sse_events(client, flight["links"]["events"])
         assert events[-1][1]["status"] == "aborted"
 
 

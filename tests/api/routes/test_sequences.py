@@ -127,14 +127,14 @@ def test_a_planned_sequence_flies_on_the_mock_fleet(mock_settings: Callable[...,
         assert mission["plan_ok"] is True
         response = client.post(f"/api/missions/{mission['id']}/flights", json=QUICK)
         assert response.status_code == 201, response.text
-        execution = response.json()
-        events = sse_events(client, execution["links"]["events"])
+        flight = response.json()
+        events = sse_events(client, flight["links"]["events"])
         done = events[-1][1]
         assert done["status"] == "completed", done
         assert done["summary"]["goal_error_max"] < 0.2
         assert done["summary"]["min_separation_measured"] > 1.0 - 0.1
         wait_for(lambda: client.get(f"/api/missions/{mission['id']}/flights").json(),
-                 "the execution record", 5)
+                 "the flight record", 5)
 
 
 #: OUT_AND_BACK lit: red at home, fading to blue on the way out, through black to green back.
