@@ -311,7 +311,7 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
                              np.repeat(work.starts[resting][:, None, :], steps + 1, axis=1)])
     # the fixed trajectories' arrays are the plans themselves: no need to resample them
     planned = len(moving) + len(resting)
-    sub.__dict__["fixed_set"] = FixedSet(
+    sub = sub.with_fixed_set(FixedSet(
         [f.id for f in fixed], others,
         np.concatenate([own.velocities, state.v[moving], np.zeros((len(resting), steps + 1, 3))]),
         np.concatenate([own.accelerations, state.a[moving], np.zeros((len(resting), steps, 3))]),
@@ -319,7 +319,7 @@ def _plan_batch(state: _State, members: IntArray, reopened: IntArray, later: Int
         np.concatenate([own.interval_margins, np.zeros((planned, steps))]),
         None if own.deficits is None
         else np.concatenate([own.deficits[group], np.zeros((len(group), planned))], axis=1),
-        own.interval_relief)
+        own.interval_relief))
     preset = (state.p[reopened], state.v[reopened], state.a[reopened])
     guess = clear_guess(sub, others, preset,
                         {i: state.routes[int(j)] for i, j in enumerate(members)

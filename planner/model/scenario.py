@@ -226,6 +226,14 @@ class Scenario:
 
         return FixedSet.build(self.fixed, self.dt, self.steps,
                               [v.id for v in self.vehicles], self.min_separation)
+
+    def with_fixed_set(self, fixed_set: FixedSet) -> Scenario:
+        """A copy whose `fixed_set` is `fixed_set` instead of one built from `fixed`: for a
+        caller that has the arrays on this grid already (a prioritized batch's earlier
+        vehicles, which are plans). `fixed_set` must describe `fixed` on this grid."""
+        copy = dataclasses.replace(self)
+        copy.__dict__["fixed_set"] = fixed_set  # the cached_property's own slot
+        return copy
     start_velocities: FloatArray | None = field(default=None, repr=False)
     """(N, 3) start velocities (m/s), when some vehicle has one; None: all start at rest."""
     start_accelerations: FloatArray | None = field(default=None, repr=False)

@@ -1,4 +1,5 @@
-"""A fake `VehicleLink`: the few things the monitor and the vehicle procedure use, no sockets.
+"""A fake link (`gcs.flight.link.interface.Link`): what the flight uses of a vehicle's link, no
+sockets.
 
 `FakeLink` answers commands from a small PX4-like rule set (modes and arming take effect at
 once, NAV_LAND lands and disarms) and lets a test set telemetry directly.
@@ -7,15 +8,19 @@ once, NAV_LAND lands and disarms) and lets a test set telemetry directly.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
-from collections.abc import Callable
-from types import SimpleNamespace
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from gcs.autopilot import px4
 from gcs.fleet.fleetfile import VehicleSpec
+from gcs.flight.link.interface import Link, MessageHandler
+from gcs.flight.link.setpoints import Setpoint
+from gcs.flight.link.station import Clock
 from gcs.flight.link.telemetry import Telemetry
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.safety.monitor import Watched
@@ -24,18 +29,36 @@ from gcs.wire import mavlink
 __all__ = ["FakeLink", "Findings", "fake_link", "fake_vehicle"]
 
 
-class FakeLink:
-    """What the executor's helpers use from a `VehicleLink`, in memory."""
+@dataclass
+class FakeEndpoint:
+    """The endpoint counts a flight reads (`DatagramCounts`): nothing arrives on a socket."""
 
-    def __init__(self, vehicle_id: str, *, answer: bool = True) -> None:
+    messages_received: int = 0
+    dropped_unknown: int = 0
+    garbage_datagrams: int = 0
+
+
+class FakeLink:
+    """A `Link` in memory: what the flight uses of a `VehicleLink`."""
+
+    def __init__(self, vehicle_id: str, *, system_id: int = 1, answer: bool = True) -> None:
         self.vehicle_id = vehicle_id
+        self.system_id = system_id
         self.component_id = 1
+        self.mav = mavlink.MAVLink(None)
+        """Encodes what the flight sends (kept in `sent`, never packed for a wire)."""
         self.telemetry = Telemetry(autopilot=mavlink.MAV_AUTOPILOT_PX4, mode=px4.OFFBOARD,
                                    position_ned=(0.0, 0.0, -1.5), velocity_ned=(0.0, 0.0, 0.0))
         self.answer = answer
         """False: commands go unanswered (`GcsError` like a real link's retries)."""
         self.commands: list[int] = []
-        self.endpoint = SimpleNamespace(garbage_datagrams=0)
+        self.sent: list[Any] = []
+        """The messages `send` was given (none reaches a vehicle)."""
+        self.handlers: list[MessageHandler] = []
+        """Who listens now (`listening`); `deliver` hands them a message from the vehicle."""
+        self.endpoint = FakeEndpoint()
+        self.peer_address: Any = None
+        self.claimants: list[Any] = []
         self.dropped_from: dict[str, tuple[Any, int]] = {}
         self.alive()
 
@@ -45,7 +68,21 @@ class FakeLink:
         tel = self.telemetry
         tel.message_time = tel.heartbeat_time = tel.position_time = now
 
-    async def command(self, command: int, params: Any = (), clock: Any = None) -> int:
+    @contextlib.contextmanager
+    def listening(self, handler: MessageHandler) -> Iterator[None]:
+        self.handlers.append(handler)
+        try:
+            yield
+        finally:
+            self.handlers.remove(handler)
+
+    def deliver(self, msg: Any, now: float = 0.0) -> None:
+        """`msg` arrives from the vehicle: every handler listening gets it."""
+        for handler in list(self.handlers):
+            handler(msg, now)
+
+    async def command(self, command: int, params: tuple[float, ...] = (), *,
+                      timeout: float = 1.0, retries: int = 8, clock: Clock | None = None) -> int:
         from gcs.errors import CommandError
 
         self.commands.append(command)
@@ -63,15 +100,15 @@ class FakeLink:
             tel.mode = next(m for m in (px4.OFFBOARD, px4.HOLD, px4.LAND, px4.POSITION)
                             if m.command_params == tuple(params))
         self.alive()
-        return mavlink.MAV_RESULT_ACCEPTED
+        return int(mavlink.MAV_RESULT_ACCEPTED)
 
     async def request_message(self, message_id: int, timeout: float = 1.0, *,
-                              clock: Any = None) -> int:
+                              clock: Clock | None = None) -> int:
         """MAV_CMD_REQUEST_MESSAGE, answered like any command (nothing is sent back)."""
         return await self.command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(message_id),))
 
-    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float,
-                       clock: Any = None) -> bool:
+    async def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float, *,
+                       clock: Clock | None = None) -> bool:
         deadline = time.monotonic() + timeout
         while not predicate(self.telemetry):
             if time.monotonic() >= deadline:
@@ -79,9 +116,13 @@ class FakeLink:
             await asyncio.sleep(0.01)
         return True
 
-    def pack_setpoint(self, setpoint: Any, boot_ms: int) -> bytes:
+    def pack_setpoint(self, setpoint: Setpoint, boot_ms: int) -> bytes:
         """Nothing to encode: the streamer's listeners see the setpoints."""
         return b""
+
+    def send(self, msg: Any) -> None:
+        """Kept in `sent`: no vehicle answers it."""
+        self.sent.append(msg)
 
     def send_packed(self, buf: bytes) -> None:
         """Nowhere to send."""
@@ -108,7 +149,9 @@ def fake_vehicle(index: int, *, home: tuple[float, float, float] = (0.0, 0.0, 0.
     spec = VehicleSpec(id=vid, connection=f"udpin:127.0.0.1:{40000 + index}",
                        system_id=index + 1, component_id=1, home=np.asarray(home, dtype=float))
     v = VehicleStatus(spec, index)
-    v.link = FakeLink(vid, **link_kw)  # type: ignore[assignment]
+    link: Link = FakeLink(vid, system_id=spec.system_id, **link_kw)  # mypy: a FakeLink is a Link
+    # VehicleStatus.link is a VehicleLink until the streamer and monitor take a `Link`
+    v.link = link  # type: ignore[assignment]
     v.home = np.asarray(home, dtype=float)
     v.expect_offboard = True
     return v

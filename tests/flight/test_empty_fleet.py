@@ -17,7 +17,7 @@ from gcs.flight.run.record import FlightRecorder, summarise
 from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind, VehiclePhase
 from gcs.tasks import all_or_first_error
-from tests.flight.fakes import fake_vehicle
+from tests.flight.fakes import fake_link, fake_vehicle
 from tests.flight.flying import monitor_of
 from tests.flight.support import line_scenario, smooth_plan
 
@@ -103,7 +103,7 @@ def test_finish_with_no_live_vehicle(at_end: str) -> None:
     assert [v.phase for v in ex.vehicles] == [VehiclePhase.LANDED] * 2
     kinds = [e["kind"] for e in ex.recorder.events]
     assert kinds == [EventKind.LANDED, EventKind.LANDED]
-    assert not [c for v in ex.vehicles for c in v.linked.commands]  # type: ignore[attr-defined]
+    assert not [c for v in ex.vehicles for c in fake_link(v).commands]
 
 
 def test_abort_with_every_vehicle_already_down_sends_nothing() -> None:
@@ -112,7 +112,7 @@ def test_abort_with_every_vehicle_already_down_sends_nothing() -> None:
         v.phase = VehiclePhase.STOPPED
     asyncio.run(asyncio.wait_for(ex.abort("land", "test"), 5.0))  # bound
     assert [v.phase for v in ex.vehicles] == [VehiclePhase.STOPPED] * 2
-    assert not [c for v in ex.vehicles for c in v.linked.commands]  # type: ignore[attr-defined]
+    assert not [c for v in ex.vehicles for c in fake_link(v).commands]
 
 
 def test_record_of_a_flight_that_never_streamed() -> None:

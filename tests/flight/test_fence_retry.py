@@ -114,7 +114,7 @@ def test_a_refused_origin_request_is_not_asked_again() -> None:
         return mavlink.MAV_RESULT_UNSUPPORTED
 
     link.request_message = refuse  # type: ignore[method-assign]
-    assert asyncio.run(vehicle.ask_origin(link)) is False  # type: ignore[arg-type]
+    assert asyncio.run(vehicle.ask_origin(link)) is False
     assert asked == [mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN]
 
 
@@ -176,14 +176,12 @@ def test_a_lossy_link_from_the_start_flies_fenced_or_not_at_all(seed: int) -> No
         assert not any(v.armed for v in mock.vehicles)
 
 
-class _LosesTheLastAck:
+class _LosesTheLastAck(FakeLink):
     """A vehicle's side of the mission protocol whose final MISSION_ACK is lost on the way."""
 
     def __init__(self) -> None:
-        self.vehicle_id, self.system_id, self.component_id = "uav1", 1, 1
-        self.mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        super().__init__("uav1")
         self.own = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-        self.listeners: list[Any] = []
         self.stored: list[int] = []
         self.count = 0
 
@@ -201,8 +199,7 @@ class _LosesTheLastAck:
 
     def _answer(self, msg: Any) -> None:
         msg.pack(self.own)
-        for listener in list(self.listeners):
-            listener(self, msg, 0.0)
+        self.deliver(msg)
 
 
 def test_the_last_ack_lost_is_left_to_the_read_back(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -211,5 +208,5 @@ def test_the_last_ack_lost_is_left_to_the_read_back(monkeypatch: pytest.MonkeyPa
     monkeypatch.setattr(fence_upload, "ITEM_TIMEOUT_S", 0.01)
     link = _LosesTheLastAck()
     items = fence_items(build_fence(WORKSPACE), np.zeros(3), DEFAULT_WORLD_ORIGIN)
-    asyncio.run(fence_upload.upload_fence(link, items))  # type: ignore[arg-type]
+    asyncio.run(fence_upload.upload_fence(link, items))
     assert link.stored == list(range(len(items)))

@@ -311,7 +311,7 @@ def test_signed_link_accepts_signed_and_rejects_unsigned_wrong_key_and_replay(
         checker = mavlink.MAVLink(None)
         checker.signing.secret_key = key.secret
         for m in received:
-            assert checker.decode(bytearray(m.get_msgbuf()))._signed
+            assert checker.decode(bytearray(m.get_msgbuf())).get_signed()
         # from the pinned address: unsigned, signed with another key, and a replay
         unsigned = Peer()
         unsigned.sock.close()

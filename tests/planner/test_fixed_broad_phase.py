@@ -5,8 +5,6 @@ share their equality and cost matrices (`planner.scp.qp.group_structure`) withou
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -32,9 +30,7 @@ def _rows(scenario: Scenario, rng: np.random.Generator, count: int) -> FixedRows
     p, v = _walks(rng, count, scenario.steps + 1)
     fs = FixedSet([f"f{i}" for i in range(count)], p, v, np.zeros((count, scenario.steps, 3)),
                   np.full(count, 0.3), rng.uniform(0.0, 0.3, (count, scenario.steps)))
-    sub = dataclasses.replace(scenario)
-    sub.__dict__["fixed_set"] = fs
-    return FixedRows(sub)
+    return FixedRows(scenario.with_fixed_set(fs))
 
 
 def _every_interval(rows: FixedRows, p: np.ndarray, v: np.ndarray, reach: float) -> set:

@@ -130,7 +130,7 @@ def test_a_widely_spaced_fleet_is_measured_without_all_pairs(monkeypatch):
     def no_all_pairs(*_args):
         raise AssertionError("all pairs examined")
 
-    monkeypatch.setattr(separation, "_pair_chunks", no_all_pairs)
+    monkeypatch.setattr(separation, "all_pairs", no_all_pairs)
     x, y = np.meshgrid(np.arange(10) * 5.0, np.arange(10) * 5.0)
     points = np.stack([x.ravel(), y.ravel(), np.full(100, 3.0)], axis=1)
     steps, dt = 6, 0.5

@@ -17,14 +17,16 @@ pending command only, with retries and duplicate-ACK tolerance. The sockets are
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
 from gcs.errors import CommandError
 from gcs.flight.link.endpoints import Endpoint
+from gcs.flight.link.interface import MessageHandler
 from gcs.flight.link.setpoints import Setpoint
 from gcs.flight.link.signing import LinkSigning
 from gcs.flight.link.station import Clock
@@ -110,6 +112,19 @@ class VehicleLink:
         """Security counter name -> (address, component) of the latest packet dropped for
         it: what a connect that heard nothing it could admit reports (`drop_diagnosis`)."""
         endpoint.register(self)
+
+    @contextlib.contextmanager
+    def listening(self, handler: MessageHandler) -> Iterator[None]:
+        """`handler` gets (message, receive time) for every message of this vehicle inside
+        the ``with`` block: a listener for as long as a procedure step waits on it."""
+        def listener(_link: VehicleLink, msg: Any, now: float) -> None:
+            handler(msg, now)
+
+        self.listeners.append(listener)
+        try:
+            yield
+        finally:
+            self.listeners.remove(listener)
 
     # ---------------------------------------------------------------- receiving
 

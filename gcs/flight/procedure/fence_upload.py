@@ -21,7 +21,7 @@ from typing import Any
 
 from gcs.autopilot import Autopilot
 from gcs.errors import GeofenceFailed
-from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.interface import Link
 from gcs.flight.procedure.params import ParamError, set_param
 from gcs.geofence import FenceItem, item_mismatch
 from gcs.wire import mavlink
@@ -42,20 +42,20 @@ _KINDS = frozenset({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK", "MI
 class _Inbox:
     """The vehicle's mission-protocol messages about its FENCE list, queued while in use."""
 
-    def __init__(self, link: VehicleLink) -> None:
-        self.link = link
+    def __init__(self, link: Link) -> None:
         self.queue: asyncio.Queue[Any] = asyncio.Queue()
+        self._listening = link.listening(self._on)
 
-    def _on(self, _link: VehicleLink, msg: Any, _now: float) -> None:
+    def _on(self, msg: Any, _now: float) -> None:
         if msg.get_type() in _KINDS and getattr(msg, "mission_type", 0) == FENCE:
             self.queue.put_nowait(msg)
 
     def __enter__(self) -> _Inbox:
-        self.link.listeners.append(self._on)
+        self._listening.__enter__()
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.link.listeners.remove(self._on)
+    def __exit__(self, *exc: Any) -> None:
+        self._listening.__exit__(*exc)
 
     async def next(self, deadline: float) -> Any | None:
         """The next message, or None at `deadline` (monotonic)."""
@@ -70,7 +70,7 @@ def _ack_name(result: int) -> str:
     return entry.name if entry is not None else str(result)
 
 
-async def upload_fence(link: VehicleLink, items: Sequence[FenceItem]) -> None:
+async def upload_fence(link: Link, items: Sequence[FenceItem]) -> None:
     """Upload `items` as the vehicle's FENCE list (`GeofenceFailed` unless ACCEPTED)."""
     mav, sysid, comp = link.mav, link.system_id, link.component_id
     last = mav.mission_count_encode(sysid, comp, len(items), FENCE)
@@ -113,7 +113,7 @@ async def upload_fence(link: VehicleLink, items: Sequence[FenceItem]) -> None:
                 deadline = time.monotonic() + ITEM_TIMEOUT_S
 
 
-async def download_fence(link: VehicleLink) -> list[FenceItem]:
+async def download_fence(link: Link) -> list[FenceItem]:
     """Read the vehicle's FENCE list back (`GeofenceFailed` when it does not answer)."""
     mav, sysid, comp = link.mav, link.system_id, link.component_id
     with _Inbox(link) as inbox:
@@ -128,7 +128,7 @@ async def download_fence(link: VehicleLink) -> list[FenceItem]:
     return items
 
 
-async def _ask(link: VehicleLink, inbox: _Inbox, request: Any, kind: str,
+async def _ask(link: Link, inbox: _Inbox, request: Any, kind: str,
                seq: int | None) -> Any:
     """Send `request` until a `kind` answer (with `seq`, when given) comes."""
     for _ in range(RETRIES + 1):
@@ -144,7 +144,7 @@ async def _ask(link: VehicleLink, inbox: _Inbox, request: Any, kind: str,
                                           f"of {request.get_type()}")
 
 
-async def send_fence(link: VehicleLink, items: Sequence[FenceItem]) -> None:
+async def send_fence(link: Link, items: Sequence[FenceItem]) -> None:
     """Upload `items`, read them back and compare (`GeofenceFailed` on any difference)."""
     await upload_fence(link, items)
     got = await download_fence(link)
@@ -153,7 +153,7 @@ async def send_fence(link: VehicleLink, items: Sequence[FenceItem]) -> None:
         raise GeofenceFailed(link.vehicle_id, f"read back different: {problem}")
 
 
-async def enable_fence(link: VehicleLink, kind: Autopilot) -> str:
+async def enable_fence(link: Link, kind: Autopilot) -> str:
     """Set the parameters that make `kind` act on its uploaded fence; what was set, in words
     ("" when none is needed; `GeofenceFailed` when one is not taken)."""
     done = []

@@ -12,7 +12,7 @@ import math
 import time
 from typing import Any
 
-from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.interface import Link
 from gcs.wire import PARAM_TYPES, decode_param, encode_param
 
 __all__ = ["ANSWER_S", "TRIES", "ParamError", "read_param", "set_param"]
@@ -29,16 +29,15 @@ class ParamError(Exception):
     """A parameter was not answered or not taken (the reason in words)."""
 
 
-async def _exchange(link: VehicleLink, name: str, send: Any) -> Any:
+async def _exchange(link: Link, name: str, send: Any) -> Any:
     """Send `send()`'s message until a PARAM_VALUE for `name` answers; that message."""
     answers: asyncio.Queue[Any] = asyncio.Queue()
 
-    def on_message(_link: VehicleLink, msg: Any, _now: float) -> None:
+    def on_message(msg: Any, _now: float) -> None:
         if msg.get_type() == "PARAM_VALUE" and _param_id(msg) == name:
             answers.put_nowait(msg)
 
-    link.listeners.append(on_message)
-    try:
+    with link.listening(on_message):
         for _ in range(TRIES):
             link.send(send())
             deadline = time.monotonic() + ANSWER_S
@@ -47,9 +46,7 @@ async def _exchange(link: VehicleLink, name: str, send: Any) -> Any:
                     return await asyncio.wait_for(answers.get(), left)
                 except TimeoutError:
                     break
-        raise ParamError(f"{name} not answered after {TRIES} tries")
-    finally:
-        link.listeners.remove(on_message)
+    raise ParamError(f"{name} not answered after {TRIES} tries")
 
 
 def _param_id(msg: Any) -> str:
@@ -58,14 +55,14 @@ def _param_id(msg: Any) -> str:
     return text.rstrip("\x00")
 
 
-async def read_param(link: VehicleLink, name: str, kind: str) -> float:
+async def read_param(link: Link, name: str, kind: str) -> float:
     """The vehicle's value of parameter `name` (type `kind`: "f" or "i")."""
     msg = await _exchange(link, name, lambda: link.mav.param_request_read_encode(
         link.system_id, link.component_id, name.encode(), -1))
     return decode_param(kind, msg.param_value)
 
 
-async def set_param(link: VehicleLink, name: str, kind: str, value: float) -> float:
+async def set_param(link: Link, name: str, kind: str, value: float) -> float:
     """Set parameter `name` to `value`; the value the vehicle answers with (`ParamError`
     when it keeps another)."""
     msg = await _exchange(link, name, lambda: link.mav.param_set_encode(

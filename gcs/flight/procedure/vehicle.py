@@ -46,6 +46,7 @@ from gcs.errors import (
     VehicleTimeout,
 )
 from gcs.fleet.fleetfile import VehicleSpec
+from gcs.flight.link.interface import Link
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.station import StationStalls
 from gcs.flight.link.telemetry import Telemetry
@@ -163,12 +164,12 @@ class VehicleStatus:
         return float(np.linalg.norm(np.asarray(tel.position_ned) - target))
 
 
-def autopilot_of(link: VehicleLink) -> Autopilot:
+def autopilot_of(link: Link) -> Autopilot:
     """The autopilot `link`'s vehicle is flown as (`Telemetry.flown_by`)."""
     return link.telemetry.flown_by
 
 
-def last_text(link: VehicleLink) -> str:
+def last_text(link: Link) -> str:
     """The vehicle's latest STATUSTEXT, as a suffix for an error message."""
     texts = link.telemetry.statustexts
     return f" (vehicle says: {texts[-1]!r})" if texts else ""
@@ -181,13 +182,13 @@ def _clock(stalls: StationStalls | None) -> Callable[[], float]:
     return stalls.clock if stalls is not None else time.monotonic
 
 
-async def wait_running(link: VehicleLink, predicate: Callable[[Telemetry], bool],
+async def wait_running(link: Link, predicate: Callable[[Telemetry], bool],
                        timeout: float, stalls: StationStalls | None = None) -> bool:
     """`link.wait_for` with `timeout` in station-running time (see the module)."""
     return await link.wait_for(predicate, timeout, clock=_clock(stalls))
 
 
-def _choose_autopilot(link: VehicleLink, spec: VehicleSpec) -> None:
+def _choose_autopilot(link: Link, spec: VehicleSpec) -> None:
     """Fly `link`'s vehicle as the autopilot the fleet file names or its HEARTBEAT reports
     (`LinkError` when neither names one the GCS flies, or they disagree)."""
     kind = autopilot.choose(spec.autopilot, link.telemetry.autopilot)
@@ -196,7 +197,7 @@ def _choose_autopilot(link: VehicleLink, spec: VehicleSpec) -> None:
     link.telemetry.autopilot_kind = kind
 
 
-async def connect(link: VehicleLink, spec: VehicleSpec, timeout: float,
+async def connect(link: Link, spec: VehicleSpec, timeout: float,
                   stalls: StationStalls | None = None, *,
                   position_hz: float = POSITION_HZ, armed_ok: bool = False) -> None:
     """Wait for the first HEARTBEAT and position, choosing the vehicle's autopilot on the way
@@ -285,7 +286,7 @@ _DROP_CAUSES: dict[str, tuple[str, str]] = {
 }
 
 
-def drop_diagnosis(link: VehicleLink, spec: VehicleSpec) -> str:
+def drop_diagnosis(link: Link, spec: VehicleSpec) -> str:
     """What the link dropped from this vehicle's system id and the likely cause, one clause
     per reason ("" when it dropped nothing): a misconfigured link reads as what it is, not
     as a silent vehicle."""
@@ -299,7 +300,7 @@ def drop_diagnosis(link: VehicleLink, spec: VehicleSpec) -> str:
     return "; ".join(parts)
 
 
-def refuse_other_claimants(link: VehicleLink, spec: VehicleSpec) -> None:
+def refuse_other_claimants(link: Link, spec: VehicleSpec) -> None:
     """Two sources claiming one vehicle while it connects: refuse it and name both, so the
     first is never pinned silently (pin the real one with the fleet file's ``peer``)."""
     if link.claimants:
@@ -316,7 +317,7 @@ def address_text(address: object) -> str:
     return str(address)
 
 
-async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> bool:
+async def ask_origin(link: Link, stalls: StationStalls | None = None) -> bool:
     """Ask for GPS_GLOBAL_ORIGIN until the vehicle reports it, up to `ORIGIN_TRIES` times
     with a growing wait (a lossy link loses requests and answers alike); whether it did. A
     request the vehicle refuses (no ACCEPTED), or never acknowledges through all of its
@@ -339,7 +340,7 @@ async def ask_origin(link: VehicleLink, stalls: StationStalls | None = None) -> 
     return link.telemetry.gps_origin is not None
 
 
-async def set_origin(link: VehicleLink, origin: frames.Geodetic,
+async def set_origin(link: Link, origin: frames.Geodetic,
                      stalls: StationStalls | None = None) -> bool:
     """Give a vehicle without an EKF origin one (SET_GPS_GLOBAL_ORIGIN, which has no answer of
     its own), then ask for it back (`ask_origin`); whether it now reports one. Its LOCAL_NED
@@ -353,7 +354,7 @@ async def set_origin(link: VehicleLink, origin: frames.Geodetic,
     return False
 
 
-async def take_off(link: VehicleLink, height: float, *, timeout: float,
+async def take_off(link: Link, height: float, *, timeout: float,
                    stalls: StationStalls | None = None, up_at: float | None = None) -> float:
     """MAV_CMD_NAV_TAKEOFF to `height` m above its LOCAL_NED origin (at least
     `TAKEOFF_MIN_M`; a copter in GUIDED leaves the ground only so), then wait until it is
@@ -379,7 +380,7 @@ async def take_off(link: VehicleLink, height: float, *, timeout: float,
     return height
 
 
-async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodetic,
+async def resolve_home(link: Link, vehicle_id: str, origin: frames.Geodetic,
                        stalls: StationStalls | None = None) -> tuple[np.ndarray, str]:
     """Home in the world frame from the vehicle's EKF origin and the fleet's world_origin;
     returns (home, the message it came from)."""
@@ -402,7 +403,7 @@ async def resolve_home(link: VehicleLink, vehicle_id: str, origin: frames.Geodet
     return home, "HOME_POSITION"
 
 
-async def set_mode(link: VehicleLink, mode: autopilot.FlightMode, *, confirm_timeout: float,
+async def set_mode(link: Link, mode: autopilot.FlightMode, *, confirm_timeout: float,
                    retry_for: float = 0.0, stalls: StationStalls | None = None) -> None:
     """DO_SET_MODE until ACCEPTED (retrying TEMPORARILY_REJECTED for `retry_for` s), then
     wait for HEARTBEAT to show the mode; `ModeRefused` otherwise."""
@@ -424,7 +425,7 @@ async def set_mode(link: VehicleLink, mode: autopilot.FlightMode, *, confirm_tim
                           f"{mode.name} refused: {result_name(result)}{last_text(link)}")
 
 
-async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
+async def arm(link: Link, *, timeout: float, confirm_timeout: float,
               on_attempt: Callable[[], None] | None = None,
               on_accepted: Callable[[], None] | None = None,
               stalls: StationStalls | None = None) -> int:
@@ -462,7 +463,7 @@ async def arm(link: VehicleLink, *, timeout: float, confirm_timeout: float,
                             f"arming refused: {result_name(result)}{last_text(link)}")
 
 
-async def land(link: VehicleLink, *, confirm_timeout: float,
+async def land(link: Link, *, confirm_timeout: float,
                stalls: StationStalls | None = None) -> bool:
     """MAV_CMD_NAV_LAND, falling back to DO_SET_MODE to the land mode if refused, where the
     autopilot lands by command (`Autopilot.land_by_command`), else the land mode straight
@@ -477,7 +478,7 @@ async def land(link: VehicleLink, *, confirm_timeout: float,
     return True
 
 
-async def disarm(link: VehicleLink, *, force: bool = False,
+async def disarm(link: Link, *, force: bool = False,
                  stalls: StationStalls | None = None) -> int:
     """MAV_CMD_COMPONENT_ARM_DISARM(0); `force` adds the autopilot's magic number, which
     disarms even in the air (the vehicle falls). Returns the MAV_RESULT."""
@@ -486,7 +487,7 @@ async def disarm(link: VehicleLink, *, force: bool = False,
                               clock=_clock(stalls))
 
 
-async def request_message_rates(link: VehicleLink, rates: dict[int, float],
+async def request_message_rates(link: Link, rates: dict[int, float],
                                 stalls: StationStalls | None = None) -> dict[str, str]:
     """MAV_CMD_SET_MESSAGE_INTERVAL for each message id (param2: interval in us, -1 = off);
     returns {message name: "<rate> <MAV_RESULT>"}. A refusal is reported, not raised: the
