@@ -18,7 +18,7 @@ import numpy as np
 
 from gcs.autopilot import px4
 from gcs.fleet.fleetfile import VehicleSpec
-from gcs.flight.link.interface import Link, MessageHandler
+from gcs.flight.link.interface import MessageHandler
 from gcs.flight.link.setpoints import Setpoint
 from gcs.flight.link.station import Clock
 from gcs.flight.link.telemetry import Telemetry
@@ -149,9 +149,7 @@ def fake_vehicle(index: int, *, home: tuple[float, float, float] = (0.0, 0.0, 0.
     spec = VehicleSpec(id=vid, connection=f"udpin:127.0.0.1:{40000 + index}",
                        system_id=index + 1, component_id=1, home=np.asarray(home, dtype=float))
     v = VehicleStatus(spec, index)
-    link: Link = FakeLink(vid, system_id=spec.system_id, **link_kw)  # mypy: a FakeLink is a Link
-    # VehicleStatus.link is a VehicleLink until the streamer and monitor take a `Link`
-    v.link = link  # type: ignore[assignment]
+    v.link = FakeLink(vid, system_id=spec.system_id, **link_kw)  # mypy: a FakeLink is a Link
     v.home = np.asarray(home, dtype=float)
     v.expect_offboard = True
     return v

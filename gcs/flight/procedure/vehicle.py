@@ -47,7 +47,6 @@ from gcs.errors import (
 )
 from gcs.fleet.fleetfile import VehicleSpec
 from gcs.flight.link.interface import Link
-from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.station import StationStalls
 from gcs.flight.link.telemetry import Telemetry
 from gcs.phases import DropAction, EventKind, VehiclePhase
@@ -102,7 +101,7 @@ class VehicleStatus:
 
     spec: VehicleSpec
     index: int
-    link: VehicleLink | None = None
+    link: Link | None = None
     home: np.ndarray | None = None
     start_ned: np.ndarray | None = None
     goal_ned: np.ndarray | None = None
@@ -151,7 +150,7 @@ class VehicleStatus:
         return self.home
 
     @property
-    def linked(self) -> VehicleLink:
+    def linked(self) -> Link:
         """The vehicle's link (only once the links are open)."""
         assert self.link is not None
         return self.link

@@ -55,7 +55,7 @@ import numpy as np
 
 from gcs import frames
 from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.interface import Link
 from gcs.flight.link.quality import WINDOW_S as LINK_WINDOW_S
 from gcs.flight.link.quality import LinkWatch
 from gcs.flight.link.signing import REPEATED_TIMESTAMPS
@@ -118,7 +118,7 @@ class Watched(Protocol):
         """`v`, told silent, is heard again."""
 
 
-def vehicle_fault(link: VehicleLink, options: FlightOptions, now: float,
+def vehicle_fault(link: Link, options: FlightOptions, now: float,
                   stalls: StationStalls | None = None) -> tuple[str, str] | None:
     """The first link/heartbeat/mode fault of a vehicle meant to be in OFFBOARD, as
     (kind, detail), or None; gaps count in station-running time when `stalls` is given."""

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs.flight.link.link import VehicleLink
+from gcs.flight.link.interface import Link
 from gcs.flight.link.setpoints import Setpoint, SetpointTrack, hold_track
 from gcs.flight.link.station import STALL_NOTE_S
 from gcs.flight.timeline.realtime import enter_realtime, leave_realtime
@@ -62,7 +62,7 @@ STALL_S = 0.002
 class Assignment:
     """What one vehicle is being streamed."""
 
-    link: VehicleLink
+    link: Link
     track: SetpointTrack
     start_tick: int
     """Streamer tick at which the track's tick 0 is sent."""
@@ -117,7 +117,7 @@ class Streamer:
         """The first tick not yet sent."""
         return max(self.tick + 1, math.ceil((time.monotonic() - self.epoch) * self.rate))
 
-    def assign(self, vehicle_id: str, link: VehicleLink, track: SetpointTrack,
+    def assign(self, vehicle_id: str, link: Link, track: SetpointTrack,
                start_tick: int | None = None) -> int:
         """Stream `track` to `link` from `start_tick` (default: the next tick); returns it."""
         tick = self.next_tick() if start_tick is None else start_tick
@@ -125,7 +125,7 @@ class Streamer:
         self.assignments[vehicle_id] = Assignment(link, track, tick)
         return tick
 
-    def switch(self, vehicle_id: str, link: VehicleLink, track: SetpointTrack,
+    def switch(self, vehicle_id: str, link: Link, track: SetpointTrack,
                at_tick: int, origin: int | None = None) -> None:
         """Stream `track` to `link` from `at_tick` on, its tick 0 at `origin` (default
         `at_tick`: tick 0 then); until that tick the vehicle's current assignment goes on
