@@ -8,7 +8,6 @@ import os
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +17,7 @@ from httpx import Response
 
 from gcs.sim import ports
 from tests.paths import EXAMPLES
+from tests.support.waiting import wait_for
 
 __all__ = ["EXAMPLES", "GOALS", "OPERATOR", "OUT_AND_BACK", "QUICK", "QUICK_CROSSING",
            "QUICK_PAIR", "READER", "SHORT_CROSSING", "STARTS", "ServiceProcess", "example",
@@ -115,19 +115,24 @@ class ServiceProcess:
         self.process = subprocess.Popen(
             self.command, cwd=self.workdir, env=self.env, stdout=log, stderr=subprocess.STDOUT
         )
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if self.process.poll() is not None:
+        process = self.process
+
+        def answers() -> bool:
+            if process.poll() is not None:
                 raise RuntimeError(f"fleetplan serve exited:\n{self.log()}")
             try:
-                if httpx.get(f"{self.base_url}/api/status", headers=self.headers,
-                             timeout=5.0).status_code == 200:
-                    return self
+                return httpx.get(f"{self.base_url}/api/status", headers=self.headers,
+                                 timeout=5.0).status_code == 200
             except httpx.HTTPError:
-                pass
-            time.sleep(0.05)
-        self.stop()
-        raise RuntimeError(f"fleetplan serve did not answer within {timeout} s:\n{self.log()}")
+                return False
+
+        try:
+            wait_for(answers, "fleetplan serve to answer /api/status", timeout,
+                     detail=lambda: f"its log:\n{self.log()}")
+        except AssertionError:
+            self.stop()
+            raise
+        return self
 
     def log(self) -> str:
         return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""

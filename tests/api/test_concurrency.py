@@ -13,6 +13,7 @@ import pytest
 
 from gcs.phases import EventKind
 from tests.api.support import SHORT_CROSSING, ServiceProcess, example, free_udp_base
+from tests.support.waiting import wait_for
 
 
 @pytest.mark.flight
@@ -30,11 +31,8 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
         small_id = small.json()["id"]
         # A flight on the mock fleet, streaming setpoints at 20 Hz from the service's loop.
         flight = client.post(f"/api/missions/{small_id}/flights").json()
-        deadline = time.monotonic() + 30
-        while (client.get(f"/api/flights/{flight['id']}").json()["live"] or {}).get(
-                "phase") != "flying":
-            assert time.monotonic() < deadline, "the flight did not start"
-            time.sleep(0.05)
+        wait_for(lambda: (client.get(f"/api/flights/{flight['id']}").json()["live"] or {}).get(
+            "phase") == "flying", "the flight to fly its plan", timeout=60.0)
 
         started = time.monotonic()
         big = client.post("/api/missions?wait=0", json=example("random64"))
@@ -46,29 +44,31 @@ def test_requests_and_streaming_keep_time_while_a_64_vehicle_plan_computes(
                  f"/api/missions/{small_id}/trajectory?rate=20"]
         latencies: list[float] = []
         by_path: dict[str, list[float]] = {p: [] for p in paths}
-        progress_seen = 0
-        rounds_while_planning = 0
-        while True:
+        progress: list[int] = []  # the iterations visible after each round
+
+        def planned() -> dict | None:
+            """One round of requests; the big mission once it is no longer planning."""
             for path in paths:
                 t0 = time.perf_counter()
                 response = client.get(path)
                 latencies.append(time.perf_counter() - t0)
                 by_path[path].append(latencies[-1])
                 assert response.status_code == 200, response.text
-            big_mission = client.get(f"/api/missions/{big_id}").json()
-            progress_seen = max(progress_seen, len(big_mission["progress"]))
-            if big_mission["status"] != "planning":
-                break
-            rounds_while_planning += 1
-            assert time.monotonic() - started < 600, "the 64-vehicle plan did not finish"
-            time.sleep(0.02)
+            mission = client.get(f"/api/missions/{big_id}").json()
+            progress.append(len(mission["progress"]))
+            return None if mission["status"] == "planning" else mission
+
+        big_mission = wait_for(planned, "the 64-vehicle plan to finish", timeout=600.0,
+                               poll=0.02)
+        progress_seen = max(progress)
+        rounds_while_planning = len(progress) - 1
         planning_s = time.monotonic() - started
 
-        deadline = time.monotonic() + 60
-        while (ended := client.get(f"/api/flights/{flight['id']}").json())[
-                "status"] in ("starting", "running"):
-            assert time.monotonic() < deadline, "the flight did not end"
-            time.sleep(0.05)
+        def flight_ended() -> dict | None:
+            got = client.get(f"/api/flights/{flight['id']}").json()
+            return None if got["status"] in ("starting", "running") else got
+
+        ended = wait_for(flight_ended, "the flight to end", timeout=60.0)
 
     assert big_mission["status"] == "planned", big_mission["error"]
     assert len(big_mission["plan"]["vehicles"]) == 64

@@ -7,7 +7,6 @@ timing figures, is bench/fanout.py)."""
 from __future__ import annotations
 
 import asyncio
-import time
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +14,7 @@ import httpx
 import pytest
 
 from tests.api.support import QUICK_CROSSING, QUICK_PAIR, ServiceProcess, free_udp_base
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -66,20 +66,23 @@ def test_a_crowded_service_flies_and_refuses_only_with_503(
                                         json={"hold_at_goal": 0.5})
             assert started.status_code == 201, started.text
             url = f"/api/flights/{started.json()['id']}"
-            deadline = time.monotonic() + 60  # bound
-            while ((await client.get(url)).json()["live"] or {}).get("phase") != "flying":
-                assert time.monotonic() < deadline, "the flight did not start"
-                await asyncio.sleep(0.05)
+
+            async def flying() -> bool:
+                return ((await client.get(url)).json()["live"] or {}).get("phase") == "flying"
+
+            await until(flying, "the flight to fly its plan", timeout=60.0)
             export_url = f"/api/missions/{mission['id']}/trajectory?rate=100&format=csv"
             exports, streams, plans = await asyncio.gather(
                 asyncio.gather(*(_export(client, export_url) for _ in range(EXPORTS))),
                 asyncio.gather(*(_stream(client, f"{url}/events") for _ in range(STREAMS))),
                 asyncio.gather(*(_plan(client, i) for i in range(PLANS))),
             )
-            deadline = time.monotonic() + 120  # bound
-            while (flight := (await client.get(url)).json())["finished_at"] is None:
-                assert time.monotonic() < deadline, "the flight did not end"
-                await asyncio.sleep(0.1)
+
+            async def ended() -> dict[str, Any] | None:
+                got = (await client.get(url)).json()
+                return None if got["finished_at"] is None else got
+
+            flight = await until(ended, "the flight to end", timeout=120.0, poll=0.1)
             return flight, {"exports": list(exports), "streams": list(streams),
                                "plans": list(plans)}
 

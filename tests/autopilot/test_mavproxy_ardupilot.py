@@ -4,8 +4,6 @@ every parameter (4.7's names), switches to GUIDED, arms and takes off with `take
 from __future__ import annotations
 
 import asyncio
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -15,6 +13,7 @@ from gcs.sim import MockFleet
 from gcs.sim.arducopter_params import ARDUCOPTER_PARAMS
 from tests.flight.support import mock_ports
 from tests.sim.mavproxy import MavProxy as _MavProxy
+from tests.support.waiting import until
 
 pytest.importorskip("MAVProxy", reason="MAVProxy is in the test extras: make install")
 
@@ -33,19 +32,14 @@ def test_mavproxy_fetches_parameters_and_takes_off_in_guided(tmp_path: Path) -> 
                 await asyncio.to_thread(proxy.expect,
                                         f"Received {len(ARDUCOPTER_PARAMS)} parameters", 30.0)
                 proxy.send("mode GUIDED")
-                await _until(lambda: v.mode == ardupilot.GUIDED, "GUIDED")
+                await until(lambda: v.mode == ardupilot.GUIDED, "GUIDED", timeout=30.0)
                 proxy.send("arm throttle")
-                await _until(lambda: v.armed, "armed")
+                await until(lambda: v.armed, "armed", timeout=30.0)
                 proxy.send("takeoff 2")
-                await _until(lambda: v.in_air and -v.position_ned[2] > 1.8, "up 2 m")
+                await until(lambda: v.in_air and -v.position_ned[2] > 1.8, "up 2 m",
+                            timeout=30.0)
                 assert v.mode == ardupilot.GUIDED
             finally:
                 proxy.close()
-
-    async def _until(condition: Callable[[], bool], what: str) -> None:
-        deadline = time.monotonic() + 30.0  # bound: each step, on a busy machine
-        while not condition():
-            assert time.monotonic() < deadline, f"never: {what}"
-            await asyncio.sleep(0.05)
 
     asyncio.run(main())

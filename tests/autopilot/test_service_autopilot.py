@@ -12,6 +12,7 @@ from pydantic import ValidationError
 from gcs.service.flights import FleetService
 from gcs.service.settings import Settings
 from tests.api.support import free_udp_base
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -23,12 +24,11 @@ def test_the_vehicle_list_names_each_vehicles_autopilot() -> None:
         service = FleetService(settings, store=None)  # type: ignore[arg-type]
         await service.start()
         try:
-            for _ in range(100):
+            async def named() -> list[dict[str, Any]] | None:
                 vehicles = await service.vehicles()
-                if all(v.get("autopilot") for v in vehicles):
-                    return vehicles
-                await asyncio.sleep(0.05)
-            return vehicles
+                return vehicles if all(v.get("autopilot") for v in vehicles) else None
+
+            return await until(named, "every vehicle's autopilot heard", timeout=30.0)
         finally:
             await service.close()
 

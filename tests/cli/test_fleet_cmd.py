@@ -43,8 +43,7 @@ def hovering(tmp_path: Path) -> Iterator[tuple[Path, MockFleet]]:
                 holder["error"] = exc
             holder["mock"], holder["fleet"] = mock, fleet
             ready.set()
-            while not stop.is_set():
-                await asyncio.sleep(0.05)
+            await asyncio.to_thread(stop.wait)  # serving until the fixture's teardown
 
     thread = threading.Thread(target=lambda: asyncio.run(serve()), daemon=True)
     thread.start()

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.flight.support import STACKED, free_port_block, short_line, smooth_plan
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -287,13 +288,15 @@ def test_a_killed_fly_leaves_a_readable_partial_record(tmp_path: Path) -> None:
     partial, with the events up to the plan's start and each vehicle's telemetry."""
     proc = _flying(tmp_path)
     path = tmp_path / "record.json"
-    started = time.monotonic()
-    while time.monotonic() - started < 10.0:  # the next write after the plan's start
+
+    def started() -> bool:  # the next write after the plan's start
         record = json.loads(path.read_text()) if path.exists() else {"events": []}
-        if any(e["kind"] == "flight_start" for e in record["events"]):
-            break
-        time.sleep(0.1)
-    proc.kill()
+        return any(e["kind"] == "flight_start" for e in record["events"])
+
+    try:
+        wait_for(started, "a record written after the plan's start", timeout=60.0, poll=0.1)
+    finally:
+        proc.kill()
     proc.communicate(timeout=30)
     assert proc.returncode == -signal.SIGKILL
     record = json.loads(path.read_text())

@@ -10,7 +10,6 @@ from __future__ import annotations
 import asyncio
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +21,7 @@ from gcs.flight.run.executor import FlightExecutor
 from gcs.sim import MockFleet
 from tests.flight.support import FAST_MOCK, QUICK, STACKED, mock_ports, smooth_plan
 from tests.flight.support import STACKED_HOMES as HOMES
+from tests.support.waiting import every, reached, until
 
 pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 
@@ -35,22 +35,16 @@ async def _lose_then_land(tmp_path: Path) -> tuple[list[np.ndarray], MockFleet, 
         fleet = mock.fleet_dict(plan.scenario.ids)
         flight = FlightExecutor(plan, FleetSpec.from_dict(fleet), QUICK)
         task = flight.start()
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         for v in mock.vehicles:
             v.faults.loss = 1.0
         truth: list[np.ndarray] = []
 
-        async def sample() -> None:
-            while True:
-                truth.append(np.array([v.true_position_world for v in mock.vehicles]))
-                await asyncio.sleep(0.01)
-
-        sampler = asyncio.create_task(sample())
-        deadline = time.monotonic() + 30.0
-        while not all(v.mode == px4.HOLD for v in mock.vehicles):
-            assert time.monotonic() < deadline, [v.mode for v in mock.vehicles]
-            await asyncio.sleep(0.05)
+        sampler = asyncio.create_task(every(0.01, lambda: truth.append(
+            np.array([v.true_position_world for v in mock.vehicles]))))
+        await until(lambda: all(v.mode == px4.HOLD for v in mock.vehicles),
+                    "both vehicles in Hold after the station's loss", timeout=30.0,
+                    detail=lambda: [v.mode for v in mock.vehicles])
         task.cancel()
         await asyncio.gather(task, return_exceptions=True)
         await asyncio.sleep(1.0)
@@ -65,8 +59,8 @@ async def _lose_then_land(tmp_path: Path) -> tuple[list[np.ndarray], MockFleet, 
             "--plan", str(tmp_path / "plan.json"), "--fleet", str(tmp_path / "fleet.json"),
             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
         out, _ = await asyncio.wait_for(child.communicate(), 90)
-        while any(v.armed for v in mock.vehicles) and time.monotonic() < deadline + 60:
-            await asyncio.sleep(0.05)
+        await until(lambda: not any(v.armed for v in mock.vehicles),
+                    "both vehicles landed and disarmed", timeout=60.0, detail=out.decode)
         sampler.cancel()
         assert child.returncode is not None
         return truth, mock, out.decode(), child.returncode

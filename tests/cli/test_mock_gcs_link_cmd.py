@@ -7,13 +7,14 @@ import json
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from gcs.wire import mavlink
 from tests.flight.support import free_port_block, short_line, smooth_plan
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -31,16 +32,18 @@ def test_mock_gcs_port_sends_to_a_ground_station() -> None:
     try:
         parser = mavlink.MAVLink(None)
         parser.robust_parsing = True
-        heartbeat = None
-        deadline = time.monotonic() + 20.0
-        while heartbeat is None and time.monotonic() < deadline:
+
+        def heartbeat_heard() -> Any:
+            """A HEARTBEAT in the next datagram (each read waits up to 0.5 s)."""
             try:
                 data, _source = station.recvfrom(4096)
             except TimeoutError:
-                continue
-            heartbeat = next((m for m in parser.parse_buffer(data) or []
-                              if m.get_type() == "HEARTBEAT"), None)
-        assert heartbeat is not None, "no HEARTBEAT on the GCS port"
+                return None
+            return next((m for m in parser.parse_buffer(data) or []
+                         if m.get_type() == "HEARTBEAT"), None)
+
+        heartbeat = wait_for(heartbeat_heard, "a HEARTBEAT on the GCS port", timeout=20.0,
+                             poll=0.0)
         assert heartbeat.get_srcSystem() == 1
         assert heartbeat.autopilot == mavlink.MAV_AUTOPILOT_PX4
     finally:

@@ -9,7 +9,6 @@ import queue
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -17,6 +16,7 @@ import pytest
 from gcs import phases
 from gcs.cli.main import main
 from tests.flight.support import free_port_block, line_scenario, smooth_plan
+from tests.support.waiting import line_with, wait_for
 
 pytestmark = [pytest.mark.timeout(150),
               pytest.mark.skipif(not hasattr(phases, "ReplanStatus"),
@@ -36,19 +36,6 @@ def _lines(proc: subprocess.Popen[str]) -> tuple[queue.Queue[str], threading.Thr
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
     return lines, reader
-
-
-def _wait_for(lines: queue.Queue[str], text: str, seen: list[str], timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            line = lines.get(timeout=0.5)
-        except queue.Empty:
-            continue
-        seen.append(line)
-        if text in line:
-            return
-    raise AssertionError(f"no {text!r} within {timeout} s:\n{''.join(seen)}")
 
 
 def _replan_started(*args: str) -> subprocess.Popen[str]:
@@ -74,8 +61,9 @@ def test_fly_takes_a_replan_on_its_control_socket(tmp_path: Path) -> None:
     seen: list[str] = []
     try:
         lines, reader = _lines(proc)
-        _wait_for(lines, f"control socket: {sock}", seen, 60)
-        _wait_for(lines, "flight_start", seen, 60)
+        for text in (f"control socket: {sock}", "flight_start"):
+            wait_for(line_with(lines, text, seen), f"{text!r} in fly's output", timeout=60.0,
+                     detail=lambda: "".join(seen))
         # One at a time: two identical requests sent together (a busy machine may take
         # seconds to start each command): one is taken, the other refused while the first
         # waits for its switch.

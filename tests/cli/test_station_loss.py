@@ -14,7 +14,6 @@ import asyncio
 import json
 import signal
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +24,7 @@ from gcs.autopilot import px4
 from gcs.sim import MockFleet
 from gcs.sim.fleet import homes_under
 from tests.flight.support import FAST_MOCK, mock_ports
+from tests.support.waiting import every, until
 
 pytestmark = pytest.mark.timeout(150)
 
@@ -66,10 +66,12 @@ async def _kill_station_at(tmp_path: Path, plan: planner.Plan, at: float
         await asyncio.sleep(at)
         child.send_signal(signal.SIGKILL)
         truth: list[np.ndarray] = []
-        deadline = time.monotonic() + 40.0
-        while any(v.armed for v in mock.vehicles) and time.monotonic() < deadline:
-            truth.append(np.array([v.true_position_world for v in mock.vehicles]))
-            await asyncio.sleep(0.01)
+        sampler = asyncio.create_task(every(0.01, lambda: truth.append(
+            np.array([v.true_position_world for v in mock.vehicles]))))
+        await until(lambda: not any(v.armed for v in mock.vehicles),
+                    "every vehicle landed on its failsafe and disarmed", timeout=60.0,
+                    poll=0.01)
+        sampler.cancel()
         rest, _ = await child.communicate()
         assert child.returncode == -signal.SIGKILL
         return truth, mock, "".join(out) + rest.decode()

@@ -28,6 +28,7 @@ from tests.flight.support import (
     smooth_plan,
 )
 from tests.paths import ROOT
+from tests.support.waiting import every
 
 __all__ = ["ALL_ATTACKS", "FAST", "RATE_SCALE", "Attacker", "fly_on_mocks", "monitor_of",
            "stream_setpoint"]
@@ -62,9 +63,7 @@ async def fly_on_mocks(plan: Plan, options: FlightOptions = FAST, *, settle: flo
 
 async def stream_setpoint(link: VehicleLink, setpoint: Setpoint, period: float = 0.05) -> None:
     """Send `setpoint` to `link` every `period` s until cancelled."""
-    while True:
-        link.send_setpoint(setpoint, 0)
-        await asyncio.sleep(period)
+    await every(period, lambda: link.send_setpoint(setpoint, 0))
 
 
 def monitor_of(vehicles: list[VehicleStatus], faults: list[tuple[str, str, float]],

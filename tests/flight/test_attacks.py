@@ -18,7 +18,7 @@ from gcs.sim import MockFleet, homes_under
 from gcs.wire import new_key_file
 from tests.flight.flying import ALL_ATTACKS, Attacker
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
-from tests.support.waiting import reached
+from tests.support.waiting import reached, until
 
 pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 
@@ -48,8 +48,8 @@ async def _fly(plan: Any, options: FlightOptions, *, key: Path | None = None,
         task = flight.start()
         if not before_connect:
             # The attacker joins once the vehicles are connected.
-            while flight.phase in ("created", "connecting"):
-                await asyncio.sleep(0.02)
+            await until(lambda: flight.phase not in ("created", "connecting"),
+                        "the vehicles connected", timeout=60.0, poll=0.02)
             await attacker.start()
         if during is not None:
             await during(flight, mock)

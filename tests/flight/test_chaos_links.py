@@ -16,6 +16,7 @@ from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from gcs.sim.proxy import ChaosProxy, LinkFaults
 from tests.flight.support import FAST_MOCK, QUICK, short_line, smooth_plan
+from tests.support.waiting import until
 
 pytestmark = [pytest.mark.flight, pytest.mark.timeout(150)]
 
@@ -32,8 +33,8 @@ async def _fly_through(plan: Any, options: FlightOptions, faults: LinkFaults,
         flight = FlightExecutor(plan, fleet, options)
         task = flight.start()
         if after_takeoff is not None:
-            while not task.done() and (flight.flight_time() or -1.0) < 0.2:
-                await asyncio.sleep(0.02)
+            await until(lambda: task.done() or (flight.flight_time() or -1.0) >= 0.2,
+                        "flight time 0.2 s or the flight's end", timeout=90.0, poll=0.02)
             proxy.set(None, **vars(after_takeoff))
         try:
             outcome: Any = await task

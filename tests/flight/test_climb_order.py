@@ -11,14 +11,13 @@ import numpy as np
 import pytest
 
 from gcs.flight.run.climb_order import climb_waves
-from gcs.phases import EventKind, FlightPhase
+from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from tests.flight.flying import fly_on_mocks
 from tests.flight.support import STACKED, smooth_plan
+from tests.support.waiting import ENDED, every, until
 
 pytestmark = pytest.mark.timeout(120)
-
-ENDED = (FlightPhase.FINISHED, FlightPhase.ABORTED, FlightPhase.FAILED)
 
 
 def test_the_higher_start_climbs_first_and_clear_columns_climb_at_once() -> None:
@@ -42,9 +41,10 @@ def test_stacked_columns_climb_in_waves_and_keep_r() -> None:
     truth: list[np.ndarray] = []
 
     async def sample(flight: Any, mock: MockFleet) -> None:
-        while flight.phase not in ENDED:
-            truth.append(np.array([v.true_position_world for v in mock.vehicles]))
-            await asyncio.sleep(0.01)
+        sampler = asyncio.create_task(every(0.01, lambda: truth.append(
+            np.array([v.true_position_world for v in mock.vehicles]))))
+        await until(lambda: flight.phase in ENDED, "the flight's end", timeout=90.0, poll=0.01)
+        sampler.cancel()
 
     _, record, _ = asyncio.run(fly_on_mocks(plan, during=sample))
     assert isinstance(record, dict) and record["summary"]["completed"], record

@@ -21,6 +21,7 @@ from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, QUICK, STACKED, mock_ports, short_line, smooth_plan
 from tests.flight.support import STACKED_HOMES as HOMES
+from tests.support.waiting import reached
 
 pytestmark = [pytest.mark.timeout(120), pytest.mark.flight]
 
@@ -86,8 +87,7 @@ def test_columns_apart_land_and_an_aborted_flight_puts_the_parameters_back() -> 
 
     async def abort(flight: FlightExecutor) -> None:
         flights.append(flight)
-        while (flight.flight_time() or -1.0) < 1.0:
-            await asyncio.sleep(0.02)
+        await reached(flight, 1.0)
         flight.request_abort("land", "test")
 
     outcome, mock = asyncio.run(_fly(plan, during=abort))

@@ -26,6 +26,7 @@ from gcs.wire import mavlink
 from tests.flight.fakes import fake_link, fake_vehicle
 from tests.flight.flying import fly_on_mocks
 from tests.flight.support import QUICK, short_line, smooth_plan
+from tests.support.waiting import ENDED, until
 
 _m = mavlink
 WORKSPACE = {"limits": {"position_min": [0.0, 0.0, 0.0], "position_max": [20.0, 10.0, 5.0]}}
@@ -138,11 +139,11 @@ async def _fly(plan: Any, options: FlightOptions, obstacles: list[dict[str, Any]
     async def during(flight: FlightExecutor, mock: MockFleet) -> None:
         if push is None:
             return
-        for _ in range(1500):  # 30 s at most: a flight that ended early never gets there
-            if (flight.flight_time() or -1.0) >= 0.5:
-                mock.vehicles[1].faults.offset_ned = push
-                return
-            await asyncio.sleep(0.02)
+        # a flight that ended early never gets there
+        await until(lambda: flight.phase in ENDED or (flight.flight_time() or -1.0) >= 0.5,
+                    "flight time 0.5 s or the flight's end", timeout=60.0, poll=0.02)
+        if (flight.flight_time() or -1.0) >= 0.5:
+            mock.vehicles[1].faults.offset_ned = push
 
     return await fly_on_mocks(plan, options, during=during)
 

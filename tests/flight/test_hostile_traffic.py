@@ -29,6 +29,7 @@ from gcs.wire import mavlink, new_key_file, pack
 from tests.flight.attacker import drain
 from tests.flight.flying import Attacker
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
+from tests.support.waiting import until
 
 pytestmark = [pytest.mark.timeout(150), pytest.mark.flight]
 
@@ -73,8 +74,8 @@ async def _fly(tmp_path: Path) -> tuple[dict[str, Any], MockFleet, dict[str, Any
         task = executor.start()
         # the GCS speaks to the vehicles first (their replies are latched to it), as in
         # the SITL flights; then the attack starts, before the vehicles take off
-        while executor.phase in ("created", "connecting") and not task.done():
-            await asyncio.sleep(0.02)
+        await until(lambda: task.done() or executor.phase not in ("created", "connecting"),
+                    "the vehicles connected or the flight's end", timeout=60.0, poll=0.02)
         attacker = CommandAttacker(
             [(v.listen_address[1], v.system_id) for v in mock.vehicles],
             [v.gcs_port for v in mock.vehicles])

@@ -13,7 +13,7 @@ from gcs.phases import EventKind
 from gcs.sim import MockFleet
 from tests.flight.support import FAST_MOCK, QUICK, STACKED, mock_ports, smooth_plan
 from tests.flight.support import STACKED_HOMES as HOMES
-from tests.support.waiting import reached
+from tests.support.waiting import every, reached
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -24,10 +24,11 @@ async def _sample_truth(mock: MockFleet, pairs: list[float]) -> None:
     """Append the two mock vehicles' true distance every 10 ms: both read at one instant
     in the mock's own loop, so a busy machine delays samples but never skews one vehicle's
     against the other's (telemetry stamped on arrival at the GCS can be)."""
-    while True:
+    def sample() -> None:
         a, b = (v.true_position_world for v in mock.vehicles)
         pairs.append(float(np.linalg.norm(a - b)))
-        await asyncio.sleep(0.01)
+
+    await every(0.01, sample)
 
 
 async def _abort_at(plan, t_abort: float, options):

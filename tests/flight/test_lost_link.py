@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import time
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +28,7 @@ from gcs.sim import MockFleet
 from gcs.sim.fleet import homes_under
 from planner.methods.landing import LandingError, LandingPlan, plan_landing
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports
-from tests.support.waiting import reached
+from tests.support.waiting import every, reached, until
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -67,27 +66,20 @@ async def _blackhole(plan: planner.Plan, lost: int, at: float
         await reached(flight, at)
         truth: list[np.ndarray] = []
         mock.vehicles[lost].faults.loss = 1.0  # nothing in, nothing out
+        # every vehicle's true position every 10 ms, read at one instant in the mock's loop
+        sampler = asyncio.create_task(every(0.01, lambda: truth.append(
+            np.array([v.true_position_world for v in mock.vehicles]))))
         try:
-            outcome: Any = await _sampling(mock, task, truth)
+            outcome: Any = await task
         except Exception as exc:
             outcome = exc
-        deadline = time.monotonic() + 30.0  # the lost one lands on its own, later, or
-        # hovers on its Hold failsafe (its column meets another's)
-        while any(v.armed and v.mode != px4.HOLD for v in mock.vehicles) \
-                and time.monotonic() < deadline:
-            truth.append(np.array([v.true_position_world for v in mock.vehicles]))
-            await asyncio.sleep(0.01)
+        # the lost one lands on its own, later, or hovers on its Hold failsafe (its column
+        # meets another's)
+        await until(lambda: not any(v.armed and v.mode != px4.HOLD for v in mock.vehicles),
+                    "every vehicle disarmed or holding", timeout=60.0, poll=0.01,
+                    detail=lambda: [(v.armed, v.mode) for v in mock.vehicles])
+        sampler.cancel()
         return flight, outcome, truth, mock
-
-
-async def _sampling(mock: MockFleet, task: asyncio.Task[Any], truth: list[np.ndarray]
-                    ) -> Any:
-    """Await `task`, appending every vehicle's true position every 10 ms meanwhile (read at
-    one instant in the mock's own loop)."""
-    while not task.done():
-        truth.append(np.array([v.true_position_world for v in mock.vehicles]))
-        await asyncio.sleep(0.01)
-    return await task
 
 
 def _closest(truth: list[np.ndarray], scale: np.ndarray) -> float:

@@ -18,7 +18,7 @@ from gcs.flight.run.record import plan_times
 from gcs.phases import EventKind
 from gcs.sim import MockFleet, homes_under
 from tests.flight.support import FAST_MOCK, line_scenario, mock_ports, smooth_plan
-from tests.support.waiting import reached
+from tests.support.waiting import reached, until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -54,9 +54,13 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
         # mid-plan, every vehicle moving: a busy machine starves the in-process mock, whose
         # vehicles then trail the plan, so wait for the motion itself, not a plan time
         await reached(flight, 2.0)
-        while min(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) <= 0.3:
+
+        def moving() -> bool:
             assert flight.flight_time() < plan.scenario.horizon, "never moving"
-            await asyncio.sleep(0.02)
+            return min(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) > 0.3
+
+        await until(moving, "every vehicle moving faster than 0.3 m/s", timeout=60.0,
+                    poll=0.02)
         t_pause = flight.pause()
         paused_at = time.monotonic()
         seen["t_pause"] = t_pause
@@ -72,8 +76,7 @@ def test_paused_fleet_holds_still_and_separated_then_completes() -> None:
             return (max(np.linalg.norm(v.velocity_ned) for v in mock.vehicles) < 0.01
                     and float(np.max(np.linalg.norm(where - held, axis=1))) < 0.03)
 
-        while not settled():
-            await asyncio.sleep(0.05)
+        await until(settled, "the paused fleet to settle on the held setpoint", timeout=60.0)
         assert flight.flight_time() == pytest.approx(t_pause)  # the clock stands still
         before = np.stack([v.position_world for v in mock.vehicles])
         distances = []

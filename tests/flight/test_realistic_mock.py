@@ -25,6 +25,7 @@ from gcs.wire import mavlink
 from planner import plan as make_plan
 from tests.api.support import QUICK_CROSSING
 from tests.flight.support import FAST_MOCK, mock_ports, short_line, smooth_plan
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(150)
 
@@ -235,8 +236,8 @@ def _fly_side_by_side(offset_m: float) -> dict[str, Any]:
             executor = FlightExecutor(plan, fleet, FAST.replace(at_end="hold"))
 
             async def push() -> None:
-                while executor.flight_time() is None:
-                    await asyncio.sleep(0.02)
+                await until(lambda: executor.flight_time() is not None,
+                            "the flight clock to start", timeout=90.0, poll=0.02)
                 # world -x (towards uav1) is LOCAL_NED -y (east)
                 mock.vehicles[1].faults.offset_ned = (0.0, -offset_m, 0.0)
 

@@ -21,7 +21,7 @@ from gcs.phases import EventKind, ReplanStatus, VehiclePhase
 from gcs.sim import MockFleet, homes_under
 from planner.errors import FieldError
 from tests.flight.support import FAST_MOCK, QUICK, mock_ports, short_line, smooth_plan
-from tests.support.waiting import reached
+from tests.support.waiting import every, reached, until
 
 pytestmark = pytest.mark.timeout(150)
 
@@ -34,10 +34,8 @@ OPTIONS = QUICK.replace(land_speed=FAST_MOCK["land_speed"])
 async def _sample_truth(mock: MockFleet, out: list[tuple[float, np.ndarray]]) -> None:
     """Every vehicle's true position every 10 ms, all read at one instant in the mock's own
     loop (GCS-stamped telemetry of different vehicles can be skewed on a busy machine)."""
-    while True:
-        out.append((time.monotonic(),
-                    np.array([v.true_position_world for v in mock.vehicles])))
-        await asyncio.sleep(0.01)
+    await every(0.01, lambda: out.append((
+        time.monotonic(), np.array([v.true_position_world for v in mock.vehicles]))))
 
 
 def _closest(samples: list[tuple[float, np.ndarray]], scale: np.ndarray) -> float:
@@ -93,8 +91,8 @@ def test_eight_vehicles_two_new_goals_and_one_dropped_mid_flight() -> None:
         assert obj["switch_time"] >= 2.0 + OPTIONS.replan_lead_s - 1.0 / OPTIONS.rate_hz - 1e-6
         with pytest.raises(StateConflict):  # one at a time: refused, not queued
             await flight.replan({"uav1": [1.0, 3.0, 2.0]})
-        while flight.replans[-1]["status"] == ReplanStatus.PLANNING:
-            await asyncio.sleep(0.02)
+        await until(lambda: flight.replans[-1]["status"] != ReplanStatus.PLANNING,
+                    "the replan's planning to end", timeout=90.0, poll=0.02)
         snapshot = flight.snapshot()
         assert snapshot["replan"]["status"] == ReplanStatus.SWITCHED, snapshot["replan"]
         assert snapshot["horizon"] == pytest.approx(
@@ -163,10 +161,10 @@ def test_a_replan_not_ready_by_its_switch_tick_is_missed_and_the_flight_goes_on(
         await reached(flight, 1.0)
         obj = await flight.replan({"uav1": [1.0, 2.0, 2.0]}, reason="late")
         assert obj["lead_s"] == pytest.approx(0.1)
-        while flight.replans[-1]["status"] == ReplanStatus.PLANNING:
-            await asyncio.sleep(0.02)
-        while flight.replans[-1]["planning_s"] is None:  # the late plan still finishes
-            await asyncio.sleep(0.02)
+        await until(lambda: flight.replans[-1]["status"] != ReplanStatus.PLANNING,
+                    "the replan's planning to end", timeout=90.0, poll=0.02)
+        await until(lambda: flight.replans[-1]["planning_s"] is not None,  # the late plan
+                    "the late plan to finish", timeout=90.0, poll=0.02)  # still finishes
         return flight.replan_lead
 
     _flight, record, mock, lead = asyncio.run(_fly(plan, options, during))
@@ -376,8 +374,8 @@ def test_a_replan_through_the_flight_handle_from_another_loop() -> None:
             fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
             handle = await FlightHandle.create(vehicles, plan, fleet, OPTIONS)
             task = handle.start()
-            while (handle.snapshot()["flight_time"] or -1.0) < 0.5:
-                await asyncio.sleep(0.05)
+            await until(lambda: (handle.snapshot()["flight_time"] or -1.0) >= 0.5,
+                        "flight time 0.5 s", timeout=90.0)
             with pytest.raises(FieldError) as refused:
                 await handle.replan({"uav7": [1.0, 2.0, 1.0]})
             obj = await handle.replan({"uav1": [1.0, 2.0, 2.0]}, reason="handle")

@@ -16,7 +16,7 @@ from gcs.phases import EventKind, VehiclePhase
 from tests.flight.fakes import fake_link, fake_vehicle
 from tests.flight.flying import FAST, fly_on_mocks, monitor_of
 from tests.flight.support import line_scenario, smooth_plan
-from tests.support.waiting import reached
+from tests.support.waiting import every, reached
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -72,11 +72,12 @@ def _kind(fault: tuple[str, str] | None) -> str | None:
 
 async def _feed(vehicles: list[VehicleStatus], silent: set[str]) -> None:
     """The vehicles' messages arriving at 20 Hz (those in `silent` send nothing)."""
-    while True:
+    def arrive() -> None:
         for v in vehicles:
             if v.id not in silent:
                 fake_link(v).alive()
-        await asyncio.sleep(0.05)
+
+    await every(0.05, arrive)
 
 
 def test_the_station_blocked_for_two_seconds_flags_nobody() -> None:

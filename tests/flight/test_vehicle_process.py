@@ -10,7 +10,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ from gcs.errors import GcsError, StateConflict, VehicleLoopStopped
 from gcs.flight.host.vehicle_process import VehicleProcess
 from tests.flight.process_host import EchoHost
 from tests.paths import ROOT
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -101,10 +101,7 @@ def test_a_child_whose_caller_dies_closes_its_host(tmp_path: Path) -> None:
         child = int(caller.stdout.readline())
         caller.kill()
         caller.wait(30)
-        deadline = time.monotonic() + 60  # bound
-        while not mark.exists():
-            assert time.monotonic() < deadline, "the orphaned child never closed its host"
-            time.sleep(0.05)
+        wait_for(mark.exists, "the orphaned child to close its host", timeout=60.0)
         assert mark.read_text() == str(child)
     finally:
         if caller.poll() is None:

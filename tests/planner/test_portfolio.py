@@ -25,6 +25,7 @@ from planner.options import PlanningOptions
 from planner.result import IterationRecord, Plan, PlanStatus
 from planner.scp.loop import ScpOutcome
 from tests.paths import EXAMPLES
+from tests.support.waiting import wait_for
 
 
 def _outcomes(result: Plan) -> dict[str, str]:
@@ -45,11 +46,8 @@ def reaped() -> Iterator[Check]:
     before = _children()
 
     def check() -> bool:
-        for _ in range(200):
-            if not _children() - before:
-                return True
-            time.sleep(0.05)
-        return False
+        return wait_for(lambda: not _children() - before, "every forked arm reaped",
+                        timeout=30.0, detail=lambda: _children() - before)
 
     yield check
 

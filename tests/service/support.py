@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import os
-import time
 from typing import Any
 
 from distributed import Client, LocalCluster
@@ -12,8 +11,9 @@ from sqlalchemy import event
 
 from gcs.service.planning import PlanJob, PlanningService
 from gcs.service.store import Store
+from tests.support.waiting import wait_for
 
-__all__ = ["assert_idle", "done", "executing", "fill_the_disk", "started_service", "wait_idle",
+__all__ = ["assert_idle", "done", "executing", "fill_the_disk", "started_service",
            "worker_pids"]
 
 
@@ -47,7 +47,7 @@ async def done(job: PlanJob, timeout: float = 240.0) -> dict[str, Any]:
 def executing(cluster: LocalCluster) -> dict[str, int]:
     """Tasks each worker process is executing right now (its own view, not the scheduler's)."""
     with Client(cluster.scheduler_address, timeout=10) as client:
-        # A worker being restarted cannot answer: it is left out (wait_idle waits for two).
+        # A worker being restarted cannot answer: it is left out (assert_idle waits for two).
         return client.run(lambda dask_worker: dask_worker.state.executing_count,
                           on_error="ignore")
 
@@ -59,16 +59,11 @@ def worker_pids(cluster: LocalCluster) -> dict[str, int]:
         return client.run(os.getpid, on_error="ignore")
 
 
-def wait_idle(cluster: LocalCluster, timeout: float = 180.0) -> dict[str, int]:
-    deadline = time.monotonic() + timeout
-    while True:
+def assert_idle(cluster: LocalCluster, timeout: float = 180.0) -> None:
+    """Both workers are up and execute nothing (a restarted worker has a new address), within
+    `timeout` s."""
+    def idle() -> bool:
         counts = executing(cluster)
-        if (len(counts) == 2 and not any(counts.values())) or time.monotonic() > deadline:
-            return counts
-        time.sleep(0.05)
+        return len(counts) == 2 and not any(counts.values())
 
-
-def assert_idle(cluster: LocalCluster) -> None:
-    """Both workers are up and execute nothing (a restarted worker has a new address)."""
-    counts = wait_idle(cluster)
-    assert len(counts) == 2 and not any(counts.values()), counts
+    wait_for(idle, "both workers up and idle", timeout, detail=lambda: executing(cluster))

@@ -18,6 +18,7 @@ from gcs.api.connection_timeout import request_deadline_protocol
 from gcs.cli.serve_cmd import uvicorn_server
 from gcs.service.settings import Settings
 from tests.api.support import free_port
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -60,10 +61,7 @@ def server() -> Iterator[int]:
     running = uvicorn.Server(config)
     thread = threading.Thread(target=running.run, daemon=True)
     thread.start()
-    deadline = time.monotonic() + BOUND_S
-    while not running.started:
-        assert time.monotonic() < deadline, "the server did not start"  # bound
-        time.sleep(0.02)
+    wait_for(lambda: running.started, "the server to start", timeout=BOUND_S, poll=0.02)
     yield port
     running.should_exit = True
     thread.join(10)

@@ -7,7 +7,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from gcs.api import create_app
 from gcs.service.settings import Settings
 from tests.api.support import EXAMPLES, example, free_port
 from tests.paths import ROOT
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -43,17 +43,15 @@ def dask_cluster(tmp_path_factory: pytest.TempPathFactory
             [*dask, "worker", address, "--nthreads", "1", "--no-dashboard",
              "--host", "127.0.0.1"], env=env, cwd=tmp_path, stdout=log, stderr=log))
     try:
-        deadline = time.monotonic() + 90
-        while True:
+        def both_workers() -> bool:
             try:
                 with Client(address, timeout=5) as client:
-                    if len(client.scheduler_info()["workers"]) == 2:
-                        break
+                    return len(client.scheduler_info()["workers"]) == 2
             except OSError:
-                pass
-            if time.monotonic() > deadline:
-                raise RuntimeError((tmp_path / "dask.log").read_text(errors="replace"))
-            time.sleep(0.1)
+                return False
+
+        wait_for(both_workers, "the scheduler and both workers", timeout=90.0, poll=0.1,
+                 detail=lambda: (tmp_path / "dask.log").read_text(errors="replace"))
         yield address, processes
     finally:
         for process in reversed(processes):

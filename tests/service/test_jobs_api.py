@@ -11,6 +11,7 @@ from fastapi.testclient import TestClient
 from gcs.api import create_app
 from gcs.service.settings import Settings
 from tests.api.support import example
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -65,20 +66,18 @@ def test_a_mission_planning_reports_its_progress_and_can_be_cancelled(
     """GET /api/missions/{id} while planning: `planning` sums up the progress (the records so
     far, the last one, the elapsed time); cancel stops it. random128 as a whole fleet plans
     for seconds, iteration by iteration."""
-    import time
-
     client = jobs_client
     mission = client.post("/api/missions?wait=0",
                           json=example("random128") | {"method": "whole"}).json()
-    deadline = time.monotonic() + 120  # bound: a loose wait for the first records
-    while True:
-        doc = client.get(f"/api/missions/{mission['id']}").json()
-        assert doc["status"] == "planning", "planned before a record was seen"
-        summary = doc["planning"]
-        if summary["iterations"] >= 1:
-            break
-        assert time.monotonic() < deadline
-        time.sleep(0.05)
+
+    def recorded() -> dict | None:
+        """The mission once it has a record of progress (still planning)."""
+        got = client.get(f"/api/missions/{mission['id']}").json()
+        assert got["status"] == "planning", "planned before a record was seen"
+        return got if got["planning"]["iterations"] >= 1 else None
+
+    doc = wait_for(recorded, "the first record of progress", timeout=120.0)
+    summary = doc["planning"]
     assert summary["last"] == doc["progress"][summary["iterations"] - 1]
     assert summary["last"]["method"] == "whole" and summary["batches"] is None
     assert summary["elapsed_s"] > 0

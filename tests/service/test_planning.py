@@ -25,9 +25,9 @@ from tests.service.support import (
     executing,
     fill_the_disk,
     started_service,
-    wait_idle,
     worker_pids,
 )
+from tests.support.waiting import until, wait_for
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -48,14 +48,9 @@ def workers(cluster: LocalCluster) -> set[str]:
         return set(client.scheduler_info()["workers"])
 
 
-def arms_gone(cluster: LocalCluster, timeout: float = 30.0) -> bool:
+def arms_gone(cluster: LocalCluster) -> bool:
     """No worker process has a child process (auto's forked arms) left, zombie or not."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if not any(psutil.Process(pid).children() for pid in worker_pids(cluster).values()):
-            return True
-        time.sleep(0.2)
-    return False
+    return not any(psutil.Process(pid).children() for pid in worker_pids(cluster).values())
 
 
 def test_progress_arrives_in_order_and_matches_the_stored_plan(store, cluster) -> None:
@@ -94,7 +89,8 @@ def test_cancel_stops_the_computation_and_frees_the_worker(store, cluster) -> No
             # The worker really stopped: both report nothing executing, and no arm of the
             # race is left running (or unreaped) under a worker.
             assert_idle(cluster)
-            assert arms_gone(cluster)
+            wait_for(lambda: arms_gone(cluster), "no arm of the race left under a worker",
+                     timeout=30.0, poll=0.2)
             small = submit(service, store, "paper-circle4")
             assert (await done(small))["status"] == "planned"
         finally:
@@ -117,9 +113,7 @@ def stubborn_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
 
     worker = get_worker()
     worker.log_event(topic, {"job": job_id, "kind": "started", "worker": worker.address})
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        time.sleep(0.05)
+    time.sleep(120)  # stuck, until its worker is restarted
     return PlanOutcome.failed("ran for two minutes")
 
 
@@ -137,13 +131,13 @@ def test_a_task_that_ignores_cancel_is_stopped_by_restarting_its_worker(
             service.cancel(job.mission_id, "stop now")
             outcome = await done(job)
             assert outcome["error"]["reason"] == "stop now"
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline:
+
+            async def replaced() -> bool:
                 now = set((await asyncio.to_thread(worker_pids, cluster)).values())
-                if len(now) == 2 and old not in now:
-                    break
-                await asyncio.sleep(0.2)
-            assert old not in now and len(now) == 2  # a new worker process took its place
+                return len(now) == 2 and old not in now
+
+            await until(replaced, "a new worker process in the stopped one's place",
+                        timeout=60.0, poll=0.2)
         finally:
             await service.close()
         assert_idle(cluster)
@@ -222,10 +216,7 @@ def patient_plan(job_id: str, scenario: dict[str, Any], solver: str | None, *,
 
     worker = get_worker()
     worker.log_event(topic, {"job": job_id, "kind": "started", "worker": worker.address})
-    cancelled = stop_check(cancel_event)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and not cancelled():
-        time.sleep(0.05)
+    wait_for(stop_check(cancel_event), "the job to be cancelled", timeout=120.0)
     return PlanOutcome.failed("planning was cancelled", stopped=True)
 
 
@@ -299,14 +290,10 @@ def test_a_task_whose_future_is_dropped_stops_by_itself_with_no_flag_set(cluster
         future = client.submit(patient_plan, "dropped", scenario("random128"), None,
                                topic="dropped-task", cancel_event="a-flag-nobody-sets",
                                key="dropped-task", pure=False)
-        deadline = time.monotonic() + 60
-        while not any(executing(cluster).values()):
-            assert time.monotonic() < deadline, "the task never started"
-            time.sleep(0.05)
+        wait_for(lambda: any(executing(cluster).values()), "the task to start", timeout=60.0)
         future.cancel()
     # patient_plan would run 120 s by itself.
-    counts = wait_idle(cluster, timeout=60)
-    assert len(counts) == 2 and not any(counts.values()), counts
+    assert_idle(cluster, timeout=60)
 
 
 def test_a_plan_the_disk_cannot_hold_fails_the_mission_with_the_reason(store, cluster) -> None:
@@ -355,12 +342,8 @@ def test_a_refused_failure_write_is_retried_until_stored(
         try:
             job = submit(service, store, "paper-circle4")
             assert (await done(job))["status"] == "failed"
-            deadline = time.monotonic() + 30
-            while time.monotonic() < deadline:
-                row = store.get_mission(job.mission_id)
-                if row is not None and row.status != "planning":
-                    break
-                await asyncio.sleep(0.05)
+            await until(lambda: (row := store.get_mission(job.mission_id)) is not None
+                        and row.status != "planning", "the failure stored", timeout=30.0)
         finally:
             await service.close()
         return job.mission_id

@@ -16,6 +16,7 @@ from planner import Plan
 from planner.families.generators import show_formations, show_sequence
 from planner.methods.sequence import parse_sequence, timeline_scenario
 from tests.service.support import assert_idle, done, started_service, worker_pids
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -115,9 +116,7 @@ def stubborn_leg(job_id: str, scenario: dict[str, Any], solver: str | None, *, t
     worker = get_worker()
     worker.log_event(topic, {"job": job_id, "kind": "started", "leg": leg,
                              "worker": worker.address})
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        time.sleep(0.05)
+    time.sleep(120)  # stuck, until its worker is restarted
     return {"error": {"field": None, "reason": "ran for two minutes"}}
 
 
@@ -130,9 +129,8 @@ def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, mon
         service = await started_service(store, cluster, cancel_grace_s=0.5)
         try:
             job = submit_sequence(service, store, data)
-            deadline = time.monotonic() + 60
-            while len(job.running) < 2 and time.monotonic() < deadline:
-                await asyncio.sleep(0.1)
+            await until(lambda: len(job.running) >= 2, "two legs running", timeout=60.0,
+                        poll=0.1)
             assert len(set(job.running.values())) == 2, job.running  # a leg on each worker
             stuck = set((await asyncio.to_thread(worker_pids, cluster)).values())
             service.cancel(job.mission_id, "stop now")
@@ -140,13 +138,13 @@ def test_legs_that_ignore_cancel_have_every_worker_restarted(store, cluster, mon
             assert outcome["error"]["reason"] == "stop now"
             # Both replaced by new processes (a new worker may get a freed port back, so
             # processes are told apart by their pid, not their address).
-            deadline = time.monotonic() + 90
-            while time.monotonic() < deadline:
+            async def replaced() -> bool:
                 now = set((await asyncio.to_thread(worker_pids, cluster)).values())
-                if len(now) == 2 and not (stuck & now):
-                    break
-                await asyncio.sleep(0.2)
-            assert not (stuck & now) and len(now) == 2, (stuck, now)
+                return len(now) == 2 and not (stuck & now)
+
+            await until(replaced, "both stuck workers replaced by new processes",
+                        timeout=90.0, poll=0.2,
+                        detail=lambda: (stuck, set(worker_pids(cluster).values())))
         finally:
             await service.close()
 

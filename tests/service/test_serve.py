@@ -21,6 +21,7 @@ from gcs.cli.serve_cmd import overrides, port_free
 from gcs.service.settings import Settings
 from gcs.service.store import Store
 from tests.api.support import QUICK_PAIR, ServiceProcess, free_port, free_udp_base
+from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -125,14 +126,9 @@ def test_sigterm_lands_the_fleet_at_once_with_a_stream_open(tmp_path: Path) -> N
 
         reader = threading.Thread(target=follow, daemon=True)
         reader.start()
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            live = httpx.get(f"{url}/api/flights/{flight['id']}", timeout=30).json()
-            if (live.get("live") or {}).get("phase") == "flying":
-                break
-            time.sleep(0.05)
-        else:
-            pytest.fail("the flight never started")
+        wait_for(lambda: (httpx.get(f"{url}/api/flights/{flight['id']}", timeout=30).json()
+                          .get("live") or {}).get("phase") == "flying",
+                 "the flight to fly its plan", timeout=60.0)
         assert service.process is not None
         began = time.monotonic()
         service.process.send_signal(signal.SIGTERM)

@@ -32,6 +32,7 @@ from tests.flight.support import QUICK, mock_ports
 from tests.sim.mavclient import MavClient
 from tests.support.shows import FLEET_HOMES as HOMES
 from tests.support.shows import fleet_dict, small_ground_show
+from tests.support.waiting import every, until
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -71,10 +72,11 @@ def test_px4_and_arducopter_lift_off_their_own_way_and_land_on_their_slots(
     samples: list[tuple[float | None, np.ndarray]] = []
 
     async def sample(flight: FlightExecutor, mock: MockFleet) -> None:
-        while flight.record is None:
-            samples.append((flight.flight_time(),
-                            np.array([v.true_position_world for v in mock.vehicles])))
-            await asyncio.sleep(0.02)
+        sampler = asyncio.create_task(every(0.02, lambda: samples.append((
+            flight.flight_time(), np.array([v.true_position_world for v in mock.vehicles])))))
+        await until(lambda: flight.record is not None, "the flight's record", timeout=150.0,
+                    poll=0.02)
+        sampler.cancel()
 
     autopilots = ["px4", "ardupilot", "px4", "ardupilot"]
     flight, record, mock = asyncio.run(fly_on_mocks(small_show, QUICK, settle=1.0,

@@ -11,6 +11,7 @@ from collections.abc import Callable
 from typing import Any
 
 from gcs.wire import Datagrams, mavlink
+from tests.support.waiting import until
 
 __all__ = ["MavClient"]
 
@@ -76,14 +77,9 @@ class MavClient:
                    timeout: float = 3.0, since: float | None = None) -> Any:
         """The first `kind` message since `since` (default: now) meeting `where`."""
         start = time.monotonic() if since is None else since
-        deadline = time.monotonic() + timeout
-        while True:
-            for t, m in self.received:
-                if t >= start and m.get_type() == kind and where(m):
-                    return m
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"no {kind} within {timeout} s")
-            await asyncio.sleep(0.01)
+        return await until(lambda: next((m for t, m in self.received if t >= start
+                                         and m.get_type() == kind and where(m)), None),
+                           f"a {kind}", timeout, poll=0.01)
 
     async def ack(self, command: int, timeout: float = 3.0, since: float | None = None) -> int:
         """The result of the first COMMAND_ACK of `command` since `since`."""

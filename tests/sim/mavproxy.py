@@ -7,8 +7,9 @@ import shutil
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
+
+from tests.support.waiting import line_with, wait_for
 
 __all__ = ["MavProxy"]
 
@@ -39,19 +40,8 @@ class MavProxy:
 
     def expect(self, text: str, timeout: float) -> str:
         """The first output line (from now on) containing `text`."""
-        deadline = time.monotonic() + timeout
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise AssertionError(f"MAVProxy never printed {text!r}; it printed:\n"
-                                     + "\n".join(self.seen[-40:]))
-            try:
-                line = self.lines.get(timeout=left)
-            except queue.Empty:
-                continue
-            self.seen.append(line)
-            if text in line:
-                return line
+        return wait_for(line_with(self.lines, text, self.seen), f"MAVProxy to print {text!r}",
+                        timeout, detail=lambda: "it printed:\n" + "\n".join(self.seen[-40:]))
 
     def close(self) -> None:
         if self.proc.poll() is None:

@@ -17,6 +17,7 @@ from gcs.sim import MockFleet
 from gcs.wire import mavlink
 from tests.flight.flying import stream_setpoint
 from tests.flight.support import FAST_MOCK, mock_ports
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -103,16 +104,18 @@ def test_offboard_and_arming_rules() -> None:
                 assert await link.wait_for(lambda t: t.mode == px4.OFFBOARD, 2.0)
                 await asyncio.sleep(0.2)
                 assert link.duplicate_acks >= 1  # DO_SET_MODE answered twice
-                while mock.now() < 1.5:
-                    await asyncio.sleep(0.1)
+                await until(lambda: mock.now() >= 1.5, "the mock's clock at 1.5 s",
+                            timeout=60.0, poll=0.1)
                 assert await link.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)) == \
                     mavlink.MAV_RESULT_ACCEPTED
                 assert await link.wait_for(lambda t: t.armed, 2.0)
                 # The model climbs to the 1 m setpoint in about 2.5 s; a loaded machine
                 # may take longer in wall time, so wait for it with a deadline.
-                deadline = time.monotonic() + 8.0
-                while abs(vehicle.position_ned[2] + 1.0) > 0.05 and time.monotonic() < deadline:
-                    await asyncio.sleep(0.1)
+                await until(lambda: abs(vehicle.position_ned[2] + 1.0) <= 0.05,
+                            "the climb to the 1 m setpoint", timeout=30.0, poll=0.1,
+                            detail=lambda: f"mode {link.telemetry.mode}, armed "
+                            f"{link.telemetry.armed}, texts "
+                            f"{list(link.telemetry.statustexts)[-3:]}")
                 assert vehicle.position_ned[2] == pytest.approx(-1.0, abs=0.05), (
                     f"mode {link.telemetry.mode}, armed {link.telemetry.armed}, "
                     f"texts {list(link.telemetry.statustexts)[-3:]}"
@@ -202,28 +205,29 @@ def test_mavsdk_flies_the_mock() -> None:
                 assert await system.get_system_id() == 1
                 action, offboard = ActionAsync(system), OffboardAsync(system)
                 telemetry = TelemetryAsync(system)
-                deadline = time.monotonic() + 10.0
-                while True:  # TEMPORARILY_REJECTED while settling: MAVSDK reports an error
+
+                async def armed() -> bool:
                     try:
                         await action.arm()
-                        break
-                    except Exception:
-                        assert time.monotonic() < deadline
-                        await asyncio.sleep(0.2)
+                    except Exception:  # TEMPORARILY_REJECTED while settling: an error
+                        return False
+                    return True
+
+                await until(armed, "MAVSDK's arm to be accepted", timeout=30.0, poll=0.2)
                 assert mock.vehicles[0].armed
                 await offboard.set_position_ned(PositionNedYaw(0.5, -1.0, -1.5, 90.0))
                 await offboard.start()
                 target = np.array([0.5, -1.0, -1.5])
-                reported = None
-                deadline = time.monotonic() + 15.0
-                while time.monotonic() < deadline:  # MAVSDK's latest LOCAL_POSITION_NED
+                reported: list[np.ndarray] = []
+
+                async def at_target() -> bool:  # MAVSDK's latest LOCAL_POSITION_NED
                     p = (await telemetry.position_velocity_ned()).position
-                    reported = np.array([p.north_m, p.east_m, p.down_m])
-                    if np.linalg.norm(reported - target) < 0.05:
-                        break
-                    await asyncio.sleep(0.05)
-                assert reported is not None
-                np.testing.assert_allclose(reported, target, atol=0.05)
+                    reported.append(np.array([p.north_m, p.east_m, p.down_m]))
+                    return bool(np.linalg.norm(reported[-1] - target) < 0.05)
+
+                await until(at_target, "MAVSDK's position at the target", timeout=30.0,
+                            detail=lambda: reported[-1])
+                np.testing.assert_allclose(reported[-1], target, atol=0.05)
                 assert mock.vehicles[0].mode == px4.OFFBOARD
                 assert mock.vehicles[0].setpoints_accepted > 20
 
@@ -415,8 +419,8 @@ def test_statustexts_are_never_cut() -> None:
             sp = Setpoint((0.0, 0.0, -0.5), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
             stream = asyncio.create_task(stream_setpoint(link, sp))
             try:
-                while mock.now() < 1.1:
-                    await asyncio.sleep(0.1)
+                await until(lambda: mock.now() >= 1.1, "the mock's clock at 1.1 s",
+                            timeout=60.0, poll=0.1)
                 assert await link.command(mavlink.MAV_CMD_DO_SET_MODE,
                                           px4.OFFBOARD.command_params) == \
                     mavlink.MAV_RESULT_ACCEPTED

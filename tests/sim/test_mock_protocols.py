@@ -24,6 +24,7 @@ from gcs.sim.params import encode_value
 from gcs.wire import mavlink
 from tests.flight.support import mock_ports
 from tests.sim.mavclient import MavClient
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -60,10 +61,8 @@ def test_parameter_list_read_and_set_as_px4() -> None:
         async with _vehicle(2, index=1) as (mock, c):
             c.send(c.mav.param_request_list_encode(2, 1))
             total = len(PX4_PARAMS)
-            deadline = time.monotonic() + 10.0
-            while len({m.param_index for m in c.messages("PARAM_VALUE")}) < total + 1:
-                assert time.monotonic() < deadline, "the list did not complete"
-                await asyncio.sleep(0.05)
+            await until(lambda: len({m.param_index for m in c.messages("PARAM_VALUE")})
+                        >= total + 1, "the whole parameter list", timeout=30.0)
             values = c.messages("PARAM_VALUE")
             assert values[0].param_id == "_HASH_CHECK" and values[0].param_index == 65535
             listed = {m.param_id: m for m in values[1:]}
@@ -143,10 +142,9 @@ def test_a_parameter_changes_the_vehicle_behaviour() -> None:
             c.command(_m.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
             assert await c.ack(_m.MAV_CMD_COMPONENT_ARM_DISARM, since=0.0) == \
                 _m.MAV_RESULT_ACCEPTED
-            armed_at = time.monotonic()
-            while mock.vehicles[0].armed:
-                assert time.monotonic() - armed_at < 6.0, "not disarmed"
-                await asyncio.sleep(0.05)
+            # the bound tells the 1 s set from the default 10 s
+            await until(lambda: not mock.vehicles[0].armed, "the preflight disarm after 1 s",
+                        timeout=6.0)
             assert "Disarmed by auto preflight disarming" in c.texts()
 
     asyncio.run(main())
@@ -175,12 +173,12 @@ async def _upload(c: MavClient, mission_type: int, items: list[tuple[int, float,
     since = time.monotonic()
     c.send(c.mav.mission_count_encode(1, 1, len(items), mission_type))
     answered: set[int] = set()
-    deadline = time.monotonic() + 5.0
-    while time.monotonic() < deadline:
-        acks = [m for m in c.messages("MISSION_ACK", since) if m.mission_type == mission_type]
-        if acks:
-            return int(acks[0].type)
-        for got in c.messages("MISSION_REQUEST_INT", since):
+
+    def acks() -> list[Any]:
+        """The vehicle's MISSION_ACKs so far; until one comes, each new request answered."""
+        got_acks = [m for m in c.messages("MISSION_ACK", since)
+                    if m.mission_type == mission_type]
+        for got in [] if got_acks else c.messages("MISSION_REQUEST_INT", since):
             if got.seq in answered:
                 continue
             command, p1, lat, lon = items[got.seq]
@@ -188,8 +186,9 @@ async def _upload(c: MavClient, mission_type: int, items: list[tuple[int, float,
                 1, 1, got.seq, _m.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, command, 0, 1, p1, 0, 0,
                 math.nan, round(lat * 1e7), round(lon * 1e7), 5.0, mission_type))
             answered.add(got.seq)
-        await asyncio.sleep(0.01)
-    raise TimeoutError("no MISSION_ACK")
+        return got_acks
+
+    return int((await until(acks, "a MISSION_ACK", timeout=15.0, poll=0.01))[0].type)
 
 
 def test_mission_fence_and_rally_upload_download_clear() -> None:
@@ -269,13 +268,10 @@ def test_timesync_and_protocol_version() -> None:
                 c.raw.clear()
                 ask()
                 await c.wait("COMMAND_ACK", since=time.monotonic() - 0.01)
-                deadline = time.monotonic() + 2.0
-                found = None
-                while found is None and time.monotonic() < deadline:
-                    found = next((d for d in c.raw if d[0] == 0xFD
-                                  and int.from_bytes(d[7:10], "little") == 300), None)
-                    await asyncio.sleep(0.02)
-                assert found is not None, "no PROTOCOL_VERSION"
+                found = await until(lambda: next((d for d in c.raw if d[0] == 0xFD
+                                                  and int.from_bytes(d[7:10], "little") == 300),
+                                                 None), "a PROTOCOL_VERSION", timeout=10.0,
+                                    poll=0.02)
                 payload = found[10:10 + found[1]] + bytes(22)
                 assert struct.unpack_from("<HHH", payload) == (200, 100, 200)
 
@@ -357,35 +353,42 @@ def test_takeoff_then_rtl_as_px4() -> None:
             assert v.mode == px4.TAKEOFF
             await c.wait("STATUSTEXT", lambda m: "Using minimum takeoff altitude: 1.50 m"
                          in m.text, since=since)
-            deadline = time.monotonic() + 10.0
             fastest_climb = 0.0
-            while v.mode != px4.HOLD:
-                assert time.monotonic() < deadline, "takeoff did not end in Hold"
+
+            def held() -> bool:
+                nonlocal fastest_climb
+                if v.mode == px4.HOLD:
+                    return True
                 fastest_climb = max(fastest_climb, -v.velocity_ned[2])
-                await asyncio.sleep(0.02)
+                return False
+
+            await until(held, "the takeoff to end in Hold", timeout=30.0, poll=0.02)
             assert 0.5 < fastest_climb < 0.85  # MPC_Z_VEL_MAX_UP 0.8 (default 3 m/s)
             assert -v.position_ned[2] == pytest.approx(1.5, abs=0.2)
             await asyncio.sleep(0.5)
             assert -v.position_ned[2] == pytest.approx(1.5, abs=0.1)  # it holds there
 
             mock.model.hold(0, np.array([2.0, 1.0, -1.5]))  # somewhere away from home
-            while np.linalg.norm(v.position_ned - [2.0, 1.0, -1.5]) > 0.15:
-                assert time.monotonic() < deadline + 10.0
-                await asyncio.sleep(0.05)
+            await until(lambda: np.linalg.norm(v.position_ned - [2.0, 1.0, -1.5]) <= 0.15,
+                        "the vehicle held at (2, 1, -1.5)", timeout=30.0)
             since = time.monotonic()
             c.command(_m.MAV_CMD_NAV_RETURN_TO_LAUNCH)
             assert await c.ack(_m.MAV_CMD_NAV_RETURN_TO_LAUNCH, since=since) == \
                 _m.MAV_RESULT_ACCEPTED
             assert v.mode == px4.RTL
             highest, far_when_up = 0.0, None
-            deadline = time.monotonic() + 20.0
-            while v.armed:
-                assert time.monotonic() < deadline, "RTL did not land and disarm"
+
+            def landed() -> bool:
+                nonlocal highest, far_when_up
+                if not v.armed:
+                    return True
                 p = v.position_ned
                 highest = max(highest, -p[2])
                 if far_when_up is None and -p[2] > 2.3:
                     far_when_up = float(np.hypot(p[0], p[1]))
-                await asyncio.sleep(0.02)
+                return False
+
+            await until(landed, "RTL to land and disarm", timeout=40.0, poll=0.02)
             assert highest == pytest.approx(2.5, abs=0.2)
             assert far_when_up is not None and far_when_up > 1.8  # it climbed, then came back
             np.testing.assert_allclose(v.position_ned, [0.0, 0.0, 0.0], atol=0.25)
@@ -529,15 +532,11 @@ def test_geofence_breach_holds_and_is_reported() -> None:
             await asyncio.sleep(0.2)
             c.command(_m.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
             c.command(_m.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-            deadline = time.monotonic() + 10.0
-            while v.mode != px4.HOLD or not v.in_air:
-                assert time.monotonic() < deadline, "no takeoff"
-                await asyncio.sleep(0.05)
+            await until(lambda: v.mode == px4.HOLD and v.in_air, "the takeoff", timeout=30.0)
             assert not v.fence_breached
             mock.model.hold(0, np.array([8.0, 0.0, -1.0]))  # out of the 4 m circle
-            while v.mode == px4.HOLD and not v.fence_breached:
-                assert time.monotonic() < deadline + 10.0, "no breach"
-                await asyncio.sleep(0.02)
+            await until(lambda: v.mode != px4.HOLD or v.fence_breached, "the fence breach",
+                        timeout=30.0, poll=0.02)
             since = time.monotonic()
             await c.wait("STATUSTEXT", lambda m: m.text == "Approaching on Geofence",
                          since=since - 1.0)

@@ -19,6 +19,7 @@ from gcs.sim import MockConfig, MockFleet
 from gcs.sim.telemetry import STREAMS, default_rates
 from gcs.wire import mavlink, parse_datagram
 from tests.flight.support import mock_ports
+from tests.support.waiting import until
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -179,10 +180,8 @@ def test_link_loss_stays_zero_at_px4_rates_with_skipping() -> None:
                 LinkHub(decode_ids=DECODED_IDS) as hub:
             link = await hub.add("v", mock.gcs_url(1), 2)
             # ~370/s of unread ids: 2 s on a quiet machine, longer on a busy one
-            for _ in range(300):
-                if link.telemetry.skipped > 500:
-                    break
-                await asyncio.sleep(0.1)
+            await until(lambda: link.telemetry.skipped > 500, "500 unread messages skipped",
+                        timeout=45.0, poll=0.1)
             return link
 
     link = asyncio.run(main())

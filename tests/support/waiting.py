@@ -2,42 +2,78 @@
 
 `until` is awaited inside an event loop; `wait_for` is its twin for synchronous tests (a
 TestClient, a subprocess). Both return the first true value of `condition()` and fail naming
-`what` once `timeout` seconds have passed: a loose bound for a busy machine, never a
-measurement. `reached` awaits a flight's clock.
+`what` (and `detail()`, the state that would explain it) once `timeout` seconds have passed:
+a loose bound for a busy machine, never a measurement. `reached` awaits a flight's clock;
+`line_with` is the condition of a child process's output holding a text. `every` is the one
+periodic loop that is not a wait: a sampler or a feed, run as a task until cancelled.
 """
 
 from __future__ import annotations
 
 import asyncio
+import inspect
+import queue
 import time
-from collections.abc import Callable
-from typing import Protocol, TypeVar
+from collections.abc import Awaitable, Callable
+from typing import NoReturn, Protocol, TypeVar
 
 from gcs.phases import FlightPhase
 
-__all__ = ["ENDED", "Flight", "reached", "until", "wait_for"]
+__all__ = ["ENDED", "Flight", "every", "line_with", "reached", "until", "wait_for"]
 
 T = TypeVar("T")
 
 
-async def until(condition: Callable[[], T], what: str = "the condition", timeout: float = 60.0,
-                poll: float = 0.05) -> T:
-    """Await `condition()` becoming true (checked every `poll` s, the loop running between)."""
+def _timed_out(what: str, timeout: float, detail: Callable[[], object] | None) -> str:
+    """The failure message of a wait that ran out of time."""
+    said = f"timed out after {timeout:g} s waiting for {what}"
+    return said if detail is None else f"{said}: {detail()}"
+
+
+async def until(condition: Callable[[], T | Awaitable[T]], what: str = "the condition",
+                timeout: float = 60.0, poll: float = 0.05, *,
+                detail: Callable[[], object] | None = None) -> T:
+    """Await `condition()` becoming true (checked every `poll` s, the loop running between);
+    `condition` may be a coroutine function (an HTTP client's request, say)."""
     deadline = time.monotonic() + timeout  # bound
-    while not (value := condition()):
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+    while True:
+        value = condition()
+        if inspect.isawaitable(value):
+            value = await value
+        if value:
+            return value
+        assert time.monotonic() < deadline, _timed_out(what, timeout, detail)
         await asyncio.sleep(poll)
-    return value
 
 
 def wait_for(condition: Callable[[], T], what: str = "the condition", timeout: float = 60.0,
-             poll: float = 0.05) -> T:
+             poll: float = 0.05, *, detail: Callable[[], object] | None = None) -> T:
     """Block until `condition()` is true (checked every `poll` s)."""
     deadline = time.monotonic() + timeout  # bound
     while not (value := condition()):
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        assert time.monotonic() < deadline, _timed_out(what, timeout, detail)
         time.sleep(poll)
     return value
+
+
+def line_with(lines: queue.Queue[str], text: str, seen: list[str]) -> Callable[[], str | None]:
+    """A condition to wait for: the first line holding `text` among those read so far from
+    `lines` (a process's output, read on a thread), each line read moved to `seen`."""
+    def check() -> str | None:
+        while not lines.empty():
+            seen.append(lines.get())
+            if text in seen[-1]:
+                return seen[-1]
+        return None
+
+    return check
+
+
+async def every(period: float, action: Callable[[], object]) -> NoReturn:
+    """Call `action()` every `period` s until cancelled (run it as a task)."""
+    while True:
+        action()
+        await asyncio.sleep(period)
 
 
 class Flight(Protocol):

@@ -11,7 +11,6 @@ import json
 import os
 import re
 import shutil
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from playwright.sync_api import (
 )
 
 from tests.api.support import ServiceProcess, free_udp_base
+from tests.support.waiting import wait_for
 from tests.web.support import ServiceStarting
 
 CHROMIUM = os.environ.get("FLEETPLAN_CHROMIUM", "/usr/bin/chromium")
@@ -98,11 +98,8 @@ def no_flight_left(request: pytest.FixtureRequest) -> Iterator[None]:
     if flying is None:
         return
     httpx.post(f"{base}/api/flights/{flying}/abort", json={"action": "land"}, timeout=30)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        if httpx.get(f"{base}/api/flights/{flying}", timeout=30).json()["finished_at"]:
-            return
-        time.sleep(0.1)
+    wait_for(lambda: httpx.get(f"{base}/api/flights/{flying}", timeout=30).json()["finished_at"],
+             f"the aborted flight {flying} to land", timeout=120.0, poll=0.1)
 
 
 #: How the page's Fly flies in these tests (the page itself sends no options): a tracking

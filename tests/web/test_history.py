@@ -5,7 +5,6 @@ driven by the time slider."""
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Callable
 
 import httpx
@@ -14,6 +13,7 @@ from playwright.sync_api import Page, Request, expect
 
 from gcs.phases import FlightPhase
 from tests.api.support import QUICK_CROSSING, ServiceProcess
+from tests.support.waiting import wait_for
 from tests.web.conftest import FLY_OPTIONS, PHONE
 from tests.web.support import CROSSING_HORIZON_S, assert_fits
 
@@ -29,30 +29,22 @@ def fly_through_the_api(base: str) -> tuple[str, str]:
     return mission["id"], flight["id"]
 
 
+def flight_of(base: str, flight_id: str) -> dict:
+    """GET /api/flights/{flight_id}."""
+    return httpx.get(f"{base}/api/flights/{flight_id}", timeout=10).json()
+
+
 def pause_once_flying(base: str, flight_id: str) -> None:
     """Pause the flight as soon as it flies its plan: a paused flight stays live as long as the
     checks on the pages take, however busy the machine (its whole plan lasts a few seconds)."""
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        got = httpx.get(f"{base}/api/flights/{flight_id}", timeout=10).json()
+    def flying() -> bool:
+        got = flight_of(base, flight_id)
         assert not got["finished_at"], got
-        if (got.get("live") or {}).get("phase") == FlightPhase.FLYING:
-            paused = httpx.post(f"{base}/api/flights/{flight_id}/pause", timeout=30)
-            assert paused.status_code == 200, paused.text
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"flight {flight_id} never ran its plan")
+        return (got.get("live") or {}).get("phase") == FlightPhase.FLYING
 
-
-def wait_finished(base: str, flight_id: str) -> None:
-    deadline = time.monotonic() + 150
-    while time.monotonic() < deadline:
-        got = httpx.get(f"{base}/api/flights/{flight_id}", timeout=10).json()
-        if got["finished_at"]:
-            assert got["status"] == "completed", got
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"flight {flight_id} did not finish")
+    wait_for(flying, f"flight {flight_id} to run its plan", timeout=120.0)
+    paused = httpx.post(f"{base}/api/flights/{flight_id}/pause", timeout=30)
+    assert paused.status_code == 200, paused.text
 
 
 def test_a_flight_reopens_and_replays_against_the_plan(
@@ -83,7 +75,12 @@ def test_a_flight_reopens_and_replays_against_the_plan(
     assert_fits(phone)
     resumed = httpx.post(f"{service.base_url}/api/flights/{flight_id}/resume", timeout=30)
     assert resumed.status_code == 200, resumed.text
-    wait_finished(service.base_url, flight_id)
+    def finished() -> dict | None:
+        got = flight_of(service.base_url, flight_id)
+        return got if got["finished_at"] else None
+
+    ended = wait_for(finished, f"flight {flight_id} to finish", timeout=150.0, poll=0.1)
+    assert ended["status"] == "completed", ended
     record = httpx.get(f"{service.base_url}/api/flights/{flight_id}/record").json()
     page.reload()
     asked: list[str] = []
