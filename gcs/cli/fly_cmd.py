@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from gcs.autopilot import px4
 from gcs.cli import fly_options, mock_timings
-from gcs.sim.config import REALISMS
+from gcs.sim.realism import REALISMS
 
 if TYPE_CHECKING:
     import asyncio

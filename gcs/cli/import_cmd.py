@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from planner.model.scenario import ASSIGNMENTS
+from planner.model.choices import ASSIGNMENTS
 
 __all__ = ["configure", "run"]
 

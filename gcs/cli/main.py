@@ -1,9 +1,10 @@
 """Entry point of the `fleetplan` command.
 
 Each subcommand lives in its own module exposing `configure(parser)` (arguments only; it
-imports only the definitions its flags' choices and defaults come from) and `run(args) -> int`
-(the work, heavy imports inside), so `fleetplan --help` stays fast and the subcommands stay
-independent of each other.
+imports only the definitions its flags' choices and defaults come from, which live in modules
+without numpy: `gcs.fleet.choices`, `planner.model.choices`, `gcs.sim.realism`) and
+`run(args) -> int` (the work, heavy imports inside), so `fleetplan --help` stays fast and the
+subcommands stay independent of each other.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ import argparse
 
 from gcs.autopilot import px4
 from gcs.cli import mock_timings
-from gcs.sim.config import REALISMS
+from gcs.sim.realism import REALISMS
 
 __all__ = ["configure", "run"]
 

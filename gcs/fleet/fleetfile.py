@@ -50,12 +50,49 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Any
 
 import numpy as np
 
 from gcs.autopilot import AUTOPILOTS, CHOICES
 from gcs.errors import FleetFileError, LinkError
+from gcs.fleet.choices import (
+    AT_END,
+    DEFAULT_ARM_TIMEOUT,
+    DEFAULT_AT_END,
+    DEFAULT_CLIMB_SPEED,
+    DEFAULT_HOLD_AT_GOAL,
+    DEFAULT_MARGIN_CHECK,
+    DEFAULT_MESSAGE_RATES,
+    DEFAULT_POLICY,
+    DEFAULT_PRESTREAM,
+    DEFAULT_RATE_HZ,
+    DEFAULT_REPLAN_LEAD_S,
+    DEFAULT_START_TOLERANCE,
+    DEFAULT_STREAM_PRIORITY,
+    DEFAULT_TRACKING_ERROR_MAX,
+    FAILSAFE,
+    GEOFENCE,
+    LANDING,
+    MARGIN_CHECK,
+    MESSAGE_RATES,
+    MIN_RATE_HZ,
+    OPTION_CHOICES,
+    PAUSE_EXPIRY,
+    POLICIES,
+    PREFLIGHT,
+    STREAM_PRIORITY,
+    AtEnd,
+    FailsafeChoice,
+    GeofenceChoice,
+    LandingChoice,
+    MarginCheck,
+    MessageRates,
+    PauseExpiry,
+    Policy,
+    Preflight,
+    StreamPriority,
+)
 from gcs.frames import Geodetic
 from gcs.wire import (
     MAX_RATE_HZ,
@@ -68,8 +105,6 @@ from gcs.wire import (
 )
 from planner.types import FloatArray
 
-#: PX4 leaves offboard mode when setpoints arrive at 2 Hz or slower (PX4 docs: "> 2Hz").
-MIN_RATE_HZ = 2.0
 #: A link may be silent this long at most before it must count as lost (s).
 MAX_LINK_TIMEOUT_S = 5.0
 #: A landing plan may take this long at most (s): the fleet flies on meanwhile, so a longer
@@ -95,6 +130,8 @@ _MAXIMA: dict[str, tuple[float, str]] = {
     "land_speed": (MAX_LAND_SPEED, "m/s"),
 }
 
+# The choices (Literals, their values, MIN_RATE_HZ) are `gcs.fleet.choices`', re-exported here
+# with the fleet file they belong to.
 __all__ = [
     "AT_END",
     "FAILSAFE",
@@ -126,48 +163,6 @@ __all__ = [
     "load_fleet",
 ]
 
-# The choices of `FlightOptions`, each a Literal (the field's type, and the API's schema)
-# and its values as a tuple (validation, messages).
-
-#: Fleet policies applied when a vehicle is flagged (heartbeat lost, left OFFBOARD, tracking).
-Policy = Literal["hold_all", "land_all", "land_faulty", "replan"]
-POLICIES: tuple[Policy, ...] = get_args(Policy)
-#: What the fleet does once the plan has ended and it has held at the goals.
-AtEnd = Literal["land", "hold"]
-AT_END: tuple[AtEnd, ...] = get_args(AtEnd)
-#: What the fleet does when a pause lasts longer than `pause_limit`.
-PauseExpiry = Literal["land", "hold"]
-PAUSE_EXPIRY: tuple[PauseExpiry, ...] = get_args(PauseExpiry)
-#: How an abort with land lands the fleet (`FlightOptions.landing`).
-LandingChoice = Literal["planned", "px4"]
-LANDING: tuple[LandingChoice, ...] = get_args(LandingChoice)
-#: What `fly` does with a plan whose separation margin is below the fleet's need.
-MarginCheck = Literal["refuse", "warn"]
-MARGIN_CHECK: tuple[MarginCheck, ...] = get_args(MarginCheck)
-#: The pre-flight gate: refuse an unfit vehicle, or fly anyway (recorded).
-Preflight = Literal["check", "override"]
-PREFLIGHT: tuple[Preflight, ...] = get_args(Preflight)
-#: The geofence before arming (`gcs.geofence`): upload it to every vehicle, or skip it.
-GeofenceChoice = Literal["upload", "skip"]
-GEOFENCE: tuple[GeofenceChoice, ...] = get_args(GeofenceChoice)
-#: Each vehicle's link-loss failsafe before arming (`gcs.flight.procedure.failsafe`): set it
-#: or refuse the flight, or try to set it and fly on the vehicle's own where it cannot be.
-FailsafeChoice = Literal["set", "try"]
-FAILSAFE: tuple[FailsafeChoice, ...] = get_args(FailsafeChoice)
-#: The telemetry rates: take what the vehicle sends, or ask for what the GCS reads.
-MessageRates = Literal["leave", "request"]
-MESSAGE_RATES: tuple[MessageRates, ...] = get_args(MessageRates)
-#: The setpoint stream's thread: ordinary, or real-time where the process may.
-StreamPriority = Literal["normal", "realtime"]
-STREAM_PRIORITY: tuple[StreamPriority, ...] = get_args(StreamPriority)
-#: FlightOptions field -> its allowed values.
-OPTION_CHOICES: dict[str, tuple[str, ...]] = {
-    "policy": POLICIES, "at_end": AT_END, "pause_expiry": PAUSE_EXPIRY,
-    "margin_check": MARGIN_CHECK, "preflight": PREFLIGHT, "message_rates": MESSAGE_RATES,
-    "stream_priority": STREAM_PRIORITY, "landing": LANDING, "geofence": GEOFENCE,
-    "failsafe": FAILSAFE,
-}
-
 #: The key of the flight options, and the old name still read (with a `FleetFileWarning`).
 _OPTIONS_KEY = "flight"
 _OLD_OPTIONS_KEY = "mission"
@@ -187,12 +182,12 @@ class FleetFileWarning(UserWarning):
 class FlightOptions:
     """How a flight is run; defaults are for real vehicles."""
 
-    rate_hz: float = 20.0
+    rate_hz: float = DEFAULT_RATE_HZ
     """Setpoint stream rate (Hz), up to 100."""
-    policy: Policy = "land_all"
+    policy: Policy = DEFAULT_POLICY
     """What to do when a vehicle is flagged: hold_all, land_all, land_faulty or replan (it
     lands on its own predicted motion, the others replan around it: `gcs.flight.replan.replan`)."""
-    at_end: AtEnd = "land"
+    at_end: AtEnd = DEFAULT_AT_END
     """After the plan and the hold at the goals: land, or hold (PX4 Hold mode)."""
     link_timeout: float = 1.5
     """A vehicle from which no message at all arrived for this long has lost its link and
@@ -207,25 +202,25 @@ class FlightOptions:
     closer than the clearance they must keep (R = min_separation - separation_margin) minus
     this, in the plan's separation metric. None: 0 for a plan with a margin (the margin is
     the tracking tolerance), 0.3 m without one (`gcs.flight.safety.margin.alarm_band`)."""
-    tracking_error_max: float = 1.0
+    tracking_error_max: float = DEFAULT_TRACKING_ERROR_MAX
     """A vehicle farther than this from its planned position is flagged (m)."""
-    start_tolerance: float = 0.3
+    start_tolerance: float = DEFAULT_START_TOLERANCE
     """The flight clock starts when every vehicle is this close to its start (m)."""
     goal_tolerance: float = 0.2
     """A completed flight ends with every vehicle this close to its goal (m)."""
-    hold_at_goal: float = 2.0
+    hold_at_goal: float = DEFAULT_HOLD_AT_GOAL
     """Seconds to hold at the goals after the plan's horizon, before `at_end`."""
     goal_settle_max: float = 3.0
     """After the hold, a vehicle not yet within its goal tolerance is waited for up to this
     long (s), still held at its goal by the stream, before the goal errors are measured: a
     gust or a loaded station delays its arrival, not its verdict. 0: no wait."""
-    climb_speed: float = 1.0
+    climb_speed: float = DEFAULT_CLIMB_SPEED
     """Peak speed of the climb from home to the start (m/s)."""
-    prestream: float = 0.5
+    prestream: float = DEFAULT_PRESTREAM
     """Seconds of hold setpoints streamed before asking for OFFBOARD."""
     connect_timeout: float = 30.0
     """Waiting for every vehicle's first HEARTBEAT and position (s)."""
-    arm_timeout: float = 30.0
+    arm_timeout: float = DEFAULT_ARM_TIMEOUT
     """Retrying TEMPORARILY_REJECTED arming for at most this long (s)."""
     gather_timeout: float = 60.0
     """Waiting for the whole fleet to reach its starts (s)."""
@@ -238,7 +233,7 @@ class FlightOptions:
     pause_expiry: PauseExpiry = "land"
     """When a pause outlasts `pause_limit`: land every vehicle, or hold (PX4 Hold); the
     flight ends aborted either way."""
-    margin_check: MarginCheck = "refuse"
+    margin_check: MarginCheck = DEFAULT_MARGIN_CHECK
     """A plan whose separation margin is below 2 x the fleet's `position_error`: refuse to
     fly it, or warn (an event in the record) and fly."""
     preflight: Preflight = "check"
@@ -249,13 +244,13 @@ class FlightOptions:
     preflight_wait: float = 10.0
     """How long the gate waits for a problem to clear (PX4 reports sensors unhealthy for a
     few seconds after boot) before refusing (s)."""
-    message_rates: MessageRates = "leave"
+    message_rates: MessageRates = DEFAULT_MESSAGE_RATES
     """leave: take the telemetry rates the vehicle sends; request: ask for what the GCS reads
     at the rates it needs and turn off PX4's fast streams it never reads
     (MAV_CMD_SET_MESSAGE_INTERVAL, `gcs.autopilot.base.Autopilot.message_rates`)."""
     position_rate_hz: float = 30.0
     """LOCAL_POSITION_NED rate asked for with `message_rates: request` (Hz)."""
-    stream_priority: StreamPriority = "realtime"
+    stream_priority: StreamPriority = DEFAULT_STREAM_PRIORITY
     """realtime (default): stream setpoints from a real-time thread (SCHED_RR 1) where the
     process may (`gcs.flight.timeline.stream.Streamer`; on a busy machine most send jitter is the OS
     leaving the GCS waiting for a core); refused quietly otherwise (recorded as an event).
@@ -275,7 +270,7 @@ class FlightOptions:
     """Height of the touchdown points above the workspace floor (m, in [0,
     `MAX_LANDING_HEIGHT_M`]), where PX4's Land takes over; one above the workspace's ceiling
     is a fallback to PX4's Land, which the event says."""
-    replan_lead_s: float = 1.0
+    replan_lead_s: float = DEFAULT_REPLAN_LEAD_S
     """An in-flight replan switches at least this far ahead of its request (s, in (0,
     `MAX_REPLAN_LEAD_S`]), and at least 1.5 x the flight's last replan's planning time: the
     new plan must be ready and verified by then, or it is not flown (`gcs.flight.replan.replan`)."""

@@ -5,18 +5,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal, get_args
+from typing import Any
 
 from gcs.autopilot import px4
 from gcs.sim.model import EstimateNoise, ModelLimits
+from gcs.sim.realism import REALISMS, Realism
 
 __all__ = ["AUTOPILOTS", "REALISMS", "TIMING_BOUNDS", "MockConfig", "MockFaults", "Realism",
            "timing_error"]
-
-#: The mock's behaviour presets (`MockConfig.preset`): "ideal" (exact state, no lag; the
-#: default) and "px4" (PX4 v1.16 SIH SITL's measured estimate noise, lag and timings).
-Realism = Literal["ideal", "px4"]
-REALISMS: tuple[Realism, ...] = get_args(Realism)
 
 
 #: The `MockConfig` timings a user may change (`fleetplan fly --mock` and `fleetplan mock`

@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, Literal, TypeVar, get_args
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from planner.model.checks import (
     check_vector,
 )
 from planner.model.checks import check_integer as _integer
+from planner.model.choices import ASSIGNMENTS, Assignment
 from planner.types import FloatArray, IntArray
 
 if TYPE_CHECKING:
@@ -53,11 +54,6 @@ DEFAULTS: dict[str, Any] = {
     "assignment": "fixed",
     "method": "auto",
 }
-
-#: `assignment` values: "fixed" (vehicle n flies to its own goal) or "free" (any vehicle may
-#: take any goal; see `planner.methods.assignment`).
-Assignment = Literal["fixed", "free"]
-ASSIGNMENTS: tuple[Assignment, ...] = get_args(Assignment)
 
 #: `method` values, how the fleet is planned (`planner.methods.stages`): "auto" (both methods at
 # once

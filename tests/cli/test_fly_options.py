@@ -1,5 +1,6 @@
 """`fleetplan fly`'s flight-option flags say what the fleet file says: each flag with choices
-takes exactly the `FlightOptions` field's values, and each help states the field's default."""
+takes exactly the `FlightOptions` field's values, and each help states the field's default,
+which `FlightOptions` and the flags both take from `gcs.fleet.choices`."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import re
 import pytest
 
 from gcs.cli import fly_options
+from gcs.fleet import choices
 from gcs.fleet.fleetfile import OPTION_CHOICES, FlightOptions
 
 
@@ -27,6 +29,20 @@ def _help_entries(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
 
 def test_every_option_flag_sets_a_flight_option() -> None:
     assert set(fly_options.OPTION_FLAGS.values()) <= set(FlightOptions().to_dict())
+
+
+#: The defaults `gcs.fleet.choices` holds, by the `FlightOptions` field each is named after
+#: (DEFAULT_<FIELD>).
+_DEFAULTS = {name.removeprefix("DEFAULT_").lower(): getattr(choices, name)
+             for name in choices.__all__ if name.startswith("DEFAULT_")}
+
+
+def test_the_flight_options_defaults_are_the_choices_modules() -> None:
+    """`FlightOptions` takes its fields' defaults from `gcs.fleet.choices` (each a field's),
+    and every flag's field has one there, so the help cannot state another."""
+    options = FlightOptions().to_dict()
+    assert {field: options[field] for field in _DEFAULTS} == _DEFAULTS
+    assert set(fly_options.OPTION_FLAGS.values()) <= set(_DEFAULTS)
 
 
 @pytest.mark.parametrize(("flag", "field"), sorted(fly_options.OPTION_FLAGS.items()))
