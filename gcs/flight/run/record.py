@@ -57,6 +57,7 @@ from planner.verification.verify import SEPARATION_TOLERANCE
 
 if TYPE_CHECKING:
     from gcs.flight.procedure.vehicle import VehicleStatus
+    from planner.model.scenario import Scenario
 
 __all__ = ["COLUMNS", "RECORD_FORMAT", "Column", "FlightRecorder", "VehicleRecord",
            "finite_or_none", "gcs_time", "goal_tolerance",
@@ -260,13 +261,48 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     does not stop the flight from counting as completed for those that arrived."""
     scenario = plan.scenario
     horizon = scenario.horizon if horizon is None else horizon
-    off_plan = off_plan or {}
-    judged = [v for v in vehicles if v.dropped is None]
-    tolerance = goal_tolerance(options, position_error)
+    out = _summary_keys(recorder, scenario, options, vehicles, missed_ticks, margin,
+                        goal_tolerance(options, position_error))
+    why: list[str] = out["why"]
+    if error is not None:
+        why.append(f"{type(error).__name__}: {error}")
+    if plan.verification is not None:
+        out["min_separation_planned"] = plan.verification.min_separation_continuous
+    if flight_start is None:
+        why.append("the flight clock never started")
+        return out
+    t0 = flight_start
+    end, t1 = _judged_window(recorder, options, vehicles, t0, horizon, pauses, now)
+    # An abort leaves the plan on purpose (a landing or a hold): the tracking is judged up to
+    # it, and the time flown after it is told apart.
+    aborted = next((e["t"] for e in recorder.events if e["kind"] == EventKind.ABORT), None)
+    tracked_until = t1 if aborted is None else min(t1, aborted)
+    if aborted is not None:
+        at = float(plan_times(np.array([aborted]), t0, pauses)[0])
+        out["aborted_at"] = round(max(0.0, at), 3)
+        out["after_abort_s"] = round(max(0.0, now - aborted), 3)
+    tracking, times, positions = _tracking_errors(recorder, plan, vehicles, t0, pauses,
+                                                  tracked_until, planned, off_plan or {})
+    if tracking:
+        out["tracking_error_max"] = max(tracking)
+    # Separation over the whole flight, not only up to the first fault: a vehicle sent
+    # down by land_faulty still passes the others.
+    unknown = _separation_verdict(out, scenario, options, times, positions, t0, min(end, now))
+    if lateness is not None:
+        _stream_figures(out, recorder, vehicles, lateness, t0, t1)
+    _verdict(out, scenario, options, vehicles, error, unknown)
+    return out
+
+
+def _summary_keys(recorder: FlightRecorder, scenario: Scenario, options: FlightOptions,
+                  vehicles: Sequence[VehicleStatus], missed_ticks: int,
+                  margin: MarginCheck | None, tolerance: float) -> dict[str, Any]:
+    """Every key of the summary, in the contract's order: the figures known before the flight
+    is measured, None for those `summarise` fills in from the recorded data."""
     # each vehicle's own: with the accuracy it reported when its goal error was measured
     tolerances = {v.id: v.goal_tolerance if math.isfinite(v.goal_tolerance) else tolerance
                   for v in vehicles}
-    out: dict[str, Any] = {
+    return {
         "completed": False, "why": [], "goal_error_max": None, "goal_tolerance": tolerance,
         "goal_tolerances": tolerances,
         "tracking_error_max": None, "aborted_at": None, "after_abort_s": None,
@@ -290,15 +326,13 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
         "link_quality": {v.id: v.link.telemetry.quality.report()
                          for v in vehicles if v.link is not None},
     }
-    why: list[str] = out["why"]
-    if error is not None:
-        why.append(f"{type(error).__name__}: {error}")
-    if plan.verification is not None:
-        out["min_separation_planned"] = plan.verification.min_separation_continuous
-    if flight_start is None:
-        why.append("the flight clock never started")
-        return out
-    t0 = flight_start
+
+
+def _judged_window(recorder: FlightRecorder, options: FlightOptions,
+                   vehicles: Sequence[VehicleStatus], t0: float, horizon: float,
+                   pauses: Sequence[Sequence[float | None]], now: float) -> tuple[float, float]:
+    """(end, t1) on the GCS clock: the end of the hold at the goals (pauses and the settling
+    included), and the end of the judged flight: that end, the first fault or `now`."""
     paused = 0.0
     for a, b in pauses:
         assert a is not None
@@ -306,43 +340,50 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     end = t0 + horizon + options.hold_at_goal + recorder.goal_settle_s + paused
     first_fault = min((v.fault_time for v in vehicles if v.fault_time is not None),
                       default=math.inf)
-    t1 = min(end, first_fault, now)
-    # An abort leaves the plan on purpose (a landing or a hold): the tracking is judged up to
-    # it, and the time flown after it is told apart.
-    aborted = next((e["t"] for e in recorder.events if e["kind"] == EventKind.ABORT), None)
-    tracked_until = t1 if aborted is None else min(t1, aborted)
-    if aborted is not None:
-        at = float(plan_times(np.array([aborted]), t0, pauses)[0])
-        out["aborted_at"] = round(max(0.0, at), 3)
-        out["after_abort_s"] = round(max(0.0, now - aborted), 3)
+    return end, min(end, first_fault, now)
+
+
+def _tracking_errors(recorder: FlightRecorder, plan: Plan, vehicles: Sequence[VehicleStatus],
+                     t0: float, pauses: Sequence[Sequence[float | None]], until: float,
+                     planned: Callable[[str, np.ndarray], np.ndarray] | None,
+                     off_plan: Mapping[str, float]
+                     ) -> tuple[list[float], list[np.ndarray], list[np.ndarray]]:
+    """(largest tracking error of each vehicle with reports in its judged window, every
+    vehicle's report times, its positions): a vehicle is judged against where it was meant
+    to be up to `until`, its fault or the moment it flew off the plans."""
     tracking = []
     times, positions = [], []
     for v in vehicles:
         rec = recorder.vehicles[v.id]
         t, p = rec.telemetry_arrays()
-        stop = min(tracked_until, v.fault_time if v.fault_time is not None else math.inf)
+        stop = min(until, v.fault_time if v.fault_time is not None else math.inf)
         if v.id in off_plan:
             stop = min(stop, gcs_time(off_plan[v.id], t0, pauses))
         window = (t >= t0) & (t <= stop)
         if np.any(window):
             tau = plan_times(t[window], t0, pauses)
-            meant = (plan.vehicles[v.index].sample(scenario.dt, tau).position
+            meant = (plan.vehicles[v.index].sample(plan.scenario.dt, tau).position
                      if planned is None else planned(v.id, tau))
             tracking.append(float(np.max(np.linalg.norm(p[window] - meant, axis=1))))
         times.append(t)
         positions.append(p)
-    if tracking:
-        out["tracking_error_max"] = max(tracking)
-    # Separation over the whole flight, not only up to the first fault: a vehicle sent
-    # down by land_faulty still passes the others.
+    return tracking, times, positions
+
+
+def _separation_verdict(out: dict[str, Any], scenario: Scenario, options: FlightOptions,
+                        times: list[np.ndarray], positions: list[np.ndarray], t0: float,
+                        t_end: float) -> bool:
+    """Fills the measured separation and whether it held into `out` (with its `why` line);
+    returns whether it is unknown although several vehicles flew."""
+    why: list[str] = out["why"]
     scale = np.asarray(scenario.separation_scale, dtype=float)
-    separation, _ = measured_min_separation(times, positions, t0, min(end, now),
+    separation, _ = measured_min_separation(times, positions, t0, t_end,
                                             options.rate_hz, scale,
                                             stale_after=STALE_REPORT_S)
     out["min_separation_measured"] = finite_or_none(separation)
     required = out["min_separation_required"]
     # judged as the planner verifies a plan: within its one SEPARATION_TOLERANCE
-    unknown = len(vehicles) > 1 and out["min_separation_measured"] is None
+    unknown = len(times) > 1 and out["min_separation_measured"] is None
     if out["min_separation_measured"] is not None:
         out["separation_held"] = bool(separation >= required - SEPARATION_TOLERANCE)
         if not out["separation_held"]:
@@ -351,17 +392,34 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
     elif unknown:
         why.append("separation unknown: too few or non-finite position reports to measure "
                    "how close the vehicles came")
+    return unknown
+
+
+def _stream_figures(out: dict[str, Any], recorder: FlightRecorder,
+                    vehicles: Sequence[VehicleStatus], lateness: Sequence[float], t0: float,
+                    t1: float) -> None:
+    """Fills the setpoint rate over [t0, t1] and the stream's jitter into `out`."""
+    counts = [sum(1 for s in recorder.vehicles[v.id].sp_t if t0 <= s <= t1)
+              for v in vehicles]
+    if t1 > t0 and counts:
+        out["setpoint_rate_hz"] = float(np.mean(counts)) / (t1 - t0)
+    stats = jitter_stats(lateness)
+    out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
+    out["jitter_p99_ms"] = finite_or_none(stats["jitter_p99_ms"])
+
+
+def _verdict(out: dict[str, Any], scenario: Scenario, options: FlightOptions,
+             vehicles: Sequence[VehicleStatus], error: BaseException | None,
+             unknown: bool) -> None:
+    """Fills the largest goal error and whether the flight completed into `out`, and every
+    reason why not (or, first, the line saying it did) into its `why`: the goals, faults,
+    drops and landings judged once the separation is."""
+    why: list[str] = out["why"]
+    tolerances: dict[str, float] = out["goal_tolerances"]
+    judged = [v for v in vehicles if v.dropped is None]
     goal_errors = [v.goal_error for v in judged if not math.isnan(v.goal_error)]
     if goal_errors:
         out["goal_error_max"] = max(goal_errors)
-    if lateness is not None:
-        counts = [sum(1 for s in recorder.vehicles[v.id].sp_t if t0 <= s <= t1)
-                  for v in vehicles]
-        if t1 > t0 and counts:
-            out["setpoint_rate_hz"] = float(np.mean(counts)) / (t1 - t0)
-        stats = jitter_stats(lateness)
-        out["jitter_p50_ms"] = finite_or_none(stats["jitter_p50_ms"])
-        out["jitter_p99_ms"] = finite_or_none(stats["jitter_p99_ms"])
     # a faulty vehicle the others were replanned around lands on its own (its link may be
     # gone): named, not waited for; every other one must be down
     must_land = [v for v in vehicles if not (v.dropped is not None and v.fault is not None)]
@@ -401,4 +459,3 @@ def summarise(recorder: FlightRecorder, plan: Plan, options: FlightOptions,
                       f"its goal"
                       + (", landed and disarmed" if options.at_end == "land" else ", holding")
                       + ("; separation unknown" if unknown else ""))
-    return out
