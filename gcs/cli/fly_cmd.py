@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     if (on_ground := ground_refusal(plan)) is not None:
         print(f"error: {on_ground}", file=sys.stderr)
         return 2
-    if (timings := _mock_timings(args)) is None:
+    if (timings := _mock_flags(args)) is None:
         return 2
     if args.mock:
         args.base_port, args.listen_base_port = mock_ports(
@@ -134,9 +134,9 @@ def run(args: argparse.Namespace) -> int:
     return asyncio.run(_main(args, plan, timings))
 
 
-def _mock_timings(args: argparse.Namespace) -> dict[str, float] | None:
-    """The mock vehicles' timings from the --mock-* flags, once they and --mock-gcs-port are
-    checked; None once what is wrong is printed (checked before anything starts)."""
+def _mock_flags(args: argparse.Namespace) -> dict[str, float] | None:
+    """The mock vehicles' timings from the --mock-* flags, once those flags (--mock-gcs-port
+    too) are checked; None once what is wrong is printed (before anything starts)."""
     import sys
 
     from gcs.cli.hints import port_error
@@ -219,8 +219,6 @@ async def _fly(args: argparse.Namespace, plan: Plan, timings: dict[str, float],
     record_file = RecordFile(Path(args.record), handle) if args.record else None
     if record_file is not None:
         record_file.start()  # as the flight goes: a killed station leaves it readable
-    record: dict[str, Any] | None = None
-    status = 1
     try:
         record, status = await _flown(task, handle)
     finally:

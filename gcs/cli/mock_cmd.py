@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     count = len(homes) if homes is not None else (4 if args.vehicles is None else args.vehicles)
     if args.listen_base_port is None:  # PX4 SITL's, or past the usual GCS block of a larger fleet
         args.listen_base_port = px4.OFFBOARD_GCS_BASE_PORT + listen_offset(count)
-    if isinstance(checked := _checked(args, count), str):
+    if isinstance(checked := _checked_flags(args, count), str):
         print(f"error: {checked}", file=sys.stderr)
         return 2
     timings, autopilots = checked
@@ -115,7 +115,8 @@ def _plan_homes(args: argparse.Namespace
     return homes, plan.scenario.ids
 
 
-def _checked(args: argparse.Namespace, count: int) -> tuple[dict[str, float], list[str]] | str:
+def _checked_flags(args: argparse.Namespace, count: int
+                   ) -> tuple[dict[str, float], list[str]] | str:
     """(the timings, the autopilots given) from the flags of a fleet of `count`, or what is
     wrong with them (the first found): checked before any vehicle starts."""
     import math
