@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from collections.abc import AsyncIterator, Callable
+from contextlib import AbstractAsyncContextManager, asynccontextmanager
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -81,11 +81,35 @@ def _version() -> str:
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
-    """A fresh application configured by `settings` (default: environment and config file).
-
-    Long: the application's wiring: lifespan, routers and error handlers in one place.
-    """
+    """A fresh application configured by `settings` (default: environment and config file)."""
     settings = settings or Settings()
+    app = FastAPI(
+        title="fleetplan",
+        version=_version(),
+        description=DESCRIPTION,
+        lifespan=_lifespan(settings),
+        docs_url=None,  # served below from local files: FastAPI's default loads a CDN
+        redoc_url=None,
+        generate_unique_id_function=_operation_id,
+    )
+    app.state.settings = settings
+    install_error_handlers(app)
+    # Added last, runs first: a forged or unauthorised request is refused before its body
+    # is even counted.
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes,
+                       larger={("POST", "/api/missions"): (settings.max_plan_body_bytes,
+                                                            "max_plan_body_bytes")})
+    app.add_middleware(SecurityMiddleware, policy=AccessPolicy.from_settings(settings))
+    app.include_router(api_router)
+    _add_api_fallback(app)
+    _add_pages(app, settings)
+    _complete_openapi(app)
+    return app
+
+
+def _lifespan(settings: Settings) -> Callable[[FastAPI], AbstractAsyncContextManager[None]]:
+    """The application's lifespan: open the store (failing what a previous run left
+    unfinished), start the planning workers and the fleet, and close them all at the end."""
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -122,24 +146,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await planning.close()
             store.close()
 
-    app = FastAPI(
-        title="fleetplan",
-        version=_version(),
-        description=DESCRIPTION,
-        lifespan=lifespan,
-        docs_url=None,  # served below from local files: FastAPI's default loads a CDN
-        redoc_url=None,
-        generate_unique_id_function=_operation_id,
-    )
-    app.state.settings = settings
-    install_error_handlers(app)
-    # Added last, runs first: a forged or unauthorised request is refused before its body
-    # is even counted.
-    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes,
-                       larger={("POST", "/api/missions"): (settings.max_plan_body_bytes,
-                                                            "max_plan_body_bytes")})
-    app.add_middleware(SecurityMiddleware, policy=AccessPolicy.from_settings(settings))
-    app.include_router(api_router)
+    return lifespan
+
+
+def _add_api_fallback(app: FastAPI) -> None:
+    """Every /api path no router answers, added after the routers so that it matches last."""
 
     @app.api_route("/api/{rest:path}", methods=list(ALL_METHODS), include_in_schema=False,
                    name=FALLBACK)
@@ -150,6 +161,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if not allowed or request.method in allowed:
             raise NotFound("path", f"no such API path: {request.url.path}")
         raise StarletteHTTPException(405, headers={"Allow": ", ".join(allowed)})
+
+
+def _add_pages(app: FastAPI, settings: Settings) -> None:
+    """What is served beside the API, all from local files: liveness, plotly.js, the API
+    docs (Swagger UI) and the browser page, mounted last at "/" so that it answers only what
+    nothing else does."""
 
     @app.get("/healthz", include_in_schema=False)
     def healthz() -> dict[str, str]:
@@ -174,8 +191,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         )
 
     app.mount("/", StaticFiles(directory=web_directory(settings), html=True), name="web")
-    _complete_openapi(app)
-    return app
 
 
 def _operation_id(route: APIRoute) -> str:

@@ -8,8 +8,9 @@ SIGUSR2 resumes it: ``kill -USR1 PID``. With ``--control PATH`` the flight also 
 on a unix socket (`gcs.cli.control`): `fleetplan replan PATH ...` changes goals or drops
 vehicles in flight. The flight and the mock vehicles run on their own thread
 (`gcs.flight.host.vehicle_loop`), driven through a `gcs.service.replan_handle.ReplanHandle` (a
-`FlightHandle` that also replans) as the REST service drives them; the signals are handled
-on the main thread's loop.
+`FlightHandle` that also replans) as the REST service drives them; the signals
+(`gcs.cli.fly_signals`) and the live status (`gcs.cli.fly_status`) are handled on the main
+thread's loop.
 """
 
 from __future__ import annotations
@@ -23,9 +24,13 @@ from gcs.sim.realism import REALISMS
 
 if TYPE_CHECKING:
     import asyncio
+    from collections.abc import Callable
 
     from gcs.documents import FlightEvent
-    from gcs.flight.host.flight_handle import FlightHandle
+    from gcs.flight.host.vehicle_loop import VehicleLoop
+    from gcs.service.replan_handle import ReplanHandle
+    from gcs.sim import MockFleet
+    from planner import Plan
 
 __all__ = ["configure", "run", "tolerance_text"]
 
@@ -71,28 +76,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Fly the plan of `args` and return the exit status (0: the flight completed).
-
-    Long: one command's run: its nested handlers share the flight, its record and the signals.
-    """
+    """Fly the plan of `args` and return the exit status (0: the flight completed)."""
     import asyncio
-    import contextlib
-    import signal
     import sys
-    from pathlib import Path
 
-    from gcs.cli.control import ControlServer
-    from gcs.cli.hints import live_warning, port_error, port_in_use_hint
     from gcs.cli.plan_file import read_plan
-    from gcs.cli.record_file import RecordFile, write_json
-    from gcs.errors import FleetFileError, GcsError
-    from gcs.fleet.fleetfile import FleetSpec, load_fleet
-    from gcs.flight.host.vehicle_loop import VehicleLoop
     from gcs.flight.run.ground import ground_refusal
-    from gcs.flight.timeline.realtime import settle_heap
-    from gcs.service.replan_handle import ReplanHandle
-    from gcs.sim import MockConfig, MockFleet, homes_under
-    from gcs.sim.config import timing_error
     try:
         plan = read_plan(args.plan, "fly")
     except ValueError as exc:
@@ -101,205 +90,187 @@ def run(args: argparse.Namespace) -> int:
     if (on_ground := ground_refusal(plan)) is not None:
         print(f"error: {on_ground}", file=sys.stderr)
         return 2
+    if (timings := _mock_flags(args)) is None:
+        return 2
+    if args.mock:
+        args.base_port, args.listen_base_port = mock_ports(
+            args.base_port, args.listen_base_port, len(plan.scenario.ids))
+    return asyncio.run(_main(args, plan, timings))
 
-    def write_record(record: dict[str, Any] | None) -> None:
-        if args.record and record is not None:
-            write_json(Path(args.record), record)
-            print(f"flight record written to {args.record}")
 
+def _mock_flags(args: argparse.Namespace) -> dict[str, float] | None:
+    """The mock vehicles' timings from the --mock-* flags, once those flags (--mock-gcs-port
+    too) are checked; None once what is wrong is printed (before anything starts)."""
+    import sys
+
+    from gcs.cli.hints import port_error
+    from gcs.sim.config import timing_error
     try:
         timings = mock_timings.chosen(args, "mock-")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return None
     if (bad_port := port_error("--mock-gcs-port", args.mock_gcs_port)) is not None:
         print(f"error: {bad_port}", file=sys.stderr)
-        return 2
+        return None
     if args.mock_settle is not None:
         if (reason := timing_error("settle_time", args.mock_settle)) is not None:
             print(f"error: --mock-settle {reason}", file=sys.stderr)
-            return 2
+            return None
         timings["settle_time"] = args.mock_settle
-
-    if args.mock:
-        args.base_port, args.listen_base_port = mock_ports(
-            args.base_port, args.listen_base_port, len(plan.scenario.ids))
-
-    async def main() -> int:
-        vehicles = VehicleLoop()  # the flight and the mocks run apart from this loop
-        vehicles.start()
-        try:
-            return await fly(vehicles)
-        finally:
-            await asyncio.to_thread(vehicles.stop)
-
-    ports = ("--base-port (the GCS side) and --listen-base-port (the mock vehicles)"
-             if args.mock else "the connection URLs in the fleet file")
-
-    async def fly(vehicles: VehicleLoop) -> int:
-        """The flight on `vehicles`' loop, printed as it goes; the exit status.
-
-        Long: the flight under the CLI: events, Ctrl-C, pause and the control socket together.
-        """
-        mock = None
-        events: asyncio.Queue[FlightEvent | None] = asyncio.Queue()
-
-        def on_event(event: FlightEvent) -> None:
-            """Warnings to stderr at once (even with --quiet), every event to the printer."""
-            warning = live_warning(event, ports)
-            if warning is not None:
-                print(warning, file=sys.stderr, flush=True)
-            events.put_nowait(event)
-        try:
-            if args.mock:
-                homes = homes_under(plan.scenario.starts)
-                mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
-                                 listen_base_port=args.listen_base_port,
-                                 config=MockConfig.preset(args.mock_realism, **timings),
-                                 gcs_link_port=args.mock_gcs_port)
-                await vehicles.call(mock.start)
-                fleet_dict = mock.fleet_dict(plan.scenario.ids)
-                if args.mock_position_error is not None:
-                    fleet_dict["position_error"] = args.mock_position_error
-                fleet = FleetSpec.from_dict(fleet_dict)
-            else:
-                fleet = load_fleet(args.fleet)
-            options = fleet.options.replace(where="option", **fly_options.chosen(args))
-            handle = await ReplanHandle.create(vehicles, plan, fleet, options,
-                                               on_event=on_event)
-        except (GcsError, OSError) as exc:
-            if mock is not None:
-                await vehicles.call(mock.stop)
-            where = f"{exc.field}: " if isinstance(exc, FleetFileError) else ""
-            print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}"
-                  f"{port_in_use_hint(exc, ports)}", file=sys.stderr)
-            return 2
-
-        control = None
-        if args.control:
-            control = ControlServer(args.control, handle, len(plan.scenario.ids))
-            try:
-                await control.start()
-            except OSError as exc:
-                if mock is not None:
-                    await vehicles.call(mock.stop)
-                print(f"error: --control: {exc}", file=sys.stderr)
-                return 2
-            print(f"control socket: {args.control} (fleetplan replan {args.control} ...)",
-                  flush=True)
-
-        loop = asyncio.get_running_loop()
-        interrupts = 0
-        aborts: list[asyncio.Future[Any]] = []
-
-        def on_interrupt(name: str = "Ctrl-C") -> None:
-            nonlocal interrupts
-            interrupts += 1
-            if interrupts == 1:
-                print(f"\n{name}: aborting, every vehicle lands ({name} again quits at once)",
-                      file=sys.stderr, flush=True)
-                aborts.append(asyncio.ensure_future(handle.abort("land",
-                                                                 f"interrupted ({name})")))
-            else:
-                task.cancel()
-
-        async def pause_or_resume(resume: bool) -> None:
-            try:
-                t = await (handle.resume() if resume else handle.pause())
-            except GcsError as exc:
-                print(f"cannot {'resume' if resume else 'pause'}: {exc}", file=sys.stderr,
-                      flush=True)
-                return
-            print(f"{'resumed' if resume else 'paused'} at flight time {t:.2f} s "
-                  f"({'SIGUSR1 pauses' if resume else 'SIGUSR2 resumes'})", flush=True)
-
-        def on_pause(resume: bool) -> None:
-            aborts.append(asyncio.ensure_future(pause_or_resume(resume)))
-
-        # this process's collections then skip the libraries (gcs.flight.timeline.realtime)
-        settle_heap()
-        task = handle.start()
-        loop.add_signal_handler(signal.SIGINT, on_interrupt)
-        loop.add_signal_handler(signal.SIGTERM, on_interrupt, "SIGTERM")
-        loop.add_signal_handler(signal.SIGUSR1, on_pause, False)
-        loop.add_signal_handler(signal.SIGUSR2, on_pause, True)
-        printer = None if args.quiet else asyncio.create_task(_progress(handle, events))
-        record_file = RecordFile(Path(args.record), handle) if args.record else None
-        if record_file is not None:
-            record_file.start()  # as the flight goes: a killed station leaves it readable
-        record = None
-        status = 1
-        try:
-            record = await task
-            status = 0 if record["summary"]["completed"] else 1
-        except asyncio.CancelledError:
-            print("interrupted again: quitting without waiting", file=sys.stderr)
-            record = handle.record
-            status = 130
-        except GcsError as exc:
-            print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
-            record = handle.record
-        finally:
-            if record_file is not None:
-                await record_file.close()
-            if control is not None:
-                await control.close()
-            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2):
-                loop.remove_signal_handler(sig)
-            if printer is not None:
-                events.put_nowait(None)
-                printer.cancel()
-                with contextlib.suppress(asyncio.CancelledError):
-                    await printer
-            if mock is not None and vehicles.alive:
-                await vehicles.call(mock.stop)
-        if record is not None:
-            _print_summary(record)
-        write_record(record)
-        return status
-
-    return asyncio.run(main())
+    return timings
 
 
-async def _progress(handle: FlightHandle, events: asyncio.Queue[FlightEvent | None]
-                    ) -> None:
-    """Events as they happen (from `events`, the queue the flight hands them to), and the
-    status table (`gcs.cli.fly_status`): redrawn in place on a terminal, printed every 5 s
-    otherwise (logs stay readable)."""
+async def _main(args: argparse.Namespace, plan: Plan, timings: dict[str, float]) -> int:
+    """The flight with its vehicles (and the mocks) on a loop of their own, apart from this
+    one, which handles the signals and the printing."""
     import asyncio
 
-    from rich.console import Console
-    from rich.live import Live
-
-    from gcs.cli.fly_status import status_table
-    from gcs.cli.hints import live_warning
-
-    console = Console(highlight=False)
-
-    async def print_events() -> None:
-        while (event := await events.get()) is not None:
-            if event["kind"] in ("statustext", "mode_change") and event["vehicle"]:
-                continue
-            if live_warning(event, "") is not None:
-                continue  # already printed as a warning (stderr)
-            who = event["vehicle"] or "fleet"
-            console.print(f"  [{event['t']:7.2f}] {who}: {event['kind']} {event['detail']}",
-                          markup=False)
-
-    watcher = asyncio.create_task(print_events())
+    from gcs.flight.host.vehicle_loop import VehicleLoop
+    vehicles = VehicleLoop()
+    vehicles.start()
     try:
-        if console.is_terminal:
-            with Live(status_table(handle.snapshot()), console=console,
-                      refresh_per_second=4, transient=False) as live:
-                while True:
-                    await asyncio.sleep(0.25)
-                    live.update(status_table(handle.snapshot()))
-        else:
-            while True:
-                await asyncio.sleep(5.0)
-                console.print(status_table(handle.snapshot()))
+        return await _fly(args, plan, timings, vehicles)
     finally:
-        watcher.cancel()
+        await asyncio.to_thread(vehicles.stop)
+
+
+async def _fly(args: argparse.Namespace, plan: Plan, timings: dict[str, float],
+               vehicles: VehicleLoop) -> int:
+    """Connect, fly and report the flight on `vehicles`; the exit status."""
+    import asyncio
+    import contextlib
+    import sys
+    from pathlib import Path
+
+    from gcs.cli.control import ControlServer
+    from gcs.cli.fly_signals import FlightSignals
+    from gcs.cli.fly_status import progress
+    from gcs.cli.hints import live_warning
+    from gcs.cli.record_file import RecordFile
+    from gcs.flight.timeline.realtime import settle_heap
+    ports = ("--base-port (the GCS side) and --listen-base-port (the mock vehicles)"
+             if args.mock else "the connection URLs in the fleet file")
+    events: asyncio.Queue[FlightEvent | None] = asyncio.Queue()
+
+    def on_event(event: FlightEvent) -> None:
+        """Warnings to stderr at once (even with --quiet), every event to the printer."""
+        warning = live_warning(event, ports)
+        if warning is not None:
+            print(warning, file=sys.stderr, flush=True)
+        events.put_nowait(event)
+
+    if (connected := await _connect(args, plan, timings, vehicles, on_event, ports)) is None:
+        return 2
+    handle, mock = connected
+    control = None
+    if args.control:
+        control = ControlServer(args.control, handle, len(plan.scenario.ids))
+        try:
+            await control.start()
+        except OSError as exc:
+            if mock is not None:
+                await vehicles.call(mock.stop)
+            print(f"error: --control: {exc}", file=sys.stderr)
+            return 2
+        print(f"control socket: {args.control} (fleetplan replan {args.control} ...)",
+              flush=True)
+    # this process's collections then skip the libraries (gcs.flight.timeline.realtime)
+    settle_heap()
+    task = handle.start()
+    signals = FlightSignals(handle, task)
+    printer = None if args.quiet else asyncio.create_task(progress(handle, events))
+    record_file = RecordFile(Path(args.record), handle) if args.record else None
+    if record_file is not None:
+        record_file.start()  # as the flight goes: a killed station leaves it readable
+    try:
+        record, status = await _flown(task, handle)
+    finally:
+        if record_file is not None:
+            await record_file.close()
+        if control is not None:
+            await control.close()
+        signals.remove()
+        if printer is not None:
+            events.put_nowait(None)
+            printer.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await printer
+        if mock is not None and vehicles.alive:
+            await vehicles.call(mock.stop)
+    if record is not None:
+        _print_summary(record)
+    _write_record(args, record)
+    return status
+
+
+async def _connect(args: argparse.Namespace, plan: Plan, timings: dict[str, float],
+                   vehicles: VehicleLoop, on_event: Callable[[FlightEvent], None], ports: str
+                   ) -> tuple[ReplanHandle, MockFleet | None] | None:
+    """The flight's handle, connected to the fleet file's vehicles or to mock ones started
+    here, with the option flags over the fleet's options; None once what failed is printed
+    (the mocks stopped)."""
+    import sys
+
+    from gcs.cli.hints import port_in_use_hint
+    from gcs.errors import FleetFileError, GcsError
+    from gcs.fleet.fleetfile import FleetSpec, load_fleet
+    from gcs.service.replan_handle import ReplanHandle
+    from gcs.sim import MockConfig, MockFleet, homes_under
+    mock = None
+    try:
+        if args.mock:
+            homes = homes_under(plan.scenario.starts)
+            mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
+                             listen_base_port=args.listen_base_port,
+                             config=MockConfig.preset(args.mock_realism, **timings),
+                             gcs_link_port=args.mock_gcs_port)
+            await vehicles.call(mock.start)
+            fleet_dict = mock.fleet_dict(plan.scenario.ids)
+            if args.mock_position_error is not None:
+                fleet_dict["position_error"] = args.mock_position_error
+            fleet = FleetSpec.from_dict(fleet_dict)
+        else:
+            fleet = load_fleet(args.fleet)
+        options = fleet.options.replace(where="option", **fly_options.chosen(args))
+        handle = await ReplanHandle.create(vehicles, plan, fleet, options, on_event=on_event)
+    except (GcsError, OSError) as exc:
+        if mock is not None:
+            await vehicles.call(mock.stop)
+        where = f"{exc.field}: " if isinstance(exc, FleetFileError) else ""
+        print(f"error: {where}{exc.reason if isinstance(exc, FleetFileError) else exc}"
+              f"{port_in_use_hint(exc, ports)}", file=sys.stderr)
+        return None
+    return handle, mock
+
+
+async def _flown(task: asyncio.Future[dict[str, Any]], handle: ReplanHandle
+                 ) -> tuple[dict[str, Any] | None, int]:
+    """The flight record once the flight ends, and the exit status: 0 completed, 1 not (or
+    the flight failed), 130 when a second Ctrl-C quit without waiting."""
+    import asyncio
+    import sys
+
+    from gcs.errors import GcsError
+    try:
+        record = await task
+        return record, 0 if record["summary"]["completed"] else 1
+    except asyncio.CancelledError:
+        print("interrupted again: quitting without waiting", file=sys.stderr)
+        return handle.record, 130
+    except GcsError as exc:
+        print(f"flight failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return handle.record, 1
+
+
+def _write_record(args: argparse.Namespace, record: dict[str, Any] | None) -> None:
+    """The whole record to --record's file, when asked for and there is one."""
+    from pathlib import Path
+
+    from gcs.cli.record_file import write_json
+    if args.record and record is not None:
+        write_json(Path(args.record), record)
+        print(f"flight record written to {args.record}")
 
 
 def tolerance_text(summary: dict[str, Any]) -> str:

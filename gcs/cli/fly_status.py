@@ -1,21 +1,29 @@
-"""The live status of `fleetplan fly`: a compact table, one row per vehicle (rich).
+"""The live status of `fleetplan fly`: a compact table, one row per vehicle (rich), printed
+with the flight's events as they happen (`progress`).
 
-Built from `FlightExecutor.snapshot()` alone, so it shows exactly what the executor knows.
-Missing or non-finite figures print as "-", never "None" or "nan".
+The table is built from `FlightExecutor.snapshot()` alone, so it shows exactly what the
+executor knows. Missing or non-finite figures print as "-", never "None" or "nan".
 """
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from rich.console import Console
+from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from gcs.documents import FlightSnapshot
+from gcs.cli.hints import live_warning
+from gcs.documents import FlightEvent, FlightSnapshot
 
-__all__ = ["figure", "header", "status_table"]
+if TYPE_CHECKING:
+    from gcs.flight.host.flight_handle import FlightHandle
+
+__all__ = ["figure", "header", "progress", "status_table"]
 
 #: Phases shown in colour: trouble in red, done in green, the rest plain.
 _PHASE_STYLE = {"faulty": "bold red", "stopped": "red", "landed": "green", "hovering": "yellow"}
@@ -77,3 +85,36 @@ def status_table(snap: FlightSnapshot) -> Table:
             Text(v.get("fault") or "", style="bold red"),
         )
     return table
+
+
+async def progress(handle: FlightHandle, events: asyncio.Queue[FlightEvent | None]
+                   ) -> None:
+    """Events as they happen (from `events`, the queue the flight hands them to), and the
+    status table (`status_table`): redrawn in place on a terminal, printed every 5 s
+    otherwise (logs stay readable)."""
+    console = Console(highlight=False)
+
+    async def print_events() -> None:
+        while (event := await events.get()) is not None:
+            if event["kind"] in ("statustext", "mode_change") and event["vehicle"]:
+                continue
+            if live_warning(event, "") is not None:
+                continue  # already printed as a warning (stderr)
+            who = event["vehicle"] or "fleet"
+            console.print(f"  [{event['t']:7.2f}] {who}: {event['kind']} {event['detail']}",
+                          markup=False)
+
+    watcher = asyncio.create_task(print_events())
+    try:
+        if console.is_terminal:
+            with Live(status_table(handle.snapshot()), console=console,
+                      refresh_per_second=4, transient=False) as live:
+                while True:
+                    await asyncio.sleep(0.25)
+                    live.update(status_table(handle.snapshot()))
+        else:
+            while True:
+                await asyncio.sleep(5.0)
+                console.print(status_table(handle.snapshot()))
+    finally:
+        watcher.cancel()

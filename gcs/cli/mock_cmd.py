@@ -13,10 +13,14 @@ late boot, arming refused for 3.5 s: `MockConfig.px4_like`); the default is idea
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from gcs.autopilot import px4
 from gcs.cli import mock_timings
 from gcs.sim.realism import REALISMS
+
+if TYPE_CHECKING:
+    from gcs.sim import MockFleet
 
 __all__ = ["configure", "run"]
 
@@ -73,128 +77,148 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the mock fleet of `args` until interrupted or `--duration`; the exit status.
+    """Run the mock fleet of `args` until interrupted or `--duration`; the exit status."""
+    import asyncio
+    import sys
 
-    Long: one command's run: options to mock fleet, ports and signals.
-    """
+    from gcs.sim.ports import listen_offset
+    if isinstance(placed := _plan_homes(args), str):
+        print(f"error: {placed}", file=sys.stderr)
+        return 2
+    homes, ids = placed
+    count = len(homes) if homes is not None else (4 if args.vehicles is None else args.vehicles)
+    if args.listen_base_port is None:  # PX4 SITL's, or past the usual GCS block of a larger fleet
+        args.listen_base_port = px4.OFFBOARD_GCS_BASE_PORT + listen_offset(count)
+    if isinstance(checked := _checked_flags(args, count), str):
+        print(f"error: {checked}", file=sys.stderr)
+        return 2
+    timings, autopilots = checked
+    if homes is None:
+        homes = [[args.spacing * i, 0.0, 0.0] for i in range(count)]
+    return asyncio.run(_serve(args, homes, ids, timings, autopilots))
+
+
+def _plan_homes(args: argparse.Namespace
+                ) -> tuple[list[list[float]] | None, list[str] | None] | str:
+    """(homes, ids) under --plan's starts, (None, None) without --plan, or what is wrong."""
+    if not args.plan:
+        return None, None
+    from gcs.cli.plan_file import read_plan
+    from gcs.sim import homes_under
+
+    try:
+        plan = read_plan(args.plan, "mock --plan")
+    except ValueError as exc:
+        return str(exc)
+    homes = homes_under(plan.scenario.starts)
+    if args.vehicles is not None and args.vehicles != len(homes):
+        return f"--vehicles {args.vehicles} but the plan has {len(homes)}"
+    return homes, plan.scenario.ids
+
+
+def _checked_flags(args: argparse.Namespace, count: int
+                   ) -> tuple[dict[str, float], list[str]] | str:
+    """(the timings, the autopilots given) from the flags of a fleet of `count`, or what is
+    wrong with them (the first found): checked before any vehicle starts."""
+    import math
+
+    from gcs.cli.hints import port_error
+    from gcs.sim.config import AUTOPILOTS
+    for name in ("settle", "position_rate", "position_error"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and value >= 0.0):
+            return f"--{name.replace('_', '-')} must be a finite number >= 0, got {value}"
+    if not 0 <= args.seed < 2**32:
+        return f"--seed must be an integer in [0, 2^32), got {args.seed}"
+    if args.position_error is not None and args.position_error > 10.0:
+        return f"--position-error must be within [0, 10] m, got {args.position_error}"
+    try:
+        timings = mock_timings.chosen(args)
+    except ValueError as exc:
+        return str(exc)
+    if not args.position_rate > 0.0:
+        return "--position-rate must be above 0"
+    if (bad_port := port_error("--gcs-port", args.gcs_port)) is not None:
+        return bad_port
+    if not 1 <= count <= 254:  # MAVLink system ids 1..254 (255 is the GCS's)
+        return f"--vehicles must be between 1 and 254, got {count}"
+    autopilots = [a.strip() for a in args.autopilot.split(",")]
+    bad = [a for a in autopilots if a not in AUTOPILOTS]
+    if bad or len(autopilots) not in (1, count):
+        return (f"--autopilot must be {' or '.join(AUTOPILOTS)}, or one of them per "
+                f"vehicle ({count}) separated by commas, got {args.autopilot!r}")
+    return timings, autopilots
+
+
+def _mock_fleet(args: argparse.Namespace, homes: list[list[float]], timings: dict[str, float],
+                autopilots: list[str]) -> MockFleet:
+    """The mock fleet the flags describe (not started), with its injected faults."""
+    from gcs.sim import MockConfig, MockFleet
+
+    config = MockConfig.preset(args.realism, position_rate=args.position_rate,
+                               seed=args.seed, **timings)
+    if args.settle is not None:
+        config.settle_time = args.settle
+    if args.telemetry is not None:
+        config.telemetry_profile = args.telemetry
+    mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
+                     listen_base_port=args.listen_base_port,
+                     max_port_offset=args.max_port_offset, config=config,
+                     gcs_link_port=args.gcs_port, autopilots=autopilots)
+    for vehicle in mock.vehicles:
+        vehicle.faults.loss = args.loss
+        vehicle.faults.delay = args.delay
+    return mock
+
+
+async def _serve(args: argparse.Namespace, homes: list[list[float]], ids: list[str] | None,
+                 timings: dict[str, float], autopilots: list[str]) -> int:
+    """Start the mock fleet, write --fleet-out, say where it listens, and run it until
+    SIGINT, SIGTERM or --duration; the exit status."""
     import asyncio
     import json
-    import math
     import signal
     import sys
     from pathlib import Path
 
-    from gcs.cli.hints import port_error, port_in_use_hint
-    from gcs.sim import MockConfig, MockFleet, homes_under
-    from gcs.sim.config import AUTOPILOTS
-    from gcs.sim.ports import listen_offset
-
-    ids = None
-    homes = None
-    if args.plan:
-        from gcs.cli.plan_file import read_plan
-
-        try:
-            plan = read_plan(args.plan, "mock --plan")
-        except ValueError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-        homes = homes_under(plan.scenario.starts)
-        ids = plan.scenario.ids
-        if args.vehicles is not None and args.vehicles != len(homes):
-            print(f"error: --vehicles {args.vehicles} but the plan has {len(homes)}",
-                  file=sys.stderr)
-            return 2
-    count = len(homes) if homes is not None else (4 if args.vehicles is None else args.vehicles)
-    if args.listen_base_port is None:  # PX4 SITL's, or past the usual GCS block of a larger fleet
-        args.listen_base_port = px4.OFFBOARD_GCS_BASE_PORT + listen_offset(count)
-    for name in ("settle", "position_rate", "position_error"):
-        value = getattr(args, name)
-        if value is not None and not (math.isfinite(value) and value >= 0.0):
-            print(f"error: --{name.replace('_', '-')} must be a finite number >= 0, got {value}",
-                  file=sys.stderr)
-            return 2
-    if not 0 <= args.seed < 2**32:
-        print(f"error: --seed must be an integer in [0, 2^32), got {args.seed}", file=sys.stderr)
-        return 2
-    if args.position_error is not None and args.position_error > 10.0:
-        print(f"error: --position-error must be within [0, 10] m, got {args.position_error}",
+    from gcs.cli.hints import port_in_use_hint
+    count = len(homes)
+    mock = _mock_fleet(args, homes, timings, autopilots * count if len(autopilots) == 1
+                       else autopilots)
+    try:
+        await mock.start()
+    except OSError as exc:  # a busy port: one line, not a traceback
+        print(f"error: {exc}{port_in_use_hint(exc, '--base-port and --listen-base-port')}",
               file=sys.stderr)
         return 2
+    if args.fleet_out:
+        fleet = mock.fleet_dict(ids)
+        if args.position_error is not None:
+            fleet["position_error"] = args.position_error
+        Path(args.fleet_out).write_text(json.dumps(fleet, indent=1))
+    kinds = {"px4": "PX4-like", "ardupilot": "ArduCopter-like"}
+    label = kinds[autopilots[0]] if len(set(autopilots)) == 1 else "PX4- and ArduCopter-like"
+    print(f"mock: {count} {label} vehicles ({args.realism}), listening on "
+          f"{args.listen_base_port}..{args.listen_base_port + count - 1}, sending to "
+          f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}; time_boot_ms 0 "
+          f"at monotonic {mock.boot_monotonic:.6f}", flush=True)
+    if args.gcs_port is not None:
+        print(f"mock: GCS links send to 127.0.0.1:{args.gcs_port} (QGroundControl, "
+              f"MAVProxy --master=udpin:127.0.0.1:{args.gcs_port})", flush=True)
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
     try:
-        timings = mock_timings.chosen(args)
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    if not args.position_rate > 0.0:
-        print("error: --position-rate must be above 0", file=sys.stderr)
-        return 2
-    if (bad_port := port_error("--gcs-port", args.gcs_port)) is not None:
-        print(f"error: {bad_port}", file=sys.stderr)
-        return 2
-    if not 1 <= count <= 254:  # MAVLink system ids 1..254 (255 is the GCS's)
-        print(f"error: --vehicles must be between 1 and 254, got {count}", file=sys.stderr)
-        return 2
-    if homes is None:
-        homes = [[args.spacing * i, 0.0, 0.0] for i in range(count)]
-    autopilots = [a.strip() for a in args.autopilot.split(",")]
-    bad = [a for a in autopilots if a not in AUTOPILOTS]
-    if bad or len(autopilots) not in (1, count):
-        print(f"error: --autopilot must be {' or '.join(AUTOPILOTS)}, or one of them per "
-              f"vehicle ({count}) separated by commas, got {args.autopilot!r}", file=sys.stderr)
-        return 2
-
-    async def main() -> int:
-        config = MockConfig.preset(args.realism, position_rate=args.position_rate,
-                                   seed=args.seed, **timings)
-        if args.settle is not None:
-            config.settle_time = args.settle
-        if args.telemetry is not None:
-            config.telemetry_profile = args.telemetry
-        mock = MockFleet(homes=homes, gcs_base_port=args.base_port,
-                         listen_base_port=args.listen_base_port,
-                         max_port_offset=args.max_port_offset, config=config,
-                         gcs_link_port=args.gcs_port,
-                         autopilots=autopilots * count if len(autopilots) == 1 else autopilots)
-        for vehicle in mock.vehicles:
-            vehicle.faults.loss = args.loss
-            vehicle.faults.delay = args.delay
-        try:
-            await mock.start()
-        except OSError as exc:  # a busy port: one line, not a traceback
-            print(f"error: {exc}{port_in_use_hint(exc, '--base-port and --listen-base-port')}",
-                  file=sys.stderr)
-            return 2
-        if args.fleet_out:
-            fleet = mock.fleet_dict(ids)
-            if args.position_error is not None:
-                fleet["position_error"] = args.position_error
-            Path(args.fleet_out).write_text(json.dumps(fleet, indent=1))
-        kinds = {"px4": "PX4-like", "ardupilot": "ArduCopter-like"}
-        label = kinds[autopilots[0]] if len(set(autopilots)) == 1 else "PX4- and ArduCopter-like"
-        print(f"mock: {count} {label} vehicles ({args.realism}), listening on "
-              f"{args.listen_base_port}..{args.listen_base_port + count - 1}, sending to "
-              f"{mock.vehicles[0].gcs_port}..{mock.vehicles[-1].gcs_port}; time_boot_ms 0 "
-              f"at monotonic {mock.boot_monotonic:.6f}", flush=True)
-        if args.gcs_port is not None:
-            print(f"mock: GCS links send to 127.0.0.1:{args.gcs_port} (QGroundControl, "
-                  f"MAVProxy --master=udpin:127.0.0.1:{args.gcs_port})", flush=True)
-        stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, stop.set)
-        try:
-            if args.duration is not None:
-                await asyncio.wait_for(stop.wait(), args.duration)
-            else:
-                await stop.wait()
-        except TimeoutError:
-            pass
-        finally:
-            await mock.stop()
-        accepted = sum(v.setpoints_accepted for v in mock.vehicles)
-        print(f"mock: stopped after {mock.now():.1f} s; {accepted} setpoints accepted, "
-              f"{mock.physics_steps} physics steps", flush=True)
-        return 0
-
-    return asyncio.run(main())
+        if args.duration is not None:
+            await asyncio.wait_for(stop.wait(), args.duration)
+        else:
+            await stop.wait()
+    except TimeoutError:
+        pass
+    finally:
+        await mock.stop()
+    accepted = sum(v.setpoints_accepted for v in mock.vehicles)
+    print(f"mock: stopped after {mock.now():.1f} s; {accepted} setpoints accepted, "
+          f"{mock.physics_steps} physics steps", flush=True)
+    return 0

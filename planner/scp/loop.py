@@ -289,6 +289,29 @@ class _Iterations:
         )
 
 
+@dataclass
+class _History:
+    """One run's iteration records, each told to `progress` as it comes, and the outcomes
+    that carry them: every way out of the loop reports the same history."""
+
+    first_qp_seconds: float
+    progress: Progress | None
+    records: list[IterationRecord] = field(default_factory=list)
+
+    def record(self, rec: IterationRecord) -> None:
+        """Keeps `rec` and tells `progress`."""
+        self.records.append(rec)
+        if self.progress is not None:
+            self.progress(rec)
+
+    def outcome(self, status: str, message: str, at: Trajectories,
+                infeasible: tuple[str, ...] = ()) -> ScpOutcome:
+        """The run's outcome at trajectories `at`, with the records so far."""
+        return ScpOutcome(status=status, message=message, positions=at[0],
+                          velocities=at[1], accelerations=at[2], iterations=self.records,
+                          first_qp_seconds=self.first_qp_seconds, infeasible_groups=infeasible)
+
+
 def run_scp(
     scenario: Scenario,
     solver: QPSolver,
@@ -300,7 +323,6 @@ def run_scp(
 ) -> ScpOutcome:
     """Run the SCP loop on a validated scenario (goals as the vehicles fly to them).
 
-    Long: the SCP loop read top to bottom: seeding, iterations, stop rules and outcome.
 
     guess: (p, v, a) to linearise the first SCP iteration about instead of the
     separation-free optimum (e.g. CAPT's synchronised straight moves); any point gives
@@ -315,27 +337,15 @@ def run_scp(
     if first.status != SOLVED:
         return _first_infeasible(scenario, first, first_seconds)
     base = (first.positions, first.velocities, first.accelerations)
-    history: list[IterationRecord] = []
-
-    def record(rec: IterationRecord) -> None:
-        history.append(rec)
-        if progress is not None:
-            progress(rec)
-
+    history = _History(first_seconds, progress)
     cost = thrust_cost(first.accelerations)
-    record(IterationRecord(0, cost, None, 0, first.qp_solves, 0, first_seconds))
-
-    def outcome(status: str, message: str, at: Trajectories,
-                infeasible: tuple[str, ...] = ()) -> ScpOutcome:
-        return ScpOutcome(status=status, message=message, positions=at[0],
-                          velocities=at[1], accelerations=at[2], iterations=history,
-                          first_qp_seconds=first_seconds, infeasible_groups=infeasible)
-
+    history.record(IterationRecord(0, cost, None, 0, first.qp_solves, 0, first_seconds))
     current = base if guess is None else guess
     if scenario.obstacles and not routed:  # routes, or the verdict on an unreachable goal
         seeded = seed_routes(scenario, current)
         if seeded.unreachable is not None:
-            return outcome(PlanStatus.INFEASIBLE, seeded.unreachable, base, ("obstacles",))
+            return history.outcome(PlanStatus.INFEASIBLE, seeded.unreachable, base,
+                                   ("obstacles",))
         current = seeded.guess
     loop = _Iterations.start(scenario, solver, options, base)
     groups_solver, one_sided = loop.groups_solver, loop.one_sided
@@ -350,13 +360,13 @@ def run_scp(
         last, again = loop.solve(current, carried, held)
         retried += again
         if last.status != SOLVED:
-            return outcome(PlanStatus.INFEASIBLE, loop.failure(iteration, last), current,
-                           ("separation",) if one_sided is None
-                           else ("separation", "obstacles"))
+            return history.outcome(PlanStatus.INFEASIBLE, loop.failure(iteration, last),
+                                   current, ("separation",) if one_sided is None
+                                   else ("separation", "obstacles"))
         new_cost = thrust_cost(last.solution[2])
         change = abs(new_cost - cost)
         rows_per_key = 3 if options.continuous else 1
-        record(IterationRecord(
+        history.record(IterationRecord(
             iteration, new_cost, change, int(last.keys.size) * rows_per_key,
             groups_solver.solves - solves_before, last.groups, time.perf_counter() - t0,
             last.largest_group,
@@ -372,4 +382,4 @@ def run_scp(
     if retried:
         message += (f"; {retried} iteration(s) linearised again about keep-right paths after "
                     f"an infeasible QP")
-    return outcome(status, message, current)
+    return history.outcome(status, message, current)

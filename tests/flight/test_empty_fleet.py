@@ -13,7 +13,8 @@ from gcs.flight.link.station import StationStalls
 from gcs.flight.procedure import endings, vehicle
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run.executor import FlightExecutor
-from gcs.flight.run.record import FlightRecorder, summarise
+from gcs.flight.run.record import FlightRecorder
+from gcs.flight.run.summary import summarise
 from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind, VehiclePhase
 from gcs.tasks import all_or_first_error

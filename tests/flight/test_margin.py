@@ -17,7 +17,7 @@ from gcs.errors import FleetFileError, PlanRejected
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.procedure.context import FlightContext
 from gcs.flight.run.executor import FlightExecutor
-from gcs.flight.run.record import goal_tolerance
+from gcs.flight.run.summary import goal_tolerance
 from gcs.flight.safety.margin import check_margin, scenario_for_fleet, separation_alarm_at
 from gcs.flight.safety.monitor import FleetMonitor
 from gcs.phases import VehiclePhase

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from gcs.fleet.fleetfile import FlightOptions
-from gcs.flight.run.record import FlightRecorder, summarise
+from gcs.flight.run.record import FlightRecorder
+from gcs.flight.run.summary import summarise
 from planner.verification.verify import SEPARATION_TOLERANCE
 from tests.flight.support import line_scenario, smooth_plan
 

@@ -17,8 +17,8 @@ from gcs.errors import VehicleTimeout
 from gcs.flight.link.station import STALL_NOTE_S
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.replan import Replanner
-from gcs.flight.run.record import goal_tolerance
 from gcs.flight.run.state import Flight
+from gcs.flight.run.summary import goal_tolerance
 from gcs.flight.safety.monitor import PERIOD
 from gcs.phases import EventKind, VehiclePhase
 

@@ -18,12 +18,8 @@ from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.link.link import VehicleLink
 from gcs.flight.link.setpoints import Setpoint
 from gcs.flight.procedure.vehicle import Emit, VehicleStatus
-from gcs.flight.run.record import (
-    STALE_REPORT_S,
-    FlightRecorder,
-    measured_min_separation,
-    summarise,
-)
+from gcs.flight.run.record import FlightRecorder
+from gcs.flight.run.summary import STALE_REPORT_S, measured_min_separation, summarise
 from gcs.flight.safety.margin import MarginCheck
 from gcs.flight.timeline.flown import FlownPlans
 from gcs.flight.timeline.stream import Streamer
