@@ -30,12 +30,12 @@ def _crowded() -> dict[str, Any]:
 
 
 def _longest_failing(data: dict[str, Any], start: int, chosen: int) -> int:
-    """Plans the crowd at every fixed horizon from `start` up to the longest one the 10 %
-    promise needs to fail (brute force): below chosen / 1.1, so that the shortest verified
-    horizon is at least that and `chosen` within 10 % of it. Fails naming a horizon that
-    verifies there; returns that longest horizon (steps)."""
+    """Plan the crowd at every fixed horizon from `start` to the longest one under
+    chosen / 1.1 (brute force) and fail naming any that verifies: the shortest verified
+    horizon is then longer than that longest one, which is returned (steps), and `chosen`
+    is within 10 % of it."""
     longest = math.ceil(chosen / (1 + TOLERANCE)) - 1
-    assert start <= longest
+    assert start <= longest  # something to scan
     verified = [steps for steps in range(start, longest + 1)
                 if planner.plan({**data, "steps": steps}).ok]
     assert verified == [], f"verified at {verified} steps, more than 10 % under {chosen}"
