@@ -35,10 +35,37 @@ def _events(record: dict[str, Any], vehicle: str, kind: str) -> list[str]:
             if e.get("vehicle") == vehicle and e["kind"] == kind]
 
 
-def test_an_ardupilot_fleet_flies_guided_with_takeoff() -> None:
+#: A flight, its record (or exception), its mocks and what was seen during its pause.
+Paused = tuple[FlightExecutor, Any, MockFleet, dict[str, float]]
+
+
+@pytest.fixture(scope="module")
+def paused_guided() -> Paused:
+    """Two ArduCopters fly a 6 s line, paused at flight time 1 s for 2.5 s (`seen`: the
+    flight time of the pause and how far any vehicle moved over its last 0.5 s), then
+    resumed to the end: one flight for the guided procedure's tests and the pause's."""
+    seen: dict[str, float] = {}
+
+    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
+        await until(lambda: (flight.flight_time() or 0.0) > 1.0, "flying")
+        seen["t"] = flight.pause()
+        await asyncio.sleep(2.0)
+        before = np.stack([v.position_world for v in mock.vehicles])
+        await asyncio.sleep(0.5)
+        after = np.stack([v.position_world for v in mock.vehicles])
+        seen["moved"] = float(np.max(np.linalg.norm(after - before, axis=1)))
+        assert all(v.mode == ardupilot.GUIDED for v in mock.vehicles)
+        flight.resume()
+
+    flight, record, mock = asyncio.run(_fly(2, ["ardupilot"] * 2, during=during, steps=30))
+    return flight, record, mock, seen
+
+
+def test_an_ardupilot_fleet_flies_guided_with_takeoff(
+        paused_guided: Paused) -> None:
     """Two ArduCopters: GUIDED before arming (refused while "PreArm:"), NAV_TAKEOFF, the
     plan on position targets, LAND and disarmed at their goals."""
-    flight, record, mock = asyncio.run(_fly(2, ["ardupilot", "ardupilot"]))
+    flight, record, mock, _seen = paused_guided
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True
     assert record["summary"]["goal_error_max"] < 0.25
@@ -74,23 +101,11 @@ def test_the_fleet_file_refuses_an_autopilot_its_heartbeat_denies() -> None:
     assert "says ArduPilot" in str(outcome) and "fix the fleet file" in str(outcome)
 
 
-def test_pause_holds_a_guided_fleet_on_one_target_then_resumes() -> None:
+def test_pause_holds_a_guided_fleet_on_one_target_then_resumes(
+        paused_guided: Paused) -> None:
     """A pause holds each ArduCopter on the plan's position of that instant (one held
     position target: GUIDED keeps it), and the flight completes after the resume."""
-    seen: dict[str, float] = {}
-
-    async def during(flight: FlightExecutor, mock: MockFleet) -> None:
-        await until(lambda: (flight.flight_time() or 0.0) > 1.0, "flying")
-        seen["t"] = flight.pause()
-        await asyncio.sleep(2.0)
-        before = np.stack([v.position_world for v in mock.vehicles])
-        await asyncio.sleep(0.5)
-        after = np.stack([v.position_world for v in mock.vehicles])
-        seen["moved"] = float(np.max(np.linalg.norm(after - before, axis=1)))
-        assert all(v.mode == ardupilot.GUIDED for v in mock.vehicles)
-        flight.resume()
-
-    _flight, record, _mock = asyncio.run(_fly(2, ["ardupilot"] * 2, during=during, steps=30))
+    _flight, record, _mock, seen = paused_guided
     assert isinstance(record, dict), record
     assert record["summary"]["completed"] is True
     assert seen["moved"] < 0.03

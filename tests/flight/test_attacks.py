@@ -27,14 +27,15 @@ FAST = FlightOptions(hold_at_goal=1.0, prestream=0.3, climb_speed=2.0)
 
 async def _fly(plan: Any, options: FlightOptions, *, key: Path | None = None,
                attack: str = ALL_ATTACKS, impersonate: list[int] | None = None,
-               before_connect: bool = False, during: Any = None, autopilot: str = "px4"
-               ) -> tuple[Any, Any, dict]:
+               before_connect: bool = False, during: Any = None,
+               autopilots: tuple[str, ...] | None = None) -> tuple[Any, Any, dict]:
     homes = homes_under(plan.scenario.starts)
     secret = None
     if key is not None:
         secret = bytes.fromhex(key.read_text().strip())
     async with MockFleet(homes=homes, settle_time=0.5, signing_key=secret,
-                         autopilots=[autopilot] * len(homes), **mock_ports(len(homes)),
+                         autopilots=list(autopilots or ["px4"] * len(homes)),
+                         **mock_ports(len(homes)),
                          **FAST_MOCK) as mock:
         fleet_dict = mock.fleet_dict(plan.scenario.ids)
         if key is not None:
@@ -65,19 +66,23 @@ def _json_clean(record: dict) -> None:
     json.dumps(record, allow_nan=False)  # raises on NaN/Infinity
 
 
-@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+#: The fleet of the every-attack flight: PX4 and ArduCopter vehicles side by side. Each link
+#: is pinned, signed and parsed on its own, by its vehicle's autopilot, so one flight puts
+#: both autopilots under every attack.
+MIXED = ("px4", "ardupilot", "px4")
+
+
 @pytest.mark.parametrize("signed", [False, True], ids=["pinned", "signed"])
-def test_flight_completes_under_every_attack(signed: bool, autopilot: str,
-                                             tmp_path: Path) -> None:
+def test_flight_completes_under_every_attack(signed: bool, tmp_path: Path) -> None:
     """The attacker speaks first, from before the connect: an unsigned vehicle whose first
     contact pinned its peer was pinned to the attacker (its own packets then dropped as
     foreign, the flight failed); the mocks' fleet file names each one's `peer`, as the
     service's does, and a signed link refuses the attacker's unsigned packets. The same on
-    PX4 and on ArduCopter."""
+    PX4 and on ArduCopter, flown together."""
     plan = smooth_plan(line_scenario(3))
     key = new_key_file(tmp_path / "fleet.key").path if signed else None
     record, mock, report = asyncio.run(_fly(plan, FAST, key=key, before_connect=True,
-                                            autopilot=autopilot))
+                                            autopilots=MIXED))
     assert isinstance(record, dict), record
     summary = record["summary"]
     assert summary["completed"] is True, summary
@@ -98,7 +103,7 @@ def test_flight_completes_under_every_attack(signed: bool, autopilot: str,
         assert security["link_garbage_datagrams"] > 0
         assert security["invalid_estimates"] == 0  # the NaN came from the attacker only
     # the real vehicles flew the plan and never fell into a failsafe
-    assert [v["autopilot"] for v in record["vehicles"]] == [autopilot] * 3
+    assert tuple(v["autopilot"] for v in record["vehicles"]) == MIXED
     for vehicle, goal in zip(mock.vehicles, plan.scenario.goals, strict=True):
         assert np.linalg.norm(vehicle.position_world[:2] - goal[:2]) < 0.2
         assert not [e for _, e in vehicle.events if "failsafe" in e]

@@ -29,12 +29,17 @@ def _crowded() -> dict[str, Any]:
     return circle_swap(12, height_step=0.0, rotation=0.0, radius=2.5)
 
 
-def _shortest_by_scan(data: dict[str, Any], start: int) -> int:
-    """The fewest steps from `start` at which a fixed-steps plan verifies (brute force)."""
-    for steps in range(start, start + 40):
-        if planner.plan({**data, "steps": steps}).ok:
-            return steps
-    raise AssertionError("no verified plan within 40 steps of the bound")
+def _longest_failing(data: dict[str, Any], start: int, chosen: int) -> int:
+    """Plan the crowd at every fixed horizon from `start` to the longest one under
+    chosen / 1.1 (brute force) and fail naming any that verifies: the shortest verified
+    horizon is then longer than that longest one, which is returned (steps), and `chosen`
+    is within 10 % of it."""
+    longest = math.ceil(chosen / (1 + TOLERANCE)) - 1
+    assert start <= longest  # something to scan
+    verified = [steps for steps in range(start, longest + 1)
+                if planner.plan({**data, "steps": steps}).ok]
+    assert verified == [], f"verified at {verified} steps, more than 10 % under {chosen}"
+    return longest
 
 
 @pytest.fixture(scope="module")
@@ -43,21 +48,26 @@ def crowded_plan() -> Plan:
 
 
 @pytest.fixture(scope="module")
-def crowded_shortest() -> int:
-    """The crowd's shortest verified horizon in steps, scanned once from the kinematic bound."""
+def crowded_failing(crowded_plan: Plan) -> int:
+    """The crowd's longest horizon (steps) under the chosen one's 10 % at which no plan
+    verifies, nor at any shorter one from the parser's kinematic bound: scanned once."""
     data = _crowded()
-    return _shortest_by_scan(data, Scenario.from_dict(_auto(data)).steps)
+    assert crowded_plan.horizon is not None
+    return _longest_failing(data, Scenario.from_dict(_auto(data)).steps,
+                            crowded_plan.horizon["chosen_steps"])
 
 
 def test_auto_is_within_ten_percent_of_the_shortest_verified_horizon(crowded_plan,
-                                                                     crowded_shortest):
+                                                                     crowded_failing):
     plan = crowded_plan
     block = plan.horizon
     assert plan.ok
     assert block is not None and block["auto"] is True
     chosen = block["chosen_steps"]
     assert plan.scenario.steps == chosen and not plan.scenario.steps_auto
-    shortest = crowded_shortest  # scanned from the parser's bound, at most the plan's
+    # no plan verifies from the parser's bound to `crowded_failing`: the shortest verified
+    # horizon is longer, and at most the plan's (which verified)
+    shortest = crowded_failing + 1  # its lowest possible value
     assert block["lower_bound_steps"] <= shortest
     assert shortest <= chosen <= (1 + TOLERANCE) * shortest
     assert block["within_tolerance"] is True
@@ -108,15 +118,15 @@ def test_the_bound_is_where_the_boxes_first_allow_the_farthest_moves():
     assert first.status == "infeasible" and "cannot reach its goal" in first.message
 
 
-def test_no_verified_plan_under_max_horizon_says_so(crowded_shortest):
+def test_no_verified_plan_under_max_horizon_says_so(crowded_failing):
     data = _crowded()
-    shortest = crowded_shortest
-    too_short = (shortest - 1) * data["dt"]
+    failing = crowded_failing  # no plan verifies at this horizon or any shorter one
+    too_short = failing * data["dt"]
     plan = planner.plan(_auto(data, max_horizon=too_short))
     assert not plan.ok and plan.status != "converged"
     assert plan.horizon["chosen_steps"] is None
     assert plan.horizon["within_tolerance"] is False
-    assert max(t["steps"] for t in plan.horizon["tried"]) == shortest - 1
+    assert max(t["steps"] for t in plan.horizon["tried"]) == failing
     assert f"no horizon up to max_horizon {too_short:g} s" in plan.message
 
 

@@ -139,6 +139,26 @@ def test_fly_to_completion_with_live_state_and_a_record(flown: Flown) -> None:
 
 
 @pytest.mark.flight
+def test_the_last_telemetry_before_done_shows_the_fleet_landed_and_disarmed(
+        flown: Flown) -> None:
+    """A flight's stream ends with the fleet as it is: the last telemetry before `done` shows
+    every vehicle landed and disarmed, so a page following the stream never keeps a vehicle
+    "armed / landing" after it disarmed."""
+    events = flown.events
+    kinds = [kind for kind, _ in events]
+    assert kinds[-1] == "done" and events[-1][1]["status"] == "completed", events[-1]
+    landed = {data["vehicle"] for kind, data in events
+              if kind == "event" and data.get("kind") == "landed"}
+    assert landed == {v["id"] for v in QUICK_CROSSING["vehicles"]}
+    last = max(i for i, kind in enumerate(kinds) if kind == "telemetry")
+    # no event after the last telemetry leaves the page's table behind it
+    assert "event" not in kinds[last:], kinds[last:]
+    final = events[last][1]
+    assert [(v["id"], v["armed"], v["phase"]) for v in final["vehicles"]] == [
+        (v["id"], False, "landed") for v in QUICK_CROSSING["vehicles"]]
+
+
+@pytest.mark.flight
 def test_abort_lands_everyone_at_once(mock_settings: Callable[..., Settings]) -> None:
     with TestClient(create_app(mock_settings())) as client:
         mission = plan_mission(client, SHORT_CROSSING)
