@@ -89,10 +89,11 @@ def test_plans_are_the_same_with_and_without_the_broad_phase(monkeypatch):
     data = random_dense(24, seed=5)
     monkeypatch.setattr(planner.scp.pruning, "NEAR_MIN_VEHICLES", 2)
     monkeypatch.setattr(planner.verification.verify, "NEAR_MIN_VEHICLES", 2)
-    pruned = planner.plan(data)
+    # one method: auto's race could pick another winner on a busy machine
+    pruned = planner.plan(data, method="whole")
     monkeypatch.setattr(planner.scp.pruning, "NEAR_MIN_VEHICLES", 10**9)
     monkeypatch.setattr(planner.verification.verify, "NEAR_MIN_VEHICLES", 10**9)
-    full = planner.plan(data)
+    full = planner.plan(data, method="whole")
     assert pruned.ok and full.ok
     assert max(r.separation_rows for r in full.iterations) > 0
     np.testing.assert_allclose(pruned.positions(), full.positions(), atol=1e-7)
