@@ -48,7 +48,9 @@ class FlightEvent(TypedDict):
     t: float
     vehicle: str | None
     """The vehicle it is about; None for the fleet."""
-    kind: EventKind
+    kind: EventKind | str
+    """An `EventKind`; a stored kind this version does not know (a record written by another
+    version) is kept as it was stored."""
     detail: str
 
 
@@ -191,9 +193,18 @@ class FlightSnapshot(TypedDict):
 
 def current_events(events: Iterable[Mapping[str, Any]]) -> list[FlightEvent]:
     """Stored events (decoded JSON) as `FlightEvent`s, each kind under its current value (a
-    former one, `gcs.phases.FORMER_EVENT_KINDS`, read as the kind it is now)."""
-    return [{"t": e["t"], "vehicle": e["vehicle"], "kind": EventKind(e["kind"]),
+    former one, `gcs.phases.FORMER_EVENT_KINDS`, read as the kind it is now; one this version
+    does not know kept as stored, so an old record still reads)."""
+    return [{"t": e["t"], "vehicle": e["vehicle"], "kind": _kind(e["kind"]),
              "detail": e["detail"]} for e in events]
+
+
+def _kind(value: str) -> EventKind | str:
+    """`value` as the event kind it names now, or as it is when no kind has that name."""
+    try:
+        return EventKind(value)
+    except ValueError:
+        return value
 
 
 def finite_or_none(x: float | None) -> float | None:

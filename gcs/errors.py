@@ -1,7 +1,7 @@
 """The GCS's exceptions, one tree rooted in `GcsError`.
 
 - `GcsError`: base class of everything `gcs` raises on purpose.
-  - `FleetFileError`: a fleet file (or mission options) is invalid; `field` names the dotted path
+  - `FleetFileError`: a fleet file (or flight options) is invalid; `field` names the dotted path
     of the offending field and `reason` says why. Also a `planner.errors.FieldError`.
   - `LinkError`: a MAVLink connection could not be opened or used (bad URL, port in use).
   - `VehicleTimeout`: a vehicle did not do something in time (first HEARTBEAT, reaching its

@@ -23,6 +23,14 @@ def test_a_former_event_kind_reads_as_the_current_one() -> None:
         {"t": 2.0, "vehicle": "a", "kind": "landed", "detail": ""}]
 
 
+def test_an_event_kind_this_version_does_not_know_is_kept_as_stored() -> None:
+    """A record from another version (here a `warning`, a kind the station once emitted)
+    still reads: its unknown kind is served as it was stored, not refused."""
+    [event] = current_events([{"t": 3.0, "vehicle": "a", "kind": "warning", "detail": "w"}])
+    assert event == {"t": 3.0, "vehicle": "a", "kind": "warning", "detail": "w"}
+    assert not isinstance(event["kind"], EventKind)
+
+
 def test_a_flight_stored_with_former_words_loads_in_current_ones(tmp_path: Path) -> None:
     """Events stored as `mission_start` come back as `flight_start`; a record that has only
     `mission_start` (written before `flight_start`) is served as it was stored."""

@@ -32,7 +32,7 @@ from gcs.phases import ABORT_ACTIONS
 from gcs.replan_request import parse
 from planner.errors import FieldError
 
-__all__ = ["COMMANDS", "REQUEST_BYTES_MAX", "ControlServer", "Flight", "request"]
+__all__ = ["COMMANDS", "REQUEST_BYTES_MAX", "ControlServer", "ControlledFlight", "request"]
 
 #: The commands a control socket takes.
 COMMANDS = ("replan", "pause", "resume", "abort")
@@ -44,7 +44,7 @@ READ_TIMEOUT_S = 10.0
 ABORT_REASON = "operator abort (control socket)"
 
 
-class Flight(Protocol):
+class ControlledFlight(Protocol):
     """What the socket drives: `gcs.flight.host.flight_handle.FlightHandle`'s commands."""
 
     async def replan(self, goals: dict[str, list[float]] | None, drop: list[str],
@@ -57,7 +57,7 @@ class Flight(Protocol):
 class ControlServer:
     """The socket at `path`, serving `flight` until `close`; see the module."""
 
-    def __init__(self, path: str | Path, flight: Flight, vehicles: int) -> None:
+    def __init__(self, path: str | Path, flight: ControlledFlight, vehicles: int) -> None:
         """`vehicles`: how many the plan flies (a replan naming more entries is refused)."""
         self.path = Path(path)
         self._flight = flight

@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -173,6 +173,9 @@ class Findings(Watched):
 
     def flight_time(self) -> float | None:
         return self.time
+
+    def planned(self, v: VehicleStatus, times: Sequence[float] | np.ndarray) -> None:
+        return None  # the monitor's own plan
 
     def predicted(self, v: VehicleStatus, t: float) -> np.ndarray | None:
         return self.guesses.get(v.id)

@@ -51,8 +51,7 @@ def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] 
     events: list[tuple[str | None, str]] = []
 
     class Carried(Responder):
-        """Notes what the policy asks for; an abort asked for is under way from then on; it
-        never replans (land_faulty's way then)."""
+        """Notes what the policy asks for; an abort asked for is under way from then on."""
 
         async def land(self, v: Any) -> None:
             calls.append(("land", v.id))
@@ -66,9 +65,8 @@ def _policy(policy: str, descent: Callable[[Any], list[DescentConflict] | None] 
         def descent(self, v: Any) -> list[DescentConflict] | None:
             return descent(v)
 
-        def replan(self, v: Any, kind: str) -> bool:
+        def replan(self, v: Any, kind: str) -> None:
             calls.append(("replan", v.id))
-            return False
 
     out = FaultPolicy(FlightContext(FlightOptions(policy=policy, landing=landing),
                                     lambda vid, kind, _d: events.append((vid, kind))),

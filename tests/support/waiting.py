@@ -19,7 +19,7 @@ from typing import NoReturn, Protocol, TypeVar
 
 from gcs.phases import FlightPhase
 
-__all__ = ["ENDED", "Flight", "every", "line_with", "reached", "until", "wait_for"]
+__all__ = ["ENDED", "ClockedFlight", "every", "line_with", "reached", "until", "wait_for"]
 
 T = TypeVar("T")
 
@@ -76,7 +76,7 @@ async def every(period: float, action: Callable[[], object]) -> NoReturn:
         await asyncio.sleep(period)
 
 
-class Flight(Protocol):
+class ClockedFlight(Protocol):
     """What `reached` reads of a flight (`gcs.flight.run.executor.FlightExecutor`)."""
 
     @property
@@ -89,7 +89,7 @@ class Flight(Protocol):
 ENDED = (FlightPhase.FINISHED, FlightPhase.ABORTED, FlightPhase.FAILED)
 
 
-async def reached(flight: Flight, t: float) -> None:
+async def reached(flight: ClockedFlight, t: float) -> None:
     """Await flight time `t` on `flight`'s clock; fail if the flight ends first."""
     def there() -> bool:
         assert flight.phase not in ENDED, f"the flight ended ({flight.phase}) before t={t:g} s"

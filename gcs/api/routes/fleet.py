@@ -77,7 +77,8 @@ class CommandInfo(BaseModel):
 
 #: What each command does, for clients building their buttons (GET /api/fleet/commands).
 COMMAND_INFO = [
-    CommandInfo(command="hold", description="PX4 Hold (AUTO.LOITER) where it is.", needs=None),
+    CommandInfo(command="hold", description="Hold where it is (PX4 Hold, ArduCopter BRAKE).",
+                needs=None),
     CommandInfo(command="land", description="Land where it is (NAV_LAND).", needs=None),
     CommandInfo(command="rtl", description="Return to launch (AUTO.RTL) and land.",
                 needs=None),

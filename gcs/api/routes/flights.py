@@ -146,7 +146,8 @@ class AbortRequest(BaseModel):
                               json_schema_extra={"examples": [{"action": "land"}]})
 
     action: AbortAction = Field(
-        "land", description="land: every vehicle lands now; hold: PX4 Hold (AUTO.LOITER)."
+        "land", description="land: every vehicle lands now; hold: every vehicle holds where "
+        "it is (PX4 Hold, ArduCopter BRAKE)."
     )
 
 

@@ -1,2 +1,3 @@
-"""One flight on one shared clock: the executor, each vehicle's boarding, the setpoint stream,
-the flight clock, the plans flown, the flight record and the live snapshot."""
+"""One flight: the executor (its state and the order of its phases) and its parts, each acting
+on it through `state.RunningFlight`: boarding, arrival at the starts and goals, pausing, fault
+routing, securing, the flight record with its summary, and the live snapshot."""

@@ -17,7 +17,7 @@ from gcs.errors import VehicleTimeout
 from gcs.flight.link.station import STALL_NOTE_S
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.replan import Replanner
-from gcs.flight.run.state import Flight
+from gcs.flight.run.state import RunningFlight
 from gcs.flight.run.summary import goal_tolerance
 from gcs.flight.safety.monitor import PERIOD
 from gcs.phases import EventKind, VehiclePhase
@@ -29,7 +29,7 @@ __all__ = ["SETTLE_POLL_S", "fly_to_plan_end", "gather", "settle_at_goals",
 SETTLE_POLL_S = 0.05
 
 
-async def gather(flight: Flight, vehicles: Sequence[VehicleStatus] | None = None) -> None:
+async def gather(flight: RunningFlight, vehicles: Sequence[VehicleStatus] | None = None) -> None:
     """Until every vehicle (or those of `vehicles`) has flown its climb and is within
     `start_tolerance` of its start (`VehicleTimeout` after `gather_timeout`)."""
     options = flight.options
@@ -62,7 +62,7 @@ async def gather(flight: Flight, vehicles: Sequence[VehicleStatus] | None = None
         await asyncio.sleep(PERIOD)
 
 
-async def fly_to_plan_end(flight: Flight, replanner: Replanner,
+async def fly_to_plan_end(flight: RunningFlight, replanner: Replanner,
                           changed: asyncio.Event) -> None:
     """Until the flight's plan (the last switched replan's) has ended and the hold at the
     goals is over; `changed` is set when a replan switched (the end moved)."""
@@ -89,7 +89,8 @@ async def fly_to_plan_end(flight: Flight, replanner: Replanner,
             return
 
 
-async def _sleep_until_plan_end(flight: Flight, changed: asyncio.Event, extra: float) -> bool:
+async def _sleep_until_plan_end(flight: RunningFlight, changed: asyncio.Event,
+                                extra: float) -> bool:
     """Sleep until `extra` s of flight time after the flight's plan ends; False as soon as a
     replan switched meanwhile (the end moved). A late wake-up is noted as a stall of the
     station."""
@@ -110,13 +111,13 @@ async def _sleep_until_plan_end(flight: Flight, changed: asyncio.Event, extra: f
     return False
 
 
-def vehicle_goal_tolerance(flight: Flight, v: VehicleStatus) -> float:
+def vehicle_goal_tolerance(flight: RunningFlight, v: VehicleStatus) -> float:
     """How close to its goal `v` must end, with the accuracy it reports now."""
     return goal_tolerance(flight.options, flight.fleet.position_error,
                           v.linked.telemetry.gps_h_acc)
 
 
-async def settle_at_goals(flight: Flight) -> float:
+async def settle_at_goals(flight: RunningFlight) -> float:
     """Hold on, up to `goal_settle_max`, while a healthy vehicle is not yet within its goal
     tolerance (the stream keeps it at its goal); returns how long it held on (s)."""
     started = time.monotonic()

@@ -5,7 +5,7 @@ Long: the flight's state, public API and order of phases, each a few lines over 
 
 `FlightExecutor(plan, fleet)` runs the whole flight on the caller's asyncio loop. It keeps the
 flight's state (phase, abort, clock, streams) and the order of its phases; each part acts on
-it through one protocol, `gcs.flight.run.state.Flight`, and each step on a vehicle gets the
+it through one protocol, `gcs.flight.run.state.RunningFlight`, and each step on a vehicle gets the
 flight's `FlightContext` (`gcs.flight.procedure.context`). A setpoint goes
 executor -> `Streamer` (one tick for the whole fleet) -> `VehicleLink` -> UDP.
 
@@ -156,7 +156,8 @@ class FlightExecutor:
         """Set when a replan switched: the end of the flight's plan moved."""
         self.streamer: Streamer | None = None
         self.tracks: list[SetpointTrack] = []
-        """Each vehicle's setpoints of the first plan, in fleet order."""
+        """Each vehicle's plan track in force, in fleet order: the first plan's, spliced by each
+        switched replan (a pause holds a vehicle only while it flies its one)."""
         self.faults = FaultRouter(self, self.now)
         """What the monitor finds and what the flight does about it (`gcs.flight.run.faults`)."""
         self.monitor = self.faults.monitor

@@ -1,7 +1,8 @@
 """Fault routing: what the monitor finds reaches the part of the flight that acts on it.
 
-`FaultRouter` is the flight the monitor watches (`gcs.flight.safety.monitor.Watched`) and what
-carries out the fault policy's decisions (`gcs.flight.safety.policy.Responder`):
+`FaultRouter` is the flight's side of the monitor (what it watches:
+`gcs.flight.safety.monitor.Watched`) and what carries out the fault policy's decisions
+(`gcs.flight.safety.policy.Responder`):
 
 - a vehicle unheard for `SILENT_HOLD_S` pauses the flight on the plan time where the others
   keep the most room from where it stops on its own (`gcs.flight.safety.silence`); heard
@@ -30,7 +31,7 @@ from gcs.flight.procedure import endings
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.replan.prediction import predicted_landing, stream_motion, unheard_margin
 from gcs.flight.replan.replan import Replanner
-from gcs.flight.run.state import Flight
+from gcs.flight.run.state import RunningFlight
 from gcs.flight.safety.descent import DescentConflict, descent_conflicts
 from gcs.flight.safety.landing import SETTLE_S
 from gcs.flight.safety.margin import required_separation
@@ -46,7 +47,7 @@ __all__ = ["FaultRouter"]
 class FaultRouter(Watched, Responder):
     """The flight's answer to what its monitor finds (see the module)."""
 
-    def __init__(self, flight: Flight, now: Callable[[], float]) -> None:
+    def __init__(self, flight: RunningFlight, now: Callable[[], float]) -> None:
         """`now`: the GCS clock (s), when a fault is noted."""
         self.flight = flight
         self.monitor = FleetMonitor(flight.vehicles, flight.plan, flight.context, self)
@@ -163,7 +164,7 @@ class FaultRouter(Watched, Responder):
         return descent_conflicts(flying.plan, v.id, position, now - flying.start, clearance,
                                  ground=float(v.home[2]), hold=hold)
 
-    def replan(self, v: VehicleStatus, kind: str) -> bool:
+    def replan(self, v: VehicleStatus, kind: str) -> None:
         """Policy replan: `v` lands on its own (its Land; streamed its predicted motion
         meanwhile, in case it still listens) and the others replan around that motion; when
         they cannot, land_faulty's way (`FaultPolicy.give_way`)."""
@@ -177,10 +178,9 @@ class FaultRouter(Watched, Responder):
         self.policy.landings.append(self.policy.tasks.spawn(self.land(v)))
         if replanner is None:
             self.replan_missed([v], why)
-            return True
+            return
         with contextlib.suppress(Exception):  # on failure it fell back (`replan_missed`)
             replanner.request(None, (), "land", f"{v.id} {kind}", faulty=[v])
-        return True
 
     def replan_missed(self, faulty: list[VehicleStatus], why: str) -> None:
         """Policy replan could not fly the others around `faulty`: land_faulty's way."""

@@ -16,7 +16,7 @@ from gcs.errors import StateConflict
 from gcs.flight.link.setpoints import SetpointTrack, hold_track
 from gcs.flight.procedure.vehicle import VehicleStatus
 from gcs.flight.run.precedence import aborting_refusal
-from gcs.flight.run.state import Flight
+from gcs.flight.run.state import RunningFlight
 from gcs.flight.timeline.clock import FlightClock, Pause
 from gcs.flight.timeline.stream import Streamer
 from gcs.phases import EventKind, FlightPhase
@@ -27,7 +27,7 @@ __all__ = ["Pausing", "hold_fleet", "release_fleet"]
 class Pausing:
     """A flight's pauses: `pause`, `resume`, and the limit on how long one lasts."""
 
-    def __init__(self, flight: Flight) -> None:
+    def __init__(self, flight: RunningFlight) -> None:
         self.flight = flight
         self._limit: asyncio.Future[None] | None = None
 
@@ -97,7 +97,7 @@ class Pausing:
             self._limit = None
 
 
-def _streamer(flight: Flight) -> Streamer:
+def _streamer(flight: RunningFlight) -> Streamer:
     assert flight.streamer is not None  # a flying flight streams
     return flight.streamer
 

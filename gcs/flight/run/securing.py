@@ -18,7 +18,7 @@ from typing import Any
 
 from gcs.flight.procedure import endings
 from gcs.flight.procedure.vehicle import VehicleStatus
-from gcs.flight.run.state import Flight
+from gcs.flight.run.state import RunningFlight
 from gcs.flight.safety.descent import DescentConflict
 from gcs.flight.safety.landing import PlannedLanding
 from gcs.phases import AIRBORNE, EventKind, VehiclePhase
@@ -29,7 +29,7 @@ __all__ = ["Securing"]
 class Securing:
     """A flight's securing: one per action under way (see the module)."""
 
-    def __init__(self, flight: Flight) -> None:
+    def __init__(self, flight: RunningFlight) -> None:
         self.flight = flight
         self.landing: PlannedLanding | None = None
         """The landing plan being flown (after an abort with land, or at the end); the

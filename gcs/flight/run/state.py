@@ -23,10 +23,10 @@ from gcs.flight.timeline.stream import Streamer
 from gcs.phases import FlightPhase
 from planner import Plan
 
-__all__ = ["Flight"]
+__all__ = ["RunningFlight"]
 
 
-class Flight(Protocol):
+class RunningFlight(Protocol):
     """One flight of a plan on a fleet (`FlightExecutor`)."""
 
     plan: Plan
@@ -44,7 +44,8 @@ class Flight(Protocol):
     streamer: Streamer | None
     """The setpoint streams (None before `run` made them)."""
     tracks: list[SetpointTrack]
-    """Each vehicle's setpoints of the first plan, in fleet order."""
+    """Each vehicle's plan track in force, in fleet order: the first plan's, spliced by each
+    switched replan (a pause holds a vehicle only while it flies its one)."""
     replanner: Replanner | None
     """The flight's in-flight replans, once the plan is flown."""
     aborting: tuple[str, str] | None

@@ -84,38 +84,42 @@ _TRACKED = (VehiclePhase.FLYING, VehiclePhase.HOLDING)
 
 class Watched(Protocol):
     """The flight a `FleetMonitor` watches: where its vehicles are meant to be, and what it
-    does with what the monitor finds. Each method here is the answer of a flight that knows
-    nothing more than its first plan and does nothing with a finding; the flight's fault
-    routing (`gcs.flight.run.faults.FaultRouter`) is the one that acts."""
+    does with what the monitor finds (the flight's fault routing:
+    `gcs.flight.run.faults.FaultRouter`). Every member must be given: a flight that forgot
+    one must not fall back on a silent default."""
 
     def flight_time(self) -> float | None:
         """Seconds on the shared flight clock (None before it started: nothing is tracked)."""
-        return None
+        ...
 
     def planned(self, v: VehicleStatus, times: Sequence[float] | np.ndarray) -> np.ndarray | None:
         """`v`'s planned world positions at flight `times`, (T, 3), replans included; None:
         the monitor's plan."""
-        return None
+        ...
 
     def predicted(self, v: VehicleStatus, t: float) -> np.ndarray | None:
         """Where `v`, off the plans, is predicted at flight time `t` (None when not known):
         it stands in for its position once its reports are older than `link_timeout` (a
         faulty vehicle landing on its own)."""
-        return None
+        ...
 
     def on_fault(self, v: VehicleStatus, kind: str, detail: str) -> None:
         """`v` is faulty (`vehicle_fault`'s kinds, or ``tracking_error``)."""
+        ...
 
     def on_separation(self, closest: float, alarm: float, between: str) -> None:
         """Two vehicles are `closest` m apart (the plan's metric), below `alarm` m; `between`
         names them (`FleetMonitor.closest_text`)."""
+        ...
 
     def on_silent(self, v: VehicleStatus, silent: float) -> None:
         """`v`, meant to follow setpoints, has been unheard for `silent` s
         (> `SILENT_HOLD_S`); told once until it is heard again."""
+        ...
 
     def on_heard(self, v: VehicleStatus) -> None:
         """`v`, told silent, is heard again."""
+        ...
 
 
 def vehicle_fault(link: Link, options: FlightOptions, now: float,

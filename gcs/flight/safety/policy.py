@@ -53,9 +53,10 @@ class Responder(Protocol):
         (`gcs.flight.safety.descent`), or None when it cannot be checked."""
         ...
 
-    def replan(self, v: VehicleStatus, kind: str) -> bool:
+    def replan(self, v: VehicleStatus, kind: str) -> None:
         """Policy replan: lands `v` on its own motion and replans the others around it
-        (`gcs.flight.replan.replan`); False when it cannot: land_faulty's way then."""
+        (`gcs.flight.replan.replan`), or, when they cannot be, goes land_faulty's way
+        (`FaultPolicy.give_way`)."""
         ...
 
 
@@ -83,9 +84,8 @@ class FaultPolicy:
         policy = self.options.policy
         self.emit(v.id, EventKind.FAULT, f"{kind}: {detail} -> policy {policy}")
         if policy == "replan":
-            if self.responder.replan(v, kind):
-                return
-            policy = "land_faulty"
+            self.responder.replan(v, kind)
+            return
         if policy == "land_faulty" and self.options.landing == "planned" \
                 and self.options.policy != "replan":
             if kind in STEERABLE_FAULTS:  # it follows setpoints: everyone lands by a plan
