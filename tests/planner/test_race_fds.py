@@ -3,31 +3,19 @@ arms of one never hold the pipes of the other."""
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 from typing import Any
 
 from planner.methods.race import race
-
-
-def _pipes() -> set[int]:
-    """The pipe descriptors open in this process."""
-    out = set()
-    for name in os.listdir("/proc/self/fd"):
-        try:
-            if os.readlink(f"/proc/self/fd/{name}").startswith("pipe:"):
-                out.add(int(name))
-        except OSError:
-            continue  # the listing's own descriptor, closed meanwhile
-    return out
+from tests.support.descriptors import pipes
 
 
 def test_an_arm_holds_no_pipe_of_another_race() -> None:
     """Race A's arm is still running (its pipe open in this process) when race B forks: B's
     arm finds none of A's pipe descriptors open in its own process (its own write end is
     its only race pipe), and both races end with their results."""
-    before = _pipes()
+    before = pipes()
     started = threading.Event()
     results: dict[str, Any] = {}
 
@@ -43,10 +31,10 @@ def test_an_arm_holds_no_pipe_of_another_race() -> None:
     thread = threading.Thread(target=run_a)
     thread.start()
     assert started.wait(30.0)
-    a_pipes = _pipes() - before
+    a_pipes = pipes() - before
     assert a_pipes  # race A's read end, held while its arm runs
 
-    [b] = race([("pipes", lambda _send: _pipes())], lambda v: True)
+    [b] = race([("pipes", lambda _send: pipes())], lambda v: True)
     thread.join(30.0)
     assert b.error is None and a_pipes.isdisjoint(b.value), (a_pipes, b.value)
     assert results["a"][0].value == "a"
