@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     if (on_ground := ground_refusal(plan)) is not None:
         print(f"error: {on_ground}", file=sys.stderr)
         return 2
-    if (timings := _mock_flags(args)) is None:
+    if (timings := _mock_flags(args, len(plan.scenario.ids))) is None:
         return 2
     if args.mock:
         args.base_port, args.listen_base_port = mock_ports(
@@ -98,21 +98,25 @@ def run(args: argparse.Namespace) -> int:
     return asyncio.run(_main(args, plan, timings))
 
 
-def _mock_flags(args: argparse.Namespace) -> dict[str, float] | None:
+def _mock_flags(args: argparse.Namespace, count: int) -> dict[str, float] | None:
     """The mock vehicles' timings from the --mock-* flags, once those flags (--mock-gcs-port
-    too) are checked; None once what is wrong is printed (before anything starts)."""
+    and the port blocks of `count` vehicles too) are checked; None once what is wrong is
+    printed (before anything starts)."""
     import sys
 
-    from gcs.cli.hints import port_error
+    from gcs.cli.hints import block_error, port_error
     from gcs.sim.config import timing_error
     try:
         timings = mock_timings.chosen(args, "mock-")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return None
-    if (bad_port := port_error("--mock-gcs-port", args.mock_gcs_port)) is not None:
-        print(f"error: {bad_port}", file=sys.stderr)
-        return None
+    for bad_port in (port_error("--mock-gcs-port", args.mock_gcs_port),
+                     block_error("--base-port", args.base_port, count),
+                     block_error("--listen-base-port", args.listen_base_port, count)):
+        if bad_port is not None:
+            print(f"error: {bad_port}", file=sys.stderr)
+            return None
     if args.mock_settle is not None:
         if (reason := timing_error("settle_time", args.mock_settle)) is not None:
             print(f"error: --mock-settle {reason}", file=sys.stderr)

@@ -9,7 +9,7 @@ from gcs.documents import FlightEvent
 from gcs.flight.link.signing import REPEATED_TIMESTAMPS
 from gcs.phases import EventKind
 
-__all__ = ["live_warning", "port_error", "port_in_use_hint"]
+__all__ = ["block_error", "live_warning", "port_error", "port_in_use_hint"]
 
 
 def port_in_use_hint(exc: BaseException, options: str) -> str:
@@ -27,6 +27,16 @@ def port_error(flag: str, port: int | None) -> str | None:
     if port is None or 1 <= port <= 65535:
         return None
     return f"{flag} must be a UDP port (1..65535), got {port}"
+
+
+def block_error(flag: str, base: int | None, count: int) -> str | None:
+    """Why the `count` UDP ports from `base` (given as `flag`) are not all ports, or None (also
+    when not given): one vehicle each, base..base + count - 1."""
+    if base is None or 1 <= base <= base + count - 1 <= 65535:
+        return None
+    vehicles = f"{count} vehicle{'' if count == 1 else 's'}"
+    return (f"{flag} {base} with {vehicles} needs UDP ports {base}..{base + count - 1}: give a "
+            f"base port from 1 to {65536 - count}")
 
 
 def live_warning(event: FlightEvent, options: str) -> str | None:

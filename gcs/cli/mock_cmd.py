@@ -122,7 +122,7 @@ def _checked_flags(args: argparse.Namespace, count: int
     wrong with them (the first found): checked before any vehicle starts."""
     import math
 
-    from gcs.cli.hints import port_error
+    from gcs.cli.hints import block_error, port_error
     from gcs.sim.config import AUTOPILOTS
     for name in ("settle", "position_rate", "position_error"):
         value = getattr(args, name)
@@ -138,10 +138,17 @@ def _checked_flags(args: argparse.Namespace, count: int
         return str(exc)
     if not args.position_rate > 0.0:
         return "--position-rate must be above 0"
-    if (bad_port := port_error("--gcs-port", args.gcs_port)) is not None:
-        return bad_port
     if not 1 <= count <= 254:  # MAVLink system ids 1..254 (255 is the GCS's)
         return f"--vehicles must be between 1 and 254, got {count}"
+    for bad_port in (port_error("--gcs-port", args.gcs_port),
+                     block_error("--base-port", args.base_port, count),
+                     block_error("--listen-base-port", args.listen_base_port, count)):
+        if bad_port is not None:
+            return bad_port
+    if not (math.isfinite(args.loss) and 0.0 <= args.loss <= 1.0):
+        return f"--loss must be a fraction within [0, 1], got {args.loss}"
+    if not (math.isfinite(args.delay) and args.delay >= 0.0):
+        return f"--delay must be a finite number of seconds >= 0, got {args.delay}"
     autopilots = [a.strip() for a in args.autopilot.split(",")]
     bad = [a for a in autopilots if a not in AUTOPILOTS]
     if bad or len(autopilots) not in (1, count):

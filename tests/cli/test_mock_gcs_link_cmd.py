@@ -67,3 +67,31 @@ def test_a_bad_gcs_port_is_refused(command: str, tmp_path: Path) -> None:
                           capture_output=True, text=True, timeout=30)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith(f"error: {flag} must be a UDP port (1..65535)")
+
+
+@pytest.mark.parametrize(("args", "error"), [
+    (["mock", "--vehicles", "2", "--base-port", "70000"],
+     "error: --base-port 70000 with 2 vehicles needs UDP ports 70000..70001: give a base port "
+     "from 1 to 65534"),
+    (["mock", "--vehicles", "10", "--listen-base-port", "65530"],
+     "error: --listen-base-port 65530 with 10 vehicles needs UDP ports 65530..65539"),
+    (["mock", "--vehicles", "1", "--loss", "2"],
+     "error: --loss must be a fraction within [0, 1], got 2.0"),
+    (["mock", "--vehicles", "1", "--delay", "nan"],
+     "error: --delay must be a finite number of seconds >= 0, got nan"),
+    (["fly", "PLAN", "--mock", "--listen-base-port", "70000"],
+     "error: --listen-base-port 70000 with 1 vehicle needs UDP ports 70000..70000"),
+    (["fly", "PLAN", "--mock", "--base-port", "65536"],
+     "error: --base-port 65536 with 1 vehicle needs UDP ports 65536..65536"),
+])
+def test_a_port_block_or_a_radio_fault_out_of_range_is_refused_before_anything_starts(
+        args: list[str], error: str, tmp_path: Path) -> None:
+    """The mocks' ports must all be UDP ports (binding one past 65535 raised OverflowError, a
+    traceback), and the radio faults must be a fraction and a delay."""
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(smooth_plan(short_line(1)).to_dict()))
+    args = [str(plan_path) if a == "PLAN" else a for a in args]
+    proc = subprocess.run([sys.executable, "-m", "gcs.cli.main", *args],
+                          capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.startswith(error), proc.stderr
