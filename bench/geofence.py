@@ -53,7 +53,7 @@ async def _run(vehicles: int, pillars: int, repeat: int) -> dict:
     homes = [np.array([1.0 + 2.0 * i, 0.5, 0.0]) for i in range(vehicles)]
     base = free_udp_base(mock_port_offsets(vehicles))
     times = []
-    async with (MockFleet(homes=homes, **mock_fleet_ports(base)) as mock,
+    async with (MockFleet(homes=homes, **mock_fleet_ports(base, vehicles)) as mock,
                 LinkHub(decode_ids=DECODED_IDS) as hub):
         spec = mock.fleet_dict()["vehicles"]
         links = [await hub.add(v["id"], v["connection"], v["system_id"]) for v in spec]

@@ -57,7 +57,7 @@ from gcs.flight.link.signing import LinkSigning
 from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.safety.margin import scenario_for_fleet
 from gcs.sim import MockFleet, homes_under
-from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
+from gcs.sim.ports import free_mock_fleet_ports
 from gcs.wire import load_key, mavlink, new_key_file, parse_datagram
 from planner import plan as make_plan
 from tests.api.support import SHORT_CROSSING
@@ -119,7 +119,7 @@ async def fly_case(case: str, plan: Any, key: Path, seed: int, priority: str = "
                    ) -> dict[str, Any]:
     """One signed flight with `case`'s attacker and load; its figures."""
     homes = homes_under(plan.scenario.starts)
-    ports = mock_fleet_ports(free_udp_base(mock_port_offsets(len(homes))))
+    ports = free_mock_fleet_ports(len(homes))
     listen = [ports["listen_base_port"] + i for i in range(len(homes))]
     gcs = [ports["gcs_base_port"] + i for i in range(len(homes))]
     spec = {"homes": homes, "seed": seed, "key": str(key), **ports}

@@ -33,7 +33,7 @@ from gcs.fleet.fleetfile import FleetSpec, FlightOptions
 from gcs.flight.run.executor import FlightExecutor
 from gcs.flight.safety.margin import scenario_for_fleet
 from gcs.sim import MockFleet, homes_under
-from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
+from gcs.sim.ports import free_mock_fleet_ports
 from planner import plan as make_plan
 from tests.api.support import SHORT_CROSSING
 
@@ -45,7 +45,7 @@ PX4_SITL = {"goal_error_m": [0.04, 0.27], "tracking_error_max_m": 0.42,
 async def _fly(plan: Any, realism: str, seed: int, position_error: float | None
                ) -> dict[str, Any]:
     homes = homes_under(plan.scenario.starts)
-    ports = mock_fleet_ports(free_udp_base(mock_port_offsets(len(homes))))
+    ports = free_mock_fleet_ports(len(homes))
     async with MockFleet(homes=homes, realism=realism, seed=seed, **ports) as mock:
         fleet = mock.fleet_dict(plan.scenario.ids)
         if position_error is not None:

@@ -41,7 +41,7 @@ import planner  # noqa: E402
 from gcs.fleet.fleetfile import FleetSpec, FlightOptions  # noqa: E402
 from gcs.flight.run.executor import FlightExecutor  # noqa: E402
 from gcs.sim import MockFleet, homes_under  # noqa: E402
-from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets  # noqa: E402
+from gcs.sim.ports import free_mock_fleet_ports  # noqa: E402
 
 #: The mock lands at 1 m/s and disarms 0.5 s after touchdown (PX4 parameters it mimics).
 MOCK = {"land_speed": 1.0, "disarm_after_land": 0.5, "status_rate": 5.0}
@@ -69,7 +69,7 @@ CASES: dict[str, tuple[dict[str, Any], int]] = {
 
 async def _fly(plan: Any, policy: str, faulty: int) -> dict[str, Any]:
     homes = homes_under(plan.scenario.starts)
-    ports = mock_fleet_ports(free_udp_base(mock_port_offsets(len(homes))))
+    ports = free_mock_fleet_ports(len(homes))
     async with MockFleet(homes=homes, settle_time=0.5, **ports, **MOCK) as mock:
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         flight = FlightExecutor(plan, fleet, OPTIONS.replace(policy=policy))
@@ -119,7 +119,7 @@ OPERATOR_GOALS = {"uav3": [4.0, 3.5, 2.0], "uav8": [10.0, 0.5, 1.5],
 
 async def _operator(plan: Any) -> dict[str, Any]:
     homes = homes_under(plan.scenario.starts)
-    ports = mock_fleet_ports(free_udp_base(mock_port_offsets(len(homes))))
+    ports = free_mock_fleet_ports(len(homes))
     async with MockFleet(homes=homes, settle_time=0.5, **ports, **MOCK) as mock:
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         flight = FlightExecutor(plan, fleet, OPTIONS)

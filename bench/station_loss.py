@@ -81,7 +81,7 @@ def plan_of(name: str, steps: int | None, columns: bool) -> planner.Plan:
 async def one(plan: planner.Plan, at: float, lost: int | None, land: bool) -> dict[str, Any]:
     homes = homes_under(plan.scenario.starts)
     base = free_udp_base(mock_port_offsets(len(homes)))
-    async with MockFleet(homes=homes, settle_time=0.5, **mock_fleet_ports(base),
+    async with MockFleet(homes=homes, settle_time=0.5, **mock_fleet_ports(base, len(homes)),
                          **MOCK) as mock:
         fleet = FleetSpec.from_dict(mock.fleet_dict(plan.scenario.ids))
         flight = FlightExecutor(plan, fleet, OPTIONS)

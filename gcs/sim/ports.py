@@ -19,8 +19,8 @@ from collections.abc import Iterable
 
 from gcs.autopilot import px4
 
-__all__ = ["LISTEN_OFFSET", "block_free", "free_udp_base", "listen_offset", "mock_fleet_ports",
-           "mock_port_offsets"]
+__all__ = ["LISTEN_OFFSET", "block_free", "free_mock_fleet_ports", "free_udp_base",
+           "listen_offset", "mock_fleet_ports", "mock_port_offsets"]
 
 #: Vehicle i of a mock fleet on base B listens on B + LISTEN_OFFSET + i (PX4 SITL's offset, 40).
 LISTEN_OFFSET = px4.OFFBOARD_VEHICLE_BASE_PORT - px4.OFFBOARD_GCS_BASE_PORT
@@ -38,10 +38,15 @@ def mock_port_offsets(count: int) -> list[int]:
     return [*range(count), *range(listen, listen + count)]
 
 
-def mock_fleet_ports(base: int, count: int = 0) -> dict[str, int]:
+def mock_fleet_ports(base: int, count: int) -> dict[str, int]:
     """`MockFleet` keyword arguments for a fleet of `count` vehicles on base port `base` (the
     rule above; any count up to `LISTEN_OFFSET` gives PX4 SITL's layout)."""
     return {"gcs_base_port": base, "listen_base_port": base + listen_offset(count)}
+
+
+def free_mock_fleet_ports(count: int) -> dict[str, int]:
+    """`mock_fleet_ports` for `count` vehicles on a base whose every port is free now."""
+    return mock_fleet_ports(free_udp_base(mock_port_offsets(count)), count)
 
 
 def block_free(base: int, offsets: Iterable[int], host: str = "127.0.0.1") -> bool:

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
+from gcs.sim.ports import free_mock_fleet_ports, free_udp_base
 
 __all__ = ["ChaosProxy", "LinkCounts", "LinkFaults"]
 
@@ -158,7 +158,7 @@ class ChaosProxy:
     def on_free_ports(cls, count: int, **kwargs: Any) -> tuple[ChaosProxy, dict[str, int]]:
         """A proxy for `count` vehicles on ports free now, and the `MockFleet` port keywords
         that send the mocks' datagrams through it."""
-        mock = mock_fleet_ports(free_udp_base(mock_port_offsets(count)), count)
+        mock = free_mock_fleet_ports(count)
         station = free_udp_base(range(count))
         proxy = cls([station + i for i in range(count)], mock["gcs_base_port"], **kwargs)
         return proxy, mock

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from gcs.fleet.fleetfile import FlightOptions
-from gcs.sim.ports import free_udp_base, mock_fleet_ports, mock_port_offsets
+from gcs.sim.ports import free_mock_fleet_ports, free_udp_base
 from planner.model.flatness import body_rates, jerk_from_accelerations, thrust
 from planner.model.scenario import Scenario
 from planner.result import Plan, VehicleTrajectory
@@ -61,7 +61,7 @@ def free_port_block(count: int) -> int:
 
 def mock_ports(count: int) -> dict[str, int]:
     """gcs_base_port / listen_base_port keyword arguments for a MockFleet of `count`, free now."""
-    return mock_fleet_ports(free_udp_base(mock_port_offsets(count)))
+    return free_mock_fleet_ports(count)
 
 
 def smooth_plan(scenario_dict: dict[str, Any]) -> Plan:
