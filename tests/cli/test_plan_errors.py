@@ -78,7 +78,7 @@ def test_every_problem_of_shape_is_listed_each_vehicle_by_its_id(tmp_path, capsy
 
 def test_every_problem_of_the_settings_is_listed(tmp_path, capsys):
     """Problems of meaning in several settings are told at once, in the document's order;
-    one alone is told as before."""
+    one alone is told on its own."""
     def wrong(data):
         data["dt"] = -1
         data["min_separation"] = 0

@@ -1,7 +1,7 @@
 """A show that takes off from and lands on its ground grid is flown from the ground: each
 vehicle arms on its home, leaves the ground with its takeoff wave by its autopilot's way (PX4
 on the plan's setpoints, ArduCopter by NAV_TAKEOFF first), keeps R apart in truth and lands on
-its slot by the plan's landing wave; what still cannot be flown is refused, naming the fix."""
+its slot by the plan's landing wave; what cannot be flown is refused, naming the fix."""
 
 from __future__ import annotations
 
@@ -144,7 +144,7 @@ def _landing_twice(show: Plan) -> Plan:
     return dataclasses.replace(show, vehicles=[again, *show.vehicles[1:]])
 
 
-def test_what_it_still_refuses_names_the_vehicle_and_the_fix(small_show: Plan) -> None:
+def test_what_it_refuses_names_the_vehicle_and_the_fix(small_show: Plan) -> None:
     spans = ground_spans(small_show)
     assert isinstance(spans, dict) and set(spans) == set(small_show.scenario.ids)
     assert all(s.liftoff == 0.0 and s.touchdown is not None and s.touchdown <= small_show
@@ -156,6 +156,33 @@ def test_what_it_still_refuses_names_the_vehicle_and_the_fix(small_show: Plan) -
     with pytest.raises(PlanRejected, match="starts on the ground in it, but the vehicles "
                                            "taken over are in the air"):
         FlightExecutor(small_show, fleet, take_over=True)
+
+
+def _parked(show: Plan) -> Plan:
+    """`show` with its first vehicle standing on its home for the whole plan."""
+    first = show.vehicles[0]
+    still = dataclasses.replace(
+        first, position=np.repeat(first.position[:1], len(first.position), axis=0),
+        velocity=np.zeros_like(first.velocity), acceleration=np.zeros_like(first.acceleration))
+    return dataclasses.replace(show, vehicles=[still, *show.vehicles[1:]])
+
+
+def test_a_vehicle_that_never_leaves_the_ground_is_refused_by_name(small_show: Plan) -> None:
+    why = ground_refusal(_parked(small_show))
+    assert why == ("refusing to fly the plan: vehicle uav1 stands on the ground for the whole "
+                   "plan: leave it out of the plan (and the fleet)")
+
+
+def test_fly_refuses_it_with_the_reason_and_exit_2(small_show: Plan, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The command says why before any vehicle is touched: no mock is started, and the
+    user reads one error line, not a traceback."""
+    path = tmp_path / "parked.plan.json"
+    path.write_text(json.dumps(_parked(small_show).to_dict()))
+    assert main(["fly", str(path), "--mock"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("error: refusing to fly the plan: vehicle uav1 stands on the ground for the "
+                   "whole plan: leave it out of the plan (and the fleet)\n"), err
 
 
 def test_a_plan_in_the_air_has_no_ground_part() -> None:

@@ -30,7 +30,6 @@ from planner.types import FloatArray
 
 __all__ = [
     "DEFAULT_RATE_HZ",
-    "MAX_RATE_HZ",
     "Setpoint",
     "SetpointTrack",
     "hold_track",

@@ -12,7 +12,7 @@ touchdown time its autopilot's land ends its flight on its slot (it disarms on t
 Takeoff and touchdown times are read off the trajectories (`planner.verification.ground`),
 not taken from a claim in the plan file.
 
-Still refused, before anything is armed: a vehicle that lands and takes off again within the
+Refused before anything is armed: a vehicle that lands and takes off again within the
 plan (it is armed once per flight), one that never leaves the ground, and a plan starting on
 the ground for vehicles taken over in the air.
 """
@@ -131,8 +131,9 @@ class GroundShow:
         """`PlanRejected` with `ground_refusal`'s reason when it cannot be flown."""
         spans = ground_spans(plan)
         why = _refusal(spans, take_over)
-        if why is not None or isinstance(spans, str):
-            raise PlanRejected(why or "")
+        if why is not None:
+            raise PlanRejected(why)
+        assert not isinstance(spans, str)  # (a reason is a refusal)
         return cls(spans)
 
     def on_ground(self, v: VehicleStatus) -> bool:

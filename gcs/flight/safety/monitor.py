@@ -237,11 +237,13 @@ class FleetMonitor:
             self.check(woke, positions=not wait)
             waited = wait
 
-    def positions(self, now: float) -> dict[str, np.ndarray]:
-        """Every vehicle's world position at `now`, extrapolated from its last report."""
+    def positions(self, now: float, t_flight: float | None = None) -> dict[str, np.ndarray]:
+        """Every vehicle's world position at `now`, extrapolated from its last report (or,
+        unheard, predicted at flight time `t_flight`, the watched flight's by default)."""
         out = {}
         self.predicted_ids = set()
-        t_flight = self.watched.flight_time()
+        if t_flight is None:
+            t_flight = self.watched.flight_time()
         for v in self.vehicles:
             if v.link is None or v.home is None:
                 continue
@@ -264,7 +266,7 @@ class FleetMonitor:
         `positions` false only the link, heartbeat and mode checks run."""
         opts = self.options
         t_flight = self.watched.flight_time()
-        where = self.positions(now) if positions else {}
+        where = self.positions(now, t_flight) if positions else {}
         trail = self.stalls.ended_since(now - CATCH_UP_S)
         for v in self.vehicles:
             if v.link is None or not v.expect_offboard or v.fault is not None:
@@ -278,8 +280,8 @@ class FleetMonitor:
                 v.tracking_error = self._tracking_error(v, where[v.id], t_flight, trail)
                 if not v.tracking_error <= opts.tracking_error_max:  # NaN never passes
                     self.watched.on_fault(v, "tracking_error",
-                                  f"{v.tracking_error:.2f} m from the plan "
-                                  f"(bound {opts.tracking_error_max:g} m)")
+                                          f"{v.tracking_error:.2f} m from the plan "
+                                          f"(bound {opts.tracking_error_max:g} m)")
         if positions:
             self.check_separation(where)
         self.report_drops(now)

@@ -86,8 +86,7 @@ class FaultPolicy:
         if policy == "replan":
             self.responder.replan(v, kind)
             return
-        if policy == "land_faulty" and self.options.landing == "planned" \
-                and self.options.policy != "replan":
+        if policy == "land_faulty" and self.options.landing == "planned":
             if kind in STEERABLE_FAULTS:  # it follows setpoints: everyone lands by a plan
                 self.tasks.spawn(self.responder.abort(
                     "land", f"{v.id} {kind} ({detail}): land_faulty lands the fleet by a "
